@@ -1,0 +1,52 @@
+"""Every dolfinx API difference between 0.5 (Debian bookworm) and 0.9/0.10 lives here.
+
+The rest of the package calls these helpers and never branches on the dolfinx version itself.
+DEVELOPERS.md lists each difference and which helper absorbs it.
+"""
+
+from __future__ import annotations
+
+import dolfinx
+import dolfinx.fem.petsc  # noqa: F401  (0.9 no longer imports the PETSc layer with dolfinx.fem)
+import numpy as np
+from dolfinx import fem, plot
+
+DOLFINX_VERSION = tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
+
+
+def function_space(msh, family: str = "Lagrange", degree: int = 1):
+    """`fem.functionspace` (0.7+) replaces `fem.FunctionSpace` (0.5)."""
+    if hasattr(fem, "functionspace"):
+        return fem.functionspace(msh, (family, degree))
+    return fem.FunctionSpace(msh, (family, degree))
+
+
+def petsc_vec(u: fem.Function):
+    """`u.x.petsc_vec` (0.9) replaces `u.vector` (0.5)."""
+    x = u.x
+    return x.petsc_vec if hasattr(x, "petsc_vec") else u.vector
+
+
+def interpolation_points(V) -> np.ndarray:
+    """A property in 0.5, a method from 0.7 on."""
+    pts = V.element.interpolation_points
+    return pts() if callable(pts) else pts
+
+
+def vtk_mesh(V):
+    """`plot.vtk_mesh` (0.7+) replaces `plot.create_vtk_mesh` (0.5)."""
+    if hasattr(plot, "vtk_mesh"):
+        return plot.vtk_mesh(V)
+    return plot.create_vtk_mesh(V)
+
+
+def create_vector(form):
+    """In 0.10 `create_vector` takes function spaces; before, it took the compiled form."""
+    if DOLFINX_VERSION >= (0, 10):
+        return dolfinx.fem.petsc.create_vector(form.function_spaces[0])
+    return dolfinx.fem.petsc.create_vector(form)
+
+
+def xdmf_write_function(xdmf, u: fem.Function, t: float, mesh_xpath: str = "/Xdmf/Domain/Grid[@GridType='Uniform'][1]"):
+    """Same call on all versions; kept here because its signature moved twice upstream."""
+    xdmf.write_function(u, t, mesh_xpath)

@@ -1,0 +1,145 @@
+r"""Exact solutions used as test oracles.
+
+Both functions return ``(eta, velocity)``. For an array ``t`` the shape is ``(len(t), len(x))``
+(``t`` along the rows); for a scalar ``t`` it is ``(len(x),)``.
+"""
+
+import numpy as np
+
+
+def _on_grid(t, x):
+    """Broadcast ``t`` against ``x`` as (rows = times, columns = points); remember whether t was scalar."""
+    x = np.asarray(x, dtype=float)
+    scalar = np.ndim(t) == 0
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    return t[:, None], x[None, :], scalar
+
+
+def _finish(eta, velocity, scalar):
+    return (eta[0], velocity[0]) if scalar else (eta, velocity)
+
+
+def damped_oscillator(t, *, a0, a1, damping, stiffness):
+    r"""Solution of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1`.
+
+    Here ``damping`` is :math:`2\beta \ge 0` and ``stiffness`` is :math:`\kappa^2 > 0`. With
+    :math:`C = e^{-\beta t}\cos\omega t`, :math:`S = e^{-\beta t}\sin(\omega t)/\omega`,
+    :math:`\omega^2 = \kappa^2 - \beta^2` (cos/sin become cosh/sinh when :math:`\omega^2 < 0`, and
+    :math:`C = e^{-\beta t}`, :math:`S = t e^{-\beta t}` when :math:`\omega = 0`),
+
+    .. math:: a = a_0 C + (a_1 + \beta a_0) S, \qquad a' = a_1 C - (\kappa^2 a_0 + \beta a_1) S,
+
+    one formula for the under-, critically- and over-damped cases.
+
+    Returns ``(a, a')`` with the shape of ``t``.
+    """
+    t = np.asarray(t, dtype=float)
+    beta = 0.5 * damping
+    omega2 = stiffness - beta**2
+    if omega2 > 0.0:
+        omega = np.sqrt(omega2)
+        decay = np.exp(-beta * t)
+        C = decay * np.cos(omega * t)
+        # sin(omega t)/omega via sinc stays accurate as omega -> 0 (nearly critical damping).
+        S = decay * t * np.sinc(omega * t / np.pi)
+    elif omega2 == 0.0:
+        C = np.exp(-beta * t)
+        S = t * C
+    else:
+        gamma = np.sqrt(-omega2)
+        # e^{-beta t} cosh, sinh written with the slow rate gamma - beta = -kappa^2/(beta + gamma) < 0
+        # and e^{-2 gamma t} <= 1, so nothing overflows and nothing cancels for small gamma.
+        slow = np.exp(-stiffness / (beta + gamma) * t)
+        fast = np.exp(-2.0 * gamma * t)
+        C = 0.5 * slow * (1.0 + fast)
+        S = slow * t * _one_minus_exp_over(2.0 * gamma * t)
+    a = a0 * C + (a1 + beta * a0) * S
+    da = a1 * C - (stiffness * a0 + beta * a1) * S
+    return a, da
+
+
+def _one_minus_exp_over(z):
+    r""":math:`(1 - e^{-z})/z`, equal to 1 at :math:`z = 0`."""
+    z = np.asarray(z, dtype=float)
+    safe = np.where(z == 0.0, 1.0, z)
+    return np.where(z == 0.0, 1.0, -np.expm1(-safe) / safe)
+
+
+def sine_mode(t, x, *, k, a0, a1, alpha, length, h):
+    r"""No-contact mode :math:`\eta = h + a(t)\sin(k\pi x/l)` of :math:`\eta_{tt} - \alpha\eta_{txx} - \eta_{xx} = 0`.
+
+    With :math:`\kappa = k\pi/l`, :math:`a'' + \alpha\kappa^2 a' + \kappa^2 a = 0`,
+    :math:`a(0) = a_0`, :math:`a'(0) = a_1`; the velocity is :math:`a'(t)\sin(\kappa x)`.
+    """
+    if alpha < 0:
+        raise ValueError(f"alpha must be >= 0, got {alpha}")
+    kappa = k * np.pi / length
+    tt, xx, scalar = _on_grid(t, x)
+    a, da = damped_oscillator(tt, a0=a0, a1=a1, damping=alpha * kappa**2, stiffness=kappa**2)
+    shape = np.sin(kappa * xx)
+    return _finish(h + a * shape, da * shape, scalar)
+
+
+def flat_landing_time(h, V):
+    r"""Landing time :math:`t^* = h/V` of the flat middle part of the string."""
+    return h / V
+
+
+def flat_landing_energy_loss(h, V, length):
+    r"""Kinetic energy destroyed at landing, :math:`\tfrac12 V^2 (l - 2t^*)`."""
+    return 0.5 * V**2 * (length - 2.0 * flat_landing_time(h, V))
+
+
+def _landed_profile(s, *, h, V, length):
+    r"""Odd, :math:`2l`-periodic extension :math:`W` of :math:`w = \max(h - V\min(x, l-x), 0) - h` and :math:`W'`.
+
+    :math:`W'` at the two kinks of :math:`w` is the mean of the one-sided slopes.
+    """
+    t_star = flat_landing_time(h, V)
+    r = np.mod(s, 2.0 * length)
+    upper = r > length
+    # W(s) = -w(2l - s) on (l, 2l); W' is even, hence W'(s) = w'(2l - s) there.
+    m = np.where(upper, 2.0 * length - r, r)
+    w = np.maximum(h - V * np.minimum(m, length - m), 0.0) - h
+    dw = -V * np.heaviside(t_star - m, 0.5) + V * np.heaviside(m - (length - t_star), 0.5)
+    return np.where(upper, -w, w), dw
+
+
+def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0):
+    r"""Exact inelastic solution for :math:`\alpha = 0`, ends at :math:`h`, :math:`\eta_0 = h`, :math:`v_0 = -V`.
+
+    For :math:`t \le t^* = h/V` (d'Alembert with the odd extension of :math:`v_0`):
+    :math:`\eta = h - V\min(x, l - x, t)`, velocity :math:`-V` where :math:`t < x < l - t`, else 0.
+    At :math:`t^*` the flat middle :math:`[t^*, l - t^*]` lands on :math:`y = 0` and stops. After it, with
+    :math:`\tau = t - t^*` and :math:`W` the odd :math:`2l`-periodic extension of
+    :math:`w = \max(h - V\min(x, l - x), 0) - h`,
+
+    .. math:: \eta = h + \tfrac12[W(x - \tau) + W(x + \tau)], \qquad
+              \eta_t = \tfrac12[-W'(x - \tau) + W'(x + \tau)].
+
+    Since :math:`|W| \le h` the string never penetrates again. Requires :math:`h < Vl/2`.
+    At :math:`t = t^*` the velocity is the pre-landing (left) limit.
+    """
+    if not (h > 0 and V > 0 and length > 0):
+        raise ValueError(f"need h > 0, V > 0, length > 0, got h={h}, V={V}, length={length}")
+    if not h < V * length / 2:
+        raise ValueError(f"the flat middle must exist at landing: need h < V*length/2, got h={h}, "
+                         f"V*length/2={V * length / 2}")
+    t_star = flat_landing_time(h, V)
+    tt, xx, scalar = _on_grid(t, x)
+    tt, xx = np.broadcast_arrays(tt, xx)
+
+    before = tt <= t_star
+    distance_to_end = np.minimum(xx, length - xx)
+    eta_before = h - V * np.minimum(distance_to_end, tt)
+    vel_before = np.where(distance_to_end > tt, -V, 0.0)
+
+    tau = np.maximum(tt - t_star, 0.0)
+    W_minus, dW_minus = _landed_profile(xx - tau, h=h, V=V, length=length)
+    W_plus, dW_plus = _landed_profile(xx + tau, h=h, V=V, length=length)
+    eta_after = h + 0.5 * (W_minus + W_plus)
+    vel_after = 0.5 * (-dW_minus + dW_plus)
+
+    eta = np.where(before, eta_before, eta_after)
+    velocity = np.where(before, vel_before, vel_after)
+    return _finish(eta, velocity, scalar)

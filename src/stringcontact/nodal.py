@@ -1,0 +1,116 @@
+"""Evaluate a pointwise UFL expression at the P1 nodes, vectorised with NumPy.
+
+This is P1 interpolation of the expression (what `Function.interpolate(fem.Expression(...))`
+computes), but without a compiled kernel call per cell: in 1D that call costs ~0.6 ms per step
+at N=5000, more than the whole time step. The UFL expression stays the single definition of the
+contact law; this module only walks its graph.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import ufl
+from ufl.corealg.map_dag import map_expr_dag
+from ufl.corealg.multifunction import MultiFunction
+
+
+_UNARY = {
+    "abs": np.abs,
+    "sqrt": np.sqrt,
+    "exp": np.exp,
+    "ln": np.log,
+    "sin": np.sin,
+    "cos": np.cos,
+    "tanh": np.tanh,
+    "not_condition": np.logical_not,
+}
+_BINARY = {
+    "sum": np.add,
+    "product": np.multiply,
+    "division": np.divide,
+    "power": np.power,
+    "max_value": np.maximum,
+    "min_value": np.minimum,
+    "lt": np.less,
+    "le": np.less_equal,
+    "gt": np.greater,
+    "ge": np.greater_equal,
+    "eq": np.equal,
+    "ne": np.not_equal,
+    "and_condition": np.logical_and,
+    "or_condition": np.logical_or,
+}
+
+
+class _Compiler(MultiFunction):
+    """Turns each UFL node into a closure `env -> array`, once; evaluation then only calls NumPy."""
+
+    def coefficient(self, o):
+        def value(env):
+            try:
+                return env[o]
+            except KeyError:
+                raise ValueError(f"nodal evaluation: no nodal values given for coefficient {o}") from None
+
+        return value
+
+    def constant(self, o):
+        return lambda env: float(np.asarray(o.value))
+
+    def constant_value(self, o):
+        c = float(o)
+        return lambda env: c
+
+    def zero(self, o):
+        return lambda env: 0.0
+
+    def spatial_coordinate(self, o):
+        return lambda env: env["x"]
+
+    def indexed(self, o, operand, index):
+        if not isinstance(o.ufl_operands[0], ufl.classes.SpatialCoordinate):
+            raise ValueError(f"nodal evaluation: only x[0] may be indexed, not {o}")
+        return operand
+
+    def multi_index(self, o):
+        return None
+
+    def conditional(self, o, c, a, b):
+        return lambda env: np.where(c(env), a(env), b(env))
+
+    def operator(self, o, *ops):
+        name = o._ufl_handler_name_
+        if name in _UNARY:
+            f, (a,) = _UNARY[name], ops
+            return lambda env: f(a(env))
+        if name in _BINARY:
+            f, (a, b) = _BINARY[name], ops
+            return lambda env: f(a(env), b(env))
+        raise ValueError(
+            f"nodal evaluation: UFL operator {type(o).__name__} is not supported in a pointwise "
+            "law; use arithmetic, conditional, max_value/min_value, abs, sqrt, exp, ln, sin, cos, tanh"
+        )
+
+    def terminal(self, o):
+        raise ValueError(f"nodal evaluation: UFL terminal {type(o).__name__} is not supported in a pointwise law")
+
+
+class NodalExpression:
+    """A UFL expression compiled once into NumPy calls; call it with the nodal arrays."""
+
+    def __init__(self, expr):
+        self.expr = expr
+        self._f = map_expr_dag(_Compiler(), expr, compress=False)
+
+    def __call__(self, coefficients: dict, x: np.ndarray) -> np.ndarray:
+        env = dict(coefficients)
+        env["x"] = x
+        with np.errstate(all="ignore"):
+            value = self._f(env)
+        value = np.asarray(value)
+        return value if value.shape == x.shape else np.broadcast_to(value, x.shape)
+
+
+def evaluate(expr, coefficients: dict, x: np.ndarray) -> np.ndarray:
+    """Nodal values of `expr`; `coefficients` maps each P1 `Function` in it to its dof array."""
+    return NodalExpression(expr)(coefficients, x)

@@ -1,0 +1,602 @@
+"""Scenes: the data of one simulation (geometry, time span, material, initial data), as TOML files.
+
+A scene file looks like::
+
+    description = "A string dropped on the obstacle"
+    T = 0.3           # final time
+    alpha = 0.01      # viscoelasticity
+    eps = 0.0005      # penalisation
+    nx = 5000         # cells
+    dt = 0.0002       # or nt = 1500; dt must divide T
+    eta0 = "1 + 0.5*sin(10*pi*x)**2"
+    v0 = -50
+
+Usage::
+
+    scene = load_scene("example1")            # built-in, or a path to a .toml file
+    coarse = scene.replace(nx=100, nt=30)     # a new, validated scene
+    x = coarse.x()
+    eta = coarse.initial_displacement(x)
+
+Every invalid value raises :class:`SceneError` with a one-line message naming the key
+and what is allowed; doubtful but legal data (a string starting below the obstacle,
+boundary heights that do not match ``eta0``) gives a :class:`SceneWarning`.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import json
+import math
+import numbers
+import os
+import re
+import tomllib
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import expressions
+from .errors import SceneError
+
+__all__ = [
+    "Scene",
+    "SceneWarning",
+    "load_scene",
+    "list_scenes",
+    "scene_to_toml",
+    "FILE_KEYS",
+    "REQUIRED_KEYS",
+    "MAX_FILE_BYTES",
+]
+
+#: Keys a scene file (or Scene.replace) accepts, in the order they are written.
+FILE_KEYS = (
+    "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
+    "eta0", "v0", "h", "h_left", "h_right", "output_times", "model",
+)
+#: Required keys; besides these, exactly one of nt or dt.
+REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
+MAX_FILE_BYTES = 1_000_000
+DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
+
+# Bounds: (low, high, low_open, high_open). Wide enough for any sensible run, tight enough
+# to catch typos (a missing minus, a forgotten decimal point) before a solver sees them.
+_BOUNDS = {
+    "length": (0.0, 1e4, True, False),
+    "T": (0.0, 1e4, True, False),
+    "alpha": (0.0, 1e4, False, False),
+    "eps": (0.0, 1e6, True, False),
+    "h": (-1e6, 1e6, False, False),
+    "h_left": (-1e6, 1e6, False, False),
+    "h_right": (-1e6, 1e6, False, False),
+}
+_INT_BOUNDS = {"nx": (2, 1_000_000), "nt": (1, 100_000_000)}
+_MODEL_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$", re.ASCII)
+_NAME_MAX = 100
+_BUILTIN_PACKAGE = "stringcontact"
+_BUILTIN_FOLDER = "scenes"
+
+
+class SceneWarning(UserWarning):
+    """Legal but doubtful scene data (reproduced as given, with a warning)."""
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One validated scene. Build it with :func:`load_scene`, :meth:`from_dict` or :meth:`replace`.
+
+    ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.expressions`);
+    ``h_left``/``h_right`` are the (resolved) heights at which the ends are held.
+    Direct construction validates too, but resolves no defaults and gives no warnings.
+    """
+
+    name: str
+    length: float
+    T: float
+    alpha: float
+    eps: float
+    nx: int  # cells
+    nt: int  # time steps
+    eta0: str  # initial displacement, expression in x
+    v0: str  # initial velocity, expression in x
+    h_left: float  # height of the left end
+    h_right: float  # height of the right end
+    h: float | None = None  # the single h if the file gave one (also an expression variable)
+    output_times: tuple[float, ...] = ()
+    description: str = ""
+    notes: str = ""  # interpretations of the source data
+    model: str | None = None  # "package.module:function"
+
+    def __post_init__(self):
+        # Normalise in place (frozen, hence object.__setattr__): ints to floats, lists to tuples.
+        def put(key, value):
+            object.__setattr__(self, key, value)
+
+        put("name", _check_name(self.name))
+        for key in ("length", "T", "alpha", "eps", "h_left", "h_right"):
+            put(key, _number(key, getattr(self, key)))
+        put("nx", _integer("nx", self.nx))
+        put("nt", _integer("nt", self.nt))
+        if self.h is not None:
+            put("h", _number("h", self.h))
+            if self.h_left != self.h or self.h_right != self.h:
+                raise SceneError(
+                    f"h: h = {_fmt(self.h)} but h_left = {_fmt(self.h_left)}, h_right = {_fmt(self.h_right)}; "
+                    "give either h or h_left/h_right"
+                )
+        for key in ("description", "notes"):
+            put(key, _text(key, getattr(self, key)))
+        if self.model is not None:
+            put("model", _check_model(self.model))
+        put("output_times", _check_output_times(self.output_times, self.T))
+        for key in ("eta0", "v0"):
+            put(key, _expression_text(key, getattr(self, key)))
+            expressions.check(getattr(self, key), field=key, names=self._names())
+
+    # --- derived quantities -----------------------------------------------------------
+
+    @property
+    def dt(self) -> float:
+        """Time step T/nt."""
+        return self.T / self.nt
+
+    @property
+    def dx(self) -> float:
+        """Mesh size length/nx."""
+        return self.length / self.nx
+
+    @property
+    def r(self) -> float:
+        """dt/eps, the penalty's weight per step (explicit penalty: large r means trouble)."""
+        return self.dt / self.eps
+
+    def x(self) -> np.ndarray:
+        """Node coordinates, shape (nx+1,)."""
+        return np.linspace(0.0, self.length, self.nx + 1)
+
+    def initial_displacement(self, x) -> np.ndarray:
+        """eta0 at the points x (as given: the end values are not replaced by h_left/h_right)."""
+        return expressions.evaluate(self.eta0, np.asarray(x, dtype=float), field="eta0", names=self._names())
+
+    def initial_velocity(self, x) -> np.ndarray:
+        """v0 at the points x (as given: the solver holds the ends, so their velocity is ignored)."""
+        return expressions.evaluate(self.v0, np.asarray(x, dtype=float), field="v0", names=self._names())
+
+    def _names(self) -> dict[str, float]:
+        names = {"l": self.length}
+        if self.h is not None:
+            names["h"] = self.h
+        return names
+
+    # --- conversions ----------------------------------------------------------------------
+
+    def as_dict(self) -> dict:
+        """The scene as file keys (TOML-like; ``Scene.from_dict(s.as_dict()) == s``).
+
+        Gives nt (not dt), and h if the scene has a single h, else h_left/h_right.
+        """
+        d = {
+            "name": self.name,
+            "description": self.description,
+            "notes": self.notes,
+            "length": self.length,
+            "T": self.T,
+            "alpha": self.alpha,
+            "eps": self.eps,
+            "nx": self.nx,
+            "nt": self.nt,
+            "eta0": self.eta0,
+            "v0": self.v0,
+        }
+        if self.h is not None:
+            d["h"] = self.h
+        else:
+            d["h_left"] = self.h_left
+            d["h_right"] = self.h_right
+        d["output_times"] = list(self.output_times)
+        if self.model is not None:
+            d["model"] = self.model
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict, *, source: str | None = None, default_name: str | None = None) -> "Scene":
+        """Build a scene from file keys: checks keys, resolves defaults, validates, warns.
+
+        ``source`` (a file or scene name) prefixes error and warning messages.
+        """
+        label = source if source is not None else str(data.get("name", default_name or "scene"))
+        try:
+            scene = _build(dict(data), default_name=default_name)
+            _warn_doubtful(scene, label)
+        except SceneError as exc:
+            raise SceneError(f"scene {label!r}: {exc}") from None
+        return scene
+
+    def replace(self, **changes) -> "Scene":
+        """A new validated scene with some file keys changed (the same keys as a scene file).
+
+        Rules, so that a change means what it says:
+
+        * ``dt`` replaces ``nt``; changing ``T`` alone keeps ``nt`` (so dt changes);
+          changing ``length`` keeps ``nx`` (so dx changes);
+        * ``h`` replaces ``h_left``/``h_right`` and vice versa;
+        * when ``eta0`` or ``length`` changes and no boundary height is given, an end
+          height that equalled eta0's old end value follows the new eta0;
+        * a value of ``None`` removes the key (e.g. ``h=None``, ``model=None``).
+        """
+        _check_keys(changes)
+        data = self.as_dict()
+        if "dt" in changes:
+            data.pop("nt", None)
+        if "h" in changes:
+            data.pop("h_left", None)
+            data.pop("h_right", None)
+        elif "h_left" in changes or "h_right" in changes:
+            data.pop("h", None)
+            data.setdefault("h_left", self.h_left)
+            data.setdefault("h_right", self.h_right)
+        elif ("eta0" in changes or "length" in changes) and self.h is None:
+            ends = self.initial_displacement(np.array([0.0, self.length]))
+            for key, end in (("h_left", ends[0]), ("h_right", ends[1])):
+                if _close(getattr(self, key), end):
+                    data.pop(key)  # it followed eta0 before, so it follows the new one
+        for key, value in changes.items():
+            if value is None:
+                data.pop(key, None)
+            else:
+                data[key] = value
+        return Scene.from_dict(data, source=self.name)
+
+
+# --- building and validating ------------------------------------------------------------------
+
+
+def _build(data: dict, *, default_name: str | None) -> Scene:
+    _check_keys(data)
+    missing = [k for k in REQUIRED_KEYS if k not in data]
+    if missing or ("nt" not in data and "dt" not in data):
+        parts = ", ".join(missing)
+        if "nt" not in data and "dt" not in data:
+            parts = f"{parts} and one of nt or dt" if parts else "one of nt or dt"
+        raise SceneError(f"missing required key(s): {parts}")
+    if "nt" in data and "dt" in data:
+        raise SceneError("nt, dt: give exactly one of nt or dt, not both")
+    if "h" in data and ("h_left" in data or "h_right" in data):
+        raise SceneError("h: give either h (both ends) or h_left/h_right, not both")
+
+    name = data.get("name", default_name or "scene")
+    length = _number("length", data.get("length", 1.0))
+    T = _number("T", data["T"])
+    nt = _nt_from_dt(data["dt"], T) if "dt" in data else _integer("nt", data["nt"])
+    h = _number("h", data["h"]) if "h" in data else None
+    eta0 = _expression_text("eta0", data["eta0"])
+
+    names = {"l": length} if h is None else {"l": length, "h": h}
+    if h is not None:
+        h_left = h_right = h
+    else:
+        # The ends default to eta0's end values: a string held where it starts.
+        expressions.check(eta0, field="eta0", names=names)
+        need = [k for k in ("h_left", "h_right") if k not in data]
+        ends = expressions.evaluate(eta0, np.array([0.0, length]), field="eta0", names=names) if need else (None, None)
+        h_left = data["h_left"] if "h_left" in data else float(ends[0])
+        h_right = data["h_right"] if "h_right" in data else float(ends[1])
+
+    output_times = data.get("output_times", ())
+    if isinstance(output_times, (list, tuple)):
+        output_times = tuple(output_times)
+    return Scene(
+        name=name,
+        length=length,
+        T=T,
+        alpha=data["alpha"],
+        eps=data["eps"],
+        nx=data["nx"],
+        nt=nt,
+        eta0=eta0,
+        v0=data["v0"],
+        h_left=h_left,
+        h_right=h_right,
+        h=h,
+        output_times=output_times,
+        description=data.get("description", ""),
+        notes=data.get("notes", ""),
+        model=data.get("model"),
+    )
+
+
+def _warn_doubtful(scene: Scene, label: str) -> None:
+    """Warn (not refuse) about data that is legal but probably not what was meant."""
+    x = scene.x()
+    eta = scene.initial_displacement(x)  # also checks finiteness on the real grid, not just the probe
+    scene.initial_velocity(x)
+    below = eta < 0.0
+    if below.any():
+        i = int(np.argmin(eta))
+        warnings.warn(
+            f"scene {label!r}: eta0 is below the obstacle (eta0 < 0) at {int(below.sum())} of {x.size} nodes "
+            f"(min {eta[i]:.6g} at x={x[i]:.6g}); used as given",
+            SceneWarning,
+            stacklevel=4,
+        )
+    ends = (("h_left", scene.h_left, eta[0], 0.0), ("h_right", scene.h_right, eta[-1], scene.length))
+    for key, value, end, at in ends:
+        if not _close(value, end):
+            warnings.warn(
+                f"scene {label!r}: {key} = {_fmt(value)} differs from eta0 at x={_fmt(at)} ({end:.6g}); "
+                f"the end is held at {key}",
+                SceneWarning,
+                stacklevel=4,
+            )
+
+
+def _close(a: float, b: float) -> bool:
+    return abs(a - b) <= 1e-9 * max(1.0, abs(a), abs(b))
+
+
+def _check_keys(data: dict) -> None:
+    unknown = [k for k in data if k not in FILE_KEYS]
+    if unknown:
+        listed = ", ".join(repr(str(k)) for k in unknown)
+        raise SceneError(f"unknown key(s) {listed}; allowed keys are {', '.join(FILE_KEYS)}")
+
+
+def _range_text(key: str) -> str:
+    if key in _INT_BOUNDS:
+        lo, hi = _INT_BOUNDS[key]
+        return f"an integer in [{lo}, {hi}]"
+    lo, hi, lo_open, hi_open = _BOUNDS[key]
+    return f"a number in {'(' if lo_open else '['}{_fmt(lo)}, {_fmt(hi)}{')' if hi_open else ']'}"
+
+
+def _is_number(value) -> bool:
+    # bool is an int in Python, but `nx = true` is surely a mistake.
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _number(key: str, value) -> float:
+    if not _is_number(value):
+        raise SceneError(f"{key}: expected a number, got {_describe(value)}; allowed: {_range_text(key)}")
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
+    if not math.isfinite(v):
+        raise SceneError(f"{key}: {value!r} is not finite; allowed: {_range_text(key)}")
+    lo, hi, lo_open, hi_open = _BOUNDS[key]
+    if v < lo or v > hi or (lo_open and v == lo) or (hi_open and v == hi):
+        raise SceneError(f"{key}: {_fmt(v)} is out of range; allowed: {_range_text(key)}")
+    return v
+
+
+def _integer(key: str, value) -> int:
+    if not _is_number(value):
+        raise SceneError(f"{key}: expected an integer, got {_describe(value)}; allowed: {_range_text(key)}")
+    if isinstance(value, numbers.Integral):
+        n = int(value)
+    else:
+        v = float(value)
+        if not math.isfinite(v) or not v.is_integer():
+            raise SceneError(f"{key}: expected an integer, got {value!r}; allowed: {_range_text(key)}")
+        n = int(v)
+    lo, hi = _INT_BOUNDS[key]
+    if not lo <= n <= hi:
+        raise SceneError(f"{key}: {n} is out of range; allowed: {_range_text(key)}")
+    return n
+
+
+def _nt_from_dt(value, T: float) -> int:
+    try:
+        dt = float(value) if _is_number(value) else math.nan
+    except OverflowError:
+        dt = math.inf
+    if not math.isfinite(dt) or dt <= 0:
+        raise SceneError(f"dt: expected a positive number that divides T, got {_describe(value)}")
+    steps = T / dt
+    lo, hi = _INT_BOUNDS["nt"]
+    if not math.isfinite(steps) or not lo - 0.5 <= steps <= hi + 0.5:
+        raise SceneError(f"dt: T/dt = {steps:.6g} steps; allowed: dt dividing T into {lo} to {hi} steps")
+    n = round(steps)
+    if n < lo or n > hi or abs(n * dt - T) > DT_RELATIVE_TOLERANCE * T:
+        raise SceneError(
+            f"dt: {_fmt(dt)} does not divide T = {_fmt(T)} (T/dt = {steps:.12g}); "
+            f"allowed: T/dt an integer in [{lo}, {hi}] (up to {DT_RELATIVE_TOLERANCE:g} relative), or give nt"
+        )
+    return n
+
+
+def _expression_text(key: str, value) -> str:
+    # Numbers are accepted as constants: `v0 = -50` reads naturally in TOML.
+    if isinstance(value, str):
+        return value
+    if _is_number(value):
+        if isinstance(value, numbers.Integral):
+            return str(int(value))
+        v = float(value)
+        if not math.isfinite(v):
+            raise SceneError(f"{key}: {value!r} is not finite; allowed: an expression in x or a finite number")
+        return repr(v)
+    raise SceneError(f"{key}: expected an expression string or a number, got {_describe(value)}")
+
+
+def _text(key: str, value) -> str:
+    if not isinstance(value, str):
+        raise SceneError(f"{key}: expected a string, got {_describe(value)}")
+    return value
+
+
+def _check_name(value) -> str:
+    # Names end up in output folders and file names: keep them to one safe line.
+    if (
+        not isinstance(value, str)
+        or not 1 <= len(value) <= _NAME_MAX
+        or not value.isprintable()
+        or "/" in value
+        or "\\" in value
+        or value.startswith(".")
+    ):
+        raise SceneError(
+            f"name: invalid name {_describe(value)}; allowed: 1 to {_NAME_MAX} printable characters, "
+            "no '/' or '\\', not starting with '.'"
+        )
+    return value
+
+
+def _check_model(value) -> str:
+    if not isinstance(value, str) or not _MODEL_RE.match(value):
+        raise SceneError(f"model: invalid value {_describe(value)}; allowed: 'package.module:function'")
+    return value
+
+
+def _check_output_times(value, T: float) -> tuple[float, ...]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+        raise SceneError(f"output_times: expected a list of numbers in [0, T], got {_describe(value)}")
+    times = []
+    for t in value:
+        if not _is_number(t) or not math.isfinite(float(t)):
+            raise SceneError(f"output_times: expected numbers in [0, T = {_fmt(T)}], got {_describe(t)}")
+        t = float(t)
+        if not 0.0 <= t <= T:
+            raise SceneError(f"output_times: {_fmt(t)} is out of range; allowed: numbers in [0, T = {_fmt(T)}]")
+        times.append(t)
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise SceneError("output_times: must be sorted ascending without duplicates")
+    return tuple(times)
+
+
+def _fmt(v) -> str:
+    v = float(v)
+    if v.is_integer() and abs(v) < 1e16:
+        return str(int(v))
+    return repr(v)
+
+
+def _describe(value) -> str:
+    text = repr(value)
+    if len(text) > 40:
+        text = text[:40] + "..."
+    return f"{type(value).__name__} {text}"
+
+
+# --- files ---------------------------------------------------------------------------------
+
+
+def _builtin_dir():
+    return importlib.resources.files(_BUILTIN_PACKAGE).joinpath(_BUILTIN_FOLDER)
+
+
+def _builtin_names() -> list[str]:
+    try:
+        entries = list(_builtin_dir().iterdir())
+    except (FileNotFoundError, NotADirectoryError, ModuleNotFoundError):
+        return []
+    return sorted(e.name[: -len(".toml")] for e in entries if e.name.endswith(".toml"))
+
+
+def _parse_toml(raw: bytes, label: str) -> dict:
+    if len(raw) > MAX_FILE_BYTES:
+        raise SceneError(f"scene file {label!r}: larger than {MAX_FILE_BYTES} bytes; scene files are small text files")
+    if b"\x00" in raw:
+        raise SceneError(f"scene file {label!r}: binary file (contains NUL bytes); expected a UTF-8 TOML text file")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise SceneError(
+            f"scene file {label!r}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at line {line}); "
+            "expected a UTF-8 TOML file"
+        ) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"scene file {label!r}: invalid TOML: {' '.join(str(exc).split())}") from None
+
+
+def load_scene(name_or_path: str | os.PathLike) -> Scene:
+    """Load a built-in scene by name (``"example1"``) or a scene file by path.
+
+    A plain name without ``/`` or ``.toml`` is looked up among the built-in scenes first.
+    """
+    text = os.fspath(name_or_path)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    builtins = _builtin_names()
+    if isinstance(name_or_path, str) and text in builtins:
+        raw = _builtin_dir().joinpath(f"{text}.toml").read_bytes()
+        return Scene.from_dict(_parse_toml(raw, text), source=text, default_name=text)
+
+    path = Path(text)
+    if not path.is_file():
+        if path.is_dir():
+            raise SceneError(f"scene {text!r}: is a directory; expected a .toml scene file")
+        raise SceneError(
+            f"scene {text!r}: no built-in scene of that name and no such file "
+            f"(built-in scenes: {', '.join(builtins) or 'none'})"
+        )
+    try:
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise SceneError(
+                f"scene file {text!r}: larger than {MAX_FILE_BYTES} bytes; scene files are small text files"
+            )
+        with open(path, "rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)  # bounded even if the file grows meanwhile
+    except OSError as exc:
+        raise SceneError(f"scene file {text!r}: cannot read it ({exc.strerror or exc})") from None
+    return Scene.from_dict(_parse_toml(raw, text), source=text, default_name=path.stem)
+
+
+def list_scenes() -> list[tuple[str, str]]:
+    """(name, one-line description) of the built-in scenes, sorted by name."""
+    result = []
+    for name in _builtin_names():
+        try:
+            data = _parse_toml(_builtin_dir().joinpath(f"{name}.toml").read_bytes(), name)
+            description = str(data.get("description", ""))
+        except SceneError:
+            description = "(unreadable)"
+        first = description.strip().splitlines()[0] if description.strip() else ""
+        result.append((name, first))
+    return result
+
+
+# --- writing ----------------------------------------------------------------------------------
+
+
+def scene_to_toml(scene: Scene) -> str:
+    """The scene as a TOML scene file (loadable by :func:`load_scene`), with derived values in a comment."""
+    lines = [
+        f"# scene {scene.name!r}: dt = {scene.dt:.6g}, dx = {scene.dx:.6g}, r = dt/eps = {scene.r:.6g}",
+    ]
+    for key, value in scene.as_dict().items():
+        lines.append(f"{key} = {_toml_value(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, bool):  # pragma: no cover - scenes hold no booleans
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)  # shortest round-tripping form; always finite in a valid scene
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")  # pragma: no cover
+
+
+def _toml_string(s: str) -> str:
+    # Multi-line literal strings keep notes readable; anything awkward falls back to escapes.
+    if (
+        "\n" in s
+        and "'''" not in s
+        and not s.endswith("'")
+        and all(c in "\n\t" or (c.isprintable() and c != "\x7f") for c in s)
+    ):
+        return "'''\n" + s + "'''"
+    # JSON escapes are valid TOML basic-string escapes; DEL must be escaped too in TOML.
+    return json.dumps(s, ensure_ascii=False).replace("\x7f", "\\u007f")

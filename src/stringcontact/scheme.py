@@ -1,0 +1,145 @@
+"""The time discretisation: from the model's semi-discrete UFL form to constant operators.
+
+The model writes M η_tt + C η_t + K η = B F + b in UFL (see `model.momentum_form`). Here the
+scheme takes it apart with `ufl.derivative` along each placeholder, so that every constant
+operator is assembled once:
+
+    M = ∂R/∂η_tt,  C = ∂R/∂η_t,  K = ∂R/∂η,  B = -∂R/∂F,  b = -R(0, 0, 0, 0).
+
+The paper's Section 6 scheme then reads, with v^n = (η^n − η^{n−1})/Δt,
+
+    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^{n+1} = B F(η^n, v^n) + b,
+
+with the force F from the previous step and lumped onto the nodes (the row sums of B).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from petsc4py import PETSc
+
+
+class ModelError(ValueError):
+    """The model's UFL does not fit the scheme (for example it is not linear in η, η_t, η_tt)."""
+
+
+@dataclass
+class Operators:
+    """The assembled constant operators of one model on one mesh (PETSc objects, no BCs applied)."""
+
+    M: PETSc.Mat
+    C: PETSc.Mat
+    K: PETSc.Mat
+    m: np.ndarray  # row sums of M (owned dofs): the lumped mass
+    m_force: np.ndarray  # row sums of B (owned dofs): the lumped force weights
+    load: np.ndarray  # b on owned dofs (zero for the paper's model)
+
+
+def _assemble_matrix(a) -> PETSc.Mat:
+    A = fem.petsc.assemble_matrix(fem.form(a))
+    A.assemble()
+    return A
+
+
+def _row_sums(A: PETSc.Mat) -> np.ndarray:
+    ones = A.createVecRight()
+    ones.set(1.0)
+    rs = A.createVecLeft()
+    A.mult(ones, rs)
+    return rs.array.copy()
+
+
+def semi_discrete_operators(model, V, params) -> Operators:
+    """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V."""
+    eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
+    w = ufl.TestFunction(V)
+    u = ufl.TrialFunction(V)
+    R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
+    placeholders = (eta, eta_t, eta_tt, force)
+    zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+
+    def part(f):
+        a = ufl.algorithms.expand_derivatives(ufl.derivative(R, f, u))
+        if a.empty():  # the model has no such term (e.g. α = 0 written out): a zero matrix, same pattern
+            return zero * u * w * ufl.dx
+        used = set(ufl.algorithms.extract_coefficients(a)) & set(placeholders)
+        if used:
+            raise ModelError(
+                f"model '{model.name}': momentum_form must be linear in eta, eta_t, eta_tt and force; "
+                "put nonlinear terms into the model's penalty (the explicit force)"
+            )
+        return a
+
+    M, C, K, B = (_assemble_matrix(part(f)) for f in (eta_tt, eta_t, eta, force))
+    B.scale(-1.0)
+    b_form = -ufl.replace(R, {f: zero for f in placeholders})
+    b_form = ufl.algorithms.expand_derivatives(b_form)
+    load = np.zeros_like(_row_sums(M))
+    if not b_form.empty():
+        vec = fem.petsc.assemble_vector(fem.form(b_form))
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        load = vec.array.copy()
+    return Operators(M=M, C=C, K=K, m=_row_sums(M), m_force=_row_sums(B), load=load)
+
+
+def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
+    """A matrix with the sparsity of `template` holding `diag` on its diagonal (so sums stay cheap)."""
+    D = template.duplicate(copy=False)
+    d = template.createVecLeft()
+    d.array[:] = diag
+    D.setDiagonal(d)
+    D.assemble()
+    return D
+
+
+def step_matrices(ops: Operators, dt: float, mass: str):
+    """The constant matrices of one time step.
+
+    A η^{n+1} = P η^n + Q η^{n−1} + m_F∘F^n + b, with A = M/Δt² + C/Δt + K, P = 2M/Δt² + C/Δt, Q = −M/Δt².
+    Returns (A, P, Q, M_scheme); with lumped mass Q is the diagonal as an array.
+    """
+    if mass == "lumped":
+        Ms = diagonal_matrix(ops.M, ops.m)
+    elif mass == "consistent":
+        Ms = ops.M
+    else:
+        raise ValueError(f"mass must be 'lumped' or 'consistent', not {mass!r}")
+    A = ops.K.copy()
+    A.axpy(1.0 / dt, ops.C)
+    A.axpy(1.0 / dt**2, Ms)
+    P = ops.C.copy()
+    P.scale(1.0 / dt)
+    P.axpy(2.0 / dt**2, Ms)
+    if mass == "lumped":
+        Q = -ops.m / dt**2
+    else:
+        Q = Ms.copy()
+        Q.scale(-1.0 / dt**2)
+    return A, P, Q, Ms
+
+
+def bc_dofs(V, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Local dof indices of the left and right end (empty where this rank does not hold the end)."""
+    left = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], 0.0))
+    right = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], length))
+    return left, right
+
+
+def node_coordinates(V) -> np.ndarray:
+    """x of the owned dofs (P1: the vertices)."""
+    n = V.dofmap.index_map.size_local
+    return V.tabulate_dof_coordinates()[:n, 0].copy()
+
+
+__all__ = [
+    "ModelError",
+    "Operators",
+    "semi_discrete_operators",
+    "step_matrices",
+    "bc_dofs",
+    "node_coordinates",
+]
