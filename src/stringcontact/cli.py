@@ -7,10 +7,19 @@ before it starts), 3 a run that became unstable, 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import warnings
 
 EXIT_OK, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 2, 3, 130
+
+# Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
+# and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
+SUBCOMMANDS = {
+    "plot": ("stringcontact.viz", "redraw the pictures of an output folder from its saved files"),
+    "study": ("stringcontact.study", "work-precision, convergence and stability studies"),
+    "check": ("stringcontact.theorems", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -33,10 +42,15 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
     run.add_argument("--force", action="store_true", help="replace a non-empty output folder")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.add_argument("--model", metavar="MODULE:FUNCTION", help="model variant (default: the scene's, else the paper's)")
+    run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
+    run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
 
     sub.add_parser("list", help="list the built-in scenes")
     show = sub.add_parser("show", help="print a scene as TOML")
     show.add_argument("scene")
+    for name, (module, help_text) in SUBCOMMANDS.items():
+        importlib.import_module(module).add_arguments(sub.add_parser(name, help=help_text))
     return parser
 
 
@@ -54,17 +68,29 @@ def _run(args) -> int:
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
     if changes:
         scene = scene.replace(**changes)
+    options = {"penalty": args.penalty, "mass": args.mass}
+    if args.tol is not None:
+        from .study import choose_for_tolerance
+
+        scene, options, report = choose_for_tolerance(scene, args.tol)
+        print(report)
+    model = None
+    if args.model or scene.model:
+        from .variants import load_model
+
+        model = load_model(args.model or scene.model)
     if args.out is not None:
         from .output import check_target
 
         check_target(args.out, args.force)
     res = sc.simulate(
         scene,
-        penalty=args.penalty,
-        mass=args.mass,
+        **options,
+        model=model,
         output_dir=args.out,
         progress=not args.no_progress,
         force=args.force,
+        pictures=not args.no_pictures,
     )
     e = res.energy
     print(f"scene {scene.name}: nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} "
@@ -104,6 +130,8 @@ def main(argv=None) -> int:
         if args.command == "show":
             print(scenes.scene_to_toml(scenes.load_scene(args.scene)), end="")
             return EXIT_OK
+        if args.command in SUBCOMMANDS:
+            return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
     except (SceneError, OutputError, ValueError) as exc:
         print(f"stringcontact: error: {exc}", file=sys.stderr)
         return EXIT_INPUT

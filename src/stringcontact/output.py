@@ -38,8 +38,9 @@ def check_target(path, force: bool) -> Path:
 class OutputWriter:
     """Streams the stored rows to XDMF during the run and writes the tables at the end."""
 
-    def __init__(self, path, scene, V, comm, force: bool = False):
+    def __init__(self, path, scene, V, comm, force: bool = False, pictures: bool = True):
         self.comm = comm
+        self.pictures = pictures
         self.scene = scene
         self.target = check_target(path, force).resolve()
         self.partial = self.target.parent / f".{self.target.name}.partial"
@@ -75,6 +76,12 @@ class OutputWriter:
         if self.comm.rank == 0:
             if result is not None:
                 write_diagnostics(self.partial / "diagnostics.csv", result)
+                if self.pictures:
+                    from .viz import write_pictures  # pictures on rank 0 only
+
+                    t0 = time.perf_counter()
+                    write_pictures(result, self.partial)
+                    summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
             with open(self.partial / "summary.json", "w") as f:
                 json.dump(summary, f, indent=2, default=_jsonable)
             if self.target.exists():

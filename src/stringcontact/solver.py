@@ -84,9 +84,15 @@ def simulate(
     model: Model | None = None,
     max_rows: int = 400,
     force: bool = False,
+    pictures: bool = True,
     comm=MPI.COMM_WORLD,
 ) -> Result:
-    """Run `scene` and return a `Result`; with `output_dir`, also write XDMF, CSV and JSON there."""
+    """Run `scene` and return a `Result`.
+
+    With `output_dir`, also write XDMF, CSV, JSON (and, with `pictures`, PNGs) there. The scene's extra
+    expression fields (`scene.fields`, e.g. a load or an obstacle) reach the model as P1 functions in
+    `Parameters.extra`.
+    """
     if penalty not in PENALTIES:
         raise ValueError(f"penalty must be one of {PENALTIES}, not {penalty!r}")
     if mass not in MASSES:
@@ -102,11 +108,17 @@ def simulate(
     t0 = time.perf_counter()
     msh = mesh.create_interval(comm, scene.nx, [0.0, scene.length])
     V = compat.function_space(msh, "Lagrange", 1)
+    extra = {}
+    for name in getattr(scene, "fields", {}) or {}:
+        f = fem.Function(V, name=name)
+        f.x.array[:] = scene.field_values(name, V.tabulate_dof_coordinates()[:, 0])
+        extra[name] = f
     params = Parameters(
         alpha=fem.Constant(msh, PETSc.ScalarType(scene.alpha)),
         eps=fem.Constant(msh, PETSc.ScalarType(scene.eps)),
         x=ufl.SpatialCoordinate(msh),
         length=scene.length,
+        extra=extra,
     )
     ops = semi_discrete_operators(model, V, params)
     A, P, Q, Ms = step_matrices(ops, dt, mass)
@@ -191,10 +203,12 @@ def simulate(
     if output_dir is not None:
         from .output import OutputWriter
 
-        writer = OutputWriter(output_dir, scene, V, comm, force=force)
+        writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures)
+
+    extra_nodal = {f: f.x.array[:n_owned] for f in extra.values()}
 
     def store(row, n):
-        coeffs = {eta_sym: eta.array}
+        coeffs = {eta_sym: eta.array, **extra_nodal}
         contact = contact_law(coeffs, x).astype(bool)
         fields = {"eta": eta.array, "velocity": v, "contact": contact, "contact_force": force_density}
         for name, arr in fields.items():
@@ -219,7 +233,7 @@ def simulate(
     status, message = "complete", ""
     try:
         for n in range(scene.nt):  # computes η^{n+1}
-            coeffs = {eta_sym: eta.array, eta_old_sym: eta_old.array}
+            coeffs = {eta_sym: eta.array, eta_old_sym: eta_old.array, **extra_nodal}
             law = force_law(coeffs, x)
             if penalty == "explicit":
                 f_applied = mF * law
