@@ -2,6 +2,7 @@
 
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -9,7 +10,7 @@ import pytest
 
 from stringcontact.cli import main
 
-SMALL = ["--nx", "200", "--nt", "750", "--no-progress"]
+SMALL = ["--nx", "200", "--nt", "40", "--eps", "0.01", "--no-progress", "--no-pictures"]  # r = 0.75
 
 
 def test_run_writes_results(tmp_path, capsys):
@@ -20,7 +21,12 @@ def test_run_writes_results(tmp_path, capsys):
     assert summary["status"] == "complete"
     assert summary["scene"]["nx"] == 200
     assert summary["min_eta"] < 0
-    assert "energy balance" in capsys.readouterr().out
+    assert summary["stored_rows"] == 41 and summary["last_time"] == pytest.approx(0.3)
+    assert summary["energy_balance"]["closes"] and summary["penetration"]["within_bound"]
+    stdout = capsys.readouterr().out
+    assert "energy balance: E(0) = " in stdout and ": closes" in stdout
+    assert "penetration: max depth" in stdout and "within the bound" in stdout
+    assert oct(out.stat().st_mode & 0o777) == oct(0o777 & ~_umask())  # an ordinary folder, not mkdtemp's 0700
 
 
 @pytest.mark.parametrize(
@@ -68,6 +74,61 @@ def test_python_dash_m_is_the_same_cli():
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "nope"], capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "no built-in scene" in proc.stderr
+
+
+def test_exit_codes_are_documented():
+    import stringcontact.cli as cli
+
+    assert (cli.EXIT_OK, cli.EXIT_INTERNAL, cli.EXIT_INPUT, cli.EXIT_UNSTABLE) == (0, 1, 2, 3)
+    assert (cli.EXIT_INTERRUPTED, cli.EXIT_TERMINATED) == (130, 143)
+    for code in ("0 success", "2 bad input", "3 a run that became unstable", "130 interrupted by SIGINT", "143 by SIGTERM"):
+        assert code in cli.__doc__
+
+
+def test_signal_handlers_are_restored_after_main(capsys):
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    assert main(["list"]) == 0
+    assert {s: signal.getsignal(s) for s in before} == before
+
+
+def test_internal_error_is_one_line_exit_1(monkeypatch, capsys):
+    import stringcontact as sc
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(sc, "simulate", broken)
+    assert main(["run", "example1", *SMALL]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "internal error ZeroDivisionError: a bug" in err and "STRINGCONTACT_TRACEBACK" in err
+    monkeypatch.setenv("STRINGCONTACT_TRACEBACK", "1")
+    with pytest.raises(ZeroDivisionError):
+        main(["run", "example1", *SMALL])
+
+
+def test_a_broken_subcommand_does_not_break_run(monkeypatch, tmp_path, capsys):
+    import stringcontact.cli as cli
+
+    monkeypatch.setitem(cli.SUBCOMMANDS, "broken", ("stringcontact.no_such_module", "a subcommand that fails to import"))
+    assert main(["broken", "x"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the 'broken' command is unavailable (ModuleNotFoundError" in err
+    assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
+
+
+def test_broken_pipe_ends_quietly():
+    # `stringcontact list | head -1`: no PETSc "Caught signal number 13 Broken Pipe" page, no traceback.
+    proc = subprocess.run(
+        f"{sys.executable} -m stringcontact run example1 {' '.join(SMALL)} | head -c 0", shell=True, capture_output=True, text=True
+    )
+    assert proc.stdout == ""
+    assert "PETSC ERROR" not in proc.stderr and "Traceback" not in proc.stderr and "MPI_ABORT" not in proc.stderr
+
+
+def _umask():
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 class _nullcontext:

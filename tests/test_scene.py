@@ -293,6 +293,11 @@ INVALID = [
     ("eta0", "eta0 = inf", "eta0: inf is not finite"),
     ("v0", 'v0 = "x.real"', "v0: attribute access"),
     ("v0", "v0 = [1]", "v0: expected an expression string or a number, got list"),
+    ("load", 'load = "y"', "load: unknown name 'y'; allowed names are x, l, h, pi"),
+    ("load", 'load = "1/x"', "load: '1/x' is not finite"),
+    ("load", "load = [1]", "load: expected an expression string or a number, got list"),
+    ("obstacle", "obstacle = \"__import__('os')\"", "obstacle: double-underscore name '__import__' is not allowed"),
+    ("obstacle", "obstacle = true", "obstacle: expected an expression string or a number, got bool"),
     ("model", 'model = "os.system"', "model: invalid value str 'os.system'; allowed: 'package.module:function'"),
     ("model", 'model = "a:b:c"', "model: invalid value"),
     ("model", "model = 1", "model: invalid value int 1"),
@@ -364,3 +369,52 @@ def test_bool_is_not_a_number_anywhere(tmp_path):
 def test_nan_free_values(tmp_path):
     s = load_scene(write(tmp_path, VALID))
     assert all(math.isfinite(v) for v in (s.length, s.T, s.alpha, s.eps, s.h_left, s.h_right, s.dt, s.dx, s.r))
+
+
+# --- optional expression fields: load and obstacle ---------------------------------------------
+
+
+def test_fields_only_the_keys_given(tmp_path):
+    s = load_scene(write(tmp_path, VALID))
+    assert s.fields == {} and s.load is None and s.obstacle is None
+    with pytest.raises(SceneError, match=r"load: the scene gives no field 'load' \(fields given: none\)"):
+        s.field_values("load", [0.0])
+    loaded = load_scene(write(tmp_path, VALID + 'load = -10\nobstacle = "0.1*sin(pi*x/l)"\n', "loaded.toml"))
+    assert loaded.fields == {"load": "-10", "obstacle": "0.1*sin(pi*x/l)"}
+    np.testing.assert_allclose(loaded.field_values("load", [0.0, 0.5]), [-10.0, -10.0])
+    np.testing.assert_allclose(loaded.field_values("obstacle", [0.0, 0.5]), [0.0, 0.1], atol=1e-15)
+    np.testing.assert_allclose(loaded.obstacle_values([0.5]), [0.1])
+    np.testing.assert_array_equal(s.obstacle_values([0.5, 1.0]), [0.0, 0.0])  # no obstacle key: y = 0
+
+
+def test_fields_round_trip_and_replace(tmp_path):
+    s = load_scene("loaded_string")
+    assert s.fields == {"load": "-10", "obstacle": "0.2 - 4*(x - 0.5)**2"}
+    assert s.model == "stringcontact.variants:loaded_obstacle"
+    assert load_scene(write(tmp_path, scene_to_toml(s))) == s
+    assert Scene.from_dict(s.as_dict()) == s
+    assert list(s.as_dict()).index("load") < list(s.as_dict()).index("obstacle")
+    flat = s.replace(obstacle=None)
+    assert flat.fields == {"load": "-10"} and "obstacle" not in flat.as_dict()
+    assert s.replace(load="-20").field_values("load", [0.3]) == pytest.approx([-20.0])
+    with pytest.raises(SceneError, match="load: unknown name 'y'"):
+        s.replace(load="y")
+    assert "load" not in load_scene("example1").as_dict()  # the paper's scenes are unchanged
+
+
+def test_warns_below_a_profiled_obstacle(tmp_path):
+    # eta0 = 0.05 is above y = 0 but below the bump psi = 0.1 on the middle third.
+    text = with_line("eta0", 'eta0 = "0.05"') + 'obstacle = "where(abs(x - 0.5) < 0.15, 0.1, -1)"\n'
+    with pytest.warns(SceneWarning, match=r"below the obstacle \(eta0 < obstacle\) at 15 of 51 nodes"):
+        load_scene(write(tmp_path, text))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_scene(write(tmp_path, with_line("eta0", 'eta0 = "0.05"'), "no-obstacle.toml"))
+
+
+@pytest.mark.parametrize("key,value", [("eta0", "2e6*sin(pi*x)"), ("v0", "-1e300"), ("eta0", "1 + 1e7*x*(1-x)")])
+def test_huge_data_is_refused_with_the_allowed_range(key, value):
+    s = load_scene("example1").replace(nx=100, nt=30)
+    with pytest.raises(SceneError, match=rf"{key}: \|{key}\| reaches .*allowed: values in \[-1e\+06, 1e\+06\]"):
+        s.replace(**{key: value})
+    s.replace(**{key: value.replace("e6", "e5").replace("e300", "e5").replace("e7", "e5")})  # within the range: fine

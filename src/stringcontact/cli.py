@@ -1,17 +1,30 @@
-"""The command line: `stringcontact run|list|show` (also `python -m stringcontact`).
+"""The command line: `stringcontact run|list|show|plot|study|check` (also `python -m stringcontact`).
 
-Exit codes: 0 success, 2 bad input (scene, options, output folder, a scheme that would be unstable
-before it starts), 3 a run that became unstable, 130 interrupted.
+Exit codes:
+
+* 0 success;
+* 1 an internal error (a bug: one line; STRINGCONTACT_TRACEBACK=1 shows the traceback);
+* 2 bad input: scene, options, output folder (not empty, locked by another run, read-only, disk full),
+  a scheme that would be unstable before it starts;
+* 3 a run that became unstable (its partial output is kept, marked "unstable");
+* 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (partial output kept, marked "interrupted").
+
+Every error is one line on stderr; no traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
+import signal
 import sys
+import threading
 import warnings
 
-EXIT_OK, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 2, 3, 130
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 # Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
 # and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
@@ -24,7 +37,7 @@ SUBCOMMANDS = {
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2, like every other input error
-        self.exit(EXIT_INPUT, f"{self.prog}: error: {message}\n")
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {' '.join(str(message).split())}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--penalty", choices=("explicit", "semi-implicit"), default="explicit")
     run.add_argument("--mass", choices=("lumped", "consistent"), default="lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
-    run.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+    run.add_argument("--force", action="store_true", help="replace a non-empty output folder (only by a complete run)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--model", metavar="MODULE:FUNCTION", help="model variant (default: the scene's, else the paper's)")
     run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
@@ -50,15 +63,109 @@ def build_parser() -> argparse.ArgumentParser:
     show = sub.add_parser("show", help="print a scene as TOML")
     show.add_argument("scene")
     for name, (module, help_text) in SUBCOMMANDS.items():
-        importlib.import_module(module).add_arguments(sub.add_parser(name, help=help_text))
+        sub_parser = sub.add_parser(name, help=help_text)
+        try:
+            importlib.import_module(module).add_arguments(sub_parser)
+        except Exception as exc:  # noqa: BLE001 - one broken subcommand must not take `run` down with it
+            sub_parser.set_defaults(_unavailable=f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:200])
+            sub_parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
     return parser
 
 
+@contextlib.contextmanager
 def _one_line_warnings():
     def show(message, category, filename, lineno, file=None, line=None):
-        print(f"stringcontact: warning: {message}", file=sys.stderr)
+        print(f"stringcontact: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
+    saved = warnings.showwarning
     warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = saved
+
+
+#: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGINT, SIGTERM and SIGHUP raise `Interrupted`, a KeyboardInterrupt: the run stops and keeps its output.
+
+    PETSc installs C handlers for SIGHUP and SIGPIPE that abort MPI with a page of text; these Python
+    handlers replace them while the command runs. SIGPIPE gets its default back (`stringcontact list | head`
+    ends quietly, as Unix tools do).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from .errors import Interrupted
+
+    def handler(signum, frame):
+        raise Interrupted(signum)
+
+    saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    saved[signal.SIGPIPE] = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError, ValueError):
+            sys.stdout.flush()  # while SIGPIPE is still the default: a closed pipe ends the process quietly
+        for s, h in saved.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def _fmt_energy_line(res) -> str:
+    from .output import energy_balance
+
+    b = energy_balance(res)
+    external = f" - external work {b['external_work']:.6g}" if b["external_work"] else ""
+    verdict = "closes" if b["closes"] else f"DOES NOT CLOSE (tolerance {b['tolerance']:.0e})"
+    return (
+        f"energy balance: E(0) = {b['initial']:.6g} = E(t={res.t[-1]:.4g}) {b['final']:.6g} + viscous {b['viscous_dissipation']:.6g} "
+        f"+ contact {b['contact_dissipation']:.6g} + numerical {b['numerical_dissipation']:.6g}{external}; "
+        f"residual {b['max_abs_residual']:.2e} ({b['relative_residual']:.1e} relative): {verdict}"
+    )
+
+
+def _fmt_penetration_line(res) -> tuple[str, bool]:
+    from .output import PENETRATION_FACTOR, penetration_check
+
+    p = penetration_check(res)
+    start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
+    verdict = "within" if p["within_bound"] else "EXCEEDS"
+    line = (
+        f"penetration: max depth {p['depth']:.4g} {verdict} the bound {start}{PENETRATION_FACTOR:g}(eps + dt) max|v| "
+        f"= {p['bound']:.4g} (eps max|v| = {p['eps_times_speed']:.4g})"
+    )
+    return line, p["within_bound"]
+
+
+def report(res, out=None) -> None:
+    """The run's closing lines on stdout: parameters, min η, the energy balance and the penetration check."""
+    from .errors import PenetrationWarning
+
+    scene = res.scene
+    print(f"scene {scene.name}: nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} "
+          f"penalty={res.penalty} mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
+    if len(res.t) == 0:
+        return
+    print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")
+    print(_fmt_energy_line(res))
+    line, ok = _fmt_penetration_line(res)
+    print(line)
+    if not ok:
+        warnings.warn(
+            "the string went further below the obstacle than the velocity penalty allows; a force the penalty "
+            "cannot stop holds it down (a static load, a model variant, r > 1); see docs/reliability.md",
+            PenetrationWarning,
+        )
+    times = []
+    for k, v in res.timings.items():
+        times.append(f"{k} {v:.3g} s" if isinstance(v, float) else f"{k} {v}")
+    if times:
+        print("time: " + ", ".join(times))
 
 
 def _run(args) -> int:
@@ -72,8 +179,8 @@ def _run(args) -> int:
     if args.tol is not None:
         from .study import choose_for_tolerance
 
-        scene, options, report = choose_for_tolerance(scene, args.tol)
-        print(report)
+        scene, options, text = choose_for_tolerance(scene, args.tol)
+        print(text)
     model = None
     if args.model or scene.model:
         from .variants import load_model
@@ -82,7 +189,7 @@ def _run(args) -> int:
     if args.out is not None:
         from .output import check_target
 
-        check_target(args.out, args.force)
+        check_target(args.out, args.force)  # before the set-up: a refused folder costs nothing
     res = sc.simulate(
         scene,
         **options,
@@ -92,55 +199,69 @@ def _run(args) -> int:
         force=args.force,
         pictures=not args.no_pictures,
     )
-    e = res.energy
-    print(f"scene {scene.name}: nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} "
-          f"penalty={res.penalty} mass={res.mass}")
-    print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")
-    print(
-        "energy balance: E0 = {:.6g} = E(T) {:.6g} + viscous {:.6g} + contact {:.6g} + numerical {:.6g}; residual {:.2e}".format(
-            res.total_energy[0],
-            res.total_energy[-1],
-            e["viscous_dissipation"][-1],
-            e["contact_dissipation"][-1],
-            e["numerical_dissipation"][-1],
-            abs(res.balance_residual[-1]),
-        )
-    )
-    print("time: " + ", ".join(f"{k} {v:.3g} s" for k, v in res.timings.items()))
+    report(res)
     if args.out is not None:
         print(f"wrote {args.out}")
     return EXIT_OK
 
 
+def _partial_report(exc) -> None:
+    """After an interrupted or unstable run: the closing lines for the rows stored so far, if the solver gave them."""
+    res = getattr(exc, "result", None)
+    if res is not None and len(getattr(res, "t", ())):
+        with contextlib.suppress(Exception):
+            report(res)
+
+
+def _error(message) -> None:
+    print(f"stringcontact: error: {' '.join(str(message).split())}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    _one_line_warnings()
-    from .errors import InstabilityError, SceneError
-    from .output import OutputError
+    if getattr(args, "_unavailable", None):
+        _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
+        return EXIT_INTERNAL
+    from .errors import InstabilityError, Interrupted, OutputError, SceneError
 
-    try:
-        if args.command == "run":
-            return _run(args)
-        from . import scene as scenes
+    with _one_line_warnings(), _signals_interrupt():
+        try:
+            if args.command == "run":
+                return _run(args)
+            from . import scene as scenes
 
-        if args.command == "list":
-            for name, description in scenes.list_scenes():
-                print(f"{name:12s} {description}")
-            return EXIT_OK
-        if args.command == "show":
-            print(scenes.scene_to_toml(scenes.load_scene(args.scene)), end="")
-            return EXIT_OK
-        if args.command in SUBCOMMANDS:
-            return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
-    except (SceneError, OutputError, ValueError) as exc:
-        print(f"stringcontact: error: {exc}", file=sys.stderr)
-        return EXIT_INPUT
-    except InstabilityError as exc:
-        print(f"stringcontact: error: {exc}", file=sys.stderr)
-        return EXIT_INPUT if exc.step == 0 else EXIT_UNSTABLE
-    except KeyboardInterrupt:
-        print("stringcontact: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+            if args.command == "list":
+                for name, description in scenes.list_scenes():
+                    print(f"{name:12s} {description}")
+                return EXIT_OK
+            if args.command == "show":
+                print(scenes.scene_to_toml(scenes.load_scene(args.scene)), end="")
+                return EXIT_OK
+            if args.command in SUBCOMMANDS:
+                return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
+        except (SceneError, OutputError, ValueError) as exc:
+            _error(exc)
+            return EXIT_INPUT
+        except InstabilityError as exc:
+            _partial_report(exc)
+            _error(exc)
+            return EXIT_INPUT if exc.step == 0 else EXIT_UNSTABLE
+        except KeyboardInterrupt as exc:
+            _partial_report(exc)
+            _error(str(exc) or "interrupted")
+            return exc.exit_code if isinstance(exc, Interrupted) else EXIT_INTERRUPTED
+        except OSError as exc:  # a file a subcommand reads or writes
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            _error(f"{exc.strerror or exc}{where}")
+            return EXIT_INPUT
+        except (MemoryError, RecursionError) as exc:
+            _error(f"{type(exc).__name__}: the problem is too large for this machine; reduce nx or nt")
+            return EXIT_INPUT
+        except Exception as exc:  # noqa: BLE001 - a bug: one line, and the traceback on request
+            if os.environ.get("STRINGCONTACT_TRACEBACK"):
+                raise
+            _error(f"internal error {type(exc).__name__}: {exc} (set STRINGCONTACT_TRACEBACK=1 to see the traceback)")
+            return EXIT_INTERNAL
     return EXIT_INPUT
 
 

@@ -1,7 +1,8 @@
 """Every dolfinx API difference between 0.5 (Debian bookworm) and 0.9/0.10 lives here.
 
 The rest of the package calls these helpers and never branches on the dolfinx version itself.
-DEVELOPERS.md lists each difference and which helper absorbs it.
+DEVELOPERS.md lists each difference and which helper absorbs it. The whole test suite runs on both
+0.5.2 (`make test`) and Debian trixie's 0.9.0 (`scripts/test-trixie`, in CI after the main suite).
 """
 
 from __future__ import annotations
@@ -12,6 +13,10 @@ import numpy as np
 from dolfinx import fem, plot
 
 DOLFINX_VERSION = tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
+
+# NumPy comes with dolfinx from Debian: 1.24 on bookworm (dolfinx 0.5), 2.2 on trixie (dolfinx 0.9), where
+# `np.trapz` is deprecated in favour of `np.trapezoid` (new in 2.0).
+trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
 
 def function_space(msh, family: str = "Lagrange", degree: int = 1):

@@ -1,4 +1,10 @@
-"""The two errors a user can meet, each with a message that names the cause and the remedy."""
+"""The errors a user can meet, each with a message that names the cause and the remedy.
+
+The command line maps them to exit codes (see `stringcontact.cli`): `SceneError` and `OutputError` to 2,
+`InstabilityError` to 3 (2 if it is found before the first step), `Interrupted` to 128 + the signal number.
+"""
+
+import signal
 
 
 class SceneError(ValueError):
@@ -13,3 +19,29 @@ class InstabilityError(RuntimeError):
         self.step = step
         self.time = time
         self.r = r
+
+
+class OutputError(RuntimeError):
+    """The output folder cannot be used: not empty, locked by another run, not writable, or the disk is full."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT (Ctrl-C) or SIGTERM during a run.
+
+    A KeyboardInterrupt, so that everything that cleans up after Ctrl-C (the solver marks its output
+    `interrupted`) does the same for SIGTERM.
+    """
+
+    def __init__(self, signum: int = signal.SIGINT):
+        self.signum = int(signum)
+        name = signal.Signals(self.signum).name
+        super().__init__(f"interrupted by {name}" + (" (Ctrl-C)" if self.signum == signal.SIGINT else ""))
+
+    @property
+    def exit_code(self) -> int:
+        """The shell's convention: 128 + the signal number (130 for SIGINT, 143 for SIGTERM)."""
+        return 128 + self.signum
+
+
+class PenetrationWarning(UserWarning):
+    """The string went further below the obstacle than the velocity penalty should allow (see docs/reliability.md)."""

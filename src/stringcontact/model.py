@@ -1,13 +1,40 @@
 """The model: the paper's weak momentum equation and contact law, in UFL.
 
-This is the one place to edit for a model variant. The time loop (`solver`) never looks inside
-these functions; it only asks them for UFL.
+This is the one place to edit for a model variant (see `docs/models.md` and
+`demos/demo_model_variant.py`). The time loop (`solver`) never looks inside these functions; it
+only asks them for UFL.
 
-The semi-discrete momentum equation is written once, in the unknowns' time derivatives, as in
-Irksome: `eta`, `eta_t` and `eta_tt` are placeholders that the time scheme (`scheme.py`)
-replaces by its difference quotients. It must be *linear* in them; the nonlinear contact law
-enters only through `force`, a pointwise density that the scheme takes from the previous step
-(the paper's Section 6) and lumps onto the nodes.
+A model is a `Model`: a few plain functions that return UFL.
+
+``momentum_form(eta, eta_t, eta_tt, force, w, p)``
+    The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the
+    unknowns' time derivatives, as in Irksome: `eta`, `eta_t`, `eta_tt` are placeholders that the
+    time scheme (`scheme.py`) replaces by its difference quotients, and `force` is a placeholder for
+    the contact force density. R must be *linear* in the four placeholders (the scheme checks);
+    terms in none of them (an external load ``- f*w*dx``) are the constant load b = -R(0, 0, 0, 0),
+    assembled once. `w` is the test function.
+
+``penalty(eta, v, p)``
+    The contact force density F as a *pointwise* UFL expression in the previous step's η^n and
+    v^n = (η^n − η^{n−1})/Δt (P1 functions) and the P1 scene fields in ``p.extra``. It may be
+    nonlinear: it is evaluated at the nodes (`nodal.py`: arithmetic, conditional, max/min, abs,
+    sqrt, exp, ln, sin, cos, tanh) and lumped onto them with the row sums of ∂R/∂force, so it is
+    explicit: the matrices never change.
+
+``penalty_damping(eta, v, p)`` (optional)
+    The same law as a damping coefficient d ≥ 0 with F = −d v^{n+1} (`penalty="semi-implicit"`):
+    only the diagonal of the step matrix changes, and only when the active set changes. ``None``
+    when the law is not a velocity damping (then only the explicit penalty is available).
+
+``contact_set(eta, p)``
+    The contact indicator written to the results (a UFL condition, evaluated at the nodes).
+
+``contact_energy(eta, p)`` (optional)
+    For a *conservative* law (F = −∂Φ/∂η, a spring): the stored energy density Φ(η), so that the
+    solver's energy guard counts the energy held in the spring instead of calling its release
+    an instability. ``None`` for a dissipative law such as the paper's.
+
+The paper's model (Definition 2.1), the default `inelastic`::
 
     ∫ η_tt w dx + α ∫ η_tx w_x dx + ∫ η_x w_x dx = ∫ F w dx,    F = (1/ε) χ{η<0} (η_t)⁻.
 """
@@ -22,7 +49,11 @@ import ufl
 
 @dataclass(frozen=True)
 class Parameters:
-    """What a model may use, as UFL objects: α and ε are `fem.Constant`s, `x` the coordinate."""
+    """What a model may use, as UFL objects.
+
+    `alpha` and `eps` are `fem.Constant`s, `x` the spatial coordinate, `length` the string's length,
+    and `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`.
+    """
 
     alpha: object
     eps: object
@@ -67,13 +98,52 @@ def contact_set(eta, p: Parameters):
 
 @dataclass(frozen=True)
 class Model:
-    """A model is four UFL functions; replace one to make a variant (see `demos/demo_model_variant.py`)."""
+    """A model is a few UFL functions; replace one to make a variant.
+
+    ``dataclasses.replace(inelastic, name="mine", penalty=my_penalty)`` keeps the rest of the paper's
+    model. The signatures and what each function must return are in the module docstring.
+    """
 
     name: str = "inelastic"
     momentum_form: Callable = momentum_form
     penalty: Callable = penalty
     penalty_damping: Callable | None = penalty_damping
     contact_set: Callable = contact_set
+    contact_energy: Callable | None = None
+    description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 
 inelastic = Model()
+
+
+def unused_fields(model: Model, V, p: Parameters) -> list[str]:
+    """Names of the scene fields in ``p.extra`` that none of the model's functions uses.
+
+    A scene that gives a `load` to a model that ignores it is almost surely a mistake, so the
+    solver refuses it (a load silently dropped would give a plausible but wrong answer).
+    """
+    from dolfinx import fem
+
+    eta, v, eta_t, eta_tt, force = (fem.Function(V) for _ in range(5))
+    w = ufl.TestFunction(V)
+    exprs = [model.momentum_form(eta, eta_t, eta_tt, force, w, p), model.penalty(eta, v, p), model.contact_set(eta, p)]
+    for law in (model.penalty_damping, model.contact_energy):
+        if law is not None:
+            exprs.append(law(eta, v, p) if law is model.penalty_damping else law(eta, p))
+    used = set()
+    for e in exprs:
+        used |= set(ufl.algorithms.extract_coefficients(e))
+    return [name for name, f in p.extra.items() if f not in used]
+
+
+__all__ = [
+    "Model",
+    "Parameters",
+    "contact_set",
+    "inelastic",
+    "momentum_form",
+    "penalty",
+    "penalty_damping",
+    "penetration",
+    "unused_fields",
+]

@@ -42,19 +42,28 @@ _BINARY = {
 }
 
 
+def _is_minus_one(o) -> bool:
+    return isinstance(o, (ufl.classes.IntValue, ufl.classes.RealValue)) and float(o) == -1.0
+
+
 class _Compiler(MultiFunction):
     """Turns each UFL node into a closure `env -> array`, once; evaluation then only calls NumPy."""
 
     def coefficient(self, o):
+        key = id(o)  # hashing a UFL coefficient walks its repr: far too slow for a per-step lookup
+
         def value(env):
             try:
-                return env[o]
+                return env[key]
             except KeyError:
                 raise ValueError(f"nodal evaluation: no nodal values given for coefficient {o}") from None
 
         return value
 
     def constant(self, o):
+        value = o.value  # dolfinx: a view of the constant's storage, so later changes are seen
+        if isinstance(value, np.ndarray) and value.shape == ():
+            return lambda env: float(value)
         return lambda env: float(np.asarray(o.value))
 
     def constant_value(self, o):
@@ -77,6 +86,15 @@ class _Compiler(MultiFunction):
 
     def conditional(self, o, c, a, b):
         return lambda env: np.where(c(env), a(env), b(env))
+
+    def sum(self, o, a, b):
+        # a - b is written Sum(a, Product(-1, b)) in UFL: one np.subtract, bit-identical to a + (-1*b)
+        x, y = o.ufl_operands
+        for first, second, cb in ((x, y, a), (y, x, b)):
+            if isinstance(second, ufl.classes.Product) and _is_minus_one(second.ufl_operands[0]):
+                c = map_expr_dag(_Compiler(), second.ufl_operands[1], compress=False)
+                return lambda env: np.subtract(cb(env), c(env))
+        return lambda env: np.add(a(env), b(env))
 
     def operator(self, o, *ops):
         name = o._ufl_handler_name_
@@ -103,12 +121,25 @@ class NodalExpression:
         self._f = map_expr_dag(_Compiler(), expr, compress=False)
 
     def __call__(self, coefficients: dict, x: np.ndarray) -> np.ndarray:
-        env = dict(coefficients)
-        env["x"] = x
         with np.errstate(all="ignore"):
-            value = self._f(env)
-        value = np.asarray(value)
+            return self.evaluate_env(environment(coefficients, x))
+
+    def evaluate_env(self, env: dict) -> np.ndarray:
+        """The hot-loop form: `env` is made by `environment`; the caller owns np.errstate.
+
+        A time loop keeps one `env` and only swaps its arrays (`env[id(f)] = array`), so no dict and
+        no error-state context is built per step.
+        """
+        value = np.asarray(self._f(env))
+        x = env["x"]
         return value if value.shape == x.shape else np.broadcast_to(value, x.shape)
+
+
+def environment(coefficients: dict, x: np.ndarray) -> dict:
+    """The evaluation environment: nodal arrays keyed by `id` of each coefficient, and "x"."""
+    env = {id(f): a for f, a in coefficients.items()}
+    env["x"] = x
+    return env
 
 
 def evaluate(expr, coefficients: dict, x: np.ndarray) -> np.ndarray:

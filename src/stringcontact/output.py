@@ -1,106 +1,686 @@
 """Results on disk: `solution.xdmf`/`.h5`, `diagnostics.csv` and `summary.json`.
 
-Everything is written into a hidden folder beside the target and renamed into place at the end,
-so a target folder is either absent, complete, or explicitly marked `interrupted`/`unstable`.
+A run writes into a hidden folder of its own beside the target (``.NAME.partial-<pid>-<random>``) and
+renames it into place at the end, so the target is always absent, complete, or explicitly marked
+``"status": "interrupted"`` or ``"unstable"`` in its `summary.json`. Never half-written:
+
+* a lock file ``.NAME.lock`` (``fcntl.flock``) keeps a second run from writing to the same target;
+* each stored time is written with SIGINT/SIGTERM held back, so the XDMF holds whole time levels;
+* the XDMF is closed (and read back) before the rename; files are fsync'ed, then the folder is renamed;
+* with ``--force`` only a *complete* run replaces an existing target; an interrupted or unstable one goes
+  to ``NAME.interrupted`` / ``NAME.unstable`` beside it, so a finished result is never lost;
+* a disk-full or permission error removes the partial folder and raises :class:`OutputError` with one line;
+* the partial folders of runs that were killed (SIGKILL, power loss) are removed by the next run that
+  takes the lock.
+
+`energy_balance` and `penetration_check` are the two numbers checks of every run (summary.json and the
+command line's last lines); see docs/reliability.md.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import ctypes
+import errno
+import fcntl
 import json
+import math
 import os
+import re
 import shutil
+import signal
+import tempfile
+import threading
 import time
+import warnings
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import dolfinx
 import numpy as np
-from dolfinx import fem
-from dolfinx.io import XDMFFile
+
+from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
 
 FIELDS = ("eta", "velocity", "contact", "contact_force")
+#: max |balance residual| / energy scale above which the energy balance is reported as not closing.
+BALANCE_RTOL = 1e-8
+#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/reliability.md).
+PENETRATION_FACTOR = 2.0
+#: below this many free bytes a failed write is reported as a full disk.
+NEARLY_FULL_BYTES = 1 << 20
 
 
-class OutputError(RuntimeError):
-    """The output folder cannot be used (not empty, not writable, disk full)."""
+# --- the target folder and its lock ---------------------------------------------------------------
 
 
-def check_target(path, force: bool) -> Path:
-    """Refuse a non-empty folder unless `force`; refuse a path that is a file."""
+def _occupied(path: Path) -> bool:
+    """A file, or a folder with something in it."""
+    if not path.exists():
+        return False
+    return not path.is_dir() or any(path.iterdir())
+
+
+def lock_path(target) -> Path:
+    """The lock file of an output folder: ``.NAME.lock`` beside it."""
+    target = Path(target)
+    return target.parent / f".{target.name}.lock"
+
+
+class TargetLock:
+    """An exclusive, non-blocking ``flock`` on ``.NAME.lock`` beside the target.
+
+    Raises :class:`OutputError` naming the other run's pid if the lock is held. The file is removed on
+    release; after taking the lock we check it is still the file at that path (another run may have
+    removed it in between), the usual way to combine flock with unlinking.
+    """
+
+    def __init__(self, target):
+        self.path = lock_path(target)
+        self.target = Path(target)
+        self.fd = None
+        for _ in range(100):
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = _read_pid(fd)
+                os.close(fd)
+                who = f" (pid {holder})" if holder else ""
+                raise OutputError(
+                    f"--out {self.target}: another stringcontact run{who} is writing to this folder; "
+                    "wait for it to finish or choose another folder"
+                ) from None
+            try:
+                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                self.fd = fd
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
+                return
+            os.close(fd)  # the file was unlinked by its previous holder: try again with a fresh one
+        raise OutputError(f"--out {self.target}: cannot take the lock {self.path}")  # pragma: no cover
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        with contextlib.suppress(OSError):
+            os.unlink(self.path)  # while still holding it: nobody can have locked this inode meanwhile
+        os.close(self.fd)
+        self.fd = None
+
+    @staticmethod
+    def holder(target) -> int | None:
+        """The pid of the run holding the lock of `target` (0 if unknown), or None if nobody holds it."""
+        try:
+            fd = os.open(lock_path(target), os.O_RDONLY | os.O_CLOEXEC)
+        except OSError:
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            return None
+        except BlockingIOError:
+            return _read_pid(fd) or 0
+        finally:
+            os.close(fd)
+
+
+def _read_pid(fd) -> int | None:
+    try:
+        text = os.pread(fd, 32, 0).decode().strip()
+        return int(text) if text.isdigit() else None
+    except (OSError, ValueError):
+        return None
+
+
+def check_target(path, force: bool, *, locked: bool = False) -> Path:
+    """Refuse a path that is a file, a non-empty folder (unless `force`), and a folder another run writes to.
+
+    `locked`: the caller holds the folder's lock itself (so the lock is not probed).
+    """
     target = Path(path)
     if target.exists() and not target.is_dir():
         raise OutputError(f"--out {target}: exists and is not a folder")
     if target.is_dir() and any(target.iterdir()) and not force:
         raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+    holder = None if locked else TargetLock.holder(target)
+    if holder is not None:
+        who = f" (pid {holder})" if holder else ""
+        raise OutputError(
+            f"--out {target}: another stringcontact run{who} is writing to this folder; "
+            "wait for it to finish or choose another folder"
+        )
     return target
 
 
+def _free_sibling(target: Path, label: str) -> Path:
+    for i in range(1, 1000):
+        candidate = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
+        if not candidate.exists():
+            return candidate
+    raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
+
+
+def _recover_stale(target: Path) -> None:
+    """Under the lock: remove the partial folders of killed runs; finish an interrupted --force swap."""
+    parent, name = target.parent, target.name
+    try:
+        entries = list(parent.iterdir())
+    except OSError:
+        return
+    removed = []
+    for p in entries:
+        if p.name.startswith(f".{name}.partial") and p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+            removed.append(p.name)
+        elif p.name.startswith(f".{name}.old-") and p.is_dir():
+            if not target.exists():  # the swap stopped between its two renames: the old result comes back
+                os.rename(p, target)
+                warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=3)
+            else:
+                shutil.rmtree(p, ignore_errors=True)
+    if removed:
+        warnings.warn(
+            f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
+            f"({', '.join(removed)})",
+            stacklevel=3,
+        )
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _fsync_tree(folder: Path) -> None:
+    for p in folder.iterdir():
+        if p.is_file():
+            fd = os.open(p, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+    _fsync_dir(folder)
+
+
+def _fsync_dir(folder: Path) -> None:
+    with contextlib.suppress(OSError):  # some file systems cannot fsync a directory
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def describe_os_error(exc: BaseException, folder, probe=None) -> str:
+    """One line for an I/O failure in `folder`: disk full, read-only, permission denied, or the error itself.
+
+    `probe` is the path whose device is examined when the error has no errno (default: `folder`).
+    """
+    err = getattr(exc, "errno", None)
+    if err == errno.ENOSPC:
+        return f"the disk is full (no space left on the device of {folder})"
+    if err == errno.EDQUOT:
+        return f"the disk quota is exceeded on {folder}"
+    if err == errno.EROFS:
+        return f"{folder} is on a read-only file system"
+    if err in (errno.EACCES, errno.EPERM):
+        return f"permission denied in {folder}"
+    if err is not None:
+        return f"{getattr(exc, 'strerror', None) or exc} ({folder})"
+    # dolfinx/HDF5 raise RuntimeError without an errno: look at the device.
+    probe = Path(probe if probe is not None else folder)
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    try:
+        st = os.statvfs(probe)
+    except OSError:
+        return f"{_one_line(exc)} ({folder})"
+    free = st.f_bavail * st.f_frsize
+    if free < NEARLY_FULL_BYTES:
+        return f"the disk is full ({free // 1024} KiB left on the device of {folder})"
+    if st.f_flag & os.ST_RDONLY:
+        return f"{folder} is on a read-only file system"
+    if not os.access(probe, os.W_OK):
+        return f"permission denied in {folder}"
+    return f"{_one_line(exc)} ({folder})"
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split())[:300]
+
+
+def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
+    """Rename the finished folder `partial` to `target`; returns where it went.
+
+    A complete folder replaces an occupied target only with `force` (swapping through ``.NAME.old-*``);
+    otherwise, and always for an interrupted or unstable one, it goes to ``NAME.<status>`` (or ``NAME.new``)
+    beside the target, so a finished result is never lost.
+    """
+    label = status if status != "complete" else "new"
+    if _occupied(target):
+        if status != "complete" or not force:
+            dest = _free_sibling(target, label)
+            os.rename(partial, dest)
+            return dest
+        # --force and complete: swap, so that a crash in between leaves the old result under .NAME.old-*
+        old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
+        os.rename(target, old)
+        try:
+            os.rename(partial, target)
+        except OSError:
+            os.rename(old, target)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+        return target
+    try:
+        os.replace(partial, target)  # target absent or an empty folder
+    except OSError as exc:
+        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR, errno.EBUSY):
+            raise
+        dest = _free_sibling(target, label)
+        os.rename(partial, dest)
+        return dest
+    return target
+
+
+@contextlib.contextmanager
+def staged_folder(path, force: bool = False):
+    """Write a whole output folder, or nothing: ``with staged_folder(out, force) as tmp: write files into tmp``.
+
+    The same protocol as a run's output (for commands such as ``check --out`` that write files, not a time
+    series): the lock, a unique hidden folder beside the target, fsync and rename at the end; on any error,
+    including Ctrl-C, the hidden folder is removed and the target is left as it was. Serial (one process).
+    """
+    target = check_target(path, force).resolve()
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        lock = TargetLock(target)
+    except OSError as exc:
+        raise OutputError(f"--out {target}: cannot create the output folder: {describe_os_error(exc, target.parent)}") from None
+    partial = None
+    try:
+        check_target(target, force, locked=True)
+        _recover_stale(target)
+        try:
+            partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
+            os.chmod(partial, 0o777 & ~_umask())
+        except OSError as exc:
+            raise OutputError(f"--out {target}: cannot create the output folder: {describe_os_error(exc, target.parent)}") from None
+        yield partial
+        with signals_held():
+            try:
+                _fsync_tree(partial)
+                dest = move_into_place(partial, target, force)
+                _fsync_dir(target.parent)
+            except OSError as exc:
+                raise OutputError(f"--out {target}: {describe_os_error(exc, target.parent, probe=partial)}; nothing was written there") from None
+            partial = None
+        if dest != target:
+            warnings.warn(f"--out {target} already holds a result; the new one is in {dest}", stacklevel=3)
+    except OSError as exc:  # writing into the folder failed
+        raise OutputError(f"--out {target}: {describe_os_error(exc, target.parent, probe=partial)}; nothing was written there") from None
+    finally:
+        if partial is not None:
+            shutil.rmtree(partial, ignore_errors=True)
+        lock.release()
+
+
+# --- signals and HDF5's error printing -----------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def signals_held():
+    """Hold SIGINT, SIGTERM and SIGHUP back for a short critical section; they take effect right after it.
+
+    The Python handlers are swapped for a recorder (blocking the signals in the OS would not do: a signal
+    that arrived just before still runs its Python handler at the next bytecode, inside the section).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    saved = {s: h for s, h in saved.items() if h is not None}  # a C handler (PETSc's) cannot be put back: leave it
+    for s in saved:
+        signal.signal(s, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+        for signum in received[:1]:
+            handler = saved[signum]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), signum)
+
+
+class _Hdf5Quiet:
+    """Turns HDF5's automatic error printing off while the writer runs.
+
+    On a full disk, HDF5 prints a 60-line error stack to stderr before dolfinx turns it into a RuntimeError;
+    we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
+    that dolfinx loaded (not h5py's bundled copy); where it cannot be found nothing changes.
+    """
+
+    _lib = None
+    _searched = False
+
+    @classmethod
+    def _library(cls):
+        if not cls._searched:
+            cls._searched = True
+            try:
+                with open("/proc/self/maps") as f:
+                    paths = set(re.findall(r"(/\S*/libhdf5(?:_[a-z]+)?\.so[.\d]*)$", f.read(), re.M))
+                paths = sorted(p for p in paths if "_hl" not in os.path.basename(p) and ".libs/" not in p)
+                if paths:
+                    lib = ctypes.CDLL(paths[0])
+                    lib.H5Eget_auto2.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]
+                    lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
+                    cls._lib = lib
+            except (OSError, AttributeError):
+                cls._lib = None
+        return cls._lib
+
+    def __init__(self):
+        self.saved = None
+
+    def __enter__(self):
+        lib = self._library()
+        if lib is not None:
+            func, data = ctypes.c_void_p(), ctypes.c_void_p()
+            if lib.H5Eget_auto2(0, ctypes.byref(func), ctypes.byref(data)) >= 0:  # 0 is H5E_DEFAULT
+                self.saved = (func, data)
+                lib.H5Eset_auto2(0, None, None)
+        return self
+
+    def __exit__(self, *exc):
+        if self.saved is not None:
+            self._lib.H5Eset_auto2(0, self.saved[0], self.saved[1])
+            self.saved = None
+        return False
+
+
+# --- the writer ------------------------------------------------------------------------------------------
+
+
 class OutputWriter:
-    """Streams the stored rows to XDMF during the run and writes the tables at the end."""
+    """Streams the stored rows to XDMF during the run and writes the tables at the end.
+
+    The solver calls ``write(t, fields)`` at each stored time, then ``finish(result)`` or, on
+    InstabilityError or KeyboardInterrupt, ``abort(status, message[, result])``. `path` is where the
+    folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
+    """
 
     def __init__(self, path, scene, V, comm, force: bool = False, pictures: bool = True):
         self.comm = comm
         self.pictures = pictures
         self.scene = scene
-        self.target = check_target(path, force).resolve()
-        self.partial = self.target.parent / f".{self.target.name}.partial"
+        self.force = force
         self.write_time = 0.0
+        self.times: list[float] = []
+        self.lock = None
+        self.partial = None
+        self.xdmf = None
+        self.path = None
+        self._quiet = _Hdf5Quiet()
+        # Only rank 0 looks at the folder: another rank would find rank 0's own lock and refuse.
+        self.target = Path(path).resolve()
+        failure = None
         if comm.rank == 0:
             try:
+                check_target(path, force)
                 self.target.parent.mkdir(parents=True, exist_ok=True)
-                shutil.rmtree(self.partial, ignore_errors=True)
-                self.partial.mkdir()
+                self.lock = TargetLock(self.target)
+                check_target(self.target, force, locked=True)  # again under the lock: a run may have just finished there
+                _recover_stale(self.target)
+                prefix = f".{self.target.name}.partial-{os.getpid()}-"
+                self.partial = Path(tempfile.mkdtemp(prefix=prefix, dir=self.target.parent))
+                os.chmod(self.partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
+            except OutputError as exc:
+                failure = str(exc)
             except OSError as exc:
-                raise OutputError(f"--out {self.target}: cannot create the output folder ({exc.strerror})") from None
-        comm.barrier()
-        self.functions = {}
-        for name in FIELDS:
-            u = fem.Function(V)
-            u.name = name
-            self.functions[name] = u
-        self.n_owned = V.dofmap.index_map.size_local
-        self.xdmf = XDMFFile(comm, str(self.partial / "solution.xdmf"), "w")
-        self.xdmf.write_mesh(V.mesh)
+                failure = f"--out {self.target}: cannot create the output folder: {describe_os_error(exc, self.target.parent)}"
+            if failure is not None:
+                self._discard()
+        failure, partial = comm.bcast((failure, self.partial), root=0) if comm.size > 1 else (failure, self.partial)
+        if failure is not None:
+            raise OutputError(failure)
+        self.partial = partial
+        try:
+            from dolfinx import fem
+            from dolfinx.io import XDMFFile
+
+            self.functions = {}
+            for name in FIELDS:
+                u = fem.Function(V)
+                u.name = name
+                self.functions[name] = u
+            self.n_owned = V.dofmap.index_map.size_local
+            self._quiet.__enter__()
+            self.xdmf = XDMFFile(comm, str(self.partial / "solution.xdmf"), "w")
+            self.xdmf.write_mesh(V.mesh)
+        except RuntimeError as exc:
+            self._fail("cannot write solution.xdmf", exc)
+        except BaseException:  # Ctrl-C while opening: leave nothing behind
+            self._discard()
+            raise
+
+    # -- during the run
 
     def write(self, t: float, fields: dict) -> None:
+        """One stored time: all four fields, or (interrupted) none of them."""
         t0 = time.perf_counter()
-        for name, values in fields.items():
-            u = self.functions[name]
-            u.x.array[: self.n_owned] = values
-            u.x.scatter_forward()
-            self.xdmf.write_function(u, t)
+        try:
+            with signals_held():
+                for name, values in fields.items():
+                    u = self.functions[name]
+                    u.x.array[: self.n_owned] = values
+                    u.x.scatter_forward()
+                    self.xdmf.write_function(u, t)
+                self.times.append(float(t))
+        except RuntimeError as exc:
+            self._fail(f"cannot write solution.h5 at t = {t:.6g}", exc)
         self.write_time += time.perf_counter() - t0
 
-    def _close(self, summary: dict, result=None) -> None:
-        self.xdmf.close()
-        if self.comm.rank == 0:
-            if result is not None:
-                write_diagnostics(self.partial / "diagnostics.csv", result)
-                if self.pictures:
-                    from .viz import write_pictures  # pictures on rank 0 only
-
-                    t0 = time.perf_counter()
-                    write_pictures(result, self.partial)
-                    summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
-            with open(self.partial / "summary.json", "w") as f:
-                json.dump(summary, f, indent=2, default=_jsonable)
-            if self.target.exists():
-                shutil.rmtree(self.target)
-            os.replace(self.partial, self.target)
-        self.comm.barrier()
+    # -- the end of a run
 
     def finish(self, result) -> None:
-        self._close(summary_dict(result), result)
+        """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place."""
+        try:
+            self._close_xdmf()
+            summary = summary_dict(result)
+            if self.comm.rank == 0:
+                write_diagnostics(self.partial / "diagnostics.csv", result)
+                if self.pictures:
+                    t0 = time.perf_counter()
+                    self._pictures(result)
+                    summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
+            self._publish(summary)
+        except KeyboardInterrupt as exc:
+            # Ctrl-C while drawing: the data are whole, and the folder says it was interrupted. If it came
+            # after the folder was published (held back until then), the folder is complete and stays so.
+            self.abort("interrupted", f"{str(exc) or 'interrupted'} while writing the output files", result=result)
+            raise
+        except OutputError:
+            raise
+        except (OSError, RuntimeError) as exc:
+            self._fail("cannot write the output files", exc)
 
-    def abort(self, status: str, message: str) -> None:
-        self._close({"status": status, "message": message, "scene": self.scene.as_dict()})
+    def abort(self, status: str, message: str, result=None, error=None) -> None:
+        """Keep what was written so far, marked `status` ("interrupted" or "unstable").
+
+        `result` (optional) holds the rows stored so far, for diagnostics.csv and the energy balance.
+        `error` (default: the exception being handled) gives the step, time and r of an InstabilityError.
+        Never raises an I/O error: the caller is already handling the run's own exception.
+        """
+        if self.partial is None and self.xdmf is None:
+            return  # already finished, failed or aborted
+        if error is None:
+            import sys
+
+            error = sys.exc_info()[1]
+        try:
+            with signals_held():
+                self._close_xdmf()
+                summary = summary_dict(result) if result is not None and len(result.t) else self._bare_summary()
+                summary["status"] = status
+                summary["message"] = message or str(error or "") or status
+                if error is not None and getattr(error, "step", None) is not None:
+                    summary["instability"] = {"message": str(error), "step": error.step, "time": error.time, "r": error.r}
+                if self.comm.rank == 0 and result is not None and len(result.t):
+                    write_diagnostics(self.partial / "diagnostics.csv", result)
+                self._publish(summary)
+        except Exception as exc:  # noqa: BLE001 - never hide the run's own exception behind ours
+            self._discard()
+            warnings.warn(f"--out {self.target}: the partial output could not be kept: {describe_os_error(exc, self.target)}", stacklevel=2)
+
+    def discard(self) -> None:
+        """Remove everything this run wrote (for a caller that stops on an unexpected error)."""
+        self._discard()
+
+    # -- internals
+
+    def _pictures(self, result) -> None:
+        try:
+            from .viz import write_pictures  # pictures on rank 0 only
+
+            write_pictures(result, self.partial)
+        except KeyboardInterrupt:
+            raise
+        except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
+            warnings.warn(f"pictures not written ({type(exc).__name__}: {_one_line(exc)})", stacklevel=3)
+
+    def _bare_summary(self) -> dict:
+        import dolfinx
+
+        scene = self.scene
+        return {
+            "status": None,
+            "message": "",
+            "scene": scene.as_dict(),
+            "r": scene.dt / scene.eps,
+            "dolfinx": dolfinx.__version__,
+            "stored_rows": len(self.times),
+        }
+
+    def _close_xdmf(self) -> None:
+        if self.xdmf is not None:
+            xdmf, self.xdmf = self.xdmf, None
+            try:
+                xdmf.close()
+            finally:
+                self._quiet.__exit__()
+
+    def _publish(self, summary: dict) -> None:
+        """Check the XDMF, write summary.json, fsync, and rename the partial folder into place.
+
+        SIGINT/SIGTERM are held back throughout, so the folder is either still partial or fully in place.
+        """
+        status = summary.get("status") or "complete"
+        failure, dest = None, None
+        with signals_held():
+            if self.comm.rank == 0:
+                try:
+                    series = xdmf_series(self.partial / "solution.xdmf")
+                    counts = {name: len(series.get(name, ())) for name in FIELDS}
+                    if any(c != len(self.times) for c in counts.values()):
+                        raise OutputError(f"solution.xdmf holds {counts} time levels, expected {len(self.times)}")
+                    summary["stored_rows"] = len(self.times)
+                    summary["last_time"] = self.times[-1] if self.times else None
+                    with open(self.partial / "summary.json", "w") as f:
+                        f.write(json.dumps(_clean_json(summary), indent=2, allow_nan=False))
+                    _fsync_tree(self.partial)
+                    dest = move_into_place(self.partial, self.target, self.force, status)
+                    _fsync_dir(self.target.parent)
+                except (OSError, OutputError) as exc:
+                    failure = describe_os_error(exc, self.target) if isinstance(exc, OSError) else str(exc)
+            if self.comm.size > 1:
+                failure, dest = self.comm.bcast((failure, dest), root=0)
+            if failure is not None:
+                self._discard()
+                raise OutputError(f"--out {self.target}: {failure}; nothing was written there")
+            self.path, self.partial = dest, None
+            self._release()
+        if dest != self.target and self.comm.rank == 0:
+            warnings.warn(f"--out {self.target} already holds a result; this run's {status} output is in {dest}", stacklevel=3)
+
+    def _fail(self, what: str, exc: BaseException):
+        reason = describe_os_error(exc, self.target.parent, probe=self.partial)  # before the partial folder frees the disk
+        self._discard()
+        raise OutputError(f"--out {self.target}: {what}: {reason}; nothing was written there") from None
+
+    def _discard(self) -> None:
+        if self.xdmf is not None:
+            with contextlib.suppress(Exception):
+                self._close_xdmf()
+        self._quiet.__exit__()
+        if self.comm.rank == 0 and self.partial is not None:
+            shutil.rmtree(self.partial, ignore_errors=True)
+        self.partial = None
+        self._release()
+
+    def _release(self) -> None:
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
+
+    def __del__(self):  # an unexpected error in the solver: no half-written folder, no stale lock
+        with contextlib.suppress(Exception):
+            if self.partial is not None:
+                self._discard()
 
 
-def _jsonable(o):
-    if isinstance(o, np.generic):
-        return o.item()
+# --- reading the XDMF back ----------------------------------------------------------------------------
+
+
+def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
+    """The time series of a dolfinx XDMF file: {field: [(t, "file.h5:/Function/field/t"), ...]}.
+
+    Raises OutputError if the file is not well-formed XML (a truncated write).
+    """
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise OutputError(f"{path} is not a readable XDMF file ({_one_line(exc)})") from None
+    series = {}
+    for collection in root.iter("Grid"):
+        if collection.get("GridType") != "Collection":
+            continue
+        rows = []
+        for grid in collection.findall("Grid"):
+            t, item = grid.find("Time"), grid.find("Attribute/DataItem")
+            if t is not None and item is not None:
+                rows.append((float(t.get("Value")), (item.text or "").strip()))
+        series[collection.get("Name")] = rows
+    return series
+
+
+# --- tables and numbers ----------------------------------------------------------------------------
+
+
+def _clean_json(o):
+    """JSON without NaN/Infinity (not JSON): non-finite numbers become the strings "nan", "inf", "-inf"."""
+    if isinstance(o, dict):
+        return {str(k): _clean_json(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean_json(v) for v in o]
     if isinstance(o, np.ndarray):
-        return o.tolist()
+        return _clean_json(o.tolist())
+    if isinstance(o, (np.bool_, bool)):
+        return bool(o)
+    if isinstance(o, (np.integer, int)):
+        return int(o)
+    if isinstance(o, (np.floating, float)):
+        v = float(o)
+        return v if math.isfinite(v) else str(v)
+    if o is None or isinstance(o, str):
+        return o
     return str(o)
 
 
@@ -137,7 +717,80 @@ def write_diagnostics(path: Path, result) -> None:
             w.writerow([int(cols[c][i]) if c == "step" else repr(float(cols[c][i])) for c in DIAGNOSTIC_COLUMNS])
 
 
+def energy_balance(result) -> dict:
+    """The discrete energy balance at the last stored time, with a verdict.
+
+    E(0) + W_ext = E(t) + D_visc + D_con + D_num, where D_num is the scheme's own consistency term
+    (see `Result`). The residual is the largest |E(0) + W_ext − [E(t) + D]| over the stored times,
+    relative to the largest term; the balance "closes" when it is below BALANCE_RTOL.
+    """
+    e = result.energy
+    total = result.total_energy
+    residual = np.asarray(result.balance_residual, dtype=float)
+    terms = {
+        "initial": float(total[0]),
+        "final": float(total[-1]),
+        "viscous_dissipation": float(e["viscous_dissipation"][-1]),
+        "contact_dissipation": float(e["contact_dissipation"][-1]),
+        "numerical_dissipation": float(e["numerical_dissipation"][-1]),
+        "external_work": float(e["external_work"][-1]),
+    }
+    scale = max([abs(v) for v in terms.values()] + [np.finfo(float).tiny])
+    worst = float(np.max(np.abs(residual))) if residual.size else 0.0
+    relative = worst / scale if math.isfinite(worst) else math.inf
+    return {
+        **terms,
+        "residual": float(residual[-1]),
+        "max_abs_residual": worst,
+        "relative_residual": relative,
+        "tolerance": BALANCE_RTOL,
+        "closes": bool(relative <= BALANCE_RTOL),
+    }
+
+
+def penetration_check(result) -> dict:
+    """How far the string went below the obstacle, against the bound of its contact law.
+
+    The velocity penalty F = (1/ε)(v)⁻ brakes a node falling at speed V within a depth ε·V (exactly, for
+    the explicit scheme: Σ Δt·V·(1 − r)^k = ε·V), plus at most one step Δt·V travelled before the force
+    switches on. The bound allows twice that, for the elastic and viscous forces acting meanwhile, below
+    the deepest initial value:
+
+        depth ≤ max(0, max(ψ − η0)) + PENETRATION_FACTOR·(ε + Δt)·V,   V = max |v| over the stored rows,
+
+    with ψ the scene's obstacle (0 unless it gives one). For the `elastic` variant (a spring of stiffness
+    1/ε) ε·V becomes √ε·V. A run beyond the bound holds the string down by something the penalty cannot
+    stop (a static load, a model variant, an r > 1 rebound): see docs/reliability.md.
+    """
+    scene = result.scene
+    eta = np.asarray(result.eta, dtype=float)
+    velocity = np.asarray(result.velocity, dtype=float)
+    v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
+    obstacle = None
+    if getattr(scene, "obstacle", None) is not None and hasattr(scene, "obstacle_values"):
+        obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
+    if obstacle is None:  # min_eta covers every step, not only the stored ones
+        depth = max(0.0, -float(result.min_eta))
+        start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
+    else:
+        depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
+        start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
+    braking = math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
+    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
+    return {
+        "depth": depth,
+        "bound": bound,
+        "initial_depth": start_depth,
+        "max_speed": v_max,
+        "eps_times_speed": braking * v_max,
+        "law": "spring (sqrt(eps))" if result.model == "elastic" else "velocity penalty (eps)",
+        "within_bound": bool(depth <= bound * (1 + 1e-12)),
+    }
+
+
 def summary_dict(result) -> dict:
+    import dolfinx
+
     scene = result.scene
     return {
         "status": result.status,
@@ -154,4 +807,6 @@ def summary_dict(result) -> dict:
         "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
         "initial_energy": float(result.total_energy[0]),
         "max_abs_balance_residual": float(np.max(np.abs(result.balance_residual))),
+        "energy_balance": energy_balance(result),
+        "penetration": penetration_check(result),
     }

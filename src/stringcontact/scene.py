@@ -10,6 +10,8 @@ A scene file looks like::
     dt = 0.0002       # or nt = 1500; dt must divide T
     eta0 = "1 + 0.5*sin(10*pi*x)**2"
     v0 = -50
+    load = "-10"      # optional: external load f(x), for a model that reads it
+    obstacle = "0"    # optional: obstacle profile psi(x), for a model that reads it
 
 Usage::
 
@@ -17,6 +19,8 @@ Usage::
     coarse = scene.replace(nx=100, nt=30)     # a new, validated scene
     x = coarse.x()
     eta = coarse.initial_displacement(x)
+    coarse.fields                             # {"load": "-10", ...}: only the fields the file gives
+    f = coarse.field_values("load", x)
 
 Every invalid value raises :class:`SceneError` with a one-line message naming the key
 and what is allowed; doubtful but legal data (a string starting below the obstacle,
@@ -48,6 +52,7 @@ __all__ = [
     "list_scenes",
     "scene_to_toml",
     "FILE_KEYS",
+    "FIELD_KEYS",
     "REQUIRED_KEYS",
     "MAX_FILE_BYTES",
 ]
@@ -55,8 +60,10 @@ __all__ = [
 #: Keys a scene file (or Scene.replace) accepts, in the order they are written.
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
-    "eta0", "v0", "h", "h_left", "h_right", "output_times", "model",
+    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model",
 )
+#: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
+FIELD_KEYS = ("load", "obstacle")
 #: Required keys; besides these, exactly one of nt or dt.
 REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
 MAX_FILE_BYTES = 1_000_000
@@ -90,6 +97,9 @@ class Scene:
 
     ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.expressions`);
     ``h_left``/``h_right`` are the (resolved) heights at which the ends are held.
+    ``load`` (an external force density f) and ``obstacle`` (a profile ψ) are optional expressions
+    in ``x`` too; they are data for a model that reads them (``stringcontact.variants:loaded_obstacle``),
+    available as :attr:`fields`.
     Direct construction validates too, but resolves no defaults and gives no warnings.
     """
 
@@ -109,6 +119,8 @@ class Scene:
     description: str = ""
     notes: str = ""  # interpretations of the source data
     model: str | None = None  # "package.module:function"
+    load: str | None = None  # external load f(x), expression in x (None: not given)
+    obstacle: str | None = None  # obstacle profile psi(x), expression in x (None: not given)
 
     def __post_init__(self):
         # Normalise in place (frozen, hence object.__setattr__): ints to floats, lists to tuples.
@@ -132,7 +144,7 @@ class Scene:
         if self.model is not None:
             put("model", _check_model(self.model))
         put("output_times", _check_output_times(self.output_times, self.T))
-        for key in ("eta0", "v0"):
+        for key in ("eta0", "v0") + tuple(k for k in FIELD_KEYS if getattr(self, k) is not None):
             put(key, _expression_text(key, getattr(self, key)))
             expressions.check(getattr(self, key), field=key, names=self._names())
 
@@ -165,6 +177,28 @@ class Scene:
         """v0 at the points x (as given: the solver holds the ends, so their velocity is ignored)."""
         return expressions.evaluate(self.v0, np.asarray(x, dtype=float), field="v0", names=self._names())
 
+    @property
+    def fields(self) -> dict[str, str]:
+        """The optional expression fields the scene gives (``load``, ``obstacle``), name -> expression.
+
+        The solver interpolates each into a P1 function and hands it to the model as
+        ``Parameters.extra[name]``.
+        """
+        return {key: getattr(self, key) for key in FIELD_KEYS if getattr(self, key) is not None}
+
+    def field_values(self, name: str, x) -> np.ndarray:
+        """The field `name` (a key of :attr:`fields`) at the points x."""
+        fields = self.fields
+        if name not in fields:
+            given = ", ".join(fields) or "none"
+            raise SceneError(f"{name}: the scene gives no field {name!r} (fields given: {given})")
+        return expressions.evaluate(fields[name], np.asarray(x, dtype=float), field=name, names=self._names())
+
+    def obstacle_values(self, x) -> np.ndarray:
+        """The obstacle profile ψ at the points x: the ``obstacle`` field, or 0 (the paper's y = 0)."""
+        x = np.asarray(x, dtype=float)
+        return self.field_values("obstacle", x) if self.obstacle is not None else np.zeros_like(x)
+
     def _names(self) -> dict[str, float]:
         names = {"l": self.length}
         if self.h is not None:
@@ -196,6 +230,7 @@ class Scene:
         else:
             d["h_left"] = self.h_left
             d["h_right"] = self.h_right
+        d.update(self.fields)
         d["output_times"] = list(self.output_times)
         if self.model is not None:
             d["model"] = self.model
@@ -305,20 +340,35 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         description=data.get("description", ""),
         notes=data.get("notes", ""),
         model=data.get("model"),
+        **{key: data[key] for key in FIELD_KEYS if key in data},
     )
+
+
+MAX_MAGNITUDE = 1e6  # largest |eta0|, |v0|, load or obstacle value a scene may give
 
 
 def _warn_doubtful(scene: Scene, label: str) -> None:
     """Warn (not refuse) about data that is legal but probably not what was meant."""
     x = scene.x()
     eta = scene.initial_displacement(x)  # also checks finiteness on the real grid, not just the probe
-    scene.initial_velocity(x)
-    below = eta < 0.0
+    values = {"eta0": eta, "v0": scene.initial_velocity(x)}
+    for key in scene.fields:
+        values[key] = scene.field_values(key, x)
+    psi = scene.obstacle_values(x)
+    values["obstacle"] = psi
+    for key, arr in values.items():  # beyond this, energies of order |.|^2/eps overflow or lose all digits
+        big = np.abs(np.asarray(arr, dtype=float))
+        if big.size and big.max() > MAX_MAGNITUDE:
+            raise SceneError(f"{key}: |{key}| reaches {big.max():.3g}; allowed: values in [-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}]")
+    below = eta < psi
     if below.any():
-        i = int(np.argmin(eta))
+        gap = eta - psi
+        i = int(np.argmin(gap))
+        what = "eta0 < 0" if scene.obstacle is None else "eta0 < obstacle"
+        at = f"min {eta[i]:.6g}" if scene.obstacle is None else f"min eta0 - obstacle {gap[i]:.6g}"
         warnings.warn(
-            f"scene {label!r}: eta0 is below the obstacle (eta0 < 0) at {int(below.sum())} of {x.size} nodes "
-            f"(min {eta[i]:.6g} at x={x[i]:.6g}); used as given",
+            f"scene {label!r}: eta0 is below the obstacle ({what}) at {int(below.sum())} of {x.size} nodes "
+            f"({at} at x={x[i]:.6g}); used as given",
             SceneWarning,
             stacklevel=4,
         )

@@ -39,10 +39,25 @@ class Operators:
     load: np.ndarray  # b on owned dofs (zero for the paper's model)
 
 
-def _assemble_matrix(a) -> PETSc.Mat:
-    A = fem.petsc.assemble_matrix(fem.form(a))
+def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
+    """Assemble `a`; with `pattern`, into a copy of its sparsity (P1 forms on one mesh share it), which
+    saves building the sparsity pattern again."""
+    if pattern is None:
+        A = fem.petsc.assemble_matrix(fem.form(a))
+    else:
+        A = pattern.duplicate(copy=False)
+        A.zeroEntries()
+        fem.petsc.assemble_matrix(A, fem.form(a))
     A.assemble()
     return A
+
+
+def _assemble_row_sums(a, V) -> np.ndarray:
+    """Row sums of the bilinear form `a` on owned dofs, as the vector a(1, w): no matrix is built."""
+    one = fem.Constant(V.mesh, PETSc.ScalarType(1.0))
+    vec = fem.petsc.assemble_vector(fem.form(ufl.replace(a, {ufl.algorithms.extract_arguments(a)[1]: one})))
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    return vec.array.copy()
 
 
 def _row_sums(A: PETSc.Mat) -> np.ndarray:
@@ -74,8 +89,9 @@ def semi_discrete_operators(model, V, params) -> Operators:
             )
         return a
 
-    M, C, K, B = (_assemble_matrix(part(f)) for f in (eta_tt, eta_t, eta, force))
-    B.scale(-1.0)
+    K = _assemble_matrix(part(eta))
+    M, C = (_assemble_matrix(part(f), pattern=K) for f in (eta_tt, eta_t))
+    m_force = -_assemble_row_sums(part(force), V)  # B = −∂R/∂F is only needed lumped
     b_form = -ufl.replace(R, {f: zero for f in placeholders})
     b_form = ufl.algorithms.expand_derivatives(b_form)
     load = np.zeros_like(_row_sums(M))
@@ -83,7 +99,7 @@ def semi_discrete_operators(model, V, params) -> Operators:
         vec = fem.petsc.assemble_vector(fem.form(b_form))
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         load = vec.array.copy()
-    return Operators(M=M, C=C, K=K, m=_row_sums(M), m_force=_row_sums(B), load=load)
+    return Operators(M=M, C=C, K=K, m=_row_sums(M), m_force=m_force, load=load)
 
 
 def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:

@@ -19,7 +19,7 @@ from petsc4py import PETSc
 
 from . import compat, nodal
 from .errors import InstabilityError
-from .model import Model, Parameters, inelastic
+from .model import Model, Parameters, inelastic, unused_fields
 from .result import ENERGY_KEYS, Result
 from .scheme import bc_dofs, node_coordinates, semi_discrete_operators, step_matrices
 
@@ -70,9 +70,16 @@ class _Gather:
         self.order = np.argsort(np.concatenate(xs), kind="stable")
         self.x = np.concatenate(xs)[self.order]
 
-    def __call__(self, a: np.ndarray) -> np.ndarray:
+        self.identity = bool(np.array_equal(self.order, np.arange(self.order.size)))
+
+    def __call__(self, a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        if self.comm.size == 1 and self.identity:  # serial, dofs already in x order: one copy
+            if out is None:
+                return a.copy()
+            out[...] = a
+            return out
         parts = self.comm.allgather(a) if self.comm.size > 1 else [a]
-        return np.concatenate(parts)[self.order]
+        return np.take(np.concatenate(parts), self.order, out=out)
 
 
 def simulate(
@@ -120,6 +127,12 @@ def simulate(
         length=scene.length,
         extra=extra,
     )
+    unused = unused_fields(model, V, params)
+    if unused:  # a load the model ignores would give a plausible but wrong answer
+        raise ValueError(
+            f"scene field(s) {', '.join(unused)}: not used by model '{model.name}'; choose a model that reads them "
+            "(e.g. model = 'stringcontact.variants:loaded_obstacle') or remove them from the scene"
+        )
     ops = semi_discrete_operators(model, V, params)
     A, P, Q, Ms = step_matrices(ops, dt, mass)
     n_owned = V.dofmap.index_map.size_local
@@ -140,6 +153,7 @@ def simulate(
         (model.penalty if penalty == "explicit" else model.penalty_damping)(eta_sym, v_sym, params)
     )
     contact_law = nodal.NodalExpression(model.contact_set(eta_sym, params))
+    energy_law = None if model.contact_energy is None else nodal.NodalExpression(model.contact_energy(eta_sym, params))
 
     ksp = PETSc.KSP().create(comm)
     ksp.setOperators(A)
@@ -151,39 +165,58 @@ def simulate(
     ksp.setUp()
     timings["setup"] = time.perf_counter() - t0
 
-    # State: η^{n+1}, η^n, η^{n−1} as PETSc vectors sharing memory with NumPy views.
-    eta_new, eta, eta_old = A.createVecRight(), A.createVecRight(), A.createVecRight()
-    b, tmp = A.createVecLeft(), A.createVecRight()
-    eta.array[:] = scene.initial_displacement(x)
-    eta.array[bc] = g
-    v0 = np.asarray(scene.initial_velocity(x), dtype=float) * interior  # a fixed end does not move
-    eta_old.array[:] = eta.array - dt * v0
+    # Every vector of the loop is allocated here, once: rows of a few 2-D NumPy arrays, wrapped without
+    # copying as PETSc vectors where PETSc needs them. The loop then only calls ufuncs with out=, three
+    # PETSc mat-vecs, one back-substitution and three einsum calls for all the energy dot products (rows
+    # that are dotted with the same vector are stacked, so one einsum does several dots in one pass).
+    # The state is rotated by swapping references, never copied.
+    local_size = A.getLocalSize()[0]
+
+    def wrap(a):
+        return PETSc.Vec().createWithArray(a, size=(local_size, PETSc.DECIDE), comm=comm), a
+
+    etas = np.zeros((3, n_owned))  # η^{n+1}, η^n, η^{n−1} in rotating rows
+    vels = np.zeros((2, n_owned))  # v^{n+1}, v^n in rotating rows
+    by_v = np.zeros((2, n_owned))  # C v^{n+1} and the applied force m_F∘F: both dotted with v^{n+1}
+    eta_new, eta, eta_old = (wrap(row) for row in etas)
+    v_new, v = (wrap(row) for row in vels)
+    C_v, f_applied = wrap(by_v[0]), by_v[1]
+    K_eta_new, M_v_new = wrap(np.zeros(n_owned)), wrap(np.zeros(n_owned))  # K η^{n+1}, M v^{n+1}
+    (b, b_a), (rhs_w, w_a) = wrap(np.zeros(n_owned)), wrap(np.zeros(n_owned))  # RHS; its part beside P η^n
+    row_of = {id(eta_new[1]): 0, id(eta[1]): 1, id(eta_old[1]): 2, id(v_new[1]): 0, id(v[1]): 1}  # which row is which
+    dots_v, dots_eta, dots_Mv = np.zeros(2), np.zeros(3), np.zeros(2)
+    diag_w = np.zeros(n_owned)  # semi-implicit: the damping weights m_F d / Δt on the active set
+
+    eta[1][:] = scene.initial_displacement(x)
+    eta[1][bc] = g
+    v[1][:] = np.asarray(scene.initial_velocity(x), dtype=float) * interior  # a fixed end does not move
+    eta_old[1][:] = eta[1] - dt * v[1]
 
     m, mF, load = ops.m, ops.m_force, ops.load
-    base_diag = A.getDiagonal().array.copy() if penalty == "semi-implicit" else None
+    has_load = bool(np.any(load != 0))
+    lumped = mass == "lumped"
+    explicit = penalty == "explicit"
+    base_diag = A.getDiagonal().array.copy() if not explicit else None
     damping_active = np.zeros(n_owned, dtype=bool)
     A_diag = A.createVecLeft()
+    refactorisations = 0
+    K, C = ops.K, ops.C
 
-    def mass_dot(u, w):  # uᵀ M w on owned dofs
-        if mass == "lumped":
-            return float(np.dot(u, m * w))
-        tmp.array[:] = w
-        Ms.mult(tmp, b)
-        return float(np.dot(u, b.array))
+    def apply_mass(u, out) -> None:
+        if lumped:
+            np.multiply(m, u[1], out=out[1])
+        else:
+            Ms.mult(u[0], out[0])
 
-    def k_apply(u):
-        tmp.array[:] = u
-        ops.K.mult(tmp, b)
-        return b.array.copy()
+    if comm.size > 1:
 
-    def c_dot(u):
-        tmp.array[:] = u
-        ops.C.mult(tmp, b)
-        return float(np.dot(u, b.array))
+        def allsum(*vals):
+            return comm.allreduce(np.array(vals), op=MPI.SUM).tolist()
 
-    def allsum(vals):
-        vals = np.asarray(vals, dtype=float)
-        return comm.allreduce(vals, op=MPI.SUM) if comm.size > 1 else vals
+    else:
+
+        def allsum(*vals):
+            return vals
 
     steps = stored_steps(scene.nt, dt, scene.output_times, max_rows)
     gather = _Gather(comm, x)
@@ -192,12 +225,11 @@ def simulate(
     rows["contact"] = np.empty((k, gather.x.size), dtype=bool)
     energy_rows = {key: np.empty(k) for key in ENERGY_KEYS}
 
-    v = v0.copy()
-    K_eta = k_apply(eta.array)
-    kin, el = allsum([0.5 * mass_dot(v, v), 0.5 * np.dot(eta.array, K_eta)])
-    cumulative = dict.fromkeys(("viscous_dissipation", "contact_dissipation", "numerical_dissipation", "external_work"), 0.0)
-    force_density = np.zeros(n_owned)
-    min_eta = float(np.min(eta.array[interior])) if interior.any() else math.inf
+    K.mult(eta[0], K_eta_new[0])
+    apply_mass(v, M_v_new)
+    kin, el = allsum(0.5 * float(np.dot(v[1], M_v_new[1])), 0.5 * float(np.dot(eta[1], K_eta_new[1])))
+    visc_sum = con_sum = num_sum = ext_sum = 0.0  # the cumulative dissipations and external work
+    min_eta = float(np.min(eta[1][interior])) if interior.any() else math.inf
 
     writer = None
     if output_dir is not None:
@@ -205,18 +237,21 @@ def simulate(
 
         writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures)
 
-    extra_nodal = {f: f.x.array[:n_owned] for f in extra.values()}
+    # One environment for the nodal laws; the loop only swaps the arrays of η^n and η^{n−1} in it.
+    env = nodal.environment({f: f.x.array[:n_owned] for f in extra.values()}, x)
+    k_eta, k_eta_old = id(eta_sym), id(eta_old_sym)
+    has_mF = mF > 0
 
     def store(row, n):
-        coeffs = {eta_sym: eta.array, **extra_nodal}
-        contact = contact_law(coeffs, x).astype(bool)
-        fields = {"eta": eta.array, "velocity": v, "contact": contact, "contact_force": force_density}
+        env[k_eta], env[k_eta_old] = eta[1], eta_old[1]
+        contact = contact_law.evaluate_env(env).astype(bool)
+        force_density = np.divide(f_applied, mF, out=np.zeros(n_owned), where=has_mF)
+        fields = {"eta": eta[1], "velocity": v[1], "contact": contact, "contact_force": force_density}
         for name, arr in fields.items():
-            rows[name][row] = gather(arr)
-        for key in ENERGY_KEYS:
-            energy_rows[key][row] = cumulative.get(key, 0.0)
-        energy_rows["kinetic"][row] = kin
-        energy_rows["elastic"][row] = el
+            gather(arr, out=rows[name][row])
+        cumulative = (kin, el, visc_sum, con_sum, num_sum, ext_sum)
+        for key, value in zip(ENERGY_KEYS, cumulative):
+            energy_rows[key][row] = value
         if writer is not None:
             writer.write(n * dt, {name: np.asarray(a, dtype=float) for name, a in fields.items()})
 
@@ -228,67 +263,96 @@ def simulate(
     if steps[0] == 0:
         store(0, 0)
         next_row = 1
-    E_prev = kin + el
-    E_tol = 1e-9 * max(abs(E_prev), 1e-300)
+    next_store = steps[next_row] if next_row < k else -1
+
+    def stored_energy(eta_now) -> float:  # Σ m_F Φ(η): the energy held by a conservative (spring) contact law
+        env[k_eta] = eta_now
+        return float(allsum(float(np.dot(mF, energy_law.evaluate_env(env))))[0])
+
+    E_prev = kin + el + (stored_energy(eta[1]) if energy_law is not None else 0.0)
+    # A dissipative law may not raise the energy at all. An explicit contact spring (a conservative law)
+    # makes it wobble by O(dt/√ε) during an impact, so there the energy may not exceed E(0) by 1e-3 E(0).
+    E_tol = (1e-9 if energy_law is None else 1e-3) * max(abs(E_prev), 1e-300)
+    E_ref = E_prev
+    inv_dt = 1.0 / dt
     status, message = "complete", ""
+    dot, subtract, multiply, einsum = np.dot, np.subtract, np.multiply, np.einsum
+    errstate = np.errstate(all="ignore")  # a NaN or overflow is caught by the energy guard, which names the step
+    errstate.__enter__()
     try:
         for n in range(scene.nt):  # computes η^{n+1}
-            coeffs = {eta_sym: eta.array, eta_old_sym: eta_old.array, **extra_nodal}
-            law = force_law(coeffs, x)
-            if penalty == "explicit":
-                f_applied = mF * law
+            e0, em = eta[1], eta_old[1]
+            env[k_eta], env[k_eta_old] = e0, em
+            law = force_law.evaluate_env(env)
+
+            # Right-hand side b = P η^n + w, w = Q η^{n−1} + m_F∘F^n + load.
+            if explicit:
+                multiply(mF, law, out=f_applied)
             else:
-                active = (law > 0) & interior
+                active = law > 0
+                active &= interior
+                multiply(mF, law, out=diag_w)
+                diag_w *= inv_dt
+                multiply(diag_w, active, out=diag_w)
                 if not np.array_equal(active, damping_active):
-                    A_diag.array[:] = base_diag + np.where(active, mF * law / dt, 0.0)
+                    # only the diagonal changes, so PETSc keeps the symbolic factorisation
+                    np.add(base_diag, diag_w, out=A_diag.array)
                     A.setDiagonal(A_diag)
                     ksp.setOperators(A)
                     damping_active = active
-                f_applied = None
-            P.mult(eta, b)
-            barr = b.array
-            if mass == "lumped":
-                barr += Q * eta_old.array
+                    refactorisations += 1
+                multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
+            if lumped:
+                multiply(Q, em, out=w_a)
             else:
-                Q.multAdd(eta_old, b, b)
-                barr = b.array
-            if penalty == "explicit":
-                barr += f_applied
-            else:
-                barr += np.where(damping_active, mF * law / dt, 0.0) * eta.array
-            barr += load
-            barr[bc] = g
-            ksp.solve(b, eta_new)
+                Q.mult(eta_old[0], rhs_w)
+            w_a += f_applied
+            if has_load:
+                w_a += load
+            P.multAdd(eta[0], rhs_w, b)
+            b_a[bc] = g
+            ksp.solve(b, eta_new[0])
 
-            # Diagnostics of the step n → n+1 (the discrete energy identity, term by term).
-            v_new = (eta_new.array - eta.array) / dt
-            if penalty != "explicit":
-                f_applied = -np.where(damping_active, mF * law, 0.0) * v_new
-            K_eta_new = k_apply(eta_new.array)
-            d_eta = eta_new.array - eta.array
-            dv = v_new - v
-            kin, el, visc, con, num, ext = allsum(
-                [
-                    0.5 * mass_dot(v_new, v_new),
-                    0.5 * np.dot(eta_new.array, K_eta_new),
-                    dt * c_dot(v_new),
-                    -dt * np.dot(v_new, f_applied),
-                    0.5 * mass_dot(dv, dv) + 0.5 * np.dot(d_eta, K_eta_new - K_eta),
-                    np.dot(d_eta, load),
-                ]
+            # Diagnostics of the step n → n+1: the discrete energy identity, term by term.
+            e1, v1 = eta_new[1], v_new[1]
+            subtract(e1, e0, out=v1)
+            v1 *= inv_dt
+            if not explicit:  # the force actually applied: −m_F d v^{n+1}
+                multiply(diag_w, v1, out=f_applied)
+                f_applied *= -dt
+            K.mult(eta_new[0], K_eta_new[0])
+            C.mult(v_new[0], C_v[0])
+            apply_mass(v_new, M_v_new)
+            einsum("ij,j->i", by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f
+            einsum("ij,j->i", vels, M_v_new[1], out=dots_Mv)  # v¹·Mv¹, v⁰·Mv¹
+            einsum("ij,j->i", etas, K_eta_new[1], out=dots_eta)  # η·Kη¹ for the three η rows
+            i1, i0 = row_of[id(e1)], row_of[id(e0)]
+            iv1 = row_of[id(v1)]
+            # With M, K symmetric: ½|v¹−v⁰|²_M = ½v¹·Mv¹ + ½v⁰·Mv⁰ − v⁰·Mv¹, and likewise for K and η, so
+            # the numerical dissipation needs no difference vectors.
+            kin_new, el_new, visc, con, cross, ext = allsum(
+                0.5 * dots_Mv[iv1],
+                0.5 * dots_eta[i1],
+                dt * dots_v[0],
+                -dt * dots_v[1],
+                dots_Mv[1 - iv1] + dots_eta[i0],
+                dt * float(dot(v1, load)) if has_load else 0.0,
             )
-            cumulative["viscous_dissipation"] += visc
-            cumulative["contact_dissipation"] += con
-            cumulative["numerical_dissipation"] += num
-            cumulative["external_work"] += ext
-            force_density = np.divide(f_applied, mF, out=np.zeros(n_owned), where=mF > 0)
-            min_eta = min(min_eta, float(np.min(eta_new.array)) if n_owned else math.inf)
+            num_sum += kin_new + kin + el_new + el - cross
+            visc_sum += visc
+            con_sum += con
+            ext_sum += ext
+            kin, el = kin_new, el_new
+            if n_owned:
+                min_eta = min(min_eta, e1.min())
 
-            # rotate: η^{n−1} ← η^n ← η^{n+1}
+            # rotate: η^{n−1} ← η^n ← η^{n+1} and v^n ← v^{n+1}
             eta_old, eta, eta_new = eta, eta_new, eta_old
-            v, K_eta = v_new, K_eta_new
-            E = kin + el - cumulative["external_work"]
-            if not math.isfinite(E) or E > E_prev + E_tol:
+            v, v_new = v_new, v
+            E = kin + el - ext_sum
+            if energy_law is not None:
+                E += stored_energy(eta[1])
+            if not math.isfinite(E) or E > (E_prev if energy_law is None else E_ref) + E_tol:
                 t_n = (n + 1) * dt
                 why = "a value is not finite" if not math.isfinite(E) else f"the energy rose from {E_prev:.6g} to {E:.6g}"
                 raise InstabilityError(
@@ -299,20 +363,45 @@ def simulate(
                     r=r,
                 )
             E_prev = E
-            if next_row < k and steps[next_row] == n + 1:
+            if n + 1 == next_store:
                 store(next_row, n + 1)
                 next_row += 1
+                next_store = steps[next_row] if next_row < k else -1
             if progress and (n & 63) == 0:
                 bar.update(min(64, scene.nt - bar.n))
     except (InstabilityError, KeyboardInterrupt) as exc:
         status = "unstable" if isinstance(exc, InstabilityError) else "interrupted"
-        message = str(exc)
+        message = str(exc) or status
+        # The rows stored so far: the partial output's diagnostics.csv and energy balance, and the CLI's report.
+        partial = Result(
+            scene=scene,
+            x=gather.x,
+            t=steps[:next_row] * dt,
+            steps=steps[:next_row],
+            **{name: rows[name][:next_row] for name in ("eta", "velocity", "contact", "contact_force")},
+            energy={key: values[:next_row] for key, values in energy_rows.items()},
+            min_eta=float(min_eta),
+            penalty=penalty,
+            mass=mass,
+            model=model.name,
+            status=status,
+            timings=timings,
+            message=message,
+        )
+        exc.result = partial
         if writer is not None:
-            writer.abort(status, message)
+            writer.abort(status, message, result=partial, error=exc)
+        raise
+    except BaseException:
+        if writer is not None:
+            writer.discard()  # an unexpected error: no half-written folder, no stale lock
         raise
     finally:
+        errstate.__exit__(None, None, None)
         bar.close()
-    timings["solve"] = time.perf_counter() - t_loop
+    timings["solve"] = time.perf_counter() - t_loop - (writer.write_time if writer is not None else 0.0)  # I/O apart
+    if not explicit:
+        timings["refactorisations"] = refactorisations
 
     min_eta = comm.allreduce(min_eta, op=MPI.MIN) if comm.size > 1 else min_eta
     result = Result(

@@ -1,5 +1,133 @@
-"""PLACEHOLDER: being written by its issue's helper; replaced before landing."""
+"""Model variants shipped with stringcontact, and `load_model` for a user's own.
+
+Each variant changes one or two of the paper's UFL functions (`model.py`) and keeps the rest:
+
+``elastic``
+    Elastic (bouncing) contact: the classic Signorini displacement penalty F = (1/ε) η⁻ in place
+    of the paper's velocity penalty. A spring of stiffness 1/ε below the obstacle: an impact gives
+    the energy back (up to O(ε)) instead of destroying it. Explicit only (no damping form).
+
+``loaded_obstacle``
+    The paper's model with an external load f(x) and an obstacle ψ(x), read from the scene keys
+    ``load`` and ``obstacle`` (each defaults to 0 when the scene does not give it):
+
+        ∫ η_tt w + α ∫ η_tx w_x + ∫ η_x w_x = ∫ f w + ∫ F w,    F = (1/ε) χ{η<ψ} (η_t)⁻,
+
+    so the constraint is η ≥ ψ and the contact set is {η ≤ ψ}.
+
+Select a model with ``sc.simulate(scene, model=...)``, the scene key
+``model = "package.module:name"`` or the command line ``--model package.module:name``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+
+import ufl
+
+from .errors import SceneError
+from .model import Model, Parameters, inelastic
+from .model import momentum_form as _paper_momentum_form
+
+__all__ = ["elastic", "loaded_obstacle", "load_model"]
 
 
-def load_model(spec):
-    raise ValueError("model variants are not yet implemented")
+# --- elastic (bouncing) contact ------------------------------------------------------------
+
+
+def _displacement_penalty(eta, v, p: Parameters):
+    """(1/ε) η⁻: a spring pushing back in proportion to the penetration, whatever the velocity."""
+    return ufl.max_value(-eta, 0) / p.eps
+
+
+def _spring_energy(eta, p: Parameters):
+    """Φ = (1/2ε) (η⁻)², the energy stored in the spring (F = −∂Φ/∂η)."""
+    return ufl.max_value(-eta, 0) ** 2 / (2 * p.eps)
+
+
+elastic = dataclasses.replace(
+    inelastic,
+    name="elastic",
+    penalty=_displacement_penalty,
+    penalty_damping=None,
+    contact_energy=_spring_energy,
+    description="elastic contact: displacement penalty (1/eps) eta^- on the obstacle y = 0 (bounces)",
+)
+
+
+# --- a loaded string over a profiled obstacle ------------------------------------------------
+
+
+def _obstacle(p: Parameters):
+    return p.extra.get("obstacle", 0.0)
+
+
+def _loaded_momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
+    """The paper's form minus ∫ f w: a term in no unknown, so the scheme assembles it once as b."""
+    R = _paper_momentum_form(eta, eta_t, eta_tt, force, w, p)
+    if "load" in p.extra:
+        R = R - p.extra["load"] * w * ufl.dx
+    return R
+
+
+def _obstacle_penalty(eta, v, p: Parameters):
+    """(1/ε) χ{η<ψ} (v)⁻: the paper's law with the gap η − ψ (ψ is fixed, so the gap rate is v)."""
+    return ufl.conditional(ufl.lt(eta, _obstacle(p)), ufl.max_value(-v, 0) / p.eps, 0)
+
+
+def _obstacle_damping(eta, v, p: Parameters):
+    return ufl.conditional(ufl.And(ufl.lt(eta, _obstacle(p)), ufl.lt(v, 0)), 1 / p.eps, 0)
+
+
+def _obstacle_contact_set(eta, p: Parameters):
+    return ufl.le(eta, _obstacle(p))
+
+
+loaded_obstacle = Model(
+    name="loaded_obstacle",
+    momentum_form=_loaded_momentum_form,
+    penalty=_obstacle_penalty,
+    penalty_damping=_obstacle_damping,
+    contact_set=_obstacle_contact_set,
+    description="the paper's model with a load f(x) (scene key load) over an obstacle psi(x) (scene key obstacle)",
+)
+
+
+# --- loading a model by name -----------------------------------------------------------------
+
+
+def load_model(spec: str) -> Model:
+    """The model named by ``"package.module:name"``: a `Model`, or a function of no arguments returning one.
+
+    Raises `SceneError` with a one-line message naming ``model`` when the module cannot be imported,
+    the name is missing, or the object is not a `Model`.
+    """
+    if isinstance(spec, Model):
+        return spec
+    if not isinstance(spec, str) or spec.count(":") != 1:
+        raise SceneError(f"model: invalid value {spec!r}; allowed: 'package.module:name'")
+    module_name, attr = spec.split(":")
+    if not module_name or not attr.isidentifier():
+        raise SceneError(f"model: invalid value {spec!r}; allowed: 'package.module:name'")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # an ImportError, or any error raised by the user's module itself
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise SceneError(f"model: cannot import module {module_name!r} for {spec!r} ({reason})") from None
+    try:
+        obj = getattr(module, attr)
+    except AttributeError:
+        raise SceneError(f"model: module {module_name!r} has no {attr!r} (for {spec!r})") from None
+    if not isinstance(obj, Model) and callable(obj):
+        try:
+            obj = obj()
+        except Exception as exc:
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            raise SceneError(f"model: calling {spec!r} failed ({type(exc).__name__}: {reason})") from None
+    if not isinstance(obj, Model):
+        raise SceneError(
+            f"model: {spec!r} is a {type(obj).__name__}, not a stringcontact.Model "
+            "(or a function of no arguments returning one)"
+        )
+    return obj

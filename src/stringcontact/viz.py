@@ -1,13 +1,546 @@
-"""PLACEHOLDER: being written by its issue's helper; replaced before landing."""
+"""Pictures of a run, and reading an output folder back.
+
+* :func:`write_pictures` draws ``contact_set.png`` and ``velocity_field.png`` (space-time pictures, pyvista
+  off-screen) and ``snapshots.png`` and ``energy.png`` (line charts, matplotlib) from a :class:`Result`.
+* :func:`read_output` rebuilds a :class:`Result` from ``solution.xdmf``/``.h5``, ``diagnostics.csv`` and
+  ``summary.json`` alone, so ``stringcontact plot DIR`` redraws everything without re-running. The
+  ``.h5`` is read with pyfive (pure Python): the h5py wheel bundles its own libhdf5, which clashes with
+  the system libhdf5 that dolfinx has already loaded ("Not a datatype").
+* :func:`contact_components` splits one row of the contact set into its intervals (used by the
+  snapshot titles and by the demos).
+
+Why two libraries: the space-time fields are a rectilinear (x, t) grid of up to millions of cells, which
+VTK renders directly; the snapshots and the energy balance are small line charts with shared axes, a
+log-scale panel, filled regions and mathtext labels, which matplotlib draws better than pyvista's charts.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")
+FIELDS = ("eta", "velocity", "contact", "contact_force")
+#: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
+VELOCITY_PERCENTILE = 99.0
+CONTACT_COLOUR = "#b2182b"
+WINDOW_SIZE = (1100, 900)
 
 
-def add_arguments(parser):
-    parser.add_argument("args", nargs="*")
+# --- reading the contact set ------------------------------------------------------------------------
+
+
+def contact_components(x: np.ndarray, contact_row: np.ndarray, min_nodes: int = 2) -> list[tuple[float, float]]:
+    """The intervals [a, b] of one contact row: maximal runs of at least `min_nodes` contact nodes.
+
+    The default drops isolated nodes, i.e. components of zero length (Example 2's left end is pinned at
+    η = 0 and so is always "in contact" at one node).
+    """
+    c = np.asarray(contact_row, dtype=bool).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], c, [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # runs [start, stop)
+    return [(float(x[a]), float(x[b - 1])) for a, b in zip(starts, stops) if b - a >= min_nodes]
+
+
+def stored_rows_at(result, times) -> list[int]:
+    """Indices of the stored rows at `times` (nearest stored time within half a step; others skipped)."""
+    half_step = 0.5 * result.scene.dt
+    rows = []
+    for t in times:
+        i = int(np.argmin(np.abs(result.t - t)))
+        if abs(result.t[i] - t) <= half_step:
+            rows.append(i)
+    return rows
+
+
+def snapshot_rows(result) -> list[int]:
+    """The rows at the scene's output times, or six evenly spaced rows if it has none."""
+    rows = stored_rows_at(result, result.scene.output_times)
+    if not rows:
+        rows = sorted(set(np.linspace(0, len(result.t) - 1, 6).round().astype(int).tolist()))
+    return rows
+
+
+def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
+    """Symmetric colour range ±c for v, with c the `percentile` of |v| over all stored samples."""
+    c = float(np.percentile(np.abs(result.velocity), percentile))
+    return c if c > 0 else max(float(np.max(np.abs(result.velocity))), 1.0)
+
+
+# --- titles -----------------------------------------------------------------------------------------
+
+
+def parameter_line(result, sep: str = ", ") -> str:
+    s = result.scene
+    return (
+        f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
+        f"penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
+    )
+
+
+# --- pyvista: space-time pictures ---------------------------------------------------------------------
+
+
+def _font_file() -> str | None:
+    """A TrueType font with Greek letters (VTK's built-in fonts have none): matplotlib's DejaVu Sans."""
+    try:
+        from matplotlib import font_manager
+
+        return font_manager.findfont("DejaVu Sans", fallback_to_default=False)
+    except Exception:  # no font: VTK's own font, Greek letters missing
+        return None
+
+
+def _use_font(prop, font: str | None) -> None:
+    if font:
+        import vtk
+
+        prop.SetFontFamily(vtk.VTK_FONT_FILE)
+        prop.SetFontFile(font)
+
+
+def _offscreen():
+    # EGL needs no display; on a desktop with a display VTK's default window works too.
+    if "DISPLAY" not in os.environ:
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    return pv
+
+
+def space_time_grid(result, aspect: float = 0.75, max_columns: int = 1200):
+    """A rectilinear grid with one cell per stored sample (x_i, t_k), cells centred on the samples.
+
+    Time is scaled by `aspect`·l/T so that the picture is `aspect` times as high as it is wide; the axes
+    are labelled with the true t. With more than `max_columns` nodes, neighbouring nodes are merged into
+    blocks (velocity averaged, contact where at least half the block is in contact): a picture has about
+    a thousand pixels across, and rendering five million cells in software OpenGL takes seconds.
+    """
+    pv = _offscreen()
+    x, t = result.x, result.t
+    L, T = float(x[-1] - x[0]), float(t[-1] - t[0]) or 1.0
+    xe = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
+    te = np.concatenate([[t[0]], 0.5 * (t[1:] + t[:-1]), [t[-1]]]) if len(t) > 1 else np.array([t[0], t[0] + 1.0])
+    velocity = np.asarray(result.velocity, dtype=float)
+    contact = np.asarray(result.contact, dtype=float)
+    eta = np.asarray(result.eta, dtype=float)
+    n = x.size
+    if n > max_columns:
+        starts = np.arange(0, n, int(np.ceil(n / max_columns)))
+        counts = np.diff(np.append(starts, n))
+        xe = np.append(xe[starts], xe[-1])
+        velocity, contact, eta = (np.add.reduceat(a, starts, axis=1) / counts for a in (velocity, contact, eta))
+    scale = aspect * L / T
+    grid = pv.RectilinearGrid(xe, te * scale, np.array([0.0]))
+    # cell order: x fastest, then t, i.e. a (k, n) array raveled in C order
+    grid.cell_data["velocity"] = velocity.ravel()
+    grid.cell_data["contact"] = (contact >= 0.5).astype(np.uint8).ravel()
+    grid.cell_data["eta"] = eta.ravel()
+    return grid, (float(x[0]), float(x[-1]), float(t[0]), float(t[-1]))
+
+
+def _tick_values(lo: float, hi: float, n: int) -> np.ndarray:
+    from matplotlib.ticker import MaxNLocator
+
+    ticks = MaxNLocator(nbins=n, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+    span = hi - lo
+    return ticks[(ticks >= lo - 1e-9 * span) & (ticks <= hi + 1e-9 * span)]
+
+
+def _world_text(p, text: str, xy, font, size: int, halign: str, valign: str):
+    import vtk
+
+    actor = vtk.vtkTextActor()
+    actor.SetInput(text)
+    actor.GetPositionCoordinate().SetCoordinateSystemToWorld()
+    actor.GetPositionCoordinate().SetValue(float(xy[0]), float(xy[1]), 0.0)
+    prop = actor.GetTextProperty()
+    prop.SetFontSize(size)
+    prop.SetColor(0.0, 0.0, 0.0)
+    getattr(prop, f"SetJustificationTo{halign}")()
+    getattr(prop, f"SetVerticalJustificationTo{valign}")()
+    _use_font(prop, font)
+    p.add_actor(actor)
+    return actor
+
+
+def _draw_axes(p, bounds, ranges, font, xlabel: str, ylabel: str) -> None:
+    """Frame, ticks and labels drawn from plain lines and text actors.
+
+    Not pyvista's show_bounds: its vtkCubeAxesActor formats labels with std::regex, which crashes
+    (std::bad_alloc) once dolfinx's C++ module has been loaded with global symbols.
+    """
+    pv = _offscreen()
+    x0, x1, y0, y1 = bounds[:4]
+    r = ranges
+    tick = 0.012 * max(x1 - x0, y1 - y0)
+    segments = [[x0, y0, 0], [x1, y0, 0], [x1, y0, 0], [x1, y1, 0], [x1, y1, 0], [x0, y1, 0], [x0, y1, 0], [x0, y0, 0]]
+    for v in _tick_values(r[0], r[1], 5):
+        X = x0 + (v - r[0]) / (r[1] - r[0]) * (x1 - x0)
+        segments += [[X, y0, 0], [X, y0 - tick, 0]]
+        _world_text(p, np.format_float_positional(round(v, 10), trim="-"), (X, y0 - 1.6 * tick), font, 18, "Centered", "Top")
+    for v in _tick_values(r[2], r[3], 6):
+        Y = y0 + (v - r[2]) / (r[3] - r[2]) * (y1 - y0)
+        segments += [[x0, Y, 0], [x0 - tick, Y, 0]]
+        _world_text(p, np.format_float_positional(round(v, 10), trim="-"), (x0 - 1.6 * tick, Y), font, 18, "Right", "Centered")
+    p.add_mesh(pv.line_segments_from_points(np.array(segments, dtype=float)), color="black", line_width=1.5)
+    _world_text(p, xlabel, (0.5 * (x0 + x1), y0 - 6 * tick), font, 19, "Centered", "Top")
+    _world_text(p, ylabel, (x0 - 9 * tick, 0.5 * (y0 + y1)), font, 19, "Right", "Centered")
+
+
+def _legend_patch(p, xy, size: float, colour, text: str, font) -> None:
+    """A filled square with a black edge and its label, in world coordinates."""
+    pv = _offscreen()
+    square = pv.Rectangle([[xy[0], xy[1], 0.0], [xy[0] + size, xy[1], 0.0], [xy[0] + size, xy[1] + size, 0.0]])
+    p.add_mesh(square, color=colour, lighting=False)
+    p.add_mesh(square.extract_feature_edges(), color="black", line_width=1)
+    _world_text(p, text, (xy[0] + 1.5 * size, xy[1] + 0.5 * size), font, 16, "Left", "Centered")
+
+
+def _colour_bar(p, bounds, clim, cmap: str, label: str, font) -> None:
+    """A vertical colour bar right of the picture, drawn as a grid strip (VTK's scalar bar also uses std::regex)."""
+    pv = _offscreen()
+    x0, x1, y0, y1 = bounds[:4]
+    width = x1 - x0
+    bx0, bx1 = x1 + 0.05 * width, x1 + 0.09 * width
+    by0, by1 = y0 + 0.1 * (y1 - y0), y1 - 0.1 * (y1 - y0)
+    levels = np.linspace(clim[0], clim[1], 257)
+    strip = pv.RectilinearGrid(np.array([bx0, bx1]), np.linspace(by0, by1, len(levels) + 1), np.array([0.0]))
+    strip.cell_data[label] = levels
+    p.add_mesh(strip, scalars=label, cmap=cmap, clim=list(clim), show_scalar_bar=False, lighting=False)
+    p.add_mesh(strip.outline(), color="black", line_width=1)
+    tick = 0.012 * width
+    segments = []
+    for v in _tick_values(clim[0], clim[1], 6):
+        Y = by0 + (v - clim[0]) / (clim[1] - clim[0]) * (by1 - by0)
+        segments += [[bx1, Y, 0], [bx1 + tick, Y, 0]]
+        _world_text(p, f"{v:.3g}", (bx1 + 1.6 * tick, Y), font, 15, "Left", "Centered")
+    if segments:
+        p.add_mesh(pv.line_segments_from_points(np.array(segments, dtype=float)), color="black", line_width=1.5)
+    _world_text(p, label, (0.5 * (bx0 + bx1), by1 + 1.5 * tick), font, 19, "Centered", "Bottom")
+
+
+def _space_time_plotter(result, grid, ranges, title: str, subtitle: str, window_size=WINDOW_SIZE):
+    pv = _offscreen()
+    font = _font_file()
+    p = pv.Plotter(window_size=list(window_size), off_screen=True)
+    p.set_background("white")
+    _draw_axes(p, grid.bounds, ranges, font, "x (position along the string)", "t\n(time)")
+    for text, pos, size in ((title, (0.5, 0.97), 17), (subtitle, (0.5, 0.915), 12)):
+        actor = p.add_text(text, position=pos, viewport=True, font_size=size, color="black")
+        prop = actor.GetTextProperty()
+        prop.SetJustificationToCentered()
+        prop.SetVerticalJustificationToTop()
+        _use_font(prop, font)
+    p.view_xy()
+    p.enable_parallel_projection()
+    return p, font
+
+
+def _frame(p, grid, left=0.16, right=0.16, bottom=0.14, top=0.2) -> None:
+    """Place the camera so that the grid fills the window less the given margins (fractions)."""
+    x0, x1, y0, y1 = grid.bounds[:4]
+    w, h = p.window_size
+    # parallel scale = half the visible world height; solve for the tighter of width and height
+    world_w = (x1 - x0) / (1 - left - right)
+    world_h = (y1 - y0) / (1 - bottom - top)
+    scale = max(world_h, world_w * h / w) / 2
+    cx = 0.5 * (x0 + x1) - (left - right) / 2 * (2 * scale * w / h)
+    cy = 0.5 * (y0 + y1) - (bottom - top) / 2 * (2 * scale)
+    cam = p.camera
+    cam.focal_point = (cx, cy, 0.0)
+    cam.position = (cx, cy, 10.0)
+    cam.up = (0.0, 1.0, 0.0)
+    cam.parallel_projection = True
+    cam.parallel_scale = scale
+    p.renderer.ResetCameraClippingRange()
+
+
+def _screenshot(p, path: Path) -> None:
+    # write to a hidden name and rename: a picture is either complete or absent
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    p.screenshot(str(tmp))
+    p.close()
+    os.replace(tmp, path)
+
+
+def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
+    """The space-time contact set {η ≤ 0}: filled where in contact, blank where the string is free."""
+    path = Path(path)
+    grid, ranges = space_time_grid(result)
+    title = f"Contact set {{η ≤ 0}} in space-time: {result.scene.name}"
+    p, font = _space_time_plotter(result, grid, ranges, title, parameter_line(result, "\n"), window_size)
+    contact = grid.threshold(0.5, scalars="contact")
+    if contact.n_cells:
+        p.add_mesh(contact, color=CONTACT_COLOUR, show_scalar_bar=False, lighting=False)
+    x0, x1, y0, y1 = grid.bounds[:4]
+    _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.06 * (y1 - y0)), 0.03 * (x1 - x0), CONTACT_COLOUR, "in contact\n(η ≤ 0)", font)
+    _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.2 * (y1 - y0)), 0.03 * (x1 - x0), "white", "free\n(η > 0)", font)
+    _frame(p, grid)
+    _screenshot(p, path)
+    return path
+
+
+def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = VELOCITY_PERCENTILE) -> Path:
+    """The space-time velocity v(t, x), diverging colours centred on 0, range clipped at a percentile of |v|."""
+    path = Path(path)
+    grid, ranges = space_time_grid(result)
+    c = velocity_clip(result, percentile)
+    title = f"Velocity field v(t, x) = η_t: {result.scene.name}"
+    # no "|" in VTK text: it is the column separator of VTK's text renderer
+    speed = float(np.max(np.abs(result.velocity)))
+    subtitle = parameter_line(result, "\n") + (
+        f"\ncolours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})"
+    )
+    p, font = _space_time_plotter(result, grid, ranges, title, subtitle, window_size)
+    p.add_mesh(grid, scalars="velocity", cmap="RdBu_r", clim=[-c, c], show_scalar_bar=False, lighting=False)
+    _colour_bar(p, grid.bounds, (-c, c), "RdBu_r", "v", font)
+    _frame(p, grid)
+    _screenshot(p, path)
+    return path
+
+
+# --- matplotlib: line charts -------------------------------------------------------------------------
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _savefig(fig, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=100)
+    _pyplot().close(fig)
+    os.replace(tmp, path)
+
+
+def snapshots_picture(result, path) -> Path:
+    """η(x) at the scene's output times, the obstacle y = 0, and the parts in contact highlighted."""
+    plt = _pyplot()
+    path = Path(path)
+    rows = snapshot_rows(result)
+    ncols = 3 if len(rows) > 4 else min(len(rows), 2)
+    nrows = int(np.ceil(len(rows) / ncols))
+    fig, axs = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.2 * nrows + 0.8), sharex=True, sharey=True, squeeze=False)
+    x = result.x
+    lo = min(float(result.eta[rows].min()), 0.0)
+    hi = max(float(result.eta[rows].max()), 0.0)
+    pad = 0.08 * (hi - lo or 1.0)
+    for ax, i in zip(axs.flat, rows):
+        ax.axhspan(lo - pad, 0.0, color="0.85", zorder=0)
+        ax.axhline(0.0, color="0.3", lw=1.0, zorder=1)
+        ax.plot(x, result.eta[i], color="#2166ac", lw=1.2, label="η(t, x)", zorder=2)
+        on = np.where(result.contact[i], result.eta[i], np.nan)
+        ax.plot(x, on, color=CONTACT_COLOUR, lw=3.0, label="in contact (η ≤ 0)", zorder=3)
+        parts = contact_components(x, result.contact[i])
+        frac = float(result.contact_length[i]) / float(x[-1] - x[0])
+        ax.set_title(f"t = {result.t[i]:.3g}: contact {100 * frac:.0f}% of l, {len(parts)} part{'s' * (len(parts) != 1)}", fontsize=10)
+        ax.set_ylim(lo - pad, hi + pad)
+        ax.grid(alpha=0.3)
+    for ax in axs.flat[len(rows):]:
+        ax.set_visible(False)
+    for ax in axs[-1]:
+        ax.set_xlabel("x")
+    for ax in axs[:, 0]:
+        ax.set_ylabel("η (displacement)")
+    axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
+    handles, labels = axs.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
+    fig.suptitle(f"Snapshots of the string: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    _savefig(fig, path)
+    return path
+
+
+def energy_picture(result, path) -> Path:
+    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0)."""
+    plt = _pyplot()
+    path = Path(path)
+    e, t = result.energy, result.t
+    E = result.total_energy
+    spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
+    fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 7), sharex=True, gridspec_kw=dict(height_ratios=(3, 1)))
+    ax.axhline(E[0], color="black", ls=":", lw=1.5, label=f"E(0) = {E[0]:.6g}")
+    ax.plot(t, e["kinetic"], label=r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$")
+    ax.plot(t, e["elastic"], label=r"elastic $\frac{1}{2}\int \eta_x^2\,dx$")
+    ax.plot(t, e["viscous_dissipation"], label=r"viscous dissipation $\alpha\int_0^t\!\int \eta_{tx}^2$")
+    ax.plot(t, e["contact_dissipation"], label=r"contact dissipation $-\int_0^t\!\int F\,\eta_t$")
+    ax.plot(t, e["numerical_dissipation"], ls="--", label="numerical dissipation of the scheme (cumulative)")
+    if np.any(e["external_work"]):
+        ax.plot(t, e["external_work"], ls="-.", label="work of external loads (cumulative)")
+    ax.plot(t, E + spent - e["external_work"], color="black", lw=2.2, alpha=0.6, label="sum: E(t) + dissipations − work")
+    ax.set_ylabel("energy")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="center right")
+    ax.set_title(f"Energy balance: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    res = np.abs(result.balance_residual)
+    axr.semilogy(t, np.maximum(res, 1e-300), color="black")
+    axr.set_ylim(max(res.max(), 1e-300) * 1e-6 if res.max() > 0 else 1e-20, max(res.max(), 1e-300) * 10)
+    axr.set_ylabel("|balance residual|\nE(0) + W − [E(t) + D]", fontsize=9)
+    axr.set_xlabel("t")
+    axr.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    _savefig(fig, path)
+    return path
+
+
+def write_pictures(result, folder, window_size=WINDOW_SIZE) -> list[Path]:
+    """Write contact_set.png, velocity_field.png, snapshots.png and energy.png into `folder`."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    return [
+        contact_set_picture(result, folder / "contact_set.png", window_size),
+        velocity_picture(result, folder / "velocity_field.png", window_size),
+        snapshots_picture(result, folder / "snapshots.png"),
+        energy_picture(result, folder / "energy.png"),
+    ]
+
+
+# --- reading an output folder back ---------------------------------------------------------------
+
+
+def _xdmf_series(xdmf: Path) -> tuple[str, dict[str, list[tuple[float, str]]]]:
+    """The geometry's HDF5 path and, for each field, its (time, HDF5 path) list from solution.xdmf."""
+    root = ET.parse(xdmf).getroot()
+    domain = root.find("Domain")
+    geometry = None
+    series: dict[str, list[tuple[float, str]]] = {}
+    for grid in domain.findall("Grid"):
+        if grid.get("GridType") == "Uniform" and geometry is None:
+            geometry = grid.find("Geometry/DataItem").text.strip()
+        elif grid.get("GridType") == "Collection":
+            items = []
+            for step in grid.findall("Grid"):
+                t = float(step.find("Time").get("Value"))
+                items.append((t, step.find("Attribute/DataItem").text.strip()))
+            series[grid.get("Name")] = items
+    if geometry is None:
+        raise ValueError(f"{xdmf}: no mesh geometry in the XDMF file")
+    return geometry, series
+
+
+def _h5_path(ref: str) -> str:
+    return ref.split(":", 1)[1]  # "solution.h5:/Function/eta/0" -> "/Function/eta/0"
+
+
+def read_output(folder):
+    """A :class:`Result` rebuilt from an output folder's solution.xdmf/.h5, diagnostics.csv and summary.json.
+
+    Arrays are ordered by x like the in-memory result; `contact` is boolean again. Raises ValueError
+    with a one-line message if the folder is not a complete output folder.
+    """
+    import pyfive  # pure-Python HDF5: h5py's wheel clashes with the libhdf5 that dolfinx has already loaded
+
+    from .result import ENERGY_KEYS, Result
+    from .scene import Scene
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ValueError(f"plot: {folder} is not a folder (give the --out folder of `stringcontact run`)")
+    names = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
+    missing = [n for n in names if not (folder / n).is_file()]
+    summary = {}
+    if (folder / "summary.json").is_file():
+        summary = json.loads((folder / "summary.json").read_text())
+        if summary.get("status", "complete") != "complete":
+            raise ValueError(f"plot: {folder} holds a run that did not complete (status {summary['status']!r})")
+    if missing:
+        raise ValueError(f"plot: {folder} is not a stringcontact output folder (missing {', '.join(missing)})")
+    try:
+        geometry, series = _xdmf_series(folder / "solution.xdmf")
+    except (ET.ParseError, AttributeError, TypeError) as exc:
+        raise ValueError(f"plot: {folder / 'solution.xdmf'} cannot be read ({exc})") from None
+    absent = [f for f in FIELDS if f not in series]
+    if absent:
+        raise ValueError(f"plot: {folder / 'solution.xdmf'} has no time series {', '.join(absent)}")
+
+    with open(folder / "diagnostics.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        raise ValueError(f"plot: {folder / 'diagnostics.csv'} has no rows")
+    column = {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
+    t = column["t"]
+
+    with pyfive.File(str(folder / "solution.h5")) as h5:
+        x_all = np.asarray(h5[_h5_path(geometry)][:])[:, 0]
+        order = np.argsort(x_all, kind="stable")
+        fields = {}
+        for name in FIELDS:
+            times = np.array([s[0] for s in series[name]])
+            if times.shape != t.shape or np.max(np.abs(times - t)) > 1e-12 * max(1.0, float(t[-1])):
+                raise ValueError(f"plot: {folder}: the times of '{name}' in solution.xdmf differ from diagnostics.csv")
+            fields[name] = np.stack([np.asarray(h5[_h5_path(ref)][:])[:, 0][order] for _, ref in series[name]])
+
+    with warnings.catch_warnings():  # the scene was already warned about when it ran
+        warnings.simplefilter("ignore")
+        scene = Scene.from_dict(summary["scene"])
+    return Result(
+        scene=scene,
+        x=x_all[order],
+        t=t,
+        steps=column["step"].astype(np.int64),
+        eta=fields["eta"],
+        velocity=fields["velocity"],
+        contact=fields["contact"] > 0.5,
+        contact_force=fields["contact_force"],
+        energy={key: column[key] for key in ENERGY_KEYS},
+        min_eta=float(summary.get("min_eta", np.min(fields["eta"]))),
+        penalty=summary.get("penalty", "explicit"),
+        mass=summary.get("mass", "lumped"),
+        model=summary.get("model", "inelastic"),
+        status=summary.get("status", "complete"),
+        timings=summary.get("timings", {}),
+        message=summary.get("message", ""),
+    )
+
+
+# --- the `plot` subcommand ----------------------------------------------------------------------
+
+
+def add_arguments(parser) -> None:
+    parser.description = (
+        "Redraw contact_set.png, velocity_field.png, snapshots.png and energy.png of an output folder "
+        "from its saved files (solution.xdmf/.h5, diagnostics.csv, summary.json) alone."
+    )
+    parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
+    parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR")
+    parser.add_argument(
+        "--size",
+        metavar="WxH",
+        default=f"{WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}",
+        help=f"pixel size of the space-time pictures (default {WINDOW_SIZE[0]}x{WINDOW_SIZE[1]})",
+    )
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H), each in 200..4000."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 1100x900, got {text!r}") from None
+    if not (200 <= w <= 4000 and 200 <= h <= 4000):
+        raise ValueError(f"--size: width and height must be in 200..4000 pixels, got {text!r}")
+    return w, h
 
 
 def command(args) -> int:
-    raise SystemExit("not yet implemented")
-
-
-def write_pictures(result, folder):
-    pass
+    size = parse_size(args.size)
+    result = read_output(args.folder)
+    out = Path(args.out) if args.out else Path(args.folder)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder")
+    for path in write_pictures(result, out, window_size=size):
+        print(f"wrote {path}")
+    return 0

@@ -1,0 +1,262 @@
+"""One simulation under `mpirun -n 2` gives the serial answer, and errors stop every rank.
+
+dolfinx distributes the mesh over the ranks; `simulate` gathers the owned arrays and orders them by x on
+every rank. Each check starts this file as an MPI program (the worker at the bottom), with a timeout so
+that a hang fails instead of blocking the suite, and compares what the ranks saved with a serial run in
+this process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.mpi
+
+RANKS = 2
+TIMEOUT = 300  # seconds for one mpirun; a hang fails the test instead of blocking the suite
+# (penalty, mass, pictures): both penalties, both masses; one case draws its pictures on rank 0.
+CASES = (("explicit", "lumped", True), ("semi-implicit", "consistent", False))
+FIELDS = ("eta", "velocity", "contact_force")
+PARITY = 1e-10  # max |mpi − serial| ≤ PARITY · max(1, max |serial|) for every array
+
+
+def parity_scene():
+    """Example 1 coarsened so that r = Δt/ε = 1: the string lands, contact spreads, the ends pull it off."""
+    import stringcontact as sc
+
+    return sc.load_scene("example1").replace(nx=300, nt=600)
+
+
+def mpirun(*args, timeout=TIMEOUT):
+    """`mpirun -n 2 python this_file ARGS`; returns the CompletedProcess, or fails the test on a hang."""
+    exe = shutil.which("mpirun") or shutil.which("mpiexec")
+    if exe is None:
+        pytest.skip("mpirun not found (scripts/setup installs openmpi-bin)")
+    # If pytest itself runs inside an MPI job, do not hand that job's wiring to the new one.
+    job = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(job)}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
+    env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    cmd = [exe, "-n", str(RANKS), sys.executable, str(Path(__file__).resolve()), *map(str, args)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        pytest.fail(f"mpirun -n {RANKS} {' '.join(map(str, args))} hung for {timeout} s\n{out[-2000:]}\n{err[-2000:]}")
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+def rel_error(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
+
+
+@pytest.fixture(scope="module")
+def parity_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("mpi_parity")
+    proc = mpirun("parity", out)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return out
+
+
+@pytest.fixture(scope="module")
+def serial_results(tmp_path_factory):
+    import stringcontact as sc
+
+    out = tmp_path_factory.mktemp("serial")
+    scene = parity_scene()
+    return {
+        (penalty, mass): (
+            sc.simulate(scene, penalty=penalty, mass=mass, output_dir=out / f"{penalty}-{mass}", pictures=False),
+            out / f"{penalty}-{mass}",
+        )
+        for penalty, mass, _ in CASES
+    }
+
+
+@pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
+@pytest.mark.parametrize("rank", range(RANKS))
+def test_mpi_result_equals_serial_on_every_rank(parity_run, serial_results, penalty, mass, rank):
+    serial, _ = serial_results[(penalty, mass)]
+    saved = np.load(parity_run / f"{penalty}-{mass}.rank{rank}.npz")
+    assert saved["comm_size"] == RANKS
+    # The mesh really was distributed: this rank owned only part of the nodes.
+    assert 0 < saved["owned_nodes"] < serial.x.size
+    assert np.all(np.diff(saved["x"]) > 0), "Result.x must be ordered by x"
+    np.testing.assert_array_equal(saved["x"], serial.x)
+    np.testing.assert_array_equal(saved["t"], serial.t)
+    for name in FIELDS:
+        assert saved[name].shape == getattr(serial, name).shape, name
+        err = rel_error(saved[name], getattr(serial, name))
+        assert err <= PARITY, f"{name}: mpi differs from serial by {err:.3g} (relative to its maximum)"
+    for key, values in serial.energy.items():
+        assert rel_error(saved[f"energy_{key}"], values) <= PARITY, key
+    assert abs(saved["min_eta"] - serial.min_eta) <= PARITY
+    # The contact set η ≤ 0 is the same, except possibly on nodes within round-off of the obstacle.
+    differ = saved["contact"] != serial.contact
+    assert not np.any(differ & (np.abs(serial.eta) > PARITY)), "contact sets differ"
+    # The run did meet the obstacle, so the contact law took part in the comparison.
+    assert serial.contact.any() and np.max(serial.contact_force) > 0
+
+
+def xdmf_series(folder: Path) -> tuple[np.ndarray, dict]:
+    """The XDMF time series as nodal values ordered by x, found through the .xdmf's own index.
+
+    Read with pyfive (pure Python), as the package's own reader does: h5py's bundled HDF5 clashes with the
+    HDF5 that dolfinx has loaded into this process.
+    """
+    import pyfive
+
+    root = ET.parse(folder / "solution.xdmf").getroot()
+    with pyfive.File(str(folder / "solution.h5")) as h5:
+        geometry = root.find(".//Grid[@Name='mesh']/Geometry/DataItem")
+        x = np.asarray(h5[geometry.text.split(":")[1]][:])[:, 0]
+        order = np.argsort(x, kind="stable")
+        series = {}
+        for grid in root.iter("Grid"):
+            time = grid.find("Time")
+            if time is None:
+                continue
+            for attr in grid.findall("Attribute"):
+                path = attr.find("DataItem").text.split(":")[1]
+                series[f"{attr.get('Name')}@{float(time.get('Value'))!r}"] = np.asarray(h5[path][:])[:, 0][order]
+    return x[order], series
+
+
+@pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
+def test_mpi_xdmf_is_one_collective_file_equal_to_serial(parity_run, serial_results, penalty, mass):
+    serial, serial_dir = serial_results[(penalty, mass)]
+    folder = parity_run / f"{penalty}-{mass}"
+    assert sorted(p.name for p in folder.iterdir() if p.suffix in (".xdmf", ".h5")) == ["solution.h5", "solution.xdmf"]
+    x_mpi, mpi = xdmf_series(folder)
+    x_ser, ser = xdmf_series(serial_dir)
+    np.testing.assert_allclose(x_mpi, serial.x, atol=1e-14)
+    np.testing.assert_allclose(x_ser, serial.x, atol=1e-14)
+    assert set(mpi) == set(ser) and len(mpi) == 4 * serial.t.size
+    for key, values in ser.items():
+        field = key.split("@")[0]
+        scale = max(1.0, max(float(np.max(np.abs(v))) for k, v in ser.items() if k.startswith(f"{field}@")))
+        err = float(np.max(np.abs(mpi[key] - values))) / scale
+        assert err <= PARITY, f"{key}: {err:.3g} (relative to the field's maximum over all times)"
+    # and the tables rank 0 wrote from the gathered Result
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["status"] == "complete"
+    assert abs(summary["min_eta"] - serial.min_eta) <= PARITY
+    lines = (folder / "diagnostics.csv").read_text().splitlines()
+    assert len(lines) == serial.t.size + 1
+    assert not list(parity_run.glob(".*partial"))
+
+
+def test_mpi_errors_are_raised_on_every_rank_without_a_hang(tmp_path):
+    proc = mpirun("errors", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    reports = [json.loads((tmp_path / f"errors.rank{r}.json").read_text()) for r in range(RANKS)]
+    for report in reports:
+        assert report["scene"] == "SceneError"
+        assert report["before_start"] == ["InstabilityError", 0]
+        kind, step = report["during_run"]
+        assert kind == "InstabilityError" and step > 0
+        assert report["after"] == RANKS  # the communicator still works afterwards
+    assert len({tuple(r["during_run"]) for r in reports}) == 1, "ranks stopped at different steps"
+    # The aborted run left its folder marked on rank 0, not half-written.
+    summary = json.loads((tmp_path / "unstable" / "summary.json").read_text())
+    assert summary["status"] == "unstable" and "unstable at step" in summary["message"]
+
+
+def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
+    import stringcontact
+
+    example = Path(stringcontact.__file__).parent / "scenes" / "example1.toml"
+    bad = tmp_path / "bad.toml"
+    bad.write_text(re.sub(r"(?m)^alpha = .*$", "alpha = -1.0", example.read_text()))
+    proc = mpirun("cli", "run", bad, "--out", tmp_path / "never", "--no-progress")
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("stringcontact: error:")]
+    assert len(lines) == RANKS and "alpha" in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "never").exists()
+
+
+# ---------------------------------------------------------------------------------------------------
+# The MPI program: `mpirun -n 2 python tests/test_mpi.py parity|errors|cli DIR...`
+
+
+def _worker_parity(out: Path) -> None:
+    import stringcontact as sc
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    scene = parity_scene()
+    owned = mesh.create_interval(comm, scene.nx, [0.0, scene.length]).topology.index_map(0).size_local
+    for penalty, mass, pictures in CASES:
+        res = sc.simulate(scene, penalty=penalty, mass=mass, output_dir=out / f"{penalty}-{mass}", pictures=pictures)
+        arrays = {name: getattr(res, name) for name in ("x", "t", "eta", "velocity", "contact", "contact_force")}
+        arrays.update({f"energy_{k}": v for k, v in res.energy.items()})
+        np.savez(
+            out / f"{penalty}-{mass}.rank{comm.rank}.npz",
+            comm_size=comm.size,
+            owned_nodes=owned,
+            min_eta=res.min_eta,
+            **arrays,
+        )
+
+
+def _worker_errors(out: Path) -> None:
+    import stringcontact as sc
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    report = {}
+    bad = out / "bad_scene.toml"
+    if comm.rank == 0:
+        bad.write_text('name = "bad"\nnx = 0\n')
+    comm.barrier()
+    try:
+        sc.load_scene(bad)
+        report["scene"] = "none"
+    except sc.SceneError:
+        report["scene"] = "SceneError"
+
+    scene = sc.load_scene("example1").replace(nx=200, nt=60)  # Δt/ε = 10: refused before the first step
+    try:
+        sc.simulate(scene, comm=comm)
+        report["before_start"] = ["none", None]
+    except sc.InstabilityError as exc:
+        report["before_start"] = ["InstabilityError", exc.step]
+
+    # A model whose "contact force" pushes along the velocity: the energy grows, the guard stops the run.
+    def pushing(eta, v, p):
+        return 50.0 * v
+
+    model = sc.Model(name="pushing", penalty=pushing, penalty_damping=None)
+    scene = sc.load_scene("example1").replace(nx=200, nt=600)
+    try:
+        sc.simulate(scene, model=model, comm=comm, output_dir=out / "unstable", pictures=False)
+        report["during_run"] = ["none", None]
+    except sc.InstabilityError as exc:
+        report["during_run"] = ["InstabilityError", exc.step]
+    report["after"] = comm.allreduce(1)
+    (out / f"errors.rank{comm.rank}.json").write_text(json.dumps(report))
+
+
+if __name__ == "__main__":
+    mode, rest = sys.argv[1], sys.argv[2:]
+    if mode == "cli":
+        from stringcontact.cli import main
+
+        sys.exit(main(rest))
+    {"parity": _worker_parity, "errors": _worker_errors}[mode](Path(rest[0]))

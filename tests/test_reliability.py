@@ -1,0 +1,543 @@
+"""Reliability: hostile and broken input through the CLI, interrupted and unstable runs, locks,
+disk-full and read-only output folders, and the closing numbers checks (docs/reliability.md)."""
+
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from stringcontact.cli import main
+from stringcontact.output import TargetLock, energy_balance, penetration_check, xdmf_series
+
+QUICK = ["--no-progress", "--no-pictures"]
+SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01", *QUICK]  # r = 0.75, 41 rows
+
+
+def toml_string(s: str) -> str:
+    # JSON escapes are TOML basic-string escapes; TOML wants DEL escaped too.
+    return json.dumps(s, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def scene_text(eta0: str = "1 + x*(1 - x)", **lines) -> str:
+    base = {"T": "0.01", "alpha": "0.01", "eps": "0.01", "nx": "4", "nt": "2", "v0": '"-1"', **lines}
+    return "".join(f"{k} = {v}\n" for k, v in base.items()) + f"eta0 = {toml_string(eta0)}\n"
+
+
+def errors_of(err: str) -> list[str]:
+    return [line for line in err.splitlines() if line.startswith("stringcontact: error:")]
+
+
+def assert_one_line_error(err: str, *fragments):
+    """Exactly one error line, naming the problem; nothing else but warnings; no traceback, no HDF5 dump."""
+    assert "Traceback" not in err and "HDF5-DIAG" not in err, err
+    lines = errors_of(err)
+    assert len(lines) == 1, err
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+    others = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("stringcontact: warning:")]
+    assert others == lines, err
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Anything a run may leave beside its target: partial folders, locks, .old swaps."""
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+# --- hostile expressions through the whole command line ------------------------------------------------
+
+HOSTILE = [
+    "__import__('os').system('touch PWNED')",
+    "().__class__.__bases__[0].__subclasses__()",
+    "x.__class__",
+    "x.real",
+    "getattr(x, 'real')",
+    "globals()",
+    "__builtins__",
+    "open('PWNED', 'w')",
+    "exec('1')",
+    "eval('1')",
+    "lambda: 1",
+    "[y for y in (1, 2)]",
+    "{y: 1 for y in (1, 2)}",
+    "(y for y in (1,))",
+    "x if x else 0",
+    "x[0]",
+    "x @ x",
+    "f'{x}'",
+    "b'x'",
+    "'a'*10**9",
+    "9**9**9",
+    "10**1000",
+    "x**1e6",
+    "1" + "0" * 400,
+    "1+" * 400 + "1",
+    "sin(" * 200 + "x" + ")" * 200,
+    "-" * 100 + "x",
+    "1/0",
+    "1/(x - x)",
+    "sqrt(-1)",
+    "exp(1000)",
+    "1e309",
+    "sin()",
+    "sin(x, x)",
+    "where(x)",
+    "x; import os",
+    "import os",
+    "",
+    "   ",
+    "\x00",
+    "\n",
+    "é + x",  # (a look-alike such as "𝔁" is NFKC-normalised to x by the parser, and accepted)
+    "x" * 600,
+]
+
+
+def run_hostile(eta0: str, folder: Path, capfd):
+    scene = folder / "hostile.toml"
+    scene.write_text(scene_text(eta0), encoding="utf-8")
+    out = folder / "out"
+    capfd.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        code = main(["run", str(scene), *QUICK, "--out", str(out)])
+    return code, out, capfd.readouterr()
+
+
+def check_hostile_outcome(code, out, captured, folder: Path):
+    assert code in (0, 2), captured.err
+    assert "Traceback" not in captured.err
+    assert not (folder / "PWNED").exists() and not Path("PWNED").exists()
+    if code == 2:
+        assert_one_line_error(captured.err)
+        assert sorted(p.name for p in folder.iterdir()) == ["hostile.toml"]  # nothing written
+    else:
+        assert json.loads((out / "summary.json").read_text())["status"] == "complete"
+        assert leftovers(folder) == []
+
+
+@pytest.mark.parametrize("eta0", HOSTILE, ids=range(len(HOSTILE)))
+def test_hostile_expression_via_cli(tmp_path, capfd, eta0):
+    code, out, captured = run_hostile(eta0, tmp_path, capfd)
+    assert code == 2
+    check_hostile_outcome(code, out, captured, tmp_path)
+    assert errors_of(captured.err)[0].startswith("stringcontact: error: scene ")
+    assert "eta0" in captured.err
+
+
+_TOKENS = ["x", "l", "pi", "h", "1", "0.5", "1e3", "+", "-", "*", "/", "**", "(", ")", ",", "<", "==", " ",
+           "sin", "sqrt", "where", "min", "__class__", ".", "[", "]", "'", "lambda", ":", "import", "os", "\\"]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(eta0=st.text(max_size=80) | st.lists(st.sampled_from(_TOKENS), max_size=25).map("".join) | st.sampled_from(HOSTILE))
+def test_random_and_hostile_text_via_cli(capfd, eta0):
+    """Any text as eta0: exit 0 (it was a valid expression) or 2 with one line; no traceback, no stray file."""
+    with tempfile.TemporaryDirectory() as d:
+        folder = Path(d)
+        code, out, captured = run_hostile(eta0, folder, capfd)
+        check_hostile_outcome(code, out, captured, folder)
+
+
+# --- broken scene files and options through the command line --------------------------------------------
+
+FILE_CASES = [
+    ("not-toml", b"this is = not [ toml\n", "invalid TOML"),
+    ("empty", b"", "missing required key(s)"),
+    ("binary", bytes(range(256)) * 4, "binary file"),
+    ("latin1", "T = 0.3 # caf\xe9\n".encode("latin-1"), "not UTF-8"),
+    ("huge", b"# padding\n" * 120_000, "larger than 1000000 bytes"),
+    ("nx-string", scene_text(nx='"ten"').encode(), "nx: expected an integer, got str"),
+    ("T-string", scene_text(T='"0.3"').encode(), "T: expected a number, got str"),
+    ("alpha-bool", scene_text(alpha="true").encode(), "alpha: expected a number, got bool"),
+    ("eta0-list", scene_text().replace('eta0 = "1 + x*(1 - x)"', "eta0 = [1, 2]").encode(), "eta0: expected an expression"),
+    ("nx-1e13", scene_text(nx="1e13").encode(), "nx: 10000000000000 is out of range"),
+    ("dt-over-eps-huge", scene_text(eps="1e-12").encode(), "r = dt/eps = 5e+09"),
+    ("T-zero", scene_text(T="0").encode(), "T: 0 is out of range"),
+    ("T-negative", scene_text(T="-1").encode(), "T: -1 is out of range"),
+    ("nt-zero", scene_text(nt="0").encode(), "nt: 0 is out of range"),
+    ("unknown-key", scene_text(colour='"red"').encode(), "unknown key(s) 'colour'"),
+]
+
+
+@pytest.mark.parametrize("name, content, fragment", FILE_CASES, ids=[c[0] for c in FILE_CASES])
+def test_broken_scene_file_via_cli(tmp_path, capfd, name, content, fragment):
+    scene = tmp_path / f"{name}.toml"
+    scene.write_bytes(content)
+    out = tmp_path / "out"
+    assert main(["run", str(scene), *QUICK, "--out", str(out)]) == 2
+    assert_one_line_error(capfd.readouterr().err, fragment)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [scene.name]
+
+
+OPTION_CASES = [
+    (["run", "{missing}"], "no built-in scene of that name and no such file"),
+    (["run", "{folder}"], "is a directory"),
+    (["run", "example1", "--nx", "10000000000000"], "nx: 10000000000000 is out of range"),
+    (["run", "example1", "--nt", "0"], "nt: 0 is out of range"),
+    (["run", "example1", "--eps", "nan"], "eps: nan is not finite"),
+    (["run", "example1", "--eps", "1e-300"], "r = dt/eps"),
+    (["run", "example1", "--alpha=-inf"], "alpha: -inf is not finite"),
+    (["run", "example1", "--nx", "1e13"], "invalid int value"),
+    (["run", "example1", "--out", "{file}"], "exists and is not a folder"),
+]
+
+
+@pytest.mark.parametrize("argv, fragment", OPTION_CASES, ids=[" ".join(a[1:]) for a, _ in OPTION_CASES])
+def test_bad_options_via_cli(tmp_path, capfd, argv, fragment):
+    (tmp_path / "a-file").write_text("x")
+    (tmp_path / "a-folder").mkdir()
+    names = {"missing": tmp_path / "no-such.toml", "folder": tmp_path / "a-folder", "file": tmp_path / "a-file"}
+    argv = [a.format(**names) for a in argv]
+    if "--out" not in argv:
+        argv += ["--out", str(tmp_path / "out")]
+    try:
+        code = main([*argv, *QUICK])
+    except SystemExit as exc:  # argparse: its own one-line message
+        code = exc.code
+    assert code == 2
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and err.count("\n") == 1 and fragment in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file", "a-folder"]
+
+
+# --- interrupted runs: SIGINT / SIGTERM on a running command line ------------------------------------
+
+READER = r"""
+import json, sys, xml.etree.ElementTree as ET
+from pathlib import Path
+import h5py, numpy as np
+folder = Path(sys.argv[1])
+root = ET.parse(folder / "solution.xdmf").getroot()
+out = {}
+with h5py.File(folder / "solution.h5", "r") as h5:
+    x = h5["Mesh/mesh/geometry"][:, 0]
+    for coll in root.iter("Grid"):
+        if coll.get("GridType") != "Collection":
+            continue
+        times, finite, shapes, first = [], True, set(), None
+        for grid in coll.findall("Grid"):
+            times.append(float(grid.find("Time").get("Value")))
+            ref = grid.find("Attribute/DataItem").text.strip()
+            fname, dset = ref.split(":")
+            assert fname == "solution.h5", ref
+            a = h5[dset][:]
+            finite &= bool(np.isfinite(a).all())
+            shapes.add(a.shape)
+            if first is None:
+                first = a[:, 0].tolist()
+        out[coll.get("Name")] = {"times": times, "finite": finite, "shapes": sorted(shapes), "first": first}
+out["x"] = x.tolist()
+print(json.dumps(out))
+"""
+
+
+def read_back(folder: Path) -> dict:
+    """Read the XDMF and its HDF5 in a fresh Python with h5py (as another program would), not dolfinx."""
+    proc = subprocess.run([sys.executable, "-c", READER, str(folder)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def wait_for_rows(proc, parent: Path, name: str, rows: int) -> Path:
+    """Wait until the run's partial folder holds `rows` whole time levels (or the process ends)."""
+    while proc.poll() is None:
+        for partial in parent.glob(f".{name}.partial-*"):
+            try:
+                if len(xdmf_series(partial / "solution.xdmf").get("contact_force", ())) >= rows:
+                    return partial
+            except Exception:  # noqa: BLE001 - not there yet, or being rewritten
+                pass
+        time.sleep(0.1)
+    raise AssertionError(f"the run ended before it could be interrupted: {proc.communicate()}")
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
+def test_signal_stops_cleanly_and_keeps_a_readable_xdmf(tmp_path, capfd, signum, code):
+    out = tmp_path / "out"
+    argv = ["run", "example1", "--nx", "500", "--nt", "40000", *QUICK, "--out", str(out)]
+    proc = subprocess.Popen([sys.executable, "-m", "stringcontact", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for_rows(proc, tmp_path, "out", 4)
+
+        # Meanwhile a second run into the same folder is refused, at once.
+        assert main(argv) == 2
+        assert_one_line_error(capfd.readouterr().err, "another stringcontact run", "is writing to this folder")
+
+        proc.send_signal(signum)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == code, stderr
+    name = signal.Signals(signum).name
+    assert_one_line_error(stderr, f"interrupted by {name}")
+    assert leftovers(tmp_path) == []  # no partial folder, no lock
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted"
+    assert name in summary["message"]
+    n = summary["stored_rows"]
+    assert n >= 4
+
+    data = read_back(out)
+    x = np.array(data["x"])
+    times = data["eta"]["times"]
+    assert len(times) == n and times[0] == 0.0 and np.all(np.diff(times) > 0) and times[-1] < 0.3
+    assert math.isclose(times[-1], summary["last_time"])
+    for field in ("eta", "velocity", "contact", "contact_force"):
+        assert data[field]["times"] == times
+        assert data[field]["finite"] and data[field]["shapes"] == [[501, 1]]
+    np.testing.assert_allclose(data["eta"]["first"], 1 + 0.5 * np.sin(10 * np.pi * x) ** 2, atol=1e-12)
+
+
+# --- an unstable run keeps its partial output -------------------------------------------------------
+
+
+def test_unstable_run_keeps_partial_output(tmp_path, capfd, monkeypatch):
+    # r = dt/eps = 4 is refused before the start; let it through to see the guard stop it mid-run.
+    monkeypatch.setattr("stringcontact.solver.check_stability", lambda r, penalty: None)
+    out = tmp_path / "out"
+    assert main(["run", "example1", "--nx", "100", "--nt", "150", *QUICK, "--out", str(out)]) == 3
+    assert_one_line_error(capfd.readouterr().err, "unstable at step", "r = dt/eps = 4")
+    text = (out / "summary.json").read_text()
+    summary = json.loads(text, parse_constant=lambda c: pytest.fail(f"summary.json holds {c}, not JSON"))
+    assert summary["status"] == "unstable"
+    inst = summary["instability"]
+    assert inst["step"] > 0 and inst["r"] == pytest.approx(4.0)
+    assert inst["time"] == pytest.approx(inst["step"] * 0.3 / 150)
+    assert summary["message"] == inst["message"]
+    series = xdmf_series(out / "solution.xdmf")
+    assert len(series["eta"]) == summary["stored_rows"] >= 1
+    assert max(t for t, _ in series["eta"]) < inst["time"]
+    assert leftovers(tmp_path) == []
+
+
+# --- two runs, one folder -----------------------------------------------------------------------------
+
+
+def test_lock_refuses_a_second_run_and_is_released(tmp_path, capfd):
+    out = tmp_path / "out"
+    lock = TargetLock(out)
+    try:
+        assert main(["run", "example1", *SMALL, "--out", str(out)]) == 2
+        assert_one_line_error(capfd.readouterr().err, f"(pid {os.getpid()}) is writing to this folder")
+        assert not out.exists()
+    finally:
+        lock.release()
+    assert leftovers(tmp_path) == []  # the lock file goes with the lock
+    assert main(["run", "example1", *SMALL, "--out", str(out)]) == 0
+    assert leftovers(tmp_path) == []
+
+
+def test_stale_partial_of_a_killed_run_is_removed(tmp_path, capfd):
+    stale = tmp_path / ".out.partial-999999-abc"
+    stale.mkdir()
+    (stale / "solution.h5").write_bytes(b"half")
+    (tmp_path / ".out.lock").write_text("999999\n")  # a lock file nobody holds
+    assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
+    assert "removed 1 unfinished folder" in capfd.readouterr().err
+    assert leftovers(tmp_path) == []
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "complete"
+
+
+# --- the output folder's device: read-only, full -----------------------------------------------------
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """Mount a small tmpfs (needs root with CAP_SYS_ADMIN, which `make test` in Docker has)."""
+    mounted = []
+
+    def mount(name: str, options: str) -> Path:
+        folder = tmp_path / name
+        folder.mkdir()
+        if shutil.which("mount") is None or os.geteuid() != 0:
+            pytest.skip("mounting a tmpfs needs root and the mount command")
+        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True, text=True)
+        if proc.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here ({proc.stderr.strip()}); needs CAP_SYS_ADMIN")
+        mounted.append(folder)
+        return folder
+
+    yield mount
+    for folder in mounted:
+        subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+def read_only_folder(tmp_path, tmpfs) -> Path:
+    if os.geteuid() != 0:  # an ordinary user: permissions are enough
+        folder = tmp_path / "ro"
+        folder.mkdir()
+        folder.chmod(0o555)
+        return folder
+    return tmpfs("ro", "ro,size=64k")  # root ignores permissions: a read-only file system does not
+
+
+def test_read_only_output_folder(tmp_path, capfd, tmpfs):
+    folder = read_only_folder(tmp_path, tmpfs)
+    assert main(["run", "example1", *SMALL, "--out", str(folder / "out")]) == 2
+    err = capfd.readouterr().err
+    assert_one_line_error(err, "cannot create the output folder")
+    assert "read-only" in err or "permission denied" in err
+    assert list(folder.iterdir()) == []
+
+
+def test_disk_full_gives_one_line_and_leaves_nothing(tmp_path, capfd, tmpfs):
+    folder = tmpfs("full", "size=256k")  # the run needs about 3 MB
+    assert main(["run", "example1", "--nx", "200", "--nt", "750", *QUICK, "--out", str(folder / "out")]) == 2
+    assert_one_line_error(capfd.readouterr().err, "the disk is full", "nothing was written there")
+    assert list(folder.iterdir()) == []
+    assert shutil.disk_usage(folder).used == 0  # the partial folder is gone: the space is free again
+
+
+# --- --force never trades a finished result for an unfinished one ---------------------------------
+
+
+@pytest.fixture
+def space():
+    from mpi4py import MPI
+
+    from stringcontact import compat
+    from dolfinx import mesh
+
+    return compat.function_space(mesh.create_interval(MPI.COMM_SELF, 8, [0.0, 1.0]), "Lagrange", 1)
+
+
+def small_result(nx=8, nt=4):
+    import stringcontact as sc
+
+    scene = sc.load_scene("example1").replace(nx=nx, nt=nt, eps=0.1)
+    return sc.simulate(scene, output_dir=None)
+
+
+def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
+    from stringcontact.output import OutputWriter
+
+    res = small_result()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text('{"status": "complete"}')
+    writer = OutputWriter(out, res.scene, space, space.mesh.comm, force=True, pictures=False)
+    n = space.dofmap.index_map.size_local
+    writer.write(0.0, {name: np.zeros(n) for name in ("eta", "velocity", "contact", "contact_force")})
+    with pytest.warns(UserWarning, match="already holds a result; this run's interrupted output is in"):
+        writer.abort("interrupted", "stopped", result=res)
+    assert json.loads((out / "summary.json").read_text()) == {"status": "complete"}
+    kept = tmp_path / "out.interrupted"
+    summary = json.loads((kept / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["message"] == "stopped"
+    assert summary["energy_balance"]["closes"]
+    assert (kept / "diagnostics.csv").read_text().count("\n") == len(res.t) + 1
+    assert writer.path == kept
+    assert leftovers(tmp_path) == []
+
+
+def test_force_replaces_with_a_complete_result(tmp_path, capfd):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.txt").write_text("old")
+    assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 0
+    assert not (out / "old.txt").exists()
+    assert json.loads((out / "summary.json").read_text())["status"] == "complete"
+    assert leftovers(tmp_path) == []
+
+
+def test_unexpected_error_leaves_nothing(tmp_path, space):
+    from stringcontact.output import OutputWriter
+
+    res = small_result()
+    writer = OutputWriter(tmp_path / "out", res.scene, space, space.mesh.comm, pictures=False)
+    assert len(leftovers(tmp_path)) == 2  # the partial folder and the lock
+    writer.discard()
+    assert leftovers(tmp_path) == [] and not (tmp_path / "out").exists()
+
+
+# --- the closing numbers checks -------------------------------------------------------------------
+
+
+def test_energy_balance_verdict():
+    res = small_result(nx=50, nt=100)
+    good = energy_balance(res)
+    assert good["closes"] and good["relative_residual"] < 1e-10
+    assert good["initial"] == pytest.approx(
+        good["final"] + good["viscous_dissipation"] + good["contact_dissipation"] + good["numerical_dissipation"]
+    )
+    res.energy["contact_dissipation"] = res.energy["contact_dissipation"] * 1.01  # a term out of step
+    bad = energy_balance(res)
+    assert not bad["closes"] and bad["relative_residual"] > 1e-4
+
+
+def test_penetration_check_on_the_paper_example_and_a_tampered_one():
+    res = small_result(nx=200, nt=750)
+    p = penetration_check(res)
+    assert p["within_bound"] and 0 < p["depth"] < p["bound"]
+    assert p["depth"] == pytest.approx(-res.min_eta)
+    res.min_eta = -(p["bound"] + 0.01)
+    assert not penetration_check(res)["within_bound"]
+
+
+def test_summary_line_and_penetration_warning(tmp_path, capfd):
+    # A static load pushes the string through: the velocity penalty only brakes, it cannot hold a load.
+    scene = tmp_path / "loaded.toml"
+    scene.write_text(
+        'T = 0.5\nalpha = 0.01\neps = 0.01\nnx = 50\nnt = 500\nh = 0.05\neta0 = "0.05"\nv0 = "0"\n'
+        'load = "-100"\nmodel = "stringcontact.variants:loaded_obstacle"\n'
+    )
+    assert main(["run", str(scene), *QUICK]) == 0
+    captured = capfd.readouterr()
+    assert "external work" in captured.out and ": closes" in captured.out
+    assert "EXCEEDS the bound" in captured.out
+    assert "stringcontact: warning: the string went further below the obstacle" in captured.err
+
+    assert main(["run", "example1", *SMALL]) == 0
+    captured = capfd.readouterr()
+    assert ": closes" in captured.out and "within the bound" in captured.out
+    assert "further below" not in captured.err
+
+
+# --- staged_folder: the same protocol for commands that write plain files --------------------------
+
+
+def test_staged_folder_writes_all_or_nothing(tmp_path):
+    from stringcontact.errors import OutputError
+    from stringcontact.output import staged_folder
+
+    out = tmp_path / "checks"
+    with pytest.raises(KeyboardInterrupt):
+        with staged_folder(out) as folder:
+            (folder / "a.txt").write_text("half")
+            raise KeyboardInterrupt
+    assert not out.exists() and leftovers(tmp_path) == []
+
+    with staged_folder(out) as folder:
+        assert folder.parent == tmp_path and folder.name.startswith(".checks.partial-")
+        (folder / "a.txt").write_text("whole")
+    assert (out / "a.txt").read_text() == "whole" and leftovers(tmp_path) == []
+
+    with pytest.raises(OutputError, match="folder is not empty"):
+        with staged_folder(out):
+            pass
+    lock = TargetLock(out)
+    try:
+        with pytest.raises(OutputError, match="another stringcontact run"):
+            with staged_folder(out, force=True):
+                pass
+    finally:
+        lock.release()
+    with staged_folder(out, force=True) as folder:
+        (folder / "b.txt").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt"] and leftovers(tmp_path) == []

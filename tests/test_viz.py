@@ -1,0 +1,153 @@
+"""Pictures, reading an output folder back, and `stringcontact plot`."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+import stringcontact as sc
+from stringcontact import viz
+from stringcontact.cli import main
+from stringcontact.result import ENERGY_KEYS
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """A coarse Example 1 written to disk with pictures, and its in-memory result."""
+    folder = tmp_path_factory.mktemp("viz") / "ex1"
+    scene = sc.load_scene("example1").replace(nx=80, nt=600)
+    res = sc.simulate(scene, output_dir=folder, max_rows=60)
+    return folder, res
+
+
+def test_read_output_matches_the_in_memory_result(run):
+    folder, res = run
+    back = viz.read_output(folder)
+    np.testing.assert_array_equal(back.x, res.x)
+    np.testing.assert_array_equal(back.t, res.t)
+    np.testing.assert_array_equal(back.steps, res.steps)
+    for name in ("eta", "velocity", "contact_force"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(res, name), err_msg=name)
+    assert back.contact.dtype == bool
+    np.testing.assert_array_equal(back.contact, res.contact)
+    assert res.contact.any() and not res.contact.all()  # the comparison covers both states
+    for key in ENERGY_KEYS:
+        np.testing.assert_array_equal(back.energy[key], res.energy[key], err_msg=key)
+    np.testing.assert_allclose(back.balance_residual, res.balance_residual, rtol=0, atol=1e-12 * res.total_energy[0])
+    assert back.scene == res.scene
+    assert (back.penalty, back.mass, back.min_eta) == (res.penalty, res.mass, res.min_eta)
+
+
+def test_diagnostics_columns_read_back(run):
+    folder, res = run
+    with open(folder / "diagnostics.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+    np.testing.assert_array_equal(col["contact_length"], res.contact_length)
+    np.testing.assert_array_equal(col["min_eta"], res.eta.min(axis=1))
+    np.testing.assert_array_equal(col["max_contact_force"], res.contact_force.max(axis=1))
+
+
+def _image(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB")).astype(int)
+
+
+def _near(img, hex_colour, tol=20):
+    rgb = np.array([int(hex_colour[i : i + 2], 16) for i in (1, 3, 5)])
+    return np.all(np.abs(img - rgb) <= tol, axis=-1)
+
+
+def test_run_writes_four_legible_pictures(run):
+    folder, _ = run
+    for name in viz.PICTURES:
+        img = _image(folder / name)
+        assert img.shape[0] >= 600 and img.shape[1] >= 800, name
+        assert (img < 100).all(axis=-1).sum() > 500, f"{name}: no dark text or lines"
+    assert _near(_image(folder / "contact_set.png"), viz.CONTACT_COLOUR).sum() > 5000
+
+
+def test_velocity_picture_is_centred_on_zero(run):
+    folder, res = run
+    img = _image(folder / "velocity_field.png")
+    blue = (img[..., 2] - img[..., 0] > 60).sum()
+    red = (img[..., 0] - img[..., 2] > 60).sum()
+    assert blue > 5000 and red > 500  # downward impact and upward rebound both visible
+    assert viz.velocity_clip(res) == pytest.approx(np.percentile(np.abs(res.velocity), viz.VELOCITY_PERCENTILE))
+
+
+def test_contact_set_picture_is_blank_without_contact(tmp_path, run):
+    _, res = run
+    free = viz.read_output(run[0])
+    free.contact[:] = False
+    viz.contact_set_picture(free, tmp_path / "c.png")
+    # only the small legend patch keeps the contact colour
+    assert _near(_image(tmp_path / "c.png"), viz.CONTACT_COLOUR).sum() < 2000
+
+
+def test_plot_command_redraws_from_files(tmp_path, run, capsys):
+    folder, _ = run
+    out = tmp_path / "again"
+    assert main(["plot", str(folder), "--out", str(out), "--size", "900x700"]) == 0
+    for name in viz.PICTURES:
+        assert (out / name).stat().st_size > 10_000
+    assert _image(out / "contact_set.png").shape[:2] == (700, 900)
+    assert not list(out.glob(".*"))  # no temporary files left
+    assert "wrote" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["plot", "/nonexistent/folder"], "is not a folder"),
+        (["plot", "{empty}"], "missing solution.xdmf"),
+        (["plot", "{run}", "--size", "10x10"], "--size"),
+        (["plot", "{run}", "--size", "big"], "--size"),
+    ],
+)
+def test_plot_bad_input_is_one_line(tmp_path, run, capsys, argv, words):
+    argv = [a.format(empty=tmp_path, run=run[0]) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err and "\n" not in err and "Traceback" not in err
+
+
+def test_read_output_refuses_an_incomplete_folder(tmp_path, run):
+    folder, _ = run
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(folder, copy)
+    (copy / "diagnostics.csv").unlink()
+    with pytest.raises(ValueError, match="diagnostics.csv"):
+        viz.read_output(copy)
+
+
+def test_contact_components():
+    x = np.linspace(0, 1, 11)
+    c = np.array([1, 0, 1, 1, 1, 0, 0, 1, 1, 0, 1], dtype=bool)
+    np.testing.assert_allclose(viz.contact_components(x, c), [(0.2, 0.4), (0.7, 0.8)])
+    assert len(viz.contact_components(x, c, min_nodes=1)) == 4
+    assert viz.contact_components(x, np.zeros(11, bool)) == []
+    assert viz.contact_components(x, np.ones(11, bool)) == [(0.0, 1.0)]
+
+
+def test_snapshot_rows_are_the_scene_output_times(run):
+    _, res = run
+    rows = viz.snapshot_rows(res)
+    np.testing.assert_allclose(res.t[rows], res.scene.output_times, atol=1e-12)
+
+
+def test_space_time_grid_coarsens_but_keeps_the_contact_fraction(run):
+    _, res = run
+    full, _ = viz.space_time_grid(res, max_columns=10_000)
+    coarse, _ = viz.space_time_grid(res, max_columns=20)
+    assert full.n_cells == res.eta.size
+    assert coarse.dimensions[0] - 1 <= 20
+    frac = lambda g: np.sum(g.cell_data["contact"] * g.compute_cell_sizes()["Area"]) / np.sum(g.compute_cell_sizes()["Area"])
+    assert frac(coarse) == pytest.approx(frac(full), abs=0.03)
+    assert frac(full) > 0.1
