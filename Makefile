@@ -20,5 +20,8 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
+docs: setup
+	scripts/docs-figures
+
 clean:
 	rm -rf out .pytest_cache

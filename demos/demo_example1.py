@@ -43,7 +43,6 @@
 
 # +
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -75,14 +74,7 @@ print(f"{scene.name}: nx = {scene.nx}, dt = {scene.dt:g}, {len(res.t)} stored ro
 # `contact_set.png` and `velocity_field.png` are its Figure 2, and `energy.png` shows the balance.
 # In a notebook they are displayed here; as a script the paths are printed.
 
-pictures = [run_dir / name for name in viz.PICTURES]
-if "ipykernel" in sys.modules:
-    from IPython.display import Image, display
-
-    for path in pictures:
-        display(Image(filename=str(path)))
-else:
-    print("pictures:", ", ".join(str(p) for p in pictures))
+pictures = viz.show_pictures(run_dir)
 
 # ## What the paper observes, measured
 #

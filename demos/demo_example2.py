@@ -37,7 +37,6 @@
 
 # +
 import os
-import sys
 import warnings
 from pathlib import Path
 
@@ -67,14 +66,7 @@ print(f"{scene.name}: nx = {scene.nx}, dt = {scene.dt:g}, {len(res.t)} stored ro
 # `snapshots.png` is the paper's Figure 3 (t = 0, 0.04, 0.08, 0.16, 0.28, 0.32), `contact_set.png`
 # and `velocity_field.png` its Figure 4, `energy.png` the energy balance.
 
-pictures = [run_dir / name for name in viz.PICTURES]
-if "ipykernel" in sys.modules:
-    from IPython.display import Image, display
-
-    for path in pictures:
-        display(Image(filename=str(path)))
-else:
-    print("pictures:", ", ".join(str(p) for p in pictures))
+pictures = viz.show_pictures(run_dir)
 
 # ## What the paper observes, measured
 #

@@ -9,6 +9,7 @@ from stringcontact.exact import (
     flat_landing_time,
     sine_mode,
 )
+from stringcontact.compat import trapezoid
 from stringcontact.reference import fd_solve
 
 H, V, LENGTH = 0.2, 1.0, 1.0
@@ -19,7 +20,7 @@ def energy(eta, velocity, x):
 
     The elastic part is exact for the piecewise-linear interpolant of ``eta``.
     """
-    kinetic = 0.5 * np.trapz(velocity**2, x, axis=-1)
+    kinetic = 0.5 * trapezoid(velocity**2, x, axis=-1)
     elastic = 0.5 * np.sum(np.diff(eta, axis=-1) ** 2 / np.diff(x), axis=-1)
     return kinetic + elastic
 

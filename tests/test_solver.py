@@ -109,7 +109,7 @@ def test_semi_implicit_converges_to_the_exact_flat_landing():
         scene = base.replace(eta0="0.2", v0="-1", alpha=0.0, eps=1e-8, T=0.6, nx=n, nt=n, output_times=[])
         res = sc.simulate(scene, penalty="semi-implicit")
         ex, _ = exact.flat_landing(res.t[-1], res.x, h=0.2, V=1.0, length=1.0)
-        errors.append(np.sqrt(np.trapz((res.eta[-1] - ex) ** 2, res.x)))
+        errors.append(np.sqrt(compat.trapezoid((res.eta[-1] - ex) ** 2, res.x)))
     assert errors[-1] < 0.01
     assert errors[0] > errors[1] > errors[2]
 

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import compat
+
 ENERGY_KEYS = (
     "kinetic",
     "elastic",
@@ -59,4 +61,4 @@ class Result:
     def contact_length(self) -> np.ndarray:
         """Measure of the contact set {η ≤ 0} at each stored time (trapezoidal in x)."""
         c = self.contact.astype(float)
-        return np.trapz(c, self.x, axis=1) if c.shape[1] > 1 else c[:, 0]
+        return compat.trapezoid(c, self.x, axis=1) if c.shape[1] > 1 else c[:, 0]

@@ -255,6 +255,24 @@ def simulate(
         if writer is not None:
             writer.write(n * dt, {name: np.asarray(a, dtype=float) for name, a in fields.items()})
 
+    def result_of(n_rows: int, min_eta: float, status: str, message: str) -> Result:
+        """The first `n_rows` stored rows as a Result (all of them after a complete run)."""
+        return Result(
+            scene=scene,
+            x=gather.x,
+            t=steps[:n_rows] * dt,
+            steps=steps[:n_rows],
+            **{name: rows[name][:n_rows] for name in ("eta", "velocity", "contact", "contact_force")},
+            energy={key: values[:n_rows] for key, values in energy_rows.items()},
+            min_eta=float(min_eta),
+            penalty=penalty,
+            mass=mass,
+            model=model.name,
+            status=status,
+            timings=timings,
+            message=message,
+        )
+
     from tqdm import tqdm
 
     bar = tqdm(total=scene.nt, disable=not progress or comm.rank != 0, unit="step", mininterval=0.5, leave=False)
@@ -373,21 +391,7 @@ def simulate(
         status = "unstable" if isinstance(exc, InstabilityError) else "interrupted"
         message = str(exc) or status
         # The rows stored so far: the partial output's diagnostics.csv and energy balance, and the CLI's report.
-        partial = Result(
-            scene=scene,
-            x=gather.x,
-            t=steps[:next_row] * dt,
-            steps=steps[:next_row],
-            **{name: rows[name][:next_row] for name in ("eta", "velocity", "contact", "contact_force")},
-            energy={key: values[:next_row] for key, values in energy_rows.items()},
-            min_eta=float(min_eta),
-            penalty=penalty,
-            mass=mass,
-            model=model.name,
-            status=status,
-            timings=timings,
-            message=message,
-        )
+        partial = result_of(next_row, min_eta, status, message)
         exc.result = partial
         if writer is not None:
             writer.abort(status, message, result=partial, error=exc)
@@ -404,24 +408,7 @@ def simulate(
         timings["refactorisations"] = refactorisations
 
     min_eta = comm.allreduce(min_eta, op=MPI.MIN) if comm.size > 1 else min_eta
-    result = Result(
-        scene=scene,
-        x=gather.x,
-        t=steps * dt,
-        steps=steps,
-        eta=rows["eta"],
-        velocity=rows["velocity"],
-        contact=rows["contact"],
-        contact_force=rows["contact_force"],
-        energy=energy_rows,
-        min_eta=float(min_eta),
-        penalty=penalty,
-        mass=mass,
-        model=model.name,
-        status=status,
-        timings=timings,
-        message=message,
-    )
+    result = result_of(k, min_eta, status, message)
     if writer is not None:
         t_io = time.perf_counter()
         writer.finish(result)

@@ -217,7 +217,9 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
 
 def l2_norm(x: np.ndarray, f: np.ndarray) -> np.ndarray:
     """‖f‖_{L²(0,l)} of nodal values f (rows = times), trapezoidal."""
-    return np.sqrt(np.trapz(f**2, x, axis=-1))
+    from . import compat
+
+    return np.sqrt(compat.trapezoid(f**2, x, axis=-1))
 
 
 def _to_nodes(x_from: np.ndarray, values: np.ndarray, x_to: np.ndarray) -> np.ndarray:
@@ -262,13 +264,15 @@ def contact_height(run: Run) -> float:
 
 
 def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:
+    from . import compat
+
     delta = contact_height(run)
     sym_diff = (contact_set(run.eta, delta) != contact_set(eta, delta)).astype(float)
-    measure = np.trapz(sym_diff, run.x, axis=1)
+    measure = compat.trapezoid(sym_diff, run.x, axis=1)
     return {
         "err_eta": float(np.max(l2_norm(run.x, run.eta - eta))),
         "err_vel": float(l2_norm(run.x, run.velocity_T - vel_T)),
-        "err_contact": float(np.trapz(measure, run.t)) if run.t.size > 1 else float(measure[0]),
+        "err_contact": float(compat.trapezoid(measure, run.t)) if run.t.size > 1 else float(measure[0]),
     }
 
 

@@ -411,6 +411,21 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE) -> list[Path]:
 # --- reading an output folder back ---------------------------------------------------------------
 
 
+def show_pictures(folder) -> list[Path]:
+    """The pictures of a run folder: displayed inline in a Jupyter notebook, otherwise their paths printed."""
+    import sys
+
+    paths = [Path(folder) / name for name in PICTURES if (Path(folder) / name).exists()]
+    if "ipykernel" in sys.modules:
+        from IPython.display import Image, display
+
+        for path in paths:
+            display(Image(filename=str(path)))
+    else:
+        print("pictures:", ", ".join(str(p) for p in paths))
+    return paths
+
+
 def _xdmf_series(xdmf: Path) -> tuple[str, dict[str, list[tuple[float, str]]]]:
     """The geometry's HDF5 path and, for each field, its (time, HDF5 path) list from solution.xdmf."""
     root = ET.parse(xdmf).getroot()
