@@ -151,3 +151,21 @@ def test_space_time_grid_coarsens_but_keeps_the_contact_fraction(run):
     frac = lambda g: np.sum(g.cell_data["contact"] * g.compute_cell_sizes()["Area"]) / np.sum(g.compute_cell_sizes()["Area"])
     assert frac(coarse) == pytest.approx(frac(full), abs=0.03)
     assert frac(full) > 0.1
+
+
+def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
+    from stringcontact.variants import load_model
+
+    scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
+    res = sc.simulate(scene, model=load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
+    back = viz.read_output(tmp_path / "run")
+    assert viz.obstacle_name(back) == "ψ" and viz.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
+    grey = "#d9d9d9"  # the shaded obstacle region
+    viz.snapshots_picture(back, tmp_path / "bump.png")
+    flat = viz.read_output(tmp_path / "run")
+    flat.scene = flat.scene.replace(obstacle=None)
+    viz.snapshots_picture(flat, tmp_path / "flat.png")
+    bump, level = _near(_image(tmp_path / "bump.png"), grey, 3).sum(), _near(_image(tmp_path / "flat.png"), grey, 3).sum()
+    # the bump (down to ψ = -0.8 at the ends) is shaded, not the half-plane y <= 0: a different area
+    assert bump > 0 and level > 0 and abs(bump - level) > 0.2 * level
+    assert res.contact.any()

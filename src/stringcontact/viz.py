@@ -271,18 +271,24 @@ def _screenshot(p, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def obstacle_name(result) -> str:
+    """'0' for the paper's flat obstacle y = 0, 'ψ' for a scene's profiled `obstacle`."""
+    return "ψ" if getattr(result.scene, "obstacle", None) is not None else "0"
+
+
 def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
-    """The space-time contact set {η ≤ 0}: filled where in contact, blank where the string is free."""
+    """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free."""
     path = Path(path)
     grid, ranges = space_time_grid(result)
-    title = f"Contact set {{η ≤ 0}} in space-time: {result.scene.name}"
+    psi = obstacle_name(result)
+    title = f"Contact set {{η ≤ {psi}}} in space-time: {result.scene.name}"
     p, font = _space_time_plotter(result, grid, ranges, title, parameter_line(result, "\n"), window_size)
     contact = grid.threshold(0.5, scalars="contact")
     if contact.n_cells:
         p.add_mesh(contact, color=CONTACT_COLOUR, show_scalar_bar=False, lighting=False)
     x0, x1, y0, y1 = grid.bounds[:4]
-    _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.06 * (y1 - y0)), 0.03 * (x1 - x0), CONTACT_COLOUR, "in contact\n(η ≤ 0)", font)
-    _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.2 * (y1 - y0)), 0.03 * (x1 - x0), "white", "free\n(η > 0)", font)
+    _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.06 * (y1 - y0)), 0.03 * (x1 - x0), CONTACT_COLOUR, f"in contact\n(η ≤ {psi})", font)
+    _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.2 * (y1 - y0)), 0.03 * (x1 - x0), "white", f"free\n(η > {psi})", font)
     _frame(p, grid)
     _screenshot(p, path)
     return path
@@ -327,7 +333,7 @@ def _savefig(fig, path: Path) -> None:
 
 
 def snapshots_picture(result, path) -> Path:
-    """η(x) at the scene's output times, the obstacle y = 0, and the parts in contact highlighted."""
+    """η(x) at the scene's output times, the obstacle (y = 0 or the scene's ψ), and the parts in contact."""
     plt = _pyplot()
     path = Path(path)
     rows = snapshot_rows(result)
@@ -335,15 +341,17 @@ def snapshots_picture(result, path) -> Path:
     nrows = int(np.ceil(len(rows) / ncols))
     fig, axs = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.2 * nrows + 0.8), sharex=True, sharey=True, squeeze=False)
     x = result.x
-    lo = min(float(result.eta[rows].min()), 0.0)
-    hi = max(float(result.eta[rows].max()), 0.0)
+    name = obstacle_name(result)
+    psi = result.scene.obstacle_values(x) if name == "ψ" else np.zeros_like(x)
+    lo = min(float(result.eta[rows].min()), float(psi.min()))
+    hi = max(float(result.eta[rows].max()), float(psi.max()))
     pad = 0.08 * (hi - lo or 1.0)
     for ax, i in zip(axs.flat, rows):
-        ax.axhspan(lo - pad, 0.0, color="0.85", zorder=0)
-        ax.axhline(0.0, color="0.3", lw=1.0, zorder=1)
+        ax.fill_between(x, lo - pad, psi, color="0.85", lw=0, zorder=0)
+        ax.plot(x, psi, color="0.3", lw=1.0, zorder=1)
         ax.plot(x, result.eta[i], color="#2166ac", lw=1.2, label="η(t, x)", zorder=2)
         on = np.where(result.contact[i], result.eta[i], np.nan)
-        ax.plot(x, on, color=CONTACT_COLOUR, lw=3.0, label="in contact (η ≤ 0)", zorder=3)
+        ax.plot(x, on, color=CONTACT_COLOUR, lw=3.0, label=f"in contact (η ≤ {name})", zorder=3)
         parts = contact_components(x, result.contact[i])
         frac = float(result.contact_length[i]) / float(x[-1] - x[0])
         ax.set_title(f"t = {result.t[i]:.3g}: contact {100 * frac:.0f}% of l, {len(parts)} part{'s' * (len(parts) != 1)}", fontsize=10)
@@ -355,7 +363,7 @@ def snapshots_picture(result, path) -> Path:
         ax.set_xlabel("x")
     for ax in axs[:, 0]:
         ax.set_ylabel("η (displacement)")
-    axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
+    axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)" if name == "0" else "obstacle (y ≤ ψ(x))", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
     handles, labels = axs.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
     fig.suptitle(f"Snapshots of the string: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
