@@ -2,6 +2,7 @@
 
 The command line maps them to exit codes (see `stringcontact.cli`): `SceneError` and `OutputError` to 2,
 `InstabilityError` to 3 (2 if it is found before the first step), `Interrupted` to 128 + the signal number.
+:func:`one_line` puts a message (or the text of an exception) on the one line those errors are shown on.
 """
 
 import signal
@@ -45,3 +46,12 @@ class Interrupted(KeyboardInterrupt):
 
 class PenetrationWarning(UserWarning):
     """The string went further below the obstacle than the velocity penalty should allow (see docs/reliability.md)."""
+
+
+def one_line(text, limit: int | None = None) -> str:
+    """`text` (a message or an exception) on one line: each run of whitespace, newlines included, becomes one space.
+
+    `limit`: cut the result to at most this many characters.
+    """
+    line = " ".join(str(text).split())
+    return line if limit is None else line[:limit]

@@ -36,7 +36,7 @@ import warnings
 import numpy as np
 from simpleeval import SimpleEval
 
-from .errors import SceneError
+from .errors import SceneError, one_line
 
 __all__ = ["evaluate", "check", "ALLOWED_NAMES", "ALLOWED_FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH"]
 
@@ -379,12 +379,12 @@ def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float]) -
             raise SceneError(f"{field}: imports are not allowed; give an expression in x") from None
         where = f" at column {exc.offset}" if exc.offset else ""
         raise SceneError(
-            f"{field}: invalid syntax{where} ({_one_line(exc.msg)}) in {_short(expr)}; {_ALLOWED_TEXT}"
+            f"{field}: invalid syntax{where} ({one_line(exc.msg)}) in {_short(expr)}; {_ALLOWED_TEXT}"
         ) from None
     except RecursionError:
         raise SceneError(f"{field}: expression is nested too deeply; at most {MAX_DEPTH} levels are allowed") from None
     except Exception as exc:  # noqa: BLE001 - untrusted input: every failure must become a SceneError
-        reason = f"{type(exc).__name__}: {_one_line(str(exc))}"[:200]
+        reason = f"{type(exc).__name__}: {one_line(exc)}"[:200]
         raise SceneError(f"{field}: cannot evaluate {_short(expr)}: {reason}") from None
 
     bad = ~np.isfinite(value)
@@ -406,7 +406,3 @@ def check(expr: str, *, field: str, names: dict[str, float]) -> None:
 def _short(expr: str, limit: int = 60) -> str:
     text = expr if len(expr) <= limit else expr[:limit] + "..."
     return repr(text)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
+from .errors import one_line
 
 FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: max |balance residual| / energy scale above which the energy balance is reported as not closing.
@@ -177,14 +178,14 @@ def _recover_stale(target: Path) -> None:
         elif p.name.startswith(f".{name}.old-") and p.is_dir():
             if not target.exists():  # the swap stopped between its two renames: the old result comes back
                 os.rename(p, target)
-                warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=3)
+                warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
             else:
                 shutil.rmtree(p, ignore_errors=True)
     if removed:
         warnings.warn(
             f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
             f"({', '.join(removed)})",
-            stacklevel=3,
+            stacklevel=4,
         )
 
 
@@ -214,6 +215,25 @@ def _fsync_dir(folder: Path) -> None:
             os.close(fd)
 
 
+@contextlib.contextmanager
+def atomic_path(path):
+    """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
+
+    `tmp` is a hidden sibling ``.NAME.tmp-<pid>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
+    the format from it); on success it is renamed onto `path` (``os.replace``), on any exception, Ctrl-C
+    included, it is removed and the exception goes on.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
 def describe_os_error(exc: BaseException, folder, probe=None) -> str:
     """One line for an I/O failure in `folder`: disk full, read-only, permission denied, or the error itself.
 
@@ -237,7 +257,7 @@ def describe_os_error(exc: BaseException, folder, probe=None) -> str:
     try:
         st = os.statvfs(probe)
     except OSError:
-        return f"{_one_line(exc)} ({folder})"
+        return f"{one_line(exc, 300)} ({folder})"
     free = st.f_bavail * st.f_frsize
     if free < NEARLY_FULL_BYTES:
         return f"the disk is full ({free // 1024} KiB left on the device of {folder})"
@@ -245,11 +265,7 @@ def describe_os_error(exc: BaseException, folder, probe=None) -> str:
         return f"{folder} is on a read-only file system"
     if not os.access(probe, os.W_OK):
         return f"permission denied in {folder}"
-    return f"{_one_line(exc)} ({folder})"
-
-
-def _one_line(exc) -> str:
-    return " ".join(str(exc).split())[:300]
+    return f"{one_line(exc, 300)} ({folder})"
 
 
 def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
@@ -286,6 +302,47 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
     return target
 
 
+def _open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
+    """Take the output folder `path`: check it, lock it, check it again, clear what killed runs left there,
+    and make the hidden partial folder beside it. Returns ``(target, lock, partial)``, target resolved.
+
+    On failure nothing is held or left behind, and OutputError is raised (an OSError as "cannot create the
+    output folder").
+    """
+    target = Path(path).resolve()
+    lock = partial = None
+    try:
+        # Checked before the lock as well: a file or a non-empty folder is refused as such, named as given,
+        # even where the lock file cannot be made (a read-only parent) or another run holds the lock.
+        check_target(path, force)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        lock = TargetLock(target)
+        check_target(target, force, locked=True)  # again under the lock: a run may have just finished there
+        _recover_stale(target)
+        partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
+        os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
+        return target, lock, partial
+    except BaseException as exc:
+        if partial is not None:
+            shutil.rmtree(partial, ignore_errors=True)
+        if lock is not None:
+            lock.release()
+        if isinstance(exc, OSError):
+            raise OutputError(f"--out {target}: cannot create the output folder: {describe_os_error(exc, target.parent)}") from None
+        raise
+
+
+def _publish_partial(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
+    """fsync the finished folder `partial`, rename it into place (`move_into_place`), fsync the parent.
+
+    Returns where the folder went. Call it with the signals held.
+    """
+    _fsync_tree(partial)
+    dest = move_into_place(partial, target, force, status)
+    _fsync_dir(target.parent)
+    return dest
+
+
 @contextlib.contextmanager
 def staged_folder(path, force: bool = False):
     """Write a whole output folder, or nothing: ``with staged_folder(out, force) as tmp: write files into tmp``.
@@ -294,27 +351,12 @@ def staged_folder(path, force: bool = False):
     series): the lock, a unique hidden folder beside the target, fsync and rename at the end; on any error,
     including Ctrl-C, the hidden folder is removed and the target is left as it was. Serial (one process).
     """
-    target = check_target(path, force).resolve()
+    target, lock, partial = _open_partial(path, force)
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        lock = TargetLock(target)
-    except OSError as exc:
-        raise OutputError(f"--out {target}: cannot create the output folder: {describe_os_error(exc, target.parent)}") from None
-    partial = None
-    try:
-        check_target(target, force, locked=True)
-        _recover_stale(target)
-        try:
-            partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
-            os.chmod(partial, 0o777 & ~_umask())
-        except OSError as exc:
-            raise OutputError(f"--out {target}: cannot create the output folder: {describe_os_error(exc, target.parent)}") from None
         yield partial
         with signals_held():
             try:
-                _fsync_tree(partial)
-                dest = move_into_place(partial, target, force)
-                _fsync_dir(target.parent)
+                dest = _publish_partial(partial, target, force)
             except OSError as exc:
                 raise OutputError(f"--out {target}: {describe_os_error(exc, target.parent, probe=partial)}; nothing was written there") from None
             partial = None
@@ -434,20 +476,9 @@ class OutputWriter:
         failure = None
         if comm.rank == 0:
             try:
-                check_target(path, force)
-                self.target.parent.mkdir(parents=True, exist_ok=True)
-                self.lock = TargetLock(self.target)
-                check_target(self.target, force, locked=True)  # again under the lock: a run may have just finished there
-                _recover_stale(self.target)
-                prefix = f".{self.target.name}.partial-{os.getpid()}-"
-                self.partial = Path(tempfile.mkdtemp(prefix=prefix, dir=self.target.parent))
-                os.chmod(self.partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
+                self.target, self.lock, self.partial = _open_partial(path, force)
             except OutputError as exc:
                 failure = str(exc)
-            except OSError as exc:
-                failure = f"--out {self.target}: cannot create the output folder: {describe_os_error(exc, self.target.parent)}"
-            if failure is not None:
-                self._discard()
         failure, partial = comm.bcast((failure, self.partial), root=0) if comm.size > 1 else (failure, self.partial)
         if failure is not None:
             raise OutputError(failure)
@@ -554,7 +585,7 @@ class OutputWriter:
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
-            warnings.warn(f"pictures not written ({type(exc).__name__}: {_one_line(exc)})", stacklevel=3)
+            warnings.warn(f"pictures not written ({type(exc).__name__}: {one_line(exc, 300)})", stacklevel=3)
 
     def _bare_summary(self) -> dict:
         import dolfinx
@@ -595,9 +626,7 @@ class OutputWriter:
                     summary["last_time"] = self.times[-1] if self.times else None
                     with open(self.partial / "summary.json", "w") as f:
                         f.write(json.dumps(_clean_json(summary), indent=2, allow_nan=False))
-                    _fsync_tree(self.partial)
-                    dest = move_into_place(self.partial, self.target, self.force, status)
-                    _fsync_dir(self.target.parent)
+                    dest = _publish_partial(self.partial, self.target, self.force, status)
                 except (OSError, OutputError) as exc:
                     failure = describe_os_error(exc, self.target) if isinstance(exc, OSError) else str(exc)
             if self.comm.size > 1:
@@ -639,26 +668,36 @@ class OutputWriter:
 # --- reading the XDMF back ----------------------------------------------------------------------------
 
 
-def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
-    """The time series of a dolfinx XDMF file: {field: [(t, "file.h5:/Function/field/t"), ...]}.
+def read_xdmf(path) -> tuple[str | None, dict[str, list[tuple[float, str]]]]:
+    """The mesh and the time series of a dolfinx XDMF file: ``(geometry, series)``.
 
-    Raises OutputError if the file is not well-formed XML (a truncated write).
+    `geometry` is the HDF5 reference of the mesh coordinates (``"file.h5:/Mesh/mesh/geometry"``; None if the
+    file has no mesh); `series` is {field: [(t, "file.h5:/Function/field/t"), ...]}. Raises OutputError,
+    with the parser's error as its ``__cause__``, if the file is not well-formed XML (a truncated write) or
+    holds a time that is not a number.
     """
     try:
         root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError) as exc:
-        raise OutputError(f"{path} is not a readable XDMF file ({_one_line(exc)})") from None
-    series = {}
-    for collection in root.iter("Grid"):
-        if collection.get("GridType") != "Collection":
-            continue
-        rows = []
-        for grid in collection.findall("Grid"):
-            t, item = grid.find("Time"), grid.find("Attribute/DataItem")
-            if t is not None and item is not None:
-                rows.append((float(t.get("Value")), (item.text or "").strip()))
-        series[collection.get("Name")] = rows
-    return series
+        mesh = root.find("Domain/Grid[@GridType='Uniform']/Geometry/DataItem")
+        series = {}
+        for collection in root.iter("Grid"):
+            if collection.get("GridType") != "Collection":
+                continue
+            rows = []
+            for grid in collection.findall("Grid"):
+                t, item = grid.find("Time"), grid.find("Attribute/DataItem")
+                if t is not None and item is not None:
+                    rows.append((float(t.get("Value")), (item.text or "").strip()))
+            series[collection.get("Name")] = rows
+    except (ET.ParseError, OSError, TypeError, ValueError) as exc:
+        raise OutputError(f"{path} is not a readable XDMF file ({one_line(exc, 300)})") from exc
+    geometry = (mesh.text or "").strip() if mesh is not None else ""
+    return geometry or None, series
+
+
+def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
+    """The time series of a dolfinx XDMF file, {field: [(t, "file.h5:/Function/field/t"), ...]} (see `read_xdmf`)."""
+    return read_xdmf(path)[1]
 
 
 # --- tables and numbers ----------------------------------------------------------------------------
@@ -766,13 +805,11 @@ def penetration_check(result) -> dict:
     eta = np.asarray(result.eta, dtype=float)
     velocity = np.asarray(result.velocity, dtype=float)
     v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
-    obstacle = None
-    if getattr(scene, "obstacle", None) is not None and hasattr(scene, "obstacle_values"):
-        obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
-    if obstacle is None:  # min_eta covers every step, not only the stored ones
+    if scene.obstacle is None:  # min_eta covers every step, not only the stored ones
         depth = max(0.0, -float(result.min_eta))
         start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
     else:
+        obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
         depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
         start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
     braking = math.sqrt(scene.eps) if result.model == "elastic" else scene.eps

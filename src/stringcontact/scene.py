@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from . import expressions
-from .errors import SceneError
+from .errors import SceneError, one_line
 
 __all__ = [
     "Scene",
@@ -144,7 +144,7 @@ class Scene:
         if self.model is not None:
             put("model", _check_model(self.model))
         put("output_times", _check_output_times(self.output_times, self.T))
-        for key in ("eta0", "v0") + tuple(k for k in FIELD_KEYS if getattr(self, k) is not None):
+        for key in ("eta0", "v0") + tuple(self.fields):
             put(key, _expression_text(key, getattr(self, key)))
             expressions.check(getattr(self, key), field=key, names=self._names())
 
@@ -245,7 +245,9 @@ class Scene:
         label = source if source is not None else str(data.get("name", default_name or "scene"))
         try:
             scene = _build(dict(data), default_name=default_name)
-            _warn_doubtful(scene, label)
+            x, values = _grid_values(scene)
+            _check_magnitudes(values)
+            _warn_doubtful(scene, label, x, values)
         except SceneError as exc:
             raise SceneError(f"scene {label!r}: {exc}") from None
         return scene
@@ -347,19 +349,26 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
 MAX_MAGNITUDE = 1e6  # largest |eta0|, |v0|, load or obstacle value a scene may give
 
 
-def _warn_doubtful(scene: Scene, label: str) -> None:
-    """Warn (not refuse) about data that is legal but probably not what was meant."""
+def _grid_values(scene: Scene) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The nodes x and eta0, v0 and the scene's fields at them (checks finiteness on the real grid, not just the probe)."""
     x = scene.x()
-    eta = scene.initial_displacement(x)  # also checks finiteness on the real grid, not just the probe
-    values = {"eta0": eta, "v0": scene.initial_velocity(x)}
-    for key in scene.fields:
-        values[key] = scene.field_values(key, x)
-    psi = scene.obstacle_values(x)
-    values["obstacle"] = psi
-    for key, arr in values.items():  # beyond this, energies of order |.|^2/eps overflow or lose all digits
+    values = {"eta0": scene.initial_displacement(x), "v0": scene.initial_velocity(x)}
+    values.update({key: scene.field_values(key, x) for key in scene.fields})
+    return x, values
+
+
+def _check_magnitudes(values: dict[str, np.ndarray]) -> None:
+    """Refuse values beyond ±MAX_MAGNITUDE: beyond this, energies of order |.|^2/eps overflow or lose all digits."""
+    for key, arr in values.items():
         big = np.abs(np.asarray(arr, dtype=float))
         if big.size and big.max() > MAX_MAGNITUDE:
             raise SceneError(f"{key}: |{key}| reaches {big.max():.3g}; allowed: values in [-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}]")
+
+
+def _warn_doubtful(scene: Scene, label: str, x: np.ndarray, values: dict[str, np.ndarray]) -> None:
+    """Warn (not refuse) about data that is legal but probably not what was meant. `values`: `_grid_values` at x."""
+    eta = values["eta0"]
+    psi = values.get("obstacle", np.zeros_like(x))  # the obstacle profile, or the paper's y = 0
     below = eta < psi
     if below.any():
         gap = eta - psi
@@ -562,7 +571,7 @@ def _parse_toml(raw: bytes, label: str) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"scene file {label!r}: invalid TOML: {' '.join(str(exc).split())}") from None
+        raise SceneError(f"scene file {label!r}: invalid TOML: {one_line(exc)}") from None
 
 
 def load_scene(name_or_path: str | os.PathLike) -> Scene:

@@ -20,13 +20,13 @@ import csv
 import json
 import os
 import warnings
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
+from .output import FIELDS, OutputError, atomic_path, read_xdmf
+
 PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")
-FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0
 CONTACT_COLOUR = "#b2182b"
@@ -264,11 +264,9 @@ def _frame(p, grid, left=0.16, right=0.16, bottom=0.14, top=0.2) -> None:
 
 
 def _screenshot(p, path: Path) -> None:
-    # write to a hidden name and rename: a picture is either complete or absent
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    p.screenshot(str(tmp))
-    p.close()
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:  # a picture is either complete or absent
+        p.screenshot(str(tmp))
+        p.close()
 
 
 def obstacle_name(result) -> str:
@@ -325,11 +323,12 @@ def _pyplot():
     return plt
 
 
-def _savefig(fig, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=100)
-    _pyplot().close(fig)
-    os.replace(tmp, path)
+def _savefig(fig, path: Path, dpi: int = 100) -> None:
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi)
+    finally:
+        _pyplot().close(fig)
 
 
 def snapshots_picture(result, path) -> Path:
@@ -434,26 +433,6 @@ def show_pictures(folder) -> list[Path]:
     return paths
 
 
-def _xdmf_series(xdmf: Path) -> tuple[str, dict[str, list[tuple[float, str]]]]:
-    """The geometry's HDF5 path and, for each field, its (time, HDF5 path) list from solution.xdmf."""
-    root = ET.parse(xdmf).getroot()
-    domain = root.find("Domain")
-    geometry = None
-    series: dict[str, list[tuple[float, str]]] = {}
-    for grid in domain.findall("Grid"):
-        if grid.get("GridType") == "Uniform" and geometry is None:
-            geometry = grid.find("Geometry/DataItem").text.strip()
-        elif grid.get("GridType") == "Collection":
-            items = []
-            for step in grid.findall("Grid"):
-                t = float(step.find("Time").get("Value"))
-                items.append((t, step.find("Attribute/DataItem").text.strip()))
-            series[grid.get("Name")] = items
-    if geometry is None:
-        raise ValueError(f"{xdmf}: no mesh geometry in the XDMF file")
-    return geometry, series
-
-
 def _h5_path(ref: str) -> str:
     return ref.split(":", 1)[1]  # "solution.h5:/Function/eta/0" -> "/Function/eta/0"
 
@@ -482,9 +461,11 @@ def read_output(folder):
     if missing:
         raise ValueError(f"plot: {folder} is not a stringcontact output folder (missing {', '.join(missing)})")
     try:
-        geometry, series = _xdmf_series(folder / "solution.xdmf")
-    except (ET.ParseError, AttributeError, TypeError) as exc:
-        raise ValueError(f"plot: {folder / 'solution.xdmf'} cannot be read ({exc})") from None
+        geometry, series = read_xdmf(folder / "solution.xdmf")
+    except OutputError as exc:
+        raise ValueError(f"plot: {folder / 'solution.xdmf'} cannot be read ({exc.__cause__})") from None
+    if geometry is None:
+        raise ValueError(f"{folder / 'solution.xdmf'}: no mesh geometry in the XDMF file")
     absent = [f for f in FIELDS if f not in series]
     if absent:
         raise ValueError(f"plot: {folder / 'solution.xdmf'} has no time series {', '.join(absent)}")
