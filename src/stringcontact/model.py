@@ -127,9 +127,10 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     eta, v, eta_t, eta_tt, force = (fem.Function(V) for _ in range(5))
     w = ufl.TestFunction(V)
     exprs = [model.momentum_form(eta, eta_t, eta_tt, force, w, p), model.penalty(eta, v, p), model.contact_set(eta, p)]
-    for law in (model.penalty_damping, model.contact_energy):
-        if law is not None:
-            exprs.append(law(eta, v, p) if law is model.penalty_damping else law(eta, p))
+    if model.penalty_damping is not None:
+        exprs.append(model.penalty_damping(eta, v, p))
+    if model.contact_energy is not None:
+        exprs.append(model.contact_energy(eta, p))
     used = set()
     for e in exprs:
         used |= set(ufl.algorithms.extract_coefficients(e))

@@ -25,8 +25,6 @@ _UNARY = {
     "not_condition": np.logical_not,
 }
 _BINARY = {
-    "sum": np.add,
-    "product": np.multiply,
     "division": np.divide,
     "power": np.power,
     "max_value": np.maximum,
@@ -87,13 +85,20 @@ class _Compiler(MultiFunction):
     def conditional(self, o, c, a, b):
         return lambda env: np.where(c(env), a(env), b(env))
 
+    def product(self, o, a, b):
+        def value(env):
+            return np.multiply(a(env), b(env))
+
+        if _is_minus_one(o.ufl_operands[0]):
+            value.negated = b  # -1*b: a sum with it becomes a subtraction of b (see `sum`)
+        return value
+
     def sum(self, o, a, b):
         # a - b is written Sum(a, Product(-1, b)) in UFL: one np.subtract, bit-identical to a + (-1*b)
-        x, y = o.ufl_operands
-        for first, second, cb in ((x, y, a), (y, x, b)):
-            if isinstance(second, ufl.classes.Product) and _is_minus_one(second.ufl_operands[0]):
-                c = map_expr_dag(_Compiler(), second.ufl_operands[1], compress=False)
-                return lambda env: np.subtract(cb(env), c(env))
+        for kept, other in ((a, b), (b, a)):
+            negated = getattr(other, "negated", None)
+            if negated is not None:
+                return lambda env: np.subtract(kept(env), negated(env))
         return lambda env: np.add(a(env), b(env))
 
     def operator(self, o, *ops):

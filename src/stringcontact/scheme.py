@@ -45,19 +45,23 @@ def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
     if pattern is None:
         A = fem.petsc.assemble_matrix(fem.form(a))
     else:
-        A = pattern.duplicate(copy=False)
-        A.zeroEntries()
+        A = pattern.duplicate(copy=False)  # MatDuplicate without copying values zeroes them
         fem.petsc.assemble_matrix(A, fem.form(a))
     A.assemble()
     return A
 
 
+def _assemble_vector(L) -> np.ndarray:
+    """The linear form `L` assembled on the owned dofs (ghost contributions added to their owners)."""
+    vec = fem.petsc.assemble_vector(fem.form(L))
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    return vec.array.copy()
+
+
 def _assemble_row_sums(a, V) -> np.ndarray:
     """Row sums of the bilinear form `a` on owned dofs, as the vector a(1, w): no matrix is built."""
     one = fem.Constant(V.mesh, PETSc.ScalarType(1.0))
-    vec = fem.petsc.assemble_vector(fem.form(ufl.replace(a, {ufl.algorithms.extract_arguments(a)[1]: one})))
-    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    return vec.array.copy()
+    return _assemble_vector(ufl.replace(a, {ufl.algorithms.extract_arguments(a)[1]: one}))
 
 
 def _row_sums(A: PETSc.Mat) -> np.ndarray:
@@ -94,12 +98,9 @@ def semi_discrete_operators(model, V, params) -> Operators:
     m_force = -_assemble_row_sums(part(force), V)  # B = −∂R/∂F is only needed lumped
     b_form = -ufl.replace(R, {f: zero for f in placeholders})
     b_form = ufl.algorithms.expand_derivatives(b_form)
-    load = np.zeros_like(_row_sums(M))
-    if not b_form.empty():
-        vec = fem.petsc.assemble_vector(fem.form(b_form))
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        load = vec.array.copy()
-    return Operators(M=M, C=C, K=K, m=_row_sums(M), m_force=m_force, load=load)
+    m = _row_sums(M)
+    load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
+    return Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load)
 
 
 def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
@@ -146,9 +147,8 @@ def bc_dofs(V, length: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def node_coordinates(V) -> np.ndarray:
-    """x of the owned dofs (P1: the vertices)."""
-    n = V.dofmap.index_map.size_local
-    return V.tabulate_dof_coordinates()[:n, 0].copy()
+    """x of this rank's dofs (P1: the vertices): the owned ones first, then the ghosts."""
+    return V.tabulate_dof_coordinates()[:, 0].copy()
 
 
 __all__ = [

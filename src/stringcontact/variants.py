@@ -26,9 +26,12 @@ import importlib
 
 import ufl
 
-from .errors import SceneError
+from .errors import SceneError, one_line
 from .model import Model, Parameters, inelastic
+from .model import contact_set as _paper_contact_set
 from .model import momentum_form as _paper_momentum_form
+from .model import penalty as _paper_penalty
+from .model import penalty_damping as _paper_penalty_damping
 
 __all__ = ["elastic", "loaded_obstacle", "load_model"]
 
@@ -73,15 +76,15 @@ def _loaded_momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
 
 def _obstacle_penalty(eta, v, p: Parameters):
     """(1/ε) χ{η<ψ} (v)⁻: the paper's law with the gap η − ψ (ψ is fixed, so the gap rate is v)."""
-    return ufl.conditional(ufl.lt(eta, _obstacle(p)), ufl.max_value(-v, 0) / p.eps, 0)
+    return _paper_penalty(eta - _obstacle(p), v, p)
 
 
 def _obstacle_damping(eta, v, p: Parameters):
-    return ufl.conditional(ufl.And(ufl.lt(eta, _obstacle(p)), ufl.lt(v, 0)), 1 / p.eps, 0)
+    return _paper_penalty_damping(eta - _obstacle(p), v, p)
 
 
 def _obstacle_contact_set(eta, p: Parameters):
-    return ufl.le(eta, _obstacle(p))
+    return _paper_contact_set(eta - _obstacle(p), p)
 
 
 loaded_obstacle = Model(
@@ -113,7 +116,7 @@ def load_model(spec: str) -> Model:
     try:
         module = importlib.import_module(module_name)
     except Exception as exc:  # an ImportError, or any error raised by the user's module itself
-        reason = " ".join(str(exc).split()) or type(exc).__name__
+        reason = one_line(exc) or type(exc).__name__
         raise SceneError(f"model: cannot import module {module_name!r} for {spec!r} ({reason})") from None
     try:
         obj = getattr(module, attr)
@@ -123,7 +126,7 @@ def load_model(spec: str) -> Model:
         try:
             obj = obj()
         except Exception as exc:
-            reason = " ".join(str(exc).split()) or type(exc).__name__
+            reason = one_line(exc) or type(exc).__name__
             raise SceneError(f"model: calling {spec!r} failed ({type(exc).__name__}: {reason})") from None
     if not isinstance(obj, Model):
         raise SceneError(
