@@ -23,7 +23,6 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
 EXE = Path(sys.executable).with_name("stringcontact")
 
 

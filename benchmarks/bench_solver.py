@@ -37,7 +37,7 @@ def numpy_peer(scene, stored_steps):
     N, nt, dt = scene.nx, scene.nt, scene.dt
     dx = scene.length / N
     x = np.linspace(0.0, scene.length, N + 1)
-    r = (scene.alpha * dt + dt**2) / dx**2
+    r = step_conditioning(scene)
     lu = splu(sp.diags([-r, 1 + 2 * r, -r], [-1, 0, 1], shape=(N - 1, N - 1), format="csc"))
     eta = np.asarray(scene.initial_displacement(x), dtype=float).copy()
     eta[0], eta[-1] = scene.h_left, scene.h_right

@@ -23,8 +23,9 @@ import sys
 import threading
 import warnings
 
+from .errors import one_line
+
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
-EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 # Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
 # and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
@@ -37,7 +38,7 @@ SUBCOMMANDS = {
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2, like every other input error
-        self.exit(EXIT_INPUT, f"{self.prog}: error: {' '.join(str(message).split())}\n")
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {one_line(message)}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         try:
             importlib.import_module(module).add_arguments(sub_parser)
         except Exception as exc:  # noqa: BLE001 - one broken subcommand must not take `run` down with it
-            sub_parser.set_defaults(_unavailable=f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:200])
+            sub_parser.set_defaults(_unavailable=f"{type(exc).__name__}: {one_line(exc)}"[:200])
             sub_parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
     return parser
 
@@ -75,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
 @contextlib.contextmanager
 def _one_line_warnings():
     def show(message, category, filename, lineno, file=None, line=None):
-        print(f"stringcontact: warning: {' '.join(str(message).split())}", file=sys.stderr)
+        print(f"stringcontact: warning: {one_line(message)}", file=sys.stderr)
 
     saved = warnings.showwarning
     warnings.showwarning = show
@@ -142,7 +143,7 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
     return line, p["within_bound"]
 
 
-def report(res, out=None) -> None:
+def report(res) -> None:
     """The run's closing lines on stdout: parameters, min η, the energy balance and the penetration check."""
     from .errors import PenetrationWarning
 
@@ -176,11 +177,6 @@ def _run(args) -> int:
     if changes:
         scene = scene.replace(**changes)
     options = {"penalty": args.penalty, "mass": args.mass}
-    if args.tol is not None:
-        from .study import choose_for_tolerance
-
-        scene, options, text = choose_for_tolerance(scene, args.tol)
-        print(text)
     model = None
     if args.model or scene.model:
         from .variants import load_model
@@ -189,7 +185,12 @@ def _run(args) -> int:
     if args.out is not None:
         from .output import check_target
 
-        check_target(args.out, args.force)  # before the set-up: a refused folder costs nothing
+        check_target(args.out, args.force)  # before --tol's pilots and the set-up: a refused folder costs nothing
+    if args.tol is not None:
+        from .study import choose_for_tolerance
+
+        scene, options, text = choose_for_tolerance(scene, args.tol, model=model)  # the pilots use the run's model
+        print(text)
     res = sc.simulate(
         scene,
         **options,
@@ -214,7 +215,7 @@ def _partial_report(exc) -> None:
 
 
 def _error(message) -> None:
-    print(f"stringcontact: error: {' '.join(str(message).split())}", file=sys.stderr)
+    print(f"stringcontact: error: {one_line(message)}", file=sys.stderr)
 
 
 def main(argv=None) -> int:

@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import math
-import os
 import time
 import warnings
 from dataclasses import dataclass
@@ -179,17 +178,29 @@ class Run:
     x: np.ndarray | None = None
     eta: np.ndarray | None = None
     velocity_T: np.ndarray | None = None
-    message: str = ""
 
     @property
     def r(self) -> float:
         return self.dt / self.eps
 
 
+def _simulate_self(scene, **kwargs):
+    """`simulate(scene, **kwargs)` on COMM_SELF (this rank alone), without its instability warnings.
+
+    A study case that goes unstable is a result, not a problem: the case records it, so the warning would
+    only be noise. An `InstabilityError` (refused at the start, or stopped by the running guard) still raises.
+    """
+    import stringcontact as sc
+    from mpi4py import MPI
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sc.InstabilityWarning)
+        return sc.simulate(scene, comm=MPI.COMM_SELF, **kwargs)
+
+
 def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model=None) -> Run:
     """Simulate `scene` with `method` on COMM_SELF; the wall time is the best of `repeat` calls of `simulate`."""
     import stringcontact as sc
-    from mpi4py import MPI
 
     scene = scene.replace(eps=method.eps(scene.eps, scene.dt))
     common = dict(
@@ -199,17 +210,14 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
     best, res = math.inf, None
     for _ in range(repeat):
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", sc.InstabilityWarning)
-                t0 = time.perf_counter()
-                res = sc.simulate(scene, penalty=method.penalty, mass=method.mass, model=model,
-                                  max_rows=rows, comm=MPI.COMM_SELF)
-                best = min(best, time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            res = _simulate_self(scene, penalty=method.penalty, mass=method.mass, model=model, max_rows=rows)
+            best = min(best, time.perf_counter() - t0)
         except sc.InstabilityError as exc:
             status = "refused" if exc.step == 0 else "unstable"
-            return Run(**common, status=status, wall_s=math.nan, message=str(exc))
+            return Run(**common, status=status, wall_s=math.nan)
     return Run(**common, status="complete", wall_s=best, min_eta=res.min_eta, t=res.t, x=res.x, eta=res.eta,
-               velocity_T=res.velocity[-1], message=res.message)
+               velocity_T=res.velocity[-1])
 
 
 # --- errors -----------------------------------------------------------------------------------------------
@@ -337,9 +345,12 @@ def distribute(function, cases: list, comm=None, cost=None, busy: list | None = 
 
 
 def _warm_up():
-    """Compile the forms once per process (FFCx caches them), so the first timed run does not pay for it."""
+    """Compile the forms once per process (FFCx caches them), so the first timed run does not pay for it.
+
+    One run warms every method: the forms do not depend on the mass (lumping is the row sums of the
+    assembled M) nor on the penalty (evaluated at the nodes with NumPy, `stringcontact.nodal`).
+    """
     run_method(flat_landing_scene(8, nt=4), METHODS["semi-implicit"], rows=4)
-    run_method(flat_landing_scene(8, nt=4), METHODS["consistent"], rows=4)
 
 
 # --- work-precision ---------------------------------------------------------------------------------------
@@ -464,8 +475,10 @@ def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float 
     The flat middle lands at t* = h/V and, exactly, rests until the waves from the ends reach the middle at
     t* + (l/2 − t*); the largest upward velocity in (t*, t* + window] is the rebound.
     """
+    from .exact import flat_landing_time
+
     mid = int(np.argmin(np.abs(x - 0.5 * (x[0] + x[-1]))))
-    t_star = h / V
+    t_star = flat_landing_time(h, V)
     sel = (t > t_star) & (t <= t_star + window)
     if not sel.any():
         raise ValueError(f"no stored time in the restitution window ({t_star}, {t_star + window}]")
@@ -528,12 +541,9 @@ def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: f
                    min_eta=float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan))))
         return row
     import stringcontact as sc
-    from mpi4py import MPI
 
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", sc.InstabilityWarning)
-            res = sc.simulate(scene, penalty=penalty, mass=mass, comm=MPI.COMM_SELF, max_rows=nt)
+        res = _simulate_self(scene, penalty=penalty, mass=mass, max_rows=nt)
     except sc.InstabilityError as exc:
         outcome = "refused" if exc.step == 0 else "growth"
         row.update(outcome=outcome, restitution=math.nan, growth_step=exc.step, energy_max_ratio=math.nan,
@@ -553,16 +563,12 @@ def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> l
     dts = (1 / 100,) if quick else STABILITY_DT
     cases = [(p, "lumped", dt, r) for p in ("explicit", "semi-implicit") for dt in dts for r in r_values]
     cases += [("explicit", "consistent", dt, r) for dt in dts for r in r_values]
-    _warm_up()
-    rows = distribute(lambda c: stability_case(c[0], c[2], c[3], mass=c[1]), cases, comm, cost=lambda c: 1 / c[2] ** 2,
+    return distribute(lambda c: stability_case(c[0], c[2], c[3], mass=c[1]), cases, comm, cost=lambda c: 1 / c[2] ** 2,
                       busy=busy)
-    return rows
 
 
 def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
     """Flat landing (Δt = Δx = 1/200, T = 0.6) for α from 0.1 down to 0: restitution and where the energy went."""
-    import stringcontact as sc
-
     alphas = (0.1, 0.01, 0.0) if quick else (0.1, 0.03, 0.01, 0.003, 0.001, 0.0)
     methods = {"explicit r=1": ("explicit", 1.0), "explicit r=1.5": ("explicit", 1.5),
                "semi-implicit eps->0": ("semi-implicit", None)}
@@ -570,16 +576,12 @@ def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> lis
     cases = [(name, a) for name in methods for a in alphas]
 
     def one(case):
-        from mpi4py import MPI
-
         name, alpha = case
         penalty, r = methods[name]
         dt = 1.0 / n
         eps = dt / r if r else EPS_LIMIT
         scene = flat_landing_scene(n, eps=eps, alpha=alpha)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", sc.InstabilityWarning)
-            res = sc.simulate(scene, penalty=penalty, comm=MPI.COMM_SELF, max_rows=scene.nt)
+        res = _simulate_self(scene, penalty=penalty, max_rows=scene.nt)
         E0 = res.total_energy[0]
         e = res.energy
         return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps,
@@ -612,8 +614,8 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
                            model=None) -> list[dict]:
     """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`.
 
-    Returns one dict per method: method, nx, nt (of the finer run), estimate, pilot_wall_s (both pilot runs
-    of the last pair) and ok (whether `tol` was reached below `nx_max`).
+    Returns one dict per method: method, nx, nt (of the finer run), estimate, fine_wall_s (the finer run's
+    wall time), ok (whether `tol` was reached below `nx_max`) and run (the finer :class:`Run` itself).
     """
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
@@ -636,7 +638,7 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
             ok = estimate <= tol
             if ok or 2 * nx >= nx_max or fine.wall_s > budget:
                 found.append({"method": name, "nx": fine.nx, "nt": fine.nt, "estimate": estimate,
-                              "pilot_wall_s": coarse.wall_s + fine.wall_s, "fine_wall_s": fine.wall_s, "ok": ok})
+                              "fine_wall_s": fine.wall_s, "ok": ok, "run": fine})
                 if ok:
                     budget = min(budget, fine.wall_s)
                 break
@@ -644,16 +646,22 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
     return found
 
 
-def choose_for_tolerance(scene, tol: float):
+def choose_for_tolerance(scene, tol: float, *, model=None):
     """`run SCENE --tol X`: the cheapest method and resolution whose estimated error of η is below X.
 
     The candidates are the methods that converge to the inelastic limit ε → 0 (docs/study.md: the fixed-ε
     paper scheme stops at its ε-error, which no resolution removes). Each is refined by doubling Δx and Δt
     together (keeping the scene's ratio) until the Richardson estimate from the last two resolutions,
-    with the study's observed order, is below X; the cheaper of the finer runs wins. Under MPI, rank 0
-    decides and tells the others. Returns (scene, options for `simulate`, report).
+    with the study's observed order, is below X; the cheaper of the finer runs wins. The pilot runs use
+    `model` (default: the scene's, else the paper's), so pass the model the run itself will use. Under MPI,
+    rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
     """
-    chosen, method, best, choice = _choose(scene, tol)
+    if model is None and scene.model:
+        from .variants import load_model
+
+        model = load_model(scene.model)
+    choice = _estimate_on_rank_0(scene, tol, model=model)
+    chosen, method, best = _pick(scene, tol, choice)
     others = "; ".join(f"{c['method']}: nx={c['nx']} est {c['estimate']:.3g} ({c['fine_wall_s']:.2g} s"
                        f"{'' if c['ok'] else ', stopped: above tol and already dearer'})" for c in choice)
     report = (f"--tol {tol:g}: chose {method.name} ({method.label}) at nx={chosen.nx}, nt={chosen.nt}, "
@@ -662,24 +670,36 @@ def choose_for_tolerance(scene, tol: float):
     return chosen, {"penalty": method.penalty, "mass": method.mass}, report
 
 
-def _choose(scene, tol: float):
+def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
+    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank.
+
+    Every rank must call it. The other ranks get the estimates without the pilot runs' arrays ("run").
+    """
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
     choice = None
     if comm.rank == 0:
-        model = None
-        if scene.model:
-            from .variants import load_model
-
-            model = load_model(scene.model)
         try:
             choice = estimate_for_tolerance(scene, tol, model=model)
         except ValueError as exc:
             choice = exc
-    choice = comm.bcast(choice, root=0) if comm.size > 1 else choice
+    if comm.size > 1:  # the other ranks need the estimates, not the pilot runs' arrays
+        light = None
+        if comm.rank == 0:
+            light = choice if isinstance(choice, Exception) else [{k: v for k, v in c.items() if k != "run"}
+                                                                  for c in choice]
+        light = comm.bcast(light, root=0)
+        if comm.rank != 0:
+            choice = light
     if isinstance(choice, Exception):
         raise choice
+    return choice
+
+
+def _pick(scene, tol: float, choice: list[dict]):
+    """From `estimate_for_tolerance`'s estimates: (the chosen scene, its Method, its estimate), the cheapest
+    finer run among those that reached `tol`; a ValueError if none did."""
     reached = [c for c in choice if c["ok"]]
     if not reached:
         best = min(choice, key=lambda c: c["estimate"], default=None)
@@ -689,20 +709,23 @@ def _choose(scene, tol: float):
     method = METHODS[best["method"]]
     chosen = scene.replace(nx=best["nx"], nt=best["nt"])
     chosen = chosen.replace(eps=method.eps(chosen.eps, chosen.dt))
-    return chosen, method, best, choice
+    return chosen, method, best
 
 
 def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
-    """On the flat landing: the chosen run's estimate against its true error (exact solution), per tolerance."""
+    """On the flat landing: the chosen run's estimate against its true error (exact solution), per tolerance.
+
+    Serial (no MPI collective: under `mpirun` only rank 0 calls it). The true error is that of the chosen run
+    itself, the finer pilot run of the estimate (every coarse step stored); pilot_wall_s is the time the choice took.
+    """
     base = flat_landing_scene(100, T=T)
     rows = []
     for tol in tols:
         t0 = time.perf_counter()
-        chosen, method, best, _ = _choose(base, tol)
+        best = _pick(base, tol, estimate_for_tolerance(base, tol))[2]
         pilot = time.perf_counter() - t0
-        run = run_method(chosen, method, rows=round(T * 50))
-        true = errors_against_exact(run, flat_landing_exact)["err_eta"]
-        rows.append({"tol": tol, "method": method.name, "nx": chosen.nx, "nt": chosen.nt,
+        true = errors_against_exact(best["run"], flat_landing_exact)["err_eta"]
+        rows.append({"tol": tol, "method": best["method"], "nx": best["nx"], "nt": best["nt"],
                      "estimate": best["estimate"], "true_error": true, "ratio": best["estimate"] / true,
                      "pilot_wall_s": pilot})
     return rows
@@ -713,15 +736,15 @@ def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
 
 def write_csv(path, rows: list[dict], columns) -> Path:
     """Write rows with exactly `columns`, atomically (a temporary file renamed into place)."""
+    from .output import atomic_path
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w", newline="") as f:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(columns)
         for row in rows:
             writer.writerow([_fmt(row[c]) for c in columns])
-    os.replace(tmp, path)
     return path
 
 
@@ -751,13 +774,13 @@ def _figure(path, *args, **kwargs):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .output import atomic_path
+
     fig, axes = plt.subplots(*args, **kwargs)
     try:
         yield fig, axes
-        path = Path(path)
-        tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110, bbox_inches="tight")
     finally:
         plt.close(fig)
 
@@ -942,22 +965,25 @@ def command(args) -> int:
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a folder")
     t0 = time.perf_counter()
-    written, busy, sweep = [], [], 0.0
+    if args.study == "work-precision" and args.repeat < 1:
+        raise ValueError(f"--repeat must be >= 1, got {args.repeat}")
+    busy = []
+    t_sweep = time.perf_counter()
     if args.study == "work-precision":
-        if args.repeat < 1:
-            raise ValueError(f"--repeat must be >= 1, got {args.repeat}")
         names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)
-        t_sweep = time.perf_counter()
-        rows = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
-        sweep = time.perf_counter() - t_sweep
-        if rows is not None:
-            written = [write_csv(out / "study_work_precision.csv", rows, WORK_PRECISION_COLUMNS),
-                       plot_work_precision(rows, out / "study_work_precision.png")]
+        result = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
     elif args.study == "convergence":
-        t_sweep = time.perf_counter()
         result = convergence(quick=args.quick, comm=comm, busy=busy)
-        sweep = time.perf_counter() - t_sweep
-        if result is not None:
+    else:
+        result = stability_map(quick=args.quick, comm=comm, busy=busy)
+        alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
+    sweep = time.perf_counter() - t_sweep
+    written = []
+    if result is not None:  # None on ranks > 0: rank 0 has the results
+        if args.study == "work-precision":
+            written = [write_csv(out / "study_work_precision.csv", result, WORK_PRECISION_COLUMNS),
+                       plot_work_precision(result, out / "study_work_precision.png")]
+        elif args.study == "convergence":
             tracking = tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
             written = [write_csv(out / "study_convergence.csv", result["runs"], CONVERGENCE_COLUMNS),
                        write_csv(out / "study_orders.csv", result["orders"], ORDER_COLUMNS),
@@ -968,15 +994,10 @@ def command(args) -> int:
             for t in tracking:
                 print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} "
                       f"true {t['true_error']:.3g}")
-    else:
-        t_sweep = time.perf_counter()
-        rows = stability_map(quick=args.quick, comm=comm, busy=busy)
-        alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
-        sweep = time.perf_counter() - t_sweep
-        if rows is not None:
-            written = [write_csv(out / "study_stability.csv", rows, STABILITY_COLUMNS),
+        else:
+            written = [write_csv(out / "study_stability.csv", result, STABILITY_COLUMNS),
                        write_csv(out / "study_alpha.csv", alpha_rows, ALPHA_COLUMNS),
-                       plot_stability(rows, alpha_rows, out / "study_stability.png")]
+                       plot_stability(result, alpha_rows, out / "study_stability.png")]
     if comm.rank == 0:
         elapsed = time.perf_counter() - t0
         per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
