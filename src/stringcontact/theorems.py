@@ -43,10 +43,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 FLAT_LANDING = "flat-landing"
+STRESS_JUMP = "Thm 2.3(1) F = -[eta_x + a eta_tx]"
 HOLDS, FAILS, BY_CONSTRUCTION, NOT_APPLICABLE = "holds", "fails", "holds by construction", "n/a"
 
 
@@ -61,6 +63,7 @@ class Check:
     detail: str = ""
     trend: tuple = ()  # ((label, value), ...) over refinement levels, coarse to fine
     extra: dict = field(default_factory=dict)
+    data: dict = field(default_factory=dict, repr=False, compare=False)  # finest level's full measurement, not saved
 
     def as_dict(self) -> dict:
         return {
@@ -85,10 +88,6 @@ def _require_every_step(result) -> None:
         )
 
 
-def time_step(result) -> float:
-    return float(result.scene.dt)
-
-
 def nodal_weights(result) -> np.ndarray:
     """Lumped P1 mass m_j of the nodes (Δx/2 at the ends) on the result's grid."""
     dx = np.diff(result.x)
@@ -101,7 +100,7 @@ def nodal_weights(result) -> np.ndarray:
 def impulse(result) -> np.ndarray:
     """Nodal contact impulse Δt m_j F^n_j of every step, shape (rows, nodes); row 0 is zero."""
     _require_every_step(result)
-    return time_step(result) * result.contact_force * nodal_weights(result)[None, :]
+    return result.scene.dt * result.contact_force * nodal_weights(result)[None, :]
 
 
 def interior(result) -> np.ndarray:
@@ -155,12 +154,16 @@ def first_contact_rows(result) -> np.ndarray:
     return np.where(c.any(axis=0), first, -1)
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Maximal runs [a, b] (inclusive) of True in a 1-D mask."""
-    m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]]).astype(np.int8)
-    d = np.diff(m)
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1
-    return list(zip(starts.tolist(), ends.tolist()))
+def _runs(mask: np.ndarray, min_nodes: int = 1) -> list[tuple[int, int]]:
+    """Maximal runs [a, b] (inclusive node indices) of at least `min_nodes` True in a 1-D mask."""
+    from .viz import contact_components
+
+    return [(int(a), int(b)) for a, b in contact_components(np.arange(np.size(mask)), mask, min_nodes)]
+
+
+def _band_width(result, delta: float) -> int:
+    """Half-width in cells (at least 1) of the band of physical half-width `delta` around the fronts."""
+    return max(1, int(round(delta / float(np.diff(result.x).mean()))))
 
 
 def _dilate_1d(mask: np.ndarray, w: int) -> np.ndarray:
@@ -199,9 +202,8 @@ def support_concentration(result, ks=(1, 2, 4), lengths=()) -> dict:
     I = impulse(result)
     total = I.sum()
     d = distance_to_free_boundary(result.contact)
-    step = max(float(np.diff(result.x).max()), time_step(result))
-    out = {"total_impulse": float(total), "support_measure": float((I > 0).sum() * time_step(result) *
-                                                                   float(np.diff(result.x).mean()))}
+    step = max(float(np.diff(result.x).max()), result.scene.dt)
+    out = {"support_measure": float((I > 0).sum() * result.scene.dt * float(np.diff(result.x).mean()))}
     for k in ks:
         out[f"within_{k}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
     for L in lengths:
@@ -235,13 +237,13 @@ def velocity_after_contact(result, delay: float) -> dict:
     """
     _require_every_step(result)
     first = first_contact_rows(result)
-    lag = max(1, int(round(delay / time_step(result))))
+    lag = max(1, int(round(delay / result.scene.dt)))
     nodes = np.flatnonzero(interior(result) & (first >= 1) & (first + lag < result.t.size))
     c = np.asarray(result.contact, dtype=bool)
     stays = np.array([c[first[j]:first[j] + lag + 1, j].all() for j in nodes], dtype=bool)
     kept = nodes[stays] if nodes.size else nodes
     if kept.size == 0:
-        return {"ratio": math.nan, "p95": math.nan, "nodes": 0, "left_early": int(nodes.size), "lag_steps": lag}
+        return {"ratio": math.nan, "p95": math.nan, "nodes": 0, "left_early": int(nodes.size)}
     impact = np.abs(result.velocity[first[kept], kept])
     after = np.abs(result.velocity[first[kept] + lag, kept])
     big = impact >= 0.01 * impact.max()
@@ -251,8 +253,6 @@ def velocity_after_contact(result, delay: float) -> dict:
         "p95": float(np.percentile(ratios, 95)) if ratios.size else math.nan,
         "nodes": int(kept.size),
         "left_early": int(nodes.size - kept.size),
-        "lag_steps": lag,
-        "mean_impact_speed": float(impact.mean()),
     }
 
 
@@ -269,7 +269,7 @@ def stress_jump_balance(result, width: int = 4) -> dict:
     share of all impulse that lies in the bands, and per-row series (for the figure).
     """
     _require_every_step(result)
-    dt = time_step(result)
+    dt = result.scene.dt
     m = nodal_weights(result)
     c = np.asarray(result.contact, dtype=bool)
     S = cell_stress(result)
@@ -299,8 +299,6 @@ def stress_jump_balance(result, width: int = 4) -> dict:
         "mismatch": float(abs(I_tot - J_tot) / I_tot) if I_tot > 0 else math.nan,
         "identity_closure": float(abs(I_tot - J_tot - K_tot) / max(I_tot, 1e-300)),
         "band_share": float(I_tot / total) if total > 0 else math.nan,
-        "width": width,
-        "t": result.t,
         "impulse_rate": I_row / dt,
         "stress_jump_rate": J_row / dt,
     }
@@ -314,7 +312,7 @@ def landing_segments(result, min_nodes: int = 10) -> list[tuple[int, int, int]]:
     found = []
     for n in np.unique(first[ok]):
         mask = ok & ((first == n) | (first == n + 1))
-        found += [(int(n), a, b) for a, b in _runs(mask) if b - a + 1 >= min_nodes]
+        found += [(int(n), a, b) for a, b in _runs(mask, min_nodes)]
     found.sort(key=lambda s: s[2] - s[1], reverse=True)
     kept = []
     for n, a, b in found:  # drop runs inside an already kept one
@@ -332,11 +330,11 @@ def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
     in the window. For the exact α = 0 case the jump is V.
     """
     _require_every_step(result)
-    dt = time_step(result)
+    dt = result.scene.dt
     q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt)))
     F, v = result.contact_force, result.velocity
     rows = result.t.size
-    density, jump, share, times, lengths = [], [], [], [], []
+    density, jump, share, times = [], [], [], []
     for n0, a, b in landing_segments(result):
         a, b = a + margin, b - margin
         if b < a or n0 + q + 1 >= rows:
@@ -348,26 +346,22 @@ def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
         jump.append(v[n0 + q + 1, nodes] - v[n0 - 1, nodes])
         share.append(f.sum() / total.sum() if total.sum() > 0 else math.nan)
         times.append(result.t[n0])
-        lengths.append(result.x[b] - result.x[a])
     if not density:
         return {"segments": 0}
     f, jmp = np.concatenate(density), np.concatenate(jump)
     return {
         "segments": len(density),
         "times": times,
-        "lengths": lengths,
         "mean_density": float(f.mean()),
         "mean_jump": float(jmp.mean()),
-        "max_rel_mismatch": float(np.max(np.abs(f - jmp)) / np.mean(np.abs(jmp))),
         "window_share": float(np.nanmin(share)),
         "window_steps": q + 1,
-        "density": f,
     }
 
 
 def energy_balance(result) -> dict:
-    """The energy balance (1.4) as a time series: the discrete residual (with the scheme's numerical
-    dissipation, round-off) and the continuous one (without it), relative to E(0) + W_ext."""
+    """The energy balance (1.4) over the run: the largest discrete residual (with the scheme's numerical
+    dissipation, round-off) and continuous one (without it), relative to E(0) + W_ext."""
     e = result.energy
     scale = abs(result.total_energy[0]) + abs(e["external_work"][-1])
     scale = scale if scale > 0 else 1.0
@@ -379,25 +373,18 @@ def energy_balance(result) -> dict:
         "continuous_residual": float(np.max(np.abs(continuous)) / scale),
         "numerical_over_contact": float(e["numerical_dissipation"][-1] / e["contact_dissipation"][-1])
         if e["contact_dissipation"][-1] > 0 else math.nan,
-        "t": result.t,
-        "series": {k: e[k] for k in ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation",
-                                     "numerical_dissipation")},
     }
 
 
 # --- scenes and refinement ----------------------------------------------------------------------------
 
 
-def flat_landing_scene(nx: int = 1000, nt: int = 1200, r: float = 0.4, h: float = 0.2, V: float = 1.0):
-    """The exact α = 0 case (`exact.flat_landing`): η0 = h, v0 = −V, ends at h, T = 0.6, ε = Δt/r."""
-    from .scene import load_scene
+def flat_landing_scene(nx: int = 1000, nt: int = 1200, r: float = 0.4):
+    """:func:`stringcontact.study.flat_landing_scene` (the exact α = 0 case, `exact.flat_landing`: η0 = h,
+    v0 = −V, ends at h, T = 0.6) with ε = Δt/r."""
+    from .study import flat_landing_scene as flat
 
-    T = 0.6
-    return load_scene("example1").replace(
-        name=FLAT_LANDING, description="alpha = 0 flat string landing at t* = h/V (exact solution known)",
-        notes="", eta0=repr(float(h)), v0=repr(-float(V)), h_left=float(h), h_right=float(h), alpha=0.0,
-        T=T, nx=nx, nt=nt, eps=T / nt / r, output_times=[],
-    )
+    return flat(nx, nt=nt, eps=0.6 / nt / r)
 
 
 def coarsened(scene, factor: int):
@@ -482,7 +469,7 @@ def check_support(results, ks=(1, 2, 4)) -> Check:
     """(A2) the impulse concentrates at ∂{η = 0}: the share outside a fixed physical distance → 0."""
     results = _as_list(results)
     coarse = results[0]
-    L = 4 * max(float(np.diff(coarse.x).max()), time_step(coarse))
+    L = 4 * max(float(np.diff(coarse.x).max()), coarse.scene.dt)
     m = [support_concentration(r, ks=ks, lengths=(L,)) for r in results]
     outside = [1 - x[f"within_length_{L:g}"] for x in m]
     fine = m[-1]
@@ -545,7 +532,7 @@ def check_velocity_after_contact(results, delay: float | None = None) -> Check:
 def check_stress_jump(results, delta: float = 0.02) -> Check:
     """Theorem 2.3(1), formula (2.10): impulse near a moving front = −[η_x + α η_tx] across it."""
     results = _as_list(results)
-    m = [stress_jump_balance(r, max(1, int(round(delta / float(np.diff(r.x).mean()))))) for r in results]
+    m = [stress_jump_balance(r, _band_width(r, delta)) for r in results]
     vals = [x["mismatch"] for x in m]
     fine = m[-1]
     if math.isnan(vals[-1]) or results[-1].scene.alpha == 0:
@@ -557,13 +544,14 @@ def check_stress_jump(results, delta: float = 0.02) -> Check:
     else:
         verdict = INCONCLUSIVE
     return Check(
-        "Thm 2.3(1) F = -[eta_x + a eta_tx]", vals[-1], f"|impulse - stress jump|/impulse -> 0 (band +-{delta:g})",
+        STRESS_JUMP, vals[-1], f"|impulse - stress jump|/impulse -> 0 (band +-{delta:g})",
         verdict,
         detail=(f"band impulse {fine['band_impulse']:.4g} ({100 * fine['band_share']:.0f}% of all), stress jump "
                 f"{fine['stress_jump_impulse']:.4g}, inertia {fine['inertia']:.4g}; identity closes to "
                 f"{fine['identity_closure']:.1e}"),
         trend=_trend(results, vals),
         extra={k: fine[k] for k in ("band_impulse", "stress_jump_impulse", "inertia", "band_share")},
+        data=fine,
     )
 
 
@@ -653,16 +641,19 @@ def format_trends(checks) -> str:
 # --- the paper's Figure 1 -----------------------------------------------------------------------------
 
 
-def draw_figure1(result, path, delta: float = 0.02, title: str | None = None):
+def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, balance: dict | None = None):
     """The paper's Figure 1 on a computed solution: the contact set {η ≤ 0} in the (x, t) plane with its
     free boundary, the contact force density F on it (log colour), and, on the right, the force on the
-    fronts per unit time against the stress jump −[η_x + α η_tx] across them (Theorem 2.3(1))."""
-    import matplotlib
+    fronts per unit time against the stress jump −[η_x + α η_tx] across them (Theorem 2.3(1)).
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    `balance` is :func:`stress_jump_balance` of `result` at this `delta` if already computed (the ``data``
+    of :func:`check_stress_jump`'s check); otherwise it is computed here.
+    """
     from matplotlib.colors import ListedColormap, LogNorm
 
+    from .viz import _pyplot, _savefig
+
+    plt = _pyplot()
     _require_every_step(result)
     x, t = result.x, result.t
     F = np.ma.masked_less_equal(result.contact_force, 0.0)
@@ -683,10 +674,10 @@ def draw_figure1(result, path, delta: float = 0.02, title: str | None = None):
     ax.legend(loc="upper right", fontsize=8)
     ax.set_title(title or f"{result.scene.name}: contact set and force")
 
-    sj = stress_jump_balance(result, max(1, int(round(delta / float(np.diff(x).mean())))))
+    sj = balance if balance is not None else stress_jump_balance(result, _band_width(result, delta))
     bx.plot(t, sj["impulse_rate"], color="tab:red", lw=1, label=r"force on the fronts $\sum m_jF_j$")
     bx.plot(t, sj["stress_jump_rate"], color="tab:blue", lw=1, label=r"stress jump $-[\eta_x+\alpha\eta_{tx}]$")
-    bx.plot(t, np.sum(impulse(result), axis=1) / time_step(result), color="0.5", lw=0.8, ls="--",
+    bx.plot(t, np.sum(impulse(result), axis=1) / result.scene.dt, color="0.5", lw=0.8, ls="--",
             label=r"all force $\int F\,dx$")
     bx.set_yscale("symlog", linthresh=1.0)
     bx.set_xlabel("t")
@@ -694,8 +685,7 @@ def draw_figure1(result, path, delta: float = 0.02, title: str | None = None):
     bx.set_title(f"Theorem 2.3(1): band +-{delta:g} around the fronts")
     bx.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _savefig(fig, Path(path), dpi=110)
     return path
 
 
@@ -732,7 +722,8 @@ def _scene_from_args(args):
 def command(args) -> int:
     import json
     import warnings
-    from pathlib import Path
+
+    from .study import FLAT_V
 
     if not 1 <= args.levels <= 6:
         raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
@@ -747,7 +738,7 @@ def command(args) -> int:
         from .output import check_target
 
         check_target(args.out, args.force)
-    V = 1.0 if scene.name == FLAT_LANDING else None
+    V = FLAT_V if scene.name == FLAT_LANDING else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
         checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V)
@@ -764,7 +755,8 @@ def command(args) -> int:
                 {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
                  "checks": [c.as_dict() for c in checks]}, indent=1, default=float))
             (partial / "checks.txt").write_text(format_table(checks) + "\n\n" + format_trends(checks) + "\n")
-            draw_figure1(finest, partial / "figure1.png", args.delta)
+            balance = next(c.data for c in checks if c.name == STRESS_JUMP)  # computed by run_checks
+            draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
         target = Path(args.out)
         print(f"wrote {target}")
     return 0
