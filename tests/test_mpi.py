@@ -9,17 +9,14 @@ this process.
 from __future__ import annotations
 
 import json
-import os
 import re
-import shutil
-import signal
-import subprocess
 import sys
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from conftest import leftovers, mpirun
 
 pytestmark = pytest.mark.mpi
 
@@ -38,25 +35,9 @@ def parity_scene():
     return sc.load_scene("example1").replace(nx=300, nt=600)
 
 
-def mpirun(*args, timeout=TIMEOUT):
+def run_worker(*args):
     """`mpirun -n 2 python this_file ARGS`; returns the CompletedProcess, or fails the test on a hang."""
-    exe = shutil.which("mpirun") or shutil.which("mpiexec")
-    if exe is None:
-        pytest.skip("mpirun not found (scripts/setup installs openmpi-bin)")
-    # If pytest itself runs inside an MPI job, do not hand that job's wiring to the new one.
-    job = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
-    env = {k: v for k, v in os.environ.items() if not k.startswith(job)}
-    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
-    env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    cmd = [exe, "-n", str(RANKS), sys.executable, str(Path(__file__).resolve()), *map(str, args)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
-    try:
-        out, err = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        out, err = proc.communicate()
-        pytest.fail(f"mpirun -n {RANKS} {' '.join(map(str, args))} hung for {timeout} s\n{out[-2000:]}\n{err[-2000:]}")
-    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+    return mpirun([sys.executable, Path(__file__).resolve(), *args], ranks=RANKS, timeout=TIMEOUT)
 
 
 def rel_error(a, b) -> float:
@@ -67,7 +48,7 @@ def rel_error(a, b) -> float:
 @pytest.fixture(scope="module")
 def parity_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("mpi_parity")
-    proc = mpirun("parity", out)
+    proc = run_worker("parity", out)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return out
 
@@ -112,56 +93,34 @@ def test_mpi_result_equals_serial_on_every_rank(parity_run, serial_results, pena
     assert serial.contact.any() and np.max(serial.contact_force) > 0
 
 
-def xdmf_series(folder: Path) -> tuple[np.ndarray, dict]:
-    """The XDMF time series as nodal values ordered by x, found through the .xdmf's own index.
-
-    Read with pyfive (pure Python), as the package's own reader does: h5py's bundled HDF5 clashes with the
-    HDF5 that dolfinx has loaded into this process.
-    """
-    import pyfive
-
-    root = ET.parse(folder / "solution.xdmf").getroot()
-    with pyfive.File(str(folder / "solution.h5")) as h5:
-        geometry = root.find(".//Grid[@Name='mesh']/Geometry/DataItem")
-        x = np.asarray(h5[geometry.text.split(":")[1]][:])[:, 0]
-        order = np.argsort(x, kind="stable")
-        series = {}
-        for grid in root.iter("Grid"):
-            time = grid.find("Time")
-            if time is None:
-                continue
-            for attr in grid.findall("Attribute"):
-                path = attr.find("DataItem").text.split(":")[1]
-                series[f"{attr.get('Name')}@{float(time.get('Value'))!r}"] = np.asarray(h5[path][:])[:, 0][order]
-    return x[order], series
-
-
 @pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
 def test_mpi_xdmf_is_one_collective_file_equal_to_serial(parity_run, serial_results, penalty, mass):
+    from stringcontact import viz
+
     serial, serial_dir = serial_results[(penalty, mass)]
     folder = parity_run / f"{penalty}-{mass}"
     assert sorted(p.name for p in folder.iterdir() if p.suffix in (".xdmf", ".h5")) == ["solution.h5", "solution.xdmf"]
-    x_mpi, mpi = xdmf_series(folder)
-    x_ser, ser = xdmf_series(serial_dir)
-    np.testing.assert_allclose(x_mpi, serial.x, atol=1e-14)
-    np.testing.assert_allclose(x_ser, serial.x, atol=1e-14)
-    assert set(mpi) == set(ser) and len(mpi) == 4 * serial.t.size
-    for key, values in ser.items():
-        field = key.split("@")[0]
-        scale = max(1.0, max(float(np.max(np.abs(v))) for k, v in ser.items() if k.startswith(f"{field}@")))
-        err = float(np.max(np.abs(mpi[key] - values))) / scale
-        assert err <= PARITY, f"{key}: {err:.3g} (relative to the field's maximum over all times)"
+    mpi, ser = viz.read_output(folder), viz.read_output(serial_dir)  # nodal values ordered by x
+    np.testing.assert_allclose(mpi.x, serial.x, atol=1e-14)
+    np.testing.assert_allclose(ser.x, serial.x, atol=1e-14)
+    np.testing.assert_array_equal(mpi.t, serial.t)  # the same stored times (read_output checks the XDMF's)
+    np.testing.assert_array_equal(ser.t, serial.t)
+    for name in (*FIELDS, "contact"):
+        a, b = getattr(mpi, name), getattr(ser, name)
+        assert a.shape == b.shape == (serial.t.size, serial.x.size), name  # every stored time, every node
+        err = rel_error(a, b)
+        assert err <= PARITY, f"{name}: {err:.3g} (relative to the field's maximum over all times)"
     # and the tables rank 0 wrote from the gathered Result
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["status"] == "complete"
     assert abs(summary["min_eta"] - serial.min_eta) <= PARITY
     lines = (folder / "diagnostics.csv").read_text().splitlines()
     assert len(lines) == serial.t.size + 1
-    assert not list(parity_run.glob(".*partial"))
+    assert leftovers(parity_run) == []  # no partial folder, no lock
 
 
 def test_mpi_errors_are_raised_on_every_rank_without_a_hang(tmp_path):
-    proc = mpirun("errors", tmp_path)
+    proc = run_worker("errors", tmp_path)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     reports = [json.loads((tmp_path / f"errors.rank{r}.json").read_text()) for r in range(RANKS)]
     for report in reports:
@@ -182,7 +141,7 @@ def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
     example = Path(stringcontact.__file__).parent / "scenes" / "example1.toml"
     bad = tmp_path / "bad.toml"
     bad.write_text(re.sub(r"(?m)^alpha = .*$", "alpha = -1.0", example.read_text()))
-    proc = mpirun("cli", "run", bad, "--out", tmp_path / "never", "--no-progress")
+    proc = run_worker("cli", "run", bad, "--out", tmp_path / "never", "--no-progress")
     assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
     lines = [line for line in proc.stderr.splitlines() if line.startswith("stringcontact: error:")]
     assert len(lines) == RANKS and "alpha" in lines[0]

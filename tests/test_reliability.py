@@ -18,6 +18,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import leftovers
+
 from stringcontact.cli import main
 from stringcontact.output import TargetLock, energy_balance, penetration_check, xdmf_series
 
@@ -48,11 +50,6 @@ def assert_one_line_error(err: str, *fragments):
         assert fragment in lines[0], lines[0]
     others = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("stringcontact: warning:")]
     assert others == lines, err
-
-
-def leftovers(folder: Path) -> list[str]:
-    """Anything a run may leave beside its target: partial folders, locks, .old swaps."""
-    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
 
 
 # --- hostile expressions through the whole command line ------------------------------------------------
@@ -396,7 +393,7 @@ def test_read_only_output_folder(tmp_path, capfd, tmpfs):
     assert list(folder.iterdir()) == []
 
 
-def test_disk_full_gives_one_line_and_leaves_nothing(tmp_path, capfd, tmpfs):
+def test_disk_full_gives_one_line_and_leaves_nothing(capfd, tmpfs):
     folder = tmpfs("full", "size=256k")  # the run needs about 3 MB
     assert main(["run", "example1", "--nx", "200", "--nt", "750", *QUICK, "--out", str(folder / "out")]) == 2
     assert_one_line_error(capfd.readouterr().err, "the disk is full", "nothing was written there")
@@ -446,7 +443,7 @@ def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
     assert leftovers(tmp_path) == []
 
 
-def test_force_replaces_with_a_complete_result(tmp_path, capfd):
+def test_force_replaces_with_a_complete_result(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "old.txt").write_text("old")

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import mpirun
 from mpi4py import MPI
 
 import stringcontact as sc
@@ -12,13 +13,14 @@ import stringcontact.solver
 from stringcontact import study
 
 
-def flat(n, r, penalty, T=0.45, alpha=0.0):
+def flat(n, r, T=0.45):
+    """The flat landing with Δt = Δx = 1/n and ε = Δt/r."""
     dt = 1.0 / n
-    return study.flat_landing_scene(n, eps=dt / r, T=T, alpha=alpha)
+    return study.flat_landing_scene(n, eps=dt / r, T=T)
 
 
 def test_explicit_penalty_at_r4_is_caught_before_and_during_the_run(monkeypatch):
-    scene = flat(100, 4.0, "explicit")
+    scene = flat(100, 4.0)
     with pytest.raises(sc.InstabilityError) as before:
         sc.simulate(scene, penalty="explicit", comm=MPI.COMM_SELF)
     assert before.value.step == 0 and before.value.r == pytest.approx(4.0)
@@ -39,7 +41,7 @@ def test_stability_map_cell_at_r4_shows_growth_with_restitution_r_minus_1():
 
 
 def test_semi_implicit_at_r100_is_stable_and_energy_never_rises():
-    scene = flat(100, 100.0, "semi-implicit", T=0.6)
+    scene = flat(100, 100.0, T=0.6)
     res = sc.simulate(scene, penalty="semi-implicit", comm=MPI.COMM_SELF)
     assert res.status == "complete" and res.min_eta < 0  # it did touch the obstacle
     E = res.total_energy
@@ -50,7 +52,7 @@ def test_semi_implicit_at_r100_is_stable_and_energy_never_rises():
 
 @pytest.mark.parametrize("r, expected", [(1.5, 0.5), (1.2, 0.2), (0.8, 0.0)])
 def test_measured_restitution_is_r_minus_1(r, expected):
-    scene = flat(100, r, "explicit")
+    scene = flat(100, r)
     with pytest.warns(sc.InstabilityWarning) if r > 1 else _no_warning():
         res = sc.simulate(scene, penalty="explicit", comm=MPI.COMM_SELF)
     assert study.restitution(res.t, res.x, res.velocity) == pytest.approx(expected, abs=0.02)
@@ -176,20 +178,17 @@ def test_convergence_cli_writes_orders_and_tolerance_tracking(tmp_path):
 @pytest.mark.mpi
 def test_stability_sweep_on_two_ranks_gives_the_serial_rows(tmp_path):
     import os
-    import shutil
     import subprocess
     import sys
     from pathlib import Path
 
-    if shutil.which("mpirun") is None:
-        pytest.skip("mpirun not found")
     exe = str(Path(sys.executable).with_name("stringcontact"))
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     serial, parallel = tmp_path / "serial", tmp_path / "mpi"
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     subprocess.run([exe, "study", "stability", "--quick", "--out", str(serial)], check=True, env=env,
                    capture_output=True)
-    out = subprocess.run(["mpirun", "-n", "2", "--oversubscribe", exe, "study", "stability", "--quick", "--out",
-                          str(parallel)], check=True, env=env, capture_output=True, text=True).stdout
-    assert "2 rank(s)" in out
+    proc = mpirun([exe, "study", "stability", "--quick", "--out", parallel], ranks=2)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "2 rank(s)" in proc.stdout
     for name in ("study_stability.csv", "study_alpha.csv"):  # no timing columns: the rows must be equal
         assert (serial / name).read_text() == (parallel / name).read_text()

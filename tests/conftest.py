@@ -1,0 +1,45 @@
+"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+from pathlib import Path
+
+import pytest
+
+# If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
+_MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
+
+
+def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedProcess:
+    """`mpirun -n RANKS --oversubscribe ARGV...`, output captured as text.
+
+    Skips the test when there is no mpirun; fails it (killing the whole job) when it runs longer than
+    `timeout` seconds, so that a hang fails instead of blocking the suite.
+    """
+    exe = shutil.which("mpirun") or shutil.which("mpiexec")
+    if exe is None:
+        pytest.skip("mpirun not found (scripts/setup installs openmpi-bin)")
+    env = {k: v for k, v in os.environ.items() if not k.startswith(_MPI_JOB_VARIABLES)}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
+    env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    argv = [str(a) for a in argv]
+    cmd = [exe, "-n", str(ranks), "--oversubscribe", *argv]
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True
+    )
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        pytest.fail(f"mpirun -n {ranks} {' '.join(argv)} hung for {timeout} s\n{out[-2000:]}\n{err[-2000:]}")
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Anything a run may leave beside its target: partial folders, locks, .old swaps (all start with ".")."""
+    return sorted(p.name for p in Path(folder).iterdir() if p.name.startswith("."))
