@@ -137,7 +137,7 @@ def simulate(
             "(e.g. model = 'stringcontact.variants:loaded_obstacle') or remove them from the scene"
         )
     ops = semi_discrete_operators(model, V, params)
-    A, P, Q, Ms = step_matrices(ops, dt, mass)
+    A, Ms, C_over_dt = step_matrices(ops, dt, mass)
     left, right = bc_dofs(V, scene.length)
     bc = np.concatenate([left[left < n_owned], right[right < n_owned]]).astype(np.int32)
     g = np.concatenate([np.full(np.sum(left < n_owned), scene.h_left), np.full(np.sum(right < n_owned), scene.h_right)])
@@ -164,13 +164,15 @@ def simulate(
     if comm.size > 1:
         pc.setFactorSolverType("mumps")
     ksp.setUp()
+    lu_solve = pc.getFactorMatrix().solve  # the back-substitution itself, without KSPSolve's bookkeeping
     timings["setup"] = time.perf_counter() - t0
 
     # Every vector of the loop is allocated here, once: rows of a few 2-D NumPy arrays, wrapped without
-    # copying as PETSc vectors where PETSc needs them. The loop then only calls ufuncs with out=, three
-    # PETSc mat-vecs, one back-substitution and three einsum calls for all the energy dot products (rows
-    # that are dotted with the same vector are stacked, so one einsum does several dots in one pass).
-    # The state is rotated by swapping references, never copied.
+    # copying as PETSc vectors where PETSc needs them. The loop then only calls ufuncs with out=, two
+    # PETSc mat-vecs (K η^{n+1}, C η^{n+1}), one back-substitution and two einsum calls for all the energy
+    # dot products (rows dotted with the same vector are stacked, so one einsum does several dots).
+    # Pairs of rows hold a quantity at the new and the previous step; the loop swaps which row is which,
+    # so the previous step's K η, C η and M v are reused, never recomputed, and nothing is copied.
     local_size = A.getLocalSize()[0]
 
     def wrap(a):
@@ -178,14 +180,19 @@ def simulate(
 
     etas = np.zeros((3, n_owned))  # η^{n+1}, η^n, η^{n−1} in rotating rows
     vels = np.zeros((2, n_owned))  # v^{n+1}, v^n in rotating rows
-    by_v = np.zeros((2, n_owned))  # C v^{n+1} and the applied force m_F∘F: both dotted with v^{n+1}
+    # Dotted with v^{n+1}: C(η^{n+1} − η^n)/Δt = C v^{n+1}, the applied force m_F∘F, and M v^{n+1}, M v^n.
+    by_v = np.zeros((4, n_owned))
+    K_etas = np.zeros((2, n_owned))  # K η^{n+1}, K η^n: dotted with η^{n+1}
+    C_etas = np.zeros((2, n_owned))  # (C/Δt) η^{n+1}, (C/Δt) η^n
     eta_new, eta, eta_old = (wrap(row) for row in etas)
     v_new, v = (wrap(row) for row in vels)
-    C_v, f_applied = wrap(by_v[0]), by_v[1]
-    K_eta_new, M_v_new = wrap(np.zeros(n_owned)), wrap(np.zeros(n_owned))  # K η^{n+1}, M v^{n+1}
-    (b, b_a), (rhs_w, w_a) = wrap(np.zeros(n_owned)), wrap(np.zeros(n_owned))  # RHS; its part beside P η^n
-    row_of = {id(eta_new[1]): 0, id(eta[1]): 1, id(eta_old[1]): 2, id(v_new[1]): 0, id(v[1]): 1}  # which row is which
-    dots_v, dots_eta, dots_Mv = np.zeros(2), np.zeros(3), np.zeros(2)
+    C_v, f_applied = by_v[0], by_v[1]
+    M_v_new, M_v = wrap(by_v[2]), wrap(by_v[3])
+    K_eta_new, K_eta = (wrap(row) for row in K_etas)
+    C_eta_new, C_eta = (wrap(row) for row in C_etas)
+    b, b_a = wrap(np.zeros(n_owned))  # the right-hand side
+    two_steps, two_steps_a = wrap(np.zeros(n_owned))  # consistent mass: 2η^n − η^{n−1}, multiplied by M/Δt²
+    dots_v, dots_K = np.zeros(4), np.zeros(2)
     diag_w = np.zeros(n_owned)  # semi-implicit: the damping weights m_F d / Δt on the active set
 
     eta[1][:] = scene.initial_displacement(x)
@@ -201,7 +208,8 @@ def simulate(
     damping_active = np.zeros(n_owned, dtype=bool)
     A_diag = A.createVecLeft()
     refactorisations = 0
-    K, C = ops.K, ops.C
+    K, C_dt = ops.K, C_over_dt
+    m_dt2 = m / dt**2
 
     def apply_mass(u, out) -> None:
         if lumped:
@@ -226,9 +234,10 @@ def simulate(
     rows["contact"] = np.empty((k, gather.x.size), dtype=bool)
     energy_rows = {key: np.empty(k) for key in ENERGY_KEYS}
 
-    K.mult(eta[0], K_eta_new[0])
-    apply_mass(v, M_v_new)
-    kin, el = allsum(0.5 * float(np.dot(v[1], M_v_new[1])), 0.5 * float(np.dot(eta[1], K_eta_new[1])))
+    K.mult(eta[0], K_eta[0])
+    C_dt.mult(eta[0], C_eta[0])
+    apply_mass(v, M_v)
+    kin, el = allsum(0.5 * float(np.dot(v[1], M_v[1])), 0.5 * float(np.dot(eta[1], K_eta[1])))
     visc_sum = con_sum = num_sum = ext_sum = 0.0  # the cumulative dissipations and external work
     min_eta = float(np.min(eta[1][interior])) if interior.any() else math.inf
 
@@ -296,6 +305,8 @@ def simulate(
     inv_dt = 1.0 / dt
     status, message = "complete", ""
     dot, subtract, multiply, einsum = np.dot, np.subtract, np.multiply, np.einsum
+    K_mult, C_dt_mult = K.mult, C_dt.mult
+    inv_dt2 = 1.0 / dt**2
     errstate = np.errstate(all="ignore")  # a NaN or overflow is caught by the energy guard, which names the step
     errstate.__enter__()
     try:
@@ -304,7 +315,7 @@ def simulate(
             env[k_eta], env[k_eta_old] = e0, em
             law = force_law.evaluate_env(env)
 
-            # Right-hand side b = P η^n + w, w = Q η^{n−1} + m_F∘F^n + load.
+            # Right-hand side b = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt)η^n + m_F∘F^n + load.
             if explicit:
                 multiply(mF, law, out=f_applied)
             else:
@@ -318,19 +329,26 @@ def simulate(
                     np.add(base_diag, diag_w, out=A_diag.array)
                     A.setDiagonal(A_diag)
                     ksp.setOperators(A)
+                    ksp.setUp()
+                    lu_solve = pc.getFactorMatrix().solve
                     damping_active = active
                     refactorisations += 1
                 multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
             if lumped:
-                multiply(Q, em, out=w_a)
+                subtract(e0, em, out=b_a)
+                b_a += e0
+                b_a *= m_dt2
             else:
-                Q.mult(eta_old[0], rhs_w)
-            w_a += f_applied
+                subtract(e0, em, out=two_steps_a)
+                two_steps_a += e0
+                Ms.mult(two_steps, b)
+                b_a *= inv_dt2
+            b_a += C_eta[1]
+            b_a += f_applied
             if has_load:
-                w_a += load
-            P.multAdd(eta[0], rhs_w, b)
+                b_a += load
             b_a[bc] = g
-            ksp.solve(b, eta_new[0])
+            lu_solve(b, eta_new[0])
 
             # Diagnostics of the step n → n+1: the discrete energy identity, term by term.
             e1, v1 = eta_new[1], v_new[1]
@@ -339,22 +357,22 @@ def simulate(
             if not explicit:  # the force actually applied: −m_F d v^{n+1}
                 multiply(diag_w, v1, out=f_applied)
                 f_applied *= -dt
-            K.mult(eta_new[0], K_eta_new[0])
-            C.mult(v_new[0], C_v[0])
+            K_mult(eta_new[0], K_eta_new[0])
+            C_dt_mult(eta_new[0], C_eta_new[0])
+            subtract(C_eta_new[1], C_eta[1], out=C_v)  # = C v^{n+1}
             apply_mass(v_new, M_v_new)
-            einsum("ij,j->i", by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f
-            einsum("ij,j->i", vels, M_v_new[1], out=dots_Mv)  # v¹·Mv¹, v⁰·Mv¹
-            einsum("ij,j->i", etas, K_eta_new[1], out=dots_eta)  # η·Kη¹ for the three η rows
-            i1, i0 = row_of[id(e1)], row_of[id(e0)]
-            iv1 = row_of[id(v1)]
-            # With M, K symmetric: ½|v¹−v⁰|²_M = ½v¹·Mv¹ + ½v⁰·Mv⁰ − v⁰·Mv¹, and likewise for K and η, so
+            einsum("ij,j->i", by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f, v¹·Mv¹ and v¹·Mv⁰ (rows 2, 3 alternate)
+            einsum("ij,j->i", K_etas, e1, out=dots_K)  # η¹·Kη¹ and η¹·Kη⁰ (rows alternate)
+            iM = 2 + (n & 1)  # the row of M v^{n+1}: rows 2 and 3 swap roles every step, as do the K rows
+            iK = n & 1
+            # With M, K symmetric: ½|v¹−v⁰|²_M = ½v¹·Mv¹ + ½v⁰·Mv⁰ − v¹·Mv⁰, and likewise for K and η, so
             # the numerical dissipation needs no difference vectors.
             kin_new, el_new, visc, con, cross, ext, stored = allsum(
-                0.5 * dots_Mv[iv1],
-                0.5 * dots_eta[i1],
+                0.5 * dots_v[iM],
+                0.5 * dots_K[iK],
                 dt * dots_v[0],
                 -dt * dots_v[1],
-                dots_Mv[1 - iv1] + dots_eta[i0],
+                dots_v[5 - iM] + dots_K[1 - iK],
                 dt * float(dot(v1, load)) if has_load else 0.0,
                 stored_energy(e1) if energy_law is not None else 0.0,
             )
@@ -364,11 +382,16 @@ def simulate(
             ext_sum += ext
             kin, el = kin_new, el_new
             if n_owned:
-                min_eta = min(min_eta, e1.min())
+                low = e1.min()
+                if low < min_eta:
+                    min_eta = float(low)
 
-            # rotate: η^{n−1} ← η^n ← η^{n+1} and v^n ← v^{n+1}
+            # rotate: η^{n−1} ← η^n ← η^{n+1}, and the new step's v, Kη, (C/Δt)η and Mv become the old ones
             eta_old, eta, eta_new = eta, eta_new, eta_old
             v, v_new = v_new, v
+            K_eta, K_eta_new = K_eta_new, K_eta
+            C_eta, C_eta_new = C_eta_new, C_eta
+            M_v, M_v_new = M_v_new, M_v
             E = kin + el - ext_sum
             if energy_law is not None:
                 E += stored
