@@ -6,6 +6,7 @@ vectors. The loop below is what one would write first with dolfinx: the step's U
 interpolated with `fem.Expression`. Both must give the same η to 1e-10.
 """
 
+import dolfinx.fem.petsc  # noqa: F401 - not imported with dolfinx.fem on 0.9
 import numpy as np
 import pytest
 import ufl

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -202,3 +203,63 @@ def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
     # the bump (down to ψ = -0.8 at the ends) is shaded, not the half-plane y <= 0: a different area
     assert bump > 0 and level > 0 and abs(bump - level) > 0.2 * level
     assert res.contact.any()
+
+
+def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
+    """The XDMF is thinned (its writer costs O(frames²)); read back, each frame is exactly its stored row."""
+    scene = sc.load_scene("example1").replace(nx=40)
+    res = sc.simulate(scene, output_dir=tmp_path / "out", max_rows=60, max_frames=10, pictures=False)
+    back = viz.read_output(tmp_path / "out")
+    assert 10 <= len(back.t) < len(res.t) == 61
+    rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
+    assert rows[0] == 0 and rows[-1] == len(res.t) - 1
+    assert set(viz.snapshot_rows(res)) <= set(rows)  # the scene's output times are always frames
+    for name in ("eta", "velocity", "contact", "contact_force"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(res, name)[rows], err_msg=name)
+    for key in ENERGY_KEYS:
+        np.testing.assert_array_equal(back.energy[key], res.energy[key][rows], err_msg=key)
+
+
+def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    from stringcontact import compat
+    from stringcontact.output import OutputWriter, xdmf_series
+
+    scene = sc.load_scene("example1").replace(nx=10, nt=20)
+    V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
+    writer = OutputWriter(tmp_path / "out", scene, V, MPI.COMM_SELF, pictures=False, frames=[True, False, False, True])
+    for k in range(3):  # the run stops after the third stored row, which is not a frame
+        writer.write(0.1 * k, {name: np.full(11, float(k)) for name in ("eta", "velocity", "contact", "contact_force")})
+    writer.abort("interrupted", "stopped")
+    series = xdmf_series(writer.path / "solution.xdmf")
+    assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
+
+
+def test_the_picture_processes_draw_what_this_process_draws(tmp_path, run):
+    _, res = run
+    here, there = tmp_path / "here", tmp_path / "there"
+    viz.write_pictures(res, here)
+    there.mkdir()
+    painters = viz.Painters.start(groups=(viz.SPACE_TIME_PICTURES, viz.CHART_PICTURES))
+    private = [Path(p.folder) for p in painters.processes]
+    assert len(private) == 2
+    assert painters.send(res, there) == set(viz.PICTURES)
+    assert painters.wait() == set(viz.PICTURES)
+    assert all(p.proc.poll() is not None for p in painters.processes)  # no process left
+    assert not any(f.exists() for f in private)  # no payload left
+    for name in viz.PICTURES:
+        np.testing.assert_array_equal(_image(there / name), _image(here / name), err_msg=name)
+
+
+def test_pictures_are_drawn_here_when_a_picture_process_dies(tmp_path, run):
+    _, res = run
+    painters = viz.Painters.start(groups=(viz.SPACE_TIME_PICTURES, viz.CHART_PICTURES))
+    dead = painters.processes[0]
+    dead.proc.kill()
+    dead.proc.wait()
+    paths = viz.write_pictures(res, tmp_path, painter=painters)
+    assert [p.name for p in paths] == list(viz.PICTURES)
+    assert all(p.stat().st_size > 10_000 for p in paths)
+    assert all(p.folder is None for p in painters.processes)

@@ -5,13 +5,39 @@
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 
+import importlib
+
 from .errors import InstabilityError, SceneError
-from .model import Model, Parameters, inelastic
-from .result import Result
-from .scene import Scene, SceneWarning, list_scenes, load_scene
-from .solver import InstabilityWarning, simulate
 
 __version__ = "0.1.0"
+
+# Imported on first use (PEP 562), so that `import stringcontact.viz` in the picture process and the CLI's
+# argument checks do not load dolfinx, PETSc and UFL (0.6 s).
+_LAZY = {
+    "Model": "model",
+    "Parameters": "model",
+    "inelastic": "model",
+    "Result": "result",
+    "Scene": "scene",
+    "SceneWarning": "scene",
+    "list_scenes": "scene",
+    "load_scene": "scene",
+    "InstabilityWarning": "solver",
+    "simulate": "solver",
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "InstabilityError",

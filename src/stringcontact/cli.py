@@ -91,16 +91,18 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 @contextlib.contextmanager
-def _signals_interrupt():
+def _signals_interrupt(petsc: bool = True):
     """SIGINT, SIGTERM and SIGHUP raise `Interrupted`, a KeyboardInterrupt: the run stops and keeps its output.
 
-    PETSc installs C handlers for SIGHUP and SIGPIPE that abort MPI with a page of text; these Python
-    handlers replace them while the command runs. SIGPIPE gets its default back (`stringcontact list | head`
-    ends quietly, as Unix tools do).
+    PETSc installs C handlers for SIGHUP, SIGTERM and SIGPIPE that abort MPI with a page of text when it is
+    first imported; with `petsc` it is imported here, so that these Python handlers replace its own while the
+    command runs. SIGPIPE gets its default back (`stringcontact list | head` ends quietly, as Unix tools do).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    if petsc:
+        from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
     from .errors import Interrupted
 
     def handler(signum, frame):
@@ -169,7 +171,8 @@ def report(res) -> None:
         print("time: " + ", ".join(times))
 
 
-def _run(args) -> int:
+def _run(args, painter=None) -> int:
+    """`run`; `painter` (viz.Painters) was started by `main` before PETSc and dolfinx were imported."""
     import stringcontact as sc
 
     scene = sc.load_scene(args.scene)
@@ -198,12 +201,17 @@ def _run(args) -> int:
         output_dir=args.out,
         progress=not args.no_progress,
         force=args.force,
-        pictures=not args.no_pictures,
+        pictures=painter or not args.no_pictures,
     )
     report(res)
     if args.out is not None:
         print(f"wrote {args.out}")
     return EXIT_OK
+
+
+def _single_process() -> bool:
+    """Not one rank of an MPI job (checked without importing mpi4py, which the picture process must not wait for)."""
+    return all(int(os.environ.get(v, "1") or "1") <= 1 for v in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"))
 
 
 def _partial_report(exc) -> None:
@@ -223,12 +231,25 @@ def main(argv=None) -> int:
     if getattr(args, "_unavailable", None):
         _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
         return EXIT_INTERNAL
+    painter = None
+    if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
+        from .viz import Painters
+
+        painter = Painters.start()  # first: its start-up then overlaps the whole run, imports included
+    try:
+        return _command(args, painter)
+    finally:
+        if painter is not None:
+            painter.cancel()  # already finished after a complete run; stops it after an error
+
+
+def _command(args, painter) -> int:
     from .errors import InstabilityError, Interrupted, OutputError, SceneError
 
-    with _one_line_warnings(), _signals_interrupt():
+    with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot")):
         try:
             if args.command == "run":
-                return _run(args)
+                return _run(args, painter)
             from . import scene as scenes
 
             if args.command == "list":

@@ -7,20 +7,31 @@ DEVELOPERS.md lists each difference and which helper absorbs it. The whole test 
 
 from __future__ import annotations
 
-import dolfinx
-import dolfinx.fem.petsc  # noqa: F401  (0.9 no longer imports the PETSc layer with dolfinx.fem)
-import numpy as np
-from dolfinx import fem, plot
+from typing import TYPE_CHECKING
 
-DOLFINX_VERSION = tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
+import numpy as np
+
+if TYPE_CHECKING:
+    from dolfinx import fem
 
 # NumPy comes with dolfinx from Debian: 1.24 on bookworm (dolfinx 0.5), 2.2 on trixie (dolfinx 0.9), where
 # `np.trapz` is deprecated in favour of `np.trapezoid` (new in 2.0).
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
+# dolfinx is imported inside the helpers, not here: `Result` uses `trapezoid`, and the picture process
+# (`viz.PictureProcess`) unpickles Results without loading dolfinx (0.6 s).
+
+
+def dolfinx_version() -> tuple[int, int]:
+    import dolfinx
+
+    return tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
+
 
 def function_space(msh, family: str = "Lagrange", degree: int = 1):
     """`fem.functionspace` (0.7+) replaces `fem.FunctionSpace` (0.5)."""
+    from dolfinx import fem
+
     if hasattr(fem, "functionspace"):
         return fem.functionspace(msh, (family, degree))
     return fem.FunctionSpace(msh, (family, degree))
@@ -40,6 +51,8 @@ def interpolation_points(V) -> np.ndarray:
 
 def vtk_mesh(V):
     """`plot.vtk_mesh` (0.7+) replaces `plot.create_vtk_mesh` (0.5)."""
+    from dolfinx import plot
+
     if hasattr(plot, "vtk_mesh"):
         return plot.vtk_mesh(V)
     return plot.create_vtk_mesh(V)
@@ -47,7 +60,9 @@ def vtk_mesh(V):
 
 def create_vector(form):
     """In 0.10 `create_vector` takes function spaces; before, it took the compiled form."""
-    if DOLFINX_VERSION >= (0, 10):
+    import dolfinx.fem.petsc  # 0.9 no longer imports the PETSc layer with dolfinx.fem
+
+    if dolfinx_version() >= (0, 10):
         return dolfinx.fem.petsc.create_vector(form.function_spaces[0])
     return dolfinx.fem.petsc.create_vector(form)
 

@@ -451,6 +451,22 @@ class _Hdf5Quiet:
 # --- the writer ------------------------------------------------------------------------------------------
 
 
+def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
+    """Which stored rows become XDMF frames: every k-th, so about `max_frames`, plus the first, the last and
+    the rows at `keep_steps` (the scene's output times).
+
+    dolfinx 0.5's XDMFFile rewrites its whole XML on every write, so writing costs O(frames²): 376 rows of
+    Example 1 take 3.9 s, 100 take 0.4 s. The Result and diagnostics.csv keep every stored row.
+    """
+    steps = np.asarray(steps)
+    mask = np.zeros(steps.size, dtype=bool)
+    if steps.size:
+        mask[:: max(1, math.ceil(steps.size / max(1, max_frames)))] = True
+        mask[[0, -1]] = True
+        mask |= np.isin(steps, np.asarray(sorted(keep_steps), dtype=steps.dtype))
+    return mask
+
+
 class OutputWriter:
     """Streams the stored rows to XDMF during the run and writes the tables at the end.
 
@@ -459,8 +475,12 @@ class OutputWriter:
     folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
     """
 
-    def __init__(self, path, scene, V, comm, force: bool = False, pictures: bool = True):
+    def __init__(self, path, scene, V, comm, force: bool = False, pictures: bool = True, frames=None):
         self.comm = comm
+        self.frames = None if frames is None else np.asarray(frames, dtype=bool)  # which stored rows go to XDMF
+        self._row = 0
+        self._skipped = None  # the last stored row not written to XDMF: flushed if the run stops there
+        self.painter = None  # viz.Painters, started below
         self.pictures = pictures
         self.scene = scene
         self.force = force
@@ -483,6 +503,15 @@ class OutputWriter:
         if failure is not None:
             raise OutputError(failure)
         self.partial = partial
+        if not isinstance(pictures, bool):  # viz.Painters the caller started
+            self.painter, self.pictures = pictures, True
+        if comm.size > 1 and self.painter is not None:  # under MPI no child process (fork() and MPI do not mix)
+            self.painter.cancel()
+            self.painter = None
+        elif pictures is True and comm.size == 1:
+            from .viz import Painters
+
+            self.painter = Painters.start()  # VTK's start-up then overlaps the time loop
         try:
             from dolfinx import fem
             from dolfinx.io import XDMFFile
@@ -505,7 +534,19 @@ class OutputWriter:
     # -- during the run
 
     def write(self, t: float, fields: dict) -> None:
-        """One stored time: all four fields, or (interrupted) none of them."""
+        """One stored row: all four fields as one XDMF frame, or (interrupted) none of them.
+
+        Rows that are not among `frames` are not written; the latest of them is kept, so that a run that
+        stops there still ends its XDMF with its last stored row.
+        """
+        row, self._row = self._row, self._row + 1
+        if self.frames is not None and row < self.frames.size and not self.frames[row]:
+            self._skipped = (t, {name: np.array(values, dtype=float) for name, values in fields.items()})
+            return
+        self._skipped = None
+        self._write_frame(t, fields)
+
+    def _write_frame(self, t: float, fields: dict) -> None:
         t0 = time.perf_counter()
         try:
             with signals_held():
@@ -558,6 +599,9 @@ class OutputWriter:
             error = sys.exc_info()[1]
         try:
             with signals_held():
+                if self._skipped is not None and self.xdmf is not None:  # end the XDMF with the last stored row
+                    self._write_frame(*self._skipped)
+                    self._skipped = None
                 self._close_xdmf()
                 summary = summary_dict(result) if result is not None and len(result.t) else self._bare_summary()
                 summary["status"] = status
@@ -581,7 +625,7 @@ class OutputWriter:
         try:
             from .viz import write_pictures  # pictures on rank 0 only
 
-            write_pictures(result, self.partial)
+            write_pictures(result, self.partial, painter=self.painter)
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
@@ -597,7 +641,8 @@ class OutputWriter:
             "scene": scene.as_dict(),
             "r": scene.dt / scene.eps,
             "dolfinx": dolfinx.__version__,
-            "stored_rows": len(self.times),
+            "stored_rows": self._row,
+            "xdmf_frames": len(self.times),
         }
 
     def _close_xdmf(self) -> None:
@@ -622,7 +667,7 @@ class OutputWriter:
                     counts = {name: len(series.get(name, ())) for name in FIELDS}
                     if any(c != len(self.times) for c in counts.values()):
                         raise OutputError(f"solution.xdmf holds {counts} time levels, expected {len(self.times)}")
-                    summary["stored_rows"] = len(self.times)
+                    summary["xdmf_frames"] = len(self.times)
                     summary["last_time"] = self.times[-1] if self.times else None
                     with open(self.partial / "summary.json", "w") as f:
                         f.write(json.dumps(_clean_json(summary), indent=2, allow_nan=False))
@@ -655,6 +700,9 @@ class OutputWriter:
         self._release()
 
     def _release(self) -> None:
+        if self.painter is not None:
+            self.painter.cancel()
+            self.painter = None
         if self.lock is not None:
             self.lock.release()
             self.lock = None

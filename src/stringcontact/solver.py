@@ -31,11 +31,15 @@ class InstabilityWarning(UserWarning):
     """The explicit penalty with 1 < Δt/ε < 2: stable, but it rebounds with restitution r − 1."""
 
 
+def output_steps(nt: int, dt: float, output_times) -> set[int]:
+    """The steps nearest to the scene's output times."""
+    return {min(nt, max(0, round(t / dt))) for t in output_times}
+
+
 def stored_steps(nt: int, dt: float, output_times, max_rows: int) -> np.ndarray:
     """Every k-th step so that about `max_rows` rows are kept, plus 0, nt and the scene's output times."""
     stride = max(1, math.ceil(nt / max(1, max_rows)))
-    steps = set(range(0, nt + 1, stride)) | {0, nt}
-    steps |= {min(nt, max(0, round(t / dt))) for t in output_times}
+    steps = set(range(0, nt + 1, stride)) | {0, nt} | output_steps(nt, dt, output_times)
     return np.array(sorted(steps), dtype=np.int64)
 
 
@@ -90,13 +94,18 @@ def simulate(
     progress: bool = False,
     model: Model | None = None,
     max_rows: int = 400,
+    max_frames: int = 100,
     force: bool = False,
-    pictures: bool = True,
+    pictures=True,
     comm=MPI.COMM_WORLD,
 ) -> Result:
     """Run `scene` and return a `Result`.
 
-    With `output_dir`, also write XDMF, CSV, JSON (and, with `pictures`, PNGs) there. The scene's extra
+    About `max_rows` time levels are stored (in the Result, diagnostics.csv and the pictures); about
+    `max_frames` of them go to solution.xdmf, always with 0, T and the scene's output times.
+
+    With `output_dir`, also write XDMF, CSV, JSON (and, with `pictures`, PNGs) there; `pictures` may be
+    `viz.Painters` started earlier, so that VTK's start-up overlaps more of the run. The scene's extra
     expression fields (`scene.fields`, e.g. a load or an obstacle) reach the model as P1 functions in
     `Parameters.extra`.
     """
@@ -243,9 +252,10 @@ def simulate(
 
     writer = None
     if output_dir is not None:
-        from .output import OutputWriter
+        from .output import OutputWriter, xdmf_frames
 
-        writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures)
+        frames = xdmf_frames(steps, output_steps(scene.nt, dt, scene.output_times), max_frames)
+        writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures, frames=frames)
 
     # One environment for the nodal laws; the loop only swaps the arrays of η^n and η^{n−1} in it.
     env = nodal.environment({f: f.x.array[:n_owned] for f in extra.values()}, x)

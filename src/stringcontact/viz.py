@@ -9,16 +9,27 @@
 * :func:`contact_components` splits one row of the contact set into its intervals (used by the
   snapshot titles and by the demos).
 
+* :class:`Painters` draws the pictures in two more processes (pyvista in one, matplotlib in the other)
+  that start with the run, so that their start-up (loading VTK and matplotlib, creating the EGL context,
+  compiling llvmpipe's shaders, fonts: about 1.2 s) overlaps the time loop.
+
 Why two libraries: the space-time fields are a rectilinear (x, t) grid of up to millions of cells, which
-VTK renders directly; the snapshots and the energy balance are small line charts with shared axes, a
+VTK shows as one texture with a texel per screen pixel; the snapshots and the energy balance are small line charts with shared axes, a
 log-scale panel, filled regions and mathtext labels, which matplotlib draws better than pyvista's charts.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import dataclasses
 import json
 import os
+import pickle
+import shutil
+import subprocess
+import sys
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -99,9 +110,7 @@ def _font_file() -> str | None:
 
 def _use_font(prop, font: str | None) -> None:
     if font:
-        import vtk
-
-        prop.SetFontFamily(vtk.VTK_FONT_FILE)
+        prop.SetFontFamilyAsString("File")  # VTK_FONT_FILE
         prop.SetFontFile(font)
 
 
@@ -120,8 +129,8 @@ def space_time_grid(result, aspect: float = 0.75, max_columns: int = 1200):
 
     Time is scaled by `aspect`·l/T so that the picture is `aspect` times as high as it is wide; the axes
     are labelled with the true t. With more than `max_columns` nodes, neighbouring nodes are merged into
-    blocks (velocity averaged, contact where at least half the block is in contact): a picture has about
-    a thousand pixels across, and rendering five million cells in software OpenGL takes seconds.
+    blocks (velocity averaged, contact where at least half the block is in contact): a picture has under
+    a thousand pixels across (the pictures draw the grid as a texture, see `_add_raster`).
     """
     pv = _offscreen()
     x, t = result.x, result.t
@@ -130,19 +139,17 @@ def space_time_grid(result, aspect: float = 0.75, max_columns: int = 1200):
     te = np.concatenate([[t[0]], 0.5 * (t[1:] + t[:-1]), [t[-1]]]) if len(t) > 1 else np.array([t[0], t[0] + 1.0])
     velocity = np.asarray(result.velocity, dtype=float)
     contact = np.asarray(result.contact, dtype=float)
-    eta = np.asarray(result.eta, dtype=float)
     n = x.size
     if n > max_columns:
         starts = np.arange(0, n, int(np.ceil(n / max_columns)))
         counts = np.diff(np.append(starts, n))
         xe = np.append(xe[starts], xe[-1])
-        velocity, contact, eta = (np.add.reduceat(a, starts, axis=1) / counts for a in (velocity, contact, eta))
+        velocity, contact = (np.add.reduceat(a, starts, axis=1) / counts for a in (velocity, contact))
     scale = aspect * L / T
     grid = pv.RectilinearGrid(xe, te * scale, np.array([0.0]))
     # cell order: x fastest, then t, i.e. a (k, n) array raveled in C order
     grid.cell_data["velocity"] = velocity.ravel()
     grid.cell_data["contact"] = (contact >= 0.5).astype(np.uint8).ravel()
-    grid.cell_data["eta"] = eta.ravel()
     return grid, (float(x[0]), float(x[-1]), float(t[0]), float(t[-1]))
 
 
@@ -155,9 +162,9 @@ def _tick_values(lo: float, hi: float, n: int) -> np.ndarray:
 
 
 def _world_text(p, text: str, xy, font, size: int, halign: str, valign: str):
-    import vtk
+    from vtkmodules.vtkRenderingCore import vtkTextActor  # not `import vtk`: that loads all ~170 VTK modules (0.4 s)
 
-    actor = vtk.vtkTextActor()
+    actor = vtkTextActor()
     actor.SetInput(text)
     actor.GetPositionCoordinate().SetCoordinateSystemToWorld()
     actor.GetPositionCoordinate().SetValue(float(xy[0]), float(xy[1]), 0.0)
@@ -227,6 +234,37 @@ def _colour_bar(p, bounds, clim, cmap: str, label: str, font) -> None:
     _world_text(p, label, (0.5 * (bx0 + bx1), by1 + 1.5 * tick), font, 19, "Centered", "Bottom")
 
 
+def _add_raster(p, grid, rgb_of_cells, margins=(0.16, 0.16, 0.14, 0.2)) -> None:
+    """Draw `grid`'s cells as one textured rectangle instead of one quad per cell.
+
+    `rgb_of_cells(cell_index_array)` gives the (…, 3) uint8 colours of the cells at those flat indices.
+    Software OpenGL (llvmpipe) takes ~0.4 s to draw the half-million cells of a space-time grid and ~0.01 s
+    for one texture; the texture has about one texel per screen pixel, each the colour of the grid cell
+    under its centre (nearest, as the cells themselves would be drawn), so nothing is smoothed away.
+    """
+    pv = _offscreen()
+    x0, x1, y0, y1 = grid.bounds[:4]
+    left, right, bottom, top = margins
+    w, h = p.window_size
+    nx, ny = max(2, round(w * (1 - left - right))), max(2, round(h * (1 - bottom - top)))
+    xe, ye = np.asarray(grid.x), np.asarray(grid.y)
+    i = np.searchsorted(xe, x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx).clip(1, xe.size - 1) - 1
+    j = np.searchsorted(ye, y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny).clip(1, ye.size - 1) - 1
+    rgb = rgb_of_cells(j[::-1, None] * (xe.size - 1) + i[None, :])  # an image's first row is its top: the last t
+    texture = pv.Texture(np.ascontiguousarray(rgb, dtype=np.uint8))
+    texture.interpolate = False
+    behind = -1e-3 * (y1 - y0)  # just behind the frame and tick lines at z = 0, which would otherwise flicker
+    plane = pv.Plane(center=(0.5 * (x0 + x1), 0.5 * (y0 + y1), behind), direction=(0, 0, 1),
+                     i_size=x1 - x0, j_size=y1 - y0, i_resolution=1, j_resolution=1)
+    p.add_mesh(plane, texture=texture, lighting=False)
+
+
+def _rgb(colour) -> np.ndarray:
+    from matplotlib.colors import to_rgb
+
+    return np.round(255 * np.array(to_rgb(colour))).astype(np.uint8)
+
+
 def _space_time_plotter(result, grid, ranges, title: str, subtitle: str, window_size=WINDOW_SIZE):
     pv = _offscreen()
     font = _font_file()
@@ -281,9 +319,9 @@ def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     psi = obstacle_name(result)
     title = f"Contact set {{η ≤ {psi}}} in space-time: {result.scene.name}"
     p, font = _space_time_plotter(result, grid, ranges, title, parameter_line(result, "\n"), window_size)
-    contact = grid.threshold(0.5, scalars="contact")
-    if contact.n_cells:
-        p.add_mesh(contact, color=CONTACT_COLOUR, show_scalar_bar=False, lighting=False)
+    contact = np.asarray(grid.cell_data["contact"]) > 0
+    colours = np.stack([_rgb("white"), _rgb(CONTACT_COLOUR)])
+    _add_raster(p, grid, lambda cells: colours[contact[cells].astype(int)])
     x0, x1, y0, y1 = grid.bounds[:4]
     _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.06 * (y1 - y0)), 0.03 * (x1 - x0), CONTACT_COLOUR, f"in contact\n(η ≤ {psi})", font)
     _legend_patch(p, (x1 + 0.03 * (x1 - x0), y1 - 0.2 * (y1 - y0)), 0.03 * (x1 - x0), "white", f"free\n(η > {psi})", font)
@@ -304,7 +342,11 @@ def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = 
         f"\ncolours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})"
     )
     p, font = _space_time_plotter(result, grid, ranges, title, subtitle, window_size)
-    p.add_mesh(grid, scalars="velocity", cmap="RdBu_r", clim=[-c, c], show_scalar_bar=False, lighting=False)
+    import matplotlib
+
+    lut = (255 * matplotlib.colormaps["RdBu_r"].resampled(256)(np.arange(256))[:, :3]).round().astype(np.uint8)
+    level = np.clip((np.asarray(grid.cell_data["velocity"]) + c) / (2 * c) * 256, 0, 255).astype(int)  # as VTK's 256-colour table
+    _add_raster(p, grid, lambda cells: lut[level[cells]])
     _colour_bar(p, grid.bounds, (-c, c), "RdBu_r", "v", font)
     _frame(p, grid)
     _screenshot(p, path)
@@ -345,6 +387,7 @@ def snapshots_picture(result, path) -> Path:
     lo = min(float(result.eta[rows].min()), float(psi.min()))
     hi = max(float(result.eta[rows].max()), float(psi.max()))
     pad = 0.08 * (hi - lo or 1.0)
+    contact_length = result.contact_length  # a property over all rows: once, not per panel
     for ax, i in zip(axs.flat, rows):
         ax.fill_between(x, lo - pad, psi, color="0.85", lw=0, zorder=0)
         ax.plot(x, psi, color="0.3", lw=1.0, zorder=1)
@@ -352,7 +395,7 @@ def snapshots_picture(result, path) -> Path:
         on = np.where(result.contact[i], result.eta[i], np.nan)
         ax.plot(x, on, color=CONTACT_COLOUR, lw=3.0, label=f"in contact (η ≤ {name})", zorder=3)
         parts = contact_components(x, result.contact[i])
-        frac = float(result.contact_length[i]) / float(x[-1] - x[0])
+        frac = float(contact_length[i]) / float(x[-1] - x[0])
         ax.set_title(f"t = {result.t[i]:.3g}: contact {100 * frac:.0f}% of l, {len(parts)} part{'s' * (len(parts) != 1)}", fontsize=10)
         ax.set_ylim(lo - pad, hi + pad)
         ax.grid(alpha=0.3)
@@ -366,7 +409,9 @@ def snapshots_picture(result, path) -> Path:
     handles, labels = axs.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
     fig.suptitle(f"Snapshots of the string: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
+    w, h = fig.get_size_inches()
+    fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=1 - 0.85 / h, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
     _savefig(fig, path)
     return path
 
@@ -398,21 +443,211 @@ def energy_picture(result, path) -> Path:
     axr.set_ylabel("|balance residual|\nE(0) + W − [E(t) + D]", fontsize=9)
     axr.set_xlabel("t")
     axr.grid(alpha=0.3, which="both")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.9, hspace=0.08)  # fixed: see snapshots_picture
     _savefig(fig, path)
     return path
 
 
-def write_pictures(result, folder, window_size=WINDOW_SIZE) -> list[Path]:
-    """Write contact_set.png, velocity_field.png, snapshots.png and energy.png into `folder`."""
+SPACE_TIME_PICTURES = PICTURES[:2]  # pyvista
+CHART_PICTURES = PICTURES[2:]  # matplotlib
+
+
+def _draw(name: str, result, folder: Path, window_size) -> Path:
+    if name == "contact_set.png":
+        return contact_set_picture(result, folder / name, window_size)
+    if name == "velocity_field.png":
+        return velocity_picture(result, folder / name, window_size)
+    if name == "snapshots.png":
+        return snapshots_picture(result, folder / name)
+    return energy_picture(result, folder / name)
+
+
+def write_pictures(result, folder, window_size=WINDOW_SIZE, painter: Painters | None = None) -> list[Path]:
+    """Write contact_set.png, velocity_field.png, snapshots.png and energy.png into `folder`.
+
+    With started `Painters`, their pictures are drawn there while this process draws the others; whatever
+    they fail to draw is then drawn here.
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    return [
-        contact_set_picture(result, folder / "contact_set.png", window_size),
-        velocity_picture(result, folder / "velocity_field.png", window_size),
-        snapshots_picture(result, folder / "snapshots.png"),
-        energy_picture(result, folder / "energy.png"),
-    ]
+    handed_out = painter.send(result, folder, window_size) if painter is not None else set()
+    for name in PICTURES:
+        if name not in handed_out:
+            _draw(name, result, folder, window_size)
+    drawn = painter.wait() if painter is not None else set()
+    for name in PICTURES:
+        if name in handed_out and name not in drawn:
+            _draw(name, result, folder, window_size)
+    return [folder / name for name in PICTURES]
+
+
+class PictureProcess:
+    """Some of the pictures (`names`) drawn in a second Python process, which has no dolfinx in it.
+
+    `start(names)` launches it; it imports pyvista or matplotlib and draws a small warm-up picture (EGL
+    context, shaders, fonts, mathtext) while the caller runs the simulation. `send(result, folder)` hands
+    it the Result as a pickle in a private temporary folder (a file, not a pipe: writing to a pipe whose
+    reader died raises SIGPIPE, which PETSc or the CLI turn into an abort); `wait()` returns True once
+    its PNGs are written. `cancel()` stops it. Any failure makes `send`/`wait` return False.
+    """
+
+    TIMEOUT = 300.0  # seconds to draw; each picture takes 0.2-0.4 s
+
+    def __init__(self, proc: subprocess.Popen, folder: str, names: tuple[str, ...]):
+        self.proc = proc
+        self.folder = folder  # the private temporary folder that receives the payload
+        self.names = names
+
+    @classmethod
+    def start(cls, names=PICTURES) -> PictureProcess | None:
+        env = dict(os.environ)
+        if "DISPLAY" not in env:
+            env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        env.setdefault("LP_NUM_THREADS", "1")  # Mesa's software renderer: leave the other cores to the run
+        folder = tempfile.mkdtemp(prefix="stringcontact-pictures-")
+        code = "from stringcontact.viz import _picture_process; _picture_process()"
+        try:
+            proc = subprocess.Popen(
+                [sys.executable, "-c", code, folder, ",".join(names)],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,  # VTK's own warnings; failures come back on stdout
+                env=env,
+                start_new_session=True,  # Ctrl-C reaches the run, which then stops this process
+            )
+        except OSError:
+            os.rmdir(folder)
+            return None
+        return cls(proc, folder, tuple(names))
+
+    def send(self, result, folder, window_size=WINDOW_SIZE) -> bool:
+        if self.folder is None or self.proc.poll() is not None:
+            self.cancel()
+            return False
+        payload = Path(self.folder) / "payload.pickle"
+        if set(self.names) <= set(SPACE_TIME_PICTURES):  # they read x, t, velocity and contact: 1/3 less to pickle
+            result = dataclasses.replace(result, eta=np.empty((0, 0)), contact_force=np.empty((0, 0)))
+        try:
+            with open(payload.with_suffix(".part"), "wb") as f:
+                pickle.dump((result, str(folder), tuple(window_size)), f, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(payload.with_suffix(".part"), payload)  # the process only ever sees a whole file
+            return True
+        except (OSError, pickle.PicklingError, TypeError, AttributeError):
+            self.cancel()
+            return False
+
+    def wait(self) -> bool:
+        """True once the process reports its pictures written (its own exit is not waited for)."""
+        import selectors
+
+        reply = {}
+        try:
+            with selectors.DefaultSelector() as sel:
+                sel.register(self.proc.stdout, selectors.EVENT_READ)
+                if sel.select(timeout=self.TIMEOUT):
+                    reply = json.loads(self.proc.stdout.readline().decode() or "{}")
+        except (ValueError, OSError):
+            reply = {}
+        finally:
+            self.cancel()
+        return bool(reply.get("ok"))
+
+    def cancel(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        if self.proc.stdout is not None and not self.proc.stdout.closed:
+            self.proc.stdout.close()
+        if self.folder is not None:
+            shutil.rmtree(self.folder, ignore_errors=True)
+            self.folder = None
+
+
+class Painters:
+    """`PictureProcess`es started before a run, so that their start-up overlaps it.
+
+    `start()` starts one, for the two pyvista pictures: its start-up (importing VTK, the EGL context,
+    llvmpipe's shaders, the font: about 1.2 s) happens during the run, and the run draws the two matplotlib
+    charts itself while the process draws. Giving the process the snapshots too, or the charts a second
+    process, measured no faster on 2 cores (docs/performance.md).
+    """
+
+    def __init__(self, processes):
+        self.processes = [p for p in processes if p is not None]
+        self._sent: list[PictureProcess] = []
+
+    @classmethod
+    def start(cls, groups=(SPACE_TIME_PICTURES,)) -> Painters:
+        return cls([PictureProcess.start(names) for names in groups])
+
+    def send(self, result, folder, window_size=WINDOW_SIZE) -> set[str]:
+        """Hand the Result to every process; the names of the pictures they were given."""
+        self._sent = [p for p in self.processes if p.send(result, folder, window_size)]
+        return {name for p in self._sent for name in p.names}
+
+    def wait(self) -> set[str]:
+        """Wait for the processes; the names of the pictures they drew. Stops them all."""
+        drawn = {name for p in self._sent if p.wait() for name in p.names}
+        self.cancel()
+        return drawn
+
+    def cancel(self) -> None:
+        for p in self.processes:
+            p.cancel()
+
+
+def _warm_up(names) -> None:
+    """Draw tiny pictures with every kind of element the real ones use (shaders, fonts, mathtext)."""
+    if set(names) & set(SPACE_TIME_PICTURES):
+        pv = _offscreen()
+        p = pv.Plotter(window_size=[64, 48], off_screen=True)
+        _world_text(p, "tη", (0.0, 0.0), _font_file(), 12, "Left", "Bottom")
+        _colour_bar(p, (0.0, 1.0, 0.0, 1.0, 0.0, 0.0), (-1.0, 1.0), "RdBu_r", "v", None)
+        plane = pv.Plane(i_resolution=1, j_resolution=1)
+        p.add_mesh(plane, texture=pv.Texture(np.zeros((2, 2, 3), np.uint8)), lighting=False)
+        p.screenshot(None, return_img=True)
+        p.close()
+    if set(names) & set(CHART_PICTURES):
+        import io
+
+        plt = _pyplot()
+        fig, (ax, axr) = plt.subplots(2, 1, figsize=(2, 2))
+        ax.fill_between([0, 1], [0, 1], color="0.85")
+        ax.plot([0, 1], [1, 0], label=r"$\frac{1}{2}\int \eta_t^2\,dx$ η")
+        ax.legend(fontsize=8)
+        axr.semilogy([0, 1], [1e-9, 1e-3])
+        fig.suptitle("η ≤ ψ")
+        fig.savefig(io.BytesIO(), format="png", dpi=20)
+        plt.close(fig)
+
+
+def _picture_process() -> None:
+    """The body of `PictureProcess`: warm up, wait for the payload, draw, report on stdout."""
+    import time
+
+    folder, names = Path(sys.argv[1]), tuple(sys.argv[2].split(","))
+    parent = os.getppid()
+    reply = {"ok": False}
+    try:
+        _warm_up(names)
+        payload = folder / "payload.pickle"
+        while not payload.exists():
+            if os.getppid() != parent or not folder.is_dir():  # the run ended or cancelled us
+                return
+            time.sleep(0.005)
+        with open(payload, "rb") as f:
+            result, out, window_size = pickle.load(f)
+        payload.unlink()  # read: no 50 MB file left behind even if the run is killed now
+        for name in names:
+            _draw(name, result, Path(out), window_size)
+        reply = {"ok": True}
+    except Exception as exc:  # noqa: BLE001 - reported to the parent, which then draws the pictures itself
+        reply = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+    finally:
+        with contextlib.suppress(OSError):
+            sys.stdout.write(json.dumps(reply) + "\n")
+            sys.stdout.flush()
+    os._exit(0)  # the pictures are on disk; tearing down VTK and the EGL context would only cost time
 
 
 # --- reading an output folder back ---------------------------------------------------------------
@@ -439,6 +674,8 @@ def _h5_path(ref: str) -> str:
 
 def read_output(folder):
     """A :class:`Result` rebuilt from an output folder's solution.xdmf/.h5, diagnostics.csv and summary.json.
+
+    Its rows are the XDMF frames (see `simulate`'s `max_frames`), with the diagnostics of those rows.
 
     Arrays are ordered by x like the in-memory result; `contact` is boolean again. Raises ValueError
     with a one-line message if the folder is not a complete output folder.
@@ -475,6 +712,15 @@ def read_output(folder):
     if not rows:
         raise ValueError(f"plot: {folder / 'diagnostics.csv'} has no rows")
     column = {key: np.array([float(r[key]) for r in rows]) for key in rows[0]}
+    # solution.xdmf holds a subset of the stored rows (about max_frames): keep the diagnostics rows at its times
+    frame_t = np.array([s[0] for s in series[FIELDS[0]]])
+    tol = 1e-12 * max(1.0, float(np.max(np.abs(column["t"]))))
+    right = np.searchsorted(column["t"], frame_t).clip(0, len(rows) - 1)
+    left = (right - 1).clip(0, len(rows) - 1)
+    at = np.where(np.abs(column["t"][left] - frame_t) <= np.abs(column["t"][right] - frame_t), left, right)
+    if frame_t.size == 0 or np.any(np.abs(column["t"][at] - frame_t) > tol):
+        raise ValueError(f"plot: {folder}: the times in solution.xdmf are not rows of diagnostics.csv")
+    column = {key: values[at] for key, values in column.items()}
     t = column["t"]
 
     with pyfive.File(str(folder / "solution.h5")) as h5:
