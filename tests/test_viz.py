@@ -263,3 +263,11 @@ def test_pictures_are_drawn_here_when_a_picture_process_dies(tmp_path, run):
     assert [p.name for p in paths] == list(viz.PICTURES)
     assert all(p.stat().st_size > 10_000 for p in paths)
     assert all(p.folder is None for p in painters.processes)
+
+
+def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
+    _, res = run
+    process = viz.PictureProcess.start(viz.SPACE_TIME_PICTURES)
+    assert process.send(res, tmp_path / "no such folder")
+    assert process.wait() is False
+    assert "No such file or directory" in process.error and process.folder is None

@@ -26,6 +26,7 @@ import dataclasses
 import json
 import os
 import pickle
+import selectors
 import shutil
 import subprocess
 import sys
@@ -497,12 +498,11 @@ class PictureProcess:
         self.proc = proc
         self.folder = folder  # the private temporary folder that receives the payload
         self.names = names
+        self.error = ""  # why it did not draw, if it said so (the caller then draws the pictures itself)
 
     @classmethod
     def start(cls, names=PICTURES) -> PictureProcess | None:
         env = dict(os.environ)
-        if "DISPLAY" not in env:
-            env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
         env.setdefault("LP_NUM_THREADS", "1")  # Mesa's software renderer: leave the other cores to the run
         folder = tempfile.mkdtemp(prefix="stringcontact-pictures-")
         code = "from stringcontact.viz import _picture_process; _picture_process()"
@@ -538,8 +538,6 @@ class PictureProcess:
 
     def wait(self) -> bool:
         """True once the process reports its pictures written (its own exit is not waited for)."""
-        import selectors
-
         reply = {}
         try:
             with selectors.DefaultSelector() as sel:
@@ -550,6 +548,7 @@ class PictureProcess:
             reply = {}
         finally:
             self.cancel()
+        self.error = "" if reply.get("ok") else str(reply.get("error", "no reply"))
         return bool(reply.get("ok"))
 
     def cancel(self) -> None:
@@ -627,6 +626,8 @@ def _picture_process() -> None:
 
     folder, names = Path(sys.argv[1]), tuple(sys.argv[2].split(","))
     parent = os.getppid()
+    answer = os.fdopen(os.dup(1), "w")  # the reply's own channel: anything VTK prints goes to stderr instead
+    os.dup2(2, 1)
     reply = {"ok": False}
     try:
         _warm_up(names)
@@ -645,8 +646,8 @@ def _picture_process() -> None:
         reply = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
     finally:
         with contextlib.suppress(OSError):
-            sys.stdout.write(json.dumps(reply) + "\n")
-            sys.stdout.flush()
+            answer.write(json.dumps(reply) + "\n")
+            answer.flush()
     os._exit(0)  # the pictures are on disk; tearing down VTK and the EGL context would only cost time
 
 
