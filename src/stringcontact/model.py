@@ -122,6 +122,8 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     A scene that gives a `load` to a model that ignores it is almost surely a mistake, so the
     solver refuses it (a load silently dropped would give a plausible but wrong answer).
     """
+    if not p.extra:
+        return []
     from dolfinx import fem
 
     eta, v, eta_t, eta_tt, force = (fem.Function(V) for _ in range(5))

@@ -21,7 +21,7 @@ from . import compat, nodal
 from .errors import InstabilityError
 from .model import Model, Parameters, inelastic, unused_fields
 from .result import ENERGY_KEYS, Result
-from .scheme import bc_dofs, node_coordinates, semi_discrete_operators, step_matrices
+from .scheme import bc_dofs, node_coordinates, semi_discrete_operators, stacked, step_matrices
 
 PENALTIES = ("explicit", "semi-implicit")
 MASSES = ("lumped", "consistent")
@@ -191,14 +191,16 @@ def simulate(
     vels = np.zeros((2, n_owned))  # v^{n+1}, v^n in rotating rows
     # Dotted with v^{n+1}: C(η^{n+1} − η^n)/Δt = C v^{n+1}, the applied force m_F∘F, and M v^{n+1}, M v^n.
     by_v = np.zeros((4, n_owned))
-    K_etas = np.zeros((2, n_owned))  # K η^{n+1}, K η^n: dotted with η^{n+1}
-    C_etas = np.zeros((2, n_owned))  # (C/Δt) η^{n+1}, (C/Δt) η^n
+    # [K η, (C/Δt) η] of η^{n+1} and of η^n, each pair from one mat-vec with [K; C/Δt]
+    KC_etas = np.zeros((2, 2, n_owned))
+    K_etas = KC_etas[:, 0]  # K η^{n+1}, K η^n (rows alternate): dotted with η^{n+1}
     eta_new, eta, eta_old = (wrap(row) for row in etas)
     v_new, v = (wrap(row) for row in vels)
     C_v, f_applied = by_v[0], by_v[1]
     M_v_new, M_v = wrap(by_v[2]), wrap(by_v[3])
-    K_eta_new, K_eta = (wrap(row) for row in K_etas)
-    C_eta_new, C_eta = (wrap(row) for row in C_etas)
+    KC_eta_new, KC_eta = (PETSc.Vec().createWithArray(pair.reshape(-1), size=(2 * local_size, PETSc.DECIDE), comm=comm)
+                          for pair in KC_etas)
+    KC_new, KC_old = (KC_eta_new, KC_etas[0]), (KC_eta, KC_etas[1])
     b, b_a = wrap(np.zeros(n_owned))  # the right-hand side
     two_steps, two_steps_a = wrap(np.zeros(n_owned))  # consistent mass: 2η^n − η^{n−1}, multiplied by M/Δt²
     dots_v, dots_K = np.zeros(4), np.zeros(2)
@@ -217,7 +219,7 @@ def simulate(
     damping_active = np.zeros(n_owned, dtype=bool)
     A_diag = A.createVecLeft()
     refactorisations = 0
-    K, C_dt = ops.K, C_over_dt
+    KC = stacked(ops.K, C_over_dt)
     m_dt2 = m / dt**2
 
     def apply_mass(u, out) -> None:
@@ -243,10 +245,9 @@ def simulate(
     rows["contact"] = np.empty((k, gather.x.size), dtype=bool)
     energy_rows = {key: np.empty(k) for key in ENERGY_KEYS}
 
-    K.mult(eta[0], K_eta[0])
-    C_dt.mult(eta[0], C_eta[0])
+    KC.mult(eta[0], KC_old[0])
     apply_mass(v, M_v)
-    kin, el = allsum(0.5 * float(np.dot(v[1], M_v[1])), 0.5 * float(np.dot(eta[1], K_eta[1])))
+    kin, el = allsum(0.5 * float(np.dot(v[1], M_v[1])), 0.5 * float(np.dot(eta[1], KC_old[1][0])))
     visc_sum = con_sum = num_sum = ext_sum = 0.0  # the cumulative dissipations and external work
     min_eta = float(np.min(eta[1][interior])) if interior.any() else math.inf
 
@@ -260,12 +261,13 @@ def simulate(
     # One environment for the nodal laws; the loop only swaps the arrays of η^n and η^{n−1} in it.
     env = nodal.environment({f: f.x.array[:n_owned] for f in extra.values()}, x)
     k_eta, k_eta_old = id(eta_sym), id(eta_old_sym)
-    has_mF = mF > 0
+    inv_mF = np.divide(1.0, mF, out=np.zeros(n_owned), where=mF > 0)  # 0 where no force acts (Dirichlet ends)
+    force_density = np.zeros(n_owned)
 
     def store(row, n):
         env[k_eta], env[k_eta_old] = eta[1], eta_old[1]
-        contact = contact_law.evaluate_env(env).astype(bool)
-        force_density = np.divide(f_applied, mF, out=np.zeros(n_owned), where=has_mF)
+        contact = contact_law.evaluate_env(env)  # cast to bool by the copy into its row
+        np.multiply(f_applied, inv_mF, out=force_density)
         fields = {"eta": eta[1], "velocity": v[1], "contact": contact, "contact_force": force_density}
         for name, arr in fields.items():
             gather(arr, out=rows[name][row])
@@ -315,8 +317,9 @@ def simulate(
     inv_dt = 1.0 / dt
     status, message = "complete", ""
     dot, subtract, multiply, einsum = np.dot, np.subtract, np.multiply, np.einsum
-    K_mult, C_dt_mult = K.mult, C_dt.mult
+    KC_mult = KC.mult
     inv_dt2 = 1.0 / dt**2
+    ends = [(int(i), float(g_i)) for i, g_i in zip(bc, g)]
     errstate = np.errstate(all="ignore")  # a NaN or overflow is caught by the energy guard, which names the step
     errstate.__enter__()
     try:
@@ -353,11 +356,12 @@ def simulate(
                 two_steps_a += e0
                 Ms.mult(two_steps, b)
                 b_a *= inv_dt2
-            b_a += C_eta[1]
+            b_a += KC_old[1][1]  # (C/Δt) η^n
             b_a += f_applied
             if has_load:
                 b_a += load
-            b_a[bc] = g
+            for i, g_i in ends:  # item assignment: a fancy-indexed b_a[bc] = g costs 3 µs per step
+                b_a[i] = g_i
             lu_solve(b, eta_new[0])
 
             # Diagnostics of the step n → n+1: the discrete energy identity, term by term.
@@ -367,10 +371,12 @@ def simulate(
             if not explicit:  # the force actually applied: −m_F d v^{n+1}
                 multiply(diag_w, v1, out=f_applied)
                 f_applied *= -dt
-            K_mult(eta_new[0], K_eta_new[0])
-            C_dt_mult(eta_new[0], C_eta_new[0])
-            subtract(C_eta_new[1], C_eta[1], out=C_v)  # = C v^{n+1}
-            apply_mass(v_new, M_v_new)
+            KC_mult(eta_new[0], KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
+            subtract(KC_new[1][1], KC_old[1][1], out=C_v)  # = C v^{n+1}
+            if lumped:
+                multiply(m, v1, out=M_v_new[1])
+            else:
+                Ms.mult(v_new[0], M_v_new[0])
             einsum("ij,j->i", by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f, v¹·Mv¹ and v¹·Mv⁰ (rows 2, 3 alternate)
             einsum("ij,j->i", K_etas, e1, out=dots_K)  # η¹·Kη¹ and η¹·Kη⁰ (rows alternate)
             iM = 2 + (n & 1)  # the row of M v^{n+1}: rows 2 and 3 swap roles every step, as do the K rows
@@ -399,8 +405,7 @@ def simulate(
             # rotate: η^{n−1} ← η^n ← η^{n+1}, and the new step's v, Kη, (C/Δt)η and Mv become the old ones
             eta_old, eta, eta_new = eta, eta_new, eta_old
             v, v_new = v_new, v
-            K_eta, K_eta_new = K_eta_new, K_eta
-            C_eta, C_eta_new = C_eta_new, C_eta
+            KC_old, KC_new = KC_new, KC_old
             M_v, M_v_new = M_v_new, M_v
             E = kin + el - ext_sum
             if energy_law is not None:
