@@ -1,13 +1,17 @@
 """End-to-end wall clock of `stringcontact run example1 --out DIR`, and where the time goes.
 
-1. The command itself, as a user runs it, in a fresh process (median of a few runs, warm JIT cache).
+1. The command itself, as a user runs it, in a fresh process, warm JIT cache: with its pictures, and
+   with `--no-pictures` for comparison. The two alternate, so that a slower spell of a shared machine
+   hits both; medians and ranges are printed.
 2. The same work in a fresh process, timed by phase: import (stringcontact, dolfinx, petsc4py),
    setup (mesh, the forms' JIT-cache load and assembly, LU factorisation), solve (the time loop),
-   XDMF (the stored rows streamed to solution.xdmf/h5), pictures (viz.write_pictures) and tables.
-3. The XDMF cost against the number of stored rows (`max_rows`), the knob that trades time
-   resolution of the output for I/O time.
+   XDMF + tables (the XDMF frames streamed to solution.xdmf/h5, diagnostics.csv, summary.json) and
+   pictures. "overlapped" is what the CLI does: the pyvista pictures are drawn by a `viz.Painters`
+   process started before the import; "in-process" draws all four pictures after the run.
+3. The XDMF cost against the number of frames (`simulate(..., max_frames=...)`): dolfinx 0.5's
+   XDMFFile rewrites its whole XML on every write, so the cost grows like frames².
 
-    .venv/bin/python benchmarks/bench_run.py
+    .venv/bin/python benchmarks/bench_run.py [--repeats 7]
 """
 
 from __future__ import annotations
@@ -24,50 +28,60 @@ import time
 from pathlib import Path
 
 EXE = Path(sys.executable).with_name("stringcontact")
+KEYS = ("import", "setup", "solve", "xdmf+tables", "pictures")
 
 
-def run_cli(out: Path) -> float:
+def run_cli(out: Path, *extra: str) -> float:
     t0 = time.perf_counter()
-    subprocess.run([str(EXE), "run", "example1", "--out", str(out), "--force", "--no-progress"], check=True,
+    subprocess.run([str(EXE), "run", "example1", "--out", str(out), "--force", "--no-progress", *extra], check=True,
                    capture_output=True)
     return time.perf_counter() - t0
 
 
-def phases(out: str, max_rows: int) -> dict:
-    """Run in a fresh interpreter: time the import, then simulate with output."""
+def phases(out: str, max_frames: int, mode: str) -> dict:
+    """Run in a fresh interpreter: time the import, then simulate with output, then (in-process) the pictures."""
     t0 = time.perf_counter()
+    painters = None
+    if mode == "overlapped":
+        from stringcontact.viz import Painters
+
+        painters = Painters.start()
     import dolfinx  # noqa: F401
     import petsc4py  # noqa: F401
 
     import stringcontact as sc
 
     t_import = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    res = sc.simulate(sc.load_scene("example1"), output_dir=out, force=True, max_rows=max_rows)
-    total = time.perf_counter() - t1
+    res = sc.simulate(sc.load_scene("example1"), output_dir=out, force=True, max_frames=max_frames,
+                      pictures=painters if painters is not None else False)
     summary = json.loads((Path(out) / "summary.json").read_text())
     tm = summary.get("timings", {})
     pictures = tm.get("pictures", 0.0)
-    xdmf = getattr(res, "timings", {}).get("output", 0.0) - pictures
+    if mode == "in-process":
+        from stringcontact import viz
+
+        t1 = time.perf_counter()
+        viz.write_pictures(res, out)
+        pictures = time.perf_counter() - t1
     return {
         "import": t_import,
         "setup": tm.get("setup", 0.0),
         "solve": tm.get("solve", 0.0),
-        "xdmf+tables": xdmf,
+        "xdmf+tables": res.timings.get("output", 0.0) - tm.get("pictures", 0.0),
         "pictures": pictures,
-        "simulate": total,
+        "frames": summary["xdmf_frames"],
         "rows": len(res.t),
     }
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         spec = json.loads(args.child)
-        print(json.dumps(phases(spec["out"], spec["max_rows"])))
+        print(json.dumps(phases(spec["out"], spec["max_frames"], spec["mode"])))
         return 0
 
     env = dict(os.environ)
@@ -75,23 +89,36 @@ def main(argv=None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="bench_run_"))
     try:
         run_cli(tmp / "warm")  # warms the JIT cache
-        walls = [run_cli(tmp / f"run{i}") for i in range(args.repeats)]
-        print(f"`stringcontact run example1 --out DIR` (N = 5000, 1500 steps), wall clock, warm JIT cache: "
-              f"median {statistics.median(walls):.2f} s of {args.repeats} ({', '.join(f'{w:.2f}' for w in walls)})\n")
+        walls, bare = [], []
+        for i in range(args.repeats):
+            walls.append(run_cli(tmp / f"run{i}"))
+            bare.append(run_cli(tmp / f"bare{i}", "--no-pictures"))
 
-        def child(max_rows):
-            out = tmp / f"phase{max_rows}"
-            proc = subprocess.run([sys.executable, __file__, "--child", json.dumps({"out": str(out), "max_rows": max_rows})],
-                                  capture_output=True, text=True, env=env, check=True)
+        def line(name, values):
+            return (f"| {name} | {statistics.median(values):.2f} | {min(values):.2f} | {max(values):.2f} |")
+
+        print(f"`stringcontact run example1 --out DIR` (N = 5000, 1500 steps), wall clock [s], warm JIT cache, "
+              f"{args.repeats} alternating runs each:\n")
+        print("| command | median | min | max |\n|---|---:|---:|---:|")
+        print(line("`run example1 --out DIR`", walls))
+        print(line("`run example1 --out DIR --no-pictures`", bare))
+        print()
+
+        def child(max_frames, mode):
+            out = tmp / f"phase-{mode}-{max_frames}"
+            spec = json.dumps({"out": str(out), "max_frames": max_frames, "mode": mode})
+            proc = subprocess.run([sys.executable, __file__, "--child", spec], capture_output=True, text=True, env=env,
+                                  check=True)
             return json.loads(proc.stdout.strip().splitlines()[-1])
 
-        keys = ("import", "setup", "solve", "xdmf+tables", "pictures")
-        print("| max_rows | stored rows | " + " | ".join(f"{k} [s]" for k in keys) + " | sum [s] |")
-        print("|---:|---:|" + "---:|" * (len(keys) + 1))
-        for max_rows in (400, 200, 100):
-            runs = [child(max_rows) for _ in range(args.repeats)]
-            med = {k: statistics.median(r[k] for r in runs) for k in keys}
-            print(f"| {max_rows} | {runs[0]['rows']} | " + " | ".join(f"{med[k]:.2f}" for k in keys)
+        print("Phases, each in a fresh process (medians):\n")
+        print("| pictures | max_frames | XDMF frames | " + " | ".join(f"{k} [s]" for k in KEYS) + " | sum [s] |")
+        print("|---|---:|---:|" + "---:|" * (len(KEYS) + 1))
+        for mode, max_frames in (("overlapped", 100), ("in-process", 100), ("overlapped", 400), ("overlapped", 200),
+                                 ("overlapped", 50)):
+            runs = [child(max_frames, mode) for _ in range(args.repeats)]
+            med = {k: statistics.median(r[k] for r in runs) for k in KEYS}
+            print(f"| {mode} | {max_frames} | {runs[0]['frames']} | " + " | ".join(f"{med[k]:.2f}" for k in KEYS)
                   + f" | {sum(med.values()):.2f} |", flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -144,3 +144,15 @@ class _nullcontext:
 
     def __exit__(self, *exc):
         return False
+
+
+def test_frames_sets_the_xdmf_frames_and_refuses_zero(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", "example1", *SMALL, "--frames", "5", "--no-pictures", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["xdmf_frames"] < summary["stored_rows"] and 5 <= summary["xdmf_frames"] <= 12
+    capsys.readouterr()
+    assert main(["run", "example1", *SMALL, "--frames", "0", "--out", str(tmp_path / "refused")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--frames" in err and ">= 1" in err
+    assert not (tmp_path / "refused").exists()

@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--model", metavar="MODULE:FUNCTION", help="model variant (default: the scene's, else the paper's)")
     run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
     run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
+    run.add_argument("--frames", type=int, default=100, metavar="N",
+                     help="XDMF frames: about N of the ~400 stored rows, always with 0, T and the output times "
+                          "(default 100; dolfinx 0.5 writes N frames in time ~N²)")
 
     sub.add_parser("list", help="list the built-in scenes")
     show = sub.add_parser("show", help="print a scene as TOML")
@@ -185,6 +188,8 @@ def _run(args, painter=None) -> int:
         from .variants import load_model
 
         model = load_model(args.model or scene.model)
+    if args.frames < 1:
+        raise ValueError(f"--frames: must be a whole number >= 1 (XDMF frames), not {args.frames}")
     if args.out is not None:
         from .output import check_target
 
@@ -202,6 +207,7 @@ def _run(args, painter=None) -> int:
         progress=not args.no_progress,
         force=args.force,
         pictures=painter or not args.no_pictures,
+        max_frames=args.frames,
     )
     report(res)
     if args.out is not None:
