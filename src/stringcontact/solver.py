@@ -1,7 +1,7 @@
 """The time loop: assemble once, factorise once, back-substitute each step.
 
-Only PETSc matrix-vector products, one KSP solve and a few NumPy array operations run per
-step. The model (UFL) is turned into operators by `scheme`, and the contact force is taken
+Per step only one PETSc mat-vec, one LU back-substitution (the KSP's factor, set up once) and a few
+NumPy array operations run. The model (UFL) is turned into operators by `scheme`, and the contact force is taken
 from the previous step by evaluating the model's `penalty` at the nodes (`nodal`).
 """
 
@@ -147,6 +147,7 @@ def simulate(
         )
     ops = semi_discrete_operators(model, V, params)
     A, Ms, C_over_dt = step_matrices(ops, dt, mass)
+    KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
     left, right = bc_dofs(V, scene.length)
     bc = np.concatenate([left[left < n_owned], right[right < n_owned]]).astype(np.int32)
     g = np.concatenate([np.full(np.sum(left < n_owned), scene.h_left), np.full(np.sum(right < n_owned), scene.h_right)])
@@ -177,8 +178,8 @@ def simulate(
     timings["setup"] = time.perf_counter() - t0
 
     # Every vector of the loop is allocated here, once: rows of a few 2-D NumPy arrays, wrapped without
-    # copying as PETSc vectors where PETSc needs them. The loop then only calls ufuncs with out=, two
-    # PETSc mat-vecs (K η^{n+1}, C η^{n+1}), one back-substitution and two einsum calls for all the energy
+    # copying as PETSc vectors where PETSc needs them. The loop then only calls ufuncs with out=, one
+    # PETSc mat-vec ([K; C/Δt] η^{n+1}), one back-substitution and two einsum calls for all the energy
     # dot products (rows dotted with the same vector are stacked, so one einsum does several dots).
     # Pairs of rows hold a quantity at the new and the previous step; the loop swaps which row is which,
     # so the previous step's K η, C η and M v are reused, never recomputed, and nothing is copied.
@@ -219,7 +220,6 @@ def simulate(
     damping_active = np.zeros(n_owned, dtype=bool)
     A_diag = A.createVecLeft()
     refactorisations = 0
-    KC = stacked(ops.K, C_over_dt)
     m_dt2 = m / dt**2
 
     def apply_mass(u, out) -> None:
