@@ -479,7 +479,8 @@ class OutputWriter:
         self.comm = comm
         self.frames = None if frames is None else np.asarray(frames, dtype=bool)  # which stored rows go to XDMF
         self._row = 0
-        self._skipped = None  # the last stored row not written to XDMF: flushed if the run stops there
+        self._skipped = None  # the time of the last stored row not written to XDMF, if the latest row was one
+        self._kept = None  # that row's fields: flushed if the run stops there
         self.painter = None  # viz.Painters, started below
         self.pictures = pictures
         self.scene = scene
@@ -541,7 +542,11 @@ class OutputWriter:
         """
         row, self._row = self._row, self._row + 1
         if self.frames is not None and row < self.frames.size and not self.frames[row]:
-            self._skipped = (t, {name: np.array(values, dtype=float) for name, values in fields.items()})
+            if self._kept is None:
+                self._kept = {name: np.empty(np.shape(values)) for name, values in fields.items()}
+            for name, values in fields.items():
+                np.copyto(self._kept[name], values)
+            self._skipped = t
             return
         self._skipped = None
         self._write_frame(t, fields)
@@ -600,7 +605,7 @@ class OutputWriter:
         try:
             with signals_held():
                 if self._skipped is not None and self.xdmf is not None:  # end the XDMF with the last stored row
-                    self._write_frame(*self._skipped)
+                    self._write_frame(self._skipped, self._kept)
                     self._skipped = None
                 self._close_xdmf()
                 summary = summary_dict(result) if result is not None and len(result.t) else self._bare_summary()
