@@ -217,7 +217,8 @@ def _run(args, painter=None) -> int:
 
 def _single_process() -> bool:
     """Not one rank of an MPI job (checked without importing mpi4py, which the picture process must not wait for)."""
-    return all(int(os.environ.get(v, "1") or "1") <= 1 for v in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"))
+    sizes = (os.environ.get(v, "1").strip() for v in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"))
+    return all(not size.isdigit() or int(size) <= 1 for size in sizes)
 
 
 def _partial_report(exc) -> None:
