@@ -79,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
 @contextlib.contextmanager
 def _one_line_warnings():
     def show(message, category, filename, lineno, file=None, line=None):
-        print(f"stringcontact: warning: {one_line(message)}", file=sys.stderr)
+        _stderr_line(f"stringcontact: warning: {one_line(message)}")
 
     saved = warnings.showwarning
     warnings.showwarning = show
@@ -230,7 +230,14 @@ def _partial_report(exc) -> None:
 
 
 def _error(message) -> None:
-    print(f"stringcontact: error: {one_line(message)}", file=sys.stderr)
+    _stderr_line(f"stringcontact: error: {one_line(message)}")
+
+
+def _stderr_line(text: str) -> None:
+    # One write for text and newline: stderr is unbuffered, and print() writes them apart, so the lines of
+    # two MPI ranks could interleave into "msg1msg2\n\n".
+    sys.stderr.write(text + "\n")
+    sys.stderr.flush()
 
 
 def main(argv=None) -> int:
