@@ -271,3 +271,56 @@ def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
     assert process.send(res, tmp_path / "no such folder")
     assert process.wait() is False
     assert "No such file or directory" in process.error and process.folder is None
+
+
+def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    from stringcontact import compat
+    from stringcontact.output import OutputWriter, read_xdmf
+
+    class StopsAfterOneField(dict):  # Ctrl-C arriving between two fields of a row
+        def items(self):
+            yield next(iter(super().items()))
+            raise KeyboardInterrupt
+
+    names = ("eta", "velocity", "contact", "contact_force")
+    scene = sc.load_scene("example1").replace(nx=10, nt=20)
+    V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
+    writer = OutputWriter(tmp_path / "out", scene, V, MPI.COMM_SELF, pictures=False, frames=[True, False, False, True])
+    writer.write(0.0, {name: np.zeros(11) for name in names})
+    writer.write(0.1, {name: np.ones(11) for name in names})  # skipped, kept whole
+    with pytest.raises(KeyboardInterrupt):
+        writer.write(0.2, StopsAfterOneField({name: np.full(11, 2.0) for name in names}))
+    writer.abort("interrupted", "stopped")
+    _, series = read_xdmf(writer.path / "solution.xdmf")
+    assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.1])
+    import pyfive
+
+    with pyfive.File(str(writer.path / "solution.h5")) as h5:
+        for name in names:
+            last = np.asarray(h5[series[name][-1][1].split(":", 1)[1]][:])
+            np.testing.assert_array_equal(last, 1.0, err_msg=name)  # row 0.1, not a mix with row 0.2
+
+
+def test_the_picture_process_ends_and_cleans_up_when_the_run_dies(tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    code = ("from stringcontact.viz import PictureProcess; p = PictureProcess.start(('contact_set.png',)); "
+            "print(p.proc.pid, p.folder, flush=True)")  # and exit at once, without cancel(): a killed run
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    pid, private = int(out[0]), Path(out[1])
+
+    def alive():
+        try:
+            return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+        except FileNotFoundError:
+            return False
+
+    deadline = time.monotonic() + 120
+    while (alive() or private.exists()) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not alive() and not private.exists()

@@ -456,7 +456,7 @@ def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
     the rows at `keep_steps` (the scene's output times).
 
     dolfinx 0.5's XDMFFile rewrites its whole XML on every write, so writing costs O(frames²): 376 rows of
-    Example 1 take 3.9 s, 100 take 0.4 s. The Result and diagnostics.csv keep every stored row.
+    Example 1 take 3.5 s, 100 take 0.4 s. The Result and diagnostics.csv keep every stored row.
     """
     steps = np.asarray(steps)
     mask = np.zeros(steps.size, dtype=bool)
@@ -481,6 +481,7 @@ class OutputWriter:
         self._row = 0
         self._skipped = None  # the time of the last stored row not written to XDMF, if the latest row was one
         self._kept = None  # that row's fields: flushed if the run stops there
+        self._spare = None  # the buffers the next skipped row is copied into before it replaces the kept one
         self.painter = None  # viz.Painters, started below
         self.pictures = pictures
         self.scene = scene
@@ -542,10 +543,11 @@ class OutputWriter:
         """
         row, self._row = self._row, self._row + 1
         if self.frames is not None and row < self.frames.size and not self.frames[row]:
-            if self._kept is None:
-                self._kept = {name: np.empty(np.shape(values)) for name, values in fields.items()}
-            for name, values in fields.items():
-                np.copyto(self._kept[name], values)
+            if self._spare is None:
+                self._spare = {name: np.empty(np.shape(values)) for name, values in fields.items()}
+            for name, values in fields.items():  # into the spare buffers: a Ctrl-C here leaves the kept row whole
+                np.copyto(self._spare[name], values)
+            self._kept, self._spare = self._spare, self._kept
             self._skipped = t
             return
         self._skipped = None
@@ -602,6 +604,7 @@ class OutputWriter:
             import sys
 
             error = sys.exc_info()[1]
+        self._stop_painter()  # before the folder is renamed: it must not write into it afterwards
         try:
             with signals_held():
                 if self._skipped is not None and self.xdmf is not None:  # end the XDMF with the last stored row
@@ -630,7 +633,7 @@ class OutputWriter:
         try:
             from .viz import write_pictures  # pictures on rank 0 only
 
-            write_pictures(result, self.partial, painter=self.painter)
+            write_pictures(result, self.partial, painter=self.painter)  # stops the painter however it ends
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
@@ -695,6 +698,7 @@ class OutputWriter:
         raise OutputError(f"--out {self.target}: {what}: {reason}; nothing was written there") from None
 
     def _discard(self) -> None:
+        self._stop_painter()
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
                 self._close_xdmf()
@@ -704,10 +708,13 @@ class OutputWriter:
         self.partial = None
         self._release()
 
-    def _release(self) -> None:
+    def _stop_painter(self) -> None:
         if self.painter is not None:
             self.painter.cancel()
             self.painter = None
+
+    def _release(self) -> None:
+        self._stop_painter()
         if self.lock is not None:
             self.lock.release()
             self.lock = None

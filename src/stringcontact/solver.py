@@ -1,7 +1,7 @@
 """The time loop: assemble once, factorise once, back-substitute each step.
 
-Per step only one PETSc mat-vec, one LU back-substitution (the KSP's factor, set up once) and a few
-NumPy array operations run. The model (UFL) is turned into operators by `scheme`, and the contact force is taken
+Per step only one PETSc mat-vec (two more with a consistent mass), one LU back-substitution (the KSP's
+factor, set up once) and a few NumPy array operations run. The model (UFL) is turned into operators by `scheme`, and the contact force is taken
 from the previous step by evaluating the model's `penalty` at the nodes (`nodal`).
 """
 
@@ -217,7 +217,7 @@ def simulate(
     lumped = mass == "lumped"
     explicit = penalty == "explicit"
     base_diag = A.getDiagonal().array.copy() if not explicit else None
-    damping_active = np.zeros(n_owned, dtype=bool)
+    damping_diag = np.zeros(n_owned)  # the damping weights now in the factorised diagonal
     A_diag = A.createVecLeft()
     refactorisations = 0
     m_dt2 = m / dt**2
@@ -337,14 +337,19 @@ def simulate(
                 multiply(mF, law, out=diag_w)
                 diag_w *= inv_dt
                 multiply(diag_w, active, out=diag_w)
-                if not np.array_equal(active, damping_active):
-                    # only the diagonal changes, so PETSc keeps the symbolic factorisation
+                # Refactorise when the damping on the diagonal changes (the active set, or a state-dependent
+                # coefficient of a model variant); only the diagonal changes, so PETSc keeps the symbolic
+                # factorisation. Every rank must take part, so under MPI the ranks agree first.
+                changed = not np.array_equal(diag_w, damping_diag)
+                if comm.size > 1:
+                    changed = comm.allreduce(changed, op=MPI.LOR)
+                if changed:
                     np.add(base_diag, diag_w, out=A_diag.array)
                     A.setDiagonal(A_diag)
                     ksp.setOperators(A)
                     ksp.setUp()
                     lu_solve = pc.getFactorMatrix().solve
-                    damping_active = active
+                    damping_diag[:] = diag_w
                     refactorisations += 1
                 multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
             if lumped:

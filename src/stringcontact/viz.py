@@ -9,9 +9,9 @@
 * :func:`contact_components` splits one row of the contact set into its intervals (used by the
   snapshot titles and by the demos).
 
-* :class:`Painters` draws the pictures in two more processes (pyvista in one, matplotlib in the other)
-  that start with the run, so that their start-up (loading VTK and matplotlib, creating the EGL context,
-  compiling llvmpipe's shaders, fonts: about 1.2 s) overlaps the time loop.
+* :class:`Painters` draws the two pyvista pictures in another process that starts with the run, so that
+  its start-up (loading VTK, creating the EGL context, compiling llvmpipe's shaders, the font: about
+  1.2 s) overlaps the time loop; the run draws the matplotlib charts meanwhile.
 
 Why two libraries: the space-time fields are a rectilinear (x, t) grid of up to millions of cells, which
 VTK shows as one texture with a texel per screen pixel; the snapshots and the energy balance are small line charts with shared axes, a
@@ -471,13 +471,19 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter: Painters | 
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    handed_out = painter.send(result, folder, window_size) if painter is not None else set()
-    for name in PICTURES:
-        if name not in handed_out:
-            _draw(name, result, folder, window_size)
-    drawn = painter.wait() if painter is not None else set()
+    try:
+        handed_out = painter.send(result, folder, window_size) if painter is not None else set()
+        for name in PICTURES:
+            if name not in handed_out:
+                _draw(name, result, folder, window_size)
+        drawn = painter.wait() if painter is not None else set()
+    finally:
+        if painter is not None:
+            painter.cancel()  # however this ends: nothing may write into `folder` after it returns
     for name in PICTURES:
         if name in handed_out and name not in drawn:
+            for stray in folder.glob(f".{name}.tmp-*"):  # a picture the process was killed while writing
+                stray.unlink(missing_ok=True)
             _draw(name, result, folder, window_size)
     return [folder / name for name in PICTURES]
 
@@ -508,7 +514,7 @@ class PictureProcess:
         code = "from stringcontact.viz import _picture_process; _picture_process()"
         try:
             proc = subprocess.Popen(
-                [sys.executable, "-c", code, folder, ",".join(names)],
+                [sys.executable, "-c", code, folder, ",".join(names), str(os.getpid())],
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,  # VTK's own warnings; failures come back on stdout
@@ -624,8 +630,7 @@ def _picture_process() -> None:
     """The body of `PictureProcess`: warm up, wait for the payload, draw, report on stdout."""
     import time
 
-    folder, names = Path(sys.argv[1]), tuple(sys.argv[2].split(","))
-    parent = os.getppid()
+    folder, names, parent = Path(sys.argv[1]), tuple(sys.argv[2].split(",")), int(sys.argv[3])
     answer = os.fdopen(os.dup(1), "w")  # the reply's own channel: anything VTK prints goes to stderr instead
     os.dup2(2, 1)
     reply = {"ok": False}
@@ -633,7 +638,8 @@ def _picture_process() -> None:
         _warm_up(names)
         payload = folder / "payload.pickle"
         while not payload.exists():
-            if os.getppid() != parent or not folder.is_dir():  # the run ended or cancelled us
+            if os.getppid() != parent or not folder.is_dir():  # the run ended (even before we started) or cancelled us
+                shutil.rmtree(folder, ignore_errors=True)
                 return
             time.sleep(0.005)
         with open(payload, "rb") as f:
