@@ -23,8 +23,9 @@ A model is a `Model`: a few plain functions that return UFL.
 
 ``penalty_damping(eta, v, p)`` (optional)
     The same law as a damping coefficient d ≥ 0 with F = −d v^{n+1} (`penalty="semi-implicit"`):
-    only the diagonal of the step matrix changes, and only when the active set changes. ``None``
-    when the law is not a velocity damping (then only the explicit penalty is available).
+    only the diagonal of the step matrix changes, and only when d changes (for the paper's law, when the
+    active set changes). ``None`` when the law is not a velocity damping (then only the explicit
+    penalty is available).
 
 ``contact_set(eta, p)``
     The contact indicator written to the results (a UFL condition, evaluated at the nodes).
