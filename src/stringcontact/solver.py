@@ -1,8 +1,9 @@
 """The time loop: assemble once, factorise once, back-substitute each step.
 
 Per step only one PETSc mat-vec (two more with a consistent mass), one LU back-substitution (the KSP's
-factor, set up once) and a few NumPy array operations run. The model (UFL) is turned into operators by `scheme`, and the contact force is taken
-from the previous step by evaluating the model's `penalty` at the nodes (`nodal`).
+factor, set up once) and a few NumPy array operations run. The model (UFL) is turned into operators by
+`scheme`, and the contact force is taken from the previous step by evaluating the model's `penalty` at
+the nodes (`nodal`).
 """
 
 from __future__ import annotations
@@ -183,10 +184,9 @@ def simulate(
     # dot products (rows dotted with the same vector are stacked, so one einsum does several dots).
     # Pairs of rows hold a quantity at the new and the previous step; the loop swaps which row is which,
     # so the previous step's K η, C η and M v are reused, never recomputed, and nothing is copied.
-    local_size = A.getLocalSize()[0]
-
     def wrap(a):
-        return PETSc.Vec().createWithArray(a, size=(local_size, PETSc.DECIDE), comm=comm), a
+        """(PETSc vector over `a`'s memory, `a`): this rank's part of a vector is all of `a`."""
+        return PETSc.Vec().createWithArray(a.reshape(-1), size=(a.size, PETSc.DECIDE), comm=comm), a
 
     etas = np.zeros((3, n_owned))  # η^{n+1}, η^n, η^{n−1} in rotating rows
     vels = np.zeros((2, n_owned))  # v^{n+1}, v^n in rotating rows
@@ -199,9 +199,7 @@ def simulate(
     v_new, v = (wrap(row) for row in vels)
     C_v, f_applied = by_v[0], by_v[1]
     M_v_new, M_v = wrap(by_v[2]), wrap(by_v[3])
-    KC_eta_new, KC_eta = (PETSc.Vec().createWithArray(pair.reshape(-1), size=(2 * local_size, PETSc.DECIDE), comm=comm)
-                          for pair in KC_etas)
-    KC_new, KC_old = (KC_eta_new, KC_etas[0]), (KC_eta, KC_etas[1])
+    KC_new, KC_old = (wrap(pair) for pair in KC_etas)
     b, b_a = wrap(np.zeros(n_owned))  # the right-hand side
     two_steps, two_steps_a = wrap(np.zeros(n_owned))  # consistent mass: 2η^n − η^{n−1}, multiplied by M/Δt²
     dots_v, dots_K = np.zeros(4), np.zeros(2)
@@ -378,10 +376,7 @@ def simulate(
                 f_applied *= -dt
             KC_mult(eta_new[0], KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
             subtract(KC_new[1][1], KC_old[1][1], out=C_v)  # = C v^{n+1}
-            if lumped:
-                multiply(m, v1, out=M_v_new[1])
-            else:
-                Ms.mult(v_new[0], M_v_new[0])
+            apply_mass(v_new, M_v_new)
             einsum("ij,j->i", by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f, v¹·Mv¹ and v¹·Mv⁰ (rows 2, 3 alternate)
             einsum("ij,j->i", K_etas, e1, out=dots_K)  # η¹·Kη¹ and η¹·Kη⁰ (rows alternate)
             iM = 2 + (n & 1)  # the row of M v^{n+1}: rows 2 and 3 swap roles every step, as do the K rows
