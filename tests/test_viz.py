@@ -220,18 +220,28 @@ def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
         np.testing.assert_array_equal(back.energy[key], res.energy[key][rows], err_msg=key)
 
 
-def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
+FIELD_NAMES = ("eta", "velocity", "contact", "contact_force")
+
+
+def _thinning_writer(folder):
+    """An OutputWriter on 11 nodes whose stored rows 0 and 3 are XDMF frames, and rows 1 and 2 are not."""
     from dolfinx import mesh
     from mpi4py import MPI
 
     from stringcontact import compat
-    from stringcontact.output import OutputWriter, xdmf_series
+    from stringcontact.output import OutputWriter
 
     scene = sc.load_scene("example1").replace(nx=10, nt=20)
     V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
-    writer = OutputWriter(tmp_path / "out", scene, V, MPI.COMM_SELF, pictures=False, frames=[True, False, False, True])
+    return OutputWriter(folder, scene, V, MPI.COMM_SELF, pictures=False, frames=[True, False, False, True])
+
+
+def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
+    from stringcontact.output import xdmf_series
+
+    writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
-        writer.write(0.1 * k, {name: np.full(11, float(k)) for name in ("eta", "velocity", "contact", "contact_force")})
+        writer.write(0.1 * k, {name: np.full(11, float(k)) for name in FIELD_NAMES})
     writer.abort("interrupted", "stopped")
     series = xdmf_series(writer.path / "solution.xdmf")
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
@@ -274,21 +284,15 @@ def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
 
 
 def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
-    from dolfinx import mesh
-    from mpi4py import MPI
-
-    from stringcontact import compat
-    from stringcontact.output import OutputWriter, read_xdmf
+    from stringcontact.output import read_xdmf
 
     class StopsAfterOneField(dict):  # Ctrl-C arriving between two fields of a row
         def items(self):
             yield next(iter(super().items()))
             raise KeyboardInterrupt
 
-    names = ("eta", "velocity", "contact", "contact_force")
-    scene = sc.load_scene("example1").replace(nx=10, nt=20)
-    V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
-    writer = OutputWriter(tmp_path / "out", scene, V, MPI.COMM_SELF, pictures=False, frames=[True, False, False, True])
+    names = FIELD_NAMES
+    writer = _thinning_writer(tmp_path / "out")
     writer.write(0.0, {name: np.zeros(11) for name in names})
     writer.write(0.1, {name: np.ones(11) for name in names})  # skipped, kept whole
     with pytest.raises(KeyboardInterrupt):
