@@ -49,6 +49,8 @@ BALANCE_RTOL = 1e-8
 PENETRATION_FACTOR = 2.0
 #: below this many free bytes a failed write is reported as a full disk.
 NEARLY_FULL_BYTES = 1 << 20
+#: the entry-point group of the function `pictures=True` calls, `(result, folder)`: `stringcontact.viz:write_pictures`.
+PICTURES_ENTRY_POINT = "stringcontact.pictures"
 
 
 # --- the target folder and its lock ---------------------------------------------------------------
@@ -467,6 +469,18 @@ def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
     return mask
 
 
+def registered_pictures():
+    """The picture function registered under the entry point PICTURES_ENTRY_POINT ("default").
+
+    Looked up, not imported: the picture code (viz) imports this module, and a plug-in can register another.
+    """
+    from importlib.metadata import entry_points
+
+    for entry in entry_points(group=PICTURES_ENTRY_POINT, name="default"):
+        return entry.load()
+    raise RuntimeError(f"no picture function registered as entry point {PICTURES_ENTRY_POINT}:default (reinstall: make setup)")
+
+
 class OutputWriter:
     """Streams the stored rows to XDMF during the run and writes the tables at the end.
 
@@ -475,15 +489,14 @@ class OutputWriter:
     folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
     """
 
-    def __init__(self, path, scene, V, comm, force: bool = False, pictures: bool = True, frames=None):
+    def __init__(self, path, scene, V, comm, force: bool = False, pictures=True, frames=None):
         self.comm = comm
         self.frames = None if frames is None else np.asarray(frames, dtype=bool)  # which stored rows go to XDMF
         self._row = 0
         self._skipped = None  # the time of the last stored row not written to XDMF, if the latest row was one
         self._kept = None  # that row's fields: flushed if the run stops there
         self._spare = None  # the buffers the next skipped row is copied into before it replaces the kept one
-        self.painter = None  # viz.Painters, started below
-        self.pictures = pictures
+        self.pictures = pictures  # False, True (the registered picture function) or a function (result, folder)
         self.scene = scene
         self.force = force
         self.write_time = 0.0
@@ -505,15 +518,6 @@ class OutputWriter:
         if failure is not None:
             raise OutputError(failure)
         self.partial = partial
-        if not isinstance(pictures, bool):  # viz.Painters the caller started
-            self.painter, self.pictures = pictures, True
-        if comm.size > 1 and self.painter is not None:  # under MPI no child process (fork() and MPI do not mix)
-            self.painter.cancel()
-            self.painter = None
-        elif pictures is True and comm.size == 1:
-            from .viz import Painters
-
-            self.painter = Painters.start()  # VTK's start-up then overlaps the time loop
         try:
             from dolfinx import fem
             from dolfinx.io import XDMFFile
@@ -604,7 +608,6 @@ class OutputWriter:
             import sys
 
             error = sys.exc_info()[1]
-        self._stop_painter()  # before the folder is renamed: it must not write into it afterwards
         try:
             with signals_held():
                 if self._skipped is not None and self.xdmf is not None:  # end the XDMF with the last stored row
@@ -630,10 +633,9 @@ class OutputWriter:
     # -- internals
 
     def _pictures(self, result) -> None:
-        try:
-            from .viz import write_pictures  # pictures on rank 0 only
-
-            write_pictures(result, self.partial, painter=self.painter)  # stops the painter however it ends
+        try:  # on rank 0 only
+            draw = self.pictures if callable(self.pictures) else registered_pictures()
+            draw(result, self.partial)
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
@@ -698,7 +700,6 @@ class OutputWriter:
         raise OutputError(f"--out {self.target}: {what}: {reason}; nothing was written there") from None
 
     def _discard(self) -> None:
-        self._stop_painter()
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
                 self._close_xdmf()
@@ -708,13 +709,7 @@ class OutputWriter:
         self.partial = None
         self._release()
 
-    def _stop_painter(self) -> None:
-        if self.painter is not None:
-            self.painter.cancel()
-            self.painter = None
-
     def _release(self) -> None:
-        self._stop_painter()
         if self.lock is not None:
             self.lock.release()
             self.lock = None

@@ -285,9 +285,10 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
     finally:
         if painter is not None:
             painter.cancel()
+            for name in handed_out - drawn:  # a picture the process was killed while writing
+                for stray in folder.glob(f".{name}.tmp-*"):
+                    stray.unlink(missing_ok=True)
     for name in handed_out - drawn:
-        for stray in folder.glob(f".{name}.tmp-*"):  # a picture the process was killed while writing
-            stray.unlink(missing_ok=True)
         draw(name, result, folder, window_size)
     return [folder / name for name in PICTURES]
 
