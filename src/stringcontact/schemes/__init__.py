@@ -13,6 +13,7 @@ import importlib
 _REGISTRY = {
     "paper": ("paper", "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step"),
     "projection": ("projection", "explicit central difference, implicit viscosity, nodal projection onto gap >= 0 (no eps)"),
+    "newmark": ("newmark", "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set"),
 }
 
 #: {name: one-line description}
