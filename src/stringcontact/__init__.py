@@ -7,7 +7,7 @@
 
 import importlib
 
-from .errors import InstabilityError, SceneError
+from .errors import InstabilityError, InstabilityWarning, SceneError
 
 __version__ = "0.1.0"
 
@@ -22,7 +22,7 @@ _LAZY = {
     "SceneWarning": "scene",
     "list_scenes": "scene",
     "load_scene": "scene",
-    "InstabilityWarning": "solver",
+    "SCHEMES": "schemes",
     "simulate": "solver",
 }
 
@@ -45,6 +45,7 @@ __all__ = [
     "Model",
     "Parameters",
     "Result",
+    "SCHEMES",
     "Scene",
     "SceneError",
     "SceneWarning",
