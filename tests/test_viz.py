@@ -78,7 +78,7 @@ def test_run_writes_legible_pictures(run):
 def test_contact_set_picture_shows_the_contact_fraction(run):
     """The red share of the plotting area is the contact set's share of the (x, t) rectangle."""
     _, res = run
-    from stringcontact.viz import _cell_edges
+    from stringcontact.charts import _cell_edges
 
     dx, dt = np.diff(_cell_edges(res.x)), np.diff(_cell_edges(res.t))
     fraction = np.sum(res.contact * dt[:, None] * dx[None, :]) / (dx.sum() * dt.sum())
@@ -298,7 +298,7 @@ def test_the_output_module_does_not_import_the_picture_code():
     tree = ast.parse(Path(output.__file__).read_text())
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert not {m for m in imported if m.split(".")[-1] in ("viz", "painter", "mesh_pictures")}
+    assert not {m for m in imported if m.split(".")[-1] in ("viz", "charts", "painter", "mesh_pictures")}
     assert output.registered_pictures() is viz.write_pictures
     code = "import sys, stringcontact.viz; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
