@@ -232,3 +232,15 @@ def energy_picture(result, path) -> Path:
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.9, hspace=0.08)  # fixed: see snapshots_picture
     _savefig(fig, path)
     return path
+
+
+def warm_up() -> None:
+    """A tiny picture with the elements the space-time pictures use: pyplot, fonts, an image, a colour bar."""
+    import io
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(1, 1))
+    fig.colorbar(ax.pcolorfast(np.array([0.0, 1.0, 3.0]), np.array([0.0, 1.0]), np.ones((1, 2)), cmap="RdBu_r"), ax=ax)
+    ax.set_title("η ≤ ψ")
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    plt.close(fig)

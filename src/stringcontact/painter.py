@@ -1,9 +1,10 @@
-"""The pyvista pictures drawn in a second process, started before a run so that VTK's start-up overlaps it.
+"""Pictures drawn in a second process, started before a run so that the libraries' start-up overlaps it.
 
-Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 1-2 s
-before the first picture (docs/performance.md). `stringcontact run --out` starts a `PictureProcess`
-first thing; it does that start-up while the run imports dolfinx and solves, then draws
-``space_time.png`` while the run draws the matplotlib pictures. The process never imports dolfinx.
+Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 1 s of
+CPU before the first picture, importing matplotlib about 0.6 s (docs/performance.md). `stringcontact run
+--out` starts a `PictureProcess` first thing; it does that start-up while the run imports dolfinx and
+solves, then draws the space-time pictures (`viz.PAINTED`) while the run draws the line charts. The
+process never imports dolfinx.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .viz import MESH_PICTURES, WINDOW_SIZE
+from .viz import MESH_PICTURES, PAINTED, WINDOW_SIZE
 
 
 class PictureProcess:
@@ -43,7 +44,7 @@ class PictureProcess:
         self.error = ""
 
     @classmethod
-    def start(cls, names=MESH_PICTURES) -> PictureProcess | None:
+    def start(cls, names=PAINTED) -> PictureProcess | None:
         env = dict(os.environ)
         env.setdefault("LP_NUM_THREADS", "1")  # Mesa's software renderer: leave the other core to the run
         folder = tempfile.mkdtemp(prefix="stringcontact-pictures-")
@@ -67,8 +68,7 @@ class PictureProcess:
             self.cancel()
             return False
         payload = Path(self.folder) / "payload.pickle"
-        # the surface needs x, t, η and the contact set: a third less to pickle
-        result = dataclasses.replace(result, velocity=np.empty((0, 0)), contact_force=np.empty((0, 0)))
+        result = dataclasses.replace(result, contact_force=np.empty((0, 0)))  # no picture shows it: less to pickle
         try:
             with open(payload.with_suffix(".part"), "wb") as f:
                 pickle.dump((result, str(folder), tuple(window_size)), f, protocol=pickle.HIGHEST_PROTOCOL)
@@ -108,14 +108,17 @@ def main() -> None:
     """The body of `PictureProcess`: warm up, wait for the payload, draw, report on stdout."""
     import time
 
-    from . import mesh_pictures, viz
+    from . import charts, mesh_pictures, viz
 
     folder, names, parent = Path(sys.argv[1]), tuple(sys.argv[2].split(",")), int(sys.argv[3])
     answer = os.fdopen(os.dup(1), "w")  # the reply's own channel: anything VTK prints goes to stderr instead
     os.dup2(2, 1)
     reply = {"ok": False}
     try:
-        mesh_pictures.warm_up()
+        if set(names) & set(MESH_PICTURES):
+            mesh_pictures.warm_up()
+        if set(names) - set(MESH_PICTURES):
+            charts.warm_up()
         payload = folder / "payload.pickle"
         while not payload.exists():
             if os.getppid() != parent or not folder.is_dir():  # the run ended (even before we started) or cancelled us

@@ -40,6 +40,9 @@ from .output import FIELDS, OutputError, read_xdmf
 CHART_PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")  # matplotlib
 MESH_PICTURES = ("space_time.png",)  # pyvista
 PICTURES = CHART_PICTURES + MESH_PICTURES
+#: what `stringcontact run` hands to its painter process: the space-time pictures (the rest, the line charts,
+#: are drawn by the run meanwhile; this split measured fastest, docs/performance.md)
+PAINTED = ("contact_set.png", "velocity_field.png", "space_time.png")
 
 
 # --- all pictures of a run ------------------------------------------------------------------------
