@@ -114,7 +114,7 @@ def getfem_rod(scheme: str, nx: int, dt: float, T: float = rod.PERIOD) -> dict:
     nt = round(T / dt)
     U = np.empty((nt + 1, n))
     U[0] = U0
-    k_landing = round(LANDING / dt)
+    k_landing, energy_landing = round(LANDING / dt), float("nan")
     cpu = time.process_time()
     for k in range(1, nt + 1):
         FF = solve(M2, Fc - K.mult(U0))
@@ -155,8 +155,8 @@ def getfem_rows(nxs, T: float) -> list[dict]:
             rows.append({"side": "getfem", "method": scheme, "nx": nx, "dt": dt, "eps": "", "r": "",
                          "status": "complete", "cpu_s": run["cpu_s"], "err_u": err,
                          "energy_ratio": run["energy"] / rod.ROD_ENERGY,
-                         "energy_landing": run["energy_landing"] / rod.ROD_ENERGY, "min_u_contact": float(run["u"][:, 0].min()),
-                         "contact_loss": ""})
+                         "energy_landing": run["energy_landing"] / rod.ROD_ENERGY,
+                         "min_u_contact": float(run["u"][:, 0].min()), "contact_loss": ""})
     return rows
 
 
@@ -174,7 +174,8 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
     dt = dt_over_h * h
     eps = method.eps(h, dt)
     row = {"side": "stringcontact", "method": method.label, "nx": nx, "dt": dt, "eps": eps, "r": dt / eps}
-    kwargs = {"mass": method.mass, "model": rod.point_contact({"inelastic": inelastic, "elastic": elastic}[method.model], h)}
+    law = {"inelastic": inelastic, "elastic": elastic}[method.model]
+    kwargs = {"mass": method.mass, "model": rod.point_contact(law, h)}
     if method.penalty is not None:
         kwargs["penalty"] = method.penalty
     if method.scheme != "paper":
@@ -227,8 +228,8 @@ def fmt(value, spec: str) -> str:
 
 
 def print_table(rows: list[dict], columns: tuple[str, ...]) -> None:
-    specs = {"dt": ".2e", "eps": ".2e", "r": ".3g", "cpu_s": ".2f", "err_u": ".3f", "energy_ratio": ".4f", "energy_landing": ".4f",
-             "min_u_contact": ".4f", "contact_loss": ".3f", "dt_over_h": "g"}
+    specs = {"dt": ".2e", "eps": ".2e", "r": ".3g", "cpu_s": ".2f", "err_u": ".3f", "energy_ratio": ".4f",
+             "energy_landing": ".4f", "min_u_contact": ".4f", "contact_loss": ".3f", "dt_over_h": "g"}
     print("| " + " | ".join(columns) + " |")
     print("|" + "---|" * len(columns))
     for row in rows:
@@ -265,8 +266,8 @@ def chart(path: Path, rows: list[dict]) -> None:
     ax_nx.set_yticks([0.02, 0.03, 0.05, 0.1, 0.2])
     ax_cpu.set_yticks([0.02, 0.03, 0.05, 0.1, 0.2])
     fig.legend(*ax_nx.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=8)
-    fig.suptitle("GetFEM's impacting rod (demo_dynamic_contact_1D): GetFEM's schemes (squares) and stringcontact's (circles)",
-                 fontsize=10)
+    fig.suptitle("GetFEM's impacting rod (demo_dynamic_contact_1D): "
+                 "GetFEM's schemes (squares) and stringcontact's (circles)", fontsize=10)
     tmp = path.with_name("." + path.name)
     fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
@@ -299,7 +300,8 @@ def main(argv=None) -> int:
     write_csv(args.out / "getfem_comparison.csv", rows)
     write_csv(args.out / "getfem_sinking.csv", sinking)
     chart(args.out / "getfem_comparison.png", rows)
-    print_table(rows, ("side", "method", "nx", "r", "status", "err_u", "energy_ratio", "energy_landing", "min_u_contact", "cpu_s"))
+    print_table(rows, ("side", "method", "nx", "r", "status", "err_u", "energy_ratio", "energy_landing",
+                       "min_u_contact", "cpu_s"))
     print_table(sinking, ("method", "dt_over_h", "nx", "r", "min_u_contact", "err_u", "energy_ratio", "contact_loss"))
     print(f"wrote {args.out}/getfem_comparison.csv, getfem_sinking.csv, getfem_comparison.png")
     return 0

@@ -126,6 +126,7 @@ def relative_error(x: np.ndarray, t: np.ndarray, u: np.ndarray, exact=string_exa
 
 
 __all__ = [
+    "CONTACT_POINT",
     "PERIOD",
     "ROD_ENERGY",
     "point_contact",
