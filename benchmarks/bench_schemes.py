@@ -9,7 +9,7 @@ Prints, and writes to benchmarks/out/schemes.json:
 2. Example 1 at the paper's resolution: each scheme's energy split as fractions of E(0);
 3. Example 1 accuracy per cost: the reference is `projection` at nx = 16000 (Δt = Δx); the paper's own run
    (nx = 5000, ε = 5e-4, explicit) against it, and the smallest nx at which `projection` is as accurate,
-   with both wall times (best of 3, same process, warm JIT cache); the paper's scheme with ε → 0 against
+   with both wall times (best of 5, same process, warm JIT cache); the paper's scheme with ε → 0 against
    the same reference (the cross-check: it closes in on the same limit);
 4. cost per step at nx = 5000, paper (explicit) and projection, alternating runs.
 """
@@ -62,13 +62,13 @@ def energy_split(n):
 def accuracy_per_cost(paper_n, sizes, ref_n, eps_limit_sizes):
     rows = round(0.3 * min(sizes))
     ref = study.run_method(study.example1_scene(ref_n), study.REFERENCE, rows=rows)
-    paper = study.run_method(study.example1_scene(paper_n), M["paper"], rows=rows, repeat=3)
+    paper = study.run_method(study.example1_scene(paper_n), M["paper"], rows=rows, repeat=5)
     e_paper = study.errors_against_reference(paper, ref)["err_eta"]
     print(f"reference: projection nx={ref_n} ({ref.wall_s:.2f} s); paper's run nx={paper_n}: error {e_paper:.3g}, "
           f"{paper.wall_s:.3f} s")
     proj = []
     for n in sizes:
-        run = study.run_method(study.example1_scene(n), M["projection"], rows=rows, repeat=3)
+        run = study.run_method(study.example1_scene(n), M["projection"], rows=rows, repeat=5)
         proj.append({"nx": n, "err_eta": study.errors_against_reference(run, ref)["err_eta"], "wall_s": run.wall_s})
         print(f"  projection nx={n}: error {proj[-1]['err_eta']:.3g}, {run.wall_s:.4f} s")
     enough = [p for p in proj if p["err_eta"] <= e_paper]

@@ -75,6 +75,10 @@ def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD):
     )
 
 
+#: How far below the string the obstacle is away from the point x = 1 (no node gets there).
+FAR = 1e6
+
+
 def point_contact(model, h: float, name: str | None = None):
     """`model` with its contact law acting only at the node x = 1 (cells of size h).
 
@@ -95,7 +99,13 @@ def point_contact(model, h: float, name: str | None = None):
 
         return point_law
 
+    def point_gap(eta, p):
+        # away from the point the obstacle is out of reach: ψ = −FAR (slope 1 in η, as `projection` needs)
+        return ufl.conditional(at_point(p), model.gap(eta, p), eta + FAR)
+
     def point_contact_set(eta, p):
+        if model.gap is not None:  # {gap ≤ 0}: what `projection` checks the contact set against
+            return ufl.le(point_gap(eta, p), 0)
         return ufl.And(at_point(p), model.contact_set(eta, p))
 
     return dataclasses.replace(
@@ -104,6 +114,7 @@ def point_contact(model, h: float, name: str | None = None):
         penalty=only_at_point(model.penalty),
         penalty_damping=only_at_point(model.penalty_damping),
         contact_set=point_contact_set,
+        gap=None if model.gap is None else point_gap,
         contact_energy=only_at_point(model.contact_energy),
         description=f"{model.description}; only at the point x = 1",
     )
