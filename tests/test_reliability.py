@@ -492,7 +492,7 @@ def test_summary_line_and_penetration_warning(tmp_path, capfd):
     scene = tmp_path / "loaded.toml"
     scene.write_text(
         'T = 0.5\nalpha = 0.01\neps = 0.01\nnx = 50\nnt = 500\nh = 0.05\neta0 = "0.05"\nv0 = "0"\n'
-        'load = "-100"\nmodel = "stringcontact.variants:loaded_obstacle"\n'
+        'load = "-100"\nmodel = "loaded_obstacle"\n'
     )
     assert main(["run", str(scene), *QUICK]) == 0
     captured = capfd.readouterr()

@@ -22,6 +22,7 @@ _LAZY = {
     "SceneWarning": "scene",
     "list_scenes": "scene",
     "load_scene": "scene",
+    "load_model": "registry",
     "InstabilityWarning": "solver",
     "simulate": "solver",
 }
@@ -50,6 +51,7 @@ __all__ = [
     "SceneWarning",
     "inelastic",
     "list_scenes",
+    "load_model",
     "load_scene",
     "simulate",
 ]
