@@ -135,3 +135,12 @@ def test_the_example_package_is_what_a_user_would_copy():
     assert meta["project"]["entry-points"][registry.GROUP] == {"soft_ground": "soft_ground:soft_ground"}
     ours = tomllib.loads((root / "pyproject.toml").read_text())["project"]["entry-points"][registry.GROUP]
     assert set(ours) == {"inelastic", "elastic", "loaded_obstacle"}
+
+
+def test_check_uses_the_scenes_model():
+    from stringcontact import theorems
+
+    scene = load_scene("single_impact").replace(nx=50, nt=800, model="elastic")
+    _, finest, results = theorems.run_checks(scene, levels=1, time_levels=1)
+    assert finest.model == "elastic" and [r.model for r in results] == ["elastic"]
+    assert theorems.run_checks(scene.replace(model=None), levels=1, time_levels=1)[1].model == "inelastic"

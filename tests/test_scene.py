@@ -1,8 +1,10 @@
 """Scenes: built-in data, validation of files and of replace(), round trips."""
 
 import math
+import os
 import tomllib
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -418,3 +420,17 @@ def test_huge_data_is_refused_with_the_allowed_range(key, value):
     with pytest.raises(SceneError, match=rf"{key}: \|{key}\| reaches .*allowed: values in \[-1e\+06, 1e\+06\]"):
         s.replace(**{key: value})
     s.replace(**{key: value.replace("e6", "e5").replace("e300", "e5").replace("e7", "e5")})  # within the range: fine
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_a_fifo_or_device_is_not_a_regular_file(tmp_path, kind):
+    """Refused from its stat alone: opening a FIFO would block, /dev/zero would never end."""
+    if kind == "fifo":
+        path = tmp_path / "scene.toml"
+        os.mkfifo(path)
+    else:
+        path = Path("/dev/zero")
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    expected = "a FIFO" if kind == "fifo" else "a character device"
+    assert str(info.value) == f"scene {str(path)!r}: is not a regular file ({expected}); expected a .toml scene file"
