@@ -137,7 +137,7 @@ _TOKENS = ["x", "l", "pi", "h", "1", "0.5", "1e3", "+", "-", "*", "/", "**", "("
            "sin", "sqrt", "where", "min", "__class__", ".", "[", "]", "'", "lambda", ":", "import", "os", "\\"]
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(max_examples=60, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(eta0=st.text(max_size=80) | st.lists(st.sampled_from(_TOKENS), max_size=25).map("".join) | st.sampled_from(HOSTILE))
 def test_random_and_hostile_text_via_cli(capfd, eta0):
     """Any text as eta0: exit 0 (it was a valid expression) or 2 with one line; no traceback, no stray file."""
