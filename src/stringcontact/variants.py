@@ -33,7 +33,7 @@ from .model import penalty as _paper_penalty
 from .model import penalty_damping as _paper_penalty_damping
 from .registry import load_model
 
-__all__ = ["elastic", "loaded_obstacle", "load_model"]
+__all__ = ["elastic", "load_model", "loaded_obstacle"]
 
 
 # --- elastic (bouncing) contact ------------------------------------------------------------
