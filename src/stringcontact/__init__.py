@@ -8,6 +8,9 @@
 import importlib
 
 from .errors import InstabilityError, SceneError
+from .jitlog import quiet_compiler
+
+quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 
 __version__ = "0.1.0"
 
