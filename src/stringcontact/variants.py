@@ -1,4 +1,4 @@
-"""Model variants shipped with stringcontact, and `load_model` for a user's own.
+"""Model variants shipped with stringcontact, registered by name in pyproject.toml (`stringcontact models`).
 
 Each variant changes one or two of the paper's UFL functions (`model.py`) and keeps the rest:
 
