@@ -144,3 +144,20 @@ def test_check_uses_the_scenes_model():
     _, finest, results = theorems.run_checks(scene, levels=1, time_levels=1)
     assert finest.model == "elastic" and [r.model for r in results] == ["elastic"]
     assert theorems.run_checks(scene.replace(model=None), levels=1, time_levels=1)[1].model == "inelastic"
+
+
+def test_an_output_folder_whose_model_is_no_longer_registered_still_plots(tmp_path):
+    """A folder written with an uninstalled plugin (or a module path, before model names) is redrawn."""
+    import json
+
+    import stringcontact as sc
+    from stringcontact import viz
+
+    scene = load_scene("single_impact").replace(nx=20, nt=1600, T=0.4, model="elastic", output_times=[])
+    sc.simulate(scene, model=registry.load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
+    assert viz.read_output(tmp_path / "run").scene.model == "elastic"
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary["scene"]["model"] = "stringcontact.variants:elastic"
+    (tmp_path / "run" / "summary.json").write_text(json.dumps(summary))
+    back = viz.read_output(tmp_path / "run")
+    assert back.scene.model is None and back.model == "elastic"
