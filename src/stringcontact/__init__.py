@@ -7,7 +7,7 @@
 
 import importlib
 
-from .errors import InstabilityError, SceneError
+from .errors import InstabilityError, InstabilityWarning, SceneError
 from .jitlog import quiet_compiler
 
 quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
@@ -26,7 +26,7 @@ _LAZY = {
     "list_scenes": "scene",
     "load_scene": "scene",
     "load_model": "registry",
-    "InstabilityWarning": "solver",
+    "SCHEMES": "schemes",
     "simulate": "solver",
 }
 
@@ -49,6 +49,7 @@ __all__ = [
     "Model",
     "Parameters",
     "Result",
+    "SCHEMES",
     "Scene",
     "SceneError",
     "SceneWarning",

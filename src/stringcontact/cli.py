@@ -24,6 +24,7 @@ import threading
 import warnings
 
 from .errors import one_line
+from .schemes import SCHEMES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -52,8 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--nt", type=int, help="number of time steps")
     run.add_argument("--eps", type=float, help="penalty parameter ε > 0")
     run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
-    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), default="explicit")
-    run.add_argument("--mass", choices=("lumped", "consistent"), default="lumped")
+    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper): "
+                     + "; ".join(f"{k}: {v}" for k, v in SCHEMES.items()))
+    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+    run.add_argument("--mass", choices=("lumped", "consistent"), help="default: lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
     run.add_argument("--force", action="store_true", help="replace a non-empty output folder (only by a complete run)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -185,7 +188,8 @@ def _run(args, painter=None) -> int:
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
     if changes:
         scene = scene.replace(**changes)
-    options = {"penalty": args.penalty, "mass": args.mass}
+    options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
+    _check_scheme_options(args, scene)
     model = None
     if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
         from .registry import load_model
@@ -216,6 +220,16 @@ def _run(args, painter=None) -> int:
     if args.out is not None:
         print(f"wrote {args.out}")
     return EXIT_OK
+
+
+def _check_scheme_options(args, scene) -> None:
+    """--eps or --penalty with a scheme that has no penalty: refused before anything runs."""
+    from .schemes import scheme_class
+
+    name = args.scheme or scene.scheme or "paper"
+    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
+        given = "--eps" if args.eps is not None else "--penalty"
+        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")
 
 
 def _single_process() -> bool:

@@ -893,6 +893,7 @@ def summary_dict(result) -> dict:
         "status": result.status,
         "message": result.message,
         "scene": scene.as_dict(),
+        "scheme": result.scheme,
         "penalty": result.penalty,
         "mass": result.mass,
         "model": result.model,

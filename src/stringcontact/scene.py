@@ -61,7 +61,7 @@ __all__ = [
 #: Keys a scene file (or Scene.replace) accepts, in the order they are written.
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
-    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model",
+    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
 )
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
@@ -121,6 +121,7 @@ class Scene:
     model: str | None = None  # a registered model name (`stringcontact models`), never a module path
     load: str | None = None  # external load f(x), expression in x (None: not given)
     obstacle: str | None = None  # obstacle profile psi(x), expression in x (None: not given)
+    scheme: str | None = None  # a name in stringcontact.SCHEMES (None: "paper")
 
     def __post_init__(self):
         # Normalise in place (frozen, hence object.__setattr__): ints to floats, lists to tuples.
@@ -143,6 +144,8 @@ class Scene:
             put(key, _text(key, getattr(self, key)))
         if self.model is not None:
             put("model", _check_model(self.model))
+        if self.scheme is not None:
+            put("scheme", _check_scheme(self.scheme))
         put("output_times", _check_output_times(self.output_times, self.T))
         for key in ("eta0", "v0") + tuple(self.fields):
             put(key, _expression_text(key, getattr(self, key)))
@@ -234,6 +237,8 @@ class Scene:
         d["output_times"] = list(self.output_times)
         if self.model is not None:
             d["model"] = self.model
+        if self.scheme is not None:
+            d["scheme"] = self.scheme
         return d
 
     @classmethod
@@ -342,6 +347,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         description=data.get("description", ""),
         notes=data.get("notes", ""),
         model=data.get("model"),
+        scheme=data.get("scheme"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
     )
 
@@ -509,6 +515,14 @@ def _check_model(value) -> str:
     from .registry import check_name
 
     return check_name(value)
+
+
+def _check_scheme(value) -> str:
+    from .schemes import SCHEMES
+
+    if value not in SCHEMES:
+        raise SceneError(f"scheme: invalid value {_describe(value)}; allowed: {', '.join(SCHEMES)}")
+    return value
 
 
 def _check_output_times(value, T: float) -> tuple[float, ...]:

@@ -54,6 +54,8 @@ elastic = dataclasses.replace(
     name="elastic",
     penalty=_displacement_penalty,
     penalty_damping=None,
+    gap=None,  # it lets the string through the obstacle: no scheme may project onto it
+    stability=None,  # no r = dt/eps bound: the energy guard watches the stored spring energy (docs/study.md)
     contact_energy=_spring_energy,
     description="elastic contact: displacement penalty (1/eps) eta^- on the obstacle y = 0 (bounces)",
 )
@@ -87,11 +89,16 @@ def _obstacle_contact_set(eta, p: Parameters):
     return _paper_contact_set(eta - _obstacle(p), p)
 
 
+def _obstacle_gap(eta, p: Parameters):
+    return eta - _obstacle(p)
+
+
 loaded_obstacle = Model(
     name="loaded_obstacle",
     momentum_form=_loaded_momentum_form,
     penalty=_obstacle_penalty,
     penalty_damping=_obstacle_damping,
     contact_set=_obstacle_contact_set,
+    gap=_obstacle_gap,
     description="the paper's model with a load f(x) (scene key load) over an obstacle psi(x) (scene key obstacle)",
 )
