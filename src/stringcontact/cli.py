@@ -159,8 +159,10 @@ def report(res) -> None:
     from .errors import PenetrationWarning
 
     scene = res.scene
-    print(f"scene {scene.name}: nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} "
-          f"penalty={res.penalty} mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
+    penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
+               else "no penalty")
+    print(f"scene {scene.name}: scheme {res.scheme}, nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
+          f"mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
     if len(res.t) == 0:
         return
     print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")

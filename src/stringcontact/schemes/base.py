@@ -127,9 +127,10 @@ class Scheme:
 # --- shared parts -------------------------------------------------------------------------------------
 
 
-def check_law_stability(model, r: float, penalty: str) -> None:
-    """Apply the contact law's own bound on r = Δt/ε (`Model.stability`): refuse or warn before the run."""
-    verdict = model.stability(r, penalty) if model.stability is not None else None
+def check_law_stability(model, dt: float, eps: float, penalty: str) -> None:
+    """Apply the contact law's own bound on Δt and ε (`Model.stability`): refuse or warn before the run."""
+    r = dt / eps
+    verdict = model.stability(dt, eps, penalty) if model.stability is not None else None
     if verdict is None:
         return
     kind, why = verdict

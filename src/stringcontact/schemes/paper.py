@@ -37,7 +37,7 @@ class Scheme(Base):
         laws = s.laws
         if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
             raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
-        check_law_stability(laws.model, dt / s.eps, s.penalty)
+        check_law_stability(laws.model, dt, s.eps, s.penalty)
         self.A, self.Ms, C_over_dt = step_matrices(ops, dt, s.mass)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
         dirichlet_rows(self.A, s.bc)
