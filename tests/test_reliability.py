@@ -137,7 +137,7 @@ _TOKENS = ["x", "l", "pi", "h", "1", "0.5", "1e3", "+", "-", "*", "/", "**", "("
            "sin", "sqrt", "where", "min", "__class__", ".", "[", "]", "'", "lambda", ":", "import", "os", "\\"]
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(max_examples=60, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(eta0=st.text(max_size=80) | st.lists(st.sampled_from(_TOKENS), max_size=25).map("".join) | st.sampled_from(HOSTILE))
 def test_random_and_hostile_text_via_cli(capfd, eta0):
     """Any text as eta0: exit 0 (it was a valid expression) or 2 with one line; no traceback, no stray file."""
@@ -496,7 +496,7 @@ def test_summary_line_and_penetration_warning(tmp_path, capfd):
     scene = tmp_path / "loaded.toml"
     scene.write_text(
         'T = 0.5\nalpha = 0.01\neps = 0.01\nnx = 50\nnt = 500\nh = 0.05\neta0 = "0.05"\nv0 = "0"\n'
-        'load = "-100"\nmodel = "stringcontact.variants:loaded_obstacle"\n'
+        'load = "-100"\nmodel = "loaded_obstacle"\n'
     )
     assert main(["run", str(scene), *QUICK]) == 0
     captured = capfd.readouterr()

@@ -1,4 +1,4 @@
-"""The command line: `stringcontact run|list|show|plot|study|check` (also `python -m stringcontact`).
+"""The command line: `stringcontact run|list|show|plot|study|check|models` (also `python -m stringcontact`).
 
 Exit codes:
 
@@ -34,6 +34,7 @@ SUBCOMMANDS = {
     "plot": ("stringcontact.viz", "redraw the pictures of an output folder from its saved files"),
     "study": ("stringcontact.study", "work-precision, convergence and stability studies"),
     "check": ("stringcontact.theorems", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
+    "models": ("stringcontact.registry", "list the models a scene may name (registered under stringcontact.models)"),
 }
 
 
@@ -59,7 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
     run.add_argument("--force", action="store_true", help="replace a non-empty output folder (only by a complete run)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.add_argument("--model", metavar="MODULE:FUNCTION", help="model variant (default: the scene's, else the paper's)")
+    run.add_argument("--model", metavar="NAME",
+                     help="model: a name from `stringcontact models`, or package.module:name of a Model object "
+                          "(default: the scene's, else the paper's)")
     run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
     run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
     run.add_argument("--frames", type=int, default=100, metavar="N",
@@ -190,8 +193,8 @@ def _run(args, painter=None) -> int:
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
     _check_scheme_options(args, scene)
     model = None
-    if args.model or scene.model:
-        from .variants import load_model
+    if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
+        from .registry import load_model
 
         model = load_model(args.model or scene.model)
     if args.frames < 1:
@@ -276,7 +279,7 @@ def main(argv=None) -> int:
 def _command(args, painter) -> int:
     from .errors import InstabilityError, Interrupted, OutputError, SceneError
 
-    with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot")):
+    with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot", "models")):
         try:
             if args.command == "run":
                 return _run(args, painter)

@@ -12,6 +12,7 @@ A scene file looks like::
     v0 = -50
     load = "-10"      # optional: external load f(x), for a model that reads it
     obstacle = "0"    # optional: obstacle profile psi(x), for a model that reads it
+    model = "loaded_obstacle"  # optional: a registered model's name (`stringcontact models`)
 
 Usage::
 
@@ -34,7 +35,7 @@ import json
 import math
 import numbers
 import os
-import re
+import stat
 import tomllib
 import warnings
 from dataclasses import dataclass
@@ -81,7 +82,6 @@ _BOUNDS = {
     "h_right": (-1e6, 1e6, False, False),
 }
 _INT_BOUNDS = {"nx": (2, 1_000_000), "nt": (1, 100_000_000)}
-_MODEL_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$", re.ASCII)
 _NAME_MAX = 100
 _BUILTIN_PACKAGE = "stringcontact"
 _BUILTIN_FOLDER = "scenes"
@@ -98,7 +98,7 @@ class Scene:
     ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.expressions`);
     ``h_left``/``h_right`` are the (resolved) heights at which the ends are held.
     ``load`` (an external force density f) and ``obstacle`` (a profile ψ) are optional expressions
-    in ``x`` too; they are data for a model that reads them (``stringcontact.variants:loaded_obstacle``),
+    in ``x`` too; they are data for a model that reads them (``loaded_obstacle``),
     available as :attr:`fields`.
     Direct construction validates too, but resolves no defaults and gives no warnings.
     """
@@ -118,7 +118,7 @@ class Scene:
     output_times: tuple[float, ...] = ()
     description: str = ""
     notes: str = ""  # interpretations of the source data
-    model: str | None = None  # "package.module:function"
+    model: str | None = None  # a registered model name (`stringcontact models`), never a module path
     load: str | None = None  # external load f(x), expression in x (None: not given)
     obstacle: str | None = None  # obstacle profile psi(x), expression in x (None: not given)
     scheme: str | None = None  # a name in stringcontact.SCHEMES (None: "paper")
@@ -511,9 +511,10 @@ def _check_name(value) -> str:
 
 
 def _check_model(value) -> str:
-    if not isinstance(value, str) or not _MODEL_RE.match(value):
-        raise SceneError(f"model: invalid value {_describe(value)}; allowed: 'package.module:function'")
-    return value
+    # A scene is data: it names a registered model and never a module (nothing is imported here).
+    from .registry import check_name
+
+    return check_name(value)
 
 
 def _check_scheme(value) -> str:
@@ -605,6 +606,8 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
     if not path.is_file():
         if path.is_dir():
             raise SceneError(f"scene {text!r}: is a directory; expected a .toml scene file")
+        if path.exists():  # a FIFO, a device, a socket: stat only, never open (a FIFO would block)
+            raise SceneError(f"scene {text!r}: is not a regular file ({_file_kind(path)}); expected a .toml scene file")
         raise SceneError(
             f"scene {text!r}: no built-in scene of that name and no such file "
             f"(built-in scenes: {', '.join(builtins) or 'none'})"
@@ -619,6 +622,13 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
     except OSError as exc:
         raise SceneError(f"scene file {text!r}: cannot read it ({exc.strerror or exc})") from None
     return Scene.from_dict(_parse_toml(raw, text), source=text, default_name=path.stem)
+
+
+def _file_kind(path: Path) -> str:
+    mode = path.stat().st_mode
+    kinds = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+             (stat.S_ISSOCK, "a socket"))
+    return next((kind for test, kind in kinds if test(mode)), "not a file")
 
 
 def list_scenes() -> list[tuple[str, str]]:
