@@ -157,6 +157,15 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm) -> Setting:
     return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x, nt=scene.nt)
 
 
+def _resolve_model(model, scene) -> Model:
+    """`model` (a Model, a registered name or "package.module:name"), else the scene's, else the paper's."""
+    if model is None and not getattr(scene, "model", None):
+        return inelastic
+    from .registry import load_model
+
+    return load_model(model if model is not None else scene.model)
+
+
 def simulate(
     scene,
     scheme: str | None = None,
@@ -164,7 +173,7 @@ def simulate(
     mass: str | None = None,
     output_dir=None,
     progress: bool = False,
-    model: Model | None = None,
+    model: Model | str | None = None,
     max_rows: int = 400,
     max_frames: int = 100,
     force: bool = False,
@@ -172,6 +181,9 @@ def simulate(
     comm=MPI.COMM_WORLD,
 ) -> Result:
     """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
+
+    `model` is a `Model`, a registered name (`stringcontact models`) or "package.module:name"; default:
+    the scene's `model`, else the paper's.
 
     `penalty` and `mass` default to the scheme's own (for "paper": explicit, lumped); an option the scheme
     does not take is refused. About `max_rows` time levels are stored (Result, diagnostics.csv, pictures);
@@ -181,7 +193,7 @@ def simulate(
     name = scheme or getattr(scene, "scheme", None) or "paper"
     Scheme = scheme_class(name)
     penalty, mass = Scheme.check_options(name, penalty, mass)
-    model = model or inelastic
+    model = _resolve_model(model, scene)
     check_model(name, model)
     timings = {}
     t0 = time.perf_counter()

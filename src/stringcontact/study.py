@@ -755,7 +755,7 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
     rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
     """
     if model is None and scene.model:
-        from .variants import load_model
+        from .registry import load_model
 
         model = load_model(scene.model)
     choice = _estimate_on_rank_0(scene, tol, model=model)
