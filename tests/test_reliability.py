@@ -165,6 +165,12 @@ FILE_CASES = [
     ("T-negative", scene_text(T="-1").encode(), "T: -1 is out of range"),
     ("nt-zero", scene_text(nt="0").encode(), "nt: 0 is out of range"),
     ("unknown-key", scene_text(colour='"red"').encode(), "unknown key(s) 'colour'"),
+    ("output-time-bomb", scene_text(T="1", output_times=str([i / 3000 for i in range(3000)])).encode(),
+     "output_times: 3000 times; allowed: at most 1000 times"),
+    ("stored-rows-too-large", scene_text(T="1", nx="100000", nt="100000000",
+                                          output_times=str([i / 1000 for i in range(1000)])).encode(),
+     "the stored rows need 3.51 GB (("),
+    ("nested-5000-deep", scene_text(nested="[" * 5000 + "]" * 5000).encode(), "malformed TOML: arrays or tables nested too deeply"),
 ]
 
 
@@ -184,7 +190,9 @@ OPTION_CASES = [
     (["run", "example1", "--nx", "10000000000000"], "nx: 10000000000000 is out of range"),
     (["run", "example1", "--nt", "0"], "nt: 0 is out of range"),
     (["run", "example1", "--eps", "nan"], "eps: nan is not finite"),
-    (["run", "example1", "--eps", "1e-300"], "r = dt/eps"),
+    (["run", "example1", "--eps", "1e-300", "--penalty", "semi-implicit"], "eps: 1e-300 is out of range; allowed: a number in [1e-12, "),
+    (["run", "example1", "--eps", "5e-324"], "eps: 5e-324 is out of range; allowed: a number in [1e-12, "),
+    (["run", "example1", "--nx", "1000000"], "nx: 1000000 is out of range; allowed: an integer in [2, 100000]"),
     (["run", "example1", "--alpha=-inf"], "alpha: -inf is not finite"),
     (["run", "example1", "--nx", "1e13"], "invalid int value"),
     (["run", "example1", "--out", "{file}"], "exists and is not a folder"),

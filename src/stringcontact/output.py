@@ -163,24 +163,44 @@ def _free_sibling(target: Path, label: str) -> Path:
     raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
 
 
+def _stale_kind(name: str, entry: str) -> str | None:
+    """'partial' or 'old' if `entry` is exactly a hidden folder that a run into `name` makes, else None.
+
+    Exact names only: ``.ex.old-1.partial-…`` belongs to a run into ``ex.old-1``, not to one into ``ex``.
+    """
+    partial = rf"\.{re.escape(name)}\.partial-\d+-[a-z0-9_]+"  # tempfile.mkdtemp's suffix
+    old = rf"\.{re.escape(name)}\.old-\d+-\d+"  # move_into_place's swap
+    if re.fullmatch(partial, entry):
+        return "partial"
+    if re.fullmatch(old, entry):
+        return "old"
+    return None
+
+
 def _recover_stale(target: Path) -> None:
-    """Under the lock: remove the partial folders of killed runs; finish an interrupted --force swap."""
+    """Under the lock: remove the partial folders of killed runs; finish an interrupted --force swap.
+
+    Only folders named exactly as a run into `target` names them, and none that is itself the target of a
+    live run (a user's ``--out .ex.partial-1-x``): its lock would be held.
+    """
     parent, name = target.parent, target.name
     try:
         entries = list(parent.iterdir())
     except OSError:
         return
     removed = []
-    for p in entries:
-        if p.name.startswith(f".{name}.partial") and p.is_dir():
+    for p in sorted(entries):
+        kind = _stale_kind(name, p.name)
+        if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
+            continue
+        if kind == "partial":
             shutil.rmtree(p, ignore_errors=True)
             removed.append(p.name)
-        elif p.name.startswith(f".{name}.old-") and p.is_dir():
-            if not target.exists():  # the swap stopped between its two renames: the old result comes back
-                os.rename(p, target)
-                warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
-            else:
-                shutil.rmtree(p, ignore_errors=True)
+        elif not target.exists():  # the swap stopped between its two renames: the old result comes back
+            os.rename(p, target)
+            warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
+        else:
+            shutil.rmtree(p, ignore_errors=True)
     if removed:
         warnings.warn(
             f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
