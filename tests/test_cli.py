@@ -58,8 +58,27 @@ def test_non_empty_output_folder_is_refused_without_force(tmp_path, capsys):
     assert main(["run", "example1", *SMALL, "--out", str(out)]) == 2
     assert "not empty" in capsys.readouterr().err
     assert (out / "keep.txt").read_text() == "mine"
-    assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 0
-    assert not (out / "keep.txt").exists()
+    capsys.readouterr()
+    # --force replaces a result of ours only: never a folder of other files (a thesis.tex was lost so)
+    assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 2
+    assert "--force replaces only a stringcontact result" in capsys.readouterr().err
+    assert (out / "keep.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("out, message", [(".", "is the current folder or contains it"),
+                                          ("..", "is the current folder or contains it"),
+                                          ("/", "is the root folder")])
+def test_out_that_would_replace_the_current_or_root_folder_is_refused_before_the_run(tmp_path, capsys, monkeypatch,
+                                                                                     out, message):
+    import stringcontact as sc
+
+    (tmp_path / "work").mkdir()
+    monkeypatch.chdir(tmp_path / "work")
+    monkeypatch.setattr(sc, "simulate", lambda *a, **k: pytest.fail("the run started"))
+    assert main(["run", "example1", *SMALL, "--out", out, "--force"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"stringcontact: error: --out {out}: {message}; choose a new folder\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["work"] and list((tmp_path / "work").iterdir()) == []
 
 
 def test_list_and_show(capsys):

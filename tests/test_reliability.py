@@ -392,8 +392,11 @@ def read_only_folder(tmp_path, tmpfs) -> Path:
     return tmpfs("ro", "ro,size=64k")  # root ignores permissions: a read-only file system does not
 
 
-def test_read_only_output_folder(tmp_path, capfd, tmpfs):
+def test_read_only_output_folder(tmp_path, capfd, tmpfs, monkeypatch):
+    import stringcontact as sc
+
     folder = read_only_folder(tmp_path, tmpfs)
+    monkeypatch.setattr(sc, "simulate", lambda *a, **k: pytest.fail("found only after the set-up"))
     assert main(["run", "example1", *SMALL, "--out", str(folder / "out")]) == 2
     err = capfd.readouterr().err
     assert_one_line_error(err, "cannot create the output folder")
@@ -453,12 +456,26 @@ def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
 
 def test_force_replaces_with_a_complete_result(tmp_path):
     out = tmp_path / "out"
-    out.mkdir()
+    assert main(["run", "example1", *SMALL, "--out", str(out)]) == 0
     (out / "old.txt").write_text("old")
-    assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 0
+    assert main(["run", "example1", *SMALL, "--nx", "60", "--out", str(out), "--force"]) == 0
     assert not (out / "old.txt").exists()
-    assert json.loads((out / "summary.json").read_text())["status"] == "complete"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "complete" and summary["scene"]["nx"] == 60
     assert leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("summary", [None, "not json", '{"status": "draft"}', "[1, 2]"])
+def test_force_refuses_a_folder_without_a_summary_of_ours(tmp_path, capfd, summary):
+    out = tmp_path / "thesis"
+    out.mkdir()
+    (out / "thesis.tex").write_text("years of work")
+    if summary is not None:
+        (out / "summary.json").write_text(summary)
+    assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 2
+    assert_one_line_error(capfd.readouterr().err, "--force replaces only a stringcontact result")
+    assert (out / "thesis.tex").read_text() == "years of work"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]
 
 
 def test_unexpected_error_leaves_nothing(tmp_path, space):

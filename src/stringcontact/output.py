@@ -135,16 +135,38 @@ def _read_pid(fd) -> int | None:
         return None
 
 
-def check_target(path, force: bool, *, locked: bool = False) -> Path:
-    """Refuse a path that is a file, a non-empty folder (unless `force`), and a folder another run writes to.
+#: The statuses a run writes into its summary.json; `--force` replaces only a folder holding one of them.
+STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
+#: What marks a folder as ours: a run's summary.json, or the checks.json of `stringcontact check --out`.
+RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks"}
 
-    `locked`: the caller holds the folder's lock itself (so the lock is not probed).
+
+def check_target(path, force: bool, *, locked: bool = False) -> Path:
+    """Refuse an --out that cannot or must not take a result, before any work is done.
+
+    Refused: the root folder, the current folder or one containing it, a file, a parent that cannot be written,
+    a non-empty folder (unless `force`, and then only a folder holding a result of ours), and a folder another
+    run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
     """
     target = Path(path)
+    resolved = target.resolve()
+    if not resolved.name:
+        raise OutputError(f"--out {target}: is the root folder; choose a new folder")
+    with contextlib.suppress(OSError):
+        if Path.cwd() == resolved or resolved in Path.cwd().parents:
+            raise OutputError(f"--out {target}: is the current folder or contains it; choose a new folder")
     if target.exists() and not target.is_dir():
         raise OutputError(f"--out {target}: exists and is not a folder")
-    if target.is_dir() and any(target.iterdir()) and not force:
-        raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+    if not target.exists():
+        _check_writable(target, resolved.parent)
+    if target.is_dir() and any(target.iterdir()):
+        if not force:
+            raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+        if not _holds_our_result(target):
+            raise OutputError(
+                f"--out {target}: --force replaces only a stringcontact result (a folder with its summary.json), "
+                "and this folder holds other files; choose another folder"
+            )
     holder = None if locked else TargetLock.holder(target)
     if holder is not None:
         who = f" (pid {holder})" if holder else ""
@@ -153,6 +175,33 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
             "wait for it to finish or choose another folder"
         )
     return target
+
+
+def _check_writable(target: Path, parent: Path) -> None:
+    """Refuse a target whose nearest existing parent folder cannot be written (read-only or no permission)."""
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    reason = None
+    with contextlib.suppress(OSError):
+        if os.statvfs(parent).f_flag & os.ST_RDONLY:
+            reason = errno.EROFS
+    if reason is None and not os.access(parent, os.W_OK | os.X_OK):
+        reason = errno.EACCES
+    if reason is not None:
+        why = describe_os_error(OSError(reason, os.strerror(reason)), parent)
+        raise OutputError(f"--out {target}: cannot create the output folder: {why}")
+
+
+def _holds_our_result(folder: Path) -> bool:
+    """A folder with a summary.json (or checks.json) written by stringcontact."""
+    for name, key in RESULT_MARKERS.items():
+        try:
+            data = json.loads((folder / name).read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and key in data and (key != "status" or data[key] in STATUSES):
+            return True
+    return False
 
 
 def _free_sibling(target: Path, label: str) -> Path:
