@@ -359,6 +359,41 @@ def test_stale_partial_of_a_killed_run_is_removed(tmp_path, capfd):
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "complete"
 
 
+def test_stale_cleanup_matches_exact_names_and_spares_live_runs(tmp_path, capfd):
+    """A run into `ex` removes or restores only `.ex.partial-PID-XXX` / `.ex.old-PID-NS` of killed runs."""
+    live_target = tmp_path / "ex.old-1"  # another run, alive: it holds its lock
+    live = tmp_path / ".ex.old-1.partial-12345-abcd1234"
+    killed_other = tmp_path / ".ex.old-1.partial-999999-zz9_zz9z"  # a killed run into ex.old-1, not into ex
+    lookalike = tmp_path / ".ex.partial-1-abc.notes"
+    hidden_target = tmp_path / ".ex.partial-777-hiddenxx"  # a user's own --out, being written by a live run
+    for folder in (live, killed_other, lookalike, hidden_target):
+        folder.mkdir()
+        (folder / "data").write_text(folder.name)
+    locks = [TargetLock(live_target), TargetLock(hidden_target)]
+    try:
+        assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "ex")]) == 0
+    finally:
+        for lock in locks:
+            lock.release()
+    err = capfd.readouterr().err
+    assert "restored" not in err and "removed" not in err, err
+    for folder in (live, killed_other, lookalike, hidden_target):
+        assert (folder / "data").read_text() == folder.name
+    assert json.loads((tmp_path / "ex" / "summary.json").read_text())["status"] == "complete"
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == ["ex"]
+
+
+def test_interrupted_force_swap_is_restored(tmp_path, capfd):
+    old = tmp_path / f".out.old-999999-{10**12}"  # killed between the two renames of a --force swap
+    old.mkdir()
+    (old / "summary.json").write_text('{"status": "complete", "mark": 1}')
+    assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
+    assert "restored the previous result" in capfd.readouterr().err
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["mark"] == 1
+    assert json.loads((tmp_path / "out.new" / "summary.json").read_text())["status"] == "complete"
+    assert leftovers(tmp_path) == []
+
+
 # --- the output folder's device: read-only, full -----------------------------------------------------
 
 
