@@ -1,6 +1,7 @@
 """Reliability: hostile and broken input through the CLI, interrupted and unstable runs, locks,
 disk-full and read-only output folders, and the closing numbers checks (docs/reliability.md)."""
 
+import errno
 import json
 import math
 import os
@@ -445,6 +446,54 @@ def test_disk_full_gives_one_line_and_leaves_nothing(capfd, tmpfs):
     assert_one_line_error(capfd.readouterr().err, "the disk is full", "nothing was written there")
     assert list(folder.iterdir()) == []
     assert shutil.disk_usage(folder).used == 0  # the partial folder is gone: the space is free again
+
+
+def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs):
+    folder = tmpfs("pictures", "size=300k")  # the data (~230 KB) fit, the pictures do not
+    assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress",
+                 "--out", str(folder / "out")]) == 2
+    assert_one_line_error(capfd.readouterr().err, "cannot write the output files: the disk is full", "nothing was written there")
+    assert list(folder.iterdir()) == []
+    assert shutil.disk_usage(folder).used == 0
+
+
+def test_is_disk_failure_looks_through_the_exception_chain():
+    from stringcontact.output import is_disk_failure
+
+    def raised(inner):
+        try:
+            try:
+                raise inner
+            except OSError as exc:
+                raise RuntimeError("vtkPNGWriter failed") from exc
+        except RuntimeError as exc:
+            return exc
+
+    assert is_disk_failure(raised(OSError(errno.ENOSPC, "No space left on device")))
+    assert is_disk_failure(OSError(errno.EIO, "I/O error"))
+    assert not is_disk_failure(raised(OSError(errno.ENOENT, "No such file")))
+    assert not is_disk_failure(ValueError("a bug in a picture"))
+
+
+# --- a run whose energy balance does not close is never "complete" ---------------------------------
+
+
+def test_unbalanced_run_is_kept_marked_and_exits_3(tmp_path, capfd, monkeypatch):
+    out = tmp_path / "out"
+    assert main(["run", "example1", *SMALL, "--out", str(out)]) == 0
+    before = (out / "summary.json").read_text()
+    capfd.readouterr()
+    # The verdict decides: with a tolerance below round-off, the same run's balance "does not close".
+    monkeypatch.setattr("stringcontact.output.BALANCE_RTOL", 1e-300)
+    assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 3
+    captured = capfd.readouterr()
+    assert_one_line_error(captured.err, "the energy balance does not close", "not trustworthy")
+    assert "DOES NOT CLOSE" in captured.out and "(unbalanced at t = 0.3)" in captured.out
+    assert (out / "summary.json").read_text() == before  # --force never trades a result for an unbalanced one
+    summary = json.loads((tmp_path / "out.unbalanced" / "summary.json").read_text())
+    assert summary["status"] == "unbalanced" and not summary["energy_balance"]["closes"]
+    assert "does not close" in summary["message"]
+    assert leftovers(tmp_path) == []
 
 
 # --- --force never trades a finished result for an unfinished one ---------------------------------

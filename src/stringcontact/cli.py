@@ -6,7 +6,8 @@ Exit codes:
 * 1 an internal error (a bug: one line; STRINGCONTACT_TRACEBACK=1 shows the traceback);
 * 2 bad input: scene, options, output folder (not empty, locked by another run, read-only, disk full),
   a scheme that would be unstable before it starts;
-* 3 a run that became unstable (its partial output is kept, marked "unstable");
+* 3 a run that became unstable (its partial output is kept, marked "unstable"), or whose energy balance does
+  not close (its output is kept, marked "unbalanced");
 * 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (partial output kept, marked "interrupted").
 
 Every error is one line on stderr; no traceback.
@@ -230,6 +231,12 @@ def _run(args, painter=None) -> int:
     report(res)
     if args.out is not None:
         print(f"wrote {args.out}")
+    from .output import unbalanced_message
+
+    unbalanced = unbalanced_message(res)
+    if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
+        _error(unbalanced)
+        return EXIT_UNSTABLE
     return EXIT_OK
 
 

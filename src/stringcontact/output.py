@@ -337,6 +337,21 @@ def describe_os_error(exc: BaseException, folder, probe=None) -> str:
     return f"{one_line(exc, 300)} ({folder})"
 
 
+#: errno values that mean the device failed, not the data: the output folder cannot be kept.
+DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
+
+
+def is_disk_failure(exc: BaseException) -> bool:
+    """`exc`, or an exception it was raised from or during, is an OSError of a full or failing device."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in DISK_ERRNOS:
+            return True
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
     """Rename the finished folder `partial` to `target`; returns where it went.
 
@@ -660,16 +675,29 @@ class OutputWriter:
     # -- the end of a run
 
     def finish(self, result) -> None:
-        """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place."""
+        """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place.
+
+        A run whose energy balance does not close is kept, marked "unbalanced" (result.status too), never
+        "complete". A write that fails on the device (disk full, I/O error), pictures included, removes the
+        folder and raises OutputError on every rank.
+        """
         try:
             self._close_xdmf()
+            unbalanced = unbalanced_message(result)
+            if unbalanced is not None:
+                result.status, result.message = "unbalanced", unbalanced
             summary = summary_dict(result)
+            failure = None
             if self.comm.rank == 0:
-                write_diagnostics(self.partial / "diagnostics.csv", result)
-                if self.pictures:
-                    t0 = time.perf_counter()
-                    self._pictures(result)
-                    summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
+                try:
+                    self._write_tables_and_pictures(result, summary)
+                except (OSError, RuntimeError) as exc:
+                    failure = describe_os_error(exc, self.target.parent, probe=self.partial)
+            if self.comm.size > 1:
+                failure = self.comm.bcast(failure, root=0)
+            if failure is not None:
+                self._discard()
+                raise OutputError(f"--out {self.target}: cannot write the output files: {failure}; nothing was written there")
             self._publish(summary)
         except KeyboardInterrupt as exc:
             # Ctrl-C while drawing: the data are whole, and the folder says it was interrupted. If it came
@@ -719,6 +747,14 @@ class OutputWriter:
 
     # -- internals
 
+    def _write_tables_and_pictures(self, result, summary: dict) -> None:
+        """Rank 0: diagnostics.csv and the pictures. A picture that fails on the device raises (`is_disk_failure`)."""
+        write_diagnostics(self.partial / "diagnostics.csv", result)
+        if self.pictures:
+            t0 = time.perf_counter()
+            self._pictures(result)
+            summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
+
     def _pictures(self, result) -> None:
         try:
             from .viz import write_pictures  # pictures on rank 0 only
@@ -727,6 +763,8 @@ class OutputWriter:
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
+            if is_disk_failure(exc):  # ...but not on a device that fails: then nothing is kept (finish)
+                raise
             warnings.warn(f"pictures not written ({type(exc).__name__}: {one_line(exc, 300)})", stacklevel=3)
 
     def _bare_summary(self) -> dict:
@@ -973,6 +1011,19 @@ def penetration_check(result) -> dict:
         "law": "spring (sqrt(eps))" if result.model == "elastic" else "velocity penalty (eps)",
         "within_bound": bool(depth <= bound * (1 + 1e-12)),
     }
+
+
+def unbalanced_message(result) -> str | None:
+    """Why a run whose energy balance does not close cannot be called complete; None if it closes."""
+    if not len(result.t):
+        return None
+    b = energy_balance(result)
+    if b["closes"]:
+        return None
+    return (
+        f"the energy balance does not close (relative residual {b['relative_residual']:.2g} > {b['tolerance']:.0e}): "
+        "the numbers are not trustworthy; see docs/reliability.md"
+    )
 
 
 def summary_dict(result) -> dict:
