@@ -19,7 +19,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import leftovers
+from conftest import leftovers, mpirun
 
 from stringcontact.cli import main
 from stringcontact.output import TargetLock, energy_balance, penetration_check, xdmf_series
@@ -446,6 +446,20 @@ def test_disk_full_gives_one_line_and_leaves_nothing(capfd, tmpfs):
     assert_one_line_error(capfd.readouterr().err, "the disk is full", "nothing was written there")
     assert list(folder.iterdir()) == []
     assert shutil.disk_usage(folder).used == 0  # the partial folder is gone: the space is free again
+
+
+@pytest.mark.mpi
+def test_disk_full_under_mpi_every_rank_exits_2_with_one_line(tmpfs):
+    folder = tmpfs("mpi-full", "size=300k")  # the run needs about 3 MB
+    proc = mpirun([sys.executable, "-m", "stringcontact", "run", "example1", "--nx", "200", "--nt", "750", *QUICK,
+                   "--out", folder / "out"], ranks=2)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = errors_of(proc.stderr)
+    assert len(lines) == 2 and all("the disk is full" in line and "nothing was written there" in line for line in lines)
+    for crash in ("Traceback", "HDF5-DIAG", "terminate called", "Signal: Aborted", "MPI_ABORT"):
+        assert crash not in proc.stderr, proc.stderr[-3000:]
+    assert list(folder.iterdir()) == []  # no partial folder, no lock
+    assert shutil.disk_usage(folder).used == 0
 
 
 def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs):

@@ -532,6 +532,14 @@ class _Hdf5Quiet:
         return False
 
 
+def _never_destroy(obj) -> None:
+    """Keep `obj` alive until the process ends: an XDMFFile whose close() failed (a full disk) would close again
+    in its C++ destructor, throw there, and abort the process (exit 134 and a page of HDF5 and MPI output). Its
+    file is released by the kernel when the process exits.
+    """
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
+
+
 # --- the writer ------------------------------------------------------------------------------------------
 
 
@@ -786,6 +794,9 @@ class OutputWriter:
             xdmf, self.xdmf = self.xdmf, None
             try:
                 xdmf.close()
+            except BaseException:
+                _never_destroy(xdmf)
+                raise
             finally:
                 self._quiet.__exit__()
 
