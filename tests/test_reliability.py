@@ -218,6 +218,31 @@ def test_bad_options_via_cli(tmp_path, capfd, argv, fragment):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file", "a-folder"]
 
 
+def test_output_times_are_bounded_by_frames(tmp_path, capfd):
+    scene = tmp_path / "times.toml"
+    times = [round(0.01 * i, 2) for i in range(1, 30)]  # 29 output times, each a stored row
+    scene.write_text(scene_text(T="0.3", nt="300", nx="20", output_times=str(times)))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), *QUICK, "--frames", "10", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["xdmf_frames"] == 10 == len(xdmf_series(out / "solution.xdmf")["eta"])
+    assert summary["stored_rows"] >= 29 + 2
+    assert "the scene's 29 output times do not fit in 10 XDMF frames" in capfd.readouterr().err
+
+
+def test_warnings_stay_one_line_after_the_form_compiler_is_loaded(tmp_path):
+    # ffcx calls logging.captureWarnings(True) on import: warnings then went to "WARNING:py.warnings:FILE:LINE: ..."
+    scene = tmp_path / "times.toml"
+    scene.write_text(scene_text(T="0.3", nt="40", nx="20", eps="0.005", output_times="[0.1, 0.2]"))
+    proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", str(scene), *QUICK, "--frames", "2",
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert any("r = dt/eps = 1.5 > 1 rebounds" in line for line in lines)  # before the XDMF writer starts
+    assert any("output times do not fit in 2 XDMF frames" in line for line in lines)  # after ffcx is loaded
+    assert all(line.startswith("stringcontact: warning: ") for line in lines), proc.stderr
+
+
 # --- interrupted runs: SIGINT / SIGTERM on a running command line ------------------------------------
 
 READER = r"""
