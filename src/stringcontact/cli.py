@@ -56,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--penalty", choices=("explicit", "semi-implicit"), default="explicit")
     run.add_argument("--mass", choices=("lumped", "consistent"), default="lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
-    run.add_argument("--force", action="store_true", help="replace a non-empty output folder (only by a complete run)")
+    run.add_argument("--force", action="store_true", help="replace an output folder holding a stringcontact result (only by a complete run)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--model", metavar="MODULE:FUNCTION", help="model variant (default: the scene's, else the paper's)")
     run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")

@@ -2,16 +2,18 @@
 
 A run writes into a hidden folder of its own beside the target (``.NAME.partial-<pid>-<random>``) and
 renames it into place at the end, so the target is always absent, complete, or explicitly marked
-``"status": "interrupted"`` or ``"unstable"`` in its `summary.json`. Never half-written:
+``"status": "interrupted"``, ``"unstable"`` or ``"unbalanced"`` in its `summary.json`. Never half-written:
 
 * a lock file ``.NAME.lock`` (``fcntl.flock``) keeps a second run from writing to the same target;
 * each stored time is written with SIGINT/SIGTERM held back, so the XDMF holds whole time levels;
 * the XDMF is closed (and read back) before the rename; files are fsync'ed, then the folder is renamed;
-* with ``--force`` only a *complete* run replaces an existing target; an interrupted or unstable one goes
-  to ``NAME.interrupted`` / ``NAME.unstable`` beside it, so a finished result is never lost;
-* a disk-full or permission error removes the partial folder and raises :class:`OutputError` with one line;
+* with ``--force`` only a *complete* run replaces an existing target, and only one holding a result of ours
+  (`check_target`); an interrupted, unstable or unbalanced one goes to ``NAME.interrupted`` / ``.unstable`` /
+  ``.unbalanced`` beside it, so a finished result is never lost;
+* a disk-full or permission error (in a picture too) removes the partial folder and raises
+  :class:`OutputError` with one line, on every MPI rank;
 * the partial folders of runs that were killed (SIGKILL, power loss) are removed by the next run that
-  takes the lock.
+  takes the lock: exact names only, never one a live run holds.
 
 `energy_balance` and `penetration_check` are the two numbers checks of every run (summary.json and the
 command line's last lines); see docs/reliability.md.
