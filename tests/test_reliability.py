@@ -496,22 +496,43 @@ def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs
     assert shutil.disk_usage(folder).used == 0
 
 
-def test_is_disk_failure_looks_through_the_exception_chain():
-    from stringcontact.output import is_disk_failure
+def test_disk_failure_looks_through_the_exception_chain():
+    from stringcontact.output import disk_failure
 
     def raised(inner):
         try:
             try:
                 raise inner
             except OSError as exc:
-                raise RuntimeError("vtkPNGWriter failed") from exc
-        except RuntimeError as exc:
+                raise ValueError("vtkPNGWriter failed") from exc
+        except ValueError as exc:
             return exc
 
-    assert is_disk_failure(raised(OSError(errno.ENOSPC, "No space left on device")))
-    assert is_disk_failure(OSError(errno.EIO, "I/O error"))
-    assert not is_disk_failure(raised(OSError(errno.ENOENT, "No such file")))
-    assert not is_disk_failure(ValueError("a bug in a picture"))
+    full = OSError(errno.ENOSPC, "No space left on device")
+    assert disk_failure(raised(full)) is full
+    assert disk_failure(OSError(errno.EIO, "I/O error")).errno == errno.EIO
+    assert disk_failure(raised(OSError(errno.ENOENT, "No such file"))) is None
+    assert disk_failure(ValueError("a bug in a picture")) is None
+
+
+@pytest.mark.parametrize("cause, code", [(errno.ENOSPC, 2), (errno.EIO, 2), (None, 0)], ids=["ENOSPC", "EIO", "other"])
+def test_picture_failure_removes_the_folder_only_when_the_device_fails(tmp_path, capfd, monkeypatch, cause, code):
+    def failing_pictures(result, folder, **kwargs):
+        try:
+            raise OSError(cause, os.strerror(cause)) if cause else KeyError("font")
+        except (OSError, KeyError) as exc:
+            raise ValueError("the picture layer wrapped it") from exc
+
+    monkeypatch.setattr("stringcontact.viz.write_pictures", failing_pictures)
+    out = tmp_path / "out"
+    assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress", "--out", str(out)]) == code
+    err = capfd.readouterr().err
+    if code == 2:
+        assert_one_line_error(err, "cannot write the output files", "nothing was written there")
+        assert list(tmp_path.iterdir()) == []
+    else:
+        assert "stringcontact: warning: pictures not written (ValueError" in err
+        assert json.loads((out / "summary.json").read_text())["status"] == "complete"
 
 
 # --- a run whose energy balance does not close is never "complete" ---------------------------------

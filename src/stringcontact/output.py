@@ -343,15 +343,15 @@ def describe_os_error(exc: BaseException, folder, probe=None) -> str:
 DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
 
 
-def is_disk_failure(exc: BaseException) -> bool:
-    """`exc`, or an exception it was raised from or during, is an OSError of a full or failing device."""
+def disk_failure(exc: BaseException) -> OSError | None:
+    """The OSError of a full or failing device that `exc` is, or was raised from or during; else None."""
     seen = set()
     while exc is not None and id(exc) not in seen:
         seen.add(id(exc))
         if isinstance(exc, OSError) and exc.errno in DISK_ERRNOS:
-            return True
+            return exc
         exc = exc.__cause__ or exc.__context__
-    return False
+    return None
 
 
 def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
@@ -701,8 +701,10 @@ class OutputWriter:
             if self.comm.rank == 0:
                 try:
                     self._write_tables_and_pictures(result, summary)
-                except (OSError, RuntimeError) as exc:
-                    failure = describe_os_error(exc, self.target.parent, probe=self.partial)
+                except Exception as exc:  # noqa: BLE001 - sorted below
+                    if not isinstance(exc, (OSError, RuntimeError)) and disk_failure(exc) is None:
+                        raise
+                    failure = describe_os_error(disk_failure(exc) or exc, self.target.parent, probe=self.partial)
             if self.comm.size > 1:
                 failure = self.comm.bcast(failure, root=0)
             if failure is not None:
@@ -758,7 +760,7 @@ class OutputWriter:
     # -- internals
 
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
-        """Rank 0: diagnostics.csv and the pictures. A picture that fails on the device raises (`is_disk_failure`)."""
+        """Rank 0: diagnostics.csv and the pictures. A picture that fails on the device raises (`disk_failure`)."""
         write_diagnostics(self.partial / "diagnostics.csv", result)
         if self.pictures:
             t0 = time.perf_counter()
@@ -773,7 +775,7 @@ class OutputWriter:
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
-            if is_disk_failure(exc):  # ...but not on a device that fails: then nothing is kept (finish)
+            if disk_failure(exc) is not None:  # ...but not on a device that fails: then nothing is kept (finish)
                 raise
             warnings.warn(f"pictures not written ({type(exc).__name__}: {one_line(exc, 300)})", stacklevel=3)
 
