@@ -692,6 +692,7 @@ def test_staged_folder_writes_all_or_nothing(tmp_path):
     with staged_folder(out) as folder:
         assert folder.parent == tmp_path and folder.name.startswith(".checks.partial-")
         (folder / "a.txt").write_text("whole")
+        (folder / "checks.json").write_text('{"checks": []}')  # what `stringcontact check --out` writes: ours
     assert (out / "a.txt").read_text() == "whole" and leftovers(tmp_path) == []
 
     with pytest.raises(OutputError, match="folder is not empty"):
