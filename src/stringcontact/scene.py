@@ -56,6 +56,9 @@ __all__ = [
     "FIELD_KEYS",
     "REQUIRED_KEYS",
     "MAX_FILE_BYTES",
+    "MAX_OUTPUT_TIMES",
+    "MAX_STORED_BYTES",
+    "stored_bytes",
 ]
 
 #: Keys a scene file (or Scene.replace) accepts, in the order they are written.
@@ -76,12 +79,21 @@ _BOUNDS = {
     "length": (0.0, 1e4, True, False),
     "T": (0.0, 1e4, True, False),
     "alpha": (0.0, 1e4, False, False),
-    "eps": (0.0, 1e6, True, False),
+    "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/reliability.md, "Size and precision limits"
     "h": (-1e6, 1e6, False, False),
     "h_left": (-1e6, 1e6, False, False),
     "h_right": (-1e6, 1e6, False, False),
 }
-_INT_BOUNDS = {"nx": (2, 1_000_000), "nt": (1, 100_000_000)}
+# nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
+# (benchmarks/bench_mesh_size.py).
+_INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000)}
+#: At most this many output times: each is a stored row (and an XDMF frame, within --frames).
+MAX_OUTPUT_TIMES = 1000
+#: The stored rows (eta, velocity, contact force as float64, contact as bool) may take at most this many bytes.
+MAX_STORED_BYTES = 2_000_000_000
+BYTES_PER_STORED_NODE = 3 * 8 + 1
+#: The solver's default number of stored rows (`simulate(max_rows=400)`), besides 0, T and the output times.
+STORED_ROWS = 400
 _NAME_MAX = 100
 _BUILTIN_PACKAGE = "stringcontact"
 _BUILTIN_FOLDER = "scenes"
@@ -147,6 +159,7 @@ class Scene:
         if self.scheme is not None:
             put("scheme", _check_scheme(self.scheme))
         put("output_times", _check_output_times(self.output_times, self.T))
+        _check_storage(self.nx, self.nt, len(self.output_times))
         for key in ("eta0", "v0") + tuple(self.fields):
             put(key, _expression_text(key, getattr(self, key)))
             expressions.check(getattr(self, key), field=key, names=self._names())
@@ -528,6 +541,8 @@ def _check_scheme(value) -> str:
 def _check_output_times(value, T: float) -> tuple[float, ...]:
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         raise SceneError(f"output_times: expected a list of numbers in [0, T], got {_describe(value)}")
+    if len(value) > MAX_OUTPUT_TIMES:
+        raise SceneError(f"output_times: {len(value)} times; allowed: at most {MAX_OUTPUT_TIMES} times in [0, T = {_fmt(T)}]")
     times = []
     for t in value:
         if not _is_number(t) or not math.isfinite(float(t)):
@@ -539,6 +554,23 @@ def _check_output_times(value, T: float) -> tuple[float, ...]:
     if any(b <= a for a, b in zip(times, times[1:])):
         raise SceneError("output_times: must be sorted ascending without duplicates")
     return tuple(times)
+
+
+def stored_bytes(nx: int, nt: int, n_output_times: int, max_rows: int = STORED_ROWS) -> int:
+    """An upper bound on the memory of a run's stored rows: rows × (nx + 1) nodes × BYTES_PER_STORED_NODE."""
+    rows = min(nt, max_rows) + 2 + n_output_times  # every k-th step, 0 and T, the output times
+    return rows * (nx + 1) * BYTES_PER_STORED_NODE
+
+
+def _check_storage(nx: int, nt: int, n_output_times: int) -> None:
+    """Refuse a scene whose stored rows would not fit, before anything is allocated."""
+    need = stored_bytes(nx, nt, n_output_times)
+    if need > MAX_STORED_BYTES:
+        raise SceneError(
+            f"nx, nt, output_times: the stored rows need {need / 1e9:.3g} GB ((min(nt, {STORED_ROWS}) + 2 + "
+            f"{n_output_times} output times) rows x (nx + 1) nodes x {BYTES_PER_STORED_NODE} bytes); allowed: at most "
+            f"{MAX_STORED_BYTES / 1e9:g} GB; reduce nx or the number of output times"
+        )
 
 
 def _fmt(v) -> str:
@@ -587,6 +619,8 @@ def _parse_toml(raw: bytes, label: str) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"scene file {label!r}: invalid TOML: {one_line(exc)}") from None
+    except RecursionError:  # tomllib recurses once per level of [[[...]]]; no scene nests at all
+        raise SceneError(f"scene file {label!r}: malformed TOML: arrays or tables nested too deeply") from None
 
 
 def load_scene(name_or_path: str | os.PathLike) -> Scene:
