@@ -988,11 +988,15 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
         ax = axes[0]
         labels = []
         dts = sorted({r["dt"] for r in rows}, reverse=True)
-        for k, (pen, mass) in enumerate(treatments):
-            for j, dt in enumerate(dts):
-                y = k * (len(dts) + 1) + j
-                labels.append((y, f"{pen}, {mass}, Δt={dt:.3g}"))
+        y = -1
+        for pen, mass in treatments:
+            y += 1
+            for dt in dts:
                 sel = [r for r in rows if (r["penalty"], r["mass"], r["dt"]) == (pen, mass, dt)]
+                if not sel:  # the spring is swept at one Δt only
+                    continue
+                y += 1
+                labels.append((y, f"{pen}, {mass}, Δt={dt:.3g}"))
                 ax.scatter([r["r"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k", linewidths=0.3,
                            c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
         ax.set_xscale("log")
