@@ -8,6 +8,9 @@
 import importlib
 
 from .errors import InstabilityError, InstabilityWarning, SceneError
+from .jitlog import quiet_compiler
+
+quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 
 __version__ = "0.1.0"
 
@@ -22,6 +25,7 @@ _LAZY = {
     "SceneWarning": "scene",
     "list_scenes": "scene",
     "load_scene": "scene",
+    "load_model": "registry",
     "SCHEMES": "schemes",
     "simulate": "solver",
 }
@@ -51,6 +55,7 @@ __all__ = [
     "SceneWarning",
     "inelastic",
     "list_scenes",
+    "load_model",
     "load_scene",
     "simulate",
 ]

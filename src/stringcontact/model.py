@@ -35,10 +35,11 @@ A model is a `Model`: a few plain functions that return UFL.
     admissible set is gap ≥ 0. Schemes that enforce the constraint itself (``projection``) need it;
     ``None`` for a law that is meant to let the string through (a spring that bounces).
 
-``stability(r, penalty)`` (optional)
-    The bound this contact law puts on r = Δt/ε when a scheme evaluates it explicitly: returns
-    ``None`` (fine), ``("warn", why)`` or ``("refuse", why)``. It belongs to the law, not to the solver:
-    the velocity penalty's restitution is r − 1, a spring has no such bound.
+``stability(dt, eps, penalty)`` (optional)
+    The bound this contact law puts on Δt and ε when a scheme evaluates it (``penalty`` is "explicit" or
+    "semi-implicit"): returns ``None`` (fine), ``("warn", why)`` or ``("refuse", why)``. It belongs to the
+    law, not to the solver: the velocity penalty's restitution is r − 1 with r = Δt/ε; a spring's bound is on
+    Δt²/ε (`variants.spring_bound`).
 
 ``contact_energy(eta, p)`` (optional)
     For a *conservative* law (F = −∂Φ/∂η, a spring): the stored energy density Φ(η), so that the
@@ -112,11 +113,12 @@ def gap(eta, p: Parameters):
     return eta
 
 
-def restitution_bound(r: float, penalty: str):
-    """The explicit velocity penalty rebounds with restitution r − 1: refuse r ≥ 2 (growth), warn for r > 1.
+def restitution_bound(dt: float, eps: float, penalty: str):
+    """The explicit velocity penalty rebounds with restitution r − 1, r = Δt/ε: refuse r ≥ 2 (growth), warn r > 1.
 
     The semi-implicit penalty applies the damping to the new velocity and cannot overshoot: no bound.
     """
+    r = dt / eps
     if penalty != "explicit" or r <= 1:
         return None
     if r >= 2:

@@ -123,6 +123,7 @@ def read_output(folder):
     """
     import pyfive  # pure-Python HDF5: h5py's wheel clashes with the libhdf5 that dolfinx has already loaded
 
+    from .registry import registered
     from .result import ENERGY_KEYS, Result
     from .scene import Scene
 
@@ -174,9 +175,12 @@ def read_output(folder):
                 raise ValueError(f"plot: {folder}: the times of '{name}' in solution.xdmf differ from diagnostics.csv")
             fields[name] = np.stack([np.asarray(h5[_h5_path(ref)][:])[:, 0][order] for _, ref in series[name]])
 
+    scene_data = dict(summary["scene"])
+    if scene_data.get("model") not in registered():  # an uninstalled plugin, or a module path of an older folder:
+        scene_data.pop("model", None)  # redrawing needs no model (its name stays in Result.model)
     with warnings.catch_warnings():  # the scene was already warned about when it ran
         warnings.simplefilter("ignore")
-        scene = Scene.from_dict(summary["scene"])
+        scene = Scene.from_dict(scene_data)
     return Result(
         scene=scene,
         x=x_all[order],

@@ -2,7 +2,10 @@
 
 A scheme advances the nodal state (η, v) one step and reports the terms of its own discrete energy
 identity, so that the driver's ledger E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off
-whatever the scheme. Energy that the contact law (or a projection) removes is always D_con.
+whatever the scheme. Energy that the contact law (or a projection) removes is always D_con, booked the
+same way by every scheme: the work of the nodal contact force f with the step's mean velocity,
+−(Δt/2) f·(v^n + v^{n+1}). It is ½ m V² for a node that lands at speed V and stops, whatever ε, and
+about 0 for a node held at rest on the obstacle; what a scheme's identity puts elsewhere is D_num.
 """
 
 from __future__ import annotations
@@ -127,9 +130,10 @@ class Scheme:
 # --- shared parts -------------------------------------------------------------------------------------
 
 
-def check_law_stability(model, r: float, penalty: str) -> None:
-    """Apply the contact law's own bound on r = Δt/ε (`Model.stability`): refuse or warn before the run."""
-    verdict = model.stability(r, penalty) if model.stability is not None else None
+def check_law_stability(model, dt: float, eps: float, penalty: str) -> None:
+    """Apply the contact law's own bound on Δt and ε (`Model.stability`): refuse or warn before the run."""
+    r = dt / eps
+    verdict = model.stability(dt, eps, penalty) if model.stability is not None else None
     if verdict is None:
         return
     kind, why = verdict
@@ -167,14 +171,3 @@ def dirichlet_rows(A: PETSc.Mat, bc: np.ndarray) -> None:
     """Identity rows at the fixed ends (their values are set in the right-hand side)."""
     rstart = A.getOwnershipRange()[0]
     A.zeroRows((bc + rstart).astype(np.int32), diag=1.0)
-
-
-def lumped_split(force: np.ndarray, v_before: np.ndarray, dt: float, m: np.ndarray) -> float:
-    """The energy a nodal impulse Δt·f removes from the velocity it meets: −Δt f·(v + ½Δt f/m) (lumped m).
-
-    It is ½|v|²_m − ½|v + Δt f/m|²_m, what the force alone would take out of the kinetic energy. Booking
-    this as contact dissipation (and the rest of the step's loss as numerical) puts a landing's loss,
-    ½ m V², under contact whatever the penalty or ε (with ε → 0 the force-times-new-velocity work tends to
-    zero, and the loss would otherwise show up as numerical dissipation).
-    """
-    return -dt * float(np.dot(force, v_before)) - 0.5 * dt * dt * float(np.dot(force, np.divide(force, m, out=np.zeros_like(m), where=m > 0)))

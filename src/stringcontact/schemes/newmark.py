@@ -42,7 +42,7 @@ class Scheme(Base):
         super().__init__(s)
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
         laws = s.laws
-        check_law_stability(laws.model, dt / s.eps, s.penalty)
+        check_law_stability(laws.model, dt, s.eps, s.penalty)
         same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
         self.Ms = diagonal_matrix(ops.M, ops.m) if s.mass == "lumped" else ops.M
         self.A = ops.K.copy()

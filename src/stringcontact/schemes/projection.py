@@ -9,9 +9,12 @@ With lumped mass M and v^n = (η^n − η^{n−1})/Δt, the free step is
 it. A node that lands keeps η^{n+1} = ψ, so its velocity becomes 0: restitution 0, the paper's (A4).
 This is Paoli and Schatzman's scheme with e = 0. The model must declare ``gap`` (η − ψ).
 
-Energy: the leapfrog conserves E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n exactly, up to the viscous
-work (Δt/2) v^{n+1}·C(v^{n+1} + v^n) and the load's. So the numerical dissipation is 0, and the energy
-the projection removes, E(η̃) − E(η^{n+1}), is the contact dissipation.
+Energy: with R = A(η^{n+1} − η̃), the reaction the projection applies, η^{n+1} solves the same step with
+b + R on the right. Tested with (η^{n+1} − η^{n−1})/2 that gives exactly E^{n+1/2} − E^{n−1/2}
+= −(Δt/2) v^{n+1}·C(v^{n+1} + v^n) + ½(b + R)·(η^{n+1} − η^{n−1}), with the leapfrog's energy
+E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n. So the numerical dissipation is 0, the viscous one is the first
+term, and −½ R·(η^{n+1} − η^{n−1}) is the contact dissipation. R is the system's residual at η^{n+1}, so
+a step costs one back-substitution and one mat-vec, as the paper's scheme does.
 
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration) with μ = φ·Cφ/φ·Kφ, that is
@@ -84,7 +87,9 @@ CONTACT_TOL = 1e-9
 class Scheme(Base):
     PENALTIES = ()
     MASSES = ("lumped",)
-    remedy = "use a smaller dt"
+    # With viscosity the nodal projection also moves the neighbours' viscous force (A = M/Δt² + C/Δt is not
+    # diagonal), which can feed a little energy on coarse grids: Example 1 at nx = 125, none from 250 on.
+    remedy = "refine the grid (nx and nt) or use scheme 'newmark'"
 
     @staticmethod
     def requires(model) -> str | None:
@@ -109,20 +114,20 @@ class Scheme(Base):
         dirichlet_rows(self.A, s.bc)
         C_over_dt = ops.C.copy()
         C_over_dt.scale(1.0 / dt)
-        self.KC = stacked(ops.K, C_over_dt)
+        self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
         self.solve = lu(self.A, comm).getPC().getFactorMatrix().solve
         laws = s.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
         self._check_gap()
         self.allsum = summer(comm)
         self.anysum = (lambda flag: flag) if comm.size == 1 else (lambda flag: comm.allreduce(flag, op=MPI.LOR))
-        self.etas = np.zeros((3, n))  # η^{n+1} (after projection), η^n, η^{n−1}
-        self.free = np.zeros(n)  # η̃
-        self.KC_now, self.KC_free = np.zeros((2, n)), np.zeros((2, n))  # [K η, (C/Δt) η] of η^n and of η̃
-        self.rhs = np.zeros(n)
-        self.vecs = {name: wrap(a, comm) for name, a in
-                     (("rhs", self.rhs), ("free", self.free), ("KC_now", self.KC_now), ("KC_free", self.KC_free))}
-        self.weight = np.divide(ops.m, ops.m_force * dt**2, out=np.zeros(n), where=ops.m_force > 0)
+        # Rotating rows, allocated once: η^{n+1}, η^n, η^{n−1}, and [K η, (C/Δt) η] of η^{n+1}, η^n, η^{n−1}.
+        self.etas = [(wrap(a, comm), a) for a in np.zeros((3, n))]
+        self.KCs = [(wrap(a, comm), a) for a in np.zeros((3, 2, n))]
+        self.rhs = (lambda a: (wrap(a, comm), a))(np.zeros(n))
+        self.buf = np.zeros((3, n))  # scratch: the push, η^{n+1} − η^n, the reaction R
+        self.m_dt2 = ops.m / dt**2
+        self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)
         self.force_density = np.zeros(n)
         self.has_load = bool(np.any(ops.load != 0))
 
@@ -144,26 +149,24 @@ class Scheme(Base):
 
     @property
     def eta(self):
-        return self.etas[1]
+        return self.etas[1][1]
 
     @property
     def velocity(self):
-        return (self.etas[1] - self.etas[2]) / self.s.dt
+        return (self.etas[1][1] - self.etas[2][1]) / self.s.dt
 
     @property
     def contact_force(self):
         return self.force_density
 
-    def _project(self, eta: np.ndarray) -> np.ndarray:
-        """η + max(−gap(η), 0) at the interior nodes, in place; returns the correction."""
+    def _project(self, eta: np.ndarray, push: np.ndarray) -> np.ndarray:
+        """η + max(−gap(η), 0) at the interior nodes, in place; the correction into `push`."""
         self.s.laws.set(eta=eta)
-        push = np.maximum(-np.asarray(self.gap.evaluate_env(self.s.laws.env), dtype=float), 0.0) * self.s.interior
+        np.negative(self.gap.evaluate_env(self.s.laws.env), out=push)
+        np.maximum(push, 0.0, out=push)
+        push *= self.s.interior
         eta += push
         return push
-
-    def _energy(self, eta1, eta0, K_eta0) -> tuple[float, float]:
-        v1 = (eta1 - eta0) / self.s.dt
-        return 0.5 * float(np.dot(v1, self.s.ops.m * v1)), 0.5 * float(np.dot(eta1, K_eta0))
 
     def contact(self) -> np.ndarray:
         laws = self.s.laws
@@ -173,53 +176,58 @@ class Scheme(Base):
     def start(self, eta0, v0):
         s = self.s
         laws = s.laws
-        scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)), float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
+        scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
+                    float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
         tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(CONTACT_TOL * scale))
         self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
-        self.etas[1] = eta0
-        if np.any(self._project(self.etas[1]) > 0):
+        (_, e0), (_, em) = self.etas[1], self.etas[2]
+        e0[:] = eta0
+        if self.anysum(bool(np.any(self._project(e0, self.buf[0]) > 0))):
             warnings.warn("scheme 'projection': the initial displacement is below the obstacle at some nodes; "
                           "projected onto it at t = 0 (the penalty schemes let it rise through instead)",
                           SceneWarning, stacklevel=4)
-        self.etas[2] = self.etas[1] - s.dt * v0
-        KC_prev = np.zeros((2, s.n_owned))
-        self.KC.mult(wrap(self.etas[2], s.comm), wrap(KC_prev, s.comm))
-        self.KC.mult(wrap(self.etas[1], s.comm), self.vecs["KC_now"])
-        self.C_prev = KC_prev[1].copy()  # (C/Δt) η^{n−1}
-        kin, el = self._energy(self.etas[1], self.etas[2], KC_prev[0])
-        self.kin, self.el = self.allsum(kin, el)
+        np.subtract(e0, s.dt * v0, out=em)
+        for i in (1, 2):
+            self.KC.mult(self.etas[i][0], self.KCs[i][0])
+        d = e0 - em
+        self.kin, self.el = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)), 0.5 * float(np.dot(e0, self.KCs[2][1][0])))
         return self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0
 
     def step(self):
-        s, dt, m = self.s, self.s.dt, self.s.ops.m
-        e1, e0, em = self.etas
-        K0, C0 = self.KC_now  # K η^n, (C/Δt) η^n
-        rhs, free = self.rhs, self.free
-        np.multiply(m / dt**2, 2 * e0 - em, out=rhs)
-        rhs += C0
-        rhs -= K0
+        s = self.s
+        (v1, e1), (_, e0), (_, em) = self.etas
+        (kc1v, kc1), (_, kc0), (_, kcm) = self.KCs
+        (rhs_v, rhs), (push, d, R) = self.rhs, self.buf
+        # free step: A η̃ = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n − K η^n + b
+        np.subtract(e0, em, out=rhs)
+        rhs += e0
+        rhs *= self.m_dt2
+        rhs += kc0[1]
+        rhs -= kc0[0]
         if self.has_load:
             rhs += s.ops.load
-        rhs[s.bc] = s.g
-        self.solve(self.vecs["rhs"], self.vecs["free"])
-        self.KC.mult(self.vecs["free"], self.vecs["KC_free"])
-        v_free, v0 = (free - e0) / dt, (e0 - em) / dt
-        # The free step's identity: E(η̃) = E^n − (Δt/2) ṽ·C(ṽ + v⁰) + (Δt/2) b·(ṽ + v⁰).
-        visc = 0.5 * dt * float(np.dot(v_free, self.KC_free[1] - self.C_prev))  # (Δt/2) ṽ·C(η̃ − η^{n−1})/Δt
-        ext = 0.5 * dt * float(np.dot(s.ops.load, v_free + v0)) if self.has_load else 0.0
-        kin_free, el_free = self._energy(free, e0, K0)
-        e1[:] = free
-        push = self._project(e1)
-        np.multiply(self.weight, push, out=self.force_density)
-        kin, el = self._energy(e1, e0, K0)
-        kin, el, kin_free, el_free, visc, ext = self.allsum(kin, el, kin_free, el_free, visc, ext)
-        con = kin_free + el_free - kin - el  # what the projection took out
-        self.C_prev = C0.copy()
-        self.etas[:] = self.etas[[2, 0, 1]]  # η^{n−1} ← η^n ← η^{n+1} (one copy of three rows)
-        if self.anysum(bool(np.any(push))):  # K η^{n+1} differs from K η̃ only where a node was projected
-            self.KC.mult(wrap(self.etas[1], s.comm), self.vecs["KC_now"])
-        else:
-            self.KC_now[:] = self.KC_free
+        for i, g in zip(s.bc, s.g):
+            rhs[i] = g
+        self.solve(rhs_v, v1)
+        self._project(e1, push)
+        self.KC.mult(v1, kc1v)
+        # R = A η^{n+1} − rhs, the reaction (0 at the ends, whose rows are the identity)
+        np.multiply(self.m_dt2, e1, out=R)
+        R += kc1[1]
+        R -= rhs
+        R *= s.interior
+        np.subtract(e1, e0, out=d)
+        kin = 0.5 * float(np.dot(d, self.m_dt2 * d))
+        el = 0.5 * float(np.dot(e1, kc0[0]))
+        visc = 0.5 * float(np.dot(d, kc1[1] - kcm[1]))  # (Δt/2) v¹·C(v¹ + v⁰), with Δt v = η differences
+        d += e0
+        d -= em  # now η^{n+1} − η^{n−1}
+        con = -0.5 * float(np.dot(R, d))
+        ext = 0.5 * float(np.dot(s.ops.load, d)) if self.has_load else 0.0
+        kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
+        np.multiply(R, self.inv_mF, out=self.force_density)
+        self.etas = [self.etas[2], self.etas[0], self.etas[1]]  # η^{n−1} ← η^n ← η^{n+1}
+        self.KCs = [self.KCs[2], self.KCs[0], self.KCs[1]]
         return kin, el, visc, con, 0.0, ext, 0.0
 
 
