@@ -88,10 +88,14 @@ def obstacle_profile(result) -> np.ndarray:
 
 
 def _pyplot():
+    import warnings
+
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    with warnings.catch_warnings():  # Debian's mpl_toolkits (python3-matplotlib) beside pip's matplotlib: no 3-D axes
+        warnings.filterwarnings("ignore", message="Unable to import Axes3D")  # are drawn, so nothing is lost
+        import matplotlib.pyplot as plt
 
     return plt
 

@@ -79,7 +79,7 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     X, T = np.meshgrid(x, t * depth)
     surface = pv.StructuredGrid(X, T, eta * height)
     surface.point_data["contact"] = result.contact[np.ix_(rows, cols)].astype(float).ravel(order="F")  # points in Fortran order
-    below = max(0.0, float((psi - eta).max())) * height + 2e-3 * length  # under the deepest penetration: not over the string
+    below = 0.02 * (hi - lo) * height  # under the penalty's penetration (about ε|v|), which it would otherwise hide
     obstacle = pv.StructuredGrid(*np.meshgrid(x, t[[0, -1]] * depth), np.tile(psi * height - below, (2, 1)))
 
     p = _plotter(window_size)
