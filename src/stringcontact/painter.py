@@ -1,7 +1,7 @@
 """Pictures drawn in a second process, started before a run so that the libraries' start-up overlaps it.
 
-Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 1 s of
-CPU before the first picture, importing matplotlib about 0.6 s (docs/performance.md). `stringcontact run
+Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 1.2 s
+of CPU before the first picture, importing matplotlib about 0.4 s (benchmarks/bench_pictures.py). `stringcontact run
 --out` starts a `PictureProcess` first thing; it does that start-up while the run imports dolfinx and
 solves, then draws the space-time pictures (`viz.PAINTED`) while the run draws the line charts. The
 process never imports dolfinx.
