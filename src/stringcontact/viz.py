@@ -6,7 +6,8 @@ Each picture is drawn by the library made for it: matplotlib (:mod:`stringcontac
 for ``space_time.png``, the surface η(x, t) in 3-D coloured by contact.
 
 :func:`write_pictures` draws them all; given a started :class:`~stringcontact.painter.PictureProcess`,
-the pyvista picture is drawn there, so that VTK's start-up overlaps the run. :func:`read_output` rebuilds
+the pictures it was started for (`stringcontact run`: `PAINTED`) are drawn there, so that the libraries'
+start-up overlaps the run. :func:`read_output` rebuilds
 a :class:`Result` from an output folder alone (``stringcontact plot DIR``); the ``.h5`` is read with
 pyfive (pure Python): the h5py wheel bundles its own libhdf5, which clashes with the system libhdf5
 that dolfinx has already loaded ("Not a datatype").
