@@ -82,6 +82,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--no-sweep", action="store_true", help="phases at the default max_frames only")
+    ap.add_argument("--no-phases", action="store_true", help="the commands only")
     ap.add_argument("--against", type=Path, help="another checkout's stringcontact executable, timed alternately")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -114,6 +115,11 @@ def main(argv=None) -> int:
         print(line("`run example1 --out DIR --no-pictures`", bare))
         if args.against:
             print(line(f"`run example1 --out DIR` of {args.against}", other))
+            ratios = sorted(a / b for a, b in zip(walls, other))  # each pair ran back to back
+            print(f"\npaired ratio this/other: median {statistics.median(ratios):.2f} "
+                  f"(range {ratios[0]:.2f}-{ratios[-1]:.2f})")
+        if args.no_phases:
+            return 0
         print()
 
         def child(max_frames, mode):
