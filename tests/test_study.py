@@ -1,7 +1,7 @@
 """The studies: the explicit penalty's failure modes, the semi-implicit one's robustness, the study files."""
 
-import dataclasses
 import csv
+import dataclasses
 import math
 
 import numpy as np

@@ -93,12 +93,16 @@ class Scheme:
 
     PENALTIES: tuple = ()
     MASSES: tuple = ("lumped", "consistent")
-    timings: dict = {}
     situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
     remedy = "use a smaller dt"
 
     def __init__(self, setting: Setting):
         self.s = setting
+
+    @property
+    def timings(self) -> dict:
+        """Extra counters for the summary (e.g. refactorisations)."""
+        return {}
 
     @staticmethod
     def requires(model) -> str | None:

@@ -23,8 +23,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..scheme import diagonal_matrix, stacked
-from .base import Scheme as Base
 from .base import DampedLU, check_law_stability, dirichlet_rows, summer, wrap
+from .base import Scheme as Base
 
 
 class Scheme(Base):
