@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
             ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up))]
     for name in viz.PICTURES:
-        runs = [timed(lambda: viz.draw(name, res, out)) for _ in range(args.repeats)]
+        runs = [timed(lambda name=name: viz.draw(name, res, out)) for _ in range(args.repeats)]
         rows.append((name, statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)))
     plain = mesh_pictures._plotter
 

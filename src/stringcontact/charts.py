@@ -213,7 +213,7 @@ def energy_picture(result, path) -> Path:
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
-    fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 7), sharex=True, gridspec_kw=dict(height_ratios=(3, 1)))
+    fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": (3, 1)})
     ax.axhline(E[0], color="black", ls=":", lw=1.5, label=f"E(0) = {E[0]:.6g}")
     ax.plot(t, e["kinetic"], label=r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$")
     ax.plot(t, e["elastic"], label=r"elastic $\frac{1}{2}\int \eta_x^2\,dx$")

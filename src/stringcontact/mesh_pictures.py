@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .output import atomic_path
 from .charts import CONTACT_COLOUR, WINDOW_SIZE, obstacle_name, obstacle_profile, parameter_line
+from .output import atomic_path
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"
