@@ -587,7 +587,7 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
 def registered_pictures():
     """The picture function registered under the entry point PICTURES_ENTRY_POINT ("default").
 
-    Looked up, not imported: the picture code (viz) imports this module, and a plug-in can register another.
+    Looked up by name, not imported: the picture code (viz) imports this module.
     """
     from importlib.metadata import entry_points
 
