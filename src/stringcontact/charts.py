@@ -68,9 +68,12 @@ def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
 
 def parameter_line(result, sep: str = ", ") -> str:
     s = result.scene
+    scheme = getattr(result, "scheme", "paper")
+    if result.penalty in (None, "none"):  # a scheme without ε (projection)
+        return f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}scheme {scheme}, no penalty (no ε), {result.mass} mass"
     return (
         f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
-        f"penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
+        f"scheme {scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
     )
 
 
