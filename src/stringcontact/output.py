@@ -34,13 +34,13 @@ import tempfile
 import threading
 import time
 import warnings
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
 from .errors import one_line
+from .xdmf import XdmfTimeSeries, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - read_xdmf re-exported
 
 FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: max |balance residual| / energy scale above which the energy balance is reported as not closing.
@@ -515,19 +515,9 @@ class OutputWriter:
 
             self.painter = Painters.start()  # VTK's start-up then overlaps the time loop
         try:
-            from dolfinx import fem
-            from dolfinx.io import XDMFFile
-
-            self.functions = {}
-            for name in FIELDS:
-                u = fem.Function(V)
-                u.name = name
-                self.functions[name] = u
-            self.n_owned = V.dofmap.index_map.size_local
             self._quiet.__enter__()
-            self.xdmf = XDMFFile(comm, str(self.partial / "solution.xdmf"), "w")
-            self.xdmf.write_mesh(V.mesh)
-        except RuntimeError as exc:
+            self.xdmf = XdmfTimeSeries(self.partial, mesh_arrays(V, comm), comm)
+        except (RuntimeError, OSError) as exc:  # petsc4py's Error is a RuntimeError
             self._fail("cannot write solution.xdmf", exc)
         except BaseException:  # Ctrl-C while opening: leave nothing behind
             self._discard()
@@ -557,13 +547,9 @@ class OutputWriter:
         t0 = time.perf_counter()
         try:
             with signals_held():
-                for name, values in fields.items():
-                    u = self.functions[name]
-                    u.x.array[: self.n_owned] = values
-                    u.x.scatter_forward()
-                    self.xdmf.write_function(u, t)
+                self.xdmf.write(t, fields)
                 self.times.append(float(t))
-        except RuntimeError as exc:
+        except (RuntimeError, OSError) as exc:
             self._fail(f"cannot write solution.h5 at t = {t:.6g}", exc)
         self.write_time += time.perf_counter() - t0
 
@@ -723,41 +709,6 @@ class OutputWriter:
         with contextlib.suppress(Exception):
             if self.partial is not None:
                 self._discard()
-
-
-# --- reading the XDMF back ----------------------------------------------------------------------------
-
-
-def read_xdmf(path) -> tuple[str | None, dict[str, list[tuple[float, str]]]]:
-    """The mesh and the time series of a dolfinx XDMF file: ``(geometry, series)``.
-
-    `geometry` is the HDF5 reference of the mesh coordinates (``"file.h5:/Mesh/mesh/geometry"``; None if the
-    file has no mesh); `series` is {field: [(t, "file.h5:/Function/field/t"), ...]}. Raises OutputError,
-    with the parser's error as its ``__cause__``, if the file is not well-formed XML (a truncated write) or
-    holds a time that is not a number.
-    """
-    try:
-        root = ET.parse(path).getroot()
-        mesh = root.find("Domain/Grid[@GridType='Uniform']/Geometry/DataItem")
-        series = {}
-        for collection in root.iter("Grid"):
-            if collection.get("GridType") != "Collection":
-                continue
-            rows = []
-            for grid in collection.findall("Grid"):
-                t, item = grid.find("Time"), grid.find("Attribute/DataItem")
-                if t is not None and item is not None:
-                    rows.append((float(t.get("Value")), (item.text or "").strip()))
-            series[collection.get("Name")] = rows
-    except (ET.ParseError, OSError, TypeError, ValueError) as exc:
-        raise OutputError(f"{path} is not a readable XDMF file ({one_line(exc, 300)})") from exc
-    geometry = (mesh.text or "").strip() if mesh is not None else ""
-    return geometry or None, series
-
-
-def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
-    """The time series of a dolfinx XDMF file, {field: [(t, "file.h5:/Function/field/t"), ...]} (see `read_xdmf`)."""
-    return read_xdmf(path)[1]
 
 
 # --- tables and numbers ----------------------------------------------------------------------------
