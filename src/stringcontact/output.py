@@ -40,7 +40,7 @@ import numpy as np
 
 from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
 from .errors import one_line
-from .xdmf import XdmfTimeSeries, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - read_xdmf re-exported
+from .xdmf import XdmfTimeSeries, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
 FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: max |balance residual| / energy scale above which the energy balance is reported as not closing.
