@@ -166,7 +166,11 @@ def _read_fields(path: Path, geometry: str, series: dict):
 
 
 def _dataset(h5, ref: str, n: int, path: Path) -> np.ndarray:
-    values = np.asarray(h5[_h5_path(ref)][:], dtype=float).reshape(-1)
+    try:
+        data = h5[_h5_path(ref)]
+    except KeyError:
+        raise ValueError(f"plot: {path} has no dataset {_h5_path(ref)} (named in solution.xdmf)") from None
+    values = np.asarray(data[:], dtype=float).reshape(-1)
     if values.size != n:
         raise ValueError(f"plot: {path}: {_h5_path(ref)} holds {values.size} values, expected {n}")
     return values
