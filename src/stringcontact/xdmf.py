@@ -11,7 +11,8 @@ Every grid carries all the fields, so ParaView's readers (Xdmf3ReaderT, Xdmf3Rea
 grid per time step and meshio's `TimeSeriesReader` reads it. The heavy data are written collectively by
 PETSc's HDF5 viewer (the libhdf5 dolfinx itself uses, in the same process, under MPI too); the small XML is
 written by rank 0 and appended to per frame (the closing tags are rewritten after each grid), so writing
-costs O(frames) and the file is well-formed after every frame. Points are the P1 degrees of freedom in
+costs O(frames) and the file is well-formed after every frame. PETSc flushes the HDF5 file after each
+dataset (an fsync under MPI-IO), so the data a grid names are on disk before the grid is written. Points are the P1 degrees of freedom in
 their global numbering, so the fields need no reordering; the mesh may be 1D (Polyline) or 2D/3D.
 """
 
@@ -112,7 +113,6 @@ class XdmfTimeSeries:
             dataset = f"{name}_{self.frames}"
             self._view(self.vec, dataset)
             names.append((name, dataset))
-        self.viewer.flush()
         if self.xml is not None:
             self.xml.seek(self.body_end)
             self.xml.write(self._grid(t, names))
