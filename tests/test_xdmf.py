@@ -115,3 +115,24 @@ def test_a_triangle_mesh_is_written_with_the_same_layout(tmp_path):
     assert points.shape == (12, 3) and len(data["cells"]["triangle"]) == 12
     for t, point_data in zip(data["times"], data["data"]):
         np.testing.assert_allclose(point_data["membrane"], points[:, 0] + 10 * points[:, 1] + 100 * t, atol=1e-12)
+
+
+def test_a_run_stopped_early_keeps_the_same_readable_layout(tmp_path):
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    from stringcontact import compat
+    from stringcontact.output import OutputWriter
+
+    scene = sc.load_scene("example1").replace(nx=10, nt=20)
+    V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
+    writer = OutputWriter(tmp_path / "out", scene, V, MPI.COMM_SELF, pictures=False)
+    for k in range(3):
+        writer.write(0.1 * k, {name: np.full(11, float(k)) for name in FIELDS})
+    writer.abort("interrupted", "stopped")
+    assert json.loads((writer.path / "summary.json").read_text())["status"] == "interrupted"
+    data = meshio_read(writer.path / "solution.xdmf")
+    assert data["times"] == pytest.approx([0.0, 0.1, 0.2]) and len(data["cells"]["line"]) == 10
+    for k, point_data in enumerate(data["data"]):
+        assert sorted(point_data) == sorted(FIELDS)
+        np.testing.assert_array_equal(point_data["eta"], float(k))
