@@ -6,23 +6,23 @@ export OMPI_ALLOW_RUN_AS_ROOT ?= 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM ?= 1
 export PYTHONDONTWRITEBYTECODE ?= 1
 
-.PHONY: setup setup-test demo test test-fast docs clean
+.PHONY: setup demo test test-fast docs clean
 
 setup:
-	@scripts/setup $(VENV)
+	@scripts/setup $(SETUP_FLAGS) $(VENV)
 
-# the tests also drive ParaView (pvpython, xvfb-run): installed here, and required (not skipped)
-setup-test:
-	@scripts/setup --test $(VENV)
+# the tests also drive ParaView (pvpython, xvfb-run): setup installs it for them, and it is required
+test test-fast: SETUP_FLAGS = --test
+test test-fast: export STRINGCONTACT_REQUIRE_PARAVIEW = 1
 
 demo: setup
 	$(VENV)/bin/stringcontact run example1 --out out/example1 --force
 
-test: setup-test
-	STRINGCONTACT_REQUIRE_PARAVIEW=1 $(PY) -m pytest -q
+test: setup
+	$(PY) -m pytest -q
 
-test-fast: setup-test
-	STRINGCONTACT_REQUIRE_PARAVIEW=1 $(PY) -m pytest -q -m "not slow"
+test-fast: setup
+	$(PY) -m pytest -q -m "not slow"
 
 docs: setup
 	scripts/docs-figures

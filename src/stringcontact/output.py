@@ -404,9 +404,9 @@ def signals_held():
 class _Hdf5Quiet:
     """Turns HDF5's automatic error printing off while the writer runs.
 
-    On a full disk, HDF5 prints a 60-line error stack to stderr before dolfinx turns it into a RuntimeError;
+    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
     we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
-    that dolfinx loaded (not h5py's bundled copy); where it cannot be found nothing changes.
+    that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
     """
 
     _lib = None
