@@ -62,10 +62,10 @@ def main() -> int:
         for frames in args.frames:
             times = {ours: [], dolfinx_xdmf: []}
             for i in range(args.repeats):
-                for writer in times:
+                for writer, spent in times.items():
                     folder = tmp / f"{writer.__name__}-{frames}-{i}"
                     folder.mkdir()
-                    times[writer].append(writer(V, folder, frames, values))
+                    spent.append(writer(V, folder, frames, values))
                     shutil.rmtree(folder)
             cells = [f"{statistics.median(t):.3f} ({min(t):.3f}-{max(t):.3f})" for t in times.values()]
             print(f"| {frames} | {cells[0]} | {cells[1]} |", flush=True)

@@ -17,9 +17,9 @@ from paraview.simple import (
     SaveScreenshot,
     Show,
     WarpByScalar,
-    XDMFReader,
     Xdmf3ReaderS,
     Xdmf3ReaderT,
+    XDMFReader,
 )
 from vtk.util.numpy_support import vtk_to_numpy
 

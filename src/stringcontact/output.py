@@ -27,7 +27,6 @@ import fcntl
 import json
 import math
 import os
-import re
 import shutil
 import signal
 import tempfile
@@ -40,7 +39,7 @@ import numpy as np
 
 from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
 from .errors import one_line
-from .xdmf import XdmfTimeSeries, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
+from .xdmf import XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
 FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: max |balance residual| / energy scale above which the energy balance is reported as not closing.
@@ -409,25 +408,9 @@ class _Hdf5Quiet:
     that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
     """
 
-    _lib = None
-    _searched = False
-
     @classmethod
     def _library(cls):
-        if not cls._searched:
-            cls._searched = True
-            try:
-                with open("/proc/self/maps") as f:
-                    paths = set(re.findall(r"(/\S*/libhdf5(?:_[a-z]+)?\.so[.\d]*)$", f.read(), re.M))
-                paths = sorted(p for p in paths if "_hl" not in os.path.basename(p) and ".libs/" not in p)
-                if paths:
-                    lib = ctypes.CDLL(paths[0])
-                    lib.H5Eget_auto2.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]
-                    lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
-                    cls._lib = lib
-            except (OSError, AttributeError):
-                cls._lib = None
-        return cls._lib
+        return hdf5_library()
 
     def __init__(self):
         self.saved = None
@@ -443,7 +426,7 @@ class _Hdf5Quiet:
 
     def __exit__(self, *exc):
         if self.saved is not None:
-            self._lib.H5Eset_auto2(0, self.saved[0], self.saved[1])
+            self._library().H5Eset_auto2(0, self.saved[0], self.saved[1])
             self.saved = None
         return False
 
@@ -639,11 +622,11 @@ class OutputWriter:
             "xdmf_frames": len(self.times),
         }
 
-    def _close_xdmf(self) -> None:
+    def _close_xdmf(self, discard: bool = False) -> None:
         if self.xdmf is not None:
             xdmf, self.xdmf = self.xdmf, None
             try:
-                xdmf.close()
+                xdmf.close(discard=discard)
             finally:
                 self._quiet.__exit__()
 
@@ -687,7 +670,7 @@ class OutputWriter:
         self._stop_painter()
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
-                self._close_xdmf()
+                self._close_xdmf(discard=True)
         self._quiet.__exit__()
         if self.comm.rank == 0 and self.partial is not None:
             shutil.rmtree(self.partial, ignore_errors=True)

@@ -18,6 +18,13 @@ their global numbering, so the fields need no reordering; the mesh may be 1D (Po
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import functools
+import os
+import re
+import sys
+import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +43,68 @@ TOPOLOGY_TYPES = {
 }
 COLLECTION = "solution"
 _FOOTER = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+#: HDF5 viewers of discarded files (see `XdmfTimeSeries.close`): kept referenced, so that PETSc does not try
+#: to close them, and print a page of errors, when the process exits. Their files are already removed.
+_UNCLOSED = []
+
+
+@functools.cache
+def hdf5_library():
+    """The libhdf5 that dolfinx and PETSc loaded (not h5py's bundled copy), through ctypes; None if not found."""
+    try:
+        with open("/proc/self/maps") as f:
+            paths = set(re.findall(r"(/\S*/libhdf5(?:_[a-z]+)?\.so[.\d]*)$", f.read(), re.MULTILINE))
+        paths = sorted(p for p in paths if "_hl" not in os.path.basename(p) and ".libs/" not in p)
+        if not paths:
+            return None
+        lib = ctypes.CDLL(paths[0])
+        lib.H5Eget_auto2.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]
+        lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
+        lib.H5Fget_obj_ids.argtypes = [ctypes.c_int64, ctypes.c_uint, ctypes.c_size_t, ctypes.POINTER(ctypes.c_int64)]
+        lib.H5Fget_obj_ids.restype = ctypes.c_ssize_t
+        lib.H5Oclose.argtypes = [ctypes.c_int64]
+        lib.H5Fget_name.argtypes = [ctypes.c_int64, ctypes.c_char_p, ctypes.c_size_t]
+        lib.H5Fget_name.restype = ctypes.c_ssize_t
+        return lib
+    except (OSError, AttributeError):
+        return None
+
+
+def _close_open_objects(path: Path) -> None:
+    """Close the HDF5 datasets and groups of file `path` left open: PETSc's VecView leaves them open when
+    its write fails, and then cannot close the file ("there are objects still open")."""
+    lib = hdf5_library()
+    if lib is None:
+        return
+    ids, name = (ctypes.c_int64 * 64)(), ctypes.create_string_buffer(4096)
+    n = lib.H5Fget_obj_ids(0x1F, 0x2 | 0x4, 64, ids)  # in every file (H5F_OBJ_ALL): datasets and groups
+    for k in range(max(n, 0)):
+        if lib.H5Fget_name(ids[k], name, len(name)) > 0 and name.value == os.fsencode(path):
+            lib.H5Oclose(ids[k])
+
+
+@contextlib.contextmanager
+def stderr_held():
+    """Hold back what C libraries print to stderr; print it after the block, or drop it if the block fails.
+
+    Open MPI's MPI-IO layer, which PETSc's HDF5 viewer writes through, prints its own line for a failed
+    write ("mca_fbtl_posix_pwritev: ... No space left on device"); the caller reports one line instead.
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with tempfile.TemporaryFile() as held:
+            os.dup2(held.fileno(), 2)
+            try:
+                yield
+            finally:
+                os.dup2(saved, 2)
+            held.seek(0)
+            text = held.read()
+            if text:
+                os.write(2, text)
+    finally:
+        os.close(saved)
 
 
 @dataclass
@@ -81,12 +150,14 @@ class XdmfTimeSeries:
 
         self.comm, self.mesh, self.frames = comm, mesh, 0
         self.h5name = f"{stem}.h5"
-        self.viewer = PETSc.Viewer().createHDF5(str(Path(folder) / self.h5name), "w", comm=comm)
-        self.vec = PETSc.Vec().createMPI((len(mesh.points), mesh.n_points), comm=comm)
-        self._view(PETSc.Vec().createWithArray(mesh.points.ravel(), bsize=3, comm=comm), "geometry")
-        topology = PETSc.IS().createGeneral(mesh.cells.ravel().astype(PETSc.IntType), comm=comm)
-        topology.setBlockSize(mesh.cells.shape[1])
-        self._view(topology, "topology")
+        self.h5path = Path(folder) / self.h5name
+        with stderr_held():
+            self.viewer = PETSc.Viewer().createHDF5(str(self.h5path), "w", comm=comm)
+            self.vec = PETSc.Vec().createMPI((len(mesh.points), mesh.n_points), comm=comm)
+            self._view(PETSc.Vec().createWithArray(mesh.points.ravel(), bsize=3, comm=comm), "geometry")
+            topology = PETSc.IS().createGeneral(mesh.cells.ravel().astype(PETSc.IntType), comm=comm)
+            topology.setBlockSize(mesh.cells.shape[1])
+            self._view(topology, "topology")
         self.int_bytes = np.dtype(PETSc.IntType).itemsize
         self.xml = None
         if comm.rank == 0:
@@ -108,11 +179,12 @@ class XdmfTimeSeries:
     def write(self, t: float, fields: dict) -> None:
         """One grid at time `t` with every field of `fields` ({name: owned values}) as a node attribute."""
         names = []
-        for name, values in fields.items():
-            self.vec.array[:] = values
-            dataset = f"{name}_{self.frames}"
-            self._view(self.vec, dataset)
-            names.append((name, dataset))
+        with stderr_held():
+            for name, values in fields.items():
+                self.vec.array[:] = values
+                dataset = f"{name}_{self.frames}"
+                self._view(self.vec, dataset)
+                names.append((name, dataset))
         if self.xml is not None:
             self.xml.seek(self.body_end)
             self.xml.write(self._grid(t, names))
@@ -141,15 +213,33 @@ class XdmfTimeSeries:
         lines.append("      </Grid>\n")
         return "\n".join(lines)
 
-    def close(self) -> None:
-        """Close both files (collective). Safe to call twice."""
+    def close(self, discard: bool = False) -> None:
+        """Close both files (collective). Safe to call twice.
+
+        `discard`: the files are about to be removed after a failed write (a full disk): empty the HDF5
+        file, so that PETSc's closing flush finds room, close what the failed write left open, and never
+        raise. A viewer that still cannot be closed is kept referenced (`_UNCLOSED`).
+        """
         viewer, self.viewer = self.viewer, None
-        if viewer is not None:
-            viewer.destroy()
-            self.vec.destroy()
         xml, self.xml = self.xml, None
         if xml is not None:
             xml.close()
+        if viewer is None:
+            return
+        if discard:
+            if self.comm.rank == 0:
+                with contextlib.suppress(OSError):
+                    os.truncate(self.h5path, 0)
+            _close_open_objects(self.h5path)
+        try:
+            with stderr_held():
+                viewer.destroy()
+        except RuntimeError:
+            if not discard:
+                raise
+            _UNCLOSED.append(viewer)
+            return
+        self.vec.destroy()
 
 
 # --- reading the XML back -------------------------------------------------------------------------------
