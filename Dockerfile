@@ -28,9 +28,12 @@ USER 1000:1000
 ENV HOME=/home/stringcontact \
     PATH=/opt/stringcontact/.venv/bin:$PATH
 
-# Compile dolfinx's forms now, into ~/.cache/fenics, so that a run starts at once. The cache stays
-# writable for any uid, so `docker run --user "$(id -u):$(id -g)"` works too.
-RUN stringcontact run example1 --nx 50 --nt 600 --out /tmp/warm --no-progress \
+# Compile dolfinx's forms now, into ~/.cache/fenics, so that a run starts at once: scripts/setup's warm-up
+# (repeated until nothing new compiles; the rest of setup finds everything installed), then one run with
+# pictures for matplotlib's and Mesa's caches. The cache stays writable for any uid, so
+# `docker run --user "$(id -u):$(id -g)"` works too.
+RUN scripts/setup .venv \
+    && stringcontact run example1 --nx 50 --nt 600 --out /tmp/warm --no-progress \
     && rm -rf /tmp/warm \
     && chmod -R a+rwX "$HOME/.cache"
 

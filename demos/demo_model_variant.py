@@ -21,12 +21,12 @@
 # bounces off with the restitution coefficient $e = \exp\bigl(-\zeta\pi/\sqrt{1-\zeta^2}\bigr)$,
 # $\zeta = c/(2\sqrt{k})$, instead of $e = 0$.
 #
-# This demo writes that variant from scratch: one UFL function for the force (and one for its stored
-# energy), nothing else. The time loop, the solver, the output and the pictures stay as they are.
+# This demo writes that variant as a user would: one UFL function for the force (and one for its stored
+# energy) in a small package of its own, `examples/soft_ground`, that registers the model under a name.
+# The time loop, the solver, the output and the pictures stay as they are.
 
 # +
-import dataclasses
-import math
+import inspect
 import os
 import warnings
 from pathlib import Path
@@ -36,7 +36,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import ufl
 
 import stringcontact as sc
 
@@ -62,37 +61,28 @@ OUT.mkdir(parents=True, exist_ok=True)
 # hitting it at speed $V = 50$ indents by $\delta = 0.1$ (an undamped spring stops it after
 # $V/\sqrt{k}$), so $k = (V/\delta)^2$, and the dashpot for a restitution of one half. Its constants
 # are plain Python numbers: UFL takes them as they are.
+#
+# ## A model is a package: `examples/soft_ground`
+#
+# The whole variant is one module, `soft_ground.py`, beside a `pyproject.toml` that registers it under
+# the entry-point group `stringcontact.models`:
+#
+# ```toml
+# [project.entry-points."stringcontact.models"]
+# soft_ground = "soft_ground:soft_ground"
+# ```
+#
+# Installed with `pip install -e examples/soft_ground` (`scripts/setup` does it), it is a model like the
+# built-in ones: a scene file says `model = "soft_ground"` (a scene only ever *names* a registered model:
+# nothing in it is imported or run), the command line `--model soft_ground`, Python
+# `sc.load_model("soft_ground")`; `stringcontact models` lists it. Copy the folder to start your own.
+# Here is the module, loaded through its registered name:
 
-# +
-speed, depth, restitution = 50.0, 0.1, 0.5
-k = (speed / depth) ** 2
-zeta = -math.log(restitution) / math.sqrt(math.pi**2 + math.log(restitution) ** 2)
-c = 2 * zeta * math.sqrt(k)
+soft_ground = sc.load_model("soft_ground")
+print(inspect.getsource(inspect.getmodule(soft_ground.penalty)))
 
-
-def ground_force(eta, v, p):
-    """Kelvin–Voigt ground below y = 0: spring k η⁻ plus dashpot −c v, pushing only."""
-    return ufl.conditional(ufl.lt(eta, 0), ufl.max_value(k * (-eta) - c * v, 0), 0)
-
-
-def ground_energy(eta, p):
-    """The spring's stored energy k (η⁻)² / 2."""
-    return k / 2 * ufl.max_value(-eta, 0) ** 2
-
-
-soft_ground = dataclasses.replace(
-    sc.inelastic,
-    name="soft_ground",
-    penalty=ground_force,
-    penalty_damping=None,  # no semi-implicit form for a spring
-    contact_energy=ground_energy,
-)
-# -
-
-# The rest of the paper's model (the viscoelastic string, the contact indicator $\eta \le 0$) is kept by
-# `dataclasses.replace`. To use the variant from a scene file or the command line, put these lines in a
-# module of your own, say `my_models.py`, and name it: `model = "my_models:soft_ground"` in the scene, or
-# `stringcontact run example1 --model my_models:soft_ground`.
+# `dataclasses.replace(sc.inelastic, ...)` keeps the rest of the paper's model (the viscoelastic string,
+# the contact indicator $\eta \le 0$).
 
 # ## The same scene, both models
 #
@@ -175,7 +165,8 @@ print(f"wrote {energy_picture}")
 
 # ## Where to go from here
 #
-# - `stringcontact.variants` holds the two shipped variants written the same way: `elastic` (a pure
-#   spring, $e = 1$) and `loaded_obstacle` (a load $f(x)$ and an obstacle profile $\psi(x)$ from the
-#   scene keys `load` and `obstacle`, which reach the model as P1 functions in `p.extra`).
+# - `stringcontact models` lists every registered model: the paper's `inelastic`, and the two variants in
+#   `stringcontact.variants`, written the same way: `elastic` (a pure spring, $e = 1$) and
+#   `loaded_obstacle` (a load $f(x)$ and an obstacle profile $\psi(x)$ from the scene keys `load` and
+#   `obstacle`, which reach the model as P1 functions in `p.extra`).
 # - `docs/models.md` lists what each function receives and what the scheme does with it.

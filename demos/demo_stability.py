@@ -41,8 +41,25 @@ study.write_csv(out / "study_stability.csv", rows, study.STABILITY_COLUMNS)
 study.write_csv(out / "study_alpha.csv", alpha_rows, study.ALPHA_COLUMNS)
 print("wrote", study.plot_stability(rows, alpha_rows, out / "study_stability.png"))
 
+# ## Schemes without ε: where they fail in Δt
+# `projection` treats the elastic term explicitly, so it needs $\Delta t \le \Delta t_{max}$, which the
+# solver computes from the operators: $2/\sqrt{\lambda_{max}(M^{-1}K)} = \Delta x$ on this mesh without
+# viscosity, and $\alpha + \sqrt{\alpha^2 + \Delta x^2}$ with $C = \alpha K$. `newmark` (the trapezoidal
+# rule) has no such limit.
+
+steps = study.step_size_map(quick=fast)
+study.write_csv(out / "study_step_size.csv", steps, study.STEP_COLUMNS)
+print("wrote", study.plot_step_size(steps, out / "study_step_size.png"))
+for row in steps:
+    print(f"{row['scheme']:10s} alpha={row['alpha']:g} dt/dx={row['dt_over_dx']:.2f} (dt_max/dx="
+          f"{row['dt_max_over_dx']:.2f}): {row['outcome']}")
+
 # ## Reading it
 # The explicit rows agree with the theory: inelastic up to $r = 1$, restitution $r - 1$ for
 # $1 < r < 2$ (exactly $1$ at $r = 2$, the marginal case), energy growth above. The semi-implicit rows
-# are inelastic everywhere, up to $r = 100$. At α = 0 the energy the landing destroys shows up in the
-# solver's "numerical" term $\tfrac12|v^{n+1} - v^n|^2_M$: the velocity jump at impact.
+# are inelastic everywhere, up to $r = 100$. The spring (the `elastic` variant) has a bound of its own, on
+# $\Delta t^2/\varepsilon$ rather than $r$: that is why the bound belongs to the contact law
+# (`Model.stability`). At α = 0 the energy the landing destroys is booked as *contact* dissipation, under
+# every penalty and every ε: it is the energy the contact impulse takes out of the velocity it meets.
+# `projection` fails just beyond its $\Delta t_{max}$ (and `simulate` refuses it there); viscosity moves
+# that limit up. `newmark` runs at any $\Delta t$.

@@ -1,4 +1,5 @@
-"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders."""
+"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders;
+the hypothesis profile of every property test."""
 
 from __future__ import annotations
 
@@ -9,6 +10,12 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+# No clock in a test: hypothesis's per-example deadline (200 ms by default) and its too-slow health check
+# fail a correct test on a busy machine. Loaded here, before any test module is imported, for all of them.
+settings.register_profile("stringcontact", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("stringcontact")
 
 # If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
 _MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")

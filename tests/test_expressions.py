@@ -1,11 +1,10 @@
 """Safe expression evaluation: values, hostile input, and a property test on arbitrary text."""
 
 import builtins
-import time
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stringcontact.errors import SceneError
@@ -223,14 +222,6 @@ def test_limits_are_inclusive():
     ev("x" + " " * (MAX_LENGTH - 1))
 
 
-def test_hostile_input_is_quick():
-    start = time.perf_counter()
-    for expr in HOSTILE:
-        with pytest.raises(SceneError):
-            ev(expr)
-    assert time.perf_counter() - start < 2.0
-
-
 # --- property tests ------------------------------------------------------------------------
 
 TOKENS = [
@@ -255,13 +246,13 @@ def assert_finite_or_scene_error(expr, names):
     assert np.isfinite(result).all()
 
 
-@settings(deadline=1000, max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300)
 @given(expr=st.text(max_size=600), names=NAME_SETS)
 def test_arbitrary_text(expr, names):
     assert_finite_or_scene_error(expr, names)
 
 
-@settings(deadline=1000, max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300)
 @given(expr=st.lists(st.sampled_from(TOKENS), max_size=80).map("".join), names=NAME_SETS)
 def test_token_soup(expr, names):
     assert_finite_or_scene_error(expr, names)
@@ -283,7 +274,14 @@ def _extend(children):
     return binary | unary | calls | where
 
 
-@settings(deadline=1000, max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300)
 @given(expr=st.recursive(_leaf, _extend, max_leaves=30), names=NAME_SETS)
 def test_grammar(expr, names):
     assert_finite_or_scene_error(expr, names)
+
+
+def test_property_tests_have_no_deadline():
+    """conftest's profile: no hypothesis test fails because a busy machine was slow."""
+    assert settings().deadline is None
+    for test in (test_arbitrary_text, test_token_soup, test_grammar):  # their own @settings keep the profile's
+        assert test._hypothesis_internal_use_settings.deadline is None

@@ -171,6 +171,29 @@ def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.parametrize("scheme", ["projection", "newmark"])
+def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
+    # Example 2 lands on the left first, so each rank's projection (or active set) changes at its own steps.
+    import warnings
+
+    import stringcontact as sc
+    from mpi4py import MPI
+
+    proc = run_worker("schemes", tmp_path, scheme)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # example2 starts below the obstacle, as printed
+        serial = sc.simulate(asymmetric_scene(), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
+                             comm=MPI.COMM_SELF)
+    assert serial.contact.any() and serial.status == "complete"
+    for rank in range(RANKS):
+        saved = np.load(tmp_path / f"{scheme}.rank{rank}.npz")
+        for name in ("eta", "velocity", "contact_force"):
+            assert rel_error(saved[name], getattr(serial, name)) <= PARITY, (rank, name)
+        for key, values in serial.energy.items():
+            assert rel_error(saved[f"energy_{key}"], values) <= PARITY, (rank, key)
+
+
 # ---------------------------------------------------------------------------------------------------
 # The MPI program: `mpirun -n 2 python tests/test_mpi.py parity|errors|cli DIR...`
 
@@ -256,10 +279,27 @@ def _worker_asymmetric(out: Path) -> None:
                      refactorisations=res.timings["refactorisations"])
 
 
+def _worker_schemes(out: Path, scheme: str) -> None:
+    import warnings
+
+    import stringcontact as sc
+    from mpi4py import MPI
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = sc.simulate(asymmetric_scene(), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
+                          comm=MPI.COMM_WORLD)
+    np.savez(out / f"{scheme}.rank{MPI.COMM_WORLD.rank}.npz", eta=res.eta, velocity=res.velocity,
+             contact_force=res.contact_force, **{f"energy_{k}": v for k, v in res.energy.items()})
+
+
 if __name__ == "__main__":
     mode, rest = sys.argv[1], sys.argv[2:]
     if mode == "cli":
         from stringcontact.cli import main
 
         sys.exit(main(rest))
+    if mode == "schemes":
+        _worker_schemes(Path(rest[0]), rest[1])
+        sys.exit(0)
     {"parity": _worker_parity, "errors": _worker_errors, "asymmetric": _worker_asymmetric}[mode](Path(rest[0]))

@@ -135,10 +135,12 @@ def test_energy_identity_closes_and_numerical_dissipation_is_first_order():
     discrete, continuous = th.check_energy(runs[0], runs[1:])
     assert discrete.verdict == th.HOLDS and discrete.measured < 1e-9
     values = [v for _, v in continuous.trend]
-    # D_num / E0 halves with dt at fixed eps and h (first order): 0.191 -> 0.097 -> 0.053 at nx = 500.
+    # D_num / E0 falls with dt at fixed eps and h: 0.072 -> 0.048 -> 0.032 at nx = 200 (order ~0.6). The
+    # landing's loss is contact dissipation (the force's work with the mean velocity); what is left is the implicit Euler's own
+    # damping of the kinks the fixed ends send in (before that split: 0.191 -> 0.097 -> 0.053).
     assert continuous.verdict == th.HOLDS_IN_LIMIT
     for a, b in zip(values, values[1:]):
-        assert 0.35 < b / a < 0.65
+        assert 0.5 < b / a < 0.75
 
 
 # --- command line ------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Model variants: loading a model by name, elastic contact, a loaded string over a profiled obstacle."""
+"""Model variants: loading a model by its registered name or a module path, elastic contact, a loaded string over a profiled obstacle."""
 
 import sys
 import textwrap
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import exact
+from stringcontact import exact, registry
 from stringcontact.cli import main
 from stringcontact.errors import SceneError
 from stringcontact.variants import elastic, load_model, loaded_obstacle
@@ -17,39 +17,47 @@ from stringcontact.variants import elastic, load_model, loaded_obstacle
 
 @pytest.fixture
 def user_module(tmp_path, monkeypatch):
-    """A user's own module `my_models` on sys.path, as a scene's `model` key would name it."""
+    """A user's own module `my_models` on sys.path, as `--model my_models:stiff` would name it."""
     (tmp_path / "my_models.py").write_text(
         textwrap.dedent(
             """
             import dataclasses
+            from pathlib import Path
             import stringcontact as sc
 
             stiff = dataclasses.replace(sc.inelastic, name="stiff")
 
-            def factory():
-                return dataclasses.replace(sc.inelastic, name="from-factory")
-
-            def broken():
-                raise RuntimeError("no such material")
+            def factory():  # must never be called: a model is named, not made
+                Path(__file__).with_name("factory-called").write_text("called")
+                return stiff
 
             not_a_model = 42
             """
         )
     )
     monkeypatch.syspath_prepend(str(tmp_path))
-    yield "my_models"
+    yield tmp_path
     sys.modules.pop("my_models", None)
 
 
-def test_load_model_shipped_variants():
+def test_load_model_by_registered_name():
+    assert load_model("elastic") is elastic
+    assert load_model("loaded_obstacle") is loaded_obstacle
+    assert load_model("inelastic") is sc.inelastic
+    assert set(registry.registered()) >= {"elastic", "inelastic", "loaded_obstacle"}
+
+
+def test_the_example_package_registers_soft_ground():
+    """examples/soft_ground, installed by scripts/setup, is found by its entry point like the built-ins."""
+    (ep,) = registry.registered()["soft_ground"]
+    assert ep.value == "soft_ground:soft_ground" and ep.dist.name == "stringcontact-soft-ground"
+    model = load_model("soft_ground")
+    assert model.name == "soft_ground" and model.penalty_damping is None and model.contact_energy is not None
+
+
+def test_load_model_by_module_path_typed_by_the_user(user_module):
     assert load_model("stringcontact.variants:elastic") is elastic
-    assert load_model("stringcontact.variants:loaded_obstacle") is loaded_obstacle
-    assert load_model("stringcontact.model:inelastic") is sc.inelastic
-
-
-def test_load_model_user_module(user_module):
     assert load_model("my_models:stiff").name == "stiff"  # a Model object
-    assert load_model("my_models:factory").name == "from-factory"  # a function returning one
 
 
 @pytest.mark.parametrize(
@@ -58,9 +66,9 @@ def test_load_model_user_module(user_module):
         ("no_such_package.models:elastic", "model: cannot import module 'no_such_package.models'"),
         ("my_models:missing", "model: module 'my_models' has no 'missing'"),
         ("my_models:not_a_model", "model: 'my_models:not_a_model' is a int, not a stringcontact.Model"),
-        ("my_models:broken", "model: calling 'my_models:broken' failed (RuntimeError: no such material)"),
-        ("stringcontact.variants", "model: invalid value"),
-        ("a:b:c", "model: invalid value"),
+        ("my_models:factory", "model: 'my_models:factory' is a function, not a stringcontact.Model (nothing is called"),
+        ("stringcontact.variants", "model: unknown model 'stringcontact.variants'; allowed: elastic, inelastic"),
+        ("a:b:c", "model: invalid value 'a:b:c'"),
     ],
 )
 def test_load_model_errors_are_one_line(user_module, spec, fragment):
@@ -68,6 +76,7 @@ def test_load_model_errors_are_one_line(user_module, spec, fragment):
         load_model(spec)
     assert fragment in str(info.value)
     assert "\n" not in str(info.value)
+    assert not (user_module / "factory-called").exists()
 
 
 # --- elastic contact: one impact --------------------------------------------------------------
@@ -109,13 +118,15 @@ def test_elastic_keeps_the_energy_that_inelastic_contact_destroys(impact):
 
 
 def test_elastic_contact_work_vanishes_with_dt(impact):
-    """Net work of the contact spring over the impact: the explicit spring's O(dt/sqrt(eps)) error."""
+    """Net work of the contact spring over the impact: the explicit spring's error, which vanishes with dt."""
     work = []
     for nt in (800, 1600):
         res = sc.simulate(impact.replace(nt=nt), model=elastic)
         work.append(abs(res.energy["contact_dissipation"][-1]) / res.total_energy[0])
     assert work[0] < 0.04
-    assert work[0] / work[1] == pytest.approx(2.0, rel=0.15)  # first order in dt
+    # at least first order in dt; booked with the mean velocity (as every contact work is) it is about
+    # second order: the ratio was 2.0 with the new velocity, 3.55 with the mean one
+    assert work[0] / work[1] > 1.7
 
 
 def test_elastic_has_no_semi_implicit_form(impact):
@@ -273,7 +284,7 @@ def test_a_field_the_model_ignores_is_refused():
 def test_cli_uses_the_scenes_model_and_refuses_a_bad_one(tmp_path, capsys):
     scene = tmp_path / "draped.toml"
     scene.write_text(
-        'model = "stringcontact.variants:loaded_obstacle"\n'
+        'model = "loaded_obstacle"\n'
         'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\neps = 0.002\nh = 0\n'
         'eta0 = "0.3*sin(pi*x)"\nv0 = 0\nload = "-10"\nobstacle = "0.2 - 4*(x - 0.5)**2"\n'
     )

@@ -7,7 +7,10 @@
 
 import importlib
 
-from .errors import InstabilityError, SceneError
+from .errors import InstabilityError, InstabilityWarning, SceneError
+from .jitlog import quiet_compiler
+
+quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 
 __version__ = "0.1.0"
 
@@ -22,7 +25,8 @@ _LAZY = {
     "SceneWarning": "scene",
     "list_scenes": "scene",
     "load_scene": "scene",
-    "InstabilityWarning": "solver",
+    "load_model": "registry",
+    "SCHEMES": "schemes",
     "simulate": "solver",
 }
 
@@ -45,11 +49,13 @@ __all__ = [
     "Model",
     "Parameters",
     "Result",
+    "SCHEMES",
     "Scene",
     "SceneError",
     "SceneWarning",
     "inelastic",
     "list_scenes",
+    "load_model",
     "load_scene",
     "simulate",
 ]

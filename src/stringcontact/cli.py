@@ -1,4 +1,4 @@
-"""The command line: `stringcontact run|list|show|plot|study|check` (also `python -m stringcontact`).
+"""The command line: `stringcontact run|list|show|plot|study|check|models` (also `python -m stringcontact`).
 
 Exit codes:
 
@@ -6,7 +6,8 @@ Exit codes:
 * 1 an internal error (a bug: one line; STRINGCONTACT_TRACEBACK=1 shows the traceback);
 * 2 bad input: scene, options, output folder (not empty, locked by another run, read-only, disk full),
   a scheme that would be unstable before it starts;
-* 3 a run that became unstable (its partial output is kept, marked "unstable");
+* 3 a run that became unstable (its partial output is kept, marked "unstable"), or whose energy balance does
+  not close (its output is kept, marked "unbalanced");
 * 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (partial output kept, marked "interrupted").
 
 Every error is one line on stderr; no traceback.
@@ -17,6 +18,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import logging
 import os
 import signal
 import sys
@@ -24,6 +26,7 @@ import threading
 import warnings
 
 from .errors import one_line
+from .schemes import SCHEMES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -33,6 +36,7 @@ SUBCOMMANDS = {
     "plot": ("stringcontact.viz", "redraw the pictures of an output folder from its saved files"),
     "study": ("stringcontact.study", "work-precision, convergence and stability studies"),
     "check": ("stringcontact.theorems", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
+    "models": ("stringcontact.registry", "list the models a scene may name (registered under stringcontact.models)"),
 }
 
 
@@ -51,17 +55,21 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--nt", type=int, help="number of time steps")
     run.add_argument("--eps", type=float, help="penalty parameter ε > 0")
     run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
-    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), default="explicit")
-    run.add_argument("--mass", choices=("lumped", "consistent"), default="lumped")
+    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper): "
+                     + "; ".join(f"{k}: {v}" for k, v in SCHEMES.items()))
+    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+    run.add_argument("--mass", choices=("lumped", "consistent"), help="default: lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
-    run.add_argument("--force", action="store_true", help="replace a non-empty output folder (only by a complete run)")
+    run.add_argument("--force", action="store_true", help="replace an output folder holding a stringcontact result (only by a complete run)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.add_argument("--model", metavar="MODULE:FUNCTION", help="model variant (default: the scene's, else the paper's)")
+    run.add_argument("--model", metavar="NAME",
+                     help="model: a name from `stringcontact models`, or package.module:name of a Model object "
+                          "(default: the scene's, else the paper's)")
     run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
     run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
     run.add_argument("--frames", type=int, default=100, metavar="N",
-                     help="XDMF frames: about N of the ~400 stored rows, always with 0, T and the output times "
-                          "(default 100; dolfinx 0.5 writes N frames in time ~N²)")
+                     help="XDMF frames: at most N of the ~400 stored rows: 0, T, the output times, then evenly "
+                          "spaced rows (default 100; dolfinx 0.5 writes N frames in time ~N²)")
 
     sub.add_parser("list", help="list the built-in scenes")
     show = sub.add_parser("show", help="print a scene as TOML")
@@ -76,17 +84,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _OneLineWarningHandler(logging.Handler):
+    """Warnings that reach the logger "py.warnings" (once ffcx has called ``logging.captureWarnings``)."""
+
+    def emit(self, record):
+        _stderr_line(f"stringcontact: warning: {one_line(record.getMessage())}")
+
+
 @contextlib.contextmanager
 def _one_line_warnings():
+    """Every warning as one line ``stringcontact: warning: MESSAGE``, however Python shows it.
+
+    ffcx calls ``logging.captureWarnings(True)`` when it is imported (mid-run): from then on warnings go, through
+    ``warnings.formatwarning``, to the logger "py.warnings" as ``WARNING:py.warnings:FILE:LINE: ...`` plus a
+    source line. So the format and that logger are set too, not only ``warnings.showwarning``.
+    """
+
     def show(message, category, filename, lineno, file=None, line=None):
         _stderr_line(f"stringcontact: warning: {one_line(message)}")
 
-    saved = warnings.showwarning
-    warnings.showwarning = show
+    def format_warning(message, category, filename, lineno, line=None):
+        return one_line(message)
+
+    logger = logging.getLogger("py.warnings")
+    handler = _OneLineWarningHandler()
+    saved = warnings.showwarning, warnings.formatwarning, logger.propagate
+    warnings.showwarning, warnings.formatwarning = show, format_warning
+    logger.addHandler(handler)
+    logger.propagate = False
     try:
         yield
     finally:
-        warnings.showwarning = saved
+        logger.removeHandler(handler)
+        warnings.showwarning, warnings.formatwarning, logger.propagate = saved
 
 
 #: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
@@ -98,28 +128,23 @@ def _signals_interrupt(petsc: bool = True):
     """SIGINT, SIGTERM and SIGHUP raise `Interrupted`, a KeyboardInterrupt: the run stops and keeps its output.
 
     PETSc installs C handlers for SIGHUP, SIGTERM and SIGPIPE that abort MPI with a page of text when it is
-    first imported; with `petsc` it is imported here, so that these Python handlers replace its own while the
-    command runs. SIGPIPE gets its default back (`stringcontact list | head` ends quietly, as Unix tools do).
+    first imported; with `petsc` it is imported here, and the Python handlers are installed again over its
+    own while the command runs. SIGPIPE gets its default back (`stringcontact list | head` ends quietly, as
+    Unix tools do).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     if petsc:
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
-    from .errors import Interrupted
-
-    def handler(signum, frame):
-        raise Interrupted(signum)
-
-    saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-    saved[signal.SIGPIPE] = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    saved_pipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
-        yield
+        with _stop_signals():
+            yield
     finally:
         with contextlib.suppress(OSError, ValueError):
             sys.stdout.flush()  # while SIGPIPE is still the default: a closed pipe ends the process quietly
-        for s, h in saved.items():
-            signal.signal(s, h if h is not None else signal.SIG_DFL)
+        signal.signal(signal.SIGPIPE, saved_pipe if saved_pipe is not None else signal.SIG_DFL)
 
 
 def _fmt_energy_line(res) -> str:
@@ -153,8 +178,10 @@ def report(res) -> None:
     from .errors import PenetrationWarning
 
     scene = res.scene
-    print(f"scene {scene.name}: nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} "
-          f"penalty={res.penalty} mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
+    penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
+               else "no penalty")
+    print(f"scene {scene.name}: scheme {res.scheme}, nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
+          f"mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
     if len(res.t) == 0:
         return
     print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")
@@ -182,10 +209,11 @@ def _run(args, painter=None) -> int:
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
     if changes:
         scene = scene.replace(**changes)
-    options = {"penalty": args.penalty, "mass": args.mass}
+    options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
+    _check_scheme_options(args, scene)
     model = None
-    if args.model or scene.model:
-        from .variants import load_model
+    if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
+        from .registry import load_model
 
         model = load_model(args.model or scene.model)
     if args.frames < 1:
@@ -212,7 +240,23 @@ def _run(args, painter=None) -> int:
     report(res)
     if args.out is not None:
         print(f"wrote {args.out}")
+    from .output import unbalanced_message
+
+    unbalanced = unbalanced_message(res)
+    if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
+        _error(unbalanced)
+        return EXIT_UNSTABLE
     return EXIT_OK
+
+
+def _check_scheme_options(args, scene) -> None:
+    """--eps or --penalty with a scheme that has no penalty: refused before anything runs."""
+    from .schemes import scheme_class
+
+    name = args.scheme or scene.scheme or "paper"
+    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
+        given = "--eps" if args.eps is not None else "--penalty"
+        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")
 
 
 def _single_process() -> bool:
@@ -241,6 +285,34 @@ def _stderr_line(text: str) -> None:
 
 
 def main(argv=None) -> int:
+    with _stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
+        try:
+            return _main(argv)
+        except KeyboardInterrupt as exc:
+            _error(str(exc) or "interrupted")
+            return exc.exit_code if hasattr(exc, "exit_code") else EXIT_INTERRUPTED
+
+
+@contextlib.contextmanager
+def _stop_signals():
+    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` from here on; the previous handlers come back after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from .errors import Interrupted
+
+    def handler(signum, frame):
+        raise Interrupted(signum)
+
+    saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
+
+
+def _main(argv) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "_unavailable", None):
         _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
@@ -260,7 +332,7 @@ def main(argv=None) -> int:
 def _command(args, painter) -> int:
     from .errors import InstabilityError, Interrupted, OutputError, SceneError
 
-    with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot")):
+    with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot", "models")):
         try:
             if args.command == "run":
                 return _run(args, painter)

@@ -44,6 +44,10 @@ class Interrupted(KeyboardInterrupt):
         return 128 + self.signum
 
 
+class InstabilityWarning(UserWarning):
+    """Stable, but not as intended: e.g. the explicit velocity penalty with 1 < Δt/ε < 2 rebounds with restitution r − 1."""
+
+
 class PenetrationWarning(UserWarning):
     """The string went further below the obstacle than the velocity penalty should allow (see docs/reliability.md)."""
 

@@ -30,6 +30,17 @@ A model is a `Model`: a few plain functions that return UFL.
 ``contact_set(eta, p)``
     The contact indicator written to the results (a UFL condition, evaluated at the nodes).
 
+``gap(eta, p)`` (optional)
+    The signed distance to the obstacle, η − ψ (a UFL expression, affine in η with slope 1): the
+    admissible set is gap ≥ 0. Schemes that enforce the constraint itself (``projection``) need it;
+    ``None`` for a law that is meant to let the string through (a spring that bounces).
+
+``stability(dt, eps, penalty)`` (optional)
+    The bound this contact law puts on Δt and ε when a scheme evaluates it (``penalty`` is "explicit" or
+    "semi-implicit"): returns ``None`` (fine), ``("warn", why)`` or ``("refuse", why)``. It belongs to the
+    law, not to the solver: the velocity penalty's restitution is r − 1 with r = Δt/ε; a spring's bound is on
+    Δt²/ε (`variants.spring_bound`).
+
 ``contact_energy(eta, p)`` (optional)
     For a *conservative* law (F = −∂Φ/∂η, a spring): the stored energy density Φ(η), so that the
     solver's energy guard counts the energy held in the spring instead of calling its release
@@ -97,6 +108,31 @@ def contact_set(eta, p: Parameters):
     return ufl.le(eta, 0)
 
 
+def gap(eta, p: Parameters):
+    """The signed distance to the obstacle y = 0; the admissible set is gap ≥ 0."""
+    return eta
+
+
+def restitution_bound(dt: float, eps: float, penalty: str):
+    """The explicit velocity penalty rebounds with restitution r − 1, r = Δt/ε: refuse r ≥ 2 (growth), warn r > 1.
+
+    The semi-implicit penalty applies the damping to the new velocity and cannot overshoot: no bound.
+    """
+    r = dt / eps
+    if penalty != "explicit" or r <= 1:
+        return None
+    if r >= 2:
+        return "refuse", (
+            f"explicit velocity penalty with r = dt/eps = {r:.4g} >= 2 grows energy at every impact "
+            f"(restitution r-1 = {r - 1:.3g} >= 1); use penalty='semi-implicit' (--penalty semi-implicit), "
+            "scheme 'projection', or dt <= eps"
+        )
+    return "warn", (
+        f"explicit velocity penalty with r = dt/eps = {r:.4g} > 1 rebounds with restitution {r - 1:.3g}; "
+        "use dt <= eps, penalty='semi-implicit' or scheme 'projection' for inelastic contact"
+    )
+
+
 @dataclass(frozen=True)
 class Model:
     """A model is a few UFL functions; replace one to make a variant.
@@ -110,6 +146,8 @@ class Model:
     penalty: Callable = penalty
     penalty_damping: Callable | None = penalty_damping
     contact_set: Callable = contact_set
+    gap: Callable | None = gap
+    stability: Callable | None = restitution_bound
     contact_energy: Callable | None = None
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
@@ -132,8 +170,9 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     exprs = [model.momentum_form(eta, eta_t, eta_tt, force, w, p), model.penalty(eta, v, p), model.contact_set(eta, p)]
     if model.penalty_damping is not None:
         exprs.append(model.penalty_damping(eta, v, p))
-    if model.contact_energy is not None:
-        exprs.append(model.contact_energy(eta, p))
+    for law in (model.contact_energy, model.gap):
+        if law is not None:
+            exprs.append(law(eta, p))
     used = set()
     for e in exprs:
         used |= set(ufl.algorithms.extract_coefficients(e))
@@ -144,10 +183,12 @@ __all__ = [
     "Model",
     "Parameters",
     "contact_set",
+    "gap",
     "inelastic",
     "momentum_form",
     "penalty",
     "penalty_damping",
     "penetration",
+    "restitution_bound",
     "unused_fields",
 ]

@@ -2,16 +2,18 @@
 
 A run writes into a hidden folder of its own beside the target (``.NAME.partial-<pid>-<random>``) and
 renames it into place at the end, so the target is always absent, complete, or explicitly marked
-``"status": "interrupted"`` or ``"unstable"`` in its `summary.json`. Never half-written:
+``"status": "interrupted"``, ``"unstable"`` or ``"unbalanced"`` in its `summary.json`. Never half-written:
 
 * a lock file ``.NAME.lock`` (``fcntl.flock``) keeps a second run from writing to the same target;
 * each stored time is written with SIGINT/SIGTERM held back, so the XDMF holds whole time levels;
 * the XDMF is closed (and read back) before the rename; files are fsync'ed, then the folder is renamed;
-* with ``--force`` only a *complete* run replaces an existing target; an interrupted or unstable one goes
-  to ``NAME.interrupted`` / ``NAME.unstable`` beside it, so a finished result is never lost;
-* a disk-full or permission error removes the partial folder and raises :class:`OutputError` with one line;
+* with ``--force`` only a *complete* run replaces an existing target, and only one holding a result of ours
+  (`check_target`); an interrupted, unstable or unbalanced one goes to ``NAME.interrupted`` / ``.unstable`` /
+  ``.unbalanced`` beside it, so a finished result is never lost;
+* a disk-full or permission error (in a picture too) removes the partial folder and raises
+  :class:`OutputError` with one line, on every MPI rank;
 * the partial folders of runs that were killed (SIGKILL, power loss) are removed by the next run that
-  takes the lock.
+  takes the lock: exact names only, never one a live run holds.
 
 `energy_balance` and `penetration_check` are the two numbers checks of every run (summary.json and the
 command line's last lines); see docs/reliability.md.
@@ -134,16 +136,38 @@ def _read_pid(fd) -> int | None:
         return None
 
 
-def check_target(path, force: bool, *, locked: bool = False) -> Path:
-    """Refuse a path that is a file, a non-empty folder (unless `force`), and a folder another run writes to.
+#: The statuses a run writes into its summary.json; `--force` replaces only a folder holding one of them.
+STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
+#: What marks a folder as ours: a run's summary.json, or the checks.json of `stringcontact check --out`.
+RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks"}
 
-    `locked`: the caller holds the folder's lock itself (so the lock is not probed).
+
+def check_target(path, force: bool, *, locked: bool = False) -> Path:
+    """Refuse an --out that cannot or must not take a result, before any work is done.
+
+    Refused: the root folder, the current folder or one containing it, a file, a parent that cannot be written,
+    a non-empty folder (unless `force`, and then only a folder holding a result of ours), and a folder another
+    run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
     """
     target = Path(path)
+    resolved = target.resolve()
+    if not resolved.name:
+        raise OutputError(f"--out {target}: is the root folder; choose a new folder")
+    with contextlib.suppress(OSError):
+        if Path.cwd() == resolved or resolved in Path.cwd().parents:
+            raise OutputError(f"--out {target}: is the current folder or contains it; choose a new folder")
     if target.exists() and not target.is_dir():
         raise OutputError(f"--out {target}: exists and is not a folder")
-    if target.is_dir() and any(target.iterdir()) and not force:
-        raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+    if not target.exists():
+        _check_writable(target, resolved.parent)
+    if target.is_dir() and any(target.iterdir()):
+        if not force:
+            raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+        if not _holds_our_result(target):
+            raise OutputError(
+                f"--out {target}: --force replaces only a stringcontact result (a folder with its summary.json), "
+                "and this folder holds other files; choose another folder"
+            )
     holder = None if locked else TargetLock.holder(target)
     if holder is not None:
         who = f" (pid {holder})" if holder else ""
@@ -154,6 +178,33 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
     return target
 
 
+def _check_writable(target: Path, parent: Path) -> None:
+    """Refuse a target whose nearest existing parent folder cannot be written (read-only or no permission)."""
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    reason = None
+    with contextlib.suppress(OSError):
+        if os.statvfs(parent).f_flag & os.ST_RDONLY:
+            reason = errno.EROFS
+    if reason is None and not os.access(parent, os.W_OK | os.X_OK):
+        reason = errno.EACCES
+    if reason is not None:
+        why = describe_os_error(OSError(reason, os.strerror(reason)), parent)
+        raise OutputError(f"--out {target}: cannot create the output folder: {why}")
+
+
+def _holds_our_result(folder: Path) -> bool:
+    """A folder with a summary.json (or checks.json) written by stringcontact."""
+    for name, key in RESULT_MARKERS.items():
+        try:
+            data = json.loads((folder / name).read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and key in data and (key != "status" or data[key] in STATUSES):
+            return True
+    return False
+
+
 def _free_sibling(target: Path, label: str) -> Path:
     for i in range(1, 1000):
         candidate = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
@@ -162,24 +213,44 @@ def _free_sibling(target: Path, label: str) -> Path:
     raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
 
 
+def _stale_kind(name: str, entry: str) -> str | None:
+    """'partial' or 'old' if `entry` is exactly a hidden folder that a run into `name` makes, else None.
+
+    Exact names only: ``.ex.old-1.partial-…`` belongs to a run into ``ex.old-1``, not to one into ``ex``.
+    """
+    partial = rf"\.{re.escape(name)}\.partial-\d+-[a-z0-9_]+"  # tempfile.mkdtemp's suffix
+    old = rf"\.{re.escape(name)}\.old-\d+-\d+"  # move_into_place's swap
+    if re.fullmatch(partial, entry):
+        return "partial"
+    if re.fullmatch(old, entry):
+        return "old"
+    return None
+
+
 def _recover_stale(target: Path) -> None:
-    """Under the lock: remove the partial folders of killed runs; finish an interrupted --force swap."""
+    """Under the lock: remove the partial folders of killed runs; finish an interrupted --force swap.
+
+    Only folders named exactly as a run into `target` names them, and none that is itself the target of a
+    live run (a user's ``--out .ex.partial-1-x``): its lock would be held.
+    """
     parent, name = target.parent, target.name
     try:
         entries = list(parent.iterdir())
     except OSError:
         return
     removed = []
-    for p in entries:
-        if p.name.startswith(f".{name}.partial") and p.is_dir():
+    for p in sorted(entries):
+        kind = _stale_kind(name, p.name)
+        if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
+            continue
+        if kind == "partial":
             shutil.rmtree(p, ignore_errors=True)
             removed.append(p.name)
-        elif p.name.startswith(f".{name}.old-") and p.is_dir():
-            if not target.exists():  # the swap stopped between its two renames: the old result comes back
-                os.rename(p, target)
-                warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
-            else:
-                shutil.rmtree(p, ignore_errors=True)
+        elif not target.exists():  # the swap stopped between its two renames: the old result comes back
+            os.rename(p, target)
+            warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
+        else:
+            shutil.rmtree(p, ignore_errors=True)
     if removed:
         warnings.warn(
             f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
@@ -265,6 +336,21 @@ def describe_os_error(exc: BaseException, folder, probe=None) -> str:
     if not os.access(probe, os.W_OK):
         return f"permission denied in {folder}"
     return f"{one_line(exc, 300)} ({folder})"
+
+
+#: errno values that mean the device failed, not the data: the output folder cannot be kept.
+DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
+
+
+def disk_failure(exc: BaseException) -> OSError | None:
+    """The OSError of a full or failing device that `exc` is, or was raised from or during; else None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in DISK_ERRNOS:
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
@@ -435,19 +521,40 @@ class _Hdf5Quiet:
 
 
 def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
-    """Which stored rows become XDMF frames: every k-th, so about `max_frames`, plus the first, the last and
-    the rows at `keep_steps` (the scene's output times).
+    """Which stored rows become XDMF frames: at most `max_frames` (at least 2) of them. The first and the last
+    always; then the rows at `keep_steps` (the scene's output times), evenly thinned if they do not fit;
+    then evenly spaced rows up to `max_frames`.
 
     dolfinx 0.5's XDMFFile rewrites its whole XML on every write, so writing costs O(frames²): 376 rows of
-    Example 1 take 3.5 s, 100 take 0.4 s. The Result and diagnostics.csv keep every stored row.
+    Example 1 take 3.5 s, 100 take 0.4 s; 3000 output times took over 600 s. The bound is therefore on
+    every frame, output times included. The Result and diagnostics.csv keep every stored row.
     """
     steps = np.asarray(steps)
     mask = np.zeros(steps.size, dtype=bool)
-    if steps.size:
-        mask[:: max(1, math.ceil(steps.size / max(1, max_frames)))] = True
-        mask[[0, -1]] = True
-        mask |= np.isin(steps, np.asarray(sorted(keep_steps), dtype=steps.dtype))
+    if not steps.size:
+        return mask
+    budget = max(2, int(max_frames))
+    mask[[0, -1]] = True
+    keep = np.flatnonzero(np.isin(steps, np.asarray(sorted(keep_steps), dtype=steps.dtype)) & ~mask)
+    _add_evenly(mask, keep, budget)
+    if keep.size and not mask[keep].all():
+        warnings.warn(
+            f"the scene's {keep.size} output times do not fit in {budget} XDMF frames (--frames): solution.xdmf "
+            f"holds {int(mask[keep].sum())} of them; all are stored rows (diagnostics.csv, the pictures)",
+            stacklevel=2,
+        )
+    _add_evenly(mask, np.flatnonzero(~mask), budget)
     return mask
+
+
+def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
+    """Set up to ``budget - mask.sum()`` of the rows `candidates` (sorted, unset) in `mask`, evenly spaced."""
+    room = budget - int(mask.sum())
+    if room <= 0 or not candidates.size:
+        return
+    if candidates.size > room:
+        candidates = candidates[((np.arange(room) + 0.5) * (candidates.size / room)).astype(int)]  # centred picks
+    mask[candidates] = True
 
 
 class OutputWriter:
@@ -539,16 +646,31 @@ class OutputWriter:
     # -- the end of a run
 
     def finish(self, result) -> None:
-        """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place."""
+        """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place.
+
+        A run whose energy balance does not close is kept, marked "unbalanced" (result.status too), never
+        "complete". A write that fails on the device (disk full, I/O error), pictures included, removes the
+        folder and raises OutputError on every rank.
+        """
         try:
             self._close_xdmf()
+            unbalanced = unbalanced_message(result)
+            if unbalanced is not None:
+                result.status, result.message = "unbalanced", unbalanced
             summary = summary_dict(result)
+            failure = None
             if self.comm.rank == 0:
-                write_diagnostics(self.partial / "diagnostics.csv", result)
-                if self.pictures:
-                    t0 = time.perf_counter()
-                    self._pictures(result)
-                    summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
+                try:
+                    self._write_tables_and_pictures(result, summary)
+                except Exception as exc:  # noqa: BLE001 - sorted below
+                    if not isinstance(exc, (OSError, RuntimeError)) and disk_failure(exc) is None:
+                        raise
+                    failure = describe_os_error(disk_failure(exc) or exc, self.target.parent, probe=self.partial)
+            if self.comm.size > 1:
+                failure = self.comm.bcast(failure, root=0)
+            if failure is not None:
+                self._discard()
+                raise OutputError(f"--out {self.target}: cannot write the output files: {failure}; nothing was written there")
             self._publish(summary)
         except KeyboardInterrupt as exc:
             # Ctrl-C while drawing: the data are whole, and the folder says it was interrupted. If it came
@@ -598,6 +720,14 @@ class OutputWriter:
 
     # -- internals
 
+    def _write_tables_and_pictures(self, result, summary: dict) -> None:
+        """Rank 0: diagnostics.csv and the pictures. A picture that fails on the device raises (`disk_failure`)."""
+        write_diagnostics(self.partial / "diagnostics.csv", result)
+        if self.pictures:
+            t0 = time.perf_counter()
+            self._pictures(result)
+            summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
+
     def _pictures(self, result) -> None:
         try:
             from .viz import write_pictures  # pictures on rank 0 only
@@ -606,6 +736,8 @@ class OutputWriter:
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
+            if disk_failure(exc) is not None:  # ...but not on a device that fails: then nothing is kept (finish)
+                raise
             warnings.warn(f"pictures not written ({type(exc).__name__}: {one_line(exc, 300)})", stacklevel=3)
 
     def _bare_summary(self) -> dict:
@@ -627,6 +759,9 @@ class OutputWriter:
             xdmf, self.xdmf = self.xdmf, None
             try:
                 xdmf.close(discard=discard)
+            except BaseException:
+                self.xdmf = xdmf  # still open: a discard closes it (XdmfTimeSeries.close)
+                raise
             finally:
                 self._quiet.__exit__()
 
@@ -819,6 +954,19 @@ def penetration_check(result) -> dict:
     }
 
 
+def unbalanced_message(result) -> str | None:
+    """Why a run whose energy balance does not close cannot be called complete; None if it closes."""
+    if not len(result.t):
+        return None
+    b = energy_balance(result)
+    if b["closes"]:
+        return None
+    return (
+        f"the energy balance does not close (relative residual {b['relative_residual']:.2g} > {b['tolerance']:.0e}): "
+        "the numbers are not trustworthy; see docs/reliability.md"
+    )
+
+
 def summary_dict(result) -> dict:
     import dolfinx
 
@@ -827,6 +975,7 @@ def summary_dict(result) -> dict:
         "status": result.status,
         "message": result.message,
         "scene": scene.as_dict(),
+        "scheme": result.scheme,
         "penalty": result.penalty,
         "mass": result.mass,
         "model": result.model,

@@ -84,16 +84,20 @@ def _check_status(folder: Path, summary: dict) -> None:
 
 
 def _read_summary(path: Path):
+    from .registry import registered
     from .scene import Scene
 
     summary = _load_json(path)
     _check_status(path.parent, summary)
     if not isinstance(summary.get("scene"), dict):
         raise ValueError(f"plot: {path} has no 'scene' object")  # noqa: TRY004 - bad input: exit 2
+    scene_data = dict(summary["scene"])
+    if scene_data.get("model") not in registered():  # an uninstalled plugin, or a module path of an older folder:
+        scene_data.pop("model", None)  # redrawing needs no model (its name stays in Result.model)
     try:
         with warnings.catch_warnings():  # the scene was already warned about when it ran
             warnings.simplefilter("ignore")
-            scene = Scene.from_dict(summary["scene"])
+            scene = Scene.from_dict(scene_data)
     except (SceneError, TypeError, ValueError, KeyError) as exc:
         raise ValueError(f"plot: {path}: its scene is not valid ({one_line(exc, 200)})") from None
     return summary, scene

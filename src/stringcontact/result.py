@@ -45,6 +45,7 @@ class Result:
     status: str = "complete"
     timings: dict = field(default_factory=dict)
     message: str = ""
+    scheme: str = "paper"
 
     @property
     def total_energy(self) -> np.ndarray:

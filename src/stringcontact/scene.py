@@ -12,6 +12,7 @@ A scene file looks like::
     v0 = -50
     load = "-10"      # optional: external load f(x), for a model that reads it
     obstacle = "0"    # optional: obstacle profile psi(x), for a model that reads it
+    model = "loaded_obstacle"  # optional: a registered model's name (`stringcontact models`)
 
 Usage::
 
@@ -34,7 +35,7 @@ import json
 import math
 import numbers
 import os
-import re
+import stat
 import tomllib
 import warnings
 from dataclasses import dataclass
@@ -55,12 +56,15 @@ __all__ = [
     "FIELD_KEYS",
     "REQUIRED_KEYS",
     "MAX_FILE_BYTES",
+    "MAX_OUTPUT_TIMES",
+    "MAX_STORED_BYTES",
+    "stored_bytes",
 ]
 
 #: Keys a scene file (or Scene.replace) accepts, in the order they are written.
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
-    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model",
+    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
 )
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
@@ -75,13 +79,21 @@ _BOUNDS = {
     "length": (0.0, 1e4, True, False),
     "T": (0.0, 1e4, True, False),
     "alpha": (0.0, 1e4, False, False),
-    "eps": (0.0, 1e6, True, False),
+    "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/reliability.md, "Size and precision limits"
     "h": (-1e6, 1e6, False, False),
     "h_left": (-1e6, 1e6, False, False),
     "h_right": (-1e6, 1e6, False, False),
 }
-_INT_BOUNDS = {"nx": (2, 1_000_000), "nt": (1, 100_000_000)}
-_MODEL_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$", re.ASCII)
+# nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
+# (benchmarks/bench_mesh_size.py).
+_INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000)}
+#: At most this many output times: each is a stored row (and an XDMF frame, within --frames).
+MAX_OUTPUT_TIMES = 1000
+#: The stored rows (eta, velocity, contact force as float64, contact as bool) may take at most this many bytes.
+MAX_STORED_BYTES = 2_000_000_000
+BYTES_PER_STORED_NODE = 3 * 8 + 1
+#: The solver's default number of stored rows (`simulate(max_rows=400)`), besides 0, T and the output times.
+STORED_ROWS = 400
 _NAME_MAX = 100
 _BUILTIN_PACKAGE = "stringcontact"
 _BUILTIN_FOLDER = "scenes"
@@ -98,7 +110,7 @@ class Scene:
     ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.expressions`);
     ``h_left``/``h_right`` are the (resolved) heights at which the ends are held.
     ``load`` (an external force density f) and ``obstacle`` (a profile ψ) are optional expressions
-    in ``x`` too; they are data for a model that reads them (``stringcontact.variants:loaded_obstacle``),
+    in ``x`` too; they are data for a model that reads them (``loaded_obstacle``),
     available as :attr:`fields`.
     Direct construction validates too, but resolves no defaults and gives no warnings.
     """
@@ -118,9 +130,10 @@ class Scene:
     output_times: tuple[float, ...] = ()
     description: str = ""
     notes: str = ""  # interpretations of the source data
-    model: str | None = None  # "package.module:function"
+    model: str | None = None  # a registered model name (`stringcontact models`), never a module path
     load: str | None = None  # external load f(x), expression in x (None: not given)
     obstacle: str | None = None  # obstacle profile psi(x), expression in x (None: not given)
+    scheme: str | None = None  # a name in stringcontact.SCHEMES (None: "paper")
 
     def __post_init__(self):
         # Normalise in place (frozen, hence object.__setattr__): ints to floats, lists to tuples.
@@ -143,7 +156,10 @@ class Scene:
             put(key, _text(key, getattr(self, key)))
         if self.model is not None:
             put("model", _check_model(self.model))
+        if self.scheme is not None:
+            put("scheme", _check_scheme(self.scheme))
         put("output_times", _check_output_times(self.output_times, self.T))
+        _check_storage(self.nx, self.nt, len(self.output_times))
         for key in ("eta0", "v0") + tuple(self.fields):
             put(key, _expression_text(key, getattr(self, key)))
             expressions.check(getattr(self, key), field=key, names=self._names())
@@ -234,6 +250,8 @@ class Scene:
         d["output_times"] = list(self.output_times)
         if self.model is not None:
             d["model"] = self.model
+        if self.scheme is not None:
+            d["scheme"] = self.scheme
         return d
 
     @classmethod
@@ -342,6 +360,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         description=data.get("description", ""),
         notes=data.get("notes", ""),
         model=data.get("model"),
+        scheme=data.get("scheme"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
     )
 
@@ -505,14 +524,25 @@ def _check_name(value) -> str:
 
 
 def _check_model(value) -> str:
-    if not isinstance(value, str) or not _MODEL_RE.match(value):
-        raise SceneError(f"model: invalid value {_describe(value)}; allowed: 'package.module:function'")
+    # A scene is data: it names a registered model and never a module (nothing is imported here).
+    from .registry import check_name
+
+    return check_name(value)
+
+
+def _check_scheme(value) -> str:
+    from .schemes import SCHEMES
+
+    if value not in SCHEMES:
+        raise SceneError(f"scheme: invalid value {_describe(value)}; allowed: {', '.join(SCHEMES)}")
     return value
 
 
 def _check_output_times(value, T: float) -> tuple[float, ...]:
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         raise SceneError(f"output_times: expected a list of numbers in [0, T], got {_describe(value)}")
+    if len(value) > MAX_OUTPUT_TIMES:
+        raise SceneError(f"output_times: {len(value)} times; allowed: at most {MAX_OUTPUT_TIMES} times in [0, T = {_fmt(T)}]")
     times = []
     for t in value:
         if not _is_number(t) or not math.isfinite(float(t)):
@@ -524,6 +554,23 @@ def _check_output_times(value, T: float) -> tuple[float, ...]:
     if any(b <= a for a, b in zip(times, times[1:])):
         raise SceneError("output_times: must be sorted ascending without duplicates")
     return tuple(times)
+
+
+def stored_bytes(nx: int, nt: int, n_output_times: int, max_rows: int = STORED_ROWS) -> int:
+    """An upper bound on the memory of a run's stored rows: rows × (nx + 1) nodes × BYTES_PER_STORED_NODE."""
+    rows = min(nt, max_rows) + 2 + n_output_times  # every k-th step, 0 and T, the output times
+    return rows * (nx + 1) * BYTES_PER_STORED_NODE
+
+
+def _check_storage(nx: int, nt: int, n_output_times: int) -> None:
+    """Refuse a scene whose stored rows would not fit, before anything is allocated."""
+    need = stored_bytes(nx, nt, n_output_times)
+    if need > MAX_STORED_BYTES:
+        raise SceneError(
+            f"nx, nt, output_times: the stored rows need {need / 1e9:.3g} GB ((min(nt, {STORED_ROWS}) + 2 + "
+            f"{n_output_times} output times) rows x (nx + 1) nodes x {BYTES_PER_STORED_NODE} bytes); allowed: at most "
+            f"{MAX_STORED_BYTES / 1e9:g} GB; reduce nx or the number of output times"
+        )
 
 
 def _fmt(v) -> str:
@@ -572,6 +619,8 @@ def _parse_toml(raw: bytes, label: str) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"scene file {label!r}: invalid TOML: {one_line(exc)}") from None
+    except RecursionError:  # tomllib recurses once per level of [[[...]]]; no scene nests at all
+        raise SceneError(f"scene file {label!r}: malformed TOML: arrays or tables nested too deeply") from None
 
 
 def load_scene(name_or_path: str | os.PathLike) -> Scene:
@@ -591,6 +640,8 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
     if not path.is_file():
         if path.is_dir():
             raise SceneError(f"scene {text!r}: is a directory; expected a .toml scene file")
+        if path.exists():  # a FIFO, a device, a socket: stat only, never open (a FIFO would block)
+            raise SceneError(f"scene {text!r}: is not a regular file ({_file_kind(path)}); expected a .toml scene file")
         raise SceneError(
             f"scene {text!r}: no built-in scene of that name and no such file "
             f"(built-in scenes: {', '.join(builtins) or 'none'})"
@@ -605,6 +656,13 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
     except OSError as exc:
         raise SceneError(f"scene file {text!r}: cannot read it ({exc.strerror or exc})") from None
     return Scene.from_dict(_parse_toml(raw, text), source=text, default_name=path.stem)
+
+
+def _file_kind(path: Path) -> str:
+    mode = path.stat().st_mode
+    kinds = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+             (stat.S_ISSOCK, "a socket"))
+    return next((kind for test, kind in kinds if test(mode)), "not a file")
 
 
 def list_scenes() -> list[tuple[str, str]]:

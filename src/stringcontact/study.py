@@ -68,16 +68,18 @@ ALPHA_COLUMNS = (
 
 @dataclass(frozen=True)
 class Method:
-    """A penalty treatment, a mass matrix and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt) or "limit"."""
+    """A scheme, a penalty treatment, a mass matrix and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt),
+    "limit" (ε → 0) or "none" (the scheme uses no ε)."""
 
     name: str
     label: str
-    penalty: str
+    penalty: str | None
     mass: str
     eps_rule: str
+    scheme: str = "paper"
 
     def eps(self, scene_eps: float, dt: float) -> float:
-        return {"fixed": scene_eps, "dt": dt, "limit": EPS_LIMIT}[self.eps_rule]
+        return {"fixed": scene_eps, "dt": dt, "limit": EPS_LIMIT, "none": scene_eps}[self.eps_rule]
 
 
 METHODS = {
@@ -87,14 +89,18 @@ METHODS = {
         Method("explicit-r1", "explicit, lumped, ε = Δt (r = 1)", "explicit", "lumped", "dt"),
         Method("semi-implicit", "semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit"),
         Method("consistent", "semi-implicit, consistent mass, ε → 0", "semi-implicit", "consistent", "limit"),
+        Method("projection", "projection (no ε), lumped", None, "lumped", "none", scheme="projection"),
+        Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"),
     )
 }
-REFERENCE = Method("reference", "reference: semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit")
+#: The reference for problems with no exact solution: the most accurate scheme (docs/study.md), at reference_n.
+REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped", "none", scheme="projection")
 
 #: What the studies taught `run --tol` (docs/study.md): the observed L∞(L²) order of η under Δt = Δx → 0
-#: on the flat landing, for the methods that converge to the inelastic limit, cheapest first.
-TOL_METHODS = ("explicit-r1", "semi-implicit")
-TOL_ORDER = {"semi-implicit": 0.5, "explicit-r1": 0.5}
+#: on the flat landing, for the methods that converge to the inelastic limit, cheapest first. The explicit
+#: penalty is left out: at a single-point contact it cannot hold the string up (docs/getfem.md).
+TOL_METHODS = ("projection", "semi-implicit", "newmark")
+TOL_ORDER = {"projection": 1.0, "semi-implicit": 0.5, "newmark": 0.5}
 
 
 def flat_landing_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.6, alpha: float = 0.0, nt: int | None = None):
@@ -204,14 +210,15 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
 
     scene = scene.replace(eps=method.eps(scene.eps, scene.dt))
     common = dict(
-        problem=scene.name, method=method.name, penalty=method.penalty, mass=method.mass,
-        nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps,
+        problem=scene.name, method=method.name, penalty=method.penalty or "none", mass=method.mass,
+        nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps if method.penalty else math.inf,
     )
     best, res = math.inf, None
     for _ in range(repeat):
         try:
             t0 = time.perf_counter()
-            res = _simulate_self(scene, penalty=method.penalty, mass=method.mass, model=model, max_rows=rows)
+            res = _simulate_self(scene, scheme=method.scheme, penalty=method.penalty, mass=method.mass, model=model,
+                                 max_rows=rows)
             best = min(best, time.perf_counter() - t0)
         except sc.InstabilityError as exc:
             status = "refused" if exc.step == 0 else "unstable"
@@ -418,7 +425,8 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
     n_eps = 400 if quick else 4000
     eps_values = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-8)
     rows_per_run = round(0.6 * min(sizes))
-    cases = [("dt", m, n, None) for m in ("explicit-r1", "semi-implicit", "consistent") for n in sizes]
+    cases = [("dt", m, n, None) for m in ("explicit-r1", "semi-implicit", "consistent", "projection", "newmark")
+             for n in sizes]
     dt_fixed = 1.0 / n_eps
     cases += [("eps", "explicit", n_eps, e) for e in eps_values if dt_fixed / e <= 1.0]
     cases += [("eps", "semi-implicit", n_eps, e) for e in eps_values]
@@ -563,8 +571,96 @@ def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> l
     dts = (1 / 100,) if quick else STABILITY_DT
     cases = [(p, "lumped", dt, r) for p in ("explicit", "semi-implicit") for dt in dts for r in r_values]
     cases += [("explicit", "consistent", dt, r) for dt in dts for r in r_values]
-    return distribute(lambda c: stability_case(c[0], c[2], c[3], mass=c[1]), cases, comm, cost=lambda c: 1 / c[2] ** 2,
-                      busy=busy)
+    cases += [("explicit spring", "lumped", 1 / 200, 200 * q) for q in ((0.5, 64.0) if quick else SPRING_Q)]
+
+    def one(c):
+        return spring_case(c[3]) if c[0] == "explicit spring" else stability_case(c[0], c[2], c[3], mass=c[1])
+
+    return distribute(one, cases, comm, cost=lambda c: 1 / c[2] ** 2, busy=busy)
+
+
+STEP_RATIOS = (0.5, 0.9, 1.0, 1.05, 1.2, 1.5, 2.0, 4.0, 10.0)
+STEP_COLUMNS = ("scheme", "alpha", "dt_over_dx", "dt_max_over_dx", "outcome", "restitution", "energy_max_ratio",
+                "min_eta")
+#: Δt²/ε of the explicit spring (the elastic variant) at Δt = Δx = 1/200: r = Δt/ε = 200 q.
+SPRING_Q = (0.005, 0.05, 0.5, 2.0, 4.0, 6.0, 8.0, 16.0, 64.0)
+
+
+def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: float = 0.45) -> dict:
+    """The flat landing with Δt = ratio·Δx: where the schemes without ε stop being stable.
+
+    `projection` runs through its NumPy reference (`reference.fd_projection`, equal to `simulate` to 1e-10),
+    which has no pre-run refusal, so the map shows what happens beyond Δt_max; "refused" is added where
+    `simulate` would refuse. `newmark` runs through `simulate` with ε → 0.
+    """
+    from mpi4py import MPI
+
+    from .model import inelastic
+    from .reference import fd_projection
+    from .schemes.projection import largest_stable_dt
+    from .solver import _discretise
+
+    nt = max(1, round(T * n / ratio))
+    scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)
+    ops = _discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    interior = np.ones(ops.m.size, dtype=bool)
+    interior[np.argsort(ops.m)[:2]] = False  # the ends: the two nodes with half a cell of mass
+    dt_max = largest_stable_dt(ops, interior)
+    row = {"scheme": scheme, "alpha": alpha, "dt_over_dx": scene.dt / scene.dx, "dt_max_over_dx": dt_max / scene.dx}
+    if scheme == "projection":
+        x = scene.x()
+        with np.errstate(all="ignore"):
+            t, eta, vel = fd_projection(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=T,
+                                        nt=nt, alpha=alpha, h_left=scene.h_left, h_right=scene.h_right)
+        energy = fd_energy(eta, vel, scene.dx)  # ½|v|² + ½|η|²_K: bounded by the modified energy when stable
+        e = restitution(t, x, vel, window=max(0.1, 2 * scene.dt))
+        finite = np.all(np.isfinite(energy))
+        growth = not finite or np.max(energy) > 2 * energy[0]
+        outcome = "growth" if growth else ("rebound" if e > REBOUND_THRESHOLD else "inelastic")
+        if scene.dt > dt_max and not growth:
+            outcome = "refused"  # stable here, but simulate refuses it (dt_max is a sufficient bound)
+        row.update(outcome=outcome, restitution=e, energy_max_ratio=float(np.max(energy) / energy[0]) if finite
+                   else math.inf, min_eta=float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan))))
+        return row
+    res = _simulate_self(scene, scheme=scheme, max_rows=nt)
+    e = restitution(res.t, res.x, res.velocity, window=max(0.1, 2 * scene.dt))
+    outcome, _ = classify(e, res.total_energy)
+    row.update(outcome=outcome, restitution=e, energy_max_ratio=float(np.max(res.total_energy) / res.total_energy[0]),
+               min_eta=res.min_eta)
+    return row
+
+
+def step_size_map(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
+    """Rows of STEP_COLUMNS: projection and newmark over Δt/Δx, with and without viscosity."""
+    ratios = (0.9, 1.0, 1.2, 4.0) if quick else STEP_RATIOS
+    n = 100 if quick else 200
+    cases = [(scheme, a, c) for scheme in ("projection", "newmark") for a in (0.0, 0.01) for c in ratios]
+    return distribute(lambda c: step_size_case(*c, n=n), cases, comm, busy=busy)
+
+
+def spring_case(r: float, n: int = 200, T: float = 0.45) -> dict:
+    """The elastic (spring) law, explicit, at Δt = Δx with ε = Δt/r: its own stability (the law only warns)."""
+    from . import variants
+
+    scene = flat_landing_scene(n, eps=1.0 / n / r, T=T)
+    row = {"penalty": "explicit spring", "mass": "lumped", "dt": scene.dt, "eps": scene.eps, "r": r,
+           "restitution_theory": math.nan}
+    import stringcontact as sc
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sc.InstabilityWarning)
+            res = _simulate_self(scene, model=variants.elastic, max_rows=scene.nt)
+    except sc.InstabilityError as exc:
+        row.update(outcome="growth", restitution=math.nan, growth_step=exc.step, energy_max_ratio=math.nan,
+                   min_eta=math.nan)
+        return row
+    e = restitution(res.t, res.x, res.velocity)
+    # a spring bounces by design, after ~π√ε: growth is its only failure
+    outcome = "stable"
+    row.update(outcome=outcome, restitution=e, growth_step=-1,
+               energy_max_ratio=float(np.max(res.total_energy) / res.total_energy[0]), min_eta=res.min_eta)
+    return row
 
 
 def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
@@ -625,6 +721,8 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
         method = METHODS[name]
         if method.penalty == "semi-implicit" and model is not None and model.penalty_damping is None:
             continue
+        if method.scheme == "projection" and model is not None and model.gap is None:
+            continue
         nx = max(2, min(nx_start, scene.nx))
         coarse_scene = _scaled(scene, nx)
         rows = coarse_scene.nt  # every coarse step; the finer run stores every second step, at the same times
@@ -657,7 +755,7 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
     rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
     """
     if model is None and scene.model:
-        from .variants import load_model
+        from .registry import load_model
 
         model = load_model(scene.model)
     choice = _estimate_on_rank_0(scene, tol, model=model)
@@ -667,7 +765,7 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
     report = (f"--tol {tol:g}: chose {method.name} ({method.label}) at nx={chosen.nx}, nt={chosen.nt}, "
               f"eps={chosen.eps:.3g}; estimated error of eta in Linf(0,T;L2) = {best['estimate']:.3g} "
               f"(two-resolution Richardson, order {TOL_ORDER[method.name]}) [{others}]")
-    return chosen, {"penalty": method.penalty, "mass": method.mass}, report
+    return chosen, {"scheme": method.scheme, "penalty": method.penalty, "mass": method.mass}, report
 
 
 def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
@@ -790,6 +888,8 @@ STYLE = {
     "explicit-r1": dict(color="#ff7f0e", marker="^"),
     "semi-implicit": dict(color="#1f77b4", marker="o"),
     "consistent": dict(color="#2ca02c", marker="D"),
+    "projection": dict(color="#9467bd", marker="P"),
+    "newmark": dict(color="#8c564b", marker="X"),
 }
 ERROR_LABELS = {
     "err_eta": r"error of $\eta$ in $L^\infty(0,T;L^2)$",
@@ -876,7 +976,8 @@ def plot_convergence(result: dict, path) -> Path:
     return Path(path)
 
 
-OUTCOME_COLOURS = {"inelastic": "#4daf4a", "rebound": "#ffb000", "growth": "#e41a1c", "refused": "#999999"}
+OUTCOME_COLOURS = {"inelastic": "#4daf4a", "rebound": "#ffb000", "growth": "#e41a1c", "refused": "#999999",
+                   "stable": "#377eb8"}
 
 
 def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Path:
@@ -938,6 +1039,27 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
     return Path(path)
 
 
+def plot_step_size(rows: list[dict], path) -> Path:
+    """Outcome over Δt/Δx for the schemes without ε, with each one's Δt_max from the operators."""
+    keys = list(dict.fromkeys((r["scheme"], r["alpha"]) for r in rows))
+    with _figure(path, 1, 1, figsize=(7.5, 3.2)) as (fig, ax):
+        for y, (scheme, alpha) in enumerate(keys):
+            sel = [r for r in rows if (r["scheme"], r["alpha"]) == (scheme, alpha)]
+            ax.scatter([r["dt_over_dx"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k",
+                       linewidths=0.3, c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
+            if scheme == "projection":
+                ax.plot([sel[0]["dt_max_over_dx"]] * 2, [y - 0.4, y + 0.4], "k-", lw=1.5)
+        ax.set_xscale("log")
+        ax.set_yticks(range(len(keys)), [f"{s}, α = {a:g}" for s, a in keys], fontsize=8)
+        ax.set_ylim(-0.7, len(keys) - 0.3)
+        for outcome, colour in OUTCOME_COLOURS.items():
+            ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=4)
+        ax.set_xlabel("Δt/Δx   (bar: projection's Δt_max from the operators)")
+        ax.set_title("flat landing: where the ε-free schemes fail", fontsize=10)
+    return Path(path)
+
+
 # --- command line -----------------------------------------------------------------------------------------
 
 
@@ -946,7 +1068,7 @@ def add_arguments(parser):
     specs = {
         "work-precision": "error against wall-clock time per method (flat landing and Example 1)",
         "convergence": "observed orders in dt = dx and in eps; the --tol estimate against the true error",
-        "stability": "outcome over r = dt/eps and dt per penalty, measured restitution, alpha -> 0",
+        "stability": "outcome over r = dt/eps per penalty and law, over dt/dx per scheme, restitution, alpha -> 0",
     }
     for name, help_text in specs.items():
         p = sub.add_parser(name, help=help_text)
@@ -977,6 +1099,7 @@ def command(args) -> int:
     else:
         result = stability_map(quick=args.quick, comm=comm, busy=busy)
         alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
+        step_rows = step_size_map(quick=args.quick, comm=comm, busy=busy)
     sweep = time.perf_counter() - t_sweep
     written = []
     if result is not None:  # None on ranks > 0: rank 0 has the results
@@ -997,7 +1120,9 @@ def command(args) -> int:
         else:
             written = [write_csv(out / "study_stability.csv", result, STABILITY_COLUMNS),
                        write_csv(out / "study_alpha.csv", alpha_rows, ALPHA_COLUMNS),
-                       plot_stability(result, alpha_rows, out / "study_stability.png")]
+                       write_csv(out / "study_step_size.csv", step_rows, STEP_COLUMNS),
+                       plot_stability(result, alpha_rows, out / "study_stability.png"),
+                       plot_step_size(step_rows, out / "study_step_size.png")]
     if comm.rank == 0:
         elapsed = time.perf_counter() - t0
         per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []

@@ -393,7 +393,7 @@ def coarsened(scene, factor: int):
     return scene.replace(nx=nx, nt=nt, eps=scene.eps * scene.nt / nt)
 
 
-def refine(scene, levels: int = 3, penalty: str = "explicit"):
+def refine(scene, levels: int = 3, penalty: str = "explicit", model=None):
     """Results at resolutions scene/2^(levels−1), ..., scene/2, scene (coarse to fine), every step stored.
 
     Δx, Δt and ε fall together (fixed Δt/Δx and r = Δt/ε), the limit the paper's theorems describe.
@@ -405,15 +405,15 @@ def refine(scene, levels: int = 3, penalty: str = "explicit"):
     out = []
     for k in reversed(range(levels)):
         s = coarsened(scene, 2**k)
-        out.append(simulate(s, penalty=penalty, max_rows=s.nt))
+        out.append(simulate(s, penalty=penalty, max_rows=s.nt, model=model))
     return out
 
 
-def refine_time(scene, levels: int = 3, penalty: str = "explicit"):
+def refine_time(scene, levels: int = 3, penalty: str = "explicit", model=None):
     """Results with Δt, Δt/2, Δt/4, ... at fixed Δx and ε (only the energies are used: rows thinned)."""
     from .solver import simulate
 
-    return [simulate(scene.replace(nt=scene.nt * 2**k), penalty=penalty) for k in range(levels)]
+    return [simulate(scene.replace(nt=scene.nt * 2**k), penalty=penalty, model=model) for k in range(levels)]
 
 
 # --- checks: a number, an expectation and a verdict ----------------------------------------------------
@@ -597,13 +597,18 @@ def check_energy(result, time_refined=()) -> list[Check]:
 
 
 def run_checks(scene, levels: int = 3, penalty: str = "explicit", delay: float | None = None,
-               delta: float = 0.02, V: float | None = None, time_levels: int = 3):
-    """Every check on `scene` with `levels` fixed-r refinements (the finest is `scene` itself).
+               delta: float = 0.02, V: float | None = None, time_levels: int = 3, model=None):
+    """Every check on `scene` with `levels` fixed-r refinements (the finest is `scene` itself), run with
+    `model` (default: the scene's registered model, else the paper's).
 
     Returns (checks, finest result, all fixed-r results).
     """
-    results = refine(scene, levels, penalty)
-    timed = refine_time(scene, time_levels, penalty)[1:] if time_levels > 1 else []
+    if model is None and scene.model:
+        from .registry import load_model
+
+        model = load_model(scene.model)  # a registered name: the scene was checked when it was loaded
+    results = refine(scene, levels, penalty, model)
+    timed = refine_time(scene, time_levels, penalty, model)[1:] if time_levels > 1 else []
     checks = [
         check_force_sign(results),
         check_dissipation_sign(results),

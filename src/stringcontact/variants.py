@@ -1,4 +1,4 @@
-"""Model variants shipped with stringcontact, and `load_model` for a user's own.
+"""Model variants shipped with stringcontact, registered by name in pyproject.toml (`stringcontact models`).
 
 Each variant changes one or two of the paper's UFL functions (`model.py`) and keeps the rest:
 
@@ -15,25 +15,25 @@ Each variant changes one or two of the paper's UFL functions (`model.py`) and ke
 
     so the constraint is η ≥ ψ and the contact set is {η ≤ ψ}.
 
-Select a model with ``sc.simulate(scene, model=...)``, the scene key
-``model = "package.module:name"`` or the command line ``--model package.module:name``.
+Both are registered under the entry-point group ``stringcontact.models`` (pyproject.toml), so a scene
+selects them by name: ``model = "elastic"``; the command line too: ``--model elastic``; Python:
+``sc.simulate(scene, model=elastic)``. `load_model` lives in `registry` (re-exported here).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
 
 import ufl
 
-from .errors import SceneError, one_line
 from .model import Model, Parameters, inelastic
 from .model import contact_set as _paper_contact_set
 from .model import momentum_form as _paper_momentum_form
 from .model import penalty as _paper_penalty
 from .model import penalty_damping as _paper_penalty_damping
+from .registry import load_model
 
-__all__ = ["elastic", "loaded_obstacle", "load_model"]
+__all__ = ["elastic", "load_model", "loaded_obstacle"]
 
 
 # --- elastic (bouncing) contact ------------------------------------------------------------
@@ -42,6 +42,20 @@ __all__ = ["elastic", "loaded_obstacle", "load_model"]
 def _displacement_penalty(eta, v, p: Parameters):
     """(1/ε) η⁻: a spring pushing back in proportion to the penetration, whatever the velocity."""
     return ufl.max_value(-eta, 0) / p.eps
+
+
+def spring_bound(dt: float, eps: float, penalty: str):
+    """A spring of stiffness 1/ε held explicitly: warn when Δt²/ε > 2.
+
+    A lone node is stable for Δt²/ε ≤ 4, but its energy swings more than the guard allows (2 E(0)) from
+    about 3 on (measured on the flat landing, `study stability`); a point contact, stiffened by the
+    implicit elastic term, runs far beyond (docs/getfem.md). So this warns and the energy guard decides.
+    """
+    q = dt * dt / eps
+    if penalty != "explicit" or q <= 2:
+        return None
+    return "warn", (f"explicit spring with dt^2/eps = {q:.3g} > 2: a distributed contact trips the energy guard "
+                    "from about 3 on; use a smaller dt or a larger eps if it does")
 
 
 def _spring_energy(eta, p: Parameters):
@@ -54,6 +68,8 @@ elastic = dataclasses.replace(
     name="elastic",
     penalty=_displacement_penalty,
     penalty_damping=None,
+    gap=None,  # it lets the string through the obstacle: no scheme may project onto it
+    stability=spring_bound,
     contact_energy=_spring_energy,
     description="elastic contact: displacement penalty (1/eps) eta^- on the obstacle y = 0 (bounces)",
 )
@@ -87,50 +103,16 @@ def _obstacle_contact_set(eta, p: Parameters):
     return _paper_contact_set(eta - _obstacle(p), p)
 
 
+def _obstacle_gap(eta, p: Parameters):
+    return eta - _obstacle(p)
+
+
 loaded_obstacle = Model(
     name="loaded_obstacle",
     momentum_form=_loaded_momentum_form,
     penalty=_obstacle_penalty,
     penalty_damping=_obstacle_damping,
     contact_set=_obstacle_contact_set,
+    gap=_obstacle_gap,
     description="the paper's model with a load f(x) (scene key load) over an obstacle psi(x) (scene key obstacle)",
 )
-
-
-# --- loading a model by name -----------------------------------------------------------------
-
-
-def load_model(spec: str) -> Model:
-    """The model named by ``"package.module:name"``: a `Model`, or a function of no arguments returning one.
-
-    Raises `SceneError` with a one-line message naming ``model`` when the module cannot be imported,
-    the name is missing, or the object is not a `Model`.
-    """
-    if isinstance(spec, Model):
-        return spec
-    if not isinstance(spec, str) or spec.count(":") != 1:
-        raise SceneError(f"model: invalid value {spec!r}; allowed: 'package.module:name'")
-    module_name, attr = spec.split(":")
-    if not module_name or not attr.isidentifier():
-        raise SceneError(f"model: invalid value {spec!r}; allowed: 'package.module:name'")
-    try:
-        module = importlib.import_module(module_name)
-    except Exception as exc:  # an ImportError, or any error raised by the user's module itself
-        reason = one_line(exc) or type(exc).__name__
-        raise SceneError(f"model: cannot import module {module_name!r} for {spec!r} ({reason})") from None
-    try:
-        obj = getattr(module, attr)
-    except AttributeError:
-        raise SceneError(f"model: module {module_name!r} has no {attr!r} (for {spec!r})") from None
-    if not isinstance(obj, Model) and callable(obj):
-        try:
-            obj = obj()
-        except Exception as exc:
-            reason = one_line(exc) or type(exc).__name__
-            raise SceneError(f"model: calling {spec!r} failed ({type(exc).__name__}: {reason})") from None
-    if not isinstance(obj, Model):
-        raise SceneError(
-            f"model: {spec!r} is a {type(obj).__name__}, not a stringcontact.Model "
-            "(or a function of no arguments returning one)"
-        )
-    return obj

@@ -84,8 +84,9 @@ def _close_open_objects(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def stderr_held():
-    """Hold back what C libraries print to stderr; print it after the block, or drop it if the block fails.
+def stderr_held(replay: bool = True):
+    """Hold back what C libraries print to stderr; print it after the block (if `replay`), or drop it if the
+    block fails.
 
     Open MPI's MPI-IO layer, which PETSc's HDF5 viewer writes through, prints its own line for a failed
     write ("mca_fbtl_posix_pwritev: ... No space left on device"); the caller reports one line instead.
@@ -101,7 +102,7 @@ def stderr_held():
                 os.dup2(saved, 2)
             held.seek(0)
             text = held.read()
-            if text:
+            if text and replay:
                 os.write(2, text)
     finally:
         os.close(saved)
@@ -226,16 +227,17 @@ class XdmfTimeSeries:
             xml.close()
         if viewer is None:
             return
-        if discard:
-            if self.comm.rank == 0:
-                with contextlib.suppress(OSError):
-                    os.truncate(self.h5path, 0)
-            _close_open_objects(self.h5path)
         try:
-            with stderr_held():
+            with stderr_held(replay=not discard):
+                if discard:
+                    if self.comm.rank == 0:
+                        with contextlib.suppress(OSError):
+                            os.truncate(self.h5path, 0)
+                    _close_open_objects(self.h5path)
                 viewer.destroy()
         except RuntimeError:
             if not discard:
+                self.viewer = viewer  # still open: close(discard=True) can close it
                 raise
             _UNCLOSED.append(viewer)
             return

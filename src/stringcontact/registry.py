@@ -1,0 +1,127 @@
+"""Which models a scene may name, and `load_model`; `stringcontact models` lists them.
+
+A scene file is data: its ``model`` key is a *name* that an installed package registers under the
+entry-point group ``stringcontact.models`` (this package registers ``inelastic``, ``elastic`` and
+``loaded_obstacle``; docs/models.md shows how a package of your own registers more). Checking a scene's
+name reads the installed packages' metadata only and imports nothing; a run then loads the one entry point
+it names, which imports that installed package's module: the trust boundary is the user's ``pip install``.
+
+``"package.module:name"`` is accepted only where the user types it: ``--model`` on the command line and
+`load_model` in Python. Even there the named object must already be a `Model`: nothing is called.
+
+Heavy imports (UFL, through `model`) stay inside the functions: `scene` calls `check_name` for `list`/`show`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+
+from .errors import SceneError, one_line
+
+#: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
+GROUP = "stringcontact.models"
+
+
+def registered() -> dict[str, list[importlib.metadata.EntryPoint]]:
+    """The registered models: name -> its entry points (one per distinct target; two mean a conflict)."""
+    found: dict[str, list[importlib.metadata.EntryPoint]] = {}
+    for ep in importlib.metadata.entry_points(group=GROUP):
+        targets = found.setdefault(ep.name, [])
+        if all(other.value != ep.value for other in targets):  # the same package seen twice is one entry
+            targets.append(ep)
+    return dict(sorted(found.items()))
+
+
+def _allowed(names) -> str:
+    return (f"allowed: {', '.join(names) or 'none (is stringcontact installed? run scripts/setup)'} "
+            f"(the names installed packages register under the entry-point group {GROUP}; see `stringcontact models`)")
+
+
+def check_name(value) -> str:
+    """`value` if it is a registered model name, else a one-line `SceneError` naming ``model``. Imports nothing."""
+    models = registered()
+    if not isinstance(value, str) or value not in models:
+        shown = repr(value) if isinstance(value, str) else f"{type(value).__name__} {value!r}"
+        raise SceneError(f"model: unknown model {one_line(shown)[:80]}; {_allowed(models)}")
+    if len(models[value]) > 1:
+        targets = ", ".join(f"{ep.value} ({_package(ep)})" for ep in models[value])
+        raise SceneError(f"model: {value!r} is registered twice, as {targets}; uninstall one of the packages")
+    return value
+
+
+def _package(ep) -> str:
+    dist = getattr(ep, "dist", None)
+    return dist.name if dist is not None else "unknown package"
+
+
+def load_model(spec):
+    """The `Model` for `spec`: a `Model` itself, a registered name, or ``"package.module:name"`` (typed by the user).
+
+    Raises `SceneError` with a one-line message naming ``model``. A ``module:name`` is imported (the user
+    named it), but the object is never called: it must be a `Model`.
+    """
+    from .model import Model
+
+    if isinstance(spec, Model):
+        return spec
+    if isinstance(spec, str) and ":" in spec and spec not in registered():
+        return _load_path(spec, Model)
+    return _load_registered(check_name(spec), Model)
+
+
+def _load_registered(name: str, Model):
+    (ep,) = registered()[name]
+    try:
+        obj = ep.load()  # imports the installed package's module
+    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
+        raise SceneError(f"model: cannot load {name!r} ({ep.value}, from {_package(ep)}): "
+                         f"{type(exc).__name__}: {one_line(exc)}") from None
+    if not isinstance(obj, Model):
+        raise SceneError(f"model: {name!r} is registered as {ep.value} (from {_package(ep)}), "
+                         f"a {type(obj).__name__}, not a stringcontact.Model")
+    return obj
+
+
+def _load_path(spec: str, Model):
+    module_name, _, attr = spec.partition(":")
+    if not module_name or not all(part.isidentifier() for part in module_name.split(".")) or not attr.isidentifier():
+        raise SceneError(f"model: invalid value {spec!r}; allowed: a registered name or 'package.module:name'")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the user's module itself
+        reason = one_line(exc) or type(exc).__name__
+        raise SceneError(f"model: cannot import module {module_name!r} for {spec!r} ({reason})") from None
+    obj = getattr(module, attr, None)
+    if obj is None:
+        raise SceneError(f"model: module {module_name!r} has no {attr!r} (for {spec!r})")
+    if not isinstance(obj, Model):  # never called: a function here would run whatever it does
+        raise SceneError(f"model: {spec!r} is a {type(obj).__name__}, not a stringcontact.Model (nothing is called "
+                         "to make one: name a Model object)")
+    return obj
+
+
+# --- `stringcontact models` -----------------------------------------------------------------------------------
+
+
+def add_arguments(parser) -> None:
+    parser.description = f"The models a scene's `model` key may name: those registered under {GROUP}."
+
+
+def describe() -> list[tuple[str, str, str]]:
+    """(name, where it comes from, description) of every registered model; loading each imports its package."""
+    rows = []
+    for name, eps in registered().items():
+        where = ", ".join(f"{ep.value} [{_package(ep)}]" for ep in eps)
+        try:
+            description = load_model(name).description
+        except SceneError as exc:
+            description = f"(unavailable: {exc})"
+        rows.append((name, where, description))
+    return rows
+
+
+def command(args) -> int:
+    for name, where, description in describe():
+        print(f"{name:16s} {description}\n{'':16s} {where}")
+    return 0

@@ -1,0 +1,173 @@
+"""What every scheme is given (`Setting`), what it must provide (`Scheme`), and the parts they share.
+
+A scheme advances the nodal state (η, v) one step and reports the terms of its own discrete energy
+identity, so that the driver's ledger E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off
+whatever the scheme. Energy that the contact law (or a projection) removes is always D_con, booked the
+same way by every scheme: the work of the nodal contact force f with the step's mean velocity,
+−(Δt/2) f·(v^n + v^{n+1}). It is ½ m V² for a node that lands at speed V and stops, whatever ε, and
+about 0 for a node held at rest on the obstacle; what a scheme's identity puts elsewhere is D_num.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .. import nodal
+from ..errors import InstabilityError, InstabilityWarning
+from ..scheme import Operators
+
+#: (kinetic, elastic, viscous, contact, numerical, external, stored): the state energies after a step, then
+#: the step's increments of the cumulative terms, then the energy held by a conservative contact law.
+StepEnergy = tuple
+
+
+class NodalLaws:
+    """The model's pointwise laws compiled to NumPy at the nodes, in placeholders η, η_old and v.
+
+    ``quotient`` is the paper's v^n = (η^n − η^{n−1})/Δt as UFL; a scheme with a nodal velocity passes
+    ``v`` instead. ``set(...)`` points the placeholders at arrays (no copy); ``compile(expr)`` returns a
+    `nodal.NodalExpression` whose ``evaluate_env(self.env)`` reads them.
+    """
+
+    def __init__(self, model, V, params, dt: float, fields: dict, x: np.ndarray):
+        self.model, self.params = model, params
+        self.eta, self.eta_old, self.v = fem.Function(V), fem.Function(V), fem.Function(V)
+        self.quotient = (self.eta - self.eta_old) / fem.Constant(V.mesh, PETSc.ScalarType(dt))
+        self.env = nodal.environment(fields, x)
+        self._keys = {"eta": id(self.eta), "eta_old": id(self.eta_old), "v": id(self.v)}
+
+    def compile(self, expr) -> nodal.NodalExpression:
+        return nodal.NodalExpression(expr)
+
+    def set(self, **arrays) -> None:
+        for name, a in arrays.items():
+            self.env[self._keys[name]] = a
+
+
+@dataclass
+class Setting:
+    """What a scheme is given: the model's operators on one mesh, Δt, the options, the ends and the laws."""
+
+    ops: Operators
+    dt: float
+    mass: str
+    penalty: str | None
+    bc: np.ndarray  # owned dof indices of the fixed ends
+    g: np.ndarray  # their heights
+    laws: NodalLaws
+    comm: MPI.Comm
+    eps: float
+    x: np.ndarray  # coordinates of the owned dofs
+    nt: int
+
+    @property
+    def n_owned(self) -> int:
+        return self.ops.m.size
+
+    @property
+    def interior(self) -> np.ndarray:
+        mask = np.ones(self.n_owned, dtype=bool)
+        mask[self.bc] = False
+        return mask
+
+
+class Scheme:
+    """The contract. A scheme module defines ``class Scheme(base.Scheme)`` with:
+
+    * ``PENALTIES``: the penalties it accepts, its default first; ``()`` when it uses no penalty (and no ε);
+    * ``MASSES``: the mass matrices it accepts, its default first;
+    * ``__init__(setting)``: assemble and factorise (set-up time);
+    * ``start(eta0, v0) -> StepEnergy``: the initial state (ends already at their heights, v0 = 0 there);
+    * ``step() -> StepEnergy``: one step;
+    * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force
+      density applied in the last step), read by the driver when it stores a row;
+    * ``timings``: extra counters for the summary (e.g. refactorisations).
+    """
+
+    PENALTIES: tuple = ()
+    MASSES: tuple = ("lumped", "consistent")
+    timings: dict = {}
+    situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
+    remedy = "use a smaller dt"
+
+    def __init__(self, setting: Setting):
+        self.s = setting
+
+    @staticmethod
+    def requires(model) -> str | None:
+        """Why this scheme cannot run `model` (one clause), or None."""
+        return None
+
+    @classmethod
+    def check_options(cls, name: str, penalty, mass) -> tuple:
+        """(penalty, mass) with the scheme's defaults; ValueError naming the scheme and what it accepts."""
+        if penalty is None:
+            penalty = cls.PENALTIES[0] if cls.PENALTIES else None
+        elif penalty not in cls.PENALTIES:
+            accepts = f"penalty {' or '.join(cls.PENALTIES)}" if cls.PENALTIES else "no penalty (and no eps)"
+            raise ValueError(f"scheme {name!r} accepts {accepts}, not penalty {penalty!r}")
+        if mass is None:
+            mass = cls.MASSES[0]
+        elif mass not in cls.MASSES:
+            raise ValueError(f"scheme {name!r} accepts mass {' or '.join(cls.MASSES)}, not {mass!r}")
+        return penalty, mass
+
+    def contact(self) -> np.ndarray:
+        """The model's contact set at the current η (bool per node)."""
+        laws = self.s.laws
+        if not hasattr(self, "_contact_law"):
+            self._contact_law = laws.compile(laws.model.contact_set(laws.eta, laws.params))
+        laws.set(eta=self.eta)
+        return self._contact_law.evaluate_env(laws.env)
+
+
+# --- shared parts -------------------------------------------------------------------------------------
+
+
+def check_law_stability(model, dt: float, eps: float, penalty: str) -> None:
+    """Apply the contact law's own bound on Δt and ε (`Model.stability`): refuse or warn before the run."""
+    r = dt / eps
+    verdict = model.stability(dt, eps, penalty) if model.stability is not None else None
+    if verdict is None:
+        return
+    kind, why = verdict
+    if kind == "refuse":
+        raise InstabilityError(f"{why} (model '{model.name}', at step 0, t = 0)", step=0, time=0.0, r=r)
+    warnings.warn(why, InstabilityWarning, stacklevel=4)
+
+
+def wrap(a: np.ndarray, comm) -> PETSc.Vec:
+    """A PETSc vector over `a`'s memory (this rank's part of the vector is all of `a`)."""
+    return PETSc.Vec().createWithArray(a.reshape(-1), size=(a.size, PETSc.DECIDE), comm=comm)
+
+
+def lu(A: PETSc.Mat, comm) -> PETSc.KSP:
+    """A KSP that factorises A once (MUMPS in parallel); ``ksp.getPC().getFactorMatrix().solve`` back-substitutes."""
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    pc = ksp.getPC()
+    pc.setType("lu")
+    if comm.size > 1:
+        pc.setFactorSolverType("mumps")
+    ksp.setUp()
+    return ksp
+
+
+def summer(comm):
+    """allsum(*values): the sums over the ranks (one allreduce), or the values themselves in serial."""
+    if comm.size == 1:
+        return lambda *vals: vals
+    return lambda *vals: comm.allreduce(np.array(vals), op=MPI.SUM).tolist()
+
+
+def dirichlet_rows(A: PETSc.Mat, bc: np.ndarray) -> None:
+    """Identity rows at the fixed ends (their values are set in the right-hand side)."""
+    rstart = A.getOwnershipRange()[0]
+    A.zeroRows((bc + rstart).astype(np.int32), diag=1.0)

@@ -1,0 +1,166 @@
+"""Newmark's average-acceleration (trapezoidal) rule: energy-conserving and unconditionally stable.
+
+With a nodal velocity v and η^{n+1} − η^n = (Δt/2)(v^{n+1} + v^n),
+
+    M (v^{n+1} − v^n)/Δt + C (v^{n+1} + v^n)/2 + K (η^{n+1} + η^n)/2 = −D v^{n+1} + b,
+
+where D = m_F∘d is the model's `penalty_damping` d on the active set χ{η^n < 0, v^n < 0} (lumped): the
+semi-implicit penalty, applied to the *new* velocity so that it brakes and never reflects (with ε → 0,
+v^{n+1} → 0 on landing). Eliminating v^{n+1},
+
+    (4M/Δt² + 2C/Δt + K + 4D/Δt) η^{n+1} = 4M(η^n/Δt² + v^n/Δt) + (2C/Δt − K) η^n + 4D η^n/Δt + 2D v^n + 2b.
+
+Only the diagonal changes with the active set; the matrix is refactorised then. Multiplying by
+η^{n+1} − η^n gives the energy identity exactly: ½|v|²_M + ½|η|²_K changes by −(Δt/4)|v^{n+1} + v^n|²_C
+(viscous), −(Δt/2) v^{n+1}·D(v^{n+1} + v^n) (contact) and the load's work. There is no numerical
+dissipation: with no contact and α = 0 the energy is conserved to round-off. Any Δt, either mass matrix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..scheme import diagonal_matrix, stacked
+from .base import Scheme as Base
+from .base import check_law_stability, dirichlet_rows, lu, summer, wrap
+
+
+class Scheme(Base):
+    PENALTIES = ("semi-implicit",)
+    MASSES = ("lumped", "consistent")
+    remedy = "use a smaller dt"
+
+    @staticmethod
+    def requires(model) -> str | None:
+        if model.penalty_damping is None:
+            return f"model '{model.name}' has no penalty_damping (its law is not a velocity damping)"
+        return None
+
+    def __init__(self, s):
+        super().__init__(s)
+        ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
+        laws = s.laws
+        check_law_stability(laws.model, dt, s.eps, s.penalty)
+        same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+        self.Ms = diagonal_matrix(ops.M, ops.m) if s.mass == "lumped" else ops.M
+        self.A = ops.K.copy()
+        self.A.axpy(2.0 / dt, ops.C, structure=same)
+        self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
+        dirichlet_rows(self.A, s.bc)
+        self.base_diag = self.A.getDiagonal().array.copy()
+        self.A_diag = self.A.createVecLeft()
+        self.ksp = lu(self.A, comm)
+        self.solve = self.ksp.getPC().getFactorMatrix().solve
+        self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
+        self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
+        self.allsum = summer(comm)
+        self.anysum = (lambda flag: flag) if comm.size == 1 else (lambda flag: comm.allreduce(flag, op=MPI.LOR))
+        self.eta_, self.v_ = np.zeros(n), np.zeros(n)
+        self.KC_now, self.KC_new = ((wrap(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
+        self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.vec = {k: wrap(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu))}
+        self.D = np.zeros(n)  # m_F d on the active interior nodes
+        self.in_matrix = np.zeros(n)  # the 4D/Δt now in the factorised diagonal
+        self.force_density = np.zeros(n)
+        self.refactorisations = 0
+
+    @property
+    def eta(self):
+        return self.eta_
+
+    @property
+    def velocity(self):
+        return self.v_
+
+    @property
+    def contact_force(self):
+        return self.force_density
+
+    @property
+    def timings(self):
+        return {"refactorisations": self.refactorisations}
+
+    def _mass(self, u: np.ndarray) -> np.ndarray:
+        """M u (the scheme's mass matrix) into self.Mu."""
+        if self.s.mass == "lumped":
+            return np.multiply(self.s.ops.m, u, out=self.Mu)
+        self.Ms.mult(wrap(u, self.s.comm), self.vec["Mu"])
+        return self.Mu
+
+    def start(self, eta0, v0):
+        self.eta_[:], self.v_[:] = eta0, v0
+        self.KC.mult(wrap(self.eta_, self.s.comm), self.KC_now[0])
+        kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
+        el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
+        self.kin, self.el = self.allsum(kin, el)
+        return self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0
+
+    def _active_damping(self) -> None:
+        """D = m_F d at η^n, v^n."""
+        s = self.s
+        s.laws.set(eta=self.eta_, v=self.v_)
+        d = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * np.ones(s.n_owned)
+        np.multiply(s.ops.m_force, d * s.interior, out=self.D)
+
+    def _factorise(self) -> None:
+        """Put 4D/Δt on the diagonal and refactorise, if it changed (every rank takes part)."""
+        s = self.s
+        target = 4.0 / s.dt * self.D
+        changed = not np.array_equal(target, self.in_matrix)
+        if s.comm.size > 1:
+            changed = s.comm.allreduce(changed, op=MPI.LOR)
+        if changed:
+            np.add(self.base_diag, target, out=self.A_diag.array)
+            self.A.setDiagonal(self.A_diag)
+            self.ksp.setOperators(self.A)
+            self.ksp.setUp()
+            self.solve = self.ksp.getPC().getFactorMatrix().solve
+            self.in_matrix[:] = target
+            self.refactorisations += 1
+
+    def _solve(self) -> np.ndarray:
+        """η^{n+1} into self.new for the current D; returns v^{n+1}."""
+        s, dt = self.s, self.s.dt
+        eta, v, D = self.eta_, self.v_, self.D
+        self._factorise()
+        rhs = self.rhs
+        rhs[:] = self._mass(eta / dt**2 + v / dt)
+        rhs *= 4.0
+        rhs += (2.0 / dt) * self.KC_now[1][1] - self.KC_now[1][0]
+        rhs += D * (4.0 / dt * eta + 2.0 * v)
+        rhs += 2.0 * s.ops.load
+        rhs[s.bc] = s.g
+        self.solve(self.vec["rhs"], self.vec["new"])
+        v_new = 2.0 / dt * (self.new - eta) - v
+        v_new[s.bc] = 0.0
+        return v_new
+
+    def step(self):
+        s, dt = self.s, self.s.dt
+        eta, v, D = self.eta_, self.v_, self.D
+        KC_now, KC_new = self.KC_now[1], self.KC_new[1]
+        self._active_damping()
+        v_new = self._solve()
+        # A damping that holds a node down (F = −D v^{n+1} < 0, it wants to lift) would do work against the
+        # mean velocity and raise the energy: release such nodes and solve again (a few times at most).
+        while self.anysum(bool(np.any(sticky := (D > 0) & (v_new > 0)))):
+            D[sticky] = 0.0
+            v_new = self._solve()
+        self.KC.mult(self.vec["new"], self.KC_new[0])
+        mean = v_new + v
+        visc = 0.5 * float(np.dot(mean, KC_new[1] - KC_now[1]))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
+        con = 0.5 * dt * float(np.dot(mean, D * v_new))
+        ext = 0.5 * dt * float(np.dot(s.ops.load, mean))
+        kin = 0.5 * float(np.dot(v_new, self._mass(v_new)))
+        el = 0.5 * float(np.dot(self.new, KC_new[0]))
+        kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
+        np.multiply(-np.divide(D, s.ops.m_force, out=np.zeros_like(D), where=s.ops.m_force > 0), v_new,
+                    out=self.force_density)
+        eta[:], v[:] = self.new, v_new
+        self.KC_now, self.KC_new = self.KC_new, self.KC_now
+        return kin, el, visc, con, 0.0, ext, 0.0
+
+
+__all__ = ["Scheme"]

@@ -1,0 +1,234 @@
+"""The paper's Section 6 scheme: implicit elastic and viscous terms, the contact force from the previous step.
+
+With v^n = (η^n − η^{n−1})/Δt,
+
+    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^{n+1} = m_F∘F(η^n, v^n) + b,
+
+so A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n + b with A = M/Δt² + C/Δt + K, factorised
+once. ``penalty="semi-implicit"`` applies the same law as a damping d on the new velocity,
+F = −d v^{n+1} on the active set; only A's diagonal changes, and only when the active set does.
+
+Energy identity per step (M, K symmetric): ½|v^{n+1}|²_M + ½|η^{n+1}|²_K + Δt v^{n+1}·C v^{n+1}
++ ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K = ½|v^n|²_M + ½|η^n|²_K + Δt v^{n+1}·(m_F∘F + b). The two
+squared differences are the implicit Euler's numerical dissipation. The contact dissipation is booked
+as −(Δt/2) f·(v^n + v^{n+1}), like every scheme's (`base.Scheme`), so the numerical one is the squared
+differences plus (Δt/2) f·(v^n − v^{n+1}).
+
+Per step: one mat-vec with the stacked [K; C/Δt], one back-substitution and a few NumPy ufuncs. Every
+vector is allocated once; pairs of rows hold a quantity at the new and the previous step, and the roles
+swap every step, so the previous step's K η, C η and M v are reused, never recomputed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scheme import stacked, step_matrices
+from .base import Scheme as Base
+from .base import check_law_stability, dirichlet_rows, lu, summer, wrap
+
+
+class Scheme(Base):
+    PENALTIES = ("explicit", "semi-implicit")
+    MASSES = ("lumped", "consistent")
+
+    def __init__(self, s):
+        super().__init__(s)
+        ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
+        laws = s.laws
+        if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
+            raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
+        check_law_stability(laws.model, dt, s.eps, s.penalty)
+        self.A, self.Ms, C_over_dt = step_matrices(ops, dt, s.mass)
+        self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
+        dirichlet_rows(self.A, s.bc)
+        law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
+        self.force_law = laws.compile(law(laws.eta, laws.quotient, laws.params))
+        self.energy_law = None
+        if laws.model.contact_energy is not None:
+            self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
+        self.ksp = lu(self.A, comm)
+        self.lu_solve = self.ksp.getPC().getFactorMatrix().solve  # without KSPSolve's bookkeeping
+        self.allsum = summer(comm)
+        self.refactorisations = 0
+
+        self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
+        self.vels = np.zeros((2, n))  # v^{n+1}, v^n in rotating rows
+        # Dotted with v^{n+1}: C v^{n+1}, the applied force m_F∘F, M v^{n+1} and M v^n (rows 2, 3 alternate).
+        self.by_v = np.zeros((4, n))
+        self.KC_etas = np.zeros((2, 2, n))  # [K η, (C/Δt) η] of η^{n+1} and of η^n
+        self.eta_new, self.eta_now, self.eta_old = ((wrap(r, comm), r) for r in self.etas)
+        self.v_new, self.v_now = ((wrap(r, comm), r) for r in self.vels)
+        self.M_v_new, self.M_v = ((wrap(r, comm), r) for r in self.by_v[2:])
+        self.KC_new, self.KC_old = ((wrap(p, comm), p) for p in self.KC_etas)
+        self.rhs, self.two_steps = ((wrap(r, comm), r) for r in np.zeros((2, n)))  # b; consistent mass: 2η^n − η^{n−1}
+        self.dots_v, self.dots_K = np.zeros(4), np.zeros(2)
+        self.diag_w = np.zeros(n)  # semi-implicit: the damping weights m_F d / Δt on the active set
+        self.damping_diag = np.zeros(n)  # the damping weights now in the factorised diagonal
+        self.base_diag = self.A.getDiagonal().array.copy() if s.penalty != "explicit" else None
+        self.A_diag = self.A.createVecLeft()
+        m, mF = ops.m, ops.m_force
+        self.m_dt2 = m / dt**2
+        self.inv_mF = np.divide(1.0, mF, out=np.zeros(n), where=mF > 0)  # 0 where no force acts (the ends)
+        self.force_density = np.zeros(n)
+        self.ends = [(int(i), float(g)) for i, g in zip(s.bc, s.g)]
+        self.has_load = bool(np.any(ops.load != 0))
+        self.step_index = 0
+
+    # -- the state the driver reads
+
+    @property
+    def eta(self):
+        return self.eta_now[1]
+
+    @property
+    def velocity(self):
+        return self.v_now[1]
+
+    @property
+    def contact_force(self):
+        np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
+        return self.force_density
+
+    @property
+    def situation(self) -> str:
+        return f"r = dt/eps = {self.s.dt / self.s.eps:.4g}, penalty {self.s.penalty}"
+
+    remedy = "use penalty='semi-implicit', scheme 'projection' or a smaller dt"
+
+    @property
+    def timings(self):
+        return {"refactorisations": self.refactorisations} if self.s.penalty != "explicit" else {}
+
+    def stored_energy(self, eta) -> float:
+        """Σ m_F Φ(η) on owned dofs: the energy held by a conservative (spring) law."""
+        if self.energy_law is None:
+            return 0.0
+        self.s.laws.set(eta=eta)
+        return float(np.dot(self.s.ops.m_force, self.energy_law.evaluate_env(self.s.laws.env)))
+
+    def _apply_mass(self, u, out) -> None:
+        if self.s.mass == "lumped":
+            np.multiply(self.s.ops.m, u[1], out=out[1])
+        else:
+            self.Ms.mult(u[0], out[0])
+
+    def start(self, eta0, v0):
+        self.eta_now[1][:] = eta0
+        self.v_now[1][:] = v0
+        self.eta_old[1][:] = eta0 - self.s.dt * self.v_now[1]
+        self.KC.mult(self.eta_now[0], self.KC_old[0])
+        self._apply_mass(self.v_now, self.M_v)
+        kin, el, stored = self.allsum(
+            0.5 * float(np.dot(self.v_now[1], self.M_v[1])),
+            0.5 * float(np.dot(self.eta_now[1], self.KC_old[1][0])),
+            self.stored_energy(self.eta_now[1]),
+        )
+        self.kin, self.el = kin, el
+        return kin, el, 0.0, 0.0, 0.0, 0.0, stored
+
+    def _rhs_force(self, e0) -> None:
+        """m_F∘F^n into by_v[1] (explicit), or the damping's known part (d/Δt)η^n (semi-implicit)."""
+        law = self.force_law.evaluate_env(self.s.laws.env)
+        f_applied, diag_w = self.by_v[1], self.diag_w
+        mF = self.s.ops.m_force
+        if self.s.penalty == "explicit":
+            np.multiply(mF, law, out=f_applied)
+            return
+        active = law > 0
+        active &= self.s.interior
+        np.multiply(mF, law, out=diag_w)
+        diag_w *= 1.0 / self.s.dt
+        np.multiply(diag_w, active, out=diag_w)
+        # Refactorise when the damping on the diagonal changes (the active set, or a state-dependent
+        # coefficient of a model variant); only the diagonal changes, so PETSc keeps the symbolic
+        # factorisation. Every rank must take part, so under MPI the ranks agree first.
+        changed = not np.array_equal(diag_w, self.damping_diag)
+        comm = self.s.comm
+        if comm.size > 1:
+            from mpi4py import MPI
+
+            changed = comm.allreduce(changed, op=MPI.LOR)
+        if changed:
+            np.add(self.base_diag, diag_w, out=self.A_diag.array)
+            self.A.setDiagonal(self.A_diag)
+            self.ksp.setOperators(self.A)
+            self.ksp.setUp()
+            self.lu_solve = self.ksp.getPC().getFactorMatrix().solve
+            self.damping_diag[:] = diag_w
+            self.refactorisations += 1
+        np.multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
+
+    def step(self):
+        s, dt = self.s, self.s.dt
+        eta_new, eta, eta_old = self.eta_new, self.eta_now, self.eta_old
+        v_new, v = self.v_new, self.v_now
+        KC_new, KC_old, M_v_new, M_v = self.KC_new, self.KC_old, self.M_v_new, self.M_v
+        b, b_a = self.rhs
+        e0, em = eta[1], eta_old[1]
+        s.laws.set(eta=e0, eta_old=em)
+        self._rhs_force(e0)
+        f_applied = self.by_v[1]
+        if s.mass == "lumped":
+            np.subtract(e0, em, out=b_a)
+            b_a += e0
+            b_a *= self.m_dt2
+        else:
+            two, two_a = self.two_steps
+            np.subtract(e0, em, out=two_a)
+            two_a += e0
+            self.Ms.mult(two, b)
+            b_a *= 1.0 / dt**2
+        b_a += KC_old[1][1]  # (C/Δt) η^n
+        b_a += f_applied
+        load, has_load = s.ops.load, self.has_load
+        if has_load:
+            b_a += load
+        for i, g_i in self.ends:  # item assignment: a fancy-indexed b_a[bc] = g costs 3 µs per step
+            b_a[i] = g_i
+        self.lu_solve(b, eta_new[0])
+
+        # Diagnostics of the step n → n+1: the discrete energy identity, term by term.
+        e1, v1 = eta_new[1], v_new[1]
+        np.subtract(e1, e0, out=v1)
+        v1 *= 1.0 / dt
+        if s.penalty != "explicit":  # the force actually applied: −m_F d v^{n+1}
+            np.multiply(self.diag_w, v1, out=f_applied)
+            f_applied *= -dt
+        self.KC.mult(eta_new[0], KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
+        np.subtract(KC_new[1][1], KC_old[1][1], out=self.by_v[0])  # = C v^{n+1}
+        self._apply_mass(v_new, M_v_new)
+        dots_v, dots_K = self.dots_v, self.dots_K
+        np.einsum("ij,j->i", self.by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f, v¹·Mv¹ and v¹·Mv⁰ (rows 2, 3 alternate)
+        np.einsum("ij,j->i", self.KC_etas[:, 0], e1, out=dots_K)  # η¹·Kη¹ and η¹·Kη⁰ (rows alternate)
+        n = self.step_index
+        iM = 2 + (n & 1)  # the row of M v^{n+1}: rows 2 and 3 swap roles every step, as do the K rows
+        iK = n & 1
+        # With M, K symmetric: ½|v¹−v⁰|²_M = ½v¹·Mv¹ + ½v⁰·Mv⁰ − v¹·Mv⁰, and likewise for K and η, so the
+        # numerical dissipation needs no difference vectors.
+        kin_new, el_new, visc, work, cross, ext, stored, split = self.allsum(
+            0.5 * dots_v[iM],
+            0.5 * dots_K[iK],
+            dt * dots_v[0],
+            -dt * dots_v[1],
+            dots_v[5 - iM] + dots_K[1 - iK],
+            dt * float(np.dot(v1, load)) if has_load else 0.0,
+            self.stored_energy(e1),
+            -dt * float(np.dot(f_applied, v[1])),
+        )
+        # Contact dissipation is the force's work with the step's mean velocity, −(Δt/2) f·(v^n + v^{n+1}) (see
+        # base.Scheme); the rest of the identity's work term, (Δt/2) f·(v^{n+1} − v^n), is numerical.
+        split = 0.5 * (work + split)
+        num = kin_new + self.kin + el_new + self.el - cross - (split - work)
+        self.kin, self.el = kin_new, el_new
+
+        # rotate: η^{n−1} ← η^n ← η^{n+1}, and the new step's v, Kη, (C/Δt)η and Mv become the old ones
+        self.eta_old, self.eta_now, self.eta_new = eta, eta_new, eta_old
+        self.v_now, self.v_new = v_new, v
+        self.KC_old, self.KC_new = KC_new, KC_old
+        self.M_v, self.M_v_new = M_v_new, M_v
+        self.step_index += 1
+        return kin_new, el_new, visc, split, num, ext, stored
+
+
+__all__ = ["Scheme"]

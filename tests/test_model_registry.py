@@ -1,0 +1,163 @@
+"""A scene file never runs code: its `model` key names a registered model; nothing else is imported or called.
+
+Each attack is a scene file with one extra line `model = "module:name"`, run by the real command line in a
+process of its own. A sentinel module on the path writes a file when it is imported and another when its
+function is called: neither file may appear.
+"""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from stringcontact import registry
+from stringcontact.cli import main
+from stringcontact.errors import SceneError
+from stringcontact.scene import load_scene
+
+SCENE = 'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\neps = 0.002\nh = 0\neta0 = "0.3*sin(pi*x)"\nv0 = 0\n'
+
+SENTINEL = """
+from pathlib import Path
+Path(__file__).with_name("imported").write_text("imported")
+
+def make():
+    Path(__file__).with_name("called").write_text("called")
+
+model = make
+"""
+
+# What each of these did before: an HTTP server, Pdb, two processes, exit 0, exit 134, the Zen of Python.
+ATTACKS = ["http.server:test", "builtins:breakpoint", "os:fork", "sys:exit", "os:abort", "this:s",
+           "sentinel:make", "sentinel_plugin:model"]
+
+
+@pytest.fixture
+def sandbox(tmp_path, monkeypatch):
+    """tmp_path with the sentinel module and a package `sentinel-plugin` that registers the model `sentinel`."""
+    (tmp_path / "sentinel.py").write_text(SENTINEL)
+    (tmp_path / "sentinel_plugin.py").write_text(SENTINEL)
+    _register(tmp_path, "sentinel-plugin", "sentinel = sentinel_plugin:model")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    yield tmp_path
+    for name in ("sentinel", "sentinel_plugin"):
+        sys.modules.pop(name, None)
+
+
+def _register(folder, dist, line):
+    """An installed distribution as importlib.metadata sees it: a .dist-info folder with entry_points.txt."""
+    info = folder / f"{dist.replace('-', '_')}-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[{registry.GROUP}]\n{line}\n")
+
+
+def _nothing_ran(folder):
+    return not (folder / "imported").exists() and not (folder / "called").exists()
+
+
+def _stringcontact(folder, *argv):
+    env = {**os.environ, "PYTHONPATH": str(folder), "STRINGCONTACT_TRACEBACK": ""}
+    # timeout: a hang guard (a refusal that failed would leave an HTTP server or Pdb waiting), not a measurement
+    return subprocess.run([sys.executable, "-m", "stringcontact", *argv], check=False, cwd=folder, env=env,
+                          text=True, capture_output=True, stdin=subprocess.DEVNULL, timeout=600)
+
+
+@pytest.mark.parametrize("spec", ATTACKS)
+def test_a_scene_file_cannot_name_a_module(sandbox, spec):
+    scene = sandbox / "attack.toml"
+    scene.write_text(SCENE + f'model = "{spec}"\n')
+    proc = _stringcontact(sandbox, "run", str(scene), "--no-pictures", "--no-progress")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""  # not even the Zen of Python
+    assert proc.stderr.startswith(f"stringcontact: error: scene {str(scene)!r}: model: unknown model {spec!r}")
+    assert "allowed: elastic, inelastic, loaded_obstacle" in proc.stderr and proc.stderr.count("\n") == 1
+    assert _nothing_ran(sandbox)
+
+
+def test_checking_a_registered_name_imports_nothing(sandbox, capsys):
+    scene = sandbox / "plugin.toml"
+    scene.write_text(SCENE + 'model = "sentinel"\n')
+    assert load_scene(scene).model == "sentinel"
+    assert main(["show", str(scene)]) == 0 and 'model = "sentinel"' in capsys.readouterr().out
+    assert _nothing_ran(sandbox)
+    # A run loads the installed package (the user installed it); the object is still never called.
+    with pytest.raises(SceneError, match=r"model: 'sentinel' is registered as sentinel_plugin:model .* a function"):
+        registry.load_model("sentinel")
+    assert (sandbox / "imported").exists() and not (sandbox / "called").exists()
+
+
+@pytest.mark.parametrize("command", [["show"], ["check", "--levels", "1"], ["run", "--tol", "0.01"]])
+def test_every_command_refuses_the_scene(sandbox, capsys, command):
+    scene = sandbox / "attack.toml"
+    scene.write_text(SCENE + 'model = "sentinel:make"\n')
+    argv = [command[0], str(scene), *command[1:]]
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and "model: unknown model 'sentinel:make'" in err and err.count("\n") == 1
+    assert _nothing_ran(sandbox)
+
+
+@pytest.mark.parametrize("spec, kind", [("os:fork", "builtin_function_or_method"), ("sentinel:make", "function")])
+def test_the_command_line_names_a_model_object_and_calls_nothing(sandbox, spec, kind):
+    proc = _stringcontact(sandbox, "run", "example1", "--model", spec, "--no-pictures", "--no-progress")
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr == (f"stringcontact: error: model: {spec!r} is a {kind}, not a stringcontact.Model "
+                           "(nothing is called to make one: name a Model object)\n")
+    assert not (sandbox / "called").exists()
+
+
+def test_a_name_registered_twice_is_refused(sandbox):
+    _register(sandbox, "other-plugin", "elastic = sentinel_plugin:model")
+    with pytest.raises(SceneError, match=r"model: 'elastic' is registered twice, as .*sentinel_plugin:model"):
+        load_scene("single_impact").replace(model="elastic")
+    assert _nothing_ran(sandbox)
+
+
+def test_models_command_lists_the_registered_models(capsys):
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    for name in ("inelastic", "elastic", "loaded_obstacle", "soft_ground"):
+        assert any(line.startswith(f"{name} ") for line in out.splitlines()), name
+    assert "stringcontact.variants:elastic [stringcontact]" in out
+    assert "soft_ground:soft_ground [stringcontact-soft-ground]" in out
+
+
+def test_the_example_package_is_what_a_user_would_copy():
+    """Its pyproject registers the model by the documented route (read with tomllib, as pip reads it)."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    meta = tomllib.loads((root / "examples" / "soft_ground" / "pyproject.toml").read_text())
+    assert meta["project"]["entry-points"][registry.GROUP] == {"soft_ground": "soft_ground:soft_ground"}
+    ours = tomllib.loads((root / "pyproject.toml").read_text())["project"]["entry-points"][registry.GROUP]
+    assert set(ours) == {"inelastic", "elastic", "loaded_obstacle"}
+
+
+def test_check_uses_the_scenes_model():
+    from stringcontact import theorems
+
+    scene = load_scene("single_impact").replace(nx=50, nt=800, model="elastic")
+    _, finest, results = theorems.run_checks(scene, levels=1, time_levels=1)
+    assert finest.model == "elastic" and [r.model for r in results] == ["elastic"]
+    assert theorems.run_checks(scene.replace(model=None), levels=1, time_levels=1)[1].model == "inelastic"
+
+
+def test_an_output_folder_whose_model_is_no_longer_registered_still_plots(tmp_path):
+    """A folder written with an uninstalled plugin (or a module path, before model names) is redrawn."""
+    import json
+
+    import stringcontact as sc
+    from stringcontact import viz
+
+    scene = load_scene("single_impact").replace(nx=20, nt=1600, T=0.4, model="elastic", output_times=[])
+    sc.simulate(scene, model=registry.load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
+    assert viz.read_output(tmp_path / "run").scene.model == "elastic"
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary["scene"]["model"] = "stringcontact.variants:elastic"
+    (tmp_path / "run" / "summary.json").write_text(json.dumps(summary))
+    back = viz.read_output(tmp_path / "run")
+    assert back.scene.model is None and back.model == "elastic"
