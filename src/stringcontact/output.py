@@ -29,6 +29,7 @@ import fcntl
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import tempfile
