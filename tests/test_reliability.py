@@ -479,7 +479,7 @@ def test_disk_full_under_mpi_every_rank_exits_2_with_one_line(tmpfs):
 
 
 def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs):
-    folder = tmpfs("pictures", "size=300k")  # the data (~230 KB) fit, the pictures do not
+    folder = tmpfs("pictures", "size=640k")  # the data (~550 KB) fit, the pictures (~260 KB more) do not
     assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress",
                  "--out", str(folder / "out")]) == 2
     assert_one_line_error(capfd.readouterr().err, "cannot write the output files: the disk is full", "nothing was written there")

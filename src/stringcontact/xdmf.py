@@ -142,29 +142,52 @@ def mesh_arrays(V, comm) -> MeshArrays:
 class XdmfTimeSeries:
     """Writes the layout above: ``XdmfTimeSeries(folder, mesh, comm)``, ``.write(t, fields)``, ``.close()``.
 
-    Collective: every rank calls each method with its owned values. Errors come as RuntimeError (petsc4py's
-    Error) or OSError, for the caller to report.
+    Collective: every rank calls each method with its owned values; rank 0 gathers them (in global dof
+    order: the ranks own consecutive ranges) and writes both files alone. A file written collectively by
+    all ranks hangs the run when the disk fills on one rank only. An error on rank 0 is raised on every
+    rank: RuntimeError (petsc4py's Error) or OSError, for the caller to report.
     """
 
     def __init__(self, folder, mesh: MeshArrays, comm, stem: str = "solution"):
-        from petsc4py import PETSc
-
         self.comm, self.mesh, self.frames = comm, mesh, 0
         self.h5name = f"{stem}.h5"
         self.h5path = Path(folder) / self.h5name
-        with stderr_held():
-            self.viewer = PETSc.Viewer().createHDF5(str(self.h5path), "w", comm=comm)
-            self.vec = PETSc.Vec().createMPI((len(mesh.points), mesh.n_points), comm=comm)
-            self._view(PETSc.Vec().createWithArray(mesh.points.ravel(), bsize=3, comm=comm), "geometry")
-            topology = PETSc.IS().createGeneral(mesh.cells.ravel().astype(PETSc.IntType), comm=comm)
-            topology.setBlockSize(mesh.cells.shape[1])
-            self._view(topology, "topology")
+        self.viewer = self.vec = self.xml = None
+        points, cells = self._gather(mesh.points), self._gather(mesh.cells)
+        self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
+
+    def _gather(self, values):
+        parts = self.comm.gather(np.asarray(values), root=0) if self.comm.size > 1 else [values]
+        return np.concatenate(parts) if self.comm.rank == 0 else None
+
+    def _on_root(self, action, *args) -> None:
+        """`action(*args)` on rank 0 with stderr held; its error is raised on every rank."""
+        failure = None
+        if self.comm.rank == 0:
+            try:
+                with stderr_held():
+                    action(*args)
+            except (RuntimeError, OSError) as exc:
+                failure = exc
+        if self.comm.size > 1:
+            shared = self.comm.bcast(_portable(failure), root=0)
+            failure = failure if self.comm.rank == 0 else shared
+        if failure is not None:
+            raise failure
+
+    def _open(self, xml_path: Path, points, cells) -> None:
+        from petsc4py import PETSc
+
+        self.viewer = PETSc.Viewer().createHDF5(str(self.h5path), "w", comm=PETSc.COMM_SELF)
+        self.vec = PETSc.Vec().createSeq(self.mesh.n_points, comm=PETSc.COMM_SELF)
+        self._view(PETSc.Vec().createWithArray(points.ravel(), bsize=3, comm=PETSc.COMM_SELF), "geometry")
+        topology = PETSc.IS().createGeneral(cells.ravel().astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        topology.setBlockSize(cells.shape[1])
+        self._view(topology, "topology")
         self.int_bytes = np.dtype(PETSc.IntType).itemsize
-        self.xml = None
-        if comm.rank == 0:
-            self.xml = open(Path(folder) / f"{stem}.xdmf", "w+")  # noqa: SIM115 - kept open, appended per frame
-            self.xml.write(f'<?xml version="1.0"?>\n<Xdmf Version="3.0">\n  <Domain>\n    <Grid Name="{COLLECTION}" GridType="Collection" CollectionType="Temporal">\n')
-            self._end_xml()
+        self.xml = open(xml_path, "w+")  # noqa: SIM115 - kept open, appended per frame
+        self.xml.write(f'<?xml version="1.0"?>\n<Xdmf Version="3.0">\n  <Domain>\n    <Grid Name="{COLLECTION}" GridType="Collection" CollectionType="Temporal">\n')
+        self._end_xml()
 
     def _view(self, obj, name: str) -> None:
         obj.setName(name)
@@ -179,18 +202,20 @@ class XdmfTimeSeries:
 
     def write(self, t: float, fields: dict) -> None:
         """One grid at time `t` with every field of `fields` ({name: owned values}) as a node attribute."""
-        names = []
-        with stderr_held():
-            for name, values in fields.items():
-                self.vec.array[:] = values
-                dataset = f"{name}_{self.frames}"
-                self._view(self.vec, dataset)
-                names.append((name, dataset))
-        if self.xml is not None:
-            self.xml.seek(self.body_end)
-            self.xml.write(self._grid(t, names))
-            self._end_xml()
+        gathered = {name: self._gather(values) for name, values in fields.items()}
+        self._on_root(self._write_frame, t, gathered)
         self.frames += 1
+
+    def _write_frame(self, t: float, fields: dict) -> None:
+        names = []
+        for name, values in fields.items():
+            self.vec.array[:] = values
+            dataset = f"{name}_{self.frames}"
+            self._view(self.vec, dataset)
+            names.append((name, dataset))
+        self.xml.seek(self.body_end)
+        self.xml.write(self._grid(t, names))
+        self._end_xml()
 
     def _grid(self, t: float, names) -> str:
         m, h5 = self.mesh, self.h5name
@@ -221,6 +246,13 @@ class XdmfTimeSeries:
         file, so that PETSc's closing flush finds room, close what the failed write left open, and never
         raise. A viewer that still cannot be closed is kept referenced (`_UNCLOSED`).
         """
+        if discard:
+            if self.comm.rank == 0:
+                self._close_root(discard=True)
+            return
+        self._on_root(self._close_root)
+
+    def _close_root(self, discard: bool = False) -> None:
         viewer, self.viewer = self.viewer, None
         xml, self.xml = self.xml, None
         if xml is not None:
@@ -230,9 +262,8 @@ class XdmfTimeSeries:
         try:
             with stderr_held(replay=not discard):
                 if discard:
-                    if self.comm.rank == 0:
-                        with contextlib.suppress(OSError):
-                            os.truncate(self.h5path, 0)
+                    with contextlib.suppress(OSError):
+                        os.truncate(self.h5path, 0)
                     _close_open_objects(self.h5path)
                 viewer.destroy()
         except RuntimeError:
@@ -242,6 +273,15 @@ class XdmfTimeSeries:
             _UNCLOSED.append(viewer)
             return
         self.vec.destroy()
+
+
+def _portable(exc):
+    """`exc` as an exception any rank can rebuild (petsc4py's Error does not pickle): OSError or RuntimeError."""
+    if exc is None:
+        return None
+    if isinstance(exc, OSError):
+        return OSError(exc.errno, exc.strerror or str(exc))
+    return RuntimeError(one_line(exc, 300))
 
 
 # --- reading the XML back -------------------------------------------------------------------------------
