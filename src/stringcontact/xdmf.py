@@ -8,12 +8,12 @@ Layout (docs/visualisation.md has the reasons)::
                               Time, and one node Attribute per field -> solution.h5:/eta_0, /velocity_0, ...
 
 Every grid carries all the fields, so ParaView's readers (Xdmf3ReaderT, Xdmf3ReaderS, XDMFReader) give one
-grid per time step and meshio's `TimeSeriesReader` reads it. The heavy data are written collectively by
-PETSc's HDF5 viewer (the libhdf5 dolfinx itself uses, in the same process, under MPI too); the small XML is
-written by rank 0 and appended to per frame (the closing tags are rewritten after each grid), so writing
-costs O(frames) and the file is well-formed after every frame. PETSc flushes the HDF5 file after each
-dataset (an fsync under MPI-IO), so the data a grid names are on disk before the grid is written. Points are the P1 degrees of freedom in
-their global numbering, so the fields need no reordering; the mesh may be 1D (Polyline) or 2D/3D.
+grid per time step and meshio's `TimeSeriesReader` reads it. Rank 0 gathers each frame and writes the heavy
+data with PETSc's HDF5 viewer (the libhdf5 dolfinx itself uses, in the same process) and the small XML,
+appended to per frame (the closing tags are rewritten after each grid), so writing costs O(frames) and the
+file is well-formed after every frame. PETSc flushes the HDF5 file after each dataset, so the data a grid
+names are on disk before the grid is written. Points are the P1 degrees of freedom in their global
+numbering, so the fields need no reordering; the mesh may be 1D (Polyline) or 2D/3D.
 """
 
 from __future__ import annotations
