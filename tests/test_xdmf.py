@@ -13,6 +13,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from conftest import mpirun
 
 import stringcontact as sc
 from stringcontact import readback
@@ -136,3 +137,31 @@ def test_a_run_stopped_early_keeps_the_same_readable_layout(tmp_path):
     for k, point_data in enumerate(data["data"]):
         assert sorted(point_data) == sorted(FIELDS)
         np.testing.assert_array_equal(point_data["eta"], float(k))
+
+
+TRIANGLES_UNDER_MPI = r"""
+import sys
+from dolfinx import fem, mesh
+from mpi4py import MPI
+from stringcontact import compat
+from stringcontact.xdmf import XdmfTimeSeries, mesh_arrays
+V = compat.function_space(mesh.create_unit_square(MPI.COMM_WORLD, 6, 5))
+u, arrays = fem.Function(V), mesh_arrays(V, MPI.COMM_WORLD)
+series = XdmfTimeSeries(sys.argv[1], arrays, MPI.COMM_WORLD)
+u.interpolate(lambda x: x[0] + 10 * x[1])
+series.write(0.0, {"membrane": u.x.array[: len(arrays.points)]})
+series.close()
+"""
+
+
+@pytest.mark.mpi
+def test_a_triangle_mesh_distributed_over_two_ranks_is_one_whole_mesh(tmp_path):
+    proc = mpirun([sys.executable, "-c", TRIANGLES_UNDER_MPI, tmp_path], ranks=2)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    data = meshio_read(tmp_path / "solution.xdmf")
+    points, triangles = np.array(data["points"]), np.array(data["cells"]["triangle"])
+    assert points.shape == (42, 3) and triangles.shape == (60, 3)
+    corners = points[triangles][:, :, :2]
+    areas = 0.5 * np.abs(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+    assert areas.min() > 0 and areas.sum() == pytest.approx(1.0)  # the two ranks' halves tile the square
+    np.testing.assert_allclose(data["data"][0]["membrane"], points[:, 0] + 10 * points[:, 1], atol=1e-12)
