@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import viz
+from stringcontact import readback, viz
 from stringcontact.cli import main
 from stringcontact.painter import PictureProcess
 from stringcontact.result import ENERGY_KEYS
@@ -27,7 +27,7 @@ def run(tmp_path_factory):
 
 def test_read_output_matches_the_in_memory_result(run):
     folder, res = run
-    back = viz.read_output(folder)
+    back = readback.read_output(folder)
     np.testing.assert_array_equal(back.x, res.x)
     np.testing.assert_array_equal(back.t, res.t)
     np.testing.assert_array_equal(back.steps, res.steps)
@@ -106,7 +106,7 @@ def test_velocity_picture_is_centred_on_zero(run):
 
 def test_contact_set_picture_is_blank_without_contact(tmp_path, run):
     folder, _ = run
-    free = viz.read_output(folder)
+    free = readback.read_output(folder)
     free.contact[:] = False
     viz.contact_set_picture(free, tmp_path / "c.png")
     # only the small legend patch keeps the contact colour
@@ -148,7 +148,7 @@ def test_read_output_refuses_an_incomplete_folder(tmp_path, run):
     shutil.copytree(folder, copy)
     (copy / "diagnostics.csv").unlink()
     with pytest.raises(ValueError, match="diagnostics.csv"):
-        viz.read_output(copy)
+        readback.read_output(copy)
 
 
 def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
@@ -160,7 +160,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
     text = (copy / "solution.xdmf").read_text()
     (copy / "solution.xdmf").write_text(text[: len(text) // 2])
     with pytest.raises(ValueError, match=r"solution.xdmf cannot be read \(") as info:
-        viz.read_output(copy)
+        readback.read_output(copy)
     assert "\n" not in str(info.value)
 
 
@@ -199,11 +199,11 @@ def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
 
     scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
     res = sc.simulate(scene, model=load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
-    back = viz.read_output(tmp_path / "run")
+    back = readback.read_output(tmp_path / "run")
     assert viz.obstacle_name(back) == "ψ" and viz.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
     grey = "#d9d9d9"  # the shaded obstacle region
     viz.snapshots_picture(back, tmp_path / "bump.png")
-    flat = viz.read_output(tmp_path / "run")
+    flat = readback.read_output(tmp_path / "run")
     flat.scene = flat.scene.replace(obstacle=None)
     viz.snapshots_picture(flat, tmp_path / "flat.png")
     bump, level = _near(_image(tmp_path / "bump.png"), grey, 3).sum(), _near(_image(tmp_path / "flat.png"), grey, 3).sum()
@@ -216,7 +216,7 @@ def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
     """The XDMF is thinned (its writer costs O(frames²)); read back, each frame is exactly its stored row."""
     scene = sc.load_scene("example1").replace(nx=40)
     res = sc.simulate(scene, output_dir=tmp_path / "out", max_rows=60, max_frames=10, pictures=False)
-    back = viz.read_output(tmp_path / "out")
+    back = readback.read_output(tmp_path / "out")
     assert 10 <= len(back.t) < len(res.t) == 61
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
     assert rows[0] == 0 and rows[-1] == len(res.t) - 1

@@ -67,6 +67,9 @@ def create_vector(form):
     return dolfinx.fem.petsc.create_vector(form)
 
 
-def xdmf_write_function(xdmf, u: fem.Function, t: float, mesh_xpath: str = "/Xdmf/Domain/Grid[@GridType='Uniform'][1]"):
-    """Same call on all versions; kept here because its signature moved twice upstream."""
-    xdmf.write_function(u, t, mesh_xpath)
+def cell_dofs(V) -> np.ndarray:
+    """The local dofs of every cell as a (cells, dofs per cell) array: `V.dofmap.list` is an
+    AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""
+    dofs = V.dofmap.list
+    flat = dofs.array if hasattr(dofs, "array") else dofs
+    return np.asarray(flat).reshape(-1, V.dofmap.dof_layout.num_dofs)
