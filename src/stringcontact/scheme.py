@@ -41,6 +41,7 @@ class Operators:
     m: np.ndarray  # row sums of M (owned dofs): the lumped mass
     m_force: np.ndarray  # row sums of B (owned dofs): the lumped force weights
     load: np.ndarray  # b on owned dofs (zero for the paper's model)
+    V: object = None  # the function space: kept alive with its matrices (dolfinx 0.9 segfaults otherwise)
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
@@ -106,7 +107,7 @@ def semi_discrete_operators(model, V, params) -> Operators:
     b_form = ufl.algorithms.expand_derivatives(b_form)
     m = _row_sums(M)
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
-    return Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load)
+    return Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
 
 
 def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
