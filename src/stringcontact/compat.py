@@ -70,3 +70,24 @@ def create_vector(form):
 def xdmf_write_function(xdmf, u: fem.Function, t: float, mesh_xpath: str = "/Xdmf/Domain/Grid[@GridType='Uniform'][1]"):
     """Same call on all versions; kept here because its signature moved twice upstream."""
     xdmf.write_function(u, t, mesh_xpath)
+
+
+def coordinate_domain(cell: str, gdim: int):
+    """The `ufl.Mesh` of a P1 coordinate element for `mesh.create_mesh`: `ufl.VectorElement` (0.5) or
+    `basix.ufl.element(..., shape=(gdim,))` (0.7+)."""
+    import ufl
+
+    try:
+        import basix.ufl
+
+        return ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(gdim,)))
+    except (ImportError, AttributeError):
+        return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), 1))
+
+
+def cell_dofs(V) -> np.ndarray:
+    """The dofs of each local cell as an (cells, dofs per cell) array: an AdjacencyList (0.5) or an array (0.7+)."""
+    dofs = V.dofmap.list
+    if isinstance(dofs, np.ndarray):
+        return dofs
+    return dofs.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
