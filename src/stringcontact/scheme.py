@@ -166,8 +166,10 @@ def bc_dofs(V, length: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def node_coordinates(V) -> np.ndarray:
-    """x of this rank's dofs (P1: the vertices): the owned ones first, then the ghosts."""
-    return V.tabulate_dof_coordinates()[:, 0].copy()
+    """Coordinates of this rank's dofs (P1: the vertices), the owned ones first, then the ghosts: x, shape
+    (N,), on the interval; (x, y), shape (N, 2), on a 2D mesh."""
+    xyz = V.tabulate_dof_coordinates()
+    return xyz[:, 0].copy() if V.mesh.topology.dim == 1 else xyz[:, :2].copy()
 
 
 __all__ = [
