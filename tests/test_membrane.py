@@ -16,7 +16,7 @@ import pytest
 
 import stringcontact as sc
 from stringcontact.errors import SceneError
-from stringcontact.scene import Scene
+from stringcontact.scene import Scene, scene_to_toml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -56,13 +56,14 @@ def test_square_membrane_converges_to_the_exact_mode(scheme, alpha, order):
 
 
 def test_projection_in_2d_converges_to_the_exact_mode():
-    errors = [mode_error(sc.simulate(square(c, nt=8 * c, alpha=0.0), scheme="projection"), 0.0) for c in (8, 16, 32)]
+    """Order 1, as in 1D (docs/study.md): its start η^-1 = η^0 - Δt v0 takes v0 half a step early."""
+    errors = [mode_error(sc.simulate(square(c, nt=4 * c, alpha=0.0), scheme="projection"), 0.0) for c in (16, 32, 64)]
     rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
-    assert np.all(rates > 1.8), (errors, rates)
+    assert np.all(rates > 0.75) and rates[-1] > 0.85, (errors, rates)
 
 
 def small_drum(**keys) -> Scene:
-    return sc.load_scene("drum").replace(mesh_size=0.08, T=0.2, nt=40, **keys)
+    return sc.load_scene("drum").replace(**{"mesh_size": 0.08, "T": 0.4, "nt": 80, "output_times": [0.2], **keys})
 
 
 def test_the_drums_contact_patch_is_a_disk_centred_at_the_middle():
@@ -111,12 +112,14 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     import scipy.sparse.linalg as sla
     from mpi4py import MPI
 
-    from stringcontact import model, solver
+    from stringcontact import solver
+    from stringcontact.registry import load_model
     from stringcontact.schemes import projection
 
     scene = small_drum(mesh_size=0.15)
-    V, params, ops = solver._discretise(scene, model.inelastic, MPI.COMM_SELF)
-    s = solver._setting(scene, model.inelastic, V, params, ops, None, "lumped", MPI.COMM_SELF)
+    model = load_model(scene.model)
+    V, params, ops = solver._discretise(scene, model, MPI.COMM_SELF)
+    s = solver._setting(scene, model, V, params, ops, None, "lumped", MPI.COMM_SELF)
     ia, ja, a = ops.K.getValuesCSR()
     inner = np.flatnonzero(s.interior)
     K = sp.csr_matrix((a, ja, ia))[inner][:, inner]
@@ -131,21 +134,24 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
 
 # --- bad input -------------------------------------------------------------------------------------
 
-XDMF = """<?xml version="1.0"?>
-<Xdmf Version="3.0"><Domain><Grid Name="mesh" GridType="Uniform">
-<Topology TopologyType="{cell}" NumberOfElements="{n}" NodesPerElement="{per}">
-<DataItem Dimensions="{n} {per}" NumberType="Int" Format="XML">{cells}</DataItem></Topology>
-<Geometry GeometryType="{geo}"><DataItem Dimensions="{m} {d}" Format="XML">{points}</DataItem></Geometry>
-</Grid></Domain></Xdmf>
-"""
+def xdmf(tmp_path, name, cells, points, cell="triangle"):
+    """A mesh file written by dolfinx itself (XDMF + HDF5), of any cells and points, degenerate or not."""
+    from dolfinx import mesh
+    from dolfinx.io import XDMFFile
+    from mpi4py import MPI
 
+    from stringcontact import compat
 
-def xdmf(tmp_path, name, cells, points, cell="Triangle"):
-    cells, points = np.asarray(cells), np.asarray(points, dtype=float)
-    text = XDMF.format(cell=cell, n=len(cells), per=cells.shape[1], cells=" ".join(map(str, cells.ravel())),
-                       geo="XY" if points.shape[1] == 2 else "XYZ", m=len(points), d=points.shape[1],
-                       points=" ".join(map(repr, points.ravel())))
+    points = np.asarray(points, dtype=float)
+    msh = mesh.create_mesh(MPI.COMM_SELF, np.asarray(cells, dtype=np.int64), points,
+                           compat.coordinate_domain(cell, points.shape[1]))
     path = tmp_path / name
+    with XDMFFile(MPI.COMM_SELF, str(path), "w") as f:
+        f.write_mesh(msh)
+    return path
+
+
+def text_file(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
 
@@ -157,15 +163,15 @@ def file_scene(path) -> Scene:
 def test_a_mesh_file_runs_like_the_same_rectangle(tmp_path):
     points = [[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]]
     path = xdmf(tmp_path, "square.xdmf", [[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]], points)
-    res = sc.simulate(file_scene(path).replace(eta0="1 + 0.1*x*y", h=1, v0=-1))
+    res = sc.simulate(file_scene(path).replace(eta0="1 + 0.1*x*y", h=1, v0=-1), scheme="newmark")
     assert res.x.shape == (5, 2) and res.weights.sum() == pytest.approx(1.0)
     assert res.eta[-1][np.argmin(np.hypot(res.x[:, 0] - 0.5, res.x[:, 1] - 0.5))] < 1.0  # the free node moved
 
 
 @pytest.mark.parametrize("make, message", [
-    (lambda p: p.joinpath("text.xdmf").write_text("this is not xml") or p / "text.xdmf", "is not an XDMF mesh file"),
+    (lambda p: text_file(p / "text.xdmf", "this is not xml"), "is not an XDMF mesh file"),
     (lambda p: xdmf(p, "flat.xdmf", [[0, 1, 2], [1, 2, 3]], [[0, 0], [1, 0], [2, 0], [3, 0]]), "zero area"),
-    (lambda p: xdmf(p, "tet.xdmf", [[0, 1, 2, 3]], [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], "Tetrahedron"),
+    (lambda p: xdmf(p, "tet.xdmf", [[0, 1, 2, 3]], [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], "tetrahedron"),
      "is a 3D mesh"),
     (lambda p: xdmf(p, "tilted.xdmf", [[0, 1, 2]], [[0, 0, 0], [1, 0, 0], [0, 1, 1]]), "surface in 3D"),
 ])
@@ -199,7 +205,7 @@ def test_bad_domain_keys_are_refused_in_one_line(keys, message):
 def test_2d_scenes_round_trip_through_toml(tmp_path):
     for scene in (sc.load_scene("drum"), sc.load_scene("bump"), contact_scene(h="0.05 + 0.01*x*y")):
         path = tmp_path / f"{scene.name}.toml"
-        path.write_text(sc.scene_to_toml(scene))
+        path.write_text(scene_to_toml(scene))
         assert sc.load_scene(path) == scene
 
 

@@ -82,7 +82,13 @@ def coordinate_domain(cell: str, gdim: int):
 
         return ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(gdim,)))
     except (ImportError, AttributeError):
-        return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), 1))
+        return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), 1, dim=gdim))
+
+
+def geometry_nodes(msh) -> np.ndarray:
+    """The geometry nodes of each local cell, (cells, nodes per cell): an AdjacencyList (0.5) or an array (0.9)."""
+    nodes = msh.geometry.dofmap
+    return nodes if isinstance(nodes, np.ndarray) else nodes.array.reshape(msh.topology.index_map(msh.topology.dim).size_local + msh.topology.index_map(msh.topology.dim).num_ghosts, -1)
 
 
 def cell_dofs(V) -> np.ndarray:
