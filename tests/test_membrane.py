@@ -83,6 +83,21 @@ def test_the_drums_contact_patch_is_a_disk_centred_at_the_middle():
     assert res.contact_measure[landed[-1]] > res.contact_measure[landed[0]]  # it grows while landing
 
 
+def test_the_bump_lands_on_both_humps_and_the_patches_join():
+    res = sc.simulate(sc.load_scene("bump"))
+    patches = res.contact_patches()
+    first = int(np.argmax(patches > 0))
+    assert patches[first] == 2 and patches[-1] == 1  # one patch per hump, joined by the end
+    assert res.contact_measure[-1] > 10 * res.contact_measure[first]
+
+
+def test_without_viscosity_the_bumps_patch_splits_again():
+    res = sc.simulate(sc.load_scene("bump").replace(alpha=0))
+    patches = res.contact_patches()
+    joined = int(np.argmax(patches == 1))
+    assert patches[joined] == 1 and patches[joined:].max() >= 3  # it rings: one patch breaks into several
+
+
 def contact_scene(**keys) -> Scene:
     data = dict(domain="rectangle", cells=[12, 12], T=0.4, nt=80, alpha=0.02, eps=0.005,
                 eta0="0.05 + 0.1*sin(pi*x)*sin(pi*y)", v0="-2*sin(pi*x)*sin(pi*y)", h=0.05)
