@@ -141,10 +141,20 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     D = sp.diags(1 / np.sqrt(ops.m[inner]))
     lam = sla.eigsh(D @ K @ D, k=1, which="LA")[0][0]
     assert projection.top_mode_krylov(ops.K, ops.m, s.interior)[0] == pytest.approx(lam, rel=1e-8)
-    scheme = projection.Scheme(s)
-    assert scheme.dt_max >= 2 / math.sqrt(lam) * (1 - 1e-8)  # α > 0: viscosity relieves the bound
-    with pytest.raises(sc.InstabilityError, match="dt_max"):
-        sc.simulate(small_drum(mesh_size=0.15, nt=round(0.2 / (1.05 * scheme.dt_max)) or 1), scheme="projection")
+    bound = projection.gershgorin_bound(ops.K, ops.m, s.interior)
+    assert lam <= bound < 2 * lam
+    dt_max = projection.largest_stable_dt(ops, s.interior, krylov=True)
+    assert dt_max >= 2 / math.sqrt(lam) * (1 - 1e-8)  # α > 0: viscosity relieves the bound
+    assert projection.Scheme(s).dt_max == pytest.approx(2 / math.sqrt(bound))  # the scene's small dt: no eigenvalue
+    T = 0.2
+    for factor, stable in ((0.98, True), (1.05, False)):  # both above Gershgorin's dt: decided by the eigenvalue
+        nt = math.ceil(T / (factor * dt_max)) if stable else math.floor(T / (factor * dt_max))
+        assert T / nt > 2 / math.sqrt(bound)
+        if stable:
+            assert sc.simulate(small_drum(mesh_size=0.15, T=T, nt=nt), scheme="projection").status == "complete"
+        else:
+            with pytest.raises(sc.InstabilityError, match="dt_max"):
+                sc.simulate(small_drum(mesh_size=0.15, T=T, nt=nt), scheme="projection")
 
 
 # --- bad input -------------------------------------------------------------------------------------

@@ -25,6 +25,7 @@ from .scheme import bc_dofs, node_coordinates, semi_discrete_operators
 from .schemes import check_model, scheme_class
 from .schemes.base import NodalLaws, Setting
 
+
 def output_steps(nt: int, dt: float, output_times) -> set[int]:
     """The steps nearest to the scene's output times."""
     return {min(nt, max(0, round(t / dt))) for t in output_times}
