@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_membrane.py                 # 1e4 ... 2.5e5 nodes (a few minutes)
     .venv/bin/python benchmarks/bench_membrane.py --big           # and 1e6 nodes (several GB)
     .venv/bin/python benchmarks/bench_membrane.py --ranks 2       # stringcontact under mpirun -n 2 as well
+    .venv/bin/python benchmarks/bench_membrane.py --sizes 999     # only 1e6 nodes
 
 Each run is a fresh process, so that its peak RSS (per rank) is its own. The scene: the unit square, cells
 [n, n] (right diagonals), α = 0.01, Δt = 0.5/n (dt_max ≈ 0.7/n), the membrane thrown onto the obstacle so
@@ -121,6 +122,7 @@ def main() -> None:
     ap.add_argument("--big", action="store_true", help="also n = 999 (1e6 nodes)")
     ap.add_argument("--ranks", type=int, default=1, help="also run stringcontact under mpirun -n RANKS")
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--sizes", type=int, nargs="+", help="cells per side instead of 99 199 316 499 (999 with --big)")
     ap.add_argument("--one", nargs=2, metavar=("IMPL", "N"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     OUT.mkdir(exist_ok=True)
@@ -132,7 +134,7 @@ def main() -> None:
         if MPI.COMM_WORLD.rank == 0:
             print(json.dumps(row))
         return
-    sizes = [99, 199, 316, 499] + ([999] if args.big else [])
+    sizes = args.sizes or [99, 199, 316, 499] + ([999] if args.big else [])
     me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--one"]
     rows = []
     print("| nodes | stringcontact ms/step | setup s | peak RSS MB | SciPy peer ms/step | setup s | peak RSS MB | max abs diff of eta |")
