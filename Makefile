@@ -9,7 +9,11 @@ export PYTHONDONTWRITEBYTECODE ?= 1
 .PHONY: setup demo test test-fast docs clean
 
 setup:
-	@scripts/setup $(VENV)
+	@scripts/setup $(SETUP_FLAGS) $(VENV)
+
+# the tests also drive ParaView (pvpython, xvfb-run): setup installs it for them, and it is required
+test test-fast: SETUP_FLAGS = --test
+test test-fast: export STRINGCONTACT_REQUIRE_PARAVIEW = 1
 
 demo: setup
 	$(VENV)/bin/stringcontact run example1 --out out/example1 --force

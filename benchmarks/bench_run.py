@@ -1,17 +1,18 @@
 """End-to-end wall clock of `stringcontact run example1 --out DIR`, and where the time goes.
 
 1. The command itself, as a user runs it, in a fresh process, warm JIT cache: with its pictures, and
-   with `--no-pictures` for comparison. The two alternate, so that a slower spell of a shared machine
-   hits both; medians and ranges are printed.
+   with `--no-pictures` for comparison, and with `--against EXE` the same command of another checkout
+   (e.g. main's `.venv/bin/stringcontact`). They alternate, so that a slower spell of a shared machine
+   hits all of them; medians and ranges are printed.
 2. The same work in a fresh process, timed by phase: import (stringcontact, dolfinx, petsc4py),
    setup (mesh, the forms' JIT-cache load and assembly, LU factorisation), solve (the time loop),
    XDMF + tables (the XDMF frames streamed to solution.xdmf/h5, diagnostics.csv, summary.json) and
-   pictures. "overlapped" is what the CLI does: the pyvista pictures are drawn by a `viz.Painters`
-   process started before the import; "in-process" draws all four pictures after the run.
+   pictures. "overlapped" is what the CLI does: the pyvista picture is drawn by a `painter.PictureProcess`
+   started before the import; "in-process" draws all pictures after the run.
 3. The XDMF cost against the number of frames (`simulate(..., max_frames=...)`): dolfinx 0.5's
    XDMFFile rewrites its whole XML on every write, so the cost grows like frames².
 
-    .venv/bin/python benchmarks/bench_run.py [--repeats 7]
+    .venv/bin/python benchmarks/bench_run.py [--repeats 7] [--against /tmp/main/.venv/bin/stringcontact]
 """
 
 from __future__ import annotations
@@ -31,9 +32,9 @@ EXE = Path(sys.executable).with_name("stringcontact")
 KEYS = ("import", "setup", "solve", "xdmf+tables", "pictures")
 
 
-def run_cli(out: Path, *extra: str) -> float:
+def run_cli(out: Path, *extra: str, exe: Path = EXE) -> float:
     t0 = time.perf_counter()
-    subprocess.run([str(EXE), "run", "example1", "--out", str(out), "--force", "--no-progress", *extra], check=True,
+    subprocess.run([str(exe), "run", "example1", "--out", str(out), "--force", "--no-progress", *extra], check=True,
                    capture_output=True)
     return time.perf_counter() - t0
 
@@ -41,11 +42,14 @@ def run_cli(out: Path, *extra: str) -> float:
 def phases(out: str, max_frames: int, mode: str) -> dict:
     """Run in a fresh interpreter: time the import, then simulate with output, then (in-process) the pictures."""
     t0 = time.perf_counter()
-    painters = None
+    pictures = False
     if mode == "overlapped":
-        from stringcontact.viz import Painters
+        import functools
 
-        painters = Painters.start()
+        from stringcontact.painter import PictureProcess
+        from stringcontact.viz import write_pictures
+
+        pictures = functools.partial(write_pictures, painter=PictureProcess.start())
     import dolfinx  # noqa: F401
     import petsc4py  # noqa: F401
 
@@ -53,7 +57,7 @@ def phases(out: str, max_frames: int, mode: str) -> dict:
 
     t_import = time.perf_counter() - t0
     res = sc.simulate(sc.load_scene("example1"), output_dir=out, force=True, max_frames=max_frames,
-                      pictures=painters if painters is not None else False)
+                      pictures=pictures)
     summary = json.loads((Path(out) / "summary.json").read_text())
     tm = summary.get("timings", {})
     pictures = tm.get("pictures", 0.0)
@@ -77,6 +81,9 @@ def phases(out: str, max_frames: int, mode: str) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--no-sweep", action="store_true", help="phases at the default max_frames only")
+    ap.add_argument("--no-phases", action="store_true", help="the commands only")
+    ap.add_argument("--against", type=Path, help="another checkout's stringcontact executable, timed alternately")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -89,9 +96,13 @@ def main(argv=None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="bench_run_"))
     try:
         run_cli(tmp / "warm")  # warms the JIT cache
-        walls, bare = [], []
+        if args.against:
+            run_cli(tmp / "warm-other", exe=args.against)
+        walls, bare, other = [], [], []
         for i in range(args.repeats):
             walls.append(run_cli(tmp / f"run{i}"))
+            if args.against:
+                other.append(run_cli(tmp / f"other{i}", exe=args.against))
             bare.append(run_cli(tmp / f"bare{i}", "--no-pictures"))
 
         def line(name, values):
@@ -102,6 +113,13 @@ def main(argv=None) -> int:
         print("| command | median | min | max |\n|---|---:|---:|---:|")
         print(line("`run example1 --out DIR`", walls))
         print(line("`run example1 --out DIR --no-pictures`", bare))
+        if args.against:
+            print(line(f"`run example1 --out DIR` of {args.against}", other))
+            ratios = sorted(a / b for a, b in zip(walls, other))  # each pair ran back to back
+            print(f"\npaired ratio this/other: median {statistics.median(ratios):.2f} "
+                  f"(range {ratios[0]:.2f}-{ratios[-1]:.2f})")
+        if args.no_phases:
+            return 0
         print()
 
         def child(max_frames, mode):
@@ -114,8 +132,8 @@ def main(argv=None) -> int:
         print("Phases, each in a fresh process (medians):\n")
         print("| pictures | max_frames | XDMF frames | " + " | ".join(f"{k} [s]" for k in KEYS) + " | sum [s] |")
         print("|---|---:|---:|" + "---:|" * (len(KEYS) + 1))
-        for mode, max_frames in (("overlapped", 100), ("in-process", 100), ("overlapped", 400), ("overlapped", 200),
-                                 ("overlapped", 50)):
+        sweep = () if args.no_sweep else (("overlapped", 400), ("overlapped", 200), ("overlapped", 50))
+        for mode, max_frames in (("overlapped", 100), ("in-process", 100), *sweep):
             runs = [child(max_frames, mode) for _ in range(args.repeats)]
             med = {k: statistics.median(r[k] for r in runs) for k in KEYS}
             print(f"| {mode} | {max_frames} | {runs[0]['frames']} | " + " | ".join(f"{med[k]:.2f}" for k in KEYS)

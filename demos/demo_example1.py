@@ -58,7 +58,7 @@ OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_example1"))
 #
 # 5000 cells and 1500 steps take a few seconds. The run stores about 400 time levels; it writes
 # `solution.xdmf`/`.h5` (the fields `eta`, `velocity`, `contact`, `contact_force` at about 100 of
-# them, `max_frames`), `diagnostics.csv` (all of them), `summary.json` and the four pictures into
+# them, `max_frames`), `diagnostics.csv` (all of them), `summary.json` and the five pictures into
 # `OUT/example1`.
 
 scene = sc.load_scene("example1")
@@ -142,4 +142,4 @@ print(f"contact dissipation gained between stored rows without contact: {gained_
 #
 # Open `OUT/example1/solution.xdmf` with the **Xdmf3ReaderT** reader, apply *Warp By Scalar* with
 # `eta` (normal 0, 1, 0) and colour by `contact`; the time slider steps through the XDMF frames.
-# `stringcontact plot OUT/example1` redraws the four pictures from the saved files alone.
+# `stringcontact plot OUT/example1` redraws the five pictures from the saved files alone.

@@ -151,13 +151,13 @@ def test_an_output_folder_whose_model_is_no_longer_registered_still_plots(tmp_pa
     import json
 
     import stringcontact as sc
-    from stringcontact import viz
+    from stringcontact import readback
 
     scene = load_scene("single_impact").replace(nx=20, nt=1600, T=0.4, model="elastic", output_times=[])
     sc.simulate(scene, model=registry.load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
-    assert viz.read_output(tmp_path / "run").scene.model == "elastic"
+    assert readback.read_output(tmp_path / "run").scene.model == "elastic"
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     summary["scene"]["model"] = "stringcontact.variants:elastic"
     (tmp_path / "run" / "summary.json").write_text(json.dumps(summary))
-    back = viz.read_output(tmp_path / "run")
+    back = readback.read_output(tmp_path / "run")
     assert back.scene.model is None and back.model == "elastic"

@@ -43,7 +43,7 @@ def test_projection_is_its_finite_difference_reference(name):
     scene = sc.load_scene(name).replace(nx=300, nt=600)
     with pytest.warns(SceneWarning) if name == "example2" else _nothing():  # example2 starts below the obstacle
         res = run(scene, scheme="projection")
-    t, eta, vel = fd_projection(scene)
+    _, eta, vel = fd_projection(scene)
     assert res.contact.any()
     assert np.max(np.abs(res.eta - eta[res.steps])) <= 1e-10
     assert np.max(np.abs(res.velocity - vel[res.steps])) <= 1e-10 / scene.dt

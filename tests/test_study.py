@@ -1,7 +1,7 @@
 """The studies: the explicit penalty's failure modes, the semi-implicit one's robustness, the study files."""
 
-import dataclasses
 import csv
+import dataclasses
 import math
 
 import numpy as np
@@ -84,18 +84,31 @@ def test_observed_orders_of_a_known_sequence():
     assert study.fitted_order(h, 3 * h**0.5) == pytest.approx(0.5)
 
 
-def test_tolerance_choice_estimate_is_below_tol_and_tracks_the_true_error():
+def test_tolerance_estimates_are_below_tol_and_track_the_true_error():
+    # Every candidate that reaches the tolerance, not only the one chosen: the choice goes by measured run
+    # time, which a busy machine can flip, and a test must not depend on a clock.
     scene = study.flat_landing_scene(100)
-    chosen, options, report = study.choose_for_tolerance(scene, 0.02)
-    name = report.split("chose ")[1].split()[0]
-    assert "estimated error" in report and name in study.TOL_METHODS
-    method = study.METHODS[name]
-    assert options == {"scheme": method.scheme, "penalty": method.penalty, "mass": method.mass}
-    estimate = float(report.split("L2) = ")[1].split()[0])
-    assert estimate <= 0.02
-    run = study.run_method(chosen, method, rows=60)
-    true = study.errors_against_exact(run, study.flat_landing_exact)["err_eta"]
-    assert 0.3 < estimate / true < 3
+    found = [c for c in study.estimate_for_tolerance(scene, 0.02) if c["ok"]]
+    assert "projection" in [c["method"] for c in found]
+    for c in found:
+        true = study.errors_against_exact(c["run"], study.flat_landing_exact)["err_eta"]
+        assert c["estimate"] <= 0.02
+        # conservative: order-1 estimates by 2 (the error halves exactly), order-1/2 ones by more (the
+        # observed order drifts between 0.4 and 0.8 around the 0.5 used)
+        assert 1.0 <= c["estimate"] / true < (2.5 if study.TOL_ORDER[c["method"]] == 1.0 else 5.0), c["method"]
+
+
+def test_tolerance_choice_is_the_cheapest_candidate_that_reached_it():
+    scene = study.flat_landing_scene(100)
+    choice = [
+        {"method": "semi-implicit", "nx": 800, "nt": 480, "estimate": 0.009, "fine_wall_s": 0.5, "ok": True},
+        {"method": "projection", "nx": 200, "nt": 120, "estimate": 0.004, "fine_wall_s": 0.1, "ok": True},
+        {"method": "newmark", "nx": 100, "nt": 60, "estimate": 0.05, "fine_wall_s": 0.01, "ok": False},
+    ]
+    chosen, method, best = study._pick(scene, 0.01, choice)
+    assert method.name == "projection" and best["nx"] == 200 and (chosen.nx, chosen.nt) == (200, 120)
+    with pytest.raises(ValueError, match="no method reached the tolerance"):
+        study._pick(scene, 0.01, [dict(choice[2])])
 
 
 @pytest.mark.parametrize("tol", [0.0, -1.0, math.inf])

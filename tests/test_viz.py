@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import viz
+from stringcontact import readback, viz
 from stringcontact.cli import main
+from stringcontact.painter import PictureProcess
 from stringcontact.result import ENERGY_KEYS
 
 
@@ -26,7 +27,7 @@ def run(tmp_path_factory):
 
 def test_read_output_matches_the_in_memory_result(run):
     folder, res = run
-    back = viz.read_output(folder)
+    back = readback.read_output(folder)
     np.testing.assert_array_equal(back.x, res.x)
     np.testing.assert_array_equal(back.t, res.t)
     np.testing.assert_array_equal(back.steps, res.steps)
@@ -64,13 +65,30 @@ def _near(img, hex_colour, tol=20):
     return np.all(np.abs(img - rgb) <= tol, axis=-1)
 
 
-def test_run_writes_four_legible_pictures(run):
+def test_run_writes_legible_pictures(run):
     folder, _ = run
     for name in viz.PICTURES:
         img = _image(folder / name)
         assert img.shape[0] >= 600 and img.shape[1] >= 800, name
         assert (img < 100).all(axis=-1).sum() > 500, f"{name}: no dark text or lines"
     assert _near(_image(folder / "contact_set.png"), viz.CONTACT_COLOUR).sum() > 5000
+    assert _near(_image(folder / "space_time.png"), viz.CONTACT_COLOUR, tol=60).sum() > 2000  # lit, so less exact
+
+
+def test_contact_set_picture_shows_the_contact_fraction(run):
+    """The red share of the plotting area is the contact set's share of the (x, t) rectangle."""
+    _, res = run
+    from stringcontact.charts import _cell_edges
+
+    dx, dt = np.diff(_cell_edges(res.x)), np.diff(_cell_edges(res.t))
+    fraction = np.sum(res.contact * dt[:, None] * dx[None, :]) / (dx.sum() * dt.sum())
+    assert 0.05 < fraction < 0.5
+    img = _image(run[0] / "contact_set.png")
+    frame = (img < 60).all(axis=-1)  # the black frame of the axes: the longest dark rows and columns
+    top, bottom = np.flatnonzero(frame.sum(axis=1) > 0.5 * frame.shape[1])[[0, -1]]
+    left, right = np.flatnonzero(frame.sum(axis=0) > 0.5 * (bottom - top))[[0, -1]]
+    inside = _near(img[top + 1 : bottom, left + 1 : right], viz.CONTACT_COLOUR)
+    assert inside.mean() == pytest.approx(fraction, abs=0.02)
 
 
 def test_velocity_picture_is_centred_on_zero(run):
@@ -88,7 +106,7 @@ def test_velocity_picture_is_centred_on_zero(run):
 
 def test_contact_set_picture_is_blank_without_contact(tmp_path, run):
     folder, _ = run
-    free = viz.read_output(folder)
+    free = readback.read_output(folder)
     free.contact[:] = False
     viz.contact_set_picture(free, tmp_path / "c.png")
     # only the small legend patch keeps the contact colour
@@ -130,7 +148,7 @@ def test_read_output_refuses_an_incomplete_folder(tmp_path, run):
     shutil.copytree(folder, copy)
     (copy / "diagnostics.csv").unlink()
     with pytest.raises(ValueError, match="diagnostics.csv"):
-        viz.read_output(copy)
+        readback.read_output(copy)
 
 
 def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
@@ -142,7 +160,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
     text = (copy / "solution.xdmf").read_text()
     (copy / "solution.xdmf").write_text(text[: len(text) // 2])
     with pytest.raises(ValueError, match=r"solution.xdmf cannot be read \(") as info:
-        viz.read_output(copy)
+        readback.read_output(copy)
     assert "\n" not in str(info.value)
 
 
@@ -176,27 +194,16 @@ def test_snapshot_rows_are_the_scene_output_times(run):
     np.testing.assert_allclose(res.t[rows], res.scene.output_times, atol=1e-12)
 
 
-def test_space_time_grid_coarsens_but_keeps_the_contact_fraction(run):
-    _, res = run
-    full, _ = viz.space_time_grid(res, max_columns=10_000)
-    coarse, _ = viz.space_time_grid(res, max_columns=20)
-    assert full.n_cells == res.eta.size
-    assert coarse.dimensions[0] - 1 <= 20
-    frac = lambda g: np.sum(g.cell_data["contact"] * g.compute_cell_sizes()["Area"]) / np.sum(g.compute_cell_sizes()["Area"])
-    assert frac(coarse) == pytest.approx(frac(full), abs=0.03)
-    assert frac(full) > 0.1
-
-
 def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
     from stringcontact.variants import load_model
 
     scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
     res = sc.simulate(scene, model=load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
-    back = viz.read_output(tmp_path / "run")
+    back = readback.read_output(tmp_path / "run")
     assert viz.obstacle_name(back) == "ψ" and viz.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
     grey = "#d9d9d9"  # the shaded obstacle region
     viz.snapshots_picture(back, tmp_path / "bump.png")
-    flat = viz.read_output(tmp_path / "run")
+    flat = readback.read_output(tmp_path / "run")
     flat.scene = flat.scene.replace(obstacle=None)
     viz.snapshots_picture(flat, tmp_path / "flat.png")
     bump, level = _near(_image(tmp_path / "bump.png"), grey, 3).sum(), _near(_image(tmp_path / "flat.png"), grey, 3).sum()
@@ -209,7 +216,7 @@ def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
     """The XDMF is thinned (its writer costs O(frames²)); read back, each frame is exactly its stored row."""
     scene = sc.load_scene("example1").replace(nx=40)
     res = sc.simulate(scene, output_dir=tmp_path / "out", max_rows=60, max_frames=10, pictures=False)
-    back = viz.read_output(tmp_path / "out")
+    back = readback.read_output(tmp_path / "out")
     assert 10 <= len(back.t) < len(res.t) == 61
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
     assert rows[0] == 0 and rows[-1] == len(res.t) - 1
@@ -247,40 +254,82 @@ def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
 
 
-def test_the_picture_processes_draw_what_this_process_draws(tmp_path, run):
+def test_the_picture_process_draws_what_this_process_draws(tmp_path, run):
     _, res = run
     here, there = tmp_path / "here", tmp_path / "there"
     viz.write_pictures(res, here)
     there.mkdir()
-    painters = viz.Painters.start(groups=(viz.SPACE_TIME_PICTURES, viz.CHART_PICTURES))
-    private = [Path(p.folder) for p in painters.processes]
-    assert len(private) == 2
-    assert painters.send(res, there) == set(viz.PICTURES)
-    assert painters.wait() == set(viz.PICTURES)
-    assert all(p.proc.poll() is not None for p in painters.processes)  # no process left
-    assert not any(f.exists() for f in private)  # no payload left
-    for name in viz.PICTURES:
+    process = PictureProcess.start(("space_time.png", "contact_set.png"))
+    private = Path(process.folder)
+    assert process.send(res, there) and process.wait()
+    assert process.proc.poll() is not None and not private.exists()  # no process and no payload left
+    assert sorted(p.name for p in there.iterdir()) == ["contact_set.png", "space_time.png"]
+    for name in process.names:
         np.testing.assert_array_equal(_image(there / name), _image(here / name), err_msg=name)
 
 
-def test_pictures_are_drawn_here_when_a_picture_process_dies(tmp_path, run):
+def test_pictures_are_drawn_here_when_the_picture_process_dies(tmp_path, run):
     _, res = run
-    painters = viz.Painters.start(groups=(viz.SPACE_TIME_PICTURES, viz.CHART_PICTURES))
-    dead = painters.processes[0]
-    dead.proc.kill()
-    dead.proc.wait()
-    paths = viz.write_pictures(res, tmp_path, painter=painters)
+    process = PictureProcess.start()
+    process.proc.kill()
+    process.proc.wait()
+    paths = viz.write_pictures(res, tmp_path, painter=process)
     assert [p.name for p in paths] == list(viz.PICTURES)
     assert all(p.stat().st_size > 10_000 for p in paths)
-    assert all(p.folder is None for p in painters.processes)
+    assert process.folder is None and not list(tmp_path.glob(".*"))
 
 
 def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
     _, res = run
-    process = viz.PictureProcess.start(viz.SPACE_TIME_PICTURES)
+    process = PictureProcess.start()
     assert process.send(res, tmp_path / "no such folder")
     assert process.wait() is False
     assert "No such file or directory" in process.error and process.folder is None
+
+
+def test_the_output_module_does_not_import_the_picture_code():
+    """output.py finds the picture function through its entry point; viz imports output, not the reverse."""
+    import ast
+    import subprocess
+    import sys
+
+    from stringcontact import output
+
+    tree = ast.parse(Path(output.__file__).read_text())
+    imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    assert not {m for m in imported if m.split(".")[-1] in ("viz", "charts", "painter", "mesh_pictures")}
+    assert output.registered_pictures() is viz.write_pictures
+    code = "import sys, stringcontact.viz; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
+
+
+def test_simulate_calls_a_given_picture_function_before_the_folder_is_published(tmp_path):
+    calls = []
+
+    def draw(result, folder):
+        calls.append((result, Path(folder)))
+        (Path(folder) / "mine.png").write_bytes(b"png")
+
+    scene = sc.load_scene("example1").replace(nx=20, nt=40, eps=0.01)
+    res = sc.simulate(scene, output_dir=tmp_path / "out", pictures=draw)
+    [(result, folder)] = calls
+    assert result is res and folder.name.startswith(".out.partial") and not folder.exists()
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.png")) == ["mine.png"]
+
+
+def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run):
+    from stringcontact import mesh_pictures
+
+    _, res = run
+    free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
+    mesh_pictures.space_time_picture(free, tmp_path / "free.png")
+    mesh_pictures.space_time_picture(res, tmp_path / "contact.png")
+    red = [_near(_image(tmp_path / n), viz.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
+    assert red[0] < 50 and red[1] > 2000
+    img = _image(tmp_path / "free.png")
+    grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the translucent obstacle
+    assert grey.sum() > 5000
 
 
 def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
@@ -313,7 +362,7 @@ def test_the_picture_process_ends_and_cleans_up_when_the_run_dies(tmp_path):
     import sys
     import time
 
-    code = ("from stringcontact.viz import PictureProcess; p = PictureProcess.start(('contact_set.png',)); "
+    code = ("from stringcontact.painter import PictureProcess; p = PictureProcess.start(); "
             "print(p.proc.pid, p.folder, flush=True)")  # and exit at once, without cancel(): a killed run
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     pid, private = int(out[0]), Path(out[1])

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import importlib
 import logging
 import os
@@ -207,7 +208,7 @@ def report(res) -> None:
 
 
 def _run(args, painter=None) -> int:
-    """`run`; `painter` (viz.Painters) was started by `main` before PETSc and dolfinx were imported."""
+    """`run`; `painter` (a `painter.PictureProcess`) was started by `main` before PETSc and dolfinx were imported."""
     import stringcontact as sc
 
     scene = sc.load_scene(args.scene)
@@ -239,7 +240,7 @@ def _run(args, painter=None) -> int:
         output_dir=args.out,
         progress=not args.no_progress,
         force=args.force,
-        pictures=painter or not args.no_pictures,
+        pictures=_pictures(args, painter),
         max_frames=args.frames,
     )
     report(res)
@@ -262,6 +263,15 @@ def _check_scheme_options(args, scene) -> None:
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
         given = "--eps" if args.eps is not None else "--penalty"
         raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")
+
+
+def _pictures(args, painter):
+    """`simulate`'s `pictures`: the picture function, with the started painter, or whether to draw them."""
+    if painter is None:
+        return not args.no_pictures
+    from .viz import write_pictures
+
+    return functools.partial(write_pictures, painter=painter)
 
 
 def _single_process() -> bool:
@@ -324,9 +334,9 @@ def _main(argv) -> int:
         return EXIT_INTERNAL
     painter = None
     if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
-        from .viz import Painters
+        from .painter import PictureProcess
 
-        painter = Painters.start()  # first: its start-up then overlaps the whole run, imports included
+        painter = PictureProcess.start()  # first: its start-up then overlaps the whole run, imports included
     try:
         return _command(args, painter)
     finally:

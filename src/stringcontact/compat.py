@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
 # dolfinx is imported inside the helpers, not here: `Result` uses `trapezoid`, and the picture process
-# (`viz.PictureProcess`) unpickles Results without loading dolfinx (0.6 s).
+# (`painter.PictureProcess`) unpickles Results without loading dolfinx (0.6 s).
 
 
 def dolfinx_version() -> tuple[int, int]:
@@ -67,11 +67,6 @@ def create_vector(form):
     return dolfinx.fem.petsc.create_vector(form)
 
 
-def xdmf_write_function(xdmf, u: fem.Function, t: float, mesh_xpath: str = "/Xdmf/Domain/Grid[@GridType='Uniform'][1]"):
-    """Same call on all versions; kept here because its signature moved twice upstream."""
-    xdmf.write_function(u, t, mesh_xpath)
-
-
 def coordinate_domain(cell: str, gdim: int):
     """The `ufl.Mesh` of a P1 coordinate element for `mesh.create_mesh`: `ufl.VectorElement` (0.5) or
     `basix.ufl.element(..., shape=(gdim,))` (0.7+)."""
@@ -86,14 +81,16 @@ def coordinate_domain(cell: str, gdim: int):
 
 
 def geometry_nodes(msh) -> np.ndarray:
-    """The geometry nodes of each local cell, (cells, nodes per cell): an AdjacencyList (0.5) or an array (0.9)."""
+    """The geometry nodes of every local cell as a (cells, nodes per cell) array: `msh.geometry.dofmap` is
+    an AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""
     nodes = msh.geometry.dofmap
-    return nodes if isinstance(nodes, np.ndarray) else nodes.array.reshape(msh.topology.index_map(msh.topology.dim).size_local + msh.topology.index_map(msh.topology.dim).num_ghosts, -1)
+    flat = nodes.array if hasattr(nodes, "array") else nodes
+    return np.asarray(flat).reshape(-1, msh.topology.dim + 1)  # P1 simplices: one node per vertex
 
 
 def cell_dofs(V) -> np.ndarray:
-    """The dofs of each local cell as an (cells, dofs per cell) array: an AdjacencyList (0.5) or an array (0.7+)."""
+    """The local dofs of every cell as a (cells, dofs per cell) array: `V.dofmap.list` is an
+    AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""
     dofs = V.dofmap.list
-    if isinstance(dofs, np.ndarray):
-        return dofs
-    return dofs.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
+    flat = dofs.array if hasattr(dofs, "array") else dofs
+    return np.asarray(flat).reshape(-1, V.dofmap.dof_layout.num_dofs)

@@ -36,13 +36,13 @@ import tempfile
 import threading
 import time
 import warnings
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
 from .errors import one_line
+from .xdmf import XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
 FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: max |balance residual| / energy scale above which the energy balance is reported as not closing.
@@ -51,6 +51,8 @@ BALANCE_RTOL = 1e-8
 PENETRATION_FACTOR = 2.0
 #: below this many free bytes a failed write is reported as a full disk.
 NEARLY_FULL_BYTES = 1 << 20
+#: the entry-point group of the function `pictures=True` calls, `(result, folder)`: `stringcontact.viz:write_pictures`.
+PICTURES_ENTRY_POINT = "stringcontact.pictures"
 
 
 # --- the target folder and its lock ---------------------------------------------------------------
@@ -490,30 +492,14 @@ def signals_held():
 class _Hdf5Quiet:
     """Turns HDF5's automatic error printing off while the writer runs.
 
-    On a full disk, HDF5 prints a 60-line error stack to stderr before dolfinx turns it into a RuntimeError;
+    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
     we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
-    that dolfinx loaded (not h5py's bundled copy); where it cannot be found nothing changes.
+    that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
     """
-
-    _lib = None
-    _searched = False
 
     @classmethod
     def _library(cls):
-        if not cls._searched:
-            cls._searched = True
-            try:
-                with open("/proc/self/maps") as f:
-                    paths = set(re.findall(r"(/\S*/libhdf5(?:_[a-z]+)?\.so[.\d]*)$", f.read(), re.M))
-                paths = sorted(p for p in paths if "_hl" not in os.path.basename(p) and ".libs/" not in p)
-                if paths:
-                    lib = ctypes.CDLL(paths[0])
-                    lib.H5Eget_auto2.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]
-                    lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
-                    cls._lib = lib
-            except (OSError, AttributeError):
-                cls._lib = None
-        return cls._lib
+        return hdf5_library()
 
     def __init__(self):
         self.saved = None
@@ -529,17 +515,9 @@ class _Hdf5Quiet:
 
     def __exit__(self, *exc):
         if self.saved is not None:
-            self._lib.H5Eset_auto2(0, self.saved[0], self.saved[1])
+            self._library().H5Eset_auto2(0, self.saved[0], self.saved[1])
             self.saved = None
         return False
-
-
-def _never_destroy(obj) -> None:
-    """Keep `obj` alive until the process ends: an XDMFFile whose close() failed (a full disk) would close again
-    in its C++ destructor, throw there, and abort the process (exit 134 and a page of HDF5 and MPI output). Its
-    file is released by the kernel when the process exits.
-    """
-    ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
 
 
 # --- the writer ------------------------------------------------------------------------------------------
@@ -582,6 +560,18 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
     mask[candidates] = True
 
 
+def registered_pictures():
+    """The picture function registered under the entry point PICTURES_ENTRY_POINT ("default").
+
+    Looked up by name, not imported: the picture code (viz) imports this module.
+    """
+    from importlib.metadata import entry_points
+
+    for entry in entry_points(group=PICTURES_ENTRY_POINT, name="default"):
+        return entry.load()
+    raise RuntimeError(f"no picture function registered as entry point {PICTURES_ENTRY_POINT}:default (reinstall: make setup)")
+
+
 class OutputWriter:
     """Streams the stored rows to XDMF during the run and writes the tables at the end.
 
@@ -590,15 +580,14 @@ class OutputWriter:
     folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
     """
 
-    def __init__(self, path, scene, V, comm, force: bool = False, pictures: bool = True, frames=None):
+    def __init__(self, path, scene, V, comm, force: bool = False, pictures=True, frames=None):
         self.comm = comm
         self.frames = None if frames is None else np.asarray(frames, dtype=bool)  # which stored rows go to XDMF
         self._row = 0
         self._skipped = None  # the time of the last stored row not written to XDMF, if the latest row was one
         self._kept = None  # that row's fields: flushed if the run stops there
         self._spare = None  # the buffers the next skipped row is copied into before it replaces the kept one
-        self.painter = None  # viz.Painters, started below
-        self.pictures = pictures
+        self.pictures = pictures  # False, True (the registered picture function) or a function (result, folder)
         self.scene = scene
         self.force = force
         self.write_time = 0.0
@@ -620,29 +609,10 @@ class OutputWriter:
         if failure is not None:
             raise OutputError(failure)
         self.partial = partial
-        if not isinstance(pictures, bool):  # viz.Painters the caller started
-            self.painter, self.pictures = pictures, True
-        if comm.size > 1 and self.painter is not None:  # under MPI no child process (fork() and MPI do not mix)
-            self.painter.cancel()
-            self.painter = None
-        elif pictures is True and comm.size == 1:
-            from .viz import Painters
-
-            self.painter = Painters.start()  # VTK's start-up then overlaps the time loop
         try:
-            from dolfinx import fem
-            from dolfinx.io import XDMFFile
-
-            self.functions = {}
-            for name in FIELDS:
-                u = fem.Function(V)
-                u.name = name
-                self.functions[name] = u
-            self.n_owned = V.dofmap.index_map.size_local
             self._quiet.__enter__()
-            self.xdmf = XDMFFile(comm, str(self.partial / "solution.xdmf"), "w")
-            self.xdmf.write_mesh(V.mesh)
-        except RuntimeError as exc:
+            self.xdmf = XdmfTimeSeries(self.partial, mesh_arrays(V, comm), comm)
+        except (RuntimeError, OSError) as exc:  # petsc4py's Error is a RuntimeError
             self._fail("cannot write solution.xdmf", exc)
         except BaseException:  # Ctrl-C while opening: leave nothing behind
             self._discard()
@@ -672,13 +642,9 @@ class OutputWriter:
         t0 = time.perf_counter()
         try:
             with signals_held():
-                for name, values in fields.items():
-                    u = self.functions[name]
-                    u.x.array[: self.n_owned] = values
-                    u.x.scatter_forward()
-                    self.xdmf.write_function(u, t)
+                self.xdmf.write(t, fields)
                 self.times.append(float(t))
-        except RuntimeError as exc:
+        except (RuntimeError, OSError) as exc:
             self._fail(f"cannot write solution.h5 at t = {t:.6g}", exc)
         self.write_time += time.perf_counter() - t0
 
@@ -734,7 +700,6 @@ class OutputWriter:
             import sys
 
             error = sys.exc_info()[1]
-        self._stop_painter()  # before the folder is renamed: it must not write into it afterwards
         try:
             with signals_held():
                 if self._skipped is not None and self.xdmf is not None:  # end the XDMF with the last stored row
@@ -768,10 +733,9 @@ class OutputWriter:
             summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
 
     def _pictures(self, result) -> None:
-        try:
-            from .viz import write_pictures  # pictures on rank 0 only
-
-            write_pictures(result, self.partial, painter=self.painter)  # stops the painter however it ends
+        try:  # on rank 0 only
+            draw = self.pictures if callable(self.pictures) else registered_pictures()
+            draw(result, self.partial)
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
@@ -793,13 +757,13 @@ class OutputWriter:
             "xdmf_frames": len(self.times),
         }
 
-    def _close_xdmf(self) -> None:
+    def _close_xdmf(self, discard: bool = False) -> None:
         if self.xdmf is not None:
             xdmf, self.xdmf = self.xdmf, None
             try:
-                xdmf.close()
+                xdmf.close(discard=discard)
             except BaseException:
-                _never_destroy(xdmf)
+                self.xdmf = xdmf  # still open: a discard closes it (XdmfTimeSeries.close)
                 raise
             finally:
                 self._quiet.__exit__()
@@ -841,23 +805,16 @@ class OutputWriter:
         raise OutputError(f"--out {self.target}: {what}: {reason}; nothing was written there") from None
 
     def _discard(self) -> None:
-        self._stop_painter()
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
-                self._close_xdmf()
+                self._close_xdmf(discard=True)
         self._quiet.__exit__()
         if self.comm.rank == 0 and self.partial is not None:
             shutil.rmtree(self.partial, ignore_errors=True)
         self.partial = None
         self._release()
 
-    def _stop_painter(self) -> None:
-        if self.painter is not None:
-            self.painter.cancel()
-            self.painter = None
-
     def _release(self) -> None:
-        self._stop_painter()
         if self.lock is not None:
             self.lock.release()
             self.lock = None
@@ -866,41 +823,6 @@ class OutputWriter:
         with contextlib.suppress(Exception):
             if self.partial is not None:
                 self._discard()
-
-
-# --- reading the XDMF back ----------------------------------------------------------------------------
-
-
-def read_xdmf(path) -> tuple[str | None, dict[str, list[tuple[float, str]]]]:
-    """The mesh and the time series of a dolfinx XDMF file: ``(geometry, series)``.
-
-    `geometry` is the HDF5 reference of the mesh coordinates (``"file.h5:/Mesh/mesh/geometry"``; None if the
-    file has no mesh); `series` is {field: [(t, "file.h5:/Function/field/t"), ...]}. Raises OutputError,
-    with the parser's error as its ``__cause__``, if the file is not well-formed XML (a truncated write) or
-    holds a time that is not a number.
-    """
-    try:
-        root = ET.parse(path).getroot()
-        mesh = root.find("Domain/Grid[@GridType='Uniform']/Geometry/DataItem")
-        series = {}
-        for collection in root.iter("Grid"):
-            if collection.get("GridType") != "Collection":
-                continue
-            rows = []
-            for grid in collection.findall("Grid"):
-                t, item = grid.find("Time"), grid.find("Attribute/DataItem")
-                if t is not None and item is not None:
-                    rows.append((float(t.get("Value")), (item.text or "").strip()))
-            series[collection.get("Name")] = rows
-    except (ET.ParseError, OSError, TypeError, ValueError) as exc:
-        raise OutputError(f"{path} is not a readable XDMF file ({one_line(exc, 300)})") from exc
-    geometry = (mesh.text or "").strip() if mesh is not None else ""
-    return geometry or None, series
-
-
-def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
-    """The time series of a dolfinx XDMF file, {field: [(t, "file.h5:/Function/field/t"), ...]} (see `read_xdmf`)."""
-    return read_xdmf(path)[1]
 
 
 # --- tables and numbers ----------------------------------------------------------------------------

@@ -156,7 +156,7 @@ def first_contact_rows(result) -> np.ndarray:
 
 def _runs(mask: np.ndarray, min_nodes: int = 1) -> list[tuple[int, int]]:
     """Maximal runs [a, b] (inclusive node indices) of at least `min_nodes` True in a 1-D mask."""
-    from .viz import contact_components
+    from .charts import contact_components
 
     return [(int(a), int(b)) for a, b in contact_components(np.arange(np.size(mask)), mask, min_nodes)]
 
@@ -656,7 +656,7 @@ def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, ba
     """
     from matplotlib.colors import ListedColormap, LogNorm
 
-    from .viz import _pyplot, _savefig
+    from .charts import _pyplot, _savefig
 
     plt = _pyplot()
     _require_every_step(result)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from dolfinx import fem
@@ -70,8 +71,8 @@ class Setting:
     def n_owned(self) -> int:
         return self.ops.m.size
 
-    @property
-    def interior(self) -> np.ndarray:
+    @cached_property
+    def interior(self) -> np.ndarray:  # read every step: computed once
         mask = np.ones(self.n_owned, dtype=bool)
         mask[self.bc] = False
         return mask
@@ -92,12 +93,16 @@ class Scheme:
 
     PENALTIES: tuple = ()
     MASSES: tuple = ("lumped", "consistent")
-    timings: dict = {}
     situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
     remedy = "use a smaller dt"
 
     def __init__(self, setting: Setting):
         self.s = setting
+
+    @property
+    def timings(self) -> dict:
+        """Extra counters for the summary (e.g. refactorisations)."""
+        return {}
 
     @staticmethod
     def requires(model) -> str | None:
@@ -158,6 +163,38 @@ def lu(A: PETSc.Mat, comm) -> PETSc.KSP:
         pc.setFactorSolverType("mumps")
     ksp.setUp()
     return ksp
+
+
+class DampedLU:
+    """A constant matrix plus a diagonal that changes now and then (a damping on the active set), LU-factorised.
+
+    ``update(extra)`` puts ``extra`` on top of the constant diagonal and refactorises only if it changed;
+    only the diagonal changes, so PETSc keeps the symbolic factorisation. Every rank must take part in a
+    refactorisation, so under MPI the ranks agree first. ``solve(b, x)`` is the back-substitution itself,
+    without KSPSolve's bookkeeping.
+    """
+
+    def __init__(self, A: PETSc.Mat, comm):
+        self.A, self.comm = A, comm
+        self.base = A.getDiagonal().array.copy()
+        self.diag = A.createVecLeft()
+        self.current = np.zeros_like(self.base)  # what is on top of the constant diagonal now
+        self.ksp = lu(A, comm)
+        self.solve = self.ksp.getPC().getFactorMatrix().solve
+        self.refactorisations = 0
+
+    def update(self, extra: np.ndarray) -> None:
+        changed = not np.array_equal(extra, self.current)
+        if self.comm.size > 1:
+            changed = self.comm.allreduce(changed, op=MPI.LOR)
+        if changed:
+            np.add(self.base, extra, out=self.diag.array)
+            self.A.setDiagonal(self.diag)
+            self.ksp.setOperators(self.A)
+            self.ksp.setUp()
+            self.solve = self.ksp.getPC().getFactorMatrix().solve
+            self.current[:] = extra
+            self.refactorisations += 1
 
 
 def summer(comm):

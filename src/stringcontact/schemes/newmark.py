@@ -23,8 +23,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..scheme import diagonal_matrix, stacked
+from .base import DampedLU, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
-from .base import check_law_stability, dirichlet_rows, lu, summer, wrap
 
 
 class Scheme(Base):
@@ -49,10 +49,7 @@ class Scheme(Base):
         self.A.axpy(2.0 / dt, ops.C, structure=same)
         self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
         dirichlet_rows(self.A, s.bc)
-        self.base_diag = self.A.getDiagonal().array.copy()
-        self.A_diag = self.A.createVecLeft()
-        self.ksp = lu(self.A, comm)
-        self.solve = self.ksp.getPC().getFactorMatrix().solve
+        self.lu = DampedLU(self.A, comm)  # 4D/Δt goes on its diagonal
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
         self.allsum = summer(comm)
@@ -62,9 +59,7 @@ class Scheme(Base):
         self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)
         self.vec = {k: wrap(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu))}
         self.D = np.zeros(n)  # m_F d on the active interior nodes
-        self.in_matrix = np.zeros(n)  # the 4D/Δt now in the factorised diagonal
         self.force_density = np.zeros(n)
-        self.refactorisations = 0
 
     @property
     def eta(self):
@@ -80,7 +75,7 @@ class Scheme(Base):
 
     @property
     def timings(self):
-        return {"refactorisations": self.refactorisations}
+        return {"refactorisations": self.lu.refactorisations}
 
     def _mass(self, u: np.ndarray) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu."""
@@ -104,27 +99,11 @@ class Scheme(Base):
         d = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * np.ones(s.n_owned)
         np.multiply(s.ops.m_force, d * s.interior, out=self.D)
 
-    def _factorise(self) -> None:
-        """Put 4D/Δt on the diagonal and refactorise, if it changed (every rank takes part)."""
-        s = self.s
-        target = 4.0 / s.dt * self.D
-        changed = not np.array_equal(target, self.in_matrix)
-        if s.comm.size > 1:
-            changed = s.comm.allreduce(changed, op=MPI.LOR)
-        if changed:
-            np.add(self.base_diag, target, out=self.A_diag.array)
-            self.A.setDiagonal(self.A_diag)
-            self.ksp.setOperators(self.A)
-            self.ksp.setUp()
-            self.solve = self.ksp.getPC().getFactorMatrix().solve
-            self.in_matrix[:] = target
-            self.refactorisations += 1
-
     def _solve(self) -> np.ndarray:
         """η^{n+1} into self.new for the current D; returns v^{n+1}."""
         s, dt = self.s, self.s.dt
         eta, v, D = self.eta_, self.v_, self.D
-        self._factorise()
+        self.lu.update(4.0 / dt * D)
         rhs = self.rhs
         rhs[:] = self._mass(eta / dt**2 + v / dt)
         rhs *= 4.0
@@ -132,7 +111,7 @@ class Scheme(Base):
         rhs += D * (4.0 / dt * eta + 2.0 * v)
         rhs += 2.0 * s.ops.load
         rhs[s.bc] = s.g
-        self.solve(self.vec["rhs"], self.vec["new"])
+        self.lu.solve(self.vec["rhs"], self.vec["new"])
         v_new = 2.0 / dt * (self.new - eta) - v
         v_new[s.bc] = 0.0
         return v_new

@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..scheme import stacked, step_matrices
+from .base import DampedLU, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
-from .base import check_law_stability, dirichlet_rows, lu, summer, wrap
 
 
 class Scheme(Base):
@@ -47,10 +47,8 @@ class Scheme(Base):
         self.energy_law = None
         if laws.model.contact_energy is not None:
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
-        self.ksp = lu(self.A, comm)
-        self.lu_solve = self.ksp.getPC().getFactorMatrix().solve  # without KSPSolve's bookkeeping
+        self.lu = DampedLU(self.A, comm)  # the semi-implicit penalty's damping goes on its diagonal
         self.allsum = summer(comm)
-        self.refactorisations = 0
 
         self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
         self.vels = np.zeros((2, n))  # v^{n+1}, v^n in rotating rows
@@ -64,9 +62,6 @@ class Scheme(Base):
         self.rhs, self.two_steps = ((wrap(r, comm), r) for r in np.zeros((2, n)))  # b; consistent mass: 2η^n − η^{n−1}
         self.dots_v, self.dots_K = np.zeros(4), np.zeros(2)
         self.diag_w = np.zeros(n)  # semi-implicit: the damping weights m_F d / Δt on the active set
-        self.damping_diag = np.zeros(n)  # the damping weights now in the factorised diagonal
-        self.base_diag = self.A.getDiagonal().array.copy() if s.penalty != "explicit" else None
-        self.A_diag = self.A.createVecLeft()
         m, mF = ops.m, ops.m_force
         self.m_dt2 = m / dt**2
         self.inv_mF = np.divide(1.0, mF, out=np.zeros(n), where=mF > 0)  # 0 where no force acts (the ends)
@@ -98,7 +93,7 @@ class Scheme(Base):
 
     @property
     def timings(self):
-        return {"refactorisations": self.refactorisations} if self.s.penalty != "explicit" else {}
+        return {"refactorisations": self.lu.refactorisations} if self.s.penalty != "explicit" else {}
 
     def stored_energy(self, eta) -> float:
         """Σ m_F Φ(η) on owned dofs: the energy held by a conservative (spring) law."""
@@ -141,22 +136,8 @@ class Scheme(Base):
         diag_w *= 1.0 / self.s.dt
         np.multiply(diag_w, active, out=diag_w)
         # Refactorise when the damping on the diagonal changes (the active set, or a state-dependent
-        # coefficient of a model variant); only the diagonal changes, so PETSc keeps the symbolic
-        # factorisation. Every rank must take part, so under MPI the ranks agree first.
-        changed = not np.array_equal(diag_w, self.damping_diag)
-        comm = self.s.comm
-        if comm.size > 1:
-            from mpi4py import MPI
-
-            changed = comm.allreduce(changed, op=MPI.LOR)
-        if changed:
-            np.add(self.base_diag, diag_w, out=self.A_diag.array)
-            self.A.setDiagonal(self.A_diag)
-            self.ksp.setOperators(self.A)
-            self.ksp.setUp()
-            self.lu_solve = self.ksp.getPC().getFactorMatrix().solve
-            self.damping_diag[:] = diag_w
-            self.refactorisations += 1
+        # coefficient of a model variant).
+        self.lu.update(diag_w)
         np.multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
 
     def step(self):
@@ -186,7 +167,7 @@ class Scheme(Base):
             b_a += load
         for i, g_i in self.ends:  # item assignment: a fancy-indexed b_a[bc] = g costs 3 µs per step
             b_a[i] = g_i
-        self.lu_solve(b, eta_new[0])
+        self.lu.solve(b, eta_new[0])
 
         # Diagnostics of the step n → n+1: the discrete energy identity, term by term.
         e1, v1 = eta_new[1], v_new[1]

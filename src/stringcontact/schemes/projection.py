@@ -28,8 +28,8 @@ import math
 import warnings
 
 import numpy as np
-from mpi4py import MPI
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InstabilityError
@@ -177,7 +177,8 @@ class Scheme(Base):
         # Rotating rows, allocated once: η^{n+1}, η^n, η^{n−1}, and [K η, (C/Δt) η] of η^{n+1}, η^n, η^{n−1}.
         self.etas = [(wrap(a, comm), a) for a in np.zeros((3, n))]
         self.KCs = [(wrap(a, comm), a) for a in np.zeros((3, 2, n))]
-        self.rhs = (lambda a: (wrap(a, comm), a))(np.zeros(n))
+        rhs = np.zeros(n)
+        self.rhs = (wrap(rhs, comm), rhs)
         self.buf = np.zeros((3, n))  # scratch: the push, η^{n+1} − η^n, the reaction R
         self.m_dt2 = ops.m / dt**2
         self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)

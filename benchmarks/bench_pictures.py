@@ -1,0 +1,60 @@
+"""CPU and wall time of each picture of Example 1 (N = 5000, about 400 stored rows), and of the start-up.
+
+In one fresh process with dolfinx loaded (as in a run): importing pyplot and pyvista, the warm-ups the
+painter process does, then each picture `--repeats` times (medians), and the surface once more with
+pyvista's default 8x multisampling, which `mesh_pictures` turns off. CPU time counts llvmpipe's threads;
+on a shared machine it is steadier than the wall clock.
+
+    VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow LP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_pictures.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def timed(fn) -> tuple[float, float]:
+    c0, w0 = time.process_time(), time.perf_counter()
+    fn()
+    return time.process_time() - c0, time.perf_counter() - w0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args(argv)
+    import stringcontact as sc
+
+    res = sc.simulate(sc.load_scene("example1"), progress=False)
+    from stringcontact import charts, mesh_pictures, viz
+
+    out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
+    rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
+            ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up))]
+    for name in viz.PICTURES:
+        runs = [timed(lambda name=name: viz.draw(name, res, out)) for _ in range(args.repeats)]
+        rows.append((name, statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)))
+    plain = mesh_pictures._plotter
+
+    def with_msaa(window_size):
+        p = plain(window_size)
+        p.enable_anti_aliasing("msaa", multi_samples=8)
+        return p
+
+    mesh_pictures._plotter = with_msaa
+    runs = [timed(lambda: viz.draw("space_time.png", res, out)) for _ in range(args.repeats)]
+    rows.append(("space_time.png with 8x MSAA", statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)))
+    print(f"Example 1, {len(res.t)} stored rows, {len(res.x)} nodes; medians of {args.repeats}\n")
+    print("| step | CPU [s] | wall [s] |\n|---|---:|---:|")
+    for name, cpu, wall in rows:
+        print(f"| {name} | {cpu:.2f} | {wall:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

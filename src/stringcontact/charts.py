@@ -1,0 +1,253 @@
+"""The matplotlib pictures of a run: the (x, t) plane as an image, and line charts.
+
+* ``contact_set.png`` and ``velocity_field.png``: `pcolorfast` with one cell per stored sample (irregular
+  stored times included), with a legend or a colour bar;
+* ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4).
+
+Also the small readings of a Result they share with `mesh_pictures`, the demos and `theorems`: the
+contact intervals of a row, the rows at given times, the velocity colour range, the title line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .output import atomic_path
+
+#: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
+VELOCITY_PERCENTILE = 99.0
+CONTACT_COLOUR = "#b2182b"
+WINDOW_SIZE = (1100, 900)  # pixels of the space-time pictures
+DPI = 100
+
+
+# --- reading the contact set ------------------------------------------------------------------------
+
+
+def contact_components(x: np.ndarray, contact_row: np.ndarray, min_nodes: int = 2) -> list[tuple[float, float]]:
+    """The intervals [a, b] of one contact row: maximal runs of at least `min_nodes` contact nodes.
+
+    The default drops isolated nodes, i.e. components of zero length (Example 2's left end is pinned at
+    η = 0 and so is always "in contact" at one node).
+    """
+    c = np.asarray(contact_row, dtype=bool).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], c, [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # runs [start, stop)
+    return [(float(x[a]), float(x[b - 1])) for a, b in zip(starts, stops) if b - a >= min_nodes]
+
+
+def stored_rows_at(result, times) -> list[int]:
+    """Indices of the stored rows at `times` (nearest stored time within half a step; others skipped)."""
+    half_step = 0.5 * result.scene.dt
+    rows = []
+    for t in times:
+        i = int(np.argmin(np.abs(result.t - t)))
+        if abs(result.t[i] - t) <= half_step:
+            rows.append(i)
+    return rows
+
+
+def snapshot_rows(result) -> list[int]:
+    """The rows at the scene's output times, or six evenly spaced rows if it has none."""
+    rows = stored_rows_at(result, result.scene.output_times)
+    if not rows:
+        rows = sorted(set(np.linspace(0, len(result.t) - 1, 6).round().astype(int).tolist()))
+    return rows
+
+
+def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
+    """Symmetric colour range ±c for v, with c the `percentile` of |v| over all stored samples."""
+    c = float(np.percentile(np.abs(result.velocity), percentile))
+    return c if c > 0 else max(float(np.max(np.abs(result.velocity))), 1.0)
+
+
+# --- titles -----------------------------------------------------------------------------------------
+
+
+def parameter_line(result, sep: str = ", ") -> str:
+    s = result.scene
+    scheme = getattr(result, "scheme", "paper")
+    if result.penalty in (None, "none"):  # a scheme without ε (projection)
+        return f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}scheme {scheme}, no penalty (no ε), {result.mass} mass"
+    return (
+        f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
+        f"scheme {scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
+    )
+
+
+def obstacle_name(result) -> str:
+    """'0' for the paper's flat obstacle y = 0, 'ψ' for a scene's profiled `obstacle`."""
+    return "ψ" if getattr(result.scene, "obstacle", None) is not None else "0"
+
+
+def obstacle_profile(result) -> np.ndarray:
+    """ψ at the nodes: the scene's profiled obstacle, or 0."""
+    return result.scene.obstacle_values(result.x) if obstacle_name(result) == "ψ" else np.zeros_like(result.x)
+
+
+# --- matplotlib ---------------------------------------------------------------------------------------
+
+
+def _pyplot():
+    import warnings
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    with warnings.catch_warnings():  # Debian's mpl_toolkits (python3-matplotlib) beside pip's matplotlib: no 3-D axes
+        warnings.filterwarnings("ignore", message="Unable to import Axes3D")  # are drawn, so nothing is lost
+        import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _savefig(fig, path: Path, dpi: int = DPI) -> None:
+    try:
+        with atomic_path(path) as tmp:  # a picture is either complete or absent
+            fig.savefig(tmp, dpi=dpi)
+    finally:
+        _pyplot().close(fig)
+
+
+def _cell_edges(v: np.ndarray) -> np.ndarray:
+    """Edges of cells centred on the samples `v`; the first and last cells end at the first and last sample."""
+    if v.size == 1:
+        return np.array([v[0], v[0] + 1.0])
+    return np.concatenate([[v[0]], 0.5 * (v[1:] + v[:-1]), [v[-1]]])
+
+
+def _space_time_image(result, values, title: str, window_size, note: str = "", **style):
+    """A figure with `values` (one per stored sample) over the (x, t) plane, and its image.
+
+    `pcolorfast` with the cell edges draws each pixel in the colour of the sample under it (nearest, no
+    smoothing), keeps the irregular stored times as they are, and costs the same for 400 or 2 million samples.
+    """
+    plt = _pyplot()
+    fig = plt.figure(figsize=(window_size[0] / DPI, window_size[1] / DPI), dpi=DPI)
+    # fixed margins in inches: room for the title above and the legend or colour bar on the right
+    w, h = window_size[0] / DPI, window_size[1] / DPI
+    ax = fig.add_axes((0.9 / w, 0.75 / h, 1 - 2.6 / w, 1 - 2.0 / h))
+    image = ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), values, **style)
+    ax.set_xlabel("x (position along the string)")
+    ax.set_ylabel("t (time)")
+    fig.suptitle("\n".join(filter(None, (title, parameter_line(result), note))), fontsize=12, y=1 - 0.15 / h, va="top")
+    return fig, ax, image
+
+
+def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
+    """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    path, psi = Path(path), obstacle_name(result)
+    title = f"Contact set {{η ≤ {psi}}} in space-time: {result.scene.name}"
+    colours = ListedColormap(["white", CONTACT_COLOUR])
+    fig, ax, _ = _space_time_image(result, result.contact.astype(np.uint8), title, window_size, cmap=colours, vmin=0, vmax=1)
+    patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact\n(η ≤ {psi})"),
+               Patch(facecolor="white", edgecolor="black", label=f"free\n(η > {psi})")]
+    ax.legend(handles=patches, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False, labelspacing=1.2)
+    _savefig(fig, path)
+    return path
+
+
+def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = VELOCITY_PERCENTILE) -> Path:
+    """The space-time velocity v(t, x), diverging colours centred on 0, range clipped at a percentile of |v|."""
+    path = Path(path)
+    c = velocity_clip(result, percentile)
+    speed = float(np.max(np.abs(result.velocity)))
+    title = f"Velocity field v(t, x) = η_t: {result.scene.name}"
+    note = f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})"
+    fig, ax, image = _space_time_image(result, result.velocity, title, window_size, note, cmap="RdBu_r", vmin=-c, vmax=c)
+    box = ax.get_position()
+    bar_axes = fig.add_axes((box.x1 + 0.03 * box.width, box.y0 + 0.1 * box.height, 0.03 * box.width, 0.8 * box.height))
+    fig.colorbar(image, cax=bar_axes, extend="both" if speed > c else "neither").set_label("v (velocity)")
+    _savefig(fig, path)
+    return path
+
+
+def snapshots_picture(result, path) -> Path:
+    """η(x) at the scene's output times, the obstacle (y = 0 or the scene's ψ), and the parts in contact."""
+    plt = _pyplot()
+    path = Path(path)
+    rows = snapshot_rows(result)
+    ncols = 3 if len(rows) > 4 else min(len(rows), 2)
+    nrows = int(np.ceil(len(rows) / ncols))
+    fig, axs = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.2 * nrows + 0.8), sharex=True, sharey=True, squeeze=False)
+    x = result.x
+    name, psi = obstacle_name(result), obstacle_profile(result)
+    lo = min(float(result.eta[rows].min()), float(psi.min()))
+    hi = max(float(result.eta[rows].max()), float(psi.max()))
+    pad = 0.08 * (hi - lo or 1.0)
+    contact_length = result.contact_length  # a property over all rows: once, not per panel
+    for ax, i in zip(axs.flat, rows):
+        ax.fill_between(x, lo - pad, psi, color="0.85", lw=0, zorder=0)
+        ax.plot(x, psi, color="0.3", lw=1.0, zorder=1)
+        ax.plot(x, result.eta[i], color="#2166ac", lw=1.2, label="η(t, x)", zorder=2)
+        on = np.where(result.contact[i], result.eta[i], np.nan)
+        ax.plot(x, on, color=CONTACT_COLOUR, lw=3.0, label=f"in contact (η ≤ {name})", zorder=3)
+        parts = contact_components(x, result.contact[i])
+        frac = float(contact_length[i]) / float(x[-1] - x[0])
+        ax.set_title(f"t = {result.t[i]:.3g}: contact {100 * frac:.0f}% of l, {len(parts)} part{'s' * (len(parts) != 1)}", fontsize=10)
+        ax.set_ylim(lo - pad, hi + pad)
+        ax.grid(alpha=0.3)
+    for ax in axs.flat[len(rows):]:
+        ax.set_visible(False)
+    for ax in axs[-1]:
+        ax.set_xlabel("x")
+    for ax in axs[:, 0]:
+        ax.set_ylabel("η (displacement)")
+    axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)" if name == "0" else "obstacle (y ≤ ψ(x))", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
+    handles, labels = axs.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
+    fig.suptitle(f"Snapshots of the string: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
+    w, h = fig.get_size_inches()
+    fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=1 - 0.85 / h, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
+    _savefig(fig, path)
+    return path
+
+
+def energy_picture(result, path) -> Path:
+    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0)."""
+    plt = _pyplot()
+    path = Path(path)
+    e, t = result.energy, result.t
+    E = result.total_energy
+    spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
+    fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": (3, 1)})
+    ax.axhline(E[0], color="black", ls=":", lw=1.5, label=f"E(0) = {E[0]:.6g}")
+    ax.plot(t, e["kinetic"], label=r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$")
+    ax.plot(t, e["elastic"], label=r"elastic $\frac{1}{2}\int \eta_x^2\,dx$")
+    ax.plot(t, e["viscous_dissipation"], label=r"viscous dissipation $\alpha\int_0^t\!\int \eta_{tx}^2$")
+    ax.plot(t, e["contact_dissipation"], label=r"contact dissipation $-\int_0^t\!\int F\,\eta_t$")
+    ax.plot(t, e["numerical_dissipation"], ls="--", label="numerical dissipation of the scheme (cumulative)")
+    if np.any(e["external_work"]):
+        ax.plot(t, e["external_work"], ls="-.", label="work of external loads (cumulative)")
+    ax.plot(t, E + spent - e["external_work"], color="black", lw=2.2, alpha=0.6, label="sum: E(t) + dissipations − work")
+    ax.set_ylabel("energy")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="center right")
+    ax.set_title(f"Energy balance: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    res = np.abs(result.balance_residual)
+    axr.semilogy(t, np.maximum(res, 1e-300), color="black")
+    axr.set_ylim(max(res.max(), 1e-300) * 1e-6 if res.max() > 0 else 1e-20, max(res.max(), 1e-300) * 10)
+    axr.set_ylabel("|balance residual|\nE(0) + W − [E(t) + D]", fontsize=9)
+    axr.set_xlabel("t")
+    axr.grid(alpha=0.3, which="both")
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.9, hspace=0.08)  # fixed: see snapshots_picture
+    _savefig(fig, path)
+    return path
+
+
+def warm_up() -> None:
+    """A tiny picture with the elements the space-time pictures use: pyplot, fonts, an image, a colour bar."""
+    import io
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(1, 1))
+    fig.colorbar(ax.pcolorfast(np.array([0.0, 1.0, 3.0]), np.array([0.0, 1.0]), np.ones((1, 2)), cmap="RdBu_r"), ax=ax)
+    ax.set_title("η ≤ ψ")
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    plt.close(fig)

@@ -1,0 +1,181 @@
+"""Reading an output folder back into a :class:`Result`: ``read_output(folder)``.
+
+The arrays come from ``solution.xdmf``/``.h5`` (the layout of `stringcontact.xdmf`), the energies from
+``diagnostics.csv``, the scene and options from ``summary.json``. The ``.h5`` is read with pyfive (pure
+Python): the h5py wheel bundles its own libhdf5, which clashes with the system libhdf5 that dolfinx has
+already loaded ("Not a datatype"). Every defect of the folder is a ValueError with one line naming the
+file and what is wrong with it (the CLI's exit code 2).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .errors import OutputError, SceneError, one_line
+from .output import FIELDS
+from .xdmf import read_xdmf
+
+FILES = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
+
+
+def read_output(folder):
+    """A :class:`Result` rebuilt from an output folder written by `stringcontact run --out`.
+
+    Its rows are the XDMF frames (about `max_frames` of the stored rows), with the diagnostics of those
+    rows; arrays are ordered by x like the in-memory result, and `contact` is boolean again.
+    """
+    from .result import ENERGY_KEYS, Result
+
+    folder = _check_folder(Path(folder))
+    summary, scene = _read_summary(folder / "summary.json")
+    geometry, series = _read_series(folder / "solution.xdmf")
+    column = _frame_rows(_read_diagnostics(folder / "diagnostics.csv"), series, folder)
+    x, fields = _read_fields(folder / "solution.h5", geometry, series)
+    return Result(
+        scene=scene,
+        x=x,
+        t=column["t"],
+        steps=column["step"].astype(np.int64),
+        eta=fields["eta"],
+        velocity=fields["velocity"],
+        contact=fields["contact"] > 0.5,
+        contact_force=fields["contact_force"],
+        energy={key: column[key] for key in ENERGY_KEYS},
+        min_eta=float(summary.get("min_eta", np.min(fields["eta"]))),
+        penalty=summary.get("penalty", "explicit"),
+        mass=summary.get("mass", "lumped"),
+        model=summary.get("model", "inelastic"),
+        status=summary.get("status", "complete"),
+        timings=summary.get("timings", {}),
+        message=summary.get("message", ""),
+        scheme=summary.get("scheme", "paper"),
+    )
+
+
+def _check_folder(folder: Path) -> Path:
+    if not folder.is_dir():
+        raise ValueError(f"plot: {folder} is not a folder (give the --out folder of `stringcontact run`)")
+    missing = [n for n in FILES if not (folder / n).is_file()]
+    if missing and (folder / "summary.json").is_file():  # an interrupted run says so before what it lacks
+        with_status = _load_json(folder / "summary.json")
+        _check_status(folder, with_status)
+    if missing:
+        raise ValueError(f"plot: {folder} is not a stringcontact output folder (missing {', '.join(missing)})")
+    return folder
+
+
+def _load_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"plot: {path} is not valid JSON ({one_line(exc, 200)})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"plot: {path} holds a JSON {type(data).__name__}, not the object a run writes")  # noqa: TRY004 - bad input: exit 2
+    return data
+
+
+def _check_status(folder: Path, summary: dict) -> None:
+    if summary.get("status", "complete") != "complete":
+        raise ValueError(f"plot: {folder} holds a run that did not complete (status {summary['status']!r})")
+
+
+def _read_summary(path: Path):
+    from .registry import registered
+    from .scene import Scene
+
+    summary = _load_json(path)
+    _check_status(path.parent, summary)
+    if not isinstance(summary.get("scene"), dict):
+        raise ValueError(f"plot: {path} has no 'scene' object")  # noqa: TRY004 - bad input: exit 2
+    scene_data = dict(summary["scene"])
+    if scene_data.get("model") not in registered():  # an uninstalled plugin, or a module path of an older folder:
+        scene_data.pop("model", None)  # redrawing needs no model (its name stays in Result.model)
+    try:
+        with warnings.catch_warnings():  # the scene was already warned about when it ran
+            warnings.simplefilter("ignore")
+            scene = Scene.from_dict(scene_data)
+    except (SceneError, TypeError, ValueError, KeyError) as exc:
+        raise ValueError(f"plot: {path}: its scene is not valid ({one_line(exc, 200)})") from None
+    return summary, scene
+
+
+def _read_series(path: Path):
+    try:
+        geometry, series = read_xdmf(path)
+    except OutputError as exc:
+        raise ValueError(f"plot: {path} cannot be read ({one_line(exc.__cause__, 200)})") from None
+    if geometry is None:
+        raise ValueError(f"plot: {path}: no mesh geometry in the XDMF file")
+    absent = [f for f in FIELDS if f not in series]
+    if absent:
+        raise ValueError(f"plot: {path} has no time series {', '.join(absent)}")
+    times = [np.array([t for t, _ in series[name]]) for name in FIELDS]
+    if times[0].size == 0 or any(not np.array_equal(times[0], other) for other in times[1:]):
+        raise ValueError(f"plot: {path}: its fields are not given at the same times")
+    return geometry, series
+
+
+def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
+    from .result import ENERGY_KEYS
+
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        if not rows:
+            raise ValueError("it has no rows")
+        return {key: np.array([float(r[key]) for r in rows]) for key in ("step", "t", *ENERGY_KEYS)}
+    except KeyError as exc:
+        raise ValueError(f"plot: {path} has no column {exc}") from None
+    except (UnicodeDecodeError, ValueError, TypeError, csv.Error) as exc:
+        raise ValueError(f"plot: {path} is not a diagnostics table ({one_line(exc, 200)})") from None
+
+
+def _frame_rows(column: dict, series: dict, folder: Path) -> dict[str, np.ndarray]:
+    """The diagnostics rows at the XDMF frames' times (the XDMF holds a subset of the stored rows)."""
+    frame_t = np.array([t for t, _ in series[FIELDS[0]]])
+    t = column["t"]
+    tol = 1e-12 * max(1.0, float(np.max(np.abs(t))))
+    right = np.searchsorted(t, frame_t).clip(0, len(t) - 1)
+    left = (right - 1).clip(0, len(t) - 1)
+    at = np.where(np.abs(t[left] - frame_t) <= np.abs(t[right] - frame_t), left, right)
+    if np.any(np.abs(t[at] - frame_t) > tol):
+        raise ValueError(f"plot: {folder}: the times in solution.xdmf are not rows of diagnostics.csv")
+    return {key: values[at] for key, values in column.items()}
+
+
+def _h5_path(ref: str) -> str:
+    return ref.split(":", 1)[1]  # "solution.h5:/eta_0" -> "/eta_0"
+
+
+def _read_fields(path: Path, geometry: str, series: dict):
+    """x (sorted) and each field as a (frames, nodes) array in that order, read from the HDF5 file."""
+    import pyfive  # pure-Python HDF5: h5py's wheel clashes with the libhdf5 that dolfinx has already loaded
+
+    try:
+        with pyfive.File(str(path)) as h5:
+            x_all = np.asarray(h5[_h5_path(geometry)][:], dtype=float)[:, 0]
+            order = np.argsort(x_all, kind="stable")
+            fields = {name: np.stack([_dataset(h5, ref, x_all.size, path)[order] for _, ref in series[name]]) for name in FIELDS}
+    except ValueError as exc:
+        if str(exc).startswith("plot: "):
+            raise
+        raise ValueError(f"plot: {path} is not a readable HDF5 file ({one_line(exc, 200)})") from None
+    except Exception as exc:  # noqa: BLE001 - pyfive on a damaged file fails in many ways: one line, naming the file
+        raise ValueError(f"plot: {path} is not a readable HDF5 file ({type(exc).__name__}: {one_line(exc, 200)})") from None
+    return x_all[order], fields
+
+
+def _dataset(h5, ref: str, n: int, path: Path) -> np.ndarray:
+    try:
+        data = h5[_h5_path(ref)]
+    except KeyError:
+        raise ValueError(f"plot: {path} has no dataset {_h5_path(ref)} (named in solution.xdmf)") from None
+    values = np.asarray(data[:], dtype=float).reshape(-1)
+    if values.size != n:
+        raise ValueError(f"plot: {path}: {_h5_path(ref)} holds {values.size} values, expected {n}")
+    return values

@@ -1,0 +1,98 @@
+"""Reading an output folder back: `readback.read_output` and `stringcontact plot` on damaged folders."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+import stringcontact as sc
+from stringcontact import readback
+from stringcontact.cli import main
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("readback") / "run"
+    sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), output_dir=out, max_rows=30, max_frames=8, pictures=False)
+    return out
+
+
+def _empty(p):
+    p.write_bytes(b"")
+
+
+def _truncate(p):
+    p.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
+
+
+def _random(p):
+    p.write_bytes(np.random.default_rng(1).bytes(p.stat().st_size))
+
+
+def _json(text):
+    return lambda p: p.write_text(text)
+
+
+def _without_scene(p):
+    summary = json.loads(p.read_text())
+    del summary["scene"]
+    p.write_text(json.dumps(summary))
+
+
+def _scene_out_of_range(p):
+    summary = json.loads(p.read_text())
+    summary["scene"]["nx"] = -3
+    p.write_text(json.dumps(summary))
+
+
+def _no_energy_column(p):
+    header, rest = p.read_text().split("\n", 1)
+    p.write_text(header.replace("kinetic", "kinetik") + "\n" + rest)
+
+
+def _a_missing_dataset(p):
+    p.write_text(p.read_text().replace("solution.h5:/eta_3<", "solution.h5:/no_such_data<"))
+
+
+def _a_time_that_is_not_a_number(p):
+    p.write_text(p.read_text().replace('<Time Value="0.0"/>', '<Time Value="soon"/>', 1))
+
+
+CASES = {
+    "emptied h5": ("solution.h5", _empty, "not a readable HDF5 file"),
+    "truncated h5": ("solution.h5", _truncate, "not a readable HDF5 file"),
+    "random h5": ("solution.h5", _random, "not a readable HDF5 file"),
+    "h5 without a dataset": ("solution.xdmf", _a_missing_dataset, "solution.h5 has no dataset /no_such_data"),
+    "summary is a list": ("summary.json", _json("[]"), "holds a JSON list"),
+    "summary without scene": ("summary.json", _without_scene, "has no 'scene'"),
+    "summary not JSON": ("summary.json", _json("{\"status\": "), "is not valid JSON"),
+    "summary with a bad scene": ("summary.json", _scene_out_of_range, "its scene is not valid"),
+    "random summary": ("summary.json", _random, "is not valid JSON"),
+    "diagnostics without a column": ("diagnostics.csv", _no_energy_column, "has no column 'kinetic'"),
+    "random diagnostics": ("diagnostics.csv", _random, "diagnostics.csv"),
+    "xdmf time not a number": ("solution.xdmf", _a_time_that_is_not_a_number, "solution.xdmf cannot be read"),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_plot_on_a_damaged_folder_exits_2_naming_the_file(tmp_path, folder, capsys, case):
+    name, damage, words = CASES[case]
+    copy = tmp_path / "copy"
+    shutil.copytree(folder, copy)
+    damage(copy / name)
+    assert main(["plot", str(copy), "--out", str(tmp_path / "pics")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err and "internal error" not in err, err
+    named = str(copy / name) if case != "h5 without a dataset" else str(copy / "solution.h5")
+    assert named in err and words in err, err
+    assert not (tmp_path / "pics").exists()  # nothing drawn
+
+
+def test_read_output_reads_what_the_writer_wrote(folder):
+    res = readback.read_output(folder)
+    assert res.eta.shape == res.velocity.shape == res.contact.shape == (len(res.t), 41)
+    assert res.t[0] == 0.0 and res.t[-1] == pytest.approx(0.3) and np.all(np.diff(res.x) > 0)
+    np.testing.assert_allclose(res.eta[0], 1 + 0.5 * np.sin(10 * np.pi * res.x) ** 2, atol=1e-12)
