@@ -400,15 +400,12 @@ def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float], y
     return value
 
 
-def check(expr: str, *, field: str, names: dict[str, float], box=None) -> None:
-    """Validate ``expr`` by evaluating it on a small grid over [0, l], or over `box` ((x0, x1), (y0, y1)) in 2D."""
-    if box is None:
-        length = float(names.get("l", 1.0))
-        evaluate(expr, np.linspace(0.0, length, PROBE_POINTS), field=field, names=names)
-        return
-    (x0, x1), (y0, y1) = box
-    X, Y = np.meshgrid(np.linspace(x0, x1, 21), np.linspace(y0, y1, 21))
-    evaluate(expr, X.ravel(), field=field, names=names, y=Y.ravel())
+def check(expr: str, *, field: str, names: dict[str, float]) -> None:
+    """Validate ``expr`` by evaluating it on a small grid over [0, l]; raises SceneError if invalid.
+
+    (A 2D scene evaluates its expressions at its own probe points: `Scene.probe_points`.)"""
+    length = float(names.get("l", 1.0))
+    evaluate(expr, np.linspace(0.0, length, PROBE_POINTS), field=field, names=names)
 
 
 def _short(expr: str, limit: int = 60) -> str:
