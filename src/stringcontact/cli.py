@@ -181,11 +181,16 @@ def report(res) -> None:
     scene = res.scene
     penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
                else "no penalty")
-    print(f"scene {scene.name}: scheme {res.scheme}, nx={scene.nx} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
+    grid = f"nx={scene.nx}" if res.dim == 1 else f"{scene.domain} with {len(res.x)} nodes"
+    print(f"scene {scene.name}: scheme {res.scheme}, {grid} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
           f"mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
     if len(res.t) == 0:
         return
-    print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")
+    if res.dim == 1:
+        print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")
+    else:
+        print(f"min eta = {res.min_eta:.6g}; final contact area = {res.contact_measure[-1]:.4g} "
+              f"in {res.contact_patches()[-1]} patch(es)")
     print(_fmt_energy_line(res))
     line, ok = _fmt_penetration_line(res)
     print(line)

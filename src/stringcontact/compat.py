@@ -67,6 +67,27 @@ def create_vector(form):
     return dolfinx.fem.petsc.create_vector(form)
 
 
+def coordinate_domain(cell: str, gdim: int):
+    """The `ufl.Mesh` of a P1 coordinate element for `mesh.create_mesh`: `ufl.VectorElement` (0.5) or
+    `basix.ufl.element(..., shape=(gdim,))` (0.7+)."""
+    import ufl
+
+    try:
+        import basix.ufl
+
+        return ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(gdim,)))
+    except (ImportError, AttributeError):
+        return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), 1, dim=gdim))
+
+
+def geometry_nodes(msh) -> np.ndarray:
+    """The geometry nodes of every local cell as a (cells, nodes per cell) array: `msh.geometry.dofmap` is
+    an AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""
+    nodes = msh.geometry.dofmap
+    flat = nodes.array if hasattr(nodes, "array") else nodes
+    return np.asarray(flat).reshape(-1, msh.topology.dim + 1)  # P1 simplices: one node per vertex
+
+
 def cell_dofs(V) -> np.ndarray:
     """The local dofs of every cell as a (cells, dofs per cell) array: `V.dofmap.list` is an
     AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""

@@ -7,7 +7,8 @@ restricted :class:`simpleeval.SimpleEval` whose operators are numpy ufuncs.
 Allowed:
 
 * names ``x`` (node coordinates), ``l`` (string length), ``pi``, and ``h``
-  (the boundary height, only when the scene gives a single ``h``);
+  (the boundary height, only when the scene gives a single ``h``); on a 2D domain also ``y``
+  (in 1D ``y`` is an unknown name, so that a 1D scene cannot silently read ``y = 0``);
 * numbers (int or float literals; an int may have at most 30 digits);
 * ``+ - * / **``, unary ``-`` and ``+``, comparisons ``< <= > >= == !=``
   (chained comparisons such as ``0.2 <= x < 0.8`` act elementwise);
@@ -46,7 +47,7 @@ MAX_EXPONENT = 100.0  # |b| in a**b; beyond this the result is inf/0 for any sen
 MAX_INT_DIGITS = 30  # integer literals; longer ones are almost surely a mistake (or an attack)
 PROBE_POINTS = 101  # grid used by check()
 
-ALLOWED_NAMES = ("x", "l", "h", "pi")
+ALLOWED_NAMES = ("x", "y", "l", "h", "pi")
 ALLOWED_FUNCTIONS = ("sin", "cos", "exp", "sqrt", "abs", "min", "max", "where", "piecewise")
 
 _OPERATORS_TEXT = "+ - * / **, unary -, comparisons < <= > >= == !="
@@ -340,8 +341,8 @@ class _ArrayEval(SimpleEval):
 # --- public API ------------------------------------------------------------------------
 
 
-def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float]) -> np.ndarray:
-    """Evaluate ``expr`` at the points ``x``; returns a float64 array of ``x``'s shape.
+def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float], y: np.ndarray | None = None) -> np.ndarray:
+    """Evaluate ``expr`` at the points ``x`` (and ``y`` on a 2D domain); returns a float64 array of ``x``'s shape.
 
     ``names`` gives the scalar variables besides ``x`` and ``pi``: ``l`` and,
     if the scene has a single boundary height, ``h``. Any problem with the
@@ -359,6 +360,8 @@ def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float]) -
         raise SceneError(f"{field}: expression is empty; give a number or an expression in x")
 
     variables = {"x": x, "pi": np.float64(np.pi)}
+    if y is not None:
+        variables["y"] = np.asarray(y, dtype=np.float64)
     variables.update({k: np.float64(v) for k, v in names.items() if v is not None})
     try:
         with np.errstate(all="ignore"):  # non-finite results are reported below, not warned about
@@ -398,7 +401,9 @@ def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float]) -
 
 
 def check(expr: str, *, field: str, names: dict[str, float]) -> None:
-    """Validate ``expr`` by evaluating it on a small grid over [0, l]; raises SceneError if invalid."""
+    """Validate ``expr`` by evaluating it on a small grid over [0, l]; raises SceneError if invalid.
+
+    (A 2D scene evaluates its expressions at its own probe points: `Scene.probe_points`.)"""
     length = float(names.get("l", 1.0))
     evaluate(expr, np.linspace(0.0, length, PROBE_POINTS), field=field, names=names)
 

@@ -76,8 +76,14 @@ class _Compiler(MultiFunction):
 
     def indexed(self, o, operand, index):
         if not isinstance(o.ufl_operands[0], ufl.classes.SpatialCoordinate):
-            raise ValueError(f"nodal evaluation: only x[0] may be indexed, not {o}")
-        return operand
+            raise ValueError(f"nodal evaluation: only x[i] may be indexed, not {o}")
+        i = int(o.ufl_operands[1][0])
+
+        def value(env):  # 1D: x is the (N,) coordinate array itself; 2D: (N, 2), x[i] is a column
+            x = operand(env)
+            return x if x.ndim == 1 else x[:, i]
+
+        return value
 
     def multi_index(self, o):
         return None
@@ -136,8 +142,8 @@ class NodalExpression:
         no error-state context is built per step.
         """
         value = np.asarray(self._f(env))
-        x = env["x"]
-        return value if value.shape == x.shape else np.broadcast_to(value, x.shape)
+        shape = env["x"].shape[:1]  # one value per node, in 1D and 2D
+        return value if value.shape == shape else np.broadcast_to(value, shape)
 
 
 def environment(coefficients: dict, x: np.ndarray) -> dict:

@@ -46,6 +46,8 @@ class Result:
     timings: dict = field(default_factory=dict)
     message: str = ""
     scheme: str = "paper"
+    weights: np.ndarray | None = None  # 2D: the nodal areas ∫φ_i dx (lumped), in the order of x
+    cells: np.ndarray | None = None  # 2D: the triangles, (k, 3) indices into x
 
     @property
     def total_energy(self) -> np.ndarray:
@@ -59,7 +61,35 @@ class Result:
         return self.total_energy[0] + e["external_work"] - (self.total_energy + spent)
 
     @property
-    def contact_length(self) -> np.ndarray:
-        """Measure of the contact set {η ≤ 0} at each stored time (trapezoidal in x)."""
+    def dim(self) -> int:
+        return 1 if np.ndim(self.x) == 1 else 2
+
+    @property
+    def contact_measure(self) -> np.ndarray:
+        """Measure of the contact set at each stored time: its length in 1D (trapezoidal in x), its area
+        in 2D (the lumped nodal areas of the nodes in contact)."""
         c = self.contact.astype(float)
+        if self.dim == 2:
+            return c @ self.weights
         return compat.trapezoid(c, self.x, axis=1) if c.shape[1] > 1 else c[:, 0]
+
+    @property
+    def contact_length(self) -> np.ndarray:
+        """The contact measure (a length in 1D, an area in 2D); the name the output files use."""
+        return self.contact_measure
+
+    def contact_patches(self) -> np.ndarray:
+        """2D: the number of contact patches (connected sets of contact nodes along mesh edges) at each stored time."""
+        if self.dim == 1:
+            raise ValueError("contact_patches: 2D only (in 1D, count the runs of Result.contact)")
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        edges = np.concatenate([self.cells[:, [0, 1]], self.cells[:, [1, 2]], self.cells[:, [2, 0]]])
+        counts = []
+        for row in self.contact:
+            keep = row[edges[:, 0]] & row[edges[:, 1]]
+            graph = coo_matrix((np.ones(int(keep.sum())), tuple(edges[keep].T)), shape=(row.size, row.size))
+            n, labels = connected_components(graph, directed=False)
+            counts.append(np.unique(labels[row]).size)
+        return np.array(counts)

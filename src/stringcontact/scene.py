@@ -23,6 +23,14 @@ Usage::
     coarse.fields                             # {"load": "-10", ...}: only the fields the file gives
     f = coarse.field_values("load", x)
 
+A membrane (2D) scene names a domain instead of ``length``/``nx``::
+
+    domain = "rectangle"   # size = [Lx, Ly], cells = [nx, ny]; or "disk" (radius, mesh_size, centre 0),
+    size = [1, 1]          # or mesh = "file.xdmf" (a triangle mesh); "interval" is the default (1D)
+    cells = [32, 32]
+    eta0 = "0.2 + 0.1*sin(pi*x)*sin(pi*y)"   # expressions in x and y
+    h = "0.2"              # boundary height, an expression in x, y (default: eta0 on the boundary)
+
 Every invalid value raises :class:`SceneError` with a one-line message naming the key
 and what is allowed; doubtful but legal data (a string starting below the obstacle,
 boundary heights that do not match ``eta0``) gives a :class:`SceneWarning`.
@@ -65,7 +73,15 @@ __all__ = [
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
     "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
+    "domain", "size", "cells", "radius", "mesh_size", "mesh",
 )
+#: The domains and the geometry keys each one takes (docs/membranes.md). A `mesh` key alone means "file".
+DOMAIN_KEYS = {
+    "interval": ("length", "nx", "h_left", "h_right"),
+    "rectangle": ("size", "cells"),
+    "disk": ("radius", "mesh_size"),
+    "file": ("mesh",),
+}
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
 #: Required keys; besides these, exactly one of nt or dt.
@@ -77,6 +93,7 @@ DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
 # to catch typos (a missing minus, a forgotten decimal point) before a solver sees them.
 _BOUNDS = {
     "length": (0.0, 1e4, True, False),
+    "radius": (0.0, 1e4, True, False),
     "T": (0.0, 1e4, True, False),
     "alpha": (0.0, 1e4, False, False),
     "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/reliability.md, "Size and precision limits"
@@ -134,6 +151,17 @@ class Scene:
     load: str | None = None  # external load f(x), expression in x (None: not given)
     obstacle: str | None = None  # obstacle profile psi(x), expression in x (None: not given)
     scheme: str | None = None  # a name in stringcontact.SCHEMES (None: "paper")
+    domain: str = "interval"  # one of DOMAIN_KEYS; 2D domains have length, nx, h_left, h_right None
+    size: tuple | None = None  # rectangle [Lx, Ly]
+    cells: tuple | None = None  # rectangle [nx, ny]
+    radius: float | None = None  # disk, centred at the origin
+    mesh_size: float | None = None  # disk: gmsh's largest element size
+    mesh: str | None = None  # file: path of an XDMF triangle mesh
+
+    @property
+    def dim(self) -> int:
+        """1 on the interval (a string), 2 on the membrane domains."""
+        return 1 if self.domain == "interval" else 2
 
     def __post_init__(self):
         # Normalise in place (frozen, hence object.__setattr__): ints to floats, lists to tuples.
@@ -141,11 +169,16 @@ class Scene:
             object.__setattr__(self, key, value)
 
         put("name", _check_name(self.name))
-        for key in ("length", "T", "alpha", "eps", "h_left", "h_right"):
+        _check_domain(self, put)
+        for key in ("T", "alpha", "eps") + (("length", "h_left", "h_right") if self.dim == 1 else ()):
             put(key, _number(key, getattr(self, key)))
-        put("nx", _integer("nx", self.nx))
+        if self.dim == 1:
+            put("nx", _integer("nx", self.nx))
         put("nt", _integer("nt", self.nt))
-        if self.h is not None:
+        if self.dim == 2:
+            if self.h is not None:
+                put("h", _expression_text("h", self.h) if isinstance(self.h, str) else _number("h", self.h))
+        elif self.h is not None:
             put("h", _number("h", self.h))
             if self.h_left != self.h or self.h_right != self.h:
                 raise SceneError(
@@ -159,10 +192,14 @@ class Scene:
         if self.scheme is not None:
             put("scheme", _check_scheme(self.scheme))
         put("output_times", _check_output_times(self.output_times, self.T))
-        _check_storage(self.nx, self.nt, len(self.output_times))
-        for key in ("eta0", "v0") + tuple(self.fields):
+        _check_storage(self.node_estimate - 1, self.nt, len(self.output_times))
+        keys = ("eta0", "v0") + tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
+        for key in keys:
             put(key, _expression_text(key, getattr(self, key)))
-            expressions.check(getattr(self, key), field=key, names=self._names())
+            if self.dim == 1:
+                expressions.check(getattr(self, key), field=key, names=self._names())
+            else:
+                self._evaluate(key, getattr(self, key), self.probe_points())
 
     # --- derived quantities -----------------------------------------------------------
 
@@ -173,8 +210,50 @@ class Scene:
 
     @property
     def dx(self) -> float:
-        """Mesh size length/nx."""
-        return self.length / self.nx
+        """Mesh size: length/nx; in 2D the largest cell side of the rectangle, the disk's mesh_size (nan for a file)."""
+        if self.domain == "rectangle":
+            return max(L / n for L, n in zip(self.size, self.cells))
+        if self.domain == "disk":
+            return self.mesh_size
+        return self.length / self.nx if self.dim == 1 else math.nan
+
+    @property
+    def node_estimate(self) -> int:
+        """The number of nodes (exact for the interval and the rectangle; about, for the disk; 1 for a file)."""
+        if self.domain == "rectangle":
+            return (self.cells[0] + 1) * (self.cells[1] + 1)
+        if self.domain == "disk":  # a Delaunay mesh has about 2/√3 nodes per h²
+            return round(2 / math.sqrt(3) * math.pi * (self.radius / self.mesh_size) ** 2) + 1
+        return self.nx + 1 if self.dim == 1 else 1
+
+    def probe_points(self) -> np.ndarray:
+        """2D: points at which the scene checks its expressions before a mesh exists, shape (k, 2).
+
+        The rectangle's nodes (up to 41 x 41 of them), a polar grid in the disk, none for a mesh file (its
+        expressions are checked for names and syntax here, for values at its nodes in the solver).
+        """
+        if self.domain == "rectangle":
+            xs = [np.linspace(0.0, L, min(n, 40) + 1) for L, n in zip(self.size, self.cells)]
+            X, Y = np.meshgrid(*xs, indexing="ij")
+            return np.column_stack([X.ravel(), Y.ravel()])
+        if self.domain == "disk":
+            r, th = np.meshgrid(np.linspace(0.0, self.radius * (1 - 1e-9), 11),  # inside: sqrt(R²-r²) is fine
+                                np.linspace(0.0, 2 * np.pi, 24, endpoint=False))
+            return np.column_stack([(r * np.cos(th)).ravel(), (r * np.sin(th)).ravel()])
+        return np.zeros((0, 2))
+
+    def _evaluate(self, key: str, expr: str, points) -> np.ndarray:
+        """`expr` at the points: (N,) in 1D, (N, 2) in 2D."""
+        p = np.asarray(points, dtype=float)
+        if self.dim == 1:
+            return expressions.evaluate(expr, p, field=key, names=self._names())
+        return expressions.evaluate(expr, p[:, 0], field=key, names=self._names(), y=p[:, 1])
+
+    def boundary_height(self, points) -> np.ndarray:
+        """2D: the height at which the boundary is held at the points (N, 2): h, else eta0 there."""
+        if self.h is None:
+            return self.initial_displacement(points)
+        return self._evaluate("h", self.h if isinstance(self.h, str) else repr(float(self.h)), points)
 
     @property
     def r(self) -> float:
@@ -182,16 +261,18 @@ class Scene:
         return self.dt / self.eps
 
     def x(self) -> np.ndarray:
-        """Node coordinates, shape (nx+1,)."""
+        """Node coordinates, shape (nx+1,) (1D only: a 2D mesh's nodes come from the solver)."""
+        if self.dim != 1:
+            raise ValueError(f"scene {self.name!r}: x() is for the interval; domain {self.domain!r} has a 2D mesh")
         return np.linspace(0.0, self.length, self.nx + 1)
 
     def initial_displacement(self, x) -> np.ndarray:
-        """eta0 at the points x (as given: the end values are not replaced by h_left/h_right)."""
-        return expressions.evaluate(self.eta0, np.asarray(x, dtype=float), field="eta0", names=self._names())
+        """eta0 at the points x, (N,) in 1D or (N, 2) in 2D (as given: the boundary values are not replaced)."""
+        return self._evaluate("eta0", self.eta0, x)
 
     def initial_velocity(self, x) -> np.ndarray:
-        """v0 at the points x (as given: the solver holds the ends, so their velocity is ignored)."""
-        return expressions.evaluate(self.v0, np.asarray(x, dtype=float), field="v0", names=self._names())
+        """v0 at the points x (as given: the solver holds the boundary, so its velocity is ignored)."""
+        return self._evaluate("v0", self.v0, x)
 
     @property
     def fields(self) -> dict[str, str]:
@@ -208,16 +289,16 @@ class Scene:
         if name not in fields:
             given = ", ".join(fields) or "none"
             raise SceneError(f"{name}: the scene gives no field {name!r} (fields given: {given})")
-        return expressions.evaluate(fields[name], np.asarray(x, dtype=float), field=name, names=self._names())
+        return self._evaluate(name, fields[name], x)
 
     def obstacle_values(self, x) -> np.ndarray:
         """The obstacle profile ψ at the points x: the ``obstacle`` field, or 0 (the paper's y = 0)."""
         x = np.asarray(x, dtype=float)
-        return self.field_values("obstacle", x) if self.obstacle is not None else np.zeros_like(x)
+        return self.field_values("obstacle", x) if self.obstacle is not None else np.zeros(x.shape[:1])
 
     def _names(self) -> dict[str, float]:
-        names = {"l": self.length}
-        if self.h is not None:
+        names = {"l": self.length} if self.dim == 1 else {}
+        if self.h is not None and not isinstance(self.h, str):
             names["h"] = self.h
         return names
 
@@ -228,6 +309,8 @@ class Scene:
 
         Gives nt (not dt), and h if the scene has a single h, else h_left/h_right.
         """
+        if self.dim == 2:
+            return self._as_dict_2d()
         d = {
             "name": self.name,
             "description": self.description,
@@ -252,6 +335,17 @@ class Scene:
             d["model"] = self.model
         if self.scheme is not None:
             d["scheme"] = self.scheme
+        return d
+
+    def _as_dict_2d(self) -> dict:
+        d = {"name": self.name, "description": self.description, "notes": self.notes, "domain": self.domain}
+        d.update({key: list(v) if isinstance(v := getattr(self, key), tuple) else v for key in DOMAIN_KEYS[self.domain]})
+        d.update({"T": self.T, "alpha": self.alpha, "eps": self.eps, "nt": self.nt, "eta0": self.eta0, "v0": self.v0})
+        if self.h is not None:
+            d["h"] = self.h
+        d.update(self.fields)
+        d["output_times"] = list(self.output_times)
+        d.update({key: getattr(self, key) for key in ("model", "scheme") if getattr(self, key) is not None})
         return d
 
     @classmethod
@@ -284,6 +378,11 @@ class Scene:
         """
         _check_keys(changes)
         data = self.as_dict()
+        domain = changes.get("domain") or ("file" if changes.get("mesh") else self.domain)
+        if domain != self.domain:  # the old domain's geometry keys go (1D: also the end heights)
+            for key in DOMAIN_KEYS.get(self.domain, ()) + ("h", "domain"):
+                if key not in changes:
+                    data.pop(key, None)
         if "dt" in changes:
             data.pop("nt", None)
         if "h" in changes:
@@ -293,7 +392,7 @@ class Scene:
             data.pop("h", None)
             data.setdefault("h_left", self.h_left)
             data.setdefault("h_right", self.h_right)
-        elif ("eta0" in changes or "length" in changes) and self.h is None:
+        elif ("eta0" in changes or "length" in changes) and self.h is None and self.dim == 1 and domain == self.domain:
             ends = self.initial_displacement(np.array([0.0, self.length]))
             for key, end in (("h_left", ends[0]), ("h_right", ends[1])):
                 if _close(getattr(self, key), end):
@@ -309,9 +408,36 @@ class Scene:
 # --- building and validating ------------------------------------------------------------------
 
 
+def _domain_of(data: dict) -> str:
+    domain = data.get("domain", "file" if "mesh" in data else "interval")
+    if domain not in DOMAIN_KEYS:
+        raise SceneError(f"domain: invalid value {_describe(domain)}; allowed: {', '.join(DOMAIN_KEYS)}")
+    return domain
+
+
+def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
+    """A membrane scene: the geometry keys of `domain` (checked in Scene), no ends."""
+    geometry = {key: data[key] for key in DOMAIN_KEYS[domain] if key in data}
+    if domain == "rectangle":
+        geometry.setdefault("size", [1.0, 1.0])
+    if domain == "disk":
+        geometry.setdefault("radius", 1.0)
+    output_times = data.get("output_times", ())
+    return Scene(
+        name=name, length=None, T=T, alpha=data["alpha"], eps=data["eps"], nx=None, nt=nt,
+        eta0=_expression_text("eta0", data["eta0"]), v0=data["v0"], h_left=None, h_right=None, h=data.get("h"),
+        output_times=tuple(output_times) if isinstance(output_times, (list, tuple)) else output_times,
+        description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
+        scheme=data.get("scheme"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
+    )
+
+
 def _build(data: dict, *, default_name: str | None) -> Scene:
     _check_keys(data)
-    missing = [k for k in REQUIRED_KEYS if k not in data]
+    domain = _domain_of(data)
+    _check_domain_keys(data, domain)
+    required = REQUIRED_KEYS if domain == "interval" else tuple(k for k in REQUIRED_KEYS if k != "nx")
+    missing = [k for k in required if k not in data]
     if missing or ("nt" not in data and "dt" not in data):
         parts = ", ".join(missing)
         if "nt" not in data and "dt" not in data:
@@ -323,9 +449,11 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         raise SceneError("h: give either h (both ends) or h_left/h_right, not both")
 
     name = data.get("name", default_name or "scene")
-    length = _number("length", data.get("length", 1.0))
     T = _number("T", data["T"])
     nt = _nt_from_dt(data["dt"], T) if "dt" in data else _integer("nt", data["nt"])
+    if domain != "interval":
+        return _build_2d(data, domain, name, T, nt)
+    length = _number("length", data.get("length", 1.0))
     h = _number("h", data["h"]) if "h" in data else None
     eta0 = _expression_text("eta0", data["eta0"])
 
@@ -365,12 +493,76 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
     )
 
 
+def _check_domain_keys(data: dict, domain: str) -> None:
+    """Refuse a geometry key of another domain (and `domain` disagreeing with `mesh`)."""
+    if "mesh" in data and domain != "file":
+        raise SceneError(f"mesh: a mesh file is its own domain; remove domain = {domain!r} or mesh")
+    for other, keys in DOMAIN_KEYS.items():
+        for key in keys:
+            if other != domain and key in data:
+                raise SceneError(f"{key}: only for domain {other!r}, not {domain!r}; domain {domain!r} takes "
+                                 f"{', '.join(DOMAIN_KEYS[domain]) or 'no geometry keys'}")
+
+
+_MAX_CELLS = 2000  # per direction of a rectangle (4e6 nodes)
+_MAX_DISK_RATIO = 1000  # radius / mesh_size: gmsh takes minutes beyond
+
+
+def _check_domain(scene: Scene, put) -> None:
+    """Validate the domain's geometry keys (Scene.__post_init__)."""
+    domain = scene.domain
+    if domain not in DOMAIN_KEYS:
+        raise SceneError(f"domain: invalid value {_describe(domain)}; allowed: {', '.join(DOMAIN_KEYS)}")
+    given = [k for ks in DOMAIN_KEYS.values() for k in ks if k not in DOMAIN_KEYS[domain] and getattr(scene, k) is not None]
+    if given:
+        raise SceneError(f"{given[0]}: only for domain 'interval', not {domain!r}" if domain != "interval" else
+                         f"{given[0]}: not for domain 'interval'; give domain = 'rectangle', 'disk' or a mesh file")
+    if domain == "rectangle":
+        put("size", _pair("size", scene.size, lambda v: _number("length", v), "two numbers [Lx, Ly] in (0, 10000]"))
+        put("cells", _pair("cells", scene.cells, lambda v: _cell_count(v), f"two integers [nx, ny] in [1, {_MAX_CELLS}]"))
+    elif domain == "disk":
+        put("radius", _number("radius", scene.radius))
+        allowed = f"a number in [radius/{_MAX_DISK_RATIO}, radius]"
+        if scene.mesh_size is None:
+            raise SceneError(f"mesh_size: domain 'disk' needs mesh_size; allowed: {allowed}")
+        h = float(scene.mesh_size) if _is_number(scene.mesh_size) else math.nan
+        if not (scene.radius / _MAX_DISK_RATIO <= h <= scene.radius):
+            raise SceneError(f"mesh_size: {_describe(scene.mesh_size)} is out of range; allowed: {allowed} (radius = {_fmt(scene.radius)})")
+        put("mesh_size", h)
+    elif domain == "file":
+        if not isinstance(scene.mesh, str) or not scene.mesh.endswith(".xdmf"):
+            raise SceneError(f"mesh: expected the path of an XDMF triangle mesh (*.xdmf), got {_describe(scene.mesh)}")
+        if not Path(scene.mesh).is_file():
+            raise SceneError(f"mesh: no such file {scene.mesh!r}; allowed: an XDMF triangle mesh file (*.xdmf)")
+    if domain != "interval":
+        for key in ("length", "nx", "h_left", "h_right"):
+            if getattr(scene, key) is not None:
+                raise SceneError(f"{key}: only for domain 'interval', not {domain!r}")
+        if scene.h is not None and not isinstance(scene.h, str) and not _is_number(scene.h):
+            raise SceneError(f"h: expected a number or an expression in x, y, got {_describe(scene.h)}")
+
+
+def _pair(key: str, value, convert, allowed: str) -> tuple:
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise SceneError(f"{key}: expected {allowed}, got {_describe(value)}")
+    try:
+        return tuple(convert(v) for v in value)
+    except SceneError:
+        raise SceneError(f"{key}: {_describe(list(value))} is out of range; allowed: {allowed}") from None
+
+
+def _cell_count(value) -> int:
+    if not _is_number(value) or not float(value).is_integer() or not 1 <= int(value) <= _MAX_CELLS:
+        raise SceneError("cells")
+    return int(value)
+
+
 MAX_MAGNITUDE = 1e6  # largest |eta0|, |v0|, load or obstacle value a scene may give
 
 
 def _grid_values(scene: Scene) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The nodes x and eta0, v0 and the scene's fields at them (checks finiteness on the real grid, not just the probe)."""
-    x = scene.x()
+    x = scene.x() if scene.dim == 1 else scene.probe_points()
     values = {"eta0": scene.initial_displacement(x), "v0": scene.initial_velocity(x)}
     values.update({key: scene.field_values(key, x) for key in scene.fields})
     return x, values
@@ -387,19 +579,22 @@ def _check_magnitudes(values: dict[str, np.ndarray]) -> None:
 def _warn_doubtful(scene: Scene, label: str, x: np.ndarray, values: dict[str, np.ndarray]) -> None:
     """Warn (not refuse) about data that is legal but probably not what was meant. `values`: `_grid_values` at x."""
     eta = values["eta0"]
-    psi = values.get("obstacle", np.zeros_like(x))  # the obstacle profile, or the paper's y = 0
+    psi = values.get("obstacle", np.zeros_like(eta))  # the obstacle profile, or the paper's y = 0
     below = eta < psi
     if below.any():
         gap = eta - psi
         i = int(np.argmin(gap))
         what = "eta0 < 0" if scene.obstacle is None else "eta0 < obstacle"
+        where = f"x={x[i]:.6g}" if x.ndim == 1 else f"x={x[i, 0]:.6g}, y={x[i, 1]:.6g}"
         at = f"min {eta[i]:.6g}" if scene.obstacle is None else f"min eta0 - obstacle {gap[i]:.6g}"
         warnings.warn(
-            f"scene {label!r}: eta0 is below the obstacle ({what}) at {int(below.sum())} of {x.size} nodes "
-            f"({at} at x={x[i]:.6g}); used as given",
+            f"scene {label!r}: eta0 is below the obstacle ({what}) at {int(below.sum())} of {len(x)} nodes "
+            f"({at} at {where}); used as given",
             SceneWarning,
             stacklevel=4,
         )
+    if scene.dim == 2:
+        return  # the end-height check is 1D-only: a membrane's boundary is held at h (default: eta0 there)
     ends = (("h_left", scene.h_left, eta[0], 0.0), ("h_right", scene.h_right, eta[-1], scene.length))
     for key, value, end, at in ends:
         if not _close(value, end):
@@ -655,7 +850,10 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
             raw = f.read(MAX_FILE_BYTES + 1)  # bounded even if the file grows meanwhile
     except OSError as exc:
         raise SceneError(f"scene file {text!r}: cannot read it ({exc.strerror or exc})") from None
-    return Scene.from_dict(_parse_toml(raw, text), source=text, default_name=path.stem)
+    data = _parse_toml(raw, text)
+    if isinstance(data.get("mesh"), str) and not Path(data["mesh"]).is_absolute():
+        data["mesh"] = str(path.parent / data["mesh"])  # a mesh file next to its scene file
+    return Scene.from_dict(data, source=text, default_name=path.stem)
 
 
 def _file_kind(path: Path) -> str:

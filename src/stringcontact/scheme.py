@@ -167,8 +167,17 @@ def bc_dofs(V, length: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def node_coordinates(V) -> np.ndarray:
-    """x of this rank's dofs (P1: the vertices): the owned ones first, then the ghosts."""
-    return V.tabulate_dof_coordinates()[:, 0].copy()
+    """Coordinates of this rank's dofs (P1: the vertices), the owned ones first, then the ghosts: x, shape
+    (N,), on the interval; (x, y), shape (N, 2), on a 2D mesh."""
+    if V.mesh.topology.dim == 1:
+        return V.tabulate_dof_coordinates()[:, 0].copy()
+    # 2D: the mesh's own node coordinates (P1 dofs sit on them), not tabulate_dof_coordinates: that maps the
+    # reference vertices through a cell, exact only to an ulp that depends on the cell, hence on the ranks
+    from . import compat
+
+    x = np.empty((V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, 2))
+    x[compat.cell_dofs(V)] = V.mesh.geometry.x[compat.geometry_nodes(V.mesh), :2]
+    return x
 
 
 __all__ = [

@@ -16,7 +16,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import compat
+from . import compat, domains
 from .errors import InstabilityError
 from .model import Model, Parameters, inelastic, unused_fields
 from .result import ENERGY_KEYS, Result
@@ -38,13 +38,18 @@ def stored_steps(nt: int, dt: float, output_times, max_rows: int) -> np.ndarray:
     return np.array(sorted(steps), dtype=np.int64)
 
 
+def _sort_key(x: np.ndarray) -> np.ndarray:
+    """x in 1D; x + iy in 2D, whose sort order is by x, then y (NumPy orders complex numbers so)."""
+    return x if x.ndim == 1 else x[:, 0] + 1j * x[:, 1]
+
+
 class _Gather:
-    """Gathers owned dof arrays to every rank, ordered by x."""
+    """Gathers owned dof arrays to every rank, ordered by x (2D: by x, then y; the same for any number of ranks)."""
 
     def __init__(self, comm, x_owned: np.ndarray):
         self.comm = comm
         xs = comm.allgather(x_owned) if comm.size > 1 else [x_owned]
-        self.order = np.argsort(np.concatenate(xs), kind="stable")
+        self.order = np.argsort(_sort_key(np.concatenate(xs)), kind="stable")
         self.x = np.concatenate(xs)[self.order]
 
         self.identity = bool(np.array_equal(self.order, np.arange(self.order.size)))
@@ -65,7 +70,7 @@ class _Rows:
 
     def __init__(self, steps: np.ndarray, gather: _Gather):
         self.steps, self.gather, self.n = steps, gather, 0
-        k, nodes = len(steps), gather.x.size
+        k, nodes = len(steps), len(gather.x)
         self.fields = {name: np.empty((k, nodes)) for name in ("eta", "velocity", "contact_force")}
         self.fields["contact"] = np.empty((k, nodes), dtype=bool)
         self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
@@ -122,8 +127,8 @@ class _Ledger:
 
 
 def _discretise(scene, model: Model, comm):
-    """The P1 space on the interval mesh, the model's parameters (scene fields as P1 functions), its operators."""
-    msh = mesh.create_interval(comm, scene.nx, [0.0, scene.length])
+    """The P1 space on the scene's mesh, the model's parameters (scene fields as P1 functions), its operators."""
+    msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
     extra = {}
@@ -150,13 +155,39 @@ def _discretise(scene, model: Model, comm):
 def _setting(scene, model, V, params, ops, penalty, mass, comm) -> Setting:
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
-    left, right = bc_dofs(V, scene.length)
-    left, right = left[left < n_owned], right[right < n_owned]
-    bc = np.concatenate([left, right]).astype(np.int32)
-    g = np.concatenate([np.full(left.size, scene.h_left), np.full(right.size, scene.h_right)])
+    bc, g = _boundary(scene, V, x)
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x, nt=scene.nt)
+
+
+def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The owned boundary dofs and their heights: the two ends at h_left, h_right; a 2D boundary at h(x, y)."""
+    if scene.dim == 2:
+        bc = domains.boundary_dofs(V)
+        return bc, scene.boundary_height(x[bc])
+    n_owned = x.size
+    left, right = bc_dofs(V, scene.length)
+    left, right = left[left < n_owned], right[right < n_owned]
+    bc = np.concatenate([left, right]).astype(np.int32)
+    return bc, np.concatenate([np.full(left.size, scene.h_left), np.full(right.size, scene.h_right)])
+
+
+def _mesh_rows(V, gather: _Gather) -> dict:
+    """2D: the nodal areas (for the contact area) and the triangles, both in the gathered node order; 1D: none."""
+    if V.mesh.topology.dim == 1:
+        return {}
+    n_owned = V.dofmap.index_map.size_local
+    n_cells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local
+    keys = _sort_key(gather.x)
+    where = np.searchsorted(keys, _sort_key(node_coordinates(V)))  # local dof -> gathered position (exact keys)
+    cells = where[compat.cell_dofs(V)[:n_cells]]
+    if gather.comm.size > 1:
+        cells = np.concatenate(gather.comm.allgather(cells))
+    turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3  # smallest node first, orientation kept
+    cells = np.take_along_axis(cells, turn, axis=1)
+    cells = cells[np.lexsort(cells.T[::-1])]  # a fixed order of the triangles, whatever the ranks
+    return {"weights": gather(domains.nodal_areas(V)[:n_owned]), "cells": cells}
 
 
 def _initial_state(scene, s: Setting) -> tuple[np.ndarray, np.ndarray]:
@@ -240,6 +271,7 @@ def simulate(
 
     ledger = _Ledger(stepper.start(*_initial_state(scene, s)), conservative=model.contact_energy is not None)
     rows = _Rows(stored_steps(scene.nt, scene.dt, scene.output_times, max_rows), _Gather(comm, s.x))
+    geometry = _mesh_rows(V, rows.gather)
     rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
     writer = None
     if output_dir is not None:
@@ -260,7 +292,7 @@ def simulate(
         return Result(scene=scene, x=rows.gather.x, t=rows.steps[:n] * scene.dt, steps=rows.steps[:n],
                       **{k: v[:n] for k, v in rows.fields.items()}, energy={k: v[:n] for k, v in rows.energy.items()},
                       min_eta=float(mins), penalty=penalty or "none", mass=mass, model=model.name, status=status,
-                      timings=timings, message=message, scheme=name)
+                      timings=timings, message=message, scheme=name, **geometry)
 
     t_loop = time.perf_counter()
     try:

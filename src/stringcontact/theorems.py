@@ -720,6 +720,11 @@ def _scene_from_args(args):
         changes = {k: getattr(args, k) for k in ("eps", "alpha") if getattr(args, k) is not None}
     else:
         scene = load_scene(args.scene)
+        if scene.dim != 1:
+            from .errors import SceneError
+
+            raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
+                             "paper's theorems are about the string); allowed: a scene with domain 'interval'")
         changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
     return scene.replace(**changes) if changes else scene
 
