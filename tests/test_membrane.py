@@ -275,3 +275,22 @@ def _worker(scheme: str, out: Path) -> None:
 
 if __name__ == "__main__":
     _worker(sys.argv[1], Path(sys.argv[2]))
+
+
+def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_path):
+    from test_xdmf import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
+
+    from stringcontact import viz
+
+    scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.1])
+    res = sc.simulate(scene, output_dir=tmp_path / "drum", pictures=True)
+    assert not list((tmp_path / "drum").glob("*.png"))  # the (x, t) pictures are of a string
+    with pytest.warns(UserWarning, match="no pictures for a 2D run yet"):
+        assert viz.write_pictures(res, tmp_path / "pictures") == []
+    data = meshio_read(tmp_path / "drum" / "solution.xdmf")
+    assert len(data["points"]) == res.x.shape[0] and list(data["cells"]) == ["triangle"]
+    assert data["times"][-1] == pytest.approx(res.t[-1])
+    last = data["data"][-1]
+    assert set(last) == {"eta", "velocity", "contact", "contact_force"}
+    # the same values as the Result, whatever the node order of the file
+    np.testing.assert_allclose(np.sort(np.ravel(last["eta"])), np.sort(res.eta[-1]), atol=1e-12)
