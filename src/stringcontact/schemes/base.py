@@ -182,12 +182,10 @@ class DampedLU:
         self.ksp = lu(A, comm)
         self.solve = self.ksp.getPC().getFactorMatrix().solve
         self.refactorisations = 0
+        self.anywhere = any_rank(comm)
 
     def update(self, extra: np.ndarray) -> None:
-        changed = not np.array_equal(extra, self.current)
-        if self.comm.size > 1:
-            changed = self.comm.allreduce(changed, op=MPI.LOR)
-        if changed:
+        if self.anywhere(not np.array_equal(extra, self.current)):
             np.add(self.base, extra, out=self.diag.array)
             self.A.setDiagonal(self.diag)
             self.ksp.setOperators(self.A)
@@ -195,6 +193,13 @@ class DampedLU:
             self.solve = self.ksp.getPC().getFactorMatrix().solve
             self.current[:] = extra
             self.refactorisations += 1
+
+
+def any_rank(comm):
+    """anyrank(flag): whether the flag is set on any rank (one allreduce), or the flag itself in serial."""
+    if comm.size == 1:
+        return lambda flag: flag
+    return lambda flag: comm.allreduce(flag, op=MPI.LOR)
 
 
 def summer(comm):

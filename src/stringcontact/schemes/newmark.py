@@ -19,11 +19,10 @@ dissipation: with no contact and α = 0 the energy is conserved to round-off. An
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..scheme import diagonal_matrix, stacked
-from .base import DampedLU, check_law_stability, dirichlet_rows, summer, wrap
+from .base import DampedLU, any_rank, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
 
 
@@ -53,7 +52,7 @@ class Scheme(Base):
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
         self.allsum = summer(comm)
-        self.anysum = (lambda flag: flag) if comm.size == 1 else (lambda flag: comm.allreduce(flag, op=MPI.LOR))
+        self.anysum = any_rank(comm)
         self.eta_, self.v_ = np.zeros(n), np.zeros(n)
         self.KC_now, self.KC_new = ((wrap(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
         self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)

@@ -36,7 +36,7 @@ from ..errors import InstabilityError
 from ..scene import SceneWarning
 from ..scheme import diagonal_matrix, stacked
 from .base import Scheme as Base
-from .base import dirichlet_rows, lu, summer, wrap
+from .base import any_rank, dirichlet_rows, lu, summer, wrap
 
 
 def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol: float = 1e-6):
@@ -173,7 +173,7 @@ class Scheme(Base):
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
         self._check_gap()
         self.allsum = summer(comm)
-        self.anysum = (lambda flag: flag) if comm.size == 1 else (lambda flag: comm.allreduce(flag, op=MPI.LOR))
+        self.anysum = any_rank(comm)
         # Rotating rows, allocated once: η^{n+1}, η^n, η^{n−1}, and [K η, (C/Δt) η] of η^{n+1}, η^n, η^{n−1}.
         self.etas = [(wrap(a, comm), a) for a in np.zeros((3, n))]
         self.KCs = [(wrap(a, comm), a) for a in np.zeros((3, 2, n))]
