@@ -117,6 +117,18 @@ def test_bad_tolerance_is_refused(tol):
         study.choose_for_tolerance(study.flat_landing_scene(100), tol)
 
 
+@pytest.mark.parametrize("argv", [["run", "drum", "--tol", "1e-3"], ["check", "drum"]], ids=["tol", "check"])
+def test_1d_only_commands_say_so_for_a_membrane(argv):
+    """--tol refines a string's nx and `check` states the paper's theorems on the string: one line, exit 2."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "stringcontact", *argv], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "1D-only" in lines[0] and "'disk'" in lines[0], proc.stderr
+
+
 def _parser():
     from stringcontact.cli import _Parser
 

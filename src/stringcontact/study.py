@@ -754,6 +754,9 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
     `model` (default: the scene's, else the paper's), so pass the model the run itself will use. Under MPI,
     rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
     """
+    if scene.dim != 1:  # its pilots refine nx and its error estimates are the string's
+        raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
+                         "give its scheme (--scheme) and mesh (cells, mesh_size) instead")
     if model is None and scene.model:
         from .registry import load_model
 
