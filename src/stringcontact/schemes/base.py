@@ -244,7 +244,7 @@ class Linear:
         self.iterations += self.ksp.getIterationNumber()
         self.solves += 1
         if self.ksp.getConvergedReason() < 0:
-            raise ArithmeticError(f"the linear solver ({self.describe()}) did not converge: PETSc reason "
+            raise ValueError(f"the linear solver ({self.describe()}) did not converge: PETSc reason "
                                   f"{self.ksp.getConvergedReason()} after {self.ksp.getIterationNumber()} iterations; "
                                   "set petsc_options (e.g. ksp_rtol, pc_type) or use an LU (ksp_type = 'preonly', pc_type = 'lu')")
 
