@@ -51,7 +51,33 @@ def our_options() -> list[str]:
 def test_the_size_rule_picks_lu_up_to_the_limit_then_cg():
     assert base.solver_options(base.LU_MAX_NODES, 1) == base.DIRECT
     assert base.solver_options(base.LU_MAX_NODES, 2) == dict(base.DIRECT, pc_factor_mat_solver_type="mumps")
-    assert base.solver_options(base.LU_MAX_NODES + 1, 1) == base.ITERATIVE
+    big = base.LU_MAX_NODES + 1
+    assert base.solver_options(big, 1) == base.ITERATIVE | base.AMG  # condition unknown
+    assert base.solver_options(big, 1, condition=base.JACOBI_MAX_CONDITION) == base.ITERATIVE | base.JACOBI
+    assert base.solver_options(big, 2, condition=2 * base.JACOBI_MAX_CONDITION) == base.ITERATIVE | base.AMG
+
+
+def tridiagonal(diagonal: float, off: float, n: int = 50) -> PETSc.Mat:
+    from mpi4py import MPI
+
+    A = PETSc.Mat().createAIJ([n, n], nnz=3, comm=MPI.COMM_SELF)
+    for i in range(n):
+        A[i, i] = diagonal
+        for j in (i - 1, i + 1):
+            if 0 <= j < n:
+                A[i, j] = off
+    A.assemble()
+    return A
+
+
+@pytest.mark.parametrize("diagonal, off", [(1.0, 0.0), (4.0, -1.0), (2.5, -1.0), (2.0, -1.0)])
+def test_the_jacobi_condition_bound_is_gershgorins_and_bounds_the_true_one(diagonal, off):
+    A = tridiagonal(diagonal, off)
+    rho = 2 * abs(off) / diagonal
+    bound = base.jacobi_condition_bound(A)
+    assert bound == (pytest.approx((1 + rho) / (1 - rho)) if rho < 1 else np.inf)
+    eig = np.linalg.eigvalsh(A.convert("dense").getDenseArray())
+    assert eig.max() / eig.min() <= bound
 
 
 @pytest.mark.parametrize("given, kind", [({"ksp_type": "cg"}, "cg"), ({"pc_type": "jacobi"}, "cg"),
@@ -70,6 +96,15 @@ def test_one_d_runs_pick_lu_and_give_the_same_numbers_bit_for_bit():
     forced = sc.simulate(scene, petsc_options={"ksp_type": "preonly", "pc_type": "lu"})
     assert auto.timings["linear solver"] == "LU (petsc)"
     assert np.array_equal(auto.eta, forced.eta) and np.array_equal(auto.velocity, forced.velocity)
+
+
+def test_above_the_limit_cg_takes_jacobi_for_a_mass_dominated_matrix_else_amg(monkeypatch):
+    monkeypatch.setattr(base, "LU_MAX_NODES", 0)  # every mesh is "large"
+    light = sc.simulate(contact_scene(), scheme="projection")  # M/Δt² + C/Δt at a stable Δt
+    heavy = sc.simulate(contact_scene(cells=[24, 24], nt=1), scheme="newmark")  # Δt = 10 Δx: K dominates
+    assert light.timings["linear solver"].startswith("cg + jacobi")
+    assert heavy.timings["linear solver"].startswith("cg + hypre boomeramg")
+    assert np.max(np.abs(light.balance_residual)) <= 1e-10 * light.total_energy[0]
 
 
 # --- accuracy with CG -----------------------------------------------------------------------------------

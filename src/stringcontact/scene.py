@@ -125,9 +125,9 @@ PETSC_REFUSED_WORDS = ("view", "monitor", "draw", "debugger", "log", "print", "p
 PETSC_REFUSED_NAMES = tuple(f"mat_mumps_icntl_{i}" for i in (1, 2, 3, 4, 22))
 PETSC_MAX_OPTIONS = 32
 _PETSC_NAME = re.compile(r"[a-z][a-z0-9_]{0,59}")
-_PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_\-]{0,31}")
+_PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_+\-]{0,31}")
 _PETSC_ALLOWED = (f"a table of at most {PETSC_MAX_OPTIONS} PETSc options named {', '.join(p + '*' for p in PETSC_PREFIXES)} "
-                  "(no viewers, monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ -)")
+                  "(no viewers, monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ + -)")
 _BUILTIN_PACKAGE = "stringcontact"
 _BUILTIN_FOLDER = "scenes"
 

@@ -10,6 +10,7 @@ about 0 for a node held at rest on the obstacle; what a scheme's identity puts e
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from functools import cached_property
@@ -162,28 +163,52 @@ LU_MAX_NODES = 200_000
 #: 1e-14 ‖b‖ that is the LU back-substitution's own round-off, and the 2D ledgers close to 1e-10 E(0).
 CG_RTOL = 1e-14
 
+#: CG's preconditioner: Jacobi while Gershgorin's bound of the Jacobi-scaled matrix's condition number is at
+#: most this (a mass-dominated A: projection's M/Δt² + C/Δt at its stable Δt), else algebraic multigrid.
+#: Measured (docs/linear_solvers.md): ... (filled in from the benchmark).
+JACOBI_MAX_CONDITION = 100.0
+
 #: The options of each path; a scene's or the command line's `petsc_options` go on top, key by key.
 DIRECT = {"ksp_type": "preonly", "pc_type": "lu"}
-ITERATIVE = {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg", "ksp_rtol": CG_RTOL,
-             "ksp_atol": 0.0, "ksp_norm_type": "unpreconditioned", "ksp_initial_guess_nonzero": True,
-             "ksp_max_it": 1000}
+ITERATIVE = {"ksp_type": "cg", "ksp_rtol": CG_RTOL, "ksp_atol": 0.0, "ksp_norm_type": "unpreconditioned",
+             "ksp_initial_guess_nonzero": True, "ksp_max_it": 1000}
+JACOBI = {"pc_type": "jacobi"}
+AMG = {"pc_type": "hypre", "pc_hypre_type": "boomeramg"}
 
 #: Every KSP takes its options under this prefix, set just before its setFromOptions and removed just after.
 PREFIX = "stringcontact_"
 
 
-def solver_options(n_global: int, ranks: int, options: dict | None = None) -> dict:
+def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf) -> dict:
     """The PETSc options for a system of `n_global` unknowns: LU up to LU_MAX_NODES, else CG; then `options`.
 
-    A user's ksp_type (or, without one, pc_type) picks the path whose defaults the rest goes on top of.
+    A user's ksp_type (or, without one, pc_type) picks the path whose defaults the rest goes on top of. CG's
+    preconditioner, unless the user names one: Jacobi if `condition` (`jacobi_condition_bound`) is at most
+    JACOBI_MAX_CONDITION, else AMG.
     """
     options = dict(options or {})
     kind = options.get("ksp_type") or ({"lu": "preonly", "cholesky": "preonly"}.get(options.get("pc_type"), "cg")
                                        if "pc_type" in options else None)
     direct = kind == "preonly" if kind is not None else n_global <= LU_MAX_NODES
-    chosen = dict(DIRECT, **({"pc_factor_mat_solver_type": "mumps"} if ranks > 1 else {})) if direct else dict(ITERATIVE)
+    if direct:
+        chosen = dict(DIRECT, **({"pc_factor_mat_solver_type": "mumps"} if ranks > 1 else {}))
+    else:
+        chosen = ITERATIVE | (JACOBI if condition <= JACOBI_MAX_CONDITION else AMG)
+    if "pc_type" in options and not direct:  # the user's preconditioner replaces the chosen one, sub-options too
+        chosen = dict(ITERATIVE)
     chosen.update(options)
     return chosen
+
+
+def jacobi_condition_bound(A: PETSc.Mat) -> float:
+    """Gershgorin's bound of κ(D⁻¹A) for a symmetric A with a positive diagonal D: (1 + ρ)/(1 − ρ) with
+    ρ = max_i Σ_{j≠i} |a_ij| / a_ii, or inf when ρ ≥ 1 (A not diagonally dominant). One pass over A's rows."""
+    ia, _, a = A.getValuesCSR()
+    d = A.getDiagonal().array
+    row_sums = np.bincount(np.repeat(np.arange(d.size), np.diff(ia)), weights=np.abs(a), minlength=d.size)
+    rho = np.max((row_sums - np.abs(d)) / np.where(d > 0, d, np.nan), initial=0.0)
+    rho = A.getComm().tompi4py().allreduce(float(rho) if np.isfinite(rho) else math.inf, op=MPI.MAX)
+    return (1.0 + rho) / (1.0 - rho) if rho < 1.0 else math.inf
 
 
 def _option_text(value) -> str:
@@ -226,10 +251,13 @@ class Linear:
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray):
         self.A, self.bc = A, bc
         self.options = solver_options(A.getSize()[0], comm.size, options)
-        kind = self.options["ksp_type"], self.options["pc_type"]
+        kind = self.options["ksp_type"], self.options.get("pc_type")
         self.iterative = not (kind[0] == "preonly" and kind[1] in ("lu", "cholesky"))
         if self.iterative:
             self.lift, self.b = _symmetric_rows(A, bc, g), A.createVecLeft()
+            if "pc_type" not in (options or {}):
+                self.condition = jacobi_condition_bound(A)
+                self.options = solver_options(A.getSize()[0], comm.size, options, self.condition)
         self.ksp = configured_ksp(A, comm, self.options)
         self.iterations = self.solves = 0
         self._bind()
