@@ -167,10 +167,12 @@ LU_MAX_NODES = 1_000_000
 CG_RTOL = 1e-14
 
 #: CG's preconditioner: Jacobi while Gershgorin's bound of the Jacobi-scaled matrix's condition number is at
-#: most this (a mass-dominated A: projection's M/Δt² + C/Δt at its stable Δt), else algebraic multigrid.
-#: Measured (docs/linear_solvers.md, newmark on 4e4 nodes, Δt from 0.5 to 16 Δx): Jacobi won up to the bound
-#: 160 (130 iterations, 196 ms against AMG's 7 iterations, 423 ms), AMG at 640 (190 iterations: 615 ms, 522 ms).
-JACOBI_MAX_CONDITION = 300.0
+#: most this (A nearly diagonal: projection's M/Δt² + C/Δt with little viscosity; diagonal, one iteration,
+#: when α = 0), else BoomerAMG, whose iteration count does not grow with the mesh. Measured
+#: (docs/linear_solvers.md): Jacobi won projection up to 1e5 nodes (bounds 5 to 14) and newmark on 4e4 nodes up
+#: to bound 193; AMG won projection at 2.5e5 and 1e6 nodes (bounds 21, 41) and newmark at 640. The winner
+#: depends on the size too, so Jacobi only where it won at every size.
+JACOBI_MAX_CONDITION = 10.0
 
 #: The options of each path; a scene's or the command line's `petsc_options` go on top, key by key.
 DIRECT = {"ksp_type": "preonly", "pc_type": "lu"}
