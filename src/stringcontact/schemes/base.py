@@ -240,11 +240,6 @@ def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
     return ksp
 
 
-def lu(A: PETSc.Mat, comm) -> PETSc.KSP:
-    """A KSP that factorises A once (MUMPS in parallel); ``ksp.getPC().getFactorMatrix().solve`` back-substitutes."""
-    return configured_ksp(A, comm, solver_options(0, comm.size, DIRECT))
-
-
 class Linear:
     """A x = b for a matrix that stays (or changes now and then, `reset`): LU or CG by size and options.
 
@@ -279,8 +274,8 @@ class Linear:
         self.solves += 1
         if self.ksp.getConvergedReason() < 0:
             raise ValueError(f"the linear solver ({self.describe()}) did not converge: PETSc reason "
-                                  f"{self.ksp.getConvergedReason()} after {self.ksp.getIterationNumber()} iterations; "
-                                  "set petsc_options (e.g. ksp_rtol, pc_type) or use an LU (ksp_type = 'preonly', pc_type = 'lu')")
+                             f"{self.ksp.getConvergedReason()} after {self.ksp.getIterationNumber()} iterations; set "
+                             "petsc_options (e.g. ksp_rtol, pc_type) or use an LU (ksp_type = 'preonly', pc_type = 'lu')")
 
     def reset(self) -> None:
         """A's values changed: refactorise (LU) or set the preconditioner up again (CG)."""
