@@ -209,7 +209,8 @@ class Scene:
         if self.scheme is not None:
             put("scheme", _check_scheme(self.scheme))
         put("output_times", _check_output_times(self.output_times, self.T))
-        put("petsc_options", check_petsc_options(dict(self.petsc_options)))
+        options = self.petsc_options
+        put("petsc_options", check_petsc_options(dict(options) if isinstance(options, tuple) else options))
         _check_storage(self.node_estimate - 1, self.nt, len(self.output_times))
         keys = ("eta0", "v0") + tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
         for key in keys:
