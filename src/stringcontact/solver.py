@@ -260,7 +260,7 @@ def simulate(
     about `max_frames` of them go to solution.xdmf, always with 0, T and the scene's output times. With
     `output_dir`, XDMF, CSV, JSON and (with `pictures`) PNGs are written there.
 
-    The step's linear system is LU-factorised once on small meshes and solved by CG with AMG on large ones
+    The step's linear system is LU-factorised once up to 1e6 nodes and solved by CG (Jacobi or AMG) above
     (`schemes.base.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
     by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
     """
