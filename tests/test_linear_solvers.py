@@ -50,7 +50,10 @@ def our_options() -> list[str]:
 
 def test_the_size_rule_picks_lu_up_to_the_limit_then_cg():
     assert base.solver_options(base.LU_MAX_NODES, 1) == base.DIRECT
-    assert base.solver_options(base.LU_MAX_NODES, 2) == dict(base.DIRECT, pc_factor_mat_solver_type="mumps")
+    mumps = dict(base.DIRECT, pc_factor_mat_solver_type="mumps")
+    assert base.solver_options(base.LU_MAX_NODES_PARALLEL, 2) == mumps
+    assert base.solver_options(base.LU_MAX_NODES_PARALLEL + 1, 2)["ksp_type"] == "cg"
+    assert base.solver_options(base.LU_MAX_NODES, 2, dim=1) == mumps  # a string: no fill, LU on any ranks
     big = base.LU_MAX_NODES + 1
     assert base.solver_options(big, 1) == base.ITERATIVE | base.AMG  # condition unknown
     assert base.solver_options(big, 1, condition=base.JACOBI_MAX_CONDITION) == base.ITERATIVE | base.JACOBI

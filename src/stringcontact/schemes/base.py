@@ -154,12 +154,17 @@ def wrap(a: np.ndarray, comm) -> PETSc.Vec:
     return PETSc.Vec().createWithArray(a.reshape(-1), size=(a.size, PETSc.DECIDE), comm=comm)
 
 
-#: Global unknowns up to which the step's constant system is LU-factorised once (MUMPS in parallel); above, CG.
-#: Measured (docs/linear_solvers.md, square membranes 1e4 to 1e6 nodes, 1 and 2 ranks): the back-substitution
-#: beat CG per step at every size (at 1e6, 1.0 s against 2.8 s for CG + Jacobi's 47 iterations to 1e-14);
-#: CG only saves set-up (23 s against 135 s) and memory (1.8 GB against 3.0 GB). So LU while its factor fits
-#: in a few GB: up to the largest size measured; above it (unmeasured) the factor outgrows memory first.
+#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG.
+#: Measured (docs/linear_solvers.md, square membranes 1e4 to 1e6 nodes): in serial the back-substitution beat
+#: CG per step at every size (1e6 nodes: LU 0.41 s, CG + AMG 0.95 s, CG + Jacobi 1.37 s); CG only saves set-up
+#: (14 s against 67 s) and memory (2.1 GB against 3.0 GB). So LU up to the largest size measured; above it
+#: the factor (growing faster than the mesh) outgrows memory first.
 LU_MAX_NODES = 1_000_000
+#: The same on several ranks (MUMPS): its distributed back-substitution was slower on 2 ranks than on 1 at
+#: every size, while CG's step halved (1e6 nodes: MUMPS 1.0 s, CG 0.61 s; 2.5e5: 126 ms, CG + Jacobi 72 ms).
+#: CG + Jacobi was level with MUMPS at 4e4 nodes and ahead above. A string (1D) keeps its LU on any number of
+#: ranks: a tridiagonal factor has no fill.
+LU_MAX_NODES_PARALLEL = 40_000
 
 #: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
 #: ledger books the step's work with the computed η, so a residual r leaks (η^{n+1} − η^n)·r per step: at
@@ -167,12 +172,12 @@ LU_MAX_NODES = 1_000_000
 CG_RTOL = 1e-14
 
 #: CG's preconditioner: Jacobi while Gershgorin's bound of the Jacobi-scaled matrix's condition number is at
-#: most this (A nearly diagonal: projection's M/Δt² + C/Δt with little viscosity; diagonal, one iteration,
-#: when α = 0), else BoomerAMG, whose iteration count does not grow with the mesh. Measured
-#: (docs/linear_solvers.md): Jacobi won projection up to 1e5 nodes (bounds 5 to 14) and newmark on 4e4 nodes up
-#: to bound 193; AMG won projection at 2.5e5 and 1e6 nodes (bounds 21, 41) and newmark at 640. The winner
-#: depends on the size too, so Jacobi only where it won at every size.
-JACOBI_MAX_CONDITION = 10.0
+#: most this (A nearly diagonal: projection's M/Δt² + C/Δt at its stable Δt; diagonal, one iteration, when
+#: α = 0), else BoomerAMG, whose iteration count does not grow with the mesh (3 to 7 here). Measured
+#: (docs/linear_solvers.md): Jacobi won projection up to 2.5e5 nodes (bounds 5 to 21), AMG won or tied at 1e6
+#: (bound 41: 0.95 s against 1.37 s serial, level on 2 ranks) and newmark at bound 640. (Newmark on 4e4 nodes
+#: still preferred Jacobi at 65 and 193: a small mesh favours it; the rule is for the large ones.)
+JACOBI_MAX_CONDITION = 30.0
 
 #: The options of each path; a scene's or the command line's `petsc_options` go on top, key by key.
 DIRECT = {"ksp_type": "preonly", "pc_type": "lu"}
@@ -185,8 +190,10 @@ AMG = {"pc_type": "hypre", "pc_hypre_type": "boomeramg"}
 PREFIX = "stringcontact_"
 
 
-def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf) -> dict:
-    """The PETSc options for a system of `n_global` unknowns: LU up to LU_MAX_NODES, else CG; then `options`.
+def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf,
+                   dim: int = 2) -> dict:
+    """The PETSc options for `n_global` unknowns: LU up to LU_MAX_NODES (LU_MAX_NODES_PARALLEL on several
+    ranks, none for a string, `dim` 1), else CG; then `options`.
 
     A user's ksp_type (or, without one, pc_type) picks the path whose defaults the rest goes on top of. CG's
     preconditioner, unless the user names one: Jacobi if `condition` (`jacobi_condition_bound`) is at most
@@ -195,7 +202,8 @@ def solver_options(n_global: int, ranks: int, options: dict | None = None, condi
     options = dict(options or {})
     kind = options.get("ksp_type") or ({"lu": "preonly", "cholesky": "preonly"}.get(options.get("pc_type"), "cg")
                                        if "pc_type" in options else None)
-    direct = kind == "preonly" if kind is not None else n_global <= LU_MAX_NODES
+    limit = LU_MAX_NODES if ranks == 1 or dim == 1 else LU_MAX_NODES_PARALLEL
+    direct = kind == "preonly" if kind is not None else n_global <= limit
     if direct:
         chosen = dict(DIRECT, **({"pc_factor_mat_solver_type": "mumps"} if ranks > 1 else {}))
     else:
@@ -247,18 +255,19 @@ class Linear:
     ``solve(b, x)``: LU is the factor's back-substitution, without KSPSolve's bookkeeping. CG needs a
     symmetric matrix, so it zeroes A's fixed columns too and moves their (constant) part to b, the lift;
     it starts from the x it is given (the scheme's predictor: ``iterative`` says whether to give one).
+    `dim` is the mesh's (`solver_options`: a string keeps its LU on any number of ranks).
     """
 
-    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray):
+    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
         self.A, self.bc = A, bc
-        self.options = solver_options(A.getSize()[0], comm.size, options)
+        self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim)
         kind = self.options["ksp_type"], self.options.get("pc_type")
         self.iterative = not (kind[0] == "preonly" and kind[1] in ("lu", "cholesky"))
         if self.iterative:
             self.lift, self.b = _symmetric_rows(A, bc, g), A.createVecLeft()
             if "pc_type" not in (options or {}):
                 self.condition = jacobi_condition_bound(A)
-                self.options = solver_options(A.getSize()[0], comm.size, options, self.condition)
+                self.options = solver_options(A.getSize()[0], comm.size, options, self.condition, dim)
         self.ksp = configured_ksp(A, comm, self.options)
         self.iterations = self.solves = 0
         self._bind()
@@ -299,15 +308,15 @@ class DampedLU:
     ``update(extra)`` puts ``extra`` on top of the constant diagonal and, only if it changed, refactorises
     (LU: PETSc keeps the symbolic factorisation) or sets the preconditioner up again (CG): counted in
     ``refactorisations``. Every rank must take part, so under MPI the ranks agree first. ``solve(b, x)`` and
-    ``iterative`` are the `Linear`'s.
+    ``iterative`` are the `Linear`'s; the other arguments are passed to it.
     """
 
-    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray):
+    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
         self.A, self.comm = A, comm
         self.base = A.getDiagonal().array.copy()
         self.diag = A.createVecLeft()
         self.current = np.zeros_like(self.base)  # what is on top of the constant diagonal now
-        self.linear = Linear(A, comm, options, bc, g)
+        self.linear = Linear(A, comm, options, bc, g, dim)
         self.solve, self.iterative = self.linear.solve, self.linear.iterative
         self.refactorisations = 0
         self.anywhere = any_rank(comm)

@@ -48,7 +48,7 @@ class Scheme(Base):
         self.A.axpy(2.0 / dt, ops.C, structure=same)
         self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
         dirichlet_rows(self.A, s.bc)
-        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g)  # 4D/Δt goes on its diagonal
+        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # 4D/Δt goes on its diagonal
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
         self.allsum = summer(comm)

@@ -47,7 +47,7 @@ class Scheme(Base):
         self.energy_law = None
         if laws.model.contact_energy is not None:
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
-        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g)  # the semi-implicit penalty's damping goes on its diagonal
+        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # the semi-implicit penalty's damping goes on its diagonal
         self.allsum = summer(comm)
 
         self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows

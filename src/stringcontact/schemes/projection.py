@@ -168,7 +168,7 @@ class Scheme(Base):
         C_over_dt = ops.C.copy()
         C_over_dt.scale(1.0 / dt)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
-        self.linear = Linear(self.A, comm, s.petsc_options, s.bc, s.g)
+        self.linear = Linear(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)
         self.solve = self.linear.solve
         laws = s.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
