@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/bench_membrane.py --big           # and 1e6 nodes (several GB)
     .venv/bin/python benchmarks/bench_membrane.py --ranks 2       # stringcontact under mpirun -n 2 as well
     .venv/bin/python benchmarks/bench_membrane.py --sizes 999     # only 1e6 nodes
+    .venv/bin/python benchmarks/bench_membrane.py --solver lu cg-jacobi cg-amg auto --no-peer   # the linear solvers
 
 Each run is a fresh process, so that its peak RSS (per rank) is its own. The scene: the unit square, cells
 [n, n] (right diagonals), α = 0.01, Δt = 0.5/n (dt_max ≈ 0.7/n), the membrane thrown onto the obstacle so
@@ -12,6 +13,10 @@ triangles) and its last η; the peer reads that mesh, assembles P1 stiffness and
 factorises A = M/Δt² + C/Δt with SuperLU and steps the same scheme. Both must agree (max |Δη| printed)
 before their costs are compared. Prints a Markdown table (docs/membranes.md) and writes
 benchmarks/out/membrane.json.
+
+`--solver` runs stringcontact with each linear solver (docs/linear_solvers.md): `lu` (PETSc LU, MUMPS on
+several ranks), `cg-jacobi`, `cg-amg` (hypre BoomerAMG) or `auto` (the size rule, `LU_MAX_NODES`), set
+through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve).
 """
 
 from __future__ import annotations
@@ -31,32 +36,51 @@ HERE = Path(__file__).resolve().parent
 OUT = HERE / "out"
 
 
-def scene(n: int, steps: int):
+#: --scene: "landed" is thrown onto the obstacle and rests on it after a few steps (the peer's comparison; an
+#: iterative solve from the previous η has nothing left to do then); "flying" keeps moving, with a ripple that
+#: the step's predictor does not foresee: what CG costs while a membrane is in flight.
+SCENES = {
+    "landed": dict(eta0="0.001*sin(pi*x)*sin(pi*y)", v0="-sin(pi*x)*sin(pi*y)"),
+    "flying": dict(eta0="(0.1 + 0.001*sin(40*pi*x)*sin(40*pi*y))*sin(pi*x)*sin(pi*y)", v0="-sin(pi*x)*sin(pi*y)"),
+}
+
+
+def scene(n: int, steps: int, kind: str = "landed"):
     from stringcontact.scene import Scene
 
     dt = 0.5 / n
     return Scene.from_dict(dict(name=f"square{n}", domain="rectangle", cells=[n, n], T=steps * dt, nt=steps, alpha=0.01,
-                                eps=1e-3, h=0, eta0="0.001*sin(pi*x)*sin(pi*y)", v0="-sin(pi*x)*sin(pi*y)"))
+                                eps=1e-3, h=0, **SCENES[kind]))
 
 
 def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: kB
 
 
-def run_stringcontact(n: int, steps: int, out: Path) -> dict:
+#: --solver: the PETSc options of each choice (`auto`: none, the size rule decides).
+SOLVERS = {
+    "lu": {"ksp_type": "preonly", "pc_type": "lu"},
+    "cg-jacobi": {"ksp_type": "cg", "pc_type": "jacobi"},
+    "cg-amg": {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg"},
+    "auto": {},
+}
+
+
+def run_stringcontact(n: int, steps: int, out: Path, solver: str = "auto", kind: str = "landed") -> dict:
     from mpi4py import MPI
 
     import stringcontact as sc
 
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    res = sc.simulate(scene(n, steps), scheme="projection", max_rows=2)
+    res = sc.simulate(scene(n, steps, kind), scheme="projection", max_rows=2, petsc_options=SOLVERS[solver])
     total = time.perf_counter() - t0
     rss = comm.gather(peak_rss_mb())
     if comm.rank == 0:
         np.savez(out / f"sc{n}.npz", x=res.x, cells=res.cells, eta=res.eta[-1])
     return {"nodes": len(res.x), "setup_s": res.timings["setup"], "step_ms": 1e3 * res.timings["solve"] / steps,
-            "total_s": total, "ranks": comm.size, "rss_mb": rss}
+            "total_s": total, "ranks": comm.size, "rss_mb": rss, "solver": solver,
+            "linear_solver": res.timings.get("linear solver", "")}
 
 
 def p1_operators(x: np.ndarray, cells: np.ndarray):
@@ -74,7 +98,7 @@ def p1_operators(x: np.ndarray, cells: np.ndarray):
     return K, m
 
 
-def run_scipy(n: int, steps: int, out: Path) -> dict:
+def run_scipy(n: int, steps: int, out: Path, kind: str = "landed") -> dict:
     """The projection scheme by hand: A η̃ = (M/Δt²)(2ηⁿ − ηⁿ⁻¹) + (C/Δt)ηⁿ − Kηⁿ, then η = max(η̃, 0) inside."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
@@ -82,12 +106,13 @@ def run_scipy(n: int, steps: int, out: Path) -> dict:
     from stringcontact.scene import Scene  # only for the scene's data (expressions), not the solver
 
     data = np.load(out / f"sc{n}.npz")
-    s: Scene = scene(n, steps)
+    s: Scene = scene(n, steps, kind)
     t0 = time.perf_counter()
     x, cells = data["x"], data["cells"]
     K, m = p1_operators(x, cells)
     dt, alpha = s.dt, s.alpha
-    rim = (x[:, 0] == 0) | (x[:, 0] == 1) | (x[:, 1] == 0) | (x[:, 1] == 1)
+    # dolfinx's mesh puts some rim nodes at 1 - 1e-16 (n = 499): compare with a tolerance, not ==
+    rim = np.any(np.isclose(x, 0.0, rtol=0, atol=1e-12) | np.isclose(x, 1.0, rtol=0, atol=1e-12), axis=1)
     inner = ~rim
     C_dt = (alpha / dt) * K
     A = sp.diags(m / dt**2) + C_dt
@@ -123,18 +148,25 @@ def main() -> None:
     ap.add_argument("--ranks", type=int, default=1, help="also run stringcontact under mpirun -n RANKS")
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--sizes", type=int, nargs="+", help="cells per side instead of 99 199 316 499 (999 with --big)")
+    ap.add_argument("--solver", nargs="+", choices=tuple(SOLVERS), default=["auto"],
+                    help="stringcontact's linear solver(s) (default: auto, the size rule)")
+    ap.add_argument("--no-peer", action="store_true", help="skip the SciPy peer")
+    ap.add_argument("--scene", choices=tuple(SCENES), default="landed", help="see SCENES (default: landed)")
     ap.add_argument("--one", nargs=2, metavar=("IMPL", "N"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     OUT.mkdir(exist_ok=True)
     if args.one:
         impl, n = args.one[0], int(args.one[1])
-        row = (run_stringcontact if impl == "sc" else run_scipy)(n, args.steps, OUT)
+        row = (run_stringcontact(n, args.steps, OUT, args.solver[0], args.scene) if impl == "sc"
+               else run_scipy(n, args.steps, OUT, args.scene))
         from mpi4py import MPI
 
         if MPI.COMM_WORLD.rank == 0:
             print(json.dumps(row))
         return
     sizes = args.sizes or [99, 199, 316, 499] + ([999] if args.big else [])
+    if args.solver != ["auto"] or args.no_peer:
+        return solver_table(args, sizes)
     me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--one"]
     rows = []
     print("| nodes | stringcontact ms/step | setup s | peak RSS MB | SciPy peer ms/step | setup s | peak RSS MB | max abs diff of eta |")
@@ -151,6 +183,28 @@ def main() -> None:
         print(line, flush=True)
         rows.append({"n": n, "stringcontact": ours, "scipy": peer})
     (OUT / "membrane.json").write_text(json.dumps(rows, indent=1))
+
+
+def solver_table(args, sizes: list[int]) -> None:
+    """One row per size, solver and rank count (and the peer unless --no-peer); appends to out/solvers.jsonl."""
+    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--scene", args.scene]
+    print("| nodes | solver | ranks | ms/step | setup s | peak RSS MB per rank | linear solver |")
+    print("|---:|---|---:|---:|---:|---|---|")
+    with open(OUT / "solvers.jsonl", "a") as log:
+        for n in sizes:
+            for solver in args.solver:
+                for ranks in sorted({1, args.ranks}):
+                    mpi = ["mpirun", "-n", str(ranks), "--oversubscribe"] if ranks > 1 else []
+                    row = child(mpi + me + ["--solver", solver, "--one", "sc", str(n)])
+                    rss = " / ".join(f"{r:.0f}" for r in row["rss_mb"])
+                    print(f"| {row['nodes']} | {solver} | {ranks} | {row['step_ms']:.2f} | {row['setup_s']:.2f} | {rss} | "
+                          f"{row['linear_solver']} |", flush=True)
+                    log.write(json.dumps(dict(row, scene=args.scene, load=os.getloadavg())) + "\n")
+            if not args.no_peer:
+                peer = child(me + ["--one", "scipy", str(n)])
+                print(f"| {peer['nodes']} | SciPy peer (SuperLU) | 1 | {peer['step_ms']:.2f} | {peer['setup_s']:.2f} | "
+                      f"{peer['rss_mb'][0]:.0f} | max abs diff of eta {peer['max_diff']:.1e} |", flush=True)
+                log.write(json.dumps(dict(peer, solver="scipy", scene=args.scene, load=os.getloadavg())) + "\n")
 
 
 if __name__ == "__main__":

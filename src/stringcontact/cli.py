@@ -68,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default: the scene's, else the paper's)")
     run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
     run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
+    run.add_argument("--petsc-option", action="append", default=[], metavar="NAME=VALUE",
+                     help="a PETSc option for the linear solver, e.g. ksp_type=cg or pc_type=hypre (repeatable; over "
+                          "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/linear_solvers.md)")
     run.add_argument("--frames", type=int, default=100, metavar="N",
                      help="XDMF frames: at most N of the ~400 stored rows: 0, T, the output times, then evenly "
                           "spaced rows (default 100; dolfinx 0.5 writes N frames in time ~N²)")
@@ -202,9 +205,12 @@ def report(res) -> None:
         )
     times = []
     for k, v in res.timings.items():
-        times.append(f"{k} {v:.3g} s" if isinstance(v, float) else f"{k} {v}")
+        if k != "linear solver":
+            times.append(f"{k} {v:.3g} s" if isinstance(v, float) else f"{k} {v}")
     if times:
         print("time: " + ", ".join(times))
+    if "linear solver" in res.timings:
+        print(f"linear solver: {res.timings['linear solver']}")
 
 
 def _run(args, painter=None) -> int:
@@ -213,6 +219,8 @@ def _run(args, painter=None) -> int:
 
     scene = sc.load_scene(args.scene)
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
+    if args.petsc_option:  # into the scene, so that summary.json records the options the run used
+        changes["petsc_options"] = dict(scene.petsc_options) | _petsc_options(args.petsc_option)
     if changes:
         scene = scene.replace(**changes)
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
@@ -253,6 +261,30 @@ def _run(args, painter=None) -> int:
         _error(unbalanced)
         return EXIT_UNSTABLE
     return EXIT_OK
+
+
+def _petsc_options(items: list[str]) -> dict:
+    """--petsc-option NAME=VALUE, ...: a dict with TOML's value types (true/false, numbers, words), checked."""
+    from .scene import check_petsc_options
+
+    options = {}
+    for item in items:
+        name, eq, text = item.partition("=")
+        if not eq or not name or not text:
+            raise ValueError(f"petsc_options (--petsc-option): expected NAME=VALUE (e.g. ksp_type=cg), got {item!r}")
+        options[name.strip()] = _option_value(text.strip())
+    return dict(check_petsc_options(options, key="petsc_options (--petsc-option)"))
+
+
+def _option_value(text: str):
+    if text in ("true", "false"):
+        return text == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
 
 
 def _check_scheme_options(args, scene) -> None:

@@ -13,6 +13,7 @@ A scene file looks like::
     load = "-10"      # optional: external load f(x), for a model that reads it
     obstacle = "0"    # optional: obstacle profile psi(x), for a model that reads it
     model = "loaded_obstacle"  # optional: a registered model's name (`stringcontact models`)
+    petsc_options = { ksp_type = "cg", pc_type = "hypre", ksp_rtol = 1e-12 }  # optional: the linear solver
 
 Usage::
 
@@ -43,6 +44,7 @@ import json
 import math
 import numbers
 import os
+import re
 import stat
 import tomllib
 import warnings
@@ -56,6 +58,7 @@ from .errors import SceneError, one_line
 
 __all__ = [
     "Scene",
+    "check_petsc_options",
     "SceneWarning",
     "load_scene",
     "list_scenes",
@@ -73,7 +76,7 @@ __all__ = [
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
     "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
-    "domain", "size", "cells", "radius", "mesh_size", "mesh",
+    "domain", "size", "cells", "radius", "mesh_size", "mesh", "petsc_options",
 )
 #: The domains and the geometry keys each one takes (docs/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
@@ -112,6 +115,19 @@ BYTES_PER_STORED_NODE = 3 * 8 + 1
 #: The solver's default number of stored rows (`simulate(max_rows=400)`), besides 0, T and the output times.
 STORED_ROWS = 400
 _NAME_MAX = 100
+#: petsc_options: a scene is data, so only solver settings, never an option that opens, writes or runs anything.
+PETSC_PREFIXES = ("ksp_", "pc_", "mat_mumps_icntl_", "mat_mumps_cntl_", "mat_superlu_dist_")
+#: Refused inside a name: viewers, monitors and reasons (they take a viewer: a file, a window), debuggers, logs,
+#: Python classes. Refused names: MUMPS' ICNTL 1-4 are Fortran output units (files fort.N), ICNTL 22 is
+#: out-of-core (temporary files).
+PETSC_REFUSED_WORDS = ("view", "monitor", "draw", "debugger", "log", "print", "python", "file", "dump", "save",
+                       "history", "reason")
+PETSC_REFUSED_NAMES = tuple(f"mat_mumps_icntl_{i}" for i in (1, 2, 3, 4, 22))
+PETSC_MAX_OPTIONS = 32
+_PETSC_NAME = re.compile(r"[a-z][a-z0-9_]{0,59}")
+_PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_+\-]{0,31}")
+_PETSC_ALLOWED = (f"a table of at most {PETSC_MAX_OPTIONS} PETSc options named {', '.join(p + '*' for p in PETSC_PREFIXES)} "
+                  "(no viewers, monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ + -)")
 _BUILTIN_PACKAGE = "stringcontact"
 _BUILTIN_FOLDER = "scenes"
 
@@ -157,6 +173,7 @@ class Scene:
     radius: float | None = None  # disk, centred at the origin
     mesh_size: float | None = None  # disk: gmsh's largest element size
     mesh: str | None = None  # file: path of an XDMF triangle mesh
+    petsc_options: tuple = ()  # (name, value) pairs for the linear solver (`check_petsc_options`)
 
     @property
     def dim(self) -> int:
@@ -192,6 +209,8 @@ class Scene:
         if self.scheme is not None:
             put("scheme", _check_scheme(self.scheme))
         put("output_times", _check_output_times(self.output_times, self.T))
+        options = self.petsc_options
+        put("petsc_options", check_petsc_options(dict(options) if isinstance(options, tuple) else options))
         _check_storage(self.node_estimate - 1, self.nt, len(self.output_times))
         keys = ("eta0", "v0") + tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
         for key in keys:
@@ -335,6 +354,8 @@ class Scene:
             d["model"] = self.model
         if self.scheme is not None:
             d["scheme"] = self.scheme
+        if self.petsc_options:
+            d["petsc_options"] = dict(self.petsc_options)
         return d
 
     def _as_dict_2d(self) -> dict:
@@ -346,6 +367,8 @@ class Scene:
         d.update(self.fields)
         d["output_times"] = list(self.output_times)
         d.update({key: getattr(self, key) for key in ("model", "scheme") if getattr(self, key) is not None})
+        if self.petsc_options:
+            d["petsc_options"] = dict(self.petsc_options)
         return d
 
     @classmethod
@@ -429,6 +452,7 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         output_times=tuple(output_times) if isinstance(output_times, (list, tuple)) else output_times,
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
         scheme=data.get("scheme"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
+        petsc_options=check_petsc_options(data.get("petsc_options", {})),
     )
 
 
@@ -490,6 +514,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         model=data.get("model"),
         scheme=data.get("scheme"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
+        petsc_options=check_petsc_options(data.get("petsc_options", {})),
     )
 
 
@@ -733,6 +758,31 @@ def _check_scheme(value) -> str:
     return value
 
 
+def check_petsc_options(value, key: str = "petsc_options") -> tuple:
+    """The (name, value) pairs of a petsc_options table, checked against the allow-list; SceneError naming `key`."""
+    if not isinstance(value, dict):
+        raise SceneError(f"{key}: expected a table of options, got {_describe(value)}; allowed: {_PETSC_ALLOWED}")
+    if len(value) > PETSC_MAX_OPTIONS:
+        raise SceneError(f"{key}: {len(value)} options; allowed: {_PETSC_ALLOWED}")
+    return tuple((_petsc_name(key, name), _petsc_value(key, name, v)) for name, v in value.items())
+
+
+def _petsc_name(key: str, name) -> str:
+    ok = (isinstance(name, str) and _PETSC_NAME.fullmatch(name) and name.startswith(PETSC_PREFIXES)
+          and not any(word in name for word in PETSC_REFUSED_WORDS) and name not in PETSC_REFUSED_NAMES)
+    if not ok:
+        raise SceneError(f"{key}: option {_describe(name)} is not allowed; allowed: {_PETSC_ALLOWED}")
+    return name
+
+
+def _petsc_value(key: str, name: str, value):
+    if isinstance(value, bool) or (_is_number(value) and math.isfinite(value)):
+        return value
+    if isinstance(value, str) and _PETSC_WORD.fullmatch(value) and "python" not in value.lower():
+        return value
+    raise SceneError(f"{key}: {name} = {_describe(value)} is not allowed; allowed: {_PETSC_ALLOWED}")
+
+
 def _check_output_times(value, T: float) -> tuple[float, ...]:
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
         raise SceneError(f"output_times: expected a list of numbers in [0, T], got {_describe(value)}")
@@ -893,7 +943,7 @@ def scene_to_toml(scene: Scene) -> str:
 def _toml_value(value) -> str:
     if isinstance(value, str):
         return _toml_string(value)
-    if isinstance(value, bool):  # pragma: no cover - scenes hold no booleans
+    if isinstance(value, bool):  # petsc_options only
         return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
@@ -901,6 +951,8 @@ def _toml_value(value) -> str:
         return repr(value)  # shortest round-tripping form; always finite in a valid scene
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):  # petsc_options: names are bare keys (checked)
+        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
     raise TypeError(f"cannot write {type(value).__name__} as TOML")  # pragma: no cover
 
 

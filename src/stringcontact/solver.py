@@ -20,7 +20,7 @@ from . import compat, domains
 from .errors import InstabilityError
 from .model import Model, Parameters, inelastic, unused_fields
 from .result import ENERGY_KEYS, Result
-from .scene import STORED_ROWS
+from .scene import STORED_ROWS, check_petsc_options
 from .scheme import bc_dofs, node_coordinates, semi_discrete_operators
 from .schemes import check_model, scheme_class
 from .schemes.base import NodalLaws, Setting
@@ -152,13 +152,15 @@ def _discretise(scene, model: Model, comm):
     return V, params, semi_discrete_operators(model, V, params)
 
 
-def _setting(scene, model, V, params, ops, penalty, mass, comm) -> Setting:
+def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
     bc, g = _boundary(scene, V, x)
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
-    return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x, nt=scene.nt)
+    options = dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))  # the argument's win
+    return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x,
+                   nt=scene.nt, petsc_options=options)
 
 
 def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -246,6 +248,7 @@ def simulate(
     force: bool = False,
     pictures=True,
     comm=MPI.COMM_WORLD,
+    petsc_options: dict | None = None,
 ) -> Result:
     """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
 
@@ -256,6 +259,10 @@ def simulate(
     does not take is refused. About `max_rows` time levels are stored (Result, diagnostics.csv, pictures);
     about `max_frames` of them go to solution.xdmf, always with 0, T and the scene's output times. With
     `output_dir`, XDMF, CSV, JSON and (with `pictures`) PNGs are written there.
+
+    The step's linear system is LU-factorised once up to 1e6 nodes and solved by CG (Jacobi or AMG) above
+    (`schemes.base.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
+    by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
     """
     name = scheme or getattr(scene, "scheme", None) or "paper"
     Scheme = scheme_class(name)
@@ -265,7 +272,7 @@ def simulate(
     timings = {}
     t0 = time.perf_counter()
     V, params, ops = _discretise(scene, model, comm)
-    s = _setting(scene, model, V, params, ops, penalty, mass, comm)
+    s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
     stepper = Scheme(s)
     timings["setup"] = time.perf_counter() - t0
 

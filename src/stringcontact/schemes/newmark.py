@@ -48,7 +48,7 @@ class Scheme(Base):
         self.A.axpy(2.0 / dt, ops.C, structure=same)
         self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
         dirichlet_rows(self.A, s.bc)
-        self.lu = DampedLU(self.A, comm)  # 4D/Δt goes on its diagonal
+        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # 4D/Δt goes on its diagonal
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
         self.allsum = summer(comm)
@@ -74,7 +74,7 @@ class Scheme(Base):
 
     @property
     def timings(self):
-        return {"refactorisations": self.lu.refactorisations}
+        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.linear.describe()}
 
     def _mass(self, u: np.ndarray) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu."""
@@ -110,6 +110,8 @@ class Scheme(Base):
         rhs += D * (4.0 / dt * eta + 2.0 * v)
         rhs += 2.0 * s.ops.load
         rhs[s.bc] = s.g
+        if self.lu.iterative:  # CG starts from the guess η^n + Δt v^n
+            np.add(eta, dt * v, out=self.new)
         self.lu.solve(self.vec["rhs"], self.vec["new"])
         v_new = 2.0 / dt * (self.new - eta) - v
         v_new[s.bc] = 0.0

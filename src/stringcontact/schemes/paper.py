@@ -47,7 +47,7 @@ class Scheme(Base):
         self.energy_law = None
         if laws.model.contact_energy is not None:
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
-        self.lu = DampedLU(self.A, comm)  # the semi-implicit penalty's damping goes on its diagonal
+        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # the semi-implicit penalty's damping goes on its diagonal
         self.allsum = summer(comm)
 
         self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
@@ -93,7 +93,8 @@ class Scheme(Base):
 
     @property
     def timings(self):
-        return {"refactorisations": self.lu.refactorisations} if self.s.penalty != "explicit" else {}
+        counts = {"refactorisations": self.lu.refactorisations} if self.s.penalty != "explicit" else {}
+        return counts | {"linear solver": self.lu.linear.describe()}
 
     def stored_energy(self, eta) -> float:
         """Σ m_F Φ(η) on owned dofs: the energy held by a conservative (spring) law."""
@@ -167,6 +168,9 @@ class Scheme(Base):
             b_a += load
         for i, g_i in self.ends:  # item assignment: a fancy-indexed b_a[bc] = g costs 3 µs per step
             b_a[i] = g_i
+        if self.lu.iterative:  # CG starts from the guess 2η^n − η^{n−1}
+            np.subtract(e0, em, out=eta_new[1])
+            np.add(eta_new[1], e0, out=eta_new[1])
         self.lu.solve(b, eta_new[0])
 
         # Diagnostics of the step n → n+1: the discrete energy identity, term by term.

@@ -36,7 +36,7 @@ from ..errors import InstabilityError
 from ..scene import SceneWarning
 from ..scheme import diagonal_matrix, stacked
 from .base import Scheme as Base
-from .base import any_rank, dirichlet_rows, lu, summer, wrap
+from .base import Linear, any_rank, dirichlet_rows, summer, wrap
 
 
 def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol: float = 1e-6):
@@ -168,7 +168,8 @@ class Scheme(Base):
         C_over_dt = ops.C.copy()
         C_over_dt.scale(1.0 / dt)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
-        self.solve = lu(self.A, comm).getPC().getFactorMatrix().solve
+        self.linear = Linear(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)
+        self.solve = self.linear.solve
         laws = s.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
         self._check_gap()
@@ -212,6 +213,10 @@ class Scheme(Base):
     @property
     def contact_force(self):
         return self.force_density
+
+    @property
+    def timings(self):
+        return {"linear solver": self.linear.describe()}
 
     def _project(self, eta: np.ndarray, push: np.ndarray) -> np.ndarray:
         """η + max(−gap(η), 0) at the interior nodes, in place; the correction into `push`."""
@@ -262,6 +267,9 @@ class Scheme(Base):
             rhs += s.ops.load
         for i, g in zip(s.bc, s.g):
             rhs[i] = g
+        if self.linear.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
+            np.subtract(e0, em, out=e1)
+            e1 += e0
         self.solve(rhs_v, v1)
         self._project(e1, push)
         self.KC.mult(v1, kc1v)
