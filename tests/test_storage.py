@@ -78,7 +78,7 @@ def test_a_run_over_its_budget_stores_fewer_rows_with_one_warning():
 
 @pytest.mark.parametrize("keys, field", [
     (dict(max_rows=0), "max_rows"), (dict(max_rows=2.5), "max_rows"), (dict(gather="rank0"), "gather"),
-    (dict(row_budget=0), "row_budget"),
+    (dict(row_budget=0), "row_budget"), (dict(row_budget=5 * 101 * BYTES_PER_STORED_NODE), "output_times"),
 ])
 def test_bad_storage_options_are_refused_in_one_line(keys, field):
     with pytest.raises(ValueError, match=f"^{field}: ") as err:

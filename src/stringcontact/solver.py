@@ -399,11 +399,11 @@ def simulate(
     t0 = time.perf_counter()
     V, params, ops = _discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm)
+    rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)  # before any factorisation
     stepper = Scheme(s)
     timings["setup"] = time.perf_counter() - t0
 
     ledger = _Ledger(stepper.start(*_initial_state(scene, s)), conservative=model.contact_energy is not None)
-    rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)
     rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
     writer = None
     if output_dir is not None:
