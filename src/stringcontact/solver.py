@@ -60,8 +60,7 @@ def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, bu
     """`stored_steps`, thinned so that the rows (`nodes` × BYTES_PER_STORED_NODE bytes each) fit `budget` bytes.
 
     Returns (steps, note): note is None, or one line saying what was kept. 0, T and the output times are
-    always kept; if they alone do not fit, ValueError. Thinning asks `stored_steps` for at most
-    (allowed − fixed) strided rows, which with the fixed ones makes at most `allowed` rows.
+    always kept (if they alone do not fit, ValueError), with every k-th step for the smallest k that fits.
     """
     steps = stored_steps(nt, dt, output_times, max_rows)
     row = max(1, nodes) * BYTES_PER_STORED_NODE
@@ -74,10 +73,17 @@ def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, bu
             f"output_times: 0, T and the output times are {len(fixed)} stored rows of {nodes} nodes "
             f"({len(fixed) * row / 1e9:.3g} GB); allowed: at most {allowed} rows (row budget {budget / 1e9:.3g} GB); "
             "give fewer output times or a coarser mesh")
-    kept = stored_steps(nt, dt, output_times, allowed - len(fixed))
+    lo, hi = 1, nt + 1  # stride nt + 1 keeps the fixed steps only, which fit
+    while lo < hi:  # the smallest stride that fits (a bisection: the count falls with the stride, nearly monotone)
+        mid = (lo + hi) // 2
+        if nt // mid + 1 + sum(1 for f in fixed if f % mid) <= allowed:
+            hi = mid
+        else:
+            lo = mid + 1
+    kept = np.array(sorted(set(range(0, nt + 1, hi)) | fixed), dtype=np.int64)
     note = (f"max_rows = {max_rows}: {len(steps)} stored rows of {nodes} nodes would take {len(steps) * row / 1e9:.3g} GB, "
-            f"over the row budget of {budget / 1e9:.3g} GB; keeping {len(kept)} rows (every "
-            f"{kept[1] - kept[0] if len(kept) > 1 else nt}-th step, with 0, T and the output times)")
+            f"over the row budget of {budget / 1e9:.3g} GB; keeping {len(kept)} rows (every {hi}-th step, with 0, T "
+            "and the output times)")
     return kept, note
 
 
