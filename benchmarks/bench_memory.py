@@ -3,6 +3,7 @@
     PYTHONPATH=src .venv/bin/python benchmarks/bench_memory.py                  # 1e4 ... 1e6 nodes, 1 and 2 ranks
     PYTHONPATH=src .venv/bin/python benchmarks/bench_memory.py --sizes 99 316   # some sizes only
     PYTHONPATH=/work/main/src ... --label before                                # another checkout's code
+    PYTHONPATH=src ... --sizes 999 --ranks 2 --row-budget 5e8                   # the row budget at work
 
 Each case is a fresh process (`mpirun -n 2` for 2 ranks), so that its peak RSS (ru_maxrss, gathered from
 every rank) is its own. The scene: a square membrane (cells [n, n]) under gravity onto a bump, scheme
@@ -44,14 +45,15 @@ def held_bytes(res) -> int:
     return sum(getattr(getattr(res, name, None), "nbytes", 0) for name in PER_NODE)
 
 
-def one(n: int, steps: int, max_rows: int) -> dict:
+def one(n: int, steps: int, max_rows: int, row_budget: int | None = None) -> dict:
     from mpi4py import MPI
 
     import stringcontact as sc
 
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    res = sc.simulate(scene(n, steps), max_rows=max_rows)
+    budget = {} if row_budget is None else {"row_budget": row_budget}  # main's simulate has no row_budget
+    res = sc.simulate(scene(n, steps), max_rows=max_rows, **budget)
     total = time.perf_counter() - t0
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)  # Linux: kB
     held = comm.gather(held_bytes(res) / 2**20)
@@ -76,18 +78,20 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[99, 316, 499, 999], help="cells per side")
     ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--row-budget", type=float, help="simulate's row_budget in bytes (default: ROW_BUDGET)")
     ap.add_argument("--label", default="after", help="a name for this code (before/after) in the JSON lines")
     ap.add_argument("--one", nargs=2, type=int, metavar=("N", "MAX_ROWS"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        row = one(args.one[0], args.steps, args.one[1])
+        row = one(args.one[0], args.steps, args.one[1], None if args.row_budget is None else int(args.row_budget))
         from mpi4py import MPI
 
         if MPI.COMM_WORLD.rank == 0:
             print(json.dumps(row))
         return
     OUT.mkdir(exist_ok=True)
-    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--one"]
+    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps)]
+    me += (["--row-budget", str(args.row_budget)] if args.row_budget else []) + ["--one"]
     print(f"| code | nodes | ranks | rows | peak RSS MB per rank | with 2 rows | storage = difference | held MB per rank |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for n in args.sizes:
