@@ -57,7 +57,7 @@ def one(n: int, steps: int, max_rows: int, row_budget: int | None = None) -> dic
     total = time.perf_counter() - t0
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)  # Linux: kB
     held = comm.gather(held_bytes(res) / 2**20)
-    return {"n": n, "ranks": comm.size, "max_rows": max_rows, "rows": int(len(res.t)), "nodes": (n + 1) ** 2,
+    return {"n": n, "ranks": comm.size, "max_rows": max_rows, "rows": len(res.t), "nodes": (n + 1) ** 2,
             "rss_mb": rss, "held_mb": held, "total_s": total, "setup_s": res.timings["setup"]}
 
 
@@ -92,7 +92,7 @@ def main() -> None:
     OUT.mkdir(exist_ok=True)
     me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps)]
     me += (["--row-budget", str(args.row_budget)] if args.row_budget else []) + ["--one"]
-    print(f"| code | nodes | ranks | rows | peak RSS MB per rank | with 2 rows | storage = difference | held MB per rank |")
+    print("| code | nodes | ranks | rows | peak RSS MB per rank | with 2 rows | storage = difference | held MB per rank |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for n in args.sizes:
         for ranks in args.ranks:

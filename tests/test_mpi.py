@@ -252,7 +252,7 @@ def _save(path: Path, res, **extra) -> None:
         arrays.update({name: getattr(res, name) for name in ("x", "eta", "velocity", "contact", "contact_force")})
     else:
         try:
-            res.eta
+            _ = res.eta
         except AttributeError as exc:
             arrays["refused"] = str(exc)
     np.savez(path, **arrays, **extra)
