@@ -107,3 +107,15 @@ def test_a_result_without_rows_gives_the_same_series_and_refuses_its_arrays(bump
         with pytest.raises(RowsElsewhere, match=f"^Result.{name}: the per-node rows are on rank 0 only"):
             getattr(elsewhere, name)
     assert "rank 0" in repr(elsewhere)
+
+
+@pytest.mark.parametrize("which", ["string", "bump"])
+def test_contact_measure_in_chunks_equals_the_whole_rows(bump_run, which, monkeypatch):
+    from stringcontact import compat, result
+
+    res = bump_run if which == "bump" else sc.simulate(small_string())
+    c = res.contact.astype(float)
+    whole = c @ res.weights if res.dim == 2 else compat.trapezoid(c, res.x, axis=1)
+    monkeypatch.setattr(result, "CHUNK_VALUES", 3 * res.contact.shape[1] + 1)  # 3 rows at a time
+    np.testing.assert_array_equal(res.contact_measure, whole)
+    assert whole.max() > 0

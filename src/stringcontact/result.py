@@ -19,6 +19,7 @@ ENERGY_KEYS = (
 )
 #: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks.
 PER_NODE = ("x", "eta", "velocity", "contact", "contact_force", "weights", "cells")
+CHUNK_VALUES = 2**24  # contact_measure converts at most this many contact values to float at once (128 MB)
 
 
 class RowsElsewhere(AttributeError):
@@ -102,10 +103,16 @@ class Result:
         solver summed over the ranks (the lumped weights of the contact nodes, in 1D the same trapezoid)."""
         if not self.has_rows:
             return self.series["contact_measure"]
-        c = self.contact.astype(float)
-        if self.dim == 2:
-            return c @ self.weights
-        return compat.trapezoid(c, self.x, axis=1) if c.shape[1] > 1 else c[:, 0]
+        k, nodes = self.contact.shape
+        out = np.empty(k)
+        chunk = max(1, CHUNK_VALUES // max(1, nodes))  # a float copy of a few rows at a time, not of all of them
+        for i in range(0, k, chunk):
+            c = self.contact[i:i + chunk].astype(float)
+            if self.dim == 2:
+                out[i:i + chunk] = c @ self.weights
+            else:
+                out[i:i + chunk] = compat.trapezoid(c, self.x, axis=1) if nodes > 1 else c[:, 0]
+        return out
 
     @property
     def contact_length(self) -> np.ndarray:
