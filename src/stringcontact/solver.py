@@ -162,6 +162,7 @@ class _Rows:
 
     def store(self, fields: dict, energies, series) -> None:
         for name, arr in fields.items():
+            arr = np.asarray(arr, dtype=bool if name == "contact" else float)  # the same bytes from every rank
             self.gather(arr, out=self.fields[name][self.n] if self.fields else None)
         for key, value in zip(ENERGY_KEYS, energies):
             self.energy[key][self.n] = value
