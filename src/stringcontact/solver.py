@@ -2,7 +2,8 @@
 
 `simulate` builds the model's operators on the mesh (`scheme.semi_discrete_operators`), hands them
 to the chosen scheme (`schemes/`), and then only calls ``step()``, sums the energy terms the scheme
-reports into the ledger, guards against energy growth, and stores about `max_rows` rows.
+reports into the ledger, guards against energy growth, and stores about `max_rows` rows: on rank 0
+(`gather="all"`: every rank), within `ROW_BUDGET` bytes; every rank keeps the per-time series.
 """
 
 from __future__ import annotations
