@@ -407,8 +407,8 @@ def simulate(
     t0 = time.perf_counter()
     V, params, ops = _discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm)
-    rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)  # before any factorisation
     stepper = Scheme(s)
+    rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)
     timings["setup"] = time.perf_counter() - t0
 
     ledger = _Ledger(stepper.start(*_initial_state(scene, s)), conservative=model.contact_energy is not None)
