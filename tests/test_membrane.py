@@ -248,29 +248,51 @@ def test_boundary_height_may_vary_along_the_boundary():
 @pytest.mark.mpi
 @pytest.mark.parametrize("scheme", ["projection", "newmark"])
 def test_mpi_2d_run_equals_serial(tmp_path, scheme):
+    # rank 0 holds the rows (gather="root"); rank 1 only the series; with gather="all" both hold the rows
     from conftest import mpirun
 
     proc = mpirun([sys.executable, Path(__file__).resolve(), scheme, tmp_path])
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     serial = sc.simulate(small_drum(), scheme=scheme)
-    for rank in (0, 1):
-        got = np.load(tmp_path / f"rank{rank}.npz")
-        assert int(got["size"]) == 2
+    assert serial.contact_measure.max() > 0.1  # a real landing
+    for label, rank in (("root", 0), ("all", 0), ("all", 1)):
+        got = np.load(tmp_path / f"{label}.rank{rank}.npz")
+        assert int(got["size"]) == 2 and got["has_rows"], (label, rank)
         np.testing.assert_array_equal(got["x"], serial.x)
         np.testing.assert_array_equal(got["cells"], serial.cells)
         np.testing.assert_array_equal(got["contact"], serial.contact)
         for name in ("eta", "velocity", "weights", "contact_measure"):
-            a = getattr(serial, name)
-            assert np.max(np.abs(got[name] - a)) <= 1e-10 * max(1.0, np.max(np.abs(a))), name
+            assert_close(got[name], getattr(serial, name), (label, rank, name))
+    got = np.load(tmp_path / "root.rank1.npz")
+    assert not got["has_rows"] and "x" not in got
+    assert str(got["refused"]).startswith("Result.cells: the per-node rows are on rank 0 only")
+    assert_close(got["contact_measure"], serial.contact_measure, "contact_measure")  # summed over the ranks
+    for key, values in serial.energy.items():
+        assert_close(got[f"energy_{key}"], values, key)
+    np.testing.assert_array_equal(got["t"], serial.t)
+
+
+def assert_close(a, b, what) -> None:
+    assert np.max(np.abs(a - b)) <= 1e-10 * max(1.0, np.max(np.abs(b))), what
 
 
 def _worker(scheme: str, out: Path) -> None:
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
-    res = sc.simulate(small_drum(), scheme=scheme)
-    np.savez(out / f"rank{comm.rank}.npz", size=comm.size, x=res.x, cells=res.cells, contact=res.contact,
-             eta=res.eta, velocity=res.velocity, weights=res.weights, contact_measure=res.contact_measure)
+    for gather in ("root", "all"):
+        res = sc.simulate(small_drum(), scheme=scheme, gather=gather)
+        keep = dict(size=comm.size, has_rows=res.has_rows, t=res.t, contact_measure=res.contact_measure,
+                    **{f"energy_{k}": v for k, v in res.energy.items()})
+        if res.has_rows:
+            keep.update(x=res.x, cells=res.cells, contact=res.contact, eta=res.eta, velocity=res.velocity,
+                        weights=res.weights)
+        else:
+            try:
+                res.contact_patches()
+            except AttributeError as exc:
+                keep["refused"] = str(exc)
+        np.savez(out / f"{gather}.rank{comm.rank}.npz", **keep)
 
 
 if __name__ == "__main__":

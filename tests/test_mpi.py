@@ -1,8 +1,9 @@
 """One simulation under `mpirun -n 2` gives the serial answer, and errors stop every rank.
 
-dolfinx distributes the mesh over the ranks; `simulate` gathers the owned arrays and orders them by x on
-every rank. Each check starts this file as an MPI program (the worker at the bottom), with a timeout so
-that a hang fails instead of blocking the suite, and compares what the ranks saved with a serial run in
+dolfinx distributes the mesh over the ranks; `simulate` gathers the owned arrays, ordered by x, to rank 0
+(`gather="root"`, the default: the other ranks hold the per-time series only) or to every rank
+(`gather="all"`). Each check starts this file as an MPI program (the worker at the bottom), with a timeout
+so that a hang fails instead of blocking the suite, and compares what the ranks saved with a serial run in
 this process.
 """
 
@@ -68,29 +69,69 @@ def serial_results(tmp_path_factory):
     }
 
 
-@pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
-@pytest.mark.parametrize("rank", range(RANKS))
-def test_mpi_result_equals_serial_on_every_rank(parity_run, serial_results, penalty, mass, rank):
-    serial, _ = serial_results[(penalty, mass)]
-    saved = np.load(parity_run / f"{penalty}-{mass}.rank{rank}.npz")
-    assert saved["comm_size"] == RANKS
-    # The mesh really was distributed: this rank owned only part of the nodes.
-    assert 0 < saved["owned_nodes"] < serial.x.size
+def assert_rows_equal_serial(saved, serial) -> None:
+    """Every per-node array and series a rank saved equals the serial run's (PARITY)."""
     assert np.all(np.diff(saved["x"]) > 0), "Result.x must be ordered by x"
     np.testing.assert_array_equal(saved["x"], serial.x)
-    np.testing.assert_array_equal(saved["t"], serial.t)
     for name in FIELDS:
         assert saved[name].shape == getattr(serial, name).shape, name
         err = rel_error(saved[name], getattr(serial, name))
         assert err <= PARITY, f"{name}: mpi differs from serial by {err:.3g} (relative to its maximum)"
-    for key, values in serial.energy.items():
-        assert rel_error(saved[f"energy_{key}"], values) <= PARITY, key
-    assert abs(saved["min_eta"] - serial.min_eta) <= PARITY
     # The contact set η ≤ 0 is the same, except possibly on nodes within round-off of the obstacle.
     differ = saved["contact"] != serial.contact
     assert not np.any(differ & (np.abs(serial.eta) > PARITY)), "contact sets differ"
     # The run did meet the obstacle, so the contact law took part in the comparison.
     assert serial.contact.any() and np.max(serial.contact_force) > 0
+
+
+def assert_series_equal_serial(saved, serial) -> None:
+    """The per-time series every rank holds equal the serial run's: t, energy, min η, contact length."""
+    np.testing.assert_array_equal(saved["t"], serial.t)
+    np.testing.assert_array_equal(saved["steps"], serial.steps)
+    for key, values in serial.energy.items():
+        assert rel_error(saved[f"energy_{key}"], values) <= PARITY, key
+    assert abs(saved["min_eta"] - serial.min_eta) <= PARITY
+    assert str(saved["status"]) == serial.status
+    assert np.all(np.abs(saved["contact_length"] - serial.contact_length) <= contact_slack(serial))
+    assert serial.contact_length.max() > 10 * (serial.x[1] - serial.x[0])  # a real contact set
+
+
+def contact_slack(serial) -> np.ndarray:
+    """How far another run's contact length may be off at each stored time: the trapezoid weights (Δx) of
+    the nodes within round-off of the obstacle (η ≤ 0 may go either way there), plus PARITY."""
+    return (serial.x[1] - serial.x[0]) * np.sum(np.abs(serial.eta) <= PARITY, axis=1) + PARITY
+
+
+@pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
+def test_mpi_result_on_rank_0_equals_serial(parity_run, serial_results, penalty, mass):
+    serial, _ = serial_results[(penalty, mass)]
+    saved = np.load(parity_run / f"{penalty}-{mass}.rank0.npz")
+    assert saved["comm_size"] == RANKS and saved["has_rows"]
+    # The mesh really was distributed: this rank owned only part of the nodes.
+    assert 0 < saved["owned_nodes"] < serial.x.size
+    assert_rows_equal_serial(saved, serial)
+    assert_series_equal_serial(saved, serial)
+
+
+@pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
+@pytest.mark.parametrize("rank", range(1, RANKS))
+def test_mpi_other_ranks_hold_the_series_and_no_rows(parity_run, serial_results, penalty, mass, rank):
+    serial, _ = serial_results[(penalty, mass)]
+    saved = np.load(parity_run / f"{penalty}-{mass}.rank{rank}.npz")
+    assert not saved["has_rows"] and "x" not in saved
+    assert str(saved["refused"]).startswith("Result.eta: the per-node rows are on rank 0 only")
+    assert_series_equal_serial(saved, serial)
+    assert 0 < saved["owned_nodes"] < serial.x.size
+
+
+@pytest.mark.parametrize("rank", range(RANKS))
+def test_mpi_gather_all_gives_every_rank_the_serial_rows(parity_run, serial_results, rank):
+    penalty, mass, _ = CASES[0]
+    serial, _ = serial_results[(penalty, mass)]
+    saved = np.load(parity_run / f"all-{penalty}-{mass}.rank{rank}.npz")
+    assert saved["has_rows"]
+    assert_rows_equal_serial(saved, serial)
+    assert_series_equal_serial(saved, serial)
 
 
 @pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
@@ -154,7 +195,9 @@ def test_mpi_semi_implicit_refactorises_on_all_ranks_when_one_ranks_contact_chan
                 saved = np.load(tmp_path / f"asym-{mass}.rank{rank}.npz")
                 assert int(saved["refactorisations"]) == serial.timings["refactorisations"] > 1
                 np.testing.assert_array_equal(saved["t"], serial.t)
-                assert rel_error(saved["eta"], serial.eta) <= PARITY, mass
+                assert rel_error(saved["total_energy"], serial.total_energy) <= PARITY, (mass, rank)
+                assert ("eta" in saved) == (rank == 0)  # the rows on rank 0 only
+            assert rel_error(np.load(tmp_path / f"asym-{mass}.rank0.npz")["eta"], serial.eta) <= PARITY, mass
 
 
 def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
@@ -188,14 +231,31 @@ def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
     assert serial.contact.any() and serial.status == "complete"
     for rank in range(RANKS):
         saved = np.load(tmp_path / f"{scheme}.rank{rank}.npz")
-        for name in ("eta", "velocity", "contact_force"):
+        assert ("eta" in saved) == (rank == 0)  # the rows on rank 0 only
+        for name in ("eta", "velocity", "contact_force") if rank == 0 else ():
             assert rel_error(saved[name], getattr(serial, name)) <= PARITY, (rank, name)
         for key, values in serial.energy.items():
             assert rel_error(saved[f"energy_{key}"], values) <= PARITY, (rank, key)
+        assert np.all(np.abs(saved["contact_length"] - serial.contact_length) <= contact_slack(serial)), rank
 
 
 # ---------------------------------------------------------------------------------------------------
 # The MPI program: `mpirun -n 2 python tests/test_mpi.py parity|errors|cli DIR...`
+
+
+def _save(path: Path, res, **extra) -> None:
+    """What this rank's Result holds: the per-node arrays where it has them, else the error reading one gives."""
+    arrays = {"t": res.t, "steps": res.steps, "min_eta": res.min_eta, "status": res.status,
+              "contact_length": res.contact_length, "has_rows": res.has_rows,
+              **{f"energy_{k}": v for k, v in res.energy.items()}}
+    if res.has_rows:
+        arrays.update({name: getattr(res, name) for name in ("x", "eta", "velocity", "contact", "contact_force")})
+    else:
+        try:
+            _ = res.eta
+        except AttributeError as exc:
+            arrays["refused"] = str(exc)
+    np.savez(path, **arrays, **extra)
 
 
 def _worker_parity(out: Path) -> None:
@@ -208,15 +268,10 @@ def _worker_parity(out: Path) -> None:
     owned = mesh.create_interval(comm, scene.nx, [0.0, scene.length]).topology.index_map(0).size_local
     for penalty, mass, pictures in CASES:
         res = sc.simulate(scene, penalty=penalty, mass=mass, output_dir=out / f"{penalty}-{mass}", pictures=pictures)
-        arrays = {name: getattr(res, name) for name in ("x", "t", "eta", "velocity", "contact", "contact_force")}
-        arrays.update({f"energy_{k}": v for k, v in res.energy.items()})
-        np.savez(
-            out / f"{penalty}-{mass}.rank{comm.rank}.npz",
-            comm_size=comm.size,
-            owned_nodes=owned,
-            min_eta=res.min_eta,
-            **arrays,
-        )
+        _save(out / f"{penalty}-{mass}.rank{comm.rank}.npz", res, comm_size=comm.size, owned_nodes=owned)
+    penalty, mass, _ = CASES[0]
+    res = sc.simulate(scene, penalty=penalty, mass=mass, gather="all")
+    _save(out / f"all-{penalty}-{mass}.rank{comm.rank}.npz", res)
 
 
 def _worker_errors(out: Path) -> None:
@@ -275,8 +330,9 @@ def _worker_asymmetric(out: Path) -> None:
         warnings.simplefilter("ignore")  # example2 starts below the obstacle, as printed
         for mass in ("lumped", "consistent"):
             res = sc.simulate(asymmetric_scene(), penalty="semi-implicit", mass=mass, comm=comm)
-            np.savez(out / f"asym-{mass}.rank{comm.rank}.npz", eta=res.eta, t=res.t,
-                     refactorisations=res.timings["refactorisations"])
+            rows = {"eta": res.eta} if res.has_rows else {}
+            np.savez(out / f"asym-{mass}.rank{comm.rank}.npz", t=res.t, total_energy=res.total_energy,
+                     refactorisations=res.timings["refactorisations"], **rows)
 
 
 def _worker_schemes(out: Path, scheme: str) -> None:
@@ -289,8 +345,9 @@ def _worker_schemes(out: Path, scheme: str) -> None:
         warnings.simplefilter("ignore")
         res = sc.simulate(asymmetric_scene(), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
                           comm=MPI.COMM_WORLD)
-    np.savez(out / f"{scheme}.rank{MPI.COMM_WORLD.rank}.npz", eta=res.eta, velocity=res.velocity,
-             contact_force=res.contact_force, **{f"energy_{k}": v for k, v in res.energy.items()})
+    rows = {name: getattr(res, name) for name in ("eta", "velocity", "contact_force")} if res.has_rows else {}
+    np.savez(out / f"{scheme}.rank{MPI.COMM_WORLD.rank}.npz", contact_length=res.contact_length, **rows,
+             **{f"energy_{k}": v for k, v in res.energy.items()})
 
 
 if __name__ == "__main__":

@@ -927,16 +927,19 @@ def penetration_check(result) -> dict:
     stop (a static load, a model variant, an r > 1 rebound): see docs/reliability.md.
     """
     scene = result.scene
-    eta = np.asarray(result.eta, dtype=float)
-    velocity = np.asarray(result.velocity, dtype=float)
-    v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
-    if scene.obstacle is None:  # min_eta covers every step, not only the stored ones
-        depth = max(0.0, -float(result.min_eta))
-        start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
-    else:
-        obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
-        depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
-        start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
+    if getattr(result, "has_rows", True):
+        eta = np.asarray(result.eta, dtype=float)
+        velocity = np.asarray(result.velocity, dtype=float)
+        v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
+        if scene.obstacle is None:  # min_eta covers every step, not only the stored ones
+            depth = max(0.0, -float(result.min_eta))
+            start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
+        else:
+            obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
+            depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
+            start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
+    else:  # an MPI rank without the rows: the same numbers from the series the ranks summed (Result.series)
+        v_max, depth, start_depth = _penetration_from_series(result)
     braking = math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
     bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
     return {
@@ -948,6 +951,15 @@ def penetration_check(result) -> dict:
         "law": "spring (sqrt(eps))" if result.model == "elastic" else "velocity penalty (eps)",
         "within_bound": bool(depth <= bound * (1 + 1e-12)),
     }
+
+
+def _penetration_from_series(result) -> tuple[float, float, float]:
+    """max |v|, the depth and the initial depth from Result.series ("max_speed", "depth" = max(ψ − η))."""
+    speed, below = result.series["max_speed"], result.series["depth"]
+    if not len(below):
+        return 0.0, max(0.0, -float(result.min_eta)), 0.0
+    depth = -float(result.min_eta) if result.scene.obstacle is None else float(np.max(below))
+    return float(np.max(speed)), max(0.0, depth), max(0.0, float(below[0]))
 
 
 def unbalanced_message(result) -> str | None:

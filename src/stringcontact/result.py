@@ -1,4 +1,5 @@
-"""What a simulation returns: arrays at the stored times, ordered by x, on every rank."""
+"""What a simulation returns: per-node arrays at the stored times, ordered by x, on rank 0 (every rank with
+``simulate(gather="all")``), and the per-time series on every rank."""
 
 from __future__ import annotations
 
@@ -16,11 +17,27 @@ ENERGY_KEYS = (
     "numerical_dissipation",
     "external_work",
 )
+#: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks.
+PER_NODE = ("x", "eta", "velocity", "contact", "contact_force", "weights", "cells")
+CHUNK_VALUES = 2**24  # contact_measure converts at most this many contact values to float at once (128 MB)
 
 
-@dataclass
+class RowsElsewhere(AttributeError):
+    """A per-node array read on a rank that does not hold the rows (`simulate(gather="root")`, rank > 0)."""
+
+
+@dataclass(eq=False, repr=False)
 class Result:
     """Stored rows of one run.
+
+    Under MPI the per-node arrays (`PER_NODE`: x, eta, velocity, contact, contact_force, weights, cells)
+    are gathered to rank 0 only (`simulate(gather="root")`, the default): on the other ranks `has_rows` is
+    False, they are None, and reading one raises `RowsElsewhere` (an AttributeError) that says so, rather
+    than give numbers of part of the mesh. The per-time series are the same on every rank: t, steps,
+    energy, min_eta, status, message, and `series` (computed in parallel at each stored time):
+    "contact_measure", "max_speed" (max |v|) and "depth" (max of obstacle − η; the obstacle is 0 unless
+    the scene gives one), which `contact_measure` and `output.penetration_check` use where the rows are
+    absent. `simulate(gather="all")` gives every rank the rows.
 
     `contact` is η ≤ 0 (on or below the obstacle); the penalty acts where η < 0.
     `contact_force` at t_n is the force density applied in the step that ends at t_n.
@@ -48,6 +65,19 @@ class Result:
     scheme: str = "paper"
     weights: np.ndarray | None = None  # 2D: the nodal areas ∫φ_i dx (lumped), in the order of x
     cells: np.ndarray | None = None  # 2D: the triangles, (k, 3) indices into x
+    series: dict = field(default_factory=dict)  # per stored time, on every rank (see above)
+    has_rows: bool = True  # False on a rank without the per-node arrays
+
+    def __getattribute__(self, name):
+        if name in PER_NODE and not object.__getattribute__(self, "has_rows"):
+            raise RowsElsewhere(
+                f"Result.{name}: the per-node rows are on rank 0 only (simulate(gather='root')); this rank holds the "
+                "series (t, energy, min_eta, contact_measure); use simulate(..., gather='all') for rows on every rank")
+        return object.__getattribute__(self, name)
+
+    def __repr__(self) -> str:
+        rows = f"{len(self.t)} rows" + (f" of {len(self.x)} nodes" if self.has_rows else " (per-node arrays on rank 0)")
+        return f"Result({getattr(self.scene, 'name', self.scene)!r}, scheme {self.scheme!r}, {self.status}, {rows})"
 
     @property
     def total_energy(self) -> np.ndarray:
@@ -62,16 +92,27 @@ class Result:
 
     @property
     def dim(self) -> int:
+        if not self.has_rows:
+            return self.scene.dim
         return 1 if np.ndim(self.x) == 1 else 2
 
     @property
     def contact_measure(self) -> np.ndarray:
         """Measure of the contact set at each stored time: its length in 1D (trapezoidal in x), its area
-        in 2D (the lumped nodal areas of the nodes in contact)."""
-        c = self.contact.astype(float)
-        if self.dim == 2:
-            return c @ self.weights
-        return compat.trapezoid(c, self.x, axis=1) if c.shape[1] > 1 else c[:, 0]
+        in 2D (the lumped nodal areas of the nodes in contact). Where the rows are absent: the series the
+        solver summed over the ranks (the lumped weights of the contact nodes, in 1D the same trapezoid)."""
+        if not self.has_rows:
+            return self.series["contact_measure"]
+        k, nodes = self.contact.shape
+        out = np.empty(k)
+        chunk = max(1, CHUNK_VALUES // max(1, nodes))  # a float copy of a few rows at a time, not of all of them
+        for i in range(0, k, chunk):
+            c = self.contact[i:i + chunk].astype(float)
+            if self.dim == 2:
+                out[i:i + chunk] = c @ self.weights
+            else:
+                out[i:i + chunk] = compat.trapezoid(c, self.x, axis=1) if nodes > 1 else c[:, 0]
+        return out
 
     @property
     def contact_length(self) -> np.ndarray:

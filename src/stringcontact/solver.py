@@ -2,13 +2,15 @@
 
 `simulate` builds the model's operators on the mesh (`scheme.semi_discrete_operators`), hands them
 to the chosen scheme (`schemes/`), and then only calls ``step()``, sums the energy terms the scheme
-reports into the ledger, guards against energy growth, and stores about `max_rows` rows.
+reports into the ledger, guards against energy growth, and stores about `max_rows` rows: on rank 0
+(`gather="all"`: every rank), within `ROW_BUDGET` bytes; every rank keeps the per-time series.
 """
 
 from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 import ufl
@@ -20,10 +22,18 @@ from . import compat, domains
 from .errors import InstabilityError
 from .model import Model, Parameters, inelastic, unused_fields
 from .result import ENERGY_KEYS, Result
-from .scene import STORED_ROWS, check_petsc_options
+from .scene import BYTES_PER_STORED_NODE, MAX_STORED_BYTES, STORED_ROWS, check_petsc_options
 from .scheme import bc_dofs, node_coordinates, semi_discrete_operators
 from .schemes import check_model, scheme_class
 from .schemes.base import NodalLaws, Setting
+
+
+#: The stored rows may take at most this many bytes on a rank that holds them (rank 0; every rank with
+#: gather="all"), else fewer are kept (`budget_steps`). It is the scene loader's limit for a 1D scene's
+#: rows (scene.MAX_STORED_BYTES, 2 GB), so that no 1D scene it accepts is thinned; a 2D scene's node
+#: count is known only once meshed, so the solver applies it. 2 GB beside a 1e6-node LU factor (3 GB)
+#: fits a laptop; 400 rows of 1e6 nodes (10 GB) would not.
+ROW_BUDGET = MAX_STORED_BYTES
 
 
 def output_steps(nt: int, dt: float, output_times) -> set[int]:
@@ -43,48 +53,139 @@ def _sort_key(x: np.ndarray) -> np.ndarray:
     return x if x.ndim == 1 else x[:, 0] + 1j * x[:, 1]
 
 
+class StorageWarning(UserWarning):
+    """The stored rows were thinned to fit the row budget."""
+
+
+def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, budget: int):
+    """`stored_steps`, thinned so that the rows (`nodes` × BYTES_PER_STORED_NODE bytes each) fit `budget` bytes.
+
+    Returns (steps, note): note is None, or one line saying what was kept. 0, T and the output times are
+    always kept (if they alone do not fit, ValueError), with every k-th step for the smallest k that fits.
+    """
+    steps = stored_steps(nt, dt, output_times, max_rows)
+    row = max(1, nodes) * BYTES_PER_STORED_NODE
+    allowed = budget // row
+    if len(steps) <= allowed:
+        return steps, None
+    fixed = {0, nt} | output_steps(nt, dt, output_times)
+    if allowed < len(fixed):
+        raise ValueError(
+            f"output_times: 0, T and the output times are {len(fixed)} stored rows of {nodes} nodes "
+            f"({len(fixed) * row / 1e9:.3g} GB); allowed: at most {allowed} rows (row budget {budget / 1e9:.3g} GB); "
+            "give fewer output times or a coarser mesh")
+    lo, hi = 1, nt + 1  # stride nt + 1 keeps the fixed steps only, which fit
+    while lo < hi:  # the smallest stride that fits (a bisection: the count falls with the stride, nearly monotone)
+        mid = (lo + hi) // 2
+        if nt // mid + 1 + sum(1 for f in fixed if f % mid) <= allowed:
+            hi = mid
+        else:
+            lo = mid + 1
+    kept = np.array(sorted(set(range(0, nt + 1, hi)) | fixed), dtype=np.int64)
+    note = (f"max_rows = {max_rows}: {len(steps)} stored rows of {nodes} nodes would take {len(steps) * row / 1e9:.3g} GB, "
+            f"over the row budget of {budget / 1e9:.3g} GB; keeping {len(kept)} rows (every {hi}-th step, with 0, T "
+            "and the output times)")
+    return kept, note
+
+
 class _Gather:
-    """Gathers owned dof arrays to every rank, ordered by x (2D: by x, then y; the same for any number of ranks)."""
+    """Gathers owned dof arrays in x order (2D: by x, then y; the same for any number of ranks) to rank 0,
+    or with `to_all` to every rank. Where they are not gathered, `holds` is False and `x` is None.
 
-    def __init__(self, comm, x_owned: np.ndarray):
-        self.comm = comm
-        xs = comm.allgather(x_owned) if comm.size > 1 else [x_owned]
-        self.order = np.argsort(_sort_key(np.concatenate(xs)), kind="stable")
-        self.x = np.concatenate(xs)[self.order]
+    The concatenation of the ranks' owned dofs is dolfinx's global dof numbering; `order` maps x order to it.
+    """
 
-        self.identity = bool(np.array_equal(self.order, np.arange(self.order.size)))
+    def __init__(self, comm, x_owned: np.ndarray, to_all: bool = False):
+        self.comm, self.to_all = comm, to_all
+        self.counts = comm.allgather(len(x_owned)) if comm.size > 1 else [len(x_owned)]
+        self.nodes = int(sum(self.counts))
+        self.holds = to_all or comm.rank == 0
+        xs = _collect(comm, x_owned, to_all)
+        self.order = self.x = None
+        self.identity = False
+        self._buffers = {}
+        if self.holds:
+            x = np.concatenate(xs)
+            self.order = np.argsort(_sort_key(x), kind="stable")
+            self.x = x[self.order]
+            self.identity = bool(np.array_equal(self.order, np.arange(self.order.size)))
 
-    def __call__(self, a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def __call__(self, a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray | None:
+        """The gathered array in x order (into `out`) where held; None elsewhere. Collective."""
+        a = np.ascontiguousarray(a, dtype=out.dtype if out is not None else None)
         if self.comm.size == 1 and self.identity:  # serial, dofs already in x order: one copy
             if out is None:
                 return a.copy()
             out[...] = a
             return out
-        parts = self.comm.allgather(a) if self.comm.size > 1 else [a]
-        return np.take(np.concatenate(parts), self.order, out=out)
+        send = a.view(np.uint8) if a.dtype == bool else a  # MPI has no NumPy bool: its bytes
+        buf = self._buffer(send.dtype) if self.holds else None
+        if self.comm.size == 1:
+            buf[...] = send
+        elif self.to_all:
+            self.comm.Allgatherv(send, [buf, self.counts])
+        else:
+            self.comm.Gatherv(send, [buf, self.counts] if self.holds else None, root=0)
+        if not self.holds:
+            return None
+        return np.take(buf.view(a.dtype), self.order, out=out)
 
+    def _buffer(self, dtype) -> np.ndarray:
+        if dtype not in self._buffers:
+            self._buffers[dtype] = np.empty(self.nodes, dtype=dtype)
+        return self._buffers[dtype]
+
+
+def _collect(comm, a: np.ndarray, to_all: bool) -> list | None:
+    """The ranks' arrays, in rank order: on rank 0 (every rank with `to_all`); None elsewhere."""
+    if comm.size == 1:
+        return [a]
+    return comm.allgather(a) if to_all else comm.gather(a, root=0)
 
 
 class _Rows:
-    """The stored rows: fields gathered to every rank in x order, and the cumulative energy terms."""
+    """The stored rows where they are gathered (rank 0, or every rank), and on every rank the cumulative
+    energy terms and the `series` the ranks sum at each stored time (Result.series)."""
 
     def __init__(self, steps: np.ndarray, gather: _Gather):
         self.steps, self.gather, self.n = steps, gather, 0
-        k, nodes = len(steps), len(gather.x)
-        self.fields = {name: np.empty((k, nodes)) for name in ("eta", "velocity", "contact_force")}
-        self.fields["contact"] = np.empty((k, nodes), dtype=bool)
+        k = len(steps)
+        self.fields = {}
+        if gather.holds:
+            self.fields = {name: np.empty((k, gather.nodes)) for name in ("eta", "velocity", "contact_force")}
+            self.fields["contact"] = np.empty((k, gather.nodes), dtype=bool)
         self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
+        self.series = {key: np.empty(k) for key in SERIES_KEYS}
 
     @property
     def next_step(self) -> int:
         return self.steps[self.n] if self.n < len(self.steps) else -1
 
-    def store(self, fields: dict, energies) -> None:
+    def store(self, fields: dict, energies, series) -> None:
         for name, arr in fields.items():
-            self.gather(arr, out=self.fields[name][self.n])
+            arr = np.asarray(arr, dtype=bool if name == "contact" else float)  # the same bytes from every rank
+            self.gather(arr, out=self.fields[name][self.n] if self.fields else None)
         for key, value in zip(ENERGY_KEYS, energies):
             self.energy[key][self.n] = value
+        for key, value in zip(SERIES_KEYS, series):
+            self.series[key][self.n] = value
         self.n += 1
+
+
+SERIES_KEYS = ("contact_measure", "max_speed", "depth")
+
+
+def _row_series(comm, fields: dict, weights: np.ndarray, obstacle: np.ndarray) -> tuple[float, float, float]:
+    """One stored time's series over all ranks: Σ weights·contact (the contact length or area), max |v|,
+    max (obstacle − η). Collective: two allreduces of a few numbers."""
+    measure = float(np.dot(weights, np.asarray(fields["contact"], dtype=float)))
+    highs = np.array([np.max(np.abs(fields["velocity"]), initial=-np.inf),
+                      np.max(obstacle - fields["eta"], initial=-np.inf)])
+    if comm.size > 1:
+        measure = comm.allreduce(measure, op=MPI.SUM)
+        mine, highs = highs, np.empty(2)
+        comm.Allreduce(mine, highs, op=MPI.MAX)
+    return measure, float(highs[0]), float(highs[1])
 
 
 class _Ledger:
@@ -176,20 +277,26 @@ def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _mesh_rows(V, gather: _Gather) -> dict:
-    """2D: the nodal areas (for the contact area) and the triangles, both in the gathered node order; 1D: none."""
+    """2D: the nodal areas (for the contact area) and the triangles, both in the gathered node order, where
+    the rows are gathered; 1D: none. Each rank sends its triangles in global dof numbers (the order the
+    ranks' owned dofs are concatenated in), so that no rank needs the others' coordinates. Collective."""
     if V.mesh.topology.dim == 1:
         return {}
     n_owned = V.dofmap.index_map.size_local
     n_cells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local
-    keys = _sort_key(gather.x)
-    where = np.searchsorted(keys, _sort_key(node_coordinates(V)))  # local dof -> gathered position (exact keys)
-    cells = where[compat.cell_dofs(V)[:n_cells]]
-    if gather.comm.size > 1:
-        cells = np.concatenate(gather.comm.allgather(cells))
+    local = compat.cell_dofs(V)[:n_cells]
+    cells = V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32)).reshape(local.shape)
+    parts = _collect(gather.comm, cells, gather.to_all)
+    weights = gather(domains.nodal_areas(V)[:n_owned])
+    if not gather.holds:
+        return {}
+    position = np.empty_like(gather.order)
+    position[gather.order] = np.arange(gather.order.size)  # global dof -> place in x order
+    cells = position[np.concatenate(parts)]
     turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3  # smallest node first, orientation kept
     cells = np.take_along_axis(cells, turn, axis=1)
     cells = cells[np.lexsort(cells.T[::-1])]  # a fixed order of the triangles, whatever the ranks
-    return {"weights": gather(domains.nodal_areas(V)[:n_owned]), "cells": cells}
+    return {"weights": weights, "cells": cells}
 
 
 def _initial_state(scene, s: Setting) -> tuple[np.ndarray, np.ndarray]:
@@ -226,6 +333,32 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
         bar.close()
 
 
+FIELDS = ("eta", "velocity", "contact", "contact_force")
+
+
+def _check_storage_options(max_rows, gather, row_budget) -> None:
+    if isinstance(max_rows, bool) or not isinstance(max_rows, (int, np.integer)) or max_rows < 1:
+        raise ValueError(f"max_rows: expected a whole number >= 1 (stored time levels), got {max_rows!r}")
+    if gather not in ("root", "all"):
+        raise ValueError(f"gather: expected 'root' (rows on rank 0) or 'all' (on every rank), got {gather!r}")
+    if isinstance(row_budget, bool) or not isinstance(row_budget, (int, np.integer)) or row_budget < 1:
+        raise ValueError(f"row_budget: expected a whole number of bytes >= 1, got {row_budget!r}")
+
+
+def _storage(scene, s: Setting, V, max_rows: int, to_all: bool, budget: int):
+    """The stored rows (steps within the budget, gathered to rank 0 or every rank), the mesh rows, and the
+    function that sums a stored time's series over the ranks. Collective."""
+    gather = _Gather(s.comm, s.x, to_all=to_all)
+    steps, note = budget_steps(scene.nt, scene.dt, scene.output_times, max_rows, gather.nodes, budget)
+    if note is not None and s.comm.rank == 0:
+        warnings.warn(note, StorageWarning, stacklevel=3)
+    n_owned = s.x.shape[0]
+    weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
+    obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
+    geometry = _mesh_rows(V, gather)
+    return _Rows(steps, gather), geometry, lambda fields: _row_series(s.comm, fields, weights, obstacle)
+
+
 def _resolve_model(model, scene) -> Model:
     """`model` (a Model, a registered name or "package.module:name"), else the scene's, else the paper's."""
     if model is None and not getattr(scene, "model", None):
@@ -249,6 +382,8 @@ def simulate(
     pictures=True,
     comm=MPI.COMM_WORLD,
     petsc_options: dict | None = None,
+    gather: str = "root",
+    row_budget: int = ROW_BUDGET,
 ) -> Result:
     """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
 
@@ -263,7 +398,13 @@ def simulate(
     The step's linear system is LU-factorised once up to 1e6 nodes and solved by CG (Jacobi or AMG) above
     (`schemes.base.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
     by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
+
+    Under MPI the stored rows are gathered to rank 0 (`gather` "root"); the other ranks' Result holds the
+    per-time series only (see Result). `gather` "all" gives every rank the rows. The rows a rank holds may
+    take at most `row_budget` bytes (ROW_BUDGET): above it fewer are kept, with 0, T and the output times,
+    and a StorageWarning in one line says so (an explicit `max_rows` too is capped so).
     """
+    _check_storage_options(max_rows, gather, row_budget)
     name = scheme or getattr(scene, "scheme", None) or "paper"
     Scheme = scheme_class(name)
     penalty, mass = Scheme.check_options(name, penalty, mass)
@@ -274,11 +415,10 @@ def simulate(
     V, params, ops = _discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
     stepper = Scheme(s)
+    rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)
     timings["setup"] = time.perf_counter() - t0
 
     ledger = _Ledger(stepper.start(*_initial_state(scene, s)), conservative=model.contact_energy is not None)
-    rows = _Rows(stored_steps(scene.nt, scene.dt, scene.output_times, max_rows), _Gather(comm, s.x))
-    geometry = _mesh_rows(V, rows.gather)
     rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
     writer = None
     if output_dir is not None:
@@ -290,16 +430,18 @@ def simulate(
     def store(n: int) -> None:
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
                   "contact_force": stepper.contact_force}
-        rows.store(fields, ledger.cumulative)
+        rows.store(fields, ledger.cumulative, row_series(fields))
         if writer is not None:
             writer.write(n * scene.dt, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
 
     def result_of(status: str, message: str) -> Result:
         n, mins = rows.n, comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
+        per_node = {k: v[:n] for k, v in rows.fields.items()} if rows.gather.holds else dict.fromkeys(FIELDS)
         return Result(scene=scene, x=rows.gather.x, t=rows.steps[:n] * scene.dt, steps=rows.steps[:n],
-                      **{k: v[:n] for k, v in rows.fields.items()}, energy={k: v[:n] for k, v in rows.energy.items()},
+                      **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                       min_eta=float(mins), penalty=penalty or "none", mass=mass, model=model.name, status=status,
-                      timings=timings, message=message, scheme=name, **geometry)
+                      timings=timings, message=message, scheme=name, **geometry,
+                      series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
 
     t_loop = time.perf_counter()
     try:
