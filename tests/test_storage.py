@@ -119,3 +119,11 @@ def test_contact_measure_in_chunks_equals_the_whole_rows(bump_run, which, monkey
     monkeypatch.setattr(result, "CHUNK_VALUES", 3 * res.contact.shape[1] + 1)  # 3 rows at a time
     np.testing.assert_array_equal(res.contact_measure, whole)
     assert whole.max() > 0
+
+
+def test_a_big_membrane_scene_loads_and_its_rows_are_left_to_the_budget():
+    """The loader refuses a 2D scene only when 0, T and the output times alone would not fit: the solver thins the rest."""
+    big = sc.load_scene("bump").replace(cells=[999, 999], dt=0.0005)  # 1e6 nodes, 2000 steps: 400 rows would be 10 GB
+    assert big.nt == 2000
+    with pytest.raises(sc.SceneError, match=r"output_times: .* allowed: at most 2 GB"):
+        sc.load_scene("bump").replace(cells=[2000, 2000], output_times=[0.01 * k for k in range(100)])

@@ -251,9 +251,10 @@ def _run(args, painter=None) -> int:
         pictures=_pictures(args, painter),
         max_frames=args.frames,
     )
-    report(res)
-    if args.out is not None:
-        print(f"wrote {args.out}")
+    if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
+        report(res)
+        if args.out is not None:
+            print(f"wrote {args.out}")
     from .output import unbalanced_message
 
     unbalanced = unbalanced_message(res)
@@ -315,7 +316,7 @@ def _single_process() -> bool:
 def _partial_report(exc) -> None:
     """After an interrupted or unstable run: the closing lines for the rows stored so far, if the solver gave them."""
     res = getattr(exc, "result", None)
-    if res is not None and len(getattr(res, "t", ())):
+    if res is not None and len(getattr(res, "t", ())) and res.has_rows:
         with contextlib.suppress(Exception):
             report(res)
 

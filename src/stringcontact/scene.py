@@ -211,7 +211,10 @@ class Scene:
         put("output_times", _check_output_times(self.output_times, self.T))
         options = self.petsc_options
         put("petsc_options", check_petsc_options(dict(options) if isinstance(options, tuple) else options))
-        _check_storage(self.node_estimate - 1, self.nt, len(self.output_times))
+        if self.dim == 1:
+            _check_storage(self.node_estimate - 1, self.nt, len(self.output_times))
+        else:  # the solver thins a membrane's rows to its budget (solver.ROW_BUDGET): 0, T and the output times must fit
+            _check_membrane_storage(self.node_estimate, len(self.output_times))
         keys = ("eta0", "v0") + tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
         for key in keys:
             put(key, _expression_text(key, getattr(self, key)))
@@ -815,6 +818,15 @@ def _check_storage(nx: int, nt: int, n_output_times: int) -> None:
             f"nx, nt, output_times: the stored rows need {need / 1e9:.3g} GB ((min(nt, {STORED_ROWS}) + 2 + "
             f"{n_output_times} output times) rows x (nx + 1) nodes x {BYTES_PER_STORED_NODE} bytes); allowed: at most "
             f"{MAX_STORED_BYTES / 1e9:g} GB; reduce nx or the number of output times"
+        )
+
+
+def _check_membrane_storage(nodes: int, n_output_times: int) -> None:
+    need = (2 + n_output_times) * nodes * BYTES_PER_STORED_NODE
+    if need > MAX_STORED_BYTES:
+        raise SceneError(
+            f"output_times: the rows at 0, T and the {n_output_times} output times need {need / 1e9:.3g} GB on about "
+            f"{nodes} nodes; allowed: at most {MAX_STORED_BYTES / 1e9:g} GB; use fewer output times or a coarser mesh"
         )
 
 

@@ -405,7 +405,7 @@ def refine(scene, levels: int = 3, penalty: str = "explicit", model=None):
     out = []
     for k in reversed(range(levels)):
         s = coarsened(scene, 2**k)
-        out.append(simulate(s, penalty=penalty, max_rows=s.nt, model=model))
+        out.append(simulate(s, penalty=penalty, max_rows=s.nt, model=model, gather="all"))  # every rank checks the same rows
     return out
 
 
@@ -413,7 +413,7 @@ def refine_time(scene, levels: int = 3, penalty: str = "explicit", model=None):
     """Results with Δt, Δt/2, Δt/4, ... at fixed Δx and ε (only the energies are used: rows thinned)."""
     from .solver import simulate
 
-    return [simulate(scene.replace(nt=scene.nt * 2**k), penalty=penalty, model=model) for k in range(levels)]
+    return [simulate(scene.replace(nt=scene.nt * 2**k), penalty=penalty, model=model, gather="all") for k in range(levels)]
 
 
 # --- checks: a number, an expectation and a verdict ----------------------------------------------------
