@@ -12,7 +12,9 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
+from PIL import Image
 
 from .charts import WINDOW_SIZE
 from .mesh_pictures import _every_kth, _font_file, _plotter, add_membrane, membrane_label, membrane_title, membrane_view
@@ -70,10 +72,6 @@ def write_gif(path: Path, frames: list, fps: float, landmarks=()) -> None:
     `landmarks` (the frame of the largest contact area: its red must be in it), and are mapped onto it
     without dithering: 2 ms a frame, where Pillow's own median cut takes 50 ms for each (docs/visualisation.md).
     """
-    from PIL import Image
-
-    import imageio.v3 as iio
-
     spread = np.unique(np.concatenate([np.linspace(0, len(frames) - 1, 6).round().astype(int), list(landmarks)]))
     palette = Image.fromarray(np.concatenate([frames[k] for k in spread])).quantize(PALETTE, method=Image.Quantize.FASTOCTREE)
     indices = np.stack([np.asarray(Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE)) for f in frames])

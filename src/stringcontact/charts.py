@@ -262,7 +262,7 @@ def contact_area_figure(result):
     ax.set_ylim(0, 1.08 * domain)
     ax.set_ylabel("contact area")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=9, loc="center right")
+    ax.legend(fontsize=9, loc="lower right")
     first = np.flatnonzero(area > 0)
     landed = f"first contact at t = {t[first[0]]:.3g}, largest area {area.max():.3g}" if first.size else "no contact"
     ax.set_title(f"Contact area and patches: {result.scene.name}\n{parameter_line(result)}\n{landed}", fontsize=11)
