@@ -29,7 +29,13 @@ OBSTACLE_COLOUR = "#777777"
 def _pyvista():
     if "DISPLAY" not in os.environ:  # EGL needs no display; on a desktop VTK's default window works too
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import warnings
+
     import pyvista as pv
+
+    with warnings.catch_warnings():  # pyvista's colour maps import matplotlib's projections: Debian's mpl_toolkits
+        warnings.filterwarnings("ignore", message="Unable to import Axes3D")  # beside pip's matplotlib (charts._pyplot)
+        import matplotlib.projections  # noqa: F401
 
     pv.OFF_SCREEN = True
     return pv
