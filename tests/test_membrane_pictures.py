@@ -103,7 +103,7 @@ def test_the_membrane_panels_are_red_only_where_there_is_contact(run, tmp_path):
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
     assert _red(_image(viz.draw("membrane.png", free, tmp_path))).sum() == 0
     img = _image(folder / "membrane.png")
-    grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the translucent obstacle
+    grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the grey obstacle
     assert grey.sum() > 5000
 
 

@@ -2,7 +2,7 @@
 
 ``space_time.png``: a 1-D run as the surface η(x, t) over the (x, t) plane, coloured by contact, above
 the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
-panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey, translucent). The animation
+panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). The animation
 ``membrane.gif`` (:mod:`stringcontact.animation`) draws the same scene (`add_membrane`) at every few rows.
 
 VTK's scalar bar and pyvista's `show_bounds` format their labels with `std::regex`, which aborts the
@@ -24,6 +24,7 @@ from .output import atomic_path
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"
+MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 
 
 def _pyvista():
@@ -161,7 +162,9 @@ def add_membrane(p, result, row: int, view: MembraneView):
     surface.point_data["contact"] = result.contact[row].astype(float)
     p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
                show_scalar_bar=False, ambient=0.3)
-    p.add_mesh(triangles(result, psi * view.scale - _below(lo, hi, view.scale)), color=OBSTACLE_COLOUR, opacity=0.4)
+    # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
+    # below it (η ≥ ψ), so nothing would show through, and translucency costs a third more per GIF frame
+    p.add_mesh(triangles(result, psi * view.scale - _below(lo, hi, view.scale)), color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
     p.camera_position = view.camera
     p.reset_camera(bounds=view.bounds)
     p.camera.zoom(1.1)  # reset_camera fits the box's bounding sphere: room to spare
@@ -213,6 +216,7 @@ def warm_up() -> None:
     grid.point_data["contact"] = np.array([0.0, 1.0, 0.0, 1.0])
     p.add_mesh(grid, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], n_colors=2, show_scalar_bar=False)
     p.add_mesh(grid, color=OBSTACLE_COLOUR, opacity=0.4)
+    p.add_mesh(grid, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)  # a membrane's obstacle
     p.add_point_labels([[0.0, 0.0, 0.0]], ["t"], shape=None, show_points=False, always_visible=True)
     _title(p, "η")
     p.screenshot(None, return_img=True)
