@@ -16,7 +16,7 @@ from stringcontact.painter import PictureProcess
 from stringcontact.scene import scene_to_toml
 
 #: a coarse drum (about 100 nodes) that lands at t = 0.12 and is in contact until T; its rim starts at 0.3
-SMALL_DRUM = dict(mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.1, 0.2, 0.4])
+SMALL_DRUM = {"mesh_size": 0.2, "T": 0.4, "nt": 80, "output_times": [0.0, 0.1, 0.2, 0.4]}
 
 
 def small_drum():
