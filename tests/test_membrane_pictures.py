@@ -80,7 +80,7 @@ def test_the_gif_has_a_frame_per_drawn_row_and_shows_the_landing(run):
 def test_frames_are_every_kth_row_and_the_last():
     res = dataclasses.make_dataclass("Rows", ["t"])(np.linspace(0, 1, 201))
     rows = animation.frame_rows(res)
-    assert len(rows) == 51 and rows[0] == 0 and rows[-1] == 200 and set(np.diff(rows)) == {4}
+    assert len(rows) == 41 and rows[0] == 0 and rows[-1] == 200 and set(np.diff(rows)) == {5}
     assert len(animation.frame_rows(res, max_frames=300)) == 201
 
 

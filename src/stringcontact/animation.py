@@ -20,7 +20,7 @@ from .charts import WINDOW_SIZE
 from .mesh_pictures import _every_kth, _font_file, _plotter, add_membrane, membrane_label, membrane_title, membrane_view
 from .output import atomic_path
 
-MAX_FRAMES = 60
+MAX_FRAMES = 50
 FPS = 12
 #: the GIF's pixels, as a share of the pictures' window size: 1100x900 -> 660x540 (docs/visualisation.md)
 SIZE_SHARE = 0.6
