@@ -2,7 +2,8 @@
 
 * ``contact_set.png`` and ``velocity_field.png``: `pcolorfast` with one cell per stored sample (irregular
   stored times included), with a legend or a colour bar;
-* ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4).
+* ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4);
+* ``contact_area.png`` of a membrane (2D): its contact area and number of contact patches over time.
 
 Also the small readings of a Result they share with `mesh_pictures`, the demos and `theorems`: the
 contact intervals of a row, the rows at given times, the velocity colour range, the title line.
