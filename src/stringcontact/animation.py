@@ -24,16 +24,19 @@ MAX_FRAMES = 50
 FPS = 12
 #: the GIF's pixels, as a share of the pictures' window size: 1100x900 -> 660x540 (docs/visualisation.md)
 SIZE_SHARE = 0.6
-#: colours of a frame: two lit surface colours, the grey obstacle and black text need few (and 64 are quicker to quantise than 256)
+#: colours of the GIF: two shaded surface colours, the grey obstacle and black text need few
 PALETTE = 64
+
 
 def frame_rows(result, max_frames: int = MAX_FRAMES) -> np.ndarray:
     """The stored rows drawn as frames: every k-th row and the last, at most about `max_frames`."""
     return _every_kth(len(result.t), max_frames)
 
+
 def gif_size(window_size) -> tuple[int, int]:
     """The GIF's width and height: `SIZE_SHARE` of `window_size`, even numbers."""
     return tuple(2 * round(SIZE_SHARE * v / 2) for v in window_size)
+
 
 def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = MAX_FRAMES, fps: float = FPS) -> Path:
     """``membrane.gif``: the membrane z = η(x, y, t) at every few stored rows, red where in contact, above

@@ -172,7 +172,7 @@ def add_membrane(p, result, row: int, view: MembraneView):
 
 
 def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
-    """'t = 0.2: contact area 2.17 (69% of the domain), 1 patch' (patches left out if None)."""
+    """'t = 0.2: contact area 2.17 (69%), 1 patch': the share is of the domain's area (patches left out if None)."""
     share = 100 * area / float(np.sum(result.weights))
     text = f"t = {result.t[row]:.3g}: contact area {area:.3g} ({share:.0f}%)"
     return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
