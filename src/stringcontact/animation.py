@@ -50,7 +50,7 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     try:
         surface = add_membrane(p, result, rows[0], view)
         title = membrane_title(result, view, "The membrane")
-        # a text actor of a fixed size: a corner annotation fits its font to the viewport anew at every render (4x the frame's time)
+        # a text actor of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
         text = p.add_text("", position=(0.02, 0.98), viewport=True, font_size=6, color="black", font_file=_font_file())
         text.prop.SetVerticalJustificationToTop()
         p.screenshot(None, return_img=True)  # pyvista's first render sets the window up; later ones only draw

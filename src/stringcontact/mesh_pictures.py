@@ -163,7 +163,7 @@ def add_membrane(p, result, row: int, view: MembraneView):
     p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
                show_scalar_bar=False, ambient=0.3)
     # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
-    # below it (η ≥ ψ), so nothing would show through, and translucency costs a third more per GIF frame
+    # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
     p.add_mesh(triangles(result, psi * view.scale - _below(lo, hi, view.scale)), color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
     p.camera_position = view.camera
     p.reset_camera(bounds=view.bounds)
