@@ -118,7 +118,8 @@ def show_pictures(folder) -> list[Path]:
     """The pictures of a run folder: displayed inline in a Jupyter notebook, otherwise their paths printed."""
     import sys
 
-    paths = [Path(folder) / name for name in PICTURES + MEMBRANE_PICTURES if (Path(folder) / name).exists()]
+    names = dict.fromkeys(PICTURES + MEMBRANE_PICTURES)  # energy.png is in both, once
+    paths = [Path(folder) / name for name in names if (Path(folder) / name).exists()]
     if "ipykernel" in sys.modules:
         from IPython.display import Image, display
 
