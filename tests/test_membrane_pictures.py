@@ -62,6 +62,7 @@ def test_a_membrane_run_writes_its_four_pictures(run):
         assert img.shape[0] >= 600 and img.shape[1] >= 800, name
         assert (img < 100).all(axis=-1).sum() > 500, f"{name}: no dark text or lines"
     assert not list(folder.glob(".*"))  # no temporary file left
+    assert [p.name for p in viz.show_pictures(folder)] == list(viz.MEMBRANE_PICTURES)
 
 
 def test_the_gif_has_a_frame_per_drawn_row_and_shows_the_landing(run):
