@@ -118,8 +118,9 @@ def show_pictures(folder) -> list[Path]:
     """The pictures of a run folder: displayed inline in a Jupyter notebook, otherwise their paths printed."""
     import sys
 
-    names = dict.fromkeys(PICTURES + MEMBRANE_PICTURES)  # energy.png is in both, once
-    paths = [Path(folder) / name for name in names if (Path(folder) / name).exists()]
+    folder = Path(folder)
+    membrane = any((folder / name).exists() for name in set(MEMBRANE_PICTURES) - set(PICTURES))
+    paths = [folder / name for name in (MEMBRANE_PICTURES if membrane else PICTURES) if (folder / name).exists()]
     if "ipykernel" in sys.modules:
         from IPython.display import Image, display
 
