@@ -279,6 +279,13 @@ def test_pictures_are_drawn_here_when_the_picture_process_dies(tmp_path, run):
     assert process.folder is None and not list(tmp_path.glob(".*"))
 
 
+def test_a_string_is_sent_to_the_picture_process_for_its_space_time_pictures(run):
+    """`stringcontact run` starts the process for PAINTED, before it knows the scene; a string's are these three."""
+    _, res = run
+    assert viz.painted(res) == ("contact_set.png", "velocity_field.png", "space_time.png")
+    assert viz.pictures_of(res) == viz.PICTURES and set(viz.painted(res)) < set(viz.PAINTED)
+
+
 def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
     _, res = run
     process = PictureProcess.start()

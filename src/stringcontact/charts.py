@@ -2,7 +2,8 @@
 
 * ``contact_set.png`` and ``velocity_field.png``: `pcolorfast` with one cell per stored sample (irregular
   stored times included), with a legend or a colour bar;
-* ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4).
+* ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4);
+* ``contact_area.png`` of a membrane (2D): its contact area and number of contact patches over time.
 
 Also the small readings of a Result they share with `mesh_pictures`, the demos and `theorems`: the
 contact intervals of a row, the rows at given times, the velocity colour range, the title line.
@@ -69,10 +70,11 @@ def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
 def parameter_line(result, sep: str = ", ") -> str:
     s = result.scene
     scheme = getattr(result, "scheme", "paper")
+    mesh = f"nx = {s.nx}" if np.ndim(result.x) == 1 else f"{len(result.x)} nodes, {len(result.cells)} triangles"
     if result.penalty in (None, "none"):  # a scheme without ε (projection)
-        return f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}scheme {scheme}, no penalty (no ε), {result.mass} mass"
+        return f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}scheme {scheme}, no penalty (no ε), {result.mass} mass"
     return (
-        f"nx = {s.nx}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
+        f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
         f"scheme {scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
     )
 
@@ -83,8 +85,9 @@ def obstacle_name(result) -> str:
 
 
 def obstacle_profile(result) -> np.ndarray:
-    """ψ at the nodes: the scene's profiled obstacle, or 0."""
-    return result.scene.obstacle_values(result.x) if obstacle_name(result) == "ψ" else np.zeros_like(result.x)
+    """ψ at the nodes (x of shape (N,) or (N, 2)): the scene's profiled obstacle, or 0."""
+    x = np.asarray(result.x, dtype=float)
+    return result.scene.obstacle_values(x) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
 
 
 # --- matplotlib ---------------------------------------------------------------------------------------
@@ -219,8 +222,9 @@ def energy_picture(result, path) -> Path:
     fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": (3, 1)})
     ax.axhline(E[0], color="black", ls=":", lw=1.5, label=f"E(0) = {E[0]:.6g}")
     ax.plot(t, e["kinetic"], label=r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$")
-    ax.plot(t, e["elastic"], label=r"elastic $\frac{1}{2}\int \eta_x^2\,dx$")
-    ax.plot(t, e["viscous_dissipation"], label=r"viscous dissipation $\alpha\int_0^t\!\int \eta_{tx}^2$")
+    grad, grad_t = (r"\eta_x^2", r"\eta_{tx}^2") if np.ndim(result.x) == 1 else (r"|\nabla\eta|^2", r"|\nabla\eta_t|^2")
+    ax.plot(t, e["elastic"], label=rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$")
+    ax.plot(t, e["viscous_dissipation"], label=rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$")
     ax.plot(t, e["contact_dissipation"], label=r"contact dissipation $-\int_0^t\!\int F\,\eta_t$")
     ax.plot(t, e["numerical_dissipation"], ls="--", label="numerical dissipation of the scheme (cumulative)")
     if np.any(e["external_work"]):
@@ -238,6 +242,46 @@ def energy_picture(result, path) -> Path:
     axr.grid(alpha=0.3, which="both")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.9, hspace=0.08)  # fixed: see snapshots_picture
     _savefig(fig, path)
+    return path
+
+
+def contact_area_figure(result):
+    """The figure of ``contact_area.png`` (2D): the contact area |{η ≤ ψ}|(t) above, the number of patches below.
+
+    The area is `Result.contact_measure` (the lumped nodal areas of the nodes in contact), drawn against the
+    domain's area; a patch is a connected set of contact nodes (`Result.contact_patches`). Dots mark the
+    rows of the panels of ``membrane.png``.
+    """
+    plt = _pyplot()
+    t, area, patches = result.t, result.contact_measure, result.contact_patches()
+    domain, psi = float(np.sum(result.weights)), obstacle_name(result)
+    fig, (ax, axp) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, gridspec_kw={"height_ratios": (2, 1)})
+    ax.axhline(domain, color="black", ls=":", lw=1.5, label=f"area of the domain = {domain:.4g}")
+    ax.plot(t, area, color=CONTACT_COLOUR, lw=2.0, label=f"contact area |{{η ≤ {psi}}}|")
+    rows = snapshot_rows(result)
+    ax.plot(t[rows], area[rows], "o", color="black", ms=5, label="the panels of membrane.png")
+    ax.set_ylim(0, 1.08 * domain)
+    ax.set_ylabel("contact area")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=9, loc="lower right")
+    first = np.flatnonzero(area > 0)
+    landed = f"first contact at t = {t[first[0]]:.3g}, largest area {area.max():.3g}" if first.size else "no contact"
+    ax.set_title(f"Contact area and patches: {result.scene.name}\n{parameter_line(result)}\n{landed}", fontsize=11)
+    axp.step(t, patches, where="mid", color="#2166ac", lw=1.5, label="contact patches (connected along mesh edges)")
+    axp.set_ylim(-0.3, max(2, int(patches.max())) + 0.5)
+    axp.yaxis.get_major_locator().set_params(integer=True)
+    axp.set_ylabel("number of\npatches")
+    axp.set_xlabel("t")
+    axp.grid(alpha=0.3)
+    axp.legend(fontsize=9, loc="upper right")
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.86, hspace=0.08)  # fixed: see snapshots_picture
+    return fig
+
+
+def contact_area_picture(result, path) -> Path:
+    """``contact_area.png`` of a 2D run: `contact_area_figure`, written whole or not at all."""
+    path = Path(path)
+    _savefig(contact_area_figure(result), path)
     return path
 
 

@@ -1,8 +1,9 @@
 """Pictures of meshes in space, drawn with pyvista off-screen (EGL when there is no display).
 
 ``space_time.png``: a 1-D run as the surface η(x, t) over the (x, t) plane, coloured by contact, above
-the obstacle ψ. A picture of a 2-D mesh (a membrane) would be another function here on the same
-`_plotter`, `_title` and `_screenshot`.
+the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
+panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). The animation
+``membrane.gif`` (:mod:`stringcontact.animation`) draws the same scene (`add_membrane`) at every few rows.
 
 VTK's scalar bar and pyvista's `show_bounds` format their labels with `std::regex`, which aborts the
 process (`std::bad_alloc`) once dolfinx's C++ module is loaded: this module uses neither. The colours
@@ -11,22 +12,31 @@ are named in the title, the axes by labels at the corners of the (x, t) plane.
 
 from __future__ import annotations
 
+import dataclasses
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .charts import CONTACT_COLOUR, WINDOW_SIZE, obstacle_name, obstacle_profile, parameter_line
+from .charts import CONTACT_COLOUR, WINDOW_SIZE, obstacle_name, obstacle_profile, parameter_line, snapshot_rows
 from .output import atomic_path
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"
+MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 
 
 def _pyvista():
     if "DISPLAY" not in os.environ:  # EGL needs no display; on a desktop VTK's default window works too
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import warnings
+
     import pyvista as pv
+
+    with warnings.catch_warnings():  # pyvista's colour maps import matplotlib's projections: Debian's mpl_toolkits
+        warnings.filterwarnings("ignore", message="Unable to import Axes3D")  # beside pip's matplotlib (charts._pyplot)
+        import matplotlib.projections  # noqa: F401
 
     pv.OFF_SCREEN = True
     return pv
@@ -42,8 +52,11 @@ def _font_file() -> str | None:
         return None
 
 
-def _plotter(window_size):
-    p = _pyvista().Plotter(window_size=list(window_size), off_screen=True)
+def _plotter(window_size, **layout):
+    """An off-screen plotter; `layout`: pyvista's shape, groups, row_weights for several panels."""
+    if layout:
+        layout.setdefault("border", False)
+    p = _pyvista().Plotter(window_size=list(window_size), off_screen=True, **layout)
     p.disable_anti_aliasing()  # pyvista's 8× MSAA: 0.71 s of llvmpipe's CPU for the surface instead of 0.39 s (bench_pictures.py)
     p.set_background("white")
     return p
@@ -99,6 +112,103 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     return path
 
 
+# --- a membrane (2-D run) ---------------------------------------------------------------------------
+
+
+@dataclass
+class MembraneView:
+    """How a membrane is drawn: heights times `scale`, within the box `bounds`, seen from `camera`."""
+
+    scale: float
+    bounds: tuple  # (x0, x1, y0, y1, z0, z1), drawn coordinates
+    camera: list
+
+
+def membrane_view(result) -> MembraneView:
+    """Heights exaggerated (at least ×1) so that the height range is 0.3 of the domain's width; a camera
+    above the front edge, looking down at 50° or so, that sees every row and the obstacle."""
+    x, psi = result.x, obstacle_profile(result)
+    lo, hi = min(float(result.eta.min()), float(psi.min())), max(float(result.eta.max()), float(psi.max()))
+    width = float(max(np.ptp(x[:, 0]), np.ptp(x[:, 1])))
+    scale = max(1.0, 0.3 * width / (hi - lo or 1.0))
+    bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
+    centre = np.array([0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])])
+    eye = centre + width * np.array([-0.4, -1.1, 1.5])
+    return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)])
+
+
+def _span(v) -> tuple[float, float]:
+    return float(v.min()), float(v.max())
+
+
+def _below(lo: float, hi: float, scale: float) -> float:
+    """How far under ψ the obstacle is drawn: a contact region lies on ψ, which would otherwise hide it."""
+    return 0.01 * (hi - lo or 1.0) * scale
+
+
+def triangles(result, z):
+    """The membrane's triangles as a pyvista PolyData with points (x, y, z)."""
+    pv = _pyvista()
+    faces = np.hstack([np.full((len(result.cells), 1), 3), result.cells]).astype(np.int64).ravel()
+    return pv.PolyData(np.column_stack([result.x, z]).astype(float), faces)
+
+
+def add_membrane(p, result, row: int, view: MembraneView):
+    """The membrane at `row` (coloured by contact) and the obstacle (grey) in the plotter `p`; returns the
+    membrane's PolyData, whose points' z and point data "contact" may be changed in place afterwards."""
+    psi = obstacle_profile(result)
+    lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
+    surface = triangles(result, result.eta[row] * view.scale)
+    surface.point_data["contact"] = result.contact[row].astype(float)
+    p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
+               show_scalar_bar=False, ambient=0.3)
+    # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
+    # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
+    p.add_mesh(triangles(result, psi * view.scale - _below(lo, hi, view.scale)), color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
+    p.camera_position = view.camera
+    p.reset_camera(bounds=view.bounds)
+    p.camera.zoom(1.1)  # reset_camera fits the box's bounding sphere: room to spare
+    return surface
+
+
+def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
+    """'t = 0.2: contact area 2.17 (69%), 1 patch': the share is of the domain's area (patches left out if None)."""
+    share = 100 * area / float(np.sum(result.weights))
+    text = f"t = {result.t[row]:.3g}: contact area {area:.3g} ({share:.0f}%)"
+    return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
+
+
+def membrane_title(result, view: MembraneView, what: str) -> str:
+    stretched = f"heights ×{view.scale:.2g}; " if view.scale > 1 else ""
+    psi = obstacle_name(result)
+    return (f"{what}: {result.scene.name}\n{parameter_line(result)}\n"
+            f"{stretched}red: in contact (η ≤ {psi}), blue: free, grey: the obstacle {psi}")
+
+
+def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
+    """The membrane z = η(x, y, t) at the scene's output times (one panel each; the stored row nearest to
+    each), red where in contact, above the obstacle (grey). Each panel names its time, contact area and
+    number of contact patches."""
+    path = Path(path)
+    rows = snapshot_rows(result)
+    ncols = 3 if len(rows) > 4 else min(len(rows), 2)
+    nrows = int(np.ceil(len(rows) / ncols))
+    view = membrane_view(result)
+    area = result.contact_measure
+    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
+    # a title row across the top, then the panels
+    p = _plotter(window_size, shape=(nrows + 1, ncols), groups=[(0, np.s_[:])], row_weights=[0.25] + [1] * nrows)
+    p.subplot(0, 0)
+    _title(p, membrane_title(result, view, "The membrane at the output times"))
+    for k, i in enumerate(rows):
+        p.subplot(1 + k // ncols, k % ncols)
+        add_membrane(p, result, i, view)
+        p.add_text(membrane_label(result, i, area[i], int(patches[k])).replace(": ", "\n", 1), position=(0.03, 0.85),
+                   viewport=True, font_size=7, color="black", font_file=_font_file())
+    _screenshot(p, path)
+    return path
+
+
 def warm_up() -> None:
     """A tiny picture with every kind of element the real one uses, so that llvmpipe compiles its shaders."""
     p = _plotter((64, 48))
@@ -106,6 +216,7 @@ def warm_up() -> None:
     grid.point_data["contact"] = np.array([0.0, 1.0, 0.0, 1.0])
     p.add_mesh(grid, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], n_colors=2, show_scalar_bar=False)
     p.add_mesh(grid, color=OBSTACLE_COLOUR, opacity=0.4)
+    p.add_mesh(grid, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)  # a membrane's obstacle
     p.add_point_labels([[0.0, 0.0, 0.0]], ["t"], shape=None, show_points=False, always_visible=True)
     _title(p, "η")
     p.screenshot(None, return_img=True)

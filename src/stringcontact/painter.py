@@ -2,9 +2,10 @@
 
 Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 1.2 s
 of CPU before the first picture, importing matplotlib about 0.4 s (benchmarks/bench_pictures.py). `stringcontact run
---out` starts a `PictureProcess` first thing; it does that start-up while the run imports dolfinx and
-solves, then draws the space-time pictures (`viz.PAINTED`) while the run draws the line charts. The
-process never imports dolfinx.
+--out` starts a `PictureProcess` first thing, before the scene (1D or 2D) is known; it does that start-up
+while the run imports dolfinx and solves, then draws those of `viz.PAINTED` that the run has (`viz.painted`:
+the space-time pictures of a string, ``membrane.png`` and ``membrane.gif`` of a membrane) while the run
+draws the line charts. The process never imports dolfinx.
 """
 
 from __future__ import annotations
@@ -23,16 +24,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .viz import MESH_PICTURES, PAINTED, WINDOW_SIZE
+from .viz import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
 
 
 class PictureProcess:
     """Some pictures (`names`) drawn in a second Python process.
 
     `start(names)` launches it; it draws a tiny warm-up picture, then waits. `send(result, folder)` hands it
-    the Result as a pickle in a private temporary folder (a file, not a pipe: writing to a pipe whose reader
-    died raises SIGPIPE, which PETSc turns into an abort); `wait()` returns True once its PNGs are written.
-    `cancel()` stops it. Any failure makes `send`/`wait` return False, and `error` says why if it can.
+    the Result and the names it is to draw, those of `names` that the result has (`viz.painted`), as a
+    pickle in a private temporary folder (a file, not a pipe: writing to a pipe whose reader died raises
+    SIGPIPE, which PETSc turns into an abort), and sets `names` to them; `wait()` returns True once those
+    pictures are written. `cancel()` stops it. Any failure makes `send`/`wait` return False, and `error`
+    says why if it can.
     """
 
     TIMEOUT = 300.0  # seconds to draw; a picture takes 0.2-2 s
@@ -67,11 +70,16 @@ class PictureProcess:
         if self.folder is None or self.proc.poll() is not None:
             self.cancel()
             return False
+        names = painted(result, self.names)
+        if not names:  # none of its pictures is a picture of this run
+            self.cancel()
+            return False
         payload = Path(self.folder) / "payload.pickle"
         result = dataclasses.replace(result, contact_force=np.empty((0, 0)))  # no picture shows it: less to pickle
         try:
             with open(payload.with_suffix(".part"), "wb") as f:
-                pickle.dump((result, str(folder), tuple(window_size)), f, protocol=pickle.HIGHEST_PROTOCOL)
+                pickle.dump((result, str(folder), tuple(window_size), names), f, protocol=pickle.HIGHEST_PROTOCOL)
+            self.names = names
             os.replace(payload.with_suffix(".part"), payload)  # the process only ever sees a whole file
             return True
         except (OSError, pickle.PicklingError, TypeError, AttributeError):
@@ -105,7 +113,8 @@ class PictureProcess:
 
 
 def main() -> None:
-    """The body of `PictureProcess`: warm up, wait for the payload, draw, report on stdout."""
+    """The body of `PictureProcess`: warm up (for the names it was started with), wait for the payload, draw
+    the names the payload gives, report on stdout."""
     import time
 
     from . import charts, mesh_pictures, viz
@@ -119,6 +128,8 @@ def main() -> None:
             mesh_pictures.warm_up()
         if set(names) - set(MESH_PICTURES):
             charts.warm_up()
+        if "membrane.gif" in names:
+            from . import animation  # noqa: F401 - imports imageio and Pillow before the payload comes
         payload = folder / "payload.pickle"
         while not payload.exists():
             if os.getppid() != parent or not folder.is_dir():  # the run ended (even before we started) or cancelled us
@@ -126,7 +137,7 @@ def main() -> None:
                 return
             time.sleep(0.005)
         with open(payload, "rb") as f:
-            result, out, window_size = pickle.load(f)
+            result, out, window_size, names = pickle.load(f)
         payload.unlink()  # read: no large file left behind even if the run is killed now
         for name in names:
             viz.draw(name, result, out, window_size)

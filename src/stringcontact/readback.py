@@ -1,7 +1,8 @@
 """Reading an output folder back into a :class:`Result`: ``read_output(folder)``.
 
 The arrays come from ``solution.xdmf``/``.h5`` (the layout of `stringcontact.xdmf`), the energies from
-``diagnostics.csv``, the scene and options from ``summary.json``. The ``.h5`` is read with pyfive (pure
+``diagnostics.csv``, the scene and options from ``summary.json``. A membrane's folder (a 2D scene) also
+gives its triangles (the HDF5 topology), and the nodal areas are computed from them. The ``.h5`` is read with pyfive (pure
 Python): the h5py wheel bundles its own libhdf5, which clashes with the system libhdf5 that dolfinx has
 already loaded ("Not a datatype"). Every defect of the folder is a ValueError with one line naming the
 file and what is wrong with it (the CLI's exit code 2).
@@ -27,7 +28,8 @@ def read_output(folder):
     """A :class:`Result` rebuilt from an output folder written by `stringcontact run --out`.
 
     Its rows are the XDMF frames (about `max_frames` of the stored rows), with the diagnostics of those
-    rows; arrays are ordered by x like the in-memory result, and `contact` is boolean again.
+    rows; arrays are ordered by x (2D: by x, then y) like the in-memory result, and `contact` is boolean
+    again. In 2D, `cells` are the triangles in the solver's order and `weights` the lumped nodal areas.
     """
     from .result import ENERGY_KEYS, Result
 
@@ -35,7 +37,8 @@ def read_output(folder):
     summary, scene = _read_summary(folder / "summary.json")
     geometry, series = _read_series(folder / "solution.xdmf")
     column = _frame_rows(_read_diagnostics(folder / "diagnostics.csv"), series, folder)
-    x, fields = _read_fields(folder / "solution.h5", geometry, series)
+    topology = _topology(folder / "solution.xdmf") if scene.dim == 2 else None
+    x, fields, mesh = _read_fields(folder / "solution.h5", geometry, series, topology)
     return Result(
         scene=scene,
         x=x,
@@ -54,6 +57,7 @@ def read_output(folder):
         timings=summary.get("timings", {}),
         message=summary.get("message", ""),
         scheme=summary.get("scheme", "paper"),
+        **mesh,
     )
 
 
@@ -152,22 +156,84 @@ def _h5_path(ref: str) -> str:
     return ref.split(":", 1)[1]  # "solution.h5:/eta_0" -> "/eta_0"
 
 
-def _read_fields(path: Path, geometry: str, series: dict):
-    """x (sorted) and each field as a (frames, nodes) array in that order, read from the HDF5 file."""
+def _read_fields(path: Path, geometry: str, series: dict, topology=None):
+    """x (sorted) and each field as a (frames, nodes) array in that order, read from the HDF5 file; with a
+    `topology` (2D: its HDF5 reference and nodes per cell) also {"cells", "weights"} of the sorted nodes."""
     import pyfive  # pure-Python HDF5: h5py's wheel clashes with the libhdf5 that dolfinx has already loaded
 
+    mesh = {}
     try:
         with pyfive.File(str(path)) as h5:
-            x_all = np.asarray(h5[_h5_path(geometry)][:], dtype=float)[:, 0]
-            order = np.argsort(x_all, kind="stable")
-            fields = {name: np.stack([_dataset(h5, ref, x_all.size, path)[order] for _, ref in series[name]]) for name in FIELDS}
+            points = np.asarray(h5[_h5_path(geometry)][:], dtype=float)
+            x_all = points[:, 0] if topology is None else points[:, :2]
+            order = np.argsort(_sort_key(x_all), kind="stable")
+            fields = {name: np.stack([_dataset(h5, ref, len(x_all), path)[order] for _, ref in series[name]]) for name in FIELDS}
+            if topology is not None:
+                mesh = _mesh(_cells(h5, *topology, len(x_all), path), x_all, order)
     except ValueError as exc:
         if str(exc).startswith("plot: "):
             raise
         raise ValueError(f"plot: {path} is not a readable HDF5 file ({one_line(exc, 200)})") from None
     except Exception as exc:  # noqa: BLE001 - pyfive on a damaged file fails in many ways: one line, naming the file
         raise ValueError(f"plot: {path} is not a readable HDF5 file ({type(exc).__name__}: {one_line(exc, 200)})") from None
-    return x_all[order], fields
+    return x_all[order], fields, mesh
+
+
+def _sort_key(x: np.ndarray) -> np.ndarray:
+    """The solver's node order (solver._sort_key): by x in 1D; by x, then y in 2D (x + iy as complex numbers).
+
+    In 2D the file's points (the dofs' coordinates, mapped from a reference cell) may differ from the mesh's
+    nodes the solver sorted by an ulp, which would reorder the nodes of a column x = const of a rectangle:
+    they are compared to 12 digits of the domain's width.
+    """
+    if x.ndim == 1:
+        return x
+    width = float(np.max(np.ptp(x, axis=0))) or 1.0
+    snapped = np.round(x / width, 12)
+    return snapped[:, 0] + 1j * snapped[:, 1]
+
+
+def _topology(path: Path) -> tuple[str, int]:
+    """The HDF5 reference of the triangles in the first grid of `solution.xdmf`, and nodes per cell (3)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        item = ET.parse(path).getroot().find("Domain/Grid/Grid/Topology")
+        kind, per_cell, ref = item.get("TopologyType"), int(item.get("NodesPerElement")), item.find("DataItem").text.strip()
+    except (ET.ParseError, OSError, AttributeError, TypeError, ValueError):
+        raise ValueError(f"plot: {path}: no triangles (Topology) in the first grid of a 2D run") from None
+    if kind != "Triangle" or per_cell != 3:
+        raise ValueError(f"plot: {path}: a 2D run's Topology must be Triangle with 3 nodes per element, got {kind} with {per_cell}")
+    return ref, per_cell
+
+
+def _cells(h5, ref: str, per_cell: int, n: int, path: Path) -> np.ndarray:
+    """The triangles of the file, (k, 3) indices into its points, checked to be indices."""
+    try:
+        data = h5[_h5_path(ref)]
+    except KeyError:
+        raise ValueError(f"plot: {path} has no dataset {_h5_path(ref)} (named in solution.xdmf)") from None
+    cells = np.asarray(data[:]).reshape(-1)
+    if cells.size == 0 or cells.size % per_cell or cells.min() < 0 or cells.max() >= n:
+        raise ValueError(f"plot: {path}: {_h5_path(ref)} holds no triangles of its {n} points")
+    return cells.astype(np.int64).reshape(-1, per_cell)
+
+
+def _mesh(cells: np.ndarray, x_all: np.ndarray, order: np.ndarray) -> dict:
+    """The triangles renumbered to the sorted nodes in the solver's canonical order (smallest node first,
+    orientation kept, then sorted), and the lumped nodal areas: a third of each triangle's area to each
+    of its corners, ∫φ_i dx for P1 (what `Result.contact_measure` sums)."""
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    cells = rank[cells]
+    turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3
+    cells = np.take_along_axis(cells, turn, axis=1)
+    cells = cells[np.lexsort(cells.T[::-1])]
+    x = x_all[order]
+    a, b, c = x[cells[:, 0]], x[cells[:, 1]], x[cells[:, 2]]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    weights = np.bincount(cells.ravel(), weights=np.repeat(area / 3, 3), minlength=x.shape[0])
+    return {"cells": cells, "weights": weights}
 
 
 def _dataset(h5, ref: str, n: int, path: Path) -> np.ndarray:

@@ -5,22 +5,24 @@ Each picture is drawn by the library made for it: matplotlib (:mod:`stringcontac
 ``snapshots.png`` and ``energy.png``; pyvista (:mod:`stringcontact.mesh_pictures`, imported only for it)
 for ``space_time.png``, the surface η(x, t) in 3-D coloured by contact.
 
+A 2-D run (a membrane) has its own `MEMBRANE_PICTURES`: ``membrane.png`` (pyvista: the membrane at the
+output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the animation ``membrane.gif``
+(:mod:`stringcontact.animation`). `pictures_of(result)` says which.
+
 :func:`write_pictures` draws them all; given a started :class:`~stringcontact.painter.PictureProcess`,
-the pictures it was started for (`stringcontact run`: `PAINTED`) are drawn there, so that the libraries'
-start-up overlaps the run. ``stringcontact plot DIR`` redraws them from an output folder alone
+the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
+run. ``stringcontact plot DIR`` redraws them from an output folder alone
 (:func:`stringcontact.readback.read_output`).
 """
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
-
-import numpy as np
 
 from .charts import (  # noqa: F401 - the pictures and readings are used as viz.* by the demos and tests
     CONTACT_COLOUR,
     WINDOW_SIZE,
+    contact_area_picture,
     contact_components,
     contact_set_picture,
     energy_picture,
@@ -34,23 +36,43 @@ from .charts import (  # noqa: F401 - the pictures and readings are used as viz.
 )
 
 CHART_PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")  # matplotlib
-MESH_PICTURES = ("space_time.png",)  # pyvista
-PICTURES = CHART_PICTURES + MESH_PICTURES
-#: what `stringcontact run` hands to its painter process: the space-time pictures (the rest, the line charts,
-#: are drawn by the run meanwhile; this split measured fastest, docs/performance.md)
-PAINTED = ("contact_set.png", "velocity_field.png", "space_time.png")
+PICTURES = CHART_PICTURES + ("space_time.png",)  # of a 1-D run
+#: of a 2-D run (a membrane): contact_area.png and energy.png by matplotlib, the others by pyvista
+MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
+MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
+#: what `stringcontact run` hands to its painter process, of the pictures the run has (`painted`): in 1D the
+#: space-time pictures (the line charts are drawn by the run meanwhile; this split measured fastest,
+#: docs/performance.md), in 2D the pyvista pictures (the run draws the two charts)
+PAINTED = ("contact_set.png", "velocity_field.png", "space_time.png", "membrane.png", "membrane.gif")
+
+
+def pictures_of(result) -> tuple[str, ...]:
+    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D)."""
+    return PICTURES if result.dim == 1 else MEMBRANE_PICTURES
+
+
+def painted(result, names=PAINTED) -> tuple[str, ...]:
+    """Those of `names` that are pictures of `result`: what a painter started for `names` draws of it."""
+    return tuple(name for name in names if name in pictures_of(result))
 
 
 # --- all pictures of a run ------------------------------------------------------------------------
 
 
 def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
-    """Draw the picture `name` (one of PICTURES) of `result` into `folder`."""
+    """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES) of `result` into `folder`."""
     path = Path(folder) / name
+    if name == "membrane.gif":
+        from . import animation  # pyvista and imageio
+
+        return animation.membrane_animation(result, path, window_size)
     if name in MESH_PICTURES:
         from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
 
-        return mesh_pictures.space_time_picture(result, path, window_size)
+        draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
+        return draw_mesh(result, path, window_size)
+    if name == "contact_area.png":
+        return contact_area_picture(result, path)
     if name == "contact_set.png":
         return contact_set_picture(result, path, window_size)
     if name == "velocity_field.png":
@@ -59,24 +81,21 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
 
 
 def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> list[Path]:
-    """Write the PICTURES of `result` into `folder`; the function `simulate(..., pictures=True)` calls.
+    """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`; the function
+    `simulate(..., pictures=True)` calls.
 
     With a started `painter.PictureProcess`, its pictures are drawn there while this process draws the
     others; whatever it fails to draw is then drawn here. The painter is stopped however this ends, so
     nothing writes into `folder` after it returns.
     """
     folder = Path(folder)
-    if np.ndim(result.x) > 1:  # a membrane: these pictures are of the (x, t) plane of a string
-        if painter is not None:
-            painter.cancel()
-        warnings.warn("no pictures for a 2D run yet: open solution.xdmf in ParaView (docs/membranes.md)", stacklevel=2)
-        return []
+    names = pictures_of(result)
     folder.mkdir(parents=True, exist_ok=True)
     handed_out, drawn = set(), set()
     try:
         if painter is not None and painter.send(result, folder, window_size):
-            handed_out = set(painter.names)
-        for name in PICTURES:
+            handed_out = set(painter.names)  # `send` chose them: those of its names that the result has
+        for name in names:
             if name not in handed_out:
                 draw(name, result, folder, window_size)
         if handed_out and painter.wait():
@@ -89,7 +108,7 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
                     stray.unlink(missing_ok=True)
     for name in handed_out - drawn:
         draw(name, result, folder, window_size)
-    return [folder / name for name in PICTURES]
+    return [folder / name for name in names]
 
 
 # --- reading an output folder back ---------------------------------------------------------------
@@ -99,7 +118,9 @@ def show_pictures(folder) -> list[Path]:
     """The pictures of a run folder: displayed inline in a Jupyter notebook, otherwise their paths printed."""
     import sys
 
-    paths = [Path(folder) / name for name in PICTURES if (Path(folder) / name).exists()]
+    folder = Path(folder)
+    membrane = any((folder / name).exists() for name in set(MEMBRANE_PICTURES) - set(PICTURES))
+    paths = [folder / name for name in (MEMBRANE_PICTURES if membrane else PICTURES) if (folder / name).exists()]
     if "ipykernel" in sys.modules:
         from IPython.display import Image, display
 
@@ -115,7 +136,7 @@ def show_pictures(folder) -> list[Path]:
 
 def add_arguments(parser) -> None:
     parser.description = (
-        f"Redraw the pictures of an output folder ({', '.join(PICTURES)}) "
+        f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}) "
         "from its saved files (solution.xdmf/.h5, diagnostics.csv, summary.json) alone."
     )
     parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
@@ -124,7 +145,7 @@ def add_arguments(parser) -> None:
         "--size",
         metavar="WxH",
         default=f"{WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}",
-        help=f"pixel size of the space-time and 3-D pictures (default {WINDOW_SIZE[0]}x{WINDOW_SIZE[1]})",
+        help=f"pixel size of the space-time and 3-D pictures (default {WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}; membrane.gif: 0.6 of it)",
     )
 
 

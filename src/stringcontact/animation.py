@@ -1,0 +1,83 @@
+"""``membrane.gif``: a 2-D run as an animation, drawn with pyvista (off-screen) and written by imageio.
+
+One plotter holds the scene of `mesh_pictures.add_membrane` (the membrane coloured by contact, the
+obstacle in grey); each frame changes the membrane's heights and contact colours and the title in place,
+so a frame costs one render and one GIF frame, not a new scene. The frames are every k-th stored row (and
+the last), at most `max_frames` of them: the membrane falls, lands, and its contact patches spread and
+shrink.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+from PIL import Image
+
+from .charts import WINDOW_SIZE
+from .mesh_pictures import _every_kth, _font_file, _plotter, add_membrane, membrane_label, membrane_title, membrane_view
+from .output import atomic_path
+
+MAX_FRAMES = 50
+FPS = 12
+#: the GIF's pixels, as a share of the pictures' window size: 1100x900 -> 660x540 (docs/visualisation.md)
+SIZE_SHARE = 0.6
+#: colours of the GIF: two shaded surface colours, the grey obstacle and black text need few
+PALETTE = 64
+
+
+def frame_rows(result, max_frames: int = MAX_FRAMES) -> np.ndarray:
+    """The stored rows drawn as frames: every k-th row and the last, at most about `max_frames`."""
+    return _every_kth(len(result.t), max_frames)
+
+
+def gif_size(window_size) -> tuple[int, int]:
+    """The GIF's width and height: `SIZE_SHARE` of `window_size`, even numbers."""
+    return tuple(2 * round(SIZE_SHARE * v / 2) for v in window_size)
+
+
+def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = MAX_FRAMES, fps: float = FPS) -> Path:
+    """``membrane.gif``: the membrane z = η(x, y, t) at every few stored rows, red where in contact, above
+    the obstacle (grey), the time, contact area and number of contact patches in the title of each frame."""
+    path = Path(path)
+    rows = frame_rows(result, max_frames)
+    view = membrane_view(result)
+    area = result.contact_measure
+    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of the frames only
+    p = _plotter(gif_size(window_size))
+    try:
+        surface = add_membrane(p, result, rows[0], view)
+        title = membrane_title(result, view, "The membrane")
+        # a text actor of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
+        text = p.add_text("", position=(0.02, 0.98), viewport=True, font_size=6, color="black", font_file=_font_file())
+        text.prop.SetVerticalJustificationToTop()
+        p.screenshot(None, return_img=True)  # pyvista's first render sets the window up; later ones only draw
+        frames = []
+        for k, i in enumerate(rows):
+            surface.points[:, 2] = result.eta[i] * view.scale  # in place: the scene stays, the heights change
+            surface.point_data["contact"][:] = result.contact[i]
+            surface.Modified()
+            text.input = f"{title}\n{membrane_label(result, i, area[i], int(patches[k]))}"
+            p.render()
+            frames.append(np.array(p.image))
+    finally:
+        p.close()
+    write_gif(path, frames, fps, landmarks=[int(np.argmax(area[rows]))])
+    return path
+
+
+def write_gif(path: Path, frames: list, fps: float, landmarks=()) -> None:
+    """The RGB `frames` as a looping GIF at `fps`, written whole or not at all.
+
+    All frames share one palette of `PALETTE` colours, made from a few frames spread over the run and the
+    `landmarks` (the frame of the largest contact area: its red must be in it), and are mapped onto it
+    without dithering: 2 ms a frame, where Pillow's own median cut takes 50 ms for each (docs/visualisation.md).
+    """
+    spread = np.unique(np.concatenate([np.linspace(0, len(frames) - 1, 6).round().astype(int), list(landmarks)]))
+    palette = Image.fromarray(np.concatenate([frames[k] for k in spread])).quantize(PALETTE, method=Image.Quantize.FASTOCTREE)
+    indices = np.stack([np.asarray(Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE)) for f in frames])
+    with atomic_path(path) as tmp:
+        iio.imwrite(tmp, indices, plugin="pillow", mode="P", palette=bytes(palette.getpalette()[: 3 * PALETTE]),
+                    duration=1000 / fps, loop=0)

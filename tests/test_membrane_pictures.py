@@ -1,0 +1,241 @@
+"""The pictures of a 2D run (issue 15): membrane.png, contact_area.png, energy.png and membrane.gif, drawn
+by a run (here and in the painter process), and by `stringcontact plot` from a membrane's output folder."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+
+import numpy as np
+import pytest
+
+import stringcontact as sc
+from stringcontact import animation, charts, readback, viz
+from stringcontact.cli import main
+from stringcontact.painter import PictureProcess
+from stringcontact.scene import scene_to_toml
+
+#: a coarse drum (about 100 nodes) that lands at t = 0.12 and is in contact until T; its rim starts at 0.3
+SMALL_DRUM = {"mesh_size": 0.2, "T": 0.4, "nt": 80, "output_times": [0.0, 0.1, 0.2, 0.4]}
+
+
+def small_drum():
+    return sc.load_scene("drum").replace(**SMALL_DRUM)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """The coarse drum written to disk with its pictures (drawn in this process), and its in-memory result."""
+    folder = tmp_path_factory.mktemp("membrane") / "drum"
+    res = sc.simulate(small_drum(), output_dir=folder, progress=False)
+    return folder, res
+
+
+def _image(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        assert im.format == "PNG"
+        return np.asarray(im.convert("RGB")).astype(int)
+
+
+def _gif_frames(path):
+    import imageio.v3 as iio
+
+    return iio.imread(path, index=None)[..., :3].astype(int)
+
+
+def _red(img, tol=60):
+    """Pixels of the contact colour, lit (the surfaces are shaded, so less exact than in the charts)."""
+    rgb = np.array([int(charts.CONTACT_COLOUR[i : i + 2], 16) for i in (1, 3, 5)])
+    return np.all(np.abs(img - rgb) <= tol, axis=-1)
+
+
+def test_a_membrane_run_writes_its_four_pictures(run):
+    folder, res = run
+    assert res.contact[0].sum() == 0 and res.contact[-1].sum() > 0  # the comparisons below see both states
+    drawn = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".gif"))
+    assert drawn == sorted(viz.MEMBRANE_PICTURES)  # and none of the (x, t) pictures of a string
+    assert _image(folder / "membrane.png").shape == (viz.WINDOW_SIZE[1], viz.WINDOW_SIZE[0], 3)
+    for name in ("contact_area.png", "energy.png"):
+        img = _image(folder / name)
+        assert img.shape[0] >= 600 and img.shape[1] >= 800, name
+        assert (img < 100).all(axis=-1).sum() > 500, f"{name}: no dark text or lines"
+    assert not list(folder.glob(".*"))  # no temporary file left
+    assert [p.name for p in viz.show_pictures(folder)] == list(viz.MEMBRANE_PICTURES)
+
+
+def test_the_gif_has_a_frame_per_drawn_row_and_shows_the_landing(run):
+    folder, res = run
+    frames = _gif_frames(folder / "membrane.gif")
+    width, height = animation.gif_size(viz.WINDOW_SIZE)
+    assert frames.shape == (len(animation.frame_rows(res)), height, width, 3)
+    assert 30 <= len(frames) <= 80
+    red = [int(_red(frame).sum()) for frame in frames]
+    assert red[0] == 0 and red[-1] > 2000  # free at the start (η = 0.3), a contact patch at the end
+    rows = animation.frame_rows(res)
+    first = int(np.argmax(res.contact_measure[rows] > 0))
+    assert max(red[:first]) == 0 and min(red[first + 1 :]) > 0  # red exactly while in contact (a frame's slack)
+
+
+def test_frames_are_every_kth_row_and_the_last():
+    res = dataclasses.make_dataclass("Rows", ["t"])(np.linspace(0, 1, 201))
+    rows = animation.frame_rows(res)
+    assert len(rows) == 41 and rows[0] == 0 and rows[-1] == 200 and set(np.diff(rows)) == {5}
+    assert len(animation.frame_rows(res, max_frames=300)) == 201
+
+
+def _panels(img, nrows: int, ncols: int):
+    """The panels of membrane.png: below a title row of weight 0.25, `nrows` x `ncols` equal panels."""
+    height, width = img.shape[:2]
+    top = height * 0.25 / (0.25 + nrows)
+    h, w = (height - top) / nrows, width / ncols
+    return [img[int(top + r * h) : int(top + (r + 1) * h), int(c * w) : int((c + 1) * w)] for r in range(nrows) for c in range(ncols)]
+
+
+def test_the_membrane_panels_are_red_only_where_there_is_contact(run, tmp_path):
+    folder, res = run
+    rows = charts.snapshot_rows(res)
+    assert res.t[rows] == pytest.approx(SMALL_DRUM["output_times"])
+    panels = _panels(_image(folder / "membrane.png"), 2, 2)
+    red = [int(_red(panel).sum()) for panel in panels]
+    assert red[0] == 0 and red[1] == 0  # t = 0 and 0.1: not landed yet
+    assert red[2] > 2000 and red[3] > 2000
+    free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
+    assert _red(_image(viz.draw("membrane.png", free, tmp_path))).sum() == 0
+    img = _image(folder / "membrane.png")
+    grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the grey obstacle
+    assert grey.sum() > 5000
+
+
+def test_the_contact_area_chart_draws_the_results_numbers(run):
+    _, res = run
+    fig = charts.contact_area_figure(res)
+    try:
+        area_axes, patch_axes = fig.axes
+        lines = {line.get_label(): line for line in area_axes.get_lines()}
+        np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_ydata(), res.contact_measure)
+        np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_xdata(), res.t)
+        assert lines[f"area of the domain = {res.weights.sum():.4g}"].get_ydata()[0] == pytest.approx(np.pi, rel=0.05)
+        [patches] = patch_axes.get_lines()
+        np.testing.assert_array_equal(patches.get_ydata(), res.contact_patches())
+        assert res.contact_patches().max() == 1
+        assert "Contact area and patches: drum" in area_axes.get_title()
+        assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
+    finally:
+        charts._pyplot().close(fig)
+
+
+def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeypatch):
+    _, res = run
+    labels = []
+    plt = charts._pyplot()
+    monkeypatch.setattr(charts, "_savefig", lambda fig, path: labels.extend(t.get_text() for t in fig.axes[0].get_legend().get_texts()) or plt.close(fig))
+    charts.energy_picture(res, tmp_path / "e.png")
+    assert any(r"|\nabla\eta|^2" in label for label in labels) and not any("eta_x" in label for label in labels)
+
+
+# --- reading a membrane's folder back ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module", params=["drum", "bump"])
+def written(request, tmp_path_factory):
+    """A coarse drum (gmsh's disk) or bump (a rectangle: columns of nodes with the same x) written to disk."""
+    scene = small_drum() if request.param == "drum" else sc.load_scene("bump").replace(cells=[16, 16], T=0.3, nt=60, output_times=[0.2])
+    folder = tmp_path_factory.mktemp("readback2d") / request.param
+    res = sc.simulate(scene, output_dir=folder, pictures=False, max_frames=20, progress=False)
+    return folder, res
+
+
+def test_read_output_of_a_membrane_gives_the_in_memory_rows(written):
+    folder, res = written
+    back = readback.read_output(folder)
+    rows = [int(np.argmin(np.abs(res.t - t))) for t in back.t]
+    np.testing.assert_array_equal(res.t[rows], back.t)
+    assert 10 <= len(rows) < len(res.t)  # the XDMF frames: a subset of the stored rows
+    np.testing.assert_allclose(back.x, res.x, rtol=0, atol=1e-14)  # the dofs' coordinates, to an ulp
+    np.testing.assert_array_equal(back.cells, res.cells)
+    for name in ("eta", "velocity", "contact"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(res, name)[rows], err_msg=name)
+    assert res.contact[rows].any() and not res.contact[rows].all()
+    np.testing.assert_allclose(back.weights, res.weights, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(back.contact_measure, res.contact_measure[rows], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(back.contact_patches(), res.contact_patches()[rows])
+
+
+def test_plot_of_a_membrane_folder_writes_the_membrane_pictures(run, tmp_path, capsys):
+    folder, _ = run
+    out = tmp_path / "again"
+    assert main(["plot", str(folder), "--out", str(out), "--size", "800x600"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(viz.MEMBRANE_PICTURES)
+    assert _image(out / "membrane.png").shape == (600, 800, 3)
+    assert _gif_frames(out / "membrane.gif").shape[1:3] == (360, 480)  # 0.6 of --size
+    printed = capsys.readouterr().out
+    assert all(f"wrote {out / name}" in printed for name in viz.MEMBRANE_PICTURES)
+
+
+def _no_topology(p):
+    p.write_text(p.read_text().replace("solution.h5:/topology<", "solution.h5:/no_such_cells<"))
+
+
+def _quadrilaterals(p):
+    p.write_text(p.read_text().replace('TopologyType="Triangle"', 'TopologyType="Quadrilateral"'))
+
+
+def _random(p):
+    p.write_bytes(np.random.default_rng(1).bytes(p.stat().st_size))
+
+
+DAMAGED = {
+    "no topology dataset": ("solution.xdmf", _no_topology, "solution.h5", "has no dataset /no_such_cells"),
+    "not triangles": ("solution.xdmf", _quadrilaterals, "solution.xdmf", "must be Triangle"),
+    "random h5": ("solution.h5", _random, "solution.h5", "not a readable HDF5 file"),
+}
+
+
+@pytest.mark.parametrize("case", DAMAGED)
+def test_plot_of_a_damaged_membrane_folder_exits_2_naming_the_file(run, tmp_path, capsys, case):
+    folder, _ = run
+    name, damage, named, words = DAMAGED[case]
+    copy = tmp_path / "copy"
+    shutil.copytree(folder, copy)
+    damage(copy / name)
+    assert main(["plot", str(copy), "--out", str(tmp_path / "pics")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err and "internal error" not in err, err
+    assert str(copy / named) in err and words in err, err
+    assert not (tmp_path / "pics").exists()
+
+
+# --- the painter process ----------------------------------------------------------------------------
+
+
+def test_the_painter_draws_the_membranes_pyvista_pictures(run, tmp_path):
+    _, res = run
+    process = PictureProcess.start()  # as the CLI starts it: before the scene is known
+    assert set(viz.MESH_PICTURES) <= set(process.names)
+    assert process.send(res, tmp_path) and process.wait()
+    assert process.names == ("membrane.png", "membrane.gif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["membrane.gif", "membrane.png"]
+    np.testing.assert_array_equal(_image(tmp_path / "membrane.png"), _image(run[0] / "membrane.png"))
+
+
+def test_a_painter_with_no_picture_of_a_membrane_is_not_sent_one(run, tmp_path):
+    _, res = run
+    process = PictureProcess.start(("space_time.png",))
+    assert not process.send(res, tmp_path)
+    assert process.folder is None and process.proc.poll() is not None and not list(tmp_path.iterdir())
+
+
+def test_stringcontact_run_of_a_membrane_draws_its_pictures_in_both_processes(tmp_path, monkeypatch, capsys):
+    """The real CLI: the painter (started before the scene is read) draws the pyvista pictures, this process the charts."""
+    drawn_here = []
+    draw = viz.draw
+    monkeypatch.setattr(viz, "draw", lambda name, *args, **kw: drawn_here.append(name) or draw(name, *args, **kw))
+    path = tmp_path / "small_drum.toml"
+    path.write_text(scene_to_toml(small_drum()))
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--no-progress"]) == 0
+    assert sorted(drawn_here) == ["contact_area.png", "energy.png"]
+    assert {p.name for p in out.iterdir()} >= set(viz.MEMBRANE_PICTURES)
+    assert _red(_gif_frames(out / "membrane.gif")[-1]).sum() > 2000
