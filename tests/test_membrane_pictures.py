@@ -71,6 +71,7 @@ def test_the_gif_has_a_frame_per_drawn_row_and_shows_the_landing(run):
     width, height = animation.gif_size(viz.WINDOW_SIZE)
     assert frames.shape == (len(animation.frame_rows(res)), height, width, 3)
     assert 30 <= len(frames) <= 80
+    assert np.all(frames[:, -1, -1] >= 240)  # the background stays white in every frame (the palette kept it)
     red = [int(_red(frame).sum()) for frame in frames]
     assert red[0] == 0 and red[-1] > 2000  # free at the start (η = 0.3), a contact patch at the end
     rows = animation.frame_rows(res)

@@ -1,4 +1,4 @@
-"""``membrane.gif``: a 2-D run as an animation, drawn with pyvista (off-screen) and written by imageio.
+"""``membrane.gif``: a 2-D run as an animation, drawn with pyvista (off-screen) and written by Pillow.
 
 One plotter holds the scene of `mesh_pictures.add_membrane` (the membrane coloured by contact, the
 obstacle in grey); each frame changes the membrane's heights and contact colours and the title in place,
@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import imageio.v3 as iio
 import numpy as np
 from PIL import Image
 
@@ -74,10 +73,12 @@ def write_gif(path: Path, frames: list, fps: float, landmarks=()) -> None:
     All frames share one palette of `PALETTE` colours, made from a few frames spread over the run and the
     `landmarks` (the frame of the largest contact area: its red must be in it), and are mapped onto it
     without dithering: 2 ms a frame, where Pillow's own median cut takes 50 ms for each (docs/visualisation.md).
+    Pillow writes the frames with the palette attached: imageio's Pillow plugin, given the palette apart,
+    wrote white as black with Debian's Pillow 9.4 (the one a fresh setup has).
     """
     spread = np.unique(np.concatenate([np.linspace(0, len(frames) - 1, 6).round().astype(int), list(landmarks)]))
     palette = Image.fromarray(np.concatenate([frames[k] for k in spread])).quantize(PALETTE, method=Image.Quantize.FASTOCTREE)
-    indices = np.stack([np.asarray(Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE)) for f in frames])
+    images = [Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE) for f in frames]
     with atomic_path(path) as tmp:
-        iio.imwrite(tmp, indices, plugin="pillow", mode="P", palette=bytes(palette.getpalette()[: 3 * PALETTE]),
-                    duration=1000 / fps, loop=0)
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0,
+                       optimize=False)

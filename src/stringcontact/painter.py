@@ -129,7 +129,7 @@ def main() -> None:
         if set(names) - set(MESH_PICTURES):
             charts.warm_up()
         if "membrane.gif" in names:
-            from . import animation  # noqa: F401 - imports imageio and Pillow before the payload comes
+            from . import animation  # noqa: F401 - imports Pillow before the payload comes
         payload = folder / "payload.pickle"
         while not payload.exists():
             if os.getppid() != parent or not folder.is_dir():  # the run ended (even before we started) or cancelled us

@@ -63,7 +63,7 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
     """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES) of `result` into `folder`."""
     path = Path(folder) / name
     if name == "membrane.gif":
-        from . import animation  # pyvista and imageio
+        from . import animation  # pyvista and Pillow
 
         return animation.membrane_animation(result, path, window_size)
     if name in MESH_PICTURES:
