@@ -360,3 +360,19 @@ if __name__ == "__main__":
         _worker_schemes(Path(rest[0]), rest[1])
         sys.exit(0)
     {"parity": _worker_parity, "errors": _worker_errors, "asymmetric": _worker_asymmetric}[mode](Path(rest[0]))
+
+
+def test_mpi_cli_runs_a_membrane_and_reports_once(tmp_path):
+    """`mpirun -n 2 stringcontact run` on a membrane: rank 0 reports and writes, the rowless rank ends cleanly."""
+    import stringcontact as sc
+    from stringcontact.scene import scene_to_toml
+
+    scene = tmp_path / "drum.toml"
+    scene.write_text(scene_to_toml(sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.0, 0.2])))
+    out = tmp_path / "out"
+    proc = mpirun([sys.executable, "-m", "stringcontact", "run", scene, "--out", out, "--no-progress", "--no-pictures"],
+                  ranks=RANKS, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert proc.stdout.count("energy balance:") == 1 and proc.stdout.count(f"wrote {out}") == 1, proc.stdout
+    assert "error" not in proc.stderr, proc.stderr
+    assert (out / "solution.xdmf").is_file() and (out / "summary.json").is_file()

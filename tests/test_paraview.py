@@ -79,3 +79,34 @@ def test_the_readme_recipe_colours_the_warped_string_by_contact(tmp_path, run):
     assert img.shape[:2] == (450, 900)
     assert _pixels_near(img, CONTACT_RGB) > 300, "no string drawn in the contact colour"
     assert _pixels_near(img, FREE_RGB) > 100, "no free part of the string drawn"
+
+
+def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
+    """A membrane's solution.xdmf in ParaView: triangles warped by eta (z), the solver's contact nodes, the patch drawn."""
+    from PIL import Image
+
+    command = pvpython()
+    out = tmp_path / "drum"
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
+    back = read_output(out)
+    k = int(np.argmax(back.contact_measure))  # the frame with the largest patch
+    t = float(back.t[k])
+    row = int(np.flatnonzero(res.t == t)[0])
+    assert 0 < res.contact[row].sum() < len(res.x)
+
+    png = tmp_path / "membrane.png"
+    proc = subprocess.run([*command, str(SCRIPT.with_name("paraview_membrane.py")), str(out / "solution.xdmf"), repr(t),
+                           str(png)], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
+    (report,) = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    assert report["class"] == "vtkUnstructuredGrid"
+    assert (report["points"], report["cells"]) == (len(res.x), len(res.cells)), report
+    assert report["cell_types"] == [5]  # VTK_TRIANGLE
+    np.testing.assert_allclose(report["times"], back.t, rtol=1e-12, atol=0)
+    assert report["max_warp_error"] < 1e-6  # the points were lifted by eta along z (ParaView stores them as float32)
+    assert report["contact_nodes"] == int(res.contact[row].sum())
+    assert report["max_z_in_contact"] <= 1e-6  # the nodes marked in contact lie on the floor
+    img = np.asarray(Image.open(png).convert("RGB"))
+    assert _pixels_near(img, CONTACT_RGB) > 500, "no contact patch drawn in the contact colour"
+    bluish = (img[..., 2].astype(int) - np.maximum(img[..., 0], img[..., 1]).astype(int)) > 60  # lit: shades of FREE_RGB
+    assert int(bluish.sum()) > 1000, "no free membrane drawn"
