@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
+
+from bench_membrane import child  # one case in a fresh process (mpirun for 2 ranks), its JSON line
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "out"
@@ -59,14 +59,6 @@ def one(n: int, steps: int, max_rows: int, row_budget: int | None = None) -> dic
     held = comm.gather(held_bytes(res) / 2**20)
     return {"n": n, "ranks": comm.size, "max_rows": max_rows, "rows": len(res.t), "nodes": (n + 1) ** 2,
             "rss_mb": rss, "held_mb": held, "total_s": total, "setup_s": res.timings["setup"]}
-
-
-def child(argv: list[str]) -> dict:
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1")
-    proc = subprocess.run(argv, capture_output=True, text=True, env=env)
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(argv)} failed:\n{proc.stderr[-3000:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def fmt(values) -> str:

@@ -50,3 +50,18 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
 def leftovers(folder: Path) -> list[str]:
     """Anything a run may leave beside its target: partial folders, locks, .old swaps (all start with ".")."""
     return sorted(p.name for p in Path(folder).iterdir() if p.name.startswith("."))
+
+
+def plot_refusal(folder: Path, damage, tmp_path: Path, capsys) -> tuple[Path, str]:
+    """`stringcontact plot` on a damaged copy of `folder`: (the copy, its error line). Asserts exit 2, one line,
+    no traceback and no picture folder; `damage(copy)` damages the copy."""
+    from stringcontact.cli import main
+
+    copy = tmp_path / "copy"
+    shutil.copytree(folder, copy)
+    damage(copy)
+    assert main(["plot", str(copy), "--out", str(tmp_path / "pics")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err and "internal error" not in err, err
+    assert not (tmp_path / "pics").exists()
+    return copy, err

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import json
-import shutil
 
 import numpy as np
 import pytest
+from conftest import plot_refusal
 
 import stringcontact as sc
 from stringcontact import readback
-from stringcontact.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -80,15 +79,9 @@ CASES = {
 @pytest.mark.parametrize("case", CASES)
 def test_plot_on_a_damaged_folder_exits_2_naming_the_file(tmp_path, folder, capsys, case):
     name, damage, words = CASES[case]
-    copy = tmp_path / "copy"
-    shutil.copytree(folder, copy)
-    damage(copy / name)
-    assert main(["plot", str(copy), "--out", str(tmp_path / "pics")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "Traceback" not in err and "internal error" not in err, err
+    copy, err = plot_refusal(folder, lambda copy: damage(copy / name), tmp_path, capsys)
     named = str(copy / name) if case != "h5 without a dataset" else str(copy / "solution.h5")
     assert named in err and words in err, err
-    assert not (tmp_path / "pics").exists()  # nothing drawn
 
 
 def test_read_output_reads_what_the_writer_wrote(folder):
