@@ -156,12 +156,12 @@ def wrap(a: np.ndarray, comm) -> PETSc.Vec:
 
 #: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG.
 #: Measured (docs/linear_solvers.md, square membranes 1e4 to 1e6 nodes): in serial the back-substitution beat
-#: CG per step at every size (1e6 nodes: LU 0.41 s, CG + AMG 0.95 s, CG + Jacobi 1.37 s); CG only saves set-up
-#: (14 s against 67 s) and memory (2.1 GB against 3.0 GB). So LU up to the largest size measured; above it
+#: CG per step at every size (1e6 nodes, quiet: LU 0.22 s, CG + Jacobi 0.89 s, CG + AMG 1.08 s); CG only saves
+#: set-up (12 s against 46 s) and memory (1.8 GB against 3.1 GB). So LU up to the largest size measured; above it
 #: the factor (growing faster than the mesh) outgrows memory first.
 LU_MAX_NODES = 1_000_000
 #: The same on several ranks (MUMPS): its distributed back-substitution was slower on 2 ranks than on 1 at
-#: every size, while CG's step halved (1e6 nodes: MUMPS 1.0 s, CG 0.61 s; 2.5e5: 126 ms, CG + Jacobi 72 ms).
+#: every size, while CG's step halved (1e6 nodes: MUMPS 1.0 s, CG + Jacobi 0.43 s; 2.5e5: 126 ms against 72 ms).
 #: CG + Jacobi was level with MUMPS at 4e4 nodes and ahead above. A string (1D) keeps its LU on any number of
 #: ranks: a tridiagonal factor has no fill.
 LU_MAX_NODES_PARALLEL = 40_000
