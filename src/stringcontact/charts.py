@@ -11,6 +11,8 @@ contact intervals of a row, the rows at given times, the velocity colour range, 
 
 from __future__ import annotations
 
+import contextlib
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -93,14 +95,20 @@ def obstacle_profile(result) -> np.ndarray:
 # --- matplotlib ---------------------------------------------------------------------------------------
 
 
-def _pyplot():
-    import warnings
+@contextlib.contextmanager
+def without_axes3d_warning():
+    """Importing matplotlib's projections (pyplot, pyvista's colour maps) without the Axes3D warning: Debian's
+    mpl_toolkits (python3-matplotlib) beside pip's matplotlib; no 3-D axes are drawn, so nothing is lost."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Unable to import Axes3D")
+        yield
 
+
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
-    with warnings.catch_warnings():  # Debian's mpl_toolkits (python3-matplotlib) beside pip's matplotlib: no 3-D axes
-        warnings.filterwarnings("ignore", message="Unable to import Axes3D")  # are drawn, so nothing is lost
+    with without_axes3d_warning():
         import matplotlib.pyplot as plt
 
     return plt

@@ -19,7 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .charts import CONTACT_COLOUR, WINDOW_SIZE, obstacle_name, obstacle_profile, parameter_line, snapshot_rows
+from .charts import (
+    CONTACT_COLOUR,
+    WINDOW_SIZE,
+    obstacle_name,
+    obstacle_profile,
+    parameter_line,
+    snapshot_rows,
+    without_axes3d_warning,
+)
 from .output import atomic_path
 
 FREE_COLOUR = "#92c5de"
@@ -30,12 +38,9 @@ MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 def _pyvista():
     if "DISPLAY" not in os.environ:  # EGL needs no display; on a desktop VTK's default window works too
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import warnings
-
     import pyvista as pv
 
-    with warnings.catch_warnings():  # pyvista's colour maps import matplotlib's projections: Debian's mpl_toolkits
-        warnings.filterwarnings("ignore", message="Unable to import Axes3D")  # beside pip's matplotlib (charts._pyplot)
+    with without_axes3d_warning():  # pyvista's colour maps import matplotlib's projections
         import matplotlib.projections  # noqa: F401
 
     pv.OFF_SCREEN = True

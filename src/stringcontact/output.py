@@ -42,9 +42,9 @@ import numpy as np
 
 from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
 from .errors import one_line
+from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
 from .xdmf import XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
-FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: max |balance residual| / energy scale above which the energy balance is reported as not closing.
 BALANCE_RTOL = 1e-8
 #: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/reliability.md).

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError, SceneError, one_line
-from .output import FIELDS
+from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from .xdmf import read_xdmf
 
 FILES = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
@@ -31,8 +31,6 @@ def read_output(folder):
     rows; arrays are ordered by x (2D: by x, then y) like the in-memory result, and `contact` is boolean
     again. In 2D, `cells` are the triangles in the solver's order and `weights` the lumped nodal areas.
     """
-    from .result import ENERGY_KEYS, Result
-
     folder = _check_folder(Path(folder))
     summary, scene = _read_summary(folder / "summary.json")
     geometry, series = _read_series(folder / "solution.xdmf")
@@ -125,8 +123,6 @@ def _read_series(path: Path):
 
 
 def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
-    from .result import ENERGY_KEYS
-
     try:
         with open(path, newline="") as f:
             rows = list(csv.DictReader(f))
@@ -180,7 +176,7 @@ def _read_fields(path: Path, geometry: str, series: dict, topology=None):
 
 
 def _sort_key(x: np.ndarray) -> np.ndarray:
-    """The solver's node order (solver._sort_key): by x in 1D; by x, then y in 2D (x + iy as complex numbers).
+    """The solver's node order (`result.node_sort_key`): by x in 1D; by x, then y in 2D.
 
     In 2D the file's points (the dofs' coordinates, mapped from a reference cell) may differ from the mesh's
     nodes the solver sorted by an ulp, which would reorder the nodes of a column x = const of a rectangle:
@@ -189,8 +185,7 @@ def _sort_key(x: np.ndarray) -> np.ndarray:
     if x.ndim == 1:
         return x
     width = float(np.max(np.ptp(x, axis=0))) or 1.0
-    snapped = np.round(x / width, 12)
-    return snapped[:, 0] + 1j * snapped[:, 1]
+    return node_sort_key(np.round(x / width, 12))
 
 
 def _topology(path: Path) -> tuple[str, int]:
@@ -225,10 +220,7 @@ def _mesh(cells: np.ndarray, x_all: np.ndarray, order: np.ndarray) -> dict:
     of its corners, ∫φ_i dx for P1 (what `Result.contact_measure` sums)."""
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
-    cells = rank[cells]
-    turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3
-    cells = np.take_along_axis(cells, turn, axis=1)
-    cells = cells[np.lexsort(cells.T[::-1])]
+    cells = canonical_cells(rank[cells])
     x = x_all[order]
     a, b, c = x[cells[:, 0]], x[cells[:, 1]], x[cells[:, 2]]
     area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))

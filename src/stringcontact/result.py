@@ -17,9 +17,25 @@ ENERGY_KEYS = (
     "numerical_dissipation",
     "external_work",
 )
+#: The fields stored at each node and stored time (the XDMF's attributes, in this order).
+FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks.
-PER_NODE = ("x", "eta", "velocity", "contact", "contact_force", "weights", "cells")
+PER_NODE = ("x", *FIELDS, "weights", "cells")
 CHUNK_VALUES = 2**24  # contact_measure converts at most this many contact values to float at once (128 MB)
+
+
+def node_sort_key(x: np.ndarray) -> np.ndarray:
+    """The key of the nodes' order: x in 1D; x + iy in 2D, whose sort order is by x, then y (NumPy orders complex
+    numbers so). The same for any number of ranks."""
+    return x if x.ndim == 1 else x[:, 0] + 1j * x[:, 1]
+
+
+def canonical_cells(cells: np.ndarray) -> np.ndarray:
+    """Triangles (indices into the sorted nodes) in a fixed order, whatever the ranks or the file: each one
+    starting at its smallest node (orientation kept), then sorted."""
+    turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3
+    cells = np.take_along_axis(cells, turn, axis=1)
+    return cells[np.lexsort(cells.T[::-1])]
 
 
 class RowsElsewhere(AttributeError):

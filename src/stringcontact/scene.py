@@ -822,7 +822,7 @@ def _check_storage(nx: int, nt: int, n_output_times: int) -> None:
 
 
 def _check_membrane_storage(nodes: int, n_output_times: int) -> None:
-    need = (2 + n_output_times) * nodes * BYTES_PER_STORED_NODE
+    need = stored_bytes(nodes - 1, 0, n_output_times)  # no steps besides 0, T and the output times
     if need > MAX_STORED_BYTES:
         raise SceneError(
             f"output_times: the rows at 0, T and the {n_output_times} output times need {need / 1e9:.3g} GB on about "

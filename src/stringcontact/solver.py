@@ -21,7 +21,7 @@ from petsc4py import PETSc
 from . import compat, domains
 from .errors import InstabilityError
 from .model import Model, Parameters, inelastic, unused_fields
-from .result import ENERGY_KEYS, Result
+from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from .scene import BYTES_PER_STORED_NODE, MAX_STORED_BYTES, STORED_ROWS, check_petsc_options
 from .scheme import bc_dofs, node_coordinates, semi_discrete_operators
 from .schemes import check_model, scheme_class
@@ -46,11 +46,6 @@ def stored_steps(nt: int, dt: float, output_times, max_rows: int) -> np.ndarray:
     stride = max(1, math.ceil(nt / max(1, max_rows)))
     steps = set(range(0, nt + 1, stride)) | {0, nt} | output_steps(nt, dt, output_times)
     return np.array(sorted(steps), dtype=np.int64)
-
-
-def _sort_key(x: np.ndarray) -> np.ndarray:
-    """x in 1D; x + iy in 2D, whose sort order is by x, then y (NumPy orders complex numbers so)."""
-    return x if x.ndim == 1 else x[:, 0] + 1j * x[:, 1]
 
 
 class StorageWarning(UserWarning):
@@ -106,7 +101,7 @@ class _Gather:
         self._buffers = {}
         if self.holds:
             x = np.concatenate(xs)
-            self.order = np.argsort(_sort_key(x), kind="stable")
+            self.order = np.argsort(node_sort_key(x), kind="stable")
             self.x = x[self.order]
             self.identity = bool(np.array_equal(self.order, np.arange(self.order.size)))
 
@@ -276,27 +271,22 @@ def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return bc, np.concatenate([np.full(left.size, scene.h_left), np.full(right.size, scene.h_right)])
 
 
-def _mesh_rows(V, gather: _Gather) -> dict:
-    """2D: the nodal areas (for the contact area) and the triangles, both in the gathered node order, where
-    the rows are gathered; 1D: none. Each rank sends its triangles in global dof numbers (the order the
-    ranks' owned dofs are concatenated in), so that no rank needs the others' coordinates. Collective."""
+def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
+    """2D: the nodal areas (`weights`, this rank's owned ones, gathered) and the triangles, both in the gathered
+    node order, where the rows are gathered; 1D: none. Each rank sends its triangles in global dof numbers (the
+    order the ranks' owned dofs are concatenated in), so that no rank needs the others' coordinates. Collective."""
     if V.mesh.topology.dim == 1:
         return {}
-    n_owned = V.dofmap.index_map.size_local
     n_cells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local
     local = compat.cell_dofs(V)[:n_cells]
     cells = V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32)).reshape(local.shape)
     parts = _collect(gather.comm, cells, gather.to_all)
-    weights = gather(domains.nodal_areas(V)[:n_owned])
+    weights = gather(weights)
     if not gather.holds:
         return {}
     position = np.empty_like(gather.order)
     position[gather.order] = np.arange(gather.order.size)  # global dof -> place in x order
-    cells = position[np.concatenate(parts)]
-    turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3  # smallest node first, orientation kept
-    cells = np.take_along_axis(cells, turn, axis=1)
-    cells = cells[np.lexsort(cells.T[::-1])]  # a fixed order of the triangles, whatever the ranks
-    return {"weights": weights, "cells": cells}
+    return {"weights": weights, "cells": canonical_cells(position[np.concatenate(parts)])}
 
 
 def _initial_state(scene, s: Setting) -> tuple[np.ndarray, np.ndarray]:
@@ -333,9 +323,6 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
         bar.close()
 
 
-FIELDS = ("eta", "velocity", "contact", "contact_force")
-
-
 def _check_storage_options(max_rows, gather, row_budget) -> None:
     if isinstance(max_rows, bool) or not isinstance(max_rows, (int, np.integer)) or max_rows < 1:
         raise ValueError(f"max_rows: expected a whole number >= 1 (stored time levels), got {max_rows!r}")
@@ -355,7 +342,7 @@ def _storage(scene, s: Setting, V, max_rows: int, to_all: bool, budget: int):
     n_owned = s.x.shape[0]
     weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
     obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
-    geometry = _mesh_rows(V, gather)
+    geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
     return _Rows(steps, gather), geometry, lambda fields: _row_series(s.comm, fields, weights, obstacle)
 
 
