@@ -1,7 +1,7 @@
 """GetFEM's impacting rod, solved by GetFEM's own demo schemes and by stringcontact, side by side.
 
 The problem is that of GetFEM's ``interface/tests/python/demo_dynamic_contact_1D.py`` (Y. Renard,
-F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `stringcontact.rod` and docs/getfem.md.
+F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `stringcontact.verification.rod` and docs/getfem.md.
 `getfem_rod` below re-implements two of that demo's explicit (β = 0) Newmark schemes with GetFEM's own
 assembly and MUMPS solves, following the demo line by line: Taylor-Flanagan (``version = 4``) and
 exact contact with the redistributed mass matrix (``version = 0, mass_matrix_type = 1``). The demo's
@@ -37,7 +37,7 @@ from typing import Callable
 
 import numpy as np
 
-from stringcontact import rod
+from stringcontact.verification import rod
 
 NXS = (20, 40, 80)  # rod cells; the string has twice as many, of the same size h = 1/NX
 DT_OVER_H = 0.04  # the issue's Δt = 0.04 h, well inside the explicit schemes' CFL limit h/2
@@ -172,8 +172,8 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
     """One stringcontact run of the mirrored rod; `status` says why a run gave no numbers."""
     import stringcontact as sc
     from stringcontact import InstabilityError
-    from stringcontact.model import inelastic
-    from stringcontact.variants import elastic
+    from stringcontact.model.paper import inelastic
+    from stringcontact.model.variants import elastic
 
     h = 1.0 / nx
     dt = dt_over_h * h

@@ -18,7 +18,7 @@ def set_up(nx: int) -> float:
     from mpi4py import MPI
 
     from dolfinx import mesh
-    from stringcontact import compat
+    from stringcontact.fem import compat
 
     t0 = time.perf_counter()
     msh = mesh.create_interval(MPI.COMM_WORLD, nx, [0.0, 1.0])

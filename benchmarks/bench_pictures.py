@@ -31,7 +31,7 @@ def main(argv=None) -> int:
     import stringcontact as sc
 
     res = sc.simulate(sc.load_scene("example1"), progress=False)
-    from stringcontact import charts, mesh_pictures, viz
+    from stringcontact.plot import charts, mesh_pictures, viz
 
     out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
     rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),

@@ -46,8 +46,8 @@ def phases(out: str, max_frames: int, mode: str) -> dict:
     if mode == "overlapped":
         import functools
 
-        from stringcontact.painter import PictureProcess
-        from stringcontact.viz import write_pictures
+        from stringcontact.plot.painter import PictureProcess
+        from stringcontact.plot.viz import write_pictures
 
         pictures = functools.partial(write_pictures, painter=PictureProcess.start())
     import dolfinx  # noqa: F401
@@ -62,7 +62,7 @@ def phases(out: str, max_frames: int, mode: str) -> dict:
     tm = summary.get("timings", {})
     pictures = tm.get("pictures", 0.0)
     if mode == "in-process":
-        from stringcontact import viz
+        from stringcontact.plot import viz
 
         t1 = time.perf_counter()
         viz.write_pictures(res, out)

@@ -26,7 +26,7 @@ import numpy as np
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact import study
+from stringcontact.analysis import study
 
 M = study.METHODS
 

@@ -10,7 +10,7 @@ Both are run in the same process, alternating, and the median of several runs is
 timing, both must agree in η at every stored row: to 1e-10 up to N = 1000; above, where the step
 matrix's conditioning (∝ N²) amplifies round-off beyond 1e-10, to 1e-10·4·r(N)/r(1000) (`tolerance`).
 The table also shows the round-off floor: how far two NumPy codes of the scheme (the peer with splu
-and `stringcontact.reference` with LAPACK's banded solver) drift apart by round-off alone.
+and `stringcontact.verification.reference` with LAPACK's banded solver) drift apart by round-off alone.
 Peak memory is measured in a fresh subprocess per configuration (`ru_maxrss`), so each row has its own peak.
 
     .venv/bin/python benchmarks/bench_solver.py               # the full table (a few minutes)
@@ -89,9 +89,9 @@ def tolerance(scene) -> float:
 
 def round_off_floor(scene, peer_final) -> float:
     """How far two NumPy codes of the same scheme drift apart by round-off alone: the peer (splu) against
-    `stringcontact.reference` (LAPACK banded solve), at the last step. Above N ≈ 1000 the scheme's
+    `stringcontact.verification.reference` (LAPACK banded solve), at the last step. Above N ≈ 1000 the scheme's
     conditioning (r = (αΔt + Δt²)/Δx² grows like N²) lifts this above 1e-10."""
-    from stringcontact import reference
+    from stringcontact.verification import reference
 
     x = np.linspace(0.0, scene.length, scene.nx + 1)
     _, ref, _ = reference.fd_solve(

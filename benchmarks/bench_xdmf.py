@@ -22,9 +22,9 @@ from dolfinx import fem, mesh
 from dolfinx.io import XDMFFile
 from mpi4py import MPI
 
-from stringcontact import compat
-from stringcontact.output import FIELDS
-from stringcontact.xdmf import XdmfTimeSeries, mesh_arrays
+from stringcontact.fem import compat
+from stringcontact.io.folder import FIELDS
+from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 
 
 def ours(V, folder: Path, frames: int, values) -> float:

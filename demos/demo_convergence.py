@@ -1,6 +1,6 @@
 # # Convergence: in $\Delta t = \Delta x$ and in $\varepsilon$
 #
-# The flat landing has an exact solution for α = 0 (`stringcontact.exact.flat_landing`): the string's
+# The flat landing has an exact solution for α = 0 (`stringcontact.verification.exact.flat_landing`): the string's
 # flat middle lands at $t^* = h/V$ and stops; the ends then lift it off with waves of slope $V/2$. The
 # velocity jumps, so no scheme converges at its formal order. We measure the observed orders of the
 # $L^\infty(0,T;L^2)$ error of $\eta$, the $L^2$ error of the velocity at $T$ and the contact-set error
@@ -11,7 +11,7 @@
 import os
 from pathlib import Path
 
-from stringcontact import study
+from stringcontact.analysis import study
 
 fast = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"
 out = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_convergence"))

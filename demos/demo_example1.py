@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 import stringcontact as sc
-from stringcontact import viz
+from stringcontact.plot import viz
 
 FAST = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"  # reduced resolution for the test suite
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_example1"))

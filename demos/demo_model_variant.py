@@ -166,7 +166,7 @@ print(f"wrote {energy_picture}")
 # ## Where to go from here
 #
 # - `stringcontact models` lists every registered model: the paper's `inelastic`, and the two variants in
-#   `stringcontact.variants`, written the same way: `elastic` (a pure spring, $e = 1$) and
+#   `stringcontact.model.variants`, written the same way: `elastic` (a pure spring, $e = 1$) and
 #   `loaded_obstacle` (a load $f(x)$ and an obstacle profile $\psi(x)$ from the scene keys `load` and
 #   `obstacle`, which reach the model as P1 functions in `p.extra`).
 # - `docs/models.md` lists what each function receives and what the scheme does with it.

@@ -1,12 +1,12 @@
 # # Three time schemes for one model
 #
-# The model is one UFL form, written in the unknown's time derivatives (`stringcontact.model`):
+# The model is one UFL form, written in the unknown's time derivatives (`stringcontact.model.paper`):
 #
 # $$ \int \eta_{tt} w + \alpha \int \eta_{tx} w_x + \int \eta_x w_x = \int F w, \qquad
 #    F = \tfrac{1}{\varepsilon}\chi\{\eta<0\}(\eta_t)^-. $$
 #
-# `stringcontact.scheme` takes it apart into the mass, damping and stiffness matrices $M, C, K$; a
-# *time scheme* (`stringcontact.schemes`) then marches them. The driver, `simulate`, knows none of them:
+# `stringcontact.fem.operators` takes it apart into the mass, damping and stiffness matrices $M, C, K$; a
+# *time scheme* (`stringcontact.timestepping`) then marches them. The driver, `simulate`, knows none of them:
 #
 # * `paper`, the paper's Section 6: implicit Euler in the elastic and viscous terms, the penalty from the
 #   previous step. Its implicit elastic term damps; the contact needs $r = \Delta t/\varepsilon \le 1$.
@@ -26,7 +26,7 @@ import numpy as np
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact import study
+from stringcontact.analysis import study
 
 fast = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"
 out = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_schemes"))

@@ -16,7 +16,7 @@
 import os
 from pathlib import Path
 
-from stringcontact import study
+from stringcontact.analysis import study
 
 fast = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"
 out = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_stability"))
@@ -24,7 +24,7 @@ out.mkdir(parents=True, exist_ok=True)
 # -
 
 # ## One cell of the map
-# `stability_case` runs the lumped scheme through `stringcontact.reference.fd_solve` (the same scheme as
+# `stability_case` runs the lumped scheme through `stringcontact.verification.reference.fd_solve` (the same scheme as
 # `simulate`, without its refusal of $r \ge 2$), measures the restitution at the middle node and
 # classifies the run.
 

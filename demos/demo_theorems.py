@@ -18,7 +18,7 @@
 #   and the velocity jump where a whole segment lands at once (Theorem 2.3(2), (2.12)),
 #
 # and that the energy balance (1.4) holds. A computed solution is penalised (ε > 0) and discrete, so each
-# statement becomes a number with an expected limit under refinement. `stringcontact.theorems` measures them;
+# statement becomes a number with an expected limit under refinement. `stringcontact.analysis.theorems` measures them;
 # `stringcontact check SCENE` prints the same table.
 
 # +
@@ -27,7 +27,7 @@ import warnings
 from pathlib import Path
 
 import stringcontact as sc
-from stringcontact import theorems as th
+from stringcontact.analysis import theorems as th
 
 FAST = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_theorems"))

@@ -15,7 +15,7 @@
 import os
 from pathlib import Path
 
-from stringcontact import study
+from stringcontact.analysis import study
 
 fast = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"
 out = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_work_precision"))

@@ -55,7 +55,7 @@ def leftovers(folder: Path) -> list[str]:
 def plot_refusal(folder: Path, damage, tmp_path: Path, capsys) -> tuple[Path, str]:
     """`stringcontact plot` on a damaged copy of `folder`: (the copy, its error line). Asserts exit 2, one line,
     no traceback and no picture folder; `damage(copy)` damages the copy."""
-    from stringcontact.cli import main
+    from stringcontact.cli.main import main
 
     copy = tmp_path / "copy"
     shutil.copytree(folder, copy)

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from stringcontact.cli import main
+from stringcontact.cli.main import main
 
 SMALL = ["--nx", "200", "--nt", "40", "--eps", "0.01", "--no-progress", "--no-pictures"]  # r = 0.75
 
@@ -96,7 +96,7 @@ def test_python_dash_m_is_the_same_cli():
 
 
 def test_exit_codes_are_documented():
-    import stringcontact.cli as cli
+    import stringcontact.cli.main as cli
     from stringcontact.errors import Interrupted
 
     assert (cli.EXIT_OK, cli.EXIT_INTERNAL, cli.EXIT_INPUT, cli.EXIT_UNSTABLE) == (0, 1, 2, 3)
@@ -127,7 +127,7 @@ def test_internal_error_is_one_line_exit_1(monkeypatch, capsys):
 
 
 def test_a_broken_subcommand_does_not_break_run(monkeypatch, tmp_path, capsys):
-    import stringcontact.cli as cli
+    import stringcontact.cli.main as cli
 
     monkeypatch.setitem(cli.SUBCOMMANDS, "broken", ("stringcontact.no_such_module", "a subcommand that fails to import"))
     assert main(["broken", "x"]) == 1
@@ -189,12 +189,12 @@ class CtrlC:
         return None
 
 sys.meta_path.insert(0, CtrlC())
-from stringcontact.cli import main
+from stringcontact.cli.main import main
 sys.exit(main(sys.argv[2:]))
 """
 
 
-@pytest.mark.parametrize("module", ["stringcontact.study", "petsc4py", "dolfinx"])
+@pytest.mark.parametrize("module", ["stringcontact.analysis.study", "petsc4py", "dolfinx"])
 def test_ctrl_c_during_start_up_is_one_line_and_exit_130(tmp_path, module):
     out = tmp_path / "out"
     argv = ["run", "example1", *SMALL, "--out", str(out)]

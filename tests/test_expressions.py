@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stringcontact.errors import SceneError
-from stringcontact.expressions import MAX_LENGTH, check, evaluate
+from stringcontact.scene.expressions import MAX_LENGTH, check, evaluate
 
 X = np.linspace(0.0, 1.0, 11)
 NAMES = {"l": 1.0}

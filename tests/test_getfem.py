@@ -1,4 +1,4 @@
-"""GetFEM's impacting rod (`stringcontact.rod`): the exact solution against the PDE, the mirrored point
+"""GetFEM's impacting rod (`stringcontact.verification.rod`): the exact solution against the PDE, the mirrored point
 contact in `simulate`, and, when GetFEM is installed, GetFEM's own schemes against the same exact solution."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stringcontact import rod
+from stringcontact.verification import rod
 
 ROOT = Path(__file__).resolve().parents[1]
 RNG = np.random.default_rng(19)
@@ -79,7 +79,7 @@ def test_p1_norm_is_exact_for_linear_functions():
 
 def _run(nx, penalty, eps_over_dt, T=1.5):
     import stringcontact as sc
-    from stringcontact.model import inelastic
+    from stringcontact.model.paper import inelastic
 
     h = 1.0 / nx
     dt = 0.04 * h

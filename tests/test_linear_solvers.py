@@ -16,10 +16,10 @@ import pytest
 from petsc4py import PETSc
 
 import stringcontact as sc
-from stringcontact.cli import main
+from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
-from stringcontact.scene import Scene, scene_to_toml
-from stringcontact.schemes import base
+from stringcontact.scene.data import Scene, scene_to_toml
+from stringcontact.timestepping import base
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 

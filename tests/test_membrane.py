@@ -16,7 +16,7 @@ import pytest
 
 import stringcontact as sc
 from stringcontact.errors import SceneError
-from stringcontact.scene import Scene, scene_to_toml
+from stringcontact.scene.data import Scene, scene_to_toml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -127,9 +127,9 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     import scipy.sparse.linalg as sla
     from mpi4py import MPI
 
-    from stringcontact import solver
-    from stringcontact.registry import load_model
-    from stringcontact.schemes import projection
+    from stringcontact.run import driver as solver
+    from stringcontact.model.registry import load_model
+    from stringcontact.timestepping import projection
 
     scene = small_drum(mesh_size=0.15)
     model = load_model(scene.model)
@@ -165,7 +165,7 @@ def xdmf(tmp_path, name, cells, points, cell="triangle"):
     from dolfinx.io import XDMFFile
     from mpi4py import MPI
 
-    from stringcontact import compat
+    from stringcontact.fem import compat
 
     points = np.asarray(points, dtype=float)
     msh = mesh.create_mesh(MPI.COMM_SELF, np.asarray(cells, dtype=np.int64), points,
@@ -302,7 +302,7 @@ if __name__ == "__main__":
 def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_path):
     from test_xdmf import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
 
-    from stringcontact import viz
+    from stringcontact.plot import viz
 
     scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.1])
     res = sc.simulate(scene, output_dir=tmp_path / "drum", pictures=True)

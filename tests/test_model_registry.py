@@ -11,10 +11,10 @@ import sys
 
 import pytest
 
-from stringcontact import registry
-from stringcontact.cli import main
+from stringcontact.model import registry
+from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
-from stringcontact.scene import load_scene
+from stringcontact.scene.data import load_scene
 
 SCENE = 'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\neps = 0.002\nh = 0\neta0 = "0.3*sin(pi*x)"\nv0 = 0\n'
 
@@ -121,7 +121,7 @@ def test_models_command_lists_the_registered_models(capsys):
     out = capsys.readouterr().out
     for name in ("inelastic", "elastic", "loaded_obstacle", "soft_ground"):
         assert any(line.startswith(f"{name} ") for line in out.splitlines()), name
-    assert "stringcontact.variants:elastic [stringcontact]" in out
+    assert "stringcontact.model.variants:elastic [stringcontact]" in out
     assert "soft_ground:soft_ground [stringcontact-soft-ground]" in out
 
 
@@ -138,7 +138,7 @@ def test_the_example_package_is_what_a_user_would_copy():
 
 
 def test_check_uses_the_scenes_model():
-    from stringcontact import theorems
+    from stringcontact.analysis import theorems
 
     scene = load_scene("single_impact").replace(nx=50, nt=800, model="elastic")
     _, finest, results = theorems.run_checks(scene, levels=1, time_levels=1)
@@ -151,13 +151,13 @@ def test_an_output_folder_whose_model_is_no_longer_registered_still_plots(tmp_pa
     import json
 
     import stringcontact as sc
-    from stringcontact import readback
+    from stringcontact.io import readback
 
     scene = load_scene("single_impact").replace(nx=20, nt=1600, T=0.4, model="elastic", output_times=[])
     sc.simulate(scene, model=registry.load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
     assert readback.read_output(tmp_path / "run").scene.model == "elastic"
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    summary["scene"]["model"] = "stringcontact.variants:elastic"
+    summary["scene"]["model"] = "stringcontact.model.variants:elastic"
     (tmp_path / "run" / "summary.json").write_text(json.dumps(summary))
     back = readback.read_output(tmp_path / "run")
     assert back.scene.model is None and back.model == "elastic"

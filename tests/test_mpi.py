@@ -136,7 +136,7 @@ def test_mpi_gather_all_gives_every_rank_the_serial_rows(parity_run, serial_resu
 
 @pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
 def test_mpi_xdmf_is_one_collective_file_equal_to_serial(parity_run, serial_results, penalty, mass):
-    from stringcontact import readback
+    from stringcontact.io import readback
 
     serial, serial_dir = serial_results[(penalty, mass)]
     folder = parity_run / f"{penalty}-{mass}"
@@ -353,7 +353,7 @@ def _worker_schemes(out: Path, scheme: str) -> None:
 if __name__ == "__main__":
     mode, rest = sys.argv[1], sys.argv[2:]
     if mode == "cli":
-        from stringcontact.cli import main
+        from stringcontact.cli.main import main
 
         sys.exit(main(rest))
     if mode == "schemes":
@@ -365,7 +365,7 @@ if __name__ == "__main__":
 def test_mpi_cli_runs_a_membrane_and_reports_once(tmp_path):
     """`mpirun -n 2 stringcontact run` on a membrane: rank 0 reports and writes, the rowless rank ends cleanly."""
     import stringcontact as sc
-    from stringcontact.scene import scene_to_toml
+    from stringcontact.scene.data import scene_to_toml
 
     scene = tmp_path / "drum.toml"
     scene.write_text(scene_to_toml(sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.0, 0.2])))

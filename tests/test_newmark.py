@@ -5,7 +5,8 @@ import pytest
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact import study, variants
+from stringcontact.analysis import study
+from stringcontact.model import variants
 
 
 def run(scene, **kwargs):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import reference
+from stringcontact.verification import reference
 
 pytestmark = pytest.mark.slow
 

@@ -15,8 +15,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import stringcontact as sc
-from stringcontact import compat, nodal
-from stringcontact.model import Model, Parameters
+from stringcontact.fem import compat, nodal
+from stringcontact.model.paper import Model, Parameters
 
 
 def forms_loop(scene, penalty="explicit", mass="lumped", model=sc.inelastic):

@@ -9,7 +9,7 @@ import pytest
 from conftest import plot_refusal
 
 import stringcontact as sc
-from stringcontact import readback
+from stringcontact.io import readback
 
 
 @pytest.fixture(scope="module")

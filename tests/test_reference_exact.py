@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from stringcontact.exact import (
+from stringcontact.verification.exact import (
     flat_landing,
     flat_landing_energy_loss,
     flat_landing_time,
     sine_mode,
 )
-from stringcontact.compat import trapezoid
-from stringcontact.reference import fd_solve
+from stringcontact.fem.compat import trapezoid
+from stringcontact.verification.reference import fd_solve
 
 H, V, LENGTH = 0.2, 1.0, 1.0
 

@@ -21,8 +21,8 @@ from hypothesis import strategies as st
 
 from conftest import leftovers, mpirun
 
-from stringcontact.cli import main
-from stringcontact.output import TargetLock, energy_balance, penetration_check, xdmf_series
+from stringcontact.cli.main import main
+from stringcontact.io.folder import TargetLock, energy_balance, penetration_check, xdmf_series
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01", *QUICK]  # r = 0.75, 41 rows
@@ -329,9 +329,9 @@ def test_unstable_run_keeps_partial_output(tmp_path, capfd, monkeypatch):
     # r = dt/eps = 4 is refused before the start; let it through to see the guard stop it mid-run.
     import dataclasses
 
-    from stringcontact.model import inelastic
+    from stringcontact.model.paper import inelastic
 
-    monkeypatch.setattr("stringcontact.solver.inelastic", dataclasses.replace(inelastic, stability=None))
+    monkeypatch.setattr("stringcontact.run.driver.inelastic", dataclasses.replace(inelastic, stability=None))
     out = tmp_path / "out"
     assert main(["run", "example1", "--nx", "100", "--nt", "150", *QUICK, "--out", str(out)]) == 3
     assert_one_line_error(capfd.readouterr().err, "unstable at step", "r = dt/eps = 4")
@@ -488,7 +488,7 @@ def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs
 
 
 def test_disk_failure_looks_through_the_exception_chain():
-    from stringcontact.output import disk_failure
+    from stringcontact.io.folder import disk_failure
 
     def raised(inner):
         try:
@@ -514,7 +514,7 @@ def test_picture_failure_removes_the_folder_only_when_the_device_fails(tmp_path,
         except (OSError, KeyError) as exc:
             raise ValueError("the picture layer wrapped it") from exc
 
-    monkeypatch.setattr("stringcontact.viz.write_pictures", failing_pictures)
+    monkeypatch.setattr("stringcontact.plot.viz.write_pictures", failing_pictures)
     out = tmp_path / "out"
     assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress", "--out", str(out)]) == code
     err = capfd.readouterr().err
@@ -535,7 +535,7 @@ def test_unbalanced_run_is_kept_marked_and_exits_3(tmp_path, capfd, monkeypatch)
     before = (out / "summary.json").read_text()
     capfd.readouterr()
     # The verdict decides: with a tolerance below round-off, the same run's balance "does not close".
-    monkeypatch.setattr("stringcontact.output.BALANCE_RTOL", 1e-300)
+    monkeypatch.setattr("stringcontact.io.folder.BALANCE_RTOL", 1e-300)
     assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 3
     captured = capfd.readouterr()
     assert_one_line_error(captured.err, "the energy balance does not close", "not trustworthy")
@@ -554,7 +554,7 @@ def test_unbalanced_run_is_kept_marked_and_exits_3(tmp_path, capfd, monkeypatch)
 def space():
     from mpi4py import MPI
 
-    from stringcontact import compat
+    from stringcontact.fem import compat
     from dolfinx import mesh
 
     return compat.function_space(mesh.create_interval(MPI.COMM_SELF, 8, [0.0, 1.0]), "Lagrange", 1)
@@ -568,7 +568,7 @@ def small_result(nx=8, nt=4):
 
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
-    from stringcontact.output import OutputWriter
+    from stringcontact.io.folder import OutputWriter
 
     res = small_result()
     out = tmp_path / "out"
@@ -614,7 +614,7 @@ def test_force_refuses_a_folder_without_a_summary_of_ours(tmp_path, capfd, summa
 
 
 def test_unexpected_error_leaves_nothing(tmp_path, space):
-    from stringcontact.output import OutputWriter
+    from stringcontact.io.folder import OutputWriter
 
     res = small_result()
     writer = OutputWriter(tmp_path / "out", res.scene, space, space.mesh.comm, pictures=False)
@@ -671,7 +671,7 @@ def test_summary_line_and_penetration_warning(tmp_path, capfd):
 
 def test_staged_folder_writes_all_or_nothing(tmp_path):
     from stringcontact.errors import OutputError
-    from stringcontact.output import staged_folder
+    from stringcontact.io.folder import staged_folder
 
     out = tmp_path / "checks"
     with pytest.raises(KeyboardInterrupt):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from stringcontact.errors import SceneError
-from stringcontact.scene import (
+from stringcontact.scene.data import (
     FILE_KEYS,
     Scene,
     SceneWarning,
@@ -301,7 +301,7 @@ INVALID = [
     ("obstacle", "obstacle = \"__import__('os')\"", "obstacle: double-underscore name '__import__' is not allowed"),
     ("obstacle", "obstacle = true", "obstacle: expected an expression string or a number, got bool"),
     ("model", 'model = "os.system"', "model: unknown model 'os.system'; allowed: elastic, inelastic, loaded_obstacle"),
-    ("model", 'model = "stringcontact.variants:elastic"', "model: unknown model 'stringcontact.variants:elastic'"),
+    ("model", 'model = "stringcontact.model.variants:elastic"', "model: unknown model 'stringcontact.model.variants:elastic'"),
     ("model", "model = 1", "model: unknown model int 1; allowed: elastic"),
     ("name", 'name = ""', "name: invalid name"),
     ("name", 'name = "../evil"', "name: invalid name"),

@@ -12,8 +12,10 @@ import pytest
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact import reference, study, variants
-from stringcontact.scene import SceneWarning
+from stringcontact.verification import reference
+from stringcontact.analysis import study
+from stringcontact.model import variants
+from stringcontact.scene.data import SceneWarning
 
 
 def run(scene, **kwargs):
@@ -76,7 +78,7 @@ def test_projection_refuses_a_step_above_its_stability_limit():
 
 
 def test_projection_dt_max_is_dx_without_viscosity_and_grows_with_it():
-    from stringcontact.schemes.projection import largest_stable_dt
+    from stringcontact.timestepping.projection import largest_stable_dt
 
     for alpha in (0.0, 0.01):  # C = αK: Δt < α + √(α² + 4/λ_max), and 4/λ_max → Δx² on a uniform mesh
         scene = study.flat_landing_scene(200, T=0.3, nt=300, alpha=alpha)
@@ -153,8 +155,8 @@ class _nothing:
 
 
 def _operators(scene):
-    from stringcontact.model import inelastic
-    from stringcontact.solver import _discretise
+    from stringcontact.model.paper import inelastic
+    from stringcontact.run.driver import _discretise
 
     return _discretise(scene, inelastic, MPI.COMM_SELF)[2]
 

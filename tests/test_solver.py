@@ -7,9 +7,10 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact import compat, exact, nodal, reference
-from stringcontact.model import Model, Parameters
-from stringcontact.scheme import ModelError
+from stringcontact.fem import compat, nodal
+from stringcontact.verification import exact, reference
+from stringcontact.model.paper import Model, Parameters
+from stringcontact.fem.operators import ModelError
 
 
 @pytest.fixture(scope="module")

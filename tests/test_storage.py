@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.output import penetration_check
-from stringcontact.result import PER_NODE, RowsElsewhere
-from stringcontact.scene import BYTES_PER_STORED_NODE
-from stringcontact.solver import ROW_BUDGET, STORED_ROWS, StorageWarning, budget_steps, output_steps, stored_steps
+from stringcontact.io.folder import penetration_check
+from stringcontact.io.result import PER_NODE, RowsElsewhere
+from stringcontact.scene.data import BYTES_PER_STORED_NODE
+from stringcontact.run.driver import ROW_BUDGET, STORED_ROWS, StorageWarning, budget_steps, output_steps, stored_steps
 
 
 def small_string():
@@ -111,7 +111,8 @@ def test_a_result_without_rows_gives_the_same_series_and_refuses_its_arrays(bump
 
 @pytest.mark.parametrize("which", ["string", "bump"])
 def test_contact_measure_in_chunks_equals_the_whole_rows(bump_run, which, monkeypatch):
-    from stringcontact import compat, result
+    from stringcontact.fem import compat
+    from stringcontact.io import result
 
     res = bump_run if which == "bump" else sc.simulate(small_string())
     c = res.contact.astype(float)

@@ -10,8 +10,8 @@ from conftest import mpirun
 from mpi4py import MPI
 
 import stringcontact as sc
-import stringcontact.solver
-from stringcontact import study
+import stringcontact.run.driver
+from stringcontact.analysis import study
 
 
 def flat(n, r, T=0.45):
@@ -27,7 +27,7 @@ def test_explicit_penalty_at_r4_is_caught_before_and_during_the_run(monkeypatch)
     assert before.value.step == 0 and before.value.r == pytest.approx(4.0)
     # Without the pre-run refusal, the running energy guard stops it at the first contact step.
     # The bound belongs to the contact law: the same law without it.
-    monkeypatch.setattr(stringcontact.solver, "inelastic", dataclasses.replace(sc.inelastic, stability=None))
+    monkeypatch.setattr(stringcontact.run.driver, "inelastic", dataclasses.replace(sc.inelastic, stability=None))
     with pytest.raises(sc.InstabilityError) as during:
         sc.simulate(scene, penalty="explicit", comm=MPI.COMM_SELF)
     t_star = study.FLAT_H / study.FLAT_V
@@ -130,7 +130,7 @@ def test_1d_only_commands_say_so_for_a_membrane(argv):
 
 
 def _parser():
-    from stringcontact.cli import _Parser
+    from stringcontact.cli.main import _Parser
 
     parser = _Parser(prog="stringcontact study")
     study.add_arguments(parser)

@@ -1,4 +1,4 @@
-"""The paper's theorems measured on small computed solutions (stringcontact.theorems).
+"""The paper's theorems measured on small computed solutions (stringcontact.analysis.theorems).
 
 Tolerances come from the refinement trends recorded in docs/theorems.md, not from tuning: each bound sits
 between the measured value at these small levels and the value the trend says the next level would reach
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import cli
-from stringcontact import theorems as th
+from stringcontact.cli import main as cli
+from stringcontact.analysis import theorems as th
 
 R = 0.4  # dt/eps of the paper's data, kept fixed under refinement
 

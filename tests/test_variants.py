@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import exact, registry
-from stringcontact.cli import main
+from stringcontact.verification import exact
+from stringcontact.model import registry
+from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
-from stringcontact.variants import elastic, load_model, loaded_obstacle
+from stringcontact.model.variants import elastic, load_model, loaded_obstacle
 
 # --- load_model ---------------------------------------------------------------------------------
 
@@ -56,7 +57,7 @@ def test_the_example_package_registers_soft_ground():
 
 
 def test_load_model_by_module_path_typed_by_the_user(user_module):
-    assert load_model("stringcontact.variants:elastic") is elastic
+    assert load_model("stringcontact.model.variants:elastic") is elastic
     assert load_model("my_models:stiff").name == "stiff"  # a Model object
 
 
@@ -67,7 +68,7 @@ def test_load_model_by_module_path_typed_by_the_user(user_module):
         ("my_models:missing", "model: module 'my_models' has no 'missing'"),
         ("my_models:not_a_model", "model: 'my_models:not_a_model' is a int, not a stringcontact.Model"),
         ("my_models:factory", "model: 'my_models:factory' is a function, not a stringcontact.Model (nothing is called"),
-        ("stringcontact.variants", "model: unknown model 'stringcontact.variants'; allowed: elastic, inelastic"),
+        ("stringcontact.model.variants", "model: unknown model 'stringcontact.model.variants'; allowed: elastic, inelastic"),
         ("a:b:c", "model: invalid value 'a:b:c'"),
     ],
 )
@@ -258,8 +259,8 @@ def test_unused_fields_finds_what_a_model_ignores():
     from dolfinx import fem, mesh
     from mpi4py import MPI
 
-    from stringcontact import compat
-    from stringcontact.model import Parameters, unused_fields
+    from stringcontact.fem import compat
+    from stringcontact.model.paper import Parameters, unused_fields
 
     msh = mesh.create_interval(MPI.COMM_SELF, 4, [0.0, 1.0])
     V = compat.function_space(msh, "Lagrange", 1)

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact import readback, viz
-from stringcontact.cli import main
-from stringcontact.painter import PictureProcess
-from stringcontact.result import ENERGY_KEYS
+from stringcontact.io import readback
+from stringcontact.plot import viz
+from stringcontact.cli.main import main
+from stringcontact.plot.painter import PictureProcess
+from stringcontact.io.result import ENERGY_KEYS
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +79,7 @@ def test_run_writes_legible_pictures(run):
 def test_contact_set_picture_shows_the_contact_fraction(run):
     """The red share of the plotting area is the contact set's share of the (x, t) rectangle."""
     _, res = run
-    from stringcontact.charts import _cell_edges
+    from stringcontact.plot.charts import _cell_edges
 
     dx, dt = np.diff(_cell_edges(res.x)), np.diff(_cell_edges(res.t))
     fraction = np.sum(res.contact * dt[:, None] * dx[None, :]) / (dx.sum() * dt.sum())
@@ -165,7 +166,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
 
 
 def test_a_picture_is_written_whole_or_not_at_all(tmp_path):
-    from stringcontact.output import atomic_path
+    from stringcontact.io.folder import atomic_path
 
     target = tmp_path / "energy.png"
     with pytest.raises(KeyboardInterrupt):
@@ -195,7 +196,7 @@ def test_snapshot_rows_are_the_scene_output_times(run):
 
 
 def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
-    from stringcontact.variants import load_model
+    from stringcontact.model.variants import load_model
 
     scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
     res = sc.simulate(scene, model=load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
@@ -235,8 +236,8 @@ def _thinning_writer(folder):
     from dolfinx import mesh
     from mpi4py import MPI
 
-    from stringcontact import compat
-    from stringcontact.output import OutputWriter
+    from stringcontact.fem import compat
+    from stringcontact.io.folder import OutputWriter
 
     scene = sc.load_scene("example1").replace(nx=10, nt=20)
     V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
@@ -244,7 +245,7 @@ def _thinning_writer(folder):
 
 
 def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
-    from stringcontact.output import xdmf_series
+    from stringcontact.io.folder import xdmf_series
 
     writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
@@ -300,14 +301,14 @@ def test_the_output_module_does_not_import_the_picture_code():
     import subprocess
     import sys
 
-    from stringcontact import output
+    from stringcontact.io import folder as output
 
     tree = ast.parse(Path(output.__file__).read_text())
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
     assert not {m for m in imported if m.split(".")[-1] in ("viz", "charts", "painter", "mesh_pictures")}
     assert output.registered_pictures() is viz.write_pictures
-    code = "import sys, stringcontact.viz; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
+    code = "import sys, stringcontact.plot.viz; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
 
 
@@ -326,7 +327,7 @@ def test_simulate_calls_a_given_picture_function_before_the_folder_is_published(
 
 
 def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run):
-    from stringcontact import mesh_pictures
+    from stringcontact.plot import mesh_pictures
 
     _, res = run
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
@@ -340,7 +341,7 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
 
 
 def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
-    from stringcontact.output import read_xdmf
+    from stringcontact.io.folder import read_xdmf
 
     class StopsAfterOneField(dict):  # Ctrl-C arriving between two fields of a row
         def items(self):
@@ -369,7 +370,7 @@ def test_the_picture_process_ends_and_cleans_up_when_the_run_dies(tmp_path):
     import sys
     import time
 
-    code = ("from stringcontact.painter import PictureProcess; p = PictureProcess.start(); "
+    code = ("from stringcontact.plot.painter import PictureProcess; p = PictureProcess.start(); "
             "print(p.proc.pid, p.folder, flush=True)")  # and exit at once, without cancel(): a killed run
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     pid, private = int(out[0]), Path(out[1])

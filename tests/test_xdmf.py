@@ -16,8 +16,8 @@ import pytest
 from conftest import mpirun
 
 import stringcontact as sc
-from stringcontact import readback
-from stringcontact.output import FIELDS
+from stringcontact.io import readback
+from stringcontact.io.folder import FIELDS
 
 MESHIO = r"""
 import json, sys
@@ -82,8 +82,8 @@ def test_the_xdmf_is_well_formed_after_every_frame(tmp_path):
     from dolfinx import mesh
     from mpi4py import MPI
 
-    from stringcontact import compat
-    from stringcontact.xdmf import XdmfTimeSeries, mesh_arrays, xdmf_series
+    from stringcontact.fem import compat
+    from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays, xdmf_series
 
     V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
     series = XdmfTimeSeries(tmp_path, mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
@@ -100,8 +100,8 @@ def test_a_triangle_mesh_is_written_with_the_same_layout(tmp_path):
     from dolfinx import fem, mesh
     from mpi4py import MPI
 
-    from stringcontact import compat
-    from stringcontact.xdmf import XdmfTimeSeries, mesh_arrays
+    from stringcontact.fem import compat
+    from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 
     V = compat.function_space(mesh.create_unit_square(MPI.COMM_SELF, 3, 2))
     u = fem.Function(V)
@@ -122,8 +122,8 @@ def test_a_run_stopped_early_keeps_the_same_readable_layout(tmp_path):
     from dolfinx import mesh
     from mpi4py import MPI
 
-    from stringcontact import compat
-    from stringcontact.output import OutputWriter
+    from stringcontact.fem import compat
+    from stringcontact.io.folder import OutputWriter
 
     scene = sc.load_scene("example1").replace(nx=10, nt=20)
     V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
@@ -143,8 +143,8 @@ TRIANGLES_UNDER_MPI = r"""
 import sys
 from dolfinx import fem, mesh
 from mpi4py import MPI
-from stringcontact import compat
-from stringcontact.xdmf import XdmfTimeSeries, mesh_arrays
+from stringcontact.fem import compat
+from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 V = compat.function_space(mesh.create_unit_square(MPI.COMM_WORLD, 6, 5))
 u, arrays = fem.Function(V), mesh_arrays(V, MPI.COMM_WORLD)
 series = XdmfTimeSeries(sys.argv[1], arrays, MPI.COMM_WORLD)

@@ -17,17 +17,17 @@ __version__ = "0.1.0"
 # Imported on first use (PEP 562), so that `import stringcontact.viz` in the picture process and the CLI's
 # argument checks do not load dolfinx, PETSc and UFL (0.6 s).
 _LAZY = {
-    "Model": "model",
-    "Parameters": "model",
-    "inelastic": "model",
-    "Result": "result",
-    "Scene": "scene",
-    "SceneWarning": "scene",
-    "list_scenes": "scene",
-    "load_scene": "scene",
-    "load_model": "registry",
-    "SCHEMES": "schemes",
-    "simulate": "solver",
+    "Model": "model.paper",
+    "Parameters": "model.paper",
+    "inelastic": "model.paper",
+    "Result": "io.result",
+    "Scene": "scene.data",
+    "SceneWarning": "scene.data",
+    "list_scenes": "scene.data",
+    "load_scene": "scene.data",
+    "load_model": "model.registry",
+    "SCHEMES": "timestepping",
+    "simulate": "run.driver",
 }
 
 

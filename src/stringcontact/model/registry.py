@@ -17,7 +17,7 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 
-from .errors import SceneError, one_line
+from ..errors import SceneError, one_line
 
 #: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
 GROUP = "stringcontact.models"
@@ -61,7 +61,7 @@ def load_model(spec):
     Raises `SceneError` with a one-line message naming ``model``. A ``module:name`` is imported (the user
     named it), but the object is never called: it must be a `Model`.
     """
-    from .model import Model
+    from .paper import Model
 
     if isinstance(spec, Model):
         return spec

@@ -37,7 +37,7 @@ import warnings
 import numpy as np
 from simpleeval import SimpleEval
 
-from .errors import SceneError, one_line
+from ..errors import SceneError, one_line
 
 __all__ = ["evaluate", "check", "ALLOWED_NAMES", "ALLOWED_FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH"]
 

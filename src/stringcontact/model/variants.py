@@ -26,11 +26,11 @@ import dataclasses
 
 import ufl
 
-from .model import Model, Parameters, inelastic
-from .model import contact_set as _paper_contact_set
-from .model import momentum_form as _paper_momentum_form
-from .model import penalty as _paper_penalty
-from .model import penalty_damping as _paper_penalty_damping
+from .paper import Model, Parameters, inelastic
+from .paper import contact_set as _paper_contact_set
+from .paper import momentum_form as _paper_momentum_form
+from .paper import penalty as _paper_penalty
+from .paper import penalty_damping as _paper_penalty_damping
 from .registry import load_model
 
 __all__ = ["elastic", "load_model", "loaded_obstacle"]

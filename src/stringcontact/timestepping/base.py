@@ -20,9 +20,9 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .. import nodal
+from ..fem import nodal
 from ..errors import InstabilityError, InstabilityWarning
-from ..scheme import Operators
+from ..fem.operators import Operators
 
 #: (kinetic, elastic, viscous, contact, numerical, external, stored): the state energies after a step, then
 #: the step's increments of the cumulative terms, then the energy held by a conservative contact law.

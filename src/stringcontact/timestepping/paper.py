@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scheme import stacked, step_matrices
+from ..fem.operators import stacked, step_matrices
 from .base import DampedLU, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
 

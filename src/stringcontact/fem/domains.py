@@ -20,7 +20,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import compat
-from .errors import SceneError
+from ..errors import SceneError
 
 __all__ = ["create", "boundary_dofs", "nodal_areas"]
 

@@ -33,8 +33,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InstabilityError
-from ..scene import SceneWarning
-from ..scheme import diagonal_matrix, stacked
+from ..scene.data import SceneWarning
+from ..fem.operators import diagonal_matrix, stacked
 from .base import Scheme as Base
 from .base import Linear, any_rank, dirichlet_rows, summer, wrap
 

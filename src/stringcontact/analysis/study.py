@@ -232,7 +232,7 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
 
 def l2_norm(x: np.ndarray, f: np.ndarray) -> np.ndarray:
     """‖f‖_{L²(0,l)} of nodal values f (rows = times), trapezoidal."""
-    from . import compat
+    from ..fem import compat
 
     return np.sqrt(compat.trapezoid(f**2, x, axis=-1))
 
@@ -279,7 +279,7 @@ def contact_height(run: Run) -> float:
 
 
 def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:
-    from . import compat
+    from ..fem import compat
 
     delta = contact_height(run)
     sym_diff = (contact_set(run.eta, delta) != contact_set(eta, delta)).astype(float)
@@ -292,7 +292,7 @@ def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:
 
 
 def flat_landing_exact(t, x):
-    from .exact import flat_landing
+    from ..verification.exact import flat_landing
 
     return flat_landing(t, x, h=FLAT_H, V=FLAT_V, length=1.0)
 
@@ -483,7 +483,7 @@ def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float 
     The flat middle lands at t* = h/V and, exactly, rests until the waves from the ends reach the middle at
     t* + (l/2 − t*); the largest upward velocity in (t*, t* + window] is the rebound.
     """
-    from .exact import flat_landing_time
+    from ..verification.exact import flat_landing_time
 
     mid = int(np.argmin(np.abs(x - 0.5 * (x[0] + x[-1]))))
     t_star = flat_landing_time(h, V)
@@ -527,7 +527,7 @@ def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: f
     what the explicit penalty actually does there. Consistent mass runs through `simulate`, whose guards
     refuse r ≥ 2 before the start ("refused") and stop a run whose energy rises ("growth").
     """
-    from .reference import fd_solve
+    from ..verification.reference import fd_solve
 
     n = round(1.0 / dt)
     nt = round(T / dt)
@@ -595,10 +595,10 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
     """
     from mpi4py import MPI
 
-    from .model import inelastic
-    from .reference import fd_projection
-    from .schemes.projection import largest_stable_dt
-    from .solver import _discretise
+    from ..model.paper import inelastic
+    from ..verification.reference import fd_projection
+    from ..timestepping.projection import largest_stable_dt
+    from ..run.driver import _discretise
 
     nt = max(1, round(T * n / ratio))
     scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)
@@ -640,7 +640,7 @@ def step_size_map(quick: bool = False, comm=None, busy: list | None = None) -> l
 
 def spring_case(r: float, n: int = 200, T: float = 0.45) -> dict:
     """The elastic (spring) law, explicit, at Δt = Δx with ε = Δt/r: its own stability (the law only warns)."""
-    from . import variants
+    from ..model import variants
 
     scene = flat_landing_scene(n, eps=1.0 / n / r, T=T)
     row = {"penalty": "explicit spring", "mass": "lumped", "dt": scene.dt, "eps": scene.eps, "r": r,
@@ -758,7 +758,7 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
         raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
                          "give its scheme (--scheme) and mesh (cells, mesh_size) instead")
     if model is None and scene.model:
-        from .registry import load_model
+        from ..model.registry import load_model
 
         model = load_model(scene.model)
     choice = _estimate_on_rank_0(scene, tol, model=model)
@@ -837,7 +837,7 @@ def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
 
 def write_csv(path, rows: list[dict], columns) -> Path:
     """Write rows with exactly `columns`, atomically (a temporary file renamed into place)."""
-    from .output import atomic_path
+    from ..io.folder import atomic_path
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -875,7 +875,7 @@ def _figure(path, *args, **kwargs):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .output import atomic_path
+    from ..io.folder import atomic_path
 
     fig, axes = plt.subplots(*args, **kwargs)
     try:

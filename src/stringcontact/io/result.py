@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import compat
+from ..fem import compat
 
 ENERGY_KEYS = (
     "kinetic",

@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
-from .errors import one_line
+from ..errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
+from ..errors import one_line
 from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
 from .xdmf import XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 

@@ -17,7 +17,7 @@ from PIL import Image
 
 from .charts import WINDOW_SIZE
 from .mesh_pictures import _every_kth, _font_file, _plotter, add_membrane, membrane_label, membrane_title, membrane_view
-from .output import atomic_path
+from ..io.folder import atomic_path
 
 MAX_FRAMES = 50
 FPS = 12

@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from . import expressions
-from .errors import SceneError, one_line
+from ..errors import SceneError, one_line
 
 __all__ = [
     "Scene",
@@ -748,13 +748,13 @@ def _check_name(value) -> str:
 
 def _check_model(value) -> str:
     # A scene is data: it names a registered model and never a module (nothing is imported here).
-    from .registry import check_name
+    from ..model.registry import check_name
 
     return check_name(value)
 
 
 def _check_scheme(value) -> str:
-    from .schemes import SCHEMES
+    from ..timestepping import SCHEMES
 
     if value not in SCHEMES:
         raise SceneError(f"scheme: invalid value {_describe(value)}; allowed: {', '.join(SCHEMES)}")

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from ..scheme import diagonal_matrix, stacked
+from ..fem.operators import diagonal_matrix, stacked
 from .base import DampedLU, any_rank, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
 

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError, one_line
+from ..errors import OutputError, one_line
 
 #: dolfinx cell type -> (XDMF topology type, nodes per cell) for P1 meshes.
 TOPOLOGY_TYPES = {
@@ -121,7 +121,7 @@ class MeshArrays:
 
 def mesh_arrays(V, comm) -> MeshArrays:
     """The owned points and cells of a scalar P1 space, numbered by its global dofs."""
-    from . import compat
+    from ..fem import compat
 
     msh = V.mesh
     name = msh.topology.cell_type.name

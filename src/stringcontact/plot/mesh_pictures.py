@@ -28,7 +28,7 @@ from .charts import (
     snapshot_rows,
     without_axes3d_warning,
 )
-from .output import atomic_path
+from ..io.folder import atomic_path
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"

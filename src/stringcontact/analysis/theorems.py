@@ -156,7 +156,7 @@ def first_contact_rows(result) -> np.ndarray:
 
 def _runs(mask: np.ndarray, min_nodes: int = 1) -> list[tuple[int, int]]:
     """Maximal runs [a, b] (inclusive node indices) of at least `min_nodes` True in a 1-D mask."""
-    from .charts import contact_components
+    from ..plot.charts import contact_components
 
     return [(int(a), int(b)) for a, b in contact_components(np.arange(np.size(mask)), mask, min_nodes)]
 
@@ -398,7 +398,7 @@ def refine(scene, levels: int = 3, penalty: str = "explicit", model=None):
 
     Δx, Δt and ε fall together (fixed Δt/Δx and r = Δt/ε), the limit the paper's theorems describe.
     """
-    from .solver import simulate
+    from ..run.driver import simulate
 
     if levels < 1:
         raise ValueError(f"levels must be >= 1, got {levels}")
@@ -411,7 +411,7 @@ def refine(scene, levels: int = 3, penalty: str = "explicit", model=None):
 
 def refine_time(scene, levels: int = 3, penalty: str = "explicit", model=None):
     """Results with Δt, Δt/2, Δt/4, ... at fixed Δx and ε (only the energies are used: rows thinned)."""
-    from .solver import simulate
+    from ..run.driver import simulate
 
     return [simulate(scene.replace(nt=scene.nt * 2**k), penalty=penalty, model=model, gather="all") for k in range(levels)]
 
@@ -604,7 +604,7 @@ def run_checks(scene, levels: int = 3, penalty: str = "explicit", delay: float |
     Returns (checks, finest result, all fixed-r results).
     """
     if model is None and scene.model:
-        from .registry import load_model
+        from ..model.registry import load_model
 
         model = load_model(scene.model)  # a registered name: the scene was checked when it was loaded
     results = refine(scene, levels, penalty, model)
@@ -656,7 +656,7 @@ def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, ba
     """
     from matplotlib.colors import ListedColormap, LogNorm
 
-    from .charts import _pyplot, _savefig
+    from ..plot.charts import _pyplot, _savefig
 
     plt = _pyplot()
     _require_every_step(result)
@@ -713,7 +713,7 @@ def add_arguments(parser):
 
 
 def _scene_from_args(args):
-    from .scene import load_scene
+    from ..scene.data import load_scene
 
     if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
         scene = flat_landing_scene(args.nx or 1000, args.nt or 1200)
@@ -721,7 +721,7 @@ def _scene_from_args(args):
     else:
         scene = load_scene(args.scene)
         if scene.dim != 1:
-            from .errors import SceneError
+            from ..errors import SceneError
 
             raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
                              "paper's theorems are about the string); allowed: a scene with domain 'interval'")
@@ -745,7 +745,7 @@ def command(args) -> int:
     if args.delay is not None and args.delay >= scene.T:
         raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
     if args.out is not None:
-        from .output import check_target
+        from ..io.folder import check_target
 
         check_target(args.out, args.force)
     V = FLAT_V if scene.name == FLAT_LANDING else None
@@ -758,7 +758,7 @@ def command(args) -> int:
     print()
     print(format_trends(checks))
     if args.out is not None:
-        from .output import staged_folder
+        from ..io.folder import staged_folder
 
         with staged_folder(args.out, args.force) as partial:  # the whole folder or nothing, under the run lock
             (partial / "checks.json").write_text(json.dumps(

@@ -18,14 +18,14 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import compat, domains
-from .errors import InstabilityError
-from .model import Model, Parameters, inelastic, unused_fields
-from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
-from .scene import BYTES_PER_STORED_NODE, MAX_STORED_BYTES, STORED_ROWS, check_petsc_options
-from .scheme import bc_dofs, node_coordinates, semi_discrete_operators
-from .schemes import check_model, scheme_class
-from .schemes.base import NodalLaws, Setting
+from ..fem import compat, domains
+from ..errors import InstabilityError
+from ..model.paper import Model, Parameters, inelastic, unused_fields
+from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
+from ..scene.data import BYTES_PER_STORED_NODE, MAX_STORED_BYTES, STORED_ROWS, check_petsc_options
+from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
+from ..timestepping import check_model, scheme_class
+from ..timestepping.base import NodalLaws, Setting
 
 
 #: The stored rows may take at most this many bytes on a rank that holds them (rank 0; every rank with
@@ -350,7 +350,7 @@ def _resolve_model(model, scene) -> Model:
     """`model` (a Model, a registered name or "package.module:name"), else the scene's, else the paper's."""
     if model is None and not getattr(scene, "model", None):
         return inelastic
-    from .registry import load_model
+    from ..model.registry import load_model
 
     return load_model(model if model is not None else scene.model)
 
@@ -409,7 +409,7 @@ def simulate(
     rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
     writer = None
     if output_dir is not None:
-        from .output import OutputWriter, xdmf_frames
+        from ..io.folder import OutputWriter, xdmf_frames
 
         frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), max_frames)
         writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures, frames=frames)
@@ -445,7 +445,7 @@ def simulate(
         raise
     timings["solve"] = time.perf_counter() - t_loop - (writer.write_time if writer is not None else 0.0)  # I/O apart
     timings.update(stepper.timings)
-    from .output import unbalanced_message
+    from ..io.folder import unbalanced_message
 
     result = result_of("complete", "")
     unbalanced = unbalanced_message(result)  # a balance that does not close is not a complete run

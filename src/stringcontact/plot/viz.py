@@ -161,7 +161,7 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def command(args) -> int:
-    from .readback import read_output
+    from ..io.readback import read_output
 
     size = parse_size(args.size)
     result = read_output(args.folder)

@@ -26,18 +26,18 @@ import sys
 import threading
 import warnings
 
-from .errors import one_line
-from .schemes import SCHEMES
+from ..errors import one_line
+from ..timestepping import SCHEMES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 # Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
 # and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
 SUBCOMMANDS = {
-    "plot": ("stringcontact.viz", "redraw the pictures of an output folder from its saved files"),
-    "study": ("stringcontact.study", "work-precision, convergence and stability studies"),
-    "check": ("stringcontact.theorems", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
-    "models": ("stringcontact.registry", "list the models a scene may name (registered under stringcontact.models)"),
+    "plot": ("stringcontact.plot.viz", "redraw the pictures of an output folder from its saved files"),
+    "study": ("stringcontact.analysis.study", "work-precision, convergence and stability studies"),
+    "check": ("stringcontact.analysis.theorems", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
+    "models": ("stringcontact.model.registry", "list the models a scene may name (registered under stringcontact.models)"),
 }
 
 
@@ -152,7 +152,7 @@ def _signals_interrupt(petsc: bool = True):
 
 
 def _fmt_energy_line(res) -> str:
-    from .output import energy_balance
+    from ..io.folder import energy_balance
 
     b = energy_balance(res)
     external = f" - external work {b['external_work']:.6g}" if b["external_work"] else ""
@@ -165,7 +165,7 @@ def _fmt_energy_line(res) -> str:
 
 
 def _fmt_penetration_line(res) -> tuple[str, bool]:
-    from .output import PENETRATION_FACTOR, penetration_check
+    from ..io.folder import PENETRATION_FACTOR, penetration_check
 
     p = penetration_check(res)
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
@@ -179,7 +179,7 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
 
 def report(res) -> None:
     """The run's closing lines on stdout: parameters, min η, the energy balance and the penetration check."""
-    from .errors import PenetrationWarning
+    from ..errors import PenetrationWarning
 
     scene = res.scene
     penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
@@ -227,17 +227,17 @@ def _run(args, painter=None) -> int:
     _check_scheme_options(args, scene)
     model = None
     if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
-        from .registry import load_model
+        from ..model.registry import load_model
 
         model = load_model(args.model or scene.model)
     if args.frames < 1:
         raise ValueError(f"--frames: must be a whole number >= 1 (XDMF frames), not {args.frames}")
     if args.out is not None:
-        from .output import check_target
+        from ..io.folder import check_target
 
         check_target(args.out, args.force)  # before --tol's pilots and the set-up: a refused folder costs nothing
     if args.tol is not None:
-        from .study import choose_for_tolerance
+        from ..analysis.study import choose_for_tolerance
 
         scene, options, text = choose_for_tolerance(scene, args.tol, model=model)  # the pilots use the run's model
         print(text)
@@ -255,7 +255,7 @@ def _run(args, painter=None) -> int:
         report(res)
         if args.out is not None:
             print(f"wrote {args.out}")
-    from .output import unbalanced_message
+    from ..io.folder import unbalanced_message
 
     unbalanced = unbalanced_message(res)
     if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
@@ -266,7 +266,7 @@ def _run(args, painter=None) -> int:
 
 def _petsc_options(items: list[str]) -> dict:
     """--petsc-option NAME=VALUE, ...: a dict with TOML's value types (true/false, numbers, words), checked."""
-    from .scene import check_petsc_options
+    from ..scene.data import check_petsc_options
 
     options = {}
     for item in items:
@@ -290,7 +290,7 @@ def _option_value(text: str):
 
 def _check_scheme_options(args, scene) -> None:
     """--eps or --penalty with a scheme that has no penalty: refused before anything runs."""
-    from .schemes import scheme_class
+    from ..timestepping import scheme_class
 
     name = args.scheme or scene.scheme or "paper"
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
@@ -302,7 +302,7 @@ def _pictures(args, painter):
     """`simulate`'s `pictures`: the picture function, with the started painter, or whether to draw them."""
     if painter is None:
         return not args.no_pictures
-    from .viz import write_pictures
+    from ..plot.viz import write_pictures
 
     return functools.partial(write_pictures, painter=painter)
 
@@ -347,7 +347,7 @@ def _stop_signals():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    from .errors import Interrupted
+    from ..errors import Interrupted
 
     def handler(signum, frame):
         raise Interrupted(signum)
@@ -367,7 +367,7 @@ def _main(argv) -> int:
         return EXIT_INTERNAL
     painter = None
     if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
-        from .painter import PictureProcess
+        from ..plot.painter import PictureProcess
 
         painter = PictureProcess.start()  # first: its start-up then overlaps the whole run, imports included
     try:
@@ -378,13 +378,13 @@ def _main(argv) -> int:
 
 
 def _command(args, painter) -> int:
-    from .errors import InstabilityError, Interrupted, OutputError, SceneError
+    from ..errors import InstabilityError, Interrupted, OutputError, SceneError
 
     with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot", "models")):
         try:
             if args.command == "run":
                 return _run(args, painter)
-            from . import scene as scenes
+            from ..scene import data as scenes
 
             if args.command == "list":
                 for name, description in scenes.list_scenes():

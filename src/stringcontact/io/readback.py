@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError, SceneError, one_line
+from ..errors import OutputError, SceneError, one_line
 from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from .xdmf import read_xdmf
 
@@ -87,8 +87,8 @@ def _check_status(folder: Path, summary: dict) -> None:
 
 
 def _read_summary(path: Path):
-    from .registry import registered
-    from .scene import Scene
+    from ..model.registry import registered
+    from ..scene.data import Scene
 
     summary = _load_json(path)
     _check_status(path.parent, summary)
