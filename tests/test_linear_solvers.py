@@ -16,6 +16,7 @@ import pytest
 from petsc4py import PETSc
 
 import stringcontact as sc
+from stringcontact.errors import SolverError
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
 from stringcontact.scene.data import Scene, scene_to_toml
@@ -152,8 +153,19 @@ def test_a_loose_tolerance_shows_in_the_ledger():
 
 
 def test_a_solver_that_does_not_converge_stops_the_run_in_one_line():
-    with pytest.raises(ValueError, match="did not converge"):
+    with pytest.raises(SolverError, match="did not converge"):
         sc.simulate(contact_scene(), scheme="paper", petsc_options=dict(CG_JACOBI, ksp_max_it=1))
+
+
+def test_a_solver_that_does_not_converge_is_an_internal_failure_not_bad_input(capsys):
+    """docs/reliability.md: exit 2 is bad input; a CG that stops short after the input was accepted is exit 1."""
+    from stringcontact.cli.main import EXIT_INTERNAL, main
+
+    code = main(["run", "example1", "--nx", "50", "--nt", "1000", "--no-pictures", "--no-progress",
+                 "--petsc-option", "ksp_type=cg", "--petsc-option", "pc_type=jacobi", "--petsc-option", "ksp_max_it=1"])
+    err = capsys.readouterr().err
+    assert code == EXIT_INTERNAL == 1
+    assert "did not converge" in err and len(err.strip().splitlines()) == 1
 
 
 # --- options: private, allow-listed, round-tripped -------------------------------------------------------

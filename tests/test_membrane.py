@@ -133,7 +133,7 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
 
     scene = small_drum(mesh_size=0.15)
     model = load_model(scene.model)
-    V, params, ops = solver._discretise(scene, model, MPI.COMM_SELF)
+    V, params, ops = solver.discretise(scene, model, MPI.COMM_SELF)
     s = solver._setting(scene, model, V, params, ops, None, "lumped", MPI.COMM_SELF)
     ia, ja, a = ops.K.getValuesCSR()
     inner = np.flatnonzero(s.interior)

@@ -125,14 +125,14 @@ def test_the_contact_area_chart_draws_the_results_numbers(run):
         assert "Contact area and patches: drum" in area_axes.get_title()
         assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
     finally:
-        charts._pyplot().close(fig)
+        charts.pyplot().close(fig)
 
 
 def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeypatch):
     _, res = run
     labels = []
-    plt = charts._pyplot()
-    monkeypatch.setattr(charts, "_savefig", lambda fig, path: labels.extend(t.get_text() for t in fig.axes[0].get_legend().get_texts()) or plt.close(fig))
+    plt = charts.pyplot()
+    monkeypatch.setattr(charts, "savefig", lambda fig, path: labels.extend(t.get_text() for t in fig.axes[0].get_legend().get_texts()) or plt.close(fig))
     charts.energy_picture(res, tmp_path / "e.png")
     assert any(r"|\nabla\eta|^2" in label for label in labels) and not any("eta_x" in label for label in labels)
 

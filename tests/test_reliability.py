@@ -22,7 +22,8 @@ from hypothesis import strategies as st
 from conftest import leftovers, mpirun
 
 from stringcontact.cli.main import main
-from stringcontact.io.folder import TargetLock, energy_balance, penetration_check, xdmf_series
+from stringcontact.io.folder import TargetLock, xdmf_series
+from stringcontact.run.checks import energy_balance, penetration_check
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01", *QUICK]  # r = 0.75, 41 rows
@@ -535,7 +536,7 @@ def test_unbalanced_run_is_kept_marked_and_exits_3(tmp_path, capfd, monkeypatch)
     before = (out / "summary.json").read_text()
     capfd.readouterr()
     # The verdict decides: with a tolerance below round-off, the same run's balance "does not close".
-    monkeypatch.setattr("stringcontact.io.folder.BALANCE_RTOL", 1e-300)
+    monkeypatch.setattr("stringcontact.run.checks.BALANCE_RTOL", 1e-300)
     assert main(["run", "example1", *SMALL, "--out", str(out), "--force"]) == 3
     captured = capfd.readouterr()
     assert_one_line_error(captured.err, "the energy balance does not close", "not trustworthy")

@@ -156,9 +156,9 @@ class _nothing:
 
 def _operators(scene):
     from stringcontact.model.paper import inelastic
-    from stringcontact.run.driver import _discretise
+    from stringcontact.run.driver import discretise
 
-    return _discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    return discretise(scene, inelastic, MPI.COMM_SELF)[2]
 
 
 def _interior(ops):

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.io.folder import penetration_check
+from stringcontact.run.checks import penetration_check
 from stringcontact.io.result import PER_NODE, RowsElsewhere
 from stringcontact.scene.data import BYTES_PER_STORED_NODE
 from stringcontact.run.driver import ROW_BUDGET, STORED_ROWS, StorageWarning, budget_steps, output_steps, stored_steps

@@ -1,6 +1,6 @@
 """The errors a user can meet, each with a message that names the cause and the remedy.
 
-The command line maps them to exit codes (see `stringcontact.cli`): `SceneError` and `OutputError` to 2,
+The command line maps them to exit codes (see `stringcontact.cli.main`): `SceneError` and `OutputError` to 2,
 `InstabilityError` to 3 (2 if it is found before the first step), `Interrupted` to 128 + the signal number.
 :func:`one_line` puts a message (or the text of an exception) on the one line those errors are shown on.
 """
@@ -20,6 +20,11 @@ class InstabilityError(RuntimeError):
         self.step = step
         self.time = time
         self.r = r
+
+
+class SolverError(RuntimeError):
+    """A numerical step failed after the input was accepted (a linear solve that does not converge): exit code 1,
+    not 2 "bad input" (docs/reliability.md)."""
 
 
 class OutputError(RuntimeError):

@@ -3,7 +3,7 @@ r"""Speed against accuracy: work-precision, convergence and stability studies, a
 Three studies, each a plain function returning rows (dicts of numbers) and a chart function that draws them:
 
 * :func:`work_precision` -- error against wall-clock time, one line per :class:`Method`, on the exact
-  :math:`\alpha = 0` flat landing (:func:`stringcontact.exact.flat_landing`) and on the paper's Example 1
+  :math:`\alpha = 0` flat landing (:func:`stringcontact.verification.exact.flat_landing`) and on the paper's Example 1
   against a fine-grid reference;
 * :func:`convergence` -- observed orders under :math:`\Delta t = \Delta x \to 0` and under
   :math:`\varepsilon \to 0` (penetration and error), and how well the ``--tol`` estimate tracks the true error;
@@ -355,7 +355,7 @@ def _warm_up():
     """Compile the forms once per process (FFCx caches them), so the first timed run does not pay for it.
 
     One run warms every method: the forms do not depend on the mass (lumping is the row sums of the
-    assembled M) nor on the penalty (evaluated at the nodes with NumPy, `stringcontact.nodal`).
+    assembled M) nor on the penalty (evaluated at the nodes with NumPy, `stringcontact.fem.nodal`).
     """
     run_method(flat_landing_scene(8, nt=4), METHODS["semi-implicit"], rows=4)
 
@@ -522,7 +522,7 @@ def fd_energy(eta: np.ndarray, velocity: np.ndarray, dx: float) -> np.ndarray:
 def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: float = 0.45) -> dict:
     """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r.
 
-    Lumped mass runs through :func:`stringcontact.reference.fd_solve` -- the same scheme as `simulate`
+    Lumped mass runs through :func:`stringcontact.verification.reference.fd_solve` -- the same scheme as `simulate`
     (tests/test_solver.py checks this to 1e-10) without the pre-run refusal of r ≥ 2, so that the map shows
     what the explicit penalty actually does there. Consistent mass runs through `simulate`, whose guards
     refuse r ≥ 2 before the start ("refused") and stop a run whose energy rises ("growth").
@@ -598,11 +598,11 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
     from ..model.paper import inelastic
     from ..verification.reference import fd_projection
     from ..timestepping.projection import largest_stable_dt
-    from ..run.driver import _discretise
+    from ..run.driver import discretise
 
     nt = max(1, round(T * n / ratio))
     scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)
-    ops = _discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    ops = discretise(scene, inelastic, MPI.COMM_SELF)[2]
     interior = np.ones(ops.m.size, dtype=bool)
     interior[np.argsort(ops.m)[:2]] = False  # the ends: the two nodes with half a cell of mass
     dt_max = largest_stable_dt(ops, interior)

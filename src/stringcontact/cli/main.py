@@ -152,9 +152,9 @@ def _signals_interrupt(petsc: bool = True):
 
 
 def _fmt_energy_line(res) -> str:
-    from ..io.folder import energy_balance
+    from ..run.checks import checks_of
 
-    b = energy_balance(res)
+    b = checks_of(res)["energy_balance"]
     external = f" - external work {b['external_work']:.6g}" if b["external_work"] else ""
     verdict = "closes" if b["closes"] else f"DOES NOT CLOSE (tolerance {b['tolerance']:.0e})"
     return (
@@ -165,9 +165,9 @@ def _fmt_energy_line(res) -> str:
 
 
 def _fmt_penetration_line(res) -> tuple[str, bool]:
-    from ..io.folder import PENETRATION_FACTOR, penetration_check
+    from ..run.checks import PENETRATION_FACTOR, checks_of
 
-    p = penetration_check(res)
+    p = checks_of(res)["penetration"]
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
     verdict = "within" if p["within_bound"] else "EXCEEDS"
     line = (
@@ -255,7 +255,7 @@ def _run(args, painter=None) -> int:
         report(res)
         if args.out is not None:
             print(f"wrote {args.out}")
-    from ..io.folder import unbalanced_message
+    from ..run.checks import unbalanced_message
 
     unbalanced = unbalanced_message(res)
     if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
@@ -378,7 +378,7 @@ def _main(argv) -> int:
 
 
 def _command(args, painter) -> int:
-    from ..errors import InstabilityError, Interrupted, OutputError, SceneError
+    from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError
 
     with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot", "models")):
         try:
@@ -395,6 +395,10 @@ def _command(args, painter) -> int:
                 return EXIT_OK
             if args.command in SUBCOMMANDS:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
+        except SolverError as exc:  # a numerical failure after the input was accepted (docs/reliability.md)
+            _partial_report(exc)
+            _error(exc)
+            return EXIT_INTERNAL
         except (SceneError, OutputError, ValueError) as exc:
             _error(exc)
             return EXIT_INPUT

@@ -15,8 +15,9 @@ renames it into place at the end, so the target is always absent, complete, or e
 * the partial folders of runs that were killed (SIGKILL, power loss) are removed by the next run that
   takes the lock: exact names only, never one a live run holds.
 
-`energy_balance` and `penetration_check` are the two numbers checks of every run (summary.json and the
-command line's last lines); see docs/reliability.md.
+The run's numbers checks (energy balance, penetration) come with the `Result` (`result.checks`, made by
+`run.checks`); this module writes them into summary.json and knows no physics. The pictures are drawn by
+the function the caller passes (`pictures`); this module never imports the picture code.
 """
 
 from __future__ import annotations
@@ -40,19 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.output import OutputError`
+from ..errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
 from ..errors import one_line
 from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
 from .xdmf import XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
-#: max |balance residual| / energy scale above which the energy balance is reported as not closing.
-BALANCE_RTOL = 1e-8
-#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/reliability.md).
-PENETRATION_FACTOR = 2.0
 #: below this many free bytes a failed write is reported as a full disk.
 NEARLY_FULL_BYTES = 1 << 20
-#: the entry-point group of the function `pictures=True` calls, `(result, folder)`: `stringcontact.viz:write_pictures`.
-PICTURES_ENTRY_POINT = "stringcontact.pictures"
 
 
 # --- the target folder and its lock ---------------------------------------------------------------
@@ -560,18 +555,6 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
     mask[candidates] = True
 
 
-def registered_pictures():
-    """The picture function registered under the entry point PICTURES_ENTRY_POINT ("default").
-
-    Looked up by name, not imported: the picture code (viz) imports this module.
-    """
-    from importlib.metadata import entry_points
-
-    for entry in entry_points(group=PICTURES_ENTRY_POINT, name="default"):
-        return entry.load()
-    raise RuntimeError(f"no picture function registered as entry point {PICTURES_ENTRY_POINT}:default (reinstall: make setup)")
-
-
 class OutputWriter:
     """Streams the stored rows to XDMF during the run and writes the tables at the end.
 
@@ -580,14 +563,14 @@ class OutputWriter:
     folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
     """
 
-    def __init__(self, path, scene, V, comm, force: bool = False, pictures=True, frames=None):
+    def __init__(self, path, scene, V, comm, force: bool = False, pictures=None, frames=None):
         self.comm = comm
         self.frames = None if frames is None else np.asarray(frames, dtype=bool)  # which stored rows go to XDMF
         self._row = 0
         self._skipped = None  # the time of the last stored row not written to XDMF, if the latest row was one
         self._kept = None  # that row's fields: flushed if the run stops there
         self._spare = None  # the buffers the next skipped row is copied into before it replaces the kept one
-        self.pictures = pictures  # False, True (the registered picture function) or a function (result, folder)
+        self.pictures = pictures  # None/False (no pictures) or a function (result, folder)
         self.scene = scene
         self.force = force
         self.write_time = 0.0
@@ -653,15 +636,12 @@ class OutputWriter:
     def finish(self, result) -> None:
         """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place.
 
-        A run whose energy balance does not close is kept, marked "unbalanced" (result.status too), never
-        "complete". A write that fails on the device (disk full, I/O error), pictures included, removes the
+        The status is the result's (the driver marks a run whose energy balance does not close
+        "unbalanced"; such a run is kept, never "complete"). A write that fails on the device (disk full, I/O error), pictures included, removes the
         folder and raises OutputError on every rank.
         """
         try:
             self._close_xdmf()
-            unbalanced = unbalanced_message(result)
-            if unbalanced is not None:
-                result.status, result.message = "unbalanced", unbalanced
             summary = summary_dict(result)
             failure = None
             if self.comm.rank == 0:
@@ -734,8 +714,7 @@ class OutputWriter:
 
     def _pictures(self, result) -> None:
         try:  # on rank 0 only
-            draw = self.pictures if callable(self.pictures) else registered_pictures()
-            draw(result, self.partial)
+            self.pictures(result, self.partial)
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
@@ -881,100 +860,6 @@ def write_diagnostics(path: Path, result) -> None:
             w.writerow([int(cols[c][i]) if c == "step" else repr(float(cols[c][i])) for c in DIAGNOSTIC_COLUMNS])
 
 
-def energy_balance(result) -> dict:
-    """The discrete energy balance at the last stored time, with a verdict.
-
-    E(0) + W_ext = E(t) + D_visc + D_con + D_num, where D_num is the scheme's own consistency term
-    (see `Result`). The residual is the largest |E(0) + W_ext − [E(t) + D]| over the stored times,
-    relative to the largest term; the balance "closes" when it is below BALANCE_RTOL.
-    """
-    e = result.energy
-    total = result.total_energy
-    residual = np.asarray(result.balance_residual, dtype=float)
-    terms = {
-        "initial": float(total[0]),
-        "final": float(total[-1]),
-        "viscous_dissipation": float(e["viscous_dissipation"][-1]),
-        "contact_dissipation": float(e["contact_dissipation"][-1]),
-        "numerical_dissipation": float(e["numerical_dissipation"][-1]),
-        "external_work": float(e["external_work"][-1]),
-    }
-    scale = max([abs(v) for v in terms.values()] + [np.finfo(float).tiny])
-    worst = float(np.max(np.abs(residual))) if residual.size else 0.0
-    relative = worst / scale if math.isfinite(worst) else math.inf
-    return {
-        **terms,
-        "residual": float(residual[-1]),
-        "max_abs_residual": worst,
-        "relative_residual": relative,
-        "tolerance": BALANCE_RTOL,
-        "closes": bool(relative <= BALANCE_RTOL),
-    }
-
-
-def penetration_check(result) -> dict:
-    """How far the string went below the obstacle, against the bound of its contact law.
-
-    The velocity penalty F = (1/ε)(v)⁻ brakes a node falling at speed V within a depth ε·V (exactly, for
-    the explicit scheme: Σ Δt·V·(1 − r)^k = ε·V), plus at most one step Δt·V travelled before the force
-    switches on. The bound allows twice that, for the elastic and viscous forces acting meanwhile, below
-    the deepest initial value:
-
-        depth ≤ max(0, max(ψ − η0)) + PENETRATION_FACTOR·(ε + Δt)·V,   V = max |v| over the stored rows,
-
-    with ψ the scene's obstacle (0 unless it gives one). For the `elastic` variant (a spring of stiffness
-    1/ε) ε·V becomes √ε·V. A run beyond the bound holds the string down by something the penalty cannot
-    stop (a static load, a model variant, an r > 1 rebound): see docs/reliability.md.
-    """
-    scene = result.scene
-    if getattr(result, "has_rows", True):
-        eta = np.asarray(result.eta, dtype=float)
-        velocity = np.asarray(result.velocity, dtype=float)
-        v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
-        if scene.obstacle is None:  # min_eta covers every step, not only the stored ones
-            depth = max(0.0, -float(result.min_eta))
-            start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
-        else:
-            obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
-            depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
-            start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
-    else:  # an MPI rank without the rows: the same numbers from the series the ranks summed (Result.series)
-        v_max, depth, start_depth = _penetration_from_series(result)
-    braking = math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
-    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
-    return {
-        "depth": depth,
-        "bound": bound,
-        "initial_depth": start_depth,
-        "max_speed": v_max,
-        "eps_times_speed": braking * v_max,
-        "law": "spring (sqrt(eps))" if result.model == "elastic" else "velocity penalty (eps)",
-        "within_bound": bool(depth <= bound * (1 + 1e-12)),
-    }
-
-
-def _penetration_from_series(result) -> tuple[float, float, float]:
-    """max |v|, the depth and the initial depth from Result.series ("max_speed", "depth" = max(ψ − η))."""
-    speed, below = result.series["max_speed"], result.series["depth"]
-    if not len(below):
-        return 0.0, max(0.0, -float(result.min_eta)), 0.0
-    depth = -float(result.min_eta) if result.scene.obstacle is None else float(np.max(below))
-    return float(np.max(speed)), max(0.0, depth), max(0.0, float(below[0]))
-
-
-def unbalanced_message(result) -> str | None:
-    """Why a run whose energy balance does not close cannot be called complete; None if it closes."""
-    if not len(result.t):
-        return None
-    b = energy_balance(result)
-    if b["closes"]:
-        return None
-    return (
-        f"the energy balance does not close (relative residual {b['relative_residual']:.2g} > {b['tolerance']:.0e}): "
-        "the numbers are not trustworthy; see docs/reliability.md"
-    )
-
-
 def summary_dict(result) -> dict:
     import dolfinx
 
@@ -995,6 +880,5 @@ def summary_dict(result) -> dict:
         "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
         "initial_energy": float(result.total_energy[0]),
         "max_abs_balance_residual": float(np.max(np.abs(result.balance_residual))),
-        "energy_balance": energy_balance(result),
-        "penetration": penetration_check(result),
+        **(getattr(result, "checks", None) or {}),  # "energy_balance", "penetration" (run.checks)
     }

@@ -1,6 +1,6 @@
 """Reading an output folder back into a :class:`Result`: ``read_output(folder)``.
 
-The arrays come from ``solution.xdmf``/``.h5`` (the layout of `stringcontact.xdmf`), the energies from
+The arrays come from ``solution.xdmf``/``.h5`` (the layout of `stringcontact.io.xdmf`), the energies from
 ``diagnostics.csv``, the scene and options from ``summary.json``. A membrane's folder (a 2D scene) also
 gives its triangles (the HDF5 topology), and the nodal areas are computed from them. The ``.h5`` is read with pyfive (pure
 Python): the h5py wheel bundles its own libhdf5, which clashes with the system libhdf5 that dolfinx has

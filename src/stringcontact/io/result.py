@@ -52,7 +52,7 @@ class Result:
     than give numbers of part of the mesh. The per-time series are the same on every rank: t, steps,
     energy, min_eta, status, message, and `series` (computed in parallel at each stored time):
     "contact_measure", "max_speed" (max |v|) and "depth" (max of obstacle − η; the obstacle is 0 unless
-    the scene gives one), which `contact_measure` and `output.penetration_check` use where the rows are
+    the scene gives one), which `contact_measure` and `run.checks.penetration_check` use where the rows are
     absent. `simulate(gather="all")` gives every rank the rows.
 
     `contact` is η ≤ 0 (on or below the obstacle); the penalty acts where η < 0.
@@ -83,6 +83,7 @@ class Result:
     cells: np.ndarray | None = None  # 2D: the triangles, (k, 3) indices into x
     series: dict = field(default_factory=dict)  # per stored time, on every rank (see above)
     has_rows: bool = True  # False on a rank without the per-node arrays
+    checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of, once per run
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):

@@ -9,7 +9,8 @@ it names, which imports that installed package's module: the trust boundary is t
 ``"package.module:name"`` is accepted only where the user types it: ``--model`` on the command line and
 `load_model` in Python. Even there the named object must already be a `Model`: nothing is called.
 
-Heavy imports (UFL, through `model`) stay inside the functions: `scene` calls `check_name` for `list`/`show`.
+Heavy imports (UFL, through `paper`) stay inside the functions. The names themselves (`registered`, `check_name`)
+are read in `scene.names`, which a scene's validation uses without importing this package.
 """
 
 from __future__ import annotations
@@ -18,42 +19,7 @@ import importlib
 import importlib.metadata
 
 from ..errors import SceneError, one_line
-
-#: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
-GROUP = "stringcontact.models"
-
-
-def registered() -> dict[str, list[importlib.metadata.EntryPoint]]:
-    """The registered models: name -> its entry points (one per distinct target; two mean a conflict)."""
-    found: dict[str, list[importlib.metadata.EntryPoint]] = {}
-    for ep in importlib.metadata.entry_points(group=GROUP):
-        targets = found.setdefault(ep.name, [])
-        if all(other.value != ep.value for other in targets):  # the same package seen twice is one entry
-            targets.append(ep)
-    return dict(sorted(found.items()))
-
-
-def _allowed(names) -> str:
-    return (f"allowed: {', '.join(names) or 'none (is stringcontact installed? run scripts/setup)'} "
-            f"(the names installed packages register under the entry-point group {GROUP}; see `stringcontact models`)")
-
-
-def check_name(value) -> str:
-    """`value` if it is a registered model name, else a one-line `SceneError` naming ``model``. Imports nothing."""
-    models = registered()
-    if not isinstance(value, str) or value not in models:
-        shown = repr(value) if isinstance(value, str) else f"{type(value).__name__} {value!r}"
-        raise SceneError(f"model: unknown model {one_line(shown)[:80]}; {_allowed(models)}")
-    if len(models[value]) > 1:
-        targets = ", ".join(f"{ep.value} ({_package(ep)})" for ep in models[value])
-        raise SceneError(f"model: {value!r} is registered twice, as {targets}; uninstall one of the packages")
-    return value
-
-
-def _package(ep) -> str:
-    dist = getattr(ep, "dist", None)
-    return dist.name if dist is not None else "unknown package"
-
+from ..scene.names import GROUP, check_name, package_of as _package, registered  # noqa: F401 - GROUP re-exported
 
 def load_model(spec):
     """The `Model` for `spec`: a `Model` itself, a registered name, or ``"package.module:name"`` (typed by the user).

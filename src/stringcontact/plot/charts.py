@@ -104,7 +104,7 @@ def without_axes3d_warning():
         yield
 
 
-def _pyplot():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -114,12 +114,12 @@ def _pyplot():
     return plt
 
 
-def _savefig(fig, path: Path, dpi: int = DPI) -> None:
+def savefig(fig, path: Path, dpi: int = DPI) -> None:
     try:
         with atomic_path(path) as tmp:  # a picture is either complete or absent
             fig.savefig(tmp, dpi=dpi)
     finally:
-        _pyplot().close(fig)
+        pyplot().close(fig)
 
 
 def _cell_edges(v: np.ndarray) -> np.ndarray:
@@ -135,7 +135,7 @@ def _space_time_image(result, values, title: str, window_size, note: str = "", *
     `pcolorfast` with the cell edges draws each pixel in the colour of the sample under it (nearest, no
     smoothing), keeps the irregular stored times as they are, and costs the same for 400 or 2 million samples.
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(window_size[0] / DPI, window_size[1] / DPI), dpi=DPI)
     # fixed margins in inches: room for the title above and the legend or colour bar on the right
     w, h = window_size[0] / DPI, window_size[1] / DPI
@@ -159,7 +159,7 @@ def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact\n(η ≤ {psi})"),
                Patch(facecolor="white", edgecolor="black", label=f"free\n(η > {psi})")]
     ax.legend(handles=patches, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False, labelspacing=1.2)
-    _savefig(fig, path)
+    savefig(fig, path)
     return path
 
 
@@ -174,13 +174,13 @@ def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = 
     box = ax.get_position()
     bar_axes = fig.add_axes((box.x1 + 0.03 * box.width, box.y0 + 0.1 * box.height, 0.03 * box.width, 0.8 * box.height))
     fig.colorbar(image, cax=bar_axes, extend="both" if speed > c else "neither").set_label("v (velocity)")
-    _savefig(fig, path)
+    savefig(fig, path)
     return path
 
 
 def snapshots_picture(result, path) -> Path:
     """η(x) at the scene's output times, the obstacle (y = 0 or the scene's ψ), and the parts in contact."""
-    plt = _pyplot()
+    plt = pyplot()
     path = Path(path)
     rows = snapshot_rows(result)
     ncols = 3 if len(rows) > 4 else min(len(rows), 2)
@@ -216,13 +216,13 @@ def snapshots_picture(result, path) -> Path:
     # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
     w, h = fig.get_size_inches()
     fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=1 - 0.85 / h, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
-    _savefig(fig, path)
+    savefig(fig, path)
     return path
 
 
 def energy_picture(result, path) -> Path:
     """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0)."""
-    plt = _pyplot()
+    plt = pyplot()
     path = Path(path)
     e, t = result.energy, result.t
     E = result.total_energy
@@ -249,7 +249,7 @@ def energy_picture(result, path) -> Path:
     axr.set_xlabel("t")
     axr.grid(alpha=0.3, which="both")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.9, hspace=0.08)  # fixed: see snapshots_picture
-    _savefig(fig, path)
+    savefig(fig, path)
     return path
 
 
@@ -260,7 +260,7 @@ def contact_area_figure(result):
     domain's area; a patch is a connected set of contact nodes (`Result.contact_patches`). Dots mark the
     rows of the panels of ``membrane.png``.
     """
-    plt = _pyplot()
+    plt = pyplot()
     t, area, patches = result.t, result.contact_measure, result.contact_patches()
     domain, psi = float(np.sum(result.weights)), obstacle_name(result)
     fig, (ax, axp) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, gridspec_kw={"height_ratios": (2, 1)})
@@ -289,7 +289,7 @@ def contact_area_figure(result):
 def contact_area_picture(result, path) -> Path:
     """``contact_area.png`` of a 2D run: `contact_area_figure`, written whole or not at all."""
     path = Path(path)
-    _savefig(contact_area_figure(result), path)
+    savefig(contact_area_figure(result), path)
     return path
 
 
@@ -297,7 +297,7 @@ def warm_up() -> None:
     """A tiny picture with the elements the space-time pictures use: pyplot, fonts, an image, a colour bar."""
     import io
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(1, 1))
     fig.colorbar(ax.pcolorfast(np.array([0.0, 1.0, 3.0]), np.array([0.0, 1.0]), np.ones((1, 2)), cmap="RdBu_r"), ax=ax)
     ax.set_title("η ≤ ψ")

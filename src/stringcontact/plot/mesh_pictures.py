@@ -3,7 +3,7 @@
 ``space_time.png``: a 1-D run as the surface η(x, t) over the (x, t) plane, coloured by contact, above
 the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
 panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). The animation
-``membrane.gif`` (:mod:`stringcontact.animation`) draws the same scene (`add_membrane`) at every few rows.
+``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
 
 VTK's scalar bar and pyvista's `show_bounds` format their labels with `std::regex`, which aborts the
 process (`std::bad_alloc`) once dolfinx's C++ module is loaded: this module uses neither. The colours

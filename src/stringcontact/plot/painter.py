@@ -51,7 +51,7 @@ class PictureProcess:
         env = dict(os.environ)
         env.setdefault("LP_NUM_THREADS", "1")  # Mesa's software renderer: leave the other core to the run
         folder = tempfile.mkdtemp(prefix="stringcontact-pictures-")
-        code = "from stringcontact.painter import main; main()"
+        code = "from stringcontact.plot.painter import main; main()"
         try:
             proc = subprocess.Popen(
                 [sys.executable, "-c", code, folder, ",".join(names), str(os.getpid())],

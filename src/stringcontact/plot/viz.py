@@ -1,18 +1,18 @@
 """Pictures of a run, and reading an output folder back.
 
-Each picture is drawn by the library made for it: matplotlib (:mod:`stringcontact.charts`) for
+Each picture is drawn by the library made for it: matplotlib (:mod:`stringcontact.plot.charts`) for
 ``contact_set.png`` and ``velocity_field.png`` (the (x, t) plane as an image) and the line charts
-``snapshots.png`` and ``energy.png``; pyvista (:mod:`stringcontact.mesh_pictures`, imported only for it)
+``snapshots.png`` and ``energy.png``; pyvista (:mod:`stringcontact.plot.mesh_pictures`, imported only for it)
 for ``space_time.png``, the surface η(x, t) in 3-D coloured by contact.
 
 A 2-D run (a membrane) has its own `MEMBRANE_PICTURES`: ``membrane.png`` (pyvista: the membrane at the
 output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the animation ``membrane.gif``
-(:mod:`stringcontact.animation`). `pictures_of(result)` says which.
+(:mod:`stringcontact.plot.animation`). `pictures_of(result)` says which.
 
-:func:`write_pictures` draws them all; given a started :class:`~stringcontact.painter.PictureProcess`,
+:func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.painter.PictureProcess`,
 the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
 run. ``stringcontact plot DIR`` redraws them from an output folder alone
-(:func:`stringcontact.readback.read_output`).
+(:func:`stringcontact.io.readback.read_output`).
 """
 
 from __future__ import annotations

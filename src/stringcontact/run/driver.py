@@ -19,8 +19,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..fem import compat, domains
-from ..errors import InstabilityError
+from ..errors import InstabilityError, SolverError
 from ..model.paper import Model, Parameters, inelastic, unused_fields
+from .checks import checks_of, unbalanced_message
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..scene.data import BYTES_PER_STORED_NODE, MAX_STORED_BYTES, STORED_ROWS, check_petsc_options
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
@@ -222,7 +223,7 @@ class _Ledger:
         return self.kin, self.el, self.visc, self.con, self.num, self.ext
 
 
-def _discretise(scene, model: Model, comm):
+def discretise(scene, model: Model, comm):
     """The P1 space on the scene's mesh, the model's parameters (scene fields as P1 functions), its operators."""
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
@@ -399,7 +400,7 @@ def simulate(
     check_model(name, model)
     timings = {}
     t0 = time.perf_counter()
-    V, params, ops = _discretise(scene, model, comm)
+    V, params, ops = discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
     stepper = Scheme(s)
     rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)
@@ -411,8 +412,11 @@ def simulate(
     if output_dir is not None:
         from ..io.folder import OutputWriter, xdmf_frames
 
+        if pictures is True:
+            from ..plot.viz import write_pictures as pictures  # matplotlib and pyvista load when a picture is drawn
+
         frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), max_frames)
-        writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures, frames=frames)
+        writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures or None, frames=frames)
 
     def store(n: int) -> None:
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
@@ -424,11 +428,13 @@ def simulate(
     def result_of(status: str, message: str) -> Result:
         n, mins = rows.n, comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
         per_node = {k: v[:n] for k, v in rows.fields.items()} if rows.gather.holds else dict.fromkeys(FIELDS)
-        return Result(scene=scene, x=rows.gather.x, t=rows.steps[:n] * scene.dt, steps=rows.steps[:n],
+        result = Result(scene=scene, x=rows.gather.x, t=rows.steps[:n] * scene.dt, steps=rows.steps[:n],
                       **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                       min_eta=float(mins), penalty=penalty or "none", mass=mass, model=model.name, status=status,
                       timings=timings, message=message, scheme=name, **geometry,
                       series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
+        checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
+        return result
 
     t_loop = time.perf_counter()
     try:
@@ -439,14 +445,14 @@ def simulate(
         if writer is not None:
             writer.abort(status, exc.result.message, result=exc.result, error=exc)
         raise
-    except BaseException:
+    except BaseException as exc:
         if writer is not None:
             writer.discard()  # an unexpected error: no half-written folder, no stale lock
+        if isinstance(exc, ValueError):  # the input was checked before the march: a step that fails is no input error
+            raise SolverError(f"step failed: {exc}") from exc
         raise
     timings["solve"] = time.perf_counter() - t_loop - (writer.write_time if writer is not None else 0.0)  # I/O apart
     timings.update(stepper.timings)
-    from ..io.folder import unbalanced_message
-
     result = result_of("complete", "")
     unbalanced = unbalanced_message(result)  # a balance that does not close is not a complete run
     if unbalanced is not None:

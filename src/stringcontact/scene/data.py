@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import expressions
+from . import expressions, names
 from ..errors import SceneError, one_line
 
 __all__ = [
@@ -140,7 +140,7 @@ class SceneWarning(UserWarning):
 class Scene:
     """One validated scene. Build it with :func:`load_scene`, :meth:`from_dict` or :meth:`replace`.
 
-    ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.expressions`);
+    ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.scene.expressions`);
     ``h_left``/``h_right`` are the (resolved) heights at which the ends are held.
     ``load`` (an external force density f) and ``obstacle`` (a profile ψ) are optional expressions
     in ``x`` too; they are data for a model that reads them (``loaded_obstacle``),
@@ -748,14 +748,11 @@ def _check_name(value) -> str:
 
 def _check_model(value) -> str:
     # A scene is data: it names a registered model and never a module (nothing is imported here).
-    from ..model.registry import check_name
-
-    return check_name(value)
+    return names.check_name(value)
 
 
 def _check_scheme(value) -> str:
-    from ..timestepping import SCHEMES
-
+    SCHEMES = names.SCHEMES
     if value not in SCHEMES:
         raise SceneError(f"scheme: invalid value {_describe(value)}; allowed: {', '.join(SCHEMES)}")
     return value

@@ -1,0 +1,125 @@
+"""The energy ledger's verdicts on a run: the one energy balance and the one penetration check.
+
+Every run gets them once (`checks_of`, cached on the `Result`): the driver marks a run whose balance does
+not close "unbalanced", the output folder writes them into summary.json, the command line prints them,
+and the theorem checks read the energy balance's continuous residual. docs/reliability.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: max |balance residual| / energy scale above which the energy balance is reported as not closing.
+BALANCE_RTOL = 1e-8
+#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/reliability.md).
+PENETRATION_FACTOR = 2.0
+
+
+def checks_of(result) -> dict:
+    """{"energy_balance": ..., "penetration": ...} of `result`, computed once and kept in `result.checks`."""
+    if not getattr(result, "checks", None) and len(result.t):
+        result.checks = {"energy_balance": energy_balance(result), "penetration": penetration_check(result)}
+    return result.checks
+
+
+def energy_balance(result) -> dict:
+    """The discrete energy balance at the last stored time, with a verdict.
+
+    E(0) + W_ext = E(t) + D_visc + D_con + D_num, where D_num is the scheme's own consistency term
+    (see `Result`). The residual is the largest |E(0) + W_ext − [E(t) + D]| over the stored times,
+    relative to the largest term; the balance "closes" when it is below BALANCE_RTOL. The same scale gives
+    `continuous_residual`, the identity (1.4) without D_num (the theorem checks: it falls with Δt).
+    """
+    e = result.energy
+    total = result.total_energy
+    residual = np.asarray(result.balance_residual, dtype=float)
+    terms = {
+        "initial": float(total[0]),
+        "final": float(total[-1]),
+        "viscous_dissipation": float(e["viscous_dissipation"][-1]),
+        "contact_dissipation": float(e["contact_dissipation"][-1]),
+        "numerical_dissipation": float(e["numerical_dissipation"][-1]),
+        "external_work": float(e["external_work"][-1]),
+    }
+    scale = max([abs(v) for v in terms.values()] + [np.finfo(float).tiny])
+    worst = float(np.max(np.abs(residual))) if residual.size else 0.0
+    relative = worst / scale if math.isfinite(worst) else math.inf
+    continuous = residual + np.asarray(e["numerical_dissipation"], dtype=float)
+    worst_continuous = float(np.max(np.abs(continuous))) if continuous.size else 0.0
+    contact = terms["contact_dissipation"]
+    return {
+        **terms,
+        "residual": float(residual[-1]),
+        "max_abs_residual": worst,
+        "relative_residual": relative,
+        "tolerance": BALANCE_RTOL,
+        "closes": bool(relative <= BALANCE_RTOL),
+        # (1.4) without the scheme's D_num (analysis.theorems.check_energy): -> 0 as dt -> 0
+        "continuous_residual": worst_continuous / scale if math.isfinite(worst_continuous) else math.inf,
+        "numerical_over_contact": terms["numerical_dissipation"] / contact if contact > 0 else math.nan,
+    }
+
+
+def penetration_check(result) -> dict:
+    """How far the string went below the obstacle, against the bound of its contact law.
+
+    The velocity penalty F = (1/ε)(v)⁻ brakes a node falling at speed V within a depth ε·V (exactly, for
+    the explicit scheme: Σ Δt·V·(1 − r)^k = ε·V), plus at most one step Δt·V travelled before the force
+    switches on. The bound allows twice that, for the elastic and viscous forces acting meanwhile, below
+    the deepest initial value:
+
+        depth ≤ max(0, max(ψ − η0)) + PENETRATION_FACTOR·(ε + Δt)·V,   V = max |v| over the stored rows,
+
+    with ψ the scene's obstacle (0 unless it gives one). For the `elastic` variant (a spring of stiffness
+    1/ε) ε·V becomes √ε·V. A run beyond the bound holds the string down by something the penalty cannot
+    stop (a static load, a model variant, an r > 1 rebound): see docs/reliability.md.
+    """
+    scene = result.scene
+    if getattr(result, "has_rows", True):
+        eta = np.asarray(result.eta, dtype=float)
+        velocity = np.asarray(result.velocity, dtype=float)
+        v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
+        if scene.obstacle is None:  # min_eta covers every step, not only the stored ones
+            depth = max(0.0, -float(result.min_eta))
+            start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
+        else:
+            obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
+            depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
+            start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
+    else:  # an MPI rank without the rows: the same numbers from the series the ranks summed (Result.series)
+        v_max, depth, start_depth = _penetration_from_series(result)
+    braking = math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
+    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
+    return {
+        "depth": depth,
+        "bound": bound,
+        "initial_depth": start_depth,
+        "max_speed": v_max,
+        "eps_times_speed": braking * v_max,
+        "law": "spring (sqrt(eps))" if result.model == "elastic" else "velocity penalty (eps)",
+        "within_bound": bool(depth <= bound * (1 + 1e-12)),
+    }
+
+
+def _penetration_from_series(result) -> tuple[float, float, float]:
+    """max |v|, the depth and the initial depth from Result.series ("max_speed", "depth" = max(ψ − η))."""
+    speed, below = result.series["max_speed"], result.series["depth"]
+    if not len(below):
+        return 0.0, max(0.0, -float(result.min_eta)), 0.0
+    depth = -float(result.min_eta) if result.scene.obstacle is None else float(np.max(below))
+    return float(np.max(speed)), max(0.0, depth), max(0.0, float(below[0]))
+
+
+def unbalanced_message(result) -> str | None:
+    """Why a run whose energy balance does not close cannot be called complete; None if it closes."""
+    if not len(result.t):
+        return None
+    b = checks_of(result)["energy_balance"]
+    if b["closes"]:
+        return None
+    return (
+        f"the energy balance does not close (relative residual {b['relative_residual']:.2g} > {b['tolerance']:.0e}): "
+        "the numbers are not trustworthy; see docs/reliability.md"
+    )

@@ -1,0 +1,55 @@
+"""The names a scene may use that are registered elsewhere: models (entry points) and time schemes.
+
+Reading them imports nothing: a model's name is checked against the installed packages' metadata (the
+entry-point group `GROUP`), a scheme's against `SCHEMES`, the time-scheme registry (the class `Scheme` of
+scheme NAME is in `stringcontact.timestepping.NAME`; `timestepping.scheme_class` loads it). Adding a
+scheme: its module plus one line here.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+
+from ..errors import SceneError, one_line
+
+#: The time schemes: name -> one-line description (`stringcontact.SCHEMES`); the code is timestepping/NAME.py.
+SCHEMES = {
+    "paper": "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step",
+    "projection": "explicit central difference, implicit viscosity, nodal projection onto gap >= 0 (no eps)",
+    "newmark": "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set",
+}
+
+#: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
+GROUP = "stringcontact.models"
+
+
+def registered() -> dict[str, list[importlib.metadata.EntryPoint]]:
+    """The registered models: name -> its entry points (one per distinct target; two mean a conflict)."""
+    found: dict[str, list[importlib.metadata.EntryPoint]] = {}
+    for ep in importlib.metadata.entry_points(group=GROUP):
+        targets = found.setdefault(ep.name, [])
+        if all(other.value != ep.value for other in targets):  # the same package seen twice is one entry
+            targets.append(ep)
+    return dict(sorted(found.items()))
+
+
+def _allowed(names) -> str:
+    return (f"allowed: {', '.join(names) or 'none (is stringcontact installed? run scripts/setup)'} "
+            f"(the names installed packages register under the entry-point group {GROUP}; see `stringcontact models`)")
+
+
+def check_name(value) -> str:
+    """`value` if it is a registered model name, else a one-line `SceneError` naming ``model``. Imports nothing."""
+    models = registered()
+    if not isinstance(value, str) or value not in models:
+        shown = repr(value) if isinstance(value, str) else f"{type(value).__name__} {value!r}"
+        raise SceneError(f"model: unknown model {one_line(shown)[:80]}; {_allowed(models)}")
+    if len(models[value]) > 1:
+        targets = ", ".join(f"{ep.value} ({package_of(ep)})" for ep in models[value])
+        raise SceneError(f"model: {value!r} is registered twice, as {targets}; uninstall one of the packages")
+    return value
+
+
+def package_of(ep) -> str:
+    dist = getattr(ep, "dist", None)
+    return dist.name if dist is not None else "unknown package"
