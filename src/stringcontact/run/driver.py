@@ -308,8 +308,9 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
                 store(0)
             for n in range(scene.nt):  # computes step n + 1
                 why = ledger.add(stepper.step())
-                if stepper.eta.size:
-                    rows.min_eta = min(rows.min_eta, float(stepper.eta.min()))
+                eta = stepper.eta  # once per step: a property of the scheme
+                if eta.size:
+                    rows.min_eta = min(rows.min_eta, float(eta.min()))
                 if why is not None:
                     t_n = (n + 1) * scene.dt
                     situation = f"scheme {name}" + (f", {stepper.situation}" if stepper.situation else "")
@@ -418,12 +419,14 @@ def simulate(
         frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), max_frames)
         writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures or None, frames=frames)
 
+    dt = scene.dt  # a property of the scene: read once, not per stored row
+
     def store(n: int) -> None:
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
                   "contact_force": stepper.contact_force}
         rows.store(fields, ledger.cumulative, row_series(fields))
         if writer is not None:
-            writer.write(n * scene.dt, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
+            writer.write(n * dt, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
 
     def result_of(status: str, message: str) -> Result:
         n, mins = rows.n, comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
