@@ -4,8 +4,8 @@
     .venv/bin/python benchmarks/bench_contact_step.py --quick    # smaller sizes, for a smoke test
 
 Prints, and writes to benchmarks/out/contact_step.json:
-1. Example 1 (α = 0.01, Δt = Δx): the η error in L∞(0,T;L²) at nx = 250 ... 2000 against `projection` at
-   nx = 16000, for the complementarity step and for the nodal maximum (`reference.fd_projection(nodal=True)`,
+1. Example 1 (α = 0.01, Δt = Δx): the η error in L∞(0,T;L²), in L²(0,T;L²)/√T and at T, at nx = 250 ...
+   2000 against `projection` at nx = 16000, for the complementarity step and for the nodal maximum (`reference.fd_projection(nodal=True)`,
    the old step, equal to the old `simulate` to 1e-10), with both wall times: the new one in this process,
    the old one from the baseline commit (`--baseline`, default the last commit with the nodal maximum) in a
    subprocess, each the best of 5 (warm JIT cache);
@@ -33,7 +33,7 @@ import numpy as np
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact import reference, study
+from stringcontact import compat, reference, study
 from stringcontact.schemes import complementarity
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -97,6 +97,16 @@ def same_rows(old: study.Run, new: study.Run) -> study.Run:
     return old
 
 
+def eta_errors(run: study.Run, ref: study.Run) -> dict:
+    """‖η − η_ref‖ in L∞(0,T;L²) (the study's err_eta), in L²(0,T;L²)/√T (the time-RMS), and at T."""
+    rows = study._common_rows(run.t, ref.t)
+    ref_eta = np.array([np.interp(run.x, ref.x, row) for row in ref.eta[rows]])
+    per_time = study.l2_norm(run.x, run.eta - ref_eta)
+    rms = float(np.sqrt(compat.trapezoid(per_time**2, run.t) / (run.t[-1] - run.t[0])))
+    return {"linf": float(per_time.max()), "rms": rms, "at_T": float(per_time[-1]),
+            "t_of_max": float(run.t[per_time.argmax()])}
+
+
 def example1_accuracy(sizes, ref_n, old_src):
     ref = study.run_method(study.example1_scene(ref_n), study.REFERENCE, rows=round(0.3 * min(sizes)))
     print(f"reference: projection nx={ref_n} ({ref.wall_s:.2f} s)")
@@ -105,13 +115,14 @@ def example1_accuracy(sizes, ref_n, old_src):
         scene = study.example1_scene(n)
         new = study.run_method(scene, study.METHODS["projection"], rows=round(0.3 * min(sizes)))
         old = same_rows(nodal_run(scene), new)
-        row = {"nx": n, "err_new": study.errors_against_reference(new, ref)["err_eta"],
-               "err_old": study.errors_against_reference(old, ref)["err_eta"],
+        row = {"nx": n, "new": eta_errors(new, ref), "old": eta_errors(old, ref),
                "wall_new": timed(ROOT / "src", "example1", n, 5)["wall_s"],
                "wall_old": timed(old_src, "example1", n, 5)["wall_s"]}
         rows.append(row)
-        print(f"  nx={n}: eta error new {row['err_new']:.3g} old {row['err_old']:.3g} "
-              f"({row['err_old'] / row['err_new']:.2f}x); wall new {row['wall_new']:.3f} s old {row['wall_old']:.3f} s")
+        print(f"  nx={n}: eta error new/old: " + ", ".join(
+            f"{k} {row['new'][k]:.3g}/{row['old'][k]:.3g} ({row['old'][k] / row['new'][k]:.2f}x)"
+            for k in ("linf", "rms", "at_T")) + f" (max at t = {row['new']['t_of_max']:.3g}/{row['old']['t_of_max']:.3g});"
+            f" wall new {row['wall_new']:.3f} s old {row['wall_old']:.3f} s")
     return {"reference_nx": ref_n, "rows": rows}
 
 

@@ -12,13 +12,16 @@ answer is the nodal maximum max(A⁻¹b, ψ); with viscosity it is not, because 
 `ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
 13, 2003) on the scheme's own linear solver (`base.Linear`: LU, MUMPS or CG): fix the nodes of the active
 set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜 stays.
-It starts from the previous step's 𝒜, so a step whose 𝒜 stays costs one solve and one mat-vec (what the
-nodal projection cost); each change of 𝒜 costs a refactorisation (LU) or a new preconditioner set-up (CG)
-and one more solve. For an M-matrix A (every string, a membrane on a mesh without obtuse angles) the method
-converges in finitely many iterations (where the string lifts off, one node per front per iteration: with
-strong viscous coupling several); elsewhere it could cycle, so when an active set comes back within a step,
-or after `MAX_ITERATIONS`, the step falls back to PETSc's SNES VI (`VariationalInequality`). Measured
-against SNES VI alone in docs/study.md (section "The contact step").
+Each step first takes the free step Ã η̃ = b with A itself (factorised once, like the nodal projection
+before): if no node is below ψ that is the answer, at the nodal projection's cost; else 𝒜 starts as
+{η̃ < ψ}. Started from the previous step's 𝒜 instead, the method lets the string lift off one node per
+front per iteration (with viscosity a front moves several nodes a step): 2.66 solves and 1.66
+refactorisations a step on Example 1 at the paper's resolution, against 1.11 and 0.14 from {η̃ < ψ}. Each
+change of 𝒜 costs a refactorisation (LU) or a new preconditioner set-up (CG) and one more solve. For an
+M-matrix A (every string, a membrane on a mesh without obtuse angles) the method converges in finitely
+many iterations; elsewhere it can cycle, so when an active set comes back within a step, or after
+`MAX_ITERATIONS`, the step falls back to PETSc's SNES VI (`VariationalInequality`). Measured against SNES
+VI alone in docs/study.md (section "The contact step").
 """
 
 from __future__ import annotations
@@ -31,6 +34,10 @@ from .base import Linear, _symmetric_rows, any_rank, dirichlet_rows
 #: Active-set iterations before the step falls back to SNES VI. For an M-matrix they are at most the nodes that
 #: change; Example 1 at the paper's resolution took 1 to 18 a step, and 130 once (its first landing).
 MAX_ITERATIONS = 500
+
+#: Global unknowns up to which the free step η̃ has its own solver, A factorised once (a second factor beside
+#: the constrained one: 3.1 GB more at 1e6 nodes, 0.7 GB at 2.5e5). Above, 𝒜 starts from the previous step's.
+PREDICT_MAX_NODES = 250_000
 
 #: SNES VI takes its options under this prefix, set just before its setFromOptions and removed just after.
 VI_PREFIX = "stringcontact_vi_"
@@ -55,12 +62,14 @@ class ActiveSet:
         self.work = A.duplicate(copy=True)  # A with 𝒜's rows (and, for CG, columns) fixed
         self.work.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)  # a new 𝒜 refactorises numerically only
         self.linear = Linear(self.work, comm, options, bc, g, dim)
+        predict = dim == 1 or A.getSize()[0] <= PREDICT_MAX_NODES
+        self.free = Linear(A.duplicate(copy=True), comm, options, bc, g, dim) if predict else None
         self.active = np.zeros(psi.size, dtype=bool)
         self.nodes = np.zeros(0, dtype=np.int32)
         self.anywhere = any_rank(comm)
         self.comm = comm
         self.fallback: VariationalInequality | None = None
-        self.steps = self.refactorisations = self.solves = self.fallbacks = 0
+        self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
 
     @property
     def iterative(self) -> bool:
@@ -83,6 +92,15 @@ class ActiveSet:
         rhs, eta = b.array, x.array
         active = self.active
         self.steps += 1
+        if self.free is not None:
+            self.free.solve(b, x)
+            self.free_solves += 1
+            active = self.interior & (eta < self.psi)
+            if not self.anywhere(bool(active.any())):  # no contact: the free step is the answer
+                residual(eta)
+                return np.zeros_like(eta), 0
+            if not self.anywhere(not np.array_equal(active, self.active)):  # every rank: holding is collective
+                active = self.active
         seen = set()
         for k in range(1, MAX_ITERATIONS + 1):
             if active is not self.active:
@@ -119,41 +137,47 @@ class ActiveSet:
 
     def describe(self) -> str:
         """One line for the summary: what the contact steps cost."""
-        text = (f"active set, {self.solves / max(1, self.steps):.3f} solves per step, {self.refactorisations} "
-                f"changes of the active set")
+        text = (f"active set, {self.free_solves / max(1, self.steps):.3g} free and {self.solves / max(1, self.steps):.3g}"
+                f" constrained solves per step, {self.refactorisations} changes of the active set")
         return text + (f", {self.fallbacks} SNES VI fallbacks" if self.fallbacks else "")
 
 
 class VariationalInequality:
-    """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method with a
-    line search) with the bounds ψ ≤ η at the interior nodes: robust for any SPD A, but about ten Newton
-    iterations (each an LU factorisation) per step, so `ActiveSet` uses it only as its fallback.
+    """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method) with the
+    bounds ψ ≤ η at the interior nodes: about ten Newton iterations (each an LU factorisation) per step, so
+    `ActiveSet` uses it only as its fallback. Neither line search converged everywhere alone: full Newton
+    steps (`basic`) cycled on a non-M-matrix (tests/test_contact_step.py), backtracking (`bt`) stalled on a
+    step of Example 1; so each is tried in turn from the same first guess.
     """
+
+    LINE_SEARCHES = ("basic", "bt")
 
     def __init__(self, A: PETSc.Mat, comm, psi: np.ndarray, interior: np.ndarray, rtol: float = 1e-12):
         self.A, self.interior, self.psi = A, interior, psi
-        self.snes = PETSc.SNES().create(comm)
-        self.f = A.createVecLeft()
-        self.b = A.createVecLeft()
-        self.snes.setFunction(self._residual, self.f)
-        self.snes.setJacobian(self._jacobian, A, A)
+        self.f, self.b, self.guess = A.createVecLeft(), A.createVecLeft(), A.createVecRight()
         lower, upper = A.createVecRight(), A.createVecRight()
         lower.array[:] = np.where(interior, psi, PETSc.NINFINITY)
         upper.set(PETSc.INFINITY)
-        # PETSc's default backtracking line search: full Newton steps cycled on a non-M-matrix (tests)
-        options = {"snes_type": "vinewtonrsls", "snes_linesearch_type": "bt", "snes_rtol": rtol,
+        self.solvers = [self._snes(comm, lower, upper, search, rtol) for search in self.LINE_SEARCHES]
+
+    def _snes(self, comm, lower, upper, search: str, rtol: float) -> PETSc.SNES:
+        snes = PETSc.SNES().create(comm)
+        snes.setFunction(self._residual, self.f)
+        snes.setJacobian(self._jacobian, self.A, self.A)
+        options = {"snes_type": "vinewtonrsls", "snes_linesearch_type": search, "snes_rtol": rtol,
                    "snes_atol": 1e-300, "snes_stol": 0.0, "snes_max_it": 200, "ksp_type": "preonly",
                    "pc_type": "lu"} | ({"pc_factor_mat_solver_type": "mumps"} if comm.size > 1 else {})
-        self.snes.setOptionsPrefix(VI_PREFIX)
+        snes.setOptionsPrefix(VI_PREFIX)  # petsc4py 3.18 has no getLineSearch: through the options database
         db = PETSc.Options()
         try:
             for name, value in options.items():
                 db.setValue(VI_PREFIX + name, value)
-            self.snes.setFromOptions()
+            snes.setFromOptions()
         finally:
             for name in options:
                 db.delValue(VI_PREFIX + name)
-        self.snes.setVariableBounds(lower, upper)
+        snes.setVariableBounds(lower, upper)
+        return snes
 
     def _residual(self, snes, x, f) -> None:
         self.A.mult(x, f)
@@ -166,14 +190,18 @@ class VariationalInequality:
     def solve(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
         """η into `x` (its current values are the first guess), and (F, Newton iterations)."""
         b.copy(self.b)
-        self.snes.setTolerances(atol=1e-14 * b.norm())  # a first guess already at round-off converges too
-        self.snes.solve(None, x)
-        if self.snes.getConvergedReason() <= 0:
-            raise ValueError(f"the contact step (SNES VI) did not converge: PETSc reason "
-                             f"{self.snes.getConvergedReason()} after {self.snes.getIterationNumber()} iterations")
-        R = residual(x.array)
-        on = self.interior & (x.array <= self.psi)  # the bounds are met exactly where they are active
-        return np.where(on, np.maximum(R, 0.0), 0.0), self.snes.getIterationNumber()
+        x.copy(self.guess)
+        tried = []
+        for snes in self.solvers:
+            self.guess.copy(x)
+            snes.setTolerances(atol=1e-14 * b.norm())  # a first guess already at round-off converges too
+            snes.solve(None, x)
+            tried.append(f"reason {snes.getConvergedReason()} after {snes.getIterationNumber()} iterations")
+            if snes.getConvergedReason() > 0:
+                R = residual(x.array)
+                on = self.interior & (x.array <= self.psi)  # the bounds are met exactly where they are active
+                return np.where(on, np.maximum(R, 0.0), 0.0), snes.getIterationNumber()
+        raise ValueError("the contact step (SNES VI) did not converge: PETSc " + ", then ".join(tried))
 
 
 __all__ = ["MAX_ITERATIONS", "ActiveSet", "VariationalInequality"]
