@@ -165,7 +165,7 @@ def candidates(scene, label):
         complementarity.MAX_ITERATIONS = cap  # 0: every step goes straight to the fallback, SNES VI
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            sc.simulate(scene.replace(nt=min(scene.nt, 20)), scheme="projection")  # warm-up
+            sc.simulate(scene.replace(T=20 * scene.dt, nt=20, output_times=[]), scheme="projection")  # warm-up
             t0 = time.perf_counter()
             res = sc.simulate(scene, scheme="projection")
             wall = MPI.COMM_WORLD.allreduce(time.perf_counter() - t0, op=MPI.MAX)
