@@ -95,7 +95,7 @@ def test_install_step_runs_the_setup_script_that_ci_runs(steps):
     copies = [args for i, args in steps[:k] if i == "COPY"]
     assert copies and copies[0].split()[0] == "."
     context = set(rehearse.context_files(ROOT))
-    for needed in (setup, "pyproject.toml", "src/stringcontact/cli.py", "src/stringcontact/scenes/example1.toml"):
+    for needed in (setup, "pyproject.toml", "src/stringcontact/cli/main.py", "src/stringcontact/scenes/example1.toml"):
         assert needed in context, f"{needed} is not in the Docker build context"
 
 
@@ -104,7 +104,7 @@ def test_dockerignore_keeps_local_state_out_of_the_image():
     for path in (".venv/bin/python", "out/ex1/solution.h5", ".git/HEAD", "src/stringcontact/__pycache__/cli.cpython-311.pyc",
                  "src/stringcontact.egg-info/PKG-INFO"):
         assert rehearse.ignored(path, patterns), path
-    for path in ("scripts/setup", "src/stringcontact/solver.py", "pyproject.toml", "tests/test_docker.py"):
+    for path in ("scripts/setup", "src/stringcontact/run/driver.py", "pyproject.toml", "tests/test_docker.py"):
         assert not rehearse.ignored(path, patterns), path
 
 

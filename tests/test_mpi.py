@@ -214,7 +214,7 @@ def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
     assert not (tmp_path / "never").exists()
 
 
-@pytest.mark.parametrize("scheme", ["projection", "newmark"])
+@pytest.mark.parametrize("scheme", ["projection", "newmark", "paper"])
 def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
     # Example 2 lands on the left first, so each rank's projection (or active set) changes at its own steps.
     import warnings
@@ -226,7 +226,7 @@ def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # example2 starts below the obstacle, as printed
-        serial = sc.simulate(asymmetric_scene(), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
+        serial = sc.simulate(scheme_scene(scheme), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
                              comm=MPI.COMM_SELF)
     assert serial.contact.any() and serial.status == "complete"
     for rank in range(RANKS):
@@ -234,6 +234,9 @@ def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
         assert ("eta" in saved) == (rank == 0)  # the rows on rank 0 only
         for name in ("eta", "velocity", "contact_force") if rank == 0 else ():
             assert rel_error(saved[name], getattr(serial, name)) <= PARITY, (rank, name)
+        if rank == 0:  # a contact force under MPI too: ≥ 0, and 0 off the contact set
+            F = saved["contact_force"]
+            assert F.max() > 0 and np.all(F >= 0) and np.all(F[~saved["contact"]] == 0), scheme
         for key, values in serial.energy.items():
             assert rel_error(saved[f"energy_{key}"], values) <= PARITY, (rank, key)
         assert np.all(np.abs(saved["contact_length"] - serial.contact_length) <= contact_slack(serial)), rank
@@ -319,6 +322,12 @@ def asymmetric_scene():
     return sc.load_scene("example2").replace(nx=200, nt=300)
 
 
+def scheme_scene(scheme: str):
+    """`asymmetric_scene`, with r = Δt/ε = 1 for the paper's explicit penalty (it refuses r >= 2)."""
+    scene = asymmetric_scene()
+    return scene.replace(eps=scene.dt) if scheme == "paper" else scene
+
+
 def _worker_asymmetric(out: Path) -> None:
     import warnings
 
@@ -343,9 +352,9 @@ def _worker_schemes(out: Path, scheme: str) -> None:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = sc.simulate(asymmetric_scene(), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
+        res = sc.simulate(scheme_scene(scheme), scheme=scheme, mass="consistent" if scheme == "newmark" else None,
                           comm=MPI.COMM_WORLD)
-    rows = {name: getattr(res, name) for name in ("eta", "velocity", "contact_force")} if res.has_rows else {}
+    rows = {name: getattr(res, name) for name in ("eta", "velocity", "contact", "contact_force")} if res.has_rows else {}
     np.savez(out / f"{scheme}.rank{MPI.COMM_WORLD.rank}.npz", contact_length=res.contact_length, **rows,
              **{f"energy_{k}": v for k, v in res.energy.items()})
 

@@ -9,12 +9,17 @@ All checks are plain functions of a :class:`~stringcontact.io.result.Result` tha
 (``simulate(scene, max_rows=scene.nt)``), in the scheme's own discrete terms (lumped P1 = the paper's
 finite differences). With row ``n`` of the result:
 
-* ``F^n`` (``contact_force[n]``) is the force density applied in the step t_{n−1} → t_n, so the nodal
-  impulse of that step is ``I^n_j = Δt m_j F^n_j`` (``m_j = Δx`` inside);
-* ``v^n = (η^n − η^{n−1})/Δt`` is the velocity of the same step;
-* the discrete momentum equation of node j reads, with the stress ``S = η_x + α η_tx`` on the cells,
+* ``F^n`` is the force density applied in the step t_{n−1} → t_n, so the nodal impulse of that step is
+  ``I^n_j = Δt m_j F^n_j`` (``m_j = Δx`` inside). It is ``contact_force[n]``, except for the explicit
+  penalty, whose stored row n is the paper's F(η^n, v^n), applied in the *next* step (`momentum_terms`);
+* every scheme's step reads as a discrete momentum equation of node j, with the stress ``S = η_x + α q_x``
+  on the cells (`momentum_terms`: which velocity q changes and at which time levels S is taken),
 
-  .. math:: m_j F^n_j = m_j (v^n_j − v^{n−1}_j)/Δt − (S^n_{j+1/2} − S^n_{j−1/2}),
+  .. math:: m_j F^n_j = m_j (q^n_j − q^{n−1}_j)/Δt − (S^n_{j+1/2} − S^n_{j−1/2}),
+
+  ``paper``: q = v^n = (η^n − η^{n−1})/Δt (its stored velocity) and S at t_n; ``projection``: q the same
+  backward quotient (its stored velocity is the centred one), S with η at t_{n−1} (explicit elastic term);
+  ``newmark``: q its nodal velocity and S the mean of t_{n−1} and t_n,
 
   which is the discrete form of Theorem 2.3(1): summed over a band around a free boundary, the impulse
   equals minus the stress jump across the band plus the inertia inside it, and the theorem says the
@@ -101,8 +106,7 @@ def nodal_weights(result) -> np.ndarray:
 
 def impulse(result) -> np.ndarray:
     """Nodal contact impulse Δt m_j F^n_j of every step, shape (rows, nodes); row 0 is zero."""
-    _require_every_step(result)
-    return result.scene.dt * result.contact_force * nodal_weights(result)[None, :]
+    return result.scene.dt * momentum_terms(result).force * nodal_weights(result)[None, :]
 
 
 def interior(result) -> np.ndarray:
@@ -143,10 +147,46 @@ def distance_to_free_boundary(contact: np.ndarray) -> np.ndarray:
     return ndimage.distance_transform_cdt(~b, metric="chessboard").astype(np.int64)
 
 
+def _previous(rows: np.ndarray) -> np.ndarray:
+    """Row n holds row n − 1 (row 0 itself)."""
+    return np.concatenate([rows[:1], rows[:-1]])
+
+
+@dataclass(frozen=True)
+class Momentum:
+    """A scheme's discrete momentum equation at each row n (see the module docstring), arrays over (rows,
+    nodes): q, the velocity whose change is the inertia; S = (η_S)_x + α (q_S)_x, the stress; w, the velocity
+    the scheme's ledger books the contact work with (−Δt F·w per step); F, the force density applied in the
+    step t_{n−1} → t_n (row 0: none)."""
+
+    q: np.ndarray
+    eta_s: np.ndarray
+    q_s: np.ndarray
+    w: np.ndarray
+    force: np.ndarray
+
+
+def momentum_terms(result) -> Momentum:
+    """The terms of `result.scheme`'s discrete momentum equation (`Momentum`)."""
+    _require_every_step(result)
+    eta, v, F, scheme = result.eta, result.velocity, result.contact_force, result.scheme
+    if scheme == "projection":
+        q = np.concatenate([v[:1], np.diff(eta, axis=0) / result.scene.dt])  # the half-step velocities
+        return Momentum(q, _previous(eta), q, 0.5 * (q + _previous(q)), F)
+    if scheme == "newmark":
+        mean = 0.5 * (v + _previous(v))
+        return Momentum(v, 0.5 * (eta + _previous(eta)), mean, mean, F)
+    if result.penalty == "explicit":  # row n holds F(η^n, v^n), which the step t_n → t_{n+1} applies
+        F = np.concatenate([np.zeros_like(F[:1]), F[:-1]])
+    return Momentum(v, eta, v, v, F)
+
+
 def cell_stress(result) -> np.ndarray:
-    """S = η_x + α η_tx on the cells at every row (one-sided difference quotients), shape (rows, cells)."""
+    """S = η_x + α η_tx on the cells at every row (one-sided difference quotients, at the scheme's time
+    levels: `momentum_terms`), shape (rows, cells)."""
     dx = np.diff(result.x)[None, :]
-    return np.diff(result.eta, axis=1) / dx + result.scene.alpha * np.diff(result.velocity, axis=1) / dx
+    terms = momentum_terms(result)
+    return np.diff(terms.eta_s, axis=1) / dx + result.scene.alpha * np.diff(terms.q_s, axis=1) / dx
 
 
 def first_contact_rows(result) -> np.ndarray:
@@ -183,14 +223,16 @@ def _dilate_1d(mask: np.ndarray, w: int) -> np.ndarray:
 
 
 def force_sign(result) -> dict:
-    """min F / max F, and the share of the energy-carrying contact dissipation −F^n v^n that is negative."""
-    F = result.contact_force[1:]
-    D = -F * result.velocity[1:]
+    """min F / max F, and the share of the energy-carrying contact dissipation −F^n w^n that is negative (w the
+    velocity the scheme books the contact work with: `momentum_terms`)."""
+    terms = momentum_terms(result)
+    F = result.contact_force
+    D = -terms.force[1:] * terms.w[1:]
     positive = D[D > 0].sum()
     return {
         "min_force": float(F.min()),
         "max_force": float(F.max()),
-        "paper_dissipation_min": float((F * np.maximum(-result.velocity[1:], 0.0)).min()),
+        "paper_dissipation_min": float((F * np.maximum(-result.velocity, 0.0)).min()),
         "negative_dissipation_share": float(-D[D < 0].sum() / positive) if positive > 0 else 0.0,
     }
 
@@ -284,7 +326,8 @@ def stress_jump_balance(result, width: int = 4) -> dict:
     N = result.x.size
     rows = result.t.size
     I_row, J_row, K_row = np.zeros(rows), np.zeros(rows), np.zeros(rows)
-    F, v = result.contact_force, result.velocity
+    terms = momentum_terms(result)
+    F, v = terms.force, terms.q
     for n in range(1, rows):
         for a, b in _runs(band[n]):
             if a < 1 or b > N - 2:
@@ -333,8 +376,9 @@ def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
     """
     _require_every_step(result)
     dt = result.scene.dt
-    q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt)))
-    F, v = result.contact_force, result.velocity
+    q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt))) if _penalised(result) else 2
+    terms = momentum_terms(result)
+    F, v = terms.force, terms.q
     rows = result.t.size
     density, jump, share, times = [], [], [], []
     for n0, a, b in landing_segments(result):
@@ -378,10 +422,12 @@ def coarsened(scene, factor: int):
     return scene.replace(nx=nx, nt=nt, eps=scene.eps * scene.nt / nt)
 
 
-def refine(scene, levels: int = 3, penalty: str = "explicit", model=None):
-    """Results at resolutions scene/2^(levels−1), ..., scene/2, scene (coarse to fine), every step stored.
+def refine(scene, levels: int = 3, penalty: str | None = "explicit", model=None, scheme: str | None = None):
+    """Results at resolutions scene/2^(levels−1), ..., scene/2, scene (coarse to fine), every step stored,
+    with `scheme` (default: the scene's, else "paper") and its `penalty` (None: the scheme's own).
 
-    Δx, Δt and ε fall together (fixed Δt/Δx and r = Δt/ε), the limit the paper's theorems describe.
+    Δx, Δt and ε fall together (fixed Δt/Δx and r = Δt/ε), the limit the paper's theorems describe; an
+    ε-free scheme (projection) refines Δx and Δt only.
     """
     from ..run.driver import simulate
 
@@ -390,20 +436,27 @@ def refine(scene, levels: int = 3, penalty: str = "explicit", model=None):
     out = []
     for k in reversed(range(levels)):
         s = coarsened(scene, 2**k)
-        out.append(simulate(s, penalty=penalty, max_rows=s.nt, model=model, gather="all"))  # every rank checks the same rows
+        out.append(simulate(s, scheme=scheme, penalty=penalty, max_rows=s.nt, model=model,
+                            gather="all"))  # every rank checks the same rows
     return out
 
 
-def refine_time(scene, levels: int = 3, penalty: str = "explicit", model=None):
+def refine_time(scene, levels: int = 3, penalty: str | None = "explicit", model=None, scheme: str | None = None):
     """Results with Δt, Δt/2, Δt/4, ... at fixed Δx and ε (only the energies are used: rows thinned)."""
     from ..run.driver import simulate
 
-    return [simulate(scene.replace(nt=scene.nt * 2**k), penalty=penalty, model=model, gather="all") for k in range(levels)]
+    return [simulate(scene.replace(nt=scene.nt * 2**k), scheme=scheme, penalty=penalty, model=model, gather="all")
+            for k in range(levels)]
 
 
 # --- checks: a number, an expectation and a verdict ----------------------------------------------------
 
 HOLDS_IN_LIMIT, INCONCLUSIVE = "holds in the limit", "inconclusive"
+
+
+def _penalised(result) -> bool:
+    """Whether the result's scheme brakes with a penalty (ε), or stops a node within a step (no ε)."""
+    return result.penalty not in (None, "none")
 
 
 def _falls(values) -> bool:
@@ -459,7 +512,7 @@ def check_support(results, ks=(1, 2, 4)) -> Check:
     outside = [1 - x[f"within_length_{L:g}"] for x in m]
     fine = m[-1]
     within = ", ".join(f"k={k}: {fine[f'within_{k}']:.3f}" for k in ks)
-    if outside[-1] == 0:
+    if abs(outside[-1]) <= 1e-12:  # 1 minus a share that is 1 up to the round-off of its sum
         verdict = HOLDS
     elif len(results) < 2:
         verdict = INCONCLUSIVE
@@ -497,11 +550,15 @@ def check_upward(results) -> list[Check]:
 def check_velocity_after_contact(results, delay: float | None = None) -> Check:
     """(A4)/Theorem 2.2: |v| a fixed delay after first contact, relative to the impact speed, → 0."""
     results = _as_list(results)
-    delay = 8 * results[-1].scene.eps if delay is None else delay
+    if delay is None:  # the penalty needs a few ε to stop a node; an ε-free scheme stops it within a step
+        finest = results[-1]
+        delay = 8 * finest.scene.eps if _penalised(finest) else 2 * finest.scene.dt
     m = [velocity_after_contact(r, delay) for r in results]
     vals = [x["ratio"] for x in m]
     if math.isnan(vals[-1]):
         verdict = NOT_APPLICABLE
+    elif vals[-1] == 0:
+        verdict = HOLDS
     elif len(vals) < 2:
         verdict = INCONCLUSIVE
     else:
@@ -572,7 +629,10 @@ def check_energy(result, time_refined=()) -> list[Check]:
     runs = [result, *time_refined]
     cont = [energy_balance(r)["continuous_residual"] for r in runs]
     trend = tuple((f"dt={r.scene.dt:.3g}", v) for r, v in zip(runs, cont))
-    cont_verdict = INCONCLUSIVE if len(runs) < 2 else (HOLDS_IN_LIMIT if _falls(cont) else FAILS)
+    if all(v < 1e-9 for v in cont):  # no numerical dissipation (projection, newmark): holds at every Δt
+        cont_verdict = HOLDS
+    else:
+        cont_verdict = INCONCLUSIVE if len(runs) < 2 else (HOLDS_IN_LIMIT if _falls(cont) else FAILS)
     return [
         Check("(1.4) discrete energy identity", m["relative_residual"], "round-off (< 1e-9 E0)",
               HOLDS if m["relative_residual"] < 1e-9 else FAILS, detail=f"E0 = {m['initial']:.6g}"),
@@ -581,10 +641,12 @@ def check_energy(result, time_refined=()) -> list[Check]:
     ]
 
 
-def run_checks(scene, levels: int = 3, penalty: str = "explicit", delay: float | None = None,
-               delta: float = 0.02, V: float | None = None, time_levels: int = 3, model=None):
+def run_checks(scene, levels: int = 3, penalty: str | None = "explicit", delay: float | None = None,
+               delta: float = 0.02, V: float | None = None, time_levels: int = 3, model=None,
+               scheme: str | None = None):
     """Every check on `scene` with `levels` fixed-r refinements (the finest is `scene` itself), run with
-    `model` (default: the scene's registered model, else the paper's).
+    `model` (default: the scene's registered model, else the paper's) and `scheme` (default: the scene's,
+    else the paper's) with its `penalty` (None: the scheme's own).
 
     Returns (checks, finest result, all fixed-r results).
     """
@@ -592,8 +654,8 @@ def run_checks(scene, levels: int = 3, penalty: str = "explicit", delay: float |
         from ..model.registry import load_model
 
         model = load_model(scene.model)  # a registered name: the scene was checked when it was loaded
-    results = refine(scene, levels, penalty, model)
-    timed = refine_time(scene, time_levels, penalty, model)[1:] if time_levels > 1 else []
+    results = refine(scene, levels, penalty, model, scheme)
+    timed = refine_time(scene, time_levels, penalty, model, scheme)[1:] if time_levels > 1 else []
     checks = [
         check_force_sign(results),
         check_dissipation_sign(results),
@@ -688,10 +750,16 @@ def add_arguments(parser):
     parser.add_argument("--nt", type=int, help="time steps of the finest level")
     parser.add_argument("--eps", type=float, help="penalty parameter of the finest level")
     parser.add_argument("--alpha", type=float, help="viscosity alpha >= 0")
-    parser.add_argument("--penalty", choices=("explicit", "semi-implicit"), default="explicit")
+    from ..scene.names import SCHEMES
+
+    parser.add_argument("--scheme", choices=tuple(SCHEMES),
+                        help="time scheme (default: the scene's, else paper); projection refines nx and nt only (no eps)")
+    parser.add_argument("--penalty", choices=("explicit", "semi-implicit"),
+                        help="the penalty of the paper's scheme (default: the scheme's own, explicit for paper)")
     parser.add_argument("--levels", type=int, default=3,
                         help="refinement levels for the trends (nx, nt, 1/eps halved per level; default 3)")
-    parser.add_argument("--delay", type=float, help="(A4) delay after first contact (default 8 eps)")
+    parser.add_argument("--delay", type=float,
+                        help="(A4) delay after first contact (default 8 eps; 2 dt for an eps-free scheme)")
     parser.add_argument("--delta", type=float, default=0.02, help="Thm 2.3(1) band half-width around fronts")
     parser.add_argument("--out", metavar="DIR", help="write checks.json, checks.txt and figure1.png here")
     parser.add_argument("--force", action="store_true", help="replace a non-empty output folder")
@@ -736,9 +804,14 @@ def command(args) -> int:
     V = FLAT_V if scene.name == FLAT_LANDING else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
-        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V)
-    print(f"scene {scene.name}: levels " + ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}"
-                                                     for r in results) + f" (r = dt/eps = {scene.r:.3g})")
+        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V,
+                                             scheme=args.scheme)
+    if _penalised(finest):
+        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}" for r in results)
+        levels += f" (r = dt/eps = {scene.r:.3g})"
+    else:
+        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
+    print(f"scene {scene.name}, scheme {finest.scheme}: levels {levels}")
     print(format_table(checks))
     print()
     print(format_trends(checks))

@@ -56,7 +56,11 @@ class Result:
     absent. `simulate(gather="all")` gives every rank the rows.
 
     `contact` is η ≤ 0 (on or below the obstacle); the penalty acts where η < 0.
-    `contact_force` at t_n is the force density applied in the step that ends at t_n.
+    `contact_force` at t_n is a contact force density (per unit length or area): ≥ 0, and 0 off the contact
+    set at t_n, under every scheme. `projection`: the multiplier of the step that ends at t_n (its contact
+    step is a complementarity problem); `paper` with the explicit penalty: the paper's F(η^n, v^n), which
+    the next step applies; the semi-implicit penalties (`paper`, `newmark`): the force of the step that
+    ends at t_n, −d v^n on its active set.
     `energy` holds (k,) arrays; the dissipations and the external work are cumulative from t=0.
     `numerical_dissipation` is the scheme's own consistency term: ½|v^{n+1}−v^n|²_M + ½|η^{n+1}−η^n|²_K
     per step, so that the discrete balance below closes to round-off.

@@ -82,7 +82,15 @@ class Scheme(Base):
 
     @property
     def contact_force(self):
-        np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
+        """The force density at the current state: with the explicit penalty the paper's F(η^n, v^n), the force
+        the next step applies (so it lives on the contact set at t_n); semi-implicit, the one the last step
+        applied, −d v^n on its active set (which it brakes, so those nodes are still below the obstacle)."""
+        if self.s.penalty == "explicit":
+            self.s.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
+            law = self.force_law.evaluate_env(self.s.laws.env)
+            np.multiply(law, self.inv_mF > 0, out=self.force_density)  # 0 where no force acts (the ends)
+        else:
+            np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
         return self.force_density
 
     @property

@@ -1,20 +1,30 @@
-"""Inelastic contact with no ε: central differences, implicit viscosity, and a nodal projection onto gap ≥ 0.
+"""Inelastic contact with no ε: central differences, implicit viscosity, and the step as a complementarity problem.
 
-With lumped mass M and v^n = (η^n − η^{n−1})/Δt, the free step is
+With lumped mass M, the step is: find η^{n+1} and the nodal contact force F^{n+1} with
 
-    M (η̃ − 2η^n + η^{n−1})/Δt² + C (η̃ − η^n)/Δt + K η^n = b,
+    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F^{n+1},
+    gap(η^{n+1}) ≥ 0,   F^{n+1} ≥ 0,   F^{n+1} · gap(η^{n+1}) = 0        (interior nodes),
 
-(the elastic term explicit, the viscous one implicit: A = M/Δt² + C/Δt is factorised once), and then
-η^{n+1} = η̃ + max(−gap(η̃), 0) at the interior nodes: every node that would pass the obstacle is put on
-it. A node that lands keeps η^{n+1} = ψ, so its velocity becomes 0: restitution 0, the paper's (A4).
-This is Paoli and Schatzman's scheme with e = 0. The model must declare ``gap`` (η − ψ).
+the elastic term explicit, the viscous one implicit: A = M/Δt² + C/Δt is symmetric positive definite, and
+the step is the minimum of its energy ½ηᵀAη − bᵀη over gap ≥ 0 (`complementarity.ActiveSet`). A node that
+lands keeps η^{n+1} = ψ, so its velocity becomes 0: restitution 0, the paper's (A4). This is Paoli and
+Schatzman's scheme with e = 0, the constraint taken in A's metric. The model must declare ``gap`` (η − ψ).
+F is a true contact force: ≥ 0, and 0 off the contact set, the paper's (A1) and (A2). (The nodal maximum
+max(A⁻¹b, ψ) is the same step only when A is diagonal, α = 0; with viscosity its residual pulls on free
+nodes and can be negative, and it is 2 to 3 times less accurate on Example 1: docs/study.md.)
 
-Energy: with R = A(η^{n+1} − η̃), the reaction the projection applies, η^{n+1} solves the same step with
-b + R on the right. Tested with (η^{n+1} − η^{n−1})/2 that gives exactly E^{n+1/2} − E^{n−1/2}
-= −(Δt/2) v^{n+1}·C(v^{n+1} + v^n) + ½(b + R)·(η^{n+1} − η^{n−1}), with the leapfrog's energy
-E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n. So the numerical dissipation is 0, the viscous one is the first
-term, and −½ R·(η^{n+1} − η^{n−1}) is the contact dissipation. R is the system's residual at η^{n+1}, so
-a step costs one back-substitution and one mat-vec, as the paper's scheme does.
+Energy: tested with (η^{n+1} − η^{n−1})/2 the step gives exactly E^{n+1/2} − E^{n−1/2}
+= −(Δt/2) v^{n+1}·C(v^{n+1} + v^n) + ½(b + F)·(η^{n+1} − η^{n−1}), with v^{n+1} = (η^{n+1} − η^n)/Δt and the
+leapfrog's energy E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n. So the numerical dissipation is 0, the viscous
+one is the first term, and −½ F·(η^{n+1} − η^{n−1}) ≥ 0 is the contact dissipation: F's work (F·gap = 0
+and gap ≥ 0 make it F·(ψ − η^{n−1})/2 ≤ 0 gained, i.e. ≥ 0 lost). F is A η^{n+1} − b on the active set,
+from the mat-vec the energy needs anyway, so a step with an unchanged active set costs one solve and one
+mat-vec, as the paper's scheme does.
+
+The stored velocity at t^n is the centred (η^{n+1} − η^{n−1})/(2Δt), the mean of the two half-step
+velocities of the leapfrog (at t = 0 the given v0), so each stored row waits for the next step: the scheme
+runs one step ahead of what it reports. The one-sided (η^n − η^{n−1})/Δt aliases where a landing front
+crosses the grid (neighbours alternate between 0 and V where the exact value is V/2) and does not converge.
 
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
@@ -36,7 +46,8 @@ from ..errors import InstabilityError
 from ..scene.data import SceneWarning
 from ..fem.operators import diagonal_matrix, stacked
 from .base import Scheme as Base
-from .base import Linear, any_rank, dirichlet_rows, summer, wrap
+from .base import any_rank, dirichlet_rows, summer, wrap
+from .complementarity import ActiveSet
 
 
 def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol: float = 1e-6):
@@ -135,14 +146,18 @@ def largest_stable_dt(ops, interior: np.ndarray, krylov: bool = False, dt: float
 #: A node within CONTACT_TOL × (the data's height scale) of the obstacle is in contact: the implicit viscous
 #: solve spreads round-off-size values (1e-64 ... 1e-14 seen on Example 1) over a region lying on it.
 CONTACT_TOL = 1e-9
+#: The round-off allowed in a contact force before the active set lets its node go: FORCE_TOL × the height scale ×
+#: A's diagonal (R = Aη − b is computed from terms of that size, so its round-off is a few 1e-16 of it). It keeps a
+#: node whose force is −1e-17 from leaving and re-entering forever; a release it delays moves η by as little.
+#: (1e-9 delayed releases enough to move Example 1 by 7e-7 against the nodal maximum at α = 0, where the two
+#: must agree; 1e-14: 6e-12.)
+FORCE_TOL = 1e-14
 
 
 class Scheme(Base):
     PENALTIES = ()
     MASSES = ("lumped",)
-    # With viscosity the nodal projection also moves the neighbours' viscous force (A = M/Δt² + C/Δt is not
-    # diagonal), which can feed a little energy on coarse grids: Example 1 at nx = 125, none from 250 on.
-    remedy = "refine the grid (nx and nt) or use scheme 'newmark'"
+    remedy = "use a smaller dt (nt >= T / dt_max) or scheme 'newmark'"
 
     @staticmethod
     def requires(model) -> str | None:
@@ -162,32 +177,33 @@ class Scheme(Base):
                 f"(dt <= {self.dt_max:.6g}), or scheme 'newmark' for larger steps",
                 step=0, time=0.0,
             )
-        self.A = diagonal_matrix(ops.M, ops.m / dt**2)
-        self.A.axpy(1.0 / dt, ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        dirichlet_rows(self.A, s.bc)
+        A = diagonal_matrix(ops.M, ops.m / dt**2)
+        A.axpy(1.0 / dt, ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        dirichlet_rows(A, s.bc)
+        self.A_diagonal = A.getDiagonal().array.copy()
         C_over_dt = ops.C.copy()
         C_over_dt.scale(1.0 / dt)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
-        self.linear = Linear(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)
-        self.solve = self.linear.solve
         laws = s.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
-        self._check_gap()
+        self.psi = self._obstacle()
+        self.m_dt2 = ops.m / dt**2
+        self.contact_step = ActiveSet(A, comm, s.petsc_options, s.bc, s.g, s.x.ndim, self.psi, s.interior,
+                                      force_tol=np.zeros(n))
         self.allsum = summer(comm)
         self.anysum = any_rank(comm)
-        # Rotating rows, allocated once: η^{n+1}, η^n, η^{n−1}, and [K η, (C/Δt) η] of η^{n+1}, η^n, η^{n−1}.
-        self.etas = [(wrap(a, comm), a) for a in np.zeros((3, n))]
-        self.KCs = [(wrap(a, comm), a) for a in np.zeros((3, 2, n))]
+        # Four rotating time levels [next, ahead, now, before], each η, [K η, (C/Δt) η] and the force density
+        # that produced it: `now` is what the scheme reports, `ahead` (one step on) gives its centred velocity.
+        self.levels = [_Level(comm, n) for _ in range(4)]
         rhs = np.zeros(n)
         self.rhs = (wrap(rhs, comm), rhs)
-        self.buf = np.zeros((3, n))  # scratch: the push, η^{n+1} − η^n, the reaction R
-        self.m_dt2 = ops.m / dt**2
+        self.R = np.zeros(n)  # A η − b of the latest iterate
         self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)
-        self.force_density = np.zeros(n)
         self.has_load = bool(np.any(ops.load != 0))
+        self.v0 = None  # the given initial velocity, reported at t = 0
 
-    def _check_gap(self) -> None:
-        """The projection adds −gap to η, the distance to ψ only if gap = η − ψ; and gap ≤ 0 must be the contact set."""
+    def _obstacle(self) -> np.ndarray:
+        """ψ at the nodes, from gap(η) = η − ψ; ValueError unless gap has slope 1 in η and gap ≤ 0 is the contact set."""
         laws, n = self.s.laws, self.s.n_owned
         model = laws.model
         g = [np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): np.full(n, c)}), dtype=float) * np.ones(n)
@@ -201,31 +217,25 @@ class Scheme(Base):
             if np.any(found[self.s.interior] != expected):
                 raise ValueError(f"model '{model.name}': its gap and contact_set disagree (gap <= 0 must be the contact "
                                  "set); a variant that moves the obstacle must give both")
+        return psi
 
     @property
     def eta(self):
-        return self.etas[1][1]
+        return self.levels[2].eta
 
     @property
     def velocity(self):
-        return (self.etas[1][1] - self.etas[2][1]) / self.s.dt
+        if self.v0 is not None:
+            return self.v0
+        return (self.levels[1].eta - self.levels[3].eta) / (2.0 * self.s.dt)
 
     @property
     def contact_force(self):
-        return self.force_density
+        return self.levels[2].force
 
     @property
     def timings(self):
-        return {"linear solver": self.linear.describe()}
-
-    def _project(self, eta: np.ndarray, push: np.ndarray) -> np.ndarray:
-        """η + max(−gap(η), 0) at the interior nodes, in place; the correction into `push`."""
-        self.s.laws.set(eta=eta)
-        np.negative(self.gap.evaluate_env(self.s.laws.env), out=push)
-        np.maximum(push, 0.0, out=push)
-        push *= self.s.interior
-        eta += push
-        return push
+        return {"linear solver": self.contact_step.linear.describe(), "contact step": self.contact_step.describe()}
 
     def contact(self) -> np.ndarray:
         laws = self.s.laws
@@ -239,58 +249,80 @@ class Scheme(Base):
                     float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
         tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(CONTACT_TOL * scale))
         self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
-        (_, e0), (_, em) = self.etas[1], self.etas[2]
-        e0[:] = eta0
-        if self.anysum(bool(np.any(self._project(e0, self.buf[0]) > 0))):
+        self.contact_step.force_tol = FORCE_TOL * scale * self.A_diagonal
+        ahead, now = self.levels[1], self.levels[2]
+        ahead.eta[:] = eta0
+        below = s.interior & (ahead.eta < self.psi)
+        if self.anysum(bool(np.any(below))):
             warnings.warn("scheme 'projection': the initial displacement is below the obstacle at some nodes; "
                           "projected onto it at t = 0 (the penalty schemes let it rise through instead)",
                           SceneWarning, stacklevel=4)
-        np.subtract(e0, s.dt * v0, out=em)
-        for i in (1, 2):
-            self.KC.mult(self.etas[i][0], self.KCs[i][0])
-        d = e0 - em
-        self.kin, self.el = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)), 0.5 * float(np.dot(e0, self.KCs[2][1][0])))
-        return self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0
+            ahead.eta[below] = self.psi[below]
+        np.subtract(ahead.eta, s.dt * v0, out=now.eta)
+        for level in (ahead, now):
+            self.KC.mult(level.eta_vec, level.kc_vec)
+        d = ahead.eta - now.eta
+        energies = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)), 0.5 * float(np.dot(ahead.eta, now.kc[0])))
+        self.pending = self._advance()  # η¹: the first row's centred velocity needs it
+        self.v0 = np.array(v0, dtype=float)
+        return (*energies, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
+        reported, self.pending = self.pending, self._advance()
+        self.v0 = None
+        return reported
+
+    def _residual(self, level, rhs):
+        """A η − b at the level's η (0 at the ends), with [K η, (C/Δt) η] left in the level for its energy."""
+        def residual(eta):
+            self.KC.mult(level.eta_vec, level.kc_vec)
+            np.multiply(self.m_dt2, eta, out=self.R)
+            self.R += level.kc[1]
+            self.R -= rhs
+            self.R *= self.s.interior
+            return self.R
+        return residual
+
+    def _advance(self):
+        """Compute the next level from `ahead` (η^n) and `now` (η^{n−1}); the energy terms of that step."""
         s = self.s
-        (v1, e1), (_, e0), (_, em) = self.etas
-        (kc1v, kc1), (_, kc0), (_, kcm) = self.KCs
-        (rhs_v, rhs), (push, d, R) = self.rhs, self.buf
-        # free step: A η̃ = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n − K η^n + b
-        np.subtract(e0, em, out=rhs)
-        rhs += e0
+        new, e0, em = self.levels[0], self.levels[1], self.levels[2]
+        rhs_v, rhs = self.rhs
+        # A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n − K η^n + b + F
+        np.subtract(e0.eta, em.eta, out=rhs)
+        rhs += e0.eta
         rhs *= self.m_dt2
-        rhs += kc0[1]
-        rhs -= kc0[0]
+        rhs += e0.kc[1]
+        rhs -= e0.kc[0]
         if self.has_load:
             rhs += s.ops.load
-        for i, g in zip(s.bc, s.g):
-            rhs[i] = g
-        if self.linear.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
-            np.subtract(e0, em, out=e1)
-            e1 += e0
-        self.solve(rhs_v, v1)
-        self._project(e1, push)
-        self.KC.mult(v1, kc1v)
-        # R = A η^{n+1} − rhs, the reaction (0 at the ends, whose rows are the identity)
-        np.multiply(self.m_dt2, e1, out=R)
-        R += kc1[1]
-        R -= rhs
-        R *= s.interior
-        np.subtract(e1, e0, out=d)
+        rhs[s.bc] = s.g
+        if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
+            np.subtract(e0.eta, em.eta, out=new.eta)
+            new.eta += e0.eta
+        F, _ = self.contact_step.solve(rhs_v, new.eta_vec, self._residual(new, rhs))
+        np.maximum(F, 0.0, out=F)  # within the active set's round-off allowance
+        d = new.eta - e0.eta
         kin = 0.5 * float(np.dot(d, self.m_dt2 * d))
-        el = 0.5 * float(np.dot(e1, kc0[0]))
-        visc = 0.5 * float(np.dot(d, kc1[1] - kcm[1]))  # (Δt/2) v¹·C(v¹ + v⁰), with Δt v = η differences
-        d += e0
-        d -= em  # now η^{n+1} − η^{n−1}
-        con = -0.5 * float(np.dot(R, d))
+        el = 0.5 * float(np.dot(new.eta, e0.kc[0]))
+        visc = 0.5 * float(np.dot(d, new.kc[1] - em.kc[1]))  # (Δt/2) v¹·C(v¹ + v⁰), with Δt v = η differences
+        d += e0.eta
+        d -= em.eta  # now η^{n+1} − η^{n−1}
+        con = -0.5 * float(np.dot(F, d))
         ext = 0.5 * float(np.dot(s.ops.load, d)) if self.has_load else 0.0
         kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
-        np.multiply(R, self.inv_mF, out=self.force_density)
-        self.etas = [self.etas[2], self.etas[0], self.etas[1]]  # η^{n−1} ← η^n ← η^{n+1}
-        self.KCs = [self.KCs[2], self.KCs[0], self.KCs[1]]
+        np.multiply(F, self.inv_mF, out=new.force)
+        self.levels = [self.levels[3], new, e0, em]  # before is free; next → ahead → now → before
         return kin, el, visc, con, 0.0, ext, 0.0
 
 
-__all__ = ["Scheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]
+class _Level:
+    """One time level of the projection scheme: η, [K η, (C/Δt) η] (as arrays and PETSc vectors over them) and the
+    contact force density of the step that reached it."""
+
+    def __init__(self, comm, n: int):
+        self.eta, self.kc, self.force = np.zeros(n), np.zeros((2, n)), np.zeros(n)
+        self.eta_vec, self.kc_vec = wrap(self.eta, comm), wrap(self.kc, comm)
+
+
+__all__ = ["CONTACT_TOL", "Scheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]

@@ -134,20 +134,28 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
     return t_out, eta_out, vel_out
 
 
-def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=None, store_every=1):
-    r"""The ``projection`` scheme as finite differences: central differences, implicit viscosity, projection.
+def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=None, store_every=1, nodal=False):
+    r"""The ``projection`` scheme as finite differences: central differences, implicit viscosity, contact step.
 
     At the interior nodes, with :math:`D^2` the second difference and :math:`\psi` the obstacle (0 unless
-    ``obstacle`` gives nodal values),
+    ``obstacle`` gives nodal values), the step is the complementarity problem
 
     .. math::
 
-        \tilde\eta - \alpha\Delta t\, D^2(\tilde\eta - \eta^n) = 2\eta^n - \eta^{n-1} + \Delta t^2 D^2\eta^n,
-        \qquad \eta^{n+1} = \max(\tilde\eta, \psi),
+        \eta^{n+1} - \alpha\Delta t\, D^2(\eta^{n+1} - \eta^n) - 2\eta^n + \eta^{n-1} - \Delta t^2 D^2\eta^n = f
+        \ge 0, \qquad \eta^{n+1} \ge \psi, \qquad f\,(\eta^{n+1} - \psi) = 0,
 
-    a tridiagonal solve (none for α = 0) and a pointwise maximum. Start: :math:`\eta^0` is ``eta0`` with
-    its ends at ``h_left``/``h_right``, raised onto ψ where it is below it, and
-    :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside. Returns ``(t, eta, velocity)`` as `fd_solve` does.
+    solved by projected red-black Gauss-Seidel to round-off (an algorithm of its own, independent of the
+    package's active-set solver): start from the nodal maximum and sweep
+    :math:`\eta_j \leftarrow \max(\psi_j, \text{the row's solve for } \eta_j)` until nothing changes. For
+    α = 0 the rows are uncoupled and that is the nodal maximum itself. ``nodal=True`` takes the nodal
+    maximum :math:`\max(\tilde\eta, \psi)` of the free step for any α (the scheme before the contact step
+    was a complementarity problem; kept to compare against).
+
+    Start: :math:`\eta^0` is ``eta0`` with its ends at ``h_left``/``h_right``, raised onto ψ where it is
+    below it, and :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside. Returns ``(t, eta, velocity)`` as
+    `fd_solve` does, with the scheme's stored velocity: ``v0`` at t = 0 (0 at the ends), then the centred
+    :math:`(\eta^{n+1} - \eta^{n-1})/(2\Delta t)` (so one step past T is computed).
     """
     eta0 = np.asarray(eta0, dtype=float)
     v0 = np.asarray(v0, dtype=float)
@@ -170,18 +178,43 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
     eta_out, vel_out = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
     eta_out[0], vel_out[0] = eta, (eta - eta_prev) / dt
     k = 1
-    for n in range(int(nt)):
+    for n in range(int(nt) + 1):  # computes η^{n+1}; the last one only for the velocity at T
         d2 = second_difference(eta, dx)
         rhs = 2.0 * eta[1:-1] - eta_prev[1:-1] + dt**2 * d2 - s * dx**2 * d2
-        # the ends are fixed, so their part of −αΔt D²η̃ is known
+        # the ends are fixed, so their part of −αΔt D²η^{n+1} is known
         rhs[0] += s * h_left
         rhs[-1] += s * h_right
         new = np.empty_like(eta)
         new[0], new[-1] = h_left, h_right
         new[1:-1] = solve_banded((1, 1), bands, rhs, check_finite=False) if alpha > 0 else rhs
         new[1:-1] = np.maximum(new[1:-1], psi[1:-1])
+        if alpha > 0 and not nodal:
+            _projected_gauss_seidel(new, rhs, s, psi)
+        if k < len(steps) and steps[k] == n:
+            vel_out[k] = (new - eta_prev) / (2.0 * dt)
+            k += 1
         eta_prev, eta = eta, new
         if k < len(steps) and steps[k] == n + 1:
-            eta_out[k], vel_out[k] = eta, (eta - eta_prev) / dt
-            k += 1
+            eta_out[k] = eta
     return dt * np.asarray(steps, dtype=float), eta_out, vel_out
+
+
+def _projected_gauss_seidel(eta, rhs, s, psi, rtol=1e-15, max_sweeps=100_000):
+    """Solve (1 + 2s) η_j − s(η_{j−1} + η_{j+1}) ≥ rhs_j, η_j ≥ ψ_j, complementary, in place on the interior
+    (ends fixed): red-black sweeps η_j ← max(ψ_j, (rhs_j + s(η_{j−1} + η_{j+1}))/(1 + 2s)) until no node moves
+    by more than `rtol` of the largest |η|."""
+    scale = max(float(np.max(np.abs(eta))), 1e-300)
+    if not np.isfinite(scale):  # an unstable run (the stability map's): nothing to converge to
+        return
+    w = eta.copy()
+    w[0] = w[-1] = 0.0  # the ends' part is in rhs already
+    inner = w[1:-1]
+    for _ in range(max_sweeps):
+        old = inner.copy()
+        for first in (1, 2):  # odd nodes, then even: each colour's neighbours are of the other colour
+            j = np.arange(first, w.size - 1, 2)
+            w[j] = np.maximum(psi[j], (rhs[j - 1] + s * (w[j - 1] + w[j + 1])) / (1.0 + 2.0 * s))
+        if np.max(np.abs(inner - old)) <= rtol * scale:
+            eta[1:-1] = inner
+            return
+    raise RuntimeError("projected Gauss-Seidel did not converge")

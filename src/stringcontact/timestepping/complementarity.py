@@ -1,0 +1,207 @@
+"""The contact step of the ε-free scheme: a linear complementarity problem, and its solvers.
+
+Given the step matrix A (symmetric positive definite: M/Δt² + C/Δt, identity rows at the fixed ends) and
+the step's right-hand side b, find η and the nodal contact force F with
+
+    A η = b + F,   η ≥ ψ,   F ≥ 0,   F · (η − ψ) = 0        at the interior nodes.
+
+This is the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ (the step of the scheme's own energy), and F is its
+Lagrange multiplier: a true contact force, ≥ 0 and zero off the contact set. With A diagonal (α = 0) the
+answer is the nodal maximum max(A⁻¹b, ψ); with viscosity it is not, because A couples neighbours.
+
+`ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
+13, 2003) on the scheme's own linear solver (`base.Linear`: LU, MUMPS or CG): fix the nodes of the active
+set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜 stays.
+Each step first takes the free step Ã η̃ = b with A itself (factorised once, like the nodal projection
+before): if no node is below ψ that is the answer, at the nodal projection's cost; else 𝒜 starts as
+{η̃ < ψ}. Started from the previous step's 𝒜 instead, the method lets the string lift off one node per
+front per iteration (with viscosity a front moves several nodes a step): 2.66 solves and 1.66
+refactorisations a step on Example 1 at the paper's resolution, against 1.11 and 0.14 from {η̃ < ψ}. Each
+change of 𝒜 costs a refactorisation (LU) or a new preconditioner set-up (CG) and one more solve. For an
+M-matrix A (every string, a membrane on a mesh without obtuse angles) the method converges in finitely
+many iterations; elsewhere it can cycle, so when an active set comes back within a step, or after
+`MAX_ITERATIONS`, the step falls back to PETSc's SNES VI (`VariationalInequality`). Measured against SNES
+VI alone in docs/study.md (section "The contact step").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from .base import Linear, _symmetric_rows, any_rank, dirichlet_rows
+
+#: Active-set iterations before the step falls back to SNES VI. For an M-matrix they are at most the nodes that
+#: change; Example 1 at the paper's resolution took 1 to 18 a step, and 130 once (its first landing).
+MAX_ITERATIONS = 500
+
+#: Global unknowns up to which the free step η̃ has its own solver, A factorised once (a second factor beside
+#: the constrained one: 3.1 GB more at 1e6 nodes, 0.7 GB at 2.5e5). Above, 𝒜 starts from the previous step's.
+PREDICT_MAX_NODES = 250_000
+
+#: SNES VI takes its options under this prefix, set just before its setFromOptions and removed just after.
+VI_PREFIX = "stringcontact_vi_"
+
+
+class ActiveSet:
+    """The contact step by the primal–dual active-set method on `base.Linear`.
+
+    ``solve(b, x, residual)`` puts η into the vector `x` (its array is η) and returns (F, iterations), F the
+    nodal force A η − b on the active set and 0 elsewhere. `residual(x_array)` must return A η − b with 0
+    at the fixed ends (the scheme computes it from the mat-vec it needs for its energy anyway).
+
+    `force_tol` (per node, ≥ 0): a node leaves 𝒜 only when its force is below −force_tol, so that round-off
+    in F (solver and mat-vec) cannot make the set cycle; η < ψ adds a node with no tolerance, so the step
+    never leaves a node below the obstacle.
+    """
+
+    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int,
+                 psi: np.ndarray, interior: np.ndarray, force_tol: np.ndarray):
+        self.A, self.bc, self.g = A, bc, g
+        self.psi, self.interior, self.force_tol = psi, interior, force_tol
+        self.work = A.duplicate(copy=True)  # A with 𝒜's rows (and, for CG, columns) fixed
+        self.work.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)  # a new 𝒜 refactorises numerically only
+        self.linear = Linear(self.work, comm, options, bc, g, dim)
+        predict = dim == 1 or A.getSize()[0] <= PREDICT_MAX_NODES
+        self.free = Linear(A.duplicate(copy=True), comm, options, bc, g, dim) if predict else None
+        self.active = np.zeros(psi.size, dtype=bool)
+        self.nodes = np.zeros(0, dtype=np.int32)
+        self.anywhere = any_rank(comm)
+        self.comm = comm
+        self.fallback: VariationalInequality | None = None
+        self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
+
+    @property
+    def iterative(self) -> bool:
+        return self.linear.iterative
+
+    def _hold(self, active: np.ndarray) -> None:
+        """Fix the nodes of `active` on ψ (besides the ends): A's rows there become the identity."""
+        self.active, self.nodes = active, np.flatnonzero(active).astype(np.int32)
+        fixed = np.concatenate([self.bc, self.nodes]).astype(np.int32)
+        self.A.copy(self.work, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        if self.linear.iterative:  # CG needs the symmetric form: the fixed columns move to the right-hand side
+            self.linear.lift = _symmetric_rows(self.work, fixed, np.concatenate([self.g, self.psi[self.nodes]]))
+        else:
+            dirichlet_rows(self.work, fixed)
+        self.linear.bc = fixed
+        self.linear.reset()
+        self.refactorisations += 1
+
+    def solve(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
+        rhs, eta = b.array, x.array
+        active = self.active
+        self.steps += 1
+        if self.free is not None:
+            self.free.solve(b, x)
+            self.free_solves += 1
+            active = self.interior & (eta < self.psi)
+            if not self.anywhere(bool(active.any())):  # no contact: the free step is the answer
+                residual(eta)
+                return np.zeros_like(eta), 0
+            if not self.anywhere(not np.array_equal(active, self.active)):  # every rank: holding is collective
+                active = self.active
+        seen = set()
+        for k in range(1, MAX_ITERATIONS + 1):
+            if active is not self.active:
+                self._hold(active)
+            saved = rhs[self.nodes]
+            rhs[self.nodes] = self.psi[self.nodes]
+            self.linear.solve(b, x)
+            rhs[self.nodes] = saved
+            R = residual(eta)
+            new = self.interior & np.where(active, R > -self.force_tol, eta < self.psi)
+            changed = self.anywhere(not np.array_equal(new, active))
+            self.solves += 1
+            if not changed:
+                return np.where(active, R, 0.0), k
+            seen.add(self._key(active))
+            if self._key(new) in seen:  # a cycle (A is not an M-matrix)
+                break
+            active = new
+        return self._fall_back(b, x, residual)
+
+    def _key(self, active: np.ndarray) -> tuple:
+        """The active set over all ranks, as a hashable key (one allgather of this rank's packed bits)."""
+        mine = np.packbits(active).tobytes()
+        return (mine,) if self.comm.size == 1 else tuple(self.comm.allgather(mine))
+
+    def _fall_back(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
+        """SNES VI from the last iterate; the active set it ends with is the next step's start."""
+        if self.fallback is None:
+            self.fallback = VariationalInequality(self.A, self.comm, self.psi, self.interior)
+        self.fallbacks += 1
+        force, its = self.fallback.solve(b, x, residual)
+        self._hold(self.interior & (force > 0))
+        return force, MAX_ITERATIONS + its
+
+    def describe(self) -> str:
+        """One line for the summary: what the contact steps cost."""
+        text = (f"active set, {self.free_solves / max(1, self.steps):.3g} free and {self.solves / max(1, self.steps):.3g}"
+                f" constrained solves per step, {self.refactorisations} changes of the active set")
+        return text + (f", {self.fallbacks} SNES VI fallbacks" if self.fallbacks else "")
+
+
+class VariationalInequality:
+    """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method) with the
+    bounds ψ ≤ η at the interior nodes: about ten Newton iterations (each an LU factorisation) per step, so
+    `ActiveSet` uses it only as its fallback. Neither line search converged everywhere alone: full Newton
+    steps (`basic`) cycled on a non-M-matrix (tests/test_contact_step.py), backtracking (`bt`) stalled on a
+    step of Example 1; so each is tried in turn from the same first guess.
+    """
+
+    LINE_SEARCHES = ("basic", "bt")
+
+    def __init__(self, A: PETSc.Mat, comm, psi: np.ndarray, interior: np.ndarray, rtol: float = 1e-12):
+        self.A, self.interior, self.psi = A, interior, psi
+        self.f, self.b, self.guess = A.createVecLeft(), A.createVecLeft(), A.createVecRight()
+        lower, upper = A.createVecRight(), A.createVecRight()
+        lower.array[:] = np.where(interior, psi, PETSc.NINFINITY)
+        upper.set(PETSc.INFINITY)
+        self.solvers = [self._snes(comm, lower, upper, search, rtol) for search in self.LINE_SEARCHES]
+
+    def _snes(self, comm, lower, upper, search: str, rtol: float) -> PETSc.SNES:
+        snes = PETSc.SNES().create(comm)
+        snes.setFunction(self._residual, self.f)
+        snes.setJacobian(self._jacobian, self.A, self.A)
+        options = {"snes_type": "vinewtonrsls", "snes_linesearch_type": search, "snes_rtol": rtol,
+                   "snes_atol": 1e-300, "snes_stol": 0.0, "snes_max_it": 200, "ksp_type": "preonly",
+                   "pc_type": "lu"} | ({"pc_factor_mat_solver_type": "mumps"} if comm.size > 1 else {})
+        snes.setOptionsPrefix(VI_PREFIX)  # petsc4py 3.18 has no getLineSearch: through the options database
+        db = PETSc.Options()
+        try:
+            for name, value in options.items():
+                db.setValue(VI_PREFIX + name, value)
+            snes.setFromOptions()
+        finally:
+            for name in options:
+                db.delValue(VI_PREFIX + name)
+        snes.setVariableBounds(lower, upper)
+        return snes
+
+    def _residual(self, snes, x, f) -> None:
+        self.A.mult(x, f)
+        f.axpy(-1.0, self.b)
+
+    @staticmethod
+    def _jacobian(snes, x, J, P):  # A is constant
+        return None
+
+    def solve(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
+        """η into `x` (its current values are the first guess), and (F, Newton iterations)."""
+        b.copy(self.b)
+        x.copy(self.guess)
+        tried = []
+        for snes in self.solvers:
+            self.guess.copy(x)
+            snes.setTolerances(atol=1e-14 * b.norm())  # a first guess already at round-off converges too
+            snes.solve(None, x)
+            tried.append(f"reason {snes.getConvergedReason()} after {snes.getIterationNumber()} iterations")
+            if snes.getConvergedReason() > 0:
+                R = residual(x.array)
+                on = self.interior & (x.array <= self.psi)  # the bounds are met exactly where they are active
+                return np.where(on, np.maximum(R, 0.0), 0.0), snes.getIterationNumber()
+        raise ValueError("the contact step (SNES VI) did not converge: PETSc " + ", then ".join(tried))
+
+
+__all__ = ["MAX_ITERATIONS", "ActiveSet", "VariationalInequality"]
