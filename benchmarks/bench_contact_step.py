@@ -97,14 +97,14 @@ def nodal_run(scene) -> study.Run:
 
 
 def same_rows(old: study.Run, new: study.Run) -> study.Run:
-    keep = study._common_rows(new.t, old.t)
+    keep = study.common_rows(new.t, old.t)
     old.t, old.eta = old.t[keep], old.eta[keep]
     return old
 
 
 def eta_errors(run: study.Run, ref: study.Run) -> dict:
     """‖η − η_ref‖ in L∞(0,T;L²) (the study's err_eta), in L²(0,T;L²)/√T (the time-RMS), and at T."""
-    rows = study._common_rows(run.t, ref.t)
+    rows = study.common_rows(run.t, ref.t)
     ref_eta = np.array([np.interp(run.x, ref.x, row) for row in ref.eta[rows]])
     per_time = study.l2_norm(run.x, run.eta - ref_eta)
     rms = float(np.sqrt(compat.trapezoid(per_time**2, run.t) / (run.t[-1] - run.t[0])))
@@ -202,7 +202,7 @@ def main():
         if MPI.COMM_WORLD.rank == 0:
             print("JSON " + json.dumps(found))
         return
-    study._warm_up()
+    study.warm_up()
     q = args.quick
     old_src, remove = baseline_tree(args.baseline)
     try:

@@ -105,7 +105,7 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default="benchmarks/out/schemes.json")
     args = ap.parse_args()
-    study._warm_up()
+    study.warm_up()
     q = args.quick
     result = {
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),

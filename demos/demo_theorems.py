@@ -82,7 +82,7 @@ th.draw_figure1(finest, OUT / "figure1_example1.png")
 # The exact α = 0 case: a flat string at height h = 0.2 thrown down at V = 1 lands at once at t* = 0.2,
 # and Theorem 2.3(2) predicts the landing impulse per unit length V.
 
-flat = th.flat_landing_scene(200, 240) if FAST else th.flat_landing_scene(500, 600)
+flat = th.flat_landing_scene(200, 240, r=0.4) if FAST else th.flat_landing_scene(500, 600, r=0.4)
 flat_results = th.refine(flat, levels=2)
 landing = th.check_landing(flat_results, V=1.0)
 print(th.format_table([landing]))

@@ -11,7 +11,8 @@ from mpi4py import MPI
 
 import stringcontact as sc
 import stringcontact.run.driver
-from stringcontact.analysis import study
+from stringcontact.analysis import study, tolerance
+from stringcontact.cli import study as study_cli
 
 
 def flat(n, r, T=0.45):
@@ -105,10 +106,10 @@ def test_tolerance_choice_is_the_cheapest_candidate_that_reached_it():
         {"method": "projection", "nx": 200, "nt": 120, "estimate": 0.004, "fine_wall_s": 0.1, "ok": True},
         {"method": "newmark", "nx": 100, "nt": 60, "estimate": 0.05, "fine_wall_s": 0.01, "ok": False},
     ]
-    chosen, method, best = study._pick(scene, 0.01, choice)
+    chosen, method, best = tolerance._pick(scene, 0.01, choice)
     assert method.name == "projection" and best["nx"] == 200 and (chosen.nx, chosen.nt) == (200, 120)
     with pytest.raises(ValueError, match="no method reached the tolerance"):
-        study._pick(scene, 0.01, [dict(choice[2])])
+        tolerance._pick(scene, 0.01, [dict(choice[2])])
 
 
 @pytest.mark.parametrize("tol", [0.0, -1.0, math.inf])
@@ -133,7 +134,7 @@ def _parser():
     from stringcontact.cli.main import _Parser
 
     parser = _Parser(prog="stringcontact study")
-    study.add_arguments(parser)
+    study_cli.add_arguments(parser)
     return parser
 
 
@@ -144,7 +145,7 @@ def _header(path):
 
 def test_stability_cli_writes_documented_csv_and_chart(tmp_path):
     args = _parser().parse_args(["stability", "--quick", "--out", str(tmp_path)])
-    assert study.command(args) == 0
+    assert study_cli.command(args) == 0
     assert _header(tmp_path / "study_stability.csv") == study.STABILITY_COLUMNS
     assert _header(tmp_path / "study_alpha.csv") == study.ALPHA_COLUMNS
     rows = study.read_csv(tmp_path / "study_stability.csv")
@@ -159,7 +160,7 @@ def test_stability_cli_writes_documented_csv_and_chart(tmp_path):
 
 def test_work_precision_cli_writes_documented_csv_and_chart(tmp_path):
     args = _parser().parse_args(["work-precision", "--quick", "--problem", "flat-landing", "--out", str(tmp_path)])
-    assert study.command(args) == 0
+    assert study_cli.command(args) == 0
     assert _header(tmp_path / "study_work_precision.csv") == study.WORK_PRECISION_COLUMNS
     rows = study.read_csv(tmp_path / "study_work_precision.csv")
     assert {r["method"] for r in rows} == set(study.METHODS)
@@ -175,7 +176,7 @@ def test_study_rejects_bad_input():
         _parser().parse_args(["nonsense"])
     args = _parser().parse_args(["work-precision", "--repeat", "0"])
     with pytest.raises(ValueError, match="--repeat"):
-        study.command(args)
+        study_cli.command(args)
 
 
 class _no_warning:
@@ -193,7 +194,7 @@ class _no_warning:
 @pytest.mark.slow
 def test_convergence_cli_writes_orders_and_tolerance_tracking(tmp_path):
     args = _parser().parse_args(["convergence", "--quick", "--out", str(tmp_path)])
-    assert study.command(args) == 0
+    assert study_cli.command(args) == 0
     assert _header(tmp_path / "study_convergence.csv") == study.CONVERGENCE_COLUMNS
     assert _header(tmp_path / "study_orders.csv") == study.ORDER_COLUMNS
     assert _header(tmp_path / "study_tolerance.csv") == study.TOLERANCE_COLUMNS

@@ -22,7 +22,7 @@ R = 0.4  # dt/eps of the paper's data, kept fixed under refinement
 @pytest.fixture(scope="module")
 def flat():
     """The exact alpha = 0 case at nx = 250, 500 (every step stored)."""
-    return th.refine(th.flat_landing_scene(500, 600), levels=2)
+    return th.refine(th.flat_landing_scene(500, 600, r=0.4), levels=2)
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_free_boundary_marks_both_sides_of_the_interface():
 
 
 def test_checks_refuse_thinned_results():
-    scene = th.flat_landing_scene(50, 60)
+    scene = th.flat_landing_scene(50, 60, r=0.4)
     res = sc.simulate(scene, max_rows=10)
     with pytest.raises(ValueError, match="max_rows=scene.nt"):
         th.impulse(res)
@@ -130,7 +130,7 @@ def test_thm23_2_flat_landing_impulse_is_V(flat):
 
 
 def test_energy_identity_closes_and_numerical_dissipation_is_first_order():
-    scene = th.flat_landing_scene(200, 240)
+    scene = th.flat_landing_scene(200, 240, r=0.4)
     runs = th.refine_time(scene, 3)
     discrete, continuous = th.check_energy(runs[0], runs[1:])
     assert discrete.verdict == th.HOLDS and discrete.measured < 1e-9

@@ -42,17 +42,28 @@ The checks:
 
 Trends come from :func:`refine`, which reruns a scene at coarser resolutions with the same ratios
 Δt/Δx and r = Δt/ε, so ε, h and Δt all fall together.
+
+This module holds the checks and their verdicts; the measurements they read are in
+`stringcontact.analysis.measurements` (re-exported here), the flat landing is
+`stringcontact.analysis.problems.flat_landing_scene` (``r=0.4`` is the ratio of ``stringcontact check
+flat-landing``), Figure 1 is drawn by `stringcontact.plot.figure1` and ``stringcontact check`` is
+`stringcontact.cli.check`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..run.checks import energy_balance
+from .measurements import (
+    Momentum, band_width, cell_stress, distance_to_free_boundary, first_contact_rows, force_sign, free_boundary,
+    impulse, interior, landing_impulse, landing_segments, momentum_terms, nodal_weights, penalised,
+    require_every_step, stress_jump_balance, support_concentration, upward_impulse, velocity_after_contact,
+)
+from .problems import flat_landing_scene
 
 FLAT_LANDING = "flat-landing"
 STRESS_JUMP = "Thm 2.3(1) F = -[eta_x + a eta_tx]"
@@ -84,336 +95,7 @@ class Check:
         }
 
 
-# --- the discrete fields --------------------------------------------------------------------------------
-
-
-def _require_every_step(result) -> None:
-    steps = np.asarray(result.steps)
-    if steps.size < 2 or np.any(np.diff(steps) != 1) or steps[0] != 0:
-        raise ValueError(
-            "the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)"
-        )
-
-
-def nodal_weights(result) -> np.ndarray:
-    """Lumped P1 mass m_j of the nodes (Δx/2 at the ends) on the result's grid."""
-    dx = np.diff(result.x)
-    m = np.zeros_like(result.x)
-    m[:-1] += 0.5 * dx
-    m[1:] += 0.5 * dx
-    return m
-
-
-def impulse(result) -> np.ndarray:
-    """Nodal contact impulse Δt m_j F^n_j of every step, shape (rows, nodes); row 0 is zero."""
-    return result.scene.dt * momentum_terms(result).force * nodal_weights(result)[None, :]
-
-
-def interior(result) -> np.ndarray:
-    mask = np.ones(result.x.size, dtype=bool)
-    mask[[0, -1]] = False
-    return mask
-
-
-def free_boundary(contact: np.ndarray) -> np.ndarray:
-    """The discrete free boundary ∂{η ≤ 0} on the (step, node) grid.
-
-    A grid point belongs to it when its contact flag differs from one of its four neighbours (both
-    sides of the interface are marked, so the boundary is two points thick and symmetric).
-    """
-    c = np.asarray(contact, dtype=bool)
-    b = np.zeros_like(c)
-    for axis in (0, 1):
-        diff = np.diff(c, axis=axis)
-        lo = [slice(None)] * 2
-        hi = [slice(None)] * 2
-        lo[axis] = slice(None, -1)
-        hi[axis] = slice(1, None)
-        b[tuple(lo)] |= diff
-        b[tuple(hi)] |= diff
-    return b
-
-
-def distance_to_free_boundary(contact: np.ndarray) -> np.ndarray:
-    """Chessboard distance (in cells or steps, whichever is larger) of each grid point to ∂{η ≤ 0}.
-
-    Points with no free boundary at all get a large distance.
-    """
-    from scipy import ndimage
-
-    b = free_boundary(contact)
-    if not b.any():
-        return np.full(b.shape, np.iinfo(np.int32).max, dtype=np.int64)
-    return ndimage.distance_transform_cdt(~b, metric="chessboard").astype(np.int64)
-
-
-def _previous(rows: np.ndarray) -> np.ndarray:
-    """Row n holds row n − 1 (row 0 itself)."""
-    return np.concatenate([rows[:1], rows[:-1]])
-
-
-@dataclass(frozen=True)
-class Momentum:
-    """A scheme's discrete momentum equation at each row n (see the module docstring), arrays over (rows,
-    nodes): q, the velocity whose change is the inertia; S = (η_S)_x + α (q_S)_x, the stress; w, the velocity
-    the scheme's ledger books the contact work with (−Δt F·w per step); F, the force density applied in the
-    step t_{n−1} → t_n (row 0: none)."""
-
-    q: np.ndarray
-    eta_s: np.ndarray
-    q_s: np.ndarray
-    w: np.ndarray
-    force: np.ndarray
-
-
-def momentum_terms(result) -> Momentum:
-    """The terms of `result.scheme`'s discrete momentum equation (`Momentum`)."""
-    _require_every_step(result)
-    eta, v, F, scheme = result.eta, result.velocity, result.contact_force, result.scheme
-    if scheme == "projection":
-        q = np.concatenate([v[:1], np.diff(eta, axis=0) / result.scene.dt])  # the half-step velocities
-        return Momentum(q, _previous(eta), q, 0.5 * (q + _previous(q)), F)
-    if scheme == "newmark":
-        mean = 0.5 * (v + _previous(v))
-        return Momentum(v, 0.5 * (eta + _previous(eta)), mean, mean, F)
-    if result.penalty == "explicit":  # row n holds F(η^n, v^n), which the step t_n → t_{n+1} applies
-        F = np.concatenate([np.zeros_like(F[:1]), F[:-1]])
-    return Momentum(v, eta, v, v, F)
-
-
-def cell_stress(result) -> np.ndarray:
-    """S = η_x + α η_tx on the cells at every row (one-sided difference quotients, at the scheme's time
-    levels: `momentum_terms`), shape (rows, cells)."""
-    dx = np.diff(result.x)[None, :]
-    terms = momentum_terms(result)
-    return np.diff(terms.eta_s, axis=1) / dx + result.scene.alpha * np.diff(terms.q_s, axis=1) / dx
-
-
-def first_contact_rows(result) -> np.ndarray:
-    """Row of each node's first contact (η ≤ 0); −1 if never, 0 if in contact from the start."""
-    c = np.asarray(result.contact, dtype=bool)
-    first = np.argmax(c, axis=0)
-    return np.where(c.any(axis=0), first, -1)
-
-
-def _runs(mask: np.ndarray, min_nodes: int = 1) -> list[tuple[int, int]]:
-    """Maximal runs [a, b] (inclusive node indices) of at least `min_nodes` True in a 1-D mask."""
-    from ..plot.charts import contact_components
-
-    return [(int(a), int(b)) for a, b in contact_components(np.arange(np.size(mask)), mask, min_nodes)]
-
-
-def _band_width(result, delta: float) -> int:
-    """Half-width in cells (at least 1) of the band of physical half-width `delta` around the fronts."""
-    return max(1, int(round(delta / float(np.diff(result.x).mean()))))
-
-
-def _dilate_1d(mask: np.ndarray, w: int) -> np.ndarray:
-    """Nodes within w of a True node (along the last axis)."""
-    if w <= 0:
-        return mask.copy()
-    from scipy import ndimage
-
-    structure = np.zeros((1, 2 * w + 1) if mask.ndim == 2 else (2 * w + 1,), dtype=bool)
-    structure[..., :] = True
-    return ndimage.binary_dilation(mask, structure=structure)
-
-
-# --- measurements: plain numbers from one result ------------------------------------------------------
-
-
-def force_sign(result) -> dict:
-    """min F / max F, and the share of the energy-carrying contact dissipation −F^n w^n that is negative (w the
-    velocity the scheme books the contact work with: `momentum_terms`)."""
-    terms = momentum_terms(result)
-    F = result.contact_force
-    D = -terms.force[1:] * terms.w[1:]
-    positive = D[D > 0].sum()
-    return {
-        "min_force": float(F.min()),
-        "max_force": float(F.max()),
-        "paper_dissipation_min": float((F * np.maximum(-result.velocity, 0.0)).min()),
-        "negative_dissipation_share": float(-D[D < 0].sum() / positive) if positive > 0 else 0.0,
-    }
-
-
-def support_concentration(result, ks=(1, 2, 4), lengths=()) -> dict:
-    """Share of the total impulse within k cells/steps of ∂{η ≤ 0}, for each k and each physical length.
-
-    `lengths` are distances in the units of x and t (converted to whole cells/steps on this grid): the
-    share within a *fixed physical* distance must tend to 1 if F concentrates on a null set.
-    """
-    I = impulse(result)
-    total = I.sum()
-    d = distance_to_free_boundary(result.contact)
-    step = max(float(np.diff(result.x).max()), result.scene.dt)
-    out = {"support_measure": float((I > 0).sum() * result.scene.dt * float(np.diff(result.x).mean()))}
-    for k in ks:
-        out[f"within_{k}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
-    for L in lengths:
-        k = max(0, int(math.floor(L / step + 1e-9)))
-        out[f"within_length_{L:g}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
-    return out
-
-
-def upward_impulse(result) -> dict:
-    """Share of the impulse applied where the string moves up.
-
-    pointwise: in the same step, v^n_j ≥ 0. neighbourhood: v ≥ 0 on all of rows n−1..n+1, nodes j−1..j+1
-    (a discrete int{η_t ≥ 0}, the set of (A3)).
-    """
-    from scipy import ndimage
-
-    I = impulse(result)
-    total = I.sum()
-    up = result.velocity >= 0  # row 0 is v0, which sets the force of the first step
-    nbhd = ndimage.binary_erosion(up, structure=np.ones((3, 3), dtype=bool), border_value=1)
-    share = (lambda mask: float(I[mask].sum() / total)) if total > 0 else (lambda mask: math.nan)
-    return {"pointwise": share(up), "neighbourhood": share(nbhd)}
-
-
-def velocity_after_contact(result, delay: float) -> dict:
-    """|v| a time `delay` after each node's first contact, against its impact speed |v| at contact.
-
-    Only nodes that touch down after t = 0, stay in contact until t_0 + delay and have the delay inside
-    the run count. Gives the aggregate ratio Σ|v(t_0+delay)| / Σ|v(t_0)| and the 95th percentile of the
-    node ratios (nodes with at least 1% of the largest impact speed).
-    """
-    _require_every_step(result)
-    first = first_contact_rows(result)
-    lag = max(1, int(round(delay / result.scene.dt)))
-    nodes = np.flatnonzero(interior(result) & (first >= 1) & (first + lag < result.t.size))
-    c = np.asarray(result.contact, dtype=bool)
-    stays = np.array([c[first[j]:first[j] + lag + 1, j].all() for j in nodes], dtype=bool)
-    kept = nodes[stays] if nodes.size else nodes
-    if kept.size == 0:
-        return {"ratio": math.nan, "p95": math.nan, "nodes": 0, "left_early": int(nodes.size)}
-    impact = np.abs(result.velocity[first[kept], kept])
-    after = np.abs(result.velocity[first[kept] + lag, kept])
-    big = impact >= 0.01 * impact.max()
-    ratios = after[big] / impact[big]
-    return {
-        "ratio": float(after.sum() / impact.sum()),
-        "p95": float(np.percentile(ratios, 95)) if ratios.size else math.nan,
-        "nodes": int(kept.size),
-        "left_early": int(nodes.size - kept.size),
-    }
-
-
-def stress_jump_balance(result, width: int = 4) -> dict:
-    """Theorem 2.3(1) in the scheme's terms: impulse in a band around the fronts vs −[S] across it.
-
-    At each row the band is every node within `width` cells of a spatial front of {η ≤ 0}. On each band
-    interval [a, b] (away from the ends) the discrete momentum equation gives exactly
-
-        Σ_j m_j F^n_j Δt = −(S_{b+½} − S_{a−½}) Δt + Σ_j m_j (v^n_j − v^{n−1}_j),
-
-    impulse = stress-jump impulse + inertia; (2.10) says the inertia vanishes in the limit. Returns the
-    three totals, the relative mismatch |impulse − stress jump| / impulse, the closure of the identity, the
-    share of all impulse that lies in the bands, and per-row series (for the figure).
-    """
-    _require_every_step(result)
-    dt = result.scene.dt
-    m = nodal_weights(result)
-    c = np.asarray(result.contact, dtype=bool)
-    S = cell_stress(result)
-    front = np.zeros_like(c)
-    d = np.diff(c, axis=1)
-    front[:, :-1] |= d
-    front[:, 1:] |= d
-    front[:, [0, -1]] = False
-    band = _dilate_1d(front, width)
-    N = result.x.size
-    rows = result.t.size
-    I_row, J_row, K_row = np.zeros(rows), np.zeros(rows), np.zeros(rows)
-    terms = momentum_terms(result)
-    F, v = terms.force, terms.q
-    for n in range(1, rows):
-        for a, b in _runs(band[n]):
-            if a < 1 or b > N - 2:
-                continue  # the band reaches a fixed end: no stress face outside it
-            I_row[n] += dt * np.dot(m[a:b + 1], F[n, a:b + 1])
-            J_row[n] += -dt * (S[n, b] - S[n, a - 1])
-            K_row[n] += np.dot(m[a:b + 1], v[n, a:b + 1] - v[n - 1, a:b + 1])
-    I_tot, J_tot, K_tot = I_row.sum(), J_row.sum(), K_row.sum()
-    total = impulse(result).sum()
-    return {
-        "band_impulse": float(I_tot),
-        "stress_jump_impulse": float(J_tot),
-        "inertia": float(K_tot),
-        "mismatch": float(abs(I_tot - J_tot) / I_tot) if I_tot > 0 else math.nan,
-        "identity_closure": float(abs(I_tot - J_tot - K_tot) / max(I_tot, 1e-300)),
-        "band_share": float(I_tot / total) if total > 0 else math.nan,
-        "impulse_rate": I_row / dt,
-        "stress_jump_rate": J_row / dt,
-    }
-
-
-def landing_segments(result, min_nodes: int = 10) -> list[tuple[int, int, int]]:
-    """Segments that land at once: maximal runs of ≥ `min_nodes` interior nodes whose first contact
-    (after t = 0) falls within one step, as (row, first node, last node)."""
-    first = first_contact_rows(result)
-    ok = interior(result) & (first >= 1)
-    found = []
-    for n in np.unique(first[ok]):
-        mask = ok & ((first == n) | (first == n + 1))
-        found += [(int(n), a, b) for a, b in _runs(mask, min_nodes)]
-    found.sort(key=lambda s: s[2] - s[1], reverse=True)
-    kept = []
-    for n, a, b in found:  # drop runs inside an already kept one
-        if not any(a >= a2 and b <= b2 for _, a2, b2 in kept):
-            kept.append((n, a, b))
-    return sorted(kept, key=lambda s: (s[0], s[1]))
-
-
-def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
-    """Theorem 2.3(2): impulse per unit length of each segment landing at once vs its velocity jump.
-
-    For each node of a segment (less `margin` nodes at each side) the impulse density Σ Δt F^n over the
-    landing window [n₀, n₀ + q] (q steps ≈ `decay_eps`·ε, over which the penalty stops the node) is compared
-    with the jump v(after) − v(before) of (2.12), and with the share of the node's whole impulse that falls
-    in the window. For the exact α = 0 case the jump is V.
-    """
-    _require_every_step(result)
-    dt = result.scene.dt
-    q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt))) if _penalised(result) else 2
-    terms = momentum_terms(result)
-    F, v = terms.force, terms.q
-    rows = result.t.size
-    density, jump, share, times = [], [], [], []
-    for n0, a, b in landing_segments(result):
-        a, b = a + margin, b - margin
-        if b < a or n0 + q + 1 >= rows:
-            continue
-        nodes = np.arange(a, b + 1)
-        f = dt * F[n0:n0 + q + 1, nodes].sum(axis=0)
-        total = dt * F[:, nodes].sum(axis=0)
-        density.append(f)
-        jump.append(v[n0 + q + 1, nodes] - v[n0 - 1, nodes])
-        share.append(f.sum() / total.sum() if total.sum() > 0 else math.nan)
-        times.append(result.t[n0])
-    if not density:
-        return {"segments": 0}
-    f, jmp = np.concatenate(density), np.concatenate(jump)
-    return {
-        "segments": len(density),
-        "times": times,
-        "mean_density": float(f.mean()),
-        "mean_jump": float(jmp.mean()),
-        "window_share": float(np.nanmin(share)),
-        "window_steps": q + 1,
-    }
-
-
-# --- scenes and refinement ----------------------------------------------------------------------------
-
-
-def flat_landing_scene(nx: int = 1000, nt: int = 1200, r: float = 0.4):
-    """:func:`stringcontact.analysis.study.flat_landing_scene` (the exact α = 0 case, `exact.flat_landing`: η0 = h,
-    v0 = −V, ends at h, T = 0.6) with ε = Δt/r."""
-    from .study import flat_landing_scene as flat
-
-    return flat(nx, nt=nt, eps=0.6 / nt / r)
+# --- refinement -------------------------------------------------------------------------------------
 
 
 def coarsened(scene, factor: int):
@@ -453,10 +135,6 @@ def refine_time(scene, levels: int = 3, penalty: str | None = "explicit", model=
 
 HOLDS_IN_LIMIT, INCONCLUSIVE = "holds in the limit", "inconclusive"
 
-
-def _penalised(result) -> bool:
-    """Whether the result's scheme brakes with a penalty (ε), or stops a node within a step (no ε)."""
-    return result.penalty not in (None, "none")
 
 
 def _falls(values) -> bool:
@@ -552,7 +230,7 @@ def check_velocity_after_contact(results, delay: float | None = None) -> Check:
     results = _as_list(results)
     if delay is None:  # the penalty needs a few ε to stop a node; an ε-free scheme stops it within a step
         finest = results[-1]
-        delay = 8 * finest.scene.eps if _penalised(finest) else 2 * finest.scene.dt
+        delay = 8 * finest.scene.eps if penalised(finest) else 2 * finest.scene.dt
     m = [velocity_after_contact(r, delay) for r in results]
     vals = [x["ratio"] for x in m]
     if math.isnan(vals[-1]):
@@ -574,7 +252,7 @@ def check_velocity_after_contact(results, delay: float | None = None) -> Check:
 def check_stress_jump(results, delta: float = 0.02) -> Check:
     """Theorem 2.3(1), formula (2.10): impulse near a moving front = −[η_x + α η_tx] across it."""
     results = _as_list(results)
-    m = [stress_jump_balance(r, _band_width(r, delta)) for r in results]
+    m = [stress_jump_balance(r, band_width(r, delta)) for r in results]
     vals = [x["mismatch"] for x in m]
     fine = m[-1]
     if math.isnan(vals[-1]) or results[-1].scene.alpha == 0:
@@ -694,137 +372,29 @@ def format_trends(checks) -> str:
 
 
 def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, balance: dict | None = None):
-    """The paper's Figure 1 on a computed solution: the contact set {η ≤ 0} in the (x, t) plane with its
-    free boundary, the contact force density F on it (log colour), and, on the right, the force on the
-    fronts per unit time against the stress jump −[η_x + α η_tx] across them (Theorem 2.3(1)).
+    """The paper's Figure 1 on a computed solution (`stringcontact.plot.figure1.draw`): the contact set
+    {η ≤ 0} in the (x, t) plane with its free boundary, the contact force density F on it, and the force on
+    the fronts per unit time against the stress jump −[η_x + α η_tx] across them (Theorem 2.3(1)).
 
     `balance` is :func:`stress_jump_balance` of `result` at this `delta` if already computed (the ``data``
     of :func:`check_stress_jump`'s check); otherwise it is computed here.
     """
-    from matplotlib.colors import ListedColormap, LogNorm
+    from ..plot import figure1
 
-    from ..plot.charts import pyplot, savefig
-
-    plt = pyplot()
-    _require_every_step(result)
-    x, t = result.x, result.t
-    F = np.ma.masked_less_equal(result.contact_force, 0.0)
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1.2, 1]})
-    extent = (x[0], x[-1], t[0], t[-1])
-    ax.imshow(result.contact, origin="lower", aspect="auto", extent=extent,
-              cmap=ListedColormap(["white", "0.85"]), interpolation="nearest")
-    if F.count():
-        im = ax.imshow(F, origin="lower", aspect="auto", extent=extent, cmap="inferno_r",
-                       norm=LogNorm(vmin=max(F.max() * 1e-4, F.min()), vmax=F.max()), interpolation="nearest")
-        fig.colorbar(im, ax=ax, label="contact force density F")
-    if result.contact.any() and not result.contact.all():
-        ax.contour(x, t, result.contact.astype(float), levels=[0.5], colors="tab:blue", linewidths=0.8)
-    ax.plot([], [], color="tab:blue", label=r"free boundary $\partial\{\eta=0\}$")
-    ax.fill_between([], [], color="0.85", label=r"contact set $\{\eta\leq 0\}$")
-    ax.set_xlabel("x")
-    ax.set_ylabel("t")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(title or f"{result.scene.name}: contact set and force")
-
-    sj = balance if balance is not None else stress_jump_balance(result, _band_width(result, delta))
-    bx.plot(t, sj["impulse_rate"], color="tab:red", lw=1, label=r"force on the fronts $\sum m_jF_j$")
-    bx.plot(t, sj["stress_jump_rate"], color="tab:blue", lw=1, label=r"stress jump $-[\eta_x+\alpha\eta_{tx}]$")
-    bx.plot(t, np.sum(impulse(result), axis=1) / result.scene.dt, color="0.5", lw=0.8, ls="--",
-            label=r"all force $\int F\,dx$")
-    bx.set_yscale("symlog", linthresh=1.0)
-    bx.set_xlabel("t")
-    bx.set_ylabel("force per unit time")
-    bx.set_title(f"Theorem 2.3(1): band +-{delta:g} around the fronts")
-    bx.legend(fontsize=8)
-    fig.tight_layout()
-    savefig(fig, Path(path), dpi=110)
+    require_every_step(result)
+    sj = balance if balance is not None else stress_jump_balance(result, band_width(result, delta))
+    figure1.draw(result, path, sj["impulse_rate"], sj["stress_jump_rate"],
+                 np.sum(impulse(result), axis=1) / result.scene.dt, delta=delta, title=title)
     return path
 
 
-# --- command line -------------------------------------------------------------------------------------
-
-
-def add_arguments(parser):
-    parser.add_argument("scene", help=f"built-in scene, a .toml file, or '{FLAT_LANDING}' (the exact alpha=0 case)")
-    parser.add_argument("--nx", type=int, help="cells of the finest level")
-    parser.add_argument("--nt", type=int, help="time steps of the finest level")
-    parser.add_argument("--eps", type=float, help="penalty parameter of the finest level")
-    parser.add_argument("--alpha", type=float, help="viscosity alpha >= 0")
-    from ..scene.names import SCHEMES
-
-    parser.add_argument("--scheme", choices=tuple(SCHEMES),
-                        help="time scheme (default: the scene's, else paper); projection refines nx and nt only (no eps)")
-    parser.add_argument("--penalty", choices=("explicit", "semi-implicit"),
-                        help="the penalty of the paper's scheme (default: the scheme's own, explicit for paper)")
-    parser.add_argument("--levels", type=int, default=3,
-                        help="refinement levels for the trends (nx, nt, 1/eps halved per level; default 3)")
-    parser.add_argument("--delay", type=float,
-                        help="(A4) delay after first contact (default 8 eps; 2 dt for an eps-free scheme)")
-    parser.add_argument("--delta", type=float, default=0.02, help="Thm 2.3(1) band half-width around fronts")
-    parser.add_argument("--out", metavar="DIR", help="write checks.json, checks.txt and figure1.png here")
-    parser.add_argument("--force", action="store_true", help="replace a non-empty output folder")
-
-
-def _scene_from_args(args):
-    from ..scene.data import load_scene
-
-    if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
-        scene = flat_landing_scene(args.nx or 1000, args.nt or 1200)
-        changes = {k: getattr(args, k) for k in ("eps", "alpha") if getattr(args, k) is not None}
-    else:
-        scene = load_scene(args.scene)
-        if scene.dim != 1:
-            from ..errors import SceneError
-
-            raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
-                             "paper's theorems are about the string); allowed: a scene with domain 'interval'")
-        changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
-    return scene.replace(**changes) if changes else scene
-
-
-def command(args) -> int:
-    import json
-    import warnings
-
-    from .study import FLAT_V
-
-    if not 1 <= args.levels <= 6:
-        raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
-    if args.delay is not None and not args.delay > 0:
-        raise ValueError(f"--delay must be > 0, got {args.delay}")
-    if not args.delta > 0:
-        raise ValueError(f"--delta must be > 0, got {args.delta}")
-    scene = _scene_from_args(args)
-    if args.delay is not None and args.delay >= scene.T:
-        raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
-    if args.out is not None:
-        from ..io.folder import check_target
-
-        check_target(args.out, args.force)
-    V = FLAT_V if scene.name == FLAT_LANDING else None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
-        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V,
-                                             scheme=args.scheme)
-    if _penalised(finest):
-        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}" for r in results)
-        levels += f" (r = dt/eps = {scene.r:.3g})"
-    else:
-        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
-    print(f"scene {scene.name}, scheme {finest.scheme}: levels {levels}")
-    print(format_table(checks))
-    print()
-    print(format_trends(checks))
-    if args.out is not None:
-        from ..io.folder import staged_folder
-
-        with staged_folder(args.out, args.force) as partial:  # the whole folder or nothing, under the run lock
-            (partial / "checks.json").write_text(json.dumps(
-                {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
-                 "checks": [c.as_dict() for c in checks]}, indent=1, default=float))
-            (partial / "checks.txt").write_text(format_table(checks) + "\n\n" + format_trends(checks) + "\n")
-            balance = next(c.data for c in checks if c.name == STRESS_JUMP)  # computed by run_checks
-            draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
-        target = Path(args.out)
-        print(f"wrote {target}")
-    return 0
+__all__ = [
+    "BY_CONSTRUCTION", "FAILS", "FLAT_LANDING", "HOLDS", "HOLDS_IN_LIMIT", "INCONCLUSIVE", "NOT_APPLICABLE",
+    "STRESS_JUMP", "Check", "Momentum", "band_width", "cell_stress", "check_dissipation_sign", "check_energy",
+    "check_force_sign", "check_landing", "check_stress_jump", "check_support", "check_upward",
+    "check_velocity_after_contact", "coarsened", "distance_to_free_boundary", "draw_figure1", "first_contact_rows",
+    "flat_landing_scene", "force_sign", "format_table", "format_trends", "free_boundary", "impulse", "interior",
+    "landing_impulse", "landing_segments", "momentum_terms", "nodal_weights", "penalised", "refine", "refine_time",
+    "require_every_step", "run_checks", "stress_jump_balance", "support_concentration", "upward_impulse",
+    "velocity_after_contact",
+]

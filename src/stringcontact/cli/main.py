@@ -35,8 +35,8 @@ EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3
 # and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
 SUBCOMMANDS = {
     "plot": ("stringcontact.plot.viz", "redraw the pictures of an output folder from its saved files"),
-    "study": ("stringcontact.analysis.study", "work-precision, convergence and stability studies"),
-    "check": ("stringcontact.analysis.theorems", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
+    "study": ("stringcontact.cli.study", "work-precision, convergence and stability studies"),
+    "check": ("stringcontact.cli.check", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
     "models": ("stringcontact.model.registry", "list the models a scene may name (registered under stringcontact.models)"),
 }
 

@@ -1,0 +1,82 @@
+r"""The convergence study: observed orders under :math:`\Delta t = \Delta x \to 0` and under
+:math:`\varepsilon \to 0` (penetration and error) on the flat landing."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .norms import errors_against_exact
+from .problems import METHODS, Method, flat_landing_exact, flat_landing_scene
+from .runs import run_method, warm_up
+from .schedule import distribute
+from .work_precision import WORK_PRECISION_COLUMNS, study_row
+
+CONVERGENCE_COLUMNS = ("sweep", *WORK_PRECISION_COLUMNS, "order_eta")
+ORDER_COLUMNS = ("sweep", "problem", "method", "quantity", "order", "from", "to")
+
+
+def observed_orders(h, err) -> np.ndarray:
+    """Pairwise orders log(e_i/e_{i+1}) / log(h_i/h_{i+1}); NaN where an error is missing or zero."""
+    h, err = np.asarray(h, float), np.asarray(err, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.log(err[:-1] / err[1:]) / np.log(h[:-1] / h[1:])
+
+
+def fitted_order(h, err) -> float:
+    """Least-squares slope of log err against log h over the finite, positive pairs."""
+    h, err = np.asarray(h, float), np.asarray(err, float)
+    ok = np.isfinite(err) & (err > 0)
+    if ok.sum() < 2:
+        return math.nan
+    return float(np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0])
+
+
+def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dict | None:
+    """Observed orders on the flat landing: in Δt = Δx (three methods) and in ε at a fixed grid (two penalties).
+
+    Returns {"runs": rows of CONVERGENCE_COLUMNS, "orders": rows of ORDER_COLUMNS} on rank 0.
+    """
+    sizes = (125, 250, 500) if quick else (125, 250, 500, 1000, 2000, 4000, 8000)
+    n_eps = 400 if quick else 4000
+    eps_values = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-8)
+    rows_per_run = round(0.6 * min(sizes))
+    cases = [("dt", m, n, None) for m in ("explicit-r1", "semi-implicit", "consistent", "projection", "newmark")
+             for n in sizes]
+    dt_fixed = 1.0 / n_eps
+    cases += [("eps", "explicit", n_eps, e) for e in eps_values if dt_fixed / e <= 1.0]
+    cases += [("eps", "semi-implicit", n_eps, e) for e in eps_values]
+
+    def one(case):
+        sweep, m, n, eps = case
+        if sweep == "dt":
+            return run_method(flat_landing_scene(n), METHODS[m], rows=rows_per_run)
+        method = Method(f"{m}, eps", m, m, "lumped", "fixed")
+        return run_method(flat_landing_scene(n, eps=eps), method, rows=rows_per_run)
+
+    warm_up()
+    runs = distribute(one, cases, comm, cost=lambda c: c[2] ** 2, busy=busy)
+    if runs is None:
+        return None
+    rows = []
+    for (sweep, *_), run in zip(cases, runs):
+        errs = errors_against_exact(run, flat_landing_exact) if run.status == "complete" else None
+        rows.append({"sweep": sweep, **study_row(run, errs), "order_eta": math.nan})
+    orders = []
+    for sweep, key, variable in (("dt", "method", "dt"), ("eps", "penalty", "eps")):
+        for name in dict.fromkeys(r[key] for r in rows if r["sweep"] == sweep):
+            sel = [r for r in rows if r["sweep"] == sweep and r[key] == name and r["status"] == "complete"]
+            sel.sort(key=lambda r: -r[variable])
+            h = [r[variable] for r in sel]
+            for r, p in zip(sel[1:], observed_orders(h, [r["err_eta"] for r in sel])):
+                r["order_eta"] = p
+            quantities = ("err_eta", "err_vel", "err_contact") if sweep == "dt" else ("err_eta", "penetration")
+            for quantity in quantities:
+                # In ε, only ε ≥ 10 Δt measures the ε-error; below it the Δt-error is left.
+                fit = [r for r in sel if sweep == "dt" or r["eps"] >= 10 * r["dt"]]
+                values = [(-r["min_eta"] if quantity == "penetration" else r[quantity]) for r in fit]
+                orders.append({"sweep": sweep, "problem": "flat-landing", "method": name, "quantity": quantity,
+                               "order": fitted_order([r[variable] for r in fit], values),
+                               "from": max(r[variable] for r in fit), "to": min(r[variable] for r in fit)})
+    return {"runs": rows, "orders": orders}

@@ -1,0 +1,342 @@
+r"""The paper's theorems, measured: the discrete fields of a computed solution and plain numbers from them.
+
+Every function takes a :class:`~stringcontact.io.result.Result` that stores **every** time step
+(``simulate(scene, max_rows=scene.nt)``) and reads it in the scheme's own discrete terms (`momentum_terms`;
+the module docstring of `stringcontact.analysis.theorems` states the discrete momentum equation). The
+verdicts on these numbers are in `theorems`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+# --- the discrete fields --------------------------------------------------------------------------------
+
+
+def require_every_step(result) -> None:
+    """A ValueError unless `result` stores every time step from step 0 on."""
+    steps = np.asarray(result.steps)
+    if steps.size < 2 or np.any(np.diff(steps) != 1) or steps[0] != 0:
+        raise ValueError(
+            "the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)"
+        )
+
+
+def nodal_weights(result) -> np.ndarray:
+    """Lumped P1 mass m_j of the nodes (Δx/2 at the ends) on the result's grid."""
+    dx = np.diff(result.x)
+    m = np.zeros_like(result.x)
+    m[:-1] += 0.5 * dx
+    m[1:] += 0.5 * dx
+    return m
+
+
+def impulse(result) -> np.ndarray:
+    """Nodal contact impulse Δt m_j F^n_j of every step, shape (rows, nodes); row 0 is zero."""
+    return result.scene.dt * momentum_terms(result).force * nodal_weights(result)[None, :]
+
+
+def interior(result) -> np.ndarray:
+    mask = np.ones(result.x.size, dtype=bool)
+    mask[[0, -1]] = False
+    return mask
+
+
+def free_boundary(contact: np.ndarray) -> np.ndarray:
+    """The discrete free boundary ∂{η ≤ 0} on the (step, node) grid.
+
+    A grid point belongs to it when its contact flag differs from one of its four neighbours (both
+    sides of the interface are marked, so the boundary is two points thick and symmetric).
+    """
+    c = np.asarray(contact, dtype=bool)
+    b = np.zeros_like(c)
+    for axis in (0, 1):
+        diff = np.diff(c, axis=axis)
+        lo = [slice(None)] * 2
+        hi = [slice(None)] * 2
+        lo[axis] = slice(None, -1)
+        hi[axis] = slice(1, None)
+        b[tuple(lo)] |= diff
+        b[tuple(hi)] |= diff
+    return b
+
+
+def distance_to_free_boundary(contact: np.ndarray) -> np.ndarray:
+    """Chessboard distance (in cells or steps, whichever is larger) of each grid point to ∂{η ≤ 0}.
+
+    Points with no free boundary at all get a large distance.
+    """
+    from scipy import ndimage
+
+    b = free_boundary(contact)
+    if not b.any():
+        return np.full(b.shape, np.iinfo(np.int32).max, dtype=np.int64)
+    return ndimage.distance_transform_cdt(~b, metric="chessboard").astype(np.int64)
+
+
+def _previous(rows: np.ndarray) -> np.ndarray:
+    """Row n holds row n − 1 (row 0 itself)."""
+    return np.concatenate([rows[:1], rows[:-1]])
+
+
+@dataclass(frozen=True)
+class Momentum:
+    """A scheme's discrete momentum equation at each row n (see the module docstring), arrays over (rows,
+    nodes): q, the velocity whose change is the inertia; S = (η_S)_x + α (q_S)_x, the stress; w, the velocity
+    the scheme's ledger books the contact work with (−Δt F·w per step); F, the force density applied in the
+    step t_{n−1} → t_n (row 0: none)."""
+
+    q: np.ndarray
+    eta_s: np.ndarray
+    q_s: np.ndarray
+    w: np.ndarray
+    force: np.ndarray
+
+
+def momentum_terms(result) -> Momentum:
+    """The terms of `result.scheme`'s discrete momentum equation (`Momentum`)."""
+    require_every_step(result)
+    eta, v, F, scheme = result.eta, result.velocity, result.contact_force, result.scheme
+    if scheme == "projection":
+        q = np.concatenate([v[:1], np.diff(eta, axis=0) / result.scene.dt])  # the half-step velocities
+        return Momentum(q, _previous(eta), q, 0.5 * (q + _previous(q)), F)
+    if scheme == "newmark":
+        mean = 0.5 * (v + _previous(v))
+        return Momentum(v, 0.5 * (eta + _previous(eta)), mean, mean, F)
+    if result.penalty == "explicit":  # row n holds F(η^n, v^n), which the step t_n → t_{n+1} applies
+        F = np.concatenate([np.zeros_like(F[:1]), F[:-1]])
+    return Momentum(v, eta, v, v, F)
+
+
+def cell_stress(result) -> np.ndarray:
+    """S = η_x + α η_tx on the cells at every row (one-sided difference quotients, at the scheme's time
+    levels: `momentum_terms`), shape (rows, cells)."""
+    dx = np.diff(result.x)[None, :]
+    terms = momentum_terms(result)
+    return np.diff(terms.eta_s, axis=1) / dx + result.scene.alpha * np.diff(terms.q_s, axis=1) / dx
+
+
+def first_contact_rows(result) -> np.ndarray:
+    """Row of each node's first contact (η ≤ 0); −1 if never, 0 if in contact from the start."""
+    c = np.asarray(result.contact, dtype=bool)
+    first = np.argmax(c, axis=0)
+    return np.where(c.any(axis=0), first, -1)
+
+
+def _runs(mask: np.ndarray, min_nodes: int = 1) -> list[tuple[int, int]]:
+    """Maximal runs [a, b] (inclusive node indices) of at least `min_nodes` True in a 1-D mask."""
+    from ..plot.charts import contact_components
+
+    return [(int(a), int(b)) for a, b in contact_components(np.arange(np.size(mask)), mask, min_nodes)]
+
+
+def band_width(result, delta: float) -> int:
+    """Half-width in cells (at least 1) of the band of physical half-width `delta` around the fronts."""
+    return max(1, int(round(delta / float(np.diff(result.x).mean()))))
+
+
+def _dilate_1d(mask: np.ndarray, w: int) -> np.ndarray:
+    """Nodes within w of a True node (along the last axis)."""
+    if w <= 0:
+        return mask.copy()
+    from scipy import ndimage
+
+    structure = np.zeros((1, 2 * w + 1) if mask.ndim == 2 else (2 * w + 1,), dtype=bool)
+    structure[..., :] = True
+    return ndimage.binary_dilation(mask, structure=structure)
+
+
+
+# --- measurements: plain numbers from one result ------------------------------------------------------
+
+
+def force_sign(result) -> dict:
+    """min F / max F, and the share of the energy-carrying contact dissipation −F^n w^n that is negative (w the
+    velocity the scheme books the contact work with: `momentum_terms`)."""
+    terms = momentum_terms(result)
+    F = result.contact_force
+    D = -terms.force[1:] * terms.w[1:]
+    positive = D[D > 0].sum()
+    return {
+        "min_force": float(F.min()),
+        "max_force": float(F.max()),
+        "paper_dissipation_min": float((F * np.maximum(-result.velocity, 0.0)).min()),
+        "negative_dissipation_share": float(-D[D < 0].sum() / positive) if positive > 0 else 0.0,
+    }
+
+
+def support_concentration(result, ks=(1, 2, 4), lengths=()) -> dict:
+    """Share of the total impulse within k cells/steps of ∂{η ≤ 0}, for each k and each physical length.
+
+    `lengths` are distances in the units of x and t (converted to whole cells/steps on this grid): the
+    share within a *fixed physical* distance must tend to 1 if F concentrates on a null set.
+    """
+    I = impulse(result)
+    total = I.sum()
+    d = distance_to_free_boundary(result.contact)
+    step = max(float(np.diff(result.x).max()), result.scene.dt)
+    out = {"support_measure": float((I > 0).sum() * result.scene.dt * float(np.diff(result.x).mean()))}
+    for k in ks:
+        out[f"within_{k}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
+    for L in lengths:
+        k = max(0, int(math.floor(L / step + 1e-9)))
+        out[f"within_length_{L:g}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
+    return out
+
+
+def upward_impulse(result) -> dict:
+    """Share of the impulse applied where the string moves up.
+
+    pointwise: in the same step, v^n_j ≥ 0. neighbourhood: v ≥ 0 on all of rows n−1..n+1, nodes j−1..j+1
+    (a discrete int{η_t ≥ 0}, the set of (A3)).
+    """
+    from scipy import ndimage
+
+    I = impulse(result)
+    total = I.sum()
+    up = result.velocity >= 0  # row 0 is v0, which sets the force of the first step
+    nbhd = ndimage.binary_erosion(up, structure=np.ones((3, 3), dtype=bool), border_value=1)
+    share = (lambda mask: float(I[mask].sum() / total)) if total > 0 else (lambda mask: math.nan)
+    return {"pointwise": share(up), "neighbourhood": share(nbhd)}
+
+
+def velocity_after_contact(result, delay: float) -> dict:
+    """|v| a time `delay` after each node's first contact, against its impact speed |v| at contact.
+
+    Only nodes that touch down after t = 0, stay in contact until t_0 + delay and have the delay inside
+    the run count. Gives the aggregate ratio Σ|v(t_0+delay)| / Σ|v(t_0)| and the 95th percentile of the
+    node ratios (nodes with at least 1% of the largest impact speed).
+    """
+    require_every_step(result)
+    first = first_contact_rows(result)
+    lag = max(1, int(round(delay / result.scene.dt)))
+    nodes = np.flatnonzero(interior(result) & (first >= 1) & (first + lag < result.t.size))
+    c = np.asarray(result.contact, dtype=bool)
+    stays = np.array([c[first[j]:first[j] + lag + 1, j].all() for j in nodes], dtype=bool)
+    kept = nodes[stays] if nodes.size else nodes
+    if kept.size == 0:
+        return {"ratio": math.nan, "p95": math.nan, "nodes": 0, "left_early": int(nodes.size)}
+    impact = np.abs(result.velocity[first[kept], kept])
+    after = np.abs(result.velocity[first[kept] + lag, kept])
+    big = impact >= 0.01 * impact.max()
+    ratios = after[big] / impact[big]
+    return {
+        "ratio": float(after.sum() / impact.sum()),
+        "p95": float(np.percentile(ratios, 95)) if ratios.size else math.nan,
+        "nodes": int(kept.size),
+        "left_early": int(nodes.size - kept.size),
+    }
+
+
+def stress_jump_balance(result, width: int = 4) -> dict:
+    """Theorem 2.3(1) in the scheme's terms: impulse in a band around the fronts vs −[S] across it.
+
+    At each row the band is every node within `width` cells of a spatial front of {η ≤ 0}. On each band
+    interval [a, b] (away from the ends) the discrete momentum equation gives exactly
+
+        Σ_j m_j F^n_j Δt = −(S_{b+½} − S_{a−½}) Δt + Σ_j m_j (v^n_j − v^{n−1}_j),
+
+    impulse = stress-jump impulse + inertia; (2.10) says the inertia vanishes in the limit. Returns the
+    three totals, the relative mismatch |impulse − stress jump| / impulse, the closure of the identity, the
+    share of all impulse that lies in the bands, and per-row series (for the figure).
+    """
+    require_every_step(result)
+    dt = result.scene.dt
+    m = nodal_weights(result)
+    c = np.asarray(result.contact, dtype=bool)
+    S = cell_stress(result)
+    front = np.zeros_like(c)
+    d = np.diff(c, axis=1)
+    front[:, :-1] |= d
+    front[:, 1:] |= d
+    front[:, [0, -1]] = False
+    band = _dilate_1d(front, width)
+    N = result.x.size
+    rows = result.t.size
+    I_row, J_row, K_row = np.zeros(rows), np.zeros(rows), np.zeros(rows)
+    terms = momentum_terms(result)
+    F, v = terms.force, terms.q
+    for n in range(1, rows):
+        for a, b in _runs(band[n]):
+            if a < 1 or b > N - 2:
+                continue  # the band reaches a fixed end: no stress face outside it
+            I_row[n] += dt * np.dot(m[a:b + 1], F[n, a:b + 1])
+            J_row[n] += -dt * (S[n, b] - S[n, a - 1])
+            K_row[n] += np.dot(m[a:b + 1], v[n, a:b + 1] - v[n - 1, a:b + 1])
+    I_tot, J_tot, K_tot = I_row.sum(), J_row.sum(), K_row.sum()
+    total = impulse(result).sum()
+    return {
+        "band_impulse": float(I_tot),
+        "stress_jump_impulse": float(J_tot),
+        "inertia": float(K_tot),
+        "mismatch": float(abs(I_tot - J_tot) / I_tot) if I_tot > 0 else math.nan,
+        "identity_closure": float(abs(I_tot - J_tot - K_tot) / max(I_tot, 1e-300)),
+        "band_share": float(I_tot / total) if total > 0 else math.nan,
+        "impulse_rate": I_row / dt,
+        "stress_jump_rate": J_row / dt,
+    }
+
+
+def landing_segments(result, min_nodes: int = 10) -> list[tuple[int, int, int]]:
+    """Segments that land at once: maximal runs of ≥ `min_nodes` interior nodes whose first contact
+    (after t = 0) falls within one step, as (row, first node, last node)."""
+    first = first_contact_rows(result)
+    ok = interior(result) & (first >= 1)
+    found = []
+    for n in np.unique(first[ok]):
+        mask = ok & ((first == n) | (first == n + 1))
+        found += [(int(n), a, b) for a, b in _runs(mask, min_nodes)]
+    found.sort(key=lambda s: s[2] - s[1], reverse=True)
+    kept = []
+    for n, a, b in found:  # drop runs inside an already kept one
+        if not any(a >= a2 and b <= b2 for _, a2, b2 in kept):
+            kept.append((n, a, b))
+    return sorted(kept, key=lambda s: (s[0], s[1]))
+
+
+def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
+    """Theorem 2.3(2): impulse per unit length of each segment landing at once vs its velocity jump.
+
+    For each node of a segment (less `margin` nodes at each side) the impulse density Σ Δt F^n over the
+    landing window [n₀, n₀ + q] (q steps ≈ `decay_eps`·ε, over which the penalty stops the node) is compared
+    with the jump v(after) − v(before) of (2.12), and with the share of the node's whole impulse that falls
+    in the window. For the exact α = 0 case the jump is V.
+    """
+    require_every_step(result)
+    dt = result.scene.dt
+    q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt))) if penalised(result) else 2
+    terms = momentum_terms(result)
+    F, v = terms.force, terms.q
+    rows = result.t.size
+    density, jump, share, times = [], [], [], []
+    for n0, a, b in landing_segments(result):
+        a, b = a + margin, b - margin
+        if b < a or n0 + q + 1 >= rows:
+            continue
+        nodes = np.arange(a, b + 1)
+        f = dt * F[n0:n0 + q + 1, nodes].sum(axis=0)
+        total = dt * F[:, nodes].sum(axis=0)
+        density.append(f)
+        jump.append(v[n0 + q + 1, nodes] - v[n0 - 1, nodes])
+        share.append(f.sum() / total.sum() if total.sum() > 0 else math.nan)
+        times.append(result.t[n0])
+    if not density:
+        return {"segments": 0}
+    f, jmp = np.concatenate(density), np.concatenate(jump)
+    return {
+        "segments": len(density),
+        "times": times,
+        "mean_density": float(f.mean()),
+        "mean_jump": float(jmp.mean()),
+        "window_share": float(np.nanmin(share)),
+        "window_steps": q + 1,
+    }
+
+
+def penalised(result) -> bool:
+    """Whether the result's scheme brakes with a penalty (ε), or stops a node within a step (no ε)."""
+    return result.penalty not in (None, "none")

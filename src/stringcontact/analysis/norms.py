@@ -1,0 +1,81 @@
+r"""The studies' error norms (all on the coarse run's nodes and stored times, the reference interpolated to them):
+
+* ``err_eta``: :math:`\max_k \|\eta_h(t_k) - \eta(t_k)\|_{L^2(0,l)}`, the :math:`L^\infty(0,T;L^2)` error;
+* ``err_vel``: :math:`\|\eta_{h,t}(T) - \eta_t(T)\|_{L^2(0,l)}`;
+* ``err_contact``: the space-time measure of the symmetric difference of the contact sets
+  :math:`\{\eta \le 0\}` (trapezoidal in x and t).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .runs import Run
+
+#: Contact sets in the errors are {η ≤ δ}, δ = CONTACT_HEIGHT · Δx · max|η|/l, the height a grid of size Δx
+#: resolves. With δ = 0 the measure is noise: a string resting on the obstacle sits at ±round-off (landing
+#: exactly at a step) or is lifted by 1e-6-sized tails of the implicit elastic solve, ahead of the real wave.
+CONTACT_HEIGHT = 1.0
+
+
+def l2_norm(x: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """‖f‖_{L²(0,l)} of nodal values f (rows = times), trapezoidal."""
+    from ..fem import compat
+
+    return np.sqrt(compat.trapezoid(f**2, x, axis=-1))
+
+
+def to_nodes(x_from: np.ndarray, values: np.ndarray, x_to: np.ndarray) -> np.ndarray:
+    """P1 interpolation of rows of nodal values onto other nodes."""
+    values = np.atleast_2d(values)
+    return np.array([np.interp(x_to, x_from, row) for row in values])
+
+
+def common_rows(t_run: np.ndarray, t_ref: np.ndarray) -> np.ndarray:
+    """Indices into t_ref of the run's stored times (they must be among the reference's)."""
+    idx = np.searchsorted(t_ref, t_run - 1e-12 * max(1.0, t_ref[-1]))
+    idx = np.minimum(idx, t_ref.size - 1)
+    if not np.allclose(t_ref[idx], t_run, rtol=0, atol=1e-9 * max(1.0, t_ref[-1])):
+        raise ValueError("the run's stored times are not among the reference's: use matching rows")
+    return idx
+
+
+def errors_against_exact(run: Run, exact) -> dict:
+    """The three errors of `run` against `exact(t, x) -> (eta, velocity)`."""
+    eta, _ = exact(run.t, run.x)
+    _, vel_T = exact(run.t[-1], run.x)
+    return _errors(run, eta, vel_T)
+
+
+def errors_against_reference(run: Run, ref: Run) -> dict:
+    """The three errors of `run` against a finer run `ref` (interpolated to the run's nodes and times)."""
+    rows = common_rows(run.t, ref.t)
+    eta = to_nodes(ref.x, ref.eta[rows], run.x)
+    vel_T = to_nodes(ref.x, ref.velocity_T, run.x)[0]
+    return _errors(run, eta, vel_T)
+
+
+def contact_set(eta: np.ndarray, delta: float) -> np.ndarray:
+    """{η ≤ δ} at every node and stored time."""
+    return eta <= delta
+
+
+def contact_height(run: Run) -> float:
+    """δ = CONTACT_HEIGHT · Δx · max|η|/l for the run's grid."""
+    length = run.x[-1] - run.x[0]
+    return CONTACT_HEIGHT * (length / run.nx) * float(np.max(np.abs(run.eta[0]))) / length
+
+
+def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:
+    from ..fem import compat
+
+    delta = contact_height(run)
+    sym_diff = (contact_set(run.eta, delta) != contact_set(eta, delta)).astype(float)
+    measure = compat.trapezoid(sym_diff, run.x, axis=1)
+    return {
+        "err_eta": float(np.max(l2_norm(run.x, run.eta - eta))),
+        "err_vel": float(l2_norm(run.x, run.velocity_T - vel_T)),
+        "err_contact": float(compat.trapezoid(measure, run.t)) if run.t.size > 1 else float(measure[0]),
+    }
+
+

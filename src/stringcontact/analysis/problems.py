@@ -1,0 +1,125 @@
+"""The studies' problem catalogue: the methods compared, the test problems and the scene factories.
+
+`flat_landing_scene` is the one factory of the exact α = 0 flat landing (`verification.exact.flat_landing`),
+for the studies and for the theorem checks alike; `example1_scene` is the paper's Example 1 on a chosen grid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: ε standing for the limit ε → 0 (the semi-implicit penalty is unconditionally stable, so any tiny ε works).
+EPS_LIMIT = 1e-9
+#: The paper's ε (Section 6).
+EPS_PAPER = 5e-4
+#: Flat landing (exact α = 0 solution): ends at h, η0 = h, v0 = −V, landing at t* = h/V.
+FLAT_H, FLAT_V = 0.2, 1.0
+
+
+@dataclass(frozen=True)
+class Method:
+    """A scheme, a penalty treatment, a mass matrix and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt),
+    "limit" (ε → 0) or "none" (the scheme uses no ε)."""
+
+    name: str
+    label: str
+    penalty: str | None
+    mass: str
+    eps_rule: str
+    scheme: str = "paper"
+
+    def eps(self, scene_eps: float, dt: float) -> float:
+        return {"fixed": scene_eps, "dt": dt, "limit": EPS_LIMIT, "none": scene_eps}[self.eps_rule]
+
+
+METHODS = {
+    m.name: m
+    for m in (
+        Method("paper", "paper: explicit, lumped, ε = 5e-4", "explicit", "lumped", "fixed"),
+        Method("explicit-r1", "explicit, lumped, ε = Δt (r = 1)", "explicit", "lumped", "dt"),
+        Method("semi-implicit", "semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit"),
+        Method("consistent", "semi-implicit, consistent mass, ε → 0", "semi-implicit", "consistent", "limit"),
+        Method("projection", "projection (no ε), lumped", None, "lumped", "none", scheme="projection"),
+        Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"),
+    )
+}
+#: The reference for problems with no exact solution: the most accurate scheme (docs/study.md), at reference_n.
+REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped", "none", scheme="projection")
+
+
+def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = None, r: float | None = None,
+                       T: float = 0.6, alpha: float = 0.0):
+    """The exact case: l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n unless `nt` is given.
+
+    ε is `eps` (default the paper's 5e-4), or Δt/`r` if `r` is given: the studies fix ε (or their method
+    sets it), the theorem checks fix r = Δt/ε so that ε falls with Δx and Δt (`stringcontact check
+    flat-landing` uses r = 0.4).
+    """
+    import stringcontact as sc
+
+    if eps is not None and r is not None:
+        raise ValueError("flat_landing_scene: give eps or r = dt/eps, not both")
+    nt = nt if nt is not None else max(1, round(T * n))
+    if r is not None:
+        eps = T / nt / r
+    elif eps is None:
+        eps = EPS_PAPER
+    return sc.load_scene("example1").replace(
+        name="flat-landing",
+        description="flat string landing on the obstacle (exact alpha = 0 solution)",
+        notes="",
+        eta0=str(FLAT_H),
+        v0=str(-FLAT_V),
+        alpha=alpha,
+        eps=eps,
+        T=T,
+        nx=n,
+        nt=nt,
+        output_times=[],
+    )
+
+
+def example1_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.3):
+    """The paper's Example 1 with Δt = Δx = 1/n (n = 5000 is the paper's resolution)."""
+    import stringcontact as sc
+
+    return sc.load_scene("example1").replace(T=T, eps=eps, nx=n, nt=max(1, round(T * n)), output_times=[])
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A test problem: scenes at Δt = Δx = 1/n, and either an exact solution or a fine reference resolution."""
+
+    name: str
+    T: float
+    sizes: tuple[int, ...]
+    reference_n: int | None = None  # None: exact solution
+
+    def scene(self, n: int, eps: float = EPS_PAPER):
+        if self.name == "flat-landing":
+            return flat_landing_scene(n, eps=eps, T=self.T)
+        return example1_scene(n, eps=eps, T=self.T)
+
+    @property
+    def rows(self) -> int:
+        """Stored rows per run: every step of the coarsest run, so that all runs share the stored times."""
+        return max(1, round(self.T * min(self.sizes)))
+
+
+def problems(quick: bool = False) -> dict[str, Problem]:
+    """The two work-precision problems; `quick` shrinks them for tests and fast demos."""
+    if quick:
+        return {
+            "flat-landing": Problem("flat-landing", 0.6, (125, 250, 500)),
+            "example1": Problem("example1", 0.06, (250, 500), reference_n=2000),
+        }
+    return {
+        "flat-landing": Problem("flat-landing", 0.6, (125, 250, 500, 1000, 2000, 4000)),
+        "example1": Problem("example1", 0.3, (250, 500, 1000, 2000, 4000), reference_n=16000),
+    }
+
+
+def flat_landing_exact(t, x):
+    from ..verification.exact import flat_landing
+
+    return flat_landing(t, x, h=FLAT_H, V=FLAT_V, length=1.0)

@@ -1,0 +1,246 @@
+r"""The stability studies: the outcome (inelastic, spurious rebound, energy growth) of a flat landing over
+:math:`r = \Delta t/\varepsilon` and :math:`\Delta t` per penalty (:func:`stability_map`), over
+:math:`\Delta t/\Delta x` for the schemes without ε (:func:`step_size_map`), the measured restitution, and the
+sweep :math:`\alpha \to 0` (:func:`alpha_sweep`)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene
+from .runs import simulate_self
+from .schedule import distribute
+
+STABILITY_COLUMNS = (
+    "penalty", "mass", "dt", "eps", "r", "outcome", "restitution", "restitution_theory",
+    "energy_max_ratio", "growth_step", "min_eta",
+)
+ALPHA_COLUMNS = (
+    "method", "alpha", "dt", "eps", "r", "restitution", "contact_dissipation", "numerical_dissipation",
+    "viscous_dissipation", "final_energy",
+)
+
+
+STABILITY_R = (0.1, 0.3, 0.5, 0.8, 1.0, 1.2, 1.5, 1.8, 2.0, 2.5, 4.0, 10.0, 30.0, 100.0)
+STABILITY_DT = (1 / 100, 1 / 200, 1 / 400)
+#: A post-impact upward velocity above this fraction of the impact speed is a (spurious) rebound.
+REBOUND_THRESHOLD = 0.02
+#: Energy above E(0)(1 + this) at any step is growth.
+GROWTH_TOLERANCE = 1e-9
+
+
+def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float = FLAT_H, V: float = FLAT_V,
+                window: float = 0.1) -> float:
+    """Post-impact upward velocity over the impact speed V at the middle node of a flat landing.
+
+    The flat middle lands at t* = h/V and, exactly, rests until the waves from the ends reach the middle at
+    t* + (l/2 − t*); the largest upward velocity in (t*, t* + window] is the rebound.
+    """
+    from ..verification.exact import flat_landing_time
+
+    mid = int(np.argmin(np.abs(x - 0.5 * (x[0] + x[-1]))))
+    t_star = flat_landing_time(h, V)
+    sel = (t > t_star) & (t <= t_star + window)
+    if not sel.any():
+        raise ValueError(f"no stored time in the restitution window ({t_star}, {t_star + window}]")
+    v = velocity[sel, mid]
+    if not np.all(np.isfinite(v)):
+        return math.inf
+    return max(0.0, float(np.max(v))) / V
+
+
+def restitution_theory(r: float, penalty: str) -> float:
+    """Explicit penalty: v ← (1 − r) v per contact step, so no rebound for r ≤ 1 and restitution r − 1 above."""
+    return max(0.0, r - 1.0) if penalty == "explicit" else 0.0
+
+
+def classify(restitution_value: float, energy: np.ndarray) -> tuple[str, int]:
+    """("growth" | "rebound" | "inelastic", first step at which the energy rose above E(0), or −1)."""
+    E0 = energy[0]
+    bad = ~np.isfinite(energy) | (energy > E0 * (1.0 + GROWTH_TOLERANCE))
+    if bad.any():
+        return "growth", int(np.argmax(bad))
+    if restitution_value > REBOUND_THRESHOLD:
+        return "rebound", -1
+    return "inelastic", -1
+
+
+def fd_energy(eta: np.ndarray, velocity: np.ndarray, dx: float) -> np.ndarray:
+    """Discrete energy ½|v|²_M + ½ ηᵀKη of the lumped scheme, per stored row (the solver's `total_energy`)."""
+    kinetic = 0.5 * dx * np.sum(velocity[:, 1:-1] ** 2, axis=1)
+    elastic = 0.5 * np.sum(np.diff(eta, axis=1) ** 2, axis=1) / dx
+    return kinetic + elastic
+
+
+def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: float = 0.45) -> dict:
+    """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r.
+
+    Lumped mass runs through :func:`stringcontact.verification.reference.fd_solve` -- the same scheme as `simulate`
+    (tests/test_solver.py checks this to 1e-10) without the pre-run refusal of r ≥ 2, so that the map shows
+    what the explicit penalty actually does there. Consistent mass runs through `simulate`, whose guards
+    refuse r ≥ 2 before the start ("refused") and stop a run whose energy rises ("growth").
+    """
+    from ..verification.reference import fd_solve
+
+    n = round(1.0 / dt)
+    nt = round(T / dt)
+    eps = dt / r
+    scene = flat_landing_scene(n, eps=eps, T=T, nt=nt)
+    row = {"penalty": penalty, "mass": mass, "dt": dt, "eps": eps, "r": r,
+           "restitution_theory": restitution_theory(r, penalty) if mass == "lumped" else math.nan}
+    if mass == "lumped":
+        x = scene.x()
+        with np.errstate(all="ignore"):
+            t, eta, vel = fd_solve(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=T, nt=nt,
+                                   alpha=0.0, eps=eps, h_left=scene.h_left, h_right=scene.h_right, penalty=penalty)
+            energy = fd_energy(eta, vel, 1.0 / n)
+            e = restitution(t, x, vel)
+        outcome, step = classify(e, energy)
+        finite = np.isfinite(energy)
+        row.update(outcome=outcome, restitution=e, growth_step=step,
+                   energy_max_ratio=float(np.max(energy) / energy[0]) if finite.all() else math.inf,
+                   min_eta=float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan))))
+        return row
+    import stringcontact as sc
+
+    try:
+        res = simulate_self(scene, penalty=penalty, mass=mass, max_rows=nt)
+    except sc.InstabilityError as exc:
+        outcome = "refused" if exc.step == 0 else "growth"
+        row.update(outcome=outcome, restitution=math.nan, growth_step=exc.step, energy_max_ratio=math.nan,
+                   min_eta=math.nan)
+        return row
+    e = restitution(res.t, res.x, res.velocity)
+    energy = res.total_energy
+    outcome, step = classify(e, energy)
+    row.update(outcome=outcome, restitution=e, growth_step=step, energy_max_ratio=float(np.max(energy) / energy[0]),
+               min_eta=res.min_eta)
+    return row
+
+
+def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
+    """Rows of STABILITY_COLUMNS over penalty × Δt × r (and the explicit penalty with consistent mass)."""
+    r_values = (0.5, 1.0, 1.5, 4.0, 100.0) if quick else STABILITY_R
+    dts = (1 / 100,) if quick else STABILITY_DT
+    cases = [(p, "lumped", dt, r) for p in ("explicit", "semi-implicit") for dt in dts for r in r_values]
+    cases += [("explicit", "consistent", dt, r) for dt in dts for r in r_values]
+    cases += [("explicit spring", "lumped", 1 / 200, 200 * q) for q in ((0.5, 64.0) if quick else SPRING_Q)]
+
+    def one(c):
+        return spring_case(c[3]) if c[0] == "explicit spring" else stability_case(c[0], c[2], c[3], mass=c[1])
+
+    return distribute(one, cases, comm, cost=lambda c: 1 / c[2] ** 2, busy=busy)
+
+
+STEP_RATIOS = (0.5, 0.9, 1.0, 1.05, 1.2, 1.5, 2.0, 4.0, 10.0)
+STEP_COLUMNS = ("scheme", "alpha", "dt_over_dx", "dt_max_over_dx", "outcome", "restitution", "energy_max_ratio",
+                "min_eta")
+#: Δt²/ε of the explicit spring (the elastic variant) at Δt = Δx = 1/200: r = Δt/ε = 200 q.
+SPRING_Q = (0.005, 0.05, 0.5, 2.0, 4.0, 6.0, 8.0, 16.0, 64.0)
+
+
+def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: float = 0.45) -> dict:
+    """The flat landing with Δt = ratio·Δx: where the schemes without ε stop being stable.
+
+    `projection` runs through its NumPy reference (`reference.fd_projection`, equal to `simulate` to 1e-10),
+    which has no pre-run refusal, so the map shows what happens beyond Δt_max; "refused" is added where
+    `simulate` would refuse. `newmark` runs through `simulate` with ε → 0.
+    """
+    from mpi4py import MPI
+
+    from ..model.paper import inelastic
+    from ..verification.reference import fd_projection
+    from ..timestepping.projection import largest_stable_dt
+    from ..run.driver import discretise
+
+    nt = max(1, round(T * n / ratio))
+    scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)
+    ops = discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    interior = np.ones(ops.m.size, dtype=bool)
+    interior[np.argsort(ops.m)[:2]] = False  # the ends: the two nodes with half a cell of mass
+    dt_max = largest_stable_dt(ops, interior)
+    row = {"scheme": scheme, "alpha": alpha, "dt_over_dx": scene.dt / scene.dx, "dt_max_over_dx": dt_max / scene.dx}
+    if scheme == "projection":
+        x = scene.x()
+        with np.errstate(all="ignore"):
+            t, eta, vel = fd_projection(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=T,
+                                        nt=nt, alpha=alpha, h_left=scene.h_left, h_right=scene.h_right)
+        energy = fd_energy(eta, vel, scene.dx)  # ½|v|² + ½|η|²_K: bounded by the modified energy when stable
+        e = restitution(t, x, vel, window=max(0.1, 2 * scene.dt))
+        finite = np.all(np.isfinite(energy))
+        growth = not finite or np.max(energy) > 2 * energy[0]
+        outcome = "growth" if growth else ("rebound" if e > REBOUND_THRESHOLD else "inelastic")
+        if scene.dt > dt_max and not growth:
+            outcome = "refused"  # stable here, but simulate refuses it (dt_max is a sufficient bound)
+        row.update(outcome=outcome, restitution=e, energy_max_ratio=float(np.max(energy) / energy[0]) if finite
+                   else math.inf, min_eta=float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan))))
+        return row
+    res = simulate_self(scene, scheme=scheme, max_rows=nt)
+    e = restitution(res.t, res.x, res.velocity, window=max(0.1, 2 * scene.dt))
+    outcome, _ = classify(e, res.total_energy)
+    row.update(outcome=outcome, restitution=e, energy_max_ratio=float(np.max(res.total_energy) / res.total_energy[0]),
+               min_eta=res.min_eta)
+    return row
+
+
+def step_size_map(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
+    """Rows of STEP_COLUMNS: projection and newmark over Δt/Δx, with and without viscosity."""
+    ratios = (0.9, 1.0, 1.2, 4.0) if quick else STEP_RATIOS
+    n = 100 if quick else 200
+    cases = [(scheme, a, c) for scheme in ("projection", "newmark") for a in (0.0, 0.01) for c in ratios]
+    return distribute(lambda c: step_size_case(*c, n=n), cases, comm, busy=busy)
+
+
+def spring_case(r: float, n: int = 200, T: float = 0.45) -> dict:
+    """The elastic (spring) law, explicit, at Δt = Δx with ε = Δt/r: its own stability (the law only warns)."""
+    from ..model import variants
+
+    scene = flat_landing_scene(n, eps=1.0 / n / r, T=T)
+    row = {"penalty": "explicit spring", "mass": "lumped", "dt": scene.dt, "eps": scene.eps, "r": r,
+           "restitution_theory": math.nan}
+    import stringcontact as sc
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sc.InstabilityWarning)
+            res = simulate_self(scene, model=variants.elastic, max_rows=scene.nt)
+    except sc.InstabilityError as exc:
+        row.update(outcome="growth", restitution=math.nan, growth_step=exc.step, energy_max_ratio=math.nan,
+                   min_eta=math.nan)
+        return row
+    e = restitution(res.t, res.x, res.velocity)
+    # a spring bounces by design, after ~π√ε: growth is its only failure
+    outcome = "stable"
+    row.update(outcome=outcome, restitution=e, growth_step=-1,
+               energy_max_ratio=float(np.max(res.total_energy) / res.total_energy[0]), min_eta=res.min_eta)
+    return row
+
+
+def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
+    """Flat landing (Δt = Δx = 1/200, T = 0.6) for α from 0.1 down to 0: restitution and where the energy went."""
+    alphas = (0.1, 0.01, 0.0) if quick else (0.1, 0.03, 0.01, 0.003, 0.001, 0.0)
+    methods = {"explicit r=1": ("explicit", 1.0), "explicit r=1.5": ("explicit", 1.5),
+               "semi-implicit eps->0": ("semi-implicit", None)}
+    n = 100 if quick else 200
+    cases = [(name, a) for name in methods for a in alphas]
+
+    def one(case):
+        name, alpha = case
+        penalty, r = methods[name]
+        dt = 1.0 / n
+        eps = dt / r if r else EPS_LIMIT
+        scene = flat_landing_scene(n, eps=eps, alpha=alpha)
+        res = simulate_self(scene, penalty=penalty, max_rows=scene.nt)
+        E0 = res.total_energy[0]
+        e = res.energy
+        return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps,
+                "restitution": restitution(res.t, res.x, res.velocity),
+                "contact_dissipation": e["contact_dissipation"][-1] / E0,
+                "numerical_dissipation": e["numerical_dissipation"][-1] / E0,
+                "viscous_dissipation": e["viscous_dissipation"][-1] / E0,
+                "final_energy": res.total_energy[-1] / E0}
+
+    return distribute(one, cases, comm, busy=busy)

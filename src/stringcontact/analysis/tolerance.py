@@ -1,0 +1,159 @@
+"""``run SCENE --tol X``: the cheapest method and resolution whose estimated error of η is below X
+(:func:`choose_for_tolerance`), and how well the estimate tracks the true error (:func:`tolerance_tracking`)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .norms import common_rows, errors_against_exact, l2_norm, to_nodes
+from .problems import METHODS, flat_landing_exact, flat_landing_scene
+from .runs import Run, run_method
+
+#: What the studies taught `run --tol` (docs/study.md): the observed L∞(L²) order of η under Δt = Δx → 0
+#: on the flat landing, for the methods that converge to the inelastic limit, cheapest first. The explicit
+#: penalty is left out: at a single-point contact it cannot hold the string up (docs/getfem.md).
+TOL_METHODS = ("projection", "semi-implicit", "newmark")
+TOL_ORDER = {"projection": 1.0, "semi-implicit": 0.5, "newmark": 0.5}
+TOLERANCE_COLUMNS = ("tol", "method", "nx", "nt", "estimate", "true_error", "ratio", "pilot_wall_s")
+
+
+def _scaled(scene, nx: int):
+    """The scene at `nx` cells, keeping its ratio Δt/Δx."""
+    nt = max(1, round(scene.nt * nx / scene.nx))
+    return scene.replace(nx=nx, nt=nt)
+
+
+def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
+    """Error of `fine` in L∞(0,T;L²) of η: ‖η_fine − η_coarse‖ / (2^p − 1), p the method's observed order."""
+    rows = common_rows(coarse.t, fine.t)
+    diff = coarse.eta - to_nodes(fine.x, fine.eta[rows], coarse.x)
+    return float(np.max(l2_norm(coarse.x, diff))) / (2.0**order - 1.0)
+
+
+def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: int = 50, nx_max: int = 64000,
+                           model=None) -> list[dict]:
+    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`.
+
+    Returns one dict per method: method, nx, nt (of the finer run), estimate, fine_wall_s (the finer run's
+    wall time), ok (whether `tol` was reached below `nx_max`) and run (the finer :class:`Run` itself).
+    """
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
+        raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
+    found = []
+    budget = math.inf  # a method that costs more than the cheapest success so far cannot win: stop refining it
+    for name in methods:
+        method = METHODS[name]
+        if method.penalty == "semi-implicit" and model is not None and model.penalty_damping is None:
+            continue
+        if method.scheme == "projection" and model is not None and model.gap is None:
+            continue
+        nx = max(2, min(nx_start, scene.nx))
+        coarse_scene = _scaled(scene, nx)
+        rows = coarse_scene.nt  # every coarse step; the finer run stores every second step, at the same times
+        coarse = run_method(coarse_scene, method, rows=rows, model=model)
+        while True:
+            # Δx and Δt halve together, so every coarse step is a fine step.
+            fine = run_method(scene.replace(nx=2 * coarse.nx, nt=2 * coarse.nt), method, rows=rows, model=model)
+            if coarse.status != "complete" or fine.status != "complete":
+                break
+            estimate = richardson_estimate(coarse, fine, TOL_ORDER[name])
+            ok = estimate <= tol
+            if ok or 2 * nx >= nx_max or fine.wall_s > budget:
+                found.append({"method": name, "nx": fine.nx, "nt": fine.nt, "estimate": estimate,
+                              "fine_wall_s": fine.wall_s, "ok": ok, "run": fine})
+                if ok:
+                    budget = min(budget, fine.wall_s)
+                break
+            nx, coarse = 2 * nx, fine
+    return found
+
+
+def choose_for_tolerance(scene, tol: float, *, model=None):
+    """`run SCENE --tol X`: the cheapest method and resolution whose estimated error of η is below X.
+
+    The candidates are the methods that converge to the inelastic limit ε → 0 (docs/study.md: the fixed-ε
+    paper scheme stops at its ε-error, which no resolution removes). Each is refined by doubling Δx and Δt
+    together (keeping the scene's ratio) until the Richardson estimate from the last two resolutions,
+    with the study's observed order, is below X; the cheaper of the finer runs wins. The pilot runs use
+    `model` (default: the scene's, else the paper's), so pass the model the run itself will use. Under MPI,
+    rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
+    """
+    if scene.dim != 1:  # its pilots refine nx and its error estimates are the string's
+        raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
+                         "give its scheme (--scheme) and mesh (cells, mesh_size) instead")
+    if model is None and scene.model:
+        from ..model.registry import load_model
+
+        model = load_model(scene.model)
+    choice = _estimate_on_rank_0(scene, tol, model=model)
+    chosen, method, best = _pick(scene, tol, choice)
+    others = "; ".join(f"{c['method']}: nx={c['nx']} est {c['estimate']:.3g} ({c['fine_wall_s']:.2g} s"
+                       f"{'' if c['ok'] else ', stopped: above tol and already dearer'})" for c in choice)
+    report = (f"--tol {tol:g}: chose {method.name} ({method.label}) at nx={chosen.nx}, nt={chosen.nt}, "
+              f"eps={chosen.eps:.3g}; estimated error of eta in Linf(0,T;L2) = {best['estimate']:.3g} "
+              f"(two-resolution Richardson, order {TOL_ORDER[method.name]}) [{others}]")
+    return chosen, {"scheme": method.scheme, "penalty": method.penalty, "mass": method.mass}, report
+
+
+def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
+    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank.
+
+    Every rank must call it. The other ranks get the estimates without the pilot runs' arrays ("run").
+    """
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    choice = None
+    if comm.rank == 0:
+        try:
+            choice = estimate_for_tolerance(scene, tol, model=model)
+        except ValueError as exc:
+            choice = exc
+    if comm.size > 1:  # the other ranks need the estimates, not the pilot runs' arrays
+        light = None
+        if comm.rank == 0:
+            light = choice if isinstance(choice, Exception) else [{k: v for k, v in c.items() if k != "run"}
+                                                                  for c in choice]
+        light = comm.bcast(light, root=0)
+        if comm.rank != 0:
+            choice = light
+    if isinstance(choice, Exception):
+        raise choice
+    return choice
+
+
+def _pick(scene, tol: float, choice: list[dict]):
+    """From `estimate_for_tolerance`'s estimates: (the chosen scene, its Method, its estimate), the cheapest
+    finer run among those that reached `tol`; a ValueError if none did."""
+    reached = [c for c in choice if c["ok"]]
+    if not reached:
+        best = min(choice, key=lambda c: c["estimate"], default=None)
+        where = f"; the best estimate was {best['estimate']:.3g} at nx={best['nx']}" if best else ""
+        raise ValueError(f"--tol {tol:g}: no method reached the tolerance up to nx=64000{where}")
+    best = min(reached, key=lambda c: c["fine_wall_s"])
+    method = METHODS[best["method"]]
+    chosen = scene.replace(nx=best["nx"], nt=best["nt"])
+    chosen = chosen.replace(eps=method.eps(chosen.eps, chosen.dt))
+    return chosen, method, best
+
+
+def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
+    """On the flat landing: the chosen run's estimate against its true error (exact solution), per tolerance.
+
+    Serial (no MPI collective: under `mpirun` only rank 0 calls it). The true error is that of the chosen run
+    itself, the finer pilot run of the estimate (every coarse step stored); pilot_wall_s is the time the choice took.
+    """
+    base = flat_landing_scene(100, T=T)
+    rows = []
+    for tol in tols:
+        t0 = time.perf_counter()
+        best = _pick(base, tol, estimate_for_tolerance(base, tol))[2]
+        pilot = time.perf_counter() - t0
+        true = errors_against_exact(best["run"], flat_landing_exact)["err_eta"]
+        rows.append({"tol": tol, "method": best["method"], "nx": best["nx"], "nt": best["nt"],
+                     "estimate": best["estimate"], "true_error": true, "ratio": best["estimate"] / true,
+                     "pilot_wall_s": pilot})
+    return rows

@@ -1,0 +1,96 @@
+"""`stringcontact check SCENE`: the paper's (A1)–(A4), Theorems 2.2/2.3 and (1.4) on a computed solution, as a
+table of numbers with verdicts (`stringcontact.analysis.theorems`); ``--out`` also writes checks.json, checks.txt
+and figure1.png."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..analysis.problems import FLAT_V, flat_landing_scene
+from ..analysis.theorems import (
+    FLAT_LANDING, STRESS_JUMP, draw_figure1, format_table, format_trends, penalised, run_checks,
+)
+
+
+def add_arguments(parser):
+    parser.add_argument("scene", help=f"built-in scene, a .toml file, or '{FLAT_LANDING}' (the exact alpha=0 case)")
+    parser.add_argument("--nx", type=int, help="cells of the finest level")
+    parser.add_argument("--nt", type=int, help="time steps of the finest level")
+    parser.add_argument("--eps", type=float, help="penalty parameter of the finest level")
+    parser.add_argument("--alpha", type=float, help="viscosity alpha >= 0")
+    from ..scene.names import SCHEMES
+
+    parser.add_argument("--scheme", choices=tuple(SCHEMES),
+                        help="time scheme (default: the scene's, else paper); projection refines nx and nt only (no eps)")
+    parser.add_argument("--penalty", choices=("explicit", "semi-implicit"),
+                        help="the penalty of the paper's scheme (default: the scheme's own, explicit for paper)")
+    parser.add_argument("--levels", type=int, default=3,
+                        help="refinement levels for the trends (nx, nt, 1/eps halved per level; default 3)")
+    parser.add_argument("--delay", type=float,
+                        help="(A4) delay after first contact (default 8 eps; 2 dt for an eps-free scheme)")
+    parser.add_argument("--delta", type=float, default=0.02, help="Thm 2.3(1) band half-width around fronts")
+    parser.add_argument("--out", metavar="DIR", help="write checks.json, checks.txt and figure1.png here")
+    parser.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+
+
+def _scene_from_args(args):
+    from ..scene.data import load_scene
+
+    if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
+        scene = flat_landing_scene(args.nx or 1000, args.nt or 1200, r=0.4)
+        changes = {k: getattr(args, k) for k in ("eps", "alpha") if getattr(args, k) is not None}
+    else:
+        scene = load_scene(args.scene)
+        if scene.dim != 1:
+            from ..errors import SceneError
+
+            raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
+                             "paper's theorems are about the string); allowed: a scene with domain 'interval'")
+        changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
+    return scene.replace(**changes) if changes else scene
+
+
+def command(args) -> int:
+    import json
+    import warnings
+
+    if not 1 <= args.levels <= 6:
+        raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
+    if args.delay is not None and not args.delay > 0:
+        raise ValueError(f"--delay must be > 0, got {args.delay}")
+    if not args.delta > 0:
+        raise ValueError(f"--delta must be > 0, got {args.delta}")
+    scene = _scene_from_args(args)
+    if args.delay is not None and args.delay >= scene.T:
+        raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
+    if args.out is not None:
+        from ..io.folder import check_target
+
+        check_target(args.out, args.force)
+    V = FLAT_V if scene.name == FLAT_LANDING else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
+        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V,
+                                             scheme=args.scheme)
+    if penalised(finest):
+        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}" for r in results)
+        levels += f" (r = dt/eps = {scene.r:.3g})"
+    else:
+        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
+    print(f"scene {scene.name}, scheme {finest.scheme}: levels {levels}")
+    print(format_table(checks))
+    print()
+    print(format_trends(checks))
+    if args.out is not None:
+        from ..io.folder import staged_folder
+
+        with staged_folder(args.out, args.force) as partial:  # the whole folder or nothing, under the run lock
+            (partial / "checks.json").write_text(json.dumps(
+                {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
+                 "checks": [c.as_dict() for c in checks]}, indent=1, default=float))
+            (partial / "checks.txt").write_text(format_table(checks) + "\n\n" + format_trends(checks) + "\n")
+            balance = next(c.data for c in checks if c.name == STRESS_JUMP)  # computed by run_checks
+            draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
+        target = Path(args.out)
+        print(f"wrote {target}")
+    return 0

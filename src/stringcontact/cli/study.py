@@ -1,0 +1,87 @@
+"""`stringcontact study work-precision|convergence|stability`: run a study, write its CSV and PNG files.
+
+Under ``mpirun -n K`` the cases are dealt over the ranks (`analysis.schedule.distribute`); rank 0 writes.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.study import (
+    ALPHA_COLUMNS, CONVERGENCE_COLUMNS, ORDER_COLUMNS, STABILITY_COLUMNS, STEP_COLUMNS, TOLERANCE_COLUMNS,
+    WORK_PRECISION_COLUMNS, alpha_sweep, convergence, plot_convergence, plot_stability, plot_step_size,
+    plot_work_precision, stability_map, step_size_map, tolerance_tracking, work_precision, write_csv,
+)
+
+
+def add_arguments(parser):
+    sub = parser.add_subparsers(dest="study", required=True, metavar="{work-precision,convergence,stability}")
+    specs = {
+        "work-precision": "error against wall-clock time per method (flat landing and Example 1)",
+        "convergence": "observed orders in dt = dx and in eps; the --tol estimate against the true error",
+        "stability": "outcome over r = dt/eps per penalty and law, over dt/dx per scheme, restitution, alpha -> 0",
+    }
+    for name, help_text in specs.items():
+        p = sub.add_parser(name, help=help_text)
+        p.add_argument("--out", metavar="DIR", default="out/study", help="folder for the CSV and PNG files")
+        p.add_argument("--quick", action="store_true", help="a small version (seconds), for tests and demos")
+        if name == "work-precision":
+            p.add_argument("--problem", choices=("flat-landing", "example1", "all"), default="all")
+            p.add_argument("--repeat", type=int, default=1, help="time each run this many times, keep the best")
+
+
+def command(args) -> int:
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder")
+    t0 = time.perf_counter()
+    if args.study == "work-precision" and args.repeat < 1:
+        raise ValueError(f"--repeat must be >= 1, got {args.repeat}")
+    busy = []
+    t_sweep = time.perf_counter()
+    if args.study == "work-precision":
+        names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)
+        result = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
+    elif args.study == "convergence":
+        result = convergence(quick=args.quick, comm=comm, busy=busy)
+    else:
+        result = stability_map(quick=args.quick, comm=comm, busy=busy)
+        alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
+        step_rows = step_size_map(quick=args.quick, comm=comm, busy=busy)
+    sweep = time.perf_counter() - t_sweep
+    written = []
+    if result is not None:  # None on ranks > 0: rank 0 has the results
+        if args.study == "work-precision":
+            written = [write_csv(out / "study_work_precision.csv", result, WORK_PRECISION_COLUMNS),
+                       plot_work_precision(result, out / "study_work_precision.png")]
+        elif args.study == "convergence":
+            tracking = tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
+            written = [write_csv(out / "study_convergence.csv", result["runs"], CONVERGENCE_COLUMNS),
+                       write_csv(out / "study_orders.csv", result["orders"], ORDER_COLUMNS),
+                       write_csv(out / "study_tolerance.csv", tracking, TOLERANCE_COLUMNS),
+                       plot_convergence(result, out / "study_convergence.png")]
+            for o in result["orders"]:
+                print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")
+            for t in tracking:
+                print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} "
+                      f"true {t['true_error']:.3g}")
+        else:
+            written = [write_csv(out / "study_stability.csv", result, STABILITY_COLUMNS),
+                       write_csv(out / "study_alpha.csv", alpha_rows, ALPHA_COLUMNS),
+                       write_csv(out / "study_step_size.csv", step_rows, STEP_COLUMNS),
+                       plot_stability(result, alpha_rows, out / "study_stability.png"),
+                       plot_step_size(step_rows, out / "study_step_size.png")]
+    if comm.rank == 0:
+        elapsed = time.perf_counter() - t0
+        per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
+        print(f"study {args.study}: {comm.size} rank(s), {elapsed:.2f} s wall-clock, of which the sweep "
+              f"{sweep:.2f} s; CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank))
+        for path in written:
+            print(f"wrote {path}")
+    return 0

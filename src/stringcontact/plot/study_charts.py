@@ -1,0 +1,213 @@
+"""The studies' charts (matplotlib): work-precision, convergence, the stability map and the step-size map.
+
+The rows come from `stringcontact.analysis` (its CSV columns); what the charts need beyond the rows (the
+methods' legend labels, the impact speed) is passed in, so this module imports nothing above `plot`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import numpy as np
+
+
+@contextlib.contextmanager
+def _figure(path, *args, **kwargs):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..io.folder import atomic_path
+
+    fig, axes = plt.subplots(*args, **kwargs)
+    try:
+        yield fig, axes
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
+
+
+STYLE = {
+    "paper": dict(color="#d62728", marker="s"),
+    "explicit-r1": dict(color="#ff7f0e", marker="^"),
+    "semi-implicit": dict(color="#1f77b4", marker="o"),
+    "consistent": dict(color="#2ca02c", marker="D"),
+    "projection": dict(color="#9467bd", marker="P"),
+    "newmark": dict(color="#8c564b", marker="X"),
+}
+ERROR_LABELS = {
+    "err_eta": r"error of $\eta$ in $L^\infty(0,T;L^2)$",
+    "err_vel": r"error of $\eta_t(T)$ in $L^2$",
+    "err_contact": "contact-set error (space-time measure)",
+}
+
+
+def plot_work_precision(rows: list[dict], path, labels: dict) -> Path:
+    """Error against wall-clock time, log-log: a row of panels per problem, a panel per error; a line per method
+    in `labels` (method name: legend label), in its order."""
+    probs = list(dict.fromkeys(r["problem"] for r in rows))
+    with _figure(path, len(probs), 3, figsize=(15, 4.6 * len(probs)), squeeze=False, layout="constrained") as (fig, axes):
+        for i, p in enumerate(probs):
+            for j, key in enumerate(ERROR_LABELS):
+                ax = axes[i, j]
+                for m in labels:
+                    sel = [r for r in rows if r["problem"] == p and r["method"] == m and r["status"] == "complete"
+                           and np.isfinite(r[key]) and r[key] > 0]
+                    if not sel:
+                        continue
+                    sel.sort(key=lambda r: r["nx"])
+                    style = STYLE[m]
+                    ax.loglog([r["wall_s"] for r in sel], [r[key] for r in sel], "-", color=style["color"],
+                              label=labels[m])
+                    for r in sel:  # hollow markers: 1 < r < 2, a (spurious) rebound
+                        hollow = r["r"] > 1 + 1e-9 and r["penalty"] == "explicit"
+                        ax.loglog(r["wall_s"], r[key], style["marker"], color=style["color"],
+                                  mfc="white" if hollow else style["color"])
+                        ax.annotate(f"{int(r['nx'])}", (r["wall_s"], r[key]), fontsize=6, alpha=0.6,
+                                    xytext=(3, 3), textcoords="offset points")
+                ax.set_xlabel("wall-clock time of one run [s]")
+                ax.set_ylabel(ERROR_LABELS[key])
+                ax.grid(True, which="both", alpha=0.3)
+                title = "flat landing (exact, α = 0)" if p == "flat-landing" else "Example 1 (vs fine reference)"
+                ax.set_title(f"{title}", fontsize=10)
+            axes[i, 0].legend(fontsize=7, loc="lower left")
+        fig.suptitle("Work-precision: lower left is better; numbers are nx (Δt = Δx = 1/nx); "
+                     "hollow = 1 < Δt/ε < 2 (rebounds); missing = refused (Δt/ε ≥ 2)", fontsize=10)
+    return Path(path)
+
+
+def plot_convergence(result: dict, path, labels: dict, impact_speed: float) -> Path:
+    """Left: errors against Δt = Δx with reference slopes. Right: penetration and error against ε, with the
+    penetration ε·V of a landing at `impact_speed` V. `labels`: method name -> legend label."""
+    rows = result["runs"]
+    with _figure(path, 1, 3, figsize=(15, 4.4)) as (fig, axes):
+        ax = axes[0]
+        for m in ("explicit-r1", "semi-implicit", "consistent"):
+            sel = sorted((r for r in rows if r["sweep"] == "dt" and r["method"] == m and r["status"] == "complete"),
+                         key=lambda r: r["dt"])
+            style = STYLE[m]
+            ax.loglog([r["dt"] for r in sel], [r["err_eta"] for r in sel], "-" + style["marker"], color=style["color"],
+                      label=f"{labels[m]}: η")
+            ax.loglog([r["dt"] for r in sel], [r["err_vel"] for r in sel], ":" + style["marker"], color=style["color"],
+                      mfc="white", label=f"{m}: velocity at T")
+        dt_rows = [r for r in rows if r["sweep"] == "dt" and r["status"] == "complete"]
+        if dt_rows:  # reference slopes through the finest η error, drawn a little below it
+            dts = np.array(sorted({r["dt"] for r in dt_rows}))
+            e0 = 0.6 * min(r["err_eta"] for r in dt_rows)
+            for p, ls in ((0.5, "--"), (1.0, "-.")):
+                ax.loglog(dts, e0 * (dts / dts[0]) ** p, "k" + ls, lw=0.8, label=f"slope {p}")
+        ax.set_xlabel("Δt = Δx")
+        ax.set_ylabel("error (flat landing, exact)")
+        ax.legend(fontsize=6)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_title("refinement in Δt = Δx", fontsize=10)
+        eps_rows = [r for r in rows if r["sweep"] == "eps" and r["status"] == "complete"]
+        for ax, key, label in ((axes[1], "penetration", "penetration −min η"), (axes[2], "err_eta", ERROR_LABELS["err_eta"])):
+            for p, color in (("explicit", STYLE["paper"]["color"]), ("semi-implicit", STYLE["semi-implicit"]["color"])):
+                sel = sorted((r for r in eps_rows if r["penalty"] == p), key=lambda r: r["eps"])
+                vals = [(-r["min_eta"] if key == "penetration" else r[key]) for r in sel]
+                ax.loglog([r["eps"] for r in sel], vals, "-o", color=color, label=f"{p} penalty")
+            if eps_rows:
+                dt = eps_rows[0]["dt"]
+                ax.axvline(dt, color="gray", ls=":", lw=1)
+                ax.text(dt, ax.get_ylim()[0], " ε = Δt", fontsize=7, color="gray", va="bottom")
+                if key == "penetration":
+                    e = np.array(sorted({r["eps"] for r in eps_rows}))
+                    ax.loglog(e, impact_speed * e, "k--", lw=0.8, label="ε·V")
+            ax.set_xlabel("ε")
+            ax.set_ylabel(label)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+            ax.set_title(f"ε → 0 at Δt = Δx = {eps_rows[0]['dt']:.3g}" if eps_rows else "ε → 0", fontsize=10)
+    return Path(path)
+
+
+OUTCOME_COLOURS = {"inelastic": "#4daf4a", "rebound": "#ffb000", "growth": "#e41a1c", "refused": "#999999",
+                   "stable": "#377eb8"}
+
+
+def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Path:
+    """The map (outcome over r and Δt per treatment), restitution against r with the theory, the α sweep."""
+    treatments = list(dict.fromkeys((r["penalty"], r["mass"]) for r in rows))
+    ncols = 2 + (1 if alpha_rows else 0)
+    with _figure(path, 1, ncols, figsize=(5.2 * ncols, 4.6)) as (fig, axes):
+        ax = axes[0]
+        labels = []
+        dts = sorted({r["dt"] for r in rows}, reverse=True)
+        y = -1
+        for pen, mass in treatments:
+            y += 1
+            for dt in dts:
+                sel = [r for r in rows if (r["penalty"], r["mass"], r["dt"]) == (pen, mass, dt)]
+                if not sel:  # the spring is swept at one Δt only
+                    continue
+                y += 1
+                labels.append((y, f"{pen}, {mass}, Δt={dt:.3g}"))
+                ax.scatter([r["r"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k", linewidths=0.3,
+                           c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
+        ax.set_xscale("log")
+        ax.set_yticks([y for y, _ in labels], [s for _, s in labels], fontsize=7)
+        for x0 in (1.0, 2.0):
+            ax.axvline(x0, color="k", ls=":", lw=0.8)
+        for outcome, colour in OUTCOME_COLOURS.items():
+            ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=4)
+        ax.set_xlabel("r = Δt/ε   (dotted: r = 1, r = 2)")
+        ax.set_title("outcome of a flat landing (α = 0)", fontsize=10)
+
+        ax = axes[1]
+        rr = np.logspace(-1, np.log10(4), 200)
+        ax.plot(rr, np.maximum(rr - 1, 0), "k-", lw=1, label="theory (explicit): max(r − 1, 0)")
+        for (pen, mass), marker in zip(treatments, ("o", "x", "D")):
+            sel = [r for r in rows if (r["penalty"], r["mass"]) == (pen, mass) and np.isfinite(r["restitution"])
+                   and r["restitution"] <= 3]
+            ax.plot([r["r"] for r in sel], [r["restitution"] for r in sel], marker, ls="none", mfc="none",
+                    label=f"measured: {pen}, {mass}")
+        ax.set_xscale("log")
+        ax.set_xlabel("r = Δt/ε")
+        ax.set_ylabel("restitution (upward / downward velocity)")
+        ax.set_ylim(-0.05, 3.05)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+        ax.set_title("restitution at the middle node", fontsize=10)
+
+        if alpha_rows:
+            ax = axes[2]
+            names = list(dict.fromkeys(r["method"] for r in alpha_rows))
+            for name, colour in zip(names, ("#ff7f0e", "#d62728", "#1f77b4")):
+                sel = sorted((r for r in alpha_rows if r["method"] == name), key=lambda r: r["alpha"])
+                a = [max(r["alpha"], 1e-4) for r in sel]
+                ax.semilogx(a, [r["numerical_dissipation"] for r in sel], "-o", color=colour, label=f"{name}: numerical")
+                ax.semilogx(a, [r["contact_dissipation"] for r in sel], "--s", color=colour, mfc="white",
+                            label=f"{name}: contact")
+                ax.semilogx(a, [r["restitution"] for r in sel], ":^", color=colour, label=f"{name}: restitution")
+            ax.set_xlabel("α (α = 0 drawn at 1e-4)")
+            ax.set_ylabel("fraction of E(0) dissipated by T / restitution")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=6)
+            ax.set_title("α → 0: what is left is the scheme's own dissipation", fontsize=10)
+    return Path(path)
+
+
+def plot_step_size(rows: list[dict], path) -> Path:
+    """Outcome over Δt/Δx for the schemes without ε, with each one's Δt_max from the operators."""
+    keys = list(dict.fromkeys((r["scheme"], r["alpha"]) for r in rows))
+    with _figure(path, 1, 1, figsize=(7.5, 3.2)) as (fig, ax):
+        for y, (scheme, alpha) in enumerate(keys):
+            sel = [r for r in rows if (r["scheme"], r["alpha"]) == (scheme, alpha)]
+            ax.scatter([r["dt_over_dx"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k",
+                       linewidths=0.3, c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
+            if scheme == "projection":
+                ax.plot([sel[0]["dt_max_over_dx"]] * 2, [y - 0.4, y + 0.4], "k-", lw=1.5)
+        ax.set_xscale("log")
+        ax.set_yticks(range(len(keys)), [f"{s}, α = {a:g}" for s, a in keys], fontsize=8)
+        ax.set_ylim(-0.7, len(keys) - 0.3)
+        for outcome, colour in OUTCOME_COLOURS.items():
+            ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=4)
+        ax.set_xlabel("Δt/Δx   (bar: projection's Δt_max from the operators)")
+        ax.set_title("flat landing: where the ε-free schemes fail", fontsize=10)
+    return Path(path)
