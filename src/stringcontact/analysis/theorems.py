@@ -235,7 +235,7 @@ def check_velocity_after_contact(results, delay: float | None = None) -> Check:
     vals = [x["ratio"] for x in m]
     if math.isnan(vals[-1]):
         verdict = NOT_APPLICABLE
-    elif vals[-1] == 0:
+    elif vals[-1] <= 1e-8:  # at rest to round-off: a node within the contact tolerance of the obstacle
         verdict = HOLDS
     elif len(vals) < 2:
         verdict = INCONCLUSIVE
