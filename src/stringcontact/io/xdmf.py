@@ -70,6 +70,39 @@ def hdf5_library():
         return None
 
 
+class Hdf5Quiet:
+    """Turns HDF5's automatic error printing off while the writer runs.
+
+    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
+    we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
+    that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
+    """
+
+    @classmethod
+    def _library(cls):
+        return hdf5_library()
+
+    def __init__(self):
+        self.saved = None
+
+    def __enter__(self):
+        lib = self._library()
+        if lib is not None:
+            func, data = ctypes.c_void_p(), ctypes.c_void_p()
+            if lib.H5Eget_auto2(0, ctypes.byref(func), ctypes.byref(data)) >= 0:  # 0 is H5E_DEFAULT
+                self.saved = (func, data)
+                lib.H5Eset_auto2(0, None, None)
+        return self
+
+    def __exit__(self, *exc):
+        if self.saved is not None:
+            self._library().H5Eset_auto2(0, self.saved[0], self.saved[1])
+            self.saved = None
+        return False
+
+
+
+
 def _close_open_objects(path: Path) -> None:
     """Close the HDF5 datasets and groups of file `path` left open: PETSc's VecView leaves them open when
     its write fails, and then cannot close the file ("there are objects still open")."""
