@@ -4,16 +4,19 @@ The lock is filelock's `FileLock` (an ``flock`` on the file, tried once: ``timeo
 lock, which a killed run would leave held). What this module adds: the holder's pid in the file (the
 refusal names it), the file removed on release (no ``.NAME.lock`` stays behind; a killed run's lock file is
 not held by anyone and is taken over by the next run), and `TargetLock.holder`, a probe that never creates
-the file. filelock 4.2 opens the lock file with ``O_NOFOLLOW`` (a symlink there is refused, ELOOP) and
-``O_NONBLOCK`` and without ``O_TRUNC`` (a contender never empties the holder's pid); a FIFO there is refused
-at once (EINVAL), a folder with IsADirectoryError: each reaches the caller as an OSError.
+the file. Measured with filelock 4.2.12: it opens the lock file with ``O_NOFOLLOW`` (a symlink there is
+refused: ELOOP), ``O_NONBLOCK`` (a FIFO never blocks the open) and without ``O_TRUNC`` (a contender never
+empties the holder's pid); a folder there gives IsADirectoryError. It does lock a FIFO, so `_write_pid`
+refuses any non-regular file (EINVAL). Each reaches the caller as an OSError: one line, nothing held.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import os
+import stat
 from pathlib import Path
 
 import filelock
@@ -33,6 +36,9 @@ def lock_path(target) -> Path:
 
 
 def _write_pid(fd: int) -> None:
+    """filelock's `on_acquired`: refuse a lock "file" that is not a regular file, then write our pid into it."""
+    if not stat.S_ISREG(os.fstat(fd).st_mode):  # filelock itself locks a FIFO (opened O_RDWR | O_NONBLOCK)
+        raise OSError(errno.EINVAL, "the lock file is not a regular file")
     os.ftruncate(fd, 0)
     os.write(fd, f"{os.getpid()}\n".encode())
 
