@@ -266,7 +266,7 @@ def _run(args, painter=None) -> int:
 
 def _petsc_options(items: list[str]) -> dict:
     """--petsc-option NAME=VALUE, ...: a dict with TOML's value types (true/false, numbers, words), checked."""
-    from ..scene.data import check_petsc_options
+    from ..scene import check_petsc_options
 
     options = {}
     for item in items:
@@ -384,7 +384,7 @@ def _command(args, painter) -> int:
         try:
             if args.command == "run":
                 return _run(args, painter)
-            from ..scene import data as scenes
+            from ..scene import toml as scenes
 
             if args.command == "list":
                 for name, description in scenes.list_scenes():

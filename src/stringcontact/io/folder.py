@@ -1,519 +1,52 @@
-"""Results on disk: `solution.xdmf`/`.h5`, `diagnostics.csv` and `summary.json`.
+"""Results on disk: a run's output folder, `solution.xdmf`/`.h5`, `diagnostics.csv` and `summary.json`.
 
-A run writes into a hidden folder of its own beside the target (``.NAME.partial-<pid>-<random>``) and
-renames it into place at the end, so the target is always absent, complete, or explicitly marked
-``"status": "interrupted"``, ``"unstable"`` or ``"unbalanced"`` in its `summary.json`. Never half-written:
-
-* a lock file ``.NAME.lock`` (``fcntl.flock``) keeps a second run from writing to the same target;
-* each stored time is written with SIGINT/SIGTERM held back, so the XDMF holds whole time levels;
-* the XDMF is closed (and read back) before the rename; files are fsync'ed, then the folder is renamed;
-* with ``--force`` only a *complete* run replaces an existing target, and only one holding a result of ours
-  (`check_target`); an interrupted, unstable or unbalanced one goes to ``NAME.interrupted`` / ``.unstable`` /
-  ``.unbalanced`` beside it, so a finished result is never lost;
-* a disk-full or permission error (in a picture too) removes the partial folder and raises
-  :class:`OutputError` with one line, on every MPI rank;
-* the partial folders of runs that were killed (SIGKILL, power loss) are removed by the next run that
-  takes the lock: exact names only, never one a live run holds.
+`OutputWriter` streams the stored rows into the XDMF (`xdmf`) during the run and writes the tables
+(`tables`) at the end, in a hidden folder that `publish` locks, checks and renames into place; each stored
+time is written with SIGINT/SIGTERM held back (`signals`), so the XDMF holds whole time levels, and the XDMF
+is closed (and read back) before the rename. A disk-full or permission error (in a picture too) removes the
+partial folder and raises :class:`OutputError` with one line, on every MPI rank.
 
 The run's numbers checks (energy balance, penetration) come with the `Result` (`result.checks`, made by
 `run.checks`); this module writes them into summary.json and knows no physics. The pictures are drawn by
 the function the caller passes (`pictures`); this module never imports the picture code.
+
+The names of the other `io` modules that callers took from here before the split stay importable here.
 """
 
 from __future__ import annotations
 
 import contextlib
-import csv
-import ctypes
-import errno
-import fcntl
 import json
-import math
-import os
-import re
 import shutil
-import signal
-import tempfile
-import threading
 import time
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import OutputError  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
-from ..errors import one_line
+from ..errors import (
+    OutputError,  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
+    one_line,
+)
+from .lock import TargetLock, lock_path  # noqa: F401 - re-exported
+from .publish import (  # noqa: F401 - re-exported
+    DISK_ERRNOS,
+    NEARLY_FULL_BYTES,
+    RESULT_MARKERS,
+    STATUSES,
+    atomic_path,
+    check_target,
+    describe_os_error,
+    disk_failure,
+    move_into_place,
+    open_partial,
+    publish_partial,
+    staged_folder,
+)
 from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
-from .xdmf import XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
-
-#: below this many free bytes a failed write is reported as a full disk.
-NEARLY_FULL_BYTES = 1 << 20
-
-
-# --- the target folder and its lock ---------------------------------------------------------------
-
-
-def _occupied(path: Path) -> bool:
-    """A file, or a folder with something in it."""
-    if not path.exists():
-        return False
-    return not path.is_dir() or any(path.iterdir())
-
-
-def lock_path(target) -> Path:
-    """The lock file of an output folder: ``.NAME.lock`` beside it."""
-    target = Path(target)
-    return target.parent / f".{target.name}.lock"
-
-
-class TargetLock:
-    """An exclusive, non-blocking ``flock`` on ``.NAME.lock`` beside the target.
-
-    Raises :class:`OutputError` naming the other run's pid if the lock is held. The file is removed on
-    release; after taking the lock we check it is still the file at that path (another run may have
-    removed it in between), the usual way to combine flock with unlinking.
-    """
-
-    def __init__(self, target):
-        self.path = lock_path(target)
-        self.target = Path(target)
-        self.fd = None
-        for _ in range(100):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = _read_pid(fd)
-                os.close(fd)
-                who = f" (pid {holder})" if holder else ""
-                raise OutputError(
-                    f"--out {self.target}: another stringcontact run{who} is writing to this folder; "
-                    "wait for it to finish or choose another folder"
-                ) from None
-            try:
-                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                self.fd = fd
-                os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()}\n".encode())
-                return
-            os.close(fd)  # the file was unlinked by its previous holder: try again with a fresh one
-        raise OutputError(f"--out {self.target}: cannot take the lock {self.path}")  # pragma: no cover
-
-    def release(self) -> None:
-        if self.fd is None:
-            return
-        with contextlib.suppress(OSError):
-            os.unlink(self.path)  # while still holding it: nobody can have locked this inode meanwhile
-        os.close(self.fd)
-        self.fd = None
-
-    @staticmethod
-    def holder(target) -> int | None:
-        """The pid of the run holding the lock of `target` (0 if unknown), or None if nobody holds it."""
-        try:
-            fd = os.open(lock_path(target), os.O_RDONLY | os.O_CLOEXEC)
-        except OSError:
-            return None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-            return None
-        except BlockingIOError:
-            return _read_pid(fd) or 0
-        finally:
-            os.close(fd)
-
-
-def _read_pid(fd) -> int | None:
-    try:
-        text = os.pread(fd, 32, 0).decode().strip()
-        return int(text) if text.isdigit() else None
-    except (OSError, ValueError):
-        return None
-
-
-#: The statuses a run writes into its summary.json; `--force` replaces only a folder holding one of them.
-STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
-#: What marks a folder as ours: a run's summary.json, or the checks.json of `stringcontact check --out`.
-RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks"}
-
-
-def check_target(path, force: bool, *, locked: bool = False) -> Path:
-    """Refuse an --out that cannot or must not take a result, before any work is done.
-
-    Refused: the root folder, the current folder or one containing it, a file, a parent that cannot be written,
-    a non-empty folder (unless `force`, and then only a folder holding a result of ours), and a folder another
-    run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
-    """
-    target = Path(path)
-    resolved = target.resolve()
-    if not resolved.name:
-        raise OutputError(f"--out {target}: is the root folder; choose a new folder")
-    with contextlib.suppress(OSError):
-        if Path.cwd() == resolved or resolved in Path.cwd().parents:
-            raise OutputError(f"--out {target}: is the current folder or contains it; choose a new folder")
-    if target.exists() and not target.is_dir():
-        raise OutputError(f"--out {target}: exists and is not a folder")
-    if not target.exists():
-        _check_writable(target, resolved.parent)
-    if target.is_dir() and any(target.iterdir()):
-        if not force:
-            raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
-        if not _holds_our_result(target):
-            raise OutputError(
-                f"--out {target}: --force replaces only a stringcontact result (a folder with its summary.json), "
-                "and this folder holds other files; choose another folder"
-            )
-    holder = None if locked else TargetLock.holder(target)
-    if holder is not None:
-        who = f" (pid {holder})" if holder else ""
-        raise OutputError(
-            f"--out {target}: another stringcontact run{who} is writing to this folder; "
-            "wait for it to finish or choose another folder"
-        )
-    return target
-
-
-def _check_writable(target: Path, parent: Path) -> None:
-    """Refuse a target whose nearest existing parent folder cannot be written (read-only or no permission)."""
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    reason = None
-    with contextlib.suppress(OSError):
-        if os.statvfs(parent).f_flag & os.ST_RDONLY:
-            reason = errno.EROFS
-    if reason is None and not os.access(parent, os.W_OK | os.X_OK):
-        reason = errno.EACCES
-    if reason is not None:
-        why = describe_os_error(OSError(reason, os.strerror(reason)), parent)
-        raise OutputError(f"--out {target}: cannot create the output folder: {why}")
-
-
-def _holds_our_result(folder: Path) -> bool:
-    """A folder with a summary.json (or checks.json) written by stringcontact."""
-    for name, key in RESULT_MARKERS.items():
-        try:
-            data = json.loads((folder / name).read_text())
-        except (OSError, ValueError):
-            continue
-        if isinstance(data, dict) and key in data and (key != "status" or data[key] in STATUSES):
-            return True
-    return False
-
-
-def _free_sibling(target: Path, label: str) -> Path:
-    for i in range(1, 1000):
-        candidate = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
-        if not candidate.exists():
-            return candidate
-    raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
-
-
-def _stale_kind(name: str, entry: str) -> str | None:
-    """'partial' or 'old' if `entry` is exactly a hidden folder that a run into `name` makes, else None.
-
-    Exact names only: ``.ex.old-1.partial-…`` belongs to a run into ``ex.old-1``, not to one into ``ex``.
-    """
-    partial = rf"\.{re.escape(name)}\.partial-\d+-[a-z0-9_]+"  # tempfile.mkdtemp's suffix
-    old = rf"\.{re.escape(name)}\.old-\d+-\d+"  # move_into_place's swap
-    if re.fullmatch(partial, entry):
-        return "partial"
-    if re.fullmatch(old, entry):
-        return "old"
-    return None
-
-
-def _recover_stale(target: Path) -> None:
-    """Under the lock: remove the partial folders of killed runs; finish an interrupted --force swap.
-
-    Only folders named exactly as a run into `target` names them, and none that is itself the target of a
-    live run (a user's ``--out .ex.partial-1-x``): its lock would be held.
-    """
-    parent, name = target.parent, target.name
-    try:
-        entries = list(parent.iterdir())
-    except OSError:
-        return
-    removed = []
-    for p in sorted(entries):
-        kind = _stale_kind(name, p.name)
-        if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
-            continue
-        if kind == "partial":
-            shutil.rmtree(p, ignore_errors=True)
-            removed.append(p.name)
-        elif not target.exists():  # the swap stopped between its two renames: the old result comes back
-            os.rename(p, target)
-            warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
-        else:
-            shutil.rmtree(p, ignore_errors=True)
-    if removed:
-        warnings.warn(
-            f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
-            f"({', '.join(removed)})",
-            stacklevel=4,
-        )
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def _fsync_tree(folder: Path) -> None:
-    for p in folder.iterdir():
-        if p.is_file():
-            fd = os.open(p, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-    _fsync_dir(folder)
-
-
-def _fsync_dir(folder: Path) -> None:
-    with contextlib.suppress(OSError):  # some file systems cannot fsync a directory
-        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-@contextlib.contextmanager
-def atomic_path(path):
-    """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
-
-    `tmp` is a hidden sibling ``.NAME.tmp-<pid>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
-    the format from it); on success it is renamed onto `path` (``os.replace``), on any exception, Ctrl-C
-    included, it is removed and the exception goes on.
-    """
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
-def describe_os_error(exc: BaseException, folder, probe=None) -> str:
-    """One line for an I/O failure in `folder`: disk full, read-only, permission denied, or the error itself.
-
-    `probe` is the path whose device is examined when the error has no errno (default: `folder`).
-    """
-    err = getattr(exc, "errno", None)
-    if err == errno.ENOSPC:
-        return f"the disk is full (no space left on the device of {folder})"
-    if err == errno.EDQUOT:
-        return f"the disk quota is exceeded on {folder}"
-    if err == errno.EROFS:
-        return f"{folder} is on a read-only file system"
-    if err in (errno.EACCES, errno.EPERM):
-        return f"permission denied in {folder}"
-    if err is not None:
-        return f"{getattr(exc, 'strerror', None) or exc} ({folder})"
-    # dolfinx/HDF5 raise RuntimeError without an errno: look at the device.
-    probe = Path(probe if probe is not None else folder)
-    while not probe.exists() and probe != probe.parent:
-        probe = probe.parent
-    try:
-        st = os.statvfs(probe)
-    except OSError:
-        return f"{one_line(exc, 300)} ({folder})"
-    free = st.f_bavail * st.f_frsize
-    if free < NEARLY_FULL_BYTES:
-        return f"the disk is full ({free // 1024} KiB left on the device of {folder})"
-    if st.f_flag & os.ST_RDONLY:
-        return f"{folder} is on a read-only file system"
-    if not os.access(probe, os.W_OK):
-        return f"permission denied in {folder}"
-    return f"{one_line(exc, 300)} ({folder})"
-
-
-#: errno values that mean the device failed, not the data: the output folder cannot be kept.
-DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
-
-
-def disk_failure(exc: BaseException) -> OSError | None:
-    """The OSError of a full or failing device that `exc` is, or was raised from or during; else None."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        seen.add(id(exc))
-        if isinstance(exc, OSError) and exc.errno in DISK_ERRNOS:
-            return exc
-        exc = exc.__cause__ or exc.__context__
-    return None
-
-
-def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
-    """Rename the finished folder `partial` to `target`; returns where it went.
-
-    A complete folder replaces an occupied target only with `force` (swapping through ``.NAME.old-*``);
-    otherwise, and always for an interrupted or unstable one, it goes to ``NAME.<status>`` (or ``NAME.new``)
-    beside the target, so a finished result is never lost.
-    """
-    label = status if status != "complete" else "new"
-    if _occupied(target):
-        if status != "complete" or not force:
-            dest = _free_sibling(target, label)
-            os.rename(partial, dest)
-            return dest
-        # --force and complete: swap, so that a crash in between leaves the old result under .NAME.old-*
-        old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
-        os.rename(target, old)
-        try:
-            os.rename(partial, target)
-        except OSError:
-            os.rename(old, target)
-            raise
-        shutil.rmtree(old, ignore_errors=True)
-        return target
-    try:
-        os.replace(partial, target)  # target absent or an empty folder
-    except OSError as exc:
-        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR, errno.EBUSY):
-            raise
-        dest = _free_sibling(target, label)
-        os.rename(partial, dest)
-        return dest
-    return target
-
-
-def _open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
-    """Take the output folder `path`: check it, lock it, check it again, clear what killed runs left there,
-    and make the hidden partial folder beside it. Returns ``(target, lock, partial)``, target resolved.
-
-    On failure nothing is held or left behind, and OutputError is raised (an OSError as "cannot create the
-    output folder").
-    """
-    target = Path(path).resolve()
-    lock = partial = None
-    try:
-        # Checked before the lock as well: a file or a non-empty folder is refused as such, named as given,
-        # even where the lock file cannot be made (a read-only parent) or another run holds the lock.
-        check_target(path, force)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        lock = TargetLock(target)
-        check_target(target, force, locked=True)  # again under the lock: a run may have just finished there
-        _recover_stale(target)
-        partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
-        os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
-        return target, lock, partial
-    except BaseException as exc:
-        if partial is not None:
-            shutil.rmtree(partial, ignore_errors=True)
-        if lock is not None:
-            lock.release()
-        if isinstance(exc, OSError):
-            raise OutputError(f"--out {target}: cannot create the output folder: {describe_os_error(exc, target.parent)}") from None
-        raise
-
-
-def _publish_partial(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
-    """fsync the finished folder `partial`, rename it into place (`move_into_place`), fsync the parent.
-
-    Returns where the folder went. Call it with the signals held.
-    """
-    _fsync_tree(partial)
-    dest = move_into_place(partial, target, force, status)
-    _fsync_dir(target.parent)
-    return dest
-
-
-@contextlib.contextmanager
-def staged_folder(path, force: bool = False):
-    """Write a whole output folder, or nothing: ``with staged_folder(out, force) as tmp: write files into tmp``.
-
-    The same protocol as a run's output (for commands such as ``check --out`` that write files, not a time
-    series): the lock, a unique hidden folder beside the target, fsync and rename at the end; on any error,
-    including Ctrl-C, the hidden folder is removed and the target is left as it was. Serial (one process).
-    """
-    target, lock, partial = _open_partial(path, force)
-    try:
-        yield partial
-        with signals_held():
-            try:
-                dest = _publish_partial(partial, target, force)
-            except OSError as exc:
-                raise OutputError(f"--out {target}: {describe_os_error(exc, target.parent, probe=partial)}; nothing was written there") from None
-            partial = None
-        if dest != target:
-            warnings.warn(f"--out {target} already holds a result; the new one is in {dest}", stacklevel=3)
-    except OSError as exc:  # writing into the folder failed
-        raise OutputError(f"--out {target}: {describe_os_error(exc, target.parent, probe=partial)}; nothing was written there") from None
-    finally:
-        if partial is not None:
-            shutil.rmtree(partial, ignore_errors=True)
-        lock.release()
-
-
-# --- signals and HDF5's error printing -----------------------------------------------------------------
-
-
-@contextlib.contextmanager
-def signals_held():
-    """Hold SIGINT, SIGTERM and SIGHUP back for a short critical section; they take effect right after it.
-
-    The Python handlers are swapped for a recorder (blocking the signals in the OS would not do: a signal
-    that arrived just before still runs its Python handler at the next bytecode, inside the section).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received = []
-    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
-    saved = {s: h for s, h in saved.items() if h is not None}  # a C handler (PETSc's) cannot be put back: leave it
-    for s in saved:
-        signal.signal(s, lambda signum, frame: received.append(signum))
-    try:
-        yield
-    finally:
-        for s, handler in saved.items():
-            signal.signal(s, handler)
-        for signum in received[:1]:
-            handler = saved[signum]
-            if callable(handler):
-                handler(signum, None)
-            elif handler == signal.SIG_DFL:
-                os.kill(os.getpid(), signum)
-
-
-class _Hdf5Quiet:
-    """Turns HDF5's automatic error printing off while the writer runs.
-
-    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
-    we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
-    that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
-    """
-
-    @classmethod
-    def _library(cls):
-        return hdf5_library()
-
-    def __init__(self):
-        self.saved = None
-
-    def __enter__(self):
-        lib = self._library()
-        if lib is not None:
-            func, data = ctypes.c_void_p(), ctypes.c_void_p()
-            if lib.H5Eget_auto2(0, ctypes.byref(func), ctypes.byref(data)) >= 0:  # 0 is H5E_DEFAULT
-                self.saved = (func, data)
-                lib.H5Eset_auto2(0, None, None)
-        return self
-
-    def __exit__(self, *exc):
-        if self.saved is not None:
-            self._library().H5Eset_auto2(0, self.saved[0], self.saved[1])
-            self.saved = None
-        return False
-
+from .signals import signals_held
+from .tables import DIAGNOSTIC_COLUMNS, clean_json, summary_dict, write_diagnostics  # noqa: F401 - re-exported
+from .xdmf import Hdf5Quiet, XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
 # --- the writer ------------------------------------------------------------------------------------------
 
@@ -579,13 +112,13 @@ class OutputWriter:
         self.partial = None
         self.xdmf = None
         self.path = None
-        self._quiet = _Hdf5Quiet()
+        self._quiet = Hdf5Quiet()
         # Only rank 0 looks at the folder: another rank would find rank 0's own lock and refuse.
         self.target = Path(path).resolve()
         failure = None
         if comm.rank == 0:
             try:
-                self.target, self.lock, self.partial = _open_partial(path, force)
+                self.target, self.lock, self.partial = open_partial(path, force)
             except OutputError as exc:
                 failure = str(exc)
         failure, partial = comm.bcast((failure, self.partial), root=0) if comm.size > 1 else (failure, self.partial)
@@ -764,8 +297,8 @@ class OutputWriter:
                     summary["xdmf_frames"] = len(self.times)
                     summary["last_time"] = self.times[-1] if self.times else None
                     with open(self.partial / "summary.json", "w") as f:
-                        f.write(json.dumps(_clean_json(summary), indent=2, allow_nan=False))
-                    dest = _publish_partial(self.partial, self.target, self.force, status)
+                        f.write(json.dumps(clean_json(summary), indent=2, allow_nan=False))
+                    dest = publish_partial(self.partial, self.target, self.force, status)
                 except (OSError, OutputError) as exc:
                     failure = describe_os_error(exc, self.target) if isinstance(exc, OSError) else str(exc)
             if self.comm.size > 1:
@@ -804,81 +337,3 @@ class OutputWriter:
                 self._discard()
 
 
-# --- tables and numbers ----------------------------------------------------------------------------
-
-
-def _clean_json(o):
-    """JSON without NaN/Infinity (not JSON): non-finite numbers become the strings "nan", "inf", "-inf"."""
-    if isinstance(o, dict):
-        return {str(k): _clean_json(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_clean_json(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return _clean_json(o.tolist())
-    if isinstance(o, (np.bool_, bool)):
-        return bool(o)
-    if isinstance(o, (np.integer, int)):
-        return int(o)
-    if isinstance(o, (np.floating, float)):
-        v = float(o)
-        return v if math.isfinite(v) else str(v)
-    if o is None or isinstance(o, str):
-        return o
-    return str(o)
-
-
-DIAGNOSTIC_COLUMNS = (
-    "step",
-    "t",
-    "kinetic",
-    "elastic",
-    "viscous_dissipation",
-    "contact_dissipation",
-    "numerical_dissipation",
-    "external_work",
-    "balance_residual",
-    "min_eta",
-    "contact_length",
-    "max_contact_force",
-)
-
-
-def write_diagnostics(path: Path, result) -> None:
-    cols = {
-        "step": result.steps,
-        "t": result.t,
-        **result.energy,
-        "balance_residual": result.balance_residual,
-        "min_eta": result.eta.min(axis=1),
-        "contact_length": result.contact_length,
-        "max_contact_force": result.contact_force.max(axis=1),
-    }
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(DIAGNOSTIC_COLUMNS)
-        for i in range(len(result.t)):
-            w.writerow([int(cols[c][i]) if c == "step" else repr(float(cols[c][i])) for c in DIAGNOSTIC_COLUMNS])
-
-
-def summary_dict(result) -> dict:
-    import dolfinx
-
-    scene = result.scene
-    return {
-        "status": result.status,
-        "message": result.message,
-        "scene": scene.as_dict(),
-        "scheme": result.scheme,
-        "penalty": result.penalty,
-        "mass": result.mass,
-        "model": result.model,
-        "r": scene.dt / scene.eps,
-        "dolfinx": dolfinx.__version__,
-        "timings": result.timings,
-        "min_eta": result.min_eta,
-        "stored_rows": len(result.t),
-        "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
-        "initial_energy": float(result.total_energy[0]),
-        "max_abs_balance_residual": float(np.max(np.abs(result.balance_residual))),
-        **(getattr(result, "checks", None) or {}),  # "energy_balance", "penetration" (run.checks)
-    }

@@ -88,7 +88,7 @@ def _check_status(folder: Path, summary: dict) -> None:
 
 def _read_summary(path: Path):
     from ..model.registry import registered
-    from ..scene.data import Scene
+    from ..scene import Scene
 
     summary = _load_json(path)
     _check_status(path.parent, summary)

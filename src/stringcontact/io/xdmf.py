@@ -50,7 +50,19 @@ _UNCLOSED = []
 
 @functools.cache
 def hdf5_library():
-    """The libhdf5 that dolfinx and PETSc loaded (not h5py's bundled copy), through ctypes; None if not found."""
+    """The libhdf5 that dolfinx and PETSc loaded (not h5py's bundled copy), through ctypes; None if not found.
+
+    Kept hand-written rather than h5py, measured on bookworm (dolfinx 0.5, libhdf5_openmpi 1.10.8):
+
+    * in the .venv, ``import h5py`` after dolfinx gets the h5py wheel (the tests' meshio needs it; built
+      against HDF5 2.0.0) and fails at import: "ValueError: Not a datatype" in h5t, with a warning that it
+      runs against HDF5 1.10.8: two libhdf5 versions do not share one process;
+    * Debian's h5py (python3-h5py-mpi 3.7.0) picks its serial build unless OMPI_COMM_WORLD_SIZE or
+      H5PY_ALWAYS_USE_MPI is set, and the serial build loads libhdf5_serial beside PETSc's libhdf5_openmpi:
+      its error switch and object lists would act on the other library. Even the MPI build silences HDF5's
+      error printing for the whole process at import (no saved handler to put back, as `Hdf5Quiet` does),
+      and its object ids close what they wrap when collected, which PETSc's viewer still owns.
+    """
     try:
         with open("/proc/self/maps") as f:
             paths = set(re.findall(r"(/\S*/libhdf5(?:_[a-z]+)?\.so[.\d]*)$", f.read(), re.MULTILINE))
@@ -68,6 +80,39 @@ def hdf5_library():
         return lib
     except (OSError, AttributeError):
         return None
+
+
+class Hdf5Quiet:
+    """Turns HDF5's automatic error printing off while the writer runs.
+
+    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
+    we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
+    that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
+    """
+
+    @classmethod
+    def _library(cls):
+        return hdf5_library()
+
+    def __init__(self):
+        self.saved = None
+
+    def __enter__(self):
+        lib = self._library()
+        if lib is not None:
+            func, data = ctypes.c_void_p(), ctypes.c_void_p()
+            if lib.H5Eget_auto2(0, ctypes.byref(func), ctypes.byref(data)) >= 0:  # 0 is H5E_DEFAULT
+                self.saved = (func, data)
+                lib.H5Eset_auto2(0, None, None)
+        return self
+
+    def __exit__(self, *exc):
+        if self.saved is not None:
+            self._library().H5Eset_auto2(0, self.saved[0], self.saved[1])
+            self.saved = None
+        return False
+
+
 
 
 def _close_open_objects(path: Path) -> None:

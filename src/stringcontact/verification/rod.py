@@ -56,7 +56,7 @@ def string_exact(x, t: float, derivative: str = "u") -> np.ndarray:
 
 def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD):
     """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2), so the cell size is the rod's 1/nx_rod."""
-    from ..scene.data import Scene
+    from ..scene import Scene
 
     return Scene.from_dict(
         {

@@ -1,0 +1,97 @@
+"""The keys a scene file may hold and the limits on their values: ranges, sizes, the stored rows' memory.
+
+Constants only (and `stored_bytes`, the memory bound they imply); `checks` enforces them. The solver reads the
+storage constants (`STORED_ROWS`, `MAX_STORED_BYTES`, `BYTES_PER_STORED_NODE`) from here as well.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "BOUNDS",
+    "BYTES_PER_STORED_NODE",
+    "DOMAIN_KEYS",
+    "DT_RELATIVE_TOLERANCE",
+    "FIELD_KEYS",
+    "FILE_KEYS",
+    "INT_BOUNDS",
+    "MAX_CELLS",
+    "MAX_DISK_RATIO",
+    "MAX_FILE_BYTES",
+    "MAX_MAGNITUDE",
+    "MAX_OUTPUT_TIMES",
+    "MAX_STORED_BYTES",
+    "NAME_MAX",
+    "PETSC_MAX_OPTIONS",
+    "PETSC_PREFIXES",
+    "PETSC_REFUSED_NAMES",
+    "PETSC_REFUSED_WORDS",
+    "REQUIRED_KEYS",
+    "STORED_ROWS",
+    "stored_bytes",
+]
+
+#: Keys a scene file (or Scene.replace) accepts, in the order they are written.
+FILE_KEYS = (
+    "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
+    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
+    "domain", "size", "cells", "radius", "mesh_size", "mesh", "petsc_options",
+)
+#: The domains and the geometry keys each one takes (docs/membranes.md). A `mesh` key alone means "file".
+DOMAIN_KEYS = {
+    "interval": ("length", "nx", "h_left", "h_right"),
+    "rectangle": ("size", "cells"),
+    "disk": ("radius", "mesh_size"),
+    "file": ("mesh",),
+}
+#: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
+FIELD_KEYS = ("load", "obstacle")
+#: Required keys; besides these, exactly one of nt or dt.
+REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
+MAX_FILE_BYTES = 1_000_000
+DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
+
+# Bounds: (low, high, low_open, high_open). Wide enough for any sensible run, tight enough
+# to catch typos (a missing minus, a forgotten decimal point) before a solver sees them.
+BOUNDS = {
+    "length": (0.0, 1e4, True, False),
+    "radius": (0.0, 1e4, True, False),
+    "T": (0.0, 1e4, True, False),
+    "alpha": (0.0, 1e4, False, False),
+    "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/reliability.md, "Size and precision limits"
+    "h": (-1e6, 1e6, False, False),
+    "h_left": (-1e6, 1e6, False, False),
+    "h_right": (-1e6, 1e6, False, False),
+}
+# nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
+# (benchmarks/bench_mesh_size.py).
+INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000)}
+#: At most this many output times: each is a stored row (and an XDMF frame, within --frames).
+MAX_OUTPUT_TIMES = 1000
+#: The stored rows (eta, velocity, contact force as float64, contact as bool) may take at most this many bytes.
+MAX_STORED_BYTES = 2_000_000_000
+BYTES_PER_STORED_NODE = 3 * 8 + 1
+#: The solver's default number of stored rows (`simulate(max_rows=400)`), besides 0, T and the output times.
+STORED_ROWS = 400
+NAME_MAX = 100
+#: petsc_options: a scene is data, so only solver settings, never an option that opens, writes or runs anything.
+PETSC_PREFIXES = ("ksp_", "pc_", "mat_mumps_icntl_", "mat_mumps_cntl_", "mat_superlu_dist_")
+#: Refused inside a name: viewers, monitors and reasons (they take a viewer: a file, a window), debuggers, logs,
+#: Python classes. Refused names: MUMPS' ICNTL 1-4 are Fortran output units (files fort.N), ICNTL 22 is
+#: out-of-core (temporary files).
+PETSC_REFUSED_WORDS = ("view", "monitor", "draw", "debugger", "log", "print", "python", "file", "dump", "save",
+                       "history", "reason")
+PETSC_REFUSED_NAMES = tuple(f"mat_mumps_icntl_{i}" for i in (1, 2, 3, 4, 22))
+PETSC_MAX_OPTIONS = 32
+#: A rectangle's cells per direction (4e6 nodes) and a disk's radius / mesh_size (gmsh takes minutes beyond).
+MAX_CELLS = 2000
+MAX_DISK_RATIO = 1000
+#: The largest |eta0|, |v0|, load or obstacle value a scene may give.
+MAX_MAGNITUDE = 1e6
+
+
+def stored_bytes(nx: int, nt: int, n_output_times: int, max_rows: int = STORED_ROWS) -> int:
+    """An upper bound on the memory of a run's stored rows: rows × (nx + 1) nodes × BYTES_PER_STORED_NODE."""
+    rows = min(nt, max_rows) + 2 + n_output_times  # every k-th step, 0 and T, the output times
+    return rows * (nx + 1) * BYTES_PER_STORED_NODE
+
+
