@@ -17,6 +17,11 @@ from hypothesis import HealthCheck, settings
 settings.register_profile("stringcontact", deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("stringcontact")
 
+#: tests/: this file's folder; the test files sit in folders below it that mirror the package (tests/system: the
+#: command line, MPI, ParaView, the container, the demos and the repository as a whole) and import it as `conftest`
+#: (`pythonpath` in pyproject's [tool.pytest.ini_options]).
+TESTS = Path(__file__).resolve().parent
+
 # If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
 _MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
 
@@ -32,6 +37,8 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
         pytest.skip("mpirun not found (scripts/setup installs openmpi-bin)")
     env = {k: v for k, v in os.environ.items() if not k.startswith(_MPI_JOB_VARIABLES)}
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
+    # a test file run as the MPI program (`python tests/system/test_mpi.py ...`) imports this module by name
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(TESTS), env.get("PYTHONPATH"))))
     env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     argv = [str(a) for a in argv]
     cmd = [exe, "-n", str(ranks), "--oversubscribe", *argv]

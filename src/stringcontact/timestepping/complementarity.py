@@ -146,7 +146,7 @@ class VariationalInequality:
     """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method) with the
     bounds ψ ≤ η at the interior nodes: about ten Newton iterations (each an LU factorisation) per step, so
     `ActiveSet` uses it only as its fallback. Neither line search converged everywhere alone: full Newton
-    steps (`basic`) cycled on a non-M-matrix (tests/test_contact_step.py), backtracking (`bt`) stalled on a
+    steps (`basic`) cycled on a non-M-matrix (tests/timestepping/test_contact_step.py), backtracking (`bt`) stalled on a
     step of Example 1; so each is tried in turn from the same first guess.
     """
 

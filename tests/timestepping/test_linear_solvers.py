@@ -22,7 +22,7 @@ from stringcontact.errors import SceneError
 from stringcontact.scene.data import Scene, scene_to_toml
 from stringcontact.timestepping import base
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
 
 CG_AMG = {"ksp_type": "cg", "pc_type": "hypre"}
 CG_JACOBI = {"ksp_type": "cg", "pc_type": "jacobi"}

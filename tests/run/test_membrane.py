@@ -18,7 +18,7 @@ import stringcontact as sc
 from stringcontact.errors import SceneError
 from stringcontact.scene.data import Scene, scene_to_toml
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
 
 K2 = 2 * math.pi**2  # -Δ of sin(πx) sin(πy)
 

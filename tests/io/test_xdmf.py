@@ -1,7 +1,7 @@
 """solution.xdmf/.h5: the mesh once, one grid per stored time carrying every field; read by meshio.
 
 meshio (with the h5py wheel) runs in a separate Python: h5py's bundled libhdf5 must not meet dolfinx's.
-ParaView's readers are checked in tests/test_paraview.py.
+ParaView's readers are checked in tests/system/test_paraview.py.
 """
 
 from __future__ import annotations
