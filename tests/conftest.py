@@ -1,12 +1,15 @@
-"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders;
+"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
+`plot_refusal` for damaged folders, `meshio_read` for the XDMF files;
 the hypothesis profile of every property test."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -72,3 +75,25 @@ def plot_refusal(folder: Path, damage, tmp_path: Path, capsys) -> tuple[Path, st
     assert "\n" not in err and "Traceback" not in err and "internal error" not in err, err
     assert not (tmp_path / "pics").exists()
     return copy, err
+
+
+# meshio (with the h5py wheel) runs in a separate Python: h5py's bundled libhdf5 must not meet dolfinx's.
+MESHIO = r"""
+import json, sys
+import meshio
+with meshio.xdmf.TimeSeriesReader(sys.argv[1]) as reader:
+    points, cells = reader.read_points_cells()
+    steps = [reader.read_data(k) for k in range(reader.num_steps)]
+print(json.dumps({
+    "points": points.tolist(),
+    "cells": {c.type: c.data.tolist() for c in cells},
+    "times": [t for t, _, _ in steps],
+    "data": [{name: values.tolist() for name, values in point_data.items()} for _, point_data, _ in steps],
+}))
+"""
+
+
+def meshio_read(path) -> dict:
+    proc = subprocess.run([sys.executable, "-c", MESHIO, str(path)], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout)

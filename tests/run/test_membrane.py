@@ -300,7 +300,7 @@ if __name__ == "__main__":
 
 
 def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_path):
-    from test_xdmf import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
+    from conftest import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
 
     from stringcontact.plot import viz
 
