@@ -1,12 +1,15 @@
-"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders;
+"""Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
+`plot_refusal` for damaged folders, `meshio_read` for the XDMF files;
 the hypothesis profile of every property test."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -16,6 +19,11 @@ from hypothesis import HealthCheck, settings
 # fail a correct test on a busy machine. Loaded here, before any test module is imported, for all of them.
 settings.register_profile("stringcontact", deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("stringcontact")
+
+#: tests/: this file's folder; the test files sit in folders below it that mirror the package (tests/system: the
+#: command line, MPI, ParaView, the container, the demos and the repository as a whole) and import it as `conftest`
+#: (`pythonpath` in pyproject's [tool.pytest.ini_options]).
+TESTS = Path(__file__).resolve().parent
 
 # If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
 _MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
@@ -32,6 +40,8 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
         pytest.skip("mpirun not found (scripts/setup installs openmpi-bin)")
     env = {k: v for k, v in os.environ.items() if not k.startswith(_MPI_JOB_VARIABLES)}
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
+    # a test file run as the MPI program (`python tests/system/test_mpi.py ...`) imports this module by name
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(TESTS), env.get("PYTHONPATH"))))
     env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     argv = [str(a) for a in argv]
     cmd = [exe, "-n", str(ranks), "--oversubscribe", *argv]
@@ -65,3 +75,25 @@ def plot_refusal(folder: Path, damage, tmp_path: Path, capsys) -> tuple[Path, st
     assert "\n" not in err and "Traceback" not in err and "internal error" not in err, err
     assert not (tmp_path / "pics").exists()
     return copy, err
+
+
+# meshio (with the h5py wheel) runs in a separate Python: h5py's bundled libhdf5 must not meet dolfinx's.
+MESHIO = r"""
+import json, sys
+import meshio
+with meshio.xdmf.TimeSeriesReader(sys.argv[1]) as reader:
+    points, cells = reader.read_points_cells()
+    steps = [reader.read_data(k) for k in range(reader.num_steps)]
+print(json.dumps({
+    "points": points.tolist(),
+    "cells": {c.type: c.data.tolist() for c in cells},
+    "times": [t for t, _, _ in steps],
+    "data": [{name: values.tolist() for name, values in point_data.items()} for _, point_data, _ in steps],
+}))
+"""
+
+
+def meshio_read(path) -> dict:
+    proc = subprocess.run([sys.executable, "-c", MESHIO, str(path)], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout)

@@ -28,6 +28,8 @@ _LAZY = {
     "load_model": "model.registry",
     "SCHEMES": "timestepping",
     "simulate": "run.driver",
+    "Storage": "run.options",
+    "Output": "run.options",
 }
 
 
@@ -44,15 +46,17 @@ def __dir__():
 
 
 __all__ = [
+    "SCHEMES",
     "InstabilityError",
     "InstabilityWarning",
     "Model",
+    "Output",
     "Parameters",
     "Result",
-    "SCHEMES",
     "Scene",
     "SceneError",
     "SceneWarning",
+    "Storage",
     "inelastic",
     "list_scenes",
     "load_model",

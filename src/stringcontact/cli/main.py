@@ -241,16 +241,11 @@ def _run(args, painter=None) -> int:
 
         scene, options, text = choose_for_tolerance(scene, args.tol, model=model)  # the pilots use the run's model
         print(text)
-    res = sc.simulate(
-        scene,
-        **options,
-        model=model,
-        output_dir=args.out,
-        progress=not args.no_progress,
-        force=args.force,
-        pictures=_pictures(args, painter),
-        max_frames=args.frames,
-    )
+    from ..run.options import Output
+
+    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=_pictures(args, painter),
+                    progress=not args.no_progress)
+    res = sc.simulate(scene, **options, model=model, output=output)
     if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
         report(res)
         if args.out is not None:

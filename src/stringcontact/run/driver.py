@@ -1,9 +1,10 @@
-"""The time loop: set up, step, store, write. It knows no scheme.
+"""The time loop: discretise, choose the scheme, march, store, write. It knows no scheme.
 
-`simulate` builds the model's operators on the mesh (`scheme.semi_discrete_operators`), hands them
-to the chosen scheme (`schemes/`), and then only calls ``step()``, sums the energy terms the scheme
-reports into the ledger, guards against energy growth, and stores about `max_rows` rows: on rank 0
-(`gather="all"`: every rank), within `ROW_BUDGET` bytes; every rank keeps the per-time series.
+`simulate` builds the model's operators on the mesh (`fem.operators.semi_discrete_operators`), hands them
+to the chosen scheme (`timestepping/`), and then only calls ``step()``, sums the energy terms the scheme
+reports into the ledger, guards against energy growth, and stores about `max_rows` rows (`options.Storage`):
+on rank 0 (`gather="all"`: every rank), within `ROW_BUDGET` bytes; every rank keeps the per-time series.
+What it writes is `options.Output`'s.
 """
 
 from __future__ import annotations
@@ -14,27 +15,23 @@ import warnings
 
 import numpy as np
 import ufl
-from dolfinx import fem, mesh
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..fem import compat, domains
 from ..errors import InstabilityError, SolverError
-from ..model.paper import Model, Parameters, inelastic, unused_fields
-from .checks import checks_of, unbalanced_message
-from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
-from ..scene.data import BYTES_PER_STORED_NODE, MAX_STORED_BYTES, STORED_ROWS, check_petsc_options
+from ..fem import compat, domains
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
+from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
+from ..model.paper import Model, Parameters, inelastic, unused_fields
+from ..scene.data import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, scheme_class
 from ..timestepping.base import NodalLaws, Setting
+from .checks import checks_of, unbalanced_message
+from .options import ROW_BUDGET, Output, Storage, grouped
 
-
-#: The stored rows may take at most this many bytes on a rank that holds them (rank 0; every rank with
-#: gather="all"), else fewer are kept (`budget_steps`). It is the scene loader's limit for a 1D scene's
-#: rows (scene.MAX_STORED_BYTES, 2 GB), so that no 1D scene it accepts is thinned; a 2D scene's node
-#: count is known only once meshed, so the solver applies it. 2 GB beside a 1e6-node LU factor (3 GB)
-#: fits a laptop; 400 rows of 1e6 nodes (10 GB) would not.
-ROW_BUDGET = MAX_STORED_BYTES
+#: `ROW_BUDGET`, `STORED_ROWS`: the storage defaults (`options.Storage`), importable from here as before.
+__all__ = ["ROW_BUDGET", "STORED_ROWS", "Output", "Storage", "StorageWarning", "simulate"]
 
 
 def output_steps(nt: int, dt: float, output_times) -> set[int]:
@@ -325,20 +322,11 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
         bar.close()
 
 
-def _check_storage_options(max_rows, gather, row_budget) -> None:
-    if isinstance(max_rows, bool) or not isinstance(max_rows, (int, np.integer)) or max_rows < 1:
-        raise ValueError(f"max_rows: expected a whole number >= 1 (stored time levels), got {max_rows!r}")
-    if gather not in ("root", "all"):
-        raise ValueError(f"gather: expected 'root' (rows on rank 0) or 'all' (on every rank), got {gather!r}")
-    if isinstance(row_budget, bool) or not isinstance(row_budget, (int, np.integer)) or row_budget < 1:
-        raise ValueError(f"row_budget: expected a whole number of bytes >= 1, got {row_budget!r}")
-
-
-def _storage(scene, s: Setting, V, max_rows: int, to_all: bool, budget: int):
+def _storage(scene, s: Setting, V, storage: Storage):
     """The stored rows (steps within the budget, gathered to rank 0 or every rank), the mesh rows, and the
     function that sums a stored time's series over the ranks. Collective."""
-    gather = _Gather(s.comm, s.x, to_all=to_all)
-    steps, note = budget_steps(scene.nt, scene.dt, scene.output_times, max_rows, gather.nodes, budget)
+    gather = _Gather(s.comm, s.x, to_all=storage.gather == "all")
+    steps, note = budget_steps(scene.nt, scene.dt, scene.output_times, storage.max_rows, gather.nodes, storage.row_budget)
     if note is not None and s.comm.rank == 0:
         warnings.warn(note, StorageWarning, stacklevel=3)
     n_owned = s.x.shape[0]
@@ -357,94 +345,80 @@ def _resolve_model(model, scene) -> Model:
     return load_model(model if model is not None else scene.model)
 
 
-def simulate(
-    scene,
-    scheme: str | None = None,
-    penalty: str | None = None,
-    mass: str | None = None,
-    output_dir=None,
-    progress: bool = False,
-    model: Model | str | None = None,
-    max_rows: int = STORED_ROWS,
-    max_frames: int = 100,
-    force: bool = False,
-    pictures=True,
-    comm=MPI.COMM_WORLD,
-    petsc_options: dict | None = None,
-    gather: str = "root",
-    row_budget: int = ROW_BUDGET,
-) -> Result:
-    """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
-
-    `model` is a `Model`, a registered name (`stringcontact models`) or "package.module:name"; default:
-    the scene's `model`, else the paper's.
-
-    `penalty` and `mass` default to the scheme's own (for "paper": explicit, lumped); an option the scheme
-    does not take is refused. About `max_rows` time levels are stored (Result, diagnostics.csv, pictures);
-    about `max_frames` of them go to solution.xdmf, always with 0, T and the scene's output times. With
-    `output_dir`, XDMF, CSV, JSON and (with `pictures`) PNGs are written there.
-
-    The step's linear system is LU-factorised once up to 1e6 nodes and solved by CG (Jacobi or AMG) above
-    (`schemes.base.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
-    by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
-
-    Under MPI the stored rows are gathered to rank 0 (`gather` "root"); the other ranks' Result holds the
-    per-time series only (see Result). `gather` "all" gives every rank the rows. The rows a rank holds may
-    take at most `row_budget` bytes (ROW_BUDGET): above it fewer are kept, with 0, T and the output times,
-    and a StorageWarning in one line says so (an explicit `max_rows` too is capped so).
-    """
-    _check_storage_options(max_rows, gather, row_budget)
+def _choose_scheme(scene, scheme, penalty, mass, model):
+    """The scheme's name and class, its penalty and mass (its defaults, or refused), the model it must take."""
     name = scheme or getattr(scene, "scheme", None) or "paper"
     Scheme = scheme_class(name)
     penalty, mass = Scheme.check_options(name, penalty, mass)
     model = _resolve_model(model, scene)
     check_model(name, model)
-    timings = {}
-    t0 = time.perf_counter()
-    V, params, ops = discretise(scene, model, comm)
-    s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
-    stepper = Scheme(s)
-    rows, geometry, row_series = _storage(scene, s, V, max_rows, gather == "all", row_budget)
-    timings["setup"] = time.perf_counter() - t0
+    return name, Scheme, penalty, mass, model
 
-    ledger = _Ledger(stepper.start(*_initial_state(scene, s)), conservative=model.contact_energy is not None)
-    rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
-    writer = None
-    if output_dir is not None:
-        from ..io.folder import OutputWriter, xdmf_frames
 
-        if pictures is True:
-            from ..plot.viz import write_pictures as pictures  # matplotlib and pyvista load when a picture is drawn
+def _writer(scene, V, comm, rows: _Rows, output: Output):
+    """The output folder's writer (None without `output.dir`): its lock is taken now, its frames chosen."""
+    if output.dir is None:
+        return None
+    from ..io.folder import OutputWriter, xdmf_frames
 
-        frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), max_frames)
-        writer = OutputWriter(output_dir, scene, V, comm, force=force, pictures=pictures or None, frames=frames)
+    pictures = output.pictures
+    if pictures is True:
+        from ..plot.viz import write_pictures as pictures  # matplotlib and pyvista load when a picture is drawn
 
-    dt = scene.dt  # a property of the scene: read once, not per stored row
+    frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), output.max_frames)
+    return OutputWriter(output.dir, scene, V, comm, force=output.force, pictures=pictures or None, frames=frames)
 
-    def store(n: int) -> None:
+
+class _Run:
+    """One simulation under way: the scheme, its ledger, the stored rows and the writer; `store` keeps the state
+    at a step, `result` makes the Result of the rows so far."""
+
+    def __init__(self, scene, name, model, penalty, mass, comm, stepper, rows, geometry, row_series, timings):
+        self.scene, self.name, self.model, self.penalty, self.mass, self.comm = scene, name, model, penalty, mass, comm
+        self.stepper, self.rows, self.geometry, self.row_series, self.timings = stepper, rows, geometry, row_series, timings
+        self.ledger = self.writer = None
+        self.dt = scene.dt  # a property of the scene: read once, not per stored row
+
+    def start(self, s: Setting, V, output: Output) -> None:
+        """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
+        stepper, rows = self.stepper, self.rows
+        self.ledger = _Ledger(stepper.start(*_initial_state(self.scene, s)),
+                              conservative=self.model.contact_energy is not None)
+        rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
+        self.writer = _writer(self.scene, V, self.comm, rows, output)
+
+    def store(self, n: int) -> None:
+        stepper = self.stepper
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
                   "contact_force": stepper.contact_force}
-        rows.store(fields, ledger.cumulative, row_series(fields))
-        if writer is not None:
-            writer.write(n * dt, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
+        self.rows.store(fields, self.ledger.cumulative, self.row_series(fields))
+        if self.writer is not None:
+            self.writer.write(n * self.dt, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
 
-    def result_of(status: str, message: str) -> Result:
+    def result(self, status: str, message: str) -> Result:
+        rows, comm, scene = self.rows, self.comm, self.scene
         n, mins = rows.n, comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
         per_node = {k: v[:n] for k, v in rows.fields.items()} if rows.gather.holds else dict.fromkeys(FIELDS)
         result = Result(scene=scene, x=rows.gather.x, t=rows.steps[:n] * scene.dt, steps=rows.steps[:n],
-                      **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
-                      min_eta=float(mins), penalty=penalty or "none", mass=mass, model=model.name, status=status,
-                      timings=timings, message=message, scheme=name, **geometry,
-                      series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
+                        **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
+                        min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
+                        status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
+                        series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
         return result
 
+
+def _march_and_store(run: _Run, progress: bool) -> None:
+    """`_march`, storing the rows as it goes; a stopped run leaves its partial Result on the exception (and its
+    folder marked), an unexpected error no folder; a step that fails after the input was accepted is a
+    SolverError, not an input error."""
+    writer = run.writer
     t_loop = time.perf_counter()
     try:
-        _march(scene, name, stepper, ledger, rows, store, progress and comm.rank == 0)
+        _march(run.scene, run.name, run.stepper, run.ledger, run.rows, run.store, progress)
     except (InstabilityError, KeyboardInterrupt) as exc:
         status = "unstable" if isinstance(exc, InstabilityError) else "interrupted"
-        exc.result = result_of(status, str(exc) or status)  # the rows so far: partial output and the CLI's report
+        exc.result = run.result(status, str(exc) or status)  # the rows so far: partial output and the CLI's report
         if writer is not None:
             writer.abort(status, exc.result.message, result=exc.result, error=exc)
         raise
@@ -454,14 +428,69 @@ def simulate(
         if isinstance(exc, ValueError):  # the input was checked before the march: a step that fails is no input error
             raise SolverError(f"step failed: {exc}") from exc
         raise
-    timings["solve"] = time.perf_counter() - t_loop - (writer.write_time if writer is not None else 0.0)  # I/O apart
-    timings.update(stepper.timings)
-    result = result_of("complete", "")
+    run.timings["solve"] = time.perf_counter() - t_loop - (writer.write_time if writer is not None else 0.0)  # I/O apart
+    run.timings.update(run.stepper.timings)
+
+
+def _write(run: _Run) -> Result:
+    """The complete run's Result ("unbalanced" if its energy balance does not close), written to its folder."""
+    result = run.result("complete", "")
     unbalanced = unbalanced_message(result)  # a balance that does not close is not a complete run
     if unbalanced is not None:
         result.status, result.message = "unbalanced", unbalanced
-    if writer is not None:
+    if run.writer is not None:
         t_io = time.perf_counter()
-        writer.finish(result)
-        timings["output"] = time.perf_counter() - t_io + writer.write_time
+        run.writer.finish(result)
+        run.timings["output"] = time.perf_counter() - t_io + run.writer.write_time
     return result
+
+
+def simulate(
+    scene,
+    scheme: str | None = None,
+    penalty: str | None = None,
+    mass: str | None = None,
+    *,
+    model: Model | str | None = None,
+    storage: Storage | None = None,
+    output: Output | None = None,
+    comm=MPI.COMM_WORLD,
+    petsc_options: dict | None = None,
+    **keywords,
+) -> Result:
+    """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
+
+    `model` is a `Model`, a registered name (`stringcontact models`) or "package.module:name"; default:
+    the scene's `model`, else the paper's.
+
+    `penalty` and `mass` default to the scheme's own (for "paper": explicit, lumped); an option the scheme
+    does not take is refused.
+
+    `storage` (`Storage`): about `max_rows` time levels are stored (Result, diagnostics.csv, pictures).
+    Under MPI the stored rows are gathered to rank 0 (`gather` "root"); the other ranks' Result holds the
+    per-time series only (see Result). `gather` "all" gives every rank the rows. The rows a rank holds may
+    take at most `row_budget` bytes (ROW_BUDGET): above it fewer are kept, with 0, T and the output times,
+    and a StorageWarning in one line says so (an explicit `max_rows` too is capped so).
+
+    `output` (`Output`): with a folder `dir`, XDMF (about `max_frames` of the stored rows, always with 0, T and
+    the scene's output times), CSV, JSON and (with `pictures`) PNGs are written there; `progress` shows a bar.
+
+    The old keywords `max_rows`, `gather`, `row_budget`, `output_dir`, `max_frames`, `force`, `pictures` and
+    `progress` are still accepted (`options.KEYWORDS`); with their object too they are refused (ValueError).
+
+    The step's linear system is LU-factorised once up to 1e6 nodes and solved by CG (Jacobi or AMG) above
+    (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
+    by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
+    """
+    storage, output = grouped(storage, output, keywords)
+    name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
+    t0 = time.perf_counter()
+    V, params, ops = discretise(scene, model, comm)
+    s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
+    stepper = Scheme(s)
+    rows, geometry, row_series = _storage(scene, s, V, storage)
+    run = _Run(scene, name, model, penalty, mass, comm, stepper, rows, geometry, row_series,
+               timings={"setup": time.perf_counter() - t0})
+    run.start(s, V, output)
+    _march_and_store(run, output.progress and comm.rank == 0)
+    return _write(run)

@@ -10,7 +10,7 @@ Lagrange multiplier: a true contact force, ≥ 0 and zero off the contact set. W
 answer is the nodal maximum max(A⁻¹b, ψ); with viscosity it is not, because A couples neighbours.
 
 `ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
-13, 2003) on the scheme's own linear solver (`base.Linear`: LU, MUMPS or CG): fix the nodes of the active
+13, 2003) on the scheme's own linear solver (`linear.Linear`: LU, MUMPS or CG): fix the nodes of the active
 set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜 stays.
 Each step first takes the free step Ã η̃ = b with A itself (factorised once, like the nodal projection
 before): if no node is below ψ that is the answer, at the nodal projection's cost; else 𝒜 starts as
@@ -29,7 +29,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from .base import Linear, _symmetric_rows, any_rank, dirichlet_rows
+from .base import any_rank
+from .linear import Linear, _symmetric_rows, dirichlet_rows
 
 #: Active-set iterations before the step falls back to SNES VI. For an M-matrix they are at most the nodes that
 #: change; Example 1 at the paper's resolution took 1 to 18 a step, and 130 once (its first landing).
@@ -44,7 +45,7 @@ VI_PREFIX = "stringcontact_vi_"
 
 
 class ActiveSet:
-    """The contact step by the primal–dual active-set method on `base.Linear`.
+    """The contact step by the primal–dual active-set method on `linear.Linear`.
 
     ``solve(b, x, residual)`` puts η into the vector `x` (its array is η) and returns (F, iterations), F the
     nodal force A η − b on the active set and 0 elsewhere. `residual(x_array)` must return A η − b with 0
@@ -146,7 +147,7 @@ class VariationalInequality:
     """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method) with the
     bounds ψ ≤ η at the interior nodes: about ten Newton iterations (each an LU factorisation) per step, so
     `ActiveSet` uses it only as its fallback. Neither line search converged everywhere alone: full Newton
-    steps (`basic`) cycled on a non-M-matrix (tests/test_contact_step.py), backtracking (`bt`) stalled on a
+    steps (`basic`) cycled on a non-M-matrix (tests/timestepping/test_contact_step.py), backtracking (`bt`) stalled on a
     step of Example 1; so each is tried in turn from the same first guess.
     """
 

@@ -22,8 +22,9 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..fem.operators import diagonal_matrix, stacked
-from .base import DampedLU, any_rank, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
+from .base import any_rank, check_law_stability, summer, wrap
+from .linear import DampedLU, dirichlet_rows
 
 
 class Scheme(Base):

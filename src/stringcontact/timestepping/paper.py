@@ -24,8 +24,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..fem.operators import stacked, step_matrices
-from .base import DampedLU, check_law_stability, dirichlet_rows, summer, wrap
 from .base import Scheme as Base
+from .base import check_law_stability, summer, wrap
+from .linear import DampedLU, dirichlet_rows
 
 
 class Scheme(Base):

@@ -43,11 +43,12 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InstabilityError
-from ..scene.data import SceneWarning
 from ..fem.operators import diagonal_matrix, stacked
+from ..scene.data import SceneWarning
 from .base import Scheme as Base
-from .base import any_rank, dirichlet_rows, summer, wrap
+from .base import any_rank, summer, wrap
 from .complementarity import ActiveSet
+from .linear import dirichlet_rows
 
 
 def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol: float = 1e-6):

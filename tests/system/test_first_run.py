@@ -13,7 +13,7 @@ import pytest
 
 from stringcontact.jitlog import QuietCompiler
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 COMPILER_LINES = ("INFO:root", "running build_ext", "gcc", "building '")
 
 

@@ -20,9 +20,9 @@ from stringcontact.errors import SolverError
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
 from stringcontact.scene.data import Scene, scene_to_toml
-from stringcontact.timestepping import base
+from stringcontact.timestepping import linear
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
 
 CG_AMG = {"ksp_type": "cg", "pc_type": "hypre"}
 CG_JACOBI = {"ksp_type": "cg", "pc_type": "jacobi"}
@@ -43,22 +43,22 @@ def small_drum() -> Scene:
 
 
 def our_options() -> list[str]:
-    return [k for k in PETSc.Options().getAll() if k.startswith(base.PREFIX)]
+    return [k for k in PETSc.Options().getAll() if k.startswith(linear.PREFIX)]
 
 
 # --- the rule ------------------------------------------------------------------------------------------
 
 
 def test_the_size_rule_picks_lu_up_to_the_limit_then_cg():
-    assert base.solver_options(base.LU_MAX_NODES, 1) == base.DIRECT
-    mumps = dict(base.DIRECT, pc_factor_mat_solver_type="mumps")
-    assert base.solver_options(base.LU_MAX_NODES_PARALLEL, 2) == mumps
-    assert base.solver_options(base.LU_MAX_NODES_PARALLEL + 1, 2)["ksp_type"] == "cg"
-    assert base.solver_options(base.LU_MAX_NODES, 2, dim=1) == mumps  # a string: no fill, LU on any ranks
-    big = base.LU_MAX_NODES + 1
-    assert base.solver_options(big, 1) == base.ITERATIVE | base.AMG  # condition unknown
-    assert base.solver_options(big, 1, condition=base.JACOBI_MAX_CONDITION) == base.ITERATIVE | base.JACOBI
-    assert base.solver_options(big, 2, condition=2 * base.JACOBI_MAX_CONDITION) == base.ITERATIVE | base.AMG
+    assert linear.solver_options(linear.LU_MAX_NODES, 1) == linear.DIRECT
+    mumps = dict(linear.DIRECT, pc_factor_mat_solver_type="mumps")
+    assert linear.solver_options(linear.LU_MAX_NODES_PARALLEL, 2) == mumps
+    assert linear.solver_options(linear.LU_MAX_NODES_PARALLEL + 1, 2)["ksp_type"] == "cg"
+    assert linear.solver_options(linear.LU_MAX_NODES, 2, dim=1) == mumps  # a string: no fill, LU on any ranks
+    big = linear.LU_MAX_NODES + 1
+    assert linear.solver_options(big, 1) == linear.ITERATIVE | linear.AMG  # condition unknown
+    assert linear.solver_options(big, 1, condition=linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | linear.JACOBI
+    assert linear.solver_options(big, 2, condition=2 * linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | linear.AMG
 
 
 def tridiagonal(diagonal: float, off: float, n: int = 50) -> PETSc.Mat:
@@ -78,7 +78,7 @@ def tridiagonal(diagonal: float, off: float, n: int = 50) -> PETSc.Mat:
 def test_the_jacobi_condition_bound_is_gershgorins_and_bounds_the_true_one(diagonal, off):
     A = tridiagonal(diagonal, off)
     rho = 2 * abs(off) / diagonal
-    bound = base.jacobi_condition_bound(A)
+    bound = linear.jacobi_condition_bound(A)
     assert bound == (pytest.approx((1 + rho) / (1 - rho)) if rho < 1 else np.inf)
     eig = np.linalg.eigvalsh(A.convert("dense").getDenseArray())
     assert eig.max() / eig.min() <= bound
@@ -87,11 +87,11 @@ def test_the_jacobi_condition_bound_is_gershgorins_and_bounds_the_true_one(diago
 @pytest.mark.parametrize("given, kind", [({"ksp_type": "cg"}, "cg"), ({"pc_type": "jacobi"}, "cg"),
                                          ({"pc_type": "lu"}, "preonly"), ({"ksp_type": "preonly"}, "preonly")])
 def test_a_users_ksp_or_pc_type_picks_the_path_whatever_the_size(given, kind):
-    for n in (10, 10 * base.LU_MAX_NODES):
-        chosen = base.solver_options(n, 1, given)
+    for n in (10, 10 * linear.LU_MAX_NODES):
+        chosen = linear.solver_options(n, 1, given)
         assert chosen["ksp_type"] == kind and all(chosen[k] == v for k, v in given.items())
         if kind == "cg":
-            assert chosen["ksp_rtol"] == base.CG_RTOL  # the ledger's tolerance stays unless the user sets one
+            assert chosen["ksp_rtol"] == linear.CG_RTOL  # the ledger's tolerance stays unless the user sets one
 
 
 def test_one_d_runs_pick_lu_and_give_the_same_numbers_bit_for_bit():
@@ -103,7 +103,7 @@ def test_one_d_runs_pick_lu_and_give_the_same_numbers_bit_for_bit():
 
 
 def test_above_the_limit_cg_takes_jacobi_for_a_mass_dominated_matrix_else_amg(monkeypatch):
-    monkeypatch.setattr(base, "LU_MAX_NODES", 0)  # every mesh is "large"
+    monkeypatch.setattr(linear, "LU_MAX_NODES", 0)  # every mesh is "large"
     light = sc.simulate(contact_scene(), scheme="projection")  # M/Δt² + C/Δt at a stable Δt
     heavy = sc.simulate(contact_scene(cells=[24, 24], nt=1), scheme="newmark")  # Δt = 10 Δx: K dominates
     assert light.timings["linear solver"].startswith("cg + jacobi")

@@ -130,7 +130,7 @@ def test_the_example_package_is_what_a_user_would_copy():
     import tomllib
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     meta = tomllib.loads((root / "examples" / "soft_ground" / "pyproject.toml").read_text())
     assert meta["project"]["entry-points"][registry.GROUP] == {"soft_ground": "soft_ground:soft_ground"}
     ours = tomllib.loads((root / "pyproject.toml").read_text())["project"]["entry-points"][registry.GROUP]

@@ -15,7 +15,7 @@ import pytest
 
 from stringcontact.verification import rod
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RNG = np.random.default_rng(19)
 TIMES = RNG.uniform(0.0, 9.0, 40)
 

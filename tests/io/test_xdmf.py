@@ -1,44 +1,22 @@
 """solution.xdmf/.h5: the mesh once, one grid per stored time carrying every field; read by meshio.
 
 meshio (with the h5py wheel) runs in a separate Python: h5py's bundled libhdf5 must not meet dolfinx's.
-ParaView's readers are checked in tests/test_paraview.py.
+ParaView's readers are checked in tests/system/test_paraview.py.
 """
 
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from conftest import mpirun
+from conftest import meshio_read, mpirun
 
 import stringcontact as sc
 from stringcontact.io import readback
 from stringcontact.io.folder import FIELDS
-
-MESHIO = r"""
-import json, sys
-import meshio
-with meshio.xdmf.TimeSeriesReader(sys.argv[1]) as reader:
-    points, cells = reader.read_points_cells()
-    steps = [reader.read_data(k) for k in range(reader.num_steps)]
-print(json.dumps({
-    "points": points.tolist(),
-    "cells": {c.type: c.data.tolist() for c in cells},
-    "times": [t for t, _, _ in steps],
-    "data": [{name: values.tolist() for name, values in point_data.items()} for _, point_data, _ in steps],
-}))
-"""
-
-
-def meshio_read(path) -> dict:
-    proc = subprocess.run([sys.executable, "-c", MESHIO, str(path)], capture_output=True, text=True, check=False)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return json.loads(proc.stdout)
-
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):

@@ -243,7 +243,7 @@ def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
 
 
 # ---------------------------------------------------------------------------------------------------
-# The MPI program: `mpirun -n 2 python tests/test_mpi.py parity|errors|cli DIR...`
+# The MPI program: `mpirun -n 2 python tests/system/test_mpi.py parity|errors|cli DIR...`
 
 
 def _save(path: Path, res, **extra) -> None:

@@ -86,6 +86,27 @@ def test_bad_storage_options_are_refused_in_one_line(keys, field):
     assert "\n" not in str(err.value)
 
 
+def test_grouped_options_give_the_old_keywords_result_and_refuse_both_in_one_line(tmp_path):
+    """`storage=Storage(...)`, `output=Output(...)` and the old flat keywords are the same run; a keyword beside
+    its group's object is a one-line ValueError naming the keyword, a misspelt one a TypeError."""
+    scene = small_string()
+    flat = sc.simulate(scene, max_rows=20, gather="all", output_dir=tmp_path / "flat", max_frames=3, pictures=False)
+    grouped = sc.simulate(scene, storage=sc.Storage(max_rows=20, gather="all"),
+                          output=sc.Output(tmp_path / "grouped", max_frames=3, pictures=False))
+    for name in ("t", *PER_NODE):
+        np.testing.assert_array_equal(getattr(grouped, name), getattr(flat, name), err_msg=name)
+    assert (tmp_path / "grouped" / "solution.xdmf").read_text() == (tmp_path / "flat" / "solution.xdmf").read_text()
+    for given, key in ((dict(storage=sc.Storage(), max_rows=20), "max_rows"),
+                       (dict(output=sc.Output(), force=True), "force")):
+        with pytest.raises(ValueError, match=f"^{key}: give it in ") as err:
+            sc.simulate(scene, **given)
+        assert "\n" not in str(err.value)
+    with pytest.raises(TypeError, match="max_row"):
+        sc.simulate(scene, max_row=20)
+    with pytest.raises(ValueError, match="^gather: "):
+        sc.Storage(gather="rank0")
+
+
 @pytest.fixture(scope="module")
 def bump_run():
     """The bump scene coarsened: an obstacle of its own, contact on both humps."""

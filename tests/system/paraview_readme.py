@@ -1,9 +1,9 @@
-"""The README's ParaView recipe, run by ParaView itself: `xvfb-run -a pvpython tests/paraview_readme.py XDMF TIME PNG`.
+"""The README's ParaView recipe, run by ParaView itself: `xvfb-run -a pvpython tests/system/paraview_readme.py XDMF TIME PNG`.
 
 For each reader (Xdmf3ReaderT, Xdmf3ReaderS, XDMFReader): open solution.xdmf, Warp By Scalar with
 Scalars = eta and Normal = (0, 1, 0), colour by contact, Line Width 3, go to time TIME. Prints one JSON line
 per reader with what ParaView shows there; saves a screenshot of the Xdmf3ReaderT view to PNG.
-tests/test_paraview.py runs it and checks the numbers against the solver's own.
+tests/system/test_paraview.py runs it and checks the numbers against the solver's own.
 """
 
 import json

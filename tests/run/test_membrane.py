@@ -18,7 +18,7 @@ import stringcontact as sc
 from stringcontact.errors import SceneError
 from stringcontact.scene.data import Scene, scene_to_toml
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
 
 K2 = 2 * math.pi**2  # -Δ of sin(πx) sin(πy)
 
@@ -300,7 +300,7 @@ if __name__ == "__main__":
 
 
 def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_path):
-    from test_xdmf import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
+    from conftest import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
 
     from stringcontact.plot import viz
 

@@ -1,8 +1,8 @@
-"""The README's membrane recipe, run by ParaView itself: `xvfb-run -a pvpython tests/paraview_membrane.py XDMF TIME PNG`.
+"""The README's membrane recipe, run by ParaView itself: `xvfb-run -a pvpython tests/system/paraview_membrane.py XDMF TIME PNG`.
 
 Open solution.xdmf with Xdmf3ReaderT, Warp By Scalar on eta (its default direction, z, for a mesh in the
 x-y plane), colour by contact, go to time TIME. Prints one JSON line with what ParaView shows there and
-saves a screenshot to PNG; tests/test_paraview.py checks the numbers against the solver's own.
+saves a screenshot to PNG; tests/system/test_paraview.py checks the numbers against the solver's own.
 """
 
 import json

@@ -1,0 +1,93 @@
+"""`simulate`'s grouped options: which rows a run keeps (`Storage`) and what it writes (`Output`).
+
+`simulate(scene, storage=Storage(max_rows=1000), output=Output("out/ex1", force=True))`. The old flat keywords
+(`max_rows`, `gather`, `row_budget`; `output_dir`, `max_frames`, `force`, `pictures`, `progress`) are still
+accepted and mapped onto these objects (`grouped`); a keyword together with its object is refused.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.data import MAX_STORED_BYTES, STORED_ROWS
+
+#: The stored rows may take at most this many bytes on a rank that holds them (rank 0; every rank with
+#: gather="all"), else fewer are kept (`budget_steps`). It is the scene loader's limit for a 1D scene's
+#: rows (scene.MAX_STORED_BYTES, 2 GB), so that no 1D scene it accepts is thinned; a 2D scene's node
+#: count is known only once meshed, so the solver applies it. 2 GB beside a 1e6-node LU factor (3 GB)
+#: fits a laptop; 400 rows of 1e6 nodes (10 GB) would not.
+ROW_BUDGET = MAX_STORED_BYTES
+
+
+@dataclass(frozen=True)
+class Storage:
+    """The rows a run keeps (Result, diagnostics.csv, pictures): about `max_rows` time levels, always with 0, T
+    and the output times; on rank 0 (`gather` "root") or on every rank ("all"); at most `row_budget` bytes on a
+    rank that holds them (above it fewer are kept, with a StorageWarning). Checked when made: a ValueError
+    names the option and its allowed values."""
+
+    max_rows: int = STORED_ROWS
+    gather: str = "root"
+    row_budget: int = ROW_BUDGET
+
+    def __post_init__(self) -> None:
+        max_rows, gather, row_budget = self.max_rows, self.gather, self.row_budget
+        if isinstance(max_rows, bool) or not isinstance(max_rows, (int, np.integer)) or max_rows < 1:
+            raise ValueError(f"max_rows: expected a whole number >= 1 (stored time levels), got {max_rows!r}")
+        if gather not in ("root", "all"):
+            raise ValueError(f"gather: expected 'root' (rows on rank 0) or 'all' (on every rank), got {gather!r}")
+        if isinstance(row_budget, bool) or not isinstance(row_budget, (int, np.integer)) or row_budget < 1:
+            raise ValueError(f"row_budget: expected a whole number of bytes >= 1, got {row_budget!r}")
+
+
+@dataclass(frozen=True)
+class Output:
+    """What a run writes: with a folder `dir`, solution.xdmf (about `max_frames` of the stored rows, always with
+    0, T and the output times), CSV, JSON and, with `pictures` (True, or a function `(result, folder)` that draws
+    them), PNGs; `force` replaces an existing output folder. `progress`: a progress bar on rank 0."""
+
+    dir: str | os.PathLike | None = None
+    max_frames: int = 100
+    force: bool = False
+    pictures: bool | Callable | None = True
+    progress: bool = False
+
+
+#: The old keywords of `simulate`, each with its group and its field there.
+KEYWORDS = {
+    "max_rows": ("storage", "max_rows"),
+    "gather": ("storage", "gather"),
+    "row_budget": ("storage", "row_budget"),
+    "output_dir": ("output", "dir"),
+    "max_frames": ("output", "max_frames"),
+    "force": ("output", "force"),
+    "pictures": ("output", "pictures"),
+    "progress": ("output", "progress"),
+}
+
+
+def grouped(storage: Storage | None, output: Output | None, keywords: dict) -> tuple[Storage, Output]:
+    """The `Storage` and `Output` of a `simulate` call: the objects given, or the old keywords mapped onto the
+    defaults. An unknown keyword is a TypeError, as for any function; a keyword beside its object a ValueError."""
+    unknown = [k for k in keywords if k not in KEYWORDS]
+    if unknown:
+        raise TypeError(f"simulate() got an unexpected keyword argument {unknown[0]!r}")
+    given = {"storage": storage, "output": output}
+    for key in keywords:
+        group, _ = KEYWORDS[key]
+        if given[group] is not None:
+            raise ValueError(f"{key}: give it in {group}={group.capitalize()}(...) or as a keyword, not both")
+    fields = {"storage": {}, "output": {}}
+    for key, value in keywords.items():
+        group, field = KEYWORDS[key]
+        fields[group][field] = value
+    storage = storage if storage is not None else Storage(**fields["storage"])
+    output = output if output is not None else Output(**fields["output"])
+    return storage, output
+
+
+__all__ = ["KEYWORDS", "ROW_BUDGET", "Output", "Storage", "grouped"]

@@ -1,0 +1,212 @@
+"""The step's linear solve (docs/linear_solvers.md): LU or CG chosen by the system's size, PETSc options.
+
+`solver_options` is the size rule (LU_MAX_NODES, LU_MAX_NODES_PARALLEL, CG_RTOL, JACOBI_MAX_CONDITION) with a
+scene's or the command line's options on top; `configured_ksp` builds a KSP from them under its own prefix;
+`Linear` solves A x = b for a matrix that stays (or changes now and then), `DampedLU` for a constant matrix plus
+a diagonal on the active set; `dirichlet_rows` puts identity rows at the fixed ends. The schemes (`base.Scheme`)
+and the contact step (`complementarity`) solve through these.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .base import any_rank
+
+#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG.
+#: Measured (docs/linear_solvers.md, square membranes 1e4 to 1e6 nodes): in serial the back-substitution beat
+#: CG per step at every size (1e6 nodes, quiet: LU 0.22 s, CG + Jacobi 0.89 s, CG + AMG 1.08 s); CG only saves
+#: set-up (12 s against 46 s) and memory (1.8 GB against 3.1 GB). So LU up to the largest size measured; above it
+#: the factor (growing faster than the mesh) outgrows memory first.
+LU_MAX_NODES = 1_000_000
+#: The same on several ranks (MUMPS): its distributed back-substitution was slower on 2 ranks than on 1 at
+#: every size, while CG's step halved (1e6 nodes: MUMPS 1.0 s, CG + Jacobi 0.43 s; 2.5e5: 126 ms against 72 ms).
+#: CG + Jacobi was level with MUMPS at 4e4 nodes and ahead above. A string (1D) keeps its LU on any number of
+#: ranks: a tridiagonal factor has no fill.
+LU_MAX_NODES_PARALLEL = 40_000
+
+#: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
+#: ledger books the step's work with the computed η, so a residual r leaks (η^{n+1} − η^n)·r per step: at
+#: 1e-14 ‖b‖ that is the LU back-substitution's own round-off, and the 2D ledgers close to 1e-10 E(0).
+CG_RTOL = 1e-14
+
+#: CG's preconditioner: Jacobi while Gershgorin's bound of the Jacobi-scaled matrix's condition number is at
+#: most this (A nearly diagonal: projection's M/Δt² + C/Δt at its stable Δt; diagonal, one iteration, when
+#: α = 0), else BoomerAMG, whose iteration count does not grow with the mesh (3 to 7 here). Measured
+#: (docs/linear_solvers.md): on a quiet machine Jacobi won projection at 1e6 nodes (bound 41: 0.89 s against
+#: 1.08 s per step serial, 0.43 s against 0.69 s on 2 ranks) and newmark at bounds 65 and 193 (4e4 nodes);
+#: AMG won newmark at bound 640. (A loaded first pass had AMG ahead at bound 41: that one was noise.)
+JACOBI_MAX_CONDITION = 100.0
+
+#: The options of each path; a scene's or the command line's `petsc_options` go on top, key by key.
+DIRECT = {"ksp_type": "preonly", "pc_type": "lu"}
+ITERATIVE = {"ksp_type": "cg", "ksp_rtol": CG_RTOL, "ksp_atol": 0.0, "ksp_norm_type": "unpreconditioned",
+             "ksp_initial_guess_nonzero": True, "ksp_max_it": 1000}
+JACOBI = {"pc_type": "jacobi"}
+AMG = {"pc_type": "hypre", "pc_hypre_type": "boomeramg"}
+
+#: Every KSP takes its options under this prefix, set just before its setFromOptions and removed just after.
+PREFIX = "stringcontact_"
+
+
+def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf,
+                   dim: int = 2) -> dict:
+    """The PETSc options for `n_global` unknowns: LU up to LU_MAX_NODES (LU_MAX_NODES_PARALLEL on several
+    ranks, none for a string, `dim` 1), else CG; then `options`.
+
+    A user's ksp_type (or, without one, pc_type) picks the path whose defaults the rest goes on top of. CG's
+    preconditioner, unless the user names one: Jacobi if `condition` (`jacobi_condition_bound`) is at most
+    JACOBI_MAX_CONDITION, else AMG.
+    """
+    options = dict(options or {})
+    kind = options.get("ksp_type") or ({"lu": "preonly", "cholesky": "preonly"}.get(options.get("pc_type"), "cg")
+                                       if "pc_type" in options else None)
+    limit = LU_MAX_NODES if ranks == 1 or dim == 1 else LU_MAX_NODES_PARALLEL
+    direct = kind == "preonly" if kind is not None else n_global <= limit
+    if direct:
+        chosen = dict(DIRECT, **({"pc_factor_mat_solver_type": "mumps"} if ranks > 1 else {}))
+    else:
+        chosen = ITERATIVE | (JACOBI if condition <= JACOBI_MAX_CONDITION else AMG)
+    if "pc_type" in options and not direct:  # the user's preconditioner replaces the chosen one, sub-options too
+        chosen = dict(ITERATIVE)
+    chosen.update(options)
+    return chosen
+
+
+def jacobi_condition_bound(A: PETSc.Mat) -> float:
+    """Gershgorin's bound of κ(D⁻¹A) for a symmetric A with a positive diagonal D: (1 + ρ)/(1 − ρ) with
+    ρ = max_i Σ_{j≠i} |a_ij| / a_ii, or inf when ρ ≥ 1 (A not diagonally dominant). One pass over A's rows."""
+    ia, _, a = A.getValuesCSR()
+    d = A.getDiagonal().array
+    row_sums = np.bincount(np.repeat(np.arange(d.size), np.diff(ia)), weights=np.abs(a), minlength=d.size)
+    rho = np.max((row_sums - np.abs(d)) / np.where(d > 0, d, np.nan), initial=0.0)
+    rho = A.getComm().tompi4py().allreduce(float(rho) if np.isfinite(rho) else math.inf, op=MPI.MAX)
+    return (1.0 + rho) / (1.0 - rho) if rho < 1.0 else math.inf
+
+
+def _option_text(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
+    """A KSP for A set from `options` under its own prefix; the options leave PETSc's database right after."""
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOptionsPrefix(PREFIX)
+    ksp.setOperators(A)
+    db = PETSc.Options()
+    try:
+        for name, value in options.items():
+            db.setValue(PREFIX + name, _option_text(value))
+        ksp.setFromOptions()
+    finally:
+        for name in options:
+            db.delValue(PREFIX + name)
+    ksp.setUp()
+    return ksp
+
+
+class Linear:
+    """A x = b for a matrix that stays (or changes now and then, `reset`): LU or CG by size and options.
+
+    A has identity rows at the fixed dofs `bc` (`dirichlet_rows`) and every b holds their heights `g` there.
+    ``solve(b, x)``: LU is the factor's back-substitution, without KSPSolve's bookkeeping. CG needs a
+    symmetric matrix, so it zeroes A's fixed columns too and moves their (constant) part to b, the lift;
+    it starts from the x it is given (the scheme's predictor: ``iterative`` says whether to give one).
+    `dim` is the mesh's (`solver_options`: a string keeps its LU on any number of ranks).
+    """
+
+    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
+        self.A, self.bc = A, bc
+        self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim)
+        kind = self.options["ksp_type"], self.options.get("pc_type")
+        self.iterative = not (kind[0] == "preonly" and kind[1] in ("lu", "cholesky"))
+        if self.iterative:
+            self.lift, self.b = _symmetric_rows(A, bc, g), A.createVecLeft()
+            if "pc_type" not in (options or {}):
+                self.condition = jacobi_condition_bound(A)
+                self.options = solver_options(A.getSize()[0], comm.size, options, self.condition, dim)
+        self.ksp = configured_ksp(A, comm, self.options)
+        self.iterations = self.solves = 0
+        self._bind()
+
+    def _bind(self) -> None:
+        self.solve = self._iterate if self.iterative else self.ksp.getPC().getFactorMatrix().solve
+
+    def _iterate(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
+        self.b.waxpy(-1.0, self.lift, b)
+        self.ksp.solve(self.b, x)
+        x.array[self.bc] = b.array[self.bc]  # decoupled rows: exact, whatever the preconditioner did there
+        self.iterations += self.ksp.getIterationNumber()
+        self.solves += 1
+        if self.ksp.getConvergedReason() < 0:
+            raise ValueError(f"the linear solver ({self.describe()}) did not converge: PETSc reason "
+                             f"{self.ksp.getConvergedReason()} after {self.ksp.getIterationNumber()} iterations; set "
+                             "petsc_options (e.g. ksp_rtol, pc_type) or use an LU (ksp_type = 'preonly', pc_type = 'lu')")
+
+    def reset(self) -> None:
+        """A's values changed: refactorise (LU) or set the preconditioner up again (CG)."""
+        self.ksp.setOperators(self.A)
+        self.ksp.setUp()
+        self._bind()
+
+    def describe(self) -> str:
+        """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve"."""
+        pc = self.ksp.getPC()
+        if not self.iterative:
+            return f"{pc.getType().upper()} ({pc.getFactorSolverType()})"
+        kind = pc.getType() + (f" {pc.getHYPREType()}" if pc.getType() == "hypre" else "")
+        mean = self.iterations / self.solves if self.solves else 0.0
+        return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve"
+
+
+class DampedLU:
+    """A constant matrix plus a diagonal that changes now and then (a damping on the active set).
+
+    ``update(extra)`` puts ``extra`` on top of the constant diagonal and, only if it changed, refactorises
+    (LU: PETSc keeps the symbolic factorisation) or sets the preconditioner up again (CG): counted in
+    ``refactorisations``. Every rank must take part, so under MPI the ranks agree first. ``solve(b, x)`` and
+    ``iterative`` are the `Linear`'s; the other arguments are passed to it.
+    """
+
+    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
+        self.A, self.comm = A, comm
+        self.base = A.getDiagonal().array.copy()
+        self.diag = A.createVecLeft()
+        self.current = np.zeros_like(self.base)  # what is on top of the constant diagonal now
+        self.linear = Linear(A, comm, options, bc, g, dim)
+        self.solve, self.iterative = self.linear.solve, self.linear.iterative
+        self.refactorisations = 0
+        self.anywhere = any_rank(comm)
+
+    def update(self, extra: np.ndarray) -> None:
+        if self.anywhere(not np.array_equal(extra, self.current)):
+            np.add(self.base, extra, out=self.diag.array)
+            self.A.setDiagonal(self.diag)
+            self.linear.reset()
+            self.solve = self.linear.solve
+            self.current[:] = extra
+            self.refactorisations += 1
+
+
+def dirichlet_rows(A: PETSc.Mat, bc: np.ndarray) -> None:
+    """Identity rows at the fixed ends (their values are set in the right-hand side)."""
+    rstart = A.getOwnershipRange()[0]
+    A.zeroRows((bc + rstart).astype(np.int32), diag=1.0)
+
+
+def _symmetric_rows(A: PETSc.Mat, bc: np.ndarray, g: np.ndarray) -> PETSc.Vec:
+    """Zero A's fixed columns too (A has identity rows there); the lift A_{free,fixed} g that b must lose."""
+    fixed = A.createVecRight()
+    fixed.array[bc] = g
+    lift = A.createVecLeft()
+    A.mult(fixed, lift)
+    lift.array[bc] = 0.0
+    rstart = A.getOwnershipRange()[0]
+    A.zeroRowsColumns((bc + rstart).astype(np.int32), diag=1.0)
+    return lift
