@@ -247,7 +247,6 @@ def chart(path: Path, rows: list[dict]) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
     from matplotlib.ticker import NullFormatter, ScalarFormatter
 
     fig, (ax_cpu, ax_nx) = plt.subplots(1, 2, figsize=(11, 5.5), constrained_layout=True)

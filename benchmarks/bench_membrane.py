@@ -46,7 +46,7 @@ SCENES = {
 
 
 def scene(n: int, steps: int, kind: str = "landed"):
-    from stringcontact.scene.data import Scene
+    from stringcontact.scene import Scene
 
     dt = 0.5 / n
     return Scene.from_dict(dict(name=f"square{n}", domain="rectangle", cells=[n, n], T=steps * dt, nt=steps, alpha=0.01,
@@ -103,7 +103,7 @@ def run_scipy(n: int, steps: int, out: Path, kind: str = "landed") -> dict:
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
-    from stringcontact.scene.data import Scene  # only for the scene's data (expressions), not the solver
+    from stringcontact.scene import Scene  # only for the scene's data (expressions), not the solver
 
     data = np.load(out / f"sc{n}.npz")
     s: Scene = scene(n, steps, kind)

@@ -31,7 +31,7 @@ PER_NODE = ("eta", "velocity", "contact_force", "contact")
 
 
 def scene(n: int, steps: int):
-    from stringcontact.scene.data import Scene
+    from stringcontact.scene import Scene
 
     dt = 0.5 / n
     bump = "0.2*exp(-((x - 0.3)**2 + (y - 0.5)**2)/0.01) + 0.2*exp(-((x - 0.7)**2 + (y - 0.5)**2)/0.01) - 0.1"

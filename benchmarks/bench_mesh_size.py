@@ -15,9 +15,9 @@ import time
 
 
 def set_up(nx: int) -> float:
+    from dolfinx import mesh
     from mpi4py import MPI
 
-    from dolfinx import mesh
     from stringcontact.fem import compat
 
     t0 = time.perf_counter()

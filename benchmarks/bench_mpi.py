@@ -35,8 +35,9 @@ def _scene(nx: int, nt: int):
 
 
 def worker(mode: str, nx: int, nt: int, runs: int, repeat: int) -> None:
-    import stringcontact as sc
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     world = MPI.COMM_WORLD
     scene = _scene(nx, nt)

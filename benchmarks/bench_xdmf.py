@@ -23,7 +23,7 @@ from dolfinx.io import XDMFFile
 from mpi4py import MPI
 
 from stringcontact.fem import compat
-from stringcontact.io.folder import FIELDS
+from stringcontact.io.result import FIELDS
 from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 
 

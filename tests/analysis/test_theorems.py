@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.cli import main as cli
 from stringcontact.analysis import theorems as th
+from stringcontact.cli import main as cli
 
 R = 0.4  # dt/eps of the paper's data, kept fixed under refinement
 

@@ -16,7 +16,8 @@ from conftest import meshio_read, mpirun
 
 import stringcontact as sc
 from stringcontact.io import readback
-from stringcontact.io.folder import FIELDS
+from stringcontact.io.result import FIELDS
+
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):

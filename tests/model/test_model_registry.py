@@ -11,10 +11,10 @@ import sys
 
 import pytest
 
-from stringcontact.model import registry
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
-from stringcontact.scene.data import load_scene
+from stringcontact.model import registry
+from stringcontact.scene import load_scene
 
 SCENE = 'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\neps = 0.002\nh = 0\neta0 = "0.3*sin(pi*x)"\nv0 = 0\n'
 

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.verification import exact
-from stringcontact.model import registry
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
+from stringcontact.model import registry
 from stringcontact.model.variants import elastic, load_model, loaded_obstacle
+from stringcontact.verification import exact
 
 # --- load_model ---------------------------------------------------------------------------------
 

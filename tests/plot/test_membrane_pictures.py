@@ -10,11 +10,11 @@ import pytest
 from conftest import plot_refusal
 
 import stringcontact as sc
-from stringcontact.plot import animation, charts, viz
-from stringcontact.io import readback
 from stringcontact.cli.main import main
+from stringcontact.io import readback
+from stringcontact.plot import animation, charts, viz
 from stringcontact.plot.painter import PictureProcess
-from stringcontact.scene.data import scene_to_toml
+from stringcontact.scene import scene_to_toml
 
 #: a coarse drum (about 100 nodes) that lands at t = 0.12 and is in contact until T; its rim starts at 0.3
 SMALL_DRUM = {"mesh_size": 0.2, "T": 0.4, "nt": 80, "output_times": [0.0, 0.1, 0.2, 0.4]}

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.io import readback
-from stringcontact.plot import viz
 from stringcontact.cli.main import main
-from stringcontact.plot.painter import PictureProcess
+from stringcontact.io import readback
 from stringcontact.io.result import ENERGY_KEYS
+from stringcontact.plot import viz
+from stringcontact.plot.painter import PictureProcess
 
 
 @pytest.fixture(scope="module")
@@ -166,7 +166,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
 
 
 def test_a_picture_is_written_whole_or_not_at_all(tmp_path):
-    from stringcontact.io.folder import atomic_path
+    from stringcontact.io.publish import atomic_path
 
     target = tmp_path / "energy.png"
     with pytest.raises(KeyboardInterrupt):
@@ -245,7 +245,7 @@ def _thinning_writer(folder):
 
 
 def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
-    from stringcontact.io.folder import xdmf_series
+    from stringcontact.io.xdmf import xdmf_series
 
     writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
@@ -341,7 +341,7 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
 
 
 def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
-    from stringcontact.io.folder import read_xdmf
+    from stringcontact.io.xdmf import read_xdmf
 
     class StopsAfterOneField(dict):  # Ctrl-C arriving between two fields of a row
         def items(self):

@@ -16,7 +16,7 @@ import pytest
 
 import stringcontact as sc
 from stringcontact.errors import SceneError
-from stringcontact.scene.data import Scene, scene_to_toml
+from stringcontact.scene import Scene, scene_to_toml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
 
@@ -127,8 +127,8 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     import scipy.sparse.linalg as sla
     from mpi4py import MPI
 
-    from stringcontact.run import driver as solver
     from stringcontact.model.registry import load_model
+    from stringcontact.run import driver as solver
     from stringcontact.timestepping import projection
 
     scene = small_drum(mesh_size=0.15)

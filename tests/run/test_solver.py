@@ -8,9 +8,9 @@ from mpi4py import MPI
 
 import stringcontact as sc
 from stringcontact.fem import compat, nodal
-from stringcontact.verification import exact, reference
-from stringcontact.model.paper import Model, Parameters
 from stringcontact.fem.operators import ModelError
+from stringcontact.model.paper import Model, Parameters
+from stringcontact.verification import exact, reference
 
 
 @pytest.fixture(scope="module")

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.run.checks import penetration_check
 from stringcontact.io.result import PER_NODE, RowsElsewhere
-from stringcontact.scene.data import BYTES_PER_STORED_NODE
+from stringcontact.run.checks import penetration_check
 from stringcontact.run.driver import ROW_BUDGET, STORED_ROWS, StorageWarning, budget_steps, output_steps, stored_steps
+from stringcontact.scene import BYTES_PER_STORED_NODE
 
 
 def small_string():

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from stringcontact.errors import SceneError
-from stringcontact.scene.data import (
+from stringcontact.scene import (
     FILE_KEYS,
     Scene,
     SceneWarning,

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import leftovers, mpirun
 
 pytestmark = pytest.mark.mpi
@@ -219,8 +218,9 @@ def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
     # Example 2 lands on the left first, so each rank's projection (or active set) changes at its own steps.
     import warnings
 
-    import stringcontact as sc
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     proc = run_worker("schemes", tmp_path, scheme)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -262,9 +262,10 @@ def _save(path: Path, res, **extra) -> None:
 
 
 def _worker_parity(out: Path) -> None:
-    import stringcontact as sc
     from dolfinx import mesh
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     comm = MPI.COMM_WORLD
     scene = parity_scene()
@@ -278,8 +279,9 @@ def _worker_parity(out: Path) -> None:
 
 
 def _worker_errors(out: Path) -> None:
-    import stringcontact as sc
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     comm = MPI.COMM_WORLD
     report = {}
@@ -331,8 +333,9 @@ def scheme_scene(scheme: str):
 def _worker_asymmetric(out: Path) -> None:
     import warnings
 
-    import stringcontact as sc
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     comm = MPI.COMM_WORLD
     with warnings.catch_warnings():
@@ -347,8 +350,9 @@ def _worker_asymmetric(out: Path) -> None:
 def _worker_schemes(out: Path, scheme: str) -> None:
     import warnings
 
-    import stringcontact as sc
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -374,7 +378,7 @@ if __name__ == "__main__":
 def test_mpi_cli_runs_a_membrane_and_reports_once(tmp_path):
     """`mpirun -n 2 stringcontact run` on a membrane: rank 0 reports and writes, the rowless rank ends cleanly."""
     import stringcontact as sc
-    from stringcontact.scene.data import scene_to_toml
+    from stringcontact.scene import scene_to_toml
 
     scene = tmp_path / "drum.toml"
     scene.write_text(scene_to_toml(sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.0, 0.2])))

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.io.folder import FIELDS
 from stringcontact.io.readback import read_output
+from stringcontact.io.result import FIELDS
 
 SCRIPT = Path(__file__).with_name("paraview_readme.py")
 CONTACT_RGB = (180, 4, 38)  # the top of ParaView's default map (Cool to Warm): contact = 1

@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import leftovers, mpirun
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import leftovers, mpirun
-
 from stringcontact.cli.main import main
-from stringcontact.io.folder import TargetLock, xdmf_series
+from stringcontact.io.lock import TargetLock
+from stringcontact.io.xdmf import xdmf_series
 from stringcontact.run.checks import energy_balance, penetration_check
 
 QUICK = ["--no-progress", "--no-pictures"]
@@ -489,7 +489,7 @@ def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs
 
 
 def test_disk_failure_looks_through_the_exception_chain():
-    from stringcontact.io.folder import disk_failure
+    from stringcontact.io.publish import disk_failure
 
     def raised(inner):
         try:
@@ -553,10 +553,10 @@ def test_unbalanced_run_is_kept_marked_and_exits_3(tmp_path, capfd, monkeypatch)
 
 @pytest.fixture
 def space():
+    from dolfinx import mesh
     from mpi4py import MPI
 
     from stringcontact.fem import compat
-    from dolfinx import mesh
 
     return compat.function_space(mesh.create_interval(MPI.COMM_SELF, 8, [0.0, 1.0]), "Lagrange", 1)
 
@@ -672,7 +672,7 @@ def test_summary_line_and_penetration_warning(tmp_path, capfd):
 
 def test_staged_folder_writes_all_or_nothing(tmp_path):
     from stringcontact.errors import OutputError
-    from stringcontact.io.folder import staged_folder
+    from stringcontact.io.publish import staged_folder
 
     out = tmp_path / "checks"
     with pytest.raises(KeyboardInterrupt):

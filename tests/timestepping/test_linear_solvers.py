@@ -16,10 +16,9 @@ import pytest
 from petsc4py import PETSc
 
 import stringcontact as sc
-from stringcontact.errors import SolverError
 from stringcontact.cli.main import main
-from stringcontact.errors import SceneError
-from stringcontact.scene.data import Scene, scene_to_toml
+from stringcontact.errors import SceneError, SolverError
+from stringcontact.scene import Scene, scene_to_toml
 from stringcontact.timestepping import linear
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py

@@ -12,10 +12,10 @@ import pytest
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact.verification import reference
 from stringcontact.analysis import study
 from stringcontact.model import variants
-from stringcontact.scene.data import SceneWarning
+from stringcontact.scene import SceneWarning
+from stringcontact.verification import reference
 
 
 def run(scene, **kwargs):

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
+from stringcontact.fem.compat import trapezoid
 from stringcontact.verification.exact import (
     flat_landing,
     flat_landing_energy_loss,
     flat_landing_time,
     sine_mode,
 )
-from stringcontact.fem.compat import trapezoid
 from stringcontact.verification.reference import fd_solve
 
 H, V, LENGTH = 0.2, 1.0, 1.0

@@ -44,8 +44,9 @@ def simulate_self(scene, **kwargs):
     A study case that goes unstable is a result, not a problem: the case records it, so the warning would
     only be noise. An `InstabilityError` (refused at the start, or stopped by the running guard) still raises.
     """
-    import stringcontact as sc
     from mpi4py import MPI
+
+    import stringcontact as sc
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sc.InstabilityWarning)

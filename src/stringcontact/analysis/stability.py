@@ -152,9 +152,9 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
     from mpi4py import MPI
 
     from ..model.paper import inelastic
-    from ..verification.reference import fd_projection
-    from ..timestepping.projection import largest_stable_dt
     from ..run.driver import discretise
+    from ..timestepping.projection import largest_stable_dt
+    from ..verification.reference import fd_projection
 
     nt = max(1, round(T * n / ratio))
     scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)

@@ -43,23 +43,60 @@ from pathlib import Path
 from ..plot.study_charts import ERROR_LABELS, OUTCOME_COLOURS, STYLE, plot_stability, plot_step_size
 from .convergence import CONVERGENCE_COLUMNS, ORDER_COLUMNS, convergence, fitted_order, observed_orders
 from .norms import (
-    CONTACT_HEIGHT, common_rows, contact_height, contact_set, errors_against_exact, errors_against_reference, l2_norm,
+    CONTACT_HEIGHT,
+    common_rows,
+    contact_height,
+    contact_set,
+    errors_against_exact,
+    errors_against_reference,
+    l2_norm,
     to_nodes,
 )
 from .problems import (
-    EPS_LIMIT, EPS_PAPER, FLAT_H, FLAT_V, METHODS, REFERENCE, Method, Problem, example1_scene, flat_landing_exact,
-    flat_landing_scene, problems,
+    EPS_LIMIT,
+    EPS_PAPER,
+    FLAT_H,
+    FLAT_V,
+    METHODS,
+    REFERENCE,
+    Method,
+    Problem,
+    example1_scene,
+    flat_landing_exact,
+    flat_landing_scene,
+    problems,
 )
 from .runs import Run, run_method, simulate_self, warm_up
 from .schedule import distribute
 from .stability import (
-    ALPHA_COLUMNS, GROWTH_TOLERANCE, REBOUND_THRESHOLD, SPRING_Q, STABILITY_COLUMNS, STABILITY_DT, STABILITY_R,
-    STEP_COLUMNS, STEP_RATIOS, alpha_sweep, classify, fd_energy, restitution, restitution_theory, spring_case,
-    stability_case, stability_map, step_size_case, step_size_map,
+    ALPHA_COLUMNS,
+    GROWTH_TOLERANCE,
+    REBOUND_THRESHOLD,
+    SPRING_Q,
+    STABILITY_COLUMNS,
+    STABILITY_DT,
+    STABILITY_R,
+    STEP_COLUMNS,
+    STEP_RATIOS,
+    alpha_sweep,
+    classify,
+    fd_energy,
+    restitution,
+    restitution_theory,
+    spring_case,
+    stability_case,
+    stability_map,
+    step_size_case,
+    step_size_map,
 )
 from .tables import csv_cell, read_csv, write_csv
 from .tolerance import (
-    TOL_METHODS, TOL_ORDER, TOLERANCE_COLUMNS, choose_for_tolerance, estimate_for_tolerance, richardson_estimate,
+    TOL_METHODS,
+    TOL_ORDER,
+    TOLERANCE_COLUMNS,
+    choose_for_tolerance,
+    estimate_for_tolerance,
+    richardson_estimate,
     tolerance_tracking,
 )
 from .work_precision import WORK_PRECISION_COLUMNS, study_row, work_precision

@@ -59,9 +59,25 @@ import numpy as np
 
 from ..run.checks import energy_balance
 from .measurements import (
-    Momentum, band_width, cell_stress, distance_to_free_boundary, first_contact_rows, force_sign, free_boundary,
-    impulse, interior, landing_impulse, landing_segments, momentum_terms, nodal_weights, penalised,
-    require_every_step, stress_jump_balance, support_concentration, upward_impulse, velocity_after_contact,
+    Momentum,
+    band_width,
+    cell_stress,
+    distance_to_free_boundary,
+    first_contact_rows,
+    force_sign,
+    free_boundary,
+    impulse,
+    interior,
+    landing_impulse,
+    landing_segments,
+    momentum_terms,
+    nodal_weights,
+    penalised,
+    require_every_step,
+    stress_jump_balance,
+    support_concentration,
+    upward_impulse,
+    velocity_after_contact,
 )
 from .problems import flat_landing_scene
 

@@ -8,7 +8,13 @@ from pathlib import Path
 
 from ..analysis.problems import FLAT_V, flat_landing_scene
 from ..analysis.theorems import (
-    FLAT_LANDING, STRESS_JUMP, draw_figure1, format_table, format_trends, penalised, run_checks,
+    FLAT_LANDING,
+    STRESS_JUMP,
+    draw_figure1,
+    format_table,
+    format_trends,
+    penalised,
+    run_checks,
 )
 
 
@@ -34,7 +40,7 @@ def add_arguments(parser):
 
 
 def _scene_from_args(args):
-    from ..scene.data import load_scene
+    from ..scene import load_scene
 
     if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
         scene = flat_landing_scene(args.nx or 1000, args.nt or 1200, r=0.4)
@@ -64,7 +70,7 @@ def command(args) -> int:
     if args.delay is not None and args.delay >= scene.T:
         raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
     if args.out is not None:
-        from ..io.folder import check_target
+        from ..io.publish import check_target
 
         check_target(args.out, args.force)
     V = FLAT_V if scene.name == FLAT_LANDING else None
@@ -82,7 +88,7 @@ def command(args) -> int:
     print()
     print(format_trends(checks))
     if args.out is not None:
-        from ..io.folder import staged_folder
+        from ..io.publish import staged_folder
 
         with staged_folder(args.out, args.force) as partial:  # the whole folder or nothing, under the run lock
             (partial / "checks.json").write_text(json.dumps(

@@ -11,9 +11,24 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.study import (
-    ALPHA_COLUMNS, CONVERGENCE_COLUMNS, ORDER_COLUMNS, STABILITY_COLUMNS, STEP_COLUMNS, TOLERANCE_COLUMNS,
-    WORK_PRECISION_COLUMNS, alpha_sweep, convergence, plot_convergence, plot_stability, plot_step_size,
-    plot_work_precision, stability_map, step_size_map, tolerance_tracking, work_precision, write_csv,
+    ALPHA_COLUMNS,
+    CONVERGENCE_COLUMNS,
+    ORDER_COLUMNS,
+    STABILITY_COLUMNS,
+    STEP_COLUMNS,
+    TOLERANCE_COLUMNS,
+    WORK_PRECISION_COLUMNS,
+    alpha_sweep,
+    convergence,
+    plot_convergence,
+    plot_stability,
+    plot_step_size,
+    plot_work_precision,
+    stability_map,
+    step_size_map,
+    tolerance_tracking,
+    work_precision,
+    write_csv,
 )
 
 

@@ -13,14 +13,14 @@ import signal
 import threading
 import xml.etree.ElementTree as ET
 
-import numpy as np
 import dolfinx.fem.petsc  # noqa: F401 - dolfinx 0.9 no longer imports the PETSc layer with dolfinx.fem
+import numpy as np
 from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import compat
 from ..errors import SceneError
+from . import compat
 
 __all__ = ["create", "boundary_dofs", "nodal_areas"]
 

@@ -13,7 +13,6 @@ import ufl
 from ufl.corealg.map_dag import map_expr_dag
 from ufl.corealg.multifunction import MultiFunction
 
-
 _UNARY = {
     "abs": np.abs,
     "sqrt": np.sqrt,

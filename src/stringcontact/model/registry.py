@@ -19,7 +19,9 @@ import importlib
 import importlib.metadata
 
 from ..errors import SceneError, one_line
-from ..scene.names import GROUP, check_name, package_of as _package, registered  # noqa: F401 - GROUP re-exported
+from ..scene.names import GROUP, check_name, registered  # noqa: F401 - GROUP re-exported
+from ..scene.names import package_of as _package
+
 
 def load_model(spec):
     """The `Model` for `spec`: a `Model` itself, a registered name, or ``"package.module:name"`` (typed by the user).

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from ..io.publish import atomic_path
 from .charts import WINDOW_SIZE
 from .mesh_pictures import _every_kth, _font_file, _plotter, add_membrane, membrane_label, membrane_title, membrane_view
-from ..io.folder import atomic_path
 
 MAX_FRAMES = 50
 FPS = 12

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.folder import atomic_path
+from ..io.publish import atomic_path
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0

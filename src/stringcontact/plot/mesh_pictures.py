@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.publish import atomic_path
 from .charts import (
     CONTACT_COLOUR,
     WINDOW_SIZE,
@@ -28,7 +29,6 @@ from .charts import (
     snapshot_rows,
     without_axes3d_warning,
 )
-from ..io.folder import atomic_path
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"

@@ -19,7 +19,7 @@ def _figure(path, *args, **kwargs):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..io.folder import atomic_path
+    from ..io.publish import atomic_path
 
     fig, axes = plt.subplots(*args, **kwargs)
     try:

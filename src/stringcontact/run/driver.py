@@ -24,7 +24,7 @@ from ..fem import compat, domains
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..model.paper import Model, Parameters, inelastic, unused_fields
-from ..scene.data import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
+from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, scheme_class
 from ..timestepping.base import NodalLaws, Setting
 from .checks import checks_of, unbalanced_message

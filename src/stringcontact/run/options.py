@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.data import MAX_STORED_BYTES, STORED_ROWS
+from ..scene import MAX_STORED_BYTES, STORED_ROWS
 
 #: The stored rows may take at most this many bytes on a rank that holds them (rank 0; every rank with
 #: gather="all"), else fewer are kept (`budget_steps`). It is the scene loader's limit for a 1D scene's

@@ -44,7 +44,7 @@ from petsc4py import PETSc
 
 from ..errors import InstabilityError
 from ..fem.operators import diagonal_matrix, stacked
-from ..scene.data import SceneWarning
+from ..scene import SceneWarning
 from .base import Scheme as Base
 from .base import any_rank, summer, wrap
 from .complementarity import ActiveSet
