@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .result import ENERGY_KEYS
+
 __all__ = ["DIAGNOSTIC_COLUMNS", "clean_json", "summary_dict", "write_diagnostics"]
 
 
@@ -34,12 +36,7 @@ def clean_json(o):
 DIAGNOSTIC_COLUMNS = (
     "step",
     "t",
-    "kinetic",
-    "elastic",
-    "viscous_dissipation",
-    "contact_dissipation",
-    "numerical_dissipation",
-    "external_work",
+    *ENERGY_KEYS,
     "balance_residual",
     "min_eta",
     "contact_length",
