@@ -21,9 +21,9 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 DOCKERFILE = ROOT / "Dockerfile"
 
-# .dockerignore keeps the Dockerfile out of the image (editing it must not invalidate `COPY . .`), so the
-# suite inside the image has none to read.
-needs_dockerfile = pytest.mark.skipif(not DOCKERFILE.exists(), reason="no Dockerfile here (inside the image)")
+# .dockerignore keeps itself and the Dockerfile out of the image (editing them must not invalidate `COPY . .`),
+# so the suite inside the image has neither to read.
+needs_dockerfile = pytest.mark.skipif(not DOCKERFILE.exists(), reason="no Dockerfile or .dockerignore here (inside the image)")
 
 
 def instructions(text: str) -> list[tuple[str, str]]:
@@ -126,6 +126,7 @@ def dockerignore() -> list[str]:
     return [ln.strip() for ln in (ROOT / ".dockerignore").read_text().splitlines() if ln.strip() and not ln.startswith("#")]
 
 
+@needs_dockerfile
 def test_dockerignore_keeps_local_state_out_of_the_image():
     # A build from a working tree must not copy its .venv (bookworm's, over the image's), results or caches.
     patterns = dockerignore()
