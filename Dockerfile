@@ -1,42 +1,79 @@
-# The demo image: Debian bookworm's dolfinx 0.5.2, installed by scripts/setup, the one setup that the
-# README (`make demo`, `make test`) and CI (.ci/run -> make test) use, so the image is what CI tests.
+# The demo image: Debian trixie's dolfinx 0.9, installed by scripts/setup, the one setup that the README
+# (`make demo`, `make test`) and CI use; CI builds this file with podman and runs the suite inside it.
 #
 #   docker build -t stringcontact .
-#   mkdir -p out && docker run --rm -v "$PWD/out:/out" stringcontact run example1 --out /out/ex1
+#   mkdir -p out && docker run --rm --user "$(id -u):$(id -g)" -v "$PWD/out:/out" stringcontact run example1 --out /out/ex1
 #
-# No Docker engine at hand? scripts/rehearse-docker runs these steps in a debootstrap chroot.
-FROM debian:bookworm-slim
+#   docker build --target test -t stringcontact-test . && docker run --rm stringcontact-test   # the test suite
+#
+# Layers from the slowest to change to the quickest: Debian's packages, the Python dependencies (they need
+# only pyproject.toml), then the source. A change to the source rebuilds the last two steps only.
+FROM debian:trixie-slim AS demo
 
 SHELL ["/bin/bash", "-o", "pipefail", "-c"]
 
 ENV LANG=C.UTF-8 \
     PYTHONDONTWRITEBYTECODE=1 \
     VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow \
-    MPLCONFIGDIR=/tmp/matplotlib
+    MPLCONFIGDIR=/tmp/matplotlib \
+    OMPI_ALLOW_RUN_AS_ROOT=1 \
+    OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 
 WORKDIR /opt/stringcontact
-COPY . .
 
-# As root (scripts/setup calls apt-get): Debian's dolfinx, EGL and OpenMPI, then .venv with this package.
-# Then the user the image runs as (uid 1000, "stringcontact"), who owns /out.
-RUN scripts/setup .venv \
-    && rm -rf /var/lib/apt/lists/* /root/.cache \
+# As root (apt-get): Debian's dolfinx, EGL and OpenMPI. Then the user the image runs as by default (uid 1000,
+# "stringcontact"), who owns /out.
+COPY scripts/setup scripts/setup
+RUN scripts/setup --only system \
+    && rm -rf /var/lib/apt/lists/* \
     && useradd --create-home --uid 1000 --user-group --shell /bin/bash stringcontact \
     && install -d -o stringcontact -g stringcontact /out
+
+# .venv (it sees Debian's dolfinx) with the dependencies that pyproject.toml names.
+COPY pyproject.toml ./
+RUN scripts/setup --only deps .venv && rm -rf /root/.cache
+
+# The source, and this package installed from it (editable, no dependencies: they are in place).
+COPY . .
+RUN scripts/setup --only package .venv && rm -rf /root/.cache
 
 USER 1000:1000
 ENV HOME=/home/stringcontact \
     PATH=/opt/stringcontact/.venv/bin:$PATH
 
-# Compile dolfinx's forms now, into ~/.cache/fenics, so that a run starts at once: scripts/setup's warm-up
-# (repeated until nothing new compiles; the rest of setup finds everything installed), then one run with
-# pictures for matplotlib's and Mesa's caches. The cache stays writable for any uid, so
-# `docker run --user "$(id -u):$(id -g)"` works too.
-RUN scripts/setup .venv \
+# Compile dolfinx's forms now, into ~/.cache/fenics, so that a run starts at once: scripts/setup's warm-up,
+# then one run with pictures for matplotlib's and Mesa's caches. The home folder stays readable (trixie's
+# useradd makes it 0700) and the cache writable for any uid, so `docker run --user "$(id -u):$(id -g)"` works
+# for every user.
+RUN scripts/setup --only warm .venv \
     && stringcontact run example1 --nx 50 --nt 600 --out /tmp/warm --no-progress \
     && rm -rf /tmp/warm \
+    && chmod 755 "$HOME" \
     && chmod -R a+rwX "$HOME/.cache"
 
 WORKDIR /out
 ENTRYPOINT ["stringcontact"]
 CMD ["--help"]
+
+
+# The test suite in the image: the demo image plus what the tests drive (ParaView's pvpython under xvfb-run,
+# the `test` extras). Its default command runs the whole suite as the image's user.
+FROM demo AS test
+
+USER 0:0
+WORKDIR /opt/stringcontact
+RUN scripts/setup --test --only system \
+    && rm -rf /var/lib/apt/lists/*
+# The checkout's folder becomes the user's, for what pytest and hypothesis keep there (.hypothesis).
+RUN scripts/setup --test --only deps .venv \
+    && rm -rf /root/.cache \
+    && chown stringcontact:stringcontact /opt/stringcontact
+
+USER 1000:1000
+ENV STRINGCONTACT_REQUIRE_PARAVIEW=1
+ENTRYPOINT ["python", "-m", "pytest", "-p", "no:cacheprovider"]
+CMD ["-q"]
+
+
+# The default target: the demo image.
+FROM demo

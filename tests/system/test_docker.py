@@ -1,20 +1,19 @@
-"""The Docker image is the environment CI tests: same setup script, linted, non-root, CLI as entry point.
+"""The Docker image: what a real build does not show by itself.
 
-There is no Docker engine here, so these tests read the Dockerfile with the parser of
-`scripts/rehearse-docker` (which replays it in a debootstrap chroot) and lint it with hadolint from PyPI.
+CI builds the image with podman and runs the README's Docker lines and this suite inside it (`scripts/image`),
+so that the image builds, runs as a user, writes complete results and passes the tests is shown there. Here:
+the Dockerfile is linted (hadolint from PyPI), its layers stay in the order that makes a source-only change
+rebuild quickly, local state stays out of the build context, and a run that cannot write to its output
+folder says how to fix it.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import shlex
 import shutil
 import subprocess
 import sys
-import tomllib
-from importlib.machinery import SourceFileLoader
-from importlib.util import module_from_spec, spec_from_loader
 from pathlib import Path
 
 import pytest
@@ -22,20 +21,29 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 DOCKERFILE = ROOT / "Dockerfile"
 
-
-def _load_script(name: str):
-    loader = SourceFileLoader(name.replace("-", "_"), str(ROOT / "scripts" / name))
-    module = module_from_spec(spec_from_loader(loader.name, loader))
-    loader.exec_module(module)
-    return module
+# .dockerignore keeps itself and the Dockerfile out of the image (editing them must not invalidate `COPY . .`),
+# so the suite inside the image has neither to read.
+needs_dockerfile = pytest.mark.skipif(not DOCKERFILE.exists(), reason="no Dockerfile or .dockerignore here (inside the image)")
 
 
-rehearse = _load_script("rehearse-docker")
+def instructions(text: str) -> list[tuple[str, str]]:
+    """(INSTRUCTION, arguments), continuation lines joined, comments dropped."""
+    out, buf = [], ""
+    for line in text.splitlines():
+        if line.lstrip().startswith("#") or (not buf and not line.strip()):
+            continue
+        if line.rstrip().endswith("\\"):
+            buf += line.rstrip()[:-1] + " "
+            continue
+        word, _, rest = (buf + line).strip().partition(" ")
+        out.append((word.upper(), " ".join(rest.split())))
+        buf = ""
+    return out
 
 
-@pytest.fixture(scope="module")
-def steps():
-    return rehearse.instructions(DOCKERFILE.read_text())
+def test_instructions_reader():
+    text = "FROM a AS b\n# note\nRUN x \\\n    # inside\n    && y\n\nCOPY . .\n"
+    assert instructions(text) == [("FROM", "a AS b"), ("RUN", "x && y"), ("COPY", ". .")]
 
 
 def hadolint() -> str:
@@ -45,6 +53,7 @@ def hadolint() -> str:
     return exe
 
 
+@needs_dockerfile
 def test_dockerfile_passes_hadolint():
     proc = subprocess.run([hadolint(), str(DOCKERFILE)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -59,93 +68,115 @@ def test_hadolint_does_reject_a_bad_dockerfile(tmp_path):
     assert "DL3007" in proc.stdout and "DL3003" in proc.stdout
 
 
-def _setup_script_of_ci() -> str:
-    """Follow CI to its setup: .ci/run -> `make test` -> the Makefile's setup recipe -> scripts/setup."""
-    ci = (ROOT / ".ci" / "run").read_text()
-    assert re.search(r"^make test\b", ci, re.M), ".ci/run no longer runs `make test`"
-    makefile = (ROOT / "Makefile").read_text()
-    prerequisites = re.search(r"^test:(.*)$", makefile, re.M).group(1).split()
-    assert "setup" in prerequisites, "`make test` no longer depends on `make setup`"
-    recipe = re.search(r"^setup:.*\n((?:\t.*\n)+)", makefile, re.M).group(1)
-    commands = [shlex.split(line.strip().lstrip("@"))[0] for line in recipe.splitlines()]
-    scripts = [c for c in commands if c.startswith("scripts/")]
-    assert len(scripts) == 1, recipe
-    return scripts[0]
+def stages(text: str) -> dict[str, list[tuple[str, str]]]:
+    """The instructions of each build stage, by stage name (the unnamed last stage is "")."""
+    out: dict[str, list[tuple[str, str]]] = {}
+    for ins, args in instructions(text):
+        if ins == "FROM":
+            words = args.split()
+            current = out.setdefault(words[2] if len(words) == 3 and words[1].upper() == "AS" else "", [])
+        current.append((ins, args))
+    return out
 
 
-def _commands(run: str) -> list[list[str]]:
-    """The simple commands of a RUN line, split at && and ;."""
-    return [shlex.split(part) for part in re.split(r"&&|;", run) if part.strip()]
+def setup_phases(steps) -> list[tuple[int, str]]:
+    """(index, phase) of each `scripts/setup --only PHASE` in the RUN steps."""
+    return [(k, m.group(1)) for k, (ins, args) in enumerate(steps) if ins == "RUN"
+            for m in re.finditer(r"scripts/setup (?:--test )?--only (\w+)", args)]
 
 
-def test_install_step_runs_the_setup_script_that_ci_runs(steps):
-    setup = _setup_script_of_ci()
-    assert setup == "scripts/setup"
-    ins = [i for i, _ in steps]
-    assert steps[0] == ("FROM", "debian:bookworm-slim")
-    runs = [(k, args) for k, (i, args) in enumerate(steps) if i == "RUN"]
-    calls = [(k, cmd) for k, args in runs for cmd in _commands(args) if cmd and cmd[0] in (setup, "make")]
-    assert calls, "no RUN step calls scripts/setup (or `make setup`)"
-    k, cmd = calls[0]
-    assert cmd[0] == setup or cmd[1:] == ["setup"], cmd
-    # it runs as root (setup calls apt-get), before the image switches to its user
-    first_user = next((j for j, i in enumerate(ins) if i == "USER"), len(ins))
-    assert k < first_user
-    # and the repository it installs from is in the build context
-    copies = [args for i, args in steps[:k] if i == "COPY"]
-    assert copies and copies[0].split()[0] == "."
-    context = set(rehearse.context_files(ROOT))
-    for needed in (setup, "pyproject.toml", "src/stringcontact/cli/main.py", "src/stringcontact/scenes/example1.toml"):
-        assert needed in context, f"{needed} is not in the Docker build context"
+def check_layer_order(text: str) -> None:
+    demo = stages(text)["demo"]
+    assert demo[0] == ("FROM", "debian:trixie-slim AS demo")
+    phases = setup_phases(demo)
+    assert [p for _, p in phases] == ["system", "deps", "package", "warm"], phases
+    at = dict((p, k) for k, p in phases)
+    copies = [(k, args) for k, (ins, args) in enumerate(demo) if ins == "COPY"]
+    source = [k for k, args in copies if args == ". ."]
+    assert source, "no COPY . . in the demo stage"
+    # The downloads (apt, then pip) come before the source, and see only the files they need.
+    assert at["system"] < at["deps"] < source[0] < at["package"] < at["warm"]
+    before = [args.split()[0] for k, args in copies if k < source[0]]
+    assert set(before) <= {"scripts/setup", "pyproject.toml"}, before
+    # the image runs as its user, in /out, with the command line as entry point; the default target is demo
+    users = [args for ins, args in demo if ins == "USER"]
+    assert users and users[-1].split(":")[0] not in ("root", "0")
+    assert [args for ins, args in demo if ins == "WORKDIR"][-1] == "/out"
+    assert [args for ins, args in demo if ins == "ENTRYPOINT"][-1] == '["stringcontact"]'
+    assert stages(text)[""] == [("FROM", "demo")]
 
 
+@needs_dockerfile
+def test_layers_go_from_the_slowest_to_change_to_the_source():
+    check_layer_order(DOCKERFILE.read_text())
+
+
+@needs_dockerfile
+def test_layer_order_check_rejects_the_source_before_the_downloads():
+    # The Dockerfile before issue 25: `COPY . .` first, so every change to the source redid apt and pip.
+    text = DOCKERFILE.read_text()
+    moved = text.replace("COPY scripts/setup scripts/setup\n", "COPY . .\n", 1)
+    with pytest.raises(AssertionError):
+        check_layer_order(moved)
+    with pytest.raises(AssertionError):
+        check_layer_order(text.replace("--only deps", "--only package", 1))
+
+
+def dockerignore() -> list[str]:
+    return [ln.strip() for ln in (ROOT / ".dockerignore").read_text().splitlines() if ln.strip() and not ln.startswith("#")]
+
+
+@needs_dockerfile
 def test_dockerignore_keeps_local_state_out_of_the_image():
-    patterns = rehearse.dockerignore(ROOT)
-    for path in (".venv/bin/python", "out/ex1/solution.h5", ".git/HEAD", "src/stringcontact/__pycache__/cli.cpython-311.pyc",
-                 "src/stringcontact.egg-info/PKG-INFO"):
-        assert rehearse.ignored(path, patterns), path
-    for path in ("scripts/setup", "src/stringcontact/run/driver.py", "pyproject.toml", "tests/test_docker.py"):
-        assert not rehearse.ignored(path, patterns), path
+    # A build from a working tree must not copy its .venv (bookworm's, over the image's), results or caches.
+    patterns = dockerignore()
+    for needed in (".git", ".venv", "out", "**/__pycache__", "**/*.egg-info", ".hypothesis", "**/*.h5"):
+        assert needed in patterns, needed
+    for kept in ("scripts", "src", "tests", "pyproject.toml", "examples"):
+        assert not any(p.strip("/") == kept for p in patterns), kept
 
 
-def test_image_runs_the_cli_as_a_user_and_writes_to_out(steps):
-    users = [args for i, args in steps if i == "USER"]
-    assert users and users[-1].split(":")[0] not in ("root", "0"), "the image must not run as root"
-    entry = [rehearse.exec_form(args) for i, args in steps if i == "ENTRYPOINT"]
-    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    assert entry and entry[-1] == ["stringcontact"] and "stringcontact" in scripts
-    assert [args for i, args in steps if i == "WORKDIR"][-1] == "/out"
-    runs = " && ".join(args for i, args in steps if i == "RUN")
-    made_out = [cmd for cmd in _commands(runs) if cmd[:1] == ["install"] and "/out" in cmd]
-    assert made_out and "-o" in made_out[0], "/out must exist and belong to the image's user"
-    env = {}
-    for i, args in steps:
-        if i == "ENV":
-            env.update(rehearse.env_pairs(args, env))
-    assert env["VTK_DEFAULT_OPENGL_WINDOW"] == "vtkEGLRenderWindow"  # pictures without a display
-    assert env["PATH"].startswith("/opt/stringcontact/.venv/bin:")
+def test_setup_refuses_an_unknown_phase_in_one_line():
+    proc = subprocess.run([str(ROOT / "scripts" / "setup"), "--only", "everything"], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == "setup: unknown phase 'everything' (choose system, deps, package or warm)"
 
 
-def test_rehearsal_parser_reads_continuations_and_exec_forms():
-    text = "FROM debian:bookworm-slim\n# note\nRUN a \\\n    && b \\\n    # inside\n    && c\nCMD [\"--help\"]\n"
-    assert rehearse.instructions(text) == [("FROM", "debian:bookworm-slim"), ("RUN", "a      && b      && c"), ("CMD", '["--help"]')]
-    assert rehearse.exec_form('["--help"]') == ["--help"] and rehearse.exec_form("echo hi") is None
-    assert rehearse.env_pairs("A=1 B=$A/x PATH=/v:$PATH", {"PATH": "/usr/bin"}) == {"A": "1", "B": "1/x", "PATH": "/v:/usr/bin"}
+def test_ci_builds_the_image_after_the_readme_test_command():
+    lines = [ln.strip() for ln in (ROOT / ".ci" / "run").read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    main = next(i for i, ln in enumerate(lines) if ln.startswith("make test"))
+    image = next(i for i, ln in enumerate(lines) if ln.startswith("scripts/image"))
+    assert main < image
+    steps = lines[image].split()
+    for step in ("tools", "base", "build", "readme", "test"):
+        assert step in steps, step
+    assert os.access(ROOT / "scripts" / "image", os.X_OK)
 
 
-def test_ci_runs_the_trixie_suite_after_the_main_suite():
-    lines = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines() if line.strip() and not line.startswith("#")]
-    main = next(i for i, line in enumerate(lines) if line.startswith("make test"))
-    trixie = next(i for i, line in enumerate(lines) if "scripts/test-trixie" in line)
-    assert trixie > main
-    assert os.access(ROOT / "scripts" / "test-trixie", os.X_OK) and os.access(ROOT / "scripts" / "rehearse-docker", os.X_OK)
+# --- a run that cannot write to its output folder (the image's /out without --user) ---------------------
 
 
-@pytest.mark.skipif(os.geteuid() != 0, reason="scripts/test-trixie needs root")
-def test_trixie_script_skips_cleanly_when_the_registry_cannot_be_reached(tmp_path):
-    # Port 9 (discard) on the loopback: refused at once, so this is the "no registry" path, offline.
-    env = dict(os.environ, TRIXIE_MIRROR="http://127.0.0.1:9/debian", TMPDIR=str(tmp_path))
-    proc = subprocess.run([str(ROOT / "scripts" / "test-trixie")], capture_output=True, text=True, env=env, timeout=120)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.search(r"^SKIP: test-trixie: .*cannot be reached", proc.stdout, re.M), proc.stdout
-    assert list(tmp_path.iterdir()) == []  # nothing bootstrapped, nothing left behind
+@pytest.mark.parametrize("in_container", [True, False])
+def test_unwritable_output_folder_names_the_folder_and_the_fix(tmp_path, capfd, monkeypatch, in_container):
+    import stringcontact.io.publish as output
+    from stringcontact.cli import main
+
+    folder = tmp_path / "out"
+    folder.mkdir()
+    real_access = os.access
+    # root may write anywhere: deny it here as a foreign folder would, for an ordinary user too
+    monkeypatch.setattr(output.os, "access", lambda p, mode: False if Path(p) == folder else real_access(p, mode))
+    marker = tmp_path / ".containerenv"
+    if in_container:
+        marker.touch()
+    monkeypatch.setattr(output, "CONTAINER_MARKERS", (str(marker),))
+    assert main(["run", "example1", "--nx", "20", "--nt", "600", "--no-pictures", "--out", str(folder / "ex1")]) == 2
+    err = [ln for ln in capfd.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1, err
+    assert f"--out {folder / 'ex1'}: cannot create the output folder: permission denied in {folder}" in err[0]
+    assert f"it belongs to uid {os.geteuid()}" in err[0]
+    if in_container:
+        assert 'docker run --user "$(id -u):$(id -g)"' in err[0]
+    else:
+        assert "choose a folder of yours" in err[0] and "docker" not in err[0]
+    assert list(folder.iterdir()) == []

@@ -102,7 +102,25 @@ def _check_writable(target: Path, parent: Path) -> None:
         reason = errno.EACCES
     if reason is not None:
         why = describe_os_error(OSError(reason, os.strerror(reason)), parent)
-        raise OutputError(f"--out {target}: cannot create the output folder: {why}")
+        fix = permission_fix(parent) if reason == errno.EACCES else ""
+        raise OutputError(f"--out {target}: cannot create the output folder: {why}{fix}")
+
+
+# Files that Docker (/.dockerenv) and podman (/run/.containerenv) put in every container.
+CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
+
+
+def permission_fix(folder: Path) -> str:
+    """The way out of a permission denied in `folder`: in a container, run it as the folder's owner."""
+    try:
+        owner = folder.stat().st_uid
+    except OSError:
+        return ""
+    me = os.geteuid()
+    if any(os.path.exists(m) for m in CONTAINER_MARKERS):
+        return (f" (it belongs to uid {owner}, this container runs as uid {me}); run the container as the folder's "
+                'owner: docker run --user "$(id -u):$(id -g)" ...')
+    return f" (it belongs to uid {owner}, you are uid {me}); choose a folder of yours"
 
 
 def _holds_our_result(folder: Path) -> bool:
