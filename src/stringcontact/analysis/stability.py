@@ -79,7 +79,7 @@ def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: f
     """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r.
 
     Lumped mass runs through :func:`stringcontact.verification.reference.fd_solve` -- the same scheme as `simulate`
-    (tests/test_solver.py checks this to 1e-10) without the pre-run refusal of r ≥ 2, so that the map shows
+    (tests/run/test_solver.py checks this to 1e-10) without the pre-run refusal of r ≥ 2, so that the map shows
     what the explicit penalty actually does there. Consistent mass runs through `simulate`, whose guards
     refuse r ≥ 2 before the start ("refused") and stop a run whose energy rises ("growth").
     """
