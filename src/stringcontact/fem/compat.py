@@ -2,7 +2,7 @@
 
 The rest of the package calls these helpers and never branches on the dolfinx version itself.
 DEVELOPERS.md lists each difference and which helper absorbs it. The whole test suite runs on both
-0.5.2 (`make test`) and Debian trixie's 0.9.0 (`scripts/test-trixie`, in CI after the main suite).
+0.5.2 (`make test`) and Debian trixie's 0.9.0 (the Docker image's test suite, `scripts/image test`, in CI after the main suite).
 """
 
 from __future__ import annotations
