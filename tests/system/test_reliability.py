@@ -236,7 +236,7 @@ def test_warnings_stay_one_line_after_the_form_compiler_is_loaded(tmp_path):
     scene = tmp_path / "times.toml"
     scene.write_text(scene_text(T="0.3", nt="40", nx="20", eps="0.005", output_times="[0.1, 0.2]"))
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", str(scene), *QUICK, "--frames", "2",
-                           "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stderr.splitlines()
     assert any("r = dt/eps = 1.5 > 1 rebounds" in line for line in lines)  # before the XDMF writer starts
@@ -700,3 +700,85 @@ def test_staged_folder_writes_all_or_nothing(tmp_path):
     with staged_folder(out, force=True) as folder:
         (folder / "b.txt").write_text("new")
     assert sorted(p.name for p in out.iterdir()) == ["b.txt"] and leftovers(tmp_path) == []
+
+
+# --- issue 27: mesh files checked before dolfinx sees them (no hang, no crash) ---------------------------
+
+_MESH_WRITER = """
+import json, sys
+import h5py, numpy as np
+cells, points, path = json.loads(sys.argv[1]), json.loads(sys.argv[2]), sys.argv[3]
+with h5py.File(path + ".h5", "w") as f:
+    f["topology"] = np.array(cells, dtype=np.int64)
+    f["geometry"] = np.array(points, dtype=float)
+"""
+
+
+def grid_mesh(n: int = 9):
+    """The cells and points of an n x n node grid of the unit square (2 (n-1)^2 triangles)."""
+    xs = np.linspace(0.0, 1.0, n)
+    points = [[x, y] for y in xs for x in xs]
+    cells = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            cells += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+    return cells, points
+
+
+def write_mesh_file(folder: Path, name: str, cells, points) -> Path:
+    """An XDMF + HDF5 triangle mesh of any cells and points, written by h5py in a child process (h5py's
+    wheel clashes with the libhdf5 of dolfinx, which this test process may have loaded)."""
+    stem = folder / name
+    subprocess.run([sys.executable, "-c", _MESH_WRITER, json.dumps(cells), json.dumps(points), str(stem)],
+                   check=True, timeout=120)
+    stem.with_suffix(".xdmf").write_text(
+        '<?xml version="1.0"?>\n<Xdmf Version="3.0"><Domain><Grid Name="mesh" GridType="Uniform">'
+        f'<Topology TopologyType="Triangle" NumberOfElements="{len(cells)}" NodesPerElement="3">'
+        f'<DataItem Dimensions="{len(cells)} 3" NumberType="Int" Format="HDF">{name}.h5:/topology</DataItem></Topology>'
+        f'<Geometry GeometryType="XY"><DataItem Dimensions="{len(points)} 2" Format="HDF">{name}.h5:/geometry</DataItem>'
+        '</Geometry></Grid></Domain></Xdmf>\n')
+    return stem.with_suffix(".xdmf")
+
+
+def _bad_meshes():
+    cells, points = grid_mesh()
+    def changed(i, row):
+        out = [list(c) for c in cells]
+        out[i] = row
+        return out
+    return {
+        "index 10**6": (changed(5, [5, 10**6, 15]), points, "node index 1000000; allowed: indices in [0, 80]"),
+        "index -5": (changed(5, [5, -5, 15]), points, "node index -5; allowed: indices in [0, 80]"),
+        "too few nodes": (cells, points[:50], "allowed: indices in [0, 49]"),
+        "duplicate cell": (cells + [cells[3]], points, "duplicate cell"),
+        "duplicates, rotated": (cells + [cells[3][1:] + cells[3][:1]] * 40, points, "duplicate cell"),
+        "degenerate cell": (changed(5, [5, 5, 15]), points, "repeats a node"),
+        "edge in 3 cells": (cells + [[0, 10, 81]], points + [[0.3, -0.2]], "is in 3 cells"),
+        "unused node": (cells, points + [[2.0, 2.0]], "1 of them are in no cell"),
+    }
+
+
+@pytest.mark.parametrize("case", list(_bad_meshes()))
+def test_a_broken_mesh_file_is_refused_in_one_line_and_never_hangs(tmp_path, case):
+    """Issue 27, items 1 and 2: dolfinx hung (index out of range: deaf to SIGTERM) or crashed (duplicate cells)."""
+    cells, points, fragment = _bad_meshes()[case]
+    mesh = write_mesh_file(tmp_path, "bad", cells, points)
+    (tmp_path / "s.toml").write_text(f'mesh = "{mesh.name}"\nT = 0.1\nnt = 10\nalpha = 0\neps = 0.01\n'
+                                     'eta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
+    try:  # a hang guard only: the refusal takes seconds; SIGKILL, since the hang ignored SIGTERM
+        proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "s.toml", "--out", "o", *QUICK],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run on a broken mesh file did not end (dolfinx was given the mesh)")
+    assert proc.returncode == 2, proc.stderr
+    assert_one_line_error(proc.stderr, "mesh: ", fragment)
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+def test_a_valid_mesh_file_written_by_hand_still_runs(tmp_path, capfd):
+    cells, points = grid_mesh(5)
+    mesh = write_mesh_file(tmp_path, "good", cells, points)
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\neps = 0.01\neta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), *QUICK]) == 0, capfd.readouterr().err
