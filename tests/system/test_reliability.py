@@ -782,3 +782,33 @@ def test_a_valid_mesh_file_written_by_hand_still_runs(tmp_path, capfd):
     scene = tmp_path / "s.toml"
     scene.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\neps = 0.01\neta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "o"), *QUICK]) == 0, capfd.readouterr().err
+
+
+# --- issue 27, item 3: a planted lock file (symlink, FIFO) is refused, never followed or blocked on ----------
+
+@pytest.mark.parametrize("dangling", [False, True], ids=["to a file", "dangling"])
+def test_a_symlink_planted_as_the_lock_is_refused_and_its_target_kept(tmp_path, capfd, dangling):
+    (tmp_path / "o").mkdir()
+    victim = tmp_path / "victim.txt"
+    if not dangling:
+        victim.write_text("precious\n")
+    link = tmp_path / "o" / ".x.lock"
+    link.symlink_to(victim)
+    assert main(["run", "example1", "--out", str(tmp_path / "o" / "x"), *SMALL]) == 2
+    assert_one_line_error(capfd.readouterr().err, ".x.lock is a symbolic link")
+    assert link.is_symlink() and os.readlink(link) == str(victim)  # the link stays, unfollowed
+    assert victim.read_text() == "precious\n" if not dangling else not victim.exists()
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [".x.lock"]
+
+
+def test_a_fifo_planted_as_the_lock_is_refused_without_blocking(tmp_path):
+    (tmp_path / "o").mkdir()
+    os.mkfifo(tmp_path / "o" / ".x.lock")
+    try:  # a hang guard only: a FIFO opened for writing without O_NONBLOCK would block forever
+        proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "example1", "--out", "o/x", *SMALL],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run blocked on a FIFO planted as its lock file")
+    assert proc.returncode == 2, proc.stderr
+    assert_one_line_error(proc.stderr, ".x.lock is a FIFO")
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [".x.lock"]
