@@ -812,3 +812,42 @@ def test_a_fifo_planted_as_the_lock_is_refused_without_blocking(tmp_path):
     assert proc.returncode == 2, proc.stderr
     assert_one_line_error(proc.stderr, ".x.lock is a FIFO")
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [".x.lock"]
+
+
+# --- issue 27, item 6: plot and study follow run's --out rules (not /, not ., no overwriting without --force) ---
+
+@pytest.fixture(scope="module")
+def a_result(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("result") / "r"
+    assert main(["run", "example1", "--out", str(folder), *SMALL]) == 0
+    return folder
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["plot", "{result}", "--out", "/"], "is the root folder"),
+    (["plot", "{result}", "--out", "."], "is the current folder or contains it"),
+    (["plot", "{result}", "--out", "full"], "folder is not empty; choose another or pass --force"),
+    (["plot", "{result}", "--out", "full", "--force"], "--force replaces only a stringcontact result"),
+    (["study", "convergence", "--quick", "--out", "/"], "is the root folder"),
+    (["study", "stability", "--quick", "--out", "."], "is the current folder or contains it"),
+    (["study", "work-precision", "--quick", "--out", "full"], "folder is not empty"),
+], ids=["plot /", "plot .", "plot full", "plot full --force", "study /", "study .", "study full"])
+def test_plot_and_study_refuse_the_folders_run_refuses(tmp_path, capfd, monkeypatch, a_result, argv, fragment):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "energy.png").write_text("the user's own picture")
+    root_before = sorted(os.listdir("/"))
+    assert main([a.format(result=a_result) for a in argv]) == 2
+    assert_one_line_error(capfd.readouterr().err, fragment)
+    assert sorted(os.listdir("/")) == root_before
+    assert sorted(os.listdir(tmp_path)) == ["full"] and (tmp_path / "full" / "energy.png").read_text() == "the user's own picture"
+
+
+def test_plot_out_writes_a_whole_folder_and_replaces_it_only_with_force(tmp_path, capfd, a_result):
+    out = tmp_path / "pics"
+    assert main(["plot", str(a_result), "--out", str(out)]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert "pictures.json" in names and "energy.png" in names and leftovers(tmp_path) == []
+    assert main(["plot", str(a_result), "--out", str(out)]) == 2  # no silent overwrite
+    assert main(["plot", str(a_result), "--out", str(out), "--force"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == names and leftovers(tmp_path) == []
