@@ -851,3 +851,19 @@ def test_plot_out_writes_a_whole_folder_and_replaces_it_only_with_force(tmp_path
     assert main(["plot", str(a_result), "--out", str(out)]) == 2  # no silent overwrite
     assert main(["plot", str(a_result), "--out", str(out), "--force"]) == 0
     assert sorted(p.name for p in out.iterdir()) == names and leftovers(tmp_path) == []
+
+
+# --- issue 27, items 7 and 8: tiny length or T, and a huge --delta, are bad input (exit 2), not internal errors ---
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["run", "{scene}"], "length: 1e-300 is out of range; allowed: a number in [1e-06, 10000]"),
+    (["check", "example1", "--delta", "1e308"], "--delta: 1e+308 is out of range; allowed: a number in (0, length = 1]"),
+    (["check", "example1", "--delta", "nan"], "--delta: nan is out of range"),
+], ids=["length 1e-300", "delta 1e308", "delta nan"])
+def test_tiny_lengths_and_huge_deltas_are_one_line_and_exit_2(tmp_path, capfd, argv, fragment):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(scene_text(length="1e-300"))
+    argv = [a.format(scene=scene) for a in argv] + ["--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert_one_line_error(capfd.readouterr().err, fragment)
+    assert sorted(os.listdir(tmp_path)) == ["tiny.toml"]
