@@ -236,7 +236,7 @@ def test_warnings_stay_one_line_after_the_form_compiler_is_loaded(tmp_path):
     scene = tmp_path / "times.toml"
     scene.write_text(scene_text(T="0.3", nt="40", nx="20", eps="0.005", output_times="[0.1, 0.2]"))
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", str(scene), *QUICK, "--frames", "2",
-                           "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+                           "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stderr.splitlines()
     assert any("r = dt/eps = 1.5 > 1 rebounds" in line for line in lines)  # before the XDMF writer starts
@@ -700,3 +700,170 @@ def test_staged_folder_writes_all_or_nothing(tmp_path):
     with staged_folder(out, force=True) as folder:
         (folder / "b.txt").write_text("new")
     assert sorted(p.name for p in out.iterdir()) == ["b.txt"] and leftovers(tmp_path) == []
+
+
+# --- issue 27: mesh files checked before dolfinx sees them (no hang, no crash) ---------------------------
+
+_MESH_WRITER = """
+import json, sys
+import h5py, numpy as np
+cells, points, path = json.loads(sys.argv[1]), json.loads(sys.argv[2]), sys.argv[3]
+with h5py.File(path + ".h5", "w") as f:
+    f["topology"] = np.array(cells, dtype=np.int64)
+    f["geometry"] = np.array(points, dtype=float)
+"""
+
+
+def grid_mesh(n: int = 9):
+    """The cells and points of an n x n node grid of the unit square (2 (n-1)^2 triangles)."""
+    xs = np.linspace(0.0, 1.0, n)
+    points = [[x, y] for y in xs for x in xs]
+    cells = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            cells += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+    return cells, points
+
+
+def write_mesh_file(folder: Path, name: str, cells, points) -> Path:
+    """An XDMF + HDF5 triangle mesh of any cells and points, written by h5py in a child process (h5py's
+    wheel clashes with the libhdf5 of dolfinx, which this test process may have loaded)."""
+    stem = folder / name
+    subprocess.run([sys.executable, "-c", _MESH_WRITER, json.dumps(cells), json.dumps(points), str(stem)],
+                   check=True, timeout=120)
+    stem.with_suffix(".xdmf").write_text(
+        '<?xml version="1.0"?>\n<Xdmf Version="3.0"><Domain><Grid Name="mesh" GridType="Uniform">'
+        f'<Topology TopologyType="Triangle" NumberOfElements="{len(cells)}" NodesPerElement="3">'
+        f'<DataItem Dimensions="{len(cells)} 3" NumberType="Int" Format="HDF">{name}.h5:/topology</DataItem></Topology>'
+        f'<Geometry GeometryType="XY"><DataItem Dimensions="{len(points)} 2" Format="HDF">{name}.h5:/geometry</DataItem>'
+        '</Geometry></Grid></Domain></Xdmf>\n')
+    return stem.with_suffix(".xdmf")
+
+
+def _bad_meshes():
+    cells, points = grid_mesh()
+    def changed(i, row):
+        out = [list(c) for c in cells]
+        out[i] = row
+        return out
+    return {
+        "index 10**6": (changed(5, [5, 10**6, 15]), points, "node index 1000000; allowed: indices in [0, 80]"),
+        "index -5": (changed(5, [5, -5, 15]), points, "node index -5; allowed: indices in [0, 80]"),
+        "too few nodes": (cells, points[:50], "allowed: indices in [0, 49]"),
+        "duplicate cell": (cells + [cells[3]], points, "duplicate cell"),
+        "duplicates, rotated": (cells + [cells[3][1:] + cells[3][:1]] * 40, points, "duplicate cell"),
+        "degenerate cell": (changed(5, [5, 5, 15]), points, "repeats a node"),
+        "edge in 3 cells": (cells + [[0, 10, 81]], points + [[0.3, -0.2]], "is in 3 cells"),
+        "unused node": (cells, points + [[2.0, 2.0]], "1 of them are in no cell"),
+    }
+
+
+@pytest.mark.parametrize("case", list(_bad_meshes()))
+def test_a_broken_mesh_file_is_refused_in_one_line_and_never_hangs(tmp_path, case):
+    """Issue 27, items 1 and 2: dolfinx hung (index out of range: deaf to SIGTERM) or crashed (duplicate cells)."""
+    cells, points, fragment = _bad_meshes()[case]
+    mesh = write_mesh_file(tmp_path, "bad", cells, points)
+    (tmp_path / "s.toml").write_text(f'mesh = "{mesh.name}"\nT = 0.1\nnt = 10\nalpha = 0\neps = 0.01\n'
+                                     'eta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
+    try:  # a hang guard only: the refusal takes seconds; SIGKILL, since the hang ignored SIGTERM
+        proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "s.toml", "--out", "o", *QUICK],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run on a broken mesh file did not end (dolfinx was given the mesh)")
+    assert proc.returncode == 2, proc.stderr
+    assert_one_line_error(proc.stderr, "mesh: ", fragment)
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+def test_a_valid_mesh_file_written_by_hand_still_runs(tmp_path, capfd):
+    cells, points = grid_mesh(5)
+    mesh = write_mesh_file(tmp_path, "good", cells, points)
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\neps = 0.01\neta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "o"), *QUICK]) == 0, capfd.readouterr().err
+
+
+# --- issue 27, item 3: a planted lock file (symlink, FIFO) is refused, never followed or blocked on ----------
+
+@pytest.mark.parametrize("dangling", [False, True], ids=["to a file", "dangling"])
+def test_a_symlink_planted_as_the_lock_is_refused_and_its_target_kept(tmp_path, capfd, dangling):
+    (tmp_path / "o").mkdir()
+    victim = tmp_path / "victim.txt"
+    if not dangling:
+        victim.write_text("precious\n")
+    link = tmp_path / "o" / ".x.lock"
+    link.symlink_to(victim)
+    assert main(["run", "example1", "--out", str(tmp_path / "o" / "x"), *SMALL]) == 2
+    assert_one_line_error(capfd.readouterr().err, ".x.lock is a symbolic link")
+    assert link.is_symlink() and os.readlink(link) == str(victim)  # the link stays, unfollowed
+    assert victim.read_text() == "precious\n" if not dangling else not victim.exists()
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [".x.lock"]
+
+
+def test_a_fifo_planted_as_the_lock_is_refused_without_blocking(tmp_path):
+    (tmp_path / "o").mkdir()
+    os.mkfifo(tmp_path / "o" / ".x.lock")
+    try:  # a hang guard only: a FIFO opened for writing without O_NONBLOCK would block forever
+        proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "example1", "--out", "o/x", *SMALL],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=180)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run blocked on a FIFO planted as its lock file")
+    assert proc.returncode == 2, proc.stderr
+    assert_one_line_error(proc.stderr, ".x.lock is a FIFO")
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [".x.lock"]
+
+
+# --- issue 27, item 6: plot and study follow run's --out rules (not /, not ., no overwriting without --force) ---
+
+@pytest.fixture(scope="module")
+def a_result(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("result") / "r"
+    assert main(["run", "example1", "--out", str(folder), *SMALL]) == 0
+    return folder
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["plot", "{result}", "--out", "/"], "is the root folder"),
+    (["plot", "{result}", "--out", "."], "is the current folder or contains it"),
+    (["plot", "{result}", "--out", "full"], "folder is not empty; choose another or pass --force"),
+    (["plot", "{result}", "--out", "full", "--force"], "--force replaces only a stringcontact result"),
+    (["study", "convergence", "--quick", "--out", "/"], "is the root folder"),
+    (["study", "stability", "--quick", "--out", "."], "is the current folder or contains it"),
+    (["study", "work-precision", "--quick", "--out", "full"], "folder is not empty"),
+], ids=["plot /", "plot .", "plot full", "plot full --force", "study /", "study .", "study full"])
+def test_plot_and_study_refuse_the_folders_run_refuses(tmp_path, capfd, monkeypatch, a_result, argv, fragment):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "energy.png").write_text("the user's own picture")
+    root_before = sorted(os.listdir("/"))
+    assert main([a.format(result=a_result) for a in argv]) == 2
+    assert_one_line_error(capfd.readouterr().err, fragment)
+    assert sorted(os.listdir("/")) == root_before
+    assert sorted(os.listdir(tmp_path)) == ["full"] and (tmp_path / "full" / "energy.png").read_text() == "the user's own picture"
+
+
+def test_plot_out_writes_a_whole_folder_and_replaces_it_only_with_force(tmp_path, capfd, a_result):
+    out = tmp_path / "pics"
+    assert main(["plot", str(a_result), "--out", str(out)]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert "pictures.json" in names and "energy.png" in names and leftovers(tmp_path) == []
+    assert main(["plot", str(a_result), "--out", str(out)]) == 2  # no silent overwrite
+    assert main(["plot", str(a_result), "--out", str(out), "--force"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == names and leftovers(tmp_path) == []
+
+
+# --- issue 27, items 7 and 8: tiny length or T, and a huge --delta, are bad input (exit 2), not internal errors ---
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["run", "{scene}"], "length: 1e-300 is out of range; allowed: a number in [1e-06, 10000]"),
+    (["check", "example1", "--delta", "1e308"], "--delta: 1e+308 is out of range; allowed: a number in (0, length = 1]"),
+    (["check", "example1", "--delta", "nan"], "--delta: nan is out of range"),
+], ids=["length 1e-300", "delta 1e308", "delta nan"])
+def test_tiny_lengths_and_huge_deltas_are_one_line_and_exit_2(tmp_path, capfd, argv, fragment):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(scene_text(length="1e-300"))
+    argv = [a.format(scene=scene) for a in argv] + ["--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert_one_line_error(capfd.readouterr().err, fragment)
+    assert sorted(os.listdir(tmp_path)) == ["tiny.toml"]

@@ -64,9 +64,10 @@ def command(args) -> int:
         raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
     if args.delay is not None and not args.delay > 0:
         raise ValueError(f"--delay must be > 0, got {args.delay}")
-    if not args.delta > 0:
-        raise ValueError(f"--delta must be > 0, got {args.delta}")
     scene = _scene_from_args(args)
+    if not 0 < args.delta <= scene.length:  # a band half-width in x: 1e308 overflowed (and nan is refused)
+        raise ValueError(f"--delta: {args.delta:g} is out of range; allowed: a number in (0, length = {scene.length:g}] "
+                         "(the half-width of the band around the fronts)")
     if args.delay is not None and args.delay >= scene.T:
         raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
     if args.out is not None:

@@ -5,10 +5,13 @@ Under ``mpirun -n K`` the cases are dealt over the ranks (`analysis.schedule.dis
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
 import numpy as np
+
+from ..io.publish import check_target, staged_folder
 
 from ..analysis.study import (
     ALPHA_COLUMNS,
@@ -42,6 +45,7 @@ def add_arguments(parser):
     for name, help_text in specs.items():
         p = sub.add_parser(name, help=help_text)
         p.add_argument("--out", metavar="DIR", default="out/study", help="folder for the CSV and PNG files")
+        p.add_argument("--force", action="store_true", help="replace a folder that holds an earlier study")
         p.add_argument("--quick", action="store_true", help="a small version (seconds), for tests and demos")
         if name == "work-precision":
             p.add_argument("--problem", choices=("flat-landing", "example1", "all"), default="all")
@@ -53,8 +57,7 @@ def command(args) -> int:
 
     comm = MPI.COMM_WORLD
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: exists and is not a folder")
+    check_target(out, args.force)  # the rules of `run --out`, before the sweep: not /, not ., not a full folder
     t0 = time.perf_counter()
     if args.study == "work-precision" and args.repeat < 1:
         raise ValueError(f"--repeat must be >= 1, got {args.repeat}")
@@ -72,26 +75,11 @@ def command(args) -> int:
     sweep = time.perf_counter() - t_sweep
     written = []
     if result is not None:  # None on ranks > 0: rank 0 has the results
-        if args.study == "work-precision":
-            written = [write_csv(out / "study_work_precision.csv", result, WORK_PRECISION_COLUMNS),
-                       plot_work_precision(result, out / "study_work_precision.png")]
-        elif args.study == "convergence":
-            tracking = tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
-            written = [write_csv(out / "study_convergence.csv", result["runs"], CONVERGENCE_COLUMNS),
-                       write_csv(out / "study_orders.csv", result["orders"], ORDER_COLUMNS),
-                       write_csv(out / "study_tolerance.csv", tracking, TOLERANCE_COLUMNS),
-                       plot_convergence(result, out / "study_convergence.png")]
-            for o in result["orders"]:
-                print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")
-            for t in tracking:
-                print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} "
-                      f"true {t['true_error']:.3g}")
-        else:
-            written = [write_csv(out / "study_stability.csv", result, STABILITY_COLUMNS),
-                       write_csv(out / "study_alpha.csv", alpha_rows, ALPHA_COLUMNS),
-                       write_csv(out / "study_step_size.csv", step_rows, STEP_COLUMNS),
-                       plot_stability(result, alpha_rows, out / "study_stability.png"),
-                       plot_step_size(step_rows, out / "study_step_size.png")]
+        with staged_folder(out, args.force) as partial:  # the whole folder or nothing, under the lock
+            written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
+            (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
+                                                            "files": [p.name for p in written]}, indent=1) + "\n")
+        written = [out / p.name for p in written]
     if comm.rank == 0:
         elapsed = time.perf_counter() - t0
         per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
@@ -100,3 +88,28 @@ def command(args) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Path]:
+    """The study's CSV files and charts, written into `out` (the hidden staged folder)."""
+    if args.study == "work-precision":
+        written = [write_csv(out / "study_work_precision.csv", result, WORK_PRECISION_COLUMNS),
+                   plot_work_precision(result, out / "study_work_precision.png")]
+    elif args.study == "convergence":
+        tracking = tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
+        written = [write_csv(out / "study_convergence.csv", result["runs"], CONVERGENCE_COLUMNS),
+                   write_csv(out / "study_orders.csv", result["orders"], ORDER_COLUMNS),
+                   write_csv(out / "study_tolerance.csv", tracking, TOLERANCE_COLUMNS),
+                   plot_convergence(result, out / "study_convergence.png")]
+        for o in result["orders"]:
+            print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")
+        for t in tracking:
+            print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} "
+                  f"true {t['true_error']:.3g}")
+    else:
+        written = [write_csv(out / "study_stability.csv", result, STABILITY_COLUMNS),
+                   write_csv(out / "study_alpha.csv", alpha_rows, ALPHA_COLUMNS),
+                   write_csv(out / "study_step_size.csv", step_rows, STEP_COLUMNS),
+                   plot_stability(result, alpha_rows, out / "study_stability.png"),
+                   plot_step_size(step_rows, out / "study_step_size.png")]
+    return written

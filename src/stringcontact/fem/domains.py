@@ -20,7 +20,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import SceneError
-from . import compat
+from . import compat, meshfile
 
 __all__ = ["create", "boundary_dofs", "nodal_areas"]
 
@@ -83,6 +83,7 @@ def _read(comm, path: str):
         raise SceneError(f"mesh: {path!r} is a 3D mesh ({cell} cells); allowed: a 2D triangle mesh")
     if cell.lower() != "triangle":
         raise SceneError(f"mesh: {path!r} has {cell} cells; allowed: a 2D triangle mesh (Triangle cells)")
+    meshfile.check(path, name)  # dolfinx hangs or crashes on indices out of range or duplicate cells
     from dolfinx.io import XDMFFile
 
     try:

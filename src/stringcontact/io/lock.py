@@ -69,6 +69,12 @@ class TargetLock:
                     f"--out {self.target}: another stringcontact run{who} is writing to this folder; "
                     "wait for it to finish or choose another folder"
                 ) from None
+            except OSError as exc:
+                odd = _not_a_lock_file(self.path)
+                if odd is None:
+                    raise
+                raise OutputError(f"--out {self.target}: its lock file {self.path.name} is {odd}, which no stringcontact "
+                                  "run makes; remove it (nothing was written there)") from None
         raise OutputError(f"--out {self.target}: cannot take the lock {self.path}")  # pragma: no cover
 
     def release(self) -> None:
@@ -97,6 +103,21 @@ class TargetLock:
             return None
         finally:
             os.close(fd)
+
+
+def _not_a_lock_file(path: Path) -> str | None:
+    """What stands at `path` if it is not a regular file (a planted link or FIFO), else None."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISLNK(mode):
+        return "a symbolic link"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    return None if stat.S_ISREG(mode) else "not a regular file"
 
 
 def _read_pid(fd) -> int | None:

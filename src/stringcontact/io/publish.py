@@ -51,7 +51,9 @@ def _occupied(path: Path) -> bool:
 #: The statuses a run writes into its summary.json; `--force` replaces only a folder holding one of them.
 STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
 #: What marks a folder as ours: a run's summary.json, or the checks.json of `stringcontact check --out`.
-RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks"}
+#: The file each command that writes a folder leaves there, and the key that marks it as ours: `run`
+#: (summary.json), `check --out` (checks.json), `study` (study.json), `plot --out` (pictures.json).
+RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks", "study.json": "study", "pictures.json": "pictures"}
 
 
 def check_target(path, force: bool, *, locked: bool = False) -> Path:

@@ -17,6 +17,7 @@ run. ``stringcontact plot DIR`` redraws them from an output folder alone
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from .charts import (  # noqa: F401 - the pictures and readings are used as viz.* by the demos and tests
@@ -140,7 +141,8 @@ def add_arguments(parser) -> None:
         "from its saved files (solution.xdmf/.h5, diagnostics.csv, summary.json) alone."
     )
     parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
-    parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR")
+    parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR (a new folder)")
+    parser.add_argument("--force", action="store_true", help="replace an --out folder of earlier pictures")
     parser.add_argument(
         "--size",
         metavar="WxH",
@@ -164,10 +166,18 @@ def command(args) -> int:
     from ..io.readback import read_output
 
     size = parse_size(args.size)
+    if args.out is None:  # into the run's own folder, each picture replaced whole (atomic_path)
+        for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
+            print(f"wrote {path}")
+        return 0
+    from ..io.publish import check_target, staged_folder
+
+    out = Path(args.out)
+    check_target(out, args.force)  # the rules of `run --out`: not /, not ., no overwriting without --force
     result = read_output(args.folder)
-    out = Path(args.out) if args.out else Path(args.folder)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: exists and is not a folder")
-    for path in write_pictures(result, out, window_size=size):
-        print(f"wrote {path}")
+    with staged_folder(out, args.force) as partial:  # the whole folder or nothing
+        names = [p.name for p in write_pictures(result, partial, window_size=size)]
+        (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
+    for name in names:
+        print(f"wrote {out / name}")
     return 0

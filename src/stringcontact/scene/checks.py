@@ -68,7 +68,7 @@ def check_domain(scene, put) -> None:
         raise SceneError(f"{given[0]}: only for domain 'interval', not {domain!r}" if domain != "interval" else
                          f"{given[0]}: not for domain 'interval'; give domain = 'rectangle', 'disk' or a mesh file")
     if domain == "rectangle":
-        put("size", _pair("size", scene.size, lambda v: number("length", v), "two numbers [Lx, Ly] in (0, 10000]"))
+        put("size", _pair("size", scene.size, lambda v: number("length", v), "two numbers [Lx, Ly] in [1e-06, 10000]"))
         put("cells", _pair("cells", scene.cells, lambda v: _cell_count(v), f"two integers [nx, ny] in [1, {MAX_CELLS}]"))
     elif domain == "disk":
         put("radius", number("radius", scene.radius))

@@ -53,9 +53,11 @@ DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
 # Bounds: (low, high, low_open, high_open). Wide enough for any sensible run, tight enough
 # to catch typos (a missing minus, a forgotten decimal point) before a solver sees them.
 BOUNDS = {
-    "length": (0.0, 1e4, True, False),
-    "radius": (0.0, 1e4, True, False),
-    "T": (0.0, 1e4, True, False),
+    # length, radius and T at least 1e-6: 1e-300 made dolfinx's interval of zero length and T/nt divide by 0;
+    # float64 keeps 1e-6/1e5 cells and 1e-6/1e8 steps well inside its range (docs/reliability.md).
+    "length": (1e-6, 1e4, False, False),
+    "radius": (1e-6, 1e4, False, False),
+    "T": (1e-6, 1e4, False, False),
     "alpha": (0.0, 1e4, False, False),
     "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/reliability.md, "Size and precision limits"
     "h": (-1e6, 1e6, False, False),
