@@ -385,3 +385,16 @@ def test_the_picture_process_ends_and_cleans_up_when_the_run_dies(tmp_path):
     while (alive() or private.exists()) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not alive() and not private.exists()
+
+
+def test_no_axes3d_warning_once_a_picture_module_is_loaded():
+    """pip's matplotlib beside Debian's mpl_toolkits warns "Unable to import Axes3D" (issue 26); matplotlib 3.6 here
+    does not, so the warning is raised as matplotlib raises it, after the picture modules and the study charts load."""
+    import subprocess
+    import sys
+
+    code = ("import warnings; import stringcontact.plot.study_charts, stringcontact.plot.charts\n"
+            "warnings.warn('Unable to import Axes3D. This may be due to multiple versions of Matplotlib', UserWarning)\n"
+            "print('done')")
+    proc = subprocess.run([sys.executable, "-W", "default", "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.strip() == "done" and "Axes3D" not in proc.stderr, proc.stderr
