@@ -333,8 +333,11 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
     mesh_pictures.space_time_picture(free, tmp_path / "free.png")
     mesh_pictures.space_time_picture(res, tmp_path / "contact.png")
-    red = [_near(_image(tmp_path / n), viz.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
+    # the surface, without the colour key at the upper right (its "■ in contact" line is red in both)
+    red = [_near(_image(tmp_path / n)[250:], viz.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
     assert red[0] < 50 and red[1] > 2000
+    key = [_near(_image(tmp_path / n)[:250, 700:], viz.CONTACT_COLOUR, tol=10).sum() for n in ("free.png", "contact.png")]
+    assert min(key) > 30  # the key's red square and words
     img = _image(tmp_path / "free.png")
     grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the translucent obstacle
     assert grey.sum() > 5000
@@ -385,3 +388,69 @@ def test_the_picture_process_ends_and_cleans_up_when_the_run_dies(tmp_path):
     while (alive() or private.exists()) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not alive() and not private.exists()
+
+
+def test_no_axes3d_warning_once_a_picture_module_is_loaded():
+    """pip's matplotlib beside Debian's mpl_toolkits warns "Unable to import Axes3D" (issue 26); matplotlib 3.6 here
+    does not, so the warning is raised as matplotlib raises it, after the picture modules and the study charts load."""
+    import subprocess
+    import sys
+
+    code = ("import warnings; import stringcontact.plot.study_charts, stringcontact.plot.charts\n"
+            "warnings.warn('Unable to import Axes3D. This may be due to multiple versions of Matplotlib', UserWarning)\n"
+            "print('done')")
+    proc = subprocess.run([sys.executable, "-W", "default", "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.strip() == "done" and "Axes3D" not in proc.stderr, proc.stderr
+
+
+def _recorded_axes(monkeypatch):
+    """The axes and colour keys the mesh pictures draw, recorded as they are drawn."""
+    from stringcontact.plot import mesh_pictures
+
+    drawn = {"axes": [], "labels": [], "keys": []}
+    add_axis, add_key = mesh_pictures.add_axis, mesh_pictures.add_colour_legend
+
+    def axis(p, a, *args, **kwargs):
+        drawn["axes"].append(a)
+        drawn["labels"].append(add_axis(p, a, *args, **kwargs))
+        return drawn["labels"][-1]
+
+    def key(p, quantity, entries, **kwargs):
+        drawn["keys"].append((quantity, [label for label, _ in entries]))
+        return add_key(p, quantity, entries, **kwargs)
+
+    monkeypatch.setattr(mesh_pictures, "add_axis", axis)
+    monkeypatch.setattr(mesh_pictures, "add_colour_legend", key)
+    return drawn
+
+
+def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_colour_key(tmp_path, run, monkeypatch):
+    """Issue 26: x, t and eta axes with round ticks (not corner labels at the obstacle's plane), and a key naming
+    the quantity the colours show."""
+    from stringcontact.plot import mesh_pictures
+
+    _, res = run
+    drawn = _recorded_axes(monkeypatch)
+    mesh_pictures.space_time_picture(res, tmp_path / "st.png")
+    assert [a.title for a in drawn["axes"]] == ["x", "t", "eta"]
+    x_labels, t_labels, eta_labels = drawn["labels"]
+    assert x_labels[0] == "0" and x_labels[-1] == "1" and len(x_labels) >= 3
+    assert t_labels[0] == "0" and float(t_labels[-1]) <= res.t[-1] and len(t_labels) >= 3
+    assert len(eta_labels) >= 2
+    x_axis, t_axis, _ = drawn["axes"]
+    assert x_axis.start[2] < 0 and t_axis.start[2] < 0  # on a floor below the obstacle ψ = 0, not on its plane
+    (quantity, entries), = drawn["keys"]
+    assert "contact" in quantity and any("in contact" in e for e in entries)
+    np.testing.assert_array_equal(mesh_pictures.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
+
+
+def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch):
+    from stringcontact.plot import mesh_pictures
+
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.3, T=0.3, nt=60, output_times=[0.0, 0.3]))
+    drawn = _recorded_axes(monkeypatch)
+    mesh_pictures.membrane_picture(res, tmp_path / "m.png")
+    assert [a.title for a in drawn["axes"]] == ["x", "y", "eta"] * 2  # in each of the two panels
+    x_labels = [float(v) for v in drawn["labels"][0]]
+    assert x_labels[0] < 0 < x_labels[-1] and len(x_labels) >= 3
+    assert len(drawn["keys"]) == 1 and "contact" in drawn["keys"][0][0]

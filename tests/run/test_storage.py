@@ -149,3 +149,36 @@ def test_a_big_membrane_scene_loads_and_its_rows_are_left_to_the_budget():
     assert big.nt == 2000
     with pytest.raises(sc.SceneError, match=r"output_times: .* allowed: at most 2 GB"):
         sc.load_scene("bump").replace(cells=[2000, 2000], output_times=[0.01 * k for k in range(100)])
+
+
+def test_stored_times_are_the_scheduled_times_exactly(tmp_path):
+    """Issue 26: n·Δt is 0.039999999999999994 at Δt = 0.3/1500; the run stores 0.04 (an output time as given)
+    and 0.0402 (n·Δt rounded), in the Result, diagnostics.csv and solution.xdmf alike."""
+    from stringcontact.io.readback import read_output
+    from stringcontact.run.driver import step_times
+
+    dt = 0.3 / 1500
+    assert 200 * dt != 0.04
+    np.testing.assert_array_equal(step_times([0, 200, 201, 1500], dt, [0.04]), [0.0, 0.04, 0.0402, 0.3])
+    assert step_times([201], dt)[0] == 0.0402
+    res = sc.simulate(sc.load_scene("example1").replace(nx=40, nt=1500), output_dir=tmp_path / "out", max_frames=10,
+                      pictures=False)
+    assert np.flatnonzero(res.t == 0.04).size == 1 and res.t[-1] == 0.3
+    assert all(t in res.t for t in res.scene.output_times)
+    back = read_output(tmp_path / "out")
+    assert np.flatnonzero(back.t == 0.04).size == 1
+    with open(tmp_path / "out" / "diagnostics.csv") as f:
+        column = f.readline().strip().split(",").index("t")
+    assert 0.04 in np.loadtxt(tmp_path / "out" / "diagnostics.csv", delimiter=",", skiprows=1, usecols=column)
+
+
+def test_an_eps_free_run_states_a_bound_without_eps():
+    """The projection scheme has no ε: its penetration bound is 2Δt max|v| and the CLI's line names no eps."""
+    from stringcontact.cli.main import _fmt_penetration_line
+
+    res = sc.simulate(small_string(), scheme="projection")
+    p = penetration_check(res)
+    assert p["eps_free"] and p["eps_times_speed"] == 0.0 and "penalty" in p["law"]
+    line, ok = _fmt_penetration_line(res)
+    assert ok and "eps" not in line and "dt max|v|" in line, line
+    assert "eps max|v|" in _fmt_penetration_line(sc.simulate(small_string()))[0]  # a penalty run keeps it

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import shutil
 import subprocess
 from pathlib import Path
@@ -110,3 +111,82 @@ def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
     assert _pixels_near(img, CONTACT_RGB) > 500, "no contact patch drawn in the contact colour"
     bluish = (img[..., 2].astype(int) - np.maximum(img[..., 0], img[..., 1]).astype(int)) > 60  # lit: shades of FREE_RGB
     assert int(bluish.sum()) > 1000, "no free membrane drawn"
+
+
+# --- the folder's own view.py: `pvpython view.py TIME PNG [contact|velocity]` --------------------------------
+
+MIDDLE = (slice(40, 560), slice(120, 850))  # the picture without the colour bar (right) and the axes (lower left)
+
+
+def _views(command, folder, shots):
+    """`pvpython view.py TIME PNG FIELD` for each (t, png, field) of `shots`, all under one X server (one
+    xvfb-run per screenshot races for displays); returns [(report, image)]."""
+    from PIL import Image
+
+    xvfb, pv = command[:-1], command[-1]
+    script = "; ".join(f"{pv} {shlex.quote(str(folder / 'view.py'))} {float(t)!r} {shlex.quote(str(png))} {field} || exit 1"
+                       for t, png, field in shots)
+    proc = subprocess.run([*xvfb, "sh", "-c", script], capture_output=True, text=True, check=False, cwd=folder)
+    assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
+    reports = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    assert len(reports) == len(shots), proc.stdout
+    return [(r, np.asarray(Image.open(png).convert("RGB"))) for r, (_, png, _) in zip(reports, shots)]
+
+
+def _drawn_box(img):
+    """The rows and columns of the picture's non-white pixels within MIDDLE's columns."""
+    ink = np.any(img[:, MIDDLE[1]].astype(int) < 235, axis=-1)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    return rows.min(), rows.max(), cols.min(), cols.max()
+
+
+def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run):
+    """view.py written by the run: contact on 0 … 1 at t = 0 (all blue) and in contact (red and blue), velocity on
+    ±max|v| over all stored rows, the string inside the picture at every time."""
+    command = pvpython()
+    out, res = run
+    text = (out / "view.py").read_text()
+    imports = {line.split()[1] for line in text.splitlines() if line.startswith(("import ", "from "))}
+    assert imports == {"json", "os", "sys", "paraview.simple"}, imports  # data, not this package's code
+    speed = float(np.abs(res.velocity).max())
+    back = read_output(out)
+    k = int(np.argmax([0.3 < c.mean() < 1 for c in back.contact]))  # a frame with contact on part of the string
+    times = [0.0, float(back.t[k]), float(back.t[-1])]
+    shots = [(t, tmp_path / f"{field}_{t:g}.png", field) for t in times for field in ("contact", "velocity")]
+    for (t, _, field), (report, img) in zip(shots, _views(command, out, shots)):
+        assert report["field"] == field and report["time"] == pytest.approx(t), report
+        top, bottom, left, right = _drawn_box(img)
+        assert top > 0 and bottom < img.shape[0] - 1, f"t = {t}: the string leaves the picture"
+        if field == "velocity":
+            np.testing.assert_allclose(report["range"], [-speed, speed], rtol=1e-12)
+            continue
+        assert report["range"] == [0.0, 1.0], report
+        middle = img[MIDDLE]
+        red, blue = _pixels_near(middle, CONTACT_RGB), _pixels_near(middle, FREE_RGB)
+        assert blue > 100, f"t = {t}: no free string drawn"
+        if t == 0.0:
+            assert red == 0, "t = 0: the string touches nowhere, yet is drawn in the contact colour"
+        if t == times[1]:
+            assert red > 300, f"t = {t}: no contact drawn in red"
+
+
+def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
+    command = pvpython()
+    out = tmp_path / "drum"
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
+    text = (out / "view.py").read_text()
+    assert "NORMAL = [0.0, 0.0, 1.0]" in text and "KIND = 'membrane'" in text
+    back = read_output(out)
+    k = int(np.argmax(back.contact_measure))
+    t_k = float(back.t[k])
+    shots = [(0.0, tmp_path / "drum_0.png", "contact"), (t_k, tmp_path / "drum_k.png", "contact"),
+             (t_k, tmp_path / "drum_velocity.png", "velocity")]
+    (r0, img0), (rk, imgk), (rv, _) = _views(command, out, shots)
+    for t, touching, report, img in ((0.0, False, r0, img0), (t_k, True, rk, imgk)):
+        assert report["range"] == [0.0, 1.0], report
+        reddish = (img[MIDDLE][..., 0].astype(int) - np.maximum(img[MIDDLE][..., 1], img[MIDDLE][..., 2])) > 60
+        bluish = (img[MIDDLE][..., 2].astype(int) - np.maximum(img[MIDDLE][..., 0], img[MIDDLE][..., 1])) > 60
+        assert int(bluish.sum()) > 1000, f"t = {t}: no free membrane drawn"
+        assert (int(reddish.sum()) > 1000) == touching, f"t = {t}: contact patch {int(reddish.sum())} red pixels"
+    speed = float(np.abs(res.velocity).max())
+    np.testing.assert_allclose(rv["range"], [-speed, speed], rtol=1e-12)

@@ -170,6 +170,9 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
     p = checks_of(res)["penetration"]
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
     verdict = "within" if p["within_bound"] else "EXCEEDS"
+    if p.get("eps_free"):  # a contact step (scheme projection): no eps in the bound
+        line = f"penetration: max depth {p['depth']:.4g} {verdict} the bound {start}{PENETRATION_FACTOR:g} dt max|v| = {p['bound']:.4g}"
+        return line, p["within_bound"]
     line = (
         f"penetration: max depth {p['depth']:.4g} {verdict} the bound {start}{PENETRATION_FACTOR:g}(eps + dt) max|v| "
         f"= {p['bound']:.4g} (eps max|v| = {p['eps_times_speed']:.4g})"

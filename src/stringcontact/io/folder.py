@@ -29,6 +29,7 @@ from ..errors import (
     one_line,
 )
 from .lock import TargetLock, lock_path  # noqa: F401 - re-exported
+from .paraview_view import write_view
 from .publish import (  # noqa: F401 - re-exported
     DISK_ERRNOS,
     NEARLY_FULL_BYTES,
@@ -226,6 +227,7 @@ class OutputWriter:
                     summary["instability"] = {"message": str(error), "step": error.step, "time": error.time, "r": error.r}
                 if self.comm.rank == 0 and result is not None and len(result.t):
                     write_diagnostics(self.partial / "diagnostics.csv", result)
+                    write_view(result, self.partial)
                 self._publish(summary)
         except Exception as exc:  # noqa: BLE001 - never hide the run's own exception behind ours
             self._discard()
@@ -238,8 +240,9 @@ class OutputWriter:
     # -- internals
 
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
-        """Rank 0: diagnostics.csv and the pictures. A picture that fails on the device raises (`disk_failure`)."""
+        """Rank 0: diagnostics.csv, view.py (the ParaView view) and the pictures. A picture that fails on the device raises (`disk_failure`)."""
         write_diagnostics(self.partial / "diagnostics.csv", result)
+        write_view(result, self.partial, target=self.target)
         if self.pictures:
             t0 = time.perf_counter()
             self._pictures(result)

@@ -6,8 +6,11 @@ panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). The ani
 ``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
 
 VTK's scalar bar and pyvista's `show_bounds` format their labels with `std::regex`, which aborts the
-process (`std::bad_alloc`) once dolfinx's C++ module is loaded: this module uses neither. The colours
-are named in the title, the axes by labels at the corners of the (x, t) plane.
+process (`std::bad_alloc`) once dolfinx's C++ module is loaded (a run's pictures drawn in its own process,
+`simulate(..., pictures=True)`): this module uses neither. Its axes are drawn as lines with ticks and
+point labels (`add_axis`: x, t or y, and the height η, on the floor below the obstacle, along the edges
+nearest the viewer), and its colours are named by a legend (`add_colour_legend`: the quantity, contact,
+and what each colour means), which need no regex.
 """
 
 from __future__ import annotations
@@ -77,6 +80,63 @@ def _screenshot(p, path: Path) -> None:
     p.close()
 
 
+def nice_ticks(low: float, high: float, most: int = 5) -> np.ndarray:
+    """Round tick values within [low, high] (matplotlib's MaxNLocator), at least the two ends if none fit."""
+    from matplotlib.ticker import MaxNLocator
+
+    if not high > low:
+        return np.array([low])
+    ticks = MaxNLocator(nbins=most, steps=[1, 2, 2.5, 5, 10]).tick_values(low, high)
+    span = high - low
+    ticks = np.array([float(f"{v:.12g}") for v in ticks if low - 1e-9 * span <= v <= high + 1e-9 * span])
+    return ticks if ticks.size >= 2 else np.array([low, high])
+
+
+def _tick_label(v: float) -> str:
+    return f"{0.0 if abs(v) < 1e-12 else v:g}"
+
+
+@dataclass
+class Axis:
+    """One axis: drawn from `start` to `end` (3-D points), the values `low` … `high` along it, ticks pointing
+    along `outward` (a 3-D offset: the labels sit at twice it), named `title`."""
+
+    start: tuple
+    end: tuple
+    low: float
+    high: float
+    outward: tuple
+    title: str
+
+
+def add_axis(p, axis: Axis, font_size: int = 11, most: int = 5) -> list[str]:
+    """An axis with ticks and labels in the plotter `p`; returns the tick labels drawn."""
+    pv = _pyvista()
+    start, end, out = (np.asarray(v, dtype=float) for v in (axis.start, axis.end, axis.outward))
+    p.add_mesh(pv.Line(start, end), color="black", line_width=2, lighting=False)
+    ticks = nice_ticks(axis.low, axis.high, most)
+    where = start + np.outer((ticks - axis.low) / ((axis.high - axis.low) or 1.0), end - start)
+    for point in where:
+        p.add_mesh(pv.Line(point, point + out), color="black", line_width=2, lighting=False)
+    labels = [_tick_label(v) for v in ticks]
+    p.add_point_labels(where + 2.2 * out, labels, font_size=font_size, text_color="black", shape=None,
+                       show_points=False, always_visible=True, font_family="arial", justification_horizontal="center")
+    p.add_point_labels([0.5 * (start + end) + 4.5 * out], [axis.title], font_size=font_size + 2, text_color="black",
+                       shape=None, show_points=False, always_visible=True, bold=True)
+    return labels
+
+
+def add_colour_legend(p, quantity: str, entries, top: float = 0.86, font_size: int = 9, left: float = 0.74,
+                      step: float = 0.028) -> None:
+    """A colour key at the upper right naming what the colours show: the `quantity` (a first line in black),
+    then one "■ label" line per (label, colour) of `entries`, in that colour (DejaVu Sans: Greek letters too;
+    VTK's legend box has no such font)."""
+    lines = [(quantity, "black"), *[(f"■ {label}", colour) for label, colour in entries]]
+    for k, (text, colour) in enumerate(lines):
+        p.add_text(text, position=(left, top - step * k), viewport=True, font_size=font_size, color=colour,
+                   font_file=_font_file())
+
+
 def _every_kth(n: int, most: int) -> np.ndarray:
     """Every k-th of n indices and the last, at most about `most` of them."""
     return np.union1d(np.arange(0, n, max(1, int(np.ceil(n / most)))), [n - 1])
@@ -104,12 +164,16 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
                show_scalar_bar=False, ambient=0.3)
     p.add_mesh(obstacle, color=OBSTACLE_COLOUR, opacity=0.4)
-    ends = np.array([[x[0], t[0] * depth, lo * height], [x[-1], t[0] * depth, lo * height], [x[-1], t[-1] * depth, lo * height]])
-    p.add_point_labels(ends, [f"x = {x[0]:g}, t = {t[0]:g}", f"x = {x[-1]:g}", f"t = {t[-1]:.3g}"], font_size=14,
-                       text_color="black", shape=None, show_points=False, always_visible=True)
     psi_name = obstacle_name(result)
+    floor = psi.min() * height - 3 * below  # the axes lie on a floor under the obstacle, never over the surface
+    front, back, unit = float(t[-1]) * depth, float(t[0]) * depth, 0.035 * length
+    add_axis(p, Axis((x[0], front, floor), (x[-1], front, floor), float(x[0]), float(x[-1]), (0, -unit, -0.3 * unit), "x"))
+    add_axis(p, Axis((x[-1], back, floor), (x[-1], front, floor), float(t[0]), float(t[-1]), (unit, 0, 0), "t"))
+    add_axis(p, Axis((x[0], front, lo * height), (x[0], front, hi * height), lo, hi, (-unit, 0, 0), "eta"))  # VTK's label font has no Greek
+    add_colour_legend(p, "colour: contact", [(f"in contact, η ≤ {psi_name}", CONTACT_COLOUR),
+                                             (f"free, η > {psi_name}", FREE_COLOUR), (f"obstacle {psi_name}", OBSTACLE_COLOUR)])
     _title(p, f"Space-time surface η(x, t): {result.scene.name}\n{parameter_line(result)}\n"
-              f"height η from {lo:.3g} to {hi:.3g}; red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
+              f"height η from {lo:.3g} to {hi:.3g} over x and t; red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
     centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
     p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact
     p.reset_camera()
@@ -176,6 +240,19 @@ def add_membrane(p, result, row: int, view: MembraneView):
     return surface
 
 
+def add_membrane_axes(p, view: MembraneView, font_size: int = 7) -> None:
+    """x and y along the front and right edges of the floor under the obstacle, and the height η (in its own
+    units: the ticks undo the drawing's `scale`) up the front left corner."""
+    x0, x1, y0, y1, z0, z1 = view.bounds
+    unit = 0.05 * max(x1 - x0, y1 - y0)
+    add_axis(p, Axis((x0, y0, z0), (x1, y0, z0), x0, x1, (0, -unit, 0), "x"), font_size, most=4)
+    add_axis(p, Axis((x1, y0, z0), (x1, y1, z0), y0, y1, (unit, 0, 0), "y"), font_size, most=4)
+    add_axis(p, Axis((x0, y0, z0), (x0, y0, z1), z0 / view.scale, z1 / view.scale, (-unit, 0, 0), "eta"), font_size, most=3)
+    margin = 5 * unit  # the ticks' labels and the axes' names
+    p.reset_camera(bounds=(x0 - margin, x1 + margin, y0 - margin, y1, z0, z1))
+    p.camera.zoom(1.15)
+
+
 def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
     """'t = 0.2: contact area 2.17 (69%), 1 patch': the share is of the domain's area (patches left out if None)."""
     share = 100 * area / float(np.sum(result.weights))
@@ -205,9 +282,14 @@ def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     p = _plotter(window_size, shape=(nrows + 1, ncols), groups=[(0, np.s_[:])], row_weights=[0.25] + [1] * nrows)
     p.subplot(0, 0)
     _title(p, membrane_title(result, view, "The membrane at the output times"))
+    psi = obstacle_name(result)
+    legend = [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)]
     for k, i in enumerate(rows):
         p.subplot(1 + k // ncols, k % ncols)
         add_membrane(p, result, i, view)
+        add_membrane_axes(p, view)
+        if k == 0:  # the colour key, once
+            add_colour_legend(p, "colour: contact", legend, top=0.9, font_size=7, left=0.68, step=0.055)
         p.add_text(membrane_label(result, i, area[i], int(patches[k])).replace(": ", "\n", 1), position=(0.03, 0.85),
                    viewport=True, font_size=7, color="black", font_file=_font_file())
     _screenshot(p, path)

@@ -14,12 +14,10 @@ import numpy as np
 
 @contextlib.contextmanager
 def _figure(path, *args, **kwargs):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from ..io.publish import atomic_path
+    from .charts import pyplot
+
+    plt = pyplot()
 
     fig, axes = plt.subplots(*args, **kwargs)
     try:

@@ -90,7 +90,10 @@ def penetration_check(result) -> dict:
             start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
     else:  # an MPI rank without the rows: the same numbers from the series the ranks summed (Result.series)
         v_max, depth, start_depth = _penetration_from_series(result)
-    braking = math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
+    eps_free = getattr(result, "penalty", None) == "none"  # a contact step (projection): no ε brakes the string
+    braking = 0.0 if eps_free else math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
+    law = ("no penalty (contact step)" if eps_free else "spring (sqrt(eps))" if result.model == "elastic"
+           else "velocity penalty (eps)")
     bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
     return {
         "depth": depth,
@@ -98,7 +101,8 @@ def penetration_check(result) -> dict:
         "initial_depth": start_depth,
         "max_speed": v_max,
         "eps_times_speed": braking * v_max,
-        "law": "spring (sqrt(eps))" if result.model == "elastic" else "velocity penalty (eps)",
+        "law": law,
+        "eps_free": eps_free,
         "within_bound": bool(depth <= bound * (1 + 1e-12)),
     }
 

@@ -39,6 +39,17 @@ def output_steps(nt: int, dt: float, output_times) -> set[int]:
     return {min(nt, max(0, round(t / dt))) for t in output_times}
 
 
+def step_times(steps, dt: float, output_times=()) -> np.ndarray:
+    """The times of `steps`, stored exactly: n·Δt rounded to 12 significant digits (0.04, not the product
+    0.039999999999999994), and a scene's output time as given where its step is that time (to round-off)."""
+    steps = np.asarray(steps, dtype=np.int64)
+    times = np.array([float(f"{n * dt:.12g}") for n in steps.tolist()], dtype=float)
+    for t in output_times:
+        hit = np.flatnonzero(np.abs(steps * dt - float(t)) <= 1e-9 * max(dt, abs(float(t))))
+        times[hit] = float(t)
+    return times
+
+
 def stored_steps(nt: int, dt: float, output_times, max_rows: int) -> np.ndarray:
     """Every k-th step so that about `max_rows` rows are kept, plus 0, nt and the scene's output times."""
     stride = max(1, math.ceil(nt / max(1, max_rows)))
@@ -393,13 +404,15 @@ class _Run:
                   "contact_force": stepper.contact_force}
         self.rows.store(fields, self.ledger.cumulative, self.row_series(fields))
         if self.writer is not None:
-            self.writer.write(n * self.dt, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
+            t = float(step_times([n], self.dt, self.scene.output_times)[0])
+            self.writer.write(t, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
 
     def result(self, status: str, message: str) -> Result:
         rows, comm, scene = self.rows, self.comm, self.scene
         n, mins = rows.n, comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
         per_node = {k: v[:n] for k, v in rows.fields.items()} if rows.gather.holds else dict.fromkeys(FIELDS)
-        result = Result(scene=scene, x=rows.gather.x, t=rows.steps[:n] * scene.dt, steps=rows.steps[:n],
+        result = Result(scene=scene, x=rows.gather.x, t=step_times(rows.steps[:n], scene.dt, scene.output_times),
+                        steps=rows.steps[:n],
                         **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
