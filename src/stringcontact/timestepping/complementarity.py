@@ -30,7 +30,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .base import any_rank
-from .linear import Linear, _symmetric_rows, dirichlet_rows
+from .linear import Linear, _symmetric_rows, dirichlet_rows, set_from_options
 
 #: Active-set iterations before the step falls back to SNES VI. For an M-matrix they are at most the nodes that
 #: change; Example 1 at the paper's resolution took 1 to 18 a step, and 130 once (its first landing).
@@ -102,7 +102,7 @@ class ActiveSet:
                 return np.zeros_like(eta), 0
             if not self.anywhere(not np.array_equal(active, self.active)):  # every rank: holding is collective
                 active = self.active
-        seen = set()
+        seen, key = set(), None  # the active sets of this step (their keys cost an allgather under MPI)
         for k in range(1, MAX_ITERATIONS + 1):
             if active is not self.active:
                 self._hold(active)
@@ -116,8 +116,9 @@ class ActiveSet:
             self.solves += 1
             if not changed:
                 return np.where(active, R, 0.0), k
-            seen.add(self._key(active))
-            if self._key(new) in seen:  # a cycle (A is not an M-matrix)
+            seen.add(key if key is not None else self._key(active))
+            key = self._key(new)
+            if key in seen:  # a cycle (A is not an M-matrix)
                 break
             active = new
         return self._fall_back(b, x, residual)
@@ -168,15 +169,7 @@ class VariationalInequality:
         options = {"snes_type": "vinewtonrsls", "snes_linesearch_type": search, "snes_rtol": rtol,
                    "snes_atol": 1e-300, "snes_stol": 0.0, "snes_max_it": 200, "ksp_type": "preonly",
                    "pc_type": "lu"} | ({"pc_factor_mat_solver_type": "mumps"} if comm.size > 1 else {})
-        snes.setOptionsPrefix(VI_PREFIX)  # petsc4py 3.18 has no getLineSearch: through the options database
-        db = PETSc.Options()
-        try:
-            for name, value in options.items():
-                db.setValue(VI_PREFIX + name, value)
-            snes.setFromOptions()
-        finally:
-            for name in options:
-                db.delValue(VI_PREFIX + name)
+        set_from_options(snes, VI_PREFIX, options)  # petsc4py 3.18 has no getLineSearch: through the options
         snes.setVariableBounds(lower, upper)
         return snes
 

@@ -94,19 +94,25 @@ def _option_text(value) -> str:
     return repr(value) if isinstance(value, float) else str(value)
 
 
-def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
-    """A KSP for A set from `options` under its own prefix; the options leave PETSc's database right after."""
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOptionsPrefix(PREFIX)
-    ksp.setOperators(A)
+def set_from_options(solver, prefix: str, options: dict) -> None:
+    """`solver.setFromOptions()` (a KSP, a SNES) with `options` under `prefix`: they are put into PETSc's
+    database just before and removed just after, so that nothing leaks into another solver."""
+    solver.setOptionsPrefix(prefix)
     db = PETSc.Options()
     try:
         for name, value in options.items():
-            db.setValue(PREFIX + name, _option_text(value))
-        ksp.setFromOptions()
+            db.setValue(prefix + name, _option_text(value))
+        solver.setFromOptions()
     finally:
         for name in options:
-            db.delValue(PREFIX + name)
+            db.delValue(prefix + name)
+
+
+def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
+    """A KSP for A set from `options` under its own prefix; the options leave PETSc's database right after."""
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    set_from_options(ksp, PREFIX, options)
     ksp.setUp()
     return ksp
 
