@@ -244,3 +244,22 @@ def test_stringcontact_run_of_a_membrane_draws_its_pictures_in_both_processes(tm
     assert sorted(drawn_here) == ["contact_area.png", "energy.png"]
     assert {p.name for p in out.iterdir()} >= set(viz.MEMBRANE_PICTURES)
     assert _red(_gif_frames(out / "membrane.gif")[-1]).sum() > 2000
+
+
+def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(monkeypatch, tmp_path):
+    """Issue 27, item 4: membrane.png drew one pyvista panel per output time."""
+    from stringcontact.plot import mesh_pictures
+
+    times = np.round(np.linspace(0.0, 0.4, 41), 10).tolist()
+    res = sc.simulate(small_drum().replace(output_times=times), progress=False)
+    assert len(charts.stored_rows_at(res, times)) == 41
+    shapes = []
+
+    def keep_shape(p, path):
+        shapes.append(p.shape)
+        p.close()
+
+    monkeypatch.setattr(mesh_pictures, "_screenshot", keep_shape)
+    mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", window_size=(400, 300))
+    (rows, cols), = shapes
+    assert (rows - 1) * cols < 12 + cols  # a title row, then at most 12 panels (3 columns)

@@ -454,3 +454,31 @@ def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch)
     x_labels = [float(v) for v in drawn["labels"][0]]
     assert x_labels[0] < 0 < x_labels[-1] and len(x_labels) >= 3
     assert len(drawn["keys"]) == 1 and "contact" in drawn["keys"][0][0]
+
+
+def test_snapshots_have_at_most_max_panels_whatever_the_output_times(tmp_path, monkeypatch):
+    """Issue 27, item 4: a panel per output time made 1000 output times (the documented maximum) hang `run`."""
+    from stringcontact.plot import charts
+
+    times = np.round(np.linspace(0.0, 0.5, 60), 10).tolist()
+    res = sc.simulate(sc.load_scene("example1").replace(nx=20, T=0.5, nt=1000, output_times=times), max_rows=100)
+    assert len(viz.stored_rows_at(res, times)) == 60  # every output time is a stored row
+    drawn = []
+    monkeypatch.setattr(charts, "savefig", lambda fig, path, dpi=charts.DPI: drawn.append(fig))
+    viz.snapshots_picture(res, tmp_path / "snapshots.png")
+    panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
+    assert len(panels) == 12 == charts.MAX_PANELS
+    titles = [ax.get_title() for ax in panels]
+    assert titles[0].startswith("t = 0:") and titles[-1].startswith("t = 0.5:")  # the first and the last time
+    assert "12 of the 60 output times" in drawn[0]._suptitle.get_text()
+    charts.pyplot().close(drawn[0])
+
+
+def test_evenly_keeps_the_ends_and_at_most_most():
+    from stringcontact.plot.charts import evenly
+
+    assert evenly(5, 12) == [0, 1, 2, 3, 4]
+    for n in (13, 60, 1000):
+        picks = evenly(n, 12)
+        assert len(picks) == 12 and picks[0] == 0 and picks[-1] == n - 1 and picks == sorted(set(picks))
+        assert max(np.diff(picks)) - min(np.diff(picks)) <= 1  # evenly spaced

@@ -24,6 +24,10 @@ VELOCITY_PERCENTILE = 99.0
 CONTACT_COLOUR = "#b2182b"
 WINDOW_SIZE = (1100, 900)  # pixels of the space-time pictures
 DPI = 100
+#: at most this many panels in snapshots.png and membrane.png, whatever the number of output times: a panel
+#: costs a fixed time (Example 1's 200 output times took 50 s), so more output times are thinned evenly
+#: (first and last kept); every output time is still a stored row (diagnostics.csv, rows.npz)
+MAX_PANELS = 12
 
 
 # --- reading the contact set ------------------------------------------------------------------------
@@ -52,12 +56,26 @@ def stored_rows_at(result, times) -> list[int]:
     return rows
 
 
-def snapshot_rows(result) -> list[int]:
-    """The rows at the scene's output times, or six evenly spaced rows if it has none."""
+def snapshot_rows(result, most: int = MAX_PANELS) -> list[int]:
+    """The rows at the scene's output times, or six evenly spaced rows if it has none; at most `most` of
+    them, evenly chosen, the first and the last always (`evenly`)."""
     rows = stored_rows_at(result, result.scene.output_times)
     if not rows:
         rows = sorted(set(np.linspace(0, len(result.t) - 1, 6).round().astype(int).tolist()))
-    return rows
+    return [rows[k] for k in evenly(len(rows), most)]
+
+
+def panels_note(result, rows) -> str:
+    """'' or, when the output times were thinned to `rows`, a line saying how many of them are drawn."""
+    n = len(stored_rows_at(result, result.scene.output_times))
+    return f"{len(rows)} of the {n} output times, evenly chosen (all of them: rows.npz)" if n > len(rows) else ""
+
+
+def evenly(n: int, most: int) -> list[int]:
+    """At most `most` (≥ 2) of the indices 0..n-1, evenly spaced, with 0 and n-1: all of them if n ≤ most."""
+    if n <= most:
+        return list(range(n))
+    return sorted(set(np.linspace(0, n - 1, max(2, most)).round().astype(int).tolist()))
 
 
 def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
@@ -212,10 +230,12 @@ def snapshots_picture(result, path) -> Path:
     axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)" if name == "0" else "obstacle (y ≤ ψ(x))", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
     handles, labels = axs.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
-    fig.suptitle(f"Snapshots of the string: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    title = "\n".join(filter(None, (f"Snapshots of the string: {result.scene.name}", parameter_line(result), panels_note(result, rows))))
+    fig.suptitle(title, fontsize=11)
     # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
     w, h = fig.get_size_inches()
-    fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=1 - 0.85 / h, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
+    top = 1 - (0.85 + 0.2 * title.count("\n")) / h + 0.2 / h  # 0.85 in for the two usual lines, 0.2 in per more
+    fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=top, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
     savefig(fig, path)
     return path
 

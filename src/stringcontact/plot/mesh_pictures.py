@@ -28,6 +28,7 @@ from .charts import (
     WINDOW_SIZE,
     obstacle_name,
     obstacle_profile,
+    panels_note,
     parameter_line,
     snapshot_rows,
     without_axes3d_warning,
@@ -281,7 +282,8 @@ def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     # a title row across the top, then the panels
     p = _plotter(window_size, shape=(nrows + 1, ncols), groups=[(0, np.s_[:])], row_weights=[0.25] + [1] * nrows)
     p.subplot(0, 0)
-    _title(p, membrane_title(result, view, "The membrane at the output times"))
+    note = panels_note(result, rows)
+    _title(p, membrane_title(result, view, "The membrane at the output times") + (f"; {note}" if note else ""))
     psi = obstacle_name(result)
     legend = [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)]
     for k, i in enumerate(rows):
