@@ -60,7 +60,36 @@ def _a_time_that_is_not_a_number(p):
     p.write_text(p.read_text().replace('<Time Value="0.0"/>', '<Time Value="soon"/>', 1))
 
 
+def _rows_without(name):
+    def damage(p):
+        with np.load(p) as npz:
+            kept = {key: npz[key] for key in npz.files if key != name}
+        with open(p, "wb") as f:
+            np.savez(f, **kept)
+
+    return damage
+
+
+def _rows_with(name, change):
+    def damage(p):
+        with np.load(p) as npz:
+            arrays = {key: npz[key] for key in npz.files}
+        arrays[name] = change(arrays[name])
+        with open(p, "wb") as f:
+            np.savez(f, **arrays)
+
+    return damage
+
+
+#: the XDMF's damage matters to `plot` when the folder has no rows.npz (written before it existed)
+XDMF_FILES = ("solution.h5", "solution.xdmf")
+
 CASES = {
+    "random rows": ("rows.npz", _random, "is not a readable .npz file"),
+    "truncated rows": ("rows.npz", _truncate, "is not a readable .npz file"),
+    "rows without eta": ("rows.npz", _rows_without("eta"), "has no array 'eta'"),
+    "rows one short": ("rows.npz", _rows_with("velocity", lambda v: v[:-1]), "does not hold the 31 rows of diagnostics.csv"),
+    "rows at other times": ("rows.npz", _rows_with("t", lambda t: t * 2), "its times are not those of diagnostics.csv"),
     "emptied h5": ("solution.h5", _empty, "not a readable HDF5 file"),
     "truncated h5": ("solution.h5", _truncate, "not a readable HDF5 file"),
     "random h5": ("solution.h5", _random, "not a readable HDF5 file"),
@@ -79,7 +108,12 @@ CASES = {
 @pytest.mark.parametrize("case", CASES)
 def test_plot_on_a_damaged_folder_exits_2_naming_the_file(tmp_path, folder, capsys, case):
     name, damage, words = CASES[case]
-    copy, err = plot_refusal(folder, lambda copy: damage(copy / name), tmp_path, capsys)
+    def damage_copy(copy):
+        if name in XDMF_FILES:
+            (copy / "rows.npz").unlink()
+        damage(copy / name)
+
+    copy, err = plot_refusal(folder, damage_copy, tmp_path, capsys)
     named = str(copy / name) if case != "h5 without a dataset" else str(copy / "solution.h5")
     assert named in err and words in err, err
 

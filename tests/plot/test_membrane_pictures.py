@@ -160,7 +160,10 @@ def written(request, tmp_path_factory):
 
 def test_read_output_of_a_membrane_gives_the_in_memory_rows(written):
     folder, res = written
-    back = readback.read_output(folder)
+    stored = readback.read_output(folder)  # rows.npz: every stored row, as the run held it
+    for name in ("t", "x", "cells", "weights", "eta", "velocity", "contact", "contact_force"):
+        np.testing.assert_array_equal(getattr(stored, name), getattr(res, name), err_msg=name)
+    back = readback.read_output(folder, from_xdmf=True)
     rows = [int(np.argmin(np.abs(res.t - t))) for t in back.t]
     np.testing.assert_array_equal(res.t[rows], back.t)
     assert 10 <= len(rows) < len(res.t)  # the XDMF frames: a subset of the stored rows
@@ -208,8 +211,13 @@ DAMAGED = {
 def test_plot_of_a_damaged_membrane_folder_exits_2_naming_the_file(run, tmp_path, capsys, case):
     folder, _ = run
     name, damage, named, words = DAMAGED[case]
-    copy, err = plot_refusal(folder, lambda copy: damage(copy / name), tmp_path, capsys)
+    copy, err = plot_refusal(folder, lambda copy: _as_written_before_rows_npz(copy) or damage(copy / name), tmp_path, capsys)
     assert str(copy / named) in err and words in err, err
+
+
+def _as_written_before_rows_npz(copy):
+    """A folder without rows.npz (written before it existed): `plot` reads the XDMF frames."""
+    (copy / "rows.npz").unlink()
 
 
 # --- the painter process ----------------------------------------------------------------------------
@@ -263,3 +271,17 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", window_size=(400, 300))
     (rows, cols), = shapes
     assert (rows - 1) * cols < 12 + cols  # a title row, then at most 12 panels (3 columns)
+
+
+def test_plot_redraws_a_membranes_pictures_pixel_for_pixel(tmp_path, capsys):
+    """Issue 26, item 2: the drum's first contact moved from 0.12 to 0.125 and its largest area from 2.25 to
+    2.24 in `plot`'s pictures, drawn from the XDMF frames (here 10 of 81 stored rows)."""
+    from test_viz import assert_same_pictures
+
+    res = sc.simulate(small_drum(), output_dir=tmp_path / "run", max_frames=10, progress=False)
+    assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
+    assert_same_pictures(tmp_path / "run", tmp_path / "again", viz.MEMBRANE_PICTURES)
+    back, area = readback.read_output(tmp_path / "run"), res.contact_measure
+    assert back.t[np.flatnonzero(back.contact_measure > 0)[0]] == res.t[np.flatnonzero(area > 0)[0]]
+    assert back.contact_measure.max() == area.max()
+    np.testing.assert_array_equal(back.contact_patches(), res.contact_patches())

@@ -161,7 +161,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
     text = (copy / "solution.xdmf").read_text()
     (copy / "solution.xdmf").write_text(text[: len(text) // 2])
     with pytest.raises(ValueError, match=r"solution.xdmf cannot be read \(") as info:
-        readback.read_output(copy)
+        readback.read_output(copy, from_xdmf=True)
     assert "\n" not in str(info.value)
 
 
@@ -217,7 +217,7 @@ def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
     """The XDMF is thinned (its writer costs O(frames²)); read back, each frame is exactly its stored row."""
     scene = sc.load_scene("example1").replace(nx=40)
     res = sc.simulate(scene, output_dir=tmp_path / "out", max_rows=60, max_frames=10, pictures=False)
-    back = readback.read_output(tmp_path / "out")
+    back = readback.read_output(tmp_path / "out", from_xdmf=True)
     assert 10 <= len(back.t) < len(res.t) == 61
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
     assert rows[0] == 0 and rows[-1] == len(res.t) - 1
@@ -482,3 +482,26 @@ def test_evenly_keeps_the_ends_and_at_most_most():
         picks = evenly(n, 12)
         assert len(picks) == 12 and picks[0] == 0 and picks[-1] == n - 1 and picks == sorted(set(picks))
         assert max(np.diff(picks)) - min(np.diff(picks)) <= 1  # evenly spaced
+
+
+def assert_same_pictures(first, second, names):
+    """Each picture in folder `first` equals its namesake in `second`, pixel for pixel (a GIF frame for frame)."""
+    import imageio.v3 as iio
+
+    for name in names:
+        a, b = iio.imread(first / name, index=None), iio.imread(second / name, index=None)
+        assert a.shape == b.shape, f"{name}: {a.shape} against {b.shape}"
+        differ = np.any(a != b, axis=-1)
+        assert not differ.any(), f"{name}: {differ.mean():.2%} of the pixels differ"
+
+
+def test_plot_redraws_the_runs_pictures_pixel_for_pixel(tmp_path, capsys):
+    """Issue 26, item 2: `plot` drew from the XDMF frames (here 12 of 121 stored rows), not the rows the run drew from."""
+    scene = sc.load_scene("example1").replace(nx=80, nt=1200)
+    res = sc.simulate(scene, output_dir=tmp_path / "run", max_rows=120, max_frames=12)
+    assert len(res.t) > 100
+    assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
+    assert_same_pictures(tmp_path / "run", tmp_path / "again", viz.PICTURES)
+    back = readback.read_output(tmp_path / "run")
+    first = lambda r: r.t[np.flatnonzero(r.contact_length > 0)[0]]  # noqa: E731
+    assert (first(back), back.contact_length.max()) == (first(res), res.contact_length.max())

@@ -53,7 +53,7 @@ def test_the_readme_recipe_colours_the_warped_string_by_contact(tmp_path, run):
 
     command = pvpython()
     out, res = run
-    back = read_output(out)
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     k = int(np.argmax([0.3 < c.mean() < 1 for c in back.contact]))  # a frame with contact on part of the string
     t = float(back.t[k])
     row = int(np.flatnonzero(res.t == t)[0])
@@ -89,7 +89,7 @@ def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
     command = pvpython()
     out = tmp_path / "drum"
     res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
-    back = read_output(out)
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     k = int(np.argmax(back.contact_measure))  # the frame with the largest patch
     t = float(back.t[k])
     row = int(np.flatnonzero(res.t == t)[0])
@@ -149,7 +149,7 @@ def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run)
     imports = {line.split()[1] for line in text.splitlines() if line.startswith(("import ", "from "))}
     assert imports == {"json", "os", "sys", "paraview.simple"}, imports  # data, not this package's code
     speed = float(np.abs(res.velocity).max())
-    back = read_output(out)
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     k = int(np.argmax([0.3 < c.mean() < 1 for c in back.contact]))  # a frame with contact on part of the string
     times = [0.0, float(back.t[k]), float(back.t[-1])]
     shots = [(t, tmp_path / f"{field}_{t:g}.png", field) for t in times for field in ("contact", "velocity")]
@@ -176,7 +176,7 @@ def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
     res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
     text = (out / "view.py").read_text()
     assert "NORMAL = [0.0, 0.0, 1.0]" in text and "KIND = 'membrane'" in text
-    back = read_output(out)
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     k = int(np.argmax(back.contact_measure))
     t_k = float(back.t[k])
     shots = [(0.0, tmp_path / "drum_0.png", "contact"), (t_k, tmp_path / "drum_k.png", "contact"),

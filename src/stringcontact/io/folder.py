@@ -46,7 +46,7 @@ from .publish import (  # noqa: F401 - re-exported
 )
 from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
 from .signals import signals_held
-from .tables import DIAGNOSTIC_COLUMNS, clean_json, summary_dict, write_diagnostics  # noqa: F401 - re-exported
+from .tables import DIAGNOSTIC_COLUMNS, ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows  # noqa: F401 - re-exported
 from .xdmf import Hdf5Quiet, XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
 # --- the writer ------------------------------------------------------------------------------------------
@@ -242,6 +242,7 @@ class OutputWriter:
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
         """Rank 0: diagnostics.csv, view.py (the ParaView view) and the pictures. A picture that fails on the device raises (`disk_failure`)."""
         write_diagnostics(self.partial / "diagnostics.csv", result)
+        write_rows(self.partial / ROWS_FILE, result)  # what the pictures are drawn from, for `plot` (readback)
         write_view(result, self.partial, target=self.target)
         if self.pictures:
             t0 = time.perf_counter()

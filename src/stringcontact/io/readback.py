@@ -1,6 +1,9 @@
 """Reading an output folder back into a :class:`Result`: ``read_output(folder)``.
 
-The arrays come from ``solution.xdmf``/``.h5`` (the layout of `stringcontact.io.xdmf`), the energies from
+The stored rows come from ``rows.npz`` (`tables.write_rows`: every stored row, what the run drew its
+pictures from, so that ``stringcontact plot`` draws the same pictures); a folder without it (written before
+it existed), or ``read_output(folder, from_xdmf=True)``, gives the XDMF frames instead (about `max_frames`
+of the stored rows). The XDMF frames come from ``solution.xdmf``/``.h5`` (the layout of `stringcontact.io.xdmf`), the energies from
 ``diagnostics.csv``, the scene and options from ``summary.json``. A membrane's folder (a 2D scene) also
 gives its triangles (the HDF5 topology), and the nodal areas are computed from them. The ``.h5`` is read with pyfive (pure
 Python): the h5py wheel bundles its own libhdf5, which clashes with the system libhdf5 that dolfinx has
@@ -19,24 +22,30 @@ import numpy as np
 
 from ..errors import OutputError, SceneError, one_line
 from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
+from .tables import ROWS_FILE
 from .xdmf import read_xdmf
 
 FILES = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
 
 
-def read_output(folder):
+def read_output(folder, from_xdmf: bool = False):
     """A :class:`Result` rebuilt from an output folder written by `stringcontact run --out`.
 
-    Its rows are the XDMF frames (about `max_frames` of the stored rows), with the diagnostics of those
-    rows; arrays are ordered by x (2D: by x, then y) like the in-memory result, and `contact` is boolean
-    again. In 2D, `cells` are the triangles in the solver's order and `weights` the lumped nodal areas.
+    Its rows are the run's stored rows (``rows.npz``), the same arrays as the run's Result; without that
+    file, or `from_xdmf`, the XDMF frames (about `max_frames` of the stored rows) with the diagnostics of
+    those rows: arrays ordered by x (2D: by x, then y) like the in-memory result, `contact` boolean again,
+    in 2D `cells` the triangles in the solver's order and `weights` the lumped nodal areas.
     """
     folder = _check_folder(Path(folder))
     summary, scene = _read_summary(folder / "summary.json")
-    geometry, series = _read_series(folder / "solution.xdmf")
-    column = _frame_rows(_read_diagnostics(folder / "diagnostics.csv"), series, folder)
-    topology = _topology(folder / "solution.xdmf") if scene.dim == 2 else None
-    x, fields, mesh = _read_fields(folder / "solution.h5", geometry, series, topology)
+    column = _read_diagnostics(folder / "diagnostics.csv")
+    if (folder / ROWS_FILE).is_file() and not from_xdmf:
+        x, fields, mesh = _read_rows(folder / ROWS_FILE, column, scene.dim)
+    else:
+        geometry, series = _read_series(folder / "solution.xdmf")
+        column = _frame_rows(column, series, folder)
+        topology = _topology(folder / "solution.xdmf") if scene.dim == 2 else None
+        x, fields, mesh = _read_fields(folder / "solution.h5", geometry, series, topology)
     return Result(
         scene=scene,
         x=x,
@@ -133,6 +142,39 @@ def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
         raise ValueError(f"plot: {path} has no column {exc}") from None
     except (UnicodeDecodeError, ValueError, TypeError, csv.Error) as exc:
         raise ValueError(f"plot: {path} is not a diagnostics table ({one_line(exc, 200)})") from None
+
+
+def _read_rows(path: Path, column: dict, dim: int):
+    """x, the fields and (2D) {"cells", "weights"} from `ROWS_FILE`, checked against diagnostics.csv's rows."""
+    import zipfile
+
+    names = ("t", "steps", "x", *FIELDS) + (("cells", "weights") if dim == 2 else ())
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            absent = [name for name in names if name not in npz.files]
+            if absent:
+                raise ValueError(f"plot: {path} has no array {', '.join(map(repr, absent))}")
+            arrays = {name: npz[name] for name in names}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        if str(exc).startswith("plot: "):
+            raise
+        raise ValueError(f"plot: {path} is not a readable .npz file ({type(exc).__name__}: {one_line(exc, 200)})") from None
+    k, n = len(column["t"]), len(arrays["x"])
+    shapes = {"t": (k,), "steps": (k,), "x": (n,) if dim == 1 else (n, 2), **{name: (k, n) for name in FIELDS}}
+    if dim == 2:
+        shapes["weights"] = (n,)
+        cells = arrays["cells"]
+        if cells.ndim != 2 or cells.shape[1] != 3 or not cells.size or cells.min() < 0 or cells.max() >= n:
+            raise ValueError(f"plot: {path}: its cells are not triangles of its {n} nodes")
+    wrong = [f"{name} {arrays[name].shape} (expected {shape})" for name, shape in shapes.items() if arrays[name].shape != shape]
+    if wrong:
+        raise ValueError(f"plot: {path} does not hold the {k} rows of diagnostics.csv on {n} nodes: {', '.join(wrong)}")
+    if not np.array_equal(arrays["t"], column["t"]):
+        raise ValueError(f"plot: {path}: its times are not those of diagnostics.csv")
+    fields = {name: arrays[name] for name in FIELDS}
+    fields["contact"] = fields["contact"].astype(float)  # as read from the XDMF: Result takes contact > 0.5
+    mesh = {"cells": arrays["cells"].astype(np.int64), "weights": arrays["weights"]} if dim == 2 else {}
+    return arrays["x"], fields, mesh
 
 
 def _frame_rows(column: dict, series: dict, folder: Path) -> dict[str, np.ndarray]:
