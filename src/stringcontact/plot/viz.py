@@ -11,8 +11,8 @@ output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the ani
 
 :func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.painter.PictureProcess`,
 the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
-run. ``stringcontact plot DIR`` redraws them from an output folder alone
-(:func:`stringcontact.io.readback.read_output`).
+run. ``stringcontact plot DIR`` redraws them from an output folder alone, from the same stored rows
+(``rows.npz``, :func:`stringcontact.io.readback.read_output`): the same pictures, pixel for pixel.
 """
 
 from __future__ import annotations
@@ -138,7 +138,8 @@ def show_pictures(folder) -> list[Path]:
 def add_arguments(parser) -> None:
     parser.description = (
         f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}) "
-        "from its saved files (solution.xdmf/.h5, diagnostics.csv, summary.json) alone."
+        "from its saved files alone: the stored rows the run drew them from (rows.npz; of an older folder the "
+        "frames of solution.xdmf/.h5), diagnostics.csv and summary.json: the same pictures as the run's."
     )
     parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
     parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR (a new folder)")
