@@ -85,11 +85,12 @@ def test_contact_set_picture_shows_the_contact_fraction(run):
     fraction = np.sum(res.contact * dt[:, None] * dx[None, :]) / (dx.sum() * dt.sum())
     assert 0.05 < fraction < 0.5
     img = _image(run[0] / "contact_set.png")
-    frame = (img < 60).all(axis=-1)  # the black frame of the axes: the longest dark rows and columns
-    top, bottom = np.flatnonzero(frame.sum(axis=1) > 0.5 * frame.shape[1])[[0, -1]]
-    left, right = np.flatnonzero(frame.sum(axis=0) > 0.5 * (bottom - top))[[0, -1]]
-    inside = _near(img[top + 1 : bottom, left + 1 : right], viz.CONTACT_COLOUR)
+    fig, axes = viz.contact_set_figure(res)  # where the whole (x, t) rectangle is: the upper panel
+    box = axes["set"].get_window_extent()
+    top, bottom = fig.bbox.height - box.y1, fig.bbox.height - box.y0  # pixel rows count from the top
+    inside = _near(img[round(top) + 2 : round(bottom) - 1, round(box.x0) + 2 : round(box.x1) - 1], viz.CONTACT_COLOUR)
     assert inside.mean() == pytest.approx(fraction, abs=0.02)
+    assert (img[round(top) + 1 : round(bottom) - 1, round(box.x0)] < 60).all()  # the box is the panel's frame
 
 
 def test_velocity_picture_is_centred_on_zero(run):
@@ -505,3 +506,53 @@ def test_plot_redraws_the_runs_pictures_pixel_for_pixel(tmp_path, capsys):
     back = readback.read_output(tmp_path / "run")
     first = lambda r: r.t[np.flatnonzero(r.contact_length > 0)[0]]  # noqa: E731
     assert (first(back), back.contact_length.max()) == (first(res), res.contact_length.max())
+
+
+def test_contact_components_count_runs_of_two_or_more_contact_nodes():
+    from types import SimpleNamespace
+
+    from stringcontact.io.tables import contact_components
+
+    x = np.linspace(0, 1, 11)
+    rows = np.array([[1, 0, 1, 1, 1, 0, 0, 1, 1, 0, 1], [0] * 11, [1] * 11, [1, 1, 0, 1, 0, 1, 1, 0, 0, 1, 1]], dtype=bool)
+    counts = contact_components(SimpleNamespace(dim=1, contact=rows))
+    assert counts.tolist() == [len(viz.contact_components(x, row)) for row in rows] == [2, 0, 1, 3]
+
+
+@pytest.fixture(scope="module")
+def example2(tmp_path_factory):
+    """A coarse Example 2 written to disk: three contact components before t = 0.02, one or two later."""
+    folder = tmp_path_factory.mktemp("example2") / "ex2"
+    with pytest.warns(UserWarning, match="below the obstacle"):  # as the paper's Example 2 starts
+        scene = sc.load_scene("example2").replace(nx=400, nt=2500)
+    res = sc.simulate(scene, output_dir=folder, progress=False, pictures=False)
+    return folder, res
+
+
+def test_the_run_reports_the_number_of_contact_components_over_time(example2):
+    """Issue 26, item 4: Example 2's point is that its contact set has several components."""
+    import json
+
+    folder, res = example2
+    with open(folder / "diagnostics.csv", newline="") as f:
+        counts = np.array([int(row["contact_components"]) for row in csv.DictReader(f)])
+    expected = [len(viz.contact_components(res.x, row)) for row in res.contact]
+    np.testing.assert_array_equal(counts, expected)
+    assert counts.max() == 3 and res.t[np.argmax(counts)] < 0.02  # three components early on
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["contact_components"] == {"most": 3, "first_at": float(res.t[np.argmax(counts)])}
+
+
+def test_the_contact_set_picture_zooms_onto_example2s_early_components(example2):
+    """Issue 26, item 4: before t = 0.02 the components were 1-3 pixels tall in contact_set.png."""
+    from stringcontact.plot import charts
+
+    _, res = example2
+    fig, axes = viz.contact_set_figure(res)
+    lo, hi = axes["zoom"].get_ylim()
+    assert lo == 0 and hi < 0.1 * res.t[-1]  # the first 10 % of the run, over the zoomed panel's full height
+    steps = axes["zoom_count"].patches[0].get_data().values  # the count strip draws the run's counts
+    assert max(steps) == 3
+    pixels_per_time = axes["zoom"].get_window_extent().height / (hi - lo)
+    assert 0.0168 * pixels_per_time > 100  # the three components' time is over 100 pixels tall
+    charts.pyplot().close(fig)

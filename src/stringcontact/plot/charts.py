@@ -166,19 +166,93 @@ def _space_time_image(result, values, title: str, window_size, note: str = "", *
 
 
 def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
-    """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free."""
+    """``contact_set.png``: `contact_set_figure`, written whole or not at all."""
+    path = Path(path)
+    savefig(contact_set_figure(result, window_size)[0], path)
+    return path
+
+
+def contact_set_figure(result, window_size=WINDOW_SIZE):
+    """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free; beside
+    it the number of its components over time (`tables.contact_components`); below it, when the most
+    components last a short while (Example 2's three before t = 0.02, Example 1's nine at its landing), the
+    same picture zoomed in time onto them (`zoom_window`). Returns the figure and its axes {"set", "count",
+    "zoom", "zoom_count"} (the last two absent without a zoom)."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    path, psi = Path(path), obstacle_name(result)
-    title = f"Contact set {{η ≤ {psi}}} in space-time: {result.scene.name}"
+    from ..io.tables import contact_components
+
+    plt, psi = pyplot(), obstacle_name(result)
+    counts = contact_components(result)
+    zoom = zoom_window(result.t, counts)
+    fig = plt.figure(figsize=(window_size[0] / DPI, window_size[1] / DPI), dpi=DPI)
+    boxes = _contact_set_boxes(window_size, zoom is not None)
     colours = ListedColormap(["white", CONTACT_COLOUR])
-    fig, ax, _ = _space_time_image(result, result.contact.astype(np.uint8), title, window_size, cmap=colours, vmin=0, vmax=1)
+    axes = {}
+    for key in ("set", "zoom")[: len(boxes)]:
+        ax = axes[key] = fig.add_axes(boxes[key][0])
+        ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), result.contact.astype(np.uint8), cmap=colours, vmin=0, vmax=1)
+        ax.set_ylabel("t (time)")
+        strip = axes[f"{key}_count".replace("set_", "")] = fig.add_axes(boxes[key][1], sharey=ax)
+        strip.stairs(counts, _cell_edges(result.t), orientation="horizontal", color="#2166ac", lw=1.5, baseline=None)
+        strip.set_xlim(-0.3, max(2, int(counts.max())) + 0.5)
+        strip.xaxis.get_major_locator().set_params(integer=True)
+        strip.tick_params(labelleft=False)
+        strip.grid(alpha=0.3)
+    axes["set"].set_ylim(result.t[0], result.t[-1])
+    axes["count"].set_xlabel("contact\ncomponents")
+    bottom = axes.get("zoom", axes["set"])
+    bottom.set_xlabel("x (position along the string)")
+    if zoom is not None:
+        lo, hi, most, first, last = zoom
+        axes["zoom"].set_ylim(lo, hi)
+        axes["zoom_count"].set_xlabel("contact\ncomponents")
+        for t in (lo, hi):
+            axes["set"].axhline(t, color="black", ls="--", lw=1.0)
+        axes["zoom"].set_title(f"zoom: t = {lo:.3g} … {hi:.3g} (the dashed lines above); {most} components at "
+                               f"t = {first:.3g} … {last:.3g}", fontsize=10, loc="left")
     patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact\n(η ≤ {psi})"),
                Patch(facecolor="white", edgecolor="black", label=f"free\n(η > {psi})")]
-    ax.legend(handles=patches, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False, labelspacing=1.2)
-    savefig(fig, path)
-    return path
+    axes["count"].legend(handles=patches, loc="upper left", bbox_to_anchor=(1.1, 1.0), frameon=False, labelspacing=1.2)
+    title = f"Contact set {{η ≤ {psi}}} in space-time: {result.scene.name}"
+    most = f"at most {int(counts.max())} contact components (first at t = {result.t[int(np.argmax(counts))]:.3g})" if counts.max() > 1 else ""
+    h = window_size[1] / DPI
+    fig.suptitle("\n".join(filter(None, (title, parameter_line(result), most))), fontsize=12, y=1 - 0.15 / h, va="top")
+    return fig, axes
+
+
+def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
+    """(lo, hi, most, first, last): a time window around the first rows with the most contact components
+    (from `first` to `last`), half as wide again on each side and at least 5 % of the run; None when there
+    are never two components, or the window would span more than `share` of the run (no zoom needed)."""
+    most = int(counts.max()) if counts.size else 0
+    if most < 2:
+        return None
+    a = int(np.argmax(counts == most))
+    b = a + (int(np.argmin(counts[a:] == most)) - 1 if not np.all(counts[a:] == most) else counts.size - a - 1)
+    span, whole = float(t[b] - t[a]), float(t[-1] - t[0])
+    half = max(span, 0.05 * whole) / 2 + 0.5 * span
+    centre = 0.5 * float(t[a] + t[b])
+    lo, hi = max(float(t[0]), centre - half), min(float(t[-1]), centre + half)
+    return None if hi - lo > share * whole else (lo, hi, most, float(t[a]), float(t[b]))
+
+
+def _contact_set_boxes(window_size, zoomed: bool) -> dict:
+    """Figure boxes {"set": (image, strip)[, "zoom": (image, strip)]} at fixed margins in inches: the title
+    above, the count strip right of each image, the legend right of the strips."""
+    w, h = window_size[0] / DPI, window_size[1] / DPI
+    left, strip, gap, right = 0.9, 0.75, 0.3, 1.55  # inches
+    image = w - left - gap - strip - right
+    bottom, top = 0.75, 1.2
+    tall = h - bottom - top
+    heights = [tall] if not zoomed else [0.56 * (tall - 0.8), 0.44 * (tall - 0.8)]
+    boxes, y = {}, h - top
+    for key, height in zip(("set", "zoom"), heights):
+        y -= height
+        boxes[key] = ((left / w, y / h, image / w, height / h), ((left + image + gap) / w, y / h, strip / w, height / h))
+        y -= 0.8
+    return boxes
 
 
 def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = VELOCITY_PERCENTILE) -> Path:

@@ -25,6 +25,7 @@ from .charts import (  # noqa: F401 - the pictures and readings are used as viz.
     WINDOW_SIZE,
     contact_area_picture,
     contact_components,
+    contact_set_figure,
     contact_set_picture,
     energy_picture,
     obstacle_name,
