@@ -141,7 +141,7 @@ def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeyp
     _, res = run
     labels = []
     plt = charts.pyplot()
-    monkeypatch.setattr(charts, "savefig", lambda fig, path: labels.extend(t.get_text() for t in fig.axes[0].get_legend().get_texts()) or plt.close(fig))
+    monkeypatch.setattr(charts, "savefig", lambda fig, path: labels.extend(t.get_text() for t in fig.legends[0].get_texts()) or plt.close(fig))
     charts.energy_picture(res, tmp_path / "e.png")
     assert any(r"|\nabla\eta|^2" in label for label in labels) and not any("eta_x" in label for label in labels)
 

@@ -556,3 +556,55 @@ def test_the_contact_set_picture_zooms_onto_example2s_early_components(example2)
     pixels_per_time = axes["zoom"].get_window_extent().height / (hi - lo)
     assert 0.0168 * pixels_per_time > 100  # the three components' time is over 100 pixels tall
     charts.pyplot().close(fig)
+
+
+def _boxes_overlap(a, b) -> bool:
+    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+
+def test_the_energy_legend_covers_no_panel(run):
+    """Issue 26, item 5: the bump's legend covered the contact dissipation for t > 0.58."""
+    from stringcontact.plot import charts
+
+    _, res = run
+    fig, axes = charts.energy_figure(res)
+    fig.canvas.draw()
+    legends = [*fig.legends, *(ax.get_legend() for ax in axes.values() if ax.get_legend() is not None)]
+    curve_legends = [legend for legend in legends if any("kinetic" in text.get_text() for text in legend.get_texts())]
+    assert len(curve_legends) == 1
+    box = curve_legends[0].get_window_extent()
+    assert not any(_boxes_overlap(box, ax.get_window_extent()) for ax in axes.values())
+    charts.pyplot().close(fig)
+
+
+def test_example2s_energies_get_a_panel_zoomed_onto_their_first_times(example2):
+    """Issue 26, item 5: Example 2's dynamics took the first 5 % of the energy chart's time axis."""
+    from stringcontact.plot import charts
+
+    _, res = example2
+    fig, axes = charts.energy_figure(res)
+    lo, hi = axes["zoom"].get_xlim()
+    assert lo == 0 and hi < 0.15 * res.t[-1]  # at this coarse nx its energies settle by t = 0.036 of 0.5
+    kinetic = res.energy["kinetic"]
+    assert kinetic[res.t > hi].max() < 0.05 * kinetic.max()  # the motion is over within the zoom
+    charts.pyplot().close(fig)
+    fig, axes = charts.energy_figure(sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), max_rows=60))
+    assert "zoom" not in axes  # Example 1 moves all the time: one panel
+    charts.pyplot().close(fig)
+
+
+def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
+    """Issue 26, item 5: a residual that drops to exactly 0 looked like a square wave on the log scale."""
+    from stringcontact.plot import charts
+
+    t = np.linspace(0.0, 1.0, 11)
+    residual = np.array([0, 1e-14, 2e-14, 0, 0, 3e-14, -1e-15, 0, 2e-14, 1e-14, 1e-14])
+    fig, ax = charts.pyplot().subplots()
+    charts.residual_panel(ax, t, residual)
+    line, marks = ax.get_lines()
+    assert np.array_equal(np.isnan(line.get_ydata()), residual == 0)  # no point where it is 0...
+    np.testing.assert_array_equal(marks.get_xdata(), t[residual == 0])  # ...a mark there instead
+    floor = ax.get_ylim()[0]
+    assert np.all(marks.get_ydata() == floor) and 0 < floor < 1e-15 and ax.get_yscale() == "log"
+    assert "exactly 0 (4 of 11 rows" in ax.get_legend().get_texts()[1].get_text()
+    charts.pyplot().close(fig)

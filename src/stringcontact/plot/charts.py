@@ -315,36 +315,89 @@ def snapshots_picture(result, path) -> Path:
 
 
 def energy_picture(result, path) -> Path:
-    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0)."""
-    plt = pyplot()
+    """``energy.png``: `energy_figure`, written whole or not at all."""
     path = Path(path)
+    savefig(energy_figure(result)[0], path)
+    return path
+
+
+def energy_figure(result):
+    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0);
+    beside it, when the energies settle early (`settle_time`: Example 2 within its first 5 %), the same
+    curves zoomed onto the first times; below, |balance residual| on a log scale (`residual_panel`). The
+    legend is under the panels, where it covers no curve. Returns the figure and its axes {"energy",
+    "residual", and with a zoom "zoom", "zoom_residual"}."""
+    plt = pyplot()
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
-    fig, (ax, axr) = plt.subplots(2, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": (3, 1)})
-    ax.axhline(E[0], color="black", ls=":", lw=1.5, label=f"E(0) = {E[0]:.6g}")
-    ax.plot(t, e["kinetic"], label=r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$")
     grad, grad_t = (r"\eta_x^2", r"\eta_{tx}^2") if np.ndim(result.x) == 1 else (r"|\nabla\eta|^2", r"|\nabla\eta_t|^2")
-    ax.plot(t, e["elastic"], label=rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$")
-    ax.plot(t, e["viscous_dissipation"], label=rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$")
-    ax.plot(t, e["contact_dissipation"], label=r"contact dissipation $-\int_0^t\!\int F\,\eta_t$")
-    ax.plot(t, e["numerical_dissipation"], ls="--", label="numerical dissipation of the scheme (cumulative)")
+    curves = [(e["kinetic"], {"label": r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$"}),
+              (e["elastic"], {"label": rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"}),
+              (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
+              (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
+              (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation of the scheme (cumulative)"})]
     if np.any(e["external_work"]):
-        ax.plot(t, e["external_work"], ls="-.", label="work of external loads (cumulative)")
-    ax.plot(t, E + spent - e["external_work"], color="black", lw=2.2, alpha=0.6, label="sum: E(t) + dissipations − work")
-    ax.set_ylabel("energy")
+        curves.append((e["external_work"], {"ls": "-.", "label": "work of external loads (cumulative)"}))
+    curves.append((E + spent - e["external_work"], {"color": "black", "lw": 2.2, "alpha": 0.6, "label": "sum: E(t) + dissipations − work"}))
+    settled = settle_time(t, [values for values, _ in curves])
+    fig = plt.figure(figsize=(11, 8.5))
+    grid = fig.add_gridspec(2, 2 if settled else 1, height_ratios=(3, 1), width_ratios=(3, 2) if settled else None,
+                            left=0.08, right=0.98, bottom=0.17, top=0.9, hspace=0.08, wspace=0.06)
+    axes = {}
+    for column, key in enumerate(("energy", "zoom")[: 1 + bool(settled)]):
+        ax = axes[key] = fig.add_subplot(grid[0, column], sharey=axes.get("energy"))
+        ax.axhline(E[0], color="black", ls=":", lw=1.5, label=f"E(0) = {E[0]:.6g}")
+        for values, style in curves:
+            ax.plot(t, values, **style)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelbottom=False)
+        below = axes[key.replace("energy", "residual").replace("zoom", "zoom_residual")] = fig.add_subplot(grid[1, column], sharex=ax)
+        residual_panel(below, t, result.balance_residual, legend=column == 0)
+    axes["energy"].set_ylabel("energy")
+    if settled:
+        axes["zoom"].set_xlim(t[0], settled)
+        axes["zoom"].tick_params(labelleft=False)
+        axes["zoom_residual"].set_ylabel("")
+        axes["zoom"].set_title(f"zoom: t = {t[0]:.3g} … {settled:.3g} (shaded on the left)", fontsize=10)
+        axes["energy"].axvspan(t[0], settled, color="0.5", alpha=0.12, lw=0)
+    handles, labels = axes["energy"].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.0))
+    fig.suptitle(f"Energy balance: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    return fig, axes
+
+
+def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0.02):
+    """The end of a zoomed panel onto the first times, or None: 1.5 times the time after which every curve
+    stays within `tolerance` of the curves' largest range of its final value, when that is under `share`
+    of the run (Example 2: its energy has moved to the dissipations by t ≈ 0.02 of 0.5)."""
+    scale = max(float(np.ptp(values)) for values in curves) or 1.0
+    moving = np.zeros(t.size, dtype=bool)
+    for values in curves:
+        moving |= np.abs(values - values[-1]) > tolerance * scale
+    last = int(np.flatnonzero(moving)[-1]) + 1 if moving.any() else 0
+    whole = float(t[-1] - t[0])
+    end = float(t[0]) + 1.5 * float(t[min(last, t.size - 1)] - t[0])
+    return end if 0 < end - float(t[0]) <= share * whole else None
+
+
+def residual_panel(ax, t: np.ndarray, residual: np.ndarray, legend: bool = True) -> None:
+    """|residual| on a log scale, honestly: the rows where it is exactly 0 (no point on a log scale) are left
+    out of the line and marked by triangles at the panel's floor, named in the legend."""
+    res = np.abs(residual)
+    zero = res == 0
+    floor = float(res[~zero].min()) / 10 if (~zero).any() else 1e-16
+    ax.semilogy(t, np.where(zero, np.nan, res), color="black", lw=1.2, label="|balance residual|")
+    if zero.any():
+        ax.plot(t[zero], np.full(int(zero.sum()), floor), "v", color="#b2182b", ms=5, clip_on=False,
+                label=f"exactly 0 ({int(zero.sum())} of {t.size} rows; drawn at the floor)")
+        if legend:
+            ax.legend(fontsize=8, loc="lower right", framealpha=0.9)
+    top = float(res.max()) if res.max() > 0 else 1e-15
+    ax.set_ylim(floor, top * 10)
+    ax.set_ylabel("|balance residual|\nE(0) + W − [E(t) + D]", fontsize=9)
+    ax.set_xlabel("t")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="center right")
-    ax.set_title(f"Energy balance: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
-    res = np.abs(result.balance_residual)
-    axr.semilogy(t, np.maximum(res, 1e-300), color="black")
-    axr.set_ylim(max(res.max(), 1e-300) * 1e-6 if res.max() > 0 else 1e-20, max(res.max(), 1e-300) * 10)
-    axr.set_ylabel("|balance residual|\nE(0) + W − [E(t) + D]", fontsize=9)
-    axr.set_xlabel("t")
-    axr.grid(alpha=0.3, which="both")
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.9, hspace=0.08)  # fixed: see snapshots_picture
-    savefig(fig, path)
-    return path
 
 
 def contact_area_figure(result):
