@@ -111,7 +111,8 @@ def test_the_membrane_panels_are_red_only_where_there_is_contact(run, tmp_path):
     red = [int(_red(_without_key(panel)).sum()) for panel in panels]
     assert red[0] == 0 and red[1] == 0  # t = 0 and 0.1: not landed yet
     assert red[2] > 2000 and red[3] > 2000
-    assert int(_red(panels[0]).sum()) > 30  # the key's red square and words
+    title_row = _image(folder / "membrane.png")[: round(0.25 / 2.25 * viz.WINDOW_SIZE[1])]  # weights 0.25, 1, 1
+    assert int(_red(title_row).sum()) > 30  # the key's red square and words, once, beside the title
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
     assert sum(_red(_without_key(p)).sum() for p in _panels(_image(viz.draw("membrane.png", free, tmp_path)), 2, 2)) == 0
     img = _image(folder / "membrane.png")
@@ -285,3 +286,38 @@ def test_plot_redraws_a_membranes_pictures_pixel_for_pixel(tmp_path, capsys):
     assert back.t[np.flatnonzero(back.contact_measure > 0)[0]] == res.t[np.flatnonzero(area > 0)[0]]
     assert back.contact_measure.max() == area.max()
     np.testing.assert_array_equal(back.contact_patches(), res.contact_patches())
+
+
+def _boundary_length(result, values) -> float:
+    """The length of the 0.5 iso-line of `values` (one per node) interpolated across the flat triangles."""
+    from stringcontact.plot import mesh_pictures
+
+    flat = mesh_pictures.triangles(result, np.zeros(len(result.x)))
+    flat.point_data["c"] = values
+    line = flat.contour([0.5], scalars="c")
+    return float(line.compute_cell_sizes(length=True, area=False, volume=False).cell_data["Length"].sum())
+
+
+def test_the_contact_patch_is_drawn_without_the_meshs_staircase():
+    """Issue 26, item 6: the membrane's patches had staircase edges at the default mesh (mesh_size 0.05)."""
+    from stringcontact.plot import mesh_pictures
+
+    res = sc.simulate(sc.load_scene("drum").replace(T=0.3, nt=60, output_times=[0.3]), progress=False)
+    row = int(np.argmax(res.contact_measure))
+    view = mesh_pictures.membrane_view(res)
+    shade = view.shade(res.contact[row])
+    contact = res.contact[row]
+    assert shade[contact].min() >= 0.6 and shade[~contact].max() <= 0.4  # each node in the colour of its state
+    bare, drawn = _boundary_length(res, contact.astype(float)), _boundary_length(res, shade)
+    radius = np.sqrt(res.contact_measure[row] / np.pi)  # the patch is about a disk
+    assert bare > 1.07 * drawn  # the zigzag of the bare indicator's iso-line is gone (6.8 against 6.2)
+    assert drawn < 1.25 * 2 * np.pi * radius  # ...and the line drawn is about the round patch's circumference
+
+
+def test_the_gifs_caption_is_at_least_14_pixels_high(run):
+    """Issue 26, item 6: the caption (time, contact area, patches) was about 8 px high."""
+    folder, _ = run
+    frame = _gif_frames(folder / "membrane.gif")[0]
+    rows = (frame[: frame.shape[0] // 4] < 90).all(axis=-1).any(axis=1)  # pixel rows with dark text, at the top
+    runs = np.diff(np.flatnonzero(np.diff(np.concatenate([[0], rows.astype(int), [0]]))))[::2]  # heights of the text lines
+    assert runs.size and runs[0] >= 14, runs  # the first line, from its tallest letter's top to its lowest descender (was 10)

@@ -25,6 +25,10 @@ FPS = 12
 SIZE_SHARE = 0.6
 #: colours of the GIF: two shaded surface colours, the grey obstacle and black text need few
 PALETTE = 64
+#: font sizes (points) of the frame's caption (time, contact area, patches: letters about 15 px high) and of
+#: the title; the caption was 6 points (8 px)
+CAPTION_FONT = 11
+TITLE_FONT = 8
 
 
 def frame_rows(result, max_frames: int = MAX_FRAMES) -> np.ndarray:
@@ -48,17 +52,19 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     p = _plotter(gif_size(window_size))
     try:
         surface = add_membrane(p, result, rows[0], view)
-        title = membrane_title(result, view, "The membrane")
-        # a text actor of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
-        text = p.add_text("", position=(0.02, 0.98), viewport=True, font_size=6, color="black", font_file=_font_file())
+        # the title below, the frame's time, contact area and patches above, each CAPTION_FONT high (15 px);
+        # text actors of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
+        p.add_text(membrane_title(result, view, "The membrane", sep="\n"), position=(0.02, 0.02), viewport=True,
+                   font_size=TITLE_FONT, color="black", font_file=_font_file())
+        text = p.add_text("", position=(0.02, 0.98), viewport=True, font_size=CAPTION_FONT, color="black", font_file=_font_file())
         text.prop.SetVerticalJustificationToTop()
         p.screenshot(None, return_img=True)  # pyvista's first render sets the window up; later ones only draw
         frames = []
         for k, i in enumerate(rows):
             surface.points[:, 2] = result.eta[i] * view.scale  # in place: the scene stays, the heights change
-            surface.point_data["contact"][:] = result.contact[i]
+            surface.point_data["contact"][:] = view.shade(result.contact[i])
             surface.Modified()
-            text.input = f"{title}\n{membrane_label(result, i, area[i], int(patches[k]))}"
+            text.input = membrane_label(result, i, area[i], int(patches[k]))
             p.render()
             frames.append(np.array(p.image))
     finally:
