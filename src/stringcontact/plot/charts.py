@@ -200,7 +200,8 @@ def contact_set_figure(result, window_size=WINDOW_SIZE):
         strip.xaxis.get_major_locator().set_params(integer=True)
         strip.tick_params(labelleft=False)
         strip.grid(alpha=0.3)
-    axes["set"].set_ylim(result.t[0], result.t[-1])
+    if result.t[-1] > result.t[0]:
+        axes["set"].set_ylim(result.t[0], result.t[-1])
     axes["count"].set_xlabel("contact\ncomponents")
     bottom = axes.get("zoom", axes["set"])
     bottom.set_xlabel("x (position along the string)")
