@@ -457,6 +457,16 @@ def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch)
     assert len(drawn["keys"]) == 1 and "contact" in drawn["keys"][0][0]
 
 
+def test_the_membrane_animation_has_axes(tmp_path, monkeypatch):
+    """Issue 26: every picture has axes, the GIF too."""
+    from stringcontact.plot import animation
+
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.3, T=0.3, nt=60, output_times=[0.0, 0.3]))
+    drawn = _recorded_axes(monkeypatch)
+    animation.membrane_animation(res, tmp_path / "m.gif", window_size=(400, 300), max_frames=3)
+    assert [a.title for a in drawn["axes"]] == ["x", "y", "eta"]  # once: the frames share the scene
+
+
 def test_snapshots_have_at_most_max_panels_whatever_the_output_times(tmp_path, monkeypatch):
     """Issue 27, item 4: a panel per output time made 1000 output times (the documented maximum) hang `run`."""
     from stringcontact.plot import charts
