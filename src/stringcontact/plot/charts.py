@@ -309,7 +309,7 @@ def snapshots_picture(result, path) -> Path:
     fig.suptitle(title, fontsize=11)
     # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
     w, h = fig.get_size_inches()
-    top = 1 - (0.85 + 0.2 * title.count("\n")) / h + 0.2 / h  # 0.85 in for the two usual lines, 0.2 in per more
+    top = 1 - (0.85 + 0.3 * (title.count("\n") - 1)) / h  # 0.85 in for the two usual lines, 0.3 in per more
     fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=top, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
     savefig(fig, path)
     return path
