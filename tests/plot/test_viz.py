@@ -514,8 +514,10 @@ def test_plot_redraws_the_runs_pictures_pixel_for_pixel(tmp_path, capsys):
     assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
     assert_same_pictures(tmp_path / "run", tmp_path / "again", viz.PICTURES)
     back = readback.read_output(tmp_path / "run")
-    first = lambda r: r.t[np.flatnonzero(r.contact_length > 0)[0]]  # noqa: E731
-    assert (first(back), back.contact_length.max()) == (first(res), res.contact_length.max())
+    def first_contact(r):
+        return r.t[np.flatnonzero(r.contact_length > 0)[0]]
+
+    assert (first_contact(back), back.contact_length.max()) == (first_contact(res), res.contact_length.max())
 
 
 def test_contact_components_count_runs_of_two_or_more_contact_nodes():
