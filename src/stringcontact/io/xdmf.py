@@ -43,9 +43,35 @@ TOPOLOGY_TYPES = {
 }
 COLLECTION = "solution"
 _FOOTER = "    </Grid>\n  </Domain>\n</Xdmf>\n"
-#: HDF5 viewers of discarded files (see `XdmfTimeSeries.close`): kept referenced, so that PETSc does not try
-#: to close them, and print a page of errors, when the process exits. Their files are already removed.
+#: HDF5 viewers of discarded files that could not be closed (see `XdmfTimeSeries.close`); their files are
+#: already removed. Kept referenced, and `_silence_exit` keeps their last words off stderr.
 _UNCLOSED = []
+
+
+def _keep_unclosed(viewer) -> None:
+    """Keep `viewer`, whose file HDF5 cannot close, until the process ends, without its noise at exit.
+
+    After one failed flush (a full disk), libhdf5 1.10.8 cannot flush that file again ("slist already
+    enabled?" in H5C_set_slist_enabled), so no later close can succeed, with or without free space. What
+    is left would print when the process ends: PETSc's error page when PetscFinalize destroys the viewer, and
+    libhdf5's ``HDF5: infinite loop closing library`` plus a line of its interfaces from H5close (C atexit,
+    printed unconditionally). The command has already reported the one-line error by then.
+    """
+    if not _UNCLOSED:
+        import atexit
+
+        atexit.register(_silence_exit)  # after petsc4py's own atexit handler, so it runs before PetscFinalize
+    _UNCLOSED.append(viewer)
+
+
+def _silence_exit() -> None:
+    """Point stderr (fd 2) at /dev/null for the rest of the process's shutdown (see `_keep_unclosed`)."""
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+    with contextlib.suppress(OSError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        os.close(devnull)
 
 
 @functools.cache
@@ -199,7 +225,11 @@ class XdmfTimeSeries:
         self.h5path = Path(folder) / self.h5name
         self.viewer = self.vec = self.xml = None
         points, cells = self._gather(mesh.points), self._gather(mesh.cells)
-        self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
+        try:
+            self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
+        except BaseException:  # the viewer may be open already (the mesh did not fit): close it, quietly
+            self.close(discard=True)
+            raise
 
     def _gather(self, values):
         parts = self.comm.gather(np.asarray(values), root=0) if self.comm.size > 1 else [values]
@@ -289,7 +319,7 @@ class XdmfTimeSeries:
 
         `discard`: the files are about to be removed after a failed write (a full disk): empty the HDF5
         file, so that PETSc's closing flush finds room, close what the failed write left open, and never
-        raise. A viewer that still cannot be closed is kept referenced (`_UNCLOSED`).
+        raise. A viewer that still cannot be closed is kept until the process ends (`_keep_unclosed`).
         """
         if discard:
             if self.comm.rank == 0:
@@ -315,7 +345,7 @@ class XdmfTimeSeries:
             if not discard:
                 self.viewer = viewer  # still open: close(discard=True) can close it
                 raise
-            _UNCLOSED.append(viewer)
+            _keep_unclosed(viewer)
             return
         self.vec.destroy()
 
