@@ -253,7 +253,8 @@ class XdmfTimeSeries:
     def _open(self, xml_path: Path, points, cells) -> None:
         from petsc4py import PETSc
 
-        self.viewer = PETSc.Viewer().createHDF5(str(self.h5path), "w", comm=PETSc.COMM_SELF)
+        # bytes: petsc4py encodes a str as strict UTF-8, and a Linux file name need not be UTF-8
+        self.viewer = PETSc.Viewer().createHDF5(os.fsencode(self.h5path), "w", comm=PETSc.COMM_SELF)
         self.vec = PETSc.Vec().createSeq(self.mesh.n_points, comm=PETSc.COMM_SELF)
         self._view(PETSc.Vec().createWithArray(points.ravel(), bsize=3, comm=PETSc.COMM_SELF), "geometry")
         topology = PETSc.IS().createGeneral(cells.ravel().astype(PETSc.IntType), comm=PETSc.COMM_SELF)
