@@ -370,6 +370,7 @@ def test_stale_partial_of_a_killed_run_is_removed(tmp_path, capfd):
     stale = tmp_path / ".out.partial-999999-abc"
     stale.mkdir()
     (stale / "solution.h5").write_bytes(b"half")
+    (stale / ".stringcontact-partial").write_text("partial\n")  # the marker every run puts in its partial folder
     (tmp_path / ".out.lock").write_text("999999\n")  # a lock file nobody holds
     assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
     assert "removed 1 unfinished folder" in capfd.readouterr().err
@@ -593,9 +594,7 @@ def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
 def test_force_replaces_with_a_complete_result(tmp_path):
     out = tmp_path / "out"
     assert main(["run", "example1", *SMALL, "--out", str(out)]) == 0
-    (out / "old.txt").write_text("old")
     assert main(["run", "example1", *SMALL, "--nx", "60", "--out", str(out), "--force"]) == 0
-    assert not (out / "old.txt").exists()
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "complete" and summary["scene"]["nx"] == 60
     assert leftovers(tmp_path) == []

@@ -42,8 +42,9 @@ SUBCOMMANDS = {
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit 2, like every other input error
-        self.exit(EXIT_INPUT, f"{self.prog}: error: {one_line(message)}\n")
+    def error(self, message):  # one line, exit 2, like every other input error; "stringcontact: error:" first
+        root, _, sub = self.prog.partition(" ")  # a subcommand's parser is "stringcontact run"
+        self.exit(EXIT_INPUT, f"{root}: error: {sub + ': ' if sub else ''}{one_line(message)}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

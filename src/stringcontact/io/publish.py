@@ -48,12 +48,8 @@ def _occupied(path: Path) -> bool:
 
 
 
-#: The statuses a run writes into its summary.json; `--force` replaces only a folder holding one of them.
+#: The statuses a run writes into its summary.json.
 STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
-#: What marks a folder as ours: a run's summary.json, or the checks.json of `stringcontact check --out`.
-#: The file each command that writes a folder leaves there, and the key that marks it as ours: `run`
-#: (summary.json), `check --out` (checks.json), `study` (study.json), `plot --out` (pictures.json).
-RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks", "study.json": "study", "pictures.json": "pictures"}
 
 
 def check_target(path, force: bool, *, locked: bool = False) -> Path:
@@ -72,16 +68,19 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
             raise OutputError(f"--out {target}: is the current folder or contains it; choose a new folder")
     if target.exists() and not target.is_dir():
         raise OutputError(f"--out {target}: exists and is not a folder")
+    if target.is_dir() and os.path.ismount(target):  # the finished folder is renamed onto it: EBUSY
+        raise OutputError(f"--out {target}: is a mount point, which a finished folder cannot be renamed onto; "
+                          f"choose a new folder inside it (e.g. {target / 'run1'})")
     if not target.exists():
+        _check_parents(target, resolved.parent)
         _check_writable(target, resolved.parent)
     if target.is_dir() and any(target.iterdir()):
         if not force:
             raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
-        if not _holds_our_result(target):
-            raise OutputError(
-                f"--out {target}: --force replaces only a stringcontact result (a folder with its summary.json), "
-                "and this folder holds other files; choose another folder"
-            )
+        blocker = foreign_file(target)
+        if blocker is not None:
+            raise OutputError(f"--out {target}: --force replaces only a stringcontact result (the files its {MANIFEST} "
+                              f"lists), and {blocker}; move it away or choose another folder")
     holder = None if locked else TargetLock.holder(target)
     if holder is not None:
         who = f" (pid {holder})" if holder else ""
@@ -90,6 +89,21 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
             "wait for it to finish or choose another folder"
         )
     return target
+
+
+def _check_parents(target: Path, parent: Path) -> None:
+    """Refuse missing parent folders outside the current folder: ``--out /nonexistent/x`` is more likely a typo
+    than a wish for a new top-level folder. Below the current folder they are made (``--out out/ex1``)."""
+    missing = parent
+    while not missing.parent.exists() and missing != missing.parent:
+        missing = missing.parent
+    if missing.exists():
+        return
+    with contextlib.suppress(OSError):
+        if Path.cwd() in missing.parents:
+            return
+    raise OutputError(f"--out {target}: the folder {missing} does not exist; create it first (mkdir -p {parent}) "
+                      "or correct the path")
 
 
 def _check_writable(target: Path, parent: Path) -> None:
@@ -125,16 +139,52 @@ def permission_fix(folder: Path) -> str:
     return f" (it belongs to uid {owner}, you are uid {me}); choose a folder of yours"
 
 
-def _holds_our_result(folder: Path) -> bool:
-    """A folder with a summary.json (or checks.json) written by stringcontact."""
-    for name, key in RESULT_MARKERS.items():
-        try:
-            data = json.loads((folder / name).read_text())
-        except (OSError, ValueError):
+#: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
+MANIFEST = "manifest.json"
+#: The marker in a partial folder while it is written; removed before the folder is renamed into place.
+PARTIAL_MARKER = ".stringcontact-partial"
+
+
+def read_manifest(folder: Path) -> dict[str, int] | None:
+    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote."""
+    try:
+        data = json.loads((Path(folder) / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "stringcontact" else None
+    if not isinstance(files, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in files.values()):
+        return None
+    return files
+
+
+def write_manifest(folder: Path, files: dict[str, int]) -> None:
+    """Write `folder`'s manifest, whole (`atomic_path`): {name: size} of the files a command wrote there."""
+    with atomic_path(Path(folder) / MANIFEST, record=False) as tmp:
+        tmp.write_text(json.dumps({"written_by": "stringcontact", "files": dict(sorted(files.items()))}, indent=1) + "\n")
+
+
+def foreign_file(folder: Path) -> str | None:
+    """Why `--force` may not replace `folder`: the first file in it that its manifest does not list as written,
+    with that size, by a stringcontact command (a file the user added or changed); None if it may."""
+    files = read_manifest(folder)
+    if files is None:
+        return f"this folder has no {MANIFEST} of a stringcontact command"
+    for p in sorted(Path(folder).iterdir()):
+        if p.name == MANIFEST:
             continue
-        if isinstance(data, dict) and key in data and (key != "status" or data[key] in STATUSES):
-            return True
-    return False
+        if p.name not in files or p.is_symlink() or not p.is_file():
+            return f"{p.name} is not a file stringcontact wrote there"
+        if p.stat().st_size != files[p.name]:
+            return f"{p.name} was changed after stringcontact wrote it ({p.stat().st_size} bytes, not {files[p.name]})"
+    return None
+
+
+def _record(path: Path) -> None:
+    """Add `path` (just written whole) to its folder's manifest, if the folder has one: ``plot FOLDER``
+    redraws the pictures of a result, which stays replaceable by `--force`."""
+    files = read_manifest(path.parent)
+    if files is not None and path.name != MANIFEST:
+        write_manifest(path.parent, files | {path.name: path.stat().st_size})
 
 
 def _free_sibling(target: Path, label: str) -> Path:
@@ -175,6 +225,8 @@ def _recover_stale(target: Path) -> None:
         kind = _stale_kind(name, p.name)
         if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
             continue
+        if kind == "partial" and not _marked_partial(p):  # a folder a user named so: never ours to remove
+            continue
         if kind == "partial":
             shutil.rmtree(p, ignore_errors=True)
             removed.append(p.name)
@@ -189,6 +241,15 @@ def _recover_stale(target: Path) -> None:
             f"({', '.join(removed)})",
             stacklevel=4,
         )
+
+
+def _marked_partial(folder: Path) -> bool:
+    """`folder` carries the marker a run puts in its partial folder (and removes before publishing it)."""
+    try:
+        with open(folder / PARTIAL_MARKER, "rb") as f:  # no FIFO there: the folder is ours, or not a partial one
+            return f.read(64).strip() == b"partial"
+    except OSError:
+        return False
 
 
 def _umask() -> int:
@@ -218,18 +279,21 @@ def _fsync_dir(folder: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_path(path):
+def atomic_path(path, record: bool = True):
     """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
 
     `tmp` is a hidden sibling ``.NAME.tmp-<pid>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
     the format from it); on success it is renamed onto `path` (``os.replace``), on any exception, Ctrl-C
-    included, it is removed and the exception goes on.
+    included, it is removed and the exception goes on. With `record`, the file is added to the folder's
+    manifest if it has one (a published result: ``plot FOLDER``).
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
     try:
         yield tmp
         os.replace(tmp, path)
+        if record:
+            _record(path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -311,7 +375,7 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
     try:
         os.replace(partial, target)  # target absent or an empty folder
     except OSError as exc:
-        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR, errno.EBUSY):
+        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
             raise
         dest = _free_sibling(target, label)
         os.rename(partial, dest)
@@ -338,6 +402,7 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
         _recover_stale(target)
         partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
         os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
+        (partial / PARTIAL_MARKER).write_text("partial\n")  # what lets a later run remove it if this one is killed
         return target, lock, partial
     except BaseException as exc:
         if partial is not None:
@@ -352,8 +417,12 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
 def publish_partial(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
     """fsync the finished folder `partial`, rename it into place (`move_into_place`), fsync the parent.
 
-    Returns where the folder went. Call it with the signals held.
+    Before that, the partial marker is removed and the manifest written: the names and sizes of the files
+    in `partial`, what a later `--force` may replace. Returns where the folder went. Call it with the signals held.
     """
+    (partial / PARTIAL_MARKER).unlink(missing_ok=True)
+    write_manifest(partial, {p.name: p.stat().st_size for p in partial.iterdir()
+                             if p.is_file() and not p.is_symlink() and p.name != MANIFEST})
     _fsync_tree(partial)
     dest = move_into_place(partial, target, force, status)
     _fsync_dir(target.parent)
