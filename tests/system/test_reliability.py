@@ -370,7 +370,7 @@ def test_stale_partial_of_a_killed_run_is_removed(tmp_path, capfd):
     stale = tmp_path / ".out.partial-999999-abc"
     stale.mkdir()
     (stale / "solution.h5").write_bytes(b"half")
-    (stale / ".stringcontact-partial").write_text("partial\n")  # the marker every run puts in its partial folder
+    (stale / ".stringcontact-marker").write_text("partial\n")  # the marker every run puts in its partial folder
     (tmp_path / ".out.lock").write_text("999999\n")  # a lock file nobody holds
     assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
     assert "removed 1 unfinished folder" in capfd.readouterr().err

@@ -174,7 +174,7 @@ def test_a_result_records_the_files_it_wrote_in_its_manifest(result):
     manifest = json.loads((result / "manifest.json").read_text())
     on_disk = {p.name: p.stat().st_size for p in result.iterdir() if p.name != "manifest.json"}
     assert manifest == {"written_by": "stringcontact", "files": on_disk}
-    assert "summary.json" in on_disk and ".stringcontact-partial" not in on_disk
+    assert "summary.json" in on_disk and ".stringcontact-marker" not in on_disk
 
 
 def test_force_keeps_a_file_the_user_added_to_a_result(result, capfd):

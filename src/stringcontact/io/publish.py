@@ -26,6 +26,7 @@ import json
 import os
 import re
 import shutil
+import stat
 import tempfile
 import time
 import warnings
@@ -141,8 +142,9 @@ def permission_fix(folder: Path) -> str:
 
 #: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
 MANIFEST = "manifest.json"
-#: The marker in a partial folder while it is written; removed before the folder is renamed into place.
-PARTIAL_MARKER = ".stringcontact-partial"
+#: The marker file of a run's hidden folders: "partial" while one is written (removed before it is renamed into
+#: place), "old" in a result that a --force swap moved aside. A later run removes only folders so marked.
+MARKER = ".stringcontact-marker"
 
 
 def read_manifest(folder: Path) -> dict[str, int] | None:
@@ -225,16 +227,14 @@ def _recover_stale(target: Path) -> None:
         kind = _stale_kind(name, p.name)
         if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
             continue
-        if kind == "partial" and not _marked_partial(p):  # a folder a user named so: never ours to remove
-            continue
-        if kind == "partial":
-            shutil.rmtree(p, ignore_errors=True)
-            removed.append(p.name)
-        elif not target.exists():  # the swap stopped between its two renames: the old result comes back
+        if kind == "old" and not target.exists():  # the swap stopped between its two renames: the old result comes back
+            (p / MARKER).unlink(missing_ok=True)
             os.rename(p, target)
             warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
-        else:
+        elif _marker(p) == kind:  # never a folder a user merely named so (a result saved as .ex.partial-1-x)
             shutil.rmtree(p, ignore_errors=True)
+            if kind == "partial":
+                removed.append(p.name)
     if removed:
         warnings.warn(
             f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
@@ -243,13 +243,19 @@ def _recover_stale(target: Path) -> None:
         )
 
 
-def _marked_partial(folder: Path) -> bool:
-    """`folder` carries the marker a run puts in its partial folder (and removes before publishing it)."""
+def _marker(folder: Path) -> str | None:
+    """What the marker of a run's hidden folder says ("partial" or "old"); None without one (or if it is not a
+    regular file: O_NOFOLLOW and O_NONBLOCK, so a link or a FIFO planted there is neither followed nor waited on)."""
     try:
-        with open(folder / PARTIAL_MARKER, "rb") as f:  # no FIFO there: the folder is ours, or not a partial one
-            return f.read(64).strip() == b"partial"
+        fd = os.open(folder / MARKER, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
-        return False
+        return None
+    try:
+        return os.read(fd, 64).decode(errors="replace").strip() if stat.S_ISREG(os.fstat(fd).st_mode) else None
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
 
 
 def _umask() -> int:
@@ -365,9 +371,12 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
         # --force and complete: swap, so that a crash in between leaves the old result under .NAME.old-*
         old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
         os.rename(target, old)
+        with contextlib.suppress(OSError):
+            (old / MARKER).write_text("old\n")  # a later run may remove it (`_recover_stale`)
         try:
             os.rename(partial, target)
         except OSError:
+            (old / MARKER).unlink(missing_ok=True)
             os.rename(old, target)
             raise
         shutil.rmtree(old, ignore_errors=True)
@@ -402,7 +411,7 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
         _recover_stale(target)
         partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
         os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
-        (partial / PARTIAL_MARKER).write_text("partial\n")  # what lets a later run remove it if this one is killed
+        (partial / MARKER).write_text("partial\n")  # what lets a later run remove it if this one is killed
         return target, lock, partial
     except BaseException as exc:
         if partial is not None:
@@ -420,7 +429,7 @@ def publish_partial(partial: Path, target: Path, force: bool, status: str = "com
     Before that, the partial marker is removed and the manifest written: the names and sizes of the files
     in `partial`, what a later `--force` may replace. Returns where the folder went. Call it with the signals held.
     """
-    (partial / PARTIAL_MARKER).unlink(missing_ok=True)
+    (partial / MARKER).unlink(missing_ok=True)
     write_manifest(partial, {p.name: p.stat().st_size for p in partial.iterdir()
                              if p.is_file() and not p.is_symlink() and p.name != MANIFEST})
     _fsync_tree(partial)
