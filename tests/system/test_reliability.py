@@ -571,11 +571,13 @@ def small_result(nx=8, nt=4):
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
     from stringcontact.io.folder import OutputWriter
+    from stringcontact.io.publish import write_manifest
 
     res = small_result()
     out = tmp_path / "out"
     out.mkdir()
     (out / "summary.json").write_text('{"status": "complete"}')
+    write_manifest(out, {"summary.json": (out / "summary.json").stat().st_size})  # a result of ours: --force may replace it
     writer = OutputWriter(out, res.scene, space, space.mesh.comm, force=True, pictures=False)
     n = space.dofmap.index_map.size_local
     writer.write(0.0, {name: np.zeros(n) for name in ("eta", "velocity", "contact", "contact_force")})
@@ -698,7 +700,7 @@ def test_staged_folder_writes_all_or_nothing(tmp_path):
         lock.release()
     with staged_folder(out, force=True) as folder:
         (folder / "b.txt").write_text("new")
-    assert sorted(p.name for p in out.iterdir()) == ["b.txt"] and leftovers(tmp_path) == []
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt", "manifest.json"] and leftovers(tmp_path) == []
 
 
 # --- issue 27: mesh files checked before dolfinx sees them (no hang, no crash) ---------------------------
