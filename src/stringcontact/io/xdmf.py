@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import errno
 import functools
 import os
 import re
@@ -154,6 +155,25 @@ def _close_open_objects(path: Path) -> None:
             lib.H5Oclose(ids[k])
 
 
+#: Room kept free beyond a write's own bytes: HDF5's object headers, B-tree nodes and its closing flush.
+HDF5_MARGIN = 32 * 1024
+
+
+def _check_room(folder: Path, nbytes: int) -> None:
+    """Raise ENOSPC before a write that the device of `folder` has no room for.
+
+    libhdf5 1.10.8 cannot flush a file again after one flush failed on a full disk, so such a file can never
+    be closed (`_keep_unclosed`); refusing the write before HDF5 starts it keeps the file closable. A race
+    with other writers can still fill the disk in between: `_keep_unclosed` is the fallback.
+    """
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return
+    if st.f_bavail * st.f_frsize < nbytes + HDF5_MARGIN:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(folder))
+
+
 @contextlib.contextmanager
 def stderr_held(replay: bool = True):
     """Hold back what C libraries print to stderr; print it after the block (if `replay`), or drop it if the
@@ -253,6 +273,7 @@ class XdmfTimeSeries:
     def _open(self, xml_path: Path, points, cells) -> None:
         from petsc4py import PETSc
 
+        _check_room(xml_path.parent, points.nbytes + cells.nbytes)
         # bytes: petsc4py encodes a str as strict UTF-8, and a Linux file name need not be UTF-8
         self.viewer = PETSc.Viewer().createHDF5(os.fsencode(self.h5path), "w", comm=PETSc.COMM_SELF)
         self.vec = PETSc.Vec().createSeq(self.mesh.n_points, comm=PETSc.COMM_SELF)
@@ -283,6 +304,7 @@ class XdmfTimeSeries:
         self.frames += 1
 
     def _write_frame(self, t: float, fields: dict) -> None:
+        _check_room(self.h5path.parent, sum(np.asarray(v).nbytes for v in fields.values()))
         names = []
         for name, values in fields.items():
             self.vec.array[:] = values
