@@ -115,3 +115,15 @@ def test_a_swapped_out_result_is_removed_only_when_marked_old(tmp_path):
     (partial / MARKER).unlink()
     partial.rmdir()
     assert not marked.exists() and (users / "thesis.tex").exists() and fifo.exists()
+
+
+def test_a_folder_published_inside_a_result_does_not_block_force(tmp_path):
+    """`make docs` runs `plot RUN --out RUN/pictures` and later `run --out RUN --force`."""
+    out = published(tmp_path, {"summary.json": "{}"})
+    target, lock, partial = open_partial(out / "pictures", force=False)
+    (partial / "energy.png").write_bytes(b"png!")
+    publish_partial(partial, target, force=False)
+    lock.release()
+    assert foreign_file(out) is None
+    (out / "pictures" / "mine.txt").write_text("mine")
+    assert foreign_file(out) == "pictures is not a file stringcontact wrote there"

@@ -165,14 +165,20 @@ def write_manifest(folder: Path, files: dict[str, int]) -> None:
         tmp.write_text(json.dumps({"written_by": "stringcontact", "files": dict(sorted(files.items()))}, indent=1) + "\n")
 
 
-def foreign_file(folder: Path) -> str | None:
+def foreign_file(folder: Path, depth: int = 3) -> str | None:
     """Why `--force` may not replace `folder`: the first file in it that its manifest does not list as written,
-    with that size, by a stringcontact command (a file the user added or changed); None if it may."""
+    with that size, by a stringcontact command (a file the user added or changed); None if it may.
+
+    A folder inside it that a command published there, whole (``plot RUN --out RUN/pictures``, as
+    ``make docs`` does), counts as written by stringcontact too (`depth` levels down).
+    """
     files = read_manifest(folder)
     if files is None:
         return f"this folder has no {MANIFEST} of a stringcontact command"
     for p in sorted(Path(folder).iterdir()):
         if p.name == MANIFEST:
+            continue
+        if p.name not in files and depth > 0 and p.is_dir() and not p.is_symlink() and foreign_file(p, depth - 1) is None:
             continue
         if p.name not in files or p.is_symlink() or not p.is_file():
             return f"{p.name} is not a file stringcontact wrote there"
