@@ -127,3 +127,10 @@ def test_a_folder_published_inside_a_result_does_not_block_force(tmp_path):
     assert foreign_file(out) is None
     (out / "pictures" / "mine.txt").write_text("mine")
     assert foreign_file(out) == "pictures is not a file stringcontact wrote there"
+
+
+def test_the_python_api_makes_the_missing_parents_it_is_given(tmp_path):
+    """`simulate(output_dir=...)` and `staged_folder` make what they are asked to (the demos write so);
+    only the command line's `check_target` refuses a missing parent outside the current folder."""
+    out = published(tmp_path / "a" / "b", {"x.txt": "x"})
+    assert (out / "x.txt").read_text() == "x"

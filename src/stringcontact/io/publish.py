@@ -53,12 +53,14 @@ def _occupied(path: Path) -> bool:
 STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
 
 
-def check_target(path, force: bool, *, locked: bool = False) -> Path:
+def check_target(path, force: bool, *, locked: bool = False, parents: bool = False) -> Path:
     """Refuse an --out that cannot or must not take a result, before any work is done.
 
-    Refused: the root folder, the current folder or one containing it, a file, a parent that cannot be written,
-    a non-empty folder (unless `force`, and then only a folder holding a result of ours), and a folder another
-    run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
+    Refused: the root folder, the current folder or one containing it, a mount point, a file, a parent that
+    cannot be written, a missing parent outside the current folder (unless `parents`: the Python API's
+    ``output_dir`` makes them, as asked), a non-empty folder (unless `force`, and then only a folder holding
+    nothing but what its manifest lists), and a folder another run writes to. `locked`: the caller holds the
+    folder's lock itself (so the lock is not probed).
     """
     target = Path(path)
     resolved = target.resolve()
@@ -73,7 +75,8 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
         raise OutputError(f"--out {target}: is a mount point, which a finished folder cannot be renamed onto; "
                           f"choose a new folder inside it (e.g. {target / 'run1'})")
     if not target.exists():
-        _check_parents(target, resolved.parent)
+        if not parents:
+            _check_parents(target, resolved.parent)
         _check_writable(target, resolved.parent)
     if target.is_dir() and any(target.iterdir()):
         if not force:
@@ -410,10 +413,10 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
     try:
         # Checked before the lock as well: a file or a non-empty folder is refused as such, named as given,
         # even where the lock file cannot be made (a read-only parent) or another run holds the lock.
-        check_target(path, force)
+        check_target(path, force, parents=True)  # the command line refused missing parents before (check_target)
         target.parent.mkdir(parents=True, exist_ok=True)
         lock = TargetLock(target)
-        check_target(target, force, locked=True)  # again under the lock: a run may have just finished there
+        check_target(target, force, locked=True, parents=True)  # again under the lock: a run may have just finished there
         _recover_stale(target)
         partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
         os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
