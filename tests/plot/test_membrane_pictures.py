@@ -182,7 +182,7 @@ def test_plot_of_a_membrane_folder_writes_the_membrane_pictures(run, tmp_path, c
     folder, _ = run
     out = tmp_path / "again"
     assert main(["plot", str(folder), "--out", str(out), "--size", "800x600"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted([*viz.MEMBRANE_PICTURES, "pictures.json"])  # its marker
+    assert sorted(p.name for p in out.iterdir()) == sorted([*viz.MEMBRANE_PICTURES, "pictures.json", "manifest.json"])  # its marker, the manifest
     assert _image(out / "membrane.png").shape == (600, 800, 3)
     assert _gif_frames(out / "membrane.gif").shape[1:3] == (360, 480)  # 0.6 of --size
     printed = capsys.readouterr().out

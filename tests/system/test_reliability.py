@@ -370,6 +370,7 @@ def test_stale_partial_of_a_killed_run_is_removed(tmp_path, capfd):
     stale = tmp_path / ".out.partial-999999-abc"
     stale.mkdir()
     (stale / "solution.h5").write_bytes(b"half")
+    (stale / ".stringcontact-marker").write_text("partial\n")  # the marker every run puts in its partial folder
     (tmp_path / ".out.lock").write_text("999999\n")  # a lock file nobody holds
     assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
     assert "removed 1 unfinished folder" in capfd.readouterr().err
@@ -570,11 +571,13 @@ def small_result(nx=8, nt=4):
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
     from stringcontact.io.folder import OutputWriter
+    from stringcontact.io.publish import write_manifest
 
     res = small_result()
     out = tmp_path / "out"
     out.mkdir()
     (out / "summary.json").write_text('{"status": "complete"}')
+    write_manifest(out, {"summary.json": (out / "summary.json").stat().st_size})  # a result of ours: --force may replace it
     writer = OutputWriter(out, res.scene, space, space.mesh.comm, force=True, pictures=False)
     n = space.dofmap.index_map.size_local
     writer.write(0.0, {name: np.zeros(n) for name in ("eta", "velocity", "contact", "contact_force")})
@@ -593,9 +596,7 @@ def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
 def test_force_replaces_with_a_complete_result(tmp_path):
     out = tmp_path / "out"
     assert main(["run", "example1", *SMALL, "--out", str(out)]) == 0
-    (out / "old.txt").write_text("old")
     assert main(["run", "example1", *SMALL, "--nx", "60", "--out", str(out), "--force"]) == 0
-    assert not (out / "old.txt").exists()
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "complete" and summary["scene"]["nx"] == 60
     assert leftovers(tmp_path) == []
@@ -699,7 +700,7 @@ def test_staged_folder_writes_all_or_nothing(tmp_path):
         lock.release()
     with staged_folder(out, force=True) as folder:
         (folder / "b.txt").write_text("new")
-    assert sorted(p.name for p in out.iterdir()) == ["b.txt"] and leftovers(tmp_path) == []
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt", "manifest.json"] and leftovers(tmp_path) == []
 
 
 # --- issue 27: mesh files checked before dolfinx sees them (no hang, no crash) ---------------------------

@@ -42,8 +42,9 @@ SUBCOMMANDS = {
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit 2, like every other input error
-        self.exit(EXIT_INPUT, f"{self.prog}: error: {one_line(message)}\n")
+    def error(self, message):  # one line, exit 2, like every other input error; "stringcontact: error:" first
+        root, _, sub = self.prog.partition(" ")  # a subcommand's parser is "stringcontact run"
+        self.exit(EXIT_INPUT, f"{root}: error: {sub + ': ' if sub else ''}{one_line(message)}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -330,7 +331,39 @@ def _stderr_line(text: str) -> None:
     sys.stderr.flush()
 
 
+def _utf8_text(arg: str) -> str:
+    """`arg` as text that encodes to UTF-8: bytes that are not UTF-8 (a file name such as ``o9/\\xff\\xfe``, held
+    by Python as surrogate escapes) shown as U+FFFD.
+
+    dolfinx passes ``sys.argv`` to its C++ ``init_logging(List[str])`` when it is imported, and pybind11
+    cannot encode a surrogate escape (TypeError). The parsed arguments keep the real bytes; only this copy,
+    which dolfinx reads, is changed.
+    """
+    return os.fsencode(arg).decode("utf-8", "replace") if isinstance(arg, str) else arg
+
+
+def _standard_streams() -> None:
+    """Started with stdin, stdout or stderr closed (``stringcontact run ... >&-``): /dev/null takes its place.
+
+    Python then has ``sys.stdout = None`` (print() drops the text, ``.flush()`` fails), and the next file the
+    run opens would get descriptor 1 or 2, where PETSc, HDF5 and MPI write their messages. With /dev/null
+    there, the run works, its output folder is whole, and the exit code tells how it went; the messages of a
+    closed stream are lost, as with any Unix tool.
+    """
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)  # the lowest free descriptor: `fd` itself, as 0..fd-1 are open
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(fd, mode, closefd=False, errors="backslashreplace"))
+
+
 def main(argv=None) -> int:
+    _standard_streams()
     with _stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
         try:
             return _main(argv)
@@ -360,6 +393,7 @@ def _stop_signals():
 
 def _main(argv) -> int:
     args = build_parser().parse_args(argv)
+    sys.argv = [_utf8_text(a) for a in sys.argv]  # after parsing: the args keep the bytes the user gave
     if getattr(args, "_unavailable", None):
         _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
         return EXIT_INTERNAL

@@ -33,7 +33,7 @@ from .paraview_view import write_view
 from .publish import (  # noqa: F401 - re-exported
     DISK_ERRNOS,
     NEARLY_FULL_BYTES,
-    RESULT_MARKERS,
+    MANIFEST,
     STATUSES,
     atomic_path,
     check_target,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import functools
 import os
 import stat
 from pathlib import Path
@@ -35,12 +36,23 @@ def lock_path(target) -> Path:
     return target.parent / f".{target.name}.lock"
 
 
-def _write_pid(fd: int) -> None:
-    """filelock's `on_acquired`: refuse a lock "file" that is not a regular file, then write our pid into it."""
-    if not stat.S_ISREG(os.fstat(fd).st_mode):  # filelock itself locks a FIFO (opened O_RDWR | O_NONBLOCK)
+def _write_pid(path: Path, fd: int) -> None:
+    """filelock's `on_acquired`: refuse a lock "file" that is not a regular file, then write our pid into it.
+
+    If the pid cannot be written (a full disk), the file is removed again while still held, as `release`
+    does: a refused run leaves no ``.NAME.lock`` behind.
+    """
+    mine = os.fstat(fd)
+    if not stat.S_ISREG(mine.st_mode):  # filelock itself locks a FIFO (opened O_RDWR | O_NONBLOCK)
         raise OSError(errno.EINVAL, "the lock file is not a regular file")
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+    except OSError:
+        with contextlib.suppress(OSError):
+            if os.path.samestat(os.lstat(path), mine):
+                os.unlink(path)
+        raise
 
 
 class TargetLock:
@@ -55,7 +67,7 @@ class TargetLock:
         self.path = lock_path(target)
         self.target = Path(target)
         self._lock = filelock.FileLock(self.path, timeout=0, thread_local=False, fallback_to_soft=False,
-                                       on_acquired=_write_pid)
+                                       on_acquired=functools.partial(_write_pid, self.path))
         for _ in range(_ATTEMPTS):
             try:
                 self._lock.acquire()

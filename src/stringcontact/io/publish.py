@@ -26,6 +26,7 @@ import json
 import os
 import re
 import shutil
+import stat
 import tempfile
 import time
 import warnings
@@ -48,20 +49,18 @@ def _occupied(path: Path) -> bool:
 
 
 
-#: The statuses a run writes into its summary.json; `--force` replaces only a folder holding one of them.
+#: The statuses a run writes into its summary.json.
 STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
-#: What marks a folder as ours: a run's summary.json, or the checks.json of `stringcontact check --out`.
-#: The file each command that writes a folder leaves there, and the key that marks it as ours: `run`
-#: (summary.json), `check --out` (checks.json), `study` (study.json), `plot --out` (pictures.json).
-RESULT_MARKERS = {"summary.json": "status", "checks.json": "checks", "study.json": "study", "pictures.json": "pictures"}
 
 
-def check_target(path, force: bool, *, locked: bool = False) -> Path:
+def check_target(path, force: bool, *, locked: bool = False, parents: bool = False) -> Path:
     """Refuse an --out that cannot or must not take a result, before any work is done.
 
-    Refused: the root folder, the current folder or one containing it, a file, a parent that cannot be written,
-    a non-empty folder (unless `force`, and then only a folder holding a result of ours), and a folder another
-    run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
+    Refused: the root folder, the current folder or one containing it, a mount point, a file, a parent that
+    cannot be written, a missing parent outside the current folder (unless `parents`: the Python API's
+    ``output_dir`` makes them, as asked), a non-empty folder (unless `force`, and then only a folder holding
+    nothing but what its manifest lists), and a folder another run writes to. `locked`: the caller holds the
+    folder's lock itself (so the lock is not probed).
     """
     target = Path(path)
     resolved = target.resolve()
@@ -72,16 +71,20 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
             raise OutputError(f"--out {target}: is the current folder or contains it; choose a new folder")
     if target.exists() and not target.is_dir():
         raise OutputError(f"--out {target}: exists and is not a folder")
+    if target.is_dir() and os.path.ismount(target):  # the finished folder is renamed onto it: EBUSY
+        raise OutputError(f"--out {target}: is a mount point, which a finished folder cannot be renamed onto; "
+                          f"choose a new folder inside it (e.g. {target / 'run1'})")
     if not target.exists():
+        if not parents:
+            _check_parents(target, resolved.parent)
         _check_writable(target, resolved.parent)
     if target.is_dir() and any(target.iterdir()):
         if not force:
             raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
-        if not _holds_our_result(target):
-            raise OutputError(
-                f"--out {target}: --force replaces only a stringcontact result (a folder with its summary.json), "
-                "and this folder holds other files; choose another folder"
-            )
+        blocker = foreign_file(target)
+        if blocker is not None:
+            raise OutputError(f"--out {target}: --force replaces only a stringcontact result (the files its {MANIFEST} "
+                              f"lists), and {blocker}; move it away or choose another folder")
     holder = None if locked else TargetLock.holder(target)
     if holder is not None:
         who = f" (pid {holder})" if holder else ""
@@ -90,6 +93,21 @@ def check_target(path, force: bool, *, locked: bool = False) -> Path:
             "wait for it to finish or choose another folder"
         )
     return target
+
+
+def _check_parents(target: Path, parent: Path) -> None:
+    """Refuse missing parent folders outside the current folder: ``--out /nonexistent/x`` is more likely a typo
+    than a wish for a new top-level folder. Below the current folder they are made (``--out out/ex1``)."""
+    missing = parent
+    while not missing.parent.exists() and missing != missing.parent:
+        missing = missing.parent
+    if missing.exists():
+        return
+    with contextlib.suppress(OSError):
+        if Path.cwd() in missing.parents:
+            return
+    raise OutputError(f"--out {target}: the folder {missing} does not exist; create it first (mkdir -p {parent}) "
+                      "or correct the path")
 
 
 def _check_writable(target: Path, parent: Path) -> None:
@@ -125,16 +143,59 @@ def permission_fix(folder: Path) -> str:
     return f" (it belongs to uid {owner}, you are uid {me}); choose a folder of yours"
 
 
-def _holds_our_result(folder: Path) -> bool:
-    """A folder with a summary.json (or checks.json) written by stringcontact."""
-    for name, key in RESULT_MARKERS.items():
-        try:
-            data = json.loads((folder / name).read_text())
-        except (OSError, ValueError):
+#: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
+MANIFEST = "manifest.json"
+#: The marker file of a run's hidden folders: "partial" while one is written (removed before it is renamed into
+#: place), "old" in a result that a --force swap moved aside. A later run removes only folders so marked.
+MARKER = ".stringcontact-marker"
+
+
+def read_manifest(folder: Path) -> dict[str, int] | None:
+    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote."""
+    try:
+        data = json.loads((Path(folder) / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "stringcontact" else None
+    if not isinstance(files, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in files.values()):
+        return None
+    return files
+
+
+def write_manifest(folder: Path, files: dict[str, int]) -> None:
+    """Write `folder`'s manifest, whole (`atomic_path`): {name: size} of the files a command wrote there."""
+    with atomic_path(Path(folder) / MANIFEST, record=False) as tmp:
+        tmp.write_text(json.dumps({"written_by": "stringcontact", "files": dict(sorted(files.items()))}, indent=1) + "\n")
+
+
+def foreign_file(folder: Path, depth: int = 3) -> str | None:
+    """Why `--force` may not replace `folder`: the first file in it that its manifest does not list as written,
+    with that size, by a stringcontact command (a file the user added or changed); None if it may.
+
+    A folder inside it that a command published there, whole (``plot RUN --out RUN/pictures``, as
+    ``make docs`` does), counts as written by stringcontact too (`depth` levels down).
+    """
+    files = read_manifest(folder)
+    if files is None:
+        return f"this folder has no {MANIFEST} of a stringcontact command"
+    for p in sorted(Path(folder).iterdir()):
+        if p.name == MANIFEST:
             continue
-        if isinstance(data, dict) and key in data and (key != "status" or data[key] in STATUSES):
-            return True
-    return False
+        if p.name not in files and depth > 0 and p.is_dir() and not p.is_symlink() and foreign_file(p, depth - 1) is None:
+            continue
+        if p.name not in files or p.is_symlink() or not p.is_file():
+            return f"{p.name} is not a file stringcontact wrote there"
+        if p.stat().st_size != files[p.name]:
+            return f"{p.name} was changed after stringcontact wrote it ({p.stat().st_size} bytes, not {files[p.name]})"
+    return None
+
+
+def _record(path: Path) -> None:
+    """Add `path` (just written whole) to its folder's manifest, if the folder has one: ``plot FOLDER``
+    redraws the pictures of a result, which stays replaceable by `--force`."""
+    files = read_manifest(path.parent)
+    if files is not None and path.name != MANIFEST:
+        write_manifest(path.parent, files | {path.name: path.stat().st_size})
 
 
 def _free_sibling(target: Path, label: str) -> Path:
@@ -175,20 +236,35 @@ def _recover_stale(target: Path) -> None:
         kind = _stale_kind(name, p.name)
         if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
             continue
-        if kind == "partial":
-            shutil.rmtree(p, ignore_errors=True)
-            removed.append(p.name)
-        elif not target.exists():  # the swap stopped between its two renames: the old result comes back
+        if kind == "old" and not target.exists():  # the swap stopped between its two renames: the old result comes back
+            (p / MARKER).unlink(missing_ok=True)
             os.rename(p, target)
             warnings.warn(f"--out {target}: restored the previous result from {p.name}", stacklevel=4)
-        else:
+        elif _marker(p) == kind:  # never a folder a user merely named so (a result saved as .ex.partial-1-x)
             shutil.rmtree(p, ignore_errors=True)
+            if kind == "partial":
+                removed.append(p.name)
     if removed:
         warnings.warn(
             f"--out {target}: removed {len(removed)} unfinished folder(s) left by a run that was killed "
             f"({', '.join(removed)})",
             stacklevel=4,
         )
+
+
+def _marker(folder: Path) -> str | None:
+    """What the marker of a run's hidden folder says ("partial" or "old"); None without one (or if it is not a
+    regular file: O_NOFOLLOW and O_NONBLOCK, so a link or a FIFO planted there is neither followed nor waited on)."""
+    try:
+        fd = os.open(folder / MARKER, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        return os.read(fd, 64).decode(errors="replace").strip() if stat.S_ISREG(os.fstat(fd).st_mode) else None
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
 
 
 def _umask() -> int:
@@ -218,18 +294,21 @@ def _fsync_dir(folder: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_path(path):
+def atomic_path(path, record: bool = True):
     """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
 
     `tmp` is a hidden sibling ``.NAME.tmp-<pid>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
     the format from it); on success it is renamed onto `path` (``os.replace``), on any exception, Ctrl-C
-    included, it is removed and the exception goes on.
+    included, it is removed and the exception goes on. With `record`, the file is added to the folder's
+    manifest if it has one (a published result: ``plot FOLDER``).
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
     try:
         yield tmp
         os.replace(tmp, path)
+        if record:
+            _record(path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -301,9 +380,12 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
         # --force and complete: swap, so that a crash in between leaves the old result under .NAME.old-*
         old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
         os.rename(target, old)
+        with contextlib.suppress(OSError):
+            (old / MARKER).write_text("old\n")  # a later run may remove it (`_recover_stale`)
         try:
             os.rename(partial, target)
         except OSError:
+            (old / MARKER).unlink(missing_ok=True)
             os.rename(old, target)
             raise
         shutil.rmtree(old, ignore_errors=True)
@@ -311,7 +393,7 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
     try:
         os.replace(partial, target)  # target absent or an empty folder
     except OSError as exc:
-        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR, errno.EBUSY):
+        if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
             raise
         dest = _free_sibling(target, label)
         os.rename(partial, dest)
@@ -331,13 +413,14 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
     try:
         # Checked before the lock as well: a file or a non-empty folder is refused as such, named as given,
         # even where the lock file cannot be made (a read-only parent) or another run holds the lock.
-        check_target(path, force)
+        check_target(path, force, parents=True)  # the command line refused missing parents before (check_target)
         target.parent.mkdir(parents=True, exist_ok=True)
         lock = TargetLock(target)
-        check_target(target, force, locked=True)  # again under the lock: a run may have just finished there
+        check_target(target, force, locked=True, parents=True)  # again under the lock: a run may have just finished there
         _recover_stale(target)
         partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
         os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
+        (partial / MARKER).write_text("partial\n")  # what lets a later run remove it if this one is killed
         return target, lock, partial
     except BaseException as exc:
         if partial is not None:
@@ -352,8 +435,12 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
 def publish_partial(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
     """fsync the finished folder `partial`, rename it into place (`move_into_place`), fsync the parent.
 
-    Returns where the folder went. Call it with the signals held.
+    Before that, the partial marker is removed and the manifest written: the names and sizes of the files
+    in `partial`, what a later `--force` may replace. Returns where the folder went. Call it with the signals held.
     """
+    (partial / MARKER).unlink(missing_ok=True)
+    write_manifest(partial, {p.name: p.stat().st_size for p in partial.iterdir()
+                             if p.is_file() and not p.is_symlink() and p.name != MANIFEST})
     _fsync_tree(partial)
     dest = move_into_place(partial, target, force, status)
     _fsync_dir(target.parent)

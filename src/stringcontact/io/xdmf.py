@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import errno
 import functools
 import os
 import re
@@ -43,9 +44,35 @@ TOPOLOGY_TYPES = {
 }
 COLLECTION = "solution"
 _FOOTER = "    </Grid>\n  </Domain>\n</Xdmf>\n"
-#: HDF5 viewers of discarded files (see `XdmfTimeSeries.close`): kept referenced, so that PETSc does not try
-#: to close them, and print a page of errors, when the process exits. Their files are already removed.
+#: HDF5 viewers of discarded files that could not be closed (see `XdmfTimeSeries.close`); their files are
+#: already removed. Kept referenced, and `_silence_exit` keeps their last words off stderr.
 _UNCLOSED = []
+
+
+def _keep_unclosed(viewer) -> None:
+    """Keep `viewer`, whose file HDF5 cannot close, until the process ends, without its noise at exit.
+
+    After one failed flush (a full disk), libhdf5 1.10.8 cannot flush that file again ("slist already
+    enabled?" in H5C_set_slist_enabled), so no later close can succeed, with or without free space. What
+    is left would print when the process ends: PETSc's error page when PetscFinalize destroys the viewer, and
+    libhdf5's ``HDF5: infinite loop closing library`` plus a line of its interfaces from H5close (C atexit,
+    printed unconditionally). The command has already reported the one-line error by then.
+    """
+    if not _UNCLOSED:
+        import atexit
+
+        atexit.register(_silence_exit)  # after petsc4py's own atexit handler, so it runs before PetscFinalize
+    _UNCLOSED.append(viewer)
+
+
+def _silence_exit() -> None:
+    """Point stderr (fd 2) at /dev/null for the rest of the process's shutdown (see `_keep_unclosed`)."""
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+    with contextlib.suppress(OSError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        os.close(devnull)
 
 
 @functools.cache
@@ -128,6 +155,25 @@ def _close_open_objects(path: Path) -> None:
             lib.H5Oclose(ids[k])
 
 
+#: Room kept free beyond a write's own bytes: HDF5's object headers, B-tree nodes and its closing flush.
+HDF5_MARGIN = 32 * 1024
+
+
+def _check_room(folder: Path, nbytes: int) -> None:
+    """Raise ENOSPC before a write that the device of `folder` has no room for.
+
+    libhdf5 1.10.8 cannot flush a file again after one flush failed on a full disk, so such a file can never
+    be closed (`_keep_unclosed`); refusing the write before HDF5 starts it keeps the file closable. A race
+    with other writers can still fill the disk in between: `_keep_unclosed` is the fallback.
+    """
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return
+    if st.f_bavail * st.f_frsize < nbytes + HDF5_MARGIN:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(folder))
+
+
 @contextlib.contextmanager
 def stderr_held(replay: bool = True):
     """Hold back what C libraries print to stderr; print it after the block (if `replay`), or drop it if the
@@ -199,7 +245,11 @@ class XdmfTimeSeries:
         self.h5path = Path(folder) / self.h5name
         self.viewer = self.vec = self.xml = None
         points, cells = self._gather(mesh.points), self._gather(mesh.cells)
-        self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
+        try:
+            self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
+        except BaseException:  # the viewer may be open already (the mesh did not fit): close it, quietly
+            self.close(discard=True)
+            raise
 
     def _gather(self, values):
         parts = self.comm.gather(np.asarray(values), root=0) if self.comm.size > 1 else [values]
@@ -223,7 +273,9 @@ class XdmfTimeSeries:
     def _open(self, xml_path: Path, points, cells) -> None:
         from petsc4py import PETSc
 
-        self.viewer = PETSc.Viewer().createHDF5(str(self.h5path), "w", comm=PETSc.COMM_SELF)
+        _check_room(xml_path.parent, points.nbytes + cells.nbytes)
+        # bytes: petsc4py encodes a str as strict UTF-8, and a Linux file name need not be UTF-8
+        self.viewer = PETSc.Viewer().createHDF5(os.fsencode(self.h5path), "w", comm=PETSc.COMM_SELF)
         self.vec = PETSc.Vec().createSeq(self.mesh.n_points, comm=PETSc.COMM_SELF)
         self._view(PETSc.Vec().createWithArray(points.ravel(), bsize=3, comm=PETSc.COMM_SELF), "geometry")
         topology = PETSc.IS().createGeneral(cells.ravel().astype(PETSc.IntType), comm=PETSc.COMM_SELF)
@@ -252,6 +304,7 @@ class XdmfTimeSeries:
         self.frames += 1
 
     def _write_frame(self, t: float, fields: dict) -> None:
+        _check_room(self.h5path.parent, sum(np.asarray(v).nbytes for v in fields.values()))
         names = []
         for name, values in fields.items():
             self.vec.array[:] = values
@@ -289,7 +342,7 @@ class XdmfTimeSeries:
 
         `discard`: the files are about to be removed after a failed write (a full disk): empty the HDF5
         file, so that PETSc's closing flush finds room, close what the failed write left open, and never
-        raise. A viewer that still cannot be closed is kept referenced (`_UNCLOSED`).
+        raise. A viewer that still cannot be closed is kept until the process ends (`_keep_unclosed`).
         """
         if discard:
             if self.comm.rank == 0:
@@ -315,7 +368,7 @@ class XdmfTimeSeries:
             if not discard:
                 self.viewer = viewer  # still open: close(discard=True) can close it
                 raise
-            _UNCLOSED.append(viewer)
+            _keep_unclosed(viewer)
             return
         self.vec.destroy()
 
