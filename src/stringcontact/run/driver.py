@@ -26,7 +26,8 @@ from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_
 from ..model.paper import Model, Parameters, inelastic, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, scheme_class
-from ..timestepping.base import NodalLaws, Setting
+from ..timestepping.base import NodalLaws, Setting, check_law_stability
+from ..timestepping.linear import check_option_values
 from .checks import checks_of, unbalanced_message
 from .options import ROW_BUDGET, Output, Storage, grouped
 
@@ -366,6 +367,17 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     return name, Scheme, penalty, mass, model
 
 
+def _check_before_mesh(scene, Scheme, penalty, model, petsc_options) -> None:
+    """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
+    option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
+    same on every rank, so a refusal ends every rank alike."""
+    check_option_values(dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {})))
+    if Scheme.PENALTIES and penalty is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_law_stability(model, scene.dt, scene.eps, penalty)
+
+
 def _writer(scene, V, comm, rows: _Rows, output: Output):
     """The output folder's writer (None without `output.dir`): its lock is taken now, its frames chosen."""
     if output.dir is None:
@@ -497,6 +509,7 @@ def simulate(
     """
     storage, output = grouped(storage, output, keywords)
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
+    _check_before_mesh(scene, Scheme, penalty, model, petsc_options)
     t0 = time.perf_counter()
     V, params, ops = discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
