@@ -33,7 +33,7 @@ def pilots(monkeypatch):
 def test_an_unreachable_tolerance_is_refused_after_the_first_pilots(pilots, capfd, tol, tmp_path):
     assert main(["run", "example1", "--tol", tol, "--no-progress", "--out", str(tmp_path / "o")]) == 2
     err = capfd.readouterr().err
-    assert_one_line_error(err, f"--tol {float(tol):g}: out of reach of the size limit nx <= 64000", "allowed: --tol >=")
+    assert_one_line_error(err, f"--tol {float(tol):g}: no method reached the tolerance, out of reach of the size limit nx <= 64000", "allowed: --tol >=")
     assert max(pilots) <= 100  # two pilots (nx 50 and 100) per method, nothing finer
     assert not (tmp_path / "o").exists()
 

@@ -153,7 +153,7 @@ def _pick(scene, tol: float, choice: list[dict]):
         if best is None:
             raise ValueError(f"--tol {tol:g}: no pilot run of scene {scene.name!r} completed; give --scheme and nx instead")
         floor = best.get("floor", best["estimate"])
-        raise ValueError(f"--tol {tol:g}: out of reach of the size limit nx <= {NX_MAX}: the pilots up to nx = {best['nx']} "
+        raise ValueError(f"--tol {tol:g}: no method reached the tolerance, out of reach of the size limit nx <= {NX_MAX}: the pilots up to nx = {best['nx']} "
                          f"extrapolate to about {floor:.2g} at nx = {NX_MAX} ({best['method']}: estimate "
                          f"{best['estimate']:.2g} at nx = {best['nx']}, order {TOL_ORDER[best['method']]}); allowed: --tol >= "
                          f"{floor / REACH_MARGIN:.2g} ({1 / REACH_MARGIN:g} of that, the margin for coarse pilots)")
