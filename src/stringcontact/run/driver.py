@@ -21,6 +21,7 @@ from petsc4py import PETSc
 
 from ..errors import InstabilityError, SolverError
 from ..fem import compat, domains
+from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..model.paper import Model, Parameters, inelastic, unused_fields
@@ -237,10 +238,11 @@ def discretise(scene, model: Model, comm):
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
+    values = agreed(comm, lambda: {name: scene.field_values(name, dof_x) for name in scene.fields})  # one outcome
     extra = {}
     for name in scene.fields:
         f = fem.Function(V, name=name)
-        f.x.array[:] = scene.field_values(name, dof_x)
+        f.x.array[:] = values[name]
         extra[name] = f
     params = Parameters(
         alpha=fem.Constant(msh, PETSc.ScalarType(scene.alpha)),
@@ -261,7 +263,7 @@ def discretise(scene, model: Model, comm):
 def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
-    bc, g = _boundary(scene, V, x)
+    bc, g = agreed(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     options = dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))  # the argument's win
@@ -405,7 +407,7 @@ class _Run:
     def start(self, s: Setting, V, output: Output) -> None:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
         stepper, rows = self.stepper, self.rows
-        self.ledger = _Ledger(stepper.start(*_initial_state(self.scene, s)),
+        self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
                               conservative=self.model.contact_energy is not None)
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
