@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import math
 
-
 import stringcontact as sc
 from stringcontact.run import checks, driver
 
