@@ -5,14 +5,13 @@ Under `mpirun -n 2` a check that fails on one rank only used to leave the other 
 call forever; each such run is a bounded subprocess (conftest.mpirun), whose expiry fails the test.
 """
 
+import sys
 from pathlib import Path
 
 import pytest
 from conftest import mpirun
 
 from stringcontact.cli.main import main
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 def error_lines(err: str) -> list[str]:
@@ -46,12 +45,13 @@ def strip_scene(folder: Path, mesh: Path, **keys) -> Path:
     return path
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("key, value", [("eta0", "'1 + sqrt(x + 2)'"), ("v0", "'sqrt(x + 2) - sqrt(x + 2)'"),
                                         ("obstacle", "'-1 + sqrt(x + 2)'")])
 def test_an_expression_failing_on_one_rank_ends_every_rank_with_one_line(tmp_path, long_strip, key, value):
     """Not finite at x < -2 only, where one rank's nodes lie (the scene's checks cannot see a mesh file's nodes)."""
     scene = strip_scene(tmp_path, long_strip, **{key: value}, **({"model": "'loaded_obstacle'"} if key == "obstacle" else {}))
-    proc = mpirun([REPO / ".venv/bin/python", "-m", "stringcontact", "run", scene, "--no-progress",
+    proc = mpirun([sys.executable, "-m", "stringcontact", "run", scene, "--no-progress",
                    "--out", tmp_path / "never"], timeout=300)
     assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
     lines = error_lines(proc.stderr)
@@ -60,9 +60,10 @@ def test_an_expression_failing_on_one_rank_ends_every_rank_with_one_line(tmp_pat
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("option", ["ksp_type=bogus", "pc_factor_mat_ordering_type=external"])
 def test_a_bad_petsc_value_ends_every_rank_with_one_line(tmp_path, option):
-    proc = mpirun([REPO / ".venv/bin/python", "-m", "stringcontact", "run", "example1", "--nx", "40", "--nt", "600",
+    proc = mpirun([sys.executable, "-m", "stringcontact", "run", "example1", "--nx", "40", "--nt", "600",
                    "--no-progress", "--petsc-option", option], timeout=300)
     assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
     lines = error_lines(proc.stderr)
