@@ -21,6 +21,7 @@ from petsc4py import PETSc
 
 from ..errors import SceneError
 from . import compat, meshfile
+from .agree import agreed
 
 __all__ = ["create", "boundary_dofs", "nodal_areas"]
 
@@ -41,9 +42,7 @@ def create(scene, comm):
 
 def _disk(comm, radius: float, size: float):
     """gmsh's triangulation of the disk of `radius` centred at 0, made on rank 0 and distributed."""
-    cells, x = np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2))
-    if comm.rank == 0:
-        cells, x = _gmsh_disk(radius, size)
+    cells, x = agreed(comm, _gmsh_disk, radius, size, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
     return mesh.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
 
 
@@ -83,7 +82,7 @@ def _read(comm, path: str):
         raise SceneError(f"mesh: {path!r} is a 3D mesh ({cell} cells); allowed: a 2D triangle mesh")
     if cell.lower() != "triangle":
         raise SceneError(f"mesh: {path!r} has {cell} cells; allowed: a 2D triangle mesh (Triangle cells)")
-    meshfile.check(path, name)  # dolfinx hangs or crashes on indices out of range or duplicate cells
+    agreed(comm, meshfile.check, path, name, root=0)  # dolfinx hangs or crashes on bad indices or duplicate cells
     from dolfinx.io import XDMFFile
 
     try:

@@ -17,12 +17,14 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from ..errors import SceneError
+from ..scene.limits import MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 
 __all__ = ["check", "MAX_NODES", "MAX_CELLS"]
 
-#: The largest mesh file: as many nodes as the largest rectangle (2000 x 2000 cells), and twice as many cells.
-MAX_NODES = 2001 * 2001
-MAX_CELLS = 2 * 2000 * 2000
+#: The largest mesh file: as many nodes as the largest membrane (the set-up's memory, scene.limits), and twice
+#: as many cells (a triangulation has about two cells per node).
+MAX_NODES = MAX_MEMBRANE_NODES
+MAX_CELLS = 2 * MAX_MEMBRANE_NODES
 
 
 def check(path: str, name: str) -> None:
@@ -62,7 +64,9 @@ def _data(path: str, element, what: str, limit: int) -> np.ndarray:
         raise SceneError(f"mesh: {path!r}: the {what} Dimensions {item.get('Dimensions')!r} are not two positive "
                          "integers; allowed: 'rows columns'")
     if dims[0] > limit:
-        raise SceneError(f"mesh: {path!r} has {dims[0]} {'cells' if what == 'topology' else 'nodes'}; allowed: at most {limit}")
+        nodes = dims[0] if what == "geometry" else dims[0] // 2
+        raise SceneError(f"mesh: {path!r} has {dims[0]} {'cells' if what == 'topology' else 'nodes'}, about "
+                         f"{nodes * SETUP_BYTES_PER_NODE / 1e9:.3g} GB to set up; allowed: at most {limit}")
     ref = (item.text or "").strip()
     file, _, inside = ref.partition(":")
     if not file or not inside.startswith("/"):

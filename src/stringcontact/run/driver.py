@@ -21,12 +21,14 @@ from petsc4py import PETSc
 
 from ..errors import InstabilityError, SolverError
 from ..fem import compat, domains
+from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..model.paper import Model, Parameters, inelastic, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, scheme_class
-from ..timestepping.base import NodalLaws, Setting
+from ..timestepping.base import NodalLaws, Setting, check_law_stability
+from ..timestepping.linear import check_option_values
 from .checks import checks_of, unbalanced_message
 from .options import ROW_BUDGET, Output, Storage, grouped
 
@@ -236,10 +238,11 @@ def discretise(scene, model: Model, comm):
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
+    values = agreed(comm, lambda: {name: scene.field_values(name, dof_x) for name in scene.fields})  # one outcome
     extra = {}
     for name in scene.fields:
         f = fem.Function(V, name=name)
-        f.x.array[:] = scene.field_values(name, dof_x)
+        f.x.array[:] = values[name]
         extra[name] = f
     params = Parameters(
         alpha=fem.Constant(msh, PETSc.ScalarType(scene.alpha)),
@@ -260,7 +263,7 @@ def discretise(scene, model: Model, comm):
 def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
-    bc, g = _boundary(scene, V, x)
+    bc, g = agreed(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     options = dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))  # the argument's win
@@ -366,6 +369,17 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     return name, Scheme, penalty, mass, model
 
 
+def _check_before_mesh(scene, Scheme, penalty, model, petsc_options) -> None:
+    """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
+    option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
+    same on every rank, so a refusal ends every rank alike."""
+    check_option_values(dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {})))
+    if Scheme.PENALTIES and penalty is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check_law_stability(model, scene.dt, scene.eps, penalty)
+
+
 def _writer(scene, V, comm, rows: _Rows, output: Output):
     """The output folder's writer (None without `output.dir`): its lock is taken now, its frames chosen."""
     if output.dir is None:
@@ -393,7 +407,7 @@ class _Run:
     def start(self, s: Setting, V, output: Output) -> None:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
         stepper, rows = self.stepper, self.rows
-        self.ledger = _Ledger(stepper.start(*_initial_state(self.scene, s)),
+        self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
                               conservative=self.model.contact_energy is not None)
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
@@ -497,6 +511,7 @@ def simulate(
     """
     storage, output = grouped(storage, output, keywords)
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
+    _check_before_mesh(scene, Scheme, penalty, model, petsc_options)
     t0 = time.perf_counter()
     V, params, ops = discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)

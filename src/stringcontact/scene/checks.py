@@ -23,6 +23,7 @@ from .limits import (
     MAX_CELLS,
     MAX_DISK_RATIO,
     MAX_MAGNITUDE,
+    MAX_MEMBRANE_NODES,
     MAX_OUTPUT_TIMES,
     MAX_STORED_BYTES,
     NAME_MAX,
@@ -30,6 +31,7 @@ from .limits import (
     PETSC_PREFIXES,
     PETSC_REFUSED_NAMES,
     PETSC_REFUSED_WORDS,
+    SETUP_BYTES_PER_NODE,
     STORED_ROWS,
     stored_bytes,
 )
@@ -37,7 +39,8 @@ from .limits import (
 _PETSC_NAME = re.compile(r"[a-z][a-z0-9_]{0,59}")
 _PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_+\-]{0,31}")
 _PETSC_ALLOWED = (f"a table of at most {PETSC_MAX_OPTIONS} PETSc options named {', '.join(p + '*' for p in PETSC_PREFIXES)} "
-                  "(no viewers, monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ + -)")
+                  f"(but not {', '.join(PETSC_REFUSED_NAMES)}: MUMPS' output units and out-of-core files; no viewers, "
+                  "monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ + -)")
 
 
 def domain_of(data: dict) -> str:
@@ -79,6 +82,9 @@ def check_domain(scene, put) -> None:
         if not (scene.radius / MAX_DISK_RATIO <= h <= scene.radius):
             raise SceneError(f"mesh_size: {describe(scene.mesh_size)} is out of range; allowed: {allowed} (radius = {fmt(scene.radius)})")
         put("mesh_size", h)
+    if domain in ("rectangle", "disk"):
+        check_membrane_nodes(scene.node_estimate, "cells" if domain == "rectangle" else "mesh_size",
+                             list(scene.cells) if domain == "rectangle" else scene.mesh_size)
     elif domain == "file":
         if not isinstance(scene.mesh, str) or not scene.mesh.endswith(".xdmf"):
             raise SceneError(f"mesh: expected the path of an XDMF triangle mesh (*.xdmf), got {describe(scene.mesh)}")
@@ -90,6 +96,17 @@ def check_domain(scene, put) -> None:
                 raise SceneError(f"{key}: only for domain 'interval', not {domain!r}")
         if scene.h is not None and not isinstance(scene.h, str) and not is_number(scene.h):
             raise SceneError(f"h: expected a number or an expression in x, y, got {describe(scene.h)}")
+
+
+def check_membrane_nodes(nodes: int, key: str, value) -> None:
+    """Refuse a membrane of more than MAX_MEMBRANE_NODES nodes from its set-up's memory estimate, before any mesh."""
+    if nodes > MAX_MEMBRANE_NODES:
+        raise SceneError(
+            f"{key}: {value} gives {'about ' if key == 'mesh_size' else ''}{nodes} nodes, about "
+            f"{nodes * SETUP_BYTES_PER_NODE / 1e9:.3g} GB to set up ({SETUP_BYTES_PER_NODE / 1e3:g} KB per node, "
+            f"measured at 1e6 nodes); allowed: at most {MAX_MEMBRANE_NODES} nodes"
+            + (" (e.g. cells = [1000, 1000])" if key == "cells" else
+               f" (mesh_size >= radius/{math.sqrt(MAX_MEMBRANE_NODES * math.sqrt(3) / (2 * math.pi)):.0f})"))
 
 
 def _pair(key: str, value, convert, allowed: str) -> tuple:
@@ -249,8 +266,11 @@ def check_petsc_options(value, key: str = "petsc_options") -> tuple:
 
 
 def _petsc_name(key: str, name) -> str:
-    ok = (isinstance(name, str) and _PETSC_NAME.fullmatch(name) and name.startswith(PETSC_PREFIXES)
-          and not any(word in name for word in PETSC_REFUSED_WORDS) and name not in PETSC_REFUSED_NAMES)
+    ok = bool(isinstance(name, str) and _PETSC_NAME.fullmatch(name) and name.startswith(PETSC_PREFIXES)
+              and not any(word in name for word in PETSC_REFUSED_WORDS) and name not in PETSC_REFUSED_NAMES)
+    if ok is False and name in PETSC_REFUSED_NAMES:  # within an allowed prefix: say why this one is not
+        raise SceneError(f"{key}: option {name!r} is not allowed (MUMPS ICNTL 1-4 name Fortran output units, files "
+                         f"fort.N, and ICNTL 22 writes out-of-core files); allowed: {_PETSC_ALLOWED}")
     if not ok:
         raise SceneError(f"{key}: option {describe(name)} is not allowed; allowed: {_PETSC_ALLOWED}")
     return name

@@ -18,6 +18,7 @@ __all__ = [
     "MAX_DISK_RATIO",
     "MAX_FILE_BYTES",
     "MAX_MAGNITUDE",
+    "MAX_MEMBRANE_NODES",
     "MAX_OUTPUT_TIMES",
     "MAX_STORED_BYTES",
     "NAME_MAX",
@@ -26,6 +27,7 @@ __all__ = [
     "PETSC_REFUSED_NAMES",
     "PETSC_REFUSED_WORDS",
     "REQUIRED_KEYS",
+    "SETUP_BYTES_PER_NODE",
     "STORED_ROWS",
     "stored_bytes",
 ]
@@ -84,9 +86,14 @@ PETSC_REFUSED_WORDS = ("view", "monitor", "draw", "debugger", "log", "print", "p
                        "history", "reason")
 PETSC_REFUSED_NAMES = tuple(f"mat_mumps_icntl_{i}" for i in (1, 2, 3, 4, 22))
 PETSC_MAX_OPTIONS = 32
-#: A rectangle's cells per direction (4e6 nodes) and a disk's radius / mesh_size (gmsh takes minutes beyond).
+#: A rectangle's cells per direction and a disk's radius / mesh_size (gmsh takes minutes beyond).
 MAX_CELLS = 2000
 MAX_DISK_RATIO = 1000
+#: A membrane's nodes (rectangle, disk, mesh file): the largest size measured, 1001 x 1001. Its serial set-up
+#: (mesh, operators, the LU factor, 2 stored rows) peaked at 3096 MB RSS, 3.1 KB per node (docs/memory.md,
+#: benchmarks/bench_memory.py); cells = [2000, 2000] (4e6 nodes) took 7 GB and more before a MemoryError.
+MAX_MEMBRANE_NODES = 1001 * 1001
+SETUP_BYTES_PER_NODE = 3100
 #: The largest |eta0|, |v0|, load or obstacle value a scene may give.
 MAX_MAGNITUDE = 1e6
 

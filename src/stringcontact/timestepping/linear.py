@@ -9,12 +9,15 @@ and the contact step (`complementarity`) solve through these.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import math
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..errors import SceneError
 from .base import any_rank
 
 #: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG.
@@ -51,6 +54,85 @@ AMG = {"pc_type": "hypre", "pc_hypre_type": "boomeramg"}
 
 #: Every KSP takes its options under this prefix, set just before its setFromOptions and removed just after.
 PREFIX = "stringcontact_"
+
+
+#: Options that take a number, an integer or a boolean; every name ending in "_type" takes a word.
+NUMBER_OPTIONS = ("ksp_rtol", "ksp_atol", "ksp_divtol", "mat_mumps_cntl_")
+INTEGER_OPTIONS = ("ksp_max_it", "ksp_gmres_restart", "mat_mumps_icntl_")
+BOOLEAN_OPTIONS = ("ksp_initial_guess_nonzero",)
+
+
+def check_option_values(options: dict, key: str = "petsc_options") -> None:
+    """Refuse (SceneError, one line naming the option and what is allowed) a value PETSc would reject with an
+    error stack at set-up: a word for a ``*_type`` option, a number, integer or boolean where one is read, and
+    a KSP, PC, factor solver or ordering type that this PETSc build does not know. The choices are PETSc's own
+    (petsc4py's type names, each tried on a throw-away object on PETSC_COMM_SELF: the packages built in).
+    Local and cheap (milliseconds), so every rank runs it before the mesh is built."""
+    for name, value in options.items():
+        kind = _value_kind(name)
+        if kind is not None and not _is_kind(value, kind):
+            raise SceneError(f"{key}: {name} = {_option_text(value)} is not {kind}; allowed: {kind}")
+        if not isinstance(value, str):
+            continue
+        choices = _type_choices(name)
+        if choices is not None and value not in choices:
+            raise SceneError(f"{key}: {name} = {value!r} is not a choice of this PETSc build; allowed: "
+                             f"{', '.join(choices)}")
+
+
+def _value_kind(name: str) -> str | None:
+    if name.endswith("_type"):
+        return "a word (a PETSc type name)"
+    if name.startswith(NUMBER_OPTIONS):
+        return "a number >= 0"
+    if name.startswith(INTEGER_OPTIONS):
+        return "an integer"
+    if name in BOOLEAN_OPTIONS:
+        return "true or false"
+    return None
+
+
+def _is_kind(value, kind: str) -> bool:
+    if kind.startswith("a word"):
+        return isinstance(value, str)
+    if kind == "true or false":
+        return isinstance(value, bool)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return value >= 0 if kind.startswith("a number") else float(value).is_integer()
+
+
+def _type_choices(name: str) -> tuple[str, ...] | None:
+    """The values PETSc accepts for `name` here, or None when they are not asked (left to PETSc)."""
+    if name in ("ksp_type", "pc_type"):
+        return _installed(name)
+    if name == "pc_factor_mat_solver_type":  # the built-in factorisation and the external packages built in
+        return tuple(t for t in _names(PETSc.Mat.SolverType) if t == "petsc" or PETSc.Sys.hasExternalPackage(t))
+    if name == "pc_factor_mat_ordering_type":
+        return _names(PETSc.Mat.OrderingType)
+    return None
+
+
+def _names(types) -> tuple[str, ...]:
+    return tuple(sorted(v for k, v in vars(types).items() if not k.startswith("_") and isinstance(v, str)))
+
+
+@functools.cache
+def _installed(name: str) -> tuple[str, ...]:
+    """petsc4py's KSP (`name` "ksp_type") or PC types that this build can make (an unregistered one raises
+    PETSc.Error 86), each tried on a fresh object on PETSC_COMM_SELF; never "python" (a scene is data)."""
+    make = PETSc.KSP if name == "ksp_type" else PETSc.PC
+    ok = []
+    for t in _names(make.Type):
+        obj = make().create(PETSc.COMM_SELF)
+        try:
+            obj.setType(t)
+            ok.append(t)
+        except PETSc.Error:
+            pass
+        with contextlib.suppress(PETSc.Error):  # a type never set up may fail its own reset (pipelcg): harmless
+            obj.destroy()
+    return tuple(t for t in ok if t != "python")
 
 
 def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf,
@@ -103,6 +185,9 @@ def set_from_options(solver, prefix: str, options: dict) -> None:
         for name, value in options.items():
             db.setValue(prefix + name, _option_text(value))
         solver.setFromOptions()
+    except PETSc.Error as exc:  # a value `check_option_values` cannot ask about (pc_hypre_type = 'bogus'): one line
+        reason = str(exc).strip().splitlines()[-1].split("] ", 1)[-1].replace("-" + prefix, "")
+        raise SceneError(f"petsc_options: PETSc refused a value ({reason}); allowed: the values PETSc lists") from None
     finally:
         for name in options:
             db.delValue(prefix + name)

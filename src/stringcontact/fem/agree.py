@@ -1,0 +1,47 @@
+"""One outcome on every rank for work that runs on each rank alone, or on one rank only.
+
+Under MPI a check that fails on one rank only (a scene expression that is not finite at that rank's nodes,
+gmsh on rank 0, a mesh file read on rank 0) must not leave the other ranks waiting in the next collective
+call forever (issue 27, item 5: `mpirun -n 2` hung). `agreed` runs the work, then the ranks exchange their
+outcome (one allgather); if it failed anywhere, every rank raises the first failing rank's error, so every
+rank ends with the same one line and exit code.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+__all__ = ["agreed"]
+
+
+def agreed(comm, work, *args, root: int | None = None):
+    """`work(*args)` on every rank (on `root` only, if given; the others return None), with one outcome.
+
+    Collective: every rank must call it. The work itself must not make a collective call before it can fail.
+    """
+    value, error = None, None
+    if root is None or comm.rank == root:
+        try:
+            value = work(*args)
+        except Exception as exc:  # noqa: BLE001 - any failure, an input error or a bug, must reach every rank
+            error = exc
+    if comm.size > 1:
+        failed = [e for e in comm.allgather(_portable(error)) if e is not None]
+        if failed and error is None:
+            raise failed[0]
+        if failed and str(failed[0]) != str(error):
+            raise failed[0] from error  # the first failing rank's line, on every rank
+    if error is not None:
+        raise error
+    return value
+
+
+def _portable(error: Exception | None):
+    """The error as it can travel to the other ranks: itself if it pickles, else a RuntimeError with its text."""
+    if error is None:
+        return None
+    try:
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:  # noqa: BLE001 - an exception with unpicklable state
+        return RuntimeError(f"{type(error).__name__}: {error}")
