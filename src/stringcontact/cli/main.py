@@ -194,7 +194,8 @@ def report(res) -> None:
     if len(res.t) == 0:
         return
     if res.dim == 1:
-        print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}")
+        print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}"
+              + _components_note(res))
     else:
         print(f"min eta = {res.min_eta:.6g}; final contact area = {res.contact_measure[-1]:.4g} "
               f"in {res.contact_patches()[-1]} patch(es)")
@@ -215,6 +216,16 @@ def report(res) -> None:
         print("time: " + ", ".join(times))
     if "linear solver" in res.timings:
         print(f"linear solver: {res.timings['linear solver']}")
+
+
+def _components_note(res) -> str:
+    """"; at most K contact components (first at t = ...)": Example 2's point is a contact set of several."""
+    from ..io.tables import most_components
+
+    most = most_components(res).get("contact_components")
+    if most is None or most["most"] < 2:
+        return ""
+    return f"; at most {most['most']} contact components (first at t = {most['first_at']:.4g})"
 
 
 def _run(args, painter=None) -> int:

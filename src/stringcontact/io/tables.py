@@ -11,7 +11,7 @@ import numpy as np
 
 from .result import CHUNK_VALUES, ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "contact_components", "summary_dict", "write_diagnostics", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "contact_components", "most_components", "summary_dict", "write_diagnostics", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
@@ -106,7 +106,7 @@ def summary_dict(result) -> dict:
         "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
         "initial_energy": float(result.total_energy[0]),
         "max_abs_balance_residual": float(np.max(np.abs(result.balance_residual))),
-        **_most_components(result),
+        **most_components(result),
         **(getattr(result, "checks", None) or {}),  # "energy_balance", "penetration" (run.checks)
     }
 
@@ -138,7 +138,7 @@ def write_rows(path: Path, result) -> None:
                 npy.write_array(f, np.asarray(values), allow_pickle=False)
 
 
-def _most_components(result) -> dict:
+def most_components(result) -> dict:
     """{"contact_components": the most components of the contact set at a stored row, and the first time
     with that many}; {} on a rank without the rows (rank 0 writes summary.json)."""
     if not result.has_rows or not len(result.t):
