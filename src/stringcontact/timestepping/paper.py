@@ -70,6 +70,7 @@ class Scheme(Base):
         self.ends = [(int(i), float(g)) for i, g in zip(s.bc, s.g)]
         self.has_load = bool(np.any(ops.load != 0))
         self.step_index = 0
+        self.law_ahead = (-1, None)  # (step index, F) of the law evaluated by `contact_force`
 
     # -- the state the driver reads
 
@@ -89,6 +90,7 @@ class Scheme(Base):
         if self.s.penalty == "explicit":
             self.s.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
             law = self.force_law.evaluate_env(self.s.laws.env)
+            self.law_ahead = (self.step_index, law)  # the next step applies this F(η^n, v^n): kept, not recomputed
             np.multiply(law, self.inv_mF > 0, out=self.force_density)  # 0 where no force acts (the ends)
         else:
             np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
@@ -134,7 +136,9 @@ class Scheme(Base):
 
     def _rhs_force(self, e0) -> None:
         """m_F∘F^n into by_v[1] (explicit), or the damping's known part (d/Δt)η^n (semi-implicit)."""
-        law = self.force_law.evaluate_env(self.s.laws.env)
+        kept_at, law = self.law_ahead
+        if kept_at != self.step_index:  # `contact_force` evaluated it at this state for a stored row (1 in 4 here)
+            law = self.force_law.evaluate_env(self.s.laws.env)
         f_applied, diag_w = self.by_v[1], self.diag_w
         mF = self.s.ops.m_force
         if self.s.penalty == "explicit":
