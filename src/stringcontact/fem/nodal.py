@@ -194,12 +194,14 @@ class NodalExpression:
         The candidates are taken as the span from the first node where c1 holds to the last (views, no copy: a
         1-D contact region is an interval); where they are sparse in that span (a 2-D mesh's node order) as
         their indices (copies of the arrays the law reads)."""
-        c1 = np.broadcast_to(self._candidates(env), shape)
+        c1 = np.asarray(self._candidates(env))
+        if c1.shape != shape:
+            c1 = np.broadcast_to(c1, shape)
         out = np.zeros(shape)
-        first = int(np.argmax(c1))
+        first = int(c1.argmax())
         if not c1[first]:
             return out
-        last = shape[0] - int(np.argmax(c1[::-1]))
+        last = shape[0] - int(c1[::-1].argmax())
         count = int(np.count_nonzero(c1[first:last]))
         if count * SPARSE < last - first:
             idx = np.flatnonzero(c1)

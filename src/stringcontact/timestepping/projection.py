@@ -236,7 +236,7 @@ class Scheme(Base):
 
     @property
     def timings(self):
-        return {"linear solver": self.contact_step.linear.describe(), "contact step": self.contact_step.describe()}
+        return {"linear solver": self.contact_step.describe_solver(), "contact step": self.contact_step.describe()}
 
     def contact(self) -> np.ndarray:
         laws = self.s.laws

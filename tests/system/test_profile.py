@@ -1,0 +1,32 @@
+"""`stringcontact run --profile`: where the run's time went, section by section, adding up to the total."""
+
+import re
+
+from stringcontact.cli.main import main
+
+SMALL = ["--nx", "200", "--nt", "40", "--eps", "0.01", "--no-progress"]  # r = 0.75
+SECTIONS = ("start-up", "imports", "set-up", "solve", "output", "pictures", "other", "total")
+
+
+def _sections(stdout: str) -> dict:
+    block = stdout.split("where the time went:\n", 1)[1]
+    found = {}
+    for line in block.splitlines():
+        m = re.match(r"\s+(\S+).*?\s(-?[0-9.]+) s\s+(-?[0-9.]+) %$", line)
+        if m:
+            found[m.group(1)] = float(m.group(2))
+    return found
+
+
+def test_profile_prints_each_section_and_they_add_up(tmp_path, capsys):
+    assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "run"), "--profile"]) == 0
+    found = _sections(capsys.readouterr().out)
+    assert tuple(found) == SECTIONS
+    parts = sum(v for k, v in found.items() if k != "total")
+    assert abs(parts - found["total"]) <= 0.002  # rounding of the printed milliseconds
+    assert found["solve"] > 0 and found["set-up"] > 0 and found["output"] > 0 and found["pictures"] > 0
+
+
+def test_without_profile_no_sections(tmp_path, capsys):
+    assert main(["run", "example1", *SMALL, "--no-pictures", "--out", str(tmp_path / "run")]) == 0
+    assert "where the time went" not in capsys.readouterr().out
