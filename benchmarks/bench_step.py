@@ -3,6 +3,9 @@
     .venv/bin/python benchmarks/bench_step.py                          # this checkout, 3 rounds
     .venv/bin/python benchmarks/bench_step.py --against /tmp/before    # and a checkout's src/ alternately
     .venv/bin/python benchmarks/bench_step.py --law                    # the contact law alone: all nodes or candidates
+    PYTHONPATH=/tmp/before/src .venv/bin/python benchmarks/bench_step.py --save before.npz   # every stored array,
+    .venv/bin/python benchmarks/bench_step.py --save after.npz                               # then: bit for bit?
+    .venv/bin/python benchmarks/bench_step.py --same before.npz after.npz
 
 Example 1 (nx = 5000, Δt = 2e-4, 1500 steps). Each round starts one fresh process per checkout, alternately; in it
 each scheme (paper explicit, paper semi-implicit, projection, newmark) and the NumPy peer of the paper's scheme
@@ -90,14 +93,54 @@ def law_timing(repeats: int) -> None:
           f"{1e6 * statistics.mean(full):.1f} µs, candidates only {1e6 * statistics.mean(sub):.1f} µs")
 
 
+def save_fields(path: str) -> None:
+    """Every stored array of Example 1's runs (fields, energies, series) of each scheme into `path` (.npz)."""
+    import warnings
+
+    import numpy as np
+    from mpi4py import MPI
+
+    import stringcontact as sc
+
+    arrays = {}
+    for name, kw in RUNS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = sc.simulate(sc.load_scene("example1"), scheme=name.split()[0], comm=MPI.COMM_SELF, **kw)
+        for field in ("eta", "velocity", "contact", "contact_force"):
+            arrays[f"{name}/{field}"] = getattr(res, field)
+        arrays.update({f"{name}/energy/{k}": v for k, v in res.energy.items()})
+        arrays.update({f"{name}/series/{k}": v for k, v in res.series.items()})
+    np.savez(path, **arrays)
+    print(f"{sc.__file__}: {len(arrays)} arrays into {path}")
+
+
+def same_bits(first: str, second: str) -> int:
+    """Compare two `--save` files byte for byte (NaN and -0.0 included); 0 if every array is identical."""
+    import numpy as np
+
+    a, b = np.load(first), np.load(second)
+    differ = [k for k in a.files if k not in b.files or a[k].shape != b[k].shape
+              or a[k].tobytes() != b[k].tobytes()]
+    print(f"{len(a.files) - len(differ)} of {len(a.files)} arrays bit-identical" + "".join(f"\n  differs: {k}" for k in differ))
+    return 1 if differ else 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3, help="fresh processes per checkout, alternately")
     ap.add_argument("--repeats", type=int, default=3, help="runs of each scheme per process")
     ap.add_argument("--against", help="another checkout (its src/ is put first on PYTHONPATH)")
     ap.add_argument("--law", action="store_true", help="time the contact law alone")
+    ap.add_argument("--save", metavar="FILE.npz", help="save every stored array of the four runs, then stop")
+    ap.add_argument("--same", nargs=2, metavar="FILE.npz", help="compare two --save files bit for bit")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.save:
+        save_fields(args.save)
+        return 0
+    if args.same:
+        return same_bits(*args.same)
     if args.child is not None:
         print(json.dumps(child(args.child)))
         return 0
