@@ -7,7 +7,8 @@ the step's right-hand side b, find η and the nodal contact force F with
 
 This is the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ (the step of the scheme's own energy), and F is its
 Lagrange multiplier: a true contact force, ≥ 0 and zero off the contact set. With A diagonal (α = 0) the
-answer is the nodal maximum max(A⁻¹b, ψ); with viscosity it is not, because A couples neighbours.
+answer is the nodal maximum max(A⁻¹b, ψ), which `ActiveSet` then takes without any linear solver; with
+viscosity it is not, because A couples neighbours.
 
 `ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
 13, 2003) on the scheme's own linear solver (`linear.Linear`: LU, MUMPS or CG): fix the nodes of the active
