@@ -7,11 +7,15 @@ For the functions inside a section, Python's own profiler: docs/performance.md (
 from __future__ import annotations
 
 import os
+import sys
 import time
 
 
 def process_age() -> float | None:
-    """Seconds since this process started (Linux: /proc), or None where that is not known."""
+    """Seconds since this process started (Linux: /proc), or None where that is not known, or where the process
+    was not started as `stringcontact run` (the command line's `main` called from Python: a test, a notebook)."""
+    if sys.argv[1:2] != ["run"]:
+        return None
     try:
         with open("/proc/self/stat") as f:
             start_ticks = int(f.read().rsplit(")", 1)[1].split()[19])
