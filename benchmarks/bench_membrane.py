@@ -45,11 +45,11 @@ SCENES = {
 }
 
 
-def scene(n: int, steps: int, kind: str = "landed"):
+def scene(n: int, steps: int, kind: str = "landed", alpha: float = 0.01):
     from stringcontact.scene import Scene
 
     dt = 0.5 / n
-    return Scene.from_dict(dict(name=f"square{n}", domain="rectangle", cells=[n, n], T=steps * dt, nt=steps, alpha=0.01,
+    return Scene.from_dict(dict(name=f"square{n}", domain="rectangle", cells=[n, n], T=steps * dt, nt=steps, alpha=alpha,
                                 eps=1e-3, h=0, **SCENES[kind]))
 
 
@@ -66,14 +66,15 @@ SOLVERS = {
 }
 
 
-def run_stringcontact(n: int, steps: int, out: Path, solver: str = "auto", kind: str = "landed") -> dict:
+def run_stringcontact(n: int, steps: int, out: Path, solver: str = "auto", kind: str = "landed",
+                      alpha: float = 0.01) -> dict:
     from mpi4py import MPI
 
     import stringcontact as sc
 
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    res = sc.simulate(scene(n, steps, kind), scheme="projection", max_rows=2, petsc_options=SOLVERS[solver])
+    res = sc.simulate(scene(n, steps, kind, alpha), scheme="projection", max_rows=2, petsc_options=SOLVERS[solver])
     total = time.perf_counter() - t0
     rss = comm.gather(peak_rss_mb())
     if comm.rank == 0:  # the rows are on rank 0 (simulate's gather="root")
@@ -98,7 +99,7 @@ def p1_operators(x: np.ndarray, cells: np.ndarray):
     return K, m
 
 
-def run_scipy(n: int, steps: int, out: Path, kind: str = "landed") -> dict:
+def run_scipy(n: int, steps: int, out: Path, kind: str = "landed", alpha: float = 0.01) -> dict:
     """The projection scheme by hand: A η̃ = (M/Δt²)(2ηⁿ − ηⁿ⁻¹) + (C/Δt)ηⁿ − Kηⁿ, then η = max(η̃, 0) inside."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
@@ -106,7 +107,7 @@ def run_scipy(n: int, steps: int, out: Path, kind: str = "landed") -> dict:
     from stringcontact.scene import Scene  # only for the scene's data (expressions), not the solver
 
     data = np.load(out / f"sc{n}.npz")
-    s: Scene = scene(n, steps, kind)
+    s: Scene = scene(n, steps, kind, alpha)
     t0 = time.perf_counter()
     x, cells = data["x"], data["cells"]
     K, m = p1_operators(x, cells)
@@ -152,13 +153,15 @@ def main() -> None:
                     help="stringcontact's linear solver(s) (default: auto, the size rule)")
     ap.add_argument("--no-peer", action="store_true", help="skip the SciPy peer")
     ap.add_argument("--scene", choices=tuple(SCENES), default="landed", help="see SCENES (default: landed)")
+    ap.add_argument("--alpha", type=float, default=0.01,
+                    help="viscosity (default 0.01); 0 makes the step matrix diagonal: the nodal maximum, no linear solve")
     ap.add_argument("--one", nargs=2, metavar=("IMPL", "N"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     OUT.mkdir(exist_ok=True)
     if args.one:
         impl, n = args.one[0], int(args.one[1])
-        row = (run_stringcontact(n, args.steps, OUT, args.solver[0], args.scene) if impl == "sc"
-               else run_scipy(n, args.steps, OUT, args.scene))
+        row = (run_stringcontact(n, args.steps, OUT, args.solver[0], args.scene, args.alpha) if impl == "sc"
+               else run_scipy(n, args.steps, OUT, args.scene, args.alpha))
         from mpi4py import MPI
 
         if MPI.COMM_WORLD.rank == 0:
@@ -167,7 +170,7 @@ def main() -> None:
     sizes = args.sizes or [99, 199, 316, 499] + ([999] if args.big else [])
     if args.solver != ["auto"] or args.no_peer:
         return solver_table(args, sizes)
-    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--one"]
+    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--alpha", str(args.alpha), "--one"]
     rows = []
     print("| nodes | stringcontact ms/step | setup s | peak RSS MB | SciPy peer ms/step | setup s | peak RSS MB | max abs diff of eta |")
     print("|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -187,7 +190,10 @@ def main() -> None:
 
 def solver_table(args, sizes: list[int]) -> None:
     """One row per size, solver and rank count (and the peer unless --no-peer); appends to out/solvers.jsonl."""
-    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--scene", args.scene]
+    me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--scene", args.scene,
+          "--alpha", str(args.alpha)]
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {os.getloadavg()[0]:.2f}, "
+          f"alpha = {args.alpha}, {args.steps} steps\n")
     print("| nodes | solver | ranks | ms/step | setup s | peak RSS MB per rank | linear solver |")
     print("|---:|---|---:|---:|---:|---|---|")
     with open(OUT / "solvers.jsonl", "a") as log:
@@ -199,7 +205,7 @@ def solver_table(args, sizes: list[int]) -> None:
                     rss = " / ".join(f"{r:.0f}" for r in row["rss_mb"])
                     print(f"| {row['nodes']} | {solver} | {ranks} | {row['step_ms']:.2f} | {row['setup_s']:.2f} | {rss} | "
                           f"{row['linear_solver']} |", flush=True)
-                    log.write(json.dumps(dict(row, scene=args.scene, load=os.getloadavg())) + "\n")
+                    log.write(json.dumps(dict(row, scene=args.scene, alpha=args.alpha, load=os.getloadavg())) + "\n")
             if not args.no_peer:
                 peer = child(me + ["--one", "scipy", str(n)])
                 print(f"| {peer['nodes']} | SciPy peer (SuperLU) | 1 | {peer['step_ms']:.2f} | {peer['setup_s']:.2f} | "

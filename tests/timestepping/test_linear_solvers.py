@@ -108,8 +108,8 @@ def test_above_the_limit_cg_takes_jacobi_for_a_mass_dominated_matrix_else_amg(mo
     assert light.timings["linear solver"].startswith("cg + jacobi")
     assert heavy.timings["linear solver"].startswith("cg + hypre boomeramg")
     assert np.max(np.abs(light.balance_residual)) <= 1e-10 * light.total_energy[0]
-    diagonal = sc.simulate(contact_scene(alpha=0), scheme="projection")  # A = M/Δt²: one iteration
-    assert diagonal.timings["linear solver"] == "cg + jacobi, mean 1.0 iterations per solve"
+    diagonal = sc.simulate(contact_scene(alpha=0), scheme="projection")  # A = M/Δt²: the nodal maximum, no solve
+    assert diagonal.timings["linear solver"].startswith("none: the step matrix is diagonal")
 
 
 # --- accuracy with CG -----------------------------------------------------------------------------------

@@ -72,6 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--petsc-option", action="append", default=[], metavar="NAME=VALUE",
                      help="a PETSc option for the linear solver, e.g. ksp_type=cg or pc_type=hypre (repeatable; over "
                           "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/linear_solvers.md)")
+    run.add_argument("--profile", action="store_true",
+                     help="print where the run's time went: start-up, imports, set-up, solve, output, pictures")
     run.add_argument("--frames", type=int, default=100, metavar="N",
                      help="XDMF frames: at most N of the ~400 stored rows: 0, T, the output times, then evenly "
                           "spaced rows (default 100; dolfinx 0.5 writes N frames in time ~N²)")
@@ -230,7 +232,14 @@ def _components_note(res) -> str:
 
 def _run(args, painter=None) -> int:
     """`run`; `painter` (a `painter.PictureProcess`) was started by `main` before PETSc and dolfinx were imported."""
+    import time
+
     import stringcontact as sc
+
+    started = time.perf_counter()
+    if args.profile:  # dolfinx, UFL and the solver, timed as a section (else loaded when first needed)
+        importlib.import_module("stringcontact.run.driver")
+    imports = time.perf_counter() - started
 
     scene = sc.load_scene(args.scene)
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
@@ -265,6 +274,10 @@ def _run(args, painter=None) -> int:
         report(res)
         if args.out is not None:
             print(f"wrote {args.out}")
+        if args.profile:
+            from ..run import profile
+
+            print("where the time went:\n" + profile.table(profile.sections(res.timings, imports, started)))
     from ..run.checks import unbalanced_message
 
     unbalanced = unbalanced_message(res)

@@ -7,7 +7,8 @@ the step's right-hand side b, find η and the nodal contact force F with
 
 This is the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ (the step of the scheme's own energy), and F is its
 Lagrange multiplier: a true contact force, ≥ 0 and zero off the contact set. With A diagonal (α = 0) the
-answer is the nodal maximum max(A⁻¹b, ψ); with viscosity it is not, because A couples neighbours.
+answer is the nodal maximum max(A⁻¹b, ψ), which `ActiveSet` then takes without any linear solver; with
+viscosity it is not, because A couples neighbours.
 
 `ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
 13, 2003) on the scheme's own linear solver (`linear.Linear`: LU, MUMPS or CG): fix the nodes of the active
@@ -60,6 +61,12 @@ class ActiveSet:
                  psi: np.ndarray, interior: np.ndarray, force_tol: np.ndarray):
         self.A, self.bc, self.g = A, bc, g
         self.psi, self.interior, self.force_tol = psi, interior, force_tol
+        self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
+        self.anywhere, self.comm = any_rank(comm), comm
+        self.inverse_diagonal = inverse_diagonal(A, comm)
+        if self.inverse_diagonal is not None:  # α = 0: no linear solver at all (`_nodal_maximum`)
+            self.linear = self.free = None
+            return
         self.work = A.duplicate(copy=True)  # A with 𝒜's rows (and, for CG, columns) fixed
         self.work.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)  # a new 𝒜 refactorises numerically only
         self.linear = Linear(self.work, comm, options, bc, g, dim)
@@ -67,14 +74,17 @@ class ActiveSet:
         self.free = Linear(A.duplicate(copy=True), comm, options, bc, g, dim) if predict else None
         self.active = np.zeros(psi.size, dtype=bool)
         self.nodes = np.zeros(0, dtype=np.int32)
-        self.anywhere = any_rank(comm)
-        self.comm = comm
         self.fallback: VariationalInequality | None = None
-        self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
 
     @property
     def iterative(self) -> bool:
-        return self.linear.iterative
+        return self.linear is not None and self.linear.iterative
+
+    def describe_solver(self) -> str:
+        """The linear solver's one line (`Linear.describe`), or why there is none."""
+        if self.linear is None:
+            return "none: the step matrix is diagonal (lumped mass, no viscosity)"
+        return self.linear.describe()
 
     def _hold(self, active: np.ndarray) -> None:
         """Fix the nodes of `active` on ψ (besides the ends): A's rows there become the identity."""
@@ -90,9 +100,11 @@ class ActiveSet:
         self.refactorisations += 1
 
     def solve(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
+        self.steps += 1
+        if self.inverse_diagonal is not None:
+            return self._nodal_maximum(b, x, residual)
         rhs, eta = b.array, x.array
         active = self.active
-        self.steps += 1
         if self.free is not None:
             self.free.solve(b, x)
             self.free_solves += 1
@@ -123,6 +135,22 @@ class ActiveSet:
             active = new
         return self._fall_back(b, x, residual)
 
+    def _nodal_maximum(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
+        """A diagonal: η = max(A⁻¹b, ψ) node by node is the LCP's solution, and F = Aη − b where η = ψ.
+
+        The same numbers as the active-set method on A's LU, which takes this free step and then holds {η̃ < ψ}
+        on ψ: PETSc's LU stores the inverted pivots, so its back-substitution is b·(1/a), as here. Measured
+        (benchmarks/bench_membrane.py --alpha 0): no factorisation in the set-up and a step linear in N."""
+        eta = x.array
+        np.multiply(b.array, self.inverse_diagonal, out=eta)
+        active = self.interior & (eta < self.psi)
+        if not self.anywhere(bool(active.any())):
+            residual(eta)
+            return np.zeros_like(eta), 0
+        np.copyto(eta, self.psi, where=active)
+        self.solves += 1
+        return np.where(active, residual(eta), 0.0), 1
+
     def _key(self, active: np.ndarray) -> tuple:
         """The active set over all ranks, as a hashable key (one allgather of this rank's packed bits)."""
         mine = np.packbits(active).tobytes()
@@ -139,9 +167,23 @@ class ActiveSet:
 
     def describe(self) -> str:
         """One line for the summary: what the contact steps cost."""
+        if self.inverse_diagonal is not None:
+            return f"nodal maximum (diagonal step matrix), contact in {self.solves} of {self.steps} steps"
         text = (f"active set, {self.free_solves / max(1, self.steps):.3g} free and {self.solves / max(1, self.steps):.3g}"
                 f" constrained solves per step, {self.refactorisations} changes of the active set")
         return text + (f", {self.fallbacks} SNES VI fallbacks" if self.fallbacks else "")
+
+
+def inverse_diagonal(A: PETSc.Mat, comm) -> np.ndarray | None:
+    """1/a_ii of this rank's rows if A is diagonal on every rank (its off-diagonal entries stored zeros, as the
+    viscous matrix's are at α = 0), else None."""
+    ia, ja, a = A.getValuesCSR()
+    rows = np.repeat(np.arange(ia.size - 1), np.diff(ia)) + A.getOwnershipRange()[0]
+    d = A.getDiagonal().array
+    diagonal = bool(np.all(a[ja != rows] == 0.0)) and bool(np.all(d != 0.0))
+    if any_rank(comm)(not diagonal):
+        return None
+    return 1.0 / d
 
 
 class VariationalInequality:

@@ -57,7 +57,10 @@ class Scheme(Base):
         self.eta_, self.v_ = np.zeros(n), np.zeros(n)
         self.KC_now, self.KC_new = ((wrap(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
         self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.vec = {k: wrap(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu))}
+        self.v_new = np.zeros(n)
+        self.work = np.zeros((2, n))  # scratch for the right-hand side: no temporaries per step (measured: bench_step)
+        self.vec = {k: wrap(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu),
+                                                  ("v_new", self.v_new), ("work", self.work[0]))}  # wrapped once
         self.D = np.zeros(n)  # m_F d on the active interior nodes
         self.force_density = np.zeros(n)
 
@@ -77,11 +80,11 @@ class Scheme(Base):
     def timings(self):
         return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.linear.describe()}
 
-    def _mass(self, u: np.ndarray) -> np.ndarray:
-        """M u (the scheme's mass matrix) into self.Mu."""
+    def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
+        """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""
         if self.s.mass == "lumped":
             return np.multiply(self.s.ops.m, u, out=self.Mu)
-        self.Ms.mult(wrap(u, self.s.comm), self.vec["Mu"])
+        self.Ms.mult(self.vec[name] if name else wrap(u, self.s.comm), self.vec["Mu"])
         return self.Mu
 
     def start(self, eta0, v0):
@@ -96,25 +99,40 @@ class Scheme(Base):
         """D = m_F d at η^n, v^n."""
         s = self.s
         s.laws.set(eta=self.eta_, v=self.v_)
-        d = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * np.ones(s.n_owned)
-        np.multiply(s.ops.m_force, d * s.interior, out=self.D)
+        d = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float)
+        np.multiply(d, s.interior, out=self.work[0])  # (d·1 is d: the old `* np.ones` only broadcast a constant)
+        np.multiply(s.ops.m_force, self.work[0], out=self.D)
 
     def _solve(self) -> np.ndarray:
         """η^{n+1} into self.new for the current D; returns v^{n+1}."""
         s, dt = self.s, self.s.dt
         eta, v, D = self.eta_, self.v_, self.D
-        self.lu.update(4.0 / dt * D)
+        a, b = self.work  # the same operations as written out with temporaries, into two buffers (bit for bit)
+        np.multiply(4.0 / dt, D, out=a)
+        self.lu.update(a)
         rhs = self.rhs
-        rhs[:] = self._mass(eta / dt**2 + v / dt)
+        np.divide(eta, dt**2, out=a)
+        np.divide(v, dt, out=b)
+        a += b
+        rhs[:] = self._mass(a, "work")
         rhs *= 4.0
-        rhs += (2.0 / dt) * self.KC_now[1][1] - self.KC_now[1][0]
-        rhs += D * (4.0 / dt * eta + 2.0 * v)
-        rhs += 2.0 * s.ops.load
+        np.multiply(2.0 / dt, self.KC_now[1][1], out=a)
+        a -= self.KC_now[1][0]
+        rhs += a
+        np.multiply(4.0 / dt, eta, out=a)
+        np.multiply(2.0, v, out=b)
+        a += b
+        a *= D
+        rhs += a
+        np.multiply(2.0, s.ops.load, out=b)
+        rhs += b
         rhs[s.bc] = s.g
         if self.lu.iterative:  # CG starts from the guess η^n + Δt v^n
             np.add(eta, dt * v, out=self.new)
         self.lu.solve(self.vec["rhs"], self.vec["new"])
-        v_new = 2.0 / dt * (self.new - eta) - v
+        v_new = np.subtract(self.new, eta, out=self.v_new)  # 2/Δt (η^{n+1} − η^n) − v^n
+        np.multiply(2.0 / dt, v_new, out=v_new)
+        v_new -= v
         v_new[s.bc] = 0.0
         return v_new
 
@@ -130,15 +148,18 @@ class Scheme(Base):
             D[sticky] = 0.0
             v_new = self._solve()
         self.KC.mult(self.vec["new"], self.KC_new[0])
-        mean = v_new + v
-        visc = 0.5 * float(np.dot(mean, KC_new[1] - KC_now[1]))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
-        con = 0.5 * dt * float(np.dot(mean, D * v_new))
+        mean, b = np.add(v_new, v, out=self.work[0]), self.work[1]
+        np.subtract(KC_new[1], KC_now[1], out=b)
+        visc = 0.5 * float(np.dot(mean, b))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
+        con = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b)))
         ext = 0.5 * dt * float(np.dot(s.ops.load, mean))
-        kin = 0.5 * float(np.dot(v_new, self._mass(v_new)))
+        kin = 0.5 * float(np.dot(v_new, self._mass(v_new, "v_new")))
         el = 0.5 * float(np.dot(self.new, KC_new[0]))
         kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
-        np.multiply(-np.divide(D, s.ops.m_force, out=np.zeros_like(D), where=s.ops.m_force > 0), v_new,
-                    out=self.force_density)
+        b[:] = 0.0  # −(D/m_F)·v^{n+1}, 0 where no force acts (m_F = 0)
+        np.divide(D, s.ops.m_force, out=b, where=s.ops.m_force > 0)
+        np.negative(b, out=b)
+        np.multiply(b, v_new, out=self.force_density)
         eta[:], v[:] = self.new, v_new
         self.KC_now, self.KC_new = self.KC_new, self.KC_now
         return kin, el, visc, con, 0.0, ext, 0.0

@@ -67,9 +67,10 @@ class Scheme(Base):
         self.m_dt2 = m / dt**2
         self.inv_mF = np.divide(1.0, mF, out=np.zeros(n), where=mF > 0)  # 0 where no force acts (the ends)
         self.force_density = np.zeros(n)
-        self.ends = [(int(i), float(g)) for i, g in zip(s.bc, s.g)]
+        self.ends = [(int(i), float(g)) for i, g in zip(s.bc, s.g)] if s.x.ndim == 1 else None
         self.has_load = bool(np.any(ops.load != 0))
         self.step_index = 0
+        self.law_ahead = (-1, None)  # (step index, F) of the law evaluated by `contact_force`
 
     # -- the state the driver reads
 
@@ -89,6 +90,7 @@ class Scheme(Base):
         if self.s.penalty == "explicit":
             self.s.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
             law = self.force_law.evaluate_env(self.s.laws.env)
+            self.law_ahead = (self.step_index, law)  # the next step applies this F(η^n, v^n): kept, not recomputed
             np.multiply(law, self.inv_mF > 0, out=self.force_density)  # 0 where no force acts (the ends)
         else:
             np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
@@ -134,7 +136,9 @@ class Scheme(Base):
 
     def _rhs_force(self, e0) -> None:
         """m_F∘F^n into by_v[1] (explicit), or the damping's known part (d/Δt)η^n (semi-implicit)."""
-        law = self.force_law.evaluate_env(self.s.laws.env)
+        kept_at, law = self.law_ahead
+        if kept_at != self.step_index:  # `contact_force` evaluated it at this state for a stored row (1 in 4 here)
+            law = self.force_law.evaluate_env(self.s.laws.env)
         f_applied, diag_w = self.by_v[1], self.diag_w
         mF = self.s.ops.m_force
         if self.s.penalty == "explicit":
@@ -175,8 +179,11 @@ class Scheme(Base):
         load, has_load = s.ops.load, self.has_load
         if has_load:
             b_a += load
-        for i, g_i in self.ends:  # item assignment: a fancy-indexed b_a[bc] = g costs 3 µs per step
-            b_a[i] = g_i
+        if self.ends is None:  # a membrane's boundary: many nodes
+            b_a[s.bc] = s.g
+        else:  # a string's two ends: item assignment, where a fancy-indexed b_a[bc] = g costs 3 µs per step
+            for i, g_i in self.ends:
+                b_a[i] = g_i
         if self.lu.iterative:  # CG starts from the guess 2η^n − η^{n−1}
             np.subtract(e0, em, out=eta_new[1])
             np.add(eta_new[1], e0, out=eta_new[1])
