@@ -63,3 +63,15 @@ def test_a_leak_is_still_caught_at_many_steps():
     res.checks = None
     res.energy["contact_dissipation"] = res.energy["contact_dissipation"] * 1.001  # a 0.1 % leak
     assert not checks.energy_balance(res)["closes"]
+
+
+@pytest.mark.parametrize("scheme", ["projection", "newmark"])
+def test_a_small_motion_on_a_large_height_is_not_called_unstable(scheme):
+    # η = 1e-3, v = -1e-8: E = 5e-17, below the round-off of ½ηᵀKη at that height (7e-17); its energy "rose"
+    # by 1e-20 at step 14, and the guard, with no floor, stopped it as unstable
+    scene = sc.load_scene("example1").replace(nx=100, nt=100, T=0.1, eta0="1e-3", v0="-1e-8",
+                                              h_left=1e-3, h_right=1e-3, output_times=[])
+    res = sc.simulate(scene, scheme=scheme, progress=False)
+    assert res.status != "unstable"
+    assert len(res.t) and res.t[-1] == pytest.approx(0.1)  # ran to T
+

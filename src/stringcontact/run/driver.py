@@ -203,13 +203,13 @@ class _Ledger:
     energy may not exceed 2 E(0).
     """
 
-    def __init__(self, start, conservative: bool):
+    def __init__(self, start, conservative: bool, floor: float = 0.0):
         kin, el, _, _, _, _, stored = start
         self.kin, self.el = kin, el
         self.visc = self.con = self.num = self.ext = 0.0
         self.conservative = conservative
         self.E_prev = self.E_ref = kin + el + stored
-        self.tol = (1.0 if conservative else 1e-9) * max(abs(self.E_prev), 1e-300)
+        self.tol = max((1.0 if conservative else 1e-9) * abs(self.E_prev), floor, 1e-300)
 
     def add(self, terms) -> str | None:
         """Book one step's terms; the reason if the energy rose or is not finite, else None."""
@@ -231,6 +231,15 @@ class _Ledger:
     @property
     def cumulative(self) -> tuple:
         return self.kin, self.el, self.visc, self.con, self.num, self.ext
+
+
+def energy_roundoff(K, eta: np.ndarray, comm) -> float:
+    """The round-off of the energy of a state of height |η|: ½ηᵀKη carries up to u·|η|²·Σ|K_ij| ≤ u·|η|²·N·‖K‖∞
+    (8× that here). A small motion on a large height (η = 1e-3 + 1e-8 t) has less energy than this, and its
+    energy "rose" by 1e-20 of 5e-17 at step 14 without this floor: noise, not an instability, which grows
+    exponentially past any floor. Example 1's floor (4e-7) is below 1e-9 E(0) (1.3e-6). Collective."""
+    height = comm.allreduce(float(np.max(np.abs(eta), initial=0.0)), op=MPI.MAX)
+    return 8 * np.finfo(float).eps * height**2 * K.getSize()[0] * K.norm(PETSc.NormType.INFINITY)
 
 
 def discretise(scene, model: Model, comm):
@@ -408,7 +417,8 @@ class _Run:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
         stepper, rows = self.stepper, self.rows
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
-                              conservative=self.model.contact_energy is not None)
+                              conservative=self.model.contact_energy is not None,
+                              floor=energy_roundoff(s.ops.K, stepper.eta, s.comm))
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
 
