@@ -177,7 +177,8 @@ def foreign_file(folder: Path, depth: int = 3) -> str | None:
     """
     files = read_manifest(folder)
     if files is None:
-        return f"this folder has no {MANIFEST} of a stringcontact command"
+        return (f"this folder has no {MANIFEST} of a stringcontact command (results written before "
+                "stringcontact kept one have none: delete such a folder yourself once)")
     for p in sorted(Path(folder).iterdir()):
         if p.name == MANIFEST:
             continue
