@@ -172,9 +172,12 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     add_axis(p, Axis((x[-1], back, floor), (x[-1], front, floor), float(t[0]), float(t[-1]), (unit, 0, 0), "t"))
     add_axis(p, Axis((x[0], front, lo * height), (x[0], front, hi * height), lo, hi, (-unit, 0, 0), "eta"))  # VTK's label font has no Greek
     add_colour_legend(p, "colour: contact", [(f"in contact, η ≤ {psi_name}", CONTACT_COLOUR),
-                                             (f"free, η > {psi_name}", FREE_COLOUR), (f"obstacle {psi_name}", OBSTACLE_COLOUR)])
-    _title(p, f"Space-time surface η(x, t): {result.scene.name}\n{parameter_line(result)}\n"
-              f"height η from {lo:.3g} to {hi:.3g} over x and t; red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
+                                             (f"free, η > {psi_name}", FREE_COLOUR), (f"obstacle {psi_name}", OBSTACLE_COLOUR)],
+                      top=0.82)  # under the title's five lines
+    # one short line each: at the window's width a longer title line ran off both edges
+    _title(p, f"Space-time surface η(x, t): {result.scene.name}\n{parameter_line(result, sep=chr(10))}\n"
+              f"height η from {lo:.3g} to {hi:.3g} over x and t\n"
+              f"red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
     centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
     p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact
     p.reset_camera()
