@@ -521,13 +521,11 @@ def test_plot_redraws_the_runs_pictures_pixel_for_pixel(tmp_path, capsys):
 
 
 def test_contact_components_count_runs_of_two_or_more_contact_nodes():
-    from types import SimpleNamespace
-
-    from stringcontact.io.tables import contact_components
+    from stringcontact.io.result import contact_runs
 
     x = np.linspace(0, 1, 11)
     rows = np.array([[1, 0, 1, 1, 1, 0, 0, 1, 1, 0, 1], [0] * 11, [1] * 11, [1, 1, 0, 1, 0, 1, 1, 0, 0, 1, 1]], dtype=bool)
-    counts = contact_components(SimpleNamespace(dim=1, contact=rows))
+    counts = contact_runs(rows)
     assert counts.tolist() == [len(viz.contact_components(x, row)) for row in rows] == [2, 0, 1, 3]
 
 

@@ -416,27 +416,6 @@ def test_interrupted_force_swap_is_restored(tmp_path, capfd):
 # --- the output folder's device: read-only, full -----------------------------------------------------
 
 
-@pytest.fixture
-def tmpfs(tmp_path):
-    """Mount a small tmpfs (needs root with CAP_SYS_ADMIN, which `make test` in Docker has)."""
-    mounted = []
-
-    def mount(name: str, options: str) -> Path:
-        folder = tmp_path / name
-        folder.mkdir()
-        if shutil.which("mount") is None or os.geteuid() != 0:
-            pytest.skip("mounting a tmpfs needs root and the mount command")
-        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True, text=True)
-        if proc.returncode != 0:
-            pytest.skip(f"cannot mount a tmpfs here ({proc.stderr.strip()}); needs CAP_SYS_ADMIN")
-        mounted.append(folder)
-        return folder
-
-    yield mount
-    for folder in mounted:
-        subprocess.run(["umount", "-l", str(folder)], check=False)
-
-
 def read_only_folder(tmp_path, tmpfs) -> Path:
     if os.geteuid() != 0:  # an ordinary user: permissions are enough
         folder = tmp_path / "ro"

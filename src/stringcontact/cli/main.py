@@ -200,7 +200,7 @@ def report(res) -> None:
               + _components_note(res))
     else:
         print(f"min eta = {res.min_eta:.6g}; final contact area = {res.contact_measure[-1]:.4g} "
-              f"in {res.contact_patches()[-1]} patch(es)")
+              f"in {res.contact_components[-1]} patch(es)")
     print(_fmt_energy_line(res))
     line, ok = _fmt_penetration_line(res)
     print(line)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -22,6 +23,19 @@ FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks.
 PER_NODE = ("x", *FIELDS, "weights", "cells")
 CHUNK_VALUES = 2**24  # contact_measure converts at most this many contact values to float at once (128 MB)
+
+
+def contact_runs(contact: np.ndarray) -> np.ndarray:
+    """The runs of at least two contact nodes in each row of a 1D contact array: an isolated node is a
+    component of zero length (Example 2's left end, pinned at η = 0, is always "in contact" at one node;
+    `plot.charts.contact_components` gives the intervals themselves)."""
+    contact = np.asarray(contact, dtype=bool)
+    counts = np.zeros(len(contact), dtype=np.int64)
+    chunk = max(1, CHUNK_VALUES // max(1, contact.shape[1]))  # a few rows' temporaries at a time, not all rows'
+    for i in range(0, len(contact), chunk):
+        pairs = contact[i:i + chunk, :-1] & contact[i:i + chunk, 1:]  # edges with both ends in contact
+        counts[i:i + chunk] = pairs[:, :1].sum(axis=1) + np.count_nonzero(pairs[:, 1:] & ~pairs[:, :-1], axis=1)
+    return counts
 
 
 def node_sort_key(x: np.ndarray) -> np.ndarray:
@@ -139,6 +153,13 @@ class Result:
     def contact_length(self) -> np.ndarray:
         """The contact measure (a length in 1D, an area in 2D); the name the output files use."""
         return self.contact_measure
+
+    @cached_property
+    def contact_components(self) -> np.ndarray:
+        """The number of components of the contact set at each stored row: in 1D its runs of at least two
+        contact nodes (`contact_runs`), in 2D its patches (`contact_patches`). Computed once: the diagnostics,
+        the summary and the run's report all read it (a membrane's patches cost a graph search per row)."""
+        return contact_runs(self.contact) if self.dim == 1 else self.contact_patches()
 
     def contact_patches(self) -> np.ndarray:
         """2D: the number of contact patches (connected sets of contact nodes along mesh edges) at each stored time."""

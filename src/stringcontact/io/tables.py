@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .result import CHUNK_VALUES, ENERGY_KEYS, FIELDS
+from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "contact_components", "most_components", "summary_dict", "write_diagnostics", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "most_components", "summary_dict", "write_diagnostics", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
@@ -52,22 +52,6 @@ DIAGNOSTIC_COLUMNS = (
 INTEGER_COLUMNS = ("step", "contact_components")
 
 
-def contact_components(result) -> np.ndarray:
-    """The number of components of the contact set at each stored row. In 1D the runs of at least two
-    contact nodes: an isolated node is a component of zero length (Example 2's left end, pinned at η = 0,
-    is always "in contact" at one node; `charts.contact_components` gives the intervals themselves). In 2D
-    the patches connected along mesh edges (`Result.contact_patches`)."""
-    if result.dim == 2:
-        return result.contact_patches()
-    contact = np.asarray(result.contact, dtype=bool)
-    counts = np.zeros(len(contact), dtype=np.int64)
-    chunk = max(1, CHUNK_VALUES // max(1, contact.shape[1]))  # a few rows' temporaries at a time, not all rows'
-    for i in range(0, len(contact), chunk):
-        pairs = contact[i:i + chunk, :-1] & contact[i:i + chunk, 1:]  # edges with both ends in contact
-        counts[i:i + chunk] = pairs[:, :1].sum(axis=1) + np.count_nonzero(pairs[:, 1:] & ~pairs[:, :-1], axis=1)
-    return counts
-
-
 def write_diagnostics(path: Path, result) -> None:
     cols = {
         "step": result.steps,
@@ -76,7 +60,7 @@ def write_diagnostics(path: Path, result) -> None:
         "balance_residual": result.balance_residual,
         "min_eta": result.eta.min(axis=1),
         "contact_length": result.contact_length,
-        "contact_components": contact_components(result),
+        "contact_components": result.contact_components,
         "max_contact_force": result.contact_force.max(axis=1),
     }
     with open(path, "w", newline="") as f:
@@ -143,6 +127,6 @@ def most_components(result) -> dict:
     with that many}; {} on a rank without the rows (rank 0 writes summary.json)."""
     if not result.has_rows or not len(result.t):
         return {}
-    counts = contact_components(result)
+    counts = result.contact_components
     first = int(np.argmax(counts))
     return {"contact_components": {"most": int(counts[first]), "first_at": float(result.t[first])}}

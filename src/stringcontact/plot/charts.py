@@ -174,17 +174,15 @@ def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
 
 def contact_set_figure(result, window_size=WINDOW_SIZE):
     """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free; beside
-    it the number of its components over time (`tables.contact_components`); below it, when the most
+    it the number of its components over time (`Result.contact_components`); below it, when the most
     components last a short while (Example 2's three before t = 0.02, Example 1's nine at its landing), the
     same picture zoomed in time onto them (`zoom_window`). Returns the figure and its axes {"set", "count",
     "zoom", "zoom_count"} (the last two absent without a zoom)."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    from ..io.tables import contact_components
-
     plt, psi = pyplot(), obstacle_name(result)
-    counts = contact_components(result)
+    counts = result.contact_components
     zoom = zoom_window(result.t, counts)
     fig = plt.figure(figsize=(window_size[0] / DPI, window_size[1] / DPI), dpi=DPI)
     boxes = _contact_set_boxes(window_size, zoom is not None)
