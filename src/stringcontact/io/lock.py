@@ -81,7 +81,7 @@ class TargetLock:
                     f"--out {self.target}: another stringcontact run{who} is writing to this folder; "
                     "wait for it to finish or choose another folder"
                 ) from None
-            except OSError as exc:
+            except OSError:
                 odd = _not_a_lock_file(self.path)
                 if odd is None:
                     raise
