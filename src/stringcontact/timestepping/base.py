@@ -74,6 +74,20 @@ class Setting:
         return self.ops.m.size
 
     @cached_property
+    def ends(self) -> list[tuple[int, float]] | None:
+        """A string's fixed ends as (index, height) items; None for a membrane's boundary (many nodes)."""
+        return [(int(i), float(g)) for i, g in zip(self.bc, self.g)] if self.x.ndim == 1 else None
+
+    def hold_ends(self, a: np.ndarray) -> None:
+        """The fixed ends' heights into `a`: a string's two by item (a fancy-indexed a[bc] = g costs 3 µs per
+        step), a membrane's boundary by fancy index."""
+        if self.ends is None:
+            a[self.bc] = self.g
+        else:
+            for i, g_i in self.ends:
+                a[i] = g_i
+
+    @cached_property
     def interior(self) -> np.ndarray:  # read every step: computed once
         mask = np.ones(self.n_owned, dtype=bool)
         mask[self.bc] = False

@@ -126,7 +126,7 @@ class Scheme(Base):
         rhs += a
         np.multiply(2.0, s.ops.load, out=b)
         rhs += b
-        rhs[s.bc] = s.g
+        s.hold_ends(rhs)
         if self.lu.iterative:  # CG starts from the guess η^n + Δt v^n
             np.add(eta, dt * v, out=self.new)
         self.lu.solve(self.vec["rhs"], self.vec["new"])

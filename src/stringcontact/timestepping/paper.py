@@ -67,7 +67,6 @@ class Scheme(Base):
         self.m_dt2 = m / dt**2
         self.inv_mF = np.divide(1.0, mF, out=np.zeros(n), where=mF > 0)  # 0 where no force acts (the ends)
         self.force_density = np.zeros(n)
-        self.ends = [(int(i), float(g)) for i, g in zip(s.bc, s.g)] if s.x.ndim == 1 else None
         self.has_load = bool(np.any(ops.load != 0))
         self.step_index = 0
         self.law_ahead = (-1, None)  # (step index, F) of the law evaluated by `contact_force`
@@ -179,11 +178,7 @@ class Scheme(Base):
         load, has_load = s.ops.load, self.has_load
         if has_load:
             b_a += load
-        if self.ends is None:  # a membrane's boundary: many nodes
-            b_a[s.bc] = s.g
-        else:  # a string's two ends: item assignment, where a fancy-indexed b_a[bc] = g costs 3 µs per step
-            for i, g_i in self.ends:
-                b_a[i] = g_i
+        s.hold_ends(b_a)
         if self.lu.iterative:  # CG starts from the guess 2η^n − η^{n−1}
             np.subtract(e0, em, out=eta_new[1])
             np.add(eta_new[1], e0, out=eta_new[1])

@@ -200,7 +200,6 @@ class Scheme(Base):
         self.rhs = (wrap(rhs, comm), rhs)
         self.R = np.zeros(n)  # A η − b of the latest iterate
         self.work = np.zeros((2, n))  # scratch rows for the energy terms
-        self.ends = [(int(i), float(g)) for i, g in zip(s.bc, s.g)] if s.x.ndim == 1 else None
         self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)
         self.has_load = bool(np.any(ops.load != 0))
         self.v0 = None  # the given initial velocity, reported at t = 0
@@ -299,11 +298,7 @@ class Scheme(Base):
         rhs -= e0.kc[0]
         if self.has_load:
             rhs += s.ops.load
-        if self.ends is None:  # a membrane's boundary: many nodes
-            rhs[s.bc] = s.g
-        else:  # a string's two ends: item assignment, where a fancy-indexed rhs[bc] = g costs 3 µs per step
-            for i, g_i in self.ends:
-                rhs[i] = g_i
+        s.hold_ends(rhs)
         if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
             np.subtract(e0.eta, em.eta, out=new.eta)
             new.eta += e0.eta
