@@ -275,7 +275,7 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
     bc, g = agreed(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
-    options = dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))  # the argument's win
+    options = petsc_options_of(scene, petsc_options)
     return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x,
                    nt=scene.nt, petsc_options=options)
 
@@ -378,11 +378,16 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     return name, Scheme, penalty, mass, model
 
 
+def petsc_options_of(scene, petsc_options=None) -> dict:
+    """The scene's PETSc options with `petsc_options` (checked like the scene's key) on top: the argument's win."""
+    return dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))
+
+
 def _check_before_mesh(scene, Scheme, penalty, model, petsc_options) -> None:
     """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
     option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
     same on every rank, so a refusal ends every rank alike."""
-    check_option_values(dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {})))
+    check_option_values(petsc_options_of(scene, petsc_options))
     if Scheme.PENALTIES and penalty is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
