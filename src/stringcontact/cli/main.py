@@ -27,6 +27,7 @@ import threading
 import warnings
 
 from ..errors import one_line
+from .mpi_start import quick_singleton
 from ..timestepping import SCHEMES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -387,6 +388,8 @@ def _standard_streams() -> None:
 
 
 def main(argv=None) -> int:
+    if argv is None and "mpi4py.MPI" not in sys.modules:  # the process's own command, before MPI starts
+        quick_singleton(os.environ)
     _standard_streams()
     with _stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
         try:
