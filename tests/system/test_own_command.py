@@ -1,8 +1,10 @@
-"""The command's Open MPI settings for a singleton (`cli.mpi_start`): what is set, when, and that Open MPI
-then starts no daemon."""
+"""What `main()` does only as the process's own command (the console script, `argv` None): Open MPI's
+settings for a singleton (`cli.mpi_start`), what is set, when, and that Open MPI then starts no daemon; and
+the objects left out of the exit's last garbage collection (`gc.freeze`)."""
 
 from __future__ import annotations
 
+import gc
 import os
 import subprocess
 import sys
@@ -29,23 +31,28 @@ def _clean_env(**extra) -> dict:
 
 COMMAND = textwrap.dedent(
     """
-    import os, sys
+    import gc, os, sys
     from stringcontact.cli.main import main
     sys.argv = ["stringcontact", "list"]
     main()
     print("SET", os.environ.get("OMPI_MCA_pml"), os.environ.get("OMPI_MCA_ess_singleton_isolated"))
+    print("FROZEN", gc.get_freeze_count() > 0)
     """
 )
 
 
-def _settings_seen(env) -> str:
+def _seen(env, what="SET") -> str:
     out = subprocess.run([sys.executable, "-c", COMMAND], env=env, capture_output=True, text=True, check=True).stdout
-    return [line for line in out.splitlines() if line.startswith("SET")][0]
+    return [line for line in out.splitlines() if line.startswith(what)][0]
 
 
 def test_the_command_sets_them_before_mpi_starts():
-    assert _settings_seen(_clean_env()) == "SET ob1 1"
-    assert _settings_seen(_clean_env(OMPI_COMM_WORLD_SIZE="2")) == "SET None None"
+    assert _seen(_clean_env()) == "SET ob1 1"
+    assert _seen(_clean_env(OMPI_COMM_WORLD_SIZE="2")) == "SET None None"
+
+
+def test_the_command_leaves_its_objects_out_of_the_last_collection():
+    assert _seen(_clean_env(), "FROZEN") == "FROZEN True"
 
 
 def test_called_from_python_main_changes_no_environment(monkeypatch, capsys):
@@ -55,6 +62,7 @@ def test_called_from_python_main_changes_no_environment(monkeypatch, capsys):
         monkeypatch.delenv(name, raising=False)
     assert main(["list"]) == 0
     assert not any(name in os.environ for name in SINGLETON)  # a test or notebook keeps its environment
+    assert gc.get_freeze_count() == 0  # and its garbage collection
 
 
 CHILDREN = textwrap.dedent(
