@@ -131,11 +131,13 @@ class Result:
             return self.scene.dim
         return 1 if np.ndim(self.x) == 1 else 2
 
-    @property
+    @cached_property
     def contact_measure(self) -> np.ndarray:
         """Measure of the contact set at each stored time: its length in 1D (trapezoidal in x), its area
         in 2D (the lumped nodal areas of the nodes in contact). Where the rows are absent: the series the
-        solver summed over the ranks (the lumped weights of the contact nodes, in 1D the same trapezoid)."""
+        solver summed over the ranks (the lumped weights of the contact nodes, in 1D the same trapezoid).
+        Computed once: diagnostics.csv, the run's report and the snapshots picture all read it (0.04 s each
+        for Example 1's 376 rows)."""
         if not self.has_rows:
             return self.series["contact_measure"]
         k, nodes = self.contact.shape
