@@ -112,6 +112,16 @@ def test_above_the_limit_cg_takes_jacobi_for_a_mass_dominated_matrix_else_amg(mo
     assert diagonal.timings["linear solver"].startswith("none: the step matrix is diagonal")
 
 
+def test_the_mean_iterations_count_the_contact_steps_free_solves_too():
+    """projection's contact step solves the free step with its own solver first; a membrane in flight makes
+    only those solves, and the summary's mean must count them (it said "mean 0.0 iterations")."""
+    flying = contact_scene(v0="0", T=0.02, nt=4)  # 4 steps, nowhere near the obstacle
+    res = sc.simulate(flying, scheme="projection", petsc_options=CG_JACOBI)
+    assert res.contact_measure.max() == 0.0
+    mean = float(res.timings["linear solver"].split("mean ")[1].split()[0])
+    assert mean >= 1.0
+
+
 # --- accuracy with CG -----------------------------------------------------------------------------------
 
 

@@ -246,13 +246,15 @@ class Linear:
         self.ksp.setUp()
         self._bind()
 
-    def describe(self) -> str:
-        """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve"."""
+    def describe(self, *others: Linear) -> str:
+        """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve", the mean over
+        this solver's solves and those of `others` (the contact step's free-step solver, with the same options)."""
         pc = self.ksp.getPC()
         if not self.iterative:
             return f"{pc.getType().upper()} ({pc.getFactorSolverType()})"
         kind = pc.getType() + (f" {pc.getHYPREType()}" if pc.getType() == "hypre" else "")
-        mean = self.iterations / self.solves if self.solves else 0.0
+        solves = self.solves + sum(o.solves for o in others)
+        mean = (self.iterations + sum(o.iterations for o in others)) / solves if solves else 0.0
         return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve"
 
 
