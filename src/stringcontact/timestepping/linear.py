@@ -18,19 +18,24 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import SceneError
+from ..scene.limits import MAX_MEMBRANE_NODES
 from .base import any_rank
 
-#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG.
-#: Measured (docs/linear_solvers.md, square membranes 1e4 to 1e6 nodes): in serial the back-substitution beat
-#: CG per step at every size (1e6 nodes, quiet: LU 0.22 s, CG + Jacobi 0.89 s, CG + AMG 1.08 s); CG only saves
-#: set-up (12 s against 46 s) and memory (1.8 GB against 3.1 GB). So LU up to the largest size measured; above it
-#: the factor (growing faster than the mesh) outgrows memory first.
-LU_MAX_NODES = 1_000_000
-#: The same on several ranks (MUMPS): its distributed back-substitution was slower on 2 ranks than on 1 at
-#: every size, while CG's step halved (1e6 nodes: MUMPS 1.0 s, CG + Jacobi 0.43 s; 2.5e5: 126 ms against 72 ms).
-#: CG + Jacobi was level with MUMPS at 4e4 nodes and ahead above. A string (1D) keeps its LU on any number of
-#: ranks: a tridiagonal factor has no fill.
-LU_MAX_NODES_PARALLEL = 40_000
+#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG. It is
+#: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²): measured (docs/linear_solvers.md,
+#: "Issue 28", `projection` at α = 0.01, square membranes 1e3 to 1e6 nodes), the back-substitution was the
+#: cheapest serial step in flight at every size (1e6 nodes: LU 158 ms, CG + Jacobi 889 ms, CG + AMG 793 ms)
+#: and its step about linear in N (1e4 → 1e6: 75-96× in flight, 144× landed, for 100× the nodes). CG + Jacobi
+#: wins a landed membrane (88 against 222 ms at 1e6), but its iterations grow like √κ ∝ N^(1/4) in flight (15 →
+#: 47). What grows faster than N is the LU's set-up (0.2 → 49-56 s) and memory (3.2 GB at 1e6), bounded by the
+#: scene's cap. Before, 1e6 nodes exactly: the cap's 1001² mesh then took CG, 5× slower per step in flight.
+LU_MAX_NODES = MAX_MEMBRANE_NODES
+#: The same on several ranks (MUMPS): on 2 ranks its distributed LU was slower per step than CG + Jacobi at
+#: every size measured, 1e3 to 1e6 nodes, in flight and landed (1e3: 1.2 against 0.8 ms; 1e4: 7.4 against
+#: 1.7 ms; 1e5: 42 against 16 ms; 1e6: 1110 against 865 ms), with 1.5× the memory per rank at 1e6. It keeps
+#: only the meshes below that (a test-sized membrane: MUMPS gives the serial LU's numbers). A string (1D) keeps
+#: its LU on any number of ranks: a tridiagonal factor has no fill.
+LU_MAX_NODES_PARALLEL = 1_000
 
 #: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
 #: ledger books the step's work with the computed η, so a residual r leaks (η^{n+1} − η^n)·r per step: at
