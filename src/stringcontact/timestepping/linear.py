@@ -22,19 +22,20 @@ from ..scene.limits import MAX_MEMBRANE_NODES
 from .base import any_rank
 
 #: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG. It is
-#: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²): measured (docs/linear_solvers.md,
-#: "Issue 28", `projection` at α = 0.01, square membranes 1e3 to 1e6 nodes), the back-substitution was the
-#: cheapest serial step in flight at every size (1e6 nodes: LU 158 ms, CG + Jacobi 889 ms, CG + AMG 793 ms)
-#: and its step about linear in N (1e4 → 1e6: 75-96× in flight, 144× landed, for 100× the nodes). CG + Jacobi
-#: wins a landed membrane (88 against 222 ms at 1e6), but its iterations grow like √κ ∝ N^(1/4) in flight (15 →
-#: 47). What grows faster than N is the LU's set-up (0.2 → 49-56 s) and memory (3.2 GB at 1e6), bounded by the
-#: scene's cap. Before, 1e6 nodes exactly: the cap's 1001² mesh then took CG, 5× slower per step in flight.
+#: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²). Measured (docs/linear_solvers.md,
+#: "Issue 28": `projection`, α = 0.01, square membranes of 1e3 to 1e6 nodes): the back-substitution was the
+#: cheapest serial step in flight at every size (1e6 nodes: LU 154-158 ms, CG + Jacobi 752-889, CG + AMG
+#: 748-793) and its step grew about like N (1e4 → 1e6: 73-96× in flight, 144× landed, for 100× the nodes).
+#: CG + Jacobi wins once landed (88 against 222 ms at 1e6), but in flight its iterations grow like √κ ∝ N^(1/4)
+#: (15 → 47). Faster than N grow only the LU's set-up (0.2 → 48-56 s) and memory (3.2 GB at 1e6), which the
+#: scene's cap bounds. (The limit was 1e6, so the cap's own 1001² mesh took CG, 5× slower per step in flight.)
 LU_MAX_NODES = MAX_MEMBRANE_NODES
 #: The same on several ranks (MUMPS): on 2 ranks its distributed LU was slower per step than CG + Jacobi at
-#: every size measured, 1e3 to 1e6 nodes, in flight and landed (1e3: 1.2 against 0.8 ms; 1e4: 7.4 against
-#: 1.7 ms; 1e5: 42 against 16 ms; 1e6: 1110 against 865 ms), with 1.5× the memory per rank at 1e6. It keeps
-#: only the meshes below that (a test-sized membrane: MUMPS gives the serial LU's numbers). A string (1D) keeps
-#: its LU on any number of ranks: a tridiagonal factor has no fill.
+#: every size from 1e3 to 1e5 nodes in every pass, in flight and landed (1e3: 1.2 against 0.8 ms; 1e4: 7.4
+#: against 1.7 ms; 1e5: 42 against 16 ms), and landed at 1e6 (1350 against 119 ms); in flight at 1e6 the
+#: machine's load decided (1110 against 865 ms in one pass, 382 against 967 in the next). It takes 1.5× CG's
+#: memory per rank at 1e6. So MUMPS keeps only the meshes below 1e3 nodes (test-sized: it gives the serial
+#: LU's numbers). A string (1D) keeps its LU on any number of ranks: a tridiagonal factor has no fill.
 LU_MAX_NODES_PARALLEL = 1_000
 
 #: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
