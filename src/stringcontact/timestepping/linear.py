@@ -30,12 +30,13 @@ from .base import any_rank
 #: (15 → 47). Faster than N grow only the LU's set-up (0.2 → 48-56 s) and memory (3.2 GB at 1e6), which the
 #: scene's cap bounds. (The limit was 1e6, so the cap's own 1001² mesh took CG, 5× slower per step in flight.)
 LU_MAX_NODES = MAX_MEMBRANE_NODES
-#: The same on several ranks (MUMPS): on 2 ranks its distributed LU was slower per step than CG + Jacobi at
-#: every size from 1e3 to 1e5 nodes in every pass, in flight and landed (1e3: 1.2 against 0.8 ms; 1e4: 7.4
-#: against 1.7 ms; 1e5: 42 against 16 ms), and landed at 1e6 (1350 against 119 ms); in flight at 1e6 the
-#: machine's load decided (1110 against 865 ms in one pass, 382 against 967 in the next). It takes 1.5× CG's
-#: memory per rank at 1e6. So MUMPS keeps only the meshes below 1e3 nodes (test-sized: it gives the serial
-#: LU's numbers). A string (1D) keeps its LU on any number of ranks: a tridiagonal factor has no fill.
+#: The same on several ranks (MUMPS). On 2 ranks (docs/linear_solvers.md, "Issue 28") CG + Jacobi was the
+#: cheaper step landed at every size from 1e3 to 1e6 nodes (1e4: 0.9 against 8.2 ms; 1e6: 119 against 1350)
+#: and in flight in 3 of 4 passes at 1e4 and 1e5 (1e5: 16-52 against 42-110 ms; one loaded pass had MUMPS
+#: ahead, 45 against 68), with a third of MUMPS' set-up and less memory per rank (1.3 against 1.9 GB at 1e6);
+#: in flight at 1e6 the machine's load decided (MUMPS 382-1110 ms, CG 865-967). So MUMPS keeps only meshes
+#: below 1e3 nodes (test-sized: it gives the serial LU's numbers). A string (1D) keeps its LU on any number of
+#: ranks: a tridiagonal factor has no fill.
 LU_MAX_NODES_PARALLEL = 1_000
 
 #: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
