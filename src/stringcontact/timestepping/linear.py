@@ -35,7 +35,7 @@ LU_MAX_NODES = MAX_MEMBRANE_NODES
 #: and in flight in 3 of 4 passes at 1e4 and 1e5 (1e5: 16-52 against 42-110 ms; one loaded pass had MUMPS
 #: ahead, 45 against 68), with a third of MUMPS' set-up and less memory per rank (1.3 against 1.9 GB at 1e6);
 #: in flight at 1e6 the machine's load decided (MUMPS 382-1110 ms, CG 865-967). So MUMPS keeps only meshes
-#: below 1e3 nodes (test-sized: it gives the serial LU's numbers). A string (1D) keeps its LU on any number of
+#: up to 1e3 nodes (test-sized: it gives the serial LU's numbers). A string (1D) keeps its LU on any number of
 #: ranks: a tridiagonal factor has no fill.
 LU_MAX_NODES_PARALLEL = 1_000
 
