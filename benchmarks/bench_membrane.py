@@ -16,7 +16,9 @@ benchmarks/out/membrane.json.
 
 `--solver` runs stringcontact with each linear solver (docs/linear_solvers.md): `lu` (PETSc LU, MUMPS on
 several ranks), `cg-jacobi`, `cg-amg` (hypre BoomerAMG) or `auto` (the size rule, `LU_MAX_NODES`), set
-through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve).
+through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve) and
+max |η − η_LU| after the last step against the serial `lu` run of the same size in the same pass (so list
+`lu` first).
 """
 
 from __future__ import annotations
