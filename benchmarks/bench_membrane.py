@@ -16,7 +16,9 @@ benchmarks/out/membrane.json.
 
 `--solver` runs stringcontact with each linear solver (docs/linear_solvers.md): `lu` (PETSc LU, MUMPS on
 several ranks), `cg-jacobi`, `cg-amg` (hypre BoomerAMG) or `auto` (the size rule, `LU_MAX_NODES`), set
-through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve).
+through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve) and
+max |η − η_LU| after the last step against the serial `lu` run of the same size in the same pass (so list
+`lu` first).
 """
 
 from __future__ import annotations
@@ -79,6 +81,7 @@ def run_stringcontact(n: int, steps: int, out: Path, solver: str = "auto", kind:
     rss = comm.gather(peak_rss_mb())
     if comm.rank == 0:  # the rows are on rank 0 (simulate's gather="root")
         np.savez(out / f"sc{n}.npz", x=res.x, cells=res.cells, eta=res.eta[-1])
+        np.save(out / f"eta{n}-{solver}-{comm.size}.npy", res.eta[-1])  # solver_table compares it with LU's
     return {"nodes": (n + 1) ** 2, "setup_s": res.timings["setup"], "step_ms": 1e3 * res.timings["solve"] / steps,
             "total_s": total, "ranks": comm.size, "rss_mb": rss, "solver": solver,
             "linear_solver": res.timings.get("linear solver", "")}
@@ -188,23 +191,34 @@ def main() -> None:
     (OUT / "membrane.json").write_text(json.dumps(rows, indent=1))
 
 
+def difference_to_lu(n: int, solver: str, ranks: int) -> float | None:
+    """max |η − η_LU| at the last step, against the serial LU run of the same size (if one ran before it)."""
+    lu = OUT / f"eta{n}-lu-1.npy"
+    if not lu.exists() or (solver, ranks) == ("lu", 1):
+        return None
+    return float(np.max(np.abs(np.load(OUT / f"eta{n}-{solver}-{ranks}.npy") - np.load(lu))))
+
+
 def solver_table(args, sizes: list[int]) -> None:
     """One row per size, solver and rank count (and the peer unless --no-peer); appends to out/solvers.jsonl."""
     me = [sys.executable, str(Path(__file__).resolve()), "--steps", str(args.steps), "--scene", args.scene,
           "--alpha", str(args.alpha)]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {os.getloadavg()[0]:.2f}, "
           f"alpha = {args.alpha}, {args.steps} steps\n")
-    print("| nodes | solver | ranks | ms/step | setup s | peak RSS MB per rank | linear solver |")
-    print("|---:|---|---:|---:|---:|---|---|")
+    print("| nodes | solver | ranks | ms/step | setup s | peak RSS MB per rank | max abs Δη against LU | linear solver |")
+    print("|---:|---|---:|---:|---:|---|---:|---|")
     with open(OUT / "solvers.jsonl", "a") as log:
         for n in sizes:
+            (OUT / f"eta{n}-lu-1.npy").unlink(missing_ok=True)  # only this pass's LU answer is compared with
             for solver in args.solver:
                 for ranks in sorted({1, args.ranks}):
                     mpi = ["mpirun", "-n", str(ranks), "--oversubscribe"] if ranks > 1 else []
                     row = child(mpi + me + ["--solver", solver, "--one", "sc", str(n)])
                     rss = " / ".join(f"{r:.0f}" for r in row["rss_mb"])
+                    row["max_diff_lu"] = difference_to_lu(n, solver, ranks)
+                    diff = "" if row["max_diff_lu"] is None else f"{row['max_diff_lu']:.1e}"
                     print(f"| {row['nodes']} | {solver} | {ranks} | {row['step_ms']:.2f} | {row['setup_s']:.2f} | {rss} | "
-                          f"{row['linear_solver']} |", flush=True)
+                          f"{diff} | {row['linear_solver']} |", flush=True)
                     log.write(json.dumps(dict(row, scene=args.scene, alpha=args.alpha, load=os.getloadavg())) + "\n")
             if not args.no_peer:
                 peer = child(me + ["--one", "scipy", str(n)])

@@ -18,7 +18,7 @@ from petsc4py import PETSc
 import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError, SolverError
-from stringcontact.scene import Scene, scene_to_toml
+from stringcontact.scene import Scene, limits, scene_to_toml
 from stringcontact.timestepping import linear
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
@@ -58,6 +58,28 @@ def test_the_size_rule_picks_lu_up_to_the_limit_then_cg():
     assert linear.solver_options(big, 1) == linear.ITERATIVE | linear.AMG  # condition unknown
     assert linear.solver_options(big, 1, condition=linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | linear.JACOBI
     assert linear.solver_options(big, 2, condition=2 * linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | linear.AMG
+
+
+@pytest.mark.parametrize("nodes", [10_000, 100_489, 1_000_000, 1001 * 1001])
+def test_in_serial_every_membrane_a_scene_allows_takes_lu(nodes):
+    """docs/linear_solvers.md ("Issue 28"): the serial back-substitution was the cheapest step in flight at every
+    size up to the scene's cap, 1001² nodes (the cap's own mesh took CG before: 1e6 was the limit)."""
+    assert nodes <= limits.MAX_MEMBRANE_NODES
+    assert linear.solver_options(nodes, 1) == linear.DIRECT
+
+
+@pytest.mark.parametrize("nodes", [1024, 4096, 10_000, 40_000, 100_489, 1_000_000])
+def test_on_two_ranks_a_membrane_from_1e3_nodes_takes_cg_not_mumps(nodes):
+    """MUMPS on 2 ranks was slower per step than CG + Jacobi at every size measured, 1024 to 1e6 nodes (it kept
+    up to 4e4 before); projection's matrix there is nearly diagonal (Gershgorin bound 5 to 41): Jacobi."""
+    chosen = linear.solver_options(nodes, 2, condition=41.0)
+    assert chosen == linear.ITERATIVE | linear.JACOBI
+
+
+def test_on_two_ranks_a_tiny_membrane_and_any_string_keep_mumps():
+    mumps = dict(linear.DIRECT, pc_factor_mat_solver_type="mumps")
+    assert linear.solver_options(1_000, 2) == mumps
+    assert linear.solver_options(1_000_000, 2, dim=1) == mumps
 
 
 def tridiagonal(diagonal: float, off: float, n: int = 50) -> PETSc.Mat:
@@ -110,6 +132,16 @@ def test_above_the_limit_cg_takes_jacobi_for_a_mass_dominated_matrix_else_amg(mo
     assert np.max(np.abs(light.balance_residual)) <= 1e-10 * light.total_energy[0]
     diagonal = sc.simulate(contact_scene(alpha=0), scheme="projection")  # A = M/Δt²: the nodal maximum, no solve
     assert diagonal.timings["linear solver"].startswith("none: the step matrix is diagonal")
+
+
+def test_the_mean_iterations_count_the_contact_steps_free_solves_too():
+    """projection's contact step solves the free step with its own solver first; a membrane in flight makes
+    only those solves, and the summary's mean must count them (it said "mean 0.0 iterations")."""
+    flying = contact_scene(v0="0", T=0.02, nt=4)  # 4 steps, nowhere near the obstacle
+    res = sc.simulate(flying, scheme="projection", petsc_options=CG_JACOBI)
+    assert res.contact_measure.max() == 0.0
+    mean = float(res.timings["linear solver"].split("mean ")[1].split()[0])
+    assert mean >= 1.0
 
 
 # --- accuracy with CG -----------------------------------------------------------------------------------

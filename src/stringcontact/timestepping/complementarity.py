@@ -84,7 +84,7 @@ class ActiveSet:
         """The linear solver's one line (`Linear.describe`), or why there is none."""
         if self.linear is None:
             return "none: the step matrix is diagonal (lumped mass, no viscosity)"
-        return self.linear.describe()
+        return self.linear.describe(*([self.free] if self.free is not None else []))  # both solvers' iterations
 
     def _hold(self, active: np.ndarray) -> None:
         """Fix the nodes of `active` on ψ (besides the ends): A's rows there become the identity."""

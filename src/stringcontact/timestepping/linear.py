@@ -18,19 +18,26 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import SceneError
+from ..scene.limits import MAX_MEMBRANE_NODES
 from .base import any_rank
 
-#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG.
-#: Measured (docs/linear_solvers.md, square membranes 1e4 to 1e6 nodes): in serial the back-substitution beat
-#: CG per step at every size (1e6 nodes, quiet: LU 0.22 s, CG + Jacobi 0.89 s, CG + AMG 1.08 s); CG only saves
-#: set-up (12 s against 46 s) and memory (1.8 GB against 3.1 GB). So LU up to the largest size measured; above it
-#: the factor (growing faster than the mesh) outgrows memory first.
-LU_MAX_NODES = 1_000_000
-#: The same on several ranks (MUMPS): its distributed back-substitution was slower on 2 ranks than on 1 at
-#: every size, while CG's step halved (1e6 nodes: MUMPS 1.0 s, CG + Jacobi 0.43 s; 2.5e5: 126 ms against 72 ms).
-#: CG + Jacobi was level with MUMPS at 4e4 nodes and ahead above. A string (1D) keeps its LU on any number of
+#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG. It is
+#: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²). Measured (docs/linear_solvers.md,
+#: "Issue 28": `projection`, α = 0.01, square membranes of 1e3 to 1e6 nodes): the back-substitution was the
+#: cheapest serial step in flight at every size (1e6 nodes: LU 154-158 ms, CG + Jacobi 752-889, CG + AMG
+#: 748-793) and its step grew about like N (1e4 → 1e6: 73-96× in flight, 144× landed, for 100× the nodes).
+#: CG + Jacobi wins once landed (88 against 222 ms at 1e6), but in flight its iterations grow like √κ ∝ N^(1/4)
+#: (15 → 47). Faster than N grow only the LU's set-up (0.2 → 48-56 s) and memory (3.2 GB at 1e6), which the
+#: scene's cap bounds. (The limit was 1e6, so the cap's own 1001² mesh took CG, 5× slower per step in flight.)
+LU_MAX_NODES = MAX_MEMBRANE_NODES
+#: The same on several ranks (MUMPS). On 2 ranks (docs/linear_solvers.md, "Issue 28") CG + Jacobi was the
+#: cheaper step landed at every size from 1e3 to 1e6 nodes (1e4: 0.9 against 8.2 ms; 1e6: 119 against 1350)
+#: and in flight in 3 of 4 passes at 1e4 and 1e5 (1e5: 16-52 against 42-110 ms; one loaded pass had MUMPS
+#: ahead, 45 against 68), with a third of MUMPS' set-up and less memory per rank (1.3 against 1.9 GB at 1e6);
+#: in flight at 1e6 the machine's load decided (MUMPS 382-1110 ms, CG 865-967). So MUMPS keeps only meshes
+#: up to 1e3 nodes (test-sized: it gives the serial LU's numbers). A string (1D) keeps its LU on any number of
 #: ranks: a tridiagonal factor has no fill.
-LU_MAX_NODES_PARALLEL = 40_000
+LU_MAX_NODES_PARALLEL = 1_000
 
 #: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
 #: ledger books the step's work with the computed η, so a residual r leaks (η^{n+1} − η^n)·r per step: at
@@ -246,13 +253,15 @@ class Linear:
         self.ksp.setUp()
         self._bind()
 
-    def describe(self) -> str:
-        """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve"."""
+    def describe(self, *others: Linear) -> str:
+        """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve", the mean over
+        this solver's solves and those of `others` (the contact step's free-step solver, with the same options)."""
         pc = self.ksp.getPC()
         if not self.iterative:
             return f"{pc.getType().upper()} ({pc.getFactorSolverType()})"
         kind = pc.getType() + (f" {pc.getHYPREType()}" if pc.getType() == "hypre" else "")
-        mean = self.iterations / self.solves if self.solves else 0.0
+        solves = self.solves + sum(o.solves for o in others)
+        mean = (self.iterations + sum(o.iterations for o in others)) / solves if solves else 0.0
         return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve"
 
 
