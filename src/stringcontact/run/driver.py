@@ -520,8 +520,9 @@ def simulate(
     The old keywords `max_rows`, `gather`, `row_budget`, `output_dir`, `max_frames`, `force`, `pictures` and
     `progress` are still accepted (`options.KEYWORDS`); with their object too they are refused (ValueError).
 
-    The step's linear system is LU-factorised once up to 1e6 nodes and solved by CG (Jacobi or AMG) above
-    (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
+    The step's linear system is LU-factorised once (in serial for every membrane a scene allows, up to 1001²
+    nodes; on several ranks by MUMPS up to 1e3 nodes; a string on any number of ranks) and solved by CG (Jacobi
+    or AMG) otherwise (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
     by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
     """
     storage, output = grouped(storage, output, keywords)
