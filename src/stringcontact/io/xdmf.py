@@ -169,13 +169,14 @@ H5_NATIVE = {np.dtype(np.float64): "H5T_NATIVE_DOUBLE_g", np.dtype(np.int32): "H
 class Hdf5File:
     """An HDF5 file of flat datasets, written through the libhdf5 dolfinx loaded (`hdf5_library`), sec2 driver.
 
-    Hand-written (about 60 lines) instead of PETSc's HDF5 viewer, which wrote this file until issue 28: the
-    viewer flushes the file with H5Fflush(H5F_SCOPE_GLOBAL) after every VecView, and Debian's libhdf5 is the
-    Open MPI build, whose viewer always opens the file with the MPI-IO driver, where a flush is
-    MPI_File_sync, an fsync: 802 fsyncs for Example 1's 100 frames of four fields (strace). Measured with
-    benchmarks/bench_xdmf.py (docs/visualisation.md), 100 frames of 4 x 5001 doubles (16 MB): the viewer
-    0.27 s on ext4 and 0.078 s on tmpfs, this class 0.XX s and 0.XX s, the bytes alone 0.009 s. h5py is no
-    alternative (see `hdf5_library`).
+    Hand-written instead of PETSc's HDF5 viewer, which wrote this file until issue 28: the viewer flushes
+    the file with H5Fflush(H5F_SCOPE_GLOBAL) after every VecView, and Debian's libhdf5 is the Open MPI
+    build, whose viewer always opens the file with the MPI-IO driver, where a flush is MPI_File_sync, an
+    fsync: `stringcontact run example1` made 412 fsyncs, now 9 (strace). Measured with
+    benchmarks/bench_xdmf.py (docs/visualisation.md; load 0.4), 100 frames of 4 x 5001 doubles (16 MB):
+    the viewer 0.27 s on ext4 and 0.078 s on tmpfs; this class (load 2-3) 0.063-0.105 s and 0.045-0.056 s,
+    about 60 us of HDF5's CPU per dataset; the bytes alone 0.01 s. h5py is no alternative (see
+    `hdf5_library`).
 
     The layout is the viewer's, dataset for dataset (tests/io/test_xdmf.py compares them): one chunk the
     size of the dataset, space allocated when it is created, no attributes. `flush` hands the data and
@@ -196,7 +197,7 @@ class Hdf5File:
         try:
             self._call("H5Pset_fapl_sec2", fapl)  # not MPI-IO, whatever HDF5_DRIVER says
             self._call("H5Pset_fclose_degree", fapl, H5F_CLOSE_STRONG)  # closing the file closes all in it
-            # sec2 locks the file while it is open (MPI-IO did not): ParaView could not open a running run's
+            # sec2 would lock the file while it is open (MPI-IO does not): no reader during the run
             self._call("H5Pset_file_locking", fapl, False, True)
             # bytes: a Linux file name need not be UTF-8
             self.id = self._call("H5Fcreate", os.fsencode(self.path), H5F_ACC_TRUNC, H5P_DEFAULT, fapl)
@@ -206,7 +207,11 @@ class Hdf5File:
         finally:
             self.lib.H5Pclose(fapl)
         handle = ctypes.c_void_p()  # sec2's handle: a pointer to the file's descriptor
-        self._call("H5Fget_vfd_handle", self.id, H5P_DEFAULT, ctypes.byref(handle))
+        try:
+            self._call("H5Fget_vfd_handle", self.id, H5P_DEFAULT, ctypes.byref(handle))
+        except (OSError, RuntimeError):
+            self.lib.H5Fclose(self.id)
+            raise
         self.fd, self.reserved = ctypes.cast(handle, ctypes.POINTER(ctypes.c_int)).contents.value, 0
 
     def _global(self, name: str) -> int:
@@ -253,8 +258,9 @@ class Hdf5File:
 
         libhdf5 1.10.8 cannot flush a file again after one of its flushes failed (the failed flush leaves
         its cache's list of dirty entries switched on: "slist already enabled?"), and crashes when the
-        process ends (SIGSEGV in H5F__close_cb, from MPI_Finalize), with H5Fclose called or not: measured,
-        1 in 250 disk sizes on a 2 MiB tmpfs with the room check off. Blocks below `reserved` stay
+        process ends (SIGSEGV in H5F__close_cb, from MPI_Finalize), with H5Fclose called or not: measured
+        for 3 of 128 disk sizes of `run example1 --nx 200` on a 2 MiB tmpfs with the room check off, and
+        148 of 249 in tests/io/test_xdmf.py. Blocks below `reserved` stay
         allocated: HDF5 cuts the file only to its end of allocation, at a flush, which is `reserved` then.
         """
         eoa = ctypes.c_uint64()
