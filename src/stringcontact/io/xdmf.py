@@ -129,7 +129,7 @@ def hdf5_library():
 class Hdf5Quiet:
     """Turns HDF5's automatic error printing off while the writer runs.
 
-    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
+    On a full disk, HDF5 prints a 60-line error stack to stderr before the failed call returns (an OSError);
     we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
     that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
     """
@@ -333,8 +333,8 @@ def stderr_held(replay: bool = True):
     """Hold back what C libraries print to stderr; print it after the block (if `replay`), or drop it if the
     block fails.
 
-    HDF5 prints its error stack for a failed call unless `Hdf5Quiet` is on, and Open MPI's MPI-IO layer
-    prints its own line for a failed write ("mca_fbtl_posix_pwritev: ... No space left on device"); the
+    HDF5 prints its error stack for a failed call unless `Hdf5Quiet` is on (and dolfinx's or PETSc's
+    MPI-IO writes print Open MPI's own line, "mca_fbtl_posix_pwritev: ... No space left on device"); the
     caller reports one line instead.
     """
     sys.stderr.flush()
