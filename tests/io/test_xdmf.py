@@ -6,7 +6,11 @@ ParaView's readers are checked in tests/system/test_paraview.py.
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import shutil
+import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
@@ -144,3 +148,227 @@ def test_a_triangle_mesh_distributed_over_two_ranks_is_one_whole_mesh(tmp_path):
     areas = 0.5 * np.abs(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
     assert areas.min() > 0 and areas.sum() == pytest.approx(1.0)  # the two ranks' halves tile the square
     np.testing.assert_allclose(data["data"][0]["membrane"], points[:, 0] + 10 * points[:, 1], atol=1e-12)
+
+
+# --- the HDF5 file: PETSc's viewer's layout, no fsync, readable after every frame (issue 28) ----------
+
+#: Every dataset of an HDF5 file as JSON: shape, type, chunks, allocation and fill times, attributes, values
+#: (h5py, in a Python without dolfinx).
+H5_LAYOUT = r"""
+import json, sys
+import h5py
+def layout(path):
+    out = {}
+    with h5py.File(path, "r") as f:
+        for name, d in f.items():
+            dcpl = d.id.get_create_plist()
+            out[name] = {"shape": d.shape, "dtype": d.dtype.str, "chunks": d.chunks, "maxshape": d.maxshape,
+                         "alloc_time": dcpl.get_alloc_time(), "fill_time": dcpl.get_fill_time(),
+                         "filters": dcpl.get_nfilters(), "attrs": sorted(d.attrs), "values": d[...].tolist()}
+    return out
+print(json.dumps([layout(path) for path in sys.argv[1:]]))
+"""
+
+
+def h5_layouts(*paths) -> list[dict]:
+    proc = subprocess.run([sys.executable, "-c", H5_LAYOUT, *map(str, paths)], check=False, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout)
+
+
+def small_series(folder, frames: int = 2):
+    """A triangle mesh's P1 space and `frames` frames of two fields written by `XdmfTimeSeries` into `folder`;
+    returns the space and the frames ({name: values} per frame)."""
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    from stringcontact.fem import compat
+    from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
+
+    V = compat.function_space(mesh.create_unit_square(MPI.COMM_SELF, 3, 2))
+    n = V.dofmap.index_map.size_local
+    written = [{"eta": np.linspace(-1, 1, n) * (k + 1), "contact": (np.arange(n) % 3 == k).astype(float)}
+               for k in range(frames)]
+    series = XdmfTimeSeries(folder, mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
+    for k, fields in enumerate(written):
+        series.write(0.25 * k, fields)
+    series.close()
+    return V, written
+
+
+def test_the_hdf5_file_has_the_layout_petsc_s_viewer_wrote(tmp_path):
+    """Dataset for dataset what PETSc's HDF5 viewer (the writer before issue 28) writes for the same arrays."""
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    from stringcontact.io.xdmf import mesh_arrays
+
+    (tmp_path / "ours").mkdir()
+    V, written = small_series(tmp_path / "ours")
+    arrays = mesh_arrays(V, MPI.COMM_SELF)
+    viewer = PETSc.Viewer().createHDF5(str(tmp_path / "viewer.h5"), "w", comm=PETSc.COMM_SELF)
+    views = [(PETSc.Vec().createWithArray(arrays.points.ravel(), bsize=3, comm=PETSc.COMM_SELF), "geometry")]
+    topology = PETSc.IS().createGeneral(arrays.cells.ravel().astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+    topology.setBlockSize(arrays.cells.shape[1])
+    views.append((topology, "topology"))
+    views += [(PETSc.Vec().createWithArray(values, comm=PETSc.COMM_SELF), f"{name}_{k}")
+              for k, fields in enumerate(written) for name, values in fields.items()]
+    for obj, name in views:
+        obj.setName(name)
+        obj.view(viewer)
+    viewer.destroy()
+    ours, petsc = h5_layouts(tmp_path / "ours" / "solution.h5", tmp_path / "viewer.h5")
+    assert sorted(ours) == sorted(petsc) == sorted(["geometry", "topology", "eta_0", "contact_0", "eta_1", "contact_1"])
+    for name in petsc:
+        assert ours[name] == petsc[name], name
+
+
+FRAMES_UNDER_STRACE = r"""
+import sys
+import numpy as np
+from dolfinx import mesh
+from mpi4py import MPI
+from stringcontact.fem import compat
+from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
+V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 50, [0.0, 1.0]))
+series = XdmfTimeSeries(sys.argv[1], mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
+for k in range(5):
+    series.write(0.1 * k, {name: np.full(51, float(k)) for name in ("eta", "velocity", "contact", "contact_force")})
+series.close()
+"""
+
+
+def test_writing_frames_makes_no_fsync(tmp_path):
+    """PETSc's viewer flushed the file after every dataset, through MPI-IO, an fsync each (23 for these 5
+    frames); the writer hands the data to the OS, and the folder is fsynced once when it is published."""
+    strace = shutil.which("strace")
+    if strace is None or subprocess.run([strace, "-o", os.devnull, "true"], check=False, capture_output=True).returncode != 0:
+        pytest.skip("needs strace, allowed to trace (ptrace)")
+    log = tmp_path / "strace.log"
+    proc = subprocess.run([strace, "-f", "-y", "-e", "trace=fsync,fdatasync,sync,syncfs,msync", "-o", log,
+                           sys.executable, "-c", FRAMES_UNDER_STRACE, tmp_path], check=False, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert len(xdmf_series_of(tmp_path)["eta"]) == 5
+    syncs = [line for line in log.read_text().splitlines() if str(tmp_path) in line]
+    assert syncs == [], f"{len(syncs)} syncs, the first: {syncs[:1]}"
+
+
+def xdmf_series_of(folder):
+    from stringcontact.io.xdmf import xdmf_series
+
+    return xdmf_series(folder / "solution.xdmf")
+
+
+def test_another_program_reads_every_finished_frame_while_the_file_is_open(tmp_path):
+    """After each frame HDF5's buffers reach the OS: h5py, in another process, reads every dataset the XML
+    names, values and all, while the writer still holds the file open."""
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    from stringcontact.fem import compat
+    from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
+
+    V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
+    series = XdmfTimeSeries(tmp_path, mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
+    try:
+        for k in range(2):
+            series.write(0.5 * k, {"eta": np.arange(11.0) + k, "velocity": np.full(11, -float(k))})
+            (seen,) = h5_layouts(tmp_path / "solution.h5")
+            for name, refs in xdmf_series_of(tmp_path).items():
+                for j, (_, ref) in enumerate(refs):
+                    expected = np.arange(11.0) + j if name == "eta" else np.full(11, -float(j))
+                    assert seen[ref.split(":/")[1]]["values"] == expected.tolist(), ref
+            assert seen["geometry"]["shape"] == [11, 3] and seen["topology"]["shape"] == [10, 2]
+    finally:
+        series.close()
+
+
+def test_hdf5_failures_are_raised_with_their_reason(tmp_path):
+    """A failed HDF5 call raises: OSError with the system's errno where a system call failed, else
+    RuntimeError naming the HDF5 function; what HDF5 prints on the way is held back."""
+    from stringcontact.io.xdmf import Hdf5File, stderr_held
+
+    with pytest.raises(OSError) as missing, stderr_held(replay=False):
+        Hdf5File(tmp_path / "no-such-folder" / "solution.h5")
+    assert missing.value.errno == errno.ENOENT
+    h5 = Hdf5File(tmp_path / "solution.h5")
+    h5.write("eta_0", np.zeros(3))
+    with pytest.raises(RuntimeError, match="H5Dcreate2"), stderr_held(replay=False):
+        h5.write("eta_0", np.zeros(3))  # the name is taken
+    h5.close()
+    assert list(h5_layouts(tmp_path / "solution.h5")[0]) == ["eta_0"]
+
+
+#: XdmfTimeSeries on a full disk with the room check off, so that HDF5's H5Fcreate itself meets it; the
+#: program reports one line, as the command does.
+CREATE_ON_A_FULL_DISK = r"""
+import sys
+from dolfinx import mesh
+from mpi4py import MPI
+from stringcontact.fem import compat
+import stringcontact.io.xdmf as xdmf
+xdmf._check_room = lambda *a: None
+V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
+try:
+    with xdmf.Hdf5Quiet():
+        xdmf.XdmfTimeSeries(sys.argv[1], xdmf.mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
+except OSError as exc:
+    print(f"error: {exc.strerror}", file=sys.stderr)
+    sys.exit(2)
+"""
+
+
+def test_a_failed_create_on_a_full_disk_says_nothing_at_exit(tmpfs):
+    """libhdf5 1.10.8 leaks what a failed H5Fcreate opened and printed "HDF5: infinite loop closing library"
+    and a line of its interfaces when the process ended, after the program's own one line."""
+    folder = tmpfs("full", "size=64k")
+    (folder / "filler").write_bytes(bytes(shutil.disk_usage(folder).free))
+    proc = subprocess.run([sys.executable, "-c", CREATE_ON_A_FULL_DISK, folder], check=False, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    assert proc.stderr == "error: No space left on device\n"
+    assert sorted(p.name for p in folder.iterdir()) == ["filler", "solution.h5"]  # the caller removes it
+
+
+#: XdmfTimeSeries on a 256 KiB disk with 1 to 249 KiB left and the room check off: frames until HDF5 meets
+#: the full disk, then the discard a failed run makes; one file after another in one process.
+FRAMES_ON_A_FILLING_DISK = r"""
+import shutil, sys
+from pathlib import Path
+import numpy as np
+from dolfinx import mesh
+from mpi4py import MPI
+from stringcontact.fem import compat
+import stringcontact.io.xdmf as xdmf
+xdmf._check_room = lambda *a: None
+folder = Path(sys.argv[1])
+arrays = xdmf.mesh_arrays(compat.function_space(mesh.create_interval(MPI.COMM_SELF, 50, [0.0, 1.0])), MPI.COMM_SELF)
+failed = 0
+with xdmf.Hdf5Quiet():
+    for free_kib in range(1, 250):
+        for path in folder.iterdir():
+            path.unlink()
+        (folder / "filler").write_bytes(bytes(max(0, shutil.disk_usage(folder).total - 1024 * free_kib)))
+        series = None
+        try:
+            series = xdmf.XdmfTimeSeries(folder, arrays, MPI.COMM_SELF)
+            for k in range(10**6):
+                series.write(k, {"eta": np.full(51, float(k)), "velocity": np.zeros(51)})
+        except (OSError, RuntimeError):
+            failed += 1
+            if series is not None:  # (a series that could not open has discarded itself)
+                series.close(discard=True)
+                assert series.h5 is None
+print(failed)
+"""
+
+
+def test_frames_on_a_filling_disk_end_in_an_error_and_a_clean_exit(tmpfs):
+    """libhdf5 1.10.8 cannot flush a file again after one flush failed, and crashed (SIGSEGV in
+    H5F__close_cb) when the process ended, for 148 of these 249 disk sizes before the writer reserved the
+    blocks a flush writes to."""
+    folder = tmpfs("filling", "size=256k")
+    proc = subprocess.run([sys.executable, "-c", FRAMES_ON_A_FILLING_DISK, folder], check=False, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout == "249\n" and proc.stderr == ""

@@ -9,10 +9,10 @@ Layout (docs/visualisation.md has the reasons)::
 
 Every grid carries all the fields, so ParaView's readers (Xdmf3ReaderT, Xdmf3ReaderS, XDMFReader) give one
 grid per time step and meshio's `TimeSeriesReader` reads it. Rank 0 gathers each frame and writes the heavy
-data with PETSc's HDF5 viewer (the libhdf5 dolfinx itself uses, in the same process) and the small XML,
+data through the libhdf5 dolfinx itself uses, in the same process (`Hdf5File`), and the small XML,
 appended to per frame (the closing tags are rewritten after each grid), so writing costs O(frames) and the
-file is well-formed after every frame. PETSc flushes the HDF5 file after each dataset, so the data a grid
-names are on disk before the grid is written. Points are the P1 degrees of freedom in their global
+file is well-formed after every frame. The HDF5 file is flushed to the OS after each frame, before its grid
+is written, so the data a grid names are there for any reader. Points are the P1 degrees of freedom in their global
 numbering, so the fields need no reordering; the mesh may be 1D (Polyline) or 2D/3D.
 """
 
@@ -44,29 +44,23 @@ TOPOLOGY_TYPES = {
 }
 COLLECTION = "solution"
 _FOOTER = "    </Grid>\n  </Domain>\n</Xdmf>\n"
-#: HDF5 viewers of discarded files that could not be closed (see `XdmfTimeSeries.close`); their files are
-#: already removed. Kept referenced, and `_silence_exit` keeps their last words off stderr.
-_UNCLOSED = []
 
 
-def _keep_unclosed(viewer) -> None:
-    """Keep `viewer`, whose file HDF5 cannot close, until the process ends, without its noise at exit.
+@functools.cache
+def _silence_exit_later() -> None:
+    """Point stderr at /dev/null when the process ends (once registered, after a failed H5Fcreate).
 
-    After one failed flush (a full disk), libhdf5 1.10.8 cannot flush that file again ("slist already
-    enabled?" in H5C_set_slist_enabled), so no later close can succeed, with or without free space. What
-    is left would print when the process ends: PETSc's error page when PetscFinalize destroys the viewer, and
-    libhdf5's ``HDF5: infinite loop closing library`` plus a line of its interfaces from H5close (C atexit,
-    printed unconditionally). The command has already reported the one-line error by then.
+    libhdf5 1.10.8 leaks what a failed H5Fcreate opened (a full disk: measured with 8 and 10 KiB free on
+    a 2 MiB tmpfs and the room check off), and prints ``HDF5: infinite loop closing library`` and a line
+    of its interfaces when the process ends (H5close, from MPI_Finalize or C's atexit). The command has
+    reported its one-line error by then. Registered after petsc4py's own atexit handler, so it runs first.
     """
-    if not _UNCLOSED:
-        import atexit
+    import atexit
 
-        atexit.register(_silence_exit)  # after petsc4py's own atexit handler, so it runs before PetscFinalize
-    _UNCLOSED.append(viewer)
+    atexit.register(_silence_exit)
 
 
 def _silence_exit() -> None:
-    """Point stderr (fd 2) at /dev/null for the rest of the process's shutdown (see `_keep_unclosed`)."""
     with contextlib.suppress(Exception):
         sys.stderr.flush()
     with contextlib.suppress(OSError):
@@ -89,6 +83,9 @@ def hdf5_library():
       its error switch and object lists would act on the other library. Even the MPI build silences HDF5's
       error printing for the whole process at import (no saved handler to put back, as `Hdf5Quiet` does),
       and its object ids close what they wrap when collected, which PETSc's viewer still owns.
+
+    The signatures are those of HDF5 1.10 and 1.14 alike (hid_t is int64_t, hsize_t unsigned long long,
+    herr_t int); errno is kept per call (``use_errno``) so that a failed write can say why (`Hdf5File`).
     """
     try:
         with open("/proc/self/maps") as f:
@@ -96,14 +93,34 @@ def hdf5_library():
         paths = sorted(p for p in paths if "_hl" not in os.path.basename(p) and ".libs/" not in p)
         if not paths:
             return None
-        lib = ctypes.CDLL(paths[0])
-        lib.H5Eget_auto2.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]
-        lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
-        lib.H5Fget_obj_ids.argtypes = [ctypes.c_int64, ctypes.c_uint, ctypes.c_size_t, ctypes.POINTER(ctypes.c_int64)]
-        lib.H5Fget_obj_ids.restype = ctypes.c_ssize_t
-        lib.H5Oclose.argtypes = [ctypes.c_int64]
-        lib.H5Fget_name.argtypes = [ctypes.c_int64, ctypes.c_char_p, ctypes.c_size_t]
-        lib.H5Fget_name.restype = ctypes.c_ssize_t
+        lib = ctypes.CDLL(paths[0], use_errno=True)
+        hid, herr, hsizes = ctypes.c_int64, ctypes.c_int, ctypes.POINTER(ctypes.c_uint64)
+        signatures = {
+            "H5Eget_auto2": (herr, [hid, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]),
+            "H5Eset_auto2": (herr, [hid, ctypes.c_void_p, ctypes.c_void_p]),
+            "H5open": (herr, []),
+            "H5Pcreate": (hid, [hid]),
+            "H5Pset_fapl_sec2": (herr, [hid]),
+            "H5Pset_fclose_degree": (herr, [hid, ctypes.c_int]),
+            "H5Pset_file_locking": (herr, [hid, ctypes.c_bool, ctypes.c_bool]),
+            "H5Pset_evict_on_close": (herr, [hid, ctypes.c_uint]),
+            "H5Pset_chunk": (herr, [hid, ctypes.c_int, hsizes]),
+            "H5Pset_alloc_time": (herr, [hid, ctypes.c_int]),
+            "H5Pclose": (herr, [hid]),
+            "H5Fcreate": (hid, [ctypes.c_char_p, ctypes.c_uint, hid, hid]),
+            "H5Fflush": (herr, [hid, ctypes.c_int]),
+            "H5Fget_eoa": (herr, [hid, ctypes.POINTER(ctypes.c_uint64)]),
+            "H5Fget_vfd_handle": (herr, [hid, hid, ctypes.POINTER(ctypes.c_void_p)]),
+            "H5Fclose": (herr, [hid]),
+            "H5Screate_simple": (hid, [ctypes.c_int, hsizes, hsizes]),
+            "H5Sclose": (herr, [hid]),
+            "H5Dcreate2": (hid, [hid, ctypes.c_char_p, hid, hid, hid, hid, hid]),
+            "H5Dwrite": (herr, [hid, hid, hid, hid, hid, ctypes.c_void_p]),
+            "H5Dclose": (herr, [hid]),
+        }
+        for name, (restype, argtypes) in signatures.items():
+            func = getattr(lib, name)
+            func.restype, func.argtypes = restype, argtypes
         return lib
     except (OSError, AttributeError):
         return None
@@ -112,7 +129,7 @@ def hdf5_library():
 class Hdf5Quiet:
     """Turns HDF5's automatic error printing off while the writer runs.
 
-    On a full disk, HDF5 prints a 60-line error stack to stderr before PETSc turns it into an error (a RuntimeError);
+    On a full disk, HDF5 prints a 60-line error stack to stderr before the failed call returns (an OSError);
     we report one line instead (`describe_os_error`). The switch is HDF5's own H5Eset_auto2 on the libhdf5
     that dolfinx and PETSc loaded (not h5py's bundled copy); where it cannot be found nothing changes.
     """
@@ -142,17 +159,154 @@ class Hdf5Quiet:
 
 
 
-def _close_open_objects(path: Path) -> None:
-    """Close the HDF5 datasets and groups of file `path` left open: PETSc's VecView leaves them open when
-    its write fails, and then cannot close the file ("there are objects still open")."""
-    lib = hdf5_library()
-    if lib is None:
-        return
-    ids, name = (ctypes.c_int64 * 64)(), ctypes.create_string_buffer(4096)
-    n = lib.H5Fget_obj_ids(0x1F, 0x2 | 0x4, 64, ids)  # in every file (H5F_OBJ_ALL): datasets and groups
-    for k in range(max(n, 0)):
-        if lib.H5Fget_name(ids[k], name, len(name)) > 0 and name.value == os.fsencode(path):
-            lib.H5Oclose(ids[k])
+#: HDF5's constants, the same in 1.10 and 1.14 (H5Fpublic.h, H5Dpublic.h, H5Ppublic.h, H5Spublic.h).
+H5F_ACC_TRUNC, H5P_DEFAULT, H5S_ALL, H5F_SCOPE_LOCAL, H5F_CLOSE_STRONG, H5D_ALLOC_TIME_EARLY = 2, 0, 0, 0, 3, 1
+#: NumPy dtype -> the name of HDF5's native type (a global hid_t, set by H5open).
+H5_NATIVE = {np.dtype(np.float64): "H5T_NATIVE_DOUBLE_g", np.dtype(np.int32): "H5T_NATIVE_INT32_g",
+             np.dtype(np.int64): "H5T_NATIVE_INT64_g"}
+
+
+class Hdf5File:
+    """An HDF5 file of flat datasets, written through the libhdf5 dolfinx loaded (`hdf5_library`), sec2 driver.
+
+    Hand-written instead of PETSc's HDF5 viewer, which wrote this file until issue 28: the viewer flushes
+    the file with H5Fflush(H5F_SCOPE_GLOBAL) after every VecView, and Debian's libhdf5 is the Open MPI
+    build, whose viewer always opens the file with the MPI-IO driver, where a flush is MPI_File_sync, an
+    fsync: `stringcontact run example1` made 412 fsyncs, now 9 (strace). Measured with
+    benchmarks/bench_xdmf.py (docs/visualisation.md; load 0.4), 100 frames of 4 x 5001 doubles (16 MB):
+    the viewer 0.27 s on ext4 and 0.078 s on tmpfs; this class (load 2-3) 0.063-0.105 s and 0.045-0.056 s,
+    about 60 us of HDF5's CPU per dataset; the bytes alone 0.01 s. h5py is no alternative (see
+    `hdf5_library`).
+
+    The layout is the viewer's, dataset for dataset (tests/io/test_xdmf.py compares them): one chunk the
+    size of the dataset, space allocated when it is created, no attributes. `flush` hands the data and
+    HDF5's metadata to the OS without an fsync (sec2 has none), so a reader sees a well-formed file after
+    every flush; the run's folder is fsynced once, when it is published (io/publish.py). Every call is
+    checked: a failure raises OSError with the errno of the failed system call (ENOSPC on a full disk), or
+    RuntimeError naming the HDF5 function.
+    """
+
+    def __init__(self, path: Path):
+        self.path, self.lib = Path(path), hdf5_library()
+        if self.lib is None:
+            raise RuntimeError(f"{self.path.name}: the libhdf5 that dolfinx loaded was not found")
+        self._call("H5open")  # sets the globals read below
+        self.types = {dtype: self._global(name) for dtype, name in H5_NATIVE.items()}
+        self.id, self.layouts = None, {}
+        fapl = self._call("H5Pcreate", self._global("H5P_CLS_FILE_ACCESS_ID_g"))
+        try:
+            self._call("H5Pset_fapl_sec2", fapl)  # not MPI-IO, whatever HDF5_DRIVER says
+            self._call("H5Pset_fclose_degree", fapl, H5F_CLOSE_STRONG)  # closing the file closes all in it
+            # sec2 would lock the file while it is open (MPI-IO does not): no reader during the run
+            self._call("H5Pset_file_locking", fapl, False, True)
+            # bytes: a Linux file name need not be UTF-8
+            self.id = self._call("H5Fcreate", os.fsencode(self.path), H5F_ACC_TRUNC, H5P_DEFAULT, fapl)
+        except (OSError, RuntimeError):
+            _silence_exit_later()
+            raise
+        finally:
+            self.lib.H5Pclose(fapl)
+        handle = ctypes.c_void_p()  # sec2's handle: a pointer to the file's descriptor
+        try:
+            self._call("H5Fget_vfd_handle", self.id, H5P_DEFAULT, ctypes.byref(handle))
+        except (OSError, RuntimeError):
+            self.lib.H5Fclose(self.id)
+            raise
+        self.fd, self.reserved = ctypes.cast(handle, ctypes.POINTER(ctypes.c_int)).contents.value, 0
+
+    def _global(self, name: str) -> int:
+        return ctypes.c_int64.in_dll(self.lib, name).value
+
+    def _call(self, name: str, *args) -> int:
+        """HDF5's `name(*args)`, its failure (a negative value) raised."""
+        ctypes.set_errno(0)
+        value = getattr(self.lib, name)(*args)
+        if value < 0:
+            err = ctypes.get_errno()
+            if err:
+                raise OSError(err, os.strerror(err), str(self.path))
+            raise RuntimeError(f"HDF5's {name} failed on {self.path}")
+        return value
+
+    def _layout(self, shape: tuple) -> tuple[int, int]:
+        """The dataspace and creation properties of a dataset of `shape` (made once): PETSc's viewer's
+        choices, one chunk of the whole dataset, its space allocated when it is created."""
+        if shape not in self.layouts:
+            dims = (ctypes.c_uint64 * len(shape))(*shape)
+            space = self._call("H5Screate_simple", len(shape), dims, None)
+            self.layouts[shape] = (space, H5P_DEFAULT)  # so that `close` releases it if what follows fails
+            dcpl = self._call("H5Pcreate", self._global("H5P_CLS_DATASET_CREATE_ID_g"))
+            self.layouts[shape] = (space, dcpl)
+            self._call("H5Pset_chunk", dcpl, len(shape), dims)
+            self._call("H5Pset_alloc_time", dcpl, H5D_ALLOC_TIME_EARLY)
+        return self.layouts[shape]
+
+    def write(self, name: str, array: np.ndarray) -> None:
+        """The dataset `/name`: `array`'s shape and values."""
+        array = np.ascontiguousarray(array)
+        space, dcpl = self._layout(array.shape)
+        dtype = self.types[array.dtype]
+        dataset = self._call("H5Dcreate2", self.id, name.encode(), dtype, space, H5P_DEFAULT, dcpl, H5P_DEFAULT)
+        try:
+            self._call("H5Dwrite", dataset, dtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, array.ctypes.data)
+        finally:
+            self._call("H5Dclose", dataset)  # the chunk reaches the file here
+
+    def _reserve(self) -> None:
+        """Allocate the file's blocks up to HDF5's end of allocated space, so that the flush that follows
+        only writes where the disk has room: a full disk fails here, with the file still closable.
+
+        libhdf5 1.10.8 cannot flush a file again after one of its flushes failed (the failed flush leaves
+        its cache's list of dirty entries switched on: "slist already enabled?"), and crashes when the
+        process ends (SIGSEGV in H5F__close_cb, from MPI_Finalize), with H5Fclose called or not: measured
+        for 3 of 128 disk sizes of `run example1 --nx 200` on a 2 MiB tmpfs with the room check off, and
+        148 of 249 in tests/io/test_xdmf.py. Blocks below `reserved` stay
+        allocated: HDF5 cuts the file only to its end of allocation, at a flush, which is `reserved` then.
+        """
+        eoa = ctypes.c_uint64()
+        self._call("H5Fget_eoa", self.id, ctypes.byref(eoa))
+        if self.reserved is not None and eoa.value > self.reserved:
+            try:
+                os.posix_fallocate(self.fd, self.reserved, eoa.value - self.reserved)
+            except OSError as exc:
+                if exc.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
+                    raise OSError(exc.errno, exc.strerror, str(self.path)) from None
+                self.reserved = None  # a file system that cannot: plain flushes
+                return
+            self.reserved = eoa.value
+
+    def flush(self) -> None:
+        """Everything written so far to the OS (no fsync): a reader now sees a well-formed file."""
+        self._reserve()
+        self._call("H5Fflush", self.id, H5F_SCOPE_LOCAL)
+
+    def close(self) -> None:
+        """Close the file (its last flush); kept open if that fails, so that `discard` can close it."""
+        if self.id is not None:
+            self._reserve()
+            self._call("H5Fclose", self.id)
+            self.id = None
+        self._release_layouts()
+
+    def discard(self) -> None:
+        """Close the file, which the caller is about to remove, whatever room its disk has left: HDF5's
+        descriptor is pointed at a file in memory first, which takes the closing flush. Never raises."""
+        if self.id is not None:
+            with contextlib.suppress(OSError):
+                scratch = os.memfd_create("discarded.h5")
+                os.dup2(scratch, self.fd)
+                os.close(scratch)
+            with contextlib.suppress(OSError, RuntimeError):
+                self._call("H5Fclose", self.id)
+            self.id = None
+        self._release_layouts()
+
+    def _release_layouts(self) -> None:
+        for space, dcpl in self.layouts.values():
+            self.lib.H5Sclose(space)
+            if dcpl != H5P_DEFAULT:
+                self.lib.H5Pclose(dcpl)
+        self.layouts = {}
 
 
 #: Room kept free beyond a write's own bytes: HDF5's object headers, B-tree nodes and its closing flush.
@@ -162,9 +316,9 @@ HDF5_MARGIN = 32 * 1024
 def _check_room(folder: Path, nbytes: int) -> None:
     """Raise ENOSPC before a write that the device of `folder` has no room for.
 
-    libhdf5 1.10.8 cannot flush a file again after one flush failed on a full disk, so such a file can never
-    be closed (`_keep_unclosed`); refusing the write before HDF5 starts it keeps the file closable. A race
-    with other writers can still fill the disk in between: `_keep_unclosed` is the fallback.
+    HDF5 meeting a full disk is survivable (`Hdf5File._reserve`, `Hdf5File.discard`), but libhdf5 1.10.8
+    prints its own lines at exit after a failed H5Fcreate (`_silence_exit_later`); refusing the write before
+    HDF5 starts it keeps that for the race with another program filling the disk in between.
     """
     try:
         st = os.statvfs(folder)
@@ -179,8 +333,9 @@ def stderr_held(replay: bool = True):
     """Hold back what C libraries print to stderr; print it after the block (if `replay`), or drop it if the
     block fails.
 
-    Open MPI's MPI-IO layer, which PETSc's HDF5 viewer writes through, prints its own line for a failed
-    write ("mca_fbtl_posix_pwritev: ... No space left on device"); the caller reports one line instead.
+    HDF5 prints its error stack for a failed call unless `Hdf5Quiet` is on (and dolfinx's or PETSc's
+    MPI-IO writes print Open MPI's own line, "mca_fbtl_posix_pwritev: ... No space left on device"); the
+    caller reports one line instead.
     """
     sys.stderr.flush()
     saved = os.dup(2)
@@ -243,11 +398,11 @@ class XdmfTimeSeries:
         self.comm, self.mesh, self.frames = comm, mesh, 0
         self.h5name = f"{stem}.h5"
         self.h5path = Path(folder) / self.h5name
-        self.viewer = self.vec = self.xml = None
+        self.h5 = self.xml = None
         points, cells = self._gather(mesh.points), self._gather(mesh.cells)
         try:
             self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
-        except BaseException:  # the viewer may be open already (the mesh did not fit): close it, quietly
+        except BaseException:  # the HDF5 file may be open already (the mesh did not fit): close it, quietly
             self.close(discard=True)
             raise
 
@@ -274,21 +429,16 @@ class XdmfTimeSeries:
         from petsc4py import PETSc
 
         _check_room(xml_path.parent, points.nbytes + cells.nbytes)
-        # bytes: petsc4py encodes a str as strict UTF-8, and a Linux file name need not be UTF-8
-        self.viewer = PETSc.Viewer().createHDF5(os.fsencode(self.h5path), "w", comm=PETSc.COMM_SELF)
-        self.vec = PETSc.Vec().createSeq(self.mesh.n_points, comm=PETSc.COMM_SELF)
-        self._view(PETSc.Vec().createWithArray(points.ravel(), bsize=3, comm=PETSc.COMM_SELF), "geometry")
-        topology = PETSc.IS().createGeneral(cells.ravel().astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-        topology.setBlockSize(cells.shape[1])
-        self._view(topology, "topology")
-        self.int_bytes = np.dtype(PETSc.IntType).itemsize
+        # PETSc's integer: the type PETSc's viewer wrote the topology in before issue 28
+        topology = cells.astype(PETSc.IntType)
+        self.h5 = Hdf5File(self.h5path)
+        self.h5.write("geometry", points.astype(np.float64))
+        self.h5.write("topology", topology)
+        self.h5.flush()
+        self.int_bytes = topology.dtype.itemsize
         self.xml = open(xml_path, "w+")  # noqa: SIM115 - kept open, appended per frame
         self.xml.write(f'<?xml version="1.0"?>\n<Xdmf Version="3.0">\n  <Domain>\n    <Grid Name="{COLLECTION}" GridType="Collection" CollectionType="Temporal">\n')
         self._end_xml()
-
-    def _view(self, obj, name: str) -> None:
-        obj.setName(name)
-        obj.view(self.viewer)
 
     def _end_xml(self) -> None:
         """Write the closing tags after the last grid; the next grid overwrites them."""
@@ -307,10 +457,10 @@ class XdmfTimeSeries:
         _check_room(self.h5path.parent, sum(np.asarray(v).nbytes for v in fields.values()))
         names = []
         for name, values in fields.items():
-            self.vec.array[:] = values
             dataset = f"{name}_{self.frames}"
-            self._view(self.vec, dataset)
+            self.h5.write(dataset, np.asarray(values, dtype=np.float64))
             names.append((name, dataset))
+        self.h5.flush()  # the grid below names only data a reader can see
         self.xml.seek(self.body_end)
         self.xml.write(self._grid(t, names))
         self._end_xml()
@@ -340,9 +490,8 @@ class XdmfTimeSeries:
     def close(self, discard: bool = False) -> None:
         """Close both files (collective). Safe to call twice.
 
-        `discard`: the files are about to be removed after a failed write (a full disk): empty the HDF5
-        file, so that PETSc's closing flush finds room, close what the failed write left open, and never
-        raise. A viewer that still cannot be closed is kept until the process ends (`_keep_unclosed`).
+        `discard`: the files are about to be removed after a failed write (a full disk): close them
+        whatever room is left (`Hdf5File.discard`), and never raise.
         """
         if discard:
             if self.comm.rank == 0:
@@ -351,26 +500,22 @@ class XdmfTimeSeries:
         self._on_root(self._close_root)
 
     def _close_root(self, discard: bool = False) -> None:
-        viewer, self.viewer = self.viewer, None
+        h5, self.h5 = self.h5, None
         xml, self.xml = self.xml, None
         if xml is not None:
             xml.close()
-        if viewer is None:
+        if h5 is None:
+            return
+        if discard:
+            with stderr_held(replay=False):
+                h5.discard()
             return
         try:
-            with stderr_held(replay=not discard):
-                if discard:
-                    with contextlib.suppress(OSError):
-                        os.truncate(self.h5path, 0)
-                    _close_open_objects(self.h5path)
-                viewer.destroy()
-        except RuntimeError:
-            if not discard:
-                self.viewer = viewer  # still open: close(discard=True) can close it
-                raise
-            _keep_unclosed(viewer)
-            return
-        self.vec.destroy()
+            with stderr_held():
+                h5.close()
+        except (RuntimeError, OSError):
+            self.h5 = h5  # still open: close(discard=True) closes it
+            raise
 
 
 def _portable(exc):
