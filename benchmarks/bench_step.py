@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/bench_step.py                          # this checkout, 3 rounds
     .venv/bin/python benchmarks/bench_step.py --against /tmp/before    # and a checkout's src/ alternately
+    .venv/bin/python benchmarks/bench_step.py --loop /tmp/before --repeats 6   # the step and the march loop alone
     .venv/bin/python benchmarks/bench_step.py --check-peers            # each peer's rows against simulate's
     .venv/bin/python benchmarks/bench_step.py --law                    # the contact law alone: all nodes or candidates
     PYTHONPATH=/tmp/before/src .venv/bin/python benchmarks/bench_step.py --save before.npz   # every stored array,
@@ -264,6 +265,78 @@ def law_timing(repeats: int) -> None:
           f"{1e6 * statistics.mean(full):.1f} µs, candidates only {1e6 * statistics.mean(sub):.1f} µs")
 
 
+def _module_of(src: str, name: str):
+    """Module `name` (e.g. "stringcontact.timestepping.paper") of the checkout at `src`, loaded beside this one's
+    under another name: its relative imports resolve in this checkout's package."""
+    import importlib.util
+
+    path = Path(src) / "src" / Path(*name.split(".")).with_suffix(".py")
+    spec = importlib.util.spec_from_file_location(f"{name}_before", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class _Still:
+    """A scheme that does nothing: `_march` alone, the driver's per-step Python."""
+
+    PENALTIES, situation, remedy = (), "", ""
+    terms = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def __init__(self):
+        import numpy as np
+
+        self.eta = np.zeros(5001)
+
+    def step(self):
+        return self.terms
+
+
+def loop_timing(src: str, runs: int) -> None:
+    """In one process, alternately: the paper scheme's 1500 steps (`Scheme.step` alone) and `_march` with a scheme
+    that does nothing, of this checkout and of `src`'s. Thread CPU time, so that other jobs on the machine weigh
+    less; medians and the median of paired ratios."""
+    import numpy as np
+    from mpi4py import MPI
+
+    import stringcontact as sc
+    from stringcontact.run import driver
+    from stringcontact.timestepping import paper
+
+    scene = sc.load_scene("example1")
+    model = driver._resolve_model(None, scene)
+    V, params, ops = driver.discretise(scene, model, MPI.COMM_SELF)
+    s = driver._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
+    schemes = {"this checkout": paper, src: _module_of(src, "stringcontact.timestepping.paper")}
+    marches = {"this checkout": driver._march, src: _module_of(src, "stringcontact.run.driver")._march}
+    steps = {k: [] for k in schemes}
+    march = {k: [] for k in schemes}
+    np.seterr(all="ignore")
+    for r in range(runs):
+        for label in (list(schemes) if r % 2 == 0 else list(schemes)[::-1]):
+            scheme = schemes[label].Scheme(s)
+            scheme.start(*driver._initial_state(scene, s))
+            t0 = time.thread_time()
+            for _ in range(scene.nt):
+                scheme.step()
+            steps[label].append((time.thread_time() - t0) / scene.nt * 1e6)
+            still, rows = _Still(), driver._Rows(np.array([scene.nt + 1]), driver._Gather(MPI.COMM_SELF, s.x))
+            rows.min_eta = 0.0
+            ledger = driver._Ledger(still.terms, conservative=False)
+            t0 = time.thread_time()
+            marches[label](scene, "paper", still, ledger, rows, lambda n: None, False)
+            march[label].append((time.thread_time() - t0) / scene.nt * 1e6)
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average {os.getloadavg()[0]:.2f}; {runs} runs each, "
+          "thread CPU time\n")
+    print("| checkout | paper's step alone [µs] | `_march` with a still scheme [µs/step] |")
+    print("|---|---:|---:|")
+    for label in schemes:
+        print(f"| {label} | {statistics.median(steps[label]):.1f} | {statistics.median(march[label]):.2f} |")
+    first, second = schemes
+    for what, t in (("step", steps), ("march", march)):
+        print(f"{what}: median paired ratio {statistics.median(a / b for a, b in zip(t[first], t[second])):.3f}")
+
+
 def save_fields(path: str) -> None:
     """Every stored array of Example 1's runs (fields, energies, series) of each scheme into `path` (.npz)."""
     import warnings
@@ -303,6 +376,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3, help="runs of each scheme per process")
     ap.add_argument("--against", help="another checkout (its src/ is put first on PYTHONPATH)")
     ap.add_argument("--law", action="store_true", help="time the contact law alone")
+    ap.add_argument("--loop", metavar="CHECKOUT", help="paper's step and the march loop alone, against CHECKOUT's, "
+                    "in one process")
     ap.add_argument("--check-peers", action="store_true", help="each peer against simulate at every stored row")
     ap.add_argument("--save", metavar="FILE.npz", help="save every stored array of the four runs, then stop")
     ap.add_argument("--same", nargs=2, metavar="FILE.npz", help="compare two --save files bit for bit")
@@ -321,6 +396,9 @@ def main(argv=None) -> int:
         return 0
     if args.check_peers:
         return check_peers()
+    if args.loop:
+        loop_timing(args.loop, 2 * args.repeats)
+        return 0
     checkouts = {"this checkout": None} | ({f"{args.against}": args.against} if args.against else {})
     load_before = os.getloadavg()
     results = {label: [] for label in checkouts}
