@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_step.py                          # this checkout, 3 rounds
     .venv/bin/python benchmarks/bench_step.py --against /tmp/before    # and a checkout's src/ alternately
     .venv/bin/python benchmarks/bench_step.py --loop /tmp/before --repeats 6   # the step and the march loop alone
+    .venv/bin/python benchmarks/bench_step.py --refactor lapack        # the peers' changed matrices by LAPACK's dgtsv
     .venv/bin/python benchmarks/bench_step.py --check-peers            # each peer's rows against simulate's
     .venv/bin/python benchmarks/bench_step.py --law                    # the contact law alone: all nodes or candidates
     PYTHONPATH=/tmp/before/src .venv/bin/python benchmarks/bench_step.py --save before.npz   # every stored array,
@@ -15,8 +16,8 @@ paper's is `bench_solver.numpy_peer`; the others are below: splu, vectorised rig
 contact step, the same stored rows), run `--repeats` times, alternately. `--check-peers` first: every peer's η
 against `simulate`'s at every stored row. "µs/step" is `simulate`'s time loop (`timings["solve"]`: the steps and
 the stored rows, no output) over the steps; the peer's is its whole loop. Medians over all runs; "ratio to its
-peer" is the median of the ratios of runs made next to each other. The compiled limit (a C Thomas-algorithm loop, docs/performance.md) is 33.5 µs.
-Prints a Markdown table, with `uptime`'s load before and after.
+peer" is the median of the ratios of runs made next to each other. The compiled limit (a C Thomas-algorithm loop,
+docs/performance.md) is 33.5 µs. Prints a Markdown table, with `uptime`'s load before and after.
 """
 
 from __future__ import annotations
@@ -60,6 +61,19 @@ def _string(scene):
     return dt, dx, eta, v, T
 
 
+def _factor(A, refactor: str):
+    """The solve of a step matrix that changed: `splu` (the sparse LU, 2.1 ms for this string), or with `refactor`
+    "lapack" LAPACK's tridiagonal solver dgtsv, which factorises and solves in one call (115 µs), every step the
+    matrix differs from the one factorised once."""
+    if refactor == "splu":
+        return splu(A.tocsc()).solve
+    from scipy.linalg.lapack import dgtsv
+
+    A = A.tocsr()
+    dl, d, du = A.diagonal(-1), A.diagonal(), A.diagonal(1)
+    return lambda b: dgtsv(dl, d, du, b)[3]
+
+
 def _laplacian(e: np.ndarray) -> np.ndarray:
     """(T η) at the interior nodes, the ends included as neighbours."""
     return 2.0 * e[1:-1] - e[:-2] - e[2:]
@@ -76,7 +90,7 @@ class _Stored:
             self.row += 1
 
 
-def projection_peer(scene, stored_steps):
+def projection_peer(scene, stored_steps, refactor: str = "splu"):
     """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F' with η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
     r₀ = Δt²/Δx². The contact step as the scheme does it: the free step; if a node is below 0, the primal–dual
     active set from {η̃ < 0}: the active rows replaced by identity rows (refactorised with splu when the set differs
@@ -86,7 +100,7 @@ def projection_peer(scene, stored_steps):
     n = eta.size - 2
     A = (sp.identity(n, format="csc") + a * T).tocsc()
     free_lu = splu(A)
-    held, held_lu = None, None
+    held, held_solve = None, None
     tol = -1e-14 * max(np.max(np.abs(eta)), 1.0) * (1 + 2 * a)  # the scheme's allowance for round-off in F
     store = _Stored(stored_steps, eta.size)
     eta_old = eta - dt * v0
@@ -104,8 +118,8 @@ def projection_peer(scene, stored_steps):
             if held is None or not np.array_equal(active, held):
                 held = active
                 keep = sp.diags((~active).astype(float))
-                held_lu = splu((keep @ A + sp.diags(active.astype(float))).tocsc())
-            inner = held_lu.solve(np.where(active, 0.0, b))
+                held_solve = _factor(keep @ A + sp.diags(active.astype(float)), refactor)
+            inner = held_solve(np.where(active, 0.0, b))
             R = A @ inner - b
             new_active = np.where(active, R > tol, inner < 0.0)
             if np.array_equal(new_active, active):
@@ -118,13 +132,14 @@ def projection_peer(scene, stored_steps):
     return store.eta, store.v
 
 
-def _damped_peer(scene, stored_steps, newmark: bool):
+def _damped_peer(scene, stored_steps, newmark: bool, refactor: str):
     dt, dx, eta, v, T = _string(scene)
     a, r0, k = scene.alpha * dt / dx**2, dt**2 / dx**2, dt / scene.eps
     n = eta.size - 2
     lhs = (a / 2 + r0 / 4) if newmark else (a + r0)
     A0 = (sp.identity(n, format="csc") + lhs * T).tocsc()
-    lu, damped = splu(A0), np.zeros(n, dtype=bool)
+    undamped = splu(A0).solve
+    solve, damped = undamped, np.zeros(n, dtype=bool)
     store = _Stored(stored_steps, eta.size)
     store(0, eta, v)
     eta_old = eta - dt * v
@@ -139,12 +154,12 @@ def _damped_peer(scene, stored_steps, newmark: bool):
         while True:
             if not np.array_equal(chi, damped):  # the damping on the diagonal changed: refactorise
                 damped = chi
-                lu = splu((A0 + sp.diags(k * chi)).tocsc())
+                solve = _factor(A0 + sp.diags(k * chi), refactor) if chi.any() else undamped
             b = base + k * chi * e + ((dt * k / 2) * chi * vi if newmark else 0.0)
             b[0] += lhs * eta[0]
             b[-1] += lhs * eta[-1]
             new = eta.copy()
-            new[1:-1] = lu.solve(b)
+            new[1:-1] = solve(b)
             if not newmark:
                 break
             v_new = 2.0 / dt * (new - eta) - v
@@ -162,30 +177,31 @@ def _damped_peer(scene, stored_steps, newmark: bool):
     return store.eta, store.v
 
 
-def newmark_peer(scene, stored_steps):
+def newmark_peer(scene, stored_steps, refactor: str = "splu"):
     """`newmark` (lumped): (I + (a/2 + r₀/4) T + kχ) η¹ = η + Δt v + (a/2 − r₀/4) Tη + kχ η + (kΔt/2) χ v with
     k = Δt/ε on χ = {η < 0, v < 0}, v¹ = 2(η¹ − η)/Δt − v; refactorised with splu when χ changes; a node the
     damping would hold down (v¹ > 0) is released and the step solved again."""
-    return _damped_peer(scene, stored_steps, newmark=True)
+    return _damped_peer(scene, stored_steps, True, refactor)
 
 
-def semi_implicit_peer(scene, stored_steps):
+def semi_implicit_peer(scene, stored_steps, refactor: str = "splu"):
     """`paper` with the semi-implicit penalty: (I + rT + kχ) η¹ = 2η − η⁰ + aTη + kχ η, r = a + r₀, k = Δt/ε on
     χ = {η < 0, v < 0}, v = (η − η⁰)/Δt; refactorised with splu when χ changes."""
-    return _damped_peer(scene, stored_steps, newmark=False)
+    return _damped_peer(scene, stored_steps, False, refactor)
 
 
-def peer_of(name: str):
-    """The NumPy peer of a run of RUNS (the paper's is `bench_solver.numpy_peer`)."""
+def peer_of(name: str, refactor: str = "splu"):
+    """The NumPy peer of a run of RUNS (the paper's is `bench_solver.numpy_peer`; its matrix never changes)."""
     if name == "paper":
         sys.path.insert(0, str(HERE))
         from bench_solver import numpy_peer
 
         return numpy_peer
-    return {"paper semi-implicit": semi_implicit_peer, "projection": projection_peer, "newmark": newmark_peer}[name]
+    peer = {"paper semi-implicit": semi_implicit_peer, "projection": projection_peer, "newmark": newmark_peer}[name]
+    return lambda scene, steps: peer(scene, steps, refactor)
 
 
-def child(repeats: int) -> dict:
+def child(repeats: int, refactor: str) -> dict:
     import warnings
 
     from mpi4py import MPI
@@ -201,12 +217,12 @@ def child(repeats: int) -> dict:
                 res = sc.simulate(scene, scheme=name.split()[0], comm=MPI.COMM_SELF, **kw)
             times[name].append(res.timings["solve"] / scene.nt * 1e6)
             t0 = time.perf_counter()
-            peer_of(name)(scene, res.steps)
+            peer_of(name, refactor)(scene, res.steps)
             times[f"{name} peer"].append((time.perf_counter() - t0) / scene.nt * 1e6)
     return {"file": sc.__file__, **{k: v[1:] for k, v in times.items()}}
 
 
-def check_peers() -> int:
+def check_peers(refactor: str) -> int:
     """Each peer against `simulate` at every stored row: max |Δη| and |Δv|; 1 if a peer is off by more than 1e-6
     (the schemes' own round-off at this resolution is about 1e-9, docs/performance.md)."""
     import warnings
@@ -220,18 +236,18 @@ def check_peers() -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = sc.simulate(scene, scheme=name.split()[0], comm=MPI.COMM_SELF, **kw)
-        eta, v = peer_of(name)(scene, res.steps)
+        eta, v = peer_of(name, refactor)(scene, res.steps)
         d_eta, d_v = np.max(np.abs(eta - res.eta)), np.max(np.abs(v - res.velocity))
         print(f"{name}: max |Δη| {d_eta:.2e}, max |Δv| {d_v:.2e} over {len(res.steps)} stored rows")
         worst = max(worst, d_eta)
     return 1 if worst > 1e-6 else 0
 
 
-def run_child(src: str | None, repeats: int) -> dict:
+def run_child(src: str | None, repeats: int, refactor: str) -> dict:
     env = dict(os.environ)
     if src:
         env["PYTHONPATH"] = str(Path(src) / "src") + os.pathsep + env.get("PYTHONPATH", "")
-    proc = subprocess.run([sys.executable, __file__, "--child", str(repeats)], capture_output=True, text=True, env=env)
+    proc = subprocess.run([sys.executable, __file__, "--child", str(repeats), "--refactor", refactor], capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         raise SystemExit(proc.stderr)
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -381,6 +397,8 @@ def main(argv=None) -> int:
     ap.add_argument("--check-peers", action="store_true", help="each peer against simulate at every stored row")
     ap.add_argument("--save", metavar="FILE.npz", help="save every stored array of the four runs, then stop")
     ap.add_argument("--same", nargs=2, metavar="FILE.npz", help="compare two --save files bit for bit")
+    ap.add_argument("--refactor", choices=("splu", "lapack"), default="splu",
+                    help="how the peers solve with a step matrix that changed (see _factor)")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.save:
@@ -389,13 +407,13 @@ def main(argv=None) -> int:
     if args.same:
         return same_bits(*args.same)
     if args.child is not None:
-        print(json.dumps(child(args.child)))
+        print(json.dumps(child(args.child, args.refactor)))
         return 0
     if args.law:
         law_timing(args.repeats)
         return 0
     if args.check_peers:
-        return check_peers()
+        return check_peers(args.refactor)
     if args.loop:
         loop_timing(args.loop, 2 * args.repeats)
         return 0
@@ -404,10 +422,10 @@ def main(argv=None) -> int:
     results = {label: [] for label in checkouts}
     for _ in range(args.rounds):
         for label, src in checkouts.items():
-            results[label].append(run_child(src, args.repeats))
+            results[label].append(run_child(src, args.repeats, args.refactor))
     load_after = os.getloadavg()
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average before {load_before[0]:.2f}, after "
-          f"{load_after[0]:.2f}; {args.rounds} rounds × {args.repeats} runs\n")
+          f"{load_after[0]:.2f}; {args.rounds} rounds × {args.repeats} runs; peers refactorise with {args.refactor}\n")
     for label, rounds in results.items():
         print(f"{label}: {rounds[0]['file']}")
     print()
