@@ -9,6 +9,7 @@
     PYTHONPATH=/tmp/before/src .venv/bin/python benchmarks/bench_step.py --save before.npz   # every stored array,
     .venv/bin/python benchmarks/bench_step.py --save after.npz                               # then: bit for bit?
     .venv/bin/python benchmarks/bench_step.py --same before.npz after.npz
+    ... --save FILE.npz --scenes example2,bump,loaded_string,single_impact,drum             # the other built-in scenes
 
 Example 1 (nx = 5000, Δt = 2e-4, 1500 steps). Each round starts one fresh process per checkout, alternately; in it
 each scheme (paper explicit, paper semi-implicit, projection, newmark), each followed by its own NumPy peer (the
@@ -247,7 +248,8 @@ def run_child(src: str | None, repeats: int, refactor: str) -> dict:
     env = dict(os.environ)
     if src:
         env["PYTHONPATH"] = str(Path(src) / "src") + os.pathsep + env.get("PYTHONPATH", "")
-    proc = subprocess.run([sys.executable, __file__, "--child", str(repeats), "--refactor", refactor], capture_output=True, text=True, env=env)
+    command = [sys.executable, __file__, "--child", str(repeats), "--refactor", refactor]
+    proc = subprocess.run(command, check=False, capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         raise SystemExit(proc.stderr)
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -353,24 +355,30 @@ def loop_timing(src: str, runs: int) -> None:
         print(f"{what}: median paired ratio {statistics.median(a / b for a, b in zip(t[first], t[second])):.3f}")
 
 
-def save_fields(path: str) -> None:
-    """Every stored array of Example 1's runs (fields, energies, series) of each scheme into `path` (.npz)."""
+def save_fields(path: str, scenes: list[str]) -> None:
+    """Every stored array (fields, energies, series) of each scheme's run of each scene into `path` (.npz); Example 1's
+    keys are "run/field", another scene's "scene/run/field". A run the scene refuses is saved as its error's name."""
     import warnings
 
-    import numpy as np
     from mpi4py import MPI
 
     import stringcontact as sc
 
     arrays = {}
-    for name, kw in RUNS:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res = sc.simulate(sc.load_scene("example1"), scheme=name.split()[0], comm=MPI.COMM_SELF, **kw)
-        for field in ("eta", "velocity", "contact", "contact_force"):
-            arrays[f"{name}/{field}"] = getattr(res, field)
-        arrays.update({f"{name}/energy/{k}": v for k, v in res.energy.items()})
-        arrays.update({f"{name}/series/{k}": v for k, v in res.series.items()})
+    for scene in scenes:
+        prefix = "" if scene == "example1" else f"{scene}/"
+        for name, kw in RUNS:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                try:
+                    res = sc.simulate(sc.load_scene(scene), scheme=name.split()[0], comm=MPI.COMM_SELF, **kw)
+                except (ValueError, sc.InstabilityError) as exc:  # e.g. a penalty too stiff for the scene's dt
+                    arrays[f"{prefix}{name}/refused"] = np.frombuffer(type(exc).__name__.encode(), np.uint8)
+                    continue
+            for field in ("eta", "velocity", "contact", "contact_force"):
+                arrays[f"{prefix}{name}/{field}"] = getattr(res, field)
+            arrays.update({f"{prefix}{name}/energy/{k}": v for k, v in res.energy.items()})
+            arrays.update({f"{prefix}{name}/series/{k}": v for k, v in res.series.items()})
     np.savez(path, **arrays)
     print(f"{sc.__file__}: {len(arrays)} arrays into {path}")
 
@@ -396,13 +404,14 @@ def main(argv=None) -> int:
                     "in one process")
     ap.add_argument("--check-peers", action="store_true", help="each peer against simulate at every stored row")
     ap.add_argument("--save", metavar="FILE.npz", help="save every stored array of the four runs, then stop")
+    ap.add_argument("--scenes", default="example1", help="--save: the built-in scenes, comma-separated")
     ap.add_argument("--same", nargs=2, metavar="FILE.npz", help="compare two --save files bit for bit")
     ap.add_argument("--refactor", choices=("splu", "lapack"), default="splu",
                     help="how the peers solve with a step matrix that changed (see _factor)")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.save:
-        save_fields(args.save)
+        save_fields(args.save, args.scenes.split(","))
         return 0
     if args.same:
         return same_bits(*args.same)
