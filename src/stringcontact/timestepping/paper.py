@@ -163,8 +163,8 @@ class Scheme(Base):
     def step(self):
         # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
         # flags and arrays read every step are attributes of the scheme set once in __init__ (not s.ops.m_force,
-        # s.penalty == ..., a method call for a zero stored energy): about 4 µs of a step's Python (3 %), measured
-        # with benchmarks/bench_step.py --loop.
+        # s.penalty == ..., a method call for a zero stored energy): 1-3.5 % of the step alone (paired ratios
+        # 0.965, 0.976 and 0.990 in three passes of benchmarks/bench_step.py --loop, docs/performance.md).
         dt = self.dt
         eta_new, eta, eta_old = self.eta_new, self.eta_now, self.eta_old
         v_new, v = self.v_new, self.v_now
