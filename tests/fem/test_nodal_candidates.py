@@ -68,3 +68,17 @@ def test_the_penalties_take_the_candidate_path(space):
     for name in ("penalty", "penalty_damping", "transcendental"):
         assert nodal.NodalExpression(laws[name])._candidates is not None, name
     assert nodal.NodalExpression(laws["elastic (no conditional)"])._candidates is None
+
+
+@pytest.mark.parametrize("true_at", [[], [0], [N], [0, N], [7], [3, 4, 5, 90], list(range(N + 1))])
+def test_the_candidate_span_is_from_the_first_true_node_to_the_last(true_at):
+    c1 = np.zeros(N + 1, dtype=bool)
+    c1[true_at] = True
+    for c in (c1, c1[::2], c1[::-1]):  # contiguous, and views with other strides
+        nodes = np.flatnonzero(c)
+        assert nodal._span(c) == ((nodes[0], nodes[-1] + 1) if nodes.size else (-1, 0))
+
+
+def test_a_constant_condition_broadcast_to_every_node_spans_them_all():
+    assert nodal._span(np.broadcast_to(np.True_, (N + 1,))) == (0, N + 1)
+    assert nodal._span(np.broadcast_to(np.False_, (N + 1,))) == (-1, 0)

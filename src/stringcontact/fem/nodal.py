@@ -198,10 +198,9 @@ class NodalExpression:
         if c1.shape != shape:
             c1 = np.broadcast_to(c1, shape)
         out = np.zeros(shape)
-        first = int(c1.argmax())
-        if not c1[first]:
+        first, last = _span(c1)
+        if first < 0:
             return out
-        last = shape[0] - int(c1[::-1].argmax())
         count = int(np.count_nonzero(c1[first:last]))
         if count * SPARSE < last - first:
             idx = np.flatnonzero(c1)
@@ -210,6 +209,14 @@ class NodalExpression:
             span = slice(first, last)
             np.copyto(out[span], self._rest(_Subset(env, span)), where=c1[span])
         return out
+
+
+def _span(c1: np.ndarray) -> tuple[int, int]:
+    """(first, last + 1) of the True entries of the bool array `c1`, or (-1, 0) if none: the bytes' find and rfind
+    (memchr), 1.0 µs at 5001 nodes against 3.2 µs for argmax on c1 and on its reversed view (a negative stride has
+    no fast path); measured with timeit on Example 1's contact span."""
+    raw = c1.view(np.uint8).tobytes()
+    return raw.find(1), raw.rfind(1) + 1
 
 
 #: The candidate-subset evaluation takes indices (copies) instead of a span (views) when fewer than 1/SPARSE of

@@ -51,6 +51,10 @@ class NodalLaws:
         for name, a in arrays.items():
             self.env[self._keys[name]] = a
 
+    def key(self, name: str) -> int:
+        """The key of placeholder `name` in `env`: a hot loop sets ``env[key] = array`` itself, as `set` does."""
+        return self._keys[name]
+
 
 @dataclass
 class Setting:
