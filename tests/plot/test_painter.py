@@ -139,8 +139,8 @@ def test_the_picture_processes_end_and_clean_up_when_the_run_dies(tmp_path, wait
     code = ("from stringcontact.plot.painter import PictureProcess; p = PictureProcess.start(); "
             "print(p.proc.pid, p.folder, flush=True)")  # and exit at once, without cancel(): a killed run
     if wait_for_helper:  # exit once the helper is forked
-        code = ("import sys; sys.path.insert(0, %r); from test_painter import started_with_helper; "
-                "p = started_with_helper(); print(p.proc.pid, p.folder, flush=True)") % str(Path(__file__).parent)
+        code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); from test_painter import started_with_helper; "
+                "p = started_with_helper(); print(p.proc.pid, p.folder, flush=True)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     pgid, private = int(out[0]), Path(out[1])
     until(lambda: not group(pgid) and not private.exists(), "the painter and its helper gone, the payload removed")

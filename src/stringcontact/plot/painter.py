@@ -1,8 +1,8 @@
 """Pictures drawn in two processes started before a run, so that the libraries' start-up overlaps it and the
 pictures use both cores while the run waits.
 
-Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 0.5 s of CPU
-before the first picture, importing matplotlib and drawing its first figure about 0.4 s
+Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take 0.5-0.8 s of CPU
+before the first picture, importing matplotlib and drawing its first figure 0.3-0.4 s
 (benchmarks/bench_pictures.py). `stringcontact run --out` starts a `PictureProcess` first thing, before the
 scene (1D or 2D) is known. The process (the *painter*) warms matplotlib up, forks a *helper* that inherits
 that warm matplotlib (no second start-up), then warms pyvista up; both wait for the run's rows. The run then
@@ -37,7 +37,7 @@ from .viz import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
 BY_COST = ("membrane.gif", "space_time.png", "membrane.png", "energy.png", "snapshots.png", "contact_set.png",
            "contact_area.png", "velocity_field.png")
 #: arrays at least this large are handed over as .npy files mapped into memory (`np.load(mmap_mode="r")`):
-#: pickling Example 1's 32 MB of rows and unpickling them in the painter took 0.07-0.12 s; mapping costs nothing
+#: pickling Example 1's 32 MB of rows and unpickling them in the painter took 0.06-0.12 s; mapping costs nothing
 MAPPED_BYTES = 1 << 20
 
 
