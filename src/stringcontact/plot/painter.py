@@ -1,11 +1,14 @@
-"""Pictures drawn in a second process, started before a run so that the libraries' start-up overlaps it.
+"""Pictures drawn in two processes started before a run, so that the libraries' start-up overlaps it and the
+pictures use both cores while the run waits.
 
-Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take about 1.2 s
-of CPU before the first picture, importing matplotlib about 0.4 s (benchmarks/bench_pictures.py). `stringcontact run
---out` starts a `PictureProcess` first thing, before the scene (1D or 2D) is known; it does that start-up
-while the run imports dolfinx and solves, then draws those of `viz.PAINTED` that the run has (`viz.painted`:
-the space-time pictures of a string, ``membrane.png`` and ``membrane.gif`` of a membrane) while the run
-draws the line charts. The process never imports dolfinx.
+Importing pyvista and VTK, creating the EGL context and compiling llvmpipe's shaders take 0.5-0.8 s of CPU
+before the first picture, importing matplotlib and drawing its first figure 0.3-0.4 s
+(benchmarks/bench_pictures.py). `stringcontact run --out` starts a `PictureProcess` first thing, before the
+scene (1D or 2D) is known. The process (the *painter*) warms matplotlib up, forks a *helper* that inherits
+that warm matplotlib (no second start-up), then warms pyvista up; both wait for the run's rows. The run then
+hands them every picture it has (`viz.painted`) and imports no plotting library at all: the painter draws
+the pyvista pictures (only it has pyvista), and both take the matplotlib pictures one at a time, the
+costliest first, so that the two cores finish together. Neither process imports dolfinx.
 """
 
 from __future__ import annotations
@@ -17,39 +20,51 @@ import os
 import pickle
 import selectors
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 
 from .viz import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
 
+#: the order in which the processes take the pictures: costliest first (benchmarks/bench_pictures.py), so that
+#: the last picture taken is a short one and both cores finish at about the same time
+BY_COST = ("membrane.gif", "space_time.png", "membrane.png", "energy.png", "snapshots.png", "contact_set.png",
+           "contact_area.png", "velocity_field.png")
+#: arrays at least this large are handed over as .npy files mapped into memory (`np.load(mmap_mode="r")`):
+#: pickling Example 1's 32 MB of rows and unpickling them in the painter took 0.06-0.12 s; mapping costs nothing
+MAPPED_BYTES = 1 << 20
+
 
 class PictureProcess:
-    """Some pictures (`names`) drawn in a second Python process.
+    """Some pictures (`names`) drawn in a second Python process and its helper.
 
-    `start(names)` launches it; it draws a tiny warm-up picture, then waits. `send(result, folder)` hands it
-    the Result and the names it is to draw, those of `names` that the result has (`viz.painted`), as a
-    pickle in a private temporary folder (a file, not a pipe: writing to a pipe whose reader died raises
-    SIGPIPE, which PETSc turns into an abort), and sets `names` to them; `wait()` returns True once those
-    pictures are written. `cancel()` stops it. Any failure makes `send`/`wait` return False, and `error`
-    says why if it can.
+    `start(names)` launches it; it warms up, then waits. `send(result, folder)` hands it those of `names`
+    that the result has (`viz.painted`), the Result written into a private temporary folder (files, not a
+    pipe: writing to a pipe whose reader died raises SIGPIPE, which PETSc turns into an abort), and sets
+    `names` to them; `wait()` returns True once they are all written, and sets `drawn` to those that were.
+    `cancel()` stops both processes. Any failure makes `send`/`wait` return False, and `error` says why if it can.
     """
 
-    TIMEOUT = 300.0  # seconds to draw; a picture takes 0.2-2 s
+    TIMEOUT = 300.0  # seconds to draw; a picture takes 0.1-2 s
 
     def __init__(self, proc: subprocess.Popen, folder: str, names: tuple[str, ...]):
         self.proc = proc
         self.folder = folder  # the private temporary folder that receives the payload
         self.names = names
+        self.drawn: tuple[str, ...] = ()
         self.error = ""
 
     @classmethod
     def start(cls, names=PAINTED) -> PictureProcess | None:
         env = dict(os.environ)
-        env.setdefault("LP_NUM_THREADS", "1")  # Mesa's software renderer: leave the other core to the run
+        env.setdefault("LP_NUM_THREADS", "1")  # Mesa's software renderer: one thread, the helper has the other core
+        env.setdefault("OPENBLAS_NUM_THREADS", "1")  # no BLAS threads: nothing to draw needs them, and the fork copies none
         folder = tempfile.mkdtemp(prefix="stringcontact-pictures-")
         code = "from stringcontact.plot.painter import main; main()"
         try:
@@ -59,7 +74,7 @@ class PictureProcess:
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,  # VTK's own warnings; failures come back on stdout
                 env=env,
-                start_new_session=True,  # Ctrl-C reaches the run, which then stops this process
+                start_new_session=True,  # Ctrl-C reaches the run, which then stops this process; its own process group
             )
         except OSError:
             os.rmdir(folder)
@@ -74,20 +89,16 @@ class PictureProcess:
         if not names:  # none of its pictures is a picture of this run
             self.cancel()
             return False
-        payload = Path(self.folder) / "payload.pickle"
-        result = dataclasses.replace(result, contact_force=np.empty((0, 0)))  # no picture shows it: less to pickle
         try:
-            with open(payload.with_suffix(".part"), "wb") as f:
-                pickle.dump((result, str(folder), tuple(window_size), names), f, protocol=pickle.HIGHEST_PROTOCOL)
+            write_payload(Path(self.folder), result, (str(folder), tuple(window_size), names))
             self.names = names
-            os.replace(payload.with_suffix(".part"), payload)  # the process only ever sees a whole file
             return True
-        except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        except (OSError, pickle.PicklingError, TypeError, AttributeError, ValueError):
             self.cancel()
             return False
 
     def wait(self) -> bool:
-        """True once the process reports its pictures written (its own exit is not waited for)."""
+        """True once the processes report all their pictures written (their own exit is not waited for)."""
         reply = {}
         try:
             with selectors.DefaultSelector() as sel:
@@ -98,52 +109,170 @@ class PictureProcess:
             reply = {}
         finally:
             self.cancel()
-        self.error = "" if reply.get("ok") else str(reply.get("error", "no reply"))
-        return bool(reply.get("ok"))
+        self.drawn = tuple(name for name in reply.get("drawn", ()) if name in self.names)
+        ok = bool(reply.get("ok")) and set(self.drawn) == set(self.names)
+        self.error = "" if ok else str(reply.get("error") or "no reply")
+        return ok
 
     def cancel(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
+        """Stop the painter and its helper; once this returns, neither writes anything any more."""
+        if self.proc.returncode is None:  # not reaped: its pid is still its process group's, no one else's
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
             self.proc.wait()
         if self.proc.stdout is not None and not self.proc.stdout.closed:
+            _until_closed(self.proc.stdout, self.TIMEOUT)  # the helper holds it open until it is gone too
             self.proc.stdout.close()
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
             self.folder = None
 
 
-def main() -> None:
-    """The body of `PictureProcess`: warm up (for the names it was started with), wait for the payload, draw
-    the names the payload gives, report on stdout."""
-    import time
+def _until_closed(pipe, timeout: float) -> None:
+    """Read `pipe` until every process holding its other end has exited (end of file)."""
+    with contextlib.suppress(OSError, ValueError), selectors.DefaultSelector() as sel:
+        sel.register(pipe, selectors.EVENT_READ)
+        while sel.select(timeout=timeout) and os.read(pipe.fileno(), 65536):
+            pass
 
-    from . import charts, mesh_pictures, viz
+
+# --- the payload: the Result, its large arrays as files mapped by both processes ---------------------
+
+
+def write_payload(folder: Path, result, job: tuple) -> None:
+    """`result` and `job` (output folder, window size, names) into `folder`: each large array of the Result
+    as NumPy's .npy, the rest pickled; payload.pickle appears last and whole (os.replace), so a reader that
+    sees it sees everything."""
+    result = dataclasses.replace(result, contact_force=np.empty((0, 0)))  # no picture shows it: less to write
+    mapped = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)
+              if isinstance(getattr(result, f.name), np.ndarray) and getattr(result, f.name).nbytes >= MAPPED_BYTES}
+    for name, values in mapped.items():
+        np.save(folder / f"{name}.npy", values, allow_pickle=False)
+    bare = dataclasses.replace(result, **dict.fromkeys(mapped))
+    part = folder / "payload.part"
+    with open(part, "wb") as f:
+        pickle.dump((bare, tuple(mapped), job), f, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(part, folder / "payload.pickle")
+
+
+def read_payload(folder: Path):
+    """(result, job) of `write_payload`; the large arrays mapped read-only from their files."""
+    with open(folder / "payload.pickle", "rb") as f:
+        bare, mapped, job = pickle.load(f)
+    arrays = {name: np.load(folder / f"{name}.npy", mmap_mode="r", allow_pickle=False) for name in mapped}
+    return dataclasses.replace(bare, **arrays), job
+
+
+def await_payload(folder: Path, parent: int):
+    """(result, job) once the payload is there; None if `parent` is gone or the folder removed first."""
+    while not (folder / "payload.pickle").exists():
+        if os.getppid() != parent or not folder.is_dir():
+            return None
+        time.sleep(0.005)
+    return read_payload(folder)
+
+
+# --- the painter process and its helper -----------------------------------------------------------
+
+
+def draw_claimed(result, job: tuple, folder: Path, can_draw) -> list[str]:
+    """Draw, costliest first, each picture of `job` that `can_draw` and that no other process took first
+    (a claim is a file created with O_EXCL: exactly one process gets it). Returns the names drawn."""
+    from . import viz
+
+    out, window_size, names = job
+    drawn = []
+    for name in sorted(names, key=lambda n: BY_COST.index(n) if n in BY_COST else len(BY_COST)):
+        if not can_draw(name):
+            continue
+        try:
+            os.close(os.open(folder / f"{name}.claim", os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            continue
+        viz.draw(name, result, out, window_size)
+        drawn.append(name)
+    return drawn
+
+
+def _fork_helper(folder: Path) -> tuple[int, int]:
+    """Fork the helper: it inherits this process's warm matplotlib, draws matplotlib pictures only, and
+    writes the names it drew as one JSON line to the pipe whose read end is returned (with its pid)."""
+    read, write = os.pipe()
+    painter = os.getpid()
+    pid = os.fork()
+    if pid:
+        os.close(write)
+        return pid, read
+    os.close(read)
+    reply = {"drawn": []}
+    try:
+        job = await_payload(folder, painter)
+        if job is not None:
+            reply["drawn"] = draw_claimed(*job, folder, lambda name: name not in MESH_PICTURES)
+    except Exception as exc:  # noqa: BLE001 - reported through the painter; the run draws what is missing
+        reply["error"] = f"{type(exc).__name__}: {exc}"
+    finally:
+        with contextlib.suppress(OSError):
+            os.write(write, (json.dumps(reply) + "\n").encode())
+        os._exit(0)
+
+
+def _helper_reply(helper) -> dict:
+    """The helper's reply (empty if it died), once it has exited."""
+    if helper is None:
+        return {}
+    pid, read = helper
+    with os.fdopen(read, "rb") as pipe:
+        text = pipe.read().decode()
+    os.waitpid(pid, 0)
+    try:
+        return json.loads(text or "{}")
+    except ValueError:
+        return {}
+
+
+def _watch(folder: Path, parent: int) -> None:
+    """A thread of the painter: once the run is gone, remove the payload and stop drawing (painter and helper)."""
+    while os.getppid() == parent:
+        time.sleep(0.05)
+    shutil.rmtree(folder, ignore_errors=True)
+    if os.getpgid(0) == os.getpid():  # our own process group (PictureProcess.start): the painter and its helper
+        os.killpg(0, signal.SIGKILL)
+    os._exit(1)
+
+
+def main() -> None:
+    """The body of `PictureProcess`: warm up (for the names it was started with), fork the helper, wait for
+    the payload, draw with the helper the names the payload gives, report on stdout."""
+    from . import charts, mesh_pictures
 
     folder, names, parent = Path(sys.argv[1]), tuple(sys.argv[2].split(",")), int(sys.argv[3])
     answer = os.fdopen(os.dup(1), "w")  # the reply's own channel: anything VTK prints goes to stderr instead
     os.dup2(2, 1)
-    reply = {"ok": False}
+    reply, helper, drawn = {"ok": False}, None, []
     try:
-        if set(names) & set(MESH_PICTURES):
-            mesh_pictures.warm_up()
         if set(names) - set(MESH_PICTURES):
             charts.warm_up()
+            if len(names) > 1:  # before pyvista: the helper gets no EGL context and no llvmpipe threads
+                helper = _fork_helper(folder)
+        threading.Thread(target=_watch, args=(folder, parent), daemon=True).start()
+        if set(names) & set(MESH_PICTURES):
+            mesh_pictures.warm_up()
         if "membrane.gif" in names:
             from . import animation  # noqa: F401 - imports Pillow before the payload comes
-        payload = folder / "payload.pickle"
-        while not payload.exists():
-            if os.getppid() != parent or not folder.is_dir():  # the run ended (even before we started) or cancelled us
-                shutil.rmtree(folder, ignore_errors=True)
-                return
-            time.sleep(0.005)
-        with open(payload, "rb") as f:
-            result, out, window_size, names = pickle.load(f)
-        payload.unlink()  # read: no large file left behind even if the run is killed now
-        for name in names:
-            viz.draw(name, result, out, window_size)
-        reply = {"ok": True}
+        job = await_payload(folder, parent)
+        if job is None:  # the run ended (even before we started) or cancelled us
+            shutil.rmtree(folder, ignore_errors=True)
+            return
+        result, (out, window_size, handed) = job
+        drawn = draw_claimed(result, (out, window_size, handed), folder, lambda name: True)
+        theirs = _helper_reply(helper)
+        helper = None
+        drawn += theirs.get("drawn", [])
+        reply = {"ok": set(drawn) == set(handed), "drawn": drawn, "error": theirs.get("error", "")}
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which then draws the pictures itself
-        reply = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+        drawn += _helper_reply(helper).get("drawn", [])
+        reply = {"ok": False, "drawn": drawn, "error": f"{type(exc).__name__}: {exc}"}
     finally:
         with contextlib.suppress(OSError):
             answer.write(json.dumps(reply) + "\n")

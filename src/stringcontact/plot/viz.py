@@ -42,10 +42,10 @@ PICTURES = CHART_PICTURES + ("space_time.png",)  # of a 1-D run
 #: of a 2-D run (a membrane): contact_area.png and energy.png by matplotlib, the others by pyvista
 MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
 MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
-#: what `stringcontact run` hands to its painter process, of the pictures the run has (`painted`): in 1D the
-#: space-time pictures (the line charts are drawn by the run meanwhile; this split measured fastest,
-#: docs/performance.md), in 2D the pyvista pictures (the run draws the two charts)
-PAINTED = ("contact_set.png", "velocity_field.png", "space_time.png", "membrane.png", "membrane.gif")
+#: what `stringcontact run` hands to its painter process, of the pictures the run has (`painted`): all of them.
+#: The painter and its helper (`painter.main`) share them out over both cores, and the run, which would draw
+#: one at a time, imports no plotting library at all (matplotlib alone: 0.2 s on its critical path)
+PAINTED = tuple(dict.fromkeys(PICTURES + MEMBRANE_PICTURES))
 
 
 def pictures_of(result) -> tuple[str, ...]:
@@ -87,8 +87,8 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
     `simulate(..., pictures=True)` calls.
 
     With a started `painter.PictureProcess`, its pictures are drawn there while this process draws the
-    others; whatever it fails to draw is then drawn here. The painter is stopped however this ends, so
-    nothing writes into `folder` after it returns.
+    others (none, for `stringcontact run`'s painter); whatever it fails to draw is then drawn here. The
+    painter is stopped however this ends, so nothing writes into `folder` after it returns.
     """
     folder = Path(folder)
     names = pictures_of(result)
@@ -100,8 +100,9 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
         for name in names:
             if name not in handed_out:
                 draw(name, result, folder, window_size)
-        if handed_out and painter.wait():
-            drawn = handed_out
+        if handed_out:
+            painter.wait()
+            drawn = set(painter.drawn)  # all of them, unless a painting process failed
     finally:
         if painter is not None:
             painter.cancel()

@@ -1,0 +1,146 @@
+"""The picture process of `stringcontact run` (plot/painter.py): the painter, its forked helper, the payload,
+and how they stop."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import stringcontact as sc
+from stringcontact.plot import painter, viz
+from stringcontact.plot.painter import PictureProcess
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """A coarse Example 1 written to disk with pictures (drawn in this process), and its in-memory result."""
+    folder = tmp_path_factory.mktemp("painter") / "ex1"
+    res = sc.simulate(sc.load_scene("example1").replace(nx=80, nt=600), output_dir=folder, max_rows=60)
+    return folder, res
+
+
+def group(pgid: int) -> list[int]:
+    """The live (not zombie) processes of the process group `pgid`."""
+    pids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            state, _, pgrp = stat.read_text().rsplit(")", 1)[1].split()[:3]
+        except (OSError, IndexError):
+            continue
+        if int(pgrp) == pgid and state != "Z":
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+def until(condition, what: str, limit: float = 120.0) -> None:
+    """Poll `condition` (a bounded wait: running out of it is a failure, not a timing claim)."""
+    deadline = time.monotonic() + limit
+    while not condition():
+        assert time.monotonic() < deadline, f"never: {what}"
+        time.sleep(0.05)
+
+
+def started_with_helper(names=viz.PICTURES) -> PictureProcess:
+    process = PictureProcess.start(names)
+    until(lambda: len(group(process.proc.pid)) == 2, "the painter forked its helper")
+    return process
+
+
+def test_the_run_hands_every_picture_over_and_imports_no_plotting_library(run, tmp_path):
+    """Issue 28: the run drew snapshots.png and energy.png itself, importing matplotlib after its solve."""
+    folder, _ = run
+    code = ("import sys\nfrom stringcontact.plot.painter import PictureProcess\np = PictureProcess.start()\n"
+            "from stringcontact.io.readback import read_output\nfrom stringcontact.plot import viz\n"
+            f"viz.write_pictures(read_output({str(folder)!r}), {str(tmp_path)!r}, painter=p)\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'matplotlib', 'pyvista', 'vtk', 'PIL'}), sorted(p.drawn))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == f"[] {sorted(viz.PICTURES)}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(viz.PICTURES)
+
+
+def test_two_processes_never_draw_the_same_picture(run, tmp_path):
+    """A claim is taken once: the second taker draws nothing; the helper (no pyvista) skips the mesh pictures."""
+    _, res = run
+    claims, out = tmp_path / "claims", tmp_path / "out"
+    claims.mkdir(), out.mkdir()
+    job = (str(out), viz.WINDOW_SIZE, viz.PICTURES)
+    charts_only = painter.draw_claimed(res, job, claims, lambda name: name not in viz.MESH_PICTURES)
+    assert sorted(charts_only) == sorted(viz.CHART_PICTURES)
+    assert charts_only[:2] == ["energy.png", "snapshots.png"]  # the costliest first
+    assert painter.draw_claimed(res, job, claims, lambda name: True) == ["space_time.png"]
+    assert painter.draw_claimed(res, job, claims, lambda name: True) == []
+
+
+def test_the_payload_maps_the_large_arrays_and_keeps_every_value(run, tmp_path):
+    _, res = run
+    big = res.eta.nbytes
+    old = painter.MAPPED_BYTES
+    try:
+        painter.MAPPED_BYTES = big  # eta and velocity, not the rest
+        painter.write_payload(tmp_path, res, ("out", (10, 10), ("energy.png",)))
+    finally:
+        painter.MAPPED_BYTES = old
+    back, job = painter.read_payload(tmp_path)
+    assert job == ("out", (10, 10), ("energy.png",))
+    assert sorted(p.name for p in tmp_path.glob("*.npy")) == ["eta.npy", "velocity.npy"]
+    assert isinstance(back.eta, np.memmap) and not back.eta.flags.writeable
+    for name in ("x", "t", "eta", "velocity", "contact"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(res, name), err_msg=name)
+    assert back.scene == res.scene and back.contact_force.size == 0  # no picture shows the force
+
+
+def test_cancel_stops_the_helper_too(run, tmp_path):
+    process = started_with_helper()
+    pgid = process.proc.pid
+    process.cancel()
+    assert group(pgid) == [] and process.folder is None
+
+
+def test_cancel_while_drawing_leaves_no_process(run, tmp_path):
+    _, res = run
+    process = started_with_helper()
+    pgid, private = process.proc.pid, Path(process.folder)
+    assert process.send(res, tmp_path)
+    until(lambda: list(private.glob("*.claim")), "a picture taken")
+    process.cancel()
+    assert group(pgid) == [] and not private.exists()
+
+
+def test_the_painter_draws_the_helpers_share_when_the_helper_dies(run, tmp_path):
+    _, res = run
+    process = started_with_helper()
+    [helper] = [pid for pid in group(process.proc.pid) if pid != process.proc.pid]
+    os.kill(helper, 9)
+    until(lambda: helper not in group(process.proc.pid), "the helper gone")
+    assert process.send(res, tmp_path) and process.wait()
+    assert sorted(process.drawn) == sorted(viz.PICTURES)
+
+
+def test_what_the_painter_did_not_draw_is_drawn_here(run, tmp_path, monkeypatch):
+    """A painter that reports only some pictures drawn: the run draws the others itself."""
+    _, res = run
+    process = PictureProcess.start(("space_time.png",))  # no helper for one picture
+    drawn_here = []
+    draw = viz.draw
+    monkeypatch.setattr(viz, "draw", lambda name, *a, **kw: drawn_here.append(name) or draw(name, *a, **kw))
+    viz.write_pictures(res, tmp_path, painter=process)
+    assert process.drawn == ("space_time.png",) and sorted(drawn_here) == sorted(viz.CHART_PICTURES)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(viz.PICTURES)
+
+
+@pytest.mark.parametrize("wait_for_helper", [False, True])
+def test_the_picture_processes_end_and_clean_up_when_the_run_dies(tmp_path, wait_for_helper):
+    code = ("from stringcontact.plot.painter import PictureProcess; p = PictureProcess.start(); "
+            "print(p.proc.pid, p.folder, flush=True)")  # and exit at once, without cancel(): a killed run
+    if wait_for_helper:  # exit once the helper is forked
+        code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); from test_painter import started_with_helper; "
+                "p = started_with_helper(); print(p.proc.pid, p.folder, flush=True)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    pgid, private = int(out[0]), Path(out[1])
+    until(lambda: not group(pgid) and not private.exists(), "the painter and its helper gone, the payload removed")
