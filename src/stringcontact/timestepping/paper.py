@@ -120,8 +120,8 @@ class Scheme(Base):
         return float(np.dot(self.s.ops.m_force, self.energy_law.evaluate_env(self.s.laws.env)))
 
     def _apply_mass(self, u, out) -> None:
-        if self.s.mass == "lumped":
-            np.multiply(self.s.ops.m, u[1], out=out[1])
+        if self.lumped:
+            np.multiply(self.m, u[1], out=out[1])
         else:
             self.Ms.mult(u[0], out[0])
 
@@ -163,8 +163,8 @@ class Scheme(Base):
     def step(self):
         # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
         # flags and arrays read every step are attributes of the scheme set once in __init__ (not s.ops.m_force,
-        # s.penalty == ..., a method call for a zero stored energy): 1-3.5 % of the step alone (paired ratios
-        # 0.965, 0.976 and 0.990 in three passes of benchmarks/bench_step.py --loop, docs/performance.md).
+        # s.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and 0.990 in three passes of
+        # benchmarks/bench_step.py --loop, docs/performance.md).
         dt = self.dt
         eta_new, eta, eta_old = self.eta_new, self.eta_now, self.eta_old
         v_new, v = self.v_new, self.v_now
@@ -207,10 +207,7 @@ class Scheme(Base):
             f_applied *= -dt
         self.KC.mult(eta_new[0], KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
         np.subtract(KC_new[1][1], KC_old[1][1], out=self.by_v[0])  # = C v^{n+1}
-        if self.lumped:
-            np.multiply(self.m, v1, out=M_v_new[1])
-        else:
-            self.Ms.mult(v_new[0], M_v_new[0])
+        self._apply_mass(v_new, M_v_new)
         dots_v, dots_K = self.dots_v, self.dots_K
         np.einsum("ij,j->i", self.by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f, v¹·Mv¹ and v¹·Mv⁰ (rows 2, 3 alternate)
         np.einsum("ij,j->i", self.K_etas, e1, out=dots_K)  # η¹·Kη¹ and η¹·Kη⁰ (rows alternate)
@@ -226,7 +223,7 @@ class Scheme(Base):
             -dt * dots_v[1],
             dots_v[5 - iM] + dots_K[1 - iK],
             dt * float(np.dot(v1, self.load)) if self.has_load else 0.0,
-            self.stored_energy(e1) if self.energy_law is not None else 0.0,
+            self.stored_energy(e1),
             -dt * float(np.dot(f_applied, v[1])),
         )
         # Contact dissipation is the force's work with the step's mean velocity, −(Δt/2) f·(v^n + v^{n+1}) (see
