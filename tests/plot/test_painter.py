@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.plot import painter, viz
+from stringcontact.plot import painter, payload, viz
 from stringcontact.plot.painter import PictureProcess
 
 
@@ -80,19 +80,30 @@ def test_two_processes_never_draw_the_same_picture(run, tmp_path):
 def test_the_payload_maps_the_large_arrays_and_keeps_every_value(run, tmp_path):
     _, res = run
     big = res.eta.nbytes
-    old = painter.MAPPED_BYTES
+    old = payload.MAPPED_BYTES
     try:
-        painter.MAPPED_BYTES = big  # eta and velocity, not the rest
-        painter.write_payload(tmp_path, res, ("out", (10, 10), ("energy.png",)))
+        payload.MAPPED_BYTES = big  # eta and velocity, not the rest
+        payload.write_payload(tmp_path, res, ("out", (10, 10), ("energy.png",)))
     finally:
-        painter.MAPPED_BYTES = old
-    back, job = painter.read_payload(tmp_path)
+        payload.MAPPED_BYTES = old
+    back, job = payload.read_payload(tmp_path)
     assert job == ("out", (10, 10), ("energy.png",))
     assert sorted(p.name for p in tmp_path.glob("*.npy")) == ["eta.npy", "velocity.npy"]
     assert isinstance(back.eta, np.memmap) and not back.eta.flags.writeable
     for name in ("x", "t", "eta", "velocity", "contact"):
         np.testing.assert_array_equal(getattr(back, name), getattr(res, name), err_msg=name)
     assert back.scene == res.scene and back.contact_force.size == 0  # no picture shows the force
+
+
+def test_the_payload_carries_the_readings_the_run_made(run, tmp_path):
+    """contact_measure and contact_components, computed by the run for its diagnostics, are not computed again."""
+    _, res = run
+    res.contact_measure, res.contact_components  # noqa: B018 - what writing diagnostics.csv reads
+    payload.write_payload(tmp_path, res, ("out", (10, 10), ("snapshots.png",)))
+    back, _ = payload.read_payload(tmp_path)
+    assert {"contact_measure", "contact_components"} <= set(vars(back))  # cached: the pictures read, not compute
+    np.testing.assert_array_equal(back.contact_measure, res.contact_measure)
+    np.testing.assert_array_equal(back.contact_components, res.contact_components)
 
 
 def test_cancel_stops_the_helper_too(run, tmp_path):

@@ -76,6 +76,22 @@ def test_run_writes_legible_pictures(run):
     assert _near(_image(folder / "space_time.png"), viz.CONTACT_COLOUR, tol=60).sum() > 2000  # lit, so less exact
 
 
+def _zlib_level_class(path: Path) -> int:
+    """FLEVEL of the PNG's zlib stream (RFC 1950: 0 fastest, 1 fast (levels 2-5), 2 default (6), 3 best)."""
+    data = path.read_bytes()
+    idat = data.index(b"IDAT") + 4  # the first IDAT chunk's data: the zlib header's two bytes first
+    return data[idat + 1] >> 6
+
+
+def test_every_picture_is_written_at_the_chosen_compression(run):
+    """Both writers (matplotlib's and the pyvista screenshot's) use PNG_COMPRESSION, not Pillow's default 6."""
+    from stringcontact.plot.charts import PNG_COMPRESSION
+
+    folder, _ = run
+    assert 2 <= PNG_COMPRESSION <= 5  # zlib marks levels 2-5 as FLEVEL 1; Pillow's default 6 as 2
+    assert {name: _zlib_level_class(folder / name) for name in viz.PICTURES} == dict.fromkeys(viz.PICTURES, 1)
+
+
 def test_contact_set_picture_shows_the_contact_fraction(run):
     """The red share of the plotting area is the contact set's share of the (x, t) rectangle."""
     _, res = run

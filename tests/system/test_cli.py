@@ -194,7 +194,7 @@ sys.exit(main(sys.argv[2:]))
 """
 
 
-@pytest.mark.parametrize("module", ["stringcontact.cli.study", "petsc4py", "dolfinx"])
+@pytest.mark.parametrize("module", ["stringcontact.scene.toml", "petsc4py", "dolfinx"])
 def test_ctrl_c_during_start_up_is_one_line_and_exit_130(tmp_path, module):
     out = tmp_path / "out"
     argv = ["run", "example1", *SMALL, "--out", str(out)]

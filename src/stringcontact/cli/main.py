@@ -49,7 +49,11 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"{root}: error: {sub + ': ' if sub else ''}{one_line(message)}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv=None) -> argparse.ArgumentParser:
+    """The command line's parser. The subcommands of `SUBCOMMANDS` get their arguments only when `argv` (default:
+    the process's own) names them: their modules import NumPy and more, 0.08 s that `stringcontact run` would
+    spend before it starts its picture process (docs/performance.md)."""
+    named = set(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="stringcontact", description="Inelastic contact of a viscoelastic string with an obstacle.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -85,6 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("scene")
     for name, (module, help_text) in SUBCOMMANDS.items():
         sub_parser = sub.add_parser(name, help=help_text)
+        if name not in named:
+            continue
         try:
             importlib.import_module(module).add_arguments(sub_parser)
         except Exception as exc:  # noqa: BLE001 - one broken subcommand must not take `run` down with it
@@ -426,7 +432,7 @@ def _stop_signals():
 
 
 def _main(argv) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser(argv).parse_args(argv)
     sys.argv = [_utf8_text(a) for a in sys.argv]  # after parsing: the args keep the bytes the user gave
     if getattr(args, "_unavailable", None):
         _error(f"the '{args.command}' command is unavailable ({args._unavailable})")

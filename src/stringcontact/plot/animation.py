@@ -16,7 +16,7 @@ import numpy as np
 from PIL import Image
 
 from ..io.publish import atomic_path
-from .charts import WINDOW_SIZE
+from .catalogue import WINDOW_SIZE
 from .mesh_pictures import (
     _every_kth,
     _font_file,

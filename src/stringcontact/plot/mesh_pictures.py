@@ -23,9 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from ..io.publish import atomic_path
+from .catalogue import WINDOW_SIZE
 from .charts import (
     CONTACT_COLOUR,
-    WINDOW_SIZE,
+    PNG_COMPRESSION,
     obstacle_name,
     obstacle_profile,
     panels_note,
@@ -76,9 +77,14 @@ def _title(p, text: str) -> None:
 
 
 def _screenshot(p, path: Path) -> None:
+    from PIL import Image
+
+    try:
+        image = p.screenshot(None, return_img=True)  # the pixels pyvista would write; Pillow writes them at our level
+    finally:
+        p.close()
     with atomic_path(path) as tmp:  # a picture is either complete or absent
-        p.screenshot(str(tmp))
-    p.close()
+        Image.fromarray(image).save(tmp, format="PNG", compress_level=PNG_COMPRESSION)
 
 
 def nice_ticks(low: float, high: float, most: int = 5) -> np.ndarray:

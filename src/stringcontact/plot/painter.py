@@ -14,7 +14,7 @@ costliest first, so that the two cores finish together. Neither process imports 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
+import gc
 import json
 import os
 import pickle
@@ -28,17 +28,12 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
-from .viz import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
+from .catalogue import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
 
 #: the order in which the processes take the pictures: costliest first (benchmarks/bench_pictures.py), so that
 #: the last picture taken is a short one and both cores finish at about the same time
 BY_COST = ("membrane.gif", "space_time.png", "membrane.png", "energy.png", "snapshots.png", "contact_set.png",
            "contact_area.png", "velocity_field.png")
-#: arrays at least this large are handed over as .npy files mapped into memory (`np.load(mmap_mode="r")`):
-#: pickling Example 1's 32 MB of rows and unpickling them in the painter took 0.06-0.12 s; mapping costs nothing
-MAPPED_BYTES = 1 << 20
 
 
 class PictureProcess:
@@ -89,6 +84,8 @@ class PictureProcess:
         if not names:  # none of its pictures is a picture of this run
             self.cancel()
             return False
+        from .payload import write_payload  # NumPy: loaded by the run long before it sends
+
         try:
             write_payload(Path(self.folder), result, (str(folder), tuple(window_size), names))
             self.names = names
@@ -136,42 +133,6 @@ def _until_closed(pipe, timeout: float) -> None:
             pass
 
 
-# --- the payload: the Result, its large arrays as files mapped by both processes ---------------------
-
-
-def write_payload(folder: Path, result, job: tuple) -> None:
-    """`result` and `job` (output folder, window size, names) into `folder`: each large array of the Result
-    as NumPy's .npy, the rest pickled; payload.pickle appears last and whole (os.replace), so a reader that
-    sees it sees everything."""
-    result = dataclasses.replace(result, contact_force=np.empty((0, 0)))  # no picture shows it: less to write
-    mapped = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)
-              if isinstance(getattr(result, f.name), np.ndarray) and getattr(result, f.name).nbytes >= MAPPED_BYTES}
-    for name, values in mapped.items():
-        np.save(folder / f"{name}.npy", values, allow_pickle=False)
-    bare = dataclasses.replace(result, **dict.fromkeys(mapped))
-    part = folder / "payload.part"
-    with open(part, "wb") as f:
-        pickle.dump((bare, tuple(mapped), job), f, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(part, folder / "payload.pickle")
-
-
-def read_payload(folder: Path):
-    """(result, job) of `write_payload`; the large arrays mapped read-only from their files."""
-    with open(folder / "payload.pickle", "rb") as f:
-        bare, mapped, job = pickle.load(f)
-    arrays = {name: np.load(folder / f"{name}.npy", mmap_mode="r", allow_pickle=False) for name in mapped}
-    return dataclasses.replace(bare, **arrays), job
-
-
-def await_payload(folder: Path, parent: int):
-    """(result, job) once the payload is there; None if `parent` is gone or the folder removed first."""
-    while not (folder / "payload.pickle").exists():
-        if os.getppid() != parent or not folder.is_dir():
-            return None
-        time.sleep(0.005)
-    return read_payload(folder)
-
-
 # --- the painter process and its helper -----------------------------------------------------------
 
 
@@ -197,6 +158,8 @@ def draw_claimed(result, job: tuple, folder: Path, can_draw) -> list[str]:
 def _fork_helper(folder: Path) -> tuple[int, int]:
     """Fork the helper: it inherits this process's warm matplotlib, draws matplotlib pictures only, and
     writes the names it drew as one JSON line to the pipe whose read end is returned (with its pid)."""
+    from .payload import await_payload
+
     read, write = os.pipe()
     painter = os.getpid()
     pid = os.fork()
@@ -245,6 +208,7 @@ def main() -> None:
     """The body of `PictureProcess`: warm up (for the names it was started with), fork the helper, wait for
     the payload, draw with the helper the names the payload gives, report on stdout."""
     from . import charts, mesh_pictures
+    from .payload import await_payload
 
     folder, names, parent = Path(sys.argv[1]), tuple(sys.argv[2].split(",")), int(sys.argv[3])
     answer = os.fdopen(os.dup(1), "w")  # the reply's own channel: anything VTK prints goes to stderr instead
@@ -253,11 +217,16 @@ def main() -> None:
     try:
         if set(names) - set(MESH_PICTURES):
             charts.warm_up()
+            # The libraries' objects out of the collector's reach: a collection then walks only what a picture
+            # makes, and the forked helper does not write to their pages. The two processes' CPU for Example 1:
+            # median 2.12 against 2.17 s over 20 alternate runs (docs/performance.md)
+            gc.freeze()
             if len(names) > 1:  # before pyvista: the helper gets no EGL context and no llvmpipe threads
                 helper = _fork_helper(folder)
         threading.Thread(target=_watch, args=(folder, parent), daemon=True).start()
         if set(names) & set(MESH_PICTURES):
             mesh_pictures.warm_up()
+        gc.freeze()
         if "membrane.gif" in names:
             from . import animation  # noqa: F401 - imports Pillow before the payload comes
         job = await_payload(folder, parent)

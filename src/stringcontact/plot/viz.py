@@ -20,9 +20,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from .catalogue import (  # noqa: F401 - the names are used as viz.* by the demos and tests
+    CHART_PICTURES,
+    MEMBRANE_PICTURES,
+    MESH_PICTURES,
+    PAINTED,
+    PICTURES,
+    WINDOW_SIZE,
+    painted,
+    pictures_of,
+)
 from .charts import (  # noqa: F401 - the pictures and readings are used as viz.* by the demos and tests
     CONTACT_COLOUR,
-    WINDOW_SIZE,
     contact_area_picture,
     contact_components,
     contact_set_figure,
@@ -36,27 +45,6 @@ from .charts import (  # noqa: F401 - the pictures and readings are used as viz.
     velocity_clip,
     velocity_picture,
 )
-
-CHART_PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")  # matplotlib
-PICTURES = CHART_PICTURES + ("space_time.png",)  # of a 1-D run
-#: of a 2-D run (a membrane): contact_area.png and energy.png by matplotlib, the others by pyvista
-MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
-MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
-#: what `stringcontact run` hands to its painter process, of the pictures the run has (`painted`): all of them.
-#: The painter and its helper (`painter.main`) share them out over both cores, and the run, which would draw
-#: one at a time, imports no plotting library at all (matplotlib alone: 0.2 s on its critical path)
-PAINTED = tuple(dict.fromkeys(PICTURES + MEMBRANE_PICTURES))
-
-
-def pictures_of(result) -> tuple[str, ...]:
-    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D)."""
-    return PICTURES if result.dim == 1 else MEMBRANE_PICTURES
-
-
-def painted(result, names=PAINTED) -> tuple[str, ...]:
-    """Those of `names` that are pictures of `result`: what a painter started for `names` draws of it."""
-    return tuple(name for name in names if name in pictures_of(result))
-
 
 # --- all pictures of a run ------------------------------------------------------------------------
 
