@@ -134,3 +134,32 @@ def test_the_python_api_makes_the_missing_parents_it_is_given(tmp_path):
     only the command line's `check_target` refuses a missing parent outside the current folder."""
     out = published(tmp_path / "a" / "b", {"x.txt": "x"})
     assert (out / "x.txt").read_text() == "x"
+
+
+def test_sync_soon_tolerates_a_missing_file(tmp_path):
+    """The early sync only starts the writing; a file it cannot open is left to publishing's own fsync."""
+    from stringcontact.io.publish import sync_soon
+
+    (tmp_path / "there").write_bytes(b"x" * 4096)
+    thread = sync_soon([tmp_path / "gone", tmp_path / "there"])
+    thread.join()
+    assert not thread.is_alive() and (tmp_path / "there").read_bytes() == b"x" * 4096
+
+
+def test_a_run_starts_writing_its_data_to_disk_before_its_pictures(tmp_path, monkeypatch):
+    """solution.h5, rows.npz and diagnostics.csv, whole, go to the device while the pictures are drawn."""
+    import stringcontact as sc
+    from stringcontact.io import folder
+
+    synced, order = [], []
+    monkeypatch.setattr(folder, "sync_soon", lambda paths: synced.append([(p.name, p.stat().st_size) for p in paths]))
+
+    def draw(result, partial):
+        order.append(("pictures", len(synced)))
+
+    scene = sc.load_scene("example1").replace(nx=20, nt=40, eps=0.01)
+    sc.simulate(scene, output_dir=tmp_path / "out", pictures=draw)
+    [files] = synced
+    assert order == [("pictures", 1)]  # started before the pictures
+    assert [name for name, _ in files] == ["solution.h5", "rows.npz", "diagnostics.csv"]
+    assert {name: size for name, size in files} == {name: (tmp_path / "out" / name).stat().st_size for name, _ in files}

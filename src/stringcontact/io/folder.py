@@ -43,6 +43,7 @@ from .publish import (  # noqa: F401 - re-exported
     open_partial,
     publish_partial,
     staged_folder,
+    sync_soon,
 )
 from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
 from .signals import signals_held
@@ -244,6 +245,7 @@ class OutputWriter:
         write_diagnostics(self.partial / "diagnostics.csv", result)
         write_rows(self.partial / ROWS_FILE, result)  # what the pictures are drawn from, for `plot` (readback)
         write_view(result, self.partial, target=self.target)
+        sync_soon([self.partial / name for name in ("solution.h5", ROWS_FILE, "diagnostics.csv")])  # while drawing
         if self.pictures:
             t0 = time.perf_counter()
             self._pictures(result)
