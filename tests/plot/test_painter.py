@@ -95,6 +95,44 @@ def test_the_payload_maps_the_large_arrays_and_keeps_every_value(run, tmp_path):
     assert back.scene == res.scene and back.contact_force.size == 0  # no picture shows the force
 
 
+def test_the_payload_maps_the_rows_file_the_run_wrote(run, tmp_path):
+    """eta and velocity are mapped from the output folder's rows.npz (stored uncompressed there), not written again."""
+    from stringcontact.io.tables import write_rows
+
+    _, res = run
+    out, private = tmp_path / "out", tmp_path / "private"
+    out.mkdir(), private.mkdir()
+    write_rows(out / "rows.npz", res)
+    old = payload.MAPPED_BYTES
+    try:
+        payload.MAPPED_BYTES = res.contact.nbytes  # eta, velocity and contact are "large" here
+        payload.write_payload(private, res, (str(out), (10, 10), ("energy.png",)))
+    finally:
+        payload.MAPPED_BYTES = old
+    assert sorted(p.name for p in private.iterdir()) == ["contact.npy", "payload.pickle"]  # contact: compressed there
+    back, _ = payload.read_payload(private)
+    for name in ("eta", "velocity", "contact"):
+        assert isinstance(getattr(back, name), np.memmap), name
+        np.testing.assert_array_equal(getattr(back, name), getattr(res, name), err_msg=name)
+
+
+def test_the_payload_writes_what_the_rows_file_does_not_hold_as_it_is(run, tmp_path):
+    """A rows file of other rows (another shape) or none at all: the arrays are written into the payload."""
+    import dataclasses
+
+    from stringcontact.io.tables import write_rows
+
+    _, res = run
+    fewer = dataclasses.replace(res, **{name: getattr(res, name)[:-1] for name in ("t", "steps", "eta", "velocity",
+                                                                                   "contact", "contact_force")})
+    write_rows(tmp_path / "rows.npz", fewer)
+    assert set(payload.stored_in(tmp_path / "rows.npz", {"eta": res.eta})) == set()
+    assert set(payload.stored_in(tmp_path / "rows.npz", {"eta": fewer.eta})) == {"eta"}
+    assert payload.stored_in(tmp_path / "absent.npz", {"eta": res.eta}) == {}
+    (tmp_path / "broken.npz").write_bytes(b"not a zip")
+    assert payload.stored_in(tmp_path / "broken.npz", {"eta": res.eta}) == {}
+
+
 def test_the_payload_carries_the_readings_the_run_made(run, tmp_path):
     """contact_measure and contact_components, computed by the run for its diagnostics, are not computed again."""
     _, res = run

@@ -11,10 +11,15 @@ import dataclasses
 import functools
 import os
 import pickle
+import struct
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
+from numpy.lib import format as npy
+
+from ..io.tables import ROWS_FILE
 
 #: arrays at least this large are handed over as .npy files mapped into memory (`np.load(mmap_mode="r")`):
 #: pickling Example 1's 32 MB of rows and unpickling them in the painter took 0.06-0.12 s; mapping costs nothing
@@ -23,20 +28,55 @@ MAPPED_BYTES = 1 << 20
 
 def write_payload(folder: Path, result, job: tuple) -> None:
     """`result` and `job` (output folder, window size, names) into `folder`: each large array of the Result
-    as NumPy's .npy, the rest pickled; payload.pickle appears last and whole (os.replace), so a reader that
-    sees it sees everything."""
+    mapped from the output folder's rows.npz where that holds it uncompressed (`stored_in`), else written as
+    NumPy's .npy; the rest pickled. payload.pickle appears last and whole (os.replace), so a reader that sees
+    it sees everything."""
     made = readings(result)
     result = dataclasses.replace(result, contact_force=np.empty((0, 0)))  # no picture shows it: less to write
-    mapped = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)
-              if isinstance(getattr(result, f.name), np.ndarray) and getattr(result, f.name).nbytes >= MAPPED_BYTES}
-    for name, values in mapped.items():
-        np.save(folder / f"{name}.npy", values, allow_pickle=False)
-    bare = dataclasses.replace(result, **dict.fromkeys(mapped))
+    large = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)
+             if isinstance(getattr(result, f.name), np.ndarray) and getattr(result, f.name).nbytes >= MAPPED_BYTES}
+    where = stored_in(Path(job[0]) / ROWS_FILE, large)
+    for name, values in large.items():
+        if name not in where:
+            np.save(folder / f"{name}.npy", values, allow_pickle=False)
+            where[name] = None
+    bare = dataclasses.replace(result, **dict.fromkeys(large))
     bare.__dict__.update(made)
     part = folder / "payload.part"
     with open(part, "wb") as f:
-        pickle.dump((bare, tuple(mapped), job), f, protocol=pickle.HIGHEST_PROTOCOL)
+        pickle.dump((bare, where, job), f, protocol=pickle.HIGHEST_PROTOCOL)
     os.replace(part, folder / "payload.pickle")
+
+
+def stored_in(npz: Path, arrays: dict) -> dict:
+    """Where the .npz file `npz` (the run's rows.npz, written just before) holds each of `arrays` as it is:
+    name -> (path, offset, dtype, shape, order) of its uncompressed member of the same dtype and shape.
+
+    Mapping eta and velocity from there spares writing Example 1's 30 MB a second time: the run's hand-over to
+    its pictures took 0.05-0.07 s of its critical path (docs/performance.md). The offset is the member's data
+    in the zip (its local header: APPNOTE 4.3.7, 30 bytes and the name and extra fields) past the .npy header
+    (`numpy.lib.format`). Members that are compressed, absent, or differ are left out: they are written."""
+    found = {}
+    try:
+        with zipfile.ZipFile(npz) as archive, open(npz, "rb") as raw:
+            for name, values in arrays.items():
+                info = archive.NameToInfo.get(f"{name}.npy")
+                if info is None or info.compress_type != zipfile.ZIP_STORED:
+                    continue
+                raw.seek(info.header_offset)
+                local = raw.read(30)
+                if local[:4] != b"PK\x03\x04":
+                    continue
+                name_length, extra_length = struct.unpack("<HH", local[26:30])
+                raw.seek(info.header_offset + 30 + name_length + extra_length)
+                version = npy.read_magic(raw)
+                read_header = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+                shape, fortran, dtype = read_header(raw)
+                if shape == values.shape and dtype == values.dtype and not dtype.hasobject:
+                    found[name] = (str(npz), raw.tell(), dtype.str, shape, "F" if fortran else "C")
+    except (OSError, ValueError, zipfile.BadZipFile, struct.error):
+        return {}
+    return found
 
 
 def readings(result) -> dict:
@@ -50,8 +90,10 @@ def readings(result) -> dict:
 def read_payload(folder: Path):
     """(result, job) of `write_payload`; the large arrays mapped read-only from their files."""
     with open(folder / "payload.pickle", "rb") as f:
-        bare, mapped, job = pickle.load(f)
-    arrays = {name: np.load(folder / f"{name}.npy", mmap_mode="r", allow_pickle=False) for name in mapped}
+        bare, where, job = pickle.load(f)
+    arrays = {name: np.load(folder / f"{name}.npy", mmap_mode="r", allow_pickle=False) if at is None
+              else np.memmap(at[0], dtype=np.dtype(at[2]), mode="r", offset=at[1], shape=at[3], order=at[4])
+              for name, at in where.items()}
     result = dataclasses.replace(bare, **arrays)
     result.__dict__.update(readings(bare))
     return result, job
