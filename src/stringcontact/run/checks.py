@@ -117,7 +117,8 @@ def penetration_check(result) -> dict:
     if getattr(result, "has_rows", True):
         eta = np.asarray(result.eta, dtype=float)
         velocity = np.asarray(result.velocity, dtype=float)
-        v_max = float(np.max(np.abs(velocity))) if velocity.size else 0.0
+        # max |v| without the |v| array: Example 1's would be 15 MB of fresh pages, 0.03 s of the run (cProfile)
+        v_max = max(float(velocity.max()), -float(velocity.min())) if velocity.size else 0.0
         if scene.obstacle is None:  # min_eta covers every step, not only the stored ones
             depth = max(0.0, -float(result.min_eta))
             start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
