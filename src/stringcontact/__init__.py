@@ -5,10 +5,9 @@
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 
-import importlib
-
 from .errors import InstabilityError, InstabilityWarning, SceneError
 from .jitlog import quiet_compiler
+from .lazy import lazy_names
 
 quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 
@@ -31,18 +30,7 @@ _LAZY = {
     "Storage": "run.options",
     "Output": "run.options",
 }
-
-
-def __getattr__(name):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
 
 __all__ = [

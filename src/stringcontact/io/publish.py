@@ -278,12 +278,16 @@ def _umask() -> int:
 def _fsync_tree(folder: Path) -> None:
     for p in folder.iterdir():
         if p.is_file():
-            fd = os.open(p, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
+            _fsync_file(p)
     _fsync_dir(folder)
+
+
+def _fsync_file(path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def sync_soon(paths) -> threading.Thread:
@@ -297,11 +301,7 @@ def sync_soon(paths) -> threading.Thread:
     def sync():
         for path in paths:
             with contextlib.suppress(OSError):
-                fd = os.open(path, os.O_RDONLY)
-                try:
-                    os.fsync(fd)
-                finally:
-                    os.close(fd)
+                _fsync_file(path)
 
     thread = threading.Thread(target=sync, name="sync_soon", daemon=True)
     thread.start()

@@ -9,7 +9,7 @@ stored rows' memory), `toml` (scene files in and out), `expressions`, `names`. `
 path, kept as a re-export.
 """
 
-import importlib
+from ..lazy import lazy_names
 
 # Each name is imported from its module on first use (PEP 562): `scene.names`, which the command line reads for
 # its choices, then loads without NumPy and the rest of this package, so that `stringcontact run` starts its
@@ -22,18 +22,7 @@ _LAZY = {
     "SceneWarning": "scene",
     **dict.fromkeys(("list_scenes", "load_scene", "scene_to_toml"), "toml"),
 }
-
-
-def __getattr__(name):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
 
 __all__ = [
