@@ -11,10 +11,12 @@ import numpy as np
 
 from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "most_components", "summary_dict", "write_diagnostics", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
+#: zlib's level for rows.npz's compressed members (`write_rows`)
+ZLIB_LEVEL = 1
 
 
 def clean_json(o):
@@ -104,12 +106,13 @@ def write_rows(path: Path, result) -> None:
 
     The .npz layout is NumPy's (a zip of .npy files, read by `numpy.load`), written member by member because
     np.savez compresses all members or none: zlib shrinks contact and contact_force (zero off the contact set)
-    to 3 % in 0.05 s, but eta and velocity, float64 noise, only by a fifth in 0.8 s (Example 1: 47 MB stored,
-    24.6 MB all compressed in 0.85 s, 30.5 MB this way in 0.1 s; benchmarks/bench_rows.py).
+    to 3 %, but eta and velocity, float64 noise, only by a fifth in ten times the time (Example 1: 47 MB stored,
+    24.6 MB all compressed in 0.85 s, 30.6 MB this way). The compressed members are deflated at zlib's level 1
+    (`ZLIB_LEVEL`): Example 1's rows.npz in a median 41 against 70 ms at zlib's default level 6, 30.56 against
+    30.50 MB (each write the first of a fresh process, as in a run: `benchmarks/bench_rows.py --against-numpy 10
+    --fresh`). The pictures wait for this file (`plot.payload` maps eta and velocity from it).
     """
     import zipfile
-
-    from numpy.lib import format as npy
 
     arrays = {"t": result.t, "steps": result.steps, "x": result.x, **{name: getattr(result, name) for name in FIELDS}}
     if result.dim == 2:
@@ -118,8 +121,30 @@ def write_rows(path: Path, result) -> None:
         for name, values in arrays.items():
             member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             member.compress_type = zipfile.ZIP_STORED if name in ("eta", "velocity") else zipfile.ZIP_DEFLATED
+            _set_compress_level(member, ZLIB_LEVEL)
             with archive.open(member, "w", force_zip64=True) as f:
-                npy.write_array(f, np.asarray(values), allow_pickle=False)
+                write_npy(f, np.asarray(values))
+
+
+def _set_compress_level(member, level: int) -> None:
+    """A zip member's deflate level: `ZipInfo.compress_level` from Python 3.13, `_compresslevel` before (the
+    attribute `ZipFile.write` itself sets there; `ZipFile.open` with a ZipInfo takes the level from it)."""
+    try:
+        member.compress_level = level
+    except AttributeError:  # Python 3.11 and 3.12: ZipInfo has __slots__ and the older name
+        member._compresslevel = level
+
+
+def write_npy(f, a: np.ndarray) -> None:
+    """`numpy.lib.format.write_array`'s bytes for a C-ordered array (header 1.0, then the data), the data written
+    from the array's own memory. write_array copies an array twice on its way into a zip member (an `nditer`
+    buffer, then `tobytes`, in fresh 16 MB chunks whose pages are each faulted in): Example 1's rows.npz took a
+    median 80.7 against 69.8 ms this way, both at level 6 (`bench_rows.py --against-numpy 10 --fresh`)."""
+    from numpy.lib import format as npy
+
+    a = np.ascontiguousarray(a)
+    npy.write_array_header_1_0(f, npy.header_data_from_array_1_0(a))
+    f.write(memoryview(a.reshape(-1).view(np.uint8)))
 
 
 def most_components(result) -> dict:
