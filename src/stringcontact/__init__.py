@@ -6,10 +6,12 @@
 """
 
 from .errors import InstabilityError, InstabilityWarning, SceneError
+from .fenics_versions import read_without_pkg_resources
 from .jitlog import quiet_compiler
 from .lazy import lazy_names
 
 quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
+read_without_pkg_resources()  # before UFL is imported: 55-60 ms of start-up on bookworm
 
 __version__ = "0.1.0"
 
