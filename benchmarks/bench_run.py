@@ -13,6 +13,11 @@
    XDMFFile rewrites its whole XML on every write, so the cost grows like frames².
 
     .venv/bin/python benchmarks/bench_run.py [--repeats 7] [--against /tmp/main/.venv/bin/stringcontact]
+    git archive <commit> src | tar -x -C /tmp/before        # another checkout's source, run by this venv:
+    .venv/bin/python benchmarks/bench_run.py --no-phases --repeats 20 --against-src /tmp/before
+
+With --against-src DIR the other command is this executable with DIR/src first on PYTHONPATH; the CPU seconds
+of each command (its processes' user + system, the picture processes included) are printed as well.
 """
 
 from __future__ import annotations
@@ -32,11 +37,19 @@ EXE = Path(sys.executable).with_name("stringcontact")
 KEYS = ("import", "setup", "solve", "xdmf+tables", "pictures")
 
 
-def run_cli(out: Path, *extra: str, exe: Path = EXE) -> float:
+def run_cli(out: Path, *extra: str, exe: Path = EXE, env: dict | None = None, cpu: list | None = None) -> float:
+    """The command's wall time; its CPU seconds (user + system of it and its children) appended to `cpu`."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([str(exe), "run", "example1", "--out", str(out), "--force", "--no-progress", *extra], check=True,
-                   capture_output=True)
-    return time.perf_counter() - t0
+                   capture_output=True, env=env)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if cpu is not None:
+        cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    return wall
 
 
 def phases(out: str, max_frames: int, mode: str) -> dict:
@@ -84,6 +97,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-sweep", action="store_true", help="phases at the default max_frames only")
     ap.add_argument("--no-phases", action="store_true", help="the commands only")
     ap.add_argument("--against", type=Path, help="another checkout's stringcontact executable, timed alternately")
+    ap.add_argument("--against-src", type=Path, help="another checkout (its src/ on PYTHONPATH), timed alternately")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -94,16 +108,22 @@ def main(argv=None) -> int:
     env = dict(os.environ)
     env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     tmp = Path(tempfile.mkdtemp(prefix="bench_run_"))
+    against, other_env = args.against, env
+    if args.against_src:
+        against = EXE
+        other_env = dict(env, PYTHONPATH=os.pathsep.join(filter(None, [str(args.against_src / "src"), env.get("PYTHONPATH")])))
     try:
-        run_cli(tmp / "warm")  # warms the JIT cache
-        if args.against:
-            run_cli(tmp / "warm-other", exe=args.against)
-        walls, bare, other = [], [], []
+        run_cli(tmp / "warm", env=env)  # warms the JIT cache
+        if against:
+            run_cli(tmp / "warm-other", exe=against, env=other_env)
+        walls, bare, other, cpu, other_cpu = [], [], [], [], []
         for i in range(args.repeats):
-            walls.append(run_cli(tmp / f"run{i}"))
-            if args.against:
-                other.append(run_cli(tmp / f"other{i}", exe=args.against))
-            bare.append(run_cli(tmp / f"bare{i}", "--no-pictures"))
+            pair = [lambda: walls.append(run_cli(tmp / f"run{i}", env=env, cpu=cpu))]
+            if against:  # each pair in turn order, so that neither always runs first
+                pair.append(lambda: other.append(run_cli(tmp / f"other{i}", exe=against, env=other_env, cpu=other_cpu)))
+            for call in pair if i % 2 == 0 else pair[::-1]:
+                call()
+            bare.append(run_cli(tmp / f"bare{i}", "--no-pictures", env=env))
 
         def line(name, values):
             return (f"| {name} | {statistics.median(values):.2f} | {min(values):.2f} | {max(values):.2f} |")
@@ -113,11 +133,13 @@ def main(argv=None) -> int:
         print("| command | median | min | max |\n|---|---:|---:|---:|")
         print(line("`run example1 --out DIR`", walls))
         print(line("`run example1 --out DIR --no-pictures`", bare))
-        if args.against:
-            print(line(f"`run example1 --out DIR` of {args.against}", other))
+        if against:
+            name = f"`run example1 --out DIR` of {args.against_src or against}"
+            print(line(name, other))
             ratios = sorted(a / b for a, b in zip(walls, other))  # each pair ran back to back
-            print(f"\npaired ratio this/other: median {statistics.median(ratios):.2f} "
-                  f"(range {ratios[0]:.2f}-{ratios[-1]:.2f})")
+            print(f"\npaired ratio this/other: median {statistics.median(ratios):.3f} "
+                  f"(range {ratios[0]:.2f}-{ratios[-1]:.2f}); CPU seconds, median: this {statistics.median(cpu):.2f}, "
+                  f"other {statistics.median(other_cpu):.2f}; load average {os.getloadavg()[0]:.2f} at the end")
         if args.no_phases:
             return 0
         print()
