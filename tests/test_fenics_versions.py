@@ -35,6 +35,17 @@ def test_ufl_and_ffcx_have_their_versions_and_the_real_pkg_resources_is_not_impo
 
 
 @pytest.mark.skipif(not HAS_PKG_RESOURCES, reason="pkg_resources (setuptools) is not installed")
+def test_the_stand_in_answers_find_spec_with_pkg_resources_spec():
+    out = _python("""
+        import importlib.util, sys
+        import stringcontact
+        spec = importlib.util.find_spec("pkg_resources")  # a ValueError if the module in sys.modules had no spec
+        print(spec.name, type(sys.modules["pkg_resources"]).__name__)
+    """)
+    assert out == "pkg_resources _Versions"
+
+
+@pytest.mark.skipif(not HAS_PKG_RESOURCES, reason="pkg_resources (setuptools) is not installed")
 def test_pkg_resources_imported_afterwards_is_the_real_one():
     out = _python("""
         import sys, types

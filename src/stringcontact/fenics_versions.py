@@ -43,6 +43,11 @@ class _Versions(types.ModuleType):
 def read_without_pkg_resources() -> None:
     """Stand in for `pkg_resources` until something other than UFL's and FFCx's versions is asked of it. Does
     nothing once pkg_resources or UFL is imported, or where pkg_resources is not installed."""
-    if "pkg_resources" in sys.modules or "ufl" in sys.modules or importlib.util.find_spec("pkg_resources") is None:
+    if "pkg_resources" in sys.modules or "ufl" in sys.modules:
         return
-    sys.modules["pkg_resources"] = _Versions("pkg_resources")
+    spec = importlib.util.find_spec("pkg_resources")
+    if spec is None:
+        return
+    stand_in = _Versions("pkg_resources")
+    stand_in.__spec__ = spec  # what find_spec("pkg_resources") answers while it stands in
+    sys.modules["pkg_resources"] = stand_in
