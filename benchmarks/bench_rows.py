@@ -17,9 +17,9 @@ from __future__ import annotations
 import io
 import statistics
 import sys
-import zipfile
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np

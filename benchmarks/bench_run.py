@@ -117,12 +117,12 @@ def main(argv=None) -> int:
         if against:
             run_cli(tmp / "warm-other", exe=against, env=other_env)
         walls, bare, other, cpu, other_cpu = [], [], [], [], []
+        commands = {"run": (walls, cpu, EXE, env), "other": (other, other_cpu, against, other_env)}
+        order = ["run", "other"] if against else ["run"]
         for i in range(args.repeats):
-            pair = [lambda: walls.append(run_cli(tmp / f"run{i}", env=env, cpu=cpu))]
-            if against:  # each pair in turn order, so that neither always runs first
-                pair.append(lambda: other.append(run_cli(tmp / f"other{i}", exe=against, env=other_env, cpu=other_cpu)))
-            for call in pair if i % 2 == 0 else pair[::-1]:
-                call()
+            for key in order if i % 2 == 0 else order[::-1]:  # each pair in turn order: neither always first
+                times, cpus, exe, command_env = commands[key]
+                times.append(run_cli(tmp / f"{key}{i}", exe=exe, env=command_env, cpu=cpus))
             bare.append(run_cli(tmp / f"bare{i}", "--no-pictures", env=env))
 
         def line(name, values):

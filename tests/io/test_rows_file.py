@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import struct
 import zipfile
 import zlib
 from types import SimpleNamespace
@@ -43,12 +42,9 @@ def _rows(nodes=400, rows=60):
 
 
 def _raw(path, info: zipfile.ZipInfo) -> bytes:
-    """A member's bytes as stored in the file (compressed), after its local header (APPNOTE 4.3.7)."""
+    """A member's bytes as stored in the file (compressed)."""
     with open(path, "rb") as f:
-        f.seek(info.header_offset)
-        head = f.read(30)
-        name_len, extra_len = struct.unpack("<HH", head[26:30])
-        f.seek(info.header_offset + 30 + name_len + extra_len)
+        f.seek(tables.member_offset(f, info))
         return f.read(info.compress_size)
 
 

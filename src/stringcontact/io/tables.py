@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import csv
 import math
+import struct
 from pathlib import Path
 
 import numpy as np
 
 from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "member_offset", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
@@ -145,6 +146,18 @@ def write_npy(f, a: np.ndarray) -> None:
     a = np.ascontiguousarray(a)
     npy.write_array_header_1_0(f, npy.header_data_from_array_1_0(a))
     f.write(memoryview(a.reshape(-1).view(np.uint8)))
+
+
+def member_offset(raw, info) -> int | None:
+    """Where the bytes of the zip member `info` (a `zipfile.ZipInfo`) begin in the open binary file `raw`: past
+    its local header (APPNOTE 4.3.7: 30 bytes, then the name and extra fields, whose lengths differ from the
+    central directory's); None if no local header is there. The bytes are the member's compressed ones."""
+    raw.seek(info.header_offset)
+    local = raw.read(30)
+    if local[:4] != b"PK\x03\x04":
+        return None
+    name_length, extra_length = struct.unpack("<HH", local[26:30])
+    return info.header_offset + 30 + name_length + extra_length
 
 
 def most_components(result) -> dict:

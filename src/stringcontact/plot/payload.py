@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from numpy.lib import format as npy
 
-from ..io.tables import ROWS_FILE
+from ..io.tables import ROWS_FILE, member_offset
 
 #: arrays at least this large are handed over as .npy files mapped into memory (`np.load(mmap_mode="r")`):
 #: pickling Example 1's 32 MB of rows and unpickling them in the painter took 0.06-0.12 s; mapping costs nothing
@@ -54,8 +54,8 @@ def stored_in(npz: Path, arrays: dict) -> dict:
 
     Mapping eta and velocity from there spares writing Example 1's 30 MB a second time: the run's hand-over to
     its pictures took 0.05-0.07 s of its critical path (docs/performance.md). The offset is the member's data
-    in the zip (its local header: APPNOTE 4.3.7, 30 bytes and the name and extra fields) past the .npy header
-    (`numpy.lib.format`). Members that are compressed, absent, or differ are left out: they are written."""
+    in the zip (`tables.member_offset`) past the .npy header (`numpy.lib.format`). Members that are
+    compressed, absent, or differ are left out: they are written."""
     found = {}
     try:
         with zipfile.ZipFile(npz) as archive, open(npz, "rb") as raw:
@@ -63,12 +63,10 @@ def stored_in(npz: Path, arrays: dict) -> dict:
                 info = archive.NameToInfo.get(f"{name}.npy")
                 if info is None or info.compress_type != zipfile.ZIP_STORED:
                     continue
-                raw.seek(info.header_offset)
-                local = raw.read(30)
-                if local[:4] != b"PK\x03\x04":
+                offset = member_offset(raw, info)
+                if offset is None:
                     continue
-                name_length, extra_length = struct.unpack("<HH", local[26:30])
-                raw.seek(info.header_offset + 30 + name_length + extra_length)
+                raw.seek(offset)
                 version = npy.read_magic(raw)
                 read_header = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
                 shape, fortran, dtype = read_header(raw)
