@@ -1,4 +1,5 @@
-"""The README's membrane recipe, run by ParaView itself: `xvfb-run -a pvpython tests/system/paraview_membrane.py XDMF TIME PNG`.
+"""The README's membrane recipe, run by ParaView itself:
+`xvfb-run -a -s "-screen 0 1280x1024x24 -noreset" pvpython tests/system/paraview_membrane.py XDMF TIME PNG`.
 
 Open solution.xdmf with Xdmf3ReaderT, Warp By Scalar on eta (its default direction, z, for a mesh in the
 x-y plane), colour by contact, go to time TIME. Prints one JSON line with what ParaView shows there and

@@ -1,4 +1,5 @@
-"""The README's ParaView recipe, run by ParaView itself: `xvfb-run -a pvpython tests/system/paraview_readme.py XDMF TIME PNG`.
+"""The README's ParaView recipe, run by ParaView itself:
+`xvfb-run -a -s "-screen 0 1280x1024x24 -noreset" pvpython tests/system/paraview_readme.py XDMF TIME PNG`.
 
 For each reader (Xdmf3ReaderT, Xdmf3ReaderS, XDMFReader): open solution.xdmf, Warp By Scalar with
 Scalars = eta and Normal = (0, 1, 0), colour by contact, Line Width 3, go to time TIME. Prints one JSON line
