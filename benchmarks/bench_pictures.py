@@ -12,6 +12,9 @@ picture with its helper; the wall clock from `send` to the reply, and the CPU se
 that span (from /proc before `send`, and from `getrusage` once they are gone).
 
     VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow LP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_pictures.py
+
+With `--title`, only the space-time picture, `--repeats` times each way, alternating: its title drawn by
+`mesh_pictures._title` and by pyvista's add_text(position="upper_edge") (a vtkCornerAnnotation), CPU medians.
 """
 
 from __future__ import annotations
@@ -63,10 +66,32 @@ def painted(res, out: Path, settle: float) -> tuple[float, float]:
     return cpu, wall
 
 
+def title_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
+    """(title, CPU, wall) medians of the space-time picture with each way of drawing its title, alternating."""
+    from stringcontact.plot import charts, mesh_pictures
+
+    ours = mesh_pictures._title
+
+    def annotation(p, text):
+        p.add_text(text, position="upper_edge", font_size=9, color="black", font_file=mesh_pictures._font_file())
+
+    charts.warm_up()
+    mesh_pictures.warm_up()
+    runs = {"mesh_pictures._title": [], "add_text(position='upper_edge')": []}
+    for _ in range(repeats):
+        for (name, times), title in zip(runs.items(), (ours, annotation)):
+            mesh_pictures._title = title
+            times.append(timed(lambda: mesh_pictures.space_time_picture(res, out / "space_time.png")))
+    mesh_pictures._title = ours
+    return [(f"space_time.png, title by {name}", statistics.median(r[0] for r in times),
+             statistics.median(r[1] for r in times)) for name, times in runs.items()]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--settle", type=float, default=5.0, help="seconds the painter has to warm up before `send`")
+    ap.add_argument("--title", action="store_true", help="only the space-time picture's title, two ways")
     args = ap.parse_args(argv)
     import stringcontact as sc
 
@@ -74,6 +99,8 @@ def main(argv=None) -> int:
     from stringcontact.plot import charts, mesh_pictures, viz
 
     out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
+    if args.title:
+        return _table(res, title_costs(res, out, args.repeats), args.repeats)
     rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
             ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up))]
     for name in viz.PICTURES:
@@ -92,10 +119,14 @@ def main(argv=None) -> int:
     runs = [painted(res, out, args.settle) for _ in range(args.repeats)]
     rows.append(("all pictures: painter + helper, send to reply", statistics.median(r[0] for r in runs),
                  statistics.median(r[1] for r in runs)))
-    print(f"Example 1, {len(res.t)} stored rows, {len(res.x)} nodes; medians of {args.repeats}\n")
+    return _table(res, rows, args.repeats)
+
+
+def _table(res, rows, repeats: int) -> int:
+    print(f"Example 1, {len(res.t)} stored rows, {len(res.x)} nodes; medians of {repeats}\n")
     print("| step | CPU [s] | wall [s] |\n|---|---:|---:|")
     for name, cpu, wall in rows:
-        print(f"| {name} | {cpu:.2f} | {wall:.2f} |")
+        print(f"| {name} | {cpu:.3f} | {wall:.3f} |")
     return 0
 
 

@@ -72,8 +72,62 @@ def _plotter(window_size, **layout):
     return p
 
 
-def _title(p, text: str) -> None:
-    p.add_text(text, position="upper_edge", font_size=9, color="black", font_file=_font_file())
+#: vtkCornerAnnotation's sizing (VTK 9): the largest size up to FIT whose text fits 90 % of the panel's height,
+#: then int(size ** NONLINEAR * linear), drawn only from SMALLEST up, MARGIN pixels below the top edge
+ANNOTATION = {"FIT": 100, "NONLINEAR": 0.35, "SMALLEST": 6, "MARGIN": 5, "START": 12}
+
+
+def _title(p, text: str, font_size: int = 9) -> None:
+    """`text` centred at the top of the current panel, as pyvista's add_text(position="upper_edge") draws it.
+
+    That annotation (vtkCornerAnnotation) picks its size by growing the font one point at a time up to 100 and
+    measuring its eight corner texts at each size: 46 ms of the 0.28 s space-time picture (CPU, medians of 7,
+    `benchmarks/bench_pictures.py --title`). Here the same search bisects over the one text (about 8 measures
+    instead of 700), and the same mapper and actor draw it at the same place: identical pixels
+    (tests/plot/test_title.py).
+    """
+    from vtkmodules.vtkRenderingCore import vtkActor2D, vtkTextMapper
+
+    prop = _pyvista().TextProperty(color="black", font_file=_font_file())
+    prop.SetJustificationToCentered()
+    prop.SetVerticalJustificationToTop()
+    mapper = vtkTextMapper()
+    mapper.SetInput(text)
+    mapper.SetTextProperty(prop)
+    width, height = p.renderer.GetSize()
+    size = _annotation_size(mapper, p.renderer, min(int(0.9 * height), height * (text.count("\n") + 1)))
+    size = int(size ** ANNOTATION["NONLINEAR"] * (font_size // 2))  # pyvista's linear factor: font_size // 2
+    if size < ANNOTATION["SMALLEST"]:  # the annotation draws nothing then
+        return
+    prop.SetFontSize(size)
+    actor = vtkActor2D()
+    actor.SetMapper(mapper)
+    actor.SetPosition(width // 2, height - ANNOTATION["MARGIN"])
+    p.add_actor(actor, reset_camera=False, pickable=False)
+
+
+def _annotation_size(mapper, renderer, limit: int) -> int:
+    """vtkCornerAnnotation's search for the mapper's font size: up from START while the text is lower than
+    `limit` pixels (at most to FIT), then down while it is higher; bisected, the text's height rising with size."""
+    box = [0, 0]
+
+    def higher(size: int, than: int) -> bool:
+        mapper.GetTextProperty().SetFontSize(size)
+        mapper.GetSize(renderer, box)
+        return box[1] > than
+
+    size = ANNOTATION["START"]
+    if not higher(size, limit - 1):  # lower than the limit: up to the first size that reaches it
+        size = min(_first(size + 1, ANNOTATION["FIT"], lambda s: higher(s, limit - 1)), ANNOTATION["FIT"])
+    return max(_first(0, size, lambda s: higher(s, limit)) - 1, 0) if higher(size, limit) else size
+
+
+def _first(low: int, high: int, holds) -> int:
+    """The first integer in [low, high] where `holds` (False below it, True from it on), else high + 1."""
+    while low <= high:
+        middle = (low + high) // 2
+        low, high = (low, middle - 1) if holds(middle) else (middle + 1, high)
+    return low
 
 
 def _screenshot(p, path: Path) -> None:
