@@ -15,6 +15,11 @@ that span (from /proc before `send`, and from `getrusage` once they are gone).
 
 With `--title`, only the space-time picture, `--repeats` times each way, alternating: its title drawn by
 `mesh_pictures._title` and by pyvista's add_text(position="upper_edge") (a vtkCornerAnnotation), CPU medians.
+
+With `--gc`, the painter's two costs with Python's cyclic collector on and off (the painter runs without it):
+the warm-ups (charts and pyvista) in `--repeats` fresh processes each way, alternating, and Example 1's
+five pictures drawn `--repeats` times each way in one warm process (the collector on: Python's default),
+with the growth of the resident memory.
 """
 
 from __future__ import annotations
@@ -87,11 +92,59 @@ def title_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
              statistics.median(r[1] for r in times)) for name, times in runs.items()]
 
 
+WARM_UP = """
+import gc, sys, time
+if sys.argv[1] == "off":
+    gc.disable()
+c0 = time.process_time()
+from stringcontact.plot import charts, mesh_pictures
+charts.warm_up()
+mesh_pictures.warm_up()
+print(time.process_time() - c0)
+"""
+
+
+def _rss_mb() -> int:
+    with open("/proc/self/status") as status:
+        return next(int(line.split()[1]) // 1024 for line in status if line.startswith("VmRSS"))
+
+
+def gc_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
+    """(what, CPU median, memory growth median [MB] or nan) with the collector on and off, alternating."""
+    import gc
+    import subprocess
+
+    from stringcontact.plot import charts, mesh_pictures, viz
+
+    warm = {"on": [], "off": []}
+    for _ in range(repeats):
+        for mode, times in warm.items():
+            text = subprocess.run([sys.executable, "-c", WARM_UP, mode], capture_output=True, text=True, check=True).stdout
+            times.append(float(text.split()[-1]))
+    charts.warm_up()
+    mesh_pictures.warm_up()
+    gc.freeze()
+    draw = {"on": [], "off": []}
+    for _ in range(repeats):
+        for mode, runs in draw.items():
+            (gc.enable if mode == "on" else gc.disable)()
+            before, c0 = _rss_mb(), time.process_time()
+            for name in viz.PICTURES:
+                viz.draw(name, res, out)
+            runs.append((time.process_time() - c0, _rss_mb() - before))
+            gc.enable()
+            gc.collect()
+    rows = [(f"warm-ups, collector {mode} (fresh processes)", statistics.median(t), float("nan")) for mode, t in warm.items()]
+    return rows + [(f"the five pictures, collector {mode} (one process)",
+                    statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)) for mode, runs in draw.items()]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--settle", type=float, default=5.0, help="seconds the painter has to warm up before `send`")
     ap.add_argument("--title", action="store_true", help="only the space-time picture's title, two ways")
+    ap.add_argument("--gc", action="store_true", help="only the warm-ups and the pictures, collector on and off")
     args = ap.parse_args(argv)
     import stringcontact as sc
 
@@ -101,6 +154,8 @@ def main(argv=None) -> int:
     out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
     if args.title:
         return _table(res, title_costs(res, out, args.repeats), args.repeats)
+    if args.gc:
+        return _table(res, gc_costs(res, out, args.repeats), args.repeats, third="RSS growth [MB]")
     rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
             ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up))]
     for name in viz.PICTURES:
@@ -122,9 +177,9 @@ def main(argv=None) -> int:
     return _table(res, rows, args.repeats)
 
 
-def _table(res, rows, repeats: int) -> int:
+def _table(res, rows, repeats: int, third: str = "wall [s]") -> int:
     print(f"Example 1, {len(res.t)} stored rows, {len(res.x)} nodes; medians of {repeats}\n")
-    print("| step | CPU [s] | wall [s] |\n|---|---:|---:|")
+    print(f"| step | CPU [s] | {third} |\n|---|---:|---:|")
     for name, cpu, wall in rows:
         print(f"| {name} | {cpu:.3f} | {wall:.3f} |")
     return 0
