@@ -81,10 +81,10 @@ def _title(p, text: str, font_size: int = 9) -> None:
     """`text` centred at the top of the current panel, as pyvista's add_text(position="upper_edge") draws it.
 
     That annotation (vtkCornerAnnotation) picks its size by growing the font one point at a time up to 100 and
-    measuring its eight corner texts at each size: 46 ms of the 0.28 s space-time picture (CPU, medians of 7,
-    `benchmarks/bench_pictures.py --title`). Here the same search bisects over the one text (about 8 measures
-    instead of 700), and the same mapper and actor draw it at the same place: identical pixels
-    (tests/plot/test_title.py).
+    measuring its eight corner texts at each size: the space-time picture took 0.294 against 0.249 CPU-s
+    (medians of 9, `benchmarks/bench_pictures.py --title --repeats 9`). Here the same search bisects over the
+    one text (about 8 measures instead of 700), and the same mapper and actor draw it at the same place:
+    identical pixels (tests/plot/test_title.py).
     """
     from vtkmodules.vtkRenderingCore import vtkActor2D, vtkTextMapper
 
@@ -95,7 +95,8 @@ def _title(p, text: str, font_size: int = 9) -> None:
     mapper.SetInput(text)
     mapper.SetTextProperty(prop)
     width, height = p.renderer.GetSize()
-    size = _annotation_size(mapper, p.renderer, min(int(0.9 * height), height * (text.count("\n") + 1)))
+    # 90 % of the panel's height; the annotation's other bound, a line's height (the panel's) per line, is never lower
+    size = _annotation_size(mapper, p.renderer, int(0.9 * height))
     size = int(size ** ANNOTATION["NONLINEAR"] * (font_size // 2))  # pyvista's linear factor: font_size // 2
     if size < ANNOTATION["SMALLEST"]:  # the annotation draws nothing then
         return
