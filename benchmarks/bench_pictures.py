@@ -20,6 +20,10 @@ With `--gc`, the painter's two costs with Python's cyclic collector on and off (
 the warm-ups (charts and pyvista) in `--repeats` fresh processes each way, alternating, and Example 1's
 five pictures drawn `--repeats` times each way in one warm process (the collector on: Python's default),
 with the growth of the resident memory.
+
+With `--vtk-search`, only pyvista's import and warm-up picture, after matplotlib's warm-up as in the painter,
+in `--repeats` fresh processes each way, alternating: VTK's own module search (a glob of its folder per module
+and extension) and `vtk_modules.search_once` (each folder listed once); CPU medians and minima.
 """
 
 from __future__ import annotations
@@ -104,6 +108,32 @@ print(time.process_time() - c0)
 """
 
 
+VTK_SEARCH = """
+import sys, time
+from stringcontact.plot import charts, mesh_pictures
+charts.warm_up()  # as the painter: matplotlib first, then pyvista
+if sys.argv[1] == "vtk":
+    mesh_pictures.search_once = lambda: False  # VTK's own search
+c0 = time.process_time()
+mesh_pictures.warm_up()
+print(time.process_time() - c0)
+"""
+
+
+def vtk_search_costs(repeats: int) -> list[tuple[str, float, float]]:
+    """(what, CPU median, min): pyvista's import and warm-up picture with VTK's module search and with
+    `vtk_modules.search_once`, alternating fresh processes."""
+    import subprocess
+
+    runs = {"vtk": [], "once": []}
+    for _ in range(repeats):
+        for way, times in runs.items():
+            text = subprocess.run([sys.executable, "-c", VTK_SEARCH, way], capture_output=True, text=True, check=True).stdout
+            times.append(float(text.split()[-1]))
+    names = {"vtk": "VTK's search (a glob per module and extension)", "once": "vtk_modules.search_once"}
+    return [(f"import pyvista + warm-up, {names[way]}", statistics.median(t), min(t)) for way, t in runs.items()]
+
+
 def _rss_mb() -> int:
     with open("/proc/self/status") as status:
         return next(int(line.split()[1]) // 1024 for line in status if line.startswith("VmRSS"))
@@ -145,7 +175,10 @@ def main(argv=None) -> int:
     ap.add_argument("--settle", type=float, default=5.0, help="seconds the painter has to warm up before `send`")
     ap.add_argument("--title", action="store_true", help="only the space-time picture's title, two ways")
     ap.add_argument("--gc", action="store_true", help="only the warm-ups and the pictures, collector on and off")
+    ap.add_argument("--vtk-search", action="store_true", help="only pyvista's warm-up, VTK's module search two ways")
     args = ap.parse_args(argv)
+    if args.vtk_search:
+        return _table(None, vtk_search_costs(args.repeats), args.repeats, third="min [s]")
     import stringcontact as sc
 
     res = sc.simulate(sc.load_scene("example1"), progress=False)
@@ -178,7 +211,8 @@ def main(argv=None) -> int:
 
 
 def _table(res, rows, repeats: int, third: str = "wall [s]") -> int:
-    print(f"Example 1, {len(res.t)} stored rows, {len(res.x)} nodes; medians of {repeats}\n")
+    print(f"Example 1, {len(res.t)} stored rows, {len(res.x)} nodes; " if res is not None else "", end="")
+    print(f"medians of {repeats}\n")
     print(f"| step | CPU [s] | {third} |\n|---|---:|---:|")
     for name, cpu, wall in rows:
         print(f"| {name} | {cpu:.3f} | {wall:.3f} |")

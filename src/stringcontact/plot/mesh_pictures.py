@@ -34,6 +34,7 @@ from .charts import (
     snapshot_rows,
     without_axes3d_warning,
 )
+from .vtk_modules import search_once
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"
@@ -43,6 +44,7 @@ MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 def _pyvista():
     if "DISPLAY" not in os.environ:  # EGL needs no display; on a desktop VTK's default window works too
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    search_once()  # VTK's module search lists its folder once, not twice per module (vtk_modules)
     import pyvista as pv
 
     with without_axes3d_warning():  # pyvista's colour maps import matplotlib's projections
