@@ -120,16 +120,23 @@ print(time.process_time() - c0)
 """
 
 
+def fresh_cpu(code: str, ways: tuple[str, ...], repeats: int) -> dict[str, list[float]]:
+    """The CPU seconds that `code` prints, run `repeats` times in a fresh process per way (its argv[1]),
+    the ways alternating."""
+    import subprocess
+
+    runs = {way: [] for way in ways}
+    for _ in range(repeats):
+        for way, times in runs.items():
+            text = subprocess.run([sys.executable, "-c", code, way], capture_output=True, text=True, check=True).stdout
+            times.append(float(text.split()[-1]))
+    return runs
+
+
 def vtk_search_costs(repeats: int) -> list[tuple[str, float, float]]:
     """(what, CPU median, min): pyvista's import and warm-up picture with VTK's module search and with
     `vtk_modules.search_once`, alternating fresh processes."""
-    import subprocess
-
-    runs = {"vtk": [], "once": []}
-    for _ in range(repeats):
-        for way, times in runs.items():
-            text = subprocess.run([sys.executable, "-c", VTK_SEARCH, way], capture_output=True, text=True, check=True).stdout
-            times.append(float(text.split()[-1]))
+    runs = fresh_cpu(VTK_SEARCH, ("vtk", "once"), repeats)
     names = {"vtk": "VTK's search (a glob per module and extension)", "once": "vtk_modules.search_once"}
     return [(f"import pyvista + warm-up, {names[way]}", statistics.median(t), min(t)) for way, t in runs.items()]
 
@@ -142,15 +149,10 @@ def _rss_mb() -> int:
 def gc_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
     """(what, CPU median, memory growth median [MB] or nan) with the collector on and off, alternating."""
     import gc
-    import subprocess
 
     from stringcontact.plot import charts, mesh_pictures, viz
 
-    warm = {"on": [], "off": []}
-    for _ in range(repeats):
-        for mode, times in warm.items():
-            text = subprocess.run([sys.executable, "-c", WARM_UP, mode], capture_output=True, text=True, check=True).stdout
-            times.append(float(text.split()[-1]))
+    warm = fresh_cpu(WARM_UP, ("on", "off"), repeats)
     charts.warm_up()
     mesh_pictures.warm_up()
     gc.freeze()
