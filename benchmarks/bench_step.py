@@ -17,8 +17,11 @@ paper's is `bench_solver.numpy_peer`; the others are below: splu, vectorised rig
 contact step, the same stored rows), run `--repeats` times, alternately. `--check-peers` first: every peer's η
 against `simulate`'s at every stored row. "µs/step" is `simulate`'s time loop (`timings["solve"]`: the steps and
 the stored rows, no output) over the steps; the peer's is its whole loop. Medians over all runs; "ratio to its
-peer" is the median of the ratios of runs made next to each other. The compiled limit (a C Thomas-algorithm loop,
-docs/performance.md) is 33.5 µs. Prints a Markdown table, with `uptime`'s load before and after.
+peer" is the median of the ratios of runs made next to each other. The compiled limit is measured in the same
+process, beside each run of the paper's scheme (`compiled_peer.py`: a C loop of the same scheme with the system's
+compiler, -O3 -march=native): the solve alone (the issue's "Thomas loop") and the same with the energy identity
+that every scheme books per step; the last two columns are the ratios to them. Prints a Markdown table, with
+`uptime`'s load before and after.
 """
 
 from __future__ import annotations
@@ -205,12 +208,13 @@ def peer_of(name: str, refactor: str = "splu"):
 def child(repeats: int, refactor: str) -> dict:
     import warnings
 
+    from compiled_peer import build, compiled_peer
     from mpi4py import MPI
 
     import stringcontact as sc
 
-    scene = sc.load_scene("example1")
-    times = {key: [] for name, _ in RUNS for key in (name, f"{name} peer")}
+    scene, lib = sc.load_scene("example1"), build()
+    times = {key: [] for name, _ in RUNS for key in (name, f"{name} peer")} | {"compiled": [], "compiled, energies": []}
     for _ in range(repeats + 1):  # the first round warms up (JIT cache, page faults) and is not counted
         for name, kw in RUNS:
             with warnings.catch_warnings():
@@ -220,6 +224,9 @@ def child(repeats: int, refactor: str) -> dict:
             t0 = time.perf_counter()
             peer_of(name, refactor)(scene, res.steps)
             times[f"{name} peer"].append((time.perf_counter() - t0) / scene.nt * 1e6)
+            if name == "paper":
+                for key, energies in (("compiled", False), ("compiled, energies", True)):
+                    times[key].append(compiled_peer(lib, scene, res.steps, energies)[3] / scene.nt * 1e6)
     return {"file": sc.__file__, **{k: v[1:] for k, v in times.items()}}
 
 
@@ -241,6 +248,10 @@ def check_peers(refactor: str) -> int:
         d_eta, d_v = np.max(np.abs(eta - res.eta)), np.max(np.abs(v - res.velocity))
         print(f"{name}: max |Δη| {d_eta:.2e}, max |Δv| {d_v:.2e} over {len(res.steps)} stored rows")
         worst = max(worst, d_eta)
+        if name == "paper":  # the compiled loop, and its energy ledger against simulate's
+            from compiled_peer import build, check
+
+            worst = max(worst, check(build(), scene, res))
     return 1 if worst > 1e-6 else 0
 
 
@@ -438,15 +449,22 @@ def main(argv=None) -> int:
     for label, rounds in results.items():
         print(f"{label}: {rounds[0]['file']}")
     print()
-    print("| checkout | scheme | µs/step | its NumPy peer [µs/step] | ratio to its peer | ratio to compiled (33.5 µs) |")
-    print("|---|---|---:|---:|---:|---:|")
     for label, rounds in results.items():
+        solve, ledger = ([t for r in rounds for t in r[key]] for key in ("compiled", "compiled, energies"))
+        print(f"{label}: compiled limit {statistics.median(solve):.1f} µs/step (solve alone), "
+              f"{statistics.median(ledger):.1f} µs/step (with the energy identity)")
+    print()
+    print("| checkout | scheme | µs/step | its NumPy peer [µs/step] | ratio to its peer | ratio to compiled, solve alone | "
+          "ratio to compiled, with energies |")
+    print("|---|---|---:|---:|---:|---:|---:|")
+    for label, rounds in results.items():
+        solve, ledger = (statistics.median(t for r in rounds for t in r[key]) for key in ("compiled", "compiled, energies"))
         for name, _ in RUNS:
             mine = [t for r in rounds for t in r[name]]
             peer = [t for r in rounds for t in r[f"{name} peer"]]
             ratios = [a / b for a, b in zip(mine, peer)]  # runs made next to each other
             print(f"| {label} | {name} | {statistics.median(mine):.0f} | {statistics.median(peer):.0f} | "
-                  f"{statistics.median(ratios):.2f} | {statistics.median(mine) / 33.5:.1f} |")
+                  f"{statistics.median(ratios):.2f} | {statistics.median(mine) / solve:.1f} | {statistics.median(mine) / ledger:.1f} |")
     return 0
 
 
