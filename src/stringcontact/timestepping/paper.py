@@ -164,14 +164,22 @@ class Scheme(Base):
         # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
         # flags and arrays read every step are attributes of the scheme set once in __init__ (not s.ops.m_force,
         # s.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and 0.990 in three passes of
-        # benchmarks/bench_step.py --loop, docs/performance.md).
-        dt = self.dt
-        eta_new, eta, eta_old = self.eta_new, self.eta_now, self.eta_old
-        v_new, v = self.v_new, self.v_now
-        KC_new, KC_old, M_v_new, M_v = self.KC_new, self.KC_old, self.M_v_new, self.M_v
-        b, b_a = self.rhs
-        e0, em = eta[1], eta_old[1]
-        env = self.env
+        # benchmarks/bench_step.py --loop, docs/performance.md). The four parts as methods cost 1 % (paired
+        # 1.010 and 1.011 against the step written as one function): kept, for a step that reads on one screen.
+        e0, em = self.eta_now[1], self.eta_old[1]
+        self._right_hand_side(e0, em)
+        if self.iterative:  # CG starts from the guess 2η^n − η^{n−1}
+            np.subtract(e0, em, out=self.eta_new[1])
+            np.add(self.eta_new[1], e0, out=self.eta_new[1])
+        self.lu.solve(self.rhs[0], self.eta_new[0])
+        terms = self._energy_terms(e0)
+        self._rotate()
+        return terms
+
+    def _right_hand_side(self, e0, em) -> None:
+        """b = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n (+ the load), the ends held; F^n is the law at
+        (η^n, η^{n−1}), or with the semi-implicit penalty its known part."""
+        env, b_a = self.env, self.rhs[1]
         env[self.key_eta], env[self.key_eta_old] = e0, em  # the law's η and η_old (`NodalLaws.set`)
         f_applied = self.by_v[1]
         if self.explicit:
@@ -186,28 +194,25 @@ class Scheme(Base):
             two, two_a = self.two_steps
             np.subtract(e0, em, out=two_a)
             two_a += e0
-            self.Ms.mult(two, b)
-            b_a *= 1.0 / dt**2
-        b_a += KC_old[1][1]  # (C/Δt) η^n
+            self.Ms.mult(two, self.rhs[0])
+            b_a *= 1.0 / self.dt**2
+        b_a += self.KC_old[1][1]  # (C/Δt) η^n
         b_a += f_applied
         if self.has_load:
             b_a += self.load
         self.hold_ends(b_a)
-        if self.iterative:  # CG starts from the guess 2η^n − η^{n−1}
-            np.subtract(e0, em, out=eta_new[1])
-            np.add(eta_new[1], e0, out=eta_new[1])
-        self.lu.solve(b, eta_new[0])
 
-        # Diagnostics of the step n → n+1: the discrete energy identity, term by term.
-        e1, v1 = eta_new[1], v_new[1]
+    def _energy_terms(self, e0):
+        """The step n → n+1's terms of the discrete energy identity (module docstring), from η^{n+1} just solved."""
+        dt, e1, v1, f_applied = self.dt, self.eta_new[1], self.v_new[1], self.by_v[1]
         np.subtract(e1, e0, out=v1)
         v1 *= 1.0 / dt
         if not self.explicit:  # the force actually applied: −m_F d v^{n+1}
             np.multiply(self.diag_w, v1, out=f_applied)
             f_applied *= -dt
-        self.KC.mult(eta_new[0], KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
-        np.subtract(KC_new[1][1], KC_old[1][1], out=self.by_v[0])  # = C v^{n+1}
-        self._apply_mass(v_new, M_v_new)
+        self.KC.mult(self.eta_new[0], self.KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
+        np.subtract(self.KC_new[1][1], self.KC_old[1][1], out=self.by_v[0])  # = C v^{n+1}
+        self._apply_mass(self.v_new, self.M_v_new)
         dots_v, dots_K = self.dots_v, self.dots_K
         np.einsum("ij,j->i", self.by_v, v1, out=dots_v)  # v¹·Cv¹, v¹·f, v¹·Mv¹ and v¹·Mv⁰ (rows 2, 3 alternate)
         np.einsum("ij,j->i", self.K_etas, e1, out=dots_K)  # η¹·Kη¹ and η¹·Kη⁰ (rows alternate)
@@ -224,21 +229,22 @@ class Scheme(Base):
             dots_v[5 - iM] + dots_K[1 - iK],
             dt * float(np.dot(v1, self.load)) if self.has_load else 0.0,
             self.stored_energy(e1),
-            -dt * float(np.dot(f_applied, v[1])),
+            -dt * float(np.dot(f_applied, self.v_now[1])),
         )
         # Contact dissipation is the force's work with the step's mean velocity, −(Δt/2) f·(v^n + v^{n+1}) (see
         # base.Scheme); the rest of the identity's work term, (Δt/2) f·(v^{n+1} − v^n), is numerical.
         split = 0.5 * (work + split)
         num = kin_new + self.kin + el_new + self.el - cross - (split - work)
         self.kin, self.el = kin_new, el_new
-
-        # rotate: η^{n−1} ← η^n ← η^{n+1}, and the new step's v, Kη, (C/Δt)η and Mv become the old ones
-        self.eta_old, self.eta_now, self.eta_new = eta, eta_new, eta_old
-        self.v_now, self.v_new = v_new, v
-        self.KC_old, self.KC_new = KC_new, KC_old
-        self.M_v, self.M_v_new = M_v_new, M_v
-        self.step_index = n + 1
         return kin_new, el_new, visc, split, num, ext, stored
+
+    def _rotate(self) -> None:
+        """η^{n−1} ← η^n ← η^{n+1}; the new step's v, K η, (C/Δt) η and M v become the old ones."""
+        self.eta_old, self.eta_now, self.eta_new = self.eta_now, self.eta_new, self.eta_old
+        self.v_now, self.v_new = self.v_new, self.v_now
+        self.KC_old, self.KC_new = self.KC_new, self.KC_old
+        self.M_v, self.M_v_new = self.M_v_new, self.M_v
+        self.step_index += 1
 
 
 __all__ = ["Scheme"]
