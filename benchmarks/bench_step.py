@@ -450,21 +450,21 @@ def main(argv=None) -> int:
         print(f"{label}: {rounds[0]['file']}")
     print()
     for label, rounds in results.items():
-        solve, ledger = ([t for r in rounds for t in r[key]] for key in ("compiled", "compiled, energies"))
+        solve, with_energies = ([t for r in rounds for t in r[key]] for key in ("compiled", "compiled, energies"))
         print(f"{label}: compiled limit {statistics.median(solve):.1f} µs/step (solve alone), "
-              f"{statistics.median(ledger):.1f} µs/step (with the energy identity)")
+              f"{statistics.median(with_energies):.1f} µs/step (with the energy identity)")
     print()
     print("| checkout | scheme | µs/step | its NumPy peer [µs/step] | ratio to its peer | ratio to compiled, solve alone | "
           "ratio to compiled, with energies |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for label, rounds in results.items():
-        solve, ledger = (statistics.median(t for r in rounds for t in r[key]) for key in ("compiled", "compiled, energies"))
+        solve, with_energies = (statistics.median(t for r in rounds for t in r[key]) for key in ("compiled", "compiled, energies"))
         for name, _ in RUNS:
             mine = [t for r in rounds for t in r[name]]
             peer = [t for r in rounds for t in r[f"{name} peer"]]
             ratios = [a / b for a, b in zip(mine, peer)]  # runs made next to each other
             print(f"| {label} | {name} | {statistics.median(mine):.0f} | {statistics.median(peer):.0f} | "
-                  f"{statistics.median(ratios):.2f} | {statistics.median(mine) / solve:.1f} | {statistics.median(mine) / ledger:.1f} |")
+                  f"{statistics.median(ratios):.2f} | {statistics.median(mine) / solve:.1f} | {statistics.median(mine) / with_energies:.1f} |")
     return 0
 
 

@@ -11,10 +11,11 @@
  * discrete energy identity (docs/performance.md, timestepping/paper.py) in the FEM's scaling, M = dx, K = T/dx
  * over every node (the ends included), C = alpha K, f = dx F, summed into the ledger
  *     E(t) = kinetic + elastic, D_visc, D_con, D_num,
- * and min eta. One extra sweep per step: K eta^{n+1} and the six dot products fused.
+ * and min eta as the driver keeps it. One extra sweep per step: K eta^{n+1} and the seven dot products fused.
  *
  * Built by benchmarks/compiled_peer.py with the system's C compiler; nothing is kept in the tree.
  */
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -26,7 +27,7 @@ static double penalty(double e, double v, double inv_eps)
 /* ledger (out, 6 doubles): kinetic, elastic, viscous, contact and numerical dissipation, min eta. eta and
  * eta_old (N + 1 nodes each): the first state, read only. */
 int march(int N, int nt, double dt, double dx, double alpha, double eps, double h_left, double h_right,
-          const double *eta, const double *eta_old, int n_stored, const long *stored, double *rows_eta, double *rows_v,
+          const double *eta, const double *eta_old, int n_stored, const int64_t *stored, double *rows_eta, double *rows_v,
           int energies, double *ledger)
 {
     const int n = N + 1; /* nodes 0..N; the unknowns are 1..N-1 */
@@ -35,8 +36,11 @@ int march(int N, int nt, double dt, double dx, double alpha, double eps, double 
     double *c = malloc(sizeof(double) * n), *inv_den = malloc(sizeof(double) * n), *d = malloc(sizeof(double) * n);
     double *K_now = malloc(sizeof(double) * n), *K_new = malloc(sizeof(double) * n);
     double *buffers[3] = {malloc(sizeof(double) * n), malloc(sizeof(double) * n), malloc(sizeof(double) * n)};
-    if (!c || !inv_den || !d || !K_now || !K_new || !buffers[0] || !buffers[1] || !buffers[2])
+    if (!c || !inv_den || !d || !K_now || !K_new || !buffers[0] || !buffers[1] || !buffers[2]) {
+        free(c), free(inv_den), free(d), free(K_now), free(K_new);
+        free(buffers[0]), free(buffers[1]), free(buffers[2]);
         return 1;
+    }
     double *now = buffers[0], *old = buffers[1], *new = buffers[2]; /* rotated, never copied */
     memcpy(now, eta, sizeof(double) * n);
     memcpy(old, eta_old, sizeof(double) * n);
@@ -50,6 +54,8 @@ int march(int N, int nt, double dt, double dx, double alpha, double eps, double 
     }
 
     double kin = 0.0, el = 0.0, visc = 0.0, con = 0.0, num = 0.0, min_eta = now[1];
+    for (int i = 2; i < N; ++i) /* as the driver: the interior at t = 0, then every node */
+        min_eta = now[i] < min_eta ? now[i] : min_eta;
     if (energies) {
         K_now[0] = (now[0] - now[1]) * inv_dx;
         K_now[N] = (now[N] - now[N - 1]) * inv_dx;
@@ -96,6 +102,8 @@ int march(int N, int nt, double dt, double dx, double alpha, double eps, double 
             K_new[0] = (new[0] - new[1]) * inv_dx;
             K_new[N] = (new[N] - new[N - 1]) * inv_dx;
             double eKe1 = new[0] * K_new[0] + new[N] * K_new[N], eKe0 = new[0] * K_now[0] + new[N] * K_now[N];
+            min_eta = new[0] < min_eta ? new[0] : min_eta;
+            min_eta = new[N] < min_eta ? new[N] : min_eta;
             for (int i = 1; i < N; ++i) {
                 double v1 = (new[i] - now[i]) * inv_dt, v0 = (now[i] - old[i]) * inv_dt;
                 double f = dx * penalty(now[i], v0, inv_eps);

@@ -7,7 +7,7 @@ system's C compiler (the one dolfinx's form compiler uses) into a temporary fold
 * ``energies=False``: the issue's loop, the solve alone: the right-hand side with the penalty, one Thomas
   sweep each way, and the rows of η and v copied out at the stored steps;
 * ``energies=True``: the same plus what `stringcontact`'s step computes besides the solve: the terms of the
-  discrete energy identity every step (K η, C v and six dot products, fused into one sweep) summed into the
+  discrete energy identity every step (K η, C v and seven dot products, fused into one sweep) summed into the
   ledger, and min η.
 
     .venv/bin/python benchmarks/compiled_peer.py                 # µs per step of both, and their η against simulate's
@@ -36,9 +36,9 @@ LEDGER = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "n
 
 def build(cflags=CFLAGS) -> ctypes.CDLL:
     """`compiled_peer.c` compiled and loaded; SystemExit naming the compiler if there is none or it fails."""
-    compiler = shutil.which("cc") or shutil.which("gcc")
+    compiler = _compiler()
     if compiler is None:
-        raise SystemExit("compiled_peer: no C compiler (cc or gcc) on PATH")
+        raise SystemExit("compiled_peer: no C compiler ($CC, Python's own CC, cc or gcc)")
     folder = Path(tempfile.mkdtemp(prefix="compiled-peer-"))
     library = folder / "compiled_peer.so"
     try:
@@ -58,17 +58,32 @@ def build(cflags=CFLAGS) -> ctypes.CDLL:
     return lib
 
 
+def _compiler() -> str | None:
+    """The C compiler Python's own extensions are built with (what cffi uses for dolfinx's forms), else cc or gcc."""
+    import os
+    import shlex
+    import sysconfig
+
+    for name in (os.environ.get("CC"), sysconfig.get_config_var("CC")):
+        if name and shutil.which(shlex.split(name)[0]):
+            return shutil.which(shlex.split(name)[0])
+    return shutil.which("cc") or shutil.which("gcc")
+
+
 def compiled_peer(lib, scene, stored_steps, energies: bool = False):
-    """(rows of η, rows of v, ledger {LEDGER name: value at T}, seconds in the loop) of the C loop on `scene`
-    (a uniform string, the paper's explicit penalty, lumped mass, ψ = 0, no load: Example 1)."""
+    """(rows of η, rows of v, ledger {LEDGER name: value at T; zeros without `energies`}, seconds in the loop) of
+    the C loop on `scene`: a uniform string, the paper's explicit penalty, lumped mass, ψ = 0, no load (Example 1).
+    `stored_steps` must increase within 0 … nt, as `simulate`'s do."""
     N, dt = scene.nx, scene.dt
+    steps = np.ascontiguousarray(stored_steps, dtype=np.int64)
+    if N < 2 or np.any(np.diff(steps) <= 0) or (steps.size and (steps[0] < 0 or steps[-1] > scene.nt)):
+        raise ValueError(f"compiled_peer: nx = {N} (>= 2) and stored steps increasing within 0 … {scene.nt}")
     x = np.linspace(0.0, scene.length, N + 1)
     eta = np.asarray(scene.initial_displacement(x), dtype=float).copy()
     eta[0], eta[-1] = scene.h_left, scene.h_right
     v0 = np.asarray(scene.initial_velocity(x), dtype=float) * np.ones(N + 1)
     v0[[0, -1]] = 0.0
     eta_old = eta - dt * v0
-    steps = np.ascontiguousarray(stored_steps, dtype=np.int64)
     rows_eta, rows_v = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
     ledger = np.zeros(len(LEDGER))
     t0 = time.perf_counter()
