@@ -78,16 +78,15 @@ def compiled_peer(lib, scene, stored_steps, energies: bool = False):
     steps = np.ascontiguousarray(stored_steps, dtype=np.int64)
     if N < 2 or np.any(np.diff(steps) <= 0) or (steps.size and (steps[0] < 0 or steps[-1] > scene.nt)):
         raise ValueError(f"compiled_peer: nx = {N} (>= 2) and stored steps increasing within 0 … {scene.nt}")
-    x = np.linspace(0.0, scene.length, N + 1)
-    eta = np.asarray(scene.initial_displacement(x), dtype=float).copy()
-    eta[0], eta[-1] = scene.h_left, scene.h_right
-    v0 = np.asarray(scene.initial_velocity(x), dtype=float) * np.ones(N + 1)
-    v0[[0, -1]] = 0.0
+    sys.path.insert(0, str(SOURCE.parent))
+    from bench_step import _string  # the NumPy peers' string at t = 0
+
+    _, dx, eta, v0, _ = _string(scene)
     eta_old = eta - dt * v0
     rows_eta, rows_v = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
     ledger = np.zeros(len(LEDGER))
     t0 = time.perf_counter()
-    failed = lib.march(N, scene.nt, dt, scene.length / N, scene.alpha, scene.eps, scene.h_left, scene.h_right, eta,
+    failed = lib.march(N, scene.nt, dt, dx, scene.alpha, scene.eps, scene.h_left, scene.h_right, eta,
                        eta_old, len(steps), steps, rows_eta, rows_v, int(energies), ledger)
     seconds = time.perf_counter() - t0
     if failed:
