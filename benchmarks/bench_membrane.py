@@ -15,7 +15,8 @@ before their costs are compared. Prints a Markdown table (docs/membranes.md) and
 benchmarks/out/membrane.json.
 
 `--solver` runs stringcontact with each linear solver (docs/linear_solvers.md): `lu` (PETSc LU, MUMPS on
-several ranks), `cg-jacobi`, `cg-amg` (hypre BoomerAMG) or `auto` (the size rule, `LU_MAX_NODES`), set
+several ranks), `cg-jacobi`, `cg-amg` (hypre BoomerAMG), `cg-amg-hmis` (BoomerAMG with HMIS coarsening and
+ext+i interpolation), `cg-gamg` (PETSc's aggregation multigrid) or `auto` (the size rule, `LU_MAX_NODES`), set
 through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve) and
 max |η − η_LU| after the last step against the serial `lu` run of the same size in the same pass (so list
 `lu` first).
@@ -64,6 +65,11 @@ SOLVERS = {
     "lu": {"ksp_type": "preonly", "pc_type": "lu"},
     "cg-jacobi": {"ksp_type": "cg", "pc_type": "jacobi"},
     "cg-amg": {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg"},
+    # Tuned multigrid, for the question whether a linear-cost solver can be the cheapest on 2 ranks (issue 28).
+    "cg-amg-hmis": {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg",
+                    "pc_hypre_boomeramg_coarsen_type": "HMIS", "pc_hypre_boomeramg_interp_type": "ext+i",
+                    "pc_hypre_boomeramg_p_max": 4, "pc_hypre_boomeramg_strong_threshold": 0.5},
+    "cg-gamg": {"ksp_type": "cg", "pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": 0},
     "auto": {},
 }
 

@@ -235,6 +235,18 @@ def test_bad_options_are_refused_in_one_line_naming_the_key(bad):
     assert "petsc_options" in message and "allowed" in message and "\n" not in message
 
 
+def test_a_name_in_capitals_is_refused_with_its_lower_case_spelling(capsys):
+    """PETSc's manual writes pc_hypre_boomeramg_P_max; its names are case-insensitive, the table's are lower case."""
+    with pytest.raises(SceneError) as info:
+        contact_scene(petsc_options={"pc_type": "hypre", "pc_hypre_boomeramg_P_max": 4})
+    assert "'pc_hypre_boomeramg_p_max'" in str(info.value) and "lower case" in str(info.value)
+    assert dict(contact_scene(petsc_options={"pc_hypre_boomeramg_p_max": 4}).petsc_options) == {
+        "pc_hypre_boomeramg_p_max": 4}
+    assert main(["run", "example1", "--nx", "20", "--nt", "20", "--petsc-option", "KSP_VIEW=1"]) == 2
+    err = capsys.readouterr().err  # a refused word stays refused in any case, without the hint
+    assert err.count("\n") == 1 and "KSP_VIEW" in err and "write it in lower case" not in err
+
+
 def test_options_round_trip_through_toml_and_the_dict():
     options = {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg", "ksp_rtol": 1e-12,
                "ksp_max_it": 500, "ksp_initial_guess_nonzero": True, "pc_hypre_boomeramg_coarsen_type": "HMIS"}

@@ -38,7 +38,7 @@ from .limits import (
 
 _PETSC_NAME = re.compile(r"[a-z][a-z0-9_]{0,59}")
 _PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_+\-]{0,31}")
-_PETSC_ALLOWED = (f"a table of at most {PETSC_MAX_OPTIONS} PETSc options named {', '.join(p + '*' for p in PETSC_PREFIXES)} "
+_PETSC_ALLOWED = (f"a table of at most {PETSC_MAX_OPTIONS} PETSc options named {', '.join(p + '*' for p in PETSC_PREFIXES)} in lower case "
                   f"(but not {', '.join(PETSC_REFUSED_NAMES)}: MUMPS' output units and out-of-core files; no viewers, "
                   "monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ + -)")
 
@@ -266,14 +266,23 @@ def check_petsc_options(value, key: str = "petsc_options") -> tuple:
 
 
 def _petsc_name(key: str, name) -> str:
-    ok = bool(isinstance(name, str) and _PETSC_NAME.fullmatch(name) and name.startswith(PETSC_PREFIXES)
-              and not any(word in name for word in PETSC_REFUSED_WORDS) and name not in PETSC_REFUSED_NAMES)
+    ok = isinstance(name, str) and _petsc_name_ok(name)
     if ok is False and name in PETSC_REFUSED_NAMES:  # within an allowed prefix: say why this one is not
         raise SceneError(f"{key}: option {name!r} is not allowed (MUMPS ICNTL 1-4 name Fortran output units, files "
                          f"fort.N, and ICNTL 22 writes out-of-core files); allowed: {_PETSC_ALLOWED}")
+    if not ok and isinstance(name, str) and name != name.lower() and _petsc_name_ok(name.lower()):
+        # PETSc's manual spells a few names with capitals (pc_hypre_boomeramg_P_max); its options are
+        # case-insensitive, and one spelling per option keeps a table free of duplicates.
+        raise SceneError(f"{key}: option {name!r} is not allowed: write it in lower case, {name.lower()!r} (PETSc's "
+                         f"option names are case-insensitive); allowed: {_PETSC_ALLOWED}")
     if not ok:
         raise SceneError(f"{key}: option {describe(name)} is not allowed; allowed: {_PETSC_ALLOWED}")
     return name
+
+
+def _petsc_name_ok(name: str) -> bool:
+    return bool(_PETSC_NAME.fullmatch(name) and name.startswith(PETSC_PREFIXES)
+                and not any(word in name for word in PETSC_REFUSED_WORDS) and name not in PETSC_REFUSED_NAMES)
 
 
 def _petsc_value(key: str, name: str, value):
