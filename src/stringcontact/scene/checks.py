@@ -266,18 +266,17 @@ def check_petsc_options(value, key: str = "petsc_options") -> tuple:
 
 
 def _petsc_name(key: str, name) -> str:
-    ok = isinstance(name, str) and _petsc_name_ok(name)
-    if ok is False and name in PETSC_REFUSED_NAMES:  # within an allowed prefix: say why this one is not
+    if isinstance(name, str) and _petsc_name_ok(name):
+        return name
+    if name in PETSC_REFUSED_NAMES:  # within an allowed prefix: say why this one is not
         raise SceneError(f"{key}: option {name!r} is not allowed (MUMPS ICNTL 1-4 name Fortran output units, files "
                          f"fort.N, and ICNTL 22 writes out-of-core files); allowed: {_PETSC_ALLOWED}")
-    if not ok and isinstance(name, str) and name != name.lower() and _petsc_name_ok(name.lower()):
+    if isinstance(name, str) and _petsc_name_ok(name.lower()):
         # PETSc's manual spells a few names with capitals (pc_hypre_boomeramg_P_max); its options are
         # case-insensitive, and one spelling per option keeps a table free of duplicates.
         raise SceneError(f"{key}: option {name!r} is not allowed: write it in lower case, {name.lower()!r} (PETSc's "
                          f"option names are case-insensitive); allowed: {_PETSC_ALLOWED}")
-    if not ok:
-        raise SceneError(f"{key}: option {describe(name)} is not allowed; allowed: {_PETSC_ALLOWED}")
-    return name
+    raise SceneError(f"{key}: option {describe(name)} is not allowed; allowed: {_PETSC_ALLOWED}")
 
 
 def _petsc_name_ok(name: str) -> bool:
