@@ -220,7 +220,7 @@ class Scheme(Base):
         self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)
         self.has_load = bool(np.any(ops.load != 0))
         self.v0 = None  # the given initial velocity, reported at t = 0
-        self.e = float(s.restitution)
+        self.e = s.restitution
         if self.e:  # the weighted position z = (η^{n+1} + e η^{n−1})/(1 + e): its level and right-hand side
             self.z = _Level(comm, n)
             rhs_z = np.zeros(n)
