@@ -54,7 +54,7 @@ for e, res in runs.items():
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 fig, axes = plt.subplots(1, 4, figsize=(16, 3.8), constrained_layout=True)
 for ax, (e, res) in zip(axes, runs.items()):
