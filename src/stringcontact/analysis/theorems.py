@@ -37,7 +37,7 @@ The checks:
                        (expected → 0 only at restitution e = 0; with e > 0 measured, verdict n/a)
 ``stress_jump``        Theorem 2.3(1): impulse in a band around the moving fronts vs −[S] across the band
 ``flat_landing``       Theorem 2.3(2): impulse per unit length of a segment landing at once vs the
-                       velocity jump (= V for the exact α = 0 case)
+                       velocity jump (= V for the exact α = 0 case; (1 + e) V with a restitution e)
 ``energy_balance``     (1.4): E(0) = E(t) + D_visc + D_con (+ the scheme's D_num), as a time series
 =====================  ==================================================================================
 

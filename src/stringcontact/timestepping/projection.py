@@ -27,20 +27,21 @@ runs one step ahead of what it reports. The one-sided (η^n − η^{n−1})/Δt 
 crosses the grid (neighbours alternate between 0 and V where the exact value is V/2) and does not converge.
 
 Restitution e ∈ [0, 1] (Paoli and Schatzman; `Setting.restitution`, the scene's ``restitution``): the step
-is the A-projection of the weighted position. With the free predictor η̃ = A⁻¹b, today's step is
-η^{n+1} = argmin_{η ≥ ψ} ½|η − η̃|²_A; with e it is z = argmin_{z ≥ ψ} ½|z − z̃|²_A for
-z = (η^{n+1} + e η^{n−1})/(1 + e), z̃ = (η̃ + e η^{n−1})/(1 + e), that is
+projects a weighted position. With the free predictor η̃ = A⁻¹b, the e = 0 step is η^{n+1} = argmin_{η ≥ ψ}
+½|η − η̃|²_A; with e it is z = argmin_{z ≥ ψ} ½|z − z̃|²_A for z = (η^{n+1} + e η^{n−1})/(1 + e) and
+z̃ = (η̃ + e η^{n−1})/(1 + e), that is
 
     A z = (b + e A η^{n−1})/(1 + e) + G,   z ≥ ψ,   G ≥ 0,   G·(z − ψ) = 0,
 
-the same complementarity problem (`ActiveSet`) with another right-hand side; then η^{n+1} = (1 + e) z − e η^{n−1},
-and A η^{n+1} = b + F with F = (1 + e) G: the momentum equation above, the same energy identity (its contact
-term now of either sign within an impact: a rebound gives back what the landing took, all of it at e = 1).
-e = 0 is the step above, computed by the same lines. On a node held at z = ψ, η^{n+1} − ψ = −e(η^{n−1} − ψ):
-Newton's law v⁺ = −e v⁻ at the node whatever α (the constraint is nodal; the viscous term C/Δt in A only
-spreads G to the free neighbours); η itself may dip below ψ by e·O(Δt |v|), and a uniformly rebounding segment
-feels no viscous force (C·1 = 0 inside it), but the velocity jump at its edges costs α|[v]|²/Δx per unit time,
-so a landing segment's restitution falls below e with viscosity (docs/explanation/restitution.md).
+the same complementarity problem (`ActiveSet`) with another right-hand side; then η^{n+1} = (1 + e) z − e η^{n−1}
+and A η^{n+1} = b + F with F = (1 + e) G: the momentum equation above and its energy identity, whose contact term
+½(1 + e)² G·(η^{n−1} − ψ) takes either sign within an impact (a rebound gives back what the landing took, all of
+it at e = 1 in the rigid limit, (1 − e²) of ½mV² lost). e = 0 runs the lines of the e = 0 step. A node held at
+z = ψ in two steps has η^{n+1} − ψ = −e(η^{n−1} − ψ) and η^{n+2} − ψ = −e(η^n − ψ): v^{n+2} = −e v^n, Newton's
+law, whatever α (the constraint is nodal; with viscosity G also carries the free neighbours' viscous pull), and
+η dips below ψ by e·O(Δt|v|). A uniformly rebounding segment feels no viscous force (C·1 = 0 inside it), but a
+velocity jump costs α|[v]|²/Δx per unit time, so with viscosity the string's restitution falls below e, more
+on finer grids (docs/explanation/restitution.md).
 
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
