@@ -16,9 +16,14 @@ noisier). The GetFEM side runs in a child process that never imports dolfinx (bo
 
     .venv/bin/python benchmarks/bench_getfem.py --out docs            # NX = 20, 40, 80 (about 2 minutes)
     .venv/bin/python benchmarks/bench_getfem.py --quick --out /tmp/g  # NX = 20 only
+    .venv/bin/python benchmarks/bench_getfem.py --out docs --getfem-rows docs/getfem_comparison.csv  # no GetFEM here
 
-Writes getfem_comparison.csv, getfem_sinking.csv and getfem_comparison.png to --out and prints the
-tables. Exits 0 with one line if GetFEM is not installed (``apt-get install python3-getfem``).
+Writes getfem_comparison.csv, getfem_sinking.csv, getfem_restitution.csv and getfem_comparison.png to --out
+and prints the tables. Exits 0 with one line if GetFEM is not installed (``apt-get install python3-getfem``),
+unless ``--getfem-rows`` gives GetFEM's rows of an earlier run (its CSV: the rows whose side is "getfem";
+GetFEM's numbers are deterministic but for the CPU time). getfem_restitution.csv: `projection` with
+restitution e = 0 and e = 1 over three periods at four resolutions (`RESTITUTION_NXS`), the energy at each
+period and its largest deviation over the run.
 """
 
 from __future__ import annotations
@@ -58,6 +63,8 @@ class Method:
     eps: Callable[[float, float], float]  # ε(h, Δt)
     mass: str = "lumped"
     dt_over_h: float = DT_OVER_H  # the schemes without a CFL limit below h may take their natural step
+    restitution: float = 0.0  # scheme projection's restitution coefficient e (passed to `simulate` when > 0)
+    nxs: tuple | None = None  # its own resolutions (default: the run's)
 
 
 METHODS = (
@@ -74,7 +81,15 @@ METHODS = (
     Method("projection, dt=h", "projection", None, "inelastic", lambda h, dt: 1e-9, dt_over_h=1.0),
     Method("newmark, semi-implicit, eps=1e-9, dt=h", "newmark", "semi-implicit", "inelastic", lambda h, dt: 1e-9,
            dt_over_h=1.0),
+    Method("projection, e=1", "projection", None, "inelastic", lambda h, dt: 1e-9, restitution=1.0,
+           nxs=(20, 40, 80, 160)),
+    Method("projection, e=1, dt=h", "projection", None, "inelastic", lambda h, dt: 1e-9, dt_over_h=1.0,
+           restitution=1.0, nxs=(20, 40, 80, 160)),
 )
+#: `restitution_rows`: scheme projection with e = 0 and 1 at these Δt/h, over RESTITUTION_PERIODS periods, at these NX.
+RESTITUTION_NXS = (20, 40, 80, 160)
+RESTITUTION_DT_OVER_H = (0.04, 0.5, 1.0)
+RESTITUTION_PERIODS = 3
 SINKING_METHODS = METHODS[0], METHODS[2]
 
 FIELDS = ("side", "method", "nx", "dt", "eps", "r", "status", "cpu_s", "err_u", "energy_ratio", "energy_landing",
@@ -183,6 +198,8 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
     kwargs = {"mass": method.mass, "model": rod.point_contact(law, h)}
     if method.penalty is not None:
         kwargs["penalty"] = method.penalty
+    if method.restitution:
+        kwargs["restitution"] = method.restitution
     if method.scheme != "paper":
         if method.scheme not in getattr(sc, "SCHEMES", ()):
             return {**row, "status": "no such scheme yet"}
@@ -195,20 +212,39 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
             res = sc.simulate(scene, max_rows=scene.nt + 1, **kwargs)
     except InstabilityError as exc:
         return {**row, "status": "refused" if exc.step == 0 else "unstable"}
-    except ValueError as exc:  # a combination the solver does not offer
+    except (ValueError, TypeError) as exc:  # a combination (or, in an older checkout, an option) the solver does not offer
         return {**row, "status": f"n/a: {exc}"[:60]}
     cpu = time.process_time() - cpu
     E = res.total_energy
     at_contact = np.argmin(np.abs(res.x - rod.CONTACT_POINT))
+    periods = np.arange(1, round(T / rod.PERIOD) + 1) * rod.PERIOD
     return {**row, "status": res.status, "cpu_s": cpu, "err_u": rod.relative_error(res.x, res.t, res.eta),
             "energy_ratio": E[-1] / E[0], "energy_landing": E[np.argmin(np.abs(res.t - LANDING))] / E[0],
             "min_u_contact": float(res.eta[:, at_contact].min()),
-            "contact_loss": res.energy["contact_dissipation"][-1] / E[0]}
+            "contact_loss": res.energy["contact_dissipation"][-1] / E[0],
+            "energy_periods": " ".join(f"{E[np.argmin(np.abs(res.t - p))] / E[0]:.6f}" for p in periods),
+            "energy_max_deviation": float(np.max(np.abs(E / E[0] - 1)))}
 
 
 def our_rows(nxs, T: float) -> list[dict]:
     ours(METHODS[0], nxs[0], DT_OVER_H, T)  # fills the form cache, so no run below pays the JIT compiler
-    return [ours(m, nx, m.dt_over_h, T) for m in METHODS for nx in nxs]
+    return [ours(m, nx, m.dt_over_h, T) for m in METHODS for nx in _resolutions(m, nxs)]
+
+
+def _resolutions(method: Method, nxs) -> tuple:
+    """The method's own resolutions with the default NXS, else (--quick, --nx) the run's."""
+    return method.nxs if method.nxs and tuple(nxs) == NXS else tuple(nxs)
+
+
+def restitution_rows(nxs, periods: int) -> list[dict]:
+    """`projection` with e = 0 and e = 1 on the rod over `periods` periods: its error and energy drift."""
+    rows = []
+    for q in RESTITUTION_DT_OVER_H:
+        for e in (0.0, 1.0):
+            method = Method(f"projection, e={e:g}", "projection", None, "inelastic", lambda h, dt: 1e-9,
+                            restitution=e)
+            rows += [ours(method, nx, q, periods * rod.PERIOD) | {"dt_over_h": q, "restitution": e} for nx in nxs]
+    return rows
 
 
 def sinking_rows(nxs, T: float) -> list[dict]:
@@ -219,7 +255,7 @@ def sinking_rows(nxs, T: float) -> list[dict]:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    keys = list(FIELDS) + [k for k in rows[0] if k not in FIELDS]
+    keys = list(dict.fromkeys([*FIELDS, *(k for row in rows for k in row)]))
     tmp = path.with_name("." + path.name)
     with tmp.open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys, restval="")
@@ -234,7 +270,8 @@ def fmt(value, spec: str) -> str:
 
 def print_table(rows: list[dict], columns: tuple[str, ...]) -> None:
     specs = {"dt": ".2e", "eps": ".2e", "r": ".3g", "cpu_s": ".2f", "err_u": ".3f", "energy_ratio": ".4f",
-             "energy_landing": ".4f", "min_u_contact": ".4f", "contact_loss": ".3f", "dt_over_h": "g"}
+             "energy_landing": ".4f", "min_u_contact": ".4f", "contact_loss": ".3f", "dt_over_h": "g",
+             "energy_max_deviation": ".2e"}
     print("| " + " | ".join(columns) + " |")
     print("|" + "---|" * len(columns))
     for row in rows:
@@ -271,13 +308,17 @@ def chart(path: Path, rows: list[dict]) -> None:
             axis.set_minor_formatter(NullFormatter())
         ax.grid(True, which="both", alpha=0.3)
     ax_nx.set_xticks(sorted({r["nx"] for r in complete}))
-    ax_nx.set_yticks([0.02, 0.03, 0.05, 0.1, 0.2])
-    ax_cpu.set_yticks([0.02, 0.03, 0.05, 0.1, 0.2])
-    fig.legend(*ax_nx.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=8)
+    ax_nx.set_yticks([0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2])
+    ax_cpu.set_yticks([0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2])
+    try:
+        fig.legend(*ax_nx.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=8)
+    except ValueError:  # matplotlib < 3.7 (Debian bookworm's 3.6) has no "outside": below the figure instead
+        fig.legend(*ax_nx.get_legend_handles_labels(), loc="upper center", bbox_to_anchor=(0.5, 0.0), ncols=2,
+                   fontsize=8)
     fig.suptitle("GetFEM's impacting rod (demo_dynamic_contact_1D): "
                  "GetFEM's schemes (squares) and stringcontact's (circles; diamonds at Δt = h)", fontsize=10)
     tmp = path.with_name("." + path.name)
-    fig.savefig(tmp, dpi=110, format="png")
+    fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")
     plt.close(fig)
     tmp.replace(path)
 
@@ -291,28 +332,45 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="NX = 20 only")
     ap.add_argument("--nx", type=int, nargs="+", help="rod cells (default 20 40 80)")
     ap.add_argument("--T", type=float, default=rod.PERIOD)
+    ap.add_argument("--getfem-rows", type=Path, metavar="CSV",
+                    help="GetFEM's rows from an earlier run's getfem_comparison.csv (when GetFEM is not installed here)")
     ap.add_argument("--getfem-side", action="store_true", help=argparse.SUPPRESS)  # the child: JSON rows on stdout
     args = ap.parse_args(argv)
     nxs = args.nx or (NXS[:1] if args.quick else NXS)
-    if importlib.util.find_spec("getfem") is None:
+    if args.getfem_rows is not None:
+        rows = stored_getfem_rows(args.getfem_rows, nxs)
+    elif importlib.util.find_spec("getfem") is None:
         print("bench_getfem: GetFEM is not installed (apt-get install python3-getfem); skipped")
         return 0
-    if args.getfem_side:
+    elif args.getfem_side:
         print(json.dumps(getfem_rows(nxs, args.T)))
         return 0
-    child = [sys.executable, __file__, "--getfem-side", "--T", str(args.T), "--nx", *map(str, nxs)]
-    rows = json.loads(subprocess.run(child, check=True, capture_output=True, text=True).stdout)
+    else:
+        child = [sys.executable, __file__, "--getfem-side", "--T", str(args.T), "--nx", *map(str, nxs)]
+        rows = json.loads(subprocess.run(child, check=True, capture_output=True, text=True).stdout)
     rows += our_rows(nxs, args.T)
     sinking = sinking_rows(SINKING_NXS[:2] if args.quick else SINKING_NXS, args.T)
+    restitution = restitution_rows(RESTITUTION_NXS[:2] if args.quick else RESTITUTION_NXS, RESTITUTION_PERIODS)
     args.out.mkdir(parents=True, exist_ok=True)
     write_csv(args.out / "getfem_comparison.csv", rows)
     write_csv(args.out / "getfem_sinking.csv", sinking)
+    write_csv(args.out / "getfem_restitution.csv", restitution)
     chart(args.out / "getfem_comparison.png", rows)
     print_table(rows, ("side", "method", "nx", "r", "status", "err_u", "energy_ratio", "energy_landing",
                        "min_u_contact", "cpu_s"))
     print_table(sinking, ("method", "dt_over_h", "nx", "r", "min_u_contact", "err_u", "energy_ratio", "contact_loss"))
-    print(f"wrote {args.out}/getfem_comparison.csv, getfem_sinking.csv, getfem_comparison.png")
+    print_table(restitution, ("method", "dt_over_h", "nx", "err_u", "energy_periods", "energy_max_deviation",
+                              "min_u_contact", "cpu_s"))
+    print(f"wrote {args.out}/getfem_comparison.csv, getfem_sinking.csv, getfem_restitution.csv, getfem_comparison.png")
     return 0
+
+
+def stored_getfem_rows(path: Path, nxs) -> list[dict]:
+    """GetFEM's rows (side "getfem") at the resolutions `nxs` from a getfem_comparison.csv this script wrote."""
+    with path.open(newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["side"] == "getfem" and int(r["nx"]) in nxs]
+    numbers = ("dt", "cpu_s", "err_u", "energy_ratio", "energy_landing", "min_u_contact")
+    return [{**r, "nx": int(r["nx"]), **{k: float(r[k]) for k in numbers}} for r in rows]
 
 
 if __name__ == "__main__":

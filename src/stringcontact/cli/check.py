@@ -24,6 +24,9 @@ def add_arguments(parser):
     parser.add_argument("--nt", type=int, help="time steps of the finest level")
     parser.add_argument("--eps", type=float, help="penalty parameter of the finest level")
     parser.add_argument("--alpha", type=float, help="viscosity alpha >= 0")
+    parser.add_argument("--restitution", type=float, metavar="E",
+                        help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0); "
+                             "(A4) is the paper's e = 0")
     from ..scene.names import SCHEMES
 
     parser.add_argument("--scheme", choices=tuple(SCHEMES),
@@ -44,7 +47,7 @@ def _scene_from_args(args):
 
     if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
         scene = flat_landing_scene(args.nx or 1000, args.nt or 1200, r=0.4)
-        changes = {k: getattr(args, k) for k in ("eps", "alpha") if getattr(args, k) is not None}
+        changes = {k: getattr(args, k) for k in ("eps", "alpha", "restitution") if getattr(args, k) is not None}
     else:
         scene = load_scene(args.scene)
         if scene.dim != 1:
@@ -52,7 +55,7 @@ def _scene_from_args(args):
 
             raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
                              "paper's theorems are about the string); allowed: a scene with domain 'interval'")
-        changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
+        changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
     return scene.replace(**changes) if changes else scene
 
 
@@ -84,7 +87,7 @@ def command(args) -> int:
         levels += f" (r = dt/eps = {scene.r:.3g})"
     else:
         levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
-    print(f"scene {scene.name}, scheme {finest.scheme}: levels {levels}")
+    print(f"scene {scene.name}, scheme {finest.scheme}, restitution e = {scene.restitution or 0:g}: levels {levels}")
     print(format_table(checks))
     print()
     print(format_trends(checks))

@@ -63,6 +63,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     run.add_argument("--nt", type=int, help="number of time steps")
     run.add_argument("--eps", type=float, help="penalty parameter ε > 0")
     run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
+    run.add_argument("--restitution", type=float, metavar="E",
+                     help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
     run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper): "
                      + "; ".join(f"{k}: {v}" for k, v in SCHEMES.items()))
     run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
@@ -199,8 +201,9 @@ def report(res) -> None:
     penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
                else "no penalty")
     grid = f"nx={scene.nx}" if res.dim == 1 else f"{scene.domain} with {len(res.x)} nodes"
+    restitution = f" restitution={scene.restitution:g}" if scene.restitution else ""
     print(f"scene {scene.name}: scheme {res.scheme}, {grid} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
-          f"mass={res.mass}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
+          f"mass={res.mass}{restitution}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
     if len(res.t) == 0:
         return
     if res.dim == 1:
@@ -250,7 +253,7 @@ def _run(args, painter=None) -> int:
     imports = time.perf_counter() - started
 
     scene = sc.load_scene(args.scene)
-    changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha") if getattr(args, k) is not None}
+    changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
     if args.petsc_option:  # into the scene, so that summary.json records the options the run used
         changes["petsc_options"] = dict(scene.petsc_options) | _petsc_options(args.petsc_option)
     if changes:
@@ -320,10 +323,12 @@ def _option_value(text: str):
 
 
 def _check_scheme_options(args, scene) -> None:
-    """--eps or --penalty with a scheme that has no penalty: refused before anything runs."""
-    from ..timestepping import scheme_class
+    """--eps or --penalty with a scheme that has no penalty, a restitution e > 0 with a scheme other than
+    projection: refused before anything runs."""
+    from ..timestepping import check_restitution, scheme_class
 
     name = args.scheme or scene.scheme or "paper"
+    check_restitution(name, scene.restitution or 0.0)
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
         given = "--eps" if args.eps is not None else "--penalty"
         raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")

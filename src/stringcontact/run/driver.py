@@ -26,7 +26,7 @@ from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..model.paper import Model, Parameters, inelastic, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
-from ..timestepping import check_model, scheme_class
+from ..timestepping import check_model, check_restitution, scheme_class
 from ..timestepping.base import NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
 from .checks import checks_of, unbalanced_message
@@ -200,7 +200,8 @@ class _Ledger:
     A dissipative law may not raise the energy at all (1e-9 E(0) per step for round-off). A conservative
     law (a contact spring, `Model.contact_energy`) held explicitly makes it wobble by O(Δt/√ε) during an
     impact, which can be most of E(0) at large Δt/ε; an instability grows exponentially, so there the
-    energy may not exceed 2 E(0).
+    energy may not exceed 2 E(0). So for a restitution e > 0 (scheme projection), whose impact gives back in its
+    later steps the energy its first steps took.
     """
 
     def __init__(self, start, conservative: bool, floor: float = 0.0):
@@ -270,6 +271,7 @@ def discretise(scene, model: Model, comm):
 
 
 def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:
+    """What the scheme is given (`Setting`), from the scene, the model's operators and the run's options."""
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
     bc, g = agreed(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
@@ -277,7 +279,7 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     options = petsc_options_of(scene, petsc_options)
     return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x,
-                   nt=scene.nt, petsc_options=options)
+                   nt=scene.nt, petsc_options=options, restitution=scene.restitution or 0.0)
 
 
 def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -373,6 +375,7 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     name = scheme or getattr(scene, "scheme", None) or "paper"
     Scheme = scheme_class(name)
     penalty, mass = Scheme.check_options(name, penalty, mass)
+    check_restitution(name, getattr(scene, "restitution", None) or 0.0)
     model = _resolve_model(model, scene)
     check_model(name, model)
     return name, Scheme, penalty, mass, model
@@ -422,7 +425,7 @@ class _Run:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
         stepper, rows = self.stepper, self.rows
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
-                              conservative=self.model.contact_energy is not None,
+                              conservative=self.model.contact_energy is not None or bool(self.scene.restitution),
                               floor=energy_roundoff(s.ops.K, stepper.eta, s.comm))
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
@@ -498,6 +501,7 @@ def simulate(
     output: Output | None = None,
     comm=MPI.COMM_WORLD,
     petsc_options: dict | None = None,
+    restitution: float | None = None,
     **keywords,
 ) -> Result:
     """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
@@ -524,8 +528,13 @@ def simulate(
     nodes; on several ranks by MUMPS up to 1e3 nodes; a string on any number of ranks) and solved by CG (Jacobi
     or AMG) otherwise (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
     by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
+
+    `restitution` (e in [0, 1], checked like the scene's key, which it replaces; the Result's scene records it):
+    scheme "projection"'s restitution coefficient (Paoli-Schatzman); every other scheme refuses e > 0.
     """
     storage, output = grouped(storage, output, keywords)
+    if restitution is not None:
+        scene = scene.replace(restitution=restitution)
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
     _check_before_mesh(scene, Scheme, penalty, model, petsc_options)
     t0 = time.perf_counter()

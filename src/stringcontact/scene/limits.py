@@ -36,7 +36,7 @@ __all__ = [
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
     "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
-    "domain", "size", "cells", "radius", "mesh_size", "mesh", "petsc_options",
+    "domain", "size", "cells", "radius", "mesh_size", "mesh", "restitution", "petsc_options",
 )
 #: The domains and the geometry keys each one takes (docs/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
@@ -65,6 +65,8 @@ BOUNDS = {
     "h": (-1e6, 1e6, False, False),
     "h_left": (-1e6, 1e6, False, False),
     "h_right": (-1e6, 1e6, False, False),
+    # scheme 'projection's restitution coefficient e (Paoli-Schatzman): 0 inelastic (the paper's (A4)), 1 elastic
+    "restitution": (0.0, 1.0, False, False),
 }
 # nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
 # (benchmarks/bench_mesh_size.py).

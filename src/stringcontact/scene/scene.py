@@ -13,6 +13,7 @@ A scene file looks like::
     load = "-10"      # optional: external load f(x), for a model that reads it
     obstacle = "0"    # optional: obstacle profile psi(x), for a model that reads it
     model = "loaded_obstacle"  # optional: a registered model's name (`stringcontact models`)
+    restitution = 0.5  # optional, scheme "projection" only: restitution coefficient e in [0, 1] (default 0)
     petsc_options = { ksp_type = "cg", pc_type = "hypre", ksp_rtol = 1e-12 }  # optional: the linear solver
 
 Usage::
@@ -95,6 +96,7 @@ class Scene:
     mesh_size: float | None = None  # disk: gmsh's largest element size
     mesh: str | None = None  # file: path of an XDMF triangle mesh
     petsc_options: tuple = ()  # (name, value) pairs for the linear solver (`check_petsc_options`)
+    restitution: float | None = None  # scheme 'projection's restitution coefficient e in [0, 1] (None: 0)
 
     @property
     def dim(self) -> int:
@@ -129,6 +131,8 @@ class Scene:
             put("model", checks.check_model(self.model))
         if self.scheme is not None:
             put("scheme", checks.check_scheme(self.scheme))
+        if self.restitution is not None:
+            put("restitution", checks.number("restitution", self.restitution))
         put("output_times", checks.check_output_times(self.output_times, self.T))
         options = self.petsc_options
         put("petsc_options", checks.check_petsc_options(dict(options) if isinstance(options, tuple) else options))
@@ -278,6 +282,8 @@ class Scene:
             d["model"] = self.model
         if self.scheme is not None:
             d["scheme"] = self.scheme
+        if self.restitution is not None:
+            d["restitution"] = self.restitution
         if self.petsc_options:
             d["petsc_options"] = dict(self.petsc_options)
         return d
@@ -290,7 +296,7 @@ class Scene:
             d["h"] = self.h
         d.update(self.fields)
         d["output_times"] = list(self.output_times)
-        d.update({key: getattr(self, key) for key in ("model", "scheme") if getattr(self, key) is not None})
+        d.update({key: getattr(self, key) for key in ("model", "scheme", "restitution") if getattr(self, key) is not None})
         if self.petsc_options:
             d["petsc_options"] = dict(self.petsc_options)
         return d
@@ -368,7 +374,7 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         eta0=checks.expression_text("eta0", data["eta0"]), v0=data["v0"], h_left=None, h_right=None, h=data.get("h"),
         output_times=tuple(output_times) if isinstance(output_times, (list, tuple)) else output_times,
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
-        scheme=data.get("scheme"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
+        scheme=data.get("scheme"), restitution=data.get("restitution"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
     )
 
@@ -430,6 +436,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         notes=data.get("notes", ""),
         model=data.get("model"),
         scheme=data.get("scheme"),
+        restitution=data.get("restitution"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
     )

@@ -28,4 +28,11 @@ def check_model(name: str, model) -> None:
         raise ValueError(f"scheme {name!r}: {why}; this model runs with scheme {' or '.join(usable) or 'none'}")
 
 
-__all__ = ["SCHEMES", "check_model", "scheme_class"]
+def check_restitution(name: str, restitution: float) -> None:
+    """ValueError (one line, naming `projection`) if scheme `name` is given a restitution e > 0 it does not take."""
+    if restitution and not scheme_class(name).RESTITUTION:
+        raise ValueError(f"restitution: scheme {name!r} takes no restitution coefficient (e = {restitution:g} given); "
+                         "only scheme 'projection' does")
+
+
+__all__ = ["SCHEMES", "check_model", "check_restitution", "scheme_class"]

@@ -72,6 +72,7 @@ class Setting:
     x: np.ndarray  # coordinates of the owned dofs
     nt: int
     petsc_options: dict | None = None  # on top of the size rule's (`solver_options`), validated by the scene
+    restitution: float = 0.0  # the restitution coefficient e, for a scheme with RESTITUTION (the scene's, checked)
 
     @property
     def n_owned(self) -> int:
@@ -102,6 +103,8 @@ class Scheme:
     """The contract. A scheme module defines ``class Scheme(base.Scheme)`` with:
 
     * ``PENALTIES``: the penalties it accepts, its default first; ``()`` when it uses no penalty (and no ε);
+    * ``RESTITUTION``: True if it takes a restitution coefficient e > 0 (`Setting.restitution`); the others
+      are refused one;
     * ``MASSES``: the mass matrices it accepts, its default first;
     * ``__init__(setting)``: assemble and factorise (set-up time);
     * ``start(eta0, v0) -> StepEnergy``: the initial state (ends already at their heights, v0 = 0 there);
@@ -113,6 +116,7 @@ class Scheme:
 
     PENALTIES: tuple = ()
     MASSES: tuple = ("lumped", "consistent")
+    RESTITUTION = False  # whether it takes a restitution coefficient e > 0 (`Setting.restitution`)
     situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
     remedy = "use a smaller dt"
 

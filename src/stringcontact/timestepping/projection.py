@@ -26,6 +26,23 @@ velocities of the leapfrog (at t = 0 the given v0), so each stored row waits for
 runs one step ahead of what it reports. The one-sided (η^n − η^{n−1})/Δt aliases where a landing front
 crosses the grid (neighbours alternate between 0 and V where the exact value is V/2) and does not converge.
 
+Restitution e ∈ [0, 1] (Paoli and Schatzman; `Setting.restitution`, the scene's ``restitution``): the step
+projects a weighted position. With the free predictor η̃ = A⁻¹b, the e = 0 step is η^{n+1} = argmin_{η ≥ ψ}
+½|η − η̃|²_A; with e it is z = argmin_{z ≥ ψ} ½|z − z̃|²_A for z = (η^{n+1} + e η^{n−1})/(1 + e) and
+z̃ = (η̃ + e η^{n−1})/(1 + e), that is
+
+    A z = (b + e A η^{n−1})/(1 + e) + G,   z ≥ ψ,   G ≥ 0,   G·(z − ψ) = 0,
+
+the same complementarity problem (`ActiveSet`) with another right-hand side; then η^{n+1} = (1 + e) z − e η^{n−1}
+and A η^{n+1} = b + F with F = (1 + e) G: the momentum equation above and its energy identity, whose contact term
+½(1 + e)² G·(η^{n−1} − ψ) takes either sign within an impact (a rebound gives back what the landing took, all of
+it at e = 1 in the rigid limit, (1 − e²) of ½mV² lost). e = 0 runs the lines of the e = 0 step. A node held at
+z = ψ in two steps has η^{n+1} − ψ = −e(η^{n−1} − ψ) and η^{n+2} − ψ = −e(η^n − ψ): v^{n+2} = −e v^n, Newton's
+law, whatever α (the constraint is nodal; with viscosity G also carries the free neighbours' viscous pull), and
+η dips below ψ by e·O(Δt|v|). A uniformly rebounding segment feels no viscous force (C·1 = 0 inside it), but a
+velocity jump costs α|[v]|²/Δx per unit time, so with viscosity the string's restitution falls below e, more
+on finer grids (docs/explanation/restitution.md).
+
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
 μ = φ·Cφ/φ·Kφ, that is Δt < μ + √(μ² + 4/λ): Δx on a uniform mesh with α = 0, more with viscosity (exact
@@ -158,6 +175,7 @@ FORCE_TOL = 1e-14
 class Scheme(Base):
     PENALTIES = ()
     MASSES = ("lumped",)
+    RESTITUTION = True
     remedy = "use a smaller dt (nt >= T / dt_max) or scheme 'newmark'"
 
     @staticmethod
@@ -203,6 +221,11 @@ class Scheme(Base):
         self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)
         self.has_load = bool(np.any(ops.load != 0))
         self.v0 = None  # the given initial velocity, reported at t = 0
+        self.e = s.restitution
+        if self.e:  # the weighted position z = (η^{n+1} + e η^{n−1})/(1 + e): its level and right-hand side
+            self.z = _Level(comm, n)
+            rhs_z = np.zeros(n)
+            self.rhs_z = (wrap(rhs_z, comm), rhs_z)
 
     def _obstacle(self) -> np.ndarray:
         """ψ at the nodes, from gap(η) = η − ψ; ValueError unless gap has slope 1 in η and gap ≤ 0 is the contact set."""
@@ -302,8 +325,11 @@ class Scheme(Base):
         if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
             np.subtract(e0.eta, em.eta, out=new.eta)
             new.eta += e0.eta
-        F, _ = self.contact_step.solve(rhs_v, new.eta_vec, self._residual(new, rhs))
-        np.maximum(F, 0.0, out=F)  # within the active set's round-off allowance
+        if self.e:
+            F = self._weighted_step(new, em, rhs)
+        else:
+            F, _ = self.contact_step.solve(rhs_v, new.eta_vec, self._residual(new, rhs))
+            np.maximum(F, 0.0, out=F)  # within the active set's round-off allowance
         d, w = np.subtract(new.eta, e0.eta, out=self.work[0]), self.work[1]  # scratch rows: no temporaries
         kin = 0.5 * float(np.dot(d, np.multiply(self.m_dt2, d, out=w)))
         el = 0.5 * float(np.dot(new.eta, e0.kc[0]))
@@ -316,6 +342,35 @@ class Scheme(Base):
         np.multiply(F, self.inv_mF, out=new.force)
         self.levels = [self.levels[3], new, e0, em]  # before is free; next → ahead → now → before
         return kin, el, visc, con, 0.0, ext, 0.0
+
+    def _weighted_step(self, new, em, rhs):
+        """Paoli and Schatzman's step with restitution e: the contact step for z = (η^{n+1} + e η^{n−1})/(1 + e),
+
+            A z = (b + e A η^{n−1})/(1 + e) + G,   z ≥ ψ,   G ≥ 0,   G·(z − ψ) = 0,
+
+        then η^{n+1} = (1 + e) z − e η^{n−1} and A η^{n+1} = b + F with F = (1 + e) G. `new` gets η^{n+1} and its
+        [K η, (C/Δt) η] (by linearity, from z's and η^{n−1}'s); `new.eta` holds the CG's first guess for η^{n+1}."""
+        e, z = self.e, self.z
+        rhs_zv, rhs_z = self.rhs_z
+        np.multiply(self.m_dt2, em.eta, out=rhs_z)  # A η^{n−1} = (M/Δt²) η^{n−1} + (C/Δt) η^{n−1}
+        rhs_z += em.kc[1]
+        rhs_z *= e
+        rhs_z += rhs
+        rhs_z /= 1.0 + e
+        self.s.hold_ends(rhs_z)  # z = g at the ends, as η^{n+1} and η^{n−1} are
+        if self.contact_step.iterative:  # z of the leapfrog's guess
+            np.multiply(e, em.eta, out=z.eta)
+            z.eta += new.eta
+            z.eta /= 1.0 + e
+        G, _ = self.contact_step.solve(rhs_zv, z.eta_vec, self._residual(z, rhs_z))
+        np.maximum(G, 0.0, out=G)
+        np.multiply(1.0 + e, z.eta, out=new.eta)
+        new.eta -= e * em.eta
+        self.s.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
+        np.multiply(1.0 + e, z.kc, out=new.kc)
+        new.kc -= e * em.kc
+        G *= 1.0 + e
+        return G
 
 
 class _Level:

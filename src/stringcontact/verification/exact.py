@@ -105,7 +105,25 @@ def _landed_profile(s, *, h, V, length):
     return np.where(upper, -w, w), dw
 
 
-def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0):
+def flat_landing_rebound_end(h, V, length):
+    r"""End :math:`l + 3t^*` of the window after the landing at :math:`t^*` in which the string, rebounding with
+    any restitution :math:`e \in [0, 1]`, stays above the obstacle (see :func:`flat_landing`)."""
+    return length + 3.0 * flat_landing_time(h, V)
+
+
+def _rebound_potential(s, *, h, V, length):
+    r"""The odd, :math:`2l`-periodic extension :math:`U` of :math:`V\,1_{(t^*, l - t^*)}` and its integral
+    :math:`\Phi(s) = \int_0^s U` (even and :math:`2l`-periodic); :math:`U` at its jumps is the mean."""
+    t_star = flat_landing_time(h, V)
+    r = np.mod(s, 2.0 * length)
+    upper = r > length
+    m = np.where(upper, 2.0 * length - r, r)
+    phi = V * np.clip(m - t_star, 0.0, length - 2.0 * t_star)
+    u = V * (np.heaviside(m - t_star, 0.5) - np.heaviside(m - (length - t_star), 0.5))
+    return np.where(upper, -u, u), phi
+
+
+def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
     r"""Exact inelastic solution for :math:`\alpha = 0`, ends at :math:`h`, :math:`\eta_0 = h`, :math:`v_0 = -V`.
 
     For :math:`t \le t^* = h/V` (d'Alembert with the odd extension of :math:`v_0`):
@@ -119,15 +137,35 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0):
 
     Since :math:`|W| \le h` the string never penetrates again. Requires :math:`h < Vl/2`.
     At :math:`t = t^*` the velocity is the pre-landing (left) limit.
+
+    With a restitution :math:`e = ` ``restitution`` :math:`\in (0, 1]` the middle rebounds with velocity
+    :math:`+eV` (Newton's law) and the string moves freely from that state: with :math:`U` the odd
+    :math:`2l`-periodic extension of :math:`V 1_{(t^*, l - t^*)}` and :math:`\Phi(s) = \int_0^s U`,
+    d'Alembert adds
+
+    .. math:: \tfrac{e}{2}[\Phi(x + \tau) - \Phi(x - \tau)] \text{ to } \eta, \qquad
+              \tfrac{e}{2}[U(x + \tau) + U(x - \tau)] \text{ to } \eta_t.
+
+    It is the solution while that free motion stays above the obstacle: the solution is
+    :math:`\eta_e = (1 - e)\eta_0 + e\eta_1`, :math:`\eta_0 \ge 0` always, and :math:`\eta_1` (e = 1) is
+    the landing run backwards for :math:`\tau \le t^*` (up to :math:`\eta = h`, :math:`\eta_t = +V`), then
+    :math:`h` plus a free motion that is :math:`\ge 0` for a time :math:`l` and comes back to :math:`h` with
+    velocity :math:`-V`, so it lands again at :math:`\tau = l + 2t^*` and not before: the window is
+    :math:`t \le l + 3t^*` (:func:`flat_landing_rebound_end`); later times are refused.
     """
     if not (h > 0 and V > 0 and length > 0):
         raise ValueError(f"need h > 0, V > 0, length > 0, got h={h}, V={V}, length={length}")
     if not h < V * length / 2:
         raise ValueError(f"the flat middle must exist at landing: need h < V*length/2, got h={h}, "
                          f"V*length/2={V * length / 2}")
+    if not 0.0 <= restitution <= 1.0:
+        raise ValueError(f"restitution must be in [0, 1], got {restitution}")
     t_star = flat_landing_time(h, V)
     tt, xx, scalar = _on_grid(t, x)
     tt, xx = np.broadcast_arrays(tt, xx)
+    if restitution > 0 and np.any(tt > flat_landing_rebound_end(h, V, length)):
+        raise ValueError(f"with restitution {restitution} the exact solution is known for t <= l + 3 h/V = "
+                         f"{flat_landing_rebound_end(h, V, length):.6g} only (the string lands again then)")
 
     before = tt <= t_star
     distance_to_end = np.minimum(xx, length - xx)
@@ -139,6 +177,11 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0):
     W_plus, dW_plus = _landed_profile(xx + tau, h=h, V=V, length=length)
     eta_after = h + 0.5 * (W_minus + W_plus)
     vel_after = 0.5 * (-dW_minus + dW_plus)
+    if restitution > 0:
+        U_minus, phi_minus = _rebound_potential(xx - tau, h=h, V=V, length=length)
+        U_plus, phi_plus = _rebound_potential(xx + tau, h=h, V=V, length=length)
+        eta_after = eta_after + 0.5 * restitution * (phi_plus - phi_minus)
+        vel_after = vel_after + 0.5 * restitution * (U_plus + U_minus)
 
     eta = np.where(before, eta_before, eta_after)
     velocity = np.where(before, vel_before, vel_after)
