@@ -26,11 +26,11 @@ def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
     add = driver._Ledger.add
     calls = {"n": 0}
 
-    def interrupt_after_the_impact(self, terms):
+    def interrupt_after_the_impact(self, terms, slack=0.0):
         calls["n"] += 1
         if calls["n"] > 70_000:  # t = 0.105: the string has landed (the round-off is booked at the impact)
             raise KeyboardInterrupt
-        return add(self, terms)
+        return add(self, terms, slack)
 
     monkeypatch.setattr(driver._Ledger, "add", interrupt_after_the_impact)
     with pytest.raises(KeyboardInterrupt) as info:

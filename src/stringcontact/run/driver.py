@@ -204,22 +204,23 @@ class _Ledger:
     later steps the energy its first steps took.
     """
 
-    def __init__(self, start, conservative: bool, floor: float = 0.0):
+    def __init__(self, start, conservative: bool, floor: float = 0.0, slack: float = 0.0):
         kin, el, _, _, _, _, stored = start
         self.kin, self.el = kin, el
         self.visc = self.con = self.num = self.ext = 0.0
         self.conservative = conservative
-        self.E_prev = self.E_ref = kin + el + stored
+        self.E_prev = self.E_ref = kin + el + stored + slack
         self.tol = max((1.0 if conservative else 1e-9) * abs(self.E_prev), floor, 1e-300)
 
-    def add(self, terms) -> str | None:
-        """Book one step's terms; the reason if the energy rose or is not finite, else None."""
+    def add(self, terms, slack: float = 0.0) -> str | None:
+        """Book one step's terms; the reason if the energy (with the scheme's `energy_slack`) rose or is not finite,
+        else None."""
         self.kin, self.el, visc, con, num, ext, stored = terms
         self.num += num
         self.visc += visc
         self.con += con
         self.ext += ext
-        E = self.kin + self.el - self.ext
+        E = self.kin + self.el - self.ext + slack
         if self.conservative:
             E += stored
         if not math.isfinite(E):
@@ -329,7 +330,7 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
             if rows.next_step == 0:
                 store(0)
             for n in range(scene.nt):  # computes step n + 1
-                why = ledger.add(stepper.step())
+                why = ledger.add(stepper.step(), stepper.energy_slack)
                 eta = stepper.eta  # once per step: a property of the scheme
                 if eta.size:
                     rows.min_eta = min(rows.min_eta, float(eta.min()))
@@ -426,7 +427,7 @@ class _Run:
         stepper, rows = self.stepper, self.rows
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
                               conservative=self.model.contact_energy is not None or bool(self.scene.restitution),
-                              floor=energy_roundoff(s.ops.K, stepper.eta, s.comm))
+                              floor=energy_roundoff(s.ops.K, stepper.eta, s.comm), slack=stepper.energy_slack)
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
 

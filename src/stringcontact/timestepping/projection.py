@@ -19,7 +19,10 @@ leapfrog's energy E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n. So the nume
 one is the first term, and −½ F·(η^{n+1} − η^{n−1}) ≥ 0 is the contact dissipation: F's work (F·gap = 0
 and gap ≥ 0 make it F·(ψ − η^{n−1})/2 ≤ 0 gained, i.e. ≥ 0 lost). F is A η^{n+1} − b on the active set,
 from the mat-vec the energy needs anyway, so a step with an unchanged active set costs one solve and one
-mat-vec, as the paper's scheme does.
+mat-vec, as the paper's scheme does. The first term is not signed step by step (v^{n+1}·C v^n can be negative):
+it is −(Δt/4)|v^{n+1} + v^n|²_C − (Δt/4)(|v^{n+1}|²_C − |v^n|²_C), so E^{n+1/2} + (Δt/4)|v^{n+1}|²_C never rises,
+while E^{n+1/2} alone may, by the change of (Δt/4)|v|²_C (Example 1 at nx = 100, Δt = Δx: by 3e-5 of itself at
+step 5). The ledger shows E^{n+1/2}; the energy guard adds that term (`energy_slack`).
 
 The stored velocity at t^n is the centred (η^{n+1} − η^{n−1})/(2Δt), the mean of the two half-step
 velocities of the leapfrog (at t = 0 the given v0), so each stored row waits for the next step: the scheme
@@ -287,13 +290,15 @@ class Scheme(Base):
         for level in (ahead, now):
             self.KC.mult(level.eta_vec, level.kc_vec)
         d = ahead.eta - now.eta
-        energies = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)), 0.5 * float(np.dot(ahead.eta, now.kc[0])))
+        kin, el, self.energy_slack = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)),
+                                                 0.5 * float(np.dot(ahead.eta, now.kc[0])),
+                                                 0.25 * float(np.dot(d, ahead.kc[1] - now.kc[1])))
         self.pending = self._advance()  # η¹: the first row's centred velocity needs it
         self.v0 = np.array(v0, dtype=float)
-        return (*energies, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return (kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
-        reported, self.pending = self.pending, self._advance()
+        (reported, self.energy_slack), self.pending = self.pending, self._advance()
         self.v0 = None
         return reported
 
@@ -334,14 +339,15 @@ class Scheme(Base):
         kin = 0.5 * float(np.dot(d, np.multiply(self.m_dt2, d, out=w)))
         el = 0.5 * float(np.dot(new.eta, e0.kc[0]))
         visc = 0.5 * float(np.dot(d, np.subtract(new.kc[1], em.kc[1], out=w)))  # (Δt/2) v¹·C(v¹ + v⁰), Δt v = η differences
+        slack = 0.25 * float(np.dot(d, np.subtract(new.kc[1], e0.kc[1], out=w)))  # (Δt/4)|v¹|²_C
         d += e0.eta
         d -= em.eta  # now η^{n+1} − η^{n−1}
         con = -0.5 * float(np.dot(F, d))
         ext = 0.5 * float(np.dot(s.ops.load, d)) if self.has_load else 0.0
-        kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
+        kin, el, visc, con, ext, slack = self.allsum(kin, el, visc, con, ext, slack)
         np.multiply(F, self.inv_mF, out=new.force)
         self.levels = [self.levels[3], new, e0, em]  # before is free; next → ahead → now → before
-        return kin, el, visc, con, 0.0, ext, 0.0
+        return (kin, el, visc, con, 0.0, ext, 0.0), slack
 
     def _weighted_step(self, new, em, rhs):
         """Paoli and Schatzman's step with restitution e: the contact step for z = (η^{n+1} + e η^{n−1})/(1 + e),
