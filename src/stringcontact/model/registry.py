@@ -15,8 +15,11 @@ are read in `scene.names`, which a scene's validation uses without importing thi
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.metadata
+import os
+import sys
 
 from ..errors import SceneError, one_line
 from ..scene.names import GROUP, check_name, registered  # noqa: F401 - GROUP re-exported
@@ -67,6 +70,40 @@ def _load_path(spec: str, Model):
         raise SceneError(f"model: {spec!r} is a {type(obj).__name__}, not a stringcontact.Model (nothing is called "
                          "to make one: name a Model object)")
     return obj
+
+
+def model_origin(spec, model) -> dict:
+    """Where the `model` that `spec` named came from, for summary.json: ``{"name", "source", ...}``.
+
+    ``source`` is ``"built-in"`` (registered by this package) or ``"entry point"`` (registered by another
+    installed package: ``package``, its ``version`` and the ``entry_point``), ``"module"`` (a
+    ``package.module:name`` typed by the user: the module's ``file`` and its ``sha256``), or ``"object"``
+    (a `Model` handed to `simulate` in Python that no imported entry point holds).
+    """
+    name = getattr(model, "name", str(spec))
+    if isinstance(spec, str) and ":" in spec and spec not in registered():
+        module = sys.modules.get(spec.partition(":")[0])
+        path = getattr(module, "__file__", None)
+        origin = {"name": name, "source": "module", "spec": spec, "file": str(path) if path else None}
+        if path and os.path.isfile(path):
+            with open(path, "rb") as f:
+                origin["sha256"] = hashlib.sha256(f.read()).hexdigest()
+        return origin
+    for registered_name, eps in registered().items():
+        (ep,) = eps[:1]
+        if spec == registered_name or (not isinstance(spec, str) and _holds(ep, model)):
+            package = _package(ep)
+            dist = getattr(ep, "dist", None)
+            return {"name": name, "source": "built-in" if package == "stringcontact" else "entry point",
+                    "entry_point": f"{registered_name} = {ep.value}", "package": package,
+                    "version": getattr(dist, "version", None)}
+    return {"name": name, "source": "object"}
+
+
+def _holds(ep, model) -> bool:
+    """Whether entry point `ep`'s object is `model`, looked up only in a module already imported."""
+    module, _, attr = ep.value.partition(":")
+    return module.strip() in sys.modules and getattr(sys.modules[module.strip()], attr.strip(), None) is model
 
 
 # --- `stringcontact models` -----------------------------------------------------------------------------------
