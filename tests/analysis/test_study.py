@@ -222,3 +222,16 @@ def test_stability_sweep_on_two_ranks_gives_the_serial_rows(tmp_path):
     assert "2 rank(s)" in proc.stdout
     for name in ("study_stability.csv", "study_alpha.csv"):  # no timing columns: the rows must be equal
         assert (serial / name).read_text() == (parallel / name).read_text()
+
+
+def test_quick_convergence_says_its_orders_are_pre_asymptotic(capsys):
+    """`study convergence --quick` printed orders such as -0.4 with no word that its three coarse levels are
+    before the asymptotic range; the full study prints them bare."""
+    orders = [{"sweep": "dt", "method": "paper", "quantity": "eta", "order": -0.412},
+              {"sweep": "eps", "method": "paper", "quantity": "penetration", "order": 1.01}]
+    study_cli._print_orders(orders, quick=True)
+    quick = capsys.readouterr().out.splitlines()
+    assert "before the asymptotic range" in quick[0] and "without --quick" in quick[0]
+    assert quick[1:] == ["order in dt  paper          eta          -0.412", "order in eps paper          penetration  1.010"]
+    study_cli._print_orders(orders, quick=False)
+    assert capsys.readouterr().out.splitlines() == quick[1:]

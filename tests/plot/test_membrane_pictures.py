@@ -323,3 +323,40 @@ def test_the_gifs_caption_is_at_least_14_pixels_high(run):
     rows = (frame[: frame.shape[0] // 4] < 90).all(axis=-1).any(axis=1)  # pixel rows with dark text, at the top
     runs = np.diff(np.flatnonzero(np.diff(np.concatenate([[0], rows.astype(int), [0]]))))[::2]  # heights of the text lines
     assert runs.size and runs[0] >= 14, runs  # the first line, from its tallest letter's top to its lowest descender (was 10)
+
+
+def _label_height(font_size: int) -> int:
+    """The height in pixels of the tick label "0.5" drawn as `mesh_pictures.add_axis` draws it, at `font_size`."""
+    from stringcontact.plot import mesh_pictures
+
+    p = mesh_pictures._plotter((300, 200))
+    p.add_point_labels(np.array([[0.0, 0.0, 0.0]]), ["0.5"], font_size=font_size, text_color="black", shape=None,
+                       show_points=False, always_visible=True, font_family="arial", justification_horizontal="center")
+    image = p.screenshot(None, return_img=True)[..., :3].astype(int)
+    p.close()
+    rows = np.flatnonzero((image < 128).all(axis=-1).any(axis=1))
+    return int(rows.max() - rows.min() + 1) if rows.size else 0
+
+
+def test_the_membrane_pictures_tick_labels_are_at_least_12_pixels_high(run, tmp_path, monkeypatch):
+    """membrane.png's and membrane.gif's axes: their tick labels were about 6 px high (font size 7 and 8)."""
+    from stringcontact.plot import mesh_pictures
+
+    _, res = run
+    sizes = []
+    draw = mesh_pictures.add_axis
+
+    def spy(p, axis, font_size=11, most=5):
+        sizes.append(font_size)
+        return draw(p, axis, font_size, most)
+
+    monkeypatch.setattr(mesh_pictures, "add_axis", spy)
+    mesh_pictures.membrane_picture(res, tmp_path / "membrane.png")
+    picture = set(sizes)
+    sizes.clear()
+    animation.membrane_animation(res, tmp_path / "membrane.gif", max_frames=2)
+    gif = set(sizes)
+    assert picture and gif, (picture, gif)
+    for where, used in (("membrane.png", picture), ("membrane.gif", gif)):
+        heights = {size: _label_height(size) for size in used}
+        assert min(heights.values()) >= 12, f"{where}: tick labels {heights} px high (font size: height)"

@@ -153,6 +153,7 @@ def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run)
     text = (out / "view.py").read_text()
     imports = {line.split()[1] for line in text.splitlines() if line.startswith(("import ", "from "))}
     assert imports == {"json", "os", "sys", "paraview.simple"}, imports  # data, not this package's code
+    assert "stringcontact" not in text.replace("stringcontact run", "")
     speed = float(np.abs(res.velocity).max())
     back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     k = int(np.argmax([0.3 < c.mean() < 1 for c in back.contact]))  # a frame with contact on part of the string
@@ -195,3 +196,88 @@ def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
         assert (int(reddish.sum()) > 1000) == touching, f"t = {t}: contact patch {int(reddish.sum())} red pixels"
     speed = float(np.abs(res.velocity).max())
     np.testing.assert_allclose(rv["range"], [-speed, speed], rtol=1e-12)
+
+
+# --- one camera, the obstacle, the time, the axes, a string at rest seen in velocity ---------------------------
+
+ZERO_RGB = (38, 38, 38)  # view.py's velocity map at v = 0 (paraview_view.VELOCITY_COLOURS[1])
+GREY_RGB = (204, 204, 204)  # the obstacle (paraview_view.OBSTACLE_GREY)
+
+
+def _columns(img, rgb, tol=12, least=10):
+    """The first and last column left of the colour bar holding at least `least` pixels of colour `rgb` (not a
+    letter's smoothed edge)."""
+    near = np.all(np.abs(img[:, :850].astype(int) - np.array(rgb)) <= tol, axis=-1)
+    cols = np.flatnonzero(near.sum(axis=0) >= least)
+    return (int(cols.min()), int(cols.max())) if cols.size else None
+
+
+def _ink(img, rows, cols):
+    """Dark pixels (text, ticks) in the rows and columns given."""
+    return int((img[rows, cols].max(axis=-1) < 100).sum())
+
+
+@pytest.fixture(scope="module")
+def drum(tmp_path_factory):
+    out = tmp_path_factory.mktemp("paraview") / "drum"
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
+    return out, res
+
+
+@pytest.mark.parametrize("which", ["string", "membrane"])
+def test_the_folders_view_keeps_one_camera_and_draws_the_obstacle_time_and_axes(tmp_path, run, drum, which):
+    """The camera frames every time step and does not move (paraview.simple's reset on the first render is
+    off); the obstacle is drawn in grey, the time in the upper left corner, the title and the named axes."""
+    command = pvpython()
+    out, res = run if which == "string" else drum
+    times = [0.0, float(res.t[len(res.t) // 4]), float(res.t[-1])]
+    shots = [(t, tmp_path / f"{which}_{k}.png", "contact") for k, t in enumerate(times)]
+    views = _views(command, out, shots)
+    cameras = [report["camera"] for report, _ in views]
+    assert cameras[0] == cameras[1] == cameras[2], cameras
+    obstacle = [_columns(img, GREY_RGB) for _, img in views]
+    assert obstacle[0] is not None and obstacle[0] == obstacle[1] == obstacle[2], obstacle  # drawn, and in place
+    for (report, img), t in zip(views, times):
+        assert report["axes"] == (["x", "eta", ""] if which == "string" else ["x", "y", "eta"]), report
+        grey = int(np.all(np.abs(img.astype(int) - np.array(GREY_RGB)) <= 12, axis=-1).sum())
+        assert grey > 5000, f"t = {t}: obstacle {grey} pixels"
+        assert _ink(img, slice(0, 30), slice(0, 120)) > 20, f"t = {t}: no time label in the upper left corner"
+        assert _ink(img, slice(0, 30), slice(300, 700)) > 100, f"t = {t}: no title"
+    labels = [img[0:30, 0:120] for _, img in views]
+    assert not np.array_equal(labels[0], labels[1]) and not np.array_equal(labels[1], labels[2]), "the time label does not change"
+    if which == "string":
+        # the string spans x = 0 ... 1 at every time: the same columns (the camera used to follow the shape)
+        strings = [_string_columns(img) for _, img in views]
+        assert np.ptp(np.array(strings), axis=0).max() <= 3, strings  # to the line's round ends (was 537 against 420 px wide)
+        left, _ = obstacle[0]
+        assert _ink(img, slice(40, 560), slice(0, left - 5)) > 50, "no tick labels left of the string"
+
+
+def _string_columns(img):
+    """The first and last column of the string drawn in the contact map (blue free, red in contact)."""
+    strong = (np.abs(img[..., 0].astype(int) - img[..., 2].astype(int)) > 80)
+    cols = np.flatnonzero(strong[40:560].any(axis=0)[:850])
+    return int(cols.min()), int(cols.max())
+
+
+def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
+    """Coloured by velocity, where v = 0 (the string lying on the obstacle) the string is drawn in the map's
+    dark middle, which stands out on the white background and on the grey obstacle."""
+    command = pvpython()
+    out, res = run
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    resting = back.contact & (np.abs(back.velocity) < 0.02 * np.abs(res.velocity).max())
+    k = int(np.argmax(resting.sum(axis=1)))  # the frame with the most nodes lying at rest on the obstacle
+    nodes = np.flatnonzero(resting[k])
+    assert len(nodes) > 20, resting.sum(axis=1)
+    ((_, img),) = _views(command, out, [(float(back.t[k]), tmp_path / "velocity.png", "velocity")])
+    left, right = _columns(img, GREY_RGB)
+    x = back.x[nodes[len(nodes) // 2]]  # a node at rest, in the middle of the resting ones
+    column = img[:, round(left + (x - back.x[0]) / (back.x[-1] - back.x[0]) * (right - left))].astype(int)
+    grey_rows = np.flatnonzero(np.all(np.abs(column - np.array(GREY_RGB)) <= 12, axis=-1))
+    top = int(grey_rows.min())  # the obstacle's top edge, where the string lies
+    string = column[max(top - 8, 0):top + 9]  # the line lies on ψ, half of it over the grey
+    contrast = np.abs(string - 255).sum(axis=-1).max()  # the string's darkest pixel against the white background
+    assert contrast > 450, f"the string at rest ({string.tolist()}) is hardly seen on white"
+    thick = int((np.abs(string - np.array(ZERO_RGB)).max(axis=-1) <= 40).sum())
+    assert thick >= 3, f"the string at rest is {thick} px thick in v = 0's colour: {string.tolist()}"

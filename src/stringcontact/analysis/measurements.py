@@ -164,7 +164,7 @@ def force_sign(result) -> dict:
         "min_force": float(F.min()),
         "max_force": float(F.max()),
         "paper_dissipation_min": float((F * np.maximum(-result.velocity, 0.0)).min()),
-        "negative_dissipation_share": float(-D[D < 0].sum() / positive) if positive > 0 else 0.0,
+        "negative_dissipation_share": float(abs(D[D < 0].sum()) / positive) if positive > 0 else 0.0,  # never -0
     }
 
 

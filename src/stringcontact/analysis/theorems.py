@@ -193,7 +193,8 @@ def check_dissipation_sign(results) -> Check:
     verdict = HOLDS if last == 0 else (HOLDS_IN_LIMIT if _falls(vals) else (FAILS if len(vals) > 1 else INCONCLUSIVE))
     return Check(
         "(A1) removed energy -F^n v^n >= 0", last, "negative share 0, or -> 0 under refinement", verdict,
-        detail="negative where the node moves up in the step after the force was set (explicit penalty)",
+        detail="negative where the node moves up in the step after the force was set"
+               + (" (explicit penalty)" if getattr(results[-1], "penalty", None) == "explicit" else ""),
         trend=_trend(results, vals),
     )
 

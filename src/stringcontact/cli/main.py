@@ -43,6 +43,23 @@ SUBCOMMANDS = {
 }
 
 
+class _Version(argparse.Action):
+    """--version: the installed distribution's version, read only when asked (importlib.metadata)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import importlib.metadata
+
+        try:
+            version = importlib.metadata.version("stringcontact")
+        except importlib.metadata.PackageNotFoundError:
+            version = "unknown (not installed: run scripts/setup)"
+        sys.stdout.write(f"stringcontact {version}\n")
+        parser.exit(EXIT_OK)
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2, like every other input error; "stringcontact: error:" first
         root, _, sub = self.prog.partition(" ")  # a subcommand's parser is "stringcontact run"
@@ -55,6 +72,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     spend before it starts its picture process (docs/performance.md)."""
     named = set(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="stringcontact", description="Inelastic contact of a viscoelastic string with an obstacle.")
+    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="simulate a scene and write XDMF, CSV and JSON")
@@ -260,11 +278,13 @@ def _run(args, painter=None) -> int:
         scene = scene.replace(**changes)
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
     _check_scheme_options(args, scene)
-    model = None
+    model = spec = None
     if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
         from ..model.registry import load_model
 
-        model = load_model(args.model or scene.model)
+        spec = args.model or scene.model
+        with _current_folder_importable(args.model):
+            model = load_model(spec)
     if args.frames < 1:
         raise ValueError(f"--frames: must be a whole number >= 1 (XDMF frames), not {args.frames}")
     if args.out is not None:
@@ -280,11 +300,13 @@ def _run(args, painter=None) -> int:
 
     output = Output(args.out, max_frames=args.frames, force=args.force, pictures=_pictures(args, painter),
                     progress=not args.no_progress)
-    res = sc.simulate(scene, **options, model=model, output=output)
+    res = sc.simulate(scene, **options, model=spec, output=output)  # the name: summary.json says where it came from
     if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
         report(res)
         if args.out is not None:
             print(f"wrote {args.out}")
+        else:
+            print("nothing written (no --out): add --out DIR to write XDMF, CSV, JSON and pictures")
         if args.profile:
             from ..run import profile
 
@@ -296,6 +318,21 @@ def _run(args, painter=None) -> int:
         _error(unbalanced)
         return EXIT_UNSTABLE
     return EXIT_OK
+
+
+@contextlib.contextmanager
+def _current_folder_importable(spec):
+    """--model package.module:name finds a module in the current folder, as under `python -m stringcontact`
+    (whose sys.path starts with it): the folder is first on sys.path while the model is loaded."""
+    folder = os.getcwd()
+    added = bool(spec) and ":" in spec and folder not in sys.path and "" not in sys.path
+    if added:
+        sys.path.insert(0, folder)
+    try:
+        yield
+    finally:
+        if added and folder in sys.path:
+            sys.path.remove(folder)
 
 
 def _petsc_options(items: list[str]) -> dict:
@@ -464,8 +501,10 @@ def _command(args, painter) -> int:
             from ..scene import toml as scenes
 
             if args.command == "list":
-                for name, description in scenes.list_scenes():
-                    print(f"{name:12s} {description}")
+                listed = scenes.list_scenes()
+                width = max((len(name) for name, _ in listed), default=0)
+                for name, description in listed:
+                    print(f"{name:{width}s}  {description}")
                 return EXIT_OK
             if args.command == "show":
                 print(scenes.scene_to_toml(scenes.load_scene(args.scene)), end="")

@@ -101,8 +101,7 @@ def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Pat
                    write_csv(out / "study_orders.csv", result["orders"], ORDER_COLUMNS),
                    write_csv(out / "study_tolerance.csv", tracking, TOLERANCE_COLUMNS),
                    plot_convergence(result, out / "study_convergence.png")]
-        for o in result["orders"]:
-            print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")
+        _print_orders(result["orders"], args.quick)
         for t in tracking:
             print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} "
                   f"true {t['true_error']:.3g}")
@@ -113,3 +112,12 @@ def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Pat
                    plot_stability(result, alpha_rows, out / "study_stability.png"),
                    plot_step_size(step_rows, out / "study_step_size.png")]
     return written
+
+
+def _print_orders(orders, quick: bool) -> None:
+    """The observed orders, one line each; after --quick, a note first that its levels are pre-asymptotic."""
+    if quick and orders:
+        print("note: --quick runs three coarse levels, before the asymptotic range: the orders below (negative ones "
+              "too) do not measure the schemes' convergence; run without --quick for those (docs/study.md)")
+    for o in orders:
+        print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")

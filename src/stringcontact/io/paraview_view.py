@@ -4,18 +4,25 @@
     paraview --script=view.py                # the same view in ParaView's GUI
 
 The file is data, not code of this package: it imports only `paraview.simple` (and the standard library's
-`json`, `os` and `sys`), and every number it needs (the colour ranges, the box the camera frames) is written into it
-as a literal by the run, computed over all stored rows:
+`json`, `os` and `sys`), and every number it needs (the colour ranges, the box the camera frames, the
+obstacle) is written into it as a literal by the run, computed over all stored rows:
 
 - `solution.xdmf` opened with Xdmf3ReaderT, Warp By Scalar on `eta` along (0, 1, 0) for a string and
   (0, 0, 1) for a membrane;
 - coloured by `contact` on the fixed range 0 … 1 (Cool to Warm: blue free, red in contact), whatever the time;
-- `velocity` on the symmetric range −V … V, V = max |velocity| over every stored row (pick it in the
-  colouring menu: its range is fixed too);
-- the camera framing the warped shape at all times, so that nothing leaves the view.
+- `velocity` on the symmetric range −V … V, V = max |velocity| over every stored row, in a diverging map
+  whose middle (v = 0) is a dark grey: a string at rest stands out on the white background (pick it in the
+  colouring menu, or name it on the command line: its range is fixed too);
+- the obstacle ψ of the scene (the plane 0 unless the scene gives a profile), in grey: for a string the
+  region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch;
+- a title (scene, model, scheme), the time t in the upper left corner and axes named x and eta (x, y and
+  eta for a membrane), with ticks;
+- one camera for all times: it frames the box of the warped shape over all stored rows and the obstacle,
+  and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
+  different times line up (an animation does not jump).
 
 `pvpython view.py TIME PNG [contact|velocity]` saves a screenshot at time TIME instead of opening a window and
-prints one JSON line: the time, the field and its colour range.
+prints one JSON line: the time, the field, its colour range and the camera.
 """
 
 from __future__ import annotations
@@ -28,33 +35,86 @@ from .publish import atomic_path
 
 VIEW_NAME = "view.py"
 CONTACT_RANGE = (0.0, 1.0)
+#: velocity's colours at −V, 0 and V (RGB in 0 … 1): blue, a dark grey, red. The middle is dark so that a
+#: string at rest (v = 0) is seen on the white background (Cool to Warm's light grey middle vanishes there).
+VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
+#: the obstacle's grey, and the white background
+OBSTACLE_GREY = (0.80, 0.80, 0.80)
+#: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
+OBSTACLE_SAMPLES = 200
 
 
 def view_numbers(result) -> dict:
-    """What view.py needs, from the stored rows: the kind, the warp's normal, the velocity's symmetric range
-    and the warped shape's bounds over all times (x0, x1, y0, y1, z0, z1)."""
+    """What view.py needs, from the stored rows: the kind, the warp's normal, the velocity's symmetric range,
+    the obstacle (points and quadrilaterals) and the box the camera frames over all times (x0, x1, y0, y1, z0,
+    z1: the warped shape and the obstacle), and the title."""
     x = np.asarray(result.x, dtype=float)
     eta = np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
     lo, hi = (float(np.nanmin(eta)), float(np.nanmax(eta))) if eta.size else (0.0, 0.0)
     if x.ndim == 1 or x.shape[1] == 1:
-        xs = x.reshape(-1)
         kind, normal = "string", (0.0, 1.0, 0.0)
-        bounds = (float(xs.min()), float(xs.max()), min(lo, 0.0), max(hi, 0.0), 0.0, 0.0)
+        points, quads, (lo, hi) = _string_obstacle(result.scene, x.reshape(-1), lo, hi)
+        xs = x.reshape(-1)
+        bounds = (float(xs.min()), float(xs.max()), lo, hi, 0.0, 0.0)
     else:
         kind, normal = "membrane", (0.0, 0.0, 1.0)
-        bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()),
-                  min(lo, 0.0), max(hi, 0.0))
+        points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
+        bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
     return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
-            "times": [float(t) for t in result.t]}
+            "times": [float(t) for t in result.t], "obstacle_points": points, "obstacle_quads": quads,
+            "title": view_title(result)}
+
+
+def view_title(result) -> str:
+    """The view's title: the scene, the model and the scheme."""
+    return f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}"
+
+
+def _psi(scene, points) -> np.ndarray:
+    """ψ at `points`; a value the expression does not give there (outside its domain) is ψ's lowest value."""
+    psi = np.asarray(scene.obstacle_values(points), dtype=float).reshape(-1)
+    finite = np.isfinite(psi)
+    return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
+
+
+def _string_obstacle(scene, xs, lo, hi):
+    """The grey region below y = ψ(x) down to a floor under everything, as a strip of quadrilaterals at z
+    slightly behind the string (drawn under it); and the shape's (and obstacle's) height range."""
+    flat = getattr(scene, "obstacle", None) is None
+    grid = np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
+    psi = _psi(scene, grid)
+    lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
+    floor = lo - 0.08 * max(hi - lo, 1e-12)
+    z = -1e-3 * max(xs.max() - xs.min(), 1e-12)
+    n = len(grid)
+    points = [(float(g), float(p), z) for g, p in zip(grid, psi)] + [(float(g), floor, z) for g in grid]
+    quads = [(i, i + 1, n + i + 1, n + i) for i in range(n - 1)]
+    return points, quads, (floor, hi)
+
+
+def _membrane_obstacle(scene, x, lo, hi):
+    """The surface z = ψ(x, y) over the mesh's bounding box, 1 % of the height range lower (a patch in contact
+    lies on ψ and would flicker with it otherwise); and the height range with it."""
+    flat = getattr(scene, "obstacle", None) is None
+    n = 2 if flat else min(OBSTACLE_SAMPLES // 4, int(np.sqrt(len(x))) + 1)
+    gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))
+    psi = _psi(scene, np.column_stack([gx.ravel(), gy.ravel()]))
+    lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
+    psi = psi - 0.01 * max(hi - lo, 1e-12)
+    points = [(float(a), float(b), float(c)) for a, b, c in zip(gx.ravel(), gy.ravel(), psi)]
+    quads = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i) for j in range(n - 1) for i in range(n - 1)]
+    return points, quads, (min(lo, float(psi.min())), hi)
 
 
 def _literal(value) -> str:
-    """A Python literal of floats written so that they read back exactly (repr)."""
+    """A Python literal of floats written so that they read back exactly (repr); integers stay integers."""
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(_literal(v) for v in value) + "]"
     if isinstance(value, str):
         return repr(value)
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        return str(int(value))
     return repr(float(value))
 
 
@@ -70,15 +130,21 @@ import json
 import os
 import sys
 
-from paraview.simple import (ColorBy, GetActiveViewOrCreate, GetAnimationScene, GetColorTransferFunction,
-                             GetOpacityTransferFunction, GetScalarBar, HideScalarBarIfNotNeeded, Interact, Render, SaveScreenshot, Show,
-                             WarpByScalar, Xdmf3ReaderT)
+import paraview.simple
+from paraview.simple import (AnnotateTime, ColorBy, GetActiveViewOrCreate, GetAnimationScene, GetColorTransferFunction,
+                             GetOpacityTransferFunction, GetScalarBar, HideScalarBarIfNotNeeded, Interact,
+                             ProgrammableSource, Render, SaveScreenshot, Show, Text, WarpByScalar, Xdmf3ReaderT)
 
 KIND = {_literal(numbers["kind"])}
+TITLE = {_literal(numbers.get("title") or "")}
 NORMAL = {_literal(numbers["normal"])}  # Warp By Scalar's direction: y for a string, z for a membrane
 CONTACT_RANGE = {_literal(CONTACT_RANGE)}  # fixed: 0 free (blue), 1 in contact (red), at every time
 VELOCITY_RANGE = {_literal(numbers["velocity_range"])}  # symmetric, max |velocity| over all stored rows
-BOUNDS = {_literal(numbers["bounds"])}  # the warped shape over all times: x0, x1, y0, y1, z0, z1
+VELOCITY_COLOURS = {_literal(VELOCITY_COLOURS)}  # at -V, 0 (dark: seen on white), V
+BOUNDS = {_literal(numbers["bounds"])}  # the warped shape and the obstacle over all times: x0, x1, y0, y1, z0, z1
+OBSTACLE_GREY = {_literal(OBSTACLE_GREY)}
+OBSTACLE_POINTS = {_literal(numbers.get("obstacle_points") or [])}  # x, y, z
+OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices into OBSTACLE_POINTS each
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
 '''
     return head + _BODY
@@ -96,10 +162,15 @@ def folder():
     return os.getcwd()
 
 
-def fixed_map(name, low, high, preset):
+def fixed_map(name, low, high, preset=None, colours=None):
     """The colour map of array `name` on [low, high], never rescaled when the time changes."""
     lut = GetColorTransferFunction(name)
-    lut.ApplyPreset(preset, True)
+    if colours:  # evenly spaced colours from low to high
+        step = (high - low) / (len(colours) - 1)
+        lut.RGBPoints = [v for k, c in enumerate(colours) for v in (low + k * step, *c)]
+        lut.ColorSpace = "Lab"
+    else:
+        lut.ApplyPreset(preset, True)
     lut.AutomaticRescaleRangeMode = "Never"
     lut.ScalarRangeInitialized = 1  # so that colouring by it keeps this range instead of the data's at this time
     lut.RescaleTransferFunction(low, high)
@@ -107,23 +178,67 @@ def fixed_map(name, low, high, preset):
     return lut
 
 
-RANGES = {"contact": CONTACT_RANGE, "velocity": VELOCITY_RANGE}
+MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS)}
 
 
 def colour_by(view, display, field):
     """Colour by `field` on its fixed range, with its colour bar (and no other)."""
     ColorBy(display, ("POINTS", field))
-    lut = fixed_map(field, RANGES[field][0], RANGES[field][1], "Cool to Warm")
+    (low, high), preset, colours = MAPS[field]
+    lut = fixed_map(field, low, high, preset, colours)  # again: ColorBy rescales to the data at this time
     HideScalarBarIfNotNeeded(GetColorTransferFunction("velocity" if field == "contact" else "contact"), view)
     display.SetScalarBarVisibility(view, True)
     bar = GetScalarBar(lut, view)
     bar.Title = field
     bar.ComponentTitle = ""
     bar.TitleColor = bar.LabelColor = [0.0, 0.0, 0.0]
+    bar.TitleFontSize = bar.LabelFontSize = 18
     bar.RangeLabelFormat = "%-#6.3g"
 
 
+OBSTACLE_SCRIPT = (
+    "from vtkmodules.vtkCommonCore import vtkPoints\\n"
+    "from vtkmodules.vtkCommonDataModel import vtkCellArray\\n"
+    "points, cells = vtkPoints(), vtkCellArray()\\n"
+    "for p in POINTS:\\n    points.InsertNextPoint(p)\\n"
+    "for q in QUADS:\\n    cells.InsertNextCell(4, q)\\n"
+    "out = self.GetPolyDataOutput()\\nout.SetPoints(points)\\nout.SetPolys(cells)\\n"
+)
+
+
+def obstacle(view):
+    """The obstacle ψ in grey: the region below it (a string), the surface z = ψ (a membrane)."""
+    source = ProgrammableSource(registrationName="obstacle")
+    source.OutputDataSetType = "vtkPolyData"
+    source.Script = f"POINTS = {OBSTACLE_POINTS!r}\\nQUADS = {OBSTACLE_QUADS!r}\\n" + OBSTACLE_SCRIPT
+    display = Show(source, view)
+    display.AmbientColor = display.DiffuseColor = list(OBSTACLE_GREY)
+    display.Ambient, display.Diffuse, display.Specular = 1.0, 0.0, 0.0  # unlit: the same grey everywhere
+    return display
+
+
+def labels(view):
+    """The title (scene, model, scheme) at the top, the time in the upper left corner, the axes named."""
+    title = Show(Text(registrationName="title", Text=TITLE), view)
+    title.WindowLocation, title.FontSize, title.Color = "Upper Center", 20, [0.0, 0.0, 0.0]
+    clock = Show(AnnotateTime(registrationName="time", Format="t = {time:.4g}"), view)
+    clock.WindowLocation, clock.FontSize, clock.Color = "Upper Left Corner", 20, [0.0, 0.0, 0.0]
+    grid = view.AxesGrid
+    grid.Visibility = 1
+    grid.XTitle, grid.YTitle, grid.ZTitle = ("x", "eta", "") if KIND == "string" else ("x", "y", "eta")
+    for axis in "XYZ":
+        for part in ("Title", "Label"):
+            setattr(grid, f"{axis}{part}Color", [0.0, 0.0, 0.0])
+            setattr(grid, f"{axis}{part}FontSize", 16)
+    grid.GridColor = [0.3, 0.3, 0.3]
+    grid.UseCustomBounds, grid.CustomBounds = 1, list(BOUNDS)  # the same axes at every time
+    grid.AxesToLabel = 7  # the lower edges only (min x, min y, min z): the others would repeat them
+
+
 def build(size=(1000, 600)):
+    disable = getattr(paraview.simple, "_DisableFirstRenderCameraReset", None)
+    if disable is not None:  # else the first Render resets the camera to this time's shape
+        disable()
     reader = Xdmf3ReaderT(registrationName="solution.xdmf", FileName=[os.path.join(folder(), "solution.xdmf")])
     animation = GetAnimationScene()
     animation.UpdateAnimationUsingDataTimeSteps()
@@ -137,29 +252,34 @@ def build(size=(1000, 600)):
         view.UseColorPaletteForBackground = 0
     except AttributeError:  # ParaView before 5.10
         pass
-    view.OrientationAxesVisibility = 1
+    view.OrientationAxesVisibility = 0  # the named axes below say which way is which
+    obstacle(view)
     display = Show(warp, view)
     if KIND == "string":
-        display.LineWidth = 3.0
-    fixed_map("velocity", VELOCITY_RANGE[0], VELOCITY_RANGE[1], "Cool to Warm")
-    fixed_map("contact", CONTACT_RANGE[0], CONTACT_RANGE[1], "Cool to Warm")
+        display.LineWidth = 4.0
     colour_by(view, display, "contact")
+    labels(view)
     frame(view)
     return animation, view, display
 
 
 def frame(view):
     """The camera on the box of all times: a string from the front, a membrane from above its front edge."""
+    # no max() here: ParaView runs the obstacle's script in this module's namespace, after
+    # `from vtkmodules.numpy_interface.algorithms import *`, whose max and min take arrays
     centre = [0.5 * (BOUNDS[0] + BOUNDS[1]), 0.5 * (BOUNDS[2] + BOUNDS[3]), 0.5 * (BOUNDS[4] + BOUNDS[5])]
-    width = max(BOUNDS[1] - BOUNDS[0], BOUNDS[3] - BOUNDS[2], BOUNDS[5] - BOUNDS[4], 1e-12)
+    width = sorted([BOUNDS[1] - BOUNDS[0], BOUNDS[3] - BOUNDS[2], BOUNDS[5] - BOUNDS[4], 1e-12])[-1]
     view.CameraFocalPoint = centre
-    if KIND == "string":
+    if KIND == "string":  # the box's height, or its width at the view's aspect, and room for the labels
+        aspect = view.ViewSize[0] / view.ViewSize[1]
+        half = sorted([0.5 * (BOUNDS[3] - BOUNDS[2]), 0.5 * (BOUNDS[1] - BOUNDS[0]) / aspect])[-1]
         view.CameraPosition = [centre[0], centre[1], centre[2] + 3.0 * width]
         view.CameraViewUp = [0.0, 1.0, 0.0]
         view.CameraParallelProjection = 1
-    else:
-        view.CameraPosition = [centre[0] - 0.4 * width, centre[1] - 1.1 * width, centre[2] + 1.5 * width]
-        view.CameraViewUp = [0.0, 0.0, 1.0]
+        view.CameraParallelScale = 1.2 * half
+        return
+    view.CameraPosition = [centre[0] - 0.4 * width, centre[1] - 1.1 * width, centre[2] + 1.5 * width]
+    view.CameraViewUp = [0.0, 0.0, 1.0]
     view.ResetCamera(*BOUNDS)
 
 
@@ -167,8 +287,20 @@ def show_at(animation, view, display, t, field="contact"):
     animation.AnimationTime = t
     view.ViewTime = t
     colour_by(view, display, field)
-    frame(view)
     Render(view)
+
+
+def camera(view):
+    """The camera VTK renders with (not the proxy's copy): position, focal point, parallel scale, view angle."""
+    cam = view.GetActiveCamera()
+    return {"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
+            "parallel_scale": cam.GetParallelScale(), "view_angle": cam.GetViewAngle()}
+
+
+def axes(view):
+    """The titles of the axes shown (none when they are hidden)."""
+    grid = view.AxesGrid
+    return [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else []
 
 
 def main(argv):
@@ -179,7 +311,7 @@ def main(argv):
         SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
         points = GetColorTransferFunction(field).RGBPoints
         print(json.dumps({"time": view.ViewTime, "field": field, "range": [points[0], points[-4]],
-                          "camera": list(view.CameraPosition)}), flush=True)
+                          "camera": camera(view), "axes": axes(view)}), flush=True)
         return
     Render(view)
     if argv[0]:  # pvpython view.py: a window of its own (ParaView's GUI runs the script with sys.argv == [""])

@@ -60,6 +60,7 @@ def read_output(folder, from_xdmf: bool = False):
         penalty=summary.get("penalty", "explicit"),
         mass=summary.get("mass", "lumped"),
         model=summary.get("model", "inelastic"),
+        model_origin=summary.get("model_origin") or {},
         status=summary.get("status", "complete"),
         timings=summary.get("timings", {}),
         message=summary.get("message", ""),

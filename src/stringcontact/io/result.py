@@ -102,6 +102,7 @@ class Result:
     series: dict = field(default_factory=dict)  # per stored time, on every rank (see above)
     has_rows: bool = True  # False on a rank without the per-node arrays
     checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of, once per run
+    model_origin: dict = field(default_factory=dict)  # where the model came from: model.registry.model_origin
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):
@@ -153,7 +154,8 @@ class Result:
 
     @property
     def contact_length(self) -> np.ndarray:
-        """The contact measure (a length in 1D, an area in 2D); the name the output files use."""
+        """The contact measure (a length in 1D, an area in 2D): `contact_measure`. diagnostics.csv names the
+        column ``contact_length`` for a string and ``contact_area`` for a membrane."""
         return self.contact_measure
 
     @cached_property

@@ -12,7 +12,7 @@ import numpy as np
 
 from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "member_offset", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "diagnostic_columns", "member_offset", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
@@ -55,6 +55,13 @@ DIAGNOSTIC_COLUMNS = (
 INTEGER_COLUMNS = ("step", "contact_components")
 
 
+def diagnostic_columns(dim: int = 1) -> tuple[str, ...]:
+    """diagnostics.csv's columns for a run in `dim` dimensions: the contact measure is ``contact_length`` for a
+    string (1D) and ``contact_area`` for a membrane (2D); the others are `DIAGNOSTIC_COLUMNS`."""
+    measure = "contact_length" if dim == 1 else "contact_area"
+    return tuple(measure if c == "contact_length" else c for c in DIAGNOSTIC_COLUMNS)
+
+
 def write_diagnostics(path: Path, result) -> None:
     cols = {
         "step": result.steps,
@@ -62,15 +69,17 @@ def write_diagnostics(path: Path, result) -> None:
         **result.energy,
         "balance_residual": result.balance_residual,
         "min_eta": result.eta.min(axis=1),
-        "contact_length": result.contact_length,
+        "contact_length": result.contact_measure,
+        "contact_area": result.contact_measure,
         "contact_components": result.contact_components,
         "max_contact_force": result.contact_force.max(axis=1),
     }
+    names = diagnostic_columns(result.dim)
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(DIAGNOSTIC_COLUMNS)
+        w.writerow(names)
         for i in range(len(result.t)):
-            w.writerow([int(cols[c][i]) if c in INTEGER_COLUMNS else repr(float(cols[c][i])) for c in DIAGNOSTIC_COLUMNS])
+            w.writerow([int(cols[c][i]) if c in INTEGER_COLUMNS else repr(float(cols[c][i])) for c in names])
 
 
 def summary_dict(result) -> dict:
@@ -85,6 +94,7 @@ def summary_dict(result) -> dict:
         "penalty": result.penalty,
         "mass": result.mass,
         "model": result.model,
+        "model_origin": getattr(result, "model_origin", None) or {"name": result.model},
         "r": scene.dt / scene.eps,
         "dolfinx": dolfinx.__version__,
         "timings": result.timings,

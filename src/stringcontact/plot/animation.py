@@ -61,7 +61,7 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     p = _plotter(gif_size(window_size))
     try:
         surface = add_membrane(p, result, rows[0], view)
-        add_membrane_axes(p, view, font_size=8)  # x, y and η with ticks, as in membrane.png (static: drawn once per frame's render)
+        add_membrane_axes(p, view)  # x, y and η with ticks, as in membrane.png (static: drawn once per frame's render)
         # the title below, the frame's time, contact area and patches above, each CAPTION_FONT high (15 px);
         # text actors of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
         p.add_text(membrane_title(result, view, "The membrane", sep="\n"), position=(0.02, 0.02), viewport=True,

@@ -91,14 +91,15 @@ def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
 
 
 def parameter_line(result, sep: str = ", ") -> str:
+    """The title's line of parameters: the mesh, Δt, α (and ε), the model, the scheme, its penalty and mass."""
     s = result.scene
-    scheme = getattr(result, "scheme", "paper")
+    scheme = f"model {getattr(result, 'model', None) or 'inelastic'}, scheme {getattr(result, 'scheme', 'paper')}"
     mesh = f"nx = {s.nx}" if np.ndim(result.x) == 1 else f"{len(result.x)} nodes, {len(result.cells)} triangles"
     if result.penalty in (None, "none"):  # a scheme without ε (projection)
-        return f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}scheme {scheme}, no penalty (no ε), {result.mass} mass"
+        return f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}{scheme}, no penalty (no ε), {result.mass} mass"
     return (
         f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
-        f"scheme {scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
+        f"{scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
     )
 
 

@@ -185,7 +185,8 @@ def add_axis(p, axis: Axis, font_size: int = 11, most: int = 5) -> list[str]:
     labels = [_tick_label(v) for v in ticks]
     p.add_point_labels(where + 2.2 * out, labels, font_size=font_size, text_color="black", shape=None,
                        show_points=False, always_visible=True, font_family="arial", justification_horizontal="center")
-    p.add_point_labels([0.5 * (start + end) + 4.5 * out], [axis.title], font_size=font_size + 2, text_color="black",
+    beyond = 4.5 + 0.3 * max(font_size - 11, 0)  # the axis' name clear of its tick labels, however large
+    p.add_point_labels([0.5 * (start + end) + beyond * out], [axis.title], font_size=font_size + 2, text_color="black",
                        shape=None, show_points=False, always_visible=True, bold=True)
     return labels
 
@@ -331,7 +332,11 @@ def add_membrane(p, result, row: int, view: MembraneView):
     return surface
 
 
-def add_membrane_axes(p, view: MembraneView, font_size: int = 7) -> None:
+#: the membrane axes' font size (VTK points): digits 12 px high (7 gave 6 px, too small to read)
+TICK_FONT = 16
+
+
+def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT) -> None:
     """x and y along the front and right edges of the floor under the obstacle, and the height η (in its own
     units: the ticks undo the drawing's `scale`) up the front left corner."""
     x0, x1, y0, y1, z0, z1 = view.bounds

@@ -324,7 +324,8 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
     """Step from 0 to T, booking each step in the ledger and storing the rows; InstabilityError names the step."""
     from tqdm import tqdm
 
-    bar = tqdm(total=scene.nt, disable=not progress, unit="step", mininterval=0.5, leave=False)
+    # disable=None: tqdm's own test, no bar when stderr is not a terminal (a log file, a pipe, CI)
+    bar = tqdm(total=scene.nt, disable=None if progress else True, unit="step", mininterval=0.5, leave=False)
     try:
         with np.errstate(all="ignore"):  # a NaN or overflow is caught by the energy guard, which names the step
             if rows.next_step == 0:
@@ -369,6 +370,13 @@ def _resolve_model(model, scene) -> Model:
     from ..model.registry import load_model
 
     return load_model(model if model is not None else scene.model)
+
+
+def _model_origin(spec, model) -> dict:
+    """Where the model came from (summary.json's ``model_origin``): `model.registry.model_origin`."""
+    from ..model.registry import model_origin
+
+    return model_origin(spec, model)
 
 
 def _choose_scheme(scene, scheme, penalty, mass, model):
@@ -420,6 +428,7 @@ class _Run:
         self.scene, self.name, self.model, self.penalty, self.mass, self.comm = scene, name, model, penalty, mass, comm
         self.stepper, self.rows, self.geometry, self.row_series, self.timings = stepper, rows, geometry, row_series, timings
         self.ledger = self.writer = None
+        self.origin = {}  # where the model came from (`_model_origin`)
         self.dt = scene.dt  # a property of the scene: read once, not per stored row
 
     def start(self, s: Setting, V, output: Output) -> None:
@@ -448,6 +457,7 @@ class _Run:
                         steps=rows.steps[:n],
                         **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
+                        model_origin=self.origin,
                         status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
@@ -536,6 +546,7 @@ def simulate(
     storage, output = grouped(storage, output, keywords)
     if restitution is not None:
         scene = scene.replace(restitution=restitution)
+    spec = model if model is not None else (getattr(scene, "model", None) or "inelastic")
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
     _check_before_mesh(scene, Scheme, penalty, model, petsc_options)
     t0 = time.perf_counter()
@@ -545,6 +556,7 @@ def simulate(
     rows, geometry, row_series = _storage(scene, s, V, storage)
     run = _Run(scene, name, model, penalty, mass, comm, stepper, rows, geometry, row_series,
                timings={"setup": time.perf_counter() - t0})
+    run.origin = _model_origin(spec, model)
     run.start(s, V, output)
     _march_and_store(run, output.progress and comm.rank == 0)
     return _write(run)

@@ -19,6 +19,9 @@ SCHEMES = {
     "newmark": "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set",
 }
 
+#: The schemes without a penalty (no ε): the ones whose class has no PENALTIES (tests/scene/test_show.py checks it).
+EPS_FREE = frozenset({"projection"})
+
 #: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
 GROUP = "stringcontact.models"
 
