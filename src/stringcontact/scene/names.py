@@ -15,7 +15,7 @@ from ..errors import SceneError, one_line
 #: The time schemes: name -> one-line description (`stringcontact.SCHEMES`); the code is timestepping/NAME.py.
 SCHEMES = {
     "paper": "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step",
-    "projection": "explicit central difference, implicit viscosity, nodal projection onto gap >= 0 (no eps)",
+    "projection": "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)",
     "newmark": "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set",
 }
 
