@@ -99,6 +99,35 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     return parser
 
 
+#: What a scene that names no scheme or model runs with (`simulate`'s defaults), as `show` prints them.
+DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
+#: `show`'s line for an optional key the scene does not give.
+_NOT_GIVEN = {
+    "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
+    "obstacle": "the flat obstacle psi = 0 (the paper's y = 0)",
+    "petsc_options": "the scheme's own linear solver",
+}
+
+
+def show_scene(scene) -> str:
+    """`stringcontact show`: the scene as a TOML scene file with every key it sets, the scheme and model it runs
+    with written out (the defaults `paper` and `inelastic` when it names none), and a comment for each optional key
+    it does not give (`load`, `obstacle`, `petsc_options`): a load = "0" key would be refused by a model that reads
+    no load, so those stay comments and the output loads again as the same run."""
+    import tomli_w
+
+    from ..scene.toml import scene_to_toml
+
+    data = scene.as_dict()
+    options = data.pop("petsc_options", None)
+    data.setdefault("model", DEFAULT_MODEL)
+    data.setdefault("scheme", DEFAULT_SCHEME)
+    missing = [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
+    header = scene_to_toml(scene).split("\n", 1)[0] + "\n"  # its derived values: dt, dx, r
+    table = tomli_w.dumps({"petsc_options": options}) if options else ""
+    return header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing) + table
+
+
 class _OneLineWarningHandler(logging.Handler):
     """Warnings that reach the logger "py.warnings" (once ffcx has called ``logging.captureWarnings``)."""
 
@@ -463,7 +492,7 @@ def _command(args, painter) -> int:
                     print(f"{name:12s} {description}")
                 return EXIT_OK
             if args.command == "show":
-                print(scenes.scene_to_toml(scenes.load_scene(args.scene)), end="")
+                print(show_scene(scenes.load_scene(args.scene)), end="")
                 return EXIT_OK
             if args.command in SUBCOMMANDS:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
