@@ -1,7 +1,7 @@
 """stringcontact: dynamic inelastic contact of a viscoelastic string with a rigid obstacle (FEniCSx).
 
     import stringcontact as sc
-    scene = sc.load_scene("example1").replace(nx=1000, nt=300)
+    scene = sc.load_scene("example1").replace(nx=1000)
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 

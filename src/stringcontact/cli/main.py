@@ -85,8 +85,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                           "spaced rows (default 100; dolfinx 0.5 writes N frames in time ~N²)")
 
     sub.add_parser("list", help="list the built-in scenes")
-    show = sub.add_parser("show", help="print a scene as TOML")
-    show.add_argument("scene")
+    show = sub.add_parser("show", help="print a scene as TOML: every key it sets, the scheme and model it runs with")
+    show.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
     for name, (module, help_text) in SUBCOMMANDS.items():
         sub_parser = sub.add_parser(name, help=help_text)
         if name not in named:

@@ -152,6 +152,8 @@ class Model:
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 
+#: The paper's model (the default of every run): the viscoelastic string and the inelastic velocity penalty on
+#: the obstacle y = 0. Registered as ``inelastic``.
 inelastic = Model()
 
 
