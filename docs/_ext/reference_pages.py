@@ -79,8 +79,8 @@ FILES = {
 
 
 def _cell(text) -> str:
-    """`text` for a markdown table cell: one line, pipes escaped."""
-    return " ".join(str(text).split()).replace("|", "\\|")
+    """`text` for a markdown table cell: one line, backslashes and pipes escaped."""
+    return " ".join(str(text).split()).replace("\\", "\\\\").replace("|", "\\|")
 
 
 def _table(header: list[str], rows: list[list]) -> str:

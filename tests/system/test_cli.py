@@ -214,7 +214,6 @@ class CtrlC:
 
 sys.meta_path.insert(0, CtrlC())
 from stringcontact.cli.main import main
-from stringcontact.scene import Scene, load_scene
 sys.exit(main(sys.argv[2:]))
 """
 
