@@ -24,10 +24,11 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# the site, docs/_build/html: warnings are errors (-W), every internal link must resolve (-n); the demos run
+# the site, docs/_build/html: warnings are errors (-W), every internal link must resolve (-n), docstrings read
+# afresh (-E: autodoc does not notice a changed module); the demos run again only when they or src/ changed
 docs: SETUP_FLAGS = --docs
 docs: setup
-	$(PY) -m sphinx -W --keep-going -n -q -b html docs docs/_build/html
+	$(PY) -m sphinx -E -W --keep-going -n -q -b html docs docs/_build/html
 	@echo "the site: docs/_build/html/index.html"
 
 # the pictures in docs/ (README and the site), from full-resolution runs

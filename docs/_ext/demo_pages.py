@@ -104,7 +104,7 @@ def page(demo: Path, records: list[dict], out: Path, pictures: Path, link: str) 
             continue
         parts.append("```python\n" + source.rstrip() + "\n```\n")
         cell = next(code)
-        parts.append(_printed(cell["printed"]))
+        parts.append(_printed(cell["printed"].replace(str(out), f"out/{demo.stem}")))  # its folder without the env
         for name in cell["pictures"]:
             target = pictures / f"{demo.stem}__{name.replace('/', '__')}"
             shutil.copyfile(out / name, target)

@@ -16,6 +16,7 @@ the build: `tests/docs/test_reference.py` checks the same.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import re
 from pathlib import Path
@@ -199,6 +200,8 @@ def _directive(qualified: str, obj) -> str:
     """The autodoc directive for `obj` (autodoc writes reStructuredText, so in MyST it sits in eval-rst)."""
     if isinstance(obj, type):
         rst = f".. autoclass:: {qualified}\n   :members:\n"
+        if dataclasses.is_dataclass(obj):  # its fields are in its docstring; a Model's would read as methods
+            rst += f"   :exclude-members: {', '.join(f.name for f in dataclasses.fields(obj))}\n"
     elif callable(obj) and not hasattr(obj, "momentum_form"):  # a Model instance is data, not a function
         rst = f".. autofunction:: {qualified}\n"
     else:  # data: its `#:` comment where it is defined (autodoc would look only in the module it is read from)
@@ -239,6 +242,7 @@ def api() -> str:
         if not rest:
             continue
         out.append(f"## {title}: `{module_name}`\n")
+        out.append(f"```{{eval-rst}}\n.. automodule:: {module_name}\n   :no-index:\n```\n")  # its docstring
         out += [_directive(f"{module_name}.{n}", getattr(module, n)) for n in rest]
     return "\n".join(out)
 

@@ -1,6 +1,6 @@
 """The model: the paper's weak momentum equation and contact law, in UFL.
 
-This is the one place to edit for a model variant (see `docs/models.md` and
+This is the one place to edit for a model variant (see `docs/howto/models.md` and
 `demos/demo_model_variant.py`). The time loop (`solver`) never looks inside these functions; it
 only asks them for UFL.
 
