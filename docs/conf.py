@@ -46,11 +46,10 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
 autodoc_preserve_defaults = True  # a Model shows `penalty=penalty`, not a function repr
 autodoc_default_options = {"undoc-members": False}
-html_theme = "alabaster"
+html_theme = "pydata_sphinx_theme"  # the dolfinx documentation's theme; its fonts and icons are bundled
 html_title = "stringcontact"
 html_static_path = []
-html_theme_options = {"fixed_sidebar": True, "sidebar_collapse": True}
-html_sidebars = {"**": ["about.html", "navigation.html", "relations.html", "searchbox.html"]}
+html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2, "header_links_before_dropdown": 4}
 # figures stay in docs/ (the README shows them too); the pages refer to them as ../NAME.png
 
 
