@@ -8,6 +8,7 @@ import importlib
 import inspect
 import re
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -129,3 +130,13 @@ def test_readme_is_short_and_cites_the_paper():
     assert "Muha" in text and "Trifunović" in text
     assert "output_dir=" not in text and "progress=" not in text
 
+
+
+def test_license_and_citation_agree_with_pyproject():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert project["license"] == {"text": "MIT"}
+    assert (ROOT / "LICENSE").read_text().startswith("MIT License\n\nCopyright (c) stringcontact developers\n")
+    cff = (ROOT / "CITATION.cff").read_text()
+    assert cff.startswith("cff-version: 1.2.0\n") and "\ntype: software\n" in cff and "\nlicense: MIT\n" in cff
+    assert f"\nversion: {project['version']}\n" in cff
+    assert "title: Analysis of an Inelastic Contact Problem for the Damped Wave Equation\n" in cff
