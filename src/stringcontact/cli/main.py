@@ -77,7 +77,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
     run.add_argument("--petsc-option", action="append", default=[], metavar="NAME=VALUE",
                      help="a PETSc option for the linear solver, e.g. ksp_type=cg or pc_type=hypre (repeatable; over "
-                          "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/linear_solvers.md)")
+                          "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/explanation/linear_solvers.md)")
     run.add_argument("--profile", action="store_true",
                      help="print where the run's time went: start-up, imports, set-up, solve, output, pictures")
     run.add_argument("--frames", type=int, default=100, metavar="N",
