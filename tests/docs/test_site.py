@@ -55,6 +55,14 @@ def test_the_site_builds_without_a_warning_and_a_broken_link_fails_it(tmp_path):
         for line in images:
             src = line.split('src="', 1)[1].split('"', 1)[0]
             assert (html / "tutorial" / "demos" / src).resolve().is_file(), src
+    # the output reference names every file a run writes (the demos' runs, from the build)
+    sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+    import reference_pages
+
+    for folder in (work / "demo_example1" / "example1", work / "demo_membrane"):
+        written = {p.name for p in folder.rglob("*") if p.is_file() and p.parent.name != "pictures"}
+        assert written and not written - set(reference_pages.FILES) - set(reference_pages.PICTURES) - {
+            "drum_variants.png"}, written
     # a link to a page that does not exist is an error (the demos are not run again: their sources are unchanged)
     install = repo / "docs" / "tutorial" / "install.md"
     install.write_text(install.read_text() + "\nSee [a page that does not exist](../howto/no_such_page.md).\n")
