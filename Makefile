@@ -6,7 +6,7 @@ export OMPI_ALLOW_RUN_AS_ROOT ?= 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM ?= 1
 export PYTHONDONTWRITEBYTECODE ?= 1
 
-.PHONY: setup demo test test-fast docs clean
+.PHONY: setup demo test test-fast docs figures clean
 
 setup:
 	@scripts/setup $(SETUP_FLAGS) $(VENV)
@@ -24,8 +24,16 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
+# the site, docs/_build/html: warnings are errors (-W), every internal link must resolve (-n), docstrings read
+# afresh (-E: autodoc does not notice a changed module); the demos run again only when they or src/ changed
+docs: SETUP_FLAGS = --docs
 docs: setup
+	$(PY) -m sphinx -E -W --keep-going -n -q -b html docs docs/_build/html
+	@echo "the site: docs/_build/html/index.html"
+
+# the pictures in docs/ (README and the site), from full-resolution runs
+figures: setup
 	scripts/docs-figures
 
 clean:
-	rm -rf out .pytest_cache
+	rm -rf out .pytest_cache docs/_build docs/_generated docs/tutorial/demos/demo_*.md docs/tutorial/demos/_pictures

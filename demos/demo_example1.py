@@ -1,6 +1,7 @@
 # # Example 1 of the paper: an oscillating string thrown onto the obstacle
 #
-# This demo reproduces Example 1 of Section 6 of *Inelastic contact of a damped wave*: a string with
+# This demo reproduces Example 1 of Section 6 of B. Muha and S. Trifunović,
+# *Analysis of an Inelastic Contact Problem for the Damped Wave Equation*: a string with
 # symmetric, oscillatory initial shape is thrown down onto a rigid obstacle at speed 50. It runs the
 # paper's resolution, writes the solution for ParaView (`solution.xdmf`), draws the paper's missing
 # figures (snapshots, contact set, velocity field) and the energy balance, and measures what the paper

@@ -1,6 +1,7 @@
 # # Example 2 of the paper: a contact set in several pieces
 #
-# This demo reproduces Example 2 of Section 6 of *Inelastic contact of a damped wave*: a
+# This demo reproduces Example 2 of Section 6 of B. Muha and S. Trifunović,
+# *Analysis of an Inelastic Contact Problem for the Damped Wave Equation*: a
 # non-oscillatory, discontinuous string, thrown down fast on its left part and slowly on its right
 # part. The paper's point: the contact set need not be an interval; it can consist of several
 # disconnected components. We run the paper's resolution, write the solution for ParaView, draw the

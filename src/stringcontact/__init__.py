@@ -1,17 +1,17 @@
 """stringcontact: dynamic inelastic contact of a viscoelastic string with a rigid obstacle (FEniCSx).
 
     import stringcontact as sc
-    scene = sc.load_scene("example1").replace(nx=1000, nt=300)
+    scene = sc.load_scene("example1").replace(nx=1000)
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 
+from . import fenics_versions as _fenics_versions
+from . import jitlog as _jitlog
 from .errors import InstabilityError, InstabilityWarning, SceneError
-from .fenics_versions import read_without_pkg_resources
-from .jitlog import quiet_compiler
-from .lazy import lazy_names
+from .lazy import lazy_names as _lazy_names
 
-quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
-read_without_pkg_resources()  # before UFL is imported: 55-60 ms of start-up on bookworm
+_jitlog.quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
+_fenics_versions.read_without_pkg_resources()  # before UFL is imported: 55-60 ms of start-up on bookworm
 
 __version__ = "0.1.0"
 
@@ -32,7 +32,7 @@ _LAZY = {
     "Storage": "run.options",
     "Output": "run.options",
 }
-__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
+__getattr__, _ = _lazy_names(__name__, _LAZY, globals())
 
 
 __all__ = [
@@ -53,3 +53,10 @@ __all__ = [
     "load_scene",
     "simulate",
 ]
+
+
+def __dir__():
+    """What a user should touch (tab completion): `__all__` and `__version__`. The submodules and the start-up
+    helpers (`jitlog.quiet_compiler`, `fenics_versions.read_without_pkg_resources`) stay importable from their
+    modules."""
+    return sorted([*__all__, "__version__"])

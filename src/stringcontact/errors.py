@@ -24,7 +24,7 @@ class InstabilityError(RuntimeError):
 
 class SolverError(RuntimeError):
     """A numerical step failed after the input was accepted (a linear solve that does not converge): exit code 1,
-    not 2 "bad input" (docs/reliability.md)."""
+    not 2 "bad input" (docs/explanation/reliability.md)."""
 
 
 class OutputError(RuntimeError):
@@ -54,7 +54,7 @@ class InstabilityWarning(UserWarning):
 
 
 class PenetrationWarning(UserWarning):
-    """The string went further below the obstacle than the velocity penalty should allow (see docs/reliability.md)."""
+    """The string went further below the obstacle than the velocity penalty should allow (see docs/explanation/reliability.md)."""
 
 
 def one_line(text, limit: int | None = None) -> str:

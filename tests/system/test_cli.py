@@ -5,10 +5,12 @@ import os
 import signal
 import subprocess
 import sys
+import tomllib
 
 import pytest
 
 from stringcontact.cli.main import main
+from stringcontact.scene import Scene, load_scene
 
 SMALL = ["--nx", "200", "--nt", "40", "--eps", "0.01", "--no-progress", "--no-pictures"]  # r = 0.75
 
@@ -87,6 +89,28 @@ def test_list_and_show(capsys):
     assert "example1" in listing and "example2" in listing
     assert main(["show", "example2"]) == 0
     assert "h_left" in capsys.readouterr().out
+
+
+def test_show_prints_every_key_the_run_uses(capsys, tmp_path):
+    # the defaults a scene leaves to the solver are written out; the optional fields it does not give are comments
+    assert main(["show", "example1"]) == 0
+    text = capsys.readouterr().out
+    data = tomllib.loads(text)
+    assert (data["scheme"], data["model"]) == ("paper", "inelastic")
+    assert "load" not in data and "obstacle" not in data
+    assert "# load: not given" in text and "# obstacle: not given" in text
+    assert load_scene("example1").replace(scheme="paper", model="inelastic") == Scene.from_dict(data)
+    # a scene that gives its fields and solver options shows them as keys, the table last
+    path = tmp_path / "given.toml"
+    path.write_text('T = 0.1\nalpha = 0.01\neps = 0.01\nnx = 10\nnt = 10\neta0 = "1"\nv0 = "0"\nload = "-1"\n'
+                    'obstacle = "0.5*x"\nmodel = "loaded_obstacle"\nscheme = "projection"\n'
+                    'petsc_options = { ksp_type = "cg" }\n')
+    assert main(["show", str(path)]) == 0
+    text = capsys.readouterr().out
+    data = tomllib.loads(text)
+    assert (data["load"], data["obstacle"], data["model"], data["scheme"]) == ("-1", "0.5*x", "loaded_obstacle", "projection")
+    assert data["petsc_options"] == {"ksp_type": "cg"} and "not given" not in text
+    assert Scene.from_dict(data) == load_scene(path)
 
 
 def test_python_dash_m_is_the_same_cli():

@@ -97,7 +97,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
     run.add_argument("--petsc-option", action="append", default=[], metavar="NAME=VALUE",
                      help="a PETSc option for the linear solver, e.g. ksp_type=cg or pc_type=hypre (repeatable; over "
-                          "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/linear_solvers.md)")
+                          "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/explanation/linear_solvers.md)")
     run.add_argument("--profile", action="store_true",
                      help="print where the run's time went: start-up, imports, set-up, solve, output, pictures")
     run.add_argument("--frames", type=int, default=100, metavar="N",
@@ -105,8 +105,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                           "spaced rows (default 100; dolfinx 0.5 writes N frames in time ~N²)")
 
     sub.add_parser("list", help="list the built-in scenes")
-    show = sub.add_parser("show", help="print a scene as TOML")
-    show.add_argument("scene")
+    show = sub.add_parser("show", help="print a scene as TOML: every key it sets, the scheme and model it runs with")
+    show.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
     for name, (module, help_text) in SUBCOMMANDS.items():
         sub_parser = sub.add_parser(name, help=help_text)
         if name not in named:
@@ -117,6 +117,35 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
             sub_parser.set_defaults(_unavailable=f"{type(exc).__name__}: {one_line(exc)}"[:200])
             sub_parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
     return parser
+
+
+#: What a scene that names no scheme or model runs with (`simulate`'s defaults), as `show` prints them.
+DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
+#: `show`'s line for an optional key the scene does not give.
+_NOT_GIVEN = {
+    "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
+    "obstacle": "the flat obstacle psi = 0 (the paper's y = 0)",
+    "petsc_options": "the scheme's own linear solver",
+}
+
+
+def show_scene(scene) -> str:
+    """`stringcontact show`: the scene as a TOML scene file with every key it sets, the scheme and model it runs
+    with written out (the defaults `paper` and `inelastic` when it names none), and a comment for each optional key
+    it does not give (`load`, `obstacle`, `petsc_options`): a load = "0" key would be refused by a model that reads
+    no load, so those stay comments and the output loads again as the same run."""
+    import tomli_w
+
+    from ..scene.toml import scene_to_toml
+
+    data = scene.as_dict()
+    options = data.pop("petsc_options", None)
+    data.setdefault("model", DEFAULT_MODEL)
+    data.setdefault("scheme", DEFAULT_SCHEME)
+    missing = [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
+    header = scene_to_toml(scene).split("\n", 1)[0] + "\n"  # its derived values: dt, dx, r
+    table = tomli_w.dumps({"petsc_options": options}) if options else ""
+    return header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing) + table
 
 
 class _OneLineWarningHandler(logging.Handler):
@@ -507,7 +536,7 @@ def _command(args, painter) -> int:
                     print(f"{name:{width}s}  {description}")
                 return EXIT_OK
             if args.command == "show":
-                print(scenes.scene_to_toml(scenes.load_scene(args.scene)), end="")
+                print(show_scene(scenes.load_scene(args.scene)), end="")
                 return EXIT_OK
             if args.command in SUBCOMMANDS:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)

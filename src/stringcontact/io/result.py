@@ -65,7 +65,7 @@ class Result:
     False, they are None, and reading one raises `RowsElsewhere` (an AttributeError) that says so, rather
     than give numbers of part of the mesh. The per-time series are the same on every rank: t, steps,
     energy, min_eta, status, message, and `series` (computed in parallel at each stored time):
-    "contact_measure", "max_speed" (max |v|) and "depth" (max of obstacle − η; the obstacle is 0 unless
+    "contact_measure", "max_speed" (max `|v|`) and "depth" (max of obstacle − η; the obstacle is 0 unless
     the scene gives one), which `contact_measure` and `run.checks.penetration_check` use where the rows are
     absent. `simulate(gather="all")` gives every rank the rows.
 
@@ -117,6 +117,7 @@ class Result:
 
     @property
     def total_energy(self) -> np.ndarray:
+        """E(t) = kinetic + elastic energy at each stored time."""
         return self.energy["kinetic"] + self.energy["elastic"]
 
     @property
@@ -128,6 +129,7 @@ class Result:
 
     @property
     def dim(self) -> int:
+        """1 for a string (the interval), 2 for a membrane."""
         if not self.has_rows:
             return self.scene.dim
         return 1 if np.ndim(self.x) == 1 else 2

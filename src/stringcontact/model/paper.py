@@ -1,6 +1,6 @@
 """The model: the paper's weak momentum equation and contact law, in UFL.
 
-This is the one place to edit for a model variant (see `docs/models.md` and
+This is the one place to edit for a model variant (see `docs/howto/models.md` and
 `demos/demo_model_variant.py`). The time loop (`solver`) never looks inside these functions; it
 only asks them for UFL.
 
@@ -152,6 +152,8 @@ class Model:
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 
+#: The paper's model (the default of every run): the viscoelastic string and the inelastic velocity penalty on
+#: the obstacle y = 0. Registered as ``inelastic``.
 inelastic = Model()
 
 

@@ -2,7 +2,7 @@
 
 A scene file is data: its ``model`` key is a *name* that an installed package registers under the
 entry-point group ``stringcontact.models`` (this package registers ``inelastic``, ``elastic`` and
-``loaded_obstacle``; docs/models.md shows how a package of your own registers more). Checking a scene's
+``loaded_obstacle``; docs/howto/models.md shows how a package of your own registers more). Checking a scene's
 name reads the installed packages' metadata only and imports nothing; a run then loads the one entry point
 it names, which imports that installed package's module: the trust boundary is the user's ``pip install``.
 

@@ -63,6 +63,8 @@ def _spring_energy(eta, p: Parameters):
     return ufl.max_value(-eta, 0) ** 2 / (2 * p.eps)
 
 
+#: Elastic (bouncing) contact: the Signorini displacement penalty (1/ε) η⁻ in place of the paper's velocity
+#: penalty; explicit only. Registered as ``elastic``.
 elastic = dataclasses.replace(
     inelastic,
     name="elastic",
@@ -107,6 +109,8 @@ def _obstacle_gap(eta, p: Parameters):
     return eta - _obstacle(p)
 
 
+#: The paper's model with the scene's ``load`` f(x) and ``obstacle`` ψ(x): the contact set is {η ≤ ψ}.
+#: Registered as ``loaded_obstacle``.
 loaded_obstacle = Model(
     name="loaded_obstacle",
     momentum_form=_loaded_momentum_form,

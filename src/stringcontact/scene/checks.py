@@ -41,6 +41,41 @@ _PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_+\-]{0,31}")
 _PETSC_ALLOWED = (f"a table of at most {PETSC_MAX_OPTIONS} PETSc options named {', '.join(p + '*' for p in PETSC_PREFIXES)} in lower case "
                   f"(but not {', '.join(PETSC_REFUSED_NAMES)}: MUMPS' output units and out-of-core files; no viewers, "
                   "monitors, files or debuggers), each a number, a boolean or a word (letters, digits, _ + -)")
+_NAME_ALLOWED = f"1 to {NAME_MAX} printable characters, no '/' or '\\', not starting with '.'"
+_SIZE_ALLOWED = f"two numbers [Lx, Ly] in [{BOUNDS['length'][0]:g}, {BOUNDS['length'][1]:g}]"
+_CELLS_ALLOWED = f"two integers [nx, ny] in [1, {MAX_CELLS}]"
+_MESH_SIZE_ALLOWED = f"a number in [radius/{MAX_DISK_RATIO}, radius]"
+
+
+def allowed(key: str) -> str:
+    """What a scene may give for `key` (a key of `FILE_KEYS`), in the words of the key's error messages; the
+    scene-keys reference (docs/reference/scene_keys.md) prints it. KeyError for a key without a text."""
+    if key == "h":
+        return f"{_range_text(key)} (2D: also an expression in x, y)"
+    if key in INT_BOUNDS or key in BOUNDS:
+        return _range_text(key)
+    lo, hi = INT_BOUNDS["nt"]
+    values = f"values in [-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}]"
+    texts = {
+        "name": _NAME_ALLOWED,
+        "description": "a string",
+        "notes": "a string",
+        "dt": f"T/dt an integer in [{lo}, {hi}] (up to {DT_RELATIVE_TOLERANCE:g} relative), or give nt",
+        "eta0": f"an expression in x (2D: x, y) or a number; {values}",
+        "v0": f"an expression in x (2D: x, y) or a number; {values}",
+        "load": f"an expression in x (2D: x, y) or a number; {values}",
+        "obstacle": f"an expression in x (2D: x, y) or a number; {values}",
+        "output_times": f"at most {MAX_OUTPUT_TIMES} numbers in [0, T], ascending, no duplicates",
+        "model": "a name registered under the entry-point group stringcontact.models (`stringcontact models`)",
+        "scheme": ", ".join(names.SCHEMES),
+        "domain": ", ".join(DOMAIN_KEYS),
+        "size": _SIZE_ALLOWED,
+        "cells": _CELLS_ALLOWED,
+        "mesh_size": _MESH_SIZE_ALLOWED,
+        "mesh": "the path of an XDMF triangle mesh (*.xdmf)",
+        "petsc_options": _PETSC_ALLOWED,
+    }
+    return texts[key]
 
 
 def domain_of(data: dict) -> str:
@@ -71,16 +106,15 @@ def check_domain(scene, put) -> None:
         raise SceneError(f"{given[0]}: only for domain 'interval', not {domain!r}" if domain != "interval" else
                          f"{given[0]}: not for domain 'interval'; give domain = 'rectangle', 'disk' or a mesh file")
     if domain == "rectangle":
-        put("size", _pair("size", scene.size, lambda v: number("length", v), "two numbers [Lx, Ly] in [1e-06, 10000]"))
-        put("cells", _pair("cells", scene.cells, lambda v: _cell_count(v), f"two integers [nx, ny] in [1, {MAX_CELLS}]"))
+        put("size", _pair("size", scene.size, lambda v: number("length", v), _SIZE_ALLOWED))
+        put("cells", _pair("cells", scene.cells, lambda v: _cell_count(v), _CELLS_ALLOWED))
     elif domain == "disk":
         put("radius", number("radius", scene.radius))
-        allowed = f"a number in [radius/{MAX_DISK_RATIO}, radius]"
         if scene.mesh_size is None:
-            raise SceneError(f"mesh_size: domain 'disk' needs mesh_size; allowed: {allowed}")
+            raise SceneError(f"mesh_size: domain 'disk' needs mesh_size; allowed: {_MESH_SIZE_ALLOWED}")
         h = float(scene.mesh_size) if is_number(scene.mesh_size) else math.nan
         if not (scene.radius / MAX_DISK_RATIO <= h <= scene.radius):
-            raise SceneError(f"mesh_size: {describe(scene.mesh_size)} is out of range; allowed: {allowed} (radius = {fmt(scene.radius)})")
+            raise SceneError(f"mesh_size: {describe(scene.mesh_size)} is out of range; allowed: {_MESH_SIZE_ALLOWED} (radius = {fmt(scene.radius)})")
         put("mesh_size", h)
     if domain in ("rectangle", "disk"):
         check_membrane_nodes(scene.node_estimate, "cells" if domain == "rectangle" else "mesh_size",
@@ -238,8 +272,7 @@ def check_name(value) -> str:
         or value.startswith(".")
     ):
         raise SceneError(
-            f"name: invalid name {describe(value)}; allowed: 1 to {NAME_MAX} printable characters, "
-            "no '/' or '\\', not starting with '.'"
+            f"name: invalid name {describe(value)}; allowed: {_NAME_ALLOWED}"
         )
     return value
 

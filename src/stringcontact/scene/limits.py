@@ -14,6 +14,7 @@ __all__ = [
     "FIELD_KEYS",
     "FILE_KEYS",
     "INT_BOUNDS",
+    "KEY_DOCS",
     "MAX_CELLS",
     "MAX_DISK_RATIO",
     "MAX_FILE_BYTES",
@@ -49,6 +50,7 @@ DOMAIN_KEYS = {
 FIELD_KEYS = ("load", "obstacle")
 #: Required keys; besides these, exactly one of nt or dt.
 REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
+#: The largest scene file read, in bytes.
 MAX_FILE_BYTES = 1_000_000
 DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
 
@@ -75,6 +77,7 @@ INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000)}
 MAX_OUTPUT_TIMES = 1000
 #: The stored rows (eta, velocity, contact force as float64, contact as bool) may take at most this many bytes.
 MAX_STORED_BYTES = 2_000_000_000
+#: The bytes of one node in one stored row: eta, velocity, contact force (float64) and contact (bool).
 BYTES_PER_STORED_NODE = 3 * 8 + 1
 #: The solver's default number of stored rows (`simulate(max_rows=400)`), besides 0, T and the output times.
 STORED_ROWS = 400
@@ -106,3 +109,38 @@ def stored_bytes(nx: int, nt: int, n_output_times: int, max_rows: int = STORED_R
     return rows * (nx + 1) * BYTES_PER_STORED_NODE
 
 
+#: What each key of FILE_KEYS is: key -> (type, unit, default, meaning). The scene-keys reference
+#: (docs/reference/scene_keys.md) is generated from this, FILE_KEYS, DOMAIN_KEYS and `checks.allowed` (the same
+#: text the error messages give). Units: the model is dimensionless, wave speed 1, so x and t share a unit; η is
+#: a height.
+KEY_DOCS = {
+    "name": ("string", "", "the file's name without .toml", "the scene's name (titles, output file names)"),
+    "description": ("string", "", '""', "one line shown by `stringcontact list`"),
+    "notes": ("string", "", '""', "how the source data were read (free text)"),
+    "length": ("number", "x", "1", "the string's length l: the interval (0, l)"),
+    "T": ("number", "t", "required", "the final time"),
+    "alpha": ("number", "t", "required", "viscosity α (the damping term α η_txx)"),
+    "eps": ("number", "t", "required", "penalty ε: the contact force is (1/ε) χ{η < ψ} (η_t)⁻"),
+    "nx": ("integer", "", "required (1D)", "number of cells of the interval"),
+    "nt": ("integer", "", "one of nt, dt", "number of time steps"),
+    "dt": ("number", "t", "one of nt, dt", "time step; T/dt must be an integer (stored as nt)"),
+    "eta0": ("expression or number", "η", "required", "initial displacement η(0, x), an expression in x (2D: x, y)"),
+    "v0": ("expression or number", "η/t", "required", "initial velocity η_t(0, x)"),
+    "h": ("number (2D: or expression)", "η", "eta0 at the ends (2D: on the boundary)",
+          "the height at which both ends (2D: the boundary) are held"),
+    "h_left": ("number", "η", "eta0(0)", "the height of the left end"),
+    "h_right": ("number", "η", "eta0(l)", "the height of the right end"),
+    "load": ("expression or number", "η/t²", "not given: no load",
+             "external force density f(x), for a model that reads it (`loaded_obstacle`)"),
+    "obstacle": ("expression or number", "η", "not given: ψ = 0", "obstacle profile ψ(x), for a model that reads it"),
+    "output_times": ("list of numbers", "t", "[]", "times stored exactly (snapshots, XDMF frames)"),
+    "model": ("string", "", '"inelastic"', "a registered model (`stringcontact models`), never a module path"),
+    "scheme": ("string", "", '"paper"', "the time scheme (`stringcontact.SCHEMES`)"),
+    "domain": ("string", "", '"interval" ("file" with mesh)', "the domain: interval (string), rectangle, disk, file"),
+    "size": ("list of 2 numbers", "x", "[1, 1]", "the rectangle [0, Lx] × [0, Ly]"),
+    "cells": ("list of 2 integers", "", "required (rectangle)", "the rectangle's cells per direction [nx, ny]"),
+    "radius": ("number", "x", "1", "the disk's radius (centre 0)"),
+    "mesh_size": ("number", "x", "required (disk)", "gmsh's largest element size on the disk"),
+    "mesh": ("string", "", "required (file)", "the path of an XDMF triangle mesh (the domain 'file')"),
+    "petsc_options": ("table", "", "not given: the scheme's solver", "PETSc options for the linear solver"),
+}

@@ -120,7 +120,7 @@ def list_scenes() -> list[tuple[str, str]]:
 
 
 def scene_to_toml(scene: Scene) -> str:
-    """The scene as a TOML scene file (loadable by :func:`load_scene`), with derived values in a comment.
+    """The scene as a TOML scene file (loadable by :func:`~stringcontact.load_scene`), with derived values in a comment.
 
     Written by tomli-w: strings with line breaks (notes) as multi-line strings, ``petsc_options`` as a table
     at the end (it is the last key of `Scene.as_dict`, so the keys keep their order).

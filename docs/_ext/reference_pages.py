@@ -1,0 +1,263 @@
+"""The generated parts of the reference, written as MyST markdown into docs/_generated/ when the site is built.
+
+Each table is made from the definitions the program itself uses, so a page cannot drift from the code:
+
+* `scene_keys`: `scene.limits` (FILE_KEYS, KEY_DOCS, DOMAIN_KEYS) and `scene.checks.allowed`, the text of the
+  error messages;
+* `cli`: the argparse parsers of `stringcontact.cli.main.build_parser`;
+* `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
+* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.catalogue`'s pictures;
+* `api`: autodoc directives for `stringcontact.__all__` and the public modules' `__all__`.
+
+A name the code adds without a description here (a scene key, a CSV column, a field) is an error, which fails
+the build: `tests/docs/test_reference.py` checks the same.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import re
+from pathlib import Path
+
+#: The modules a user touches besides the top-level namespace, what the API reference documents: module ->
+#: (title, the public names; None: its `__all__`).
+PUBLIC_MODULES = {
+    "stringcontact.model.paper": ("The model in UFL, what a model variant reuses or replaces", None),
+    "stringcontact.model.variants": ("The model variants shipped with the package", None),
+    "stringcontact.run.options": ("The options of simulate", None),
+    "stringcontact.io.result": ("A run's result", ("Result",)),
+    "stringcontact.scene": ("Scenes", None),
+    "stringcontact.errors": ("Errors", ("SolverError", "OutputError", "Interrupted", "PenetrationWarning", "one_line")),
+}
+
+#: diagnostics.csv's columns (io.tables.DIAGNOSTIC_COLUMNS).
+COLUMNS = {
+    "step": "the time step of the row (0 … nt)",
+    "t": "the time",
+    "kinetic": "kinetic energy ½∫η_t²",
+    "elastic": "elastic energy ½∫|∇η|² (the model's)",
+    "viscous_dissipation": "viscous dissipation α∫∫|∇η_t|² up to t (cumulative)",
+    "contact_dissipation": "energy taken by the contact force up to t (cumulative)",
+    "numerical_dissipation": "energy taken by the scheme itself up to t (cumulative)",
+    "external_work": "work of an external load up to t (cumulative; 0 without a load)",
+    "balance_residual": "E(0) − [E(t) + dissipations − external work]: closes to round-off",
+    "min_eta": "min over the nodes of η − ψ (below 0: below the obstacle)",
+    "contact_length": "the measure of the contact set {η ≤ ψ} (2D: its area)",
+    "contact_components": "the number of contact intervals (2D: patches)",
+    "max_contact_force": "the largest nodal contact force",
+}
+#: The fields of solution.xdmf at each stored time (io.result.FIELDS).
+FIELDS = {
+    "eta": "the displacement η",
+    "velocity": "the velocity η_t",
+    "contact": "1 where η ≤ ψ (on or below the obstacle), else 0",
+    "contact_force": "the nodal contact force F",
+}
+#: The pictures of a run (plot.catalogue): 1D and 2D.
+PICTURES = {
+    "contact_set.png": "the space-time contact set {η ≤ ψ}",
+    "velocity_field.png": "the velocity η_t over (x, t)",
+    "snapshots.png": "η at the scene's output times, contact in red",
+    "energy.png": "the energies and dissipations over time (the balance)",
+    "space_time.png": "η(x, t) as a surface, red where in contact",
+    "membrane.png": "the membrane warped by η at the output times, red where it touches",
+    "contact_area.png": "the contact area over time",
+    "membrane.gif": "the membrane's animation",
+}
+#: The files of an output folder that are not pictures.
+FILES = {
+    "solution.xdmf": "the mesh once and, at up to `--frames` stored times, one grid carrying every field below "
+                     "(ParaView, meshio)",
+    "solution.h5": "the XDMF's heavy data (HDF5)",
+    "diagnostics.csv": "one row per stored time: the columns below",
+    "summary.json": "parameters, versions, timings, checks, `status` (complete, unstable, unbalanced, interrupted)",
+    "rows.npz": "the stored rows the pictures are drawn from (`numpy.load`; `stringcontact plot` redraws from it)",
+    "view.py": "ParaView's view of this run: `paraview --script=view.py`",
+    "manifest.json": "the names and sizes of the files the command wrote (all that `--force` may replace)",
+}
+
+
+def _cell(text) -> str:
+    """`text` for a markdown table cell: one line, backslashes and pipes escaped."""
+    return " ".join(str(text).split()).replace("\\", "\\\\").replace("|", "\\|")
+
+
+def _table(header: list[str], rows: list[list]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+    lines += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _undocumented(what: str, names, documented) -> None:
+    missing = [n for n in names if n not in documented]
+    if missing:
+        raise RuntimeError(f"{what} without a description in docs/_ext/reference_pages.py: {', '.join(missing)}")
+
+
+def scene_keys() -> str:
+    """The table of every scene key: type, unit, default, allowed values (the error messages' text), 1D/2D."""
+    from stringcontact.scene import checks, limits
+
+    _undocumented("scene keys (scene/limits.py KEY_DOCS)", limits.FILE_KEYS, limits.KEY_DOCS)
+    domains = {key: name for name, keys in limits.DOMAIN_KEYS.items() for key in keys}
+    rows = []
+    for key in limits.FILE_KEYS:
+        kind, unit, default, meaning = limits.KEY_DOCS[key]
+        domain = domains.get(key)
+        where = "1D" if domain == "interval" else f"2D ({domain})" if domain else "1D, 2D"
+        if key in limits.REQUIRED_KEYS:
+            default = "required" + (" (1D)" if domain == "interval" else "")
+        rows.append([f"`{key}`", meaning, kind, unit or "–", default, checks.allowed(key), where])
+    from stringcontact.scene import expressions
+
+    language = (f"An expression is at most {expressions.MAX_LENGTH} characters: "
+                f"{expressions._ALLOWED_TEXT} (`where(cond, a, b)`; `piecewise(c1, v1, c2, v2, ..., default)`: the first true condition wins). "
+                "`x` (and `y` in 2D) is the point, `l` the length, `h` the end height when the scene gives one.\n")
+    return _table(["key", "meaning", "type", "unit", "default", "allowed", "domain"], rows) + "\n" + language
+
+
+def _walk(parser: argparse.ArgumentParser, prog: str, help_text: str, level: int) -> list[str]:
+    out = [f"{'#' * level} `{prog}`\n", f"{help_text}\n" if help_text else "", "```text", parser.format_usage().strip(),
+           "```\n"]
+    rows, children = [], []
+    for action in parser._actions:
+        if isinstance(action, argparse._HelpAction) or action.help == argparse.SUPPRESS:
+            continue
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {a.dest: a.help for a in action._choices_actions}
+            children += [(name, sub, helps.get(name, "")) for name, sub in action.choices.items()]
+            continue
+        name = ", ".join(f"`{o}`" for o in action.option_strings) or f"`{action.dest}`"
+        value = ""
+        if action.choices:
+            value = ", ".join(f"`{c}`" for c in action.choices)
+        elif action.nargs != 0:
+            value = f"`{action.metavar or action.dest.upper()}`" if action.option_strings else ""
+            if action.type is not None:
+                value += f" ({getattr(action.type, '__name__', action.type)})"
+        default = "" if action.default in (None, False, [], argparse.SUPPRESS) else f"`{action.default}`"
+        rows.append([name, value, default, action.help or ""])
+    if rows:
+        out.append(_table(["argument", "value", "default", "meaning"], rows))
+    for name, sub, text in children:
+        out += _walk(sub, f"{prog} {name}", text, min(level + 1, 6))
+    return out
+
+
+def cli() -> str:
+    """Every subcommand of `stringcontact`: usage and arguments, from the parsers the command line builds."""
+    from stringcontact.cli.main import SUBCOMMANDS, build_parser
+
+    parser = build_parser(["run", "list", "show", *SUBCOMMANDS])  # every subcommand with its arguments
+    return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
+
+
+def exit_codes() -> str:
+    """The exit codes as the command line's docstring lists them, checked against its constants."""
+    from stringcontact.cli import main
+
+    text = main.__doc__.split("Exit codes:", 1)[1]
+    items = re.findall(r"^\* (\d+(?:, \d+)*|\d+) (.*?)(?=^\* |^\S|\Z)", text, re.DOTALL | re.MULTILINE)
+    rows = [[f"`{code}`", " ".join(what.split()).rstrip(";.")] for code, what in items]
+    codes = {c for code, _ in items for c in re.findall(r"\d+", code)}
+    constants = {str(v) for k, v in vars(main).items() if k.startswith("EXIT_")}
+    _undocumented("exit codes (cli/main.py EXIT_*)", sorted(constants), codes)
+    return _table(["exit code", "meaning"], rows)
+
+
+def output_files() -> str:
+    """The output folder's files, solution.xdmf's fields, diagnostics.csv's columns, the pictures."""
+    from stringcontact.io.result import FIELDS as fields
+    from stringcontact.io.tables import DIAGNOSTIC_COLUMNS
+    from stringcontact.plot.catalogue import MEMBRANE_PICTURES
+    from stringcontact.plot.catalogue import PICTURES as pictures
+
+    _undocumented("diagnostics.csv columns (io/tables.py)", DIAGNOSTIC_COLUMNS, COLUMNS)
+    _undocumented("XDMF fields (io/result.py FIELDS)", fields, FIELDS)
+    _undocumented("pictures (plot/catalogue.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
+    shown = {name: ("1D" if name in pictures else "") + (", " if name in pictures and name in MEMBRANE_PICTURES else "")
+             + ("2D" if name in MEMBRANE_PICTURES else "") for name in dict.fromkeys(pictures + MEMBRANE_PICTURES)}
+    return "\n".join([
+        "## Files\n", _table(["file", "what it holds"], [[f"`{k}`", v] for k, v in FILES.items()]),
+        "## Fields of `solution.xdmf`\n",
+        _table(["field", "meaning"], [[f"`{k}`", FIELDS[k]] for k in fields]),
+        "## Columns of `diagnostics.csv`\n",
+        _table(["column", "meaning"], [[f"`{k}`", COLUMNS[k]] for k in DIAGNOSTIC_COLUMNS]),
+        "## Pictures\n",
+        _table(["picture", "what it shows", "runs"], [[f"`{k}`", PICTURES[k], shown[k]] for k in shown]),
+    ])
+
+
+def public_names(module_name: str) -> list[str]:
+    """The public names of a public module (`PUBLIC_MODULES`): the names listed there, else its `__all__`."""
+    names = PUBLIC_MODULES.get(module_name, ("", None))[1]
+    return list(names if names is not None else importlib.import_module(module_name).__all__)
+
+
+def _directive(qualified: str, obj) -> str:
+    """The autodoc directive for `obj` (autodoc writes reStructuredText, so in MyST it sits in eval-rst)."""
+    if isinstance(obj, type):
+        rst = f".. autoclass:: {qualified}\n   :members:\n"
+        if dataclasses.is_dataclass(obj):  # its fields are in its docstring; a Model's would read as methods
+            rst += f"   :exclude-members: {', '.join(f.name for f in dataclasses.fields(obj))}\n"
+    elif callable(obj) and not hasattr(obj, "momentum_form"):  # a Model instance is data, not a function
+        rst = f".. autofunction:: {qualified}\n"
+    else:  # data: its `#:` comment where it is defined (autodoc would look only in the module it is read from)
+        doc = data_doc(qualified.rsplit(".", 1)[1], obj)
+        if doc is None:
+            raise RuntimeError(f"{qualified}: no #: comment where it is defined")
+        rst = f".. py:data:: {qualified}\n\n" + "".join(f"   {line}\n" for line in doc)
+    return f"```{{eval-rst}}\n{rst}```\n"
+
+
+def data_doc(attr: str, obj) -> list[str] | None:
+    """The `#:` comment lines of `attr` in the stringcontact module where it is `obj` and has them, or None."""
+    import sys
+
+    from sphinx.pycode import ModuleAnalyzer
+
+    for name, module in sorted(sys.modules.items()):
+        if not name.startswith("stringcontact") or module is None:
+            continue
+        if getattr(module, attr, None) is obj:
+            docs = ModuleAnalyzer.for_module(name).find_attr_docs().get(("", attr))
+            if docs and any(line.strip() for line in docs):
+                return [line for line in docs if line.strip()]
+    return None
+
+
+def api() -> str:
+    """autodoc directives: `stringcontact.__all__` first, then each public module's other public names."""
+    import stringcontact
+
+    out = ["## `stringcontact`\n"]
+    top = {id(getattr(stringcontact, name)) for name in stringcontact.__all__}
+    for name in stringcontact.__all__:
+        out.append(_directive(f"stringcontact.{name}", getattr(stringcontact, name)))
+    for module_name, (title, _) in PUBLIC_MODULES.items():
+        module = importlib.import_module(module_name)
+        rest = [n for n in public_names(module_name) if id(getattr(module, n)) not in top]
+        if not rest:
+            continue
+        out.append(f"## {title}: `{module_name}`\n")
+        out.append(f"```{{eval-rst}}\n.. automodule:: {module_name}\n   :no-index:\n```\n")  # its docstring
+        out += [_directive(f"{module_name}.{n}", getattr(module, n)) for n in rest]
+    return "\n".join(out)
+
+
+PAGES = {"scene_keys": scene_keys, "cli": cli, "exit_codes": exit_codes, "output_files": output_files, "api": api}
+
+
+def write_all(folder: Path) -> list[Path]:
+    """Write every generated page into `folder` (only when its text changed, so Sphinx rereads only those)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, make in PAGES.items():
+        path = folder / f"{name}.md"
+        text = make()
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+        written.append(path)
+    return written
