@@ -126,6 +126,7 @@ _NOT_GIVEN = {
     "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
     "obstacle": "the flat obstacle psi = 0 (the paper's y = 0)",
     "petsc_options": "the scheme's own linear solver",
+    "restitution": "0: inelastic contact (scheme projection takes e in [0, 1])",
 }
 
 

@@ -143,4 +143,5 @@ KEY_DOCS = {
     "mesh_size": ("number", "x", "required (disk)", "gmsh's largest element size on the disk"),
     "mesh": ("string", "", "required (file)", "the path of an XDMF triangle mesh (the domain 'file')"),
     "petsc_options": ("table", "", "not given: the scheme's solver", "PETSc options for the linear solver"),
+    "restitution": ("number", "", "0 (inelastic)", "scheme projection's restitution coefficient e (Paoli-Schatzman)"),
 }
