@@ -42,6 +42,27 @@ class Operators:
     m_force: np.ndarray  # row sums of B (owned dofs): the lumped force weights
     load: np.ndarray  # b on owned dofs (zero for the paper's model)
     V: object = None  # the function space: kept alive with its matrices (dolfinx 0.9 segfaults otherwise)
+    nonlinear: NonlinearForm | None = None  # a nonlinear model's residual (then M, C, K are its tangent at 0)
+
+
+@dataclass
+class NonlinearForm:
+    """A model whose momentum form is nonlinear in η or η_t: the residual R and its placeholders, for a
+    scheme that solves each step with Newton (`timestepping.nonlinear`).
+
+    R is affine in η_tt and in the force with constant coefficients (M = ∂R/∂η_tt and B = −∂R/∂F are the
+    `Operators`' M and m_force), so a scheme keeps its mass lumping and its nodal force; `stored_energy` is
+    the model's stored energy density as UFL in `eta` (assembled by the scheme for its ledger).
+    """
+
+    residual: object  # the UFL form R(eta, eta_t, eta_tt, force; w)
+    eta: object
+    eta_t: object
+    eta_tt: object
+    force: object
+    V: object
+    params: object
+    stored_energy: object  # UFL form ∫Π(eta) dx
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
@@ -77,27 +98,45 @@ def _row_sums(A: PETSc.Mat) -> np.ndarray:
     return rs.array.copy()
 
 
+def default_stored_energy(eta, p):
+    """The paper's stored energy density ½|∇η|² (a model without `stored_energy` stores this)."""
+    return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta))
+
+
 def semi_discrete_operators(model, V, params) -> Operators:
-    """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V."""
+    """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V.
+
+    A form that is linear in its placeholders gives the constant operators. A form nonlinear in η or η_t (or a
+    model with ``newton=True``) gives the same operators linearised at 0 plus `Operators.nonlinear`, the
+    residual for the Newton step; ModelError if it is nonlinear in η_tt or the force, or if they multiply η.
+    """
     eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
     w = ufl.TestFunction(V)
     u = ufl.TrialFunction(V)
     R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
     placeholders = (eta, eta_t, eta_tt, force)
     zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+    at_zero = dict.fromkeys(placeholders, zero)
 
     R_lowered = apply_algebra_lowering(R)  # once, not per derivative
+    nonlinear = bool(getattr(model, "newton", False))
 
     def part(f):
+        nonlocal nonlinear
         a = apply_derivatives(ufl.derivative(R_lowered, f, u))
         if a.empty():  # the model has no such term (e.g. α = 0 written out): a zero matrix, same pattern
             return zero * u * w * ufl.dx
         used = set(ufl.algorithms.extract_coefficients(a)) & set(placeholders)
-        if used:
+        if used and f in (eta_tt, force):
             raise ModelError(
-                f"model '{model.name}': momentum_form must be linear in eta, eta_t, eta_tt and force; "
-                "put nonlinear terms into the model's penalty (the explicit force)"
+                f"model '{model.name}': momentum_form must be affine in eta_tt and in force with constant "
+                "coefficients (a constant mass and nodal force weights); it may be nonlinear in eta and eta_t"
             )
+        if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
+            nonlinear = True
+            a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at_zero)))
+            if a.empty():
+                return zero * u * w * ufl.dx
         return a
 
     K = _assemble_matrix(part(eta))
@@ -107,7 +146,12 @@ def semi_discrete_operators(model, V, params) -> Operators:
     b_form = ufl.algorithms.expand_derivatives(b_form)
     m = _row_sums(M)
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
-    return Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
+    ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
+    if nonlinear:
+        energy = getattr(model, "stored_energy", None) or default_stored_energy
+        ops.nonlinear = NonlinearForm(residual=R, eta=eta, eta_t=eta_t, eta_tt=eta_tt, force=force, V=V,
+                                      params=params, stored_energy=energy(eta, params) * ufl.dx)
+    return ops
 
 
 def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
@@ -182,10 +226,12 @@ def node_coordinates(V) -> np.ndarray:
 
 __all__ = [
     "ModelError",
+    "NonlinearForm",
     "Operators",
-    "semi_discrete_operators",
-    "step_matrices",
-    "stacked",
     "bc_dofs",
+    "default_stored_energy",
     "node_coordinates",
+    "semi_discrete_operators",
+    "stacked",
+    "step_matrices",
 ]

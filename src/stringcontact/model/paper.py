@@ -149,6 +149,8 @@ class Model:
     gap: Callable | None = gap
     stability: Callable | None = restitution_bound
     contact_energy: Callable | None = None
+    stored_energy: Callable | None = None
+    newton: bool = False
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 

@@ -422,7 +422,8 @@ class _Run:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
         stepper, rows = self.stepper, self.rows
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
-                              conservative=self.model.contact_energy is not None,
+                              conservative=self.model.contact_energy is not None
+                              or getattr(stepper, "energy_may_rise", False),
                               floor=energy_roundoff(s.ops.K, stepper.eta, s.comm))
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)

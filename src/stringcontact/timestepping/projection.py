@@ -166,6 +166,13 @@ class Scheme(Base):
             return f"model '{model.name}' declares no gap (its law lets the string through the obstacle)"
         return None
 
+    def __new__(cls, s):
+        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (nonlinear.py)
+            from .nonlinear import ProjectionStep
+
+            return ProjectionStep(s, largest_stable_dt, cls._obstacle, CONTACT_TOL)
+        return super().__new__(cls)
+
     def __init__(self, s):
         super().__init__(s)
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
