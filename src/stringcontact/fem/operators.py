@@ -63,6 +63,7 @@ class NonlinearForm:
     V: object
     params: object
     stored_energy: object  # UFL form ∫Π(eta) dx
+    viscous_linear: bool = False  # ∂R/∂η_t is constant: the viscous force is C η_t (a mat-vec, no assembly)
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
@@ -119,10 +120,9 @@ def semi_discrete_operators(model, V, params) -> Operators:
     at_zero = dict.fromkeys(placeholders, zero)
 
     R_lowered = apply_algebra_lowering(R)  # once, not per derivative
-    nonlinear = bool(getattr(model, "newton", False))
+    nonlinear_in = set()
 
     def part(f):
-        nonlocal nonlinear
         a = apply_derivatives(ufl.derivative(R_lowered, f, u))
         if a.empty():  # the model has no such term (e.g. α = 0 written out): a zero matrix, same pattern
             return zero * u * w * ufl.dx
@@ -133,7 +133,7 @@ def semi_discrete_operators(model, V, params) -> Operators:
                 "coefficients (a constant mass and nodal force weights); it may be nonlinear in eta and eta_t"
             )
         if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
-            nonlinear = True
+            nonlinear_in.add(f)
             a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at_zero)))
             if a.empty():
                 return zero * u * w * ufl.dx
@@ -147,10 +147,11 @@ def semi_discrete_operators(model, V, params) -> Operators:
     m = _row_sums(M)
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
     ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
-    if nonlinear:
+    if nonlinear_in or getattr(model, "newton", False):
         energy = getattr(model, "stored_energy", None) or default_stored_energy
         ops.nonlinear = NonlinearForm(residual=R, eta=eta, eta_t=eta_t, eta_tt=eta_tt, force=force, V=V,
-                                      params=params, stored_energy=energy(eta, params) * ufl.dx)
+                                      params=params, stored_energy=energy(eta, params) * ufl.dx,
+                                      viscous_linear=eta_t not in nonlinear_in)
     return ops
 
 

@@ -10,9 +10,11 @@ A model is a `Model`: a few plain functions that return UFL.
     The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the
     unknowns' time derivatives, as in Irksome: `eta`, `eta_t`, `eta_tt` are placeholders that the
     time scheme (`scheme.py`) replaces by its difference quotients, and `force` is a placeholder for
-    the contact force density. R must be *linear* in the four placeholders (the scheme checks);
-    terms in none of them (an external load ``- f*w*dx``) are the constant load b = -R(0, 0, 0, 0),
-    assembled once. `w` is the test function.
+    the contact force density. R linear in the four placeholders gives constant operators, assembled once;
+    R nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``) makes every step a Newton solve
+    (`timestepping.nonlinear`); R must be affine in `eta_tt` and `force` with constant coefficients (the
+    scheme checks). Terms in none of them (an external load ``- f*w*dx``) are the constant load
+    b = -R(0, 0, 0, 0). `w` is the test function.
 
 ``penalty(eta, v, p)``
     The contact force density F as a *pointwise* UFL expression in the previous step's η^n and
@@ -45,6 +47,14 @@ A model is a `Model`: a few plain functions that return UFL.
     For a *conservative* law (F = −∂Φ/∂η, a spring): the stored energy density Φ(η), so that the
     solver's energy guard counts the energy held in the spring instead of calling its release
     an instability. ``None`` for a dissipative law such as the paper's.
+
+``stored_energy(eta, p)`` (optional)
+    The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
+    Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the paper's ½|∇η|².
+
+``newton`` (a flag, default False)
+    Solve every step by Newton (`timestepping.nonlinear`) even when the form is linear: a form nonlinear in
+    η or η_t always is; a linear one otherwise keeps the constant operators (a comparison or a test).
 
 The paper's model (Definition 2.1), the default `inelastic`::
 

@@ -80,6 +80,8 @@ class NewtonStep:
         self.work_vec = compat.create_vector(self.G_form)
         self.J = fem.petsc.create_matrix(self.J_form)
         self.x = self.G_vec.duplicate()
+        self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
+        self.m_tt = self.a_tt * s.ops.m if self.lumped else np.zeros(n)
         self.f = np.zeros(n)  # the applied nodal force
         self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
         self.arrays = [np.zeros(n) for _ in range(3)]  # e0, em, v0 (owned)
@@ -129,6 +131,16 @@ class NewtonStep:
             r += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
         return r
 
+    def viscous_force(self, u: np.ndarray) -> np.ndarray:
+        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
+        ∂R/∂η_t is constant, else two assemblies."""
+        if self.s.ops.nonlinear.viscous_linear:
+            q_t = self.q["eta_t"](u, *self.arrays, self.s.dt)
+            out = self.s.ops.C.createVecLeft()
+            self.s.ops.C.mult(wrap(np.ascontiguousarray(q_t), self.s.comm), out)
+            return out.array.copy()
+        return self.residual_at(u) - self.residual_at(u, self.G_static_form)
+
     def stored_energy(self, eta: np.ndarray) -> float:
         """∫Π(η) on this rank's cells (the caller sums over the ranks)."""
         self._set(self.energy_eta, eta)
@@ -154,11 +166,9 @@ class NewtonStep:
         J.zeroEntries()
         fem.petsc.assemble_matrix(J, self.J_form)
         J.assemble()
-        diag = self.d + (self.a_tt * self.s.ops.m if self.lumped else 0.0)
-        if np.any(diag):
-            extra = J.createVecLeft()
-            extra.array[:] = diag
-            J.setDiagonal(extra, addv=PETSc.InsertMode.ADD_VALUES)
+        diag = self.diag.array
+        np.add(self.d, self.m_tt, out=diag)
+        J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
         dirichlet_rows(J, self.s.bc)  # identity rows; the guess holds the ends, so their columns need no lift
 
     def solve(self, guess: np.ndarray) -> np.ndarray:
@@ -179,8 +189,8 @@ class NewtonStep:
     def describe(self) -> dict:
         """Newton's counters for the summary."""
         per_step = self.iterations / self.solves if self.solves else 0.0
-        return {"newton iterations": self.iterations, "newton iterations per step": round(per_step, 3),
-                "nonlinear solver": self.snes.getType()}
+        return {"newton iterations": self.iterations,
+                "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step"}
 
 
 class _NewtonScheme(Base):
@@ -276,7 +286,7 @@ class PaperStep(_NewtonScheme):
         v1 = (u - e0) / dt
         f = nw.f if s.penalty == "explicit" else -nw.d * (u - e0)
         delta = u - e0
-        visc_vec = nw.residual_at(u) - nw.residual_at(u, nw.G_static_form)
+        visc_vec = nw.viscous_force(u)
         kin, el, visc, con, ext = self.allsum(
             self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
             -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)))
@@ -382,7 +392,7 @@ class ProjectionStep(_NewtonScheme):
         active = s.interior & (u <= self.psi + self.tol)
         F = np.where(active, np.maximum(r, 0.0), 0.0)
         delta = 0.5 * (u - em)
-        visc_vec = r - nw.residual_at(u, nw.G_static_form)
+        visc_vec = nw.viscous_force(u)
         d = (u - e0) / dt
         kin, el, visc, con, ext = self.allsum(
             0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self._stored(u) + self._stored(e0)),
@@ -452,7 +462,7 @@ class NewmarkStep(_NewtonScheme):
             D[sticky] = 0.0
         f = -D * v1
         delta = u - e0
-        visc_vec = nw.residual_at(u) - nw.residual_at(u, nw.G_static_form)
+        visc_vec = nw.viscous_force(u)
         kin, el, visc, con, ext = self.allsum(
             self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
             -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)))
