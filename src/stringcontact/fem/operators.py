@@ -26,6 +26,8 @@ from petsc4py import PETSc
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
 
+from . import compat
+
 
 class ModelError(ValueError):
     """The model's UFL does not fit the scheme (for example it is not linear in η, η_t, η_tt)."""
@@ -56,14 +58,17 @@ class NonlinearForm:
     """
 
     residual: object  # the UFL form R(eta, eta_t, eta_tt, force; w)
-    eta: object
+    eta: object  # the placeholders: Functions on `space` (η's P1 space, or the mixed space of several fields)
     eta_t: object
     eta_tt: object
-    force: object
-    V: object
+    force: object  # a Function on V
+    V: object  # η's P1 space (the schemes' nodal arrays)
     params: object
-    stored_energy: object  # UFL form ∫Π(eta) dx
+    stored_energy: object  # UFL form ∫Π(energy_eta) dx
+    energy_eta: object  # the Function on V that `stored_energy` reads
     viscous_linear: bool = False  # ∂R/∂η_t is constant: the viscous force is C η_t (a mat-vec, no assembly)
+    space: object = None  # the unknowns' space: V, or the mixed space of (η, *fields)
+    eta_dofs: object = None  # the mixed space's local dof of each local dof of V (None: the space is V)
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
@@ -114,7 +119,14 @@ def semi_discrete_operators(model, V, params) -> Operators:
     eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
     w = ufl.TestFunction(V)
     u = ufl.TrialFunction(V)
-    R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
+    mixed = _mixed_residual(model, V, params, force) if getattr(model, "fields", ()) else None
+    if mixed is None:
+        R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
+    else:  # η's equation with the other fields at 0: the operators below are its tangent at 0
+        k = len(model.fields)
+        Z_fns, R_Z, W = mixed
+        as_eta = [ufl.as_vector([f, *[0.0] * k]) for f in (eta, eta_t, eta_tt, w)]
+        R = ufl.replace(R_Z, dict(zip((*Z_fns, W), as_eta)))
     placeholders = (eta, eta_t, eta_tt, force)
     zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
     at_zero = dict.fromkeys(placeholders, zero)
@@ -147,12 +159,30 @@ def semi_discrete_operators(model, V, params) -> Operators:
     m = _row_sums(M)
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
     ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
-    if nonlinear_in or getattr(model, "newton", False):
-        energy = getattr(model, "stored_energy", None) or default_stored_energy
+    energy = getattr(model, "stored_energy", None) or default_stored_energy
+    if mixed is not None:
+        (U, U_t, U_tt), R_Z, _ = mixed
+        Z = U.function_space
+        ops.nonlinear = NonlinearForm(residual=R_Z, eta=U, eta_t=U_t, eta_tt=U_tt, force=force, V=V, params=params,
+                                      stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta, space=Z,
+                                      eta_dofs=compat.sub_dofs(V, Z, 0))
+    elif nonlinear_in or getattr(model, "newton", False):
         ops.nonlinear = NonlinearForm(residual=R, eta=eta, eta_t=eta_t, eta_tt=eta_tt, force=force, V=V,
-                                      params=params, stored_energy=energy(eta, params) * ufl.dx,
-                                      viscous_linear=eta_t not in nonlinear_in)
+                                      params=params, stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta,
+                                      viscous_linear=eta_t not in nonlinear_in, space=V)
     return ops
+
+
+def _mixed_residual(model, V, params, force):
+    """A model with `fields`: its residual on the mixed space of (η, *fields), with mixed placeholders."""
+    if model.residual is None:
+        raise ModelError(f"model '{model.name}': a model with fields {model.fields} must give residual(U, U_t, U_tt, "
+                         "force, W, p)")
+    Z = compat.mixed_space(V.mesh, 1 + len(model.fields))
+    U, U_t, U_tt = (fem.Function(Z) for _ in range(3))
+    W = ufl.TestFunction(Z)
+    R = model.residual(ufl.split(U), ufl.split(U_t), ufl.split(U_tt), force, ufl.split(W), params)
+    return (U, U_t, U_tt), R, W
 
 
 def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:

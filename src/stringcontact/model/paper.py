@@ -56,6 +56,13 @@ A model is a `Model`: a few plain functions that return UFL.
     Solve every step by Newton (`timestepping.nonlinear`) even when the form is linear: a form nonlinear in
     η or η_t always is; a linear one otherwise keeps the constant operators (a comparison or a test).
 
+``fields`` and ``residual(U, U_t, U_tt, force, W, p)`` (optional, together)
+    More unknowns on the same mesh (P1 each), named in ``fields`` (e.g. ``("pressure",)``): the model then
+    writes its residual over tuples, U = (η, *fields) and their derivatives, W = (w, *their test
+    functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
+    component is η (ends held, contact on it); the others have no boundary condition and no bound. They
+    may enter through their values and first time derivatives (their second derivatives are not lumped).
+
 The paper's model (Definition 2.1), the default `inelastic`::
 
     ∫ η_tt w dx + α ∫ η_tx w_x dx + ∫ η_x w_x dx = ∫ F w dx,    F = (1/ε) χ{η<0} (η_t)⁻.
@@ -161,6 +168,8 @@ class Model:
     contact_energy: Callable | None = None
     stored_energy: Callable | None = None
     newton: bool = False
+    fields: tuple = ()
+    residual: Callable | None = None
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 

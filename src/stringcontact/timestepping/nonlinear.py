@@ -53,39 +53,57 @@ class NewtonStep:
     """G(u) = 0 (or the VI with lower bounds) for one scheme's quotients; see the module docstring.
 
     `quotients` maps "eta", "eta_t", "eta_tt" to functions (u, e0, em, v0, dt) -> the quotient, written so
-    that they work on UFL functions and on NumPy arrays alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity).
+    that they work on UFL functions and on NumPy arrays alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity);
+    "fields" (optional, default "eta"'s): the value of the other fields of a model with several.
     ``lower``: the nodal lower bound of the VI (−inf where free), or None for a plain Newton step.
     """
 
     def __init__(self, s, quotients: dict, lower: np.ndarray | None = None):
         nl = s.ops.nonlinear
-        V, n = nl.V, s.n_owned
+        Z, n = nl.space, s.n_owned
         self.s, self.n, self.q = s, n, quotients
-        self.u, self.e0, self.em, self.v0 = (fem.Function(V) for _ in range(4))
+        self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
         self.lumped = s.mass == "lumped"
-        zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
         args = (self.u, self.e0, self.em, self.v0, s.dt)
-        q_eta, q_t = quotients["eta"](*args), quotients["eta_t"](*args)
-        q_tt = zero if self.lumped else quotients["eta_tt"](*args)
+        q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
+        zero = fem.Constant(Z.mesh, PETSc.ScalarType(0.0))
+        k = nl.eta.ufl_shape[0] if nl.eta_dofs is not None else 0  # the number of fields, η's among them
+        if k:  # several fields: η's inertia is lumped on the nodes, the other fields keep their own η_tt
+            zeros = ufl.as_vector([0.0] * k)
+            q_fields = quotients.get("fields", quotients["eta"])(*args)  # the other fields' values
+            q_eta = ufl.as_vector([q_eta[0], *(q_fields[i] for i in range(1, k))])
+            q_tt = ufl.as_vector([0.0, *(q_tt[i] for i in range(1, k))]) if self.lumped else q_tt
+        else:
+            zeros = zero
+            q_tt = zero if self.lumped else q_tt
         mapping = {nl.eta: q_eta, nl.eta_t: q_t, nl.eta_tt: q_tt, nl.force: zero}
         G = ufl.replace(nl.residual, mapping)
-        G_static = ufl.replace(nl.residual, mapping | {nl.eta_t: zero})  # its η_t-free part: the viscous work
+        G_static = ufl.replace(nl.residual, mapping | {nl.eta_t: zeros})  # its η_t-free part: the viscous work
         self.G_form = fem.form(G)
-        self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(V)))
+        self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
         self.G_static_form = fem.form(G_static)
-        self.energy_eta = nl.eta
+        self.energy_eta = nl.energy_eta
         self.energy_form = fem.form(nl.stored_energy)
         self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, s.dt))  # ∂q_tt/∂u
         self.G_vec = compat.create_vector(self.G_form)
         self.work_vec = compat.create_vector(self.G_form)
         self.J = fem.petsc.create_matrix(self.J_form)
         self.x = self.G_vec.duplicate()
+        # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
+        self.idx = slice(0, n) if nl.eta_dofs is None else np.asarray(nl.eta_dofs[:n])
+        self.bc = s.bc if nl.eta_dofs is None else self.idx[s.bc]
+        self.N = self.x.getLocalSize()
         self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
         self.m_tt = self.a_tt * s.ops.m if self.lumped else np.zeros(n)
         self.f = np.zeros(n)  # the applied nodal force
         self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
-        self.arrays = [np.zeros(n) for _ in range(3)]  # e0, em, v0 (owned)
+        self.arrays = [np.zeros(n) for _ in range(3)]  # η^n, η^{n−1}, v^n (owned)
+        self.levels = [np.zeros(self.N) for _ in range(4)]  # all fields: η^n, η^{n−1}, v^n, the last solution
         self.iterations, self.solves, self.history = 0, 0, []
+        if lower is not None and nl.eta_dofs is not None:
+            full = np.full(self.N, PETSc.NINFINITY)
+            full[self.idx] = lower
+            lower = full
         self.snes = self._snes(lower)
 
     def _snes(self, lower):
@@ -108,25 +126,38 @@ class NewtonStep:
     # -- the state the forms read
 
     def _set(self, f: fem.Function, a: np.ndarray) -> None:
-        f.x.array[: self.n] = a
+        f.x.array[: a.size] = a
         f.x.scatter_forward()
 
+    def _full(self, eta: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """η's values in the unknowns' array, the other fields' from `rest` (η itself for one field)."""
+        if isinstance(self.idx, slice):
+            return eta
+        full = rest.copy()
+        full[self.idx] = eta
+        return full
+
     def set_known(self, e0, em=None, v0=None) -> None:
-        """The known levels η^n, η^{n−1} and the velocity v^n (owned arrays) into the forms."""
-        for f, a, keep in zip((self.e0, self.em, self.v0), (e0, em, v0), self.arrays):
+        """The known levels η^n, η^{n−1} and the velocity v^n (owned arrays) into the forms; once per step. Several
+        fields: theirs are the last two solutions (and their difference quotient)."""
+        e0_z, em_z, v0_z, last = self.levels
+        if not isinstance(self.idx, slice):
+            em_z[:], e0_z[:] = e0_z, last
+            v0_z[:] = (e0_z - em_z) / self.s.dt
+        for f, a, keep, z in zip((self.e0, self.em, self.v0), (e0, em, v0), self.arrays, self.levels):
             if a is not None:
                 keep[:] = a
-                self._set(f, a)
+                self._set(f, self._full(a, z))
 
     def residual_at(self, u: np.ndarray, form=None) -> np.ndarray:
-        """The assembled residual (`form`: the compiled G by default) at u, owned dofs, no force, no ends."""
-        self._set(self.u, u)
+        """The assembled residual (`form`: the compiled G by default) at u, η's owned dofs, no force, no ends."""
+        self._set(self.u, self._full(u, self.levels[3]))
         vec = self.work_vec
         with vec.localForm() as local:
             local.set(0.0)
         fem.petsc.assemble_vector(vec, form or self.G_form)
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        r = vec.array.copy()
+        r = vec.array[self.idx].copy()
         if self.lumped:
             r += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
         return r
@@ -155,11 +186,13 @@ class NewtonStep:
         fem.petsc.assemble_vector(G, self.G_form)
         G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         g, u = G.array, x.array
+        u_eta = u[self.idx]
+        extra = self.d * (u_eta - self.c)
+        extra -= self.f
         if self.lumped:
-            g += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
-        g -= self.f
-        g += self.d * (u - self.c)
-        g[self.s.bc] = u[self.s.bc] - self.s.g
+            extra += self.s.ops.m * self.q["eta_tt"](u_eta, *self.arrays, self.s.dt)
+        g[self.idx] += extra
+        g[self.bc] = u[self.bc] - self.s.g
 
     def _jacobian(self, snes, x, J, P) -> None:
         self._set(self.u, x.array)
@@ -167,14 +200,16 @@ class NewtonStep:
         fem.petsc.assemble_matrix(J, self.J_form)
         J.assemble()
         diag = self.diag.array
-        np.add(self.d, self.m_tt, out=diag)
+        diag[self.idx] = self.d + self.m_tt
         J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
-        dirichlet_rows(J, self.s.bc)  # identity rows; the guess holds the ends, so their columns need no lift
+        dirichlet_rows(J, self.bc)  # identity rows; the guess holds the ends, so their columns need no lift
 
     def solve(self, guess: np.ndarray) -> np.ndarray:
-        """The root from `guess` (the ends set to their heights); the owned solution. SolverError if SNES fails."""
-        self.x.array[:] = guess
-        self.s.hold_ends(self.x.array)
+        """The root from `guess` (η; the ends set to their heights, the other fields from their last solution);
+        η's owned values. SolverError if SNES fails."""
+        x = self.x.array
+        x[:] = self._full(guess, self.levels[3])
+        x[self.bc] = self.s.g
         self.snes.solve(None, self.x)
         reason = self.snes.getConvergedReason()
         its = self.snes.getIterationNumber()
@@ -184,7 +219,15 @@ class NewtonStep:
         if reason < 0:
             raise SolverError(f"Newton did not converge (SNES reason {reason}) after {its} iterations; "
                               "use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
-        return self.x.array.copy()
+        self.levels[3][:] = x
+        return x[self.idx].copy()
+
+    def field(self, i: int) -> np.ndarray:
+        """Field `i` (0 is η) of the last solution, at the nodes of η's owned dofs."""
+        nl = self.s.ops.nonlinear
+        if nl.eta_dofs is None:
+            return self.levels[3].copy()
+        return self.levels[3][compat.sub_dofs(nl.V, nl.space, i)[: self.n]]
 
     def describe(self) -> dict:
         """Newton's counters for the summary."""
@@ -304,6 +347,7 @@ class PaperStep(_NewtonScheme):
 
 PROJECTION = {
     "eta": lambda u, e0, em, v0, dt: e0,
+    "fields": lambda u, e0, em, v0, dt: u,  # the other fields implicit: an algebraic one is solved, not lagged
     "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
     "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
 }
