@@ -132,8 +132,9 @@ def test_a_manufactured_solution_converges_at_first_order_or_better(base, scheme
 
 
 def test_newton_converges_quadratically():
-    """A large slope (η_x up to 3) on the large-deflection string: the residual norms of one step fall
-    superlinearly, each ratio smaller than the one before and the last below 1e-3."""
+    """A large slope (η_x up to 3) on the large-deflection string: the residual norms of a step fall quadratically,
+    r_{k+1} ≤ C r_k² with the same C at each iteration (measured: 8.8e1, 1.5e-1, 1.4e-6, then the round-off
+    floor 9.7e-12; C = 1.9e-5 and 6.3e-5), not linearly (a constant ratio)."""
     scene = sc.load_scene("example1").replace(nx=200, nt=20, T=0.02, eta0="1 + sin(pi*x)", v0="-30",
                                               alpha=0.01, eps=1.0, output_times=[])
     s = _setting(scene, variants.large_deflection, "paper", penalty="explicit")
@@ -143,11 +144,10 @@ def test_newton_converges_quadratically():
     for _ in range(scene.nt):
         stepper.step()
         histories.append(stepper.newton.history)
-    longest = max(histories, key=len)
-    assert len(longest) >= 4, histories  # at least three Newton steps
-    ratios = [b / a for a, b in itertools.pairwise(longest) if a > 0 and b > 0]
-    assert all(r2 < r1 for r1, r2 in itertools.pairwise(ratios)), longest
-    assert ratios[-1] < 1e-3, longest
+    r = max(histories, key=len)[:3]  # above the round-off floor
+    assert len(r) == 3 and r[2] < r[1] < r[0], histories
+    assert r[2] / r[1] < 1e-2 * (r[1] / r[0])  # superlinear: the ratio itself falls by orders of magnitude
+    assert r[2] / r[1] ** 2 < 1e2 * (r[1] / r[0] ** 2)  # quadratic: r_{k+1}/r_k² does not grow
 
 
 # --- contact and energy -------------------------------------------------------------------------------------
