@@ -12,6 +12,10 @@ The paper's Section 6 scheme then reads, with v^n = (η^n − η^{n−1})/Δt,
 
 with the force F from the previous step and lumped onto the nodes (the row sums of B). As a linear
 system, A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n + b with A = M/Δt² + C/Δt + K.
+
+A form nonlinear in η or η_t (or a model with several fields) keeps the same operators, linearised at 0
+(the stability estimates and round-off floors read them), and hands the residual itself to the schemes
+(`NonlinearForm`), which solve each step by Newton (`timestepping.nonlinear`).
 """
 
 from __future__ import annotations
