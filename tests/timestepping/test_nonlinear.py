@@ -244,6 +244,18 @@ def test_the_second_field_is_solved_not_lagged(ex1):
     assert np.max(np.abs(stepper.eta - stepper.old)) > 1e-3
 
 
+def test_a_scene_load_read_only_by_the_residual_counts_as_used():
+    """`unused_fields` reads a model with fields through its residual: a load used there is not refused."""
+    def residual(U, U_t, U_tt, force, W, p):
+        return two_field_residual(U, U_t, U_tt, force, W, p) - p.extra["load"] * W[0] * ufl.dx
+
+    loaded = dataclasses.replace(variants.cubic_foundation, name="loaded_two", fields=("q",), residual=residual)
+    scene = sc.load_scene("example1").replace(nx=50, nt=300, load="-1")
+    assert run(scene, scheme="projection", model=loaded).status == "complete"
+    with pytest.raises(ValueError, match="load"):  # the same scene with a model that ignores the load
+        run(scene, scheme="projection", model=dataclasses.replace(loaded, residual=two_field_residual))
+
+
 def test_a_model_with_fields_must_give_its_residual(ex1):
     from stringcontact.fem.operators import ModelError
 

@@ -189,6 +189,10 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     eta, v, eta_t, eta_tt, force = (fem.Function(V) for _ in range(5))
     w = ufl.TestFunction(V)
     exprs = [model.momentum_form(eta, eta_t, eta_tt, force, w, p), model.penalty(eta, v, p), model.contact_set(eta, p)]
+    if model.fields and model.residual is not None:  # read only for its coefficients: one P1 stand-in per component
+        k = 1 + len(model.fields)
+        U, U_t, U_tt = (tuple(fem.Function(V) for _ in range(k)) for _ in range(3))
+        exprs.append(model.residual(U, U_t, U_tt, force, (w,) * k, p))
     if model.penalty_damping is not None:
         exprs.append(model.penalty_damping(eta, v, p))
     for law in (model.contact_energy, model.gap):
