@@ -165,6 +165,14 @@ class NewtonStep:
             r += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
         return r
 
+    def last_residual(self, u: np.ndarray) -> np.ndarray:
+        """`residual_at(u)` for the u that `solve` just returned, without assembling: SNES's last residual with the
+        force and the damping taken out again (the ends' rows hold u − g there, 0)."""
+        r = self.G_vec.array[self.idx].copy()
+        r += self.f
+        r -= self.d * (u - self.c)
+        return r
+
     def viscous_force(self, u: np.ndarray) -> np.ndarray:
         """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
         ∂R/∂η_t is constant, else two assemblies."""
@@ -441,7 +449,7 @@ class ProjectionStep(_NewtonScheme):
         e0, em = self.etas[1], self.etas[2]
         nw.set_known(e0, em)
         u = nw.solve(np.maximum(2 * e0 - em, np.where(s.interior, self.psi, -np.inf)))
-        r = nw.residual_at(u)  # G(u) without the force: the reaction where u sits on ψ
+        r = nw.last_residual(u)  # G(u) without the force: the reaction where u sits on ψ
         active = s.interior & (u <= self.psi + self.tol)
         F = np.where(active, np.maximum(r, 0.0), 0.0)
         delta = 0.5 * (u - em)
