@@ -271,12 +271,13 @@ def report(res) -> None:
         )
     times = []
     for k, v in res.timings.items():
-        if k != "linear solver":
+        if k not in ("linear solver", "nonlinear solver"):
             times.append(f"{k} {v:.3g} s" if isinstance(v, float) else f"{k} {v}")
     if times:
         print("time: " + ", ".join(times))
-    if "linear solver" in res.timings:
-        print(f"linear solver: {res.timings['linear solver']}")
+    for solver in ("linear solver", "nonlinear solver"):
+        if solver in res.timings:
+            print(f"{solver}: {res.timings[solver]}")
 
 
 def _components_note(res) -> str:

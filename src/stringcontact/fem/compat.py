@@ -94,3 +94,27 @@ def cell_dofs(V) -> np.ndarray:
     dofs = V.dofmap.list
     flat = dofs.array if hasattr(dofs, "array") else dofs
     return np.asarray(flat).reshape(-1, V.dofmap.dof_layout.num_dofs)
+
+
+def mixed_space(msh, fields: int):
+    """P1^fields on `msh` as one mixed space: `ufl.MixedElement` (0.5) or `basix.ufl.mixed_element` (0.7+)."""
+    from dolfinx import fem
+
+    try:
+        import basix.ufl
+
+        element = basix.ufl.mixed_element([basix.ufl.element("Lagrange", msh.basix_cell(), 1)] * fields)
+        return fem.functionspace(msh, element)
+    except (ImportError, AttributeError):
+        import ufl
+
+        element = ufl.MixedElement([ufl.FiniteElement("Lagrange", msh.ufl_cell(), 1)] * fields)
+        return fem.FunctionSpace(msh, element)
+
+
+def sub_dofs(V, Z, i: int) -> np.ndarray:
+    """For each local dof of the P1 space V, the local dof of component `i` of the mixed space Z at the same
+    node (both on one mesh: matched cell by cell through their dofmaps)."""
+    index = np.empty(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, dtype=np.int64)
+    index[cell_dofs(V).ravel()] = cell_dofs(Z.sub(i)).ravel()
+    return index

@@ -12,6 +12,10 @@ The paper's Section 6 scheme then reads, with v^n = (η^n − η^{n−1})/Δt,
 
 with the force F from the previous step and lumped onto the nodes (the row sums of B). As a linear
 system, A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n + b with A = M/Δt² + C/Δt + K.
+
+A form nonlinear in η or η_t (or a model with several fields) keeps the same operators, linearised at 0
+(the stability estimates and round-off floors read them), and hands the residual itself to the schemes
+(`NonlinearForm`), which solve each step by Newton (`timestepping.nonlinear`).
 """
 
 from __future__ import annotations
@@ -25,6 +29,8 @@ from dolfinx import fem
 from petsc4py import PETSc
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
+
+from . import compat
 
 
 class ModelError(ValueError):
@@ -42,6 +48,31 @@ class Operators:
     m_force: np.ndarray  # row sums of B (owned dofs): the lumped force weights
     load: np.ndarray  # b on owned dofs (zero for the paper's model)
     V: object = None  # the function space: kept alive with its matrices (dolfinx 0.9 segfaults otherwise)
+    nonlinear: NonlinearForm | None = None  # a nonlinear model's residual (then M, C, K are its tangent at 0)
+
+
+@dataclass
+class NonlinearForm:
+    """A model whose momentum form is nonlinear in η or η_t: the residual R and its placeholders, for a
+    scheme that solves each step with Newton (`timestepping.nonlinear`).
+
+    R is affine in η_tt and in the force with constant coefficients (M = ∂R/∂η_tt and B = −∂R/∂F are the
+    `Operators`' M and m_force), so a scheme keeps its mass lumping and its nodal force; `stored_energy` is
+    the model's stored energy density as UFL in `eta` (assembled by the scheme for its ledger).
+    """
+
+    residual: object  # the UFL form R(eta, eta_t, eta_tt, force; w)
+    eta: object  # the placeholders: Functions on `space` (η's P1 space, or the mixed space of several fields)
+    eta_t: object
+    eta_tt: object
+    force: object  # a Function on V
+    V: object  # η's P1 space (the schemes' nodal arrays)
+    params: object
+    stored_energy: object  # UFL form ∫Π(energy_eta) dx
+    energy_eta: object  # the Function on V that `stored_energy` reads
+    viscous_linear: bool = False  # ∂R/∂η_t is constant: the viscous force is C η_t (a mat-vec, no assembly)
+    space: object = None  # the unknowns' space: V, or the mixed space of (η, *fields)
+    eta_dofs: object = None  # the mixed space's local dof of each local dof of V (None: the space is V)
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
@@ -77,27 +108,51 @@ def _row_sums(A: PETSc.Mat) -> np.ndarray:
     return rs.array.copy()
 
 
+def default_stored_energy(eta, p):
+    """The paper's stored energy density ½|∇η|² (a model without `stored_energy` stores this)."""
+    return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta))
+
+
 def semi_discrete_operators(model, V, params) -> Operators:
-    """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V."""
+    """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V.
+
+    A form that is linear in its placeholders gives the constant operators. A form nonlinear in η or η_t (or a
+    model with ``newton=True``) gives the same operators linearised at 0 plus `Operators.nonlinear`, the
+    residual for the Newton step; ModelError if it is nonlinear in η_tt or the force, or if they multiply η.
+    """
     eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
     w = ufl.TestFunction(V)
     u = ufl.TrialFunction(V)
-    R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
+    mixed = _mixed_residual(model, V, params, force) if getattr(model, "fields", ()) else None
+    if mixed is None:
+        R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
+    else:  # η's equation with the other fields at 0: the operators below are its tangent at 0
+        k = len(model.fields)
+        Z_fns, R_Z, W = mixed
+        as_eta = [ufl.as_vector([f, *[0.0] * k]) for f in (eta, eta_t, eta_tt, w)]
+        R = ufl.replace(R_Z, dict(zip((*Z_fns, W), as_eta)))
     placeholders = (eta, eta_t, eta_tt, force)
     zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+    at_zero = dict.fromkeys(placeholders, zero)
 
     R_lowered = apply_algebra_lowering(R)  # once, not per derivative
+    nonlinear_in = set()
 
     def part(f):
         a = apply_derivatives(ufl.derivative(R_lowered, f, u))
         if a.empty():  # the model has no such term (e.g. α = 0 written out): a zero matrix, same pattern
             return zero * u * w * ufl.dx
         used = set(ufl.algorithms.extract_coefficients(a)) & set(placeholders)
-        if used:
+        if used and f in (eta_tt, force):
             raise ModelError(
-                f"model '{model.name}': momentum_form must be linear in eta, eta_t, eta_tt and force; "
-                "put nonlinear terms into the model's penalty (the explicit force)"
+                f"model '{model.name}': momentum_form must be affine in eta_tt and in force with constant "
+                "coefficients (a constant mass and nodal force weights); it may be nonlinear in eta and eta_t"
             )
+        if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
+            nonlinear_in.add(f)
+            a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at_zero)))
+            if a.empty():
+                return zero * u * w * ufl.dx
         return a
 
     K = _assemble_matrix(part(eta))
@@ -107,7 +162,31 @@ def semi_discrete_operators(model, V, params) -> Operators:
     b_form = ufl.algorithms.expand_derivatives(b_form)
     m = _row_sums(M)
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
-    return Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
+    ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
+    energy = getattr(model, "stored_energy", None) or default_stored_energy
+    if mixed is not None:
+        (U, U_t, U_tt), R_Z, _ = mixed
+        Z = U.function_space
+        ops.nonlinear = NonlinearForm(residual=R_Z, eta=U, eta_t=U_t, eta_tt=U_tt, force=force, V=V, params=params,
+                                      stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta, space=Z,
+                                      eta_dofs=compat.sub_dofs(V, Z, 0))
+    elif nonlinear_in or getattr(model, "newton", False):
+        ops.nonlinear = NonlinearForm(residual=R, eta=eta, eta_t=eta_t, eta_tt=eta_tt, force=force, V=V,
+                                      params=params, stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta,
+                                      viscous_linear=eta_t not in nonlinear_in, space=V)
+    return ops
+
+
+def _mixed_residual(model, V, params, force):
+    """A model with `fields`: its residual on the mixed space of (η, *fields), with mixed placeholders."""
+    if model.residual is None:
+        raise ModelError(f"model '{model.name}': a model with fields {model.fields} must give residual(U, U_t, U_tt, "
+                         "force, W, p)")
+    Z = compat.mixed_space(V.mesh, 1 + len(model.fields))
+    U, U_t, U_tt = (fem.Function(Z) for _ in range(3))
+    W = ufl.TestFunction(Z)
+    R = model.residual(ufl.split(U), ufl.split(U_t), ufl.split(U_tt), force, ufl.split(W), params)
+    return (U, U_t, U_tt), R, W
 
 
 def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
@@ -182,10 +261,12 @@ def node_coordinates(V) -> np.ndarray:
 
 __all__ = [
     "ModelError",
+    "NonlinearForm",
     "Operators",
-    "semi_discrete_operators",
-    "step_matrices",
-    "stacked",
     "bc_dofs",
+    "default_stored_energy",
     "node_coordinates",
+    "semi_discrete_operators",
+    "stacked",
+    "step_matrices",
 ]

@@ -10,9 +10,11 @@ A model is a `Model`: a few plain functions that return UFL.
     The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the
     unknowns' time derivatives, as in Irksome: `eta`, `eta_t`, `eta_tt` are placeholders that the
     time scheme (`scheme.py`) replaces by its difference quotients, and `force` is a placeholder for
-    the contact force density. R must be *linear* in the four placeholders (the scheme checks);
-    terms in none of them (an external load ``- f*w*dx``) are the constant load b = -R(0, 0, 0, 0),
-    assembled once. `w` is the test function.
+    the contact force density. R linear in the four placeholders gives constant operators, assembled once;
+    R nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``) makes every step a Newton solve
+    (`timestepping.nonlinear`); R must be affine in `eta_tt` and `force` with constant coefficients (the
+    scheme checks). Terms in none of them (an external load ``- f*w*dx``) are the constant load
+    b = -R(0, 0, 0, 0). `w` is the test function.
 
 ``penalty(eta, v, p)``
     The contact force density F as a *pointwise* UFL expression in the previous step's η^n and
@@ -45,6 +47,21 @@ A model is a `Model`: a few plain functions that return UFL.
     For a *conservative* law (F = −∂Φ/∂η, a spring): the stored energy density Φ(η), so that the
     solver's energy guard counts the energy held in the spring instead of calling its release
     an instability. ``None`` for a dissipative law such as the paper's.
+
+``stored_energy(eta, p)`` (optional)
+    The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
+    Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the paper's ½|∇η|².
+
+``newton`` (a flag, default False)
+    Solve every step by Newton (`timestepping.nonlinear`) even when the form is linear: a form nonlinear in
+    η or η_t always is; a linear one otherwise keeps the constant operators (a comparison or a test).
+
+``fields`` and ``residual(U, U_t, U_tt, force, W, p)`` (optional, together)
+    More unknowns on the same mesh (P1 each), named in ``fields`` (e.g. ``("pressure",)``): the model then
+    writes its residual over tuples, U = (η, *fields) and their derivatives, W = (w, *their test
+    functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
+    component is η (ends held, contact on it); the others have no boundary condition and no bound. They
+    may enter through their values and first time derivatives (their second derivatives are not lumped).
 
 The paper's model (Definition 2.1), the default `inelastic`::
 
@@ -149,6 +166,10 @@ class Model:
     gap: Callable | None = gap
     stability: Callable | None = restitution_bound
     contact_energy: Callable | None = None
+    stored_energy: Callable | None = None
+    newton: bool = False
+    fields: tuple = ()
+    residual: Callable | None = None
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 
@@ -170,6 +191,10 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     eta, v, eta_t, eta_tt, force = (fem.Function(V) for _ in range(5))
     w = ufl.TestFunction(V)
     exprs = [model.momentum_form(eta, eta_t, eta_tt, force, w, p), model.penalty(eta, v, p), model.contact_set(eta, p)]
+    if model.fields and model.residual is not None:  # read only for its coefficients: one P1 stand-in per component
+        k = 1 + len(model.fields)
+        U, U_t, U_tt = (tuple(fem.Function(V) for _ in range(k)) for _ in range(3))
+        exprs.append(model.residual(U, U_t, U_tt, force, (w,) * k, p))
     if model.penalty_damping is not None:
         exprs.append(model.penalty_damping(eta, v, p))
     for law in (model.contact_energy, model.gap):

@@ -200,8 +200,8 @@ class _Ledger:
     A dissipative law may not raise the energy at all (1e-9 E(0) per step for round-off). A conservative
     law (a contact spring, `Model.contact_energy`) held explicitly makes it wobble by O(Δt/√ε) during an
     impact, which can be most of E(0) at large Δt/ε; an instability grows exponentially, so there the
-    energy may not exceed 2 E(0). So for a restitution e > 0 (scheme projection), whose impact gives back in its
-    later steps the energy its first steps took.
+    energy may not exceed 2 E(0). So for a scheme that declares `energy_may_rise` (a restitution e > 0, whose
+    impact gives back in its later steps what its first steps took; a nonlinear force in a leapfrog step).
     """
 
     def __init__(self, start, conservative: bool, floor: float = 0.0, slack: float = 0.0):
@@ -435,7 +435,7 @@ class _Run:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any."""
         stepper, rows = self.stepper, self.rows
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
-                              conservative=self.model.contact_energy is not None or bool(self.scene.restitution),
+                              conservative=self.model.contact_energy is not None or stepper.energy_may_rise,
                               floor=energy_roundoff(s.ops.K, stepper.eta, s.comm), slack=stepper.energy_slack)
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)

@@ -119,6 +119,9 @@ class Scheme:
     #: A non-negative part of the scheme's energy that the ledger does not show, at the state last reported; the
     #: energy guard watches E + energy_slack, the quantity the scheme does not increase (projection's (Δt/4)|v|²_C).
     energy_slack = 0.0
+    #: Whether the scheme's energy may rise for a while without an instability (a rebound giving energy back, a
+    #: nonlinear force in a non-dissipative step): the guard then allows what it allows a contact spring.
+    energy_may_rise = False
     RESTITUTION = False  # whether it takes a restitution coefficient e > 0 (`Setting.restitution`)
     situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
     remedy = "use a smaller dt"

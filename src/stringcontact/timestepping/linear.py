@@ -64,8 +64,8 @@ PREFIX = "stringcontact_"
 
 
 #: Options that take a number, an integer or a boolean; every name ending in "_type" takes a word.
-NUMBER_OPTIONS = ("ksp_rtol", "ksp_atol", "ksp_divtol", "mat_mumps_cntl_")
-INTEGER_OPTIONS = ("ksp_max_it", "ksp_gmres_restart", "mat_mumps_icntl_")
+NUMBER_OPTIONS = ("ksp_rtol", "ksp_atol", "ksp_divtol", "mat_mumps_cntl_", "snes_rtol", "snes_atol", "snes_stol")
+INTEGER_OPTIONS = ("ksp_max_it", "ksp_gmres_restart", "mat_mumps_icntl_", "snes_max_it")
 BOOLEAN_OPTIONS = ("ksp_initial_guess_nonzero",)
 
 

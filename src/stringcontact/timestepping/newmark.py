@@ -38,6 +38,13 @@ class Scheme(Base):
             return f"model '{model.name}' has no penalty_damping (its law is not a velocity damping)"
         return None
 
+    def __new__(cls, s):
+        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (nonlinear.py)
+            from .nonlinear import NewmarkStep
+
+            return NewmarkStep(s)
+        return super().__new__(cls)
+
     def __init__(self, s):
         super().__init__(s)
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned

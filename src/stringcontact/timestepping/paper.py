@@ -33,6 +33,13 @@ class Scheme(Base):
     PENALTIES = ("explicit", "semi-implicit")
     MASSES = ("lumped", "consistent")
 
+    def __new__(cls, s):
+        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (nonlinear.py)
+            from .nonlinear import PaperStep
+
+            return PaperStep(s)
+        return super().__new__(cls)
+
     def __init__(self, s):
         super().__init__(s)
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned

@@ -187,6 +187,13 @@ class Scheme(Base):
             return f"model '{model.name}' declares no gap (its law lets the string through the obstacle)"
         return None
 
+    def __new__(cls, s):
+        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (nonlinear.py)
+            from .nonlinear import ProjectionStep
+
+            return ProjectionStep(s, largest_stable_dt, cls._obstacle, CONTACT_TOL)
+        return super().__new__(cls)
+
     def __init__(self, s):
         super().__init__(s)
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
@@ -225,6 +232,7 @@ class Scheme(Base):
         self.has_load = bool(np.any(ops.load != 0))
         self.v0 = None  # the given initial velocity, reported at t = 0
         self.e = s.restitution
+        self.energy_may_rise = bool(self.e)  # a rebound gives back in its later steps what its first steps took
         if self.e:  # the weighted position z = (η^{n+1} + e η^{n−1})/(1 + e): its level and right-hand side
             self.z = _Level(comm, n)
             rhs_z = np.zeros(n)

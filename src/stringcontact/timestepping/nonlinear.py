@@ -1,0 +1,547 @@
+"""A nonlinear model's step, solved by Newton's method with line search (PETSc SNES), for every scheme.
+
+The model writes its residual R(η, η_t, η_tt, F; w) once (`model.paper`); a nonlinear one reaches the schemes
+as `Operators.nonlinear` (`fem.operators.NonlinearForm`). Each scheme writes the placeholders as its difference
+quotients in the unknown u = η^{n+1} and the known levels η^n, η^{n−1} (and a nodal velocity v^n), and the
+step is the root of
+
+    G(u) = R(q_η(u), q_t(u), q_tt(u), 0; w) − f + d∘(u − c),      u = g at the fixed ends,
+
+with f the scheme's nodal contact force (the penalty law, lumped as on the linear path) and d∘(u − c) an
+implicit damping on the diagonal (the semi-implicit penalty). With lumped mass the η_tt term is m∘q_tt(u),
+the row-sum mass, as on the linear path; R is affine in η_tt and in the force (`semi_discrete_operators`
+checks), so only η and η_t may enter nonlinearly. The Jacobian is ``ufl.derivative`` of the compiled
+residual (plus the lumped mass and the damping on its diagonal); both forms are compiled once.
+
+`projection`'s contact step is the variational inequality G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``, bounds
+u ≥ ψ at the interior nodes); its contact force is the reaction G₀(u) of the unconstrained residual on the
+active set: ≥ 0, and 0 off the contact set.
+
+Energy (every scheme): the ledger gets the kinetic energy of its velocity, the stored energy ∫Π(η) of the model
+(`Model.stored_energy`, default ½|∇η|²) assembled at the new level, the viscous dissipation as the work of
+R's η_t-dependent part over the step, [R(q_η, q_t) − R(q_η, 0)]·δ, the external work b·δ (δ the scheme's test
+increment), the contact dissipation as on the linear path, and as numerical dissipation what is left of the
+identity: E^n − E^{n+1} − D_visc − D_con + W_ext. So the ledger closes by construction, and the numerical
+dissipation says how far the scheme is from conserving the model's energy (for the paper's implicit step
+and a convex Π it is ≥ 0; the leapfrog and the midpoint rule of a nonlinear force make it change sign, so
+these steps declare ``energy_may_rise`` and the driver's guard allows what it allows a contact spring).
+"""
+
+from __future__ import annotations
+
+import math
+
+import dolfinx.fem.petsc  # noqa: F401 - dolfinx 0.9 no longer imports the PETSc layer with dolfinx.fem
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..errors import InstabilityError, SolverError
+from ..fem import compat
+from .base import Scheme as Base
+from .base import any_rank, check_law_stability, summer, wrap
+from .linear import PREFIX, dirichlet_rows, set_from_options, solver_options
+
+#: Newton's defaults (a scene's or the command line's `petsc_options` go on top): the relative residual and the
+#: relative step (quadratic convergence makes the error after a step of 1e-9 |u| about 1e-18 |u|).
+#: The absolute residual Newton stops at, relative to the inertia term's norm: a few hundred round-offs of it.
+ROUNDOFF = 1e-13
+SNES_DEFAULTS = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_stol": 1e-9, "snes_max_it": 50}
+
+
+class NewtonStep:
+    """G(u) = 0 (or the VI with lower bounds) for one scheme's quotients; see the module docstring.
+
+    `quotients` maps "eta", "eta_t", "eta_tt" to functions (u, e0, em, v0, dt) -> the quotient, written so
+    that they work on UFL functions and on NumPy arrays alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity);
+    "fields" (optional, default "eta"'s): the value of the other fields of a model with several.
+    ``lower``: the nodal lower bound of the VI (−inf where free), or None for a plain Newton step.
+    """
+
+    def __init__(self, s, quotients: dict, lower: np.ndarray | None = None):
+        nl = s.ops.nonlinear
+        Z, n = nl.space, s.n_owned
+        self.s, self.n, self.q = s, n, quotients
+        self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
+        self.lumped = s.mass == "lumped"
+        args = (self.u, self.e0, self.em, self.v0, s.dt)
+        q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
+        zero = fem.Constant(Z.mesh, PETSc.ScalarType(0.0))
+        k = nl.eta.ufl_shape[0] if nl.eta_dofs is not None else 0  # the number of fields, η's among them
+        if k:  # several fields: η's inertia is lumped on the nodes, the other fields keep their own η_tt
+            zeros = ufl.as_vector([0.0] * k)
+            q_fields = quotients.get("fields", quotients["eta"])(*args)  # the other fields' values
+            q_eta = ufl.as_vector([q_eta[0], *(q_fields[i] for i in range(1, k))])
+            q_tt = ufl.as_vector([0.0, *(q_tt[i] for i in range(1, k))]) if self.lumped else q_tt
+        else:
+            zeros = zero
+            q_tt = zero if self.lumped else q_tt
+        mapping = {nl.eta: q_eta, nl.eta_t: q_t, nl.eta_tt: q_tt, nl.force: zero}
+        G = ufl.replace(nl.residual, mapping)
+        G_static = ufl.replace(nl.residual, mapping | {nl.eta_t: zeros})  # its η_t-free part: the viscous work
+        self.G_form = fem.form(G)
+        self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
+        self.G_static_form = fem.form(G_static)
+        self.energy_eta = nl.energy_eta
+        self.energy_form = fem.form(nl.stored_energy)
+        self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, s.dt))  # ∂q_tt/∂u
+        self.G_vec = compat.create_vector(self.G_form)
+        self.work_vec = compat.create_vector(self.G_form)
+        self.J = fem.petsc.create_matrix(self.J_form)
+        self.x = self.G_vec.duplicate()
+        # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
+        self.idx = slice(0, n) if nl.eta_dofs is None else np.asarray(nl.eta_dofs[:n])
+        self.bc = s.bc if nl.eta_dofs is None else self.idx[s.bc]
+        self.N = self.x.getLocalSize()
+        self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
+        self.m_tt = self.a_tt * s.ops.m if self.lumped else np.zeros(n)
+        self.inertia = self.a_tt * s.ops.m
+        self.f = np.zeros(n)  # the applied nodal force
+        self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
+        self.arrays = [np.zeros(n) for _ in range(3)]  # η^n, η^{n−1}, v^n (owned)
+        self.levels = [np.zeros(self.N) for _ in range(4)]  # all fields: η^n, η^{n−1}, v^n, the last solution
+        self.iterations, self.solves, self.history = 0, 0, []
+        if lower is not None and nl.eta_dofs is not None:
+            full = np.full(self.N, PETSc.NINFINITY)
+            full[self.idx] = lower
+            lower = full
+        self.snes = self._snes(lower)
+
+    def _snes(self, lower):
+        s = self.s
+        snes = PETSc.SNES().create(s.comm)
+        snes.setFunction(self._residual, self.G_vec)
+        snes.setJacobian(self._jacobian, self.J)
+        options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
+        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | options
+        set_from_options(snes, PREFIX, options)
+        if lower is not None:
+            lo, hi = self.x.duplicate(), self.x.duplicate()
+            lo.array[:] = lower
+            hi.set(PETSc.INFINITY)
+            snes.setVariableBounds(lo, hi)
+            self.bounds = (lo, hi)
+        snes.setConvergenceHistory(reset=True)
+        return snes
+
+    # -- the state the forms read
+
+    def _set(self, f: fem.Function, a: np.ndarray) -> None:
+        f.x.array[: a.size] = a
+        f.x.scatter_forward()
+
+    def _full(self, eta: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """η's values in the unknowns' array, the other fields' from `rest` (η itself for one field)."""
+        if isinstance(self.idx, slice):
+            return eta
+        full = rest.copy()
+        full[self.idx] = eta
+        return full
+
+    def set_known(self, e0, em=None, v0=None) -> None:
+        """The known levels η^n, η^{n−1} and the velocity v^n (owned arrays) into the forms; once per step. Several
+        fields: theirs are the last two solutions (and their difference quotient)."""
+        e0_z, em_z, v0_z, last = self.levels
+        if not isinstance(self.idx, slice):
+            em_z[:], e0_z[:] = e0_z, last
+            v0_z[:] = (e0_z - em_z) / self.s.dt
+        for f, a, keep, z in zip((self.e0, self.em, self.v0), (e0, em, v0), self.arrays, self.levels):
+            if a is not None:
+                keep[:] = a
+                self._set(f, self._full(a, z))
+
+    def residual_at(self, u: np.ndarray, form=None) -> np.ndarray:
+        """The assembled residual (`form`: the compiled G by default) at u, η's owned dofs, no force, no ends."""
+        self._set(self.u, self._full(u, self.levels[3]))
+        vec = self.work_vec
+        with vec.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector(vec, form or self.G_form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        r = vec.array[self.idx].copy()
+        if self.lumped:
+            r += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
+        return r
+
+    def last_residual(self, u: np.ndarray) -> np.ndarray:
+        """`residual_at(u)` for the u that `solve` just returned, without assembling: SNES's last residual with the
+        force and the damping taken out again (the ends' rows hold u − g there, 0)."""
+        r = self.G_vec.array[self.idx].copy()
+        r += self.f
+        r -= self.d * (u - self.c)
+        return r
+
+    def viscous_force(self, u: np.ndarray) -> np.ndarray:
+        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
+        ∂R/∂η_t is constant, else two assemblies."""
+        if self.s.ops.nonlinear.viscous_linear:
+            q_t = self.q["eta_t"](u, *self.arrays, self.s.dt)
+            out = self.s.ops.C.createVecLeft()
+            self.s.ops.C.mult(wrap(np.ascontiguousarray(q_t), self.s.comm), out)
+            return out.array.copy()
+        return self.residual_at(u) - self.residual_at(u, self.G_static_form)
+
+    def stored_energy(self, eta: np.ndarray) -> float:
+        """∫Π(η) on this rank's cells (the caller sums over the ranks)."""
+        self._set(self.energy_eta, eta)
+        return float(fem.assemble_scalar(self.energy_form))
+
+    # -- SNES callbacks
+
+    def _residual(self, snes, x, G) -> None:
+        self._set(self.u, x.array)
+        with G.localForm() as local:
+            local.set(0.0)
+        fem.petsc.assemble_vector(G, self.G_form)
+        G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        g, u = G.array, x.array
+        u_eta = u[self.idx]
+        extra = self.d * (u_eta - self.c)
+        extra -= self.f
+        if self.lumped:
+            extra += self.s.ops.m * self.q["eta_tt"](u_eta, *self.arrays, self.s.dt)
+        g[self.idx] += extra
+        g[self.bc] = u[self.bc] - self.s.g
+
+    def _jacobian(self, snes, x, J, P) -> None:
+        self._set(self.u, x.array)
+        J.zeroEntries()
+        fem.petsc.assemble_matrix(J, self.J_form)
+        J.assemble()
+        diag = self.diag.array
+        diag[self.idx] = self.d + self.m_tt
+        J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
+        dirichlet_rows(J, self.bc)  # identity rows; the guess holds the ends, so their columns need no lift
+
+    def solve(self, guess: np.ndarray) -> np.ndarray:
+        """The root from `guess` (η; the ends set to their heights, the other fields from their last solution);
+        η's owned values. SolverError if SNES fails."""
+        x = self.x.array
+        x[:] = self._full(guess, self.levels[3])
+        x[self.bc] = self.s.g
+        # The residual's round-off floor: ROUNDOFF × the inertia term's norm (its largest term). An rtol below it
+        # (a good predictor) would stall at the floor (2.6e-9 against 2.4e-9 asked at nx = 5000).
+        if "snes_atol" not in (self.s.petsc_options or {}):  # the user's wins
+            inertia = self.inertia * guess
+            floor = ROUNDOFF * math.sqrt(self.s.comm.allreduce(float(np.dot(inertia, inertia))))
+            self.snes.setTolerances(atol=max(floor, 1e-50))
+        self.snes.solve(None, self.x)
+        reason = self.snes.getConvergedReason()
+        its = self.snes.getIterationNumber()
+        self.iterations += its
+        self.solves += 1
+        self.history = list(self.snes.getConvergenceHistory()[0])
+        if reason < 0:
+            raise SolverError(f"Newton did not converge (SNES reason {reason}) after {its} iterations; "
+                              "use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
+        self.levels[3][:] = x
+        return x[self.idx].copy()
+
+    def field(self, i: int) -> np.ndarray:
+        """Field `i` (0 is η) of the last solution, at the nodes of η's owned dofs."""
+        nl = self.s.ops.nonlinear
+        if nl.eta_dofs is None:
+            return self.levels[3].copy()
+        return self.levels[3][compat.sub_dofs(nl.V, nl.space, i)[: self.n]]
+
+    def describe(self) -> dict:
+        """Newton's counters for the summary."""
+        per_step = self.iterations / self.solves if self.solves else 0.0
+        return {"newton iterations": self.iterations,
+                "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step"}
+
+
+class _NewtonScheme(Base):
+    """What the three schemes' Newton steps share: the stored energy summed over the ranks, the counters."""
+
+    energy_may_rise = True
+
+    def _stored(self, eta) -> float:
+        return self.newton.stored_energy(eta)
+
+    @property
+    def timings(self):
+        return self.newton.describe()
+
+
+# --- paper: implicit Euler in η, the force from the previous step -----------------------------------------
+
+
+PAPER = {
+    "eta": lambda u, e0, em, v0, dt: u,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
+}
+
+
+class PaperStep(_NewtonScheme):
+    """The paper's Section 6 scheme for a nonlinear model: η and η_t implicit, the penalty explicit (or
+    semi-implicit: d v^{n+1} on the diagonal), the mass lumped or consistent. Energy: the module docstring,
+    with the kinetic energy ½|v^{n+1}|²_M, δ = η^{n+1} − η^n and the contact work −(Δt/2) f·(v^n + v^{n+1})."""
+
+    def __init__(self, s):
+        super().__init__(s)
+        laws = s.laws
+        if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
+            raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
+        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
+        law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
+        self.force_law = laws.compile(law(laws.eta, laws.quotient, laws.params))
+        self.newton = NewtonStep(s, PAPER)
+        self.allsum = summer(s.comm)
+        n = s.n_owned
+        self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.force_density = np.zeros(n)
+
+    @property
+    def eta(self):
+        return self.eta_
+
+    @property
+    def velocity(self):
+        return self.v
+
+    @property
+    def contact_force(self):
+        return self.force_density
+
+    def _kinetic(self, v) -> float:
+        if self.s.mass == "lumped":
+            return 0.5 * float(np.dot(v, self.s.ops.m * v))
+        out = self.s.ops.M.createVecLeft()
+        self.s.ops.M.mult(wrap(v, self.s.comm), out)
+        return 0.5 * float(np.dot(v, out.array))
+
+    def start(self, eta0, v0):
+        s = self.s
+        self.eta_[:], self.v[:] = eta0, v0
+        self.old[:] = eta0 - s.dt * self.v
+        kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
+        self.E = kin + el
+        self._force()
+        return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
+
+    def _force(self) -> None:
+        """The law at (η^n, η^{n−1}): the explicit force density (0 where no force acts), or the damping weights."""
+        laws = self.s.laws
+        laws.set(eta=self.eta_, eta_old=self.old)
+        law = np.asarray(self.force_law.evaluate_env(laws.env), dtype=float) * np.ones(self.s.n_owned)
+        self.law = law * self.s.interior
+        if self.s.penalty == "explicit":
+            np.multiply(self.law, self.inv_mF > 0, out=self.force_density)
+
+    def step(self):
+        s, dt, nw = self.s, self.s.dt, self.newton
+        e0, em = self.eta_, self.old
+        nw.set_known(e0, em)
+        if s.penalty == "explicit":
+            nw.f[:] = s.ops.m_force * self.law
+        else:  # F = −d v^{n+1}: (m_F d/Δt)(u − η^n) on the diagonal
+            nw.d[:] = s.ops.m_force * self.law / dt
+            nw.c[:] = e0
+        u = nw.solve(2 * e0 - em)
+        v1 = (u - e0) / dt
+        f = nw.f if s.penalty == "explicit" else -nw.d * (u - e0)
+        delta = u - e0
+        visc_vec = nw.viscous_force(u)
+        kin, el, visc, con, ext = self.allsum(
+            self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
+            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)))
+        num = self.E - (kin + el) - visc - con + ext
+        self.E = kin + el
+        if s.penalty != "explicit":
+            self.force_density[:] = f * self.inv_mF
+        self.old[:], self.eta_[:], self.v[:] = e0, u, v1
+        self._force()
+        return kin, el, visc, con, num, ext, 0.0
+
+
+# --- projection: central differences, η explicit, the contact step a variational inequality ---------------
+
+
+PROJECTION = {
+    "eta": lambda u, e0, em, v0, dt: e0,
+    "fields": lambda u, e0, em, v0, dt: u,  # the other fields implicit: an algebraic one is solved, not lagged
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
+}
+
+
+class ProjectionStep(_NewtonScheme):
+    """`projection` for a nonlinear model: the elastic term explicit (η → η^n), η_t implicit, lumped mass, and
+    the step the VI G(u) ⊥ u − ψ ≥ 0 by SNES ``vinewtonrsls``. The contact force is the reaction G(u) on the
+    active set (≥ 0, 0 elsewhere). Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
+    ½(Π(η^{n+1}) + Π(η^n)), δ = (η^{n+1} − η^{n−1})/2, contact −½ F·(η^{n+1} − η^{n−1}) as on the linear path.
+    The stored velocity is centred, so the scheme reports one step behind the one it computes, as `projection`.
+    The stable Δt is the linear path's bound for the tangent at η = 0. `projection` hands over its
+    `largest_stable_dt`, its obstacle from the model's gap and its contact tolerance (no import circle)."""
+
+    def __init__(self, s, largest_stable_dt, obstacle, contact_tol: float):
+        super().__init__(s)
+        self.contact_tol = contact_tol
+        self.dt_max = largest_stable_dt(s.ops, s.interior, krylov=s.x.ndim == 2, dt=s.dt)
+        if s.dt > self.dt_max * (1 + 1e-12):
+            raise InstabilityError(
+                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} (its explicit "
+                f"elastic term, linearised at eta = 0); use nt >= {math.ceil(s.dt * s.nt / self.dt_max)} or scheme "
+                "'paper' or 'newmark'", step=0, time=0.0)
+        laws = s.laws
+        self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
+        self.psi = obstacle(self)
+        lower = np.where(s.interior, self.psi, PETSc.NINFINITY)
+        self.newton = NewtonStep(s, PROJECTION, lower=lower)
+        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
+        n = s.n_owned
+        self.etas = [np.zeros(n) for _ in range(4)]  # [next, ahead, now, before]
+        self.forces = [np.zeros(n) for _ in range(4)]
+        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.v0 = None
+
+    @property
+    def eta(self):
+        return self.etas[2]
+
+    @property
+    def velocity(self):
+        if self.v0 is not None:
+            return self.v0
+        return (self.etas[1] - self.etas[3]) / (2.0 * self.s.dt)
+
+    @property
+    def contact_force(self):
+        return self.forces[2]
+
+    def contact(self) -> np.ndarray:
+        laws = self.s.laws
+        laws.set(eta=self.eta)
+        return self._contact_law.evaluate_env(laws.env)
+
+    def start(self, eta0, v0):
+        s, laws = self.s, self.s.laws
+        scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
+                    float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
+        self.tol = self.contact_tol * scale
+        tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(self.tol))
+        self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
+        ahead, now = self.etas[1], self.etas[2]
+        ahead[:] = eta0
+        below = s.interior & (ahead < self.psi)
+        ahead[below] = self.psi[below]
+        now[:] = ahead - s.dt * v0
+        d = (ahead - now) / s.dt
+        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)),
+                              0.5 * (self._stored(ahead) + self._stored(now)))
+        self.E = kin + el
+        self.pending = self._advance()
+        self.v0 = np.array(v0, dtype=float)
+        return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
+
+    def step(self):
+        reported, self.pending = self.pending, self._advance()
+        self.v0 = None
+        return reported
+
+    def _advance(self):
+        s, dt, nw = self.s, self.s.dt, self.newton
+        e0, em = self.etas[1], self.etas[2]
+        nw.set_known(e0, em)
+        u = nw.solve(np.maximum(2 * e0 - em, np.where(s.interior, self.psi, -np.inf)))
+        r = nw.last_residual(u)  # G(u) without the force: the reaction where u sits on ψ
+        active = s.interior & (u <= self.psi + self.tol)
+        F = np.where(active, np.maximum(r, 0.0), 0.0)
+        delta = 0.5 * (u - em)
+        visc_vec = nw.viscous_force(u)
+        d = (u - e0) / dt
+        kin, el, visc, con, ext = self.allsum(
+            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self._stored(u) + self._stored(e0)),
+            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)), float(np.dot(s.ops.load, delta)))
+        num = self.E - (kin + el) - visc - con + ext
+        self.E = kin + el
+        new = self.etas[0]
+        new[:] = u
+        self.forces[0][:] = F * self.inv_mF
+        self.etas = [self.etas[3], new, e0, em]
+        self.forces = [self.forces[3], self.forces[0], self.forces[1], self.forces[2]]
+        return kin, el, visc, con, num, ext, 0.0
+
+
+# --- newmark: the trapezoidal rule, the midpoint in η -----------------------------------------------------
+
+
+NEWMARK = {
+    "eta": lambda u, e0, em, v0, dt: (u + e0) / 2,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: 2 * (u - e0) / dt**2 - 2 * v0 / dt,
+}
+
+
+class NewmarkStep(_NewtonScheme):
+    """`newmark` for a nonlinear model: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
+    η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule of a linear model), the
+    semi-implicit penalty −D v^{n+1} on the diagonal, with the same release of nodes it would hold down.
+    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1})."""
+
+    def __init__(self, s):
+        super().__init__(s)
+        laws = s.laws
+        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
+        self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
+        self.newton = NewtonStep(s, NEWMARK)
+        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
+        n = s.n_owned
+        self.eta_, self.v = np.zeros(n), np.zeros(n)
+        self.force_density = np.zeros(n)
+
+    eta = property(lambda self: self.eta_)
+    velocity = property(lambda self: self.v)
+    contact_force = property(lambda self: self.force_density)
+    _kinetic = PaperStep._kinetic
+
+    def start(self, eta0, v0):
+        self.eta_[:], self.v[:] = eta0, v0
+        kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
+        self.E = kin + el
+        return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
+
+    def step(self):
+        s, dt, nw = self.s, self.s.dt, self.newton
+        e0, v = self.eta_, self.v
+        nw.set_known(e0, None, v)
+        s.laws.set(eta=e0, v=v)
+        D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
+        while True:  # −D v^{n+1} = −(2D/Δt)(u − η^n − (Δt/2) v^n)
+            nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * v
+            u = nw.solve(e0 + dt * v)
+            v1 = 2.0 * (u - e0) / dt - v
+            v1[s.bc] = 0.0
+            sticky = (D > 0) & (v1 > 0)  # a damping that would hold a node down: released (as on the linear path)
+            if not self.anysum(bool(np.any(sticky))):
+                break
+            D[sticky] = 0.0
+        f = -D * v1
+        delta = u - e0
+        visc_vec = nw.viscous_force(u)
+        kin, el, visc, con, ext = self.allsum(
+            self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
+            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)))
+        num = self.E - (kin + el) - visc - con + ext
+        self.E = kin + el
+        np.divide(f, s.ops.m_force, out=self.force_density, where=s.ops.m_force > 0)
+        self.force_density[s.ops.m_force <= 0] = 0.0
+        self.eta_[:], self.v[:] = u, v1
+        return kin, el, visc, con, num, ext, 0.0
+
+
+__all__ = [
+    "NEWMARK",
+    "PAPER",
+    "PROJECTION",
+    "SNES_DEFAULTS",
+    "NewmarkStep",
+    "NewtonStep",
+    "PaperStep",
+    "ProjectionStep",
+]
