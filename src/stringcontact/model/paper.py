@@ -58,8 +58,8 @@ A model is a `Model`: a few plain functions that return UFL.
 
 ``fields`` and ``residual(U, U_t, U_tt, force, W, p)`` (optional, together)
     More unknowns on the same mesh (P1 each), named in ``fields`` (e.g. ``("pressure",)``): the model then
-    writes its residual over tuples, U = (η, *fields) and their derivatives, W = (w, *their test
-    functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
+    writes its residual over tuples, ``U = (η, *fields)`` and their derivatives, ``W = (w, *test_functions)``
+    (the fields' test functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
     component is η (ends held, contact on it); the others have no boundary condition and no bound. They
     may enter through their values and first time derivatives (their second derivatives are not lumped).
 
