@@ -44,7 +44,7 @@ COLUMNS = {
     "external_work": "work of an external load up to t (cumulative; 0 without a load)",
     "balance_residual": "E(0) − [E(t) + dissipations − external work]: closes to round-off",
     "min_eta": "min over the nodes of η − ψ (below 0: below the obstacle)",
-    "contact_length": "the measure of the contact set {η ≤ ψ} (2D: its area)",
+    "contact_length": "the length of the contact set {η ≤ ψ}; a membrane's file names this column `contact_area`, its area",
     "contact_components": "the number of contact intervals (2D: patches)",
     "max_contact_force": "the largest nodal contact force",
 }
