@@ -437,6 +437,10 @@ def _main(argv) -> int:
     if getattr(args, "_unavailable", None):
         _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
         return EXIT_INTERNAL
+    problem = _environment_problem(os.environ)
+    if problem is not None:  # before PETSc and MPI start: each would print a page of its own and exit 1
+        _error(problem)
+        return EXIT_INPUT
     painter = None
     if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
         from ..plot.painter import PictureProcess
@@ -447,6 +451,36 @@ def _main(argv) -> int:
     finally:
         if painter is not None:
             painter.cancel()  # already finished after a complete run; stops it after an error
+
+
+def _environment_problem(environ) -> str | None:
+    """What in the environment would stop PETSc or MPI at start-up with a page of text: an options file in
+    ``PETSC_OPTIONS`` that is not a readable regular file (a FIFO would block), a ``TMPDIR`` folder where no
+    folder can be made (Open MPI's session folder; ``/proc``). None if nothing."""
+    import shlex
+    import stat
+    import tempfile
+
+    try:
+        words = shlex.split(environ.get("PETSC_OPTIONS", ""))
+    except ValueError as exc:
+        return f"PETSC_OPTIONS: {exc}; allowed: PETSc options such as '-ksp_type cg'"
+    for flag, path in zip(words, words[1:]):
+        if flag in ("-options_file", "-options_file_yaml", "-options_file_noerror"):
+            try:
+                regular = stat.S_ISREG(os.stat(path).st_mode) and os.access(path, os.R_OK)
+            except OSError as exc:
+                return f"PETSC_OPTIONS: {flag} {path}: {exc.strerror}; allowed: a readable options file"
+            if not regular:
+                return f"PETSC_OPTIONS: {flag} {path}: not a readable regular file; allowed: a readable options file"
+    folder = environ.get("TMPDIR")
+    if folder and os.path.isdir(folder):
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix="stringcontact-", dir=folder))
+        except OSError as exc:
+            return (f"TMPDIR={folder}: cannot make a folder there ({exc.strerror}), where MPI keeps its session; "
+                    "allowed: a writable folder (or leave TMPDIR unset)")
+    return None
 
 
 def _command(args, painter) -> int:
@@ -486,8 +520,12 @@ def _command(args, painter) -> int:
             where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
             _error(f"{exc.strerror or exc}{where}")
             return EXIT_INPUT
-        except (MemoryError, RecursionError) as exc:
-            _error(f"{type(exc).__name__}: the problem is too large for this machine; reduce nx or nt")
+        except RecursionError:  # crafted input nested too deeply (JSON, a .npy header): not a size problem
+            _error("RecursionError: an input file is nested too deeply to read; allowed: the files stringcontact writes")
+            return EXIT_INPUT
+        except MemoryError:
+            _error("MemoryError: out of memory: the problem, or an input file, is too large for this machine; "
+                   "reduce nx or nt, or check the files read")
             return EXIT_INPUT
         except Exception as exc:  # noqa: BLE001 - a bug: one line, and the traceback on request
             if os.environ.get("STRINGCONTACT_TRACEBACK"):

@@ -153,6 +153,14 @@ def parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _check_not_the_data(folder: Path, out: Path) -> None:
+    """Refuse an --out that is the folder being plotted or contains it: replacing it would delete the data."""
+    data, target = folder.resolve(), out.resolve()
+    if target == data or target in data.parents:
+        raise ValueError(f"--out {out}: is the folder being plotted ({folder}) or contains it, whose data replacing it "
+                         "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
+
+
 def command(args) -> int:
     from ..io.readback import read_output
 
@@ -164,9 +172,10 @@ def command(args) -> int:
     from ..io.publish import check_target, staged_folder
 
     out = Path(args.out)
-    check_target(out, args.force)  # the rules of `run --out`: not /, not ., no overwriting without --force
+    _check_not_the_data(Path(args.folder), out)
+    check_target(out, args.force, command="plot")  # the rules of `run --out`: not /, not ., never a run's result
     result = read_output(args.folder)
-    with staged_folder(out, args.force) as partial:  # the whole folder or nothing
+    with staged_folder(out, args.force, command="plot") as partial:  # the whole folder or nothing
         names = [p.name for p in write_pictures(result, partial, window_size=size)]
         (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
     for name in names:

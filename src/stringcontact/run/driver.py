@@ -383,11 +383,11 @@ def petsc_options_of(scene, petsc_options=None) -> dict:
     return dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))
 
 
-def _check_before_mesh(scene, Scheme, penalty, model, petsc_options) -> None:
+def _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm) -> None:
     """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
     option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
     same on every rank, so a refusal ends every rank alike."""
-    check_option_values(petsc_options_of(scene, petsc_options))
+    check_option_values(petsc_options_of(scene, petsc_options), ranks=comm.size)
     if Scheme.PENALTIES and penalty is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -527,7 +527,7 @@ def simulate(
     """
     storage, output = grouped(storage, output, keywords)
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
-    _check_before_mesh(scene, Scheme, penalty, model, petsc_options)
+    _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm)
     t0 = time.perf_counter()
     V, params, ops = discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
