@@ -111,7 +111,9 @@ def command(args) -> int:
     print(format_table(checks))
     print()
     print(format_trends(checks))
-    if args.out is not None:
+    from mpi4py import MPI
+
+    if args.out is not None and MPI.COMM_WORLD.rank == 0:  # one rank writes: several would race for the folder
         from ..io.publish import staged_folder
 
         with staged_folder(args.out, args.force, command="check") as partial:  # the whole folder or nothing, under the run lock

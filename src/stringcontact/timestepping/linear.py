@@ -93,7 +93,7 @@ MUMPS_ICNTL_RANGE = (-(2**31), 2**31 - 1)
 NEEDS_CODE = {
     "pc_type": ("shell", "python", "fieldsplit", "mg", "composite", "ksp", "redistribute", "patch", "deflation",
                 "lmvm", "bddc", "nn", "is", "telescope", "lsc", "galerkin", "cp", "hmg", "exotic", "tfs", "h2opus",
-                "hpddm"),
+                "hpddm", "pfmg", "syspfmg"),
     "ksp_type": ("python", "fetidp", "hpddm"),
 }
 #: Factorisations of PETSc's own, which work on one rank only (MatGetFactor fails on an MPI matrix).
