@@ -392,3 +392,31 @@ def test_ctrl_c_inside_vtk_during_plot_is_exit_130_and_one_line(tmp_path, a_resu
     assert not (tmp_path / "p").exists() and leftovers(tmp_path) == []
     assert not [p.name for p in run.iterdir() if p.name.startswith(".")]  # no temporary picture left
     assert set(before) <= {p.name for p in run.iterdir()}
+
+
+# --- MPI: one rank failing alone ends the job -------------------------------------------------------------------
+
+def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
+    """`mpirun -n 1 ... : -n 1 ... nonexistent.toml` hung: rank 1 waited in MPI's finalize for rank 0, which
+    waited in the run's first collective call for rank 1. The failing rank now aborts the job after a grace
+    period, with its exit code."""
+    import shutil as sh
+
+    exe = sh.which("mpirun")
+    if exe is None:
+        pytest.skip("mpirun not found")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    good = [sys.executable, "-m", "stringcontact", "run", "example1", "--nx", "50", "--nt", "4000", *SMALL[4:],
+            "--out", "o"]
+    bad = [sys.executable, "-m", "stringcontact", "run", "nonexistent.toml", "--out", "o"]
+    proc = subprocess.Popen([exe, "--oversubscribe", "-n", "1", *good, ":", "-n", "1", *bad], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        _, err = proc.communicate(timeout=300)  # a hang guard: the grace period is 10 s
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, 9)
+        proc.communicate()
+        pytest.fail("the MPI job with one failing rank did not end")
+    assert proc.returncode == 2, err[-3000:]
+    assert "scene 'nonexistent.toml': no built-in scene" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".o.")]

@@ -152,6 +152,8 @@ def _signals_interrupt(petsc: bool = True):
         return
     if petsc:
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
+
+        _mpi_exit_comm()
     saved_pipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
         with _stop_signals():
@@ -406,10 +408,61 @@ def main(argv=None) -> int:
             _error(str(exc) or "interrupted")
             code = exc.exit_code if hasattr(exc, "exit_code") else EXIT_INTERRUPTED
     if own:
+        _end_together(code)
         # The process ends now, its files closed and its folder published. Python's last garbage collection
         # would visit every object of dolfinx, UFL and matplotlib: 0.15-0.2 s of the exit (docs/performance.md).
         gc.freeze()
     return code
+
+
+#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it
+#: aborts the whole job (MPI_Abort, with its exit code). Ranks that fail alike (a bad input: every rank checks
+#: it) end within moments of each other; a rank left alone would wait in a collective call for ever.
+END_GRACE = 10.0
+_exit = {"comm": None, "timer": None}
+
+
+def _mpi_exit_comm() -> None:
+    """Under MPI, a communicator of its own for the ranks' last handshake (`_end_together`): collective, so
+    called on every rank at the same point, right after MPI starts; nothing else uses it."""
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.size > 1 and _exit["comm"] is None:
+        _exit["comm"] = MPI.COMM_WORLD.Dup()
+
+
+def _end_together(code: int) -> None:
+    """The ranks of an MPI job end together: each waits at a non-blocking barrier; a rank that failed (`code`
+    not 0) waits at most END_GRACE seconds, then aborts the job with its code. Without MPI, nothing."""
+    comm = _exit["comm"]
+    if comm is None:
+        return
+    import time
+
+    request = comm.Ibarrier()
+    deadline = time.monotonic() + END_GRACE
+    while not request.Test():
+        if code != 0 and time.monotonic() > deadline:
+            _abort(code)
+        time.sleep(0.01)
+    timer = _exit["timer"]
+    if timer is not None:
+        timer.cancel()
+
+
+def _abort(code: int) -> None:
+    sys.stderr.flush()
+    _exit["comm"].Abort(code)
+
+
+def _abort_later(code: int) -> None:
+    """After a stop signal under MPI: abort the job with `code` unless this rank has ended by END_GRACE seconds
+    (a thread: the main one may be waiting in a collective call for a rank that will never join it)."""
+    if _exit["comm"] is None or _exit["timer"] is not None:
+        return
+    _exit["timer"] = threading.Timer(END_GRACE, _abort, args=(code,))
+    _exit["timer"].daemon = True
+    _exit["timer"].start()
 
 
 @contextlib.contextmanager
@@ -421,6 +474,7 @@ def _stop_signals():
     from ..errors import Interrupted
 
     def handler(signum, frame):
+        _abort_later(128 + signum)  # under MPI: if this rank cannot end with the others, it ends them all
         raise Interrupted(signum)
 
     saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
