@@ -420,3 +420,14 @@ def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
     assert proc.returncode == 2, err[-3000:]
     assert "scene 'nonexistent.toml': no built-in scene" in err and "Traceback" not in err
     assert not (tmp_path / "o").exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".o.")]
+
+
+def test_a_scene_name_with_dollars_is_drawn_as_written(tmp_path):
+    """A scene named `$x^{$` broke matplotlib's titles (mathtext), without naming the key."""
+    scene = tmp_path / "s.toml"
+    scene.write_text('name = "$x^{$"\nT = 0.3\nnt = 40\nnx = 50\nalpha = 0.01\neps = 0.01\n'
+                     'eta0 = "1 + 0.5*sin(10*pi*x)**2"\nv0 = -5\n')
+    proc = stringcontact("run", scene, "--no-progress", "--out", tmp_path / "o")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stderr == "", proc.stderr
+    assert all((tmp_path / "o" / name).is_file() for name in ("snapshots.png", "energy.png", "contact_set.png"))

@@ -20,6 +20,7 @@ import contextlib
 import functools
 import gc
 import importlib
+import itertools
 import logging
 import os
 import signal
@@ -519,7 +520,7 @@ def _environment_problem(environ) -> str | None:
         words = shlex.split(environ.get("PETSC_OPTIONS", ""))
     except ValueError as exc:
         return f"PETSC_OPTIONS: {exc}; allowed: PETSc options such as '-ksp_type cg'"
-    for flag, path in zip(words, words[1:]):
+    for flag, path in itertools.pairwise(words):
         if flag in ("-options_file", "-options_file_yaml", "-options_file_noerror"):
             try:
                 regular = stat.S_ISREG(os.stat(path).st_mode) and os.access(path, os.R_OK)
