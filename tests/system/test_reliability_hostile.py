@@ -431,3 +431,20 @@ def test_a_scene_name_with_dollars_is_drawn_as_written(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stderr == "", proc.stderr
     assert all((tmp_path / "o" / name).is_file() for name in ("snapshots.png", "energy.png", "contact_set.png"))
+
+
+SIGTERM_AT_IMPORT = CTRL_C_AT_IMPORT.replace("SIGINT", "SIGTERM")
+
+
+def test_sigterm_during_rank_0s_pictures_marks_the_folder_interrupted_on_every_rank(tmp_path):
+    """Under MPI, a SIGTERM during rank 0's pictures left a folder marked complete without its pictures (and rank 1
+    read rank 0's clean-up as its own outcome). Rank 0 sends it to itself at its import of pyvista; rank 1 never
+    imports pyvista."""
+    proc = mpirun([sys.executable, "-c", SIGTERM_AT_IMPORT, "pyvista", "run", "example1", *SMALL[:6], "--no-progress",
+                   "--out", tmp_path / "o"], timeout=300)
+    assert proc.returncode == 143, proc.stderr[-3000:]
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("stringcontact: error:")]
+    assert errors == ["stringcontact: error: interrupted by SIGTERM"] * 2, proc.stderr[-3000:]
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["status"] == "interrupted", summary["status"]
+    assert leftovers(tmp_path) == []
