@@ -448,3 +448,39 @@ def test_sigterm_during_rank_0s_pictures_marks_the_folder_interrupted_on_every_r
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["status"] == "interrupted", summary["status"]
     assert leftovers(tmp_path) == []
+
+
+# One rank fails on its own: rank 0 runs out of memory in the set-up, or rank 1 gets SIGTERM right after it. Before,
+# the other rank waited in the set-up's next collective call for ever (a hang); the job now ends with the failing
+# rank's exit code after the grace period.
+ONE_RANK_FAILS = r"""
+import os, signal, sys
+from mpi4py import MPI
+import stringcontact.run.driver as driver
+rank = MPI.COMM_WORLD.rank
+if sys.argv[1] == "memory" and rank == 0:
+    def no_memory(*args, **kwargs):
+        raise MemoryError()
+    driver.discretise = no_memory
+if sys.argv[1] == "sigterm" and rank == 1:
+    set_up = driver._setting
+    def set_up_then_signal(*args, **kwargs):
+        setting = set_up(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return setting
+    driver._setting = set_up_then_signal
+from stringcontact.cli.main import main
+sys.argv = ["stringcontact", *sys.argv[2:]]
+sys.exit(main())
+"""
+
+
+@pytest.mark.parametrize(("how", "code", "fragment"), [("memory", 2, "MemoryError"),
+                                                       ("sigterm", 143, "interrupted by SIGTERM")])
+def test_one_rank_failing_or_signalled_ends_the_job(tmp_path, how, code, fragment):
+    proc = mpirun([sys.executable, "-c", ONE_RANK_FAILS, how, "run", "example1", "--nx", "50", "--nt", "4000",
+                   *SMALL[4:], "--out", tmp_path / "o"], timeout=300)
+    assert proc.returncode == code, proc.stderr[-3000:]
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("stringcontact: error:")]
+    assert len(errors) == 1 and fragment in errors[0] and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert not (tmp_path / "o").exists()
