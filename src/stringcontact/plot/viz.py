@@ -55,7 +55,7 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
     """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES) of `result` into `folder`."""
     path = Path(folder) / name
     if name == "membrane.gif" or name in MESH_PICTURES:
-        # VTK, interrupted inside its import or a render, crashed the process (SIGSEGV, "Failed to load
+        # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load
         # vtkCommonMath"): a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
         with signals_held():
             return _draw_with_vtk(name, result, path, window_size)

@@ -69,8 +69,8 @@ INTEGER_OPTIONS = ("ksp_max_it", "ksp_gmres_restart", "mat_mumps_icntl_")
 BOOLEAN_OPTIONS = ("ksp_initial_guess_nonzero",)
 
 #: The ranges of integer options: counts and sizes that PETSc allocates or loops over without a check
-#: (pc_mg_levels = 100 and ksp_gmres_restart = 1e8 segfaulted, pc_hypre_boomeramg_max_iter = 2**31 - 1 ran
-#: deaf to signals). Any other integer option takes [0, INTEGER_MAX] (counts, levels, sizes, flags), but
+#: (pc_mg_levels = 100 and ksp_gmres_restart = 1e8 crash it, pc_hypre_boomeramg_max_iter = 2**31 - 1 runs for
+#: hours, deaf to signals). Any other integer option takes [0, INTEGER_MAX] (counts, levels, sizes, flags), but
 #: MUMPS' ICNTL, which take negative codes and sizes in MB.
 INTEGER_RANGES = {
     "ksp_max_it": (0, 100_000),
