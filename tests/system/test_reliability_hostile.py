@@ -484,3 +484,36 @@ def test_one_rank_failing_or_signalled_ends_the_job(tmp_path, how, code, fragmen
     errors = [line for line in proc.stderr.splitlines() if line.startswith("stringcontact: error:")]
     assert len(errors) == 1 and fragment in errors[0] and "Traceback" not in proc.stderr, proc.stderr[-3000:]
     assert not (tmp_path / "o").exists()
+
+
+# SIGTERM to rank 1 only, in the middle of the time loop: sent by rank 1 to itself when it stores its first row
+# after t = 0 (no clock).
+SIGTERM_TO_RANK_1_MID_RUN = r"""
+import os, signal, sys
+from mpi4py import MPI
+import stringcontact.run.driver as driver
+if MPI.COMM_WORLD.rank == 1:
+    march = driver._march
+    def march_with_a_signal(scene, name, stepper, ledger, rows, store, *rest):
+        def store_then_signal(n):
+            store(n)
+            if n > 0:
+                os.kill(os.getpid(), signal.SIGTERM)
+        return march(scene, name, stepper, ledger, rows, store_then_signal, *rest)
+    driver._march = march_with_a_signal
+from stringcontact.cli.main import main
+sys.argv = ["stringcontact", *sys.argv[1:]]
+sys.exit(main())
+"""
+
+
+def test_sigterm_to_one_rank_mid_run_stops_every_rank_and_marks_the_folder(tmp_path):
+    """`kill -TERM` to one rank's pid hung silently, and killing the job then left .lock and .partial. Every rank
+    now leaves the time loop at the same step: the folder is marked interrupted, each rank prints its line."""
+    proc = mpirun([sys.executable, "-c", SIGTERM_TO_RANK_1_MID_RUN, "run", "example1", "--nx", "200", "--nt", "20000",
+                   "--eps", "0.001", *QUICK, "--out", tmp_path / "o"], timeout=300)
+    assert proc.returncode == 143, proc.stderr[-3000:]
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("stringcontact: error:")]
+    assert errors == ["stringcontact: error: interrupted by SIGTERM"] * 2, proc.stderr[-3000:]
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["status"] == "interrupted"
+    assert leftovers(tmp_path) == []
