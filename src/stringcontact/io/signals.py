@@ -6,6 +6,7 @@ import contextlib
 import os
 import signal
 import threading
+from typing import Self
 
 __all__ = ["StopTogether", "signals_held"]
 
@@ -55,7 +56,7 @@ class StopTogether:
         self.received: list[int] = []
         self.saved: dict = {}
 
-    def __enter__(self) -> StopTogether:
+    def __enter__(self) -> Self:
         if self.comm is not None and threading.current_thread() is threading.main_thread():
             for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 handler = signal.getsignal(s)
