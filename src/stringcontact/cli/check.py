@@ -42,11 +42,33 @@ def add_arguments(parser):
     parser.add_argument("--force", action="store_true", help="replace a non-empty output folder")
 
 
+def _check_grid_flags(args) -> None:
+    """--nx and --nt in the scene's ranges, named as flags (0 is refused, not replaced by the default)."""
+    from ..scene.limits import INT_BOUNDS
+
+    for key in ("nx", "nt"):
+        value, (low, high) = getattr(args, key), INT_BOUNDS[key]
+        if value is not None and not low <= value <= high:
+            raise ValueError(f"--{key}: {value} is out of range; allowed: an integer in [{low}, {high}]")
+
+
+def _check_scheme_flags(args, scene) -> None:
+    """--eps or --penalty with a scheme that has no penalty: refused, as `run` refuses them."""
+    from ..timestepping import scheme_class
+
+    name = args.scheme or scene.scheme or "paper"
+    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
+        given = "--eps" if args.eps is not None else "--penalty"
+        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it refines nx and nt only")
+
+
 def _scene_from_args(args):
     from ..scene import load_scene
 
+    _check_grid_flags(args)
     if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
-        scene = flat_landing_scene(args.nx or 1000, args.nt or 1200, r=0.4)
+        scene = flat_landing_scene(args.nx if args.nx is not None else 1000, args.nt if args.nt is not None else 1200,
+                                   r=0.4)
         changes = {k: getattr(args, k) for k in ("eps", "alpha", "restitution") if getattr(args, k) is not None}
     else:
         scene = load_scene(args.scene)
@@ -68,6 +90,7 @@ def command(args) -> int:
     if args.delay is not None and not args.delay > 0:
         raise ValueError(f"--delay must be > 0, got {args.delay}")
     scene = _scene_from_args(args)
+    _check_scheme_flags(args, scene)
     if not 0 < args.delta <= scene.length:  # a band half-width in x: 1e308 overflowed (and nan is refused)
         raise ValueError(f"--delta: {args.delta:g} is out of range; allowed: a number in (0, length = {scene.length:g}] "
                          "(the half-width of the band around the fronts)")
@@ -76,7 +99,7 @@ def command(args) -> int:
     if args.out is not None:
         from ..io.publish import check_target
 
-        check_target(args.out, args.force)
+        check_target(args.out, args.force, command="check")
     V = FLAT_V if scene.name == FLAT_LANDING else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
@@ -91,10 +114,12 @@ def command(args) -> int:
     print(format_table(checks))
     print()
     print(format_trends(checks))
-    if args.out is not None:
+    from mpi4py import MPI
+
+    if args.out is not None and MPI.COMM_WORLD.rank == 0:  # one rank writes: several would race for the folder
         from ..io.publish import staged_folder
 
-        with staged_folder(args.out, args.force) as partial:  # the whole folder or nothing, under the run lock
+        with staged_folder(args.out, args.force, command="check") as partial:  # the whole folder or nothing, under the run lock
             (partial / "checks.json").write_text(json.dumps(
                 {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
                  "checks": [c.as_dict() for c in checks]}, indent=1, default=float))

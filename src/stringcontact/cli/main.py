@@ -20,6 +20,7 @@ import contextlib
 import functools
 import gc
 import importlib
+import itertools
 import logging
 import os
 import signal
@@ -202,6 +203,8 @@ def _signals_interrupt(petsc: bool = True):
         return
     if petsc:
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
+
+        _mpi_exit_comm()
     saved_pipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
         with _stop_signals():
@@ -479,10 +482,61 @@ def main(argv=None) -> int:
             _error(str(exc) or "interrupted")
             code = exc.exit_code if hasattr(exc, "exit_code") else EXIT_INTERRUPTED
     if own:
+        _end_together(code)
         # The process ends now, its files closed and its folder published. Python's last garbage collection
         # would visit every object of dolfinx, UFL and matplotlib: 0.15-0.2 s of the exit (docs/performance.md).
         gc.freeze()
     return code
+
+
+#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it
+#: aborts the whole job (MPI_Abort, with its exit code). Ranks that fail alike (a bad input: every rank checks
+#: it) end within moments of each other; a rank left alone would wait in a collective call for ever.
+END_GRACE = 10.0
+_exit = {"comm": None, "timer": None}
+
+
+def _mpi_exit_comm() -> None:
+    """Under MPI, a communicator of its own for the ranks' last handshake (`_end_together`): collective, so
+    called on every rank at the same point, right after MPI starts; nothing else uses it."""
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.size > 1 and _exit["comm"] is None:
+        _exit["comm"] = MPI.COMM_WORLD.Dup()
+
+
+def _end_together(code: int) -> None:
+    """The ranks of an MPI job end together: each waits at a non-blocking barrier; a rank that failed (`code`
+    not 0) waits at most END_GRACE seconds, then aborts the job with its code. Without MPI, nothing."""
+    comm = _exit["comm"]
+    if comm is None:
+        return
+    import time
+
+    request = comm.Ibarrier()
+    deadline = time.monotonic() + END_GRACE
+    while not request.Test():
+        if code != 0 and time.monotonic() > deadline:
+            _abort(code)
+        time.sleep(0.01)
+    timer = _exit["timer"]
+    if timer is not None:
+        timer.cancel()
+
+
+def _abort(code: int) -> None:
+    sys.stderr.flush()
+    _exit["comm"].Abort(code)
+
+
+def _abort_later(code: int) -> None:
+    """After a stop signal under MPI: abort the job with `code` unless this rank has ended by END_GRACE seconds
+    (a thread: the main one may be waiting in a collective call for a rank that will never join it)."""
+    if _exit["comm"] is None or _exit["timer"] is not None:
+        return
+    _exit["timer"] = threading.Timer(END_GRACE, _abort, args=(code,))
+    _exit["timer"].daemon = True
+    _exit["timer"].start()
 
 
 @contextlib.contextmanager
@@ -494,6 +548,7 @@ def _stop_signals():
     from ..errors import Interrupted
 
     def handler(signum, frame):
+        _abort_later(128 + signum)  # under MPI: if this rank cannot end with the others, it ends them all
         raise Interrupted(signum)
 
     saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
@@ -510,6 +565,10 @@ def _main(argv) -> int:
     if getattr(args, "_unavailable", None):
         _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
         return EXIT_INTERNAL
+    problem = _environment_problem(os.environ)
+    if problem is not None:  # before PETSc and MPI start: each would print a page of its own and exit 1
+        _error(problem)
+        return EXIT_INPUT
     painter = None
     if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
         from ..plot.painter import PictureProcess
@@ -520,6 +579,36 @@ def _main(argv) -> int:
     finally:
         if painter is not None:
             painter.cancel()  # already finished after a complete run; stops it after an error
+
+
+def _environment_problem(environ) -> str | None:
+    """What in the environment would stop PETSc or MPI at start-up with a page of text: an options file in
+    ``PETSC_OPTIONS`` that is not a readable regular file (a FIFO would block), a ``TMPDIR`` folder where no
+    folder can be made (Open MPI's session folder; ``/proc``). None if nothing."""
+    import shlex
+    import stat
+    import tempfile
+
+    try:
+        words = shlex.split(environ.get("PETSC_OPTIONS", ""))
+    except ValueError as exc:
+        return f"PETSC_OPTIONS: {exc}; allowed: PETSc options such as '-ksp_type cg'"
+    for flag, path in itertools.pairwise(words):
+        if flag in ("-options_file", "-options_file_yaml", "-options_file_noerror"):
+            try:
+                regular = stat.S_ISREG(os.stat(path).st_mode) and os.access(path, os.R_OK)
+            except OSError as exc:
+                return f"PETSC_OPTIONS: {flag} {path}: {exc.strerror}; allowed: a readable options file"
+            if not regular:
+                return f"PETSC_OPTIONS: {flag} {path}: not a readable regular file; allowed: a readable options file"
+    folder = environ.get("TMPDIR")
+    if folder and os.path.isdir(folder):
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix="stringcontact-", dir=folder))
+        except OSError as exc:
+            return (f"TMPDIR={folder}: cannot make a folder there ({exc.strerror}), where MPI keeps its session; "
+                    "allowed: a writable folder (or leave TMPDIR unset)")
+    return None
 
 
 def _command(args, painter) -> int:
@@ -561,8 +650,12 @@ def _command(args, painter) -> int:
             where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
             _error(f"{exc.strerror or exc}{where}")
             return EXIT_INPUT
-        except (MemoryError, RecursionError) as exc:
-            _error(f"{type(exc).__name__}: the problem is too large for this machine; reduce nx or nt")
+        except RecursionError:  # crafted input nested too deeply (JSON, a .npy header): not a size problem
+            _error("RecursionError: an input file is nested too deeply to read; allowed: the files stringcontact writes")
+            return EXIT_INPUT
+        except MemoryError:
+            _error("MemoryError: out of memory: the problem, or an input file, is too large for this machine; "
+                   "reduce nx or nt, or check the files read")
             return EXIT_INPUT
         except Exception as exc:  # noqa: BLE001 - a bug: one line, and the traceback on request
             if os.environ.get("STRINGCONTACT_TRACEBACK"):

@@ -52,15 +52,20 @@ def add_arguments(parser):
             p.add_argument("--repeat", type=int, default=1, help="time each run this many times, keep the best")
 
 
+#: The most times one run is timed (`--repeat`): the best of 100 is as good as a timing gets.
+MAX_REPEAT = 100
+
+
 def command(args) -> int:
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
     out = Path(args.out)
-    check_target(out, args.force)  # the rules of `run --out`, before the sweep: not /, not ., not a full folder
+    if args.study == "work-precision" and not 1 <= args.repeat <= MAX_REPEAT:
+        raise ValueError(f"--repeat: {args.repeat} is out of range; allowed: an integer in [1, {MAX_REPEAT}] (each run "
+                         "is timed that many times)")
+    check_target(out, args.force, command="study")  # the rules of `run --out`, before the sweep; never a run's result
     t0 = time.perf_counter()
-    if args.study == "work-precision" and args.repeat < 1:
-        raise ValueError(f"--repeat must be >= 1, got {args.repeat}")
     busy = []
     t_sweep = time.perf_counter()
     if args.study == "work-precision":
@@ -75,7 +80,7 @@ def command(args) -> int:
     sweep = time.perf_counter() - t_sweep
     written = []
     if result is not None:  # None on ranks > 0: rank 0 has the results
-        with staged_folder(out, args.force) as partial:  # the whole folder or nothing, under the lock
+        with staged_folder(out, args.force, command="study") as partial:  # the whole folder or nothing, under the lock
             written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
             (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
                                                             "files": [p.name for p in written]}, indent=1) + "\n")

@@ -1,17 +1,25 @@
-"""A mesh file's topology and geometry, checked before dolfinx sees them.
+"""A mesh file read here, checked, and handed to dolfinx as arrays.
 
 dolfinx's `create_mesh` trusts its input: a cell index out of range (10**6 on 81 nodes, or -5) leaves it
 spinning in C++, deaf to Ctrl-C and SIGTERM, and duplicate cells corrupt its heap (a segfault or
-``malloc(): unsorted double linked list corrupted``). So the XDMF file's first grid is read here with pyfive
-(pure Python: h5py's wheel clashes with the libhdf5 dolfinx loads) and refused, in one line naming
-``mesh``, unless it is a plain triangle mesh: data in an HDF5 file, the shapes the XML states, integer cell
-indices in [0, nodes), three distinct nodes per cell, no cell twice, no edge in more than two cells,
-every node in a cell, finite coordinates, and at most `MAX_NODES` nodes and `MAX_CELLS` cells.
+``malloc(): unsorted double linked list corrupted``). dolfinx's own XDMF reader is not used either: dolfinx 0.5
+reads ``<xdmf stem>.h5`` whatever file the DataItem names and finds its grid by an XPath built from the grid's
+name, so a check of the file the XDMF names could pass while dolfinx read another. So the XDMF file's first
+grid with a topology is read here, with pyfive (pure Python: h5py's wheel clashes with the libhdf5 dolfinx
+loads), and refused, in one line naming ``mesh``, unless it is a plain triangle mesh: data in an HDF5 file
+(a regular file: never a FIFO, a device or a directory, opened without blocking), the shapes the XML states,
+integer cell indices in [0, nodes), numeric coordinates, three distinct nodes per cell, no cell twice, no
+edge in more than two cells, every node in a cell, finite coordinates of at most `MAX_COORDINATE` in
+absolute value, z = 0, and at most `MAX_NODES` nodes and `MAX_CELLS` cells. The arrays that pass are the
+ones `domains` gives to `mesh.create_mesh`: what was checked is what dolfinx meshes.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import os
+import stat
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -19,32 +27,96 @@ import numpy as np
 from ..errors import SceneError
 from ..scene.limits import MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 
-__all__ = ["check", "MAX_NODES", "MAX_CELLS"]
+__all__ = ["MAX_CELLS", "MAX_COORDINATE", "MAX_NODES", "MAX_XDMF_BYTES", "check", "file_kind", "read", "regular_file"]
 
 #: The largest mesh file: as many nodes as the largest membrane (the set-up's memory, scene.limits), and twice
 #: as many cells (a triangulation has about two cells per node).
 MAX_NODES = MAX_MEMBRANE_NODES
 MAX_CELLS = 2 * MAX_MEMBRANE_NODES
+#: The largest |coordinate|: a domain's size is bounded like a scene's `length` and `radius` (1e4), with room for
+#: a mesh in other units; beyond about 1e154 a cell's area overflows to inf.
+MAX_COORDINATE = 1e6
+#: The largest XDMF file read: a mesh's XML is a few hundred bytes (its data are in the HDF5 file).
+MAX_XDMF_BYTES = 10_000_000
 
 
-def check(path: str, name: str) -> None:
-    """Refuse (SceneError, one line) a mesh file whose grid `name` is not a valid 2D triangle mesh."""
-    grid = _grid(path, name)
+def regular_file(path: str, what: str = "mesh") -> int:
+    """An open descriptor of `path`, a regular file (following links; O_NONBLOCK: a FIFO is never waited on);
+    else SceneError naming `what` and what the path is (missing, a FIFO, a directory, a link loop, ...)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise SceneError(f"{what}: {path!r} {_os_reason(exc)}; allowed: a readable regular file") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise SceneError(f"{what}: {path!r} is {file_kind(mode)}, not a regular file; allowed: a regular file")
+    return fd
+
+
+def file_kind(mode: int) -> str:
+    """'a FIFO', 'a directory', ... for a `stat` mode that is not a regular file's."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _os_reason(exc: OSError) -> str:
+    if exc.errno == errno.ENOENT:
+        return "does not exist"
+    if exc.errno == errno.ELOOP:
+        return "is a loop of symbolic links"
+    if exc.errno == errno.EISDIR:
+        return "is a directory"
+    return f"cannot be opened ({exc.strerror or exc})"
+
+
+def read(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """(cells, points) of the XDMF triangle mesh at `path`: int64 (cells, 3) and float64 (nodes, 2), checked;
+    SceneError (one line naming ``mesh``) if it is not a valid 2D triangle mesh."""
+    grid = _grid(path)
+    _check_cell_type(path, grid)
     cells = _data(path, grid.find("Topology"), "topology", MAX_CELLS)
     points = _data(path, grid.find("Geometry"), "geometry", MAX_NODES)
     _check_shapes(path, cells, points)
     _check_cells(path, cells, len(points))
+    if points.shape[1] == 3 and np.any(points[:, 2] != 0.0):
+        raise SceneError(f"mesh: {path!r} is a surface in 3D (z is not 0); allowed: a flat 2D triangle mesh")
+    return cells.astype(np.int64), np.ascontiguousarray(points[:, :2], dtype=np.float64)
 
 
-def _grid(path: str, name: str):
+def check(path: str) -> None:
+    """Refuse (SceneError, one line) a mesh file that is not a valid 2D triangle mesh (`read` without its arrays)."""
+    read(path)
+
+
+def _grid(path: str):
+    fd = regular_file(path)
+    with os.fdopen(fd, "rb") as f:
+        text = f.read(MAX_XDMF_BYTES + 1)
+    if len(text) > MAX_XDMF_BYTES:
+        raise SceneError(f"mesh: {path!r} is larger than {MAX_XDMF_BYTES} bytes; allowed: an XDMF file (its data "
+                         "in an HDF5 file beside it)")
     try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"mesh: {path!r} is not an XDMF mesh file ({exc}); allowed: an XDMF triangle mesh") from None
+        root = ET.fromstring(text)
+    except (ET.ParseError, ValueError, RecursionError) as exc:
+        raise SceneError(f"mesh: {path!r} is not an XDMF mesh file ({type(exc).__name__}: "
+                         f"{str(exc)[:120]}); allowed: an XDMF triangle mesh") from None
     for grid in root.iter("Grid"):
-        if grid.get("Name", "mesh") == name and grid.find("Topology") is not None:
+        if grid.find("Topology") is not None:
             return grid
-    raise SceneError(f"mesh: {path!r} holds no grid {name!r} with a topology; allowed: an XDMF triangle mesh")
+    raise SceneError(f"mesh: {path!r} holds no grid with a topology; allowed: an XDMF triangle mesh")
+
+
+def _check_cell_type(path: str, grid) -> None:
+    topology = grid.find("Topology")
+    cell = topology.get("TopologyType") or topology.get("Type") or "?"
+    if cell.lower() in ("tetrahedron", "hexahedron", "wedge", "pyramid"):
+        raise SceneError(f"mesh: {path!r} is a 3D mesh ({cell} cells); allowed: a 2D triangle mesh")
+    if cell.lower() != "triangle":
+        raise SceneError(f"mesh: {path!r} has {cell} cells; allowed: a 2D triangle mesh (Triangle cells)")
 
 
 def _data(path: str, element, what: str, limit: int) -> np.ndarray:
@@ -72,15 +144,17 @@ def _data(path: str, element, what: str, limit: int) -> np.ndarray:
     if not file or not inside.startswith("/"):
         raise SceneError(f"mesh: {path!r}: the {what} reference {ref[:80]!r} is not FILE.h5:/DATASET")
     h5 = os.path.join(os.path.dirname(os.path.abspath(path)), file)
+    fd = regular_file(h5)  # a FIFO, a directory or a link loop: one line, never a wait
     try:
         import pyfive
 
-        with pyfive.File(h5) as f:
+        with _Reader(io.FileIO(fd, "rb")) as fh, pyfive.File(fh) as f:
             dataset = f[inside]
             shape = tuple(dataset.shape)
             if shape != dims:
                 raise SceneError(f"mesh: {path!r}: the {what} in {file} has shape {shape}, the XDMF file says {dims}; "
                                  "allowed: the same shape")
+            _check_dtype(path, what, dataset.dtype)  # before reading: strings would take gigabytes
             values = np.asarray(dataset[:])
     except SceneError:
         raise
@@ -88,6 +162,26 @@ def _data(path: str, element, what: str, limit: int) -> np.ndarray:
         raise SceneError(f"mesh: {path!r}: cannot read its {what} from {file!r} ({type(exc).__name__}: "
                          f"{str(exc).splitlines()[0][:120] if str(exc) else ''}); allowed: a readable HDF5 file") from None
     return values
+
+
+class _Reader(io.BufferedReader):
+    """The open mesh .h5 for pyfive, without a `fileno`: pyfive then reads through this object, instead of
+    opening the file again by its name (which might since have become a FIFO)."""
+
+    def fileno(self):
+        raise io.UnsupportedOperation("fileno")
+
+
+def _check_dtype(path: str, what: str, declared) -> None:
+    try:
+        dtype = np.dtype(declared)  # pyfive gives a tuple for variable-length strings and references
+    except TypeError:
+        dtype = np.dtype(object)
+    numeric = np.issubdtype(dtype, np.integer) or (what == "geometry" and np.issubdtype(dtype, np.floating))
+    if not numeric or dtype.itemsize > 8 or dtype.fields is not None:
+        dtype = declared if dtype == np.dtype(object) else dtype
+        allowed = "integers" if what == "topology" else "floating-point or integer numbers"
+        raise SceneError(f"mesh: {path!r}: its {what} holds {dtype} values; allowed: {allowed}")
 
 
 def _check_shapes(path: str, cells: np.ndarray, points: np.ndarray) -> None:
@@ -99,6 +193,10 @@ def _check_shapes(path: str, cells: np.ndarray, points: np.ndarray) -> None:
         raise SceneError(f"mesh: {path!r}: its geometry has {points.shape[1]} columns; allowed: 2 or 3 (x, y[, z])")
     if not np.all(np.isfinite(points)):
         raise SceneError(f"mesh: {path!r} has a node with a coordinate that is not finite; allowed: finite numbers")
+    largest = float(np.max(np.abs(points), initial=0.0))
+    if largest > MAX_COORDINATE:
+        raise SceneError(f"mesh: {path!r} has a node coordinate of {largest:.3g}; allowed: coordinates in "
+                         f"[-{MAX_COORDINATE:g}, {MAX_COORDINATE:g}]")
     if len(points) < 3:
         raise SceneError(f"mesh: {path!r} has {len(points)} nodes; allowed: at least 3")
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import json
 import shutil
+import signal
 import time
 import warnings
 from pathlib import Path
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import (
+    Interrupted,
     OutputError,  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
     one_line,
 )
@@ -178,16 +180,20 @@ class OutputWriter:
         try:
             self._close_xdmf()
             summary = summary_dict(result)
-            failure = None
+            failure = stopped = None
             if self.comm.rank == 0:
                 try:
                     self._write_tables_and_pictures(result, summary)
+                except KeyboardInterrupt as exc:  # told to every rank below: they abort together
+                    stopped = getattr(exc, "signum", signal.SIGINT)
                 except Exception as exc:  # noqa: BLE001 - sorted below
                     if not isinstance(exc, (OSError, RuntimeError)) and disk_failure(exc) is None:
                         raise
                     failure = describe_os_error(disk_failure(exc) or exc, self.target.parent, probe=self.partial)
-            if self.comm.size > 1:
-                failure = self.comm.bcast(failure, root=0)
+            if self.comm.size > 1:  # one outcome on every rank: rank 0's pictures may fail or be interrupted
+                failure, stopped = self.comm.bcast((failure, stopped), root=0)
+            if stopped is not None:
+                raise Interrupted(stopped)
             if failure is not None:
                 self._discard()
                 raise OutputError(f"--out {self.target}: cannot write the output files: {failure}; nothing was written there")

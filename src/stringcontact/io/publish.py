@@ -54,14 +54,14 @@ def _occupied(path: Path) -> bool:
 STATUSES = ("complete", "interrupted", "unstable", "unbalanced")
 
 
-def check_target(path, force: bool, *, locked: bool = False, parents: bool = False) -> Path:
+def check_target(path, force: bool, *, locked: bool = False, parents: bool = False, command: str = "run") -> Path:
     """Refuse an --out that cannot or must not take a result, before any work is done.
 
     Refused: the root folder, the current folder or one containing it, a mount point, a file, a parent that
     cannot be written, a missing parent outside the current folder (unless `parents`: the Python API's
     ``output_dir`` makes them, as asked), a non-empty folder (unless `force`, and then only a folder holding
-    nothing but what its manifest lists), and a folder another run writes to. `locked`: the caller holds the
-    folder's lock itself (so the lock is not probed).
+    nothing but what its manifest lists and, for a `command` other than ``run``, not a run's result), and a
+    folder another run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
     """
     target = Path(path)
     resolved = target.resolve()
@@ -86,6 +86,9 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
         if blocker is not None:
             raise OutputError(f"--out {target}: --force replaces only a stringcontact result (the files its {MANIFEST} "
                               f"lists), and {blocker}; move it away or choose another folder")
+        if command != "run" and is_run_result(target):
+            raise OutputError(f"--out {target}: holds the result of a run (summary.json, solution.xdmf), which "
+                              f"`{command} --force` does not replace; choose another folder")
     holder = None if locked else TargetLock.holder(target)
     if holder is not None:
         who = f" (pid {holder})" if holder else ""
@@ -94,6 +97,12 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
             "wait for it to finish or choose another folder"
         )
     return target
+
+
+def is_run_result(folder: Path) -> bool:
+    """`folder` holds the result of `stringcontact run` (its manifest lists summary.json and solution.xdmf)."""
+    files = read_manifest(folder) or {}
+    return "summary.json" in files and "solution.xdmf" in files
 
 
 def _check_parents(target: Path, parent: Path) -> None:
@@ -112,9 +121,13 @@ def _check_parents(target: Path, parent: Path) -> None:
 
 
 def _check_writable(target: Path, parent: Path) -> None:
-    """Refuse a target whose nearest existing parent folder cannot be written (read-only or no permission)."""
+    """Refuse a target whose nearest existing parent folder cannot be written (read-only or no permission), or
+    whose nearest existing parent is not a folder (``--out afile/x``)."""
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(f"--out {target}: cannot create the output folder: {parent} is a file, not a folder; "
+                          "choose a path inside a folder")
     reason = None
     with contextlib.suppress(OSError):
         if os.statvfs(parent).f_flag & os.ST_RDONLY:
@@ -151,16 +164,44 @@ MANIFEST = "manifest.json"
 MARKER = ".stringcontact-marker"
 
 
+#: The largest manifest read: a folder's few dozen names and sizes take a few kB.
+MAX_MANIFEST_BYTES = 1 << 20
+
+
 def read_manifest(folder: Path) -> dict[str, int] | None:
-    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote."""
+    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote.
+
+    Only a regular file of at most MAX_MANIFEST_BYTES counts: it is opened with O_NONBLOCK and O_NOFOLLOW, so a
+    FIFO or a link to /dev/zero planted there is neither waited on nor read without end."""
+    text = small_regular_file(Path(folder) / MANIFEST, MAX_MANIFEST_BYTES)
     try:
-        data = json.loads((Path(folder) / MANIFEST).read_text())
-    except (OSError, ValueError):
+        data = json.loads(text) if text is not None else None
+    except (ValueError, RecursionError, MemoryError):
         return None
     files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "stringcontact" else None
     if not isinstance(files, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in files.values()):
         return None
     return files
+
+
+def small_regular_file(path: Path, limit: int) -> bytes | None:
+    """The bytes of `path` if it is a regular file (not a link to one) of at most `limit` bytes, else None.
+
+    Opened with O_NONBLOCK and O_NOFOLLOW: a FIFO is never waited on, a link to a device never followed."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+            return None
+        data = os.read(fd, limit + 1)
+        return data if len(data) <= limit else None
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
 
 
 def write_manifest(folder: Path, files: dict[str, int]) -> None:
@@ -321,13 +362,19 @@ def _fsync_dir(folder: Path) -> None:
 def atomic_path(path, record: bool = True):
     """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
 
-    `tmp` is a hidden sibling ``.NAME.tmp-<pid>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
-    the format from it); on success it is renamed onto `path` (``os.replace``), on any exception, Ctrl-C
-    included, it is removed and the exception goes on. With `record`, the file is added to the folder's
-    manifest if it has one (a published result: ``plot FOLDER``).
+    `tmp` is a hidden sibling ``.NAME.tmp-<random>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
+    the format from it), made by `tempfile.mkstemp` (O_CREAT|O_EXCL|O_NOFOLLOW, an unpredictable name: a
+    symbolic link planted in the folder is never written through); on success it is renamed onto `path`
+    (``os.replace``), on any exception, Ctrl-C included, it is removed and the exception goes on. With
+    `record`, the file is added to the folder's manifest if it has one (a published result: ``plot FOLDER``).
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}{path.suffix}")
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
+    tmp = Path(name)
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes it private; a picture is an ordinary file
+    finally:
+        os.close(fd)
     try:
         yield tmp
         os.replace(tmp, path)
@@ -397,7 +444,9 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
     """
     label = status if status != "complete" else "new"
     if _occupied(target):
-        if status != "complete" or not force:
+        # Checked again now: since the run started, another run may have begun writing inside the target
+        # (its lock and partial folder there), or a user may have put a file there; they are not replaced.
+        if status != "complete" or not force or foreign_file(target) is not None:
             dest = _free_sibling(target, label)
             os.rename(partial, dest)
             return dest
@@ -425,7 +474,7 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
     return target
 
 
-def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
+def open_partial(path, force: bool, command: str = "run") -> tuple[Path, TargetLock, Path]:
     """Take the output folder `path`: check it, lock it, check it again, clear what killed runs left there,
     and make the hidden partial folder beside it. Returns ``(target, lock, partial)``, target resolved.
 
@@ -437,10 +486,10 @@ def open_partial(path, force: bool) -> tuple[Path, TargetLock, Path]:
     try:
         # Checked before the lock as well: a file or a non-empty folder is refused as such, named as given,
         # even where the lock file cannot be made (a read-only parent) or another run holds the lock.
-        check_target(path, force, parents=True)  # the command line refused missing parents before (check_target)
+        check_target(path, force, parents=True, command=command)  # the command line refused missing parents before
         target.parent.mkdir(parents=True, exist_ok=True)
         lock = TargetLock(target)
-        check_target(target, force, locked=True, parents=True)  # again under the lock: a run may have just finished there
+        check_target(target, force, locked=True, parents=True, command=command)  # again under the lock: a run may have just finished there
         _recover_stale(target)
         partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))
         os.chmod(partial, 0o777 & ~_umask())  # mkdtemp makes it private; the result is an ordinary folder
@@ -472,14 +521,15 @@ def publish_partial(partial: Path, target: Path, force: bool, status: str = "com
 
 
 @contextlib.contextmanager
-def staged_folder(path, force: bool = False):
+def staged_folder(path, force: bool = False, command: str = "run"):
     """Write a whole output folder, or nothing: ``with staged_folder(out, force) as tmp: write files into tmp``.
 
     The same protocol as a run's output (for commands such as ``check --out`` that write files, not a time
     series): the lock, a unique hidden folder beside the target, fsync and rename at the end; on any error,
     including Ctrl-C, the hidden folder is removed and the target is left as it was. Serial (one process).
+    `command` (``check``, ``study``, ``plot``): its `--force` never replaces a run's result (`check_target`).
     """
-    target, lock, partial = open_partial(path, force)
+    target, lock, partial = open_partial(path, force, command)
     try:
         yield partial
         with signals_held():

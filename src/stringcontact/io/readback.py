@@ -21,11 +21,19 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OutputError, SceneError, one_line
+from ..scene.limits import MAX_MEMBRANE_NODES, MAX_STORED_BYTES
+from .publish import small_regular_file
 from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from .tables import ROWS_FILE
 from .xdmf import read_xdmf
 
 FILES = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
+#: The largest summary.json read (a run's is a few kB; 1000 output times add 20 kB).
+MAX_JSON_BYTES = 10_000_000
+#: The most nodes a folder may hold (the largest membrane; a string has at most 1e5 + 1) and the most bytes
+#: its stored rows may take (the run's own budget, `scene.limits.MAX_STORED_BYTES`): checked from the files'
+#: headers before any array is read, so a small crafted file cannot claim gigabytes.
+MAX_NODES = MAX_MEMBRANE_NODES
 
 
 def read_output(folder, from_xdmf: bool = False):
@@ -82,10 +90,16 @@ def _check_folder(folder: Path) -> Path:
 
 
 def _load_json(path: Path) -> dict:
+    text = small_regular_file(path, MAX_JSON_BYTES)  # never a FIFO waited on, a device read without end
+    if text is None:
+        raise ValueError(f"plot: {path} is not a regular file of at most {MAX_JSON_BYTES} bytes (a run's summary.json "
+                         "is a few kB)")
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"plot: {path} is not valid JSON ({one_line(exc, 200)})") from None
+    except RecursionError:
+        raise ValueError(f"plot: {path} is not a run's JSON (nested too deeply)") from None
     if not isinstance(data, dict):
         raise ValueError(f"plot: {path} holds a JSON {type(data).__name__}, not the object a run writes")  # noqa: TRY004 - bad input: exit 2
     return data
@@ -150,6 +164,7 @@ def _read_rows(path: Path, column: dict, dim: int):
     import zipfile
 
     names = ("t", "steps", "x", *FIELDS) + (("cells", "weights") if dim == 2 else ())
+    _check_row_headers(path, names, len(column["t"]), dim)
     try:
         with np.load(path, allow_pickle=False) as npz:
             absent = [name for name in names if name not in npz.files]
@@ -172,10 +187,61 @@ def _read_rows(path: Path, column: dict, dim: int):
         raise ValueError(f"plot: {path} does not hold the {k} rows of diagnostics.csv on {n} nodes: {', '.join(wrong)}")
     if not np.array_equal(arrays["t"], column["t"]):
         raise ValueError(f"plot: {path}: its times are not those of diagnostics.csv")
+    _check_row_values(path, arrays, dim)
     fields = {name: arrays[name] for name in FIELDS}
     fields["contact"] = fields["contact"].astype(float)  # as read from the XDMF: Result takes contact > 0.5
     mesh = {"cells": arrays["cells"].astype(np.int64), "weights": arrays["weights"]} if dim == 2 else {}
     return arrays["x"], fields, mesh
+
+
+def _check_row_headers(path: Path, names: tuple, k: int, dim: int) -> None:
+    """Each member's .npy header read (not its data): real or integer dtypes (bool for contact), at most
+    MAX_NODES nodes and k rows, and no more than the run's own stored-row budget in all. A zip bomb (1.9 MB
+    declaring 1.9 GB) or a string, complex or structured member is refused before anything is decompressed."""
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            headers = {}
+            for name in names:
+                if f"{name}.npy" not in archive.namelist():
+                    raise ValueError(f"plot: {path} has no array {name!r}")
+                with archive.open(f"{name}.npy") as f:
+                    version = npy.read_magic(f)
+                    shape, _, dtype = (npy.read_array_header_1_0(f) if version == (1, 0) else npy.read_array_header_2_0(f))
+                headers[name] = shape, dtype
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, RuntimeError) as exc:
+        if str(exc).startswith("plot: "):
+            raise
+        raise ValueError(f"plot: {path} is not a readable .npz file ({type(exc).__name__}: {one_line(exc, 200)})") from None
+    total = 0
+    for name, (shape, dtype) in headers.items():
+        integer = name in ("steps", "cells")
+        ok = dtype.kind in ("i", "u") if integer else dtype.kind in ("f", "i", "u") or (name == "contact" and dtype.kind == "b")
+        if not ok or dtype.fields is not None or dtype.itemsize > 8:
+            allowed = "integers" if integer else "real numbers"
+            raise ValueError(f"plot: {path}: its array {name!r} holds {dtype} values; allowed: {allowed}")
+        if any(d > max(MAX_NODES * 2, k) for d in shape):
+            raise ValueError(f"plot: {path}: its array {name!r} declares the shape {shape}; allowed: at most {k} rows "
+                             f"(diagnostics.csv) of at most {MAX_NODES} nodes")
+        total += int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+    if total > MAX_STORED_BYTES:
+        raise ValueError(f"plot: {path} declares {total / 1e9:.3g} GB of arrays; allowed: at most "
+                         f"{MAX_STORED_BYTES / 1e9:g} GB (a run's stored rows)")
+
+
+def _check_row_values(path: Path, arrays: dict, dim: int) -> None:
+    """Finite values (a NaN in eta would fail half-way through the pictures) and a grid of distinct nodes."""
+    for name in ("t", "x", "eta", "velocity", "contact_force") + (("weights",) if dim == 2 else ()):
+        if not np.all(np.isfinite(arrays[name])):
+            raise ValueError(f"plot: {path}: its array {name!r} holds a value that is not finite; allowed: finite numbers")
+    x = arrays["x"]
+    spread = np.ptp(x, axis=0) if len(x) else np.zeros(1)
+    if len(x) < 2 or not np.all(spread > 0) or (dim == 1 and not np.all(np.diff(x) > 0)):
+        raise ValueError(f"plot: {path}: its nodes x are not {'increasing' if dim == 1 else 'spread over a domain'}; "
+                         "allowed: the nodes of a mesh")
 
 
 def _frame_rows(column: dict, series: dict, folder: Path) -> dict[str, np.ndarray]:
@@ -203,7 +269,7 @@ def _read_fields(path: Path, geometry: str, series: dict, topology=None):
     mesh = {}
     try:
         with pyfive.File(str(path)) as h5:
-            points = np.asarray(h5[_h5_path(geometry)][:], dtype=float)
+            points = np.asarray(_bounded(h5[_h5_path(geometry)], 3 * MAX_NODES, path)[:], dtype=float)
             x_all = points[:, 0] if topology is None else points[:, :2]
             order = np.argsort(_sort_key(x_all), kind="stable")
             fields = {name: np.stack([_dataset(h5, ref, len(x_all), path)[order] for _, ref in series[name]]) for name in FIELDS}
@@ -251,7 +317,7 @@ def _cells(h5, ref: str, per_cell: int, n: int, path: Path) -> np.ndarray:
         data = h5[_h5_path(ref)]
     except KeyError:
         raise ValueError(f"plot: {path} has no dataset {_h5_path(ref)} (named in solution.xdmf)") from None
-    cells = np.asarray(data[:]).reshape(-1)
+    cells = np.asarray(_bounded(data, 6 * MAX_NODES, path, integer=True)[:]).reshape(-1)
     if cells.size == 0 or cells.size % per_cell or cells.min() < 0 or cells.max() >= n:
         raise ValueError(f"plot: {path}: {_h5_path(ref)} holds no triangles of its {n} points")
     return cells.astype(np.int64).reshape(-1, per_cell)
@@ -276,7 +342,23 @@ def _dataset(h5, ref: str, n: int, path: Path) -> np.ndarray:
         data = h5[_h5_path(ref)]
     except KeyError:
         raise ValueError(f"plot: {path} has no dataset {_h5_path(ref)} (named in solution.xdmf)") from None
-    values = np.asarray(data[:], dtype=float).reshape(-1)
+    values = np.asarray(_bounded(data, n, path)[:], dtype=float).reshape(-1)
     if values.size != n:
         raise ValueError(f"plot: {path}: {_h5_path(ref)} holds {values.size} values, expected {n}")
     return values
+
+
+def _bounded(data, most: int, path: Path, integer: bool = False):
+    """The dataset `data` if its declared size and type allow reading it: at most `most` numbers, real or
+    integer (a 134 kB file declaring a 4 GB dataset is refused before it is read)."""
+    try:
+        dtype = np.dtype(data.dtype)
+    except TypeError:  # pyfive gives a tuple for variable-length strings and references
+        dtype = np.dtype(object)
+    size = int(np.prod(data.shape, dtype=np.float64))
+    kinds = ("i", "u") if integer else ("f", "i", "u")
+    if dtype.kind not in kinds or dtype.fields is not None or dtype.itemsize > 8:
+        raise ValueError(f"plot: {path}: {data.name} holds {dtype} values; allowed: {'integers' if integer else 'real numbers'}")
+    if size > most:
+        raise ValueError(f"plot: {path}: {data.name} declares {size} values; allowed: at most {most}")
+    return data

@@ -90,6 +90,12 @@ def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
 # --- titles -----------------------------------------------------------------------------------------
 
 
+def literal(text: str) -> str:
+    """`text` shown as written in a matplotlib title: its ``$`` escaped, so a scene named ``$x^{$`` is not parsed
+    as (broken) mathtext."""
+    return str(text).replace("$", r"\$")
+
+
 def parameter_line(result, sep: str = ", ") -> str:
     """The title's line of parameters: the mesh, Δt, α (and ε), the model, the scheme, its penalty and mass."""
     s = result.scene
@@ -221,7 +227,7 @@ def contact_set_figure(result, window_size=WINDOW_SIZE):
     patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact\n(η ≤ {psi})"),
                Patch(facecolor="white", edgecolor="black", label=f"free\n(η > {psi})")]
     axes["count"].legend(handles=patches, loc="upper left", bbox_to_anchor=(1.1, 1.0), frameon=False, labelspacing=1.2)
-    title = f"Contact set {{η ≤ {psi}}} in space-time: {result.scene.name}"
+    title = f"Contact set {{η ≤ {psi}}} in space-time: {literal(result.scene.name)}"
     most = f"at most {int(counts.max())} contact components (first at t = {result.t[int(np.argmax(counts))]:.3g})" if counts.max() > 1 else ""
     h = window_size[1] / DPI
     fig.suptitle("\n".join(filter(None, (title, parameter_line(result), most))), fontsize=12, y=1 - 0.15 / h, va="top")
@@ -266,7 +272,7 @@ def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = 
     path = Path(path)
     c = velocity_clip(result, percentile)
     speed = float(np.max(np.abs(result.velocity)))
-    title = f"Velocity field v(t, x) = η_t: {result.scene.name}"
+    title = f"Velocity field v(t, x) = η_t: {literal(result.scene.name)}"
     note = f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})"
     fig, ax, image = _space_time_image(result, result.velocity, title, window_size, note, cmap="RdBu_r", vmin=-c, vmax=c)
     box = ax.get_position()
@@ -310,7 +316,7 @@ def snapshots_picture(result, path) -> Path:
     axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)" if name == "0" else "obstacle (y ≤ ψ(x))", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
     handles, labels = axs.flat[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
-    title = "\n".join(filter(None, (f"Snapshots of the string: {result.scene.name}", parameter_line(result), panels_note(result, rows))))
+    title = "\n".join(filter(None, (f"Snapshots of the string: {literal(result.scene.name)}", parameter_line(result), panels_note(result, rows))))
     fig.suptitle(title, fontsize=11)
     # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
     w, h = fig.get_size_inches()
@@ -378,7 +384,7 @@ def energy_figure(result):
         axes["energy"].axvspan(t[0], settled, color="0.5", alpha=0.12, lw=0)
     handles, labels = axes["energy"].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.0))
-    fig.suptitle(f"Energy balance: {result.scene.name}\n{parameter_line(result)}", fontsize=11)
+    fig.suptitle(f"Energy balance: {literal(result.scene.name)}\n{parameter_line(result)}", fontsize=11)
     return fig, axes
 
 
@@ -436,7 +442,7 @@ def contact_area_figure(result):
     ax.legend(fontsize=9, loc="lower right")
     first = np.flatnonzero(area > 0)
     landed = f"first contact at t = {t[first[0]]:.3g}, largest area {area.max():.3g}" if first.size else "no contact"
-    ax.set_title(f"Contact area and patches: {result.scene.name}\n{parameter_line(result)}\n{landed}", fontsize=11)
+    ax.set_title(f"Contact area and patches: {literal(result.scene.name)}\n{parameter_line(result)}\n{landed}", fontsize=11)
     axp.step(t, patches, where="mid", color="#2166ac", lw=1.5, label="contact patches (connected along mesh edges)")
     axp.set_ylim(-0.3, max(2, int(patches.max())) + 0.5)
     axp.yaxis.get_major_locator().set_params(integer=True)

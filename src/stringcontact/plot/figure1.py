@@ -39,7 +39,9 @@ def draw(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta
     ax.set_xlabel("x")
     ax.set_ylabel("t")
     ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(title or f"{result.scene.name}: contact set and force\n"
+    from .charts import literal
+
+    ax.set_title(title or f"{literal(result.scene.name)}: contact set and force\n"
                  f"model {getattr(result, 'model', None) or 'inelastic'}, scheme {getattr(result, 'scheme', 'paper')}")
 
     bx.plot(t, front_force_rate, color="tab:red", lw=1, label=r"force on the fronts $\sum m_jF_j$")

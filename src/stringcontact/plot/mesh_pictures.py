@@ -41,9 +41,16 @@ OBSTACLE_COLOUR = "#777777"
 MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 
 
+#: VTK render windows that draw on an X server: without one, VTK 9 fails to make them and then crashes (SIGSEGV).
+X_WINDOWS = ("vtkXOpenGLRenderWindow",)
+
+
 def _pyvista():
     if "DISPLAY" not in os.environ:  # EGL needs no display; on a desktop VTK's default window works too
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        window = os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        if window in X_WINDOWS:  # refused before VTK is asked: it would take the process down
+            raise ValueError(f"VTK_DEFAULT_OPENGL_WINDOW={window} needs an X display and DISPLAY is not set; the "
+                               "3-D pictures are left out (unset it, or set it to vtkEGLRenderWindow)")
     search_once()  # VTK's module search lists its folder once, not twice per module (vtk_modules)
     import pyvista as pv
 

@@ -18,8 +18,10 @@ run. ``stringcontact plot DIR`` redraws them from an output folder alone, from t
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
+from ..io.signals import signals_held
 from .catalogue import (  # noqa: F401 - the names are used as viz.* by the demos and tests
     CHART_PICTURES,
     MEMBRANE_PICTURES,
@@ -52,15 +54,11 @@ from .charts import (  # noqa: F401 - the pictures and readings are used as viz.
 def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
     """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES) of `result` into `folder`."""
     path = Path(folder) / name
-    if name == "membrane.gif":
-        from . import animation  # pyvista and Pillow
-
-        return animation.membrane_animation(result, path, window_size)
-    if name in MESH_PICTURES:
-        from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
-
-        draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
-        return draw_mesh(result, path, window_size)
+    if name == "membrane.gif" or name in MESH_PICTURES:
+        # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load
+        # vtkCommonMath"): a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
+        with signals_held():
+            return _draw_with_vtk(name, result, path, window_size)
     if name == "contact_area.png":
         return contact_area_picture(result, path)
     if name == "contact_set.png":
@@ -68,6 +66,17 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
     if name == "velocity_field.png":
         return velocity_picture(result, path, window_size)
     return snapshots_picture(result, path) if name == "snapshots.png" else energy_picture(result, path)
+
+
+def _draw_with_vtk(name: str, result, path: Path, window_size) -> Path:
+    if name == "membrane.gif":
+        from . import animation  # pyvista and Pillow
+
+        return animation.membrane_animation(result, path, window_size)
+    from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
+
+    draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
+    return draw_mesh(result, path, window_size)
 
 
 def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> list[Path]:
@@ -153,10 +162,30 @@ def parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _check_not_the_data(folder: Path, out: Path) -> None:
+    """Refuse an --out that is the folder being plotted or contains it: replacing it would delete the data."""
+    data, target = folder.resolve(), out.resolve()
+    if target.name and (target == data or target in data.parents):  # the root folder: check_target's refusal
+        raise ValueError(f"--out {out}: is the folder being plotted ({folder}) or contains it, whose data replacing it "
+                         "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
+
+
+def _launched_rank() -> int:
+    """This process's rank when a launcher (mpirun) started several; 0 otherwise. Read from the launcher's
+    environment: `plot` needs no MPI, and a picture process must not wait for it."""
+    for name in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"):
+        value = os.environ.get(name, "").strip()
+        if value.isdigit():
+            return int(value)
+    return 0
+
+
 def command(args) -> int:
     from ..io.readback import read_output
 
     size = parse_size(args.size)
+    if _launched_rank() > 0:  # `mpirun -n 2 stringcontact plot`: one process draws, the others would race it
+        return 0
     if args.out is None:  # into the run's own folder, each picture replaced whole (atomic_path)
         for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
             print(f"wrote {path}")
@@ -164,9 +193,10 @@ def command(args) -> int:
     from ..io.publish import check_target, staged_folder
 
     out = Path(args.out)
-    check_target(out, args.force)  # the rules of `run --out`: not /, not ., no overwriting without --force
+    _check_not_the_data(Path(args.folder), out)
+    check_target(out, args.force, command="plot")  # the rules of `run --out`: not /, not ., never a run's result
     result = read_output(args.folder)
-    with staged_folder(out, args.force) as partial:  # the whole folder or nothing
+    with staged_folder(out, args.force, command="plot") as partial:  # the whole folder or nothing
         names = [p.name for p in write_pictures(result, partial, window_size=size)]
         (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
     for name in names:

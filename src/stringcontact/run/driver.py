@@ -24,6 +24,7 @@ from ..fem import compat, domains
 from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
+from ..io.signals import StopTogether
 from ..model.paper import Model, Parameters, inelastic, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, check_restitution, scheme_class
@@ -320,14 +321,17 @@ def _initial_state(scene, s: Setting) -> tuple[np.ndarray, np.ndarray]:
     return eta0, np.asarray(scene.initial_velocity(s.x), dtype=float) * s.interior
 
 
-def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progress: bool) -> None:
-    """Step from 0 to T, booking each step in the ledger and storing the rows; InstabilityError names the step."""
+def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progress: bool, comm=None) -> None:
+    """Step from 0 to T, booking each step in the ledger and storing the rows; InstabilityError names the step.
+    Under MPI (`comm`), a stop signal on any rank stops every rank at the same step (`StopTogether`): polled at
+    every step of a membrane, every 64th of a string (its steps take microseconds)."""
     from tqdm import tqdm
 
     # disable=None: tqdm's own test, no bar when stderr is not a terminal (a log file, a pipe, CI)
     bar = tqdm(total=scene.nt, disable=None if progress else True, unit="step", mininterval=0.5, leave=False)
+    mask = 0 if scene.dim == 2 else 63
     try:
-        with np.errstate(all="ignore"):  # a NaN or overflow is caught by the energy guard, which names the step
+        with np.errstate(all="ignore"), StopTogether(comm) as stop:  # NaN, overflow: the energy guard names the step
             if rows.next_step == 0:
                 store(0)
             for n in range(scene.nt):  # computes step n + 1
@@ -343,6 +347,8 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
                                            r=scene.dt / scene.eps if stepper.PENALTIES else None)
                 if n + 1 == rows.next_step:
                     store(n + 1)
+                if (n & mask) == 0:
+                    stop.poll()
                 if progress and (n & 63) == 0:
                     bar.update(min(64, scene.nt - bar.n))
     finally:
@@ -395,11 +401,11 @@ def petsc_options_of(scene, petsc_options=None) -> dict:
     return dict(scene.petsc_options) | dict(check_petsc_options(petsc_options or {}))
 
 
-def _check_before_mesh(scene, Scheme, penalty, model, petsc_options) -> None:
+def _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm) -> None:
     """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
     option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
     same on every rank, so a refusal ends every rank alike."""
-    check_option_values(petsc_options_of(scene, petsc_options))
+    check_option_values(petsc_options_of(scene, petsc_options), ranks=comm.size)
     if Scheme.PENALTIES and penalty is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -471,7 +477,7 @@ def _march_and_store(run: _Run, progress: bool) -> None:
     writer = run.writer
     t_loop = time.perf_counter()
     try:
-        _march(run.scene, run.name, run.stepper, run.ledger, run.rows, run.store, progress)
+        _march(run.scene, run.name, run.stepper, run.ledger, run.rows, run.store, progress, run.comm)
     except (InstabilityError, KeyboardInterrupt) as exc:
         status = "unstable" if isinstance(exc, InstabilityError) else "interrupted"
         exc.result = run.result(status, str(exc) or status)  # the rows so far: partial output and the CLI's report
@@ -548,7 +554,7 @@ def simulate(
         scene = scene.replace(restitution=restitution)
     spec = model if model is not None else (getattr(scene, "model", None) or "inelastic")
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
-    _check_before_mesh(scene, Scheme, penalty, model, petsc_options)
+    _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm)
     t0 = time.perf_counter()
     V, params, ops = discretise(scene, model, comm)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)

@@ -21,6 +21,8 @@ from ..scene import MAX_STORED_BYTES, STORED_ROWS
 #: count is known only once meshed, so the solver applies it. 2 GB beside a 1e6-node LU factor (3 GB)
 #: fits a laptop; 400 rows of 1e6 nodes (10 GB) would not.
 ROW_BUDGET = MAX_STORED_BYTES
+#: The most XDMF frames (`Output.max_frames`): every stored row (`STORED_ROWS`, 400) and the most output times (1000).
+MAX_FRAMES = 100_000
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,14 @@ class Output:
     force: bool = False
     pictures: bool | Callable | None = True
     progress: bool = False
+
+    def __post_init__(self) -> None:
+        frames = self.max_frames
+        if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or not 1 <= frames <= MAX_FRAMES:
+            raise ValueError(f"max_frames: expected a whole number in [1, {MAX_FRAMES}] (XDMF frames), got {frames!r}")
+        for name in ("force", "progress"):  # force="no" is truthy: it would replace a result
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")  # noqa: TRY004 - exit 2
 
 
 #: The old keywords of `simulate`, each with its group and its field there.

@@ -4,10 +4,12 @@ the key and what is allowed (docs/reliability.md). Used by `scene.Scene` and `ch
 
 from __future__ import annotations
 
+import errno
 import math
 import numbers
+import os
 import re
-from pathlib import Path
+import stat
 
 import numpy as np
 
@@ -78,9 +80,24 @@ def allowed(key: str) -> str:
     return texts[key]
 
 
+def check_mesh_path(path: str) -> None:
+    """Refuse a mesh path that is not a regular file, saying what it is (missing, a directory, a FIFO, a loop of
+    symbolic links); decided from `stat`, nothing is opened (a FIFO would block)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        if exc.errno == errno.ENOENT:
+            raise SceneError(f"mesh: no such file {path!r}; allowed: an XDMF triangle mesh file (*.xdmf)") from None
+        what = "is a loop of symbolic links" if exc.errno == errno.ELOOP else f"cannot be read ({exc.strerror})"
+        raise SceneError(f"mesh: {path!r} {what}; allowed: an XDMF triangle mesh file (*.xdmf)") from None
+    if not stat.S_ISREG(mode):
+        kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "not a regular file"
+        raise SceneError(f"mesh: {path!r} is {kind}; allowed: an XDMF triangle mesh file (*.xdmf), a regular file")
+
+
 def domain_of(data: dict) -> str:
     domain = data.get("domain", "file" if "mesh" in data else "interval")
-    if domain not in DOMAIN_KEYS:
+    if not isinstance(domain, str) or domain not in DOMAIN_KEYS:
         raise SceneError(f"domain: invalid value {describe(domain)}; allowed: {', '.join(DOMAIN_KEYS)}")
     return domain
 
@@ -122,8 +139,7 @@ def check_domain(scene, put) -> None:
     elif domain == "file":
         if not isinstance(scene.mesh, str) or not scene.mesh.endswith(".xdmf"):
             raise SceneError(f"mesh: expected the path of an XDMF triangle mesh (*.xdmf), got {describe(scene.mesh)}")
-        if not Path(scene.mesh).is_file():
-            raise SceneError(f"mesh: no such file {scene.mesh!r}; allowed: an XDMF triangle mesh file (*.xdmf)")
+        check_mesh_path(scene.mesh)
     if domain != "interval":
         for key in ("length", "nx", "h_left", "h_right"):
             if getattr(scene, key) is not None:

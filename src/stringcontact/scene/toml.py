@@ -62,11 +62,15 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
 
     A plain name without ``/`` or ``.toml`` is looked up among the built-in scenes first.
     """
-    text = os.fspath(name_or_path)
+    try:
+        text = os.fspath(name_or_path)
+    except TypeError:
+        raise SceneError(f"scene: expected a scene name or a path, got {type(name_or_path).__name__}") from None
     if isinstance(text, bytes):
         text = os.fsdecode(text)
     builtins = _builtin_names()
-    if isinstance(name_or_path, str) and text in builtins:
+    # a name (str or bytes) is a built-in scene first; a Path only when no such file exists
+    if text in builtins and (isinstance(name_or_path, (str, bytes)) or not Path(text).exists()):
         raw = _builtin_dir().joinpath(f"{text}.toml").read_bytes()
         return Scene.from_dict(_parse_toml(raw, text), source=text, default_name=text)
 
@@ -91,7 +95,7 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
         raise SceneError(f"scene file {text!r}: cannot read it ({exc.strerror or exc})") from None
     data = _parse_toml(raw, text)
     if isinstance(data.get("mesh"), str) and not Path(data["mesh"]).is_absolute():
-        data["mesh"] = str(path.parent / data["mesh"])  # a mesh file next to its scene file
+        data["mesh"] = os.path.abspath(path.parent / data["mesh"])  # next to its scene file, wherever it is shown
     return Scene.from_dict(data, source=text, default_name=path.stem)
 
 

@@ -68,23 +68,88 @@ NUMBER_OPTIONS = ("ksp_rtol", "ksp_atol", "ksp_divtol", "mat_mumps_cntl_", "snes
 INTEGER_OPTIONS = ("ksp_max_it", "ksp_gmres_restart", "mat_mumps_icntl_", "snes_max_it")
 BOOLEAN_OPTIONS = ("ksp_initial_guess_nonzero",)
 
+#: The ranges of integer options: counts and sizes that PETSc allocates or loops over without a check
+#: (pc_mg_levels = 100 and ksp_gmres_restart = 1e8 crash it, pc_hypre_boomeramg_max_iter = 2**31 - 1 runs for
+#: hours, deaf to signals). Any other integer option takes [0, INTEGER_MAX] (counts, levels, sizes, flags), but
+#: MUMPS' ICNTL, which take negative codes and sizes in MB.
+INTEGER_RANGES = {
+    "ksp_max_it": (0, 100_000),
+    "ksp_gmres_restart": (1, 1000),
+    "ksp_lgmres_augment": (0, 100),
+    "ksp_bcgsl_ell": (1, 20),
+    "pc_factor_levels": (0, 20),
+    "pc_asm_overlap": (0, 20),
+    "pc_hypre_boomeramg_max_iter": (1, 100),
+    "pc_hypre_boomeramg_max_levels": (2, 50),
+    "pc_gamg_levels": (1, 30),
+    "pc_mg_levels": (1, 30),
+}
+INTEGER_MAX = 1000
+MUMPS_ICNTL_RANGE = (-(2**31), 2**31 - 1)
 
-def check_option_values(options: dict, key: str = "petsc_options") -> None:
+#: Preconditioners and Krylov methods that need code or data the solver does not give (a shell's apply
+#: function, fieldsplit's index sets, multigrid's interpolations, a Python object) or a matrix type it does not
+#: make (MATIS): PETSc stops at set-up with "error code N", or crashes.
+NEEDS_CODE = {
+    "pc_type": ("shell", "python", "fieldsplit", "mg", "composite", "ksp", "redistribute", "patch", "deflation",
+                "lmvm", "bddc", "nn", "is", "telescope", "lsc", "galerkin", "cp", "hmg", "exotic", "tfs", "h2opus",
+                "hpddm", "pfmg", "syspfmg"),
+    "ksp_type": ("python", "fetidp", "hpddm"),
+}
+#: Factorisations of PETSc's own, which work on one rank only (MatGetFactor fails on an MPI matrix).
+SERIAL_FACTORS = ("lu", "ilu", "icc", "cholesky")
+
+
+def check_option_values(options: dict, key: str = "petsc_options", ranks: int = 1) -> None:
     """Refuse (SceneError, one line naming the option and what is allowed) a value PETSc would reject with an
-    error stack at set-up: a word for a ``*_type`` option, a number, integer or boolean where one is read, and
-    a KSP, PC, factor solver or ordering type that this PETSc build does not know. The choices are PETSc's own
-    (petsc4py's type names, each tried on a throw-away object on PETSC_COMM_SELF: the packages built in).
-    Local and cheap (milliseconds), so every rank runs it before the mesh is built."""
+    error stack at set-up, or crash or loop on: a word for a ``*_type`` option, a number, integer or boolean
+    where one is read, integers in their ranges (`INTEGER_RANGES`), a KSP, PC, factor solver or ordering type
+    that this PETSc build does not know or that needs code (`NEEDS_CODE`), and PETSc's own factorisations on
+    more than one of `ranks`. The choices are PETSc's own (petsc4py's type names, each tried on a throw-away
+    object on PETSC_COMM_SELF: the packages built in). Local and cheap (milliseconds), so every rank runs it
+    before the mesh is built."""
     for name, value in options.items():
         kind = _value_kind(name)
         if kind is not None and not _is_kind(value, kind):
             raise SceneError(f"{key}: {name} = {_option_text(value)} is not {kind}; allowed: {kind}")
+        _check_range(key, name, value)
         if not isinstance(value, str):
             continue
         choices = _type_choices(name)
+        if value in NEEDS_CODE.get(name, ()):
+            usable = [t for t in choices or () if t not in NEEDS_CODE[name]]
+            raise SceneError(f"{key}: {name} = {value!r} needs code or data that this solver does not give (PETSc "
+                             f"stops at set-up); allowed: {', '.join(usable)}")
         if choices is not None and value not in choices:
             raise SceneError(f"{key}: {name} = {value!r} is not a choice of this PETSc build; allowed: "
                              f"{', '.join(choices)}")
+    _check_parallel(options, key, ranks)
+
+
+def _check_range(key: str, name: str, value) -> None:
+    """Integers in their range: `INTEGER_RANGES`, MUMPS' ICNTL in 32 bits, any other in [0, INTEGER_MAX]."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or name.startswith(NUMBER_OPTIONS):
+        return
+    if not (name.startswith(INTEGER_OPTIONS) or name in INTEGER_RANGES or isinstance(value, int)):
+        return  # a float where PETSc reads a real (pc_hypre_boomeramg_strong_threshold = 0.5)
+    low, high = (MUMPS_ICNTL_RANGE if name.startswith("mat_mumps_icntl_")
+                 else INTEGER_RANGES.get(name, (0, INTEGER_MAX)))
+    if not low <= value <= high:
+        raise SceneError(f"{key}: {name} = {_option_text(value)} is out of range; allowed: an integer in [{low}, {high}]")
+
+
+def _check_parallel(options: dict, key: str, ranks: int) -> None:
+    """PETSc's own LU, ILU, ICC and Cholesky on one rank only; under MPI a solver package (MUMPS) or a
+    preconditioner that runs in parallel."""
+    pc = options.get("pc_type")
+    package = options.get("pc_factor_mat_solver_type", "mumps" if pc in ("lu", "cholesky") else "petsc")
+    if ranks > 1 and pc in SERIAL_FACTORS and package == "petsc":  # LU and Cholesky default to MUMPS there
+        if pc in ("lu", "cholesky"):
+            fix = f"pc_factor_mat_solver_type = 'mumps' with pc_type = {pc!r}, or one rank"
+        else:
+            fix = "pc_type = 'hypre', 'gamg', 'bjacobi' or 'jacobi', or one rank"
+        raise SceneError(f"{key}: pc_type = {pc!r} with PETSc's own factorisation runs on one rank only, not on "
+                         f"{ranks}; allowed: {fix}")
 
 
 def _value_kind(name: str) -> str | None:
@@ -205,8 +270,20 @@ def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
     ksp = PETSc.KSP().create(comm)
     ksp.setOperators(A)
     set_from_options(ksp, PREFIX, options)
-    ksp.setUp()
+    try:
+        ksp.setUp()
+    except PETSc.Error as exc:  # a combination the checks cannot foresee: the options' fault, one line
+        chosen = ", ".join(f"{k} = {_option_text(v)}" for k, v in options.items() if k.endswith("_type"))
+        raise SceneError(f"petsc_options: PETSc cannot set up the linear solver ({chosen}): {_petsc_reason(exc)}; "
+                         "allowed: options that PETSc can set up for an assembled matrix") from None
     return ksp
+
+
+def _petsc_reason(exc: Exception) -> str:
+    """PETSc's own one-line reason from a petsc4py error (its message, else its error code)."""
+    lines = [line.split("] ", 1)[-1].strip() for line in str(exc).strip().splitlines()]
+    lines = [line for line in lines if line and not line.startswith(("See ", "Petsc ", "Configure", "#"))]
+    return (lines[0] if lines and lines[0] != "error code" else f"error code {getattr(exc, 'ierr', '?')}")[:200]
 
 
 class Linear:
