@@ -190,13 +190,15 @@ class NewtonStep:
 
     # -- SNES callbacks
 
+    # SNES hands the callbacks x locked for reading (PETSc 3.22, trixie): read it through array_r, never array.
     def _residual(self, snes, x, G) -> None:
-        self._set(self.u, x.array)
+        u = x.array_r
+        self._set(self.u, u)
         with G.localForm() as local:
             local.set(0.0)
         fem.petsc.assemble_vector(G, self.G_form)
         G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        g, u = G.array, x.array
+        g = G.array
         u_eta = u[self.idx]
         extra = self.d * (u_eta - self.c)
         extra -= self.f
@@ -206,7 +208,7 @@ class NewtonStep:
         g[self.bc] = u[self.bc] - self.s.g
 
     def _jacobian(self, snes, x, J, P) -> None:
-        self._set(self.u, x.array)
+        self._set(self.u, x.array_r)
         J.zeroEntries()
         fem.petsc.assemble_matrix(J, self.J_form)
         J.assemble()
