@@ -130,3 +130,18 @@ def test_simulate_records_the_restitution_in_the_result():
     assert res.scene.restitution == 0.75
     with pytest.raises(sc.SceneError, match=r"restitution: 2 is out of range; allowed: a number in \[0, 1\]"):
         sc.simulate(flat_landing_scene(20, 24), scheme="projection", restitution=2)
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.01])
+def test_the_newton_path_takes_the_restitution(alpha):
+    """The Newton step of `projection` (forced on the paper's linear model) bounds the weighted position too: it
+    gives the linear path's rebound to round-off, not the inelastic landing."""
+    scene = flat_landing_scene(50, 80, T=0.8, alpha=alpha)
+    forced = dataclasses.replace(sc.inelastic, name="forced", newton=True)
+    linear = sc.simulate(scene, scheme="projection", restitution=0.5, comm=MPI.COMM_SELF)
+    newton = sc.simulate(scene, scheme="projection", restitution=0.5, model=forced, comm=MPI.COMM_SELF)
+    inelastic = sc.simulate(scene, scheme="projection", model=forced, comm=MPI.COMM_SELF)
+    assert newton.status == linear.status == "complete"
+    assert np.max(np.abs(newton.eta - linear.eta)) < 1e-9
+    assert np.max(np.abs(newton.eta - inelastic.eta)) > 1e-2  # e was not dropped
+    assert energy_balance(newton)["relative_residual"] < 1e-9

@@ -126,6 +126,10 @@ class NewtonStep:
         snes.setConvergenceHistory(reset=True)
         return snes
 
+    def set_lower(self, lower: np.ndarray) -> None:
+        """η's lower bound of the VI, for the next solve (a restitution moves it every step)."""
+        self.bounds[0].array[self.idx] = lower
+
     # -- the state the forms read
 
     def _set(self, f: fem.Function, a: np.ndarray) -> None:
@@ -375,7 +379,8 @@ PROJECTION = {
 class ProjectionStep(_NewtonScheme):
     """`projection` for a nonlinear model: the elastic term explicit (η → η^n), η_t implicit, lumped mass, and
     the step the VI G(u) ⊥ u − ψ ≥ 0 by SNES ``vinewtonrsls``. The contact force is the reaction G(u) on the
-    active set (≥ 0, 0 elsewhere). Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
+    active set (≥ 0, 0 elsewhere). With a restitution e > 0 (Paoli-Schatzman, as on the linear path) the bound is
+    on the weighted position, (u + e η^{n−1})/(1 + e) ≥ ψ, that is u ≥ (1 + e)ψ − e η^{n−1}. Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
     ½(Π(η^{n+1}) + Π(η^n)), δ = (η^{n+1} − η^{n−1})/2, contact −½ F·(η^{n+1} − η^{n−1}) as on the linear path.
     The stored velocity is centred, so the scheme reports one step behind the one it computes, as `projection`.
     The stable Δt is the linear path's bound for the tangent at η = 0. `projection` hands over its
@@ -401,6 +406,7 @@ class ProjectionStep(_NewtonScheme):
         self.forces = [np.zeros(n) for _ in range(4)]
         self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
         self.v0 = None
+        self.e = s.restitution
 
     @property
     def eta(self):
@@ -450,9 +456,12 @@ class ProjectionStep(_NewtonScheme):
         s, dt, nw = self.s, self.s.dt, self.newton
         e0, em = self.etas[1], self.etas[2]
         nw.set_known(e0, em)
-        u = nw.solve(np.maximum(2 * e0 - em, np.where(s.interior, self.psi, -np.inf)))
-        r = nw.last_residual(u)  # G(u) without the force: the reaction where u sits on ψ
-        active = s.interior & (u <= self.psi + self.tol)
+        lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
+        if self.e:
+            nw.set_lower(np.where(s.interior, lower, PETSc.NINFINITY))
+        u = nw.solve(np.maximum(2 * e0 - em, np.where(s.interior, lower, -np.inf)))
+        r = nw.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
+        active = s.interior & (u <= lower + self.tol)
         F = np.where(active, np.maximum(r, 0.0), 0.0)
         delta = 0.5 * (u - em)
         visc_vec = nw.viscous_force(u)
