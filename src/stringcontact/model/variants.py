@@ -44,6 +44,9 @@ def _displacement_penalty(eta, v, p: Parameters):
     return ufl.max_value(-eta, 0) / p.eps
 
 
+_displacement_penalty.penetration_bound = "spring"  # a spring of stiffness 1/ε stops V within √ε·V
+
+
 def spring_bound(dt: float, eps: float, penalty: str):
     """A spring of stiffness 1/ε held explicitly: warn when Δt²/ε > 2.
 
@@ -95,6 +98,9 @@ def _loaded_momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
 def _obstacle_penalty(eta, v, p: Parameters):
     """(1/ε) χ{η<ψ} (v)⁻: the paper's law with the gap η − ψ (ψ is fixed, so the gap rate is v)."""
     return _paper_penalty(eta - _obstacle(p), v, p)
+
+
+_obstacle_penalty.penetration_bound = "velocity"
 
 
 def _obstacle_damping(eta, v, p: Parameters):

@@ -327,12 +327,11 @@ def energy_picture(result, path) -> Path:
     return path
 
 
-#: The stored energy of the shipped nonlinear models (`model.nonlinear`), by model name, for the legend; any
-#: other model is labelled with the paper's ½∫|∇η|².
-STORED_ENERGY_LABELS = {
-    "cubic_foundation": r"stored $\int \frac{1}{2}\eta_x^2 + \frac{k}{2}\eta^2 + \frac{k_3}{4}\eta^4\,dx$",
-    "large_deflection": r"stored $\int \sqrt{1+\eta_x^2} - 1\,dx$",
-}
+def stored_energy_label(result) -> str:
+    """The legend of the stored energy: the model's own (`Model.energy_label`, kept in `Result.energy_label`),
+    else the paper's elastic ½∫|∇η|²."""
+    grad = r"\eta_x^2" if np.ndim(result.x) == 1 else r"|\nabla\eta|^2"
+    return getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"
 
 
 def energy_figure(result):
@@ -345,10 +344,9 @@ def energy_figure(result):
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
-    grad, grad_t = (r"\eta_x^2", r"\eta_{tx}^2") if np.ndim(result.x) == 1 else (r"|\nabla\eta|^2", r"|\nabla\eta_t|^2")
+    grad_t = r"\eta_{tx}^2" if np.ndim(result.x) == 1 else r"|\nabla\eta_t|^2"
     curves = [(e["kinetic"], {"label": r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$"}),
-              (e["elastic"], {"label": STORED_ENERGY_LABELS.get(getattr(result, "model", None),
-                                                                rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$")}),
+              (e["elastic"], {"label": stored_energy_label(result)}),
               (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
               (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
               (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation of the scheme (cumulative)"})]

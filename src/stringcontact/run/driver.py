@@ -24,7 +24,7 @@ from ..fem import compat, domains
 from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
-from ..model.paper import Model, Parameters, inelastic, unused_fields
+from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, check_restitution, scheme_class
 from ..timestepping.base import NodalLaws, Setting, check_law_stability
@@ -387,6 +387,7 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     check_restitution(name, getattr(scene, "restitution", None) or 0.0)
     model = _resolve_model(model, scene)
     check_model(name, model)
+    penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
     return name, Scheme, penalty, mass, model
 
 
@@ -458,6 +459,7 @@ class _Run:
                         **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin,
+                        penetration_bound=penetration_bound_of(self.model), energy_label=self.model.energy_label,
                         status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
