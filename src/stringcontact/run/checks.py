@@ -126,9 +126,9 @@ def penetration_check(result) -> dict:
             depth = max(0.0, -float(result.min_eta))
             start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
         else:
-            obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
-            depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
-            start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
+            below = _below_obstacle(scene, np.asarray(result.x, dtype=float), np.asarray(result.t, dtype=float), eta)
+            depth = max(0.0, float(np.max(below))) if eta.size else 0.0
+            start_depth = max(0.0, float(below[0])) if eta.size else 0.0
     else:  # an MPI rank without the rows: the same numbers from the series the ranks summed (Result.series)
         v_max, depth, start_depth = _penetration_from_series(result)
     eps_free = getattr(result, "penalty", None) == "none"  # a contact step (projection): no ε brakes the string
@@ -151,6 +151,13 @@ _BRAKING = {
     "spring": (math.sqrt, "spring (sqrt(eps))"),
     None: (None, "no known bound (the model's contact law)"),
 }
+
+
+def _below_obstacle(scene, x: np.ndarray, t: np.ndarray, eta: np.ndarray) -> np.ndarray:
+    """max (ψ − η) of each stored row; a moving obstacle ψ(x, t) at each row's time."""
+    if not getattr(scene, "obstacle_moves", False):
+        return np.max(scene.obstacle_values(x) - eta, axis=1, initial=-np.inf)
+    return np.array([np.max(scene.obstacle_values(x, ti) - row, initial=-np.inf) for ti, row in zip(t, eta)])
 
 
 def _penetration_from_series(result) -> tuple[float, float, float]:
