@@ -232,6 +232,8 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
     from ..run.checks import PENETRATION_FACTOR, checks_of
 
     p = checks_of(res)["penetration"]
+    if p["bound"] is None:  # the model's contact law has no known bound: the depth alone, no verdict
+        return f"penetration: max depth {p['depth']:.4g} (the model's contact law has no known penetration bound)", True
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
     verdict = "within" if p["within_bound"] else "EXCEEDS"
     if p.get("eps_free"):  # a contact step (scheme projection): no eps in the bound
@@ -268,7 +270,7 @@ def report(res) -> None:
     print(line)
     if not ok:
         warnings.warn(
-            "the string went further below the obstacle than the velocity penalty allows; a force the penalty "
+            "the string went further below the obstacle than its contact law allows; a force the penalty "
             "cannot stop holds it down (a static load, a model variant, r > 1); see docs/reliability.md",
             PenetrationWarning,
         )

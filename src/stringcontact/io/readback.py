@@ -69,6 +69,9 @@ def read_output(folder, from_xdmf: bool = False):
         mass=summary.get("mass", "lumped"),
         model=summary.get("model", "inelastic"),
         model_origin=summary.get("model_origin") or {},
+        # a folder written before the model recorded its bound: the elastic variant's spring, else the velocity penalty
+        penetration_bound=summary.get("penetration_bound", "spring" if summary.get("model") == "elastic" else "velocity"),
+        energy_label=summary.get("energy_label"),
         status=summary.get("status", "complete"),
         timings=summary.get("timings", {}),
         message=summary.get("message", ""),

@@ -103,6 +103,8 @@ class Result:
     has_rows: bool = True  # False on a rank without the per-node arrays
     checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of, once per run
     model_origin: dict = field(default_factory=dict)  # where the model came from: model.registry.model_origin
+    penetration_bound: str | None = "velocity"  # the model's contact law's bound: model.paper.penetration_bound_of
+    energy_label: str | None = None  # the legend of the model's stored energy (None: the paper's ½∫|∇η|²)
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):

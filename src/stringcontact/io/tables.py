@@ -95,6 +95,8 @@ def summary_dict(result) -> dict:
         "mass": result.mass,
         "model": result.model,
         "model_origin": getattr(result, "model_origin", None) or {"name": result.model},
+        "penetration_bound": getattr(result, "penetration_bound", "velocity"),
+        "energy_label": getattr(result, "energy_label", None),
         "r": scene.dt / scene.eps,
         "dolfinx": dolfinx.__version__,
         "timings": result.timings,

@@ -61,6 +61,7 @@ cubic_foundation = dataclasses.replace(
     name="cubic_foundation",
     momentum_form=foundation_form,
     stored_energy=foundation_energy,
+    energy_label=r"stored $\int \frac{1}{2}\eta_x^2 + \frac{k}{2}\eta^2 + \frac{k_3}{4}\eta^4\,dx$",
     description=f"the paper's model on a nonlinear foundation k eta + k3 eta^3 (k = {FOUNDATION_K:g}, "
                 f"k3 = {FOUNDATION_K3:g}); each step by Newton",
 )
@@ -70,6 +71,7 @@ large_deflection = dataclasses.replace(
     name="large_deflection",
     momentum_form=large_deflection_form,
     stored_energy=large_deflection_energy,
+    energy_label=r"stored $\int \sqrt{1+\eta_x^2} - 1\,dx$",
     description="the geometrically exact string: tension term eta_x/sqrt(1+eta_x^2), inelastic contact; "
                 "each step by Newton",
 )

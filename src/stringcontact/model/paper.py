@@ -52,6 +52,17 @@ A model is a `Model`: a few plain functions that return UFL.
     The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
     Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the paper's ½|∇η|².
 
+``penetration_bound`` (default ``"auto"``)
+    The penetration bound the contact law has (`run.checks.penetration_check`): ``"velocity"`` (the paper's
+    velocity penalty (1/ε)(v)⁻ stops a node falling at V within (ε + Δt)·V), ``"spring"`` (a spring of stiffness
+    1/ε: √ε·V), or ``None`` (no known bound: the run reports the depth alone). ``"auto"``: the bound the
+    ``penalty`` function declares as its attribute ``penetration_bound`` (the paper's ``"velocity"``), else
+    ``None``; so ``replace(inelastic, penalty=mine)`` is never judged by the paper's bound.
+
+``energy_label`` (optional)
+    The legend of the stored energy in ``energy.png`` (matplotlib mathtext allowed), recorded in
+    summary.json; ``None``: the paper's "elastic ½∫η_x²".
+
 ``newton`` (a flag, default False)
     Solve every step by Newton (`timestepping.nonlinear`) even when the form is linear: a form nonlinear in
     η or η_t always is; a linear one otherwise keeps the constant operators (a comparison or a test).
@@ -110,6 +121,9 @@ def penetration(eta, p: Parameters):
 def penalty(eta, v, p: Parameters):
     """The velocity penalty (1/ε) χ{η<0} (v)⁻: it only brakes downward motion below the obstacle."""
     return ufl.conditional(penetration(eta, p), ufl.max_value(-v, 0) / p.eps, 0)
+
+
+penalty.penetration_bound = "velocity"  # the bound this law has (Model.penetration_bound "auto")
 
 
 def penalty_damping(eta, v, p: Parameters):
@@ -171,6 +185,24 @@ class Model:
     fields: tuple = ()
     residual: Callable | None = None
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
+    penetration_bound: str | None = "auto"
+    energy_label: str | None = None
+
+
+#: The penetration bounds a contact law may have (`Model.penetration_bound`; None: no known bound).
+PENETRATION_BOUNDS = ("velocity", "spring", None)
+
+
+def penetration_bound_of(model: Model) -> str | None:
+    """The penetration bound of the model's contact law: its ``penetration_bound``, or for ``"auto"`` the one
+    its ``penalty`` function declares (attribute ``penetration_bound``), else None (no known bound)."""
+    bound = model.penetration_bound
+    if bound == "auto":
+        bound = getattr(model.penalty, "penetration_bound", None)
+    if bound not in PENETRATION_BOUNDS:
+        raise ValueError(f"model '{model.name}': penetration_bound must be one of 'velocity', 'spring', None or "
+                         f"'auto', not {bound!r}")
+    return bound
 
 
 #: The paper's model (the default of every run): the viscoelastic string and the inelastic velocity penalty on
@@ -207,6 +239,7 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
 
 
 __all__ = [
+    "PENETRATION_BOUNDS",
     "Model",
     "Parameters",
     "contact_set",
@@ -216,6 +249,7 @@ __all__ = [
     "penalty",
     "penalty_damping",
     "penetration",
+    "penetration_bound_of",
     "restitution_bound",
     "unused_fields",
 ]

@@ -13,7 +13,9 @@ Each variant changes one or two of the paper's UFL functions (`model.py`) and ke
 
         ∫ η_tt w + α ∫ η_tx w_x + ∫ η_x w_x = ∫ f w + ∫ F w,    F = (1/ε) χ{η<ψ} (η_t)⁻,
 
-    so the constraint is η ≥ ψ and the contact set is {η ≤ ψ}.
+    so the constraint is η ≥ ψ and the contact set is {η ≤ ψ}. The obstacle may move (ψ(x, t), the scene's
+    ``obstacle`` in t): the penalty then brakes the gap rate, (1/ε) χ{η<ψ} (η_t − ψ_t)⁻, with ψ_t from
+    ``p.extra["obstacle_rate"]``.
 
 Both are registered under the entry-point group ``stringcontact.models`` (pyproject.toml), so a scene
 selects them by name: ``model = "elastic"``; the command line too: ``--model elastic``; Python:
@@ -42,6 +44,9 @@ __all__ = ["elastic", "load_model", "loaded_obstacle"]
 def _displacement_penalty(eta, v, p: Parameters):
     """(1/ε) η⁻: a spring pushing back in proportion to the penetration, whatever the velocity."""
     return ufl.max_value(-eta, 0) / p.eps
+
+
+_displacement_penalty.penetration_bound = "spring"  # a spring of stiffness 1/ε stops V within √ε·V
 
 
 def spring_bound(dt: float, eps: float, penalty: str):
@@ -92,13 +97,21 @@ def _loaded_momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
     return R
 
 
+def _obstacle_rate(p: Parameters):
+    """ψ_t: the moving obstacle's rate (``p.extra["obstacle_rate"]``, set each step), 0 for an obstacle at rest."""
+    return p.extra.get("obstacle_rate", 0.0)
+
+
 def _obstacle_penalty(eta, v, p: Parameters):
-    """(1/ε) χ{η<ψ} (v)⁻: the paper's law with the gap η − ψ (ψ is fixed, so the gap rate is v)."""
-    return _paper_penalty(eta - _obstacle(p), v, p)
+    """(1/ε) χ{η<ψ} (v − ψ_t)⁻: the paper's law in the gap η − ψ and its rate v − ψ_t (v for an obstacle at rest)."""
+    return _paper_penalty(eta - _obstacle(p), v - _obstacle_rate(p), p)
+
+
+_obstacle_penalty.penetration_bound = "velocity"
 
 
 def _obstacle_damping(eta, v, p: Parameters):
-    return _paper_penalty_damping(eta - _obstacle(p), v, p)
+    return _paper_penalty_damping(eta - _obstacle(p), v - _obstacle_rate(p), p)
 
 
 def _obstacle_contact_set(eta, p: Parameters):

@@ -116,10 +116,10 @@ def obstacle_name(result) -> str:
     return "ψ" if getattr(result.scene, "obstacle", None) is not None else "0"
 
 
-def obstacle_profile(result) -> np.ndarray:
-    """ψ at the nodes (x of shape (N,) or (N, 2)): the scene's profiled obstacle, or 0."""
+def obstacle_profile(result, t: float = 0.0) -> np.ndarray:
+    """ψ at the nodes (x of shape (N,) or (N, 2)) at the time t: the scene's profiled obstacle, or 0."""
     x = np.asarray(result.x, dtype=float)
-    return result.scene.obstacle_values(x) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
+    return result.scene.obstacle_values(x, t) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
 
 
 # --- matplotlib ---------------------------------------------------------------------------------------
@@ -291,12 +291,14 @@ def snapshots_picture(result, path) -> Path:
     nrows = int(np.ceil(len(rows) / ncols))
     fig, axs = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.2 * nrows + 0.8), sharex=True, sharey=True, squeeze=False)
     x = result.x
-    name, psi = obstacle_name(result), obstacle_profile(result)
-    lo = min(float(result.eta[rows].min()), float(psi.min()))
-    hi = max(float(result.eta[rows].max()), float(psi.max()))
+    name = obstacle_name(result)
+    psis = {i: obstacle_profile(result, float(result.t[i])) for i in rows}  # a moving obstacle where it is at t
+    lo = min(float(result.eta[rows].min()), min(float(p.min()) for p in psis.values()))
+    hi = max(float(result.eta[rows].max()), max(float(p.max()) for p in psis.values()))
     pad = 0.08 * (hi - lo or 1.0)
     contact_length = result.contact_length  # a property over all rows: once, not per panel
     for ax, i in zip(axs.flat, rows):
+        psi = psis[i]
         ax.fill_between(x, lo - pad, psi, color="0.85", lw=0, zorder=0)
         ax.plot(x, psi, color="0.3", lw=1.0, zorder=1)
         ax.plot(x, result.eta[i], color="#2166ac", lw=1.2, label="η(t, x)", zorder=2)
@@ -333,12 +335,11 @@ def energy_picture(result, path) -> Path:
     return path
 
 
-#: The stored energy of the shipped nonlinear models (`model.nonlinear`), by model name, for the legend; any
-#: other model is labelled with the paper's ½∫|∇η|².
-STORED_ENERGY_LABELS = {
-    "cubic_foundation": r"stored $\int \frac{1}{2}\eta_x^2 + \frac{k}{2}\eta^2 + \frac{k_3}{4}\eta^4\,dx$",
-    "large_deflection": r"stored $\int \sqrt{1+\eta_x^2} - 1\,dx$",
-}
+def stored_energy_label(result) -> str:
+    """The legend of the stored energy: the model's own (`Model.energy_label`, kept in `Result.energy_label`),
+    else the paper's elastic ½∫|∇η|²."""
+    grad = r"\eta_x^2" if np.ndim(result.x) == 1 else r"|\nabla\eta|^2"
+    return getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"
 
 
 def energy_figure(result):
@@ -351,15 +352,16 @@ def energy_figure(result):
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
-    grad, grad_t = (r"\eta_x^2", r"\eta_{tx}^2") if np.ndim(result.x) == 1 else (r"|\nabla\eta|^2", r"|\nabla\eta_t|^2")
+    grad_t = r"\eta_{tx}^2" if np.ndim(result.x) == 1 else r"|\nabla\eta_t|^2"
     curves = [(e["kinetic"], {"label": r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$"}),
-              (e["elastic"], {"label": STORED_ENERGY_LABELS.get(getattr(result, "model", None),
-                                                                rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$")}),
+              (e["elastic"], {"label": stored_energy_label(result)}),
               (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
               (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
               (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation of the scheme (cumulative)"})]
     if np.any(e["external_work"]):
-        curves.append((e["external_work"], {"ls": "-.", "label": "work of external loads (cumulative)"}))
+        moving = getattr(result.scene, "obstacle_moves", False)  # the moving obstacle's work is booked there too
+        what = "the moving obstacle and external loads" if moving else "external loads"
+        curves.append((e["external_work"], {"ls": "-.", "label": f"work of {what} (cumulative)"}))
     curves.append((E + spent - e["external_work"], {"color": "black", "lw": 2.2, "alpha": 0.6, "label": "sum: E(t) + dissipations − work"}))
     settled = settle_time(t, [values for values, _ in curves])
     fig = plt.figure(figsize=(11, 8.5))

@@ -100,18 +100,21 @@ def _eta_scale(result) -> float:
 
 
 def penetration_check(result) -> dict:
-    """How far the string went below the obstacle, against the bound of its contact law.
+    """How far the string went below the obstacle, against the bound of its contact law, if it has one.
 
-    The velocity penalty F = (1/ε)(v)⁻ brakes a node falling at speed V within a depth ε·V (exactly, for
-    the explicit scheme: Σ Δt·V·(1 − r)^k = ε·V), plus at most one step Δt·V travelled before the force
-    switches on. The bound allows twice that, for the elastic and viscous forces acting meanwhile, below
-    the deepest initial value:
+    The bound belongs to the law (`Result.penetration_bound`, from `Model.penetration_bound`). The velocity
+    penalty F = (1/ε)(v)⁻ ("velocity") brakes a node falling at speed V within a depth ε·V (exactly, for the
+    explicit scheme: Σ Δt·V·(1 − r)^k = ε·V), plus at most one step Δt·V travelled before the force switches
+    on. The bound allows twice that, for the elastic and viscous forces acting meanwhile, below the deepest
+    initial value:
 
         depth ≤ max(0, max(ψ − η0)) + PENETRATION_FACTOR·(ε + Δt)·V,   V = max |v| over the stored rows,
 
-    with ψ the scene's obstacle (0 unless it gives one). For the `elastic` variant (a spring of stiffness
-    1/ε) ε·V becomes √ε·V. A run beyond the bound holds the string down by something the penalty cannot
-    stop (a static load, a model variant, an r > 1 rebound): see docs/reliability.md.
+    with ψ the scene's obstacle (0 unless it gives one). For a spring of stiffness 1/ε ("spring", the
+    `elastic` variant) ε·V becomes √ε·V; a contact step (scheme projection) has no ε. A law with no known
+    bound (None: a user's penalty) gets the depth alone: "bound" and "within_bound" are None. A run beyond the
+    bound holds the string down by something the penalty cannot stop (a static load, a model variant, an
+    r > 1 rebound): see docs/reliability.md.
     """
     scene = result.scene
     if getattr(result, "has_rows", True):
@@ -123,26 +126,38 @@ def penetration_check(result) -> dict:
             depth = max(0.0, -float(result.min_eta))
             start_depth = max(0.0, -float(np.min(eta[0]))) if eta.size else 0.0
         else:
-            obstacle = scene.obstacle_values(np.asarray(result.x, dtype=float))
-            depth = max(0.0, float(np.max(obstacle - eta))) if eta.size else 0.0
-            start_depth = max(0.0, float(np.max(obstacle - eta[0]))) if eta.size else 0.0
+            below = _below_obstacle(scene, np.asarray(result.x, dtype=float), np.asarray(result.t, dtype=float), eta)
+            depth = max(0.0, float(np.max(below))) if eta.size else 0.0
+            start_depth = max(0.0, float(below[0])) if eta.size else 0.0
     else:  # an MPI rank without the rows: the same numbers from the series the ranks summed (Result.series)
         v_max, depth, start_depth = _penetration_from_series(result)
     eps_free = getattr(result, "penalty", None) == "none"  # a contact step (projection): no ε brakes the string
-    braking = 0.0 if eps_free else math.sqrt(scene.eps) if result.model == "elastic" else scene.eps
-    law = ("no penalty (contact step)" if eps_free else "spring (sqrt(eps))" if result.model == "elastic"
-           else "velocity penalty (eps)")
+    kind = "contact step" if eps_free else getattr(result, "penetration_bound", "velocity")
+    braking, law = _BRAKING[kind]
+    check = {"depth": depth, "initial_depth": start_depth, "max_speed": v_max, "law": law, "eps_free": eps_free,
+             "bound_kind": kind}
+    if braking is None:  # a law with no known bound: the depth alone
+        return {**check, "bound": None, "eps_times_speed": None, "within_bound": None}
+    braking = braking(scene.eps)
     bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
-    return {
-        "depth": depth,
-        "bound": bound,
-        "initial_depth": start_depth,
-        "max_speed": v_max,
-        "eps_times_speed": braking * v_max,
-        "law": law,
-        "eps_free": eps_free,
-        "within_bound": bool(depth <= bound * (1 + 1e-12)),
-    }
+    return {**check, "bound": bound, "eps_times_speed": braking * v_max,
+            "within_bound": bool(depth <= bound * (1 + 1e-12))}
+
+
+#: Each contact law's bound (`Model.penetration_bound`): how deep ε lets a node falling at speed 1 go, and its name.
+_BRAKING = {
+    "contact step": (lambda eps: 0.0, "no penalty (contact step)"),
+    "velocity": (lambda eps: eps, "velocity penalty (eps)"),
+    "spring": (math.sqrt, "spring (sqrt(eps))"),
+    None: (None, "no known bound (the model's contact law)"),
+}
+
+
+def _below_obstacle(scene, x: np.ndarray, t: np.ndarray, eta: np.ndarray) -> np.ndarray:
+    """max (ψ − η) of each stored row; a moving obstacle ψ(x, t) at each row's time."""
+    if not getattr(scene, "obstacle_moves", False):
+        return np.max(scene.obstacle_values(x) - eta, axis=1, initial=-np.inf)
+    return np.array([np.max(scene.obstacle_values(x, ti) - row, initial=-np.inf) for ti, row in zip(t, eta)])
 
 
 def _penetration_from_series(result) -> tuple[float, float, float]:

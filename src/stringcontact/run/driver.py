@@ -19,16 +19,16 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import InstabilityError, SolverError
+from ..errors import InstabilityError, SceneError, SolverError
 from ..fem import compat, domains
 from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..io.signals import StopTogether
-from ..model.paper import Model, Parameters, inelastic, unused_fields
+from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, check_restitution, scheme_class
-from ..timestepping.base import NodalLaws, Setting, check_law_stability
+from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
 from .checks import checks_of, unbalanced_message
 from .options import ROW_BUDGET, Output, Storage, grouped
@@ -269,7 +269,43 @@ def discretise(scene, model: Model, comm):
             f"scene field(s) {', '.join(unused)}: not used by model '{model.name}'; choose a model that reads them "
             "(e.g. model = 'loaded_obstacle') or remove them from the scene"
         )
+    if scene.obstacle_moves:  # ψ_t for the penalty's gap rate v − ψ_t: set each step (`MovingObstacle`)
+        rate = extra[RATE] = fem.Function(V, name=RATE)
+        rate.x.array[:] = (values["obstacle"] - scene.field_values("obstacle", dof_x, -scene.dt)) / scene.dt
     return V, params, semi_discrete_operators(model, V, params)
+
+
+#: The moving obstacle's rate ψ_t in `Parameters.extra` (the backward quotient of ψ; `MovingObstacle`).
+RATE = "obstacle_rate"
+
+
+def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
+    """The scene's obstacle ψ(x, t) as the scheme sets it each step, or None for an obstacle at rest."""
+    if not scene.obstacle_moves:
+        return None
+    dof_x = node_coordinates(V)
+    return MovingObstacle(lambda t: scene.field_values("obstacle", dof_x, t), params.extra["obstacle"],
+                          params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
+
+
+def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params, ops) -> None:
+    """A moving obstacle runs with scheme projection (restitution 0; linear and nonlinear models) and with scheme
+    paper's explicit penalty (linear models) whose law reads the obstacle's rate; the rest is refused in one line."""
+    if not scene.obstacle_moves:
+        return
+    if name == "projection":
+        if scene.restitution:
+            raise SceneError("restitution: a moving obstacle (obstacle in t) runs with restitution 0 only")
+        return
+    if name != "paper" or penalty != "explicit" or ops.nonlinear is not None:
+        what = "a nonlinear model" if ops.nonlinear is not None else f"scheme {name!r} with penalty {penalty!r}"
+        raise SceneError(f"obstacle: a moving obstacle (an expression in t) runs with scheme 'projection', or scheme "
+                         f"'paper' with penalty 'explicit' and a linear model; not {what}")
+    eta, v = fem.Function(V), fem.Function(V)
+    if params.extra[RATE] not in ufl.algorithms.extract_coefficients(model.penalty(eta, v, params)):
+        raise SceneError(f"obstacle: model '{model.name}''s penalty does not read the obstacle's rate "
+                         f"p.extra['{RATE}'] (its gap rate v - psi_t), which a moving obstacle needs; use scheme "
+                         "'projection' or a penalty in the gap rate (model 'loaded_obstacle')")
 
 
 def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:
@@ -281,7 +317,8 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     options = petsc_options_of(scene, petsc_options)
     return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x,
-                   nt=scene.nt, petsc_options=options, restitution=scene.restitution or 0.0)
+                   nt=scene.nt, petsc_options=options, restitution=scene.restitution or 0.0,
+                   obstacle=_moving_obstacle(scene, V, params))
 
 
 def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -366,7 +403,9 @@ def _storage(scene, s: Setting, V, storage: Storage):
     weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
     obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
     geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
-    return _Rows(steps, gather), geometry, lambda fields: _row_series(s.comm, fields, weights, obstacle)
+    if s.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
+        return _Rows(steps, gather), geometry, lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t))
+    return _Rows(steps, gather), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)
 
 
 def _resolve_model(model, scene) -> Model:
@@ -393,6 +432,7 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     check_restitution(name, getattr(scene, "restitution", None) or 0.0)
     model = _resolve_model(model, scene)
     check_model(name, model)
+    penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
     return name, Scheme, penalty, mass, model
 
 
@@ -450,9 +490,9 @@ class _Run:
         stepper = self.stepper
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
                   "contact_force": stepper.contact_force}
-        self.rows.store(fields, self.ledger.cumulative, self.row_series(fields))
+        t = float(step_times([n], self.dt, self.scene.output_times)[0])
+        self.rows.store(fields, self.ledger.cumulative, self.row_series(fields, t))
         if self.writer is not None:
-            t = float(step_times([n], self.dt, self.scene.output_times)[0])
             self.writer.write(t, {k: np.asarray(a, dtype=float) for k, a in fields.items()})
 
     def result(self, status: str, message: str) -> Result:
@@ -464,6 +504,7 @@ class _Run:
                         **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin,
+                        penetration_bound=penetration_bound_of(self.model), energy_label=self.model.energy_label,
                         status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
@@ -557,6 +598,7 @@ def simulate(
     _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm)
     t0 = time.perf_counter()
     V, params, ops = discretise(scene, model, comm)
+    _check_moving_obstacle(scene, name, penalty, model, V, params, ops)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
     stepper = Scheme(s)
     rows, geometry, row_series = _storage(scene, s, V, storage)

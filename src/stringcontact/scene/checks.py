@@ -66,7 +66,7 @@ def allowed(key: str) -> str:
         "eta0": f"an expression in x (2D: x, y) or a number; {values}",
         "v0": f"an expression in x (2D: x, y) or a number; {values}",
         "load": f"an expression in x (2D: x, y) or a number; {values}",
-        "obstacle": f"an expression in x (2D: x, y) or a number; {values}",
+        "obstacle": f"an expression in x (2D: x, y) and t, or a number; {values}",
         "output_times": f"at most {MAX_OUTPUT_TIMES} numbers in [0, T], ascending, no duplicates",
         "model": "a name registered under the entry-point group stringcontact.models (`stringcontact models`)",
         "scheme": ", ".join(names.SCHEMES),

@@ -39,7 +39,7 @@ from simpleeval import SimpleEval
 
 from ..errors import SceneError, one_line
 
-__all__ = ["evaluate", "check", "ALLOWED_NAMES", "ALLOWED_FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH"]
+__all__ = ["evaluate", "check", "uses_name", "ALLOWED_NAMES", "ALLOWED_FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH"]
 
 MAX_LENGTH = 500  # characters in one expression
 MAX_DEPTH = 50  # nesting of operators/calls; also keeps the recursive evaluator far from Python's recursion limit
@@ -47,7 +47,7 @@ MAX_EXPONENT = 100.0  # |b| in a**b; beyond this the result is inf/0 for any sen
 MAX_INT_DIGITS = 30  # integer literals; longer ones are almost surely a mistake (or an attack)
 PROBE_POINTS = 101  # grid used by check()
 
-ALLOWED_NAMES = ("x", "y", "l", "h", "pi")
+ALLOWED_NAMES = ("x", "y", "l", "h", "t", "pi")
 ALLOWED_FUNCTIONS = ("sin", "cos", "exp", "sqrt", "abs", "min", "max", "where", "piecewise")
 
 _OPERATORS_TEXT = "+ - * / **, unary -, comparisons < <= > >= == !="
@@ -344,13 +344,13 @@ class _ArrayEval(SimpleEval):
 def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float], y: np.ndarray | None = None) -> np.ndarray:
     """Evaluate ``expr`` at the points ``x`` (and ``y`` on a 2D domain); returns a float64 array of ``x``'s shape.
 
-    ``names`` gives the scalar variables besides ``x`` and ``pi``: ``l`` and,
-    if the scene has a single boundary height, ``h``. Any problem with the
+    ``names`` gives the scalar variables besides ``x`` and ``pi``: ``l``, ``t`` (the time, for a moving
+    obstacle only) and, if the scene has a single boundary height, ``h``. Any problem with the
     expression raises :class:`SceneError` with a one-line message naming ``field``.
     """
-    unknown = set(names) - {"l", "h"}
+    unknown = set(names) - {"l", "h", "t"}
     if unknown:  # a programming error, not a user error
-        raise ValueError(f"evaluate: names may only contain 'l' and 'h', got {sorted(unknown)}")
+        raise ValueError(f"evaluate: names may only contain 'l', 'h' and 't', got {sorted(unknown)}")
     x = np.asarray(x, dtype=np.float64)
     if not isinstance(expr, str):
         raise SceneError(f"{field}: expected an expression string (or a number), got {type(expr).__name__}")
@@ -406,6 +406,11 @@ def check(expr: str, *, field: str, names: dict[str, float]) -> None:
     (A 2D scene evaluates its expressions at its own probe points: `Scene.probe_points`.)"""
     length = float(names.get("l", 1.0))
     evaluate(expr, np.linspace(0.0, length, PROBE_POINTS), field=field, names=names)
+
+
+def uses_name(expr: str, name: str) -> bool:
+    """Whether the (valid) expression ``expr`` reads the variable ``name`` (``t``: a moving obstacle)."""
+    return any(isinstance(node, ast.Name) and node.id == name for node in ast.walk(ast.parse(expr.strip(), mode="eval")))
 
 
 def _short(expr: str, limit: int = 60) -> str:

@@ -143,10 +143,11 @@ class Scene:
         keys = ("eta0", "v0") + tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
         for key in keys:
             put(key, checks.expression_text(key, getattr(self, key)))
-            if self.dim == 1:
-                expressions.check(getattr(self, key), field=key, names=self._names())
-            else:
-                self._evaluate(key, getattr(self, key), self.probe_points())
+            for t in (0.0, self.T / 2, self.T) if key == "obstacle" else (0.0,):  # a moving obstacle over [0, T]
+                if self.dim == 1:
+                    expressions.check(getattr(self, key), field=key, names=self._names(key, t))
+                else:
+                    self._evaluate(key, getattr(self, key), self.probe_points(), t)
 
     # --- derived quantities -----------------------------------------------------------
 
@@ -189,12 +190,12 @@ class Scene:
             return np.column_stack([(r * np.cos(th)).ravel(), (r * np.sin(th)).ravel()])
         return np.zeros((0, 2))
 
-    def _evaluate(self, key: str, expr: str, points) -> np.ndarray:
-        """`expr` at the points: (N,) in 1D, (N, 2) in 2D."""
+    def _evaluate(self, key: str, expr: str, points, t: float = 0.0) -> np.ndarray:
+        """`expr` at the points: (N,) in 1D, (N, 2) in 2D; the obstacle at the time t."""
         p = np.asarray(points, dtype=float)
         if self.dim == 1:
-            return expressions.evaluate(expr, p, field=key, names=self._names())
-        return expressions.evaluate(expr, p[:, 0], field=key, names=self._names(), y=p[:, 1])
+            return expressions.evaluate(expr, p, field=key, names=self._names(key, t))
+        return expressions.evaluate(expr, p[:, 0], field=key, names=self._names(key, t), y=p[:, 1])
 
     def boundary_height(self, points) -> np.ndarray:
         """2D: the height at which the boundary is held at the points (N, 2): h, else eta0 there."""
@@ -230,21 +231,29 @@ class Scene:
         """
         return {key: getattr(self, key) for key in FIELD_KEYS if getattr(self, key) is not None}
 
-    def field_values(self, name: str, x) -> np.ndarray:
-        """The field `name` (a key of :attr:`fields`) at the points x."""
+    def field_values(self, name: str, x, t: float = 0.0) -> np.ndarray:
+        """The field `name` (a key of :attr:`fields`) at the points x (the obstacle at the time t)."""
         fields = self.fields
         if name not in fields:
             given = ", ".join(fields) or "none"
             raise SceneError(f"{name}: the scene gives no field {name!r} (fields given: {given})")
-        return self._evaluate(name, fields[name], x)
+        return self._evaluate(name, fields[name], x, t)
 
-    def obstacle_values(self, x) -> np.ndarray:
-        """The obstacle profile ψ at the points x: the ``obstacle`` field, or 0 (the paper's y = 0)."""
+    def obstacle_values(self, x, t: float = 0.0) -> np.ndarray:
+        """The obstacle profile ψ at the points x and the time t: the ``obstacle`` field, or 0 (the paper's y = 0)."""
         x = np.asarray(x, dtype=float)
-        return self.field_values("obstacle", x) if self.obstacle is not None else np.zeros(x.shape[:1])
+        return self.field_values("obstacle", x, t) if self.obstacle is not None else np.zeros(x.shape[:1])
 
-    def _names(self) -> dict[str, float]:
+    @property
+    def obstacle_moves(self) -> bool:
+        """Whether the obstacle is an expression in t (a moving obstacle ψ(x, t))."""
+        return self.obstacle is not None and expressions.uses_name(self.obstacle, "t")
+
+    def _names(self, key: str = "", t: float = 0.0) -> dict[str, float]:
+        """The scalar names of `key`'s expressions: l (1D), h (a single height), t (the obstacle only)."""
         names = {"l": self.length} if self.dim == 1 else {}
+        if key == "obstacle":
+            names["t"] = t
         if self.h is not None and not isinstance(self.h, str):
             names["h"] = self.h
         return names

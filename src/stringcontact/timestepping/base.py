@@ -56,6 +56,42 @@ class NodalLaws:
         return self._keys[name]
 
 
+class MovingObstacle:
+    """A moving obstacle ψ(x, t): the model's P1 ``obstacle`` field (whose nodal array the laws read) and its rate
+    ``obstacle_rate`` (the backward quotient (ψ(t) − ψ(t − Δt))/Δt, the rate the penalty's gap rate v − ψ_t needs:
+    the exact rate of the discrete gap η^n − ψ^n), set in place to a time by `set`.
+
+    `values(t)` gives ψ at every dof of the field (owned and ghosts); the last few times are kept (a scheme that
+    reports one step behind sets two times per step).
+    """
+
+    def __init__(self, values, psi_field, rate_field, dt: float, n_owned: int):
+        self.values, self.psi_field, self.rate_field, self.dt, self.n = values, psi_field, rate_field, dt, n_owned
+        self._kept: dict[float, np.ndarray] = {}
+
+    def at(self, t: float) -> np.ndarray:
+        """ψ(·, t) at every dof (kept for the last four times asked)."""
+        key = round(t / self.dt, 6)
+        if key not in self._kept:
+            if len(self._kept) >= 4:
+                self._kept.pop(next(iter(self._kept)))
+            self._kept[key] = np.asarray(self.values(t), dtype=float)
+        return self._kept[key]
+
+    def set(self, t: float) -> np.ndarray:
+        """The fields at the time t; returns ψ on the owned dofs (a view: copy it to keep it)."""
+        psi = self.at(t)
+        self.psi_field.x.array[:] = psi
+        if self.rate_field is not None:
+            np.subtract(psi, self.at(t - self.dt), out=self.rate_field.x.array)
+            self.rate_field.x.array[:] *= 1.0 / self.dt
+        return psi[: self.n]
+
+    def owned(self, t: float) -> np.ndarray:
+        """ψ(·, t) on the owned dofs, the fields untouched."""
+        return self.at(t)[: self.n]
+
+
 @dataclass
 class Setting:
     """What a scheme is given: the model's operators on one mesh, Δt, the options, the ends and the laws."""
@@ -73,6 +109,7 @@ class Setting:
     nt: int
     petsc_options: dict | None = None  # on top of the size rule's (`solver_options`), validated by the scene
     restitution: float = 0.0  # the restitution coefficient e, for a scheme with RESTITUTION (the scene's, checked)
+    obstacle: MovingObstacle | None = None  # a moving obstacle ψ(x, t) (the scene's obstacle in t), else None
 
     @property
     def n_owned(self) -> int:

@@ -80,6 +80,12 @@ class ActiveSet:
     def iterative(self) -> bool:
         return self.linear is not None and self.linear.iterative
 
+    def moved(self) -> None:
+        """ψ changed in place (a moving obstacle): CG's lift of the held nodes and the fallback's bounds follow it."""
+        if self.iterative and self.nodes.size:
+            self._hold(self.active)
+        self.fallback = None  # its bounds are the old ψ: made again if needed
+
     def describe_solver(self) -> str:
         """The linear solver's one line (`Linear.describe`), or why there is none."""
         if self.linear is None:

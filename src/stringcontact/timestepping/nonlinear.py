@@ -407,6 +407,16 @@ class ProjectionStep(_NewtonScheme):
         self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
         self.v0 = None
         self.e = s.restitution
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle: ψ^{k+1} in each step's bounds
+
+    def _move_to(self, k: int) -> np.ndarray:
+        """A moving obstacle's ψ^k = −gap(0) with the fields at t = kΔt into the VI's lower bound; returns it."""
+        s, laws = self.s, self.s.laws
+        s.obstacle.set(k * s.dt)
+        psi = -np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): np.zeros(s.n_owned)}), dtype=float)
+        self.psi[:] = psi
+        self.newton.set_lower(np.where(s.interior, self.psi, PETSc.NINFINITY))
+        return self.psi.copy()
 
     @property
     def eta(self):
@@ -424,6 +434,8 @@ class ProjectionStep(_NewtonScheme):
 
     def contact(self) -> np.ndarray:
         laws = self.s.laws
+        if self.moving:  # the obstacle where the reported level is, one step behind the computed one
+            self.s.obstacle.set((self.k - 1) * self.s.dt)
         laws.set(eta=self.eta)
         return self._contact_law.evaluate_env(laws.env)
 
@@ -431,6 +443,10 @@ class ProjectionStep(_NewtonScheme):
         s, laws = self.s, self.s.laws
         scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
                     float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
+        if self.moving:  # ψ^{−1}, ψ^0; the heights the obstacle carries the string to count in the contact tolerance
+            scale = max(scale, s.comm.allreduce(float(np.max(np.abs(self._move_to(s.nt)[s.interior]), initial=0.0)),
+                                                op=MPI.MAX))
+            self.psi_levels = [self._move_to(-1), self._move_to(0)]
         self.tol = self.contact_tol * scale
         tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(self.tol))
         self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
@@ -439,6 +455,8 @@ class ProjectionStep(_NewtonScheme):
         below = s.interior & (ahead < self.psi)
         ahead[below] = self.psi[below]
         now[:] = ahead - s.dt * v0
+        if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
+            np.minimum(self.psi_levels[0], now, out=self.psi_levels[0])
         d = (ahead - now) / s.dt
         kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)),
                               0.5 * (self._stored(ahead) + self._stored(now)))
@@ -455,6 +473,10 @@ class ProjectionStep(_NewtonScheme):
     def _advance(self):
         s, dt, nw = self.s, self.s.dt, self.newton
         e0, em = self.etas[1], self.etas[2]
+        if self.moving:  # ψ^{k+1}; the obstacle's work ½ F·(ψ^{k+1} − ψ^{k−1}) is booked as external work
+            self.k += 1
+            psi_before, psi_new = self.psi_levels[0], self._move_to(self.k)
+            self.psi_levels = [self.psi_levels[1], psi_new]
         nw.set_known(e0, em)
         lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
         if self.e:
@@ -464,11 +486,12 @@ class ProjectionStep(_NewtonScheme):
         active = s.interior & (u <= lower + self.tol)
         F = np.where(active, np.maximum(r, 0.0), 0.0)
         delta = 0.5 * (u - em)
+        work = 0.5 * float(np.dot(F, psi_new - psi_before)) if self.moving else 0.0  # the obstacle's share of F's work
         visc_vec = nw.viscous_force(u)
         d = (u - e0) / dt
         kin, el, visc, con, ext = self.allsum(
             0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self._stored(u) + self._stored(e0)),
-            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)), float(np.dot(s.ops.load, delta)))
+            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)) + work, float(np.dot(s.ops.load, delta)) + work)
         num = self.E - (kin + el) - visc - con + ext
         self.E = kin + el
         new = self.etas[0]

@@ -83,6 +83,8 @@ class Scheme(Base):
         self.iterative = self.lu.iterative
         self.env, self.key_eta, self.key_eta_old = laws.env, laws.key("eta"), laws.key("eta_old")
         self.K_etas = self.KC_etas[:, 0]  # K η of η^{n+1} and of η^n: a view, taken once
+        self.moving = s.obstacle is not None  # ψ(x, t): the law's fields follow it (`_obstacle_moved`)
+        self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
 
     # -- the state the driver reads
 
@@ -133,6 +135,8 @@ class Scheme(Base):
             self.Ms.mult(u[0], out[0])
 
     def start(self, eta0, v0):
+        if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
+            self.psi_levels = [self.s.obstacle.owned(-self.dt).copy(), self.s.obstacle.set(0.0).copy()]
         self.eta_now[1][:] = eta0
         self.v_now[1][:] = v0
         self.eta_old[1][:] = eta0 - self.s.dt * self.v_now[1]
@@ -180,8 +184,20 @@ class Scheme(Base):
             np.add(self.eta_new[1], e0, out=self.eta_new[1])
         self.lu.solve(self.rhs[0], self.eta_new[0])
         terms = self._energy_terms(e0)
+        if self.moving:
+            terms = self._obstacle_moved(terms)
         self._rotate()
         return terms
+
+    def _obstacle_moved(self, terms):
+        """A moving obstacle: the law's fields to t^{n+1} (the next step's law, the stored row's force), and the
+        obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work moved from the contact dissipation to the
+        external work, so that D_con = −(Δt/2) f·((v − ψ_t)^n + (v − ψ_t)^{n+1}) is the work on the gap."""
+        psi_new = self.s.obstacle.set((self.step_index + 1) * self.dt).copy()
+        (work,) = self.allsum(0.5 * float(np.dot(self.by_v[1], psi_new - self.psi_levels[0])))
+        self.psi_levels = [self.psi_levels[1], psi_new]
+        kin, el, visc, con, num, ext, stored = terms
+        return kin, el, visc, con + work, num, ext + work, stored
 
     def _right_hand_side(self, e0, em) -> None:
         """b = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n (+ the load), the ends held; F^n is the law at

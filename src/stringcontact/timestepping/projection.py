@@ -232,7 +232,11 @@ class Scheme(Base):
         self.has_load = bool(np.any(ops.load != 0))
         self.v0 = None  # the given initial velocity, reported at t = 0
         self.e = s.restitution
-        self.energy_may_rise = bool(self.e)  # a rebound gives back in its later steps what its first steps took
+        self.moving = s.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
+        self.k = 0  # the level `ahead` holds: η^k at t = kΔt
+        self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's)
+        # a rebound gives back in its later steps what its first steps took; a moving obstacle gives energy
+        self.energy_may_rise = bool(self.e) or self.moving
         if self.e:  # the weighted position z = (η^{n+1} + e η^{n−1})/(1 + e): its level and right-hand side
             self.z = _Level(comm, n)
             rhs_z = np.zeros(n)
@@ -275,14 +279,40 @@ class Scheme(Base):
 
     def contact(self) -> np.ndarray:
         laws = self.s.laws
+        if self.moving:  # the obstacle where the reported level is, one step behind the computed one
+            self.s.obstacle.set((self.k - 1) * self.s.dt)
         laws.set(eta=self.eta)
         return self._contact_law.evaluate_env(laws.env)
+
+    def _obstacle_at(self, t: float) -> np.ndarray:
+        """A moving obstacle's ψ(·, t) on the owned nodes, from the model's gap: −gap(0) with the fields at t."""
+        s, laws = self.s, self.s.laws
+        s.obstacle.set(t)
+        zeros = np.zeros(s.n_owned)
+        return -np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): zeros}), dtype=float) * np.ones(s.n_owned)
+
+    def _move(self) -> float:
+        """ψ^{k+1} into the contact step's bound; returns the obstacle's work ½ F·(ψ^{k+1} − ψ^{k−1}) to book (the
+        force's work on the string ½ F·(η^{k+1} − η^{k−1}) splits into it and the contact dissipation
+        −½ F·(gap^{k+1} − gap^{k−1}) ≥ 0), as a function of F."""
+        self.k += 1
+        before, now = self.psi_levels
+        new = self._obstacle_at(self.k * self.s.dt)
+        np.copyto(self.psi, new)
+        self.contact_step.moved()
+        self.psi_levels = [now, new]
+        return lambda F: 0.5 * float(np.dot(F, new - before))
 
     def start(self, eta0, v0):
         s = self.s
         laws = s.laws
         scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
                     float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
+        if self.moving:  # the heights the obstacle carries the string to
+            scale = max(scale, s.comm.allreduce(float(np.max(np.abs(self._obstacle_at(s.dt * s.nt)[s.interior]),
+                                                             initial=0.0)), op=MPI.MAX))
+            self.psi_levels = [self._obstacle_at(-s.dt), self._obstacle_at(0.0)]
+            np.copyto(self.psi, self.psi_levels[1])
         tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(CONTACT_TOL * scale))
         self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
         self.contact_step.force_tol = FORCE_TOL * scale * self.A_diagonal
@@ -295,6 +325,8 @@ class Scheme(Base):
                           SceneWarning, stacklevel=4)
             ahead.eta[below] = self.psi[below]
         np.subtract(ahead.eta, s.dt * v0, out=now.eta)
+        if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
+            np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
         for level in (ahead, now):
             self.KC.mult(level.eta_vec, level.kc_vec)
         d = ahead.eta - now.eta
@@ -338,6 +370,7 @@ class Scheme(Base):
         if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
             np.subtract(e0.eta, em.eta, out=new.eta)
             new.eta += e0.eta
+        obstacle_work = self._move() if self.moving else None
         if self.e:
             F = self._weighted_step(new, em, rhs)
         else:
@@ -352,6 +385,9 @@ class Scheme(Base):
         d -= em.eta  # now η^{n+1} − η^{n−1}
         con = -0.5 * float(np.dot(F, d))
         ext = 0.5 * float(np.dot(s.ops.load, d)) if self.has_load else 0.0
+        if obstacle_work is not None:  # the obstacle's share of F's work is external work, not contact dissipation
+            work = obstacle_work(F)
+            con, ext = con + work, ext + work
         kin, el, visc, con, ext, slack = self.allsum(kin, el, visc, con, ext, slack)
         np.multiply(F, self.inv_mF, out=new.force)
         self.levels = [self.levels[3], new, e0, em]  # before is free; next → ahead → now → before

@@ -1,0 +1,139 @@
+"""A moving obstacle ψ(x, t) (the scene's ``obstacle`` in t): scheme projection puts ψ^{n+1} into each step's bound
+(linear and Newton paths), the explicit velocity penalty brakes the gap rate v − ψ_t, and the ledger books the
+obstacle's work as external work. Exact checks on a flat string carried by a flat piston."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import stringcontact as sc
+from stringcontact.cli.main import main
+from stringcontact.errors import SceneError
+from stringcontact.model.variants import loaded_obstacle
+
+
+def piston_under_a_flat_string(obstacle: str, *, alpha: float, v0: str = "0", T: float = 0.1, nt: int = 20):
+    """A flat string at height 0.1 (ends held there) on a flat piston under all of it, nx = 100."""
+    return sc.Scene(name="flat_piston", length=1.0, T=T, alpha=alpha, eps=T / nt, nx=100, nt=nt, eta0="0.1", v0=v0,
+                    h_left=0.1, h_right=0.1, model="loaded_obstacle", obstacle=obstacle)
+
+
+def inside(res, margin: float) -> np.ndarray:
+    """The nodes farther than `margin` from both ends (which are held, so the string bends there)."""
+    return (res.x > margin) & (res.x < 1 - margin)
+
+
+def test_a_piston_at_constant_speed_carries_the_string_with_no_force():
+    """ψ = 0.1 + 0.5 t under a string moving with it (v0 = 0.5), α = 0: away from the ends (which the explicit
+    elastic term reaches one node per step, 20 nodes by T) η = 0.1 + 0.5 t and the contact force is 0."""
+    scene = piston_under_a_flat_string("0.1 + 0.5*t", alpha=0.0, v0="0.5")
+    res = sc.simulate(scene, scheme="projection")
+    far = inside(res, 0.25)
+    np.testing.assert_allclose(res.eta[:, far], (0.1 + 0.5 * res.t)[:, None] * np.ones(far.sum()), rtol=0, atol=1e-13)
+    assert np.max(np.abs(res.contact_force[:, far])) < 1e-9
+    assert np.all(res.contact_force >= 0) and res.checks["energy_balance"]["closes"]
+
+
+@pytest.mark.parametrize("newton", [False, True])
+def test_a_piston_at_constant_acceleration_pushes_with_the_mass_times_a(newton):
+    """ψ = 0.1 + t² (a = 2) under a string at rest, α = 0.1 (the active-set step on LU; the Newton path's VI):
+    the string lies on the piston, η = ψ, and the force density is a·(mass per length) = 2 on the flat part."""
+    scene = piston_under_a_flat_string("0.1 + t**2", alpha=0.1)
+    model = dataclasses.replace(loaded_obstacle, name="loaded_obstacle_newton", newton=True) if newton else None
+    res = sc.simulate(scene, scheme="projection", model=model)
+    far, later = inside(res, 0.1), res.t >= 2 * scene.dt  # a stored force is the multiplier of the step ending there
+    psi = 0.1 + res.t**2
+    np.testing.assert_allclose(res.eta[:, far], psi[:, None] * np.ones(far.sum()), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(res.contact_force[np.ix_(later, far)], 2.0, rtol=1e-6)
+    assert np.all(res.contact_force >= 0)
+    b = res.checks["energy_balance"]
+    assert b["closes"] and b["external_work"] > 0  # the piston's work, booked as external work
+    # the contact dissipation is what the contact takes from the gap, never what the piston gives: ≥ 0 and rising
+    assert np.all(np.diff(res.energy["contact_dissipation"]) >= -1e-12 * b["external_work"])
+
+
+def test_the_piston_scene_throws_the_string_and_its_ledger_books_the_pistons_work():
+    scene = sc.load_scene("piston")
+    res = sc.simulate(scene)
+    mid = np.argmin(np.abs(res.x - 0.5))
+    psi = np.array([scene.obstacle_values(res.x, t) for t in res.t])
+    rising = (res.t > 0.02) & (res.t < 0.14)
+    np.testing.assert_allclose(res.eta[rising, mid], psi[rising, mid], rtol=0, atol=1e-12)  # η = ψ on contact
+    np.testing.assert_allclose(res.velocity[rising, mid], 2.0, rtol=1e-9)  # carried at the piston's speed
+    flying = np.argmin(np.abs(res.t - 0.3))
+    assert res.eta[flying, mid] > psi[flying, mid] + 0.2 and res.contact_force[flying].max() == 0  # thrown
+    assert np.all(res.contact_force >= 0) and np.all(res.eta >= psi - 1e-12)
+    b = res.checks["energy_balance"]
+    assert b["closes"] and b["relative_residual"] < 1e-10
+    assert b["external_work"] > 1.0 and b["contact_dissipation"] > 0  # the piston gives, the landing takes
+    assert np.all(np.diff(res.energy["contact_dissipation"]) >= -1e-12)
+
+
+def test_the_newton_path_follows_the_linear_path_on_a_moving_obstacle():
+    scene = sc.load_scene("piston").replace(nx=100, nt=125, T=0.5, output_times=[0.0, 0.5])
+    linear = sc.simulate(scene)
+    newton = sc.simulate(scene, model=dataclasses.replace(loaded_obstacle, name="newton_path", newton=True))
+    assert np.max(np.abs(newton.eta - linear.eta)) < 1e-8
+    assert newton.checks["energy_balance"]["closes"]
+
+
+def test_the_explicit_penalty_brakes_the_gap_rate():
+    """ψ = 0.1 + t² pushes a string at rest: the velocity penalty acts on v − ψ_t, so the string is carried
+    (lagging about ε a t); a penalty on v alone would let the piston through it (depth t² = 0.04 by T = 0.2)."""
+    scene = piston_under_a_flat_string("0.1 + t**2", alpha=0.1, T=0.2, nt=400)
+    res = sc.simulate(scene, scheme="paper", penalty="explicit")
+    far = inside(res, 0.2)
+    depth = (0.1 + res.t**2)[:, None] - res.eta[:, far]
+    assert np.max(depth) < 0.005, np.max(depth)
+    assert np.all(res.contact_force >= 0) and np.max(res.contact_force[-1, far]) > 1.0
+    b = res.checks["energy_balance"]
+    assert b["closes"] and b["external_work"] > 0
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"scheme": "newmark"}, "obstacle: a moving obstacle"),
+    ({"scheme": "paper", "penalty": "semi-implicit"}, "obstacle: a moving obstacle"),
+    ({"scheme": "projection", "restitution": 0.5}, "restitution: a moving obstacle"),
+    ({"scheme": "paper", "model": dataclasses.replace(loaded_obstacle, name="no_rate",
+                                                      penalty=lambda eta, v, p: (p.extra["obstacle"] - eta) / p.eps)},
+     "does not read the obstacle's rate"),
+])
+def test_what_a_moving_obstacle_does_not_run_is_refused_in_one_line(kwargs, message):
+    with pytest.raises(SceneError, match=message) as info:
+        sc.simulate(sc.load_scene("piston"), **kwargs)
+    assert "\n" not in str(info.value)
+
+
+def test_the_cli_runs_the_piston_and_refuses_newmark(capfd, tmp_path):
+    assert main(["run", "piston", "--nx", "100", "--no-progress", "--no-pictures", "--out", str(tmp_path / "o")]) == 0
+    out = capfd.readouterr().out
+    assert "external work" in out and ": closes" in out and "within the bound" in out
+    assert main(["run", "piston", "--scheme", "newmark", "--no-progress", "--no-pictures"]) == 2
+    assert "obstacle: a moving obstacle" in capfd.readouterr().err
+
+
+def test_only_the_obstacle_may_read_t_and_it_is_checked_over_0_T():
+    base = sc.load_scene("piston")
+    assert base.obstacle_moves and not sc.load_scene("loaded_string").obstacle_moves
+    np.testing.assert_allclose(base.obstacle_values(np.array([0.5, 0.9]), 0.075), [0.15, -1.0])
+    with pytest.raises(SceneError, match=r"load: unknown name 't'"):
+        base.replace(load="-10*t")
+    with pytest.raises(SceneError, match=r"obstacle: .* is not finite") as info:  # fine at t = 0, not at t = T
+        base.replace(obstacle="1/(1 - t)")
+    assert "\n" not in str(info.value)
+
+
+def test_a_membrane_on_a_rising_plate_is_carried_with_the_mass_times_a():
+    """ψ(x, y, t) = 0.1 + t² under a flat membrane at rest (boundary held at 0.1), projection: η = ψ and the
+    force density a = 2 on the plate's middle."""
+    scene = sc.Scene(name="plate", domain="rectangle", size=(1.0, 1.0), cells=(16, 16), T=0.2, nt=40, alpha=0.1,
+                     eps=0.005, length=None, nx=None, h_left=None, h_right=None, h=0.1, eta0="0.1", v0="0",
+                     model="loaded_obstacle", obstacle="0.1 + t**2")
+    res = sc.simulate(scene, scheme="projection")
+    middle = (np.abs(res.x[:, 0] - 0.5) < 0.2) & (np.abs(res.x[:, 1] - 0.5) < 0.2)
+    np.testing.assert_allclose(res.eta[:, middle], (0.1 + res.t**2)[:, None] * np.ones(middle.sum()), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res.contact_force[-1, middle], 2.0, rtol=1e-9)
+    assert res.checks["energy_balance"]["closes"] and res.checks["energy_balance"]["external_work"] > 0
