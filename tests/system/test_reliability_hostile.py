@@ -406,10 +406,17 @@ def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
     if exe is None:
         pytest.skip("mpirun not found")
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    good = [sys.executable, "-m", "stringcontact", "run", "example1", "--nx", "50", "--nt", "4000", *SMALL[4:],
-            "--out", "o"]
-    bad = [sys.executable, "-m", "stringcontact", "run", "nonexistent.toml", "--out", "o"]
-    proc = subprocess.Popen([exe, "--oversubscribe", "-n", "1", *good, ":", "-n", "1", *bad], cwd=tmp_path, env=env,
+    good = ["run", "example1", "--nx", "50", "--nt", "4000", *SMALL[4:], "--out", "o"]
+    bad = ["run", "nonexistent.toml", "--out", "o"]
+    # Different arguments per rank from one program, not `mpirun -n 1 A : -n 1 B`: Open MPI 5.0's mpirun (Debian
+    # trixie, the image) segfaults on that syntax before starting anything, whatever the programs.
+    per_rank = tmp_path / "per_rank.py"
+    per_rank.write_text(
+        "import os, runpy, sys\n"
+        "rank = int(os.environ.get('OMPI_COMM_WORLD_RANK', os.environ.get('PMIX_RANK', '0')))\n"
+        f"sys.argv = ['stringcontact', *({good!r} if rank == 0 else {bad!r})]\n"
+        "runpy.run_module('stringcontact', run_name='__main__', alter_sys=True)\n")
+    proc = subprocess.Popen([exe, "--oversubscribe", "-n", "2", sys.executable, str(per_rank)], cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         _, err = proc.communicate(timeout=300)  # a hang guard: the grace period is 10 s
