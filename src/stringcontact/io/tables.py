@@ -12,7 +12,7 @@ import numpy as np
 
 from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "member_offset", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "FILM_COLUMNS", "ROWS_FILE", "clean_json", "member_offset", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
@@ -53,6 +53,9 @@ DIAGNOSTIC_COLUMNS = (
 
 
 INTEGER_COLUMNS = ("step", "contact_components")
+#: Added after DIAGNOSTIC_COLUMNS for a run with a film's pressure: its thinnest gap (η − ψ, ψ the obstacle,
+#: 0 unless the scene gives one) and its largest pressure above ambient.
+FILM_COLUMNS = ("min_gap", "max_pressure")
 
 
 def write_diagnostics(path: Path, result) -> None:
@@ -66,11 +69,16 @@ def write_diagnostics(path: Path, result) -> None:
         "contact_components": result.contact_components,
         "max_contact_force": result.contact_force.max(axis=1),
     }
+    columns = DIAGNOSTIC_COLUMNS
+    if getattr(result, "pressure", None) is not None:
+        psi = result.scene.obstacle_values(result.x)
+        cols.update(min_gap=(result.eta - psi).min(axis=1), max_pressure=result.pressure.max(axis=1))
+        columns = columns + FILM_COLUMNS
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(DIAGNOSTIC_COLUMNS)
+        w.writerow(columns)
         for i in range(len(result.t)):
-            w.writerow([int(cols[c][i]) if c in INTEGER_COLUMNS else repr(float(cols[c][i])) for c in DIAGNOSTIC_COLUMNS])
+            w.writerow([int(cols[c][i]) if c in INTEGER_COLUMNS else repr(float(cols[c][i])) for c in columns])
 
 
 def summary_dict(result) -> dict:
@@ -116,6 +124,8 @@ def write_rows(path: Path, result) -> None:
     import zipfile
 
     arrays = {"t": result.t, "steps": result.steps, "x": result.x, **{name: getattr(result, name) for name in FIELDS}}
+    if getattr(result, "pressure", None) is not None:  # model "film"
+        arrays["pressure"] = result.pressure
     if result.dim == 2:
         arrays.update(cells=result.cells, weights=result.weights)
     with zipfile.ZipFile(path, "w") as archive:

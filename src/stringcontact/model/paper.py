@@ -63,6 +63,12 @@ A model is a `Model`: a few plain functions that return UFL.
     component is η (ends held, contact on it); the others have no boundary condition and no bound. They
     may enter through their values and first time derivatives (their second derivatives are not lumped).
 
+``held_fields``, ``field_lower(p)``, ``dissipative_fields`` and ``schemes`` (optional, with ``fields``)
+    The fields held at 0 on the boundary (η's fixed ends or boundary nodes); a lower bound per field name
+    (a dict of floats: the step is then a variational inequality on those fields); the fields whose terms
+    in η's equation dissipate (their work on η over a step is booked with the viscous dissipation); and the
+    schemes that may run the model (empty: all), with ``scheme_note`` saying why the others may not.
+
 The paper's model (Definition 2.1), the default `inelastic`::
 
     ∫ η_tt w dx + α ∫ η_tx w_x dx + ∫ η_x w_x dx = ∫ F w dx,    F = (1/ε) χ{η<0} (η_t)⁻.
@@ -81,7 +87,9 @@ class Parameters:
     """What a model may use, as UFL objects.
 
     `alpha` and `eps` are `fem.Constant`s, `x` the spatial coordinate, `length` the string's length,
-    and `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`.
+    `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`, and
+    `constants` each model constant the scene gives (``mu``, ``p_ambient``, ``p_cav``, ``h_min``) to a
+    `fem.Constant`.
     """
 
     alpha: object
@@ -89,6 +97,7 @@ class Parameters:
     x: object
     length: float
     extra: dict = field(default_factory=dict)
+    constants: dict = field(default_factory=dict)  # a model's scene constants (`mu`, ...) as fem.Constants
 
 
 def momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
@@ -170,6 +179,11 @@ class Model:
     newton: bool = False
     fields: tuple = ()
     residual: Callable | None = None
+    held_fields: tuple = ()
+    field_lower: Callable | None = None
+    dissipative_fields: tuple = ()
+    schemes: tuple = ()
+    scheme_note: str = ""
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 

@@ -13,6 +13,8 @@ __all__ = [
     "DT_RELATIVE_TOLERANCE",
     "FIELD_KEYS",
     "FILE_KEYS",
+    "FILM_MODEL",
+    "FILM_REQUIRED",
     "INT_BOUNDS",
     "MAX_CELLS",
     "MAX_DISK_RATIO",
@@ -21,6 +23,7 @@ __all__ = [
     "MAX_MEMBRANE_NODES",
     "MAX_OUTPUT_TIMES",
     "MAX_STORED_BYTES",
+    "MODEL_CONSTANT_KEYS",
     "NAME_MAX",
     "PETSC_MAX_OPTIONS",
     "PETSC_PREFIXES",
@@ -37,7 +40,12 @@ FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
     "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
     "domain", "size", "cells", "radius", "mesh_size", "mesh", "petsc_options",
+    "mu", "p_ambient", "p_cav", "h_min",
 )
+#: A model's constants (`Parameters.constants`): the fluid film's (model "film", docs/explanation/film.md).
+MODEL_CONSTANT_KEYS = ("mu", "p_ambient", "p_cav", "h_min")
+#: The model that reads them, and the one of them it needs.
+FILM_MODEL, FILM_REQUIRED = "film", "mu"
 #: The domains and the geometry keys each one takes (docs/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
     "interval": ("length", "nx", "h_left", "h_right"),
@@ -65,6 +73,10 @@ BOUNDS = {
     "h": (-1e6, 1e6, False, False),
     "h_left": (-1e6, 1e6, False, False),
     "h_right": (-1e6, 1e6, False, False),
+    "mu": (0.0, 1e6, True, False),  # the film's viscosity: > 0
+    "p_ambient": (-1e6, 1e6, False, False),
+    "p_cav": (-1e6, 1e6, False, False),  # at most p_ambient (checks.check_film)
+    "h_min": (0.0, 1e3, True, False),  # the mobility's thickness floor: > 0 keeps the pressure's equation regular
 }
 # nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
 # (benchmarks/bench_mesh_size.py).

@@ -48,7 +48,7 @@ import numpy as np
 
 from ..errors import SceneError
 from . import checks, expressions
-from .limits import DOMAIN_KEYS, FIELD_KEYS, REQUIRED_KEYS
+from .limits import DOMAIN_KEYS, FIELD_KEYS, MODEL_CONSTANT_KEYS, REQUIRED_KEYS
 
 __all__ = ["Scene", "SceneWarning"]
 
@@ -95,6 +95,10 @@ class Scene:
     mesh_size: float | None = None  # disk: gmsh's largest element size
     mesh: str | None = None  # file: path of an XDMF triangle mesh
     petsc_options: tuple = ()  # (name, value) pairs for the linear solver (`check_petsc_options`)
+    mu: float | None = None  # model "film": the film's viscosity (> 0, required by that model)
+    p_ambient: float | None = None  # model "film": the ambient pressure at the film's open ends (default 0)
+    p_cav: float | None = None  # model "film": cavitation, p >= p_cav (at most p_ambient; default none)
+    h_min: float | None = None  # model "film": the mobility's thickness floor (default film.H_MIN)
 
     @property
     def dim(self) -> int:
@@ -129,6 +133,7 @@ class Scene:
             put("model", checks.check_model(self.model))
         if self.scheme is not None:
             put("scheme", checks.check_scheme(self.scheme))
+        checks.check_model_constants(self, put)
         put("output_times", checks.check_output_times(self.output_times, self.T))
         options = self.petsc_options
         put("petsc_options", checks.check_petsc_options(dict(options) if isinstance(options, tuple) else options))
@@ -280,7 +285,13 @@ class Scene:
             d["scheme"] = self.scheme
         if self.petsc_options:
             d["petsc_options"] = dict(self.petsc_options)
+        d.update(self.model_constants)
         return d
+
+    @property
+    def model_constants(self) -> dict[str, float]:
+        """The model constants the scene gives (``mu``, ``p_ambient``, ``p_cav``, ``h_min``), name -> value."""
+        return {key: getattr(self, key) for key in MODEL_CONSTANT_KEYS if getattr(self, key) is not None}
 
     def _as_dict_2d(self) -> dict:
         d = {"name": self.name, "description": self.description, "notes": self.notes, "domain": self.domain}
@@ -293,6 +304,7 @@ class Scene:
         d.update({key: getattr(self, key) for key in ("model", "scheme") if getattr(self, key) is not None})
         if self.petsc_options:
             d["petsc_options"] = dict(self.petsc_options)
+        d.update(self.model_constants)
         return d
 
     @classmethod
@@ -370,6 +382,7 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
         scheme=data.get("scheme"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
+        **{key: data[key] for key in MODEL_CONSTANT_KEYS if key in data},
     )
 
 
@@ -432,6 +445,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         scheme=data.get("scheme"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
+        **{key: data[key] for key in MODEL_CONSTANT_KEYS if key in data},
     )
 
 
