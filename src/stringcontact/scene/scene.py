@@ -283,9 +283,9 @@ class Scene:
             d["model"] = self.model
         if self.scheme is not None:
             d["scheme"] = self.scheme
-        if self.petsc_options:
-            d["petsc_options"] = dict(self.petsc_options)
         d.update(self.model_constants)
+        if self.petsc_options:  # last: a TOML table ends the file's plain keys
+            d["petsc_options"] = dict(self.petsc_options)
         return d
 
     @property
@@ -302,9 +302,9 @@ class Scene:
         d.update(self.fields)
         d["output_times"] = list(self.output_times)
         d.update({key: getattr(self, key) for key in ("model", "scheme") if getattr(self, key) is not None})
+        d.update(self.model_constants)
         if self.petsc_options:
             d["petsc_options"] = dict(self.petsc_options)
-        d.update(self.model_constants)
         return d
 
     @classmethod
