@@ -235,3 +235,21 @@ def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
     summary = json.loads((out / "summary.json").read_text())
     assert summary["model"] == "film" and summary["energy_balance"]["closes"]
+
+
+def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
+    """`stringcontact study film --quick`: the references and the film's rows, the fitted laws, the chart; the
+    inelastic reference is its own zero distance and the film's thinnest gap grows with μ on the flat landing."""
+    out = tmp_path / "study"
+    proc = subprocess.run([sys.executable, "-m", "stringcontact", "study", "film", "--quick", "--out", str(out)],
+                          check=False, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    from stringcontact.analysis.tables import read_csv
+
+    rows = read_csv(out / "study_film.csv")
+    inelastic = [r for r in rows if r["method"] == "inelastic"]
+    assert len(inelastic) == 2 and all(r["dist_before"] == 0.0 for r in inelastic)
+    flat = sorted((r for r in rows if r["problem"] == "flat" and r["method"] == "film" and r["p_cav"] != r["p_cav"]),
+                  key=lambda r: r["mu"])
+    assert len(flat) == 2 and 0 < flat[0]["min_gap"] < flat[1]["min_gap"]
+    assert (out / "study_film.png").stat().st_size > 10_000 and (out / "study_film_rates.csv").is_file()

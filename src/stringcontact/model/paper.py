@@ -69,6 +69,10 @@ A model is a `Model`: a few plain functions that return UFL.
     in η's equation dissipate (their work on η over a step is booked with the viscous dissipation); and the
     schemes that may run the model (empty: all), with ``scheme_note`` saying why the others may not.
 
+``newton_options`` (optional)
+    The model's own defaults for its Newton step, (name, value) pairs of the `petsc_options` a scene may
+    give (``(("snes_linesearch_type", "l2"),)``): above the schemes' defaults, below the user's options.
+
 The paper's model (Definition 2.1), the default `inelastic`::
 
     ∫ η_tt w dx + α ∫ η_tx w_x dx + ∫ η_x w_x dx = ∫ F w dx,    F = (1/ε) χ{η<0} (η_t)⁻.
@@ -184,6 +188,7 @@ class Model:
     dissipative_fields: tuple = ()
     schemes: tuple = ()
     scheme_note: str = ""
+    newton_options: tuple = ()
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
 
 

@@ -135,7 +135,8 @@ class NewtonStep:
         snes.setFunction(self._residual, self.G_vec)
         snes.setJacobian(self._jacobian, self.J)
         options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
-        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | options
+        model_defaults = dict(getattr(s.laws.model, "newton_options", ()))  # the model's, below the user's
+        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | model_defaults | options
         set_from_options(snes, PREFIX, options)
         if lower is not None:
             lo, hi = self.x.duplicate(), self.x.duplicate()
