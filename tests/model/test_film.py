@@ -253,3 +253,11 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
                   key=lambda r: r["mu"])
     assert len(flat) == 2 and 0 < flat[0]["min_gap"] < flat[1]["min_gap"]
     assert (out / "study_film.png").stat().st_size > 10_000 and (out / "study_film_rates.csv").is_file()
+
+
+def test_film_drum_a_membrane_on_its_film():
+    """2D: the membrane's film, p = p_a on the rim; the pressure builds under the falling skin, the ledger closes."""
+    r = run(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.1, nt=40, output_times=[]))
+    assert r.status == "complete" and r.pressure.shape == r.eta.shape
+    assert r.pressure.max() > 0.1 and np.all(r.pressure[:, r.x[:, 0] == 0.0] == 0.0)
+    assert np.max(np.abs(r.balance_residual)) < 1e-9 * r.total_energy[0]
