@@ -226,7 +226,7 @@ def test_cli_missing_mu_exits_2_in_one_line(tmp_path):
 def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "film_landing", "--nx", "100", "--out",
-                           str(out), "--no-pictures"], check=False, capture_output=True, text=True)
+                           str(out)], check=False, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     rows = np.load(out / "rows.npz")
     assert rows["pressure"].shape == rows["eta"].shape and rows["pressure"].max() > 1.0
@@ -235,6 +235,7 @@ def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
     summary = json.loads((out / "summary.json").read_text())
     assert summary["model"] == "film" and summary["energy_balance"]["closes"]
+    assert (out / "pressure.png").stat().st_size > 10_000
 
 
 def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
@@ -255,9 +256,12 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
     assert (out / "study_film.png").stat().st_size > 10_000 and (out / "study_film_rates.csv").is_file()
 
 
-def test_film_drum_a_membrane_on_its_film():
+def test_film_drum_a_membrane_on_its_film(tmp_path):
     """2D: the membrane's film, p = p_a on the rim; the pressure builds under the falling skin, the ledger closes."""
     r = run(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.1, nt=40, output_times=[]))
     assert r.status == "complete" and r.pressure.shape == r.eta.shape
     assert r.pressure.max() > 0.1 and np.all(r.pressure[:, r.x[:, 0] == 0.0] == 0.0)
     assert np.max(np.abs(r.balance_residual)) < 1e-9 * r.total_energy[0]
+    from stringcontact.plot.film_charts import pressure_picture
+
+    assert pressure_picture(r, tmp_path / "pressure.png").stat().st_size > 10_000

@@ -71,4 +71,40 @@ def _energy(problem: str, rows: list[dict]) -> float:
     return next(r["E0"] for r in rows if r["problem"] == problem)
 
 
-__all__ = ["PANELS", "plot_film_study"]
+__all__ = ["PANELS", "plot_film_study", "pressure_picture"]
+
+
+def pressure_picture(result, path) -> Path:
+    """The film's pressure p − p_a: a string's over the (x, t) plane (red above ambient, blue below, the contact
+    set {η ≤ 0} outlined); a membrane's at the stored time of its largest value, with that largest value over t."""
+    from matplotlib.colors import SymLogNorm
+
+    from .charts import pyplot, savefig
+
+    plt = pyplot()
+    p = result.pressure
+    scale = float(np.max(np.abs(p))) or 1.0
+    norm = SymLogNorm(linthresh=1e-3 * scale, vmin=-scale, vmax=scale)  # a landing's peak is 1e3-1e4 its rest
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.4, 1]}, layout="constrained")
+    if result.dim == 1:
+        mesh = ax.pcolormesh(result.x, result.t, p, cmap="RdBu_r", norm=norm, shading="auto")
+        if result.contact.any():
+            ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
+        ax.set_xlabel("x")
+        ax.set_ylabel("t")
+        ax.set_title("film pressure p − p_a (contact set outlined)")
+    else:
+        k = int(np.argmax(p.max(axis=1)))
+        mesh = ax.tripcolor(result.x[:, 0], result.x[:, 1], result.cells, p[k], cmap="RdBu_r", norm=norm,
+                            shading="gouraud")
+        ax.set_aspect("equal")
+        ax.set_title(f"film pressure p − p_a at t = {result.t[k]:.4g} (its largest)")
+    fig.colorbar(mesh, ax=ax, label="p − p_a")
+    bx.plot(result.t, p.max(axis=1), label="max p − p_a")
+    bx.plot(result.t, p.min(axis=1), label="min p − p_a")
+    bx.set_yscale("symlog", linthresh=1e-3 * scale)
+    bx.set_xlabel("t")
+    bx.legend()
+    bx.grid(True, alpha=0.3)
+    savefig(fig, Path(path))
+    return Path(path)
