@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_film.py cost --case string           # nx = 5000, film_landing's landing
     mpirun -n 2 .venv/bin/python benchmarks/bench_film.py cost --case string
-    .venv/bin/python benchmarks/bench_film.py cost --case drum              # 317 x 317 = 100 489 nodes
+    .venv/bin/python benchmarks/bench_film.py cost --case drum --mumps      # 317 x 317 = 100 489 nodes
     mpirun -n 2 .venv/bin/python benchmarks/bench_film.py cost --case drum
     .venv/bin/python benchmarks/bench_film.py floor                         # h_min's effect
 
@@ -29,12 +29,13 @@ def _run(scene, **kw):
         return sc.simulate(scene, **kw)
 
 
-def cost(case: str, steps: int) -> None:
+def cost(case: str, steps: int, mumps: bool = False) -> None:
     if case == "string":  # the landing at 0.0235: steps from 0.02 on would need a restart; run from 0
         scene = sc.load_scene("film_landing").replace(nx=5000, dt=0.00025, T=steps * 0.00025, output_times=[])
     else:
-        scene = sc.load_scene("film_drum").replace(cells=[316, 316], T=steps * 0.0025, output_times=[])
-    r = _run(scene, storage=sc.Storage(max_rows=2))
+        scene = sc.load_scene("film_drum").replace(cells=[316, 316], dt=0.0025, T=steps * 0.0025, output_times=[])
+    r = _run(scene, storage=sc.Storage(max_rows=2),
+             petsc_options={"pc_factor_mat_solver_type": "mumps"} if mumps else None)
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
         nodes = scene.node_estimate
@@ -75,10 +76,11 @@ def main() -> None:
     c = sub.add_parser("cost")
     c.add_argument("--case", choices=("string", "drum"), default="string")
     c.add_argument("--steps", type=int, default=None, help="default: 200 (string), 10 (drum)")
+    c.add_argument("--mumps", action="store_true", help="factorise by MUMPS (pc_factor_mat_solver_type mumps)")
     sub.add_parser("floor")
     args = parser.parse_args()
     if args.what == "cost":
-        cost(args.case, args.steps or (200 if args.case == "string" else 10))
+        cost(args.case, args.steps or (200 if args.case == "string" else 10), args.mumps)
     else:
         floor()
 
