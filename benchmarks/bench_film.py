@@ -35,7 +35,7 @@ def cost(case: str, steps: int, mumps: bool = False) -> None:
     else:
         scene = sc.load_scene("film_drum").replace(cells=[316, 316], dt=0.0025, T=steps * 0.0025, output_times=[])
     r = _run(scene, storage=sc.Storage(max_rows=2),
-             petsc_options={"pc_factor_mat_solver_type": "mumps"} if mumps else None)
+             petsc_options={"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"} if mumps else None)
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
         nodes = scene.node_estimate

@@ -28,9 +28,9 @@ def run(scene, **kwargs):
         return sc.simulate(scene, **kwargs)
 
 
-def flat(T=1.0, nt=100, nx=32, eta0=f"{H}", v0=0, mu=0.1, **keys):
+def flat(T=1.0, nt=100, nx=32, eta0=f"{H}", v0=0, mu=0.1, h=H, **keys):
     return sc.Scene.from_dict(dict(name="flat", length=1.0, T=T, nt=nt, nx=nx, alpha=ALPHA, eps=1.0,
-                                   eta0=eta0, v0=v0, h=H, model="film", mu=mu, **keys))
+                                   eta0=eta0, v0=v0, h=h, model="film", mu=mu, **keys))
 
 
 # --- (a) the film alone: a flat gap h closing at the rate hdot --------------------------------------------
@@ -181,7 +181,7 @@ def test_d_large_mu_freezes_the_string(mu):
 
 def test_cavitation_bounds_the_pressure():
     """Thrown up from the obstacle, the film pulls the string down (p < p_a); with p_cav the pressure stays ≥ p_cav."""
-    scene = flat(T=0.1, nt=100, nx=40, eta0="0.05 + 0*x", v0="5*sin(pi*x)", mu=0.01).replace(h=0.05)
+    scene = flat(T=0.1, nt=100, nx=40, eta0="0.05", v0="5*sin(pi*x)", mu=0.01, h=0.05)
     free = run(scene)
     assert free.pressure.min() < -1.0
     bound = run(scene.replace(p_cav=-0.5, p_ambient=0.0))
