@@ -60,7 +60,8 @@ A model is a `Model`: a few plain functions that return UFL.
     More unknowns on the same mesh (P1 each), named in ``fields`` (e.g. ``("pressure",)``): the model then
     writes its residual over tuples, U = (η, *fields) and their derivatives, W = (w, *their test
     functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
-    component is η (ends held, contact on it); the others have no boundary condition and no bound. They
+    component is η (ends held, contact on it); the others have no boundary condition and no bound unless
+    the model gives them (below). They
     may enter through their values and first time derivatives (their second derivatives are not lumped).
 
 ``held_fields``, ``field_lower(p)``, ``dissipative_fields`` and ``schemes`` (optional, with ``fields``)

@@ -285,7 +285,8 @@ class _NewtonScheme(Base):
     @property
     def fields(self) -> dict:
         """A model's other fields (`Model.fields`) by name, at η's owned nodes, from the last solve ({} for one
-        field). `paper` and `newmark` report the step they solved; `projection` reports one step behind it."""
+        field). `paper` and `newmark` report them with the η they solved for; `projection` reports its η one step
+        behind its solve, so its fields would be a step ahead of its η (the film refuses it)."""
         return {name: self.newton.field(i + 1) for i, name in enumerate(self.s.laws.model.fields)}
 
     def _stored(self, eta) -> float:
