@@ -236,6 +236,10 @@ def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["model"] == "film" and summary["energy_balance"]["closes"]
     assert (out / "pressure.png").stat().st_size > 10_000
+    (out / "pressure.png").unlink()  # `stringcontact plot` reads the pressure back from rows.npz and redraws it
+    proc = subprocess.run([sys.executable, "-m", "stringcontact", "plot", str(out)], check=False, capture_output=True,
+                          text=True)
+    assert proc.returncode == 0 and (out / "pressure.png").is_file(), proc.stderr
 
 
 def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
