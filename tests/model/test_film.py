@@ -233,6 +233,8 @@ def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     header = (out / "diagnostics.csv").read_text().splitlines()[0].split(",")
     assert header[-2:] == ["min_gap", "max_pressure"]
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
+    peak = float(np.max(np.abs(rows["pressure"])))
+    assert f"PRESSURE_RANGE = [{-peak!r}, {peak!r}]" in (out / "view.py").read_text()  # `view.py T PNG pressure`
     summary = json.loads((out / "summary.json").read_text())
     assert summary["model"] == "film" and summary["energy_balance"]["closes"]
     assert (out / "pressure.png").stat().st_size > 10_000

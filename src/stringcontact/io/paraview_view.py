@@ -45,8 +45,11 @@ def view_numbers(result) -> dict:
         kind, normal = "membrane", (0.0, 0.0, 1.0)
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()),
                   min(lo, 0.0), max(hi, 0.0))
+    pressure = getattr(result, "pressure", None)  # model "film": its symmetric range, like the velocity's
+    peak = float(np.nanmax(np.abs(pressure))) if pressure is not None and np.size(pressure) else 0.0
     return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
-            "times": [float(t) for t in result.t]}
+            "times": [float(t) for t in result.t],
+            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None}
 
 
 def _literal(value) -> str:
@@ -62,7 +65,8 @@ def view_script(numbers: dict) -> str:
     """The text of view.py for `numbers` (`view_numbers`)."""
     head = f'''"""ParaView view of this folder, written by the run: `pvpython view.py` or `paraview --script=view.py`.
 
-`pvpython view.py TIME PNG [contact|velocity]` saves a screenshot at time TIME instead.
+`pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead (pressure: a
+film's run).
 The numbers below were computed by the run over all its stored rows.
 """
 
@@ -80,6 +84,7 @@ CONTACT_RANGE = {_literal(CONTACT_RANGE)}  # fixed: 0 free (blue), 1 in contact 
 VELOCITY_RANGE = {_literal(numbers["velocity_range"])}  # symmetric, max |velocity| over all stored rows
 BOUNDS = {_literal(numbers["bounds"])}  # the warped shape over all times: x0, x1, y0, y1, z0, z1
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
+PRESSURE_RANGE = {_literal(numbers["pressure_range"]) if numbers.get("pressure_range") else None}  # a film's p - p_a
 '''
     return head + _BODY
 
@@ -107,14 +112,16 @@ def fixed_map(name, low, high, preset):
     return lut
 
 
-RANGES = {"contact": CONTACT_RANGE, "velocity": VELOCITY_RANGE}
+RANGES = {"contact": CONTACT_RANGE, "velocity": VELOCITY_RANGE, **({"pressure": PRESSURE_RANGE} if PRESSURE_RANGE else {})}
 
 
 def colour_by(view, display, field):
     """Colour by `field` on its fixed range, with its colour bar (and no other)."""
     ColorBy(display, ("POINTS", field))
     lut = fixed_map(field, RANGES[field][0], RANGES[field][1], "Cool to Warm")
-    HideScalarBarIfNotNeeded(GetColorTransferFunction("velocity" if field == "contact" else "contact"), view)
+    for other in RANGES:
+        if other != field:
+            HideScalarBarIfNotNeeded(GetColorTransferFunction(other), view)
     display.SetScalarBarVisibility(view, True)
     bar = GetScalarBar(lut, view)
     bar.Title = field
@@ -141,8 +148,8 @@ def build(size=(1000, 600)):
     display = Show(warp, view)
     if KIND == "string":
         display.LineWidth = 3.0
-    fixed_map("velocity", VELOCITY_RANGE[0], VELOCITY_RANGE[1], "Cool to Warm")
-    fixed_map("contact", CONTACT_RANGE[0], CONTACT_RANGE[1], "Cool to Warm")
+    for name, (low, high) in RANGES.items():
+        fixed_map(name, low, high, "Cool to Warm")
     colour_by(view, display, "contact")
     frame(view)
     return animation, view, display
@@ -173,7 +180,7 @@ def show_at(animation, view, display, t, field="contact"):
 
 def main(argv):
     animation, view, display = build()
-    if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity]
+    if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity|pressure]
         field = argv[3] if len(argv) > 3 else "contact"
         show_at(animation, view, display, float(argv[1]), field)
         SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
