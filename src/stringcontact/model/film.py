@@ -53,7 +53,7 @@ def mobility(eta, p: Parameters):
     """m(η) = max(η, h_min)³/(12 μ): the film's flow per unit pressure gradient (SceneError without mu)."""
     mu = _constant(p, "mu")
     if mu is None:
-        raise SceneError("mu: model 'film' needs the film's viscosity mu > 0 (scene key mu)")
+        raise SceneError("mu: model 'film' needs the film's viscosity (scene key mu); allowed: a number in (0, 1e+06]")
     h_min = _constant(p, "h_min")
     floor = h_min if h_min is not None else H_MIN
     return ufl.max_value(eta, floor) ** 3 / (12 * mu)
