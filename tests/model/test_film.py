@@ -271,3 +271,10 @@ def test_film_drum_a_membrane_on_its_film(tmp_path):
     from stringcontact.plot.film_charts import pressure_picture
 
     assert pressure_picture(r, tmp_path / "pressure.png").stat().st_size > 10_000
+
+
+def test_the_film_model_named_in_python_without_mu_is_refused_in_one_line():
+    scene = sc.load_scene("film_landing").replace(mu=None, model=None, nx=20)
+    with pytest.raises(SceneError, match=r"^mu: model 'film' needs the film's viscosity .*; allowed: ") as info:
+        run(scene, model="film")
+    assert "\n" not in str(info.value)
