@@ -73,7 +73,7 @@ def test_a_scene_file_cannot_name_a_module(sandbox, spec):
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout == ""  # not even the Zen of Python
     assert proc.stderr.startswith(f"stringcontact: error: scene {str(scene)!r}: model: unknown model {spec!r}")
-    assert "allowed: cubic_foundation, elastic, inelastic, large_deflection, loaded_obstacle" in proc.stderr and proc.stderr.count("\n") == 1
+    assert "allowed: cubic_foundation, elastic, film, inelastic, large_deflection, loaded_obstacle" in proc.stderr and proc.stderr.count("\n") == 1
     assert _nothing_ran(sandbox)
 
 
@@ -134,7 +134,7 @@ def test_the_example_package_is_what_a_user_would_copy():
     meta = tomllib.loads((root / "examples" / "soft_ground" / "pyproject.toml").read_text())
     assert meta["project"]["entry-points"][registry.GROUP] == {"soft_ground": "soft_ground:soft_ground"}
     ours = tomllib.loads((root / "pyproject.toml").read_text())["project"]["entry-points"][registry.GROUP]
-    assert set(ours) == {"inelastic", "elastic", "loaded_obstacle", "cubic_foundation", "large_deflection"}
+    assert set(ours) == {"inelastic", "elastic", "loaded_obstacle", "cubic_foundation", "large_deflection", "film"}
 
 
 def test_check_uses_the_scenes_model():

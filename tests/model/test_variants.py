@@ -68,7 +68,7 @@ def test_load_model_by_module_path_typed_by_the_user(user_module):
         ("my_models:missing", "model: module 'my_models' has no 'missing'"),
         ("my_models:not_a_model", "model: 'my_models:not_a_model' is a int, not a stringcontact.Model"),
         ("my_models:factory", "model: 'my_models:factory' is a function, not a stringcontact.Model (nothing is called"),
-        ("stringcontact.model.variants", "model: unknown model 'stringcontact.model.variants'; allowed: cubic_foundation, elastic, inelastic"),
+        ("stringcontact.model.variants", "model: unknown model 'stringcontact.model.variants'; allowed: cubic_foundation, elastic, film, inelastic"),
         ("a:b:c", "model: invalid value 'a:b:c'"),
     ],
 )

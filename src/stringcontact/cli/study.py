@@ -36,11 +36,12 @@ from ..analysis.study import (
 
 
 def add_arguments(parser):
-    sub = parser.add_subparsers(dest="study", required=True, metavar="{work-precision,convergence,stability}")
+    sub = parser.add_subparsers(dest="study", required=True, metavar="{work-precision,convergence,stability,film}")
     specs = {
         "work-precision": "error against wall-clock time per method (flat landing and Example 1)",
         "convergence": "observed orders in dt = dx and in eps; the --tol estimate against the true error",
         "stability": "outcome over r = dt/eps per penalty and law, over dt/dx per scheme, restitution, alpha -> 0",
+        "film": "the fluid film over its viscosity mu against the inelastic landing (docs/explanation/film.md)",
     }
     for name, help_text in specs.items():
         p = sub.add_parser(name, help=help_text)
@@ -73,6 +74,10 @@ def command(args) -> int:
         result = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
     elif args.study == "convergence":
         result = convergence(quick=args.quick, comm=comm, busy=busy)
+    elif args.study == "film":  # serial: rank 0 runs the sweep
+        from ..analysis.film import film_study
+
+        result = film_study(quick=args.quick) if comm.rank == 0 else None
     else:
         result = stability_map(quick=args.quick, comm=comm, busy=busy)
         alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
@@ -100,6 +105,8 @@ def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Pat
     if args.study == "work-precision":
         written = [write_csv(out / "study_work_precision.csv", result, WORK_PRECISION_COLUMNS),
                    plot_work_precision(result, out / "study_work_precision.png")]
+    elif args.study == "film":
+        written = _write_film(out, result)
     elif args.study == "convergence":
         tracking = tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
         written = [write_csv(out / "study_convergence.csv", result["runs"], CONVERGENCE_COLUMNS),
@@ -126,3 +133,18 @@ def _print_orders(orders, quick: bool) -> None:
               "too) do not measure the schemes' convergence; run without --quick for those (docs/study.md)")
     for o in orders:
         print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")
+
+
+def _write_film(out: Path, rows: list[dict]) -> list[Path]:
+    """`study film`'s rows, its fitted power laws in mu, and its chart; the laws printed."""
+    from ..analysis.film import FILM_COLUMNS, RATE_COLUMNS, fit_rates
+    from ..model.film import H_MIN
+    from ..plot.film_charts import plot_film_study
+
+    rates = fit_rates(rows)
+    for r in rates:
+        cavitation = "no cavitation" if np.isnan(r["p_cav"]) else f"p_cav = {r['p_cav']:g}"
+        print(f"film {r['problem']:8s} {cavitation:14s} {r['quantity']:12s} ~ mu^{r['rate']:.3f} (mu = {r['mus']})")
+    return [write_csv(out / "study_film.csv", rows, FILM_COLUMNS),
+            write_csv(out / "study_film_rates.csv", rates, RATE_COLUMNS),
+            plot_film_study(rows, out / "study_film.png", H_MIN)]

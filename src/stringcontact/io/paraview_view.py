@@ -61,9 +61,12 @@ def view_numbers(result) -> dict:
         kind, normal = "membrane", (0.0, 0.0, 1.0)
         points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
+    pressure = getattr(result, "pressure", None)  # model "film": its symmetric range, like the velocity's
+    peak = float(np.nanmax(np.abs(pressure))) if pressure is not None and np.size(pressure) else 0.0
     return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
             "times": [float(t) for t in result.t], "obstacle_points": points, "obstacle_quads": quads,
-            "title": view_title(result)}
+            "title": view_title(result),
+            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None}
 
 
 def view_title(result) -> str:
@@ -122,7 +125,8 @@ def view_script(numbers: dict) -> str:
     """The text of view.py for `numbers` (`view_numbers`)."""
     head = f'''"""ParaView view of this folder, written by the run: `pvpython view.py` or `paraview --script=view.py`.
 
-`pvpython view.py TIME PNG [contact|velocity]` saves a screenshot at time TIME instead.
+`pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead (pressure: a
+film's run).
 The numbers below were computed by the run over all its stored rows.
 """
 
@@ -146,6 +150,7 @@ OBSTACLE_GREY = {_literal(OBSTACLE_GREY)}
 OBSTACLE_POINTS = {_literal(numbers.get("obstacle_points") or [])}  # x, y, z
 OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices into OBSTACLE_POINTS each
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
+PRESSURE_RANGE = {_literal(numbers["pressure_range"]) if numbers.get("pressure_range") else None}  # a film's p - p_a
 '''
     return head + _BODY
 
@@ -178,7 +183,8 @@ def fixed_map(name, low, high, preset=None, colours=None):
     return lut
 
 
-MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS)}
+MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS),
+        **({"pressure": (PRESSURE_RANGE, "Cool to Warm", None)} if PRESSURE_RANGE else {})}
 
 
 def colour_by(view, display, field):
@@ -186,7 +192,9 @@ def colour_by(view, display, field):
     ColorBy(display, ("POINTS", field))
     (low, high), preset, colours = MAPS[field]
     lut = fixed_map(field, low, high, preset, colours)  # again: ColorBy rescales to the data at this time
-    HideScalarBarIfNotNeeded(GetColorTransferFunction("velocity" if field == "contact" else "contact"), view)
+    for other in MAPS:
+        if other != field:
+            HideScalarBarIfNotNeeded(GetColorTransferFunction(other), view)
     display.SetScalarBarVisibility(view, True)
     bar = GetScalarBar(lut, view)
     bar.Title = field
@@ -257,6 +265,8 @@ def build(size=(1000, 600)):
     display = Show(warp, view)
     if KIND == "string":
         display.LineWidth = 4.0
+    for name, ((low, high), preset, colours) in MAPS.items():  # every field's map fixed, for the GUI's colour menu
+        fixed_map(name, low, high, preset, colours)
     colour_by(view, display, "contact")
     labels(view)
     frame(view)
@@ -305,7 +315,7 @@ def axes(view):
 
 def main(argv):
     animation, view, display = build()
-    if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity]
+    if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity|pressure]
         field = argv[3] if len(argv) > 3 else "contact"
         show_at(animation, view, display, float(argv[1]), field)
         SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)

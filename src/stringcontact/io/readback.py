@@ -76,6 +76,7 @@ def read_output(folder, from_xdmf: bool = False):
         timings=summary.get("timings", {}),
         message=summary.get("message", ""),
         scheme=summary.get("scheme", "paper"),
+        pressure=fields.get("pressure"),  # model "film", from rows.npz
         **mesh,
     )
 
@@ -174,12 +175,15 @@ def _read_rows(path: Path, column: dict, dim: int):
             if absent:
                 raise ValueError(f"plot: {path} has no array {', '.join(map(repr, absent))}")
             arrays = {name: npz[name] for name in names}
+            if "pressure" in npz.files:  # model "film"
+                arrays["pressure"] = npz["pressure"]
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         if str(exc).startswith("plot: "):
             raise
         raise ValueError(f"plot: {path} is not a readable .npz file ({type(exc).__name__}: {one_line(exc, 200)})") from None
     k, n = len(column["t"]), len(arrays["x"])
-    shapes = {"t": (k,), "steps": (k,), "x": (n,) if dim == 1 else (n, 2), **{name: (k, n) for name in FIELDS}}
+    shapes = {"t": (k,), "steps": (k,), "x": (n,) if dim == 1 else (n, 2),
+              **{name: (k, n) for name in (*FIELDS, *(("pressure",) if "pressure" in arrays else ()))}}
     if dim == 2:
         shapes["weights"] = (n,)
         cells = arrays["cells"]
@@ -191,7 +195,8 @@ def _read_rows(path: Path, column: dict, dim: int):
     if not np.array_equal(arrays["t"], column["t"]):
         raise ValueError(f"plot: {path}: its times are not those of diagnostics.csv")
     _check_row_values(path, arrays, dim)
-    fields = {name: arrays[name] for name in FIELDS}
+    fields = {name: arrays[name] for name in FIELDS if name in arrays} | (
+        {"pressure": arrays["pressure"]} if "pressure" in arrays else {})
     fields["contact"] = fields["contact"].astype(float)  # as read from the XDMF: Result takes contact > 0.5
     mesh = {"cells": arrays["cells"].astype(np.int64), "weights": arrays["weights"]} if dim == 2 else {}
     return arrays["x"], fields, mesh

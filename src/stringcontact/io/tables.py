@@ -12,7 +12,8 @@ import numpy as np
 
 from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "clean_json", "diagnostic_columns", "member_offset", "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "FILM_COLUMNS", "ROWS_FILE", "clean_json", "diagnostic_columns", "member_offset",
+           "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
@@ -53,6 +54,9 @@ DIAGNOSTIC_COLUMNS = (
 
 
 INTEGER_COLUMNS = ("step", "contact_components")
+#: Added after DIAGNOSTIC_COLUMNS for a run with a film's pressure: its thinnest gap (η − ψ, ψ the obstacle,
+#: 0 unless the scene gives one) and its largest pressure above ambient.
+FILM_COLUMNS = ("min_gap", "max_pressure")
 
 
 def diagnostic_columns(dim: int = 1) -> tuple[str, ...]:
@@ -75,6 +79,10 @@ def write_diagnostics(path: Path, result) -> None:
         "max_contact_force": result.contact_force.max(axis=1),
     }
     names = diagnostic_columns(result.dim)
+    if getattr(result, "pressure", None) is not None:
+        psi = result.scene.obstacle_values(result.x)
+        cols.update(min_gap=(result.eta - psi).min(axis=1), max_pressure=result.pressure.max(axis=1))
+        names = names + FILM_COLUMNS
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(names)
@@ -128,6 +136,8 @@ def write_rows(path: Path, result) -> None:
     import zipfile
 
     arrays = {"t": result.t, "steps": result.steps, "x": result.x, **{name: getattr(result, name) for name in FIELDS}}
+    if getattr(result, "pressure", None) is not None:  # model "film"
+        arrays["pressure"] = result.pressure
     if result.dim == 2:
         arrays.update(cells=result.cells, weights=result.weights)
     with zipfile.ZipFile(path, "w") as archive:

@@ -71,8 +71,19 @@ A model is a `Model`: a few plain functions that return UFL.
     More unknowns on the same mesh (P1 each), named in ``fields`` (e.g. ``("pressure",)``): the model then
     writes its residual over tuples, ``U = (η, *fields)`` and their derivatives, ``W = (w, *test_functions)``
     (the fields' test functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
-    component is η (ends held, contact on it); the others have no boundary condition and no bound. They
+    component is η (ends held, contact on it); the others have no boundary condition and no bound unless
+    the model gives them (below). They
     may enter through their values and first time derivatives (their second derivatives are not lumped).
+
+``held_fields``, ``field_lower(p)``, ``dissipative_fields`` and ``schemes`` (optional, with ``fields``)
+    The fields held at 0 on the boundary (η's fixed ends or boundary nodes); a lower bound per field name
+    (a dict of floats: the step is then a variational inequality on those fields); the fields whose terms
+    in η's equation dissipate (their work on η over a step is booked with the viscous dissipation); and the
+    schemes that may run the model (empty: all), with ``scheme_note`` saying why the others may not.
+
+``newton_options`` (optional)
+    The model's own defaults for its Newton step, (name, value) pairs of the `petsc_options` a scene may
+    give (``(("snes_linesearch_type", "l2"),)``): above the schemes' defaults, below the user's options.
 
 The paper's model (Definition 2.1), the default `inelastic`::
 
@@ -92,7 +103,9 @@ class Parameters:
     """What a model may use, as UFL objects.
 
     `alpha` and `eps` are `fem.Constant`s, `x` the spatial coordinate, `length` the string's length,
-    and `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`.
+    `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`, and
+    `constants` each model constant the scene gives (``mu``, ``p_ambient``, ``p_cav``, ``h_min``) to a
+    `fem.Constant`.
     """
 
     alpha: object
@@ -100,6 +113,7 @@ class Parameters:
     x: object
     length: float
     extra: dict = field(default_factory=dict)
+    constants: dict = field(default_factory=dict)  # a model's scene constants (`mu`, ...) as fem.Constants
 
 
 def momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
@@ -184,6 +198,12 @@ class Model:
     newton: bool = False
     fields: tuple = ()
     residual: Callable | None = None
+    held_fields: tuple = ()
+    field_lower: Callable | None = None
+    dissipative_fields: tuple = ()
+    schemes: tuple = ()
+    scheme_note: str = ""
+    newton_options: tuple = ()
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
     penetration_bound: str | None = "auto"
     energy_label: str | None = None

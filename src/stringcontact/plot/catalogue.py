@@ -19,9 +19,15 @@ MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
 PAINTED = tuple(dict.fromkeys(PICTURES + MEMBRANE_PICTURES))
 
 
+#: of a run with a film's pressure (model "film"), 1D or 2D: drawn by the run itself, not the painter
+PRESSURE_PICTURE = "pressure.png"
+
+
 def pictures_of(result) -> tuple[str, ...]:
-    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D)."""
-    return PICTURES if result.dim == 1 else MEMBRANE_PICTURES
+    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D), and
+    `PRESSURE_PICTURE` of a run with a film's pressure."""
+    names = PICTURES if result.dim == 1 else MEMBRANE_PICTURES
+    return names + (PRESSURE_PICTURE,) if getattr(result, "pressure", None) is not None else names
 
 
 def painted(result, names=PAINTED) -> tuple[str, ...]:

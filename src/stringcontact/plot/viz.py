@@ -61,6 +61,10 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
             return _draw_with_vtk(name, result, path, window_size)
     if name == "contact_area.png":
         return contact_area_picture(result, path)
+    if name == "pressure.png":
+        from .film_charts import pressure_picture
+
+        return pressure_picture(result, path)
     if name == "contact_set.png":
         return contact_set_picture(result, path, window_size)
     if name == "velocity_field.png":

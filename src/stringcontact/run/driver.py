@@ -23,7 +23,7 @@ from ..errors import InstabilityError, SceneError, SolverError
 from ..fem import compat, domains
 from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
-from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
+from ..io.result import ENERGY_KEYS, FIELDS, MODEL_FIELDS, Result, canonical_cells, node_sort_key
 from ..io.signals import StopTogether
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
@@ -154,12 +154,12 @@ class _Rows:
     """The stored rows where they are gathered (rank 0, or every rank), and on every rank the cumulative
     energy terms and the `series` the ranks sum at each stored time (Result.series)."""
 
-    def __init__(self, steps: np.ndarray, gather: _Gather):
+    def __init__(self, steps: np.ndarray, gather: _Gather, extra: tuple = ()):
         self.steps, self.gather, self.n = steps, gather, 0
         k = len(steps)
         self.fields = {}
-        if gather.holds:
-            self.fields = {name: np.empty((k, gather.nodes)) for name in ("eta", "velocity", "contact_force")}
+        if gather.holds:  # `extra`: a model's other fields (the film's pressure)
+            self.fields = {name: np.empty((k, gather.nodes)) for name in ("eta", "velocity", "contact_force", *extra)}
             self.fields["contact"] = np.empty((k, gather.nodes), dtype=bool)
         self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
         self.series = {key: np.empty(k) for key in SERIES_KEYS}
@@ -262,6 +262,7 @@ def discretise(scene, model: Model, comm):
         x=ufl.SpatialCoordinate(msh),
         length=scene.length,
         extra=extra,
+        constants={k: fem.Constant(msh, PETSc.ScalarType(v)) for k, v in getattr(scene, "model_constants", {}).items()},
     )
     unused = unused_fields(model, V, params)
     if unused:  # a load the model ignores would give a plausible but wrong answer
@@ -403,9 +404,11 @@ def _storage(scene, s: Setting, V, storage: Storage):
     weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
     obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
     geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
+    extra = tuple(f for f in getattr(s.laws.model, "fields", ()) if f in MODEL_FIELDS)
     if s.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
-        return _Rows(steps, gather), geometry, lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t))
-    return _Rows(steps, gather), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)
+        return (_Rows(steps, gather, extra), geometry,
+                lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t)))
+    return _Rows(steps, gather, extra), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)
 
 
 def _resolve_model(model, scene) -> Model:
@@ -490,6 +493,7 @@ class _Run:
         stepper = self.stepper
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
                   "contact_force": stepper.contact_force}
+        fields.update((k, v) for k, v in getattr(stepper, "fields", {}).items() if k in MODEL_FIELDS)
         t = float(step_times([n], self.dt, self.scene.output_times)[0])
         self.rows.store(fields, self.ledger.cumulative, self.row_series(fields, t))
         if self.writer is not None:

@@ -21,6 +21,8 @@ from .limits import (
     DOMAIN_KEYS,
     DT_RELATIVE_TOLERANCE,
     FILE_KEYS,
+    FILM_MODEL,
+    FILM_REQUIRED,
     INT_BOUNDS,
     MAX_CELLS,
     MAX_DISK_RATIO,
@@ -28,6 +30,7 @@ from .limits import (
     MAX_MEMBRANE_NODES,
     MAX_OUTPUT_TIMES,
     MAX_STORED_BYTES,
+    MODEL_CONSTANT_KEYS,
     NAME_MAX,
     PETSC_MAX_OPTIONS,
     PETSC_PREFIXES,
@@ -296,6 +299,26 @@ def check_name(value) -> str:
 def check_model(value) -> str:
     # A scene is data: it names a registered model and never a module (nothing is imported here).
     return names.check_name(value)
+
+
+def check_model_constants(scene, put) -> None:
+    """The film's constants (`MODEL_CONSTANT_KEYS`): numbers in range; `mu` required by model 'film'; p_cav at
+    most p_ambient; refused under another named model (it would ignore them)."""
+    given = {key: getattr(scene, key) for key in MODEL_CONSTANT_KEYS if getattr(scene, key) is not None}
+    for key, value in given.items():
+        put(key, number(key, value))
+    if scene.model == FILM_MODEL and FILM_REQUIRED not in given:
+        raise SceneError(f"{FILM_REQUIRED}: model '{FILM_MODEL}' needs the film's viscosity; allowed: "
+                         f"{_range_text(FILM_REQUIRED)}")
+    if given and scene.model not in (None, FILM_MODEL):
+        key = next(iter(given))
+        raise SceneError(f"{key}: read by model '{FILM_MODEL}' only, not by model {scene.model!r}; "
+                         f"remove it or set model = '{FILM_MODEL}'")
+    if "p_cav" in given:
+        p_a = scene.p_ambient or 0.0
+        if scene.p_cav > p_a:
+            raise SceneError(f"p_cav: {fmt(scene.p_cav)} is above the ambient pressure p_ambient = {fmt(p_a)}; "
+                             f"allowed: a number in [{fmt(BOUNDS['p_cav'][0])}, {fmt(p_a)}]")
 
 
 def check_scheme(value) -> str:

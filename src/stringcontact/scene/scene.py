@@ -49,7 +49,7 @@ import numpy as np
 
 from ..errors import SceneError
 from . import checks, expressions
-from .limits import DOMAIN_KEYS, FIELD_KEYS, REQUIRED_KEYS
+from .limits import DOMAIN_KEYS, FIELD_KEYS, MODEL_CONSTANT_KEYS, REQUIRED_KEYS
 
 __all__ = ["Scene", "SceneWarning"]
 
@@ -97,6 +97,10 @@ class Scene:
     mesh: str | None = None  # file: path of an XDMF triangle mesh
     petsc_options: tuple = ()  # (name, value) pairs for the linear solver (`check_petsc_options`)
     restitution: float | None = None  # scheme 'projection's restitution coefficient e in [0, 1] (None: 0)
+    mu: float | None = None  # model "film": the film's viscosity (> 0, required by that model)
+    p_ambient: float | None = None  # model "film": the ambient pressure at the film's open ends (default 0)
+    p_cav: float | None = None  # model "film": cavitation, p >= p_cav (at most p_ambient; default none)
+    h_min: float | None = None  # model "film": the mobility's thickness floor (default film.H_MIN)
 
     @property
     def dim(self) -> int:
@@ -133,6 +137,7 @@ class Scene:
             put("scheme", checks.check_scheme(self.scheme))
         if self.restitution is not None:
             put("restitution", checks.number("restitution", self.restitution))
+        checks.check_model_constants(self, put)
         put("output_times", checks.check_output_times(self.output_times, self.T))
         options = self.petsc_options
         put("petsc_options", checks.check_petsc_options(dict(options) if isinstance(options, tuple) else options))
@@ -293,9 +298,15 @@ class Scene:
             d["scheme"] = self.scheme
         if self.restitution is not None:
             d["restitution"] = self.restitution
-        if self.petsc_options:
+        d.update(self.model_constants)
+        if self.petsc_options:  # last: a TOML table ends the file's plain keys
             d["petsc_options"] = dict(self.petsc_options)
         return d
+
+    @property
+    def model_constants(self) -> dict[str, float]:
+        """The model constants the scene gives (``mu``, ``p_ambient``, ``p_cav``, ``h_min``), name -> value."""
+        return {key: getattr(self, key) for key in MODEL_CONSTANT_KEYS if getattr(self, key) is not None}
 
     def _as_dict_2d(self) -> dict:
         d = {"name": self.name, "description": self.description, "notes": self.notes, "domain": self.domain}
@@ -306,6 +317,7 @@ class Scene:
         d.update(self.fields)
         d["output_times"] = list(self.output_times)
         d.update({key: getattr(self, key) for key in ("model", "scheme", "restitution") if getattr(self, key) is not None})
+        d.update(self.model_constants)
         if self.petsc_options:
             d["petsc_options"] = dict(self.petsc_options)
         return d
@@ -385,6 +397,7 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
         scheme=data.get("scheme"), restitution=data.get("restitution"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
+        **{key: data[key] for key in MODEL_CONSTANT_KEYS if key in data},
     )
 
 
@@ -448,6 +461,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         restitution=data.get("restitution"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
+        **{key: data[key] for key in MODEL_CONSTANT_KEYS if key in data},
     )
 
 

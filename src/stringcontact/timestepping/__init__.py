@@ -20,11 +20,19 @@ def scheme_class(name: str):
     return importlib.import_module(f".{name}", __name__).Scheme
 
 
+def _why_not(name: str, model) -> str | None:
+    """Why scheme `name` cannot run `model`: the scheme's reason, or the model's (`Model.schemes`)."""
+    allowed = getattr(model, "schemes", ())
+    if allowed and name not in allowed:
+        return f"model '{model.name}' runs with scheme {' or '.join(allowed)} only: {model.scheme_note}"
+    return scheme_class(name).requires(model)
+
+
 def check_model(name: str, model) -> None:
     """ValueError (one line) if scheme `name` cannot run `model`, naming the schemes that can."""
-    why = scheme_class(name).requires(model)
+    why = _why_not(name, model)
     if why is not None:
-        usable = [other for other in SCHEMES if scheme_class(other).requires(model) is None]
+        usable = [other for other in SCHEMES if _why_not(other, model) is None]
         raise ValueError(f"scheme {name!r}: {why}; this model runs with scheme {' or '.join(usable) or 'none'}")
 
 

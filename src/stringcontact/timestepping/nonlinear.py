@@ -80,7 +80,7 @@ class NewtonStep:
             q_tt = zero if self.lumped else q_tt
         mapping = {nl.eta: q_eta, nl.eta_t: q_t, nl.eta_tt: q_tt, nl.force: zero}
         G = ufl.replace(nl.residual, mapping)
-        G_static = ufl.replace(nl.residual, mapping | {nl.eta_t: zeros})  # its η_t-free part: the viscous work
+        G_static = ufl.replace(nl.residual, mapping | {nl.eta_t: zeros} | _without_dissipative(s, q_eta, k))
         self.G_form = fem.form(G)
         self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
         self.G_static_form = fem.form(G_static)
@@ -107,7 +107,27 @@ class NewtonStep:
             full = np.full(self.N, PETSc.NINFINITY)
             full[self.idx] = lower
             lower = full
+        self.g = s.g
+        lower = self._held_and_bounded(lower)
         self.snes = self._snes(lower)
+
+    def _held_and_bounded(self, lower):
+        """A model's other fields held at 0 on the boundary (`Model.held_fields`: their rows join η's ends in
+        `bc`, their values in `g`) and bounded below (`Model.field_lower`: the step becomes the VI)."""
+        s, nl = self.s, self.s.ops.nonlinear
+        model = s.laws.model
+        if nl.eta_dofs is None:
+            return lower
+        dofs = {name: compat.sub_dofs(nl.V, nl.space, i + 1)[: self.n] for i, name in enumerate(model.fields)}
+        for name in getattr(model, "held_fields", ()):
+            self.bc = np.concatenate([self.bc, dofs[name][s.bc]])
+            self.g = np.concatenate([self.g, np.zeros(len(s.bc))])
+        bounds = model.field_lower(nl.params) if getattr(model, "field_lower", None) is not None else {}
+        if bounds and lower is None:
+            lower = np.full(self.N, PETSc.NINFINITY)
+        for name, value in bounds.items():
+            lower[dofs[name]] = value
+        return lower
 
     def _snes(self, lower):
         s = self.s
@@ -115,7 +135,8 @@ class NewtonStep:
         snes.setFunction(self._residual, self.G_vec)
         snes.setJacobian(self._jacobian, self.J)
         options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
-        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | options
+        model_defaults = dict(getattr(s.laws.model, "newton_options", ()))  # the model's, below the user's
+        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | model_defaults | options
         set_from_options(snes, PREFIX, options)
         if lower is not None:
             lo, hi = self.x.duplicate(), self.x.duplicate()
@@ -209,7 +230,7 @@ class NewtonStep:
         if self.lumped:
             extra += self.s.ops.m * self.q["eta_tt"](u_eta, *self.arrays, self.s.dt)
         g[self.idx] += extra
-        g[self.bc] = u[self.bc] - self.s.g
+        g[self.bc] = u[self.bc] - self.g
 
     def _jacobian(self, snes, x, J, P) -> None:
         self._set(self.u, x.array_r)
@@ -226,7 +247,7 @@ class NewtonStep:
         η's owned values. SolverError if SNES fails."""
         x = self.x.array
         x[:] = self._full(guess, self.levels[3])
-        x[self.bc] = self.s.g
+        x[self.bc] = self.g
         # The residual's round-off floor: ROUNDOFF × the inertia term's norm (its largest term). An rtol below it
         # (a good predictor) would stall at the floor (2.6e-9 against 2.4e-9 asked at nx = 5000).
         if "snes_atol" not in (self.s.petsc_options or {}):  # the user's wins
@@ -259,10 +280,28 @@ class NewtonStep:
                 "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step"}
 
 
+def _without_dissipative(s, q_eta, k: int) -> dict:
+    """The model's dissipative fields (`Model.dissipative_fields`) at 0 in η's value: their work on η is then
+    in the viscous work, as the η_t-dependent terms' (a film's pressure)."""
+    model = s.laws.model
+    names = getattr(model, "dissipative_fields", ())
+    if not k or not names:
+        return {}
+    kept = [q_eta[i] if i == 0 or model.fields[i - 1] not in names else 0.0 for i in range(k)]
+    return {s.ops.nonlinear.eta: ufl.as_vector(kept)}
+
+
 class _NewtonScheme(Base):
     """What the three schemes' Newton steps share: the stored energy summed over the ranks, the counters."""
 
     energy_may_rise = True
+
+    @property
+    def fields(self) -> dict:
+        """A model's other fields (`Model.fields`) by name, at η's owned nodes, from the last solve ({} for one
+        field). `paper` and `newmark` report them with the η they solved for; `projection` reports its η one step
+        behind its solve, so its fields would be a step ahead of its η (the film refuses it)."""
+        return {name: self.newton.field(i + 1) for i, name in enumerate(self.s.laws.model.fields)}
 
     def _stored(self, eta) -> float:
         return self.newton.stored_energy(eta)

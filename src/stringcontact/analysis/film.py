@@ -1,0 +1,166 @@
+"""`stringcontact study film`: does a viscous film reproduce the inelastic landing, and in which limit?
+
+The film (model "film", docs/explanation/film.md) is swept over its viscosity μ on two throws, with and without
+cavitation (p ≥ p_cav = p_a, half-Sommerfeld), against two references without a film: the inelastic model
+(`projection`) and the paper's penalty in the limit ε → 0 (`paper`, semi-implicit, ε = `EPS_LIMIT`). The film's
+own backstop is that penalty at ε = `FILM_EPS`, so the runs differ by the film (and ε) alone. Each run gives:
+
+* ``min_gap``: the thinnest film, min over the interior nodes and the stored times of η;
+* ``energy_lost``: E(0) − E(t_lift), the energy lost in the first impact, t_lift the inelastic reference's first
+  lift-off (the first stored time after its first contact with no interior node in contact);
+* ``rebound``: at the inelastic reference's first-contact point x*, the largest upward velocity between the
+  fastest approach and t_lift, over that approach speed (0: it stays down; 1: an elastic bounce);
+* ``t_up``: when η(x*) has risen by 5 % of its initial height after its lowest point (`rise_time`): the
+  lift-off of a run that never touches, measured alike for the references;
+* ``dist_before``, ``dist_after``: ‖η_μ − η_inelastic‖ in L∞(0, T; L²) over the stored times up to t_lift and
+  after it.
+
+`fit_rates` fits power laws in μ (least squares of the logarithms) to min_gap and the distances.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..errors import InstabilityError, SolverError
+from .problems import EPS_LIMIT
+
+#: The viscosities swept per problem (string units): four decades each, from where the backstop still acts to
+#: where the film holds the string well above the obstacle.
+MUS = {"example1": (0.1, 1.0, 10.0, 100.0, 1000.0), "flat": (1e-4, 1e-3, 1e-2, 1e-1, 1.0)}
+QUICK_MUS = {"example1": (1.0, 100.0), "flat": (1e-3, 1e-1)}
+#: `t_up`: the first time after η(x*) is least at which it has risen by this fraction of its initial height.
+RISE = 0.05
+#: The film runs' backstop: the semi-implicit penalty at this ε (at 1e-9 its diagonal, 1e9 × the mass, put
+#: Newton's residual's round-off above its tolerance and the line search failed on Example 1 at μ = 1e-5).
+FILM_EPS = 1e-6
+#: Cavitation: none, or half-Sommerfeld p >= p_a.
+CAVITATION = (None, 0.0)
+FILM_COLUMNS = ("problem", "method", "mu", "p_cav", "min_gap", "energy_lost", "rebound", "t_up", "dist_before",
+                "dist_after", "t_lift", "E0", "newton_per_step", "status")
+RATE_COLUMNS = ("problem", "p_cav", "quantity", "rate", "mus")
+
+
+def problem_scenes(quick: bool = False) -> dict:
+    """The two throws (no film yet): Example 1's (the scene film_landing without its film) and the flat landing
+    (η0 = h = 0.2, v0 = −1), both with α = 0.01 on (0, 1)."""
+    import stringcontact as sc
+
+    nx = 100 if quick else 200
+    example = sc.load_scene("film_landing").replace(nx=nx, dt=0.00025, T=0.15 if quick else 0.3, output_times=[],
+                                                    model=None, mu=None, scheme=None, name="film-example1")
+    flat = example.replace(name="film-flat", eta0="0.2", v0="-1", h=0.2, T=0.4 if quick else 0.8, dt=0.0005)
+    return {"example1": example, "flat": flat}
+
+
+def _run(scene, **kwargs):
+    import stringcontact as sc
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt), **kwargs)
+        except (InstabilityError, SolverError) as exc:
+            return getattr(exc, "result", None)
+
+
+def references(scene) -> dict:
+    """The runs without a film: inelastic (projection) and the penalty at ε → 0 (paper, semi-implicit)."""
+    return {"inelastic": _run(scene, scheme="projection"),
+            "penalty": _run(scene.replace(eps=EPS_LIMIT), scheme="paper", penalty="semi-implicit")}
+
+
+def film_run(scene, mu: float, p_cav):
+    """The film at viscosity `mu` (cavitation at p_cav, or none), the semi-implicit penalty at ε = `FILM_EPS` as
+    its backstop."""
+    changes = {"model": "film", "mu": mu, "eps": FILM_EPS} | ({"p_cav": p_cav} if p_cav is not None else {})
+    return _run(scene.replace(**changes), scheme="paper", penalty="semi-implicit")
+
+
+def landing_times(reference) -> tuple[float, float, int]:
+    """(first contact time, first lift-off time, the first-contact node x*) of a reference run: x* the contact
+    node nearest the middle at the first contact; t_lift = T if it never lifts off."""
+    interior = reference.contact[:, 1:-1]
+    touching = np.flatnonzero(interior.any(axis=1))
+    if touching.size == 0:
+        return reference.t[-1], reference.t[-1], len(reference.x) // 2
+    first = touching[0]
+    free = np.flatnonzero(~interior[first:].any(axis=1))
+    lift = first + free[0] if free.size else len(reference.t) - 1
+    nodes = np.flatnonzero(reference.contact[first])
+    nodes = nodes[(nodes > 0) & (nodes < len(reference.x) - 1)]
+    star = nodes[np.argmin(np.abs(reference.x[nodes] - 0.5 * (reference.x[0] + reference.x[-1])))]
+    return float(reference.t[first]), float(reference.t[lift]), int(star)
+
+
+def _l2(x, a) -> np.ndarray:
+    from ..fem.compat import trapezoid
+
+    return np.sqrt(trapezoid(a**2, x, axis=1))
+
+
+def measures(r, reference, t_lift: float, star: int) -> dict:
+    """The study's numbers for run `r` against the inelastic `reference` (the same grid and stored times)."""
+    if r is None or r.status != "complete":
+        return {"min_gap": np.nan, "energy_lost": np.nan, "rebound": np.nan, "t_up": np.nan, "dist_before": np.nan,
+                "dist_after": np.nan, "status": getattr(r, "status", "failed")}
+    E = r.total_energy
+    lift = int(np.searchsorted(r.t, t_lift - 1e-12))
+    v = r.velocity[: lift + 1, star]
+    fastest = int(np.argmin(v))
+    rebound = max(float(np.max(v[fastest:])), 0.0) / abs(float(v[fastest])) if v[fastest] < 0 else np.nan
+    d = _l2(r.x, r.eta - reference.eta)
+    return {"min_gap": float(np.min(r.eta[:, 1:-1])), "energy_lost": float(E[0] - E[lift]), "rebound": rebound,
+            "t_up": rise_time(r, star),
+            "dist_before": float(np.max(d[: lift + 1])),
+            "dist_after": float(np.max(d[lift + 1:])) if lift + 1 < len(d) else np.nan, "status": r.status}
+
+
+def rise_time(r, star: int) -> float:
+    """The first time after η(x*) is least at which it has risen by `RISE` η(x*, 0) (nan if it never does):
+    the same measure of lift-off for the film, which never touches, and for the references."""
+    eta = r.eta[:, star]
+    low = int(np.argmin(eta))
+    up = np.flatnonzero(eta[low:] >= eta[low] + RISE * abs(eta[0]))
+    return float(r.t[low + up[0]]) if up.size else np.nan
+
+
+def film_study(quick: bool = False, mus=None) -> list[dict]:
+    """The sweep: one row per problem and run (the references, then the film at each μ and cavitation)."""
+    rows = []
+    for problem, scene in problem_scenes(quick).items():
+        refs = references(scene)
+        _, t_lift, star = landing_times(refs["inelastic"])
+        base = {"problem": problem, "t_lift": t_lift, "E0": float(refs["inelastic"].total_energy[0])}
+        for method, r in refs.items():
+            rows.append(base | {"method": method, "mu": np.nan, "p_cav": np.nan, "newton_per_step": np.nan}
+                        | measures(r, refs["inelastic"], t_lift, star))
+        for p_cav in CAVITATION:
+            for mu in (mus or (QUICK_MUS if quick else MUS))[problem]:
+                r = film_run(scene, mu, p_cav)
+                per_step = r.timings.get("newton iterations", np.nan) / scene.nt if r is not None else np.nan
+                rows.append(base | {"method": "film", "mu": mu, "p_cav": np.nan if p_cav is None else p_cav,
+                                    "newton_per_step": per_step} | measures(r, refs["inelastic"], t_lift, star))
+    return rows
+
+
+def fit_rates(rows: list[dict]) -> list[dict]:
+    """Power laws in μ, q ≈ C μ^rate, fitted to the film's rows per problem and cavitation (finite, positive q)."""
+    out = []
+    films = [r for r in rows if r["method"] == "film"]
+    for problem in dict.fromkeys(r["problem"] for r in films):
+        for p_cav in dict.fromkeys(r["p_cav"] for r in films if r["problem"] == problem):
+            sel = [r for r in films if r["problem"] == problem and (r["p_cav"] == p_cav or
+                                                                      (np.isnan(r["p_cav"]) and np.isnan(p_cav)))]
+            for q in ("min_gap", "dist_before", "dist_after"):
+                pts = [(r["mu"], r[q]) for r in sel if np.isfinite(r[q]) and r[q] > 0]
+                rate = np.polyfit(np.log([m for m, _ in pts]), np.log([v for _, v in pts]), 1)[0] if len(pts) > 1 else np.nan
+                out.append({"problem": problem, "p_cav": p_cav, "quantity": q, "rate": float(rate),
+                            "mus": " ".join(f"{m:g}" for m, _ in pts)})
+    return out
+
+
+__all__ = ["CAVITATION", "FILM_COLUMNS", "FILM_EPS", "MUS", "QUICK_MUS", "RATE_COLUMNS", "RISE", "film_run",
+           "film_study", "fit_rates", "landing_times", "measures", "problem_scenes", "references", "rise_time"]

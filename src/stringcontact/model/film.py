@@ -1,0 +1,97 @@
+"""The fluid film: a Reynolds lubrication layer between the string (or membrane) and the obstacle y = 0.
+
+In string units (density, tension, length and height scales 1) the string is pushed by the film's pressure
+above ambient, and the film's thickness is the gap η (docs/explanation/film.md):
+
+    η_tt − α η_txx − η_xx = p − p_a + F          on (0, l), ends held at h,
+    η_t = (m(η) p_x)_x,  m(η) = max(η, h_min)³/(12 μ),   p = p_a at the ends (the film is open there),
+
+on a membrane ∇·(m(η)∇p) and p = p_a on the boundary. F is the contact law's force (the paper's penalty):
+the constraint η ≥ 0 stays as a backstop. The unknowns are η and the gauge pressure q = p − p_a on the
+mixed P1 space, with one residual (tested with w for η and r for q)
+
+    ∫ η_tt w + α η_tx·w_x + η_x·w_x − q w − F w  +  ∫ η_t r + m(η) q_x·r_x,
+
+q held at 0 on the boundary. Testing the film's row with r = q shows where the energy goes: the pressure's
+work on the string, ∫ q η_t, is −∫ m(η)|q_x|², the film's viscous dissipation, so
+dE/dt = −α‖η_tx‖² − ∫ m(η)|q_x|² (the ledger books it with the viscous dissipation).
+
+Options (scene keys): `mu` > 0 (required), `p_ambient` (p_a, default 0), `p_cav` (cavitation: the pressure
+p ≥ p_cav, half-Sommerfeld, as a lower bound q ≥ p_cav − p_a of the variational inequality; default none),
+`h_min` (the mobility's floor, default `H_MIN`). The stored `pressure` is q = p − p_a.
+
+The pressure has no time derivative: the scheme must damp its stiff modes (L-stable). The paper's scheme is
+backward Euler in η and η_t with q at the new level; `newmark`'s midpoint rule is not L-stable and
+`projection`'s elastic term is explicit and its fields one step ahead of its report: both are refused.
+
+Newton's line search is ``l2`` (`Model.newton_options`): with PETSc's default ``bt`` 3 of the 20 runs of
+`stringcontact study film` stalled (Example 1 at μ = 1, with and without cavitation; the flat landing at
+μ = 1e-4 with cavitation), with ``l2`` none did, at the same iteration counts elsewhere.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import ufl
+
+from ..errors import SceneError
+from .paper import Parameters, inelastic
+
+#: The film's default thickness floor in the mobility max(η, h_min)³/(12 μ): it keeps the pressure's equation
+#: nonsingular where the string touches (η ≤ 0 under the penalty); docs/explanation/film.md measures its effect.
+H_MIN = 1e-3
+#: The scene keys the film reads (all optional but `mu`).
+KEYS = ("mu", "p_ambient", "p_cav", "h_min")
+
+
+def _constant(p: Parameters, key: str):
+    return p.constants.get(key)
+
+
+def mobility(eta, p: Parameters):
+    """m(η) = max(η, h_min)³/(12 μ): the film's flow per unit pressure gradient (SceneError without mu)."""
+    mu = _constant(p, "mu")
+    if mu is None:
+        raise SceneError("mu: model 'film' needs the film's viscosity (scene key mu); allowed: a number in (0, 1e+06]")
+    h_min = _constant(p, "h_min")
+    floor = h_min if h_min is not None else H_MIN
+    return ufl.max_value(eta, floor) ** 3 / (12 * mu)
+
+
+def film_residual(U, U_t, U_tt, force, W, p: Parameters):
+    """The string pushed by the gauge pressure q, and the film's mass balance η_t = ∇·(m(η)∇q)."""
+    (eta, q), (eta_t, _), (eta_tt, _) = U, U_t, U_tt
+    w, r = W
+    string = (eta_tt * w + p.alpha * ufl.inner(ufl.grad(eta_t), ufl.grad(w))
+              + ufl.inner(ufl.grad(eta), ufl.grad(w)) - q * w - force * w)
+    film = eta_t * r + mobility(eta, p) * ufl.inner(ufl.grad(q), ufl.grad(r))
+    return (string + film) * ufl.dx
+
+
+def pressure_lower(p: Parameters) -> dict:
+    """Cavitation: q = p − p_a ≥ p_cav − p_a where the scene gives p_cav; no bound otherwise."""
+    p_cav = _constant(p, "p_cav")
+    if p_cav is None:
+        return {}
+    p_a = _constant(p, "p_ambient")
+    return {"pressure": float(p_cav.value) - (float(p_a.value) if p_a is not None else 0.0)}
+
+
+film = dataclasses.replace(
+    inelastic,
+    name="film",
+    fields=("pressure",),
+    residual=film_residual,
+    held_fields=("pressure",),
+    field_lower=pressure_lower,
+    dissipative_fields=("pressure",),
+    schemes=("paper",),
+    newton_options=(("snes_linesearch_type", "l2"),),
+    scheme_note="its pressure has no time derivative, so it needs an L-stable step (the paper's backward Euler); "
+                "newmark's midpoint rule is not L-stable and projection's elastic term is explicit",
+    description="a Reynolds lubrication film (viscosity mu) between the string and the obstacle; the paper's "
+                "penalty as a backstop; each step by Newton",
+)
+
+__all__ = ["H_MIN", "KEYS", "film", "film_residual", "mobility", "pressure_lower"]

@@ -1,0 +1,110 @@
+"""The chart of `stringcontact study film` (matplotlib): the film's measures against its viscosity μ."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .study_charts import _figure
+
+#: The panels: (column, axis label, log scale).
+PANELS = (
+    ("min_gap", "thinnest film min η", True),
+    ("energy_lost", "energy lost in the first impact / E(0)", False),
+    ("t_up", "lift-off time at x* (η(x*) up by 5 %)", False),
+    ("dist_before", r"$\|\eta_\mu - \eta_{inelastic}\|_{L^\infty(L^2)}$", True),
+)
+CAVITATION_STYLE = {False: {"color": "#1f77b4", "marker": "o", "label": "film"},
+                    True: {"color": "#d62728", "marker": "s", "ls": "--", "label": "film, cavitation p ≥ p_a"}}
+REFERENCE_STYLE = {"inelastic": {"color": "k", "ls": "-", "label": "inelastic (projection)"},
+                   "penalty": {"color": "0.5", "ls": ":", "label": "penalty, ε → 0"}}
+
+
+def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
+    """A row of panels per problem: each measure against μ, the film with and without cavitation, the references
+    as horizontal lines; the distance panel shows before (solid) and after (hollow) the first lift-off."""
+    probs = list(dict.fromkeys(r["problem"] for r in rows))
+    with _figure(path, len(probs), len(PANELS), figsize=(4.2 * len(PANELS), 3.6 * len(probs)), squeeze=False,
+                 layout="constrained") as (_fig, axes):
+        for i, p in enumerate(probs):
+            mine = [r for r in rows if r["problem"] == p]
+            e0 = {r["method"]: r for r in mine if r["method"] != "film"}
+            for j, (key, label, log) in enumerate(PANELS):
+                ax = axes[i, j]
+                for cav, style in CAVITATION_STYLE.items():
+                    sel = sorted((r for r in mine if r["method"] == "film" and np.isfinite(r["p_cav"]) == cav),
+                                 key=lambda r: r["mu"])
+                    mu = np.array([r["mu"] for r in sel])
+                    y = np.array([r[key] for r in sel], dtype=float)
+                    if key == "energy_lost":
+                        y = y / _energy(p, rows)
+                    if log and key != "min_gap":
+                        y = np.where(y > 0, y, np.nan)
+                    ax.plot(mu, y, **style)
+                    if key == "dist_before":
+                        after = np.array([r["dist_after"] for r in sel], dtype=float)
+                        ax.plot(mu, after, mfc="none", **(style | {"label": style["label"] + ", after lift-off"}))
+                for name, style in REFERENCE_STYLE.items():
+                    value = e0.get(name, {}).get(key, np.nan)
+                    if key == "energy_lost":
+                        value = value / _energy(p, rows)
+                    if np.isfinite(value) and (value > 0 or not log or key == "min_gap"):
+                        ax.axhline(value, **style)
+                if key == "min_gap":
+                    ax.axhline(h_min, color="#2ca02c", ls="-.", label="h_min (mobility floor)")
+                ax.set_xscale("log")
+                if key == "min_gap":  # the backstop's penetration is negative: linear near 0
+                    ax.set_yscale("symlog", linthresh=1e-4)
+                elif log:
+                    ax.set_yscale("log")
+                ax.set_xlabel("μ")
+                ax.set_title(f"{p}: {label}", fontsize=9)
+                ax.grid(True, which="both", alpha=0.3)
+            axes[i, 0].legend(fontsize=7)
+            axes[i, -1].legend(fontsize=7)
+    return Path(path)
+
+
+def _energy(problem: str, rows: list[dict]) -> float:
+    """E(0) of a problem (the rows carry it as ``E0``)."""
+    return next(r["E0"] for r in rows if r["problem"] == problem)
+
+
+__all__ = ["PANELS", "plot_film_study", "pressure_picture"]
+
+
+def pressure_picture(result, path) -> Path:
+    """The film's pressure p − p_a: a string's over the (x, t) plane (red above ambient, blue below, the contact
+    set {η ≤ 0} outlined); a membrane's at the stored time of its largest value, with that largest value over t."""
+    from matplotlib.colors import SymLogNorm
+
+    from .charts import pyplot, savefig
+
+    plt = pyplot()
+    p = result.pressure
+    scale = float(np.max(np.abs(p))) or 1.0
+    norm = SymLogNorm(linthresh=1e-3 * scale, vmin=-scale, vmax=scale)  # a landing's peak is 1e3-1e4 its rest
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.4, 1]}, layout="constrained")
+    if result.dim == 1:
+        mesh = ax.pcolormesh(result.x, result.t, p, cmap="RdBu_r", norm=norm, shading="auto")
+        if result.contact.any():
+            ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
+        ax.set_xlabel("x")
+        ax.set_ylabel("t")
+        ax.set_title("film pressure p − p_a (contact set outlined)")
+    else:
+        k = int(np.argmax(p.max(axis=1)))
+        mesh = ax.tripcolor(result.x[:, 0], result.x[:, 1], result.cells, p[k], cmap="RdBu_r", norm=norm,
+                            shading="gouraud")
+        ax.set_aspect("equal")
+        ax.set_title(f"film pressure p − p_a at t = {result.t[k]:.4g} (its largest)")
+    fig.colorbar(mesh, ax=ax, label="p − p_a")
+    bx.plot(result.t, p.max(axis=1), label="max p − p_a")
+    bx.plot(result.t, p.min(axis=1), label="min p − p_a")
+    bx.set_yscale("symlog", linthresh=1e-3 * scale)
+    bx.set_xlabel("t")
+    bx.legend()
+    bx.grid(True, alpha=0.3)
+    savefig(fig, Path(path))
+    return Path(path)
