@@ -159,4 +159,8 @@ KEY_DOCS = {
     "mesh": ("string", "", "required (file)", "the path of an XDMF triangle mesh (the domain 'file')"),
     "petsc_options": ("table", "", "not given: the scheme's solver", "PETSc options for the linear solver"),
     "restitution": ("number", "", "0 (inelastic)", "scheme projection's restitution coefficient e (Paoli-Schatzman)"),
+    "mu": ("number", "", "required (model film)", "the film's viscosity μ in the Reynolds mobility η³/(12μ)"),
+    "p_ambient": ("number", "pressure", "0", "model film: the ambient pressure at the film's open ends"),
+    "p_cav": ("number", "pressure", "none (no cavitation)", "model film: cavitation, p ≥ p_cav (at most p_ambient)"),
+    "h_min": ("number", "η", "0.001", "model film: the film-thickness floor in the mobility, max(η, h_min)³"),
 }
