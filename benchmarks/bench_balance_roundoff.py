@@ -1,4 +1,4 @@
-"""The energy balance's round-off against the step count (docs/reliability.md, "The discrete energy balance").
+"""The energy balance's round-off against the step count (docs/explanation/reliability.md, "The discrete energy balance").
 
 Example 1's shape at a small nx with more and more steps: the measured relative residual, the round-off estimate
 u·n·|η|/(|v|·Δt) of `run.checks.roundoff_growth` (without its safety factor), their ratio, and the tolerance the

@@ -1,7 +1,7 @@
 """GetFEM's impacting rod, solved by GetFEM's own demo schemes and by stringcontact, side by side.
 
 The problem is that of GetFEM's ``interface/tests/python/demo_dynamic_contact_1D.py`` (Y. Renard,
-F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `stringcontact.verification.rod` and docs/getfem.md.
+F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `stringcontact.verification.rod` and docs/explanation/getfem.md.
 `getfem_rod` below re-implements two of that demo's explicit (β = 0) Newmark schemes with GetFEM's own
 assembly and MUMPS solves, following the demo line by line: Taylor-Flanagan (``version = 4``) and
 exact contact with the redistributed mass matrix (``version = 0, mass_matrix_type = 1``). The demo's

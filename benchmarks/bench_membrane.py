@@ -11,10 +11,10 @@ Each run is a fresh process, so that its peak RSS (per rank) is its own. The sce
 that the projection acts from the first steps; `steps` steps. stringcontact's run stores its mesh (x, the
 triangles) and its last η; the peer reads that mesh, assembles P1 stiffness and lumped mass itself (NumPy),
 factorises A = M/Δt² + C/Δt with SuperLU and steps the same scheme. Both must agree (max |Δη| printed)
-before their costs are compared. Prints a Markdown table (docs/membranes.md) and writes
+before their costs are compared. Prints a Markdown table (docs/howto/membranes.md) and writes
 benchmarks/out/membrane.json.
 
-`--solver` runs stringcontact with each linear solver (docs/linear_solvers.md): `lu` (PETSc LU, MUMPS on
+`--solver` runs stringcontact with each linear solver (docs/explanation/linear_solvers.md): `lu` (PETSc LU, MUMPS on
 several ranks), `cg-jacobi`, `cg-amg` (hypre BoomerAMG), `cg-amg-hmis` (BoomerAMG with HMIS coarsening and
 ext+i interpolation), `cg-gamg` (PETSc's aggregation multigrid) or `auto` (the size rule, `LU_MAX_NODES`), set
 through `simulate(petsc_options=...)`; its rows give the solver's own line (iterations per solve) and

@@ -11,7 +11,7 @@ every rank) is its own. The scene: a square membrane (cells [n, n]) under gravit
 twice: storing every step (`max_rows` = 400 > steps, so steps + 1 rows), and storing 2 rows (0 and T).
 The difference of their peak RSS is what storage costs, whatever the linear solver takes; `held MB` is
 the bytes of the per-node arrays the rank's Result holds (eta, velocity, contact_force, contact).
-Prints a Markdown table (docs/memory.md) and appends JSON lines to benchmarks/out/memory.jsonl.
+Prints a Markdown table (docs/explanation/memory.md) and appends JSON lines to benchmarks/out/memory.jsonl.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""How long the set-up of a large mesh takes, the basis of the scene's nx bound (docs/reliability.md).
+"""How long the set-up of a large mesh takes, the basis of the scene's nx bound (docs/explanation/reliability.md).
 
 dolfinx builds the interval mesh, its dof map and the space in C++ (graph reordering included); a
 Ctrl-C there is only seen when it returns to Python. This times `mesh.create_interval` plus the P1 space

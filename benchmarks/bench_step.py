@@ -232,7 +232,7 @@ def child(repeats: int, refactor: str) -> dict:
 
 def check_peers(refactor: str) -> int:
     """Each peer against `simulate` at every stored row: max |Δη| and |Δv|; 1 if a peer is off by more than 1e-6
-    (the schemes' own round-off at this resolution is about 1e-9, docs/performance.md)."""
+    (the schemes' own round-off at this resolution is about 1e-9, docs/explanation/performance.md)."""
     import warnings
 
     from mpi4py import MPI

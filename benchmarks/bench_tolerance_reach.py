@@ -1,4 +1,4 @@
-"""`run --tol`'s pilots: the two-resolution estimate of each method as nx doubles from 50 (docs/reliability.md,
+"""`run --tol`'s pilots: the two-resolution estimate of each method as nx doubles from 50 (docs/explanation/reliability.md,
 `analysis.tolerance.REACH_MARGIN`): how far the estimates from coarse pilots stray from the order's straight line.
 
     .venv/bin/python benchmarks/bench_tolerance_reach.py [SCENE] [NX_MAX]     (default: example1 3200)

@@ -1,4 +1,4 @@
-/* The paper's scheme on Example 1's string as a plain C loop: the compiled limit of docs/performance.md.
+/* The paper's scheme on Example 1's string as a plain C loop: the compiled limit of docs/explanation/performance.md.
  *
  * The same equations as bench_solver.numpy_peer (finite differences = the lumped FEM, scaled by dt^2/dx):
  *     (I + r T) eta^{n+1} = 2 eta^n - eta^{n-1} + a T eta^n + dt^2 F(eta^n, v^n),
@@ -8,7 +8,7 @@
  * forward elimination, and one back-substitution. Rows of eta and v are copied out at the stored steps.
  *
  * With `energies` the loop also does what stringcontact's step does besides the solve: the terms of the
- * discrete energy identity (docs/performance.md, timestepping/paper.py) in the FEM's scaling, M = dx, K = T/dx
+ * discrete energy identity (docs/explanation/performance.md, timestepping/paper.py) in the FEM's scaling, M = dx, K = T/dx
  * over every node (the ends included), C = alpha K, f = dx F, summed into the ledger
  *     E(t) = kinetic + elastic, D_visc, D_con, D_num,
  * and min eta as the driver keeps it. One extra sweep per step: K eta^{n+1} and the seven dot products fused.

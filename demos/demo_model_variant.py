@@ -46,7 +46,7 @@ OUT.mkdir(parents=True, exist_ok=True)
 
 # ## What a model is
 #
-# A `stringcontact.Model` is a handful of plain functions that return UFL (see `docs/models.md`):
+# A `stringcontact.Model` is a handful of plain functions that return UFL (see `docs/howto/models.md`):
 #
 # - `momentum_form(eta, eta_t, eta_tt, force, w, p)`: the semi-discrete weak form, linear in the four
 #   placeholders. The time scheme takes it apart with `ufl.derivative` into mass, damping and stiffness
@@ -256,4 +256,4 @@ print(f"piston's work {b['external_work']:.4f} = E(T) {b['final']:.4f} + viscous
 #   `stringcontact.model.variants`, written the same way: `elastic` (a pure spring, $e = 1$) and
 #   `loaded_obstacle` (a load $f(x)$ and an obstacle profile $\psi(x)$ from the scene keys `load` and
 #   `obstacle`, which reach the model as P1 functions in `p.extra`).
-# - `docs/models.md` lists what each function receives and what the scheme does with it.
+# - `docs/howto/models.md` lists what each function receives and what the scheme does with it.

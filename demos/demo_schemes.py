@@ -79,6 +79,6 @@ for name in ("projection", "semi-implicit", "newmark"):
 # `projection` converges at about first order and is the most accurate at every grid; the penalty
 # schemes stop at order 1/2, limited by the one step of penetration their active set needs. The
 # work-precision chart of `stringcontact study work-precision` puts the costs beside these errors
-# (docs/study.md).
+# (docs/explanation/study.md).
 
 (out / "schemes.txt").write_text("\n".join(f"{k}: {v.scheme} {v.status}" for k, v in runs.items()) + "\n")

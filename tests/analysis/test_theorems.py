@@ -1,6 +1,6 @@
 """The paper's theorems measured on small computed solutions (stringcontact.analysis.theorems).
 
-Tolerances come from the refinement trends recorded in docs/theorems.md, not from tuning: each bound sits
+Tolerances come from the refinement trends recorded in docs/explanation/theorems.md, not from tuning: each bound sits
 between the measured value at these small levels and the value the trend says the next level would reach
 if the statement failed.
 """

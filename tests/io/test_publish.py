@@ -1,5 +1,5 @@
 """`io.publish`: the manifest that `--force` trusts, the marker that makes a partial folder removable, and the
-target rules (docs/reliability.md, section Output)."""
+target rules (docs/explanation/reliability.md, section Output)."""
 
 import json
 import os

@@ -56,7 +56,7 @@ def test_square_membrane_converges_to_the_exact_mode(scheme, alpha, order):
 
 
 def test_projection_in_2d_converges_to_the_exact_mode():
-    """Order 1, as in 1D (docs/study.md): its start η^-1 = η^0 - Δt v0 takes v0 half a step early."""
+    """Order 1, as in 1D (docs/explanation/study.md): its start η^-1 = η^0 - Δt v0 takes v0 half a step early."""
     errors = [mode_error(sc.simulate(square(c, nt=4 * c, alpha=0.0), scheme="projection"), 0.0) for c in (16, 32, 64)]
     rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(rates > 0.75) and rates[-1] > 0.85, (errors, rates)

@@ -12,7 +12,7 @@ import pytest
 DEMOS = sorted((Path(__file__).resolve().parents[2] / "demos").glob("*.py"))
 TIMEOUT = 900  # seconds per demo: generous, the machine is shared; a timing threshold is not the point
 # What the paper's demos must report (the observations of Section 6, measured at reduced resolution;
-# the full-resolution numbers are in docs/visualisation.md), and the files they must leave.
+# the full-resolution numbers are in docs/explanation/visualisation.md), and the files they must leave.
 EXPECTED = {
     "demo_example1.py": ["largest contact fraction", "mirror node: 0", "contact fraction never grows after its peak: True"],
     "demo_example2.py": ["most components at one time", "two or more components"],

@@ -116,7 +116,7 @@ AT_PICTURE_START = textwrap.dedent(
 
 def test_the_picture_process_starts_before_numpy_is_imported(tmp_path):
     """The command parses its arguments without the other subcommands' modules and the scene package's NumPy,
-    so that its picture process starts 0.08 s sooner (docs/performance.md)."""
+    so that its picture process starts 0.08 s sooner (docs/explanation/performance.md)."""
     out = subprocess.run([sys.executable, "-c", AT_PICTURE_START, str(tmp_path / "out")], capture_output=True, text=True,
                          timeout=300, env=_clean_env())
     assert "LOADED \n" in out.stdout, out.stdout + out.stderr

@@ -38,7 +38,7 @@ def pvpython() -> list[str]:
 # 24-bit colour for GLX. -noreset: pvpython's MPI start-up (hwloc's GL probe, in pvpython and in its orted)
 # opens and closes the display before VTK does; when that was the last client, Xvfb resets, and a connection
 # arriving during the reset is dropped: VTK's "bad X server connection ... Aborting" (CI, 2026-11). Measured:
-# 8 of 30 single runs on a loaded machine, 14 of 24 with 8 at once; with -noreset none (docs/visualisation.md).
+# 8 of 30 single runs on a loaded machine, 14 of 24 with 8 at once; with -noreset none (docs/explanation/visualisation.md).
 XVFB_ARGS = "-screen 0 1280x1024x24 -noreset"
 
 

@@ -1,5 +1,5 @@
 """Reliability: hostile and broken input through the CLI, interrupted and unstable runs, locks,
-disk-full and read-only output folders, and the closing numbers checks (docs/reliability.md)."""
+disk-full and read-only output folders, and the closing numbers checks (docs/explanation/reliability.md)."""
 
 import errno
 import json

@@ -1,7 +1,7 @@
 """Reliability of the output folder, issue 27 items 10, 11, 12, 15, 16, 17 and its "also fix" list: a full disk
 says one line and nothing more, closed stdout/stderr, non-UTF-8 paths, mount points, what `--force` may
 replace (the manifest), which leftovers a run may remove, missing parents, argparse's first words
-(docs/reliability.md, section Output)."""
+(docs/explanation/reliability.md, section Output)."""
 
 import json
 import os

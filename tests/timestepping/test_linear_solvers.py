@@ -1,4 +1,4 @@
-"""The step's linear solver (docs/linear_solvers.md): LU or CG by size, PETSc options from a scene or the CLI.
+"""The step's linear solver (docs/explanation/linear_solvers.md): LU or CG by size, PETSc options from a scene or the CLI.
 
 CG must keep every scheme's energy ledger closed and give LU's η; a scene's options are allow-listed data
 and never reach PETSc's global options database; they round-trip through TOML and the scene's dict.
@@ -62,7 +62,7 @@ def test_the_size_rule_picks_lu_up_to_the_limit_then_cg():
 
 @pytest.mark.parametrize("nodes", [10_000, 100_489, 1_000_000, 1001 * 1001])
 def test_in_serial_every_membrane_a_scene_allows_takes_lu(nodes):
-    """docs/linear_solvers.md ("Issue 28"): the serial back-substitution was the cheapest step in flight at every
+    """docs/explanation/linear_solvers.md ("Issue 28"): the serial back-substitution was the cheapest step in flight at every
     size up to the scene's cap, 1001² nodes (the cap's own mesh took CG before: 1e6 was the limit)."""
     assert nodes <= limits.MAX_MEMBRANE_NODES
     assert linear.solver_options(nodes, 1) == linear.DIRECT
@@ -189,7 +189,7 @@ def test_a_solver_that_does_not_converge_stops_the_run_in_one_line():
 
 
 def test_a_solver_that_does_not_converge_is_an_internal_failure_not_bad_input(capsys):
-    """docs/reliability.md: exit 2 is bad input; a CG that stops short after the input was accepted is exit 1."""
+    """docs/explanation/reliability.md: exit 2 is bad input; a CG that stops short after the input was accepted is exit 1."""
     from stringcontact.cli.main import EXIT_INTERNAL, main
 
     code = main(["run", "example1", "--nx", "50", "--nt", "1000", "--no-pictures", "--no-progress",

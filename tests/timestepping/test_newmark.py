@@ -33,7 +33,7 @@ def test_newmark_conserves_energy_without_contact_and_viscosity(mass):
 
 
 def test_newmark_lands_inelastically_with_eps_to_zero():
-    # ε = 1e-8: the ledger's round-off grows like 1/ε (2e-9 E0 at ε = 1e-10, docs/study.md)
+    # ε = 1e-8: the ledger's round-off grows like 1/ε (2e-9 E0 at ε = 1e-10, docs/explanation/study.md)
     scene = study.flat_landing_scene(200, T=0.6, eps=1e-8)
     res = run(scene, scheme="newmark")
     e, E = res.energy, res.total_energy

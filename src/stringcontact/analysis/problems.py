@@ -43,7 +43,7 @@ METHODS = {
         Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"),
     )
 }
-#: The reference for problems with no exact solution: the most accurate scheme (docs/study.md), at reference_n.
+#: The reference for problems with no exact solution: the most accurate scheme (docs/explanation/study.md), at reference_n.
 REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped", "none", scheme="projection")
 
 

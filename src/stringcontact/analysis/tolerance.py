@@ -12,9 +12,9 @@ from .norms import common_rows, errors_against_exact, l2_norm, to_nodes
 from .problems import METHODS, flat_landing_exact, flat_landing_scene
 from .runs import Run, run_method
 
-#: What the studies taught `run --tol` (docs/study.md): the observed L∞(L²) order of η under Δt = Δx → 0
+#: What the studies taught `run --tol` (docs/explanation/study.md): the observed L∞(L²) order of η under Δt = Δx → 0
 #: on the flat landing, for the methods that converge to the inelastic limit, cheapest first. The explicit
-#: penalty is left out: at a single-point contact it cannot hold the string up (docs/getfem.md).
+#: penalty is left out: at a single-point contact it cannot hold the string up (docs/explanation/getfem.md).
 TOL_METHODS = ("projection", "semi-implicit", "newmark")
 TOL_ORDER = {"projection": 1.0, "semi-implicit": 0.5, "newmark": 0.5}
 #: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots are not yet in
@@ -89,7 +89,7 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
 def choose_for_tolerance(scene, tol: float, *, model=None):
     """`run SCENE --tol X`: the cheapest method and resolution whose estimated error of η is below X.
 
-    The candidates are the methods that converge to the inelastic limit ε → 0 (docs/study.md: the fixed-ε
+    The candidates are the methods that converge to the inelastic limit ε → 0 (docs/explanation/study.md: the fixed-ε
     paper scheme stops at its ε-error, which no resolution removes). Each is refined by doubling Δx and Δt
     together (keeping the scene's ratio) until the Richardson estimate from the last two resolutions,
     with the study's observed order, is below X; the cheaper of the finer runs wins. The pilot runs use

@@ -70,7 +70,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser(argv=None) -> argparse.ArgumentParser:
     """The command line's parser. The subcommands of `SUBCOMMANDS` get their arguments only when `argv` (default:
     the process's own) names them: their modules import NumPy and more, 0.08 s that `stringcontact run` would
-    spend before it starts its picture process (docs/performance.md)."""
+    spend before it starts its picture process (docs/explanation/performance.md)."""
     named = set(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="stringcontact", description="Inelastic contact of a viscoelastic string with an obstacle.")
     parser.add_argument("--version", action=_Version, help="print the installed version and exit")
@@ -271,7 +271,7 @@ def report(res) -> None:
     if not ok:
         warnings.warn(
             "the string went further below the obstacle than its contact law allows; a force the penalty "
-            "cannot stop holds it down (a static load, a model variant, r > 1); see docs/reliability.md",
+            "cannot stop holds it down (a static load, a model variant, r > 1); see docs/explanation/reliability.md",
             PenetrationWarning,
         )
     times = []
@@ -486,7 +486,7 @@ def main(argv=None) -> int:
     if own:
         _end_together(code)
         # The process ends now, its files closed and its folder published. Python's last garbage collection
-        # would visit every object of dolfinx, UFL and matplotlib: 0.15-0.2 s of the exit (docs/performance.md).
+        # would visit every object of dolfinx, UFL and matplotlib: 0.15-0.2 s of the exit (docs/explanation/performance.md).
         gc.freeze()
     return code
 
@@ -633,7 +633,7 @@ def _command(args, painter) -> int:
                 return EXIT_OK
             if args.command in SUBCOMMANDS:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
-        except SolverError as exc:  # a numerical failure after the input was accepted (docs/reliability.md)
+        except SolverError as exc:  # a numerical failure after the input was accepted (docs/explanation/reliability.md)
             _partial_report(exc)
             _error(exc)
             return EXIT_INTERNAL

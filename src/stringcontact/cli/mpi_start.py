@@ -3,7 +3,7 @@
 `from petsc4py import PETSc` initialises MPI. Run as a singleton, Open MPI 4.1 then starts an `orted`
 daemon for the process and probes the UCX network layer, although one process talks to nobody:
 `python3 -c "from mpi4py import MPI"` takes 0.34-0.37 s on this project's machine, 0.04-0.05 s with the
-two settings below (`benchmarks/bench_mpi_start.py`; docs/performance.md). They are Open MPI's own MCA
+two settings below (`benchmarks/bench_mpi_start.py`; docs/explanation/performance.md). They are Open MPI's own MCA
 parameters, read from the environment when MPI starts:
 
 - ``ess_singleton_isolated=1``: no daemon for a singleton (it then cannot spawn processes; nothing here does);

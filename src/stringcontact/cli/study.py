@@ -130,7 +130,7 @@ def _print_orders(orders, quick: bool) -> None:
     """The observed orders, one line each; after --quick, a note first that its levels are pre-asymptotic."""
     if quick and orders:
         print("note: --quick runs three coarse levels, before the asymptotic range: the orders below (negative ones "
-              "too) do not measure the schemes' convergence; run without --quick for those (docs/study.md)")
+              "too) do not measure the schemes' convergence; run without --quick for those (docs/explanation/study.md)")
     for o in orders:
         print(f"order in {o['sweep']:3s} {o['method']:14s} {o['quantity']:12s} {o['order']:.3f}")
 

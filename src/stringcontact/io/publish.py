@@ -336,7 +336,7 @@ def sync_soon(paths) -> threading.Thread:
 
     A run's data (solution.h5, rows.npz, diagnostics.csv: Example 1's 48 MB) then reach the disk while the
     pictures are drawn, and publishing, whose fsync of every file is what guarantees them, finds them written:
-    Example 1's publishing fsyncs took 0.003 s against 0.030-0.035 s (six runs each; docs/performance.md). A
+    Example 1's publishing fsyncs took 0.003 s against 0.030-0.035 s (six runs each; docs/explanation/performance.md). A
     failure here is left to that later fsync to report."""
 
     def sync():

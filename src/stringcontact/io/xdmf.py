@@ -1,6 +1,6 @@
 """`solution.xdmf`/`.h5`: the mesh once, and one grid per stored time that carries every field.
 
-Layout (docs/visualisation.md has the reasons)::
+Layout (docs/explanation/visualisation.md has the reasons)::
 
     Domain
       Grid "solution" (Collection, Temporal)
@@ -173,7 +173,7 @@ class Hdf5File:
     the file with H5Fflush(H5F_SCOPE_GLOBAL) after every VecView, and Debian's libhdf5 is the Open MPI
     build, whose viewer always opens the file with the MPI-IO driver, where a flush is MPI_File_sync, an
     fsync: `stringcontact run example1` made 412 fsyncs, now 9 (strace). Measured with
-    benchmarks/bench_xdmf.py (docs/visualisation.md; load 0.4), 100 frames of 4 x 5001 doubles (16 MB):
+    benchmarks/bench_xdmf.py (docs/explanation/visualisation.md; load 0.4), 100 frames of 4 x 5001 doubles (16 MB):
     the viewer 0.27 s on ext4 and 0.078 s on tmpfs; this class (load 2-3) 0.063-0.105 s and 0.045-0.056 s,
     about 60 us of HDF5's CPU per dataset; the bytes alone 0.01 s. h5py is no alternative (see
     `hdf5_library`).

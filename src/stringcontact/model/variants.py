@@ -54,7 +54,7 @@ def spring_bound(dt: float, eps: float, penalty: str):
 
     A lone node is stable for Δt²/ε ≤ 4, but its energy swings more than the guard allows (2 E(0)) from
     about 3 on (measured on the flat landing, `study stability`); a point contact, stiffened by the
-    implicit elastic term, runs far beyond (docs/getfem.md). So this warns and the energy guard decides.
+    implicit elastic term, runs far beyond (docs/explanation/getfem.md). So this warns and the energy guard decides.
     """
     q = dt * dt / eps
     if penalty != "explicit" or q <= 2:

@@ -30,7 +30,7 @@ from .mesh_pictures import (
 
 MAX_FRAMES = 50
 FPS = 12
-#: the GIF's pixels, as a share of the pictures' window size: 1100x900 -> 660x540 (docs/visualisation.md)
+#: the GIF's pixels, as a share of the pictures' window size: 1100x900 -> 660x540 (docs/explanation/visualisation.md)
 SIZE_SHARE = 0.6
 #: colours of the GIF: two shaded surface colours, the grey obstacle and black text need few
 PALETTE = 64
@@ -88,7 +88,7 @@ def write_gif(path: Path, frames: list, fps: float, landmarks=()) -> None:
 
     All frames share one palette of `PALETTE` colours, made from a few frames spread over the run and the
     `landmarks` (the frame of the largest contact area: its red must be in it), and are mapped onto it
-    without dithering: 2 ms a frame, where Pillow's own median cut takes 50 ms for each (docs/visualisation.md).
+    without dithering: 2 ms a frame, where Pillow's own median cut takes 50 ms for each (docs/explanation/visualisation.md).
     Pillow writes the frames with the palette attached: imageio's Pillow plugin, given the palette apart,
     wrote white as black with Debian's Pillow 9.4 (the one a fresh setup has).
     """

@@ -2,7 +2,7 @@
 
 This module imports nothing (no NumPy, no plotting library), so that `stringcontact run` can start its
 picture process (`painter.PictureProcess`) before it imports anything heavy: importing NumPy and the
-charts first delayed the start by 0.08 s, and the run's end with it (docs/performance.md).
+charts first delayed the start by 0.08 s, and the run's end with it (docs/explanation/performance.md).
 """
 
 from __future__ import annotations

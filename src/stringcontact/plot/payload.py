@@ -53,7 +53,7 @@ def stored_in(npz: Path, arrays: dict) -> dict:
     name -> (path, offset, dtype, shape, order) of its uncompressed member of the same dtype and shape.
 
     Mapping eta and velocity from there spares writing Example 1's 30 MB a second time: the run's hand-over to
-    its pictures took 0.05-0.07 s of its critical path (docs/performance.md). The offset is the member's data
+    its pictures took 0.05-0.07 s of its critical path (docs/explanation/performance.md). The offset is the member's data
     in the zip (`tables.member_offset`) past the .npy header (`numpy.lib.format`). Members that are
     compressed, absent, or differ are left out: they are written."""
     found = {}

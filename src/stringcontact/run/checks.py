@@ -2,7 +2,7 @@
 
 Every run gets them once (`checks_of`, cached on the `Result`): the driver marks a run whose balance does
 not close "unbalanced", the output folder writes them into summary.json, the command line prints them,
-and the theorem checks read the energy balance's continuous residual. docs/reliability.md.
+and the theorem checks read the energy balance's continuous residual. docs/explanation/reliability.md.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import numpy as np
 #: whose round-off estimate (`roundoff_growth`) is below it; above, the tolerance grows with the estimate.
 BALANCE_RTOL = 1e-8
 #: The round-off estimate's safety factor: measured residual / (u n η/(|v| Δt)) was 0.013 at 2e4 steps, 0.06 at 1e5
-#: and 0.09 at 2e5 (example1, nx = 50; docs/reliability.md), growing slowly with n.
+#: and 0.09 at 2e5 (example1, nx = 50; docs/explanation/reliability.md), growing slowly with n.
 ROUNDOFF_FACTOR = 10.0
-#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/reliability.md).
+#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/explanation/reliability.md).
 PENETRATION_FACTOR = 2.0
 
 
@@ -114,7 +114,7 @@ def penetration_check(result) -> dict:
     `elastic` variant) ε·V becomes √ε·V; a contact step (scheme projection) has no ε. A law with no known
     bound (None: a user's penalty) gets the depth alone: "bound" and "within_bound" are None. A run beyond the
     bound holds the string down by something the penalty cannot stop (a static load, a model variant, an
-    r > 1 rebound): see docs/reliability.md.
+    r > 1 rebound): see docs/explanation/reliability.md.
     """
     scene = result.scene
     if getattr(result, "has_rows", True):
@@ -178,5 +178,5 @@ def unbalanced_message(result) -> str | None:
         return None
     return (
         f"the energy balance does not close (relative residual {b['relative_residual']:.2g} > {b['tolerance']:.0e}): "
-        "the numbers are not trustworthy; see docs/reliability.md"
+        "the numbers are not trustworthy; see docs/explanation/reliability.md"
     )

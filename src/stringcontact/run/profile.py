@@ -1,7 +1,7 @@
 """`stringcontact run --profile`: where the time of a run went, section by section, from the wall clocks the
 driver and the output folder keep anyway (`Result.timings`), so profiling costs the run nothing.
 
-For the functions inside a section, Python's own profiler: docs/performance.md ("Where the time of a run goes").
+For the functions inside a section, Python's own profiler: docs/explanation/performance.md ("Where the time of a run goes").
 """
 
 from __future__ import annotations

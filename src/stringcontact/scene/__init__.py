@@ -13,7 +13,7 @@ from ..lazy import lazy_names
 
 # Each name is imported from its module on first use (PEP 562): `scene.names`, which the command line reads for
 # its choices, then loads without NumPy and the rest of this package, so that `stringcontact run` starts its
-# picture process 0.08 s sooner (docs/performance.md).
+# picture process 0.08 s sooner (docs/explanation/performance.md).
 _LAZY = {
     "check_petsc_options": "checks",
     **dict.fromkeys(("BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",

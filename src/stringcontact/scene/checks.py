@@ -1,5 +1,5 @@
 """Validation of scene data: each function checks one value and raises `SceneError` with one line that names
-the key and what is allowed (docs/reliability.md). Used by `scene.Scene` and `check_petsc_options` by the CLI.
+the key and what is allowed (docs/explanation/reliability.md). Used by `scene.Scene` and `check_petsc_options` by the CLI.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ FILE_KEYS = (
 MODEL_CONSTANT_KEYS = ("mu", "p_ambient", "p_cav", "h_min")
 #: The model that reads them, and the one of them it needs.
 FILM_MODEL, FILM_REQUIRED = "film", "mu"
-#: The domains and the geometry keys each one takes (docs/membranes.md). A `mesh` key alone means "file".
+#: The domains and the geometry keys each one takes (docs/howto/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
     "interval": ("length", "nx", "h_left", "h_right"),
     "rectangle": ("size", "cells"),
@@ -66,12 +66,12 @@ DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
 # to catch typos (a missing minus, a forgotten decimal point) before a solver sees them.
 BOUNDS = {
     # length, radius and T at least 1e-6: 1e-300 made dolfinx's interval of zero length and T/nt divide by 0;
-    # float64 keeps 1e-6/1e5 cells and 1e-6/1e8 steps well inside its range (docs/reliability.md).
+    # float64 keeps 1e-6/1e5 cells and 1e-6/1e8 steps well inside its range (docs/explanation/reliability.md).
     "length": (1e-6, 1e4, False, False),
     "radius": (1e-6, 1e4, False, False),
     "T": (1e-6, 1e4, False, False),
     "alpha": (0.0, 1e4, False, False),
-    "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/reliability.md, "Size and precision limits"
+    "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/explanation/reliability.md, "Size and precision limits"
     "h": (-1e6, 1e6, False, False),
     "h_left": (-1e6, 1e6, False, False),
     "h_right": (-1e6, 1e6, False, False),
@@ -109,7 +109,7 @@ PETSC_MAX_OPTIONS = 32
 MAX_CELLS = 2000
 MAX_DISK_RATIO = 1000
 #: A membrane's nodes (rectangle, disk, mesh file): the largest size measured, 1001 x 1001. Its serial set-up
-#: (mesh, operators, the LU factor, 2 stored rows) peaked at 3096 MB RSS, 3.1 KB per node (docs/memory.md,
+#: (mesh, operators, the LU factor, 2 stored rows) peaked at 3096 MB RSS, 3.1 KB per node (docs/explanation/memory.md,
 #: benchmarks/bench_memory.py); cells = [2000, 2000] (4e6 nodes) took 7 GB and more before a MemoryError.
 MAX_MEMBRANE_NODES = 1001 * 1001
 SETUP_BYTES_PER_NODE = 3100

@@ -22,7 +22,7 @@ change of 𝒜 costs a refactorisation (LU) or a new preconditioner set-up (CG) 
 M-matrix A (every string, a membrane on a mesh without obtuse angles) the method converges in finitely
 many iterations; elsewhere it can cycle, so when an active set comes back within a step, or after
 `MAX_ITERATIONS`, the step falls back to PETSc's SNES VI (`VariationalInequality`). Measured against SNES
-VI alone in docs/study.md (section "The contact step").
+VI alone in docs/explanation/study.md (section "The contact step").
 """
 
 from __future__ import annotations

@@ -175,7 +175,7 @@ class Scheme(Base):
         # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
         # flags and arrays read every step are attributes of the scheme set once in __init__ (not s.ops.m_force,
         # s.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and 0.990 in three passes of
-        # benchmarks/bench_step.py --loop, docs/performance.md). Three of its four parts as methods cost 1 %
+        # benchmarks/bench_step.py --loop, docs/explanation/performance.md). Three of its four parts as methods cost 1 %
         # (paired 1.010 and 1.011 against the step written as one function): kept, for a step that reads on one screen.
         e0, em = self.eta_now[1], self.eta_old[1]
         self._right_hand_side(e0, em)

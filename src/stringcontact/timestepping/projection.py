@@ -11,7 +11,7 @@ lands keeps η^{n+1} = ψ, so its velocity becomes 0: restitution 0, the paper's
 Schatzman's scheme with e = 0, the constraint taken in A's metric. The model must declare ``gap`` (η − ψ).
 F is a true contact force: ≥ 0, and 0 off the contact set, the paper's (A1) and (A2). (The nodal maximum
 max(A⁻¹b, ψ) is the same step only when A is diagonal, α = 0; with viscosity its residual pulls on free
-nodes and can be negative, and it is 2 to 3 times less accurate on Example 1: docs/study.md.)
+nodes and can be negative, and it is 2 to 3 times less accurate on Example 1: docs/explanation/study.md.)
 
 Energy: tested with (η^{n+1} − η^{n−1})/2 the step gives exactly E^{n+1/2} − E^{n−1/2}
 = −(Δt/2) v^{n+1}·C(v^{n+1} + v^n) + ½(b + F)·(η^{n+1} − η^{n−1}), with v^{n+1} = (η^{n+1} − η^n)/Δt and the
