@@ -2,7 +2,7 @@
 
 Under MPI a check that fails on one rank only (a scene expression that is not finite at that rank's nodes,
 gmsh on rank 0, a mesh file read on rank 0) must not leave the other ranks waiting in the next collective
-call forever (issue 27, item 5: `mpirun -n 2` hung). `agreed` runs the work, then the ranks exchange their
+call forever (`mpirun -n 2` would hang). `agreed` runs the work, then the ranks exchange their
 outcome (one allgather); if it failed anywhere, every rank raises the first failing rank's error, so every
 rank ends with the same one line and exit code.
 """

@@ -169,10 +169,10 @@ H5_NATIVE = {np.dtype(np.float64): "H5T_NATIVE_DOUBLE_g", np.dtype(np.int32): "H
 class Hdf5File:
     """An HDF5 file of flat datasets, written through the libhdf5 dolfinx loaded (`hdf5_library`), sec2 driver.
 
-    Hand-written instead of PETSc's HDF5 viewer, which wrote this file until issue 28: the viewer flushes
+    Hand-written instead of PETSc's HDF5 viewer, which could write this file too: the viewer flushes
     the file with H5Fflush(H5F_SCOPE_GLOBAL) after every VecView, and Debian's libhdf5 is the Open MPI
     build, whose viewer always opens the file with the MPI-IO driver, where a flush is MPI_File_sync, an
-    fsync: `stringcontact run example1` made 412 fsyncs, now 9 (strace). Measured with
+    fsync: `stringcontact run example1` would make 412 fsyncs with it, 9 with this (strace). Measured with
     benchmarks/bench_xdmf.py (docs/explanation/visualisation.md; load 0.4), 100 frames of 4 x 5001 doubles (16 MB):
     the viewer 0.27 s on ext4 and 0.078 s on tmpfs; this class (load 2-3) 0.063-0.105 s and 0.045-0.056 s,
     about 60 us of HDF5's CPU per dataset; the bytes alone 0.01 s. h5py is no alternative (see
@@ -429,7 +429,7 @@ class XdmfTimeSeries:
         from petsc4py import PETSc
 
         _check_room(xml_path.parent, points.nbytes + cells.nbytes)
-        # PETSc's integer: the type PETSc's viewer wrote the topology in before issue 28
+        # PETSc's integer: the type PETSc's own HDF5 viewer writes the topology in
         topology = cells.astype(PETSc.IntType)
         self.h5 = Hdf5File(self.h5path)
         self.h5.write("geometry", points.astype(np.float64))

@@ -6,7 +6,7 @@ files) per module and per extension (.pyd, then .so). pyvista's import and the f
 that way. `search_once` swaps in the same search over a listing of each folder made once. The picture process
 imports pyvista and draws its warm-up picture before it can draw anything, so this is on the way to the
 first picture: CPU medians in fresh processes, VTK's search against this one (`benchmarks/bench_pictures.py
---vtk-search --repeats 12`), are in docs/explanation/performance.md ("sixth pass").
+--vtk-search --repeats 12`), are in docs/explanation/performance.md.
 """
 
 from __future__ import annotations

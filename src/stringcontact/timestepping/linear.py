@@ -23,14 +23,14 @@ from .base import any_rank
 
 #: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG. It is
 #: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²). Measured (docs/explanation/linear_solvers.md,
-#: "Issue 28": `projection`, α = 0.01, square membranes of 1e3 to 1e6 nodes): the back-substitution was the
+#: `projection`, α = 0.01, square membranes of 1e3 to 1e6 nodes): the back-substitution was the
 #: cheapest serial step in flight at every size (1e6 nodes: LU 154-158 ms, CG + Jacobi 752-889, CG + AMG
 #: 748-793) and its step grew about like N (1e4 → 1e6: 73-96× in flight, 144× landed, for 100× the nodes).
 #: CG + Jacobi wins once landed (88 against 222 ms at 1e6), but in flight its iterations grow like √κ ∝ N^(1/4)
 #: (15 → 47). Faster than N grow only the LU's set-up (0.2 → 48-56 s) and memory (3.2 GB at 1e6), which the
 #: scene's cap bounds. (The limit was 1e6, so the cap's own 1001² mesh took CG, 5× slower per step in flight.)
 LU_MAX_NODES = MAX_MEMBRANE_NODES
-#: The same on several ranks (MUMPS). On 2 ranks (docs/explanation/linear_solvers.md, "Issue 28") CG + Jacobi was the
+#: The same on several ranks (MUMPS). On 2 ranks (docs/explanation/linear_solvers.md) CG + Jacobi was the
 #: cheaper step landed at every size from 1e3 to 1e6 nodes (1e4: 0.9 against 8.2 ms; 1e6: 119 against 1350)
 #: and in flight in 3 of 4 passes at 1e4 and 1e5 (1e5: 16-52 against 42-110 ms; one loaded pass had MUMPS
 #: ahead, 45 against 68), with a third of MUMPS' set-up and less memory per rank (1.3 against 1.9 GB at 1e6);
@@ -49,7 +49,7 @@ CG_RTOL = 1e-14
 #: α = 0), else BoomerAMG, whose iteration count does not grow with the mesh (3 to 7 here). Measured
 #: (docs/explanation/linear_solvers.md): on a quiet machine Jacobi won projection at 1e6 nodes (bound 41: 0.89 s against
 #: 1.08 s per step serial, 0.43 s against 0.69 s on 2 ranks) and newmark at bounds 65 and 193 (4e4 nodes);
-#: AMG won newmark at bound 640. (A loaded first pass had AMG ahead at bound 41: that one was noise.)
+#: AMG won newmark at bound 640.
 JACOBI_MAX_CONDITION = 100.0
 
 #: The options of each path; a scene's or the command line's `petsc_options` go on top, key by key.
