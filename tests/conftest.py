@@ -118,3 +118,34 @@ def tmpfs(tmp_path):
     yield mount
     for folder in mounted:
         subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+def grid_mesh(n: int):
+    """The cells and points of an n x n node grid of the unit square (2 (n-1)^2 triangles), for mesh files."""
+    import numpy as np
+
+    xs = np.linspace(0.0, 1.0, n)
+    points = [[x, y] for y in xs for x in xs]
+    cells = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            cells += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
+    return cells, points
+
+
+# A Ctrl-C at a chosen point of the start-up: a finder on sys.meta_path sends SIGINT to its own process when
+# the module argv[1] is first imported (no clock: the signal arrives exactly there); argv[2:] is the command line.
+CTRL_C_AT_IMPORT = r"""
+import os, signal, sys
+
+class CtrlC:
+    def find_spec(self, name, path=None, target=None):
+        if name == sys.argv[1]:
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+sys.meta_path.insert(0, CtrlC())
+from stringcontact.cli.main import main
+sys.exit(main(sys.argv[2:]))
+"""

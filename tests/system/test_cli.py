@@ -8,6 +8,7 @@ import sys
 import tomllib
 
 import pytest
+from conftest import CTRL_C_AT_IMPORT
 
 from stringcontact.cli.main import main
 from stringcontact.scene import Scene, load_scene
@@ -200,23 +201,6 @@ def test_frames_sets_the_xdmf_frames_and_refuses_zero(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--frames" in err and ">= 1" in err
     assert not (tmp_path / "refused").exists()
-
-
-# A Ctrl-C at a chosen point of the start-up: a finder on sys.meta_path sends SIGINT to its own process when
-# the module is first imported (no clock: the signal arrives exactly there).
-CTRL_C_AT_IMPORT = r"""
-import os, signal, sys
-
-class CtrlC:
-    def find_spec(self, name, path=None, target=None):
-        if name == sys.argv[1]:
-            os.kill(os.getpid(), signal.SIGINT)
-        return None
-
-sys.meta_path.insert(0, CtrlC())
-from stringcontact.cli.main import main
-sys.exit(main(sys.argv[2:]))
-"""
 
 
 @pytest.mark.parametrize("module", ["stringcontact.scene.toml", "petsc4py", "dolfinx"])

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import leftovers, mpirun
+from conftest import grid_mesh, leftovers, mpirun
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -694,18 +694,6 @@ with h5py.File(path + ".h5", "w") as f:
 """
 
 
-def grid_mesh(n: int = 9):
-    """The cells and points of an n x n node grid of the unit square (2 (n-1)^2 triangles)."""
-    xs = np.linspace(0.0, 1.0, n)
-    points = [[x, y] for y in xs for x in xs]
-    cells = []
-    for j in range(n - 1):
-        for i in range(n - 1):
-            a = j * n + i
-            cells += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
-    return cells, points
-
-
 def write_mesh_file(folder: Path, name: str, cells, points) -> Path:
     """An XDMF + HDF5 triangle mesh of any cells and points, written by h5py in a child process (h5py's
     wheel clashes with the libhdf5 of dolfinx, which this test process may have loaded)."""
@@ -722,7 +710,7 @@ def write_mesh_file(folder: Path, name: str, cells, points) -> Path:
 
 
 def _bad_meshes():
-    cells, points = grid_mesh()
+    cells, points = grid_mesh(9)
     def changed(i, row):
         out = [list(c) for c in cells]
         out[i] = row

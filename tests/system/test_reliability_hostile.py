@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import leftovers, mpirun, plot_refusal
+from conftest import CTRL_C_AT_IMPORT, leftovers, mpirun, plot_refusal
 
 from stringcontact.cli.main import main
 from stringcontact.io.lock import TargetLock
@@ -359,22 +359,6 @@ def test_plot_with_an_x_window_without_a_display_is_one_line(tmp_path, a_result)
     assert proc.returncode == 2, proc.stderr[-3000:]
     one_error_line(proc.stderr, "VTK_DEFAULT_OPENGL_WINDOW=vtkXOpenGLRenderWindow needs an X display")
     assert not (tmp_path / "p").exists() and leftovers(tmp_path) == []
-
-
-# A Ctrl-C exactly when a VTK module is first imported (no clock): a finder on sys.meta_path sends it.
-CTRL_C_AT_IMPORT = r"""
-import os, signal, sys
-
-class CtrlC:
-    def find_spec(self, name, path=None, target=None):
-        if name == sys.argv[1]:
-            os.kill(os.getpid(), signal.SIGINT)
-        return None
-
-sys.meta_path.insert(0, CtrlC())
-from stringcontact.cli.main import main
-sys.exit(main(sys.argv[2:]))
-"""
 
 
 @pytest.mark.parametrize("module", ["pyvista", "vtkmodules.util.numpy_support"])

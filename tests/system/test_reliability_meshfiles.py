@@ -10,9 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
-from conftest import leftovers
+from conftest import grid_mesh, leftovers
 
 QUICK = ["--no-progress", "--no-pictures"]
 
@@ -24,18 +23,6 @@ with h5py.File(path, "w") as f:
     for name, (values, dtype) in arrays.items():
         f[name] = np.array(values, dtype=dtype)
 """
-
-
-def grid_mesh(n: int = 5):
-    """The cells and points of an n x n node grid of the unit square."""
-    xs = np.linspace(0.0, 1.0, n)
-    points = [[x, y] for y in xs for x in xs]
-    cells = []
-    for j in range(n - 1):
-        for i in range(n - 1):
-            a = j * n + i
-            cells += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
-    return cells, points
 
 
 def write_h5(path: Path, cells, points, point_dtype: str = "float64") -> None:
@@ -85,7 +72,7 @@ def test_the_mesh_is_read_from_the_file_the_xdmf_names(tmp_path):
     """dolfinx 0.5 read `<xdmf stem>.h5` whatever the DataItem named: a good x_data.h5 named beside a bad x.h5
     (an index out of range) was checked, then dolfinx read x.h5 and spun forever. The file named is the file
     meshed now."""
-    cells, points = grid_mesh()
+    cells, points = grid_mesh(5)
     write_h5(tmp_path / "x_data.h5", cells, points)
     bad = [list(c) for c in cells]
     bad[3] = [0, 10**6, 2]
@@ -100,7 +87,7 @@ def test_the_mesh_is_read_from_the_file_the_xdmf_names(tmp_path):
 @pytest.mark.parametrize("grid_name", ["x' or @Name='evil", 'a"b', "m]/../Grid[1"])
 def test_a_grid_name_is_never_code(tmp_path, grid_name):
     """dolfinx built an XPath from the grid's name: `x' or @Name='evil` hung it. The name is not used now."""
-    cells, points = grid_mesh()
+    cells, points = grid_mesh(5)
     write_h5(tmp_path / "m.h5", cells, points)
     write_xdmf(tmp_path / "m.xdmf", "m.h5", len(cells), len(points), grid_name=grid_name)
     scene(tmp_path, "m.xdmf")
@@ -123,7 +110,7 @@ def _special(kind: str, path: Path) -> None:
                                                 ("loop", "loop of symbolic links")])
 def test_a_mesh_h5_that_is_not_a_file_is_one_line_and_never_blocks(tmp_path, kind, fragment):
     """A FIFO as the mesh's .h5 hung the run until it was signalled (6 minutes under MPI)."""
-    cells, points = grid_mesh()
+    cells, points = grid_mesh(5)
     _special(kind, tmp_path / "m.h5")
     write_xdmf(tmp_path / "m.xdmf", "m.h5", len(cells), len(points))
     scene(tmp_path, "m.xdmf")
@@ -147,7 +134,7 @@ def test_a_mesh_path_that_is_not_a_file_says_what_it_is(tmp_path, kind, fragment
 
 def test_string_coordinates_are_refused_before_they_are_read(tmp_path):
     """A 2.8 KB .h5 with string coordinates took 2 GB and then gave a wrong message."""
-    cells, points = grid_mesh()
+    cells, points = grid_mesh(5)
     write_h5(tmp_path / "m.h5", cells, [[str(x), str(y)] for x, y in points], point_dtype="S40")
     write_xdmf(tmp_path / "m.xdmf", "m.h5", len(cells), len(points))
     scene(tmp_path, "m.xdmf")
@@ -158,7 +145,7 @@ def test_string_coordinates_are_refused_before_they_are_read(tmp_path):
 
 def test_huge_coordinates_are_named_as_such(tmp_path):
     """Coordinates of 1e200 were reported as "cells of zero area (smallest inf)"."""
-    cells, points = grid_mesh()
+    cells, points = grid_mesh(5)
     write_h5(tmp_path / "m.h5", cells, [[x * 1e200, y * 1e200] for x, y in points])
     write_xdmf(tmp_path / "m.xdmf", "m.h5", len(cells), len(points))
     scene(tmp_path, "m.xdmf")
