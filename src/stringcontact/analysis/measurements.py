@@ -94,21 +94,64 @@ class Momentum:
     q_s: np.ndarray
     w: np.ndarray
     force: np.ndarray
+    obstacle_w: np.ndarray | float = 0.0  # a moving obstacle's rate paired with w (w − obstacle_w: the gap's rate)
+    obstacle_q: np.ndarray | float = 0.0  # and paired with q (q − obstacle_q: the gap's rate in the step)
 
 
 def momentum_terms(result) -> Momentum:
     """The terms of `result.scheme`'s discrete momentum equation (`Momentum`)."""
     require_every_step(result)
     eta, v, F, scheme = result.eta, result.velocity, result.contact_force, result.scheme
+    psi = obstacle_rows(result)
+    backward = 0.0 if psi is None else np.diff(psi[:-1], axis=0) / result.scene.dt  # (ψ^n − ψ^{n−1})/Δt, row n
     if scheme == "projection":
         q = np.concatenate([v[:1], np.diff(eta, axis=0) / result.scene.dt])  # the half-step velocities
-        return Momentum(q, _previous(eta), q, 0.5 * (q + _previous(q)), F)
+        w_psi = 0.0 if psi is None else 0.5 * (backward + _previous(backward))
+        return Momentum(q, _previous(eta), q, 0.5 * (q + _previous(q)), F, w_psi, backward)
     if scheme == "newmark":
         mean = 0.5 * (v + _previous(v))
-        return Momentum(v, 0.5 * (eta + _previous(eta)), mean, mean, F)
+        return Momentum(v, 0.5 * (eta + _previous(eta)), mean, mean, F, backward, obstacle_velocity(result))
     if result.penalty == "explicit":  # row n holds F(η^n, v^n), which the step t_n → t_{n+1} applies
         F = np.concatenate([np.zeros_like(F[:1]), F[:-1]])
-    return Momentum(v, eta, v, v, F)
+    return Momentum(v, eta, v, v, F, backward, backward)
+
+
+def obstacle_rows(result) -> np.ndarray | None:
+    """A moving obstacle ψ(x, t) (the scene's ``obstacle`` in t) at the stored rows' times with one time before
+    and one after, shape (rows + 2, nodes): t_0 − Δt, t_0, ..., t_N, t_N + Δt; None for an obstacle at rest."""
+    scene = result.scene
+    if not getattr(scene, "obstacle_moves", False):
+        return None
+    cached = getattr(result, "_obstacle_rows", None)
+    if cached is not None and cached.shape == (result.t.size + 2, result.x.shape[0]):
+        return cached
+    dt = scene.dt
+    times = np.concatenate([[result.t[0] - dt], result.t, [result.t[-1] + dt]])
+    rows = np.array([scene.obstacle_values(result.x, float(t)) for t in times], dtype=float)
+    try:
+        result._obstacle_rows = rows  # every check reads them: evaluated once per result
+    except AttributeError:  # a frozen or slotted result: evaluated again
+        pass
+    return rows
+
+
+def obstacle_velocity(result) -> np.ndarray | float:
+    """The moving obstacle's rate ψ_t paired with the stored velocity (0 for an obstacle at rest): the backward
+    quotient (ψ^n − ψ^{n−1})/Δt for `paper` (whose v^n is one), the centred (ψ^{n+1} − ψ^{n−1})/(2Δt) for
+    `projection` (whose stored velocity is the centred quotient) and `newmark` (whose penalty brakes v − ψ_t
+    with it), shape (rows, nodes). The string's velocity relative to the obstacle is v − ψ_t."""
+    psi = obstacle_rows(result)
+    if psi is None:
+        return 0.0
+    if result.scheme in ("projection", "newmark"):
+        return (psi[2:] - psi[:-2]) / (2 * result.scene.dt)
+    return np.diff(psi[:-1], axis=0) / result.scene.dt
+
+
+def relative_velocity(result) -> np.ndarray:
+    """v − ψ_t at every stored row and node (`obstacle_velocity`): the string's velocity relative to the obstacle,
+    v itself for an obstacle at rest."""
+    return result.velocity - obstacle_velocity(result)
 
 
 def cell_stress(result) -> np.ndarray:
@@ -154,16 +197,17 @@ def _dilate_1d(mask: np.ndarray, w: int) -> np.ndarray:
 
 
 def force_sign(result) -> dict:
-    """min F / max F, and the share of the energy-carrying contact dissipation −F^n w^n that is negative (w the
-    velocity the scheme books the contact work with: `momentum_terms`)."""
+    """min F / max F, and the share of the energy-carrying contact dissipation −F^n (w^n − ψ_t) that is negative (w
+    the velocity the scheme books the contact work with, ψ_t a moving obstacle's rate paired with it: the force's
+    work on the gap; `momentum_terms`)."""
     terms = momentum_terms(result)
     F = result.contact_force
-    D = -terms.force[1:] * terms.w[1:]
+    D = -terms.force[1:] * (terms.w - terms.obstacle_w)[1:]
     positive = D[D > 0].sum()
     return {
         "min_force": float(F.min()),
         "max_force": float(F.max()),
-        "paper_dissipation_min": float((F * np.maximum(-result.velocity, 0.0)).min()),
+        "paper_dissipation_min": float((F * np.maximum(-relative_velocity(result), 0.0)).min()),
         "negative_dissipation_share": float(abs(D[D < 0].sum()) / positive) if positive > 0 else 0.0,  # never -0
     }
 
@@ -191,20 +235,29 @@ def upward_impulse(result) -> dict:
     """Share of the impulse applied where the string moves up.
 
     pointwise: in the same step, v^n_j ≥ 0. neighbourhood: v ≥ 0 on all of rows n−1..n+1, nodes j−1..j+1
-    (a discrete int{η_t ≥ 0}, the set of (A3)).
+    (a discrete int{η_t ≥ 0}, the set of (A3)). A moving obstacle: where the string moves up *off* it in the
+    step the force acts in, q − ψ_t > 0 (q the velocity of `momentum_terms`, ψ_t paired with it; beyond the
+    round-off of the quotients, 1e-9 of the largest |q|, |ψ_t|): on the contact set's interior q − ψ_t = 0 and
+    the force that carries the string with the obstacle acts there.
     """
     from scipy import ndimage
 
     I = impulse(result)
     total = I.sum()
-    up = result.velocity >= 0  # row 0 is v0, which sets the force of the first step
+    if obstacle_rows(result) is None:
+        up = result.velocity >= 0  # row 0 is v0, which sets the force of the first step
+    else:
+        terms = momentum_terms(result)
+        tol = 1e-9 * max(float(np.max(np.abs(terms.q))), float(np.max(np.abs(terms.obstacle_q))))
+        up = terms.q - terms.obstacle_q > tol
     nbhd = ndimage.binary_erosion(up, structure=np.ones((3, 3), dtype=bool), border_value=1)
     share = (lambda mask: float(I[mask].sum() / total)) if total > 0 else (lambda mask: math.nan)
     return {"pointwise": share(up), "neighbourhood": share(nbhd)}
 
 
 def velocity_after_contact(result, delay: float) -> dict:
-    """|v| a time `delay` after each node's first contact, against its impact speed |v| at contact.
+    """|v| a time `delay` after each node's first contact, against its impact speed |v| at contact (a moving
+    obstacle: the velocity relative to it, |v − ψ_t|, both times).
 
     Only nodes that touch down after t = 0, stay in contact until t_0 + delay and have the delay inside
     the run count. Gives the aggregate ratio Σ|v(t_0+delay)| / Σ|v(t_0)| and the 95th percentile of the
@@ -219,8 +272,9 @@ def velocity_after_contact(result, delay: float) -> dict:
     kept = nodes[stays] if nodes.size else nodes
     if kept.size == 0:
         return {"ratio": math.nan, "p95": math.nan, "nodes": 0, "left_early": int(nodes.size)}
-    impact = np.abs(result.velocity[first[kept], kept])
-    after = np.abs(result.velocity[first[kept] + lag, kept])
+    v = relative_velocity(result)
+    impact = np.abs(v[first[kept], kept])
+    after = np.abs(v[first[kept] + lag, kept])
     big = impact >= 0.01 * impact.max()
     ratios = after[big] / impact[big]
     return {
