@@ -64,8 +64,6 @@ def _schemes_for(scene):
             check_model(name, model)
         except ValueError:
             continue
-        if scene.obstacle_moves and name == "newmark":  # refused in one line (tests/timestepping/test_moving_obstacle.py)
-            continue
         usable.append(name)
     return usable
 

@@ -41,6 +41,12 @@ The checks:
 ``energy_balance``     (1.4): E(0) = E(t) + D_visc + D_con (+ the scheme's D_num), as a time series
 =====================  ==================================================================================
 
+A moving obstacle ψ(x, t) (the scene's ``obstacle`` in t): each check reads ψ at the row's time and the velocity
+relative to it, v − ψ_t (`measurements.relative_velocity`; (A1)'s removed energy is the force's work on the gap,
+(A3) counts where the string moves up off the obstacle, v − ψ_t > 0, (A4) compares |v − ψ_t|); (A2) and
+Theorem 2.3(1) are n/a, because a carried string has F = ψ_tt − ψ_xx − α ψ_txx on the contact set's interior
+(docs/explanation/theorems.md).
+
 Trends come from :func:`refine`, which reruns a scene at coarser resolutions with the same ratios
 Δt/Δx and r = Δt/ε, so ε, h and Δt all fall together.
 

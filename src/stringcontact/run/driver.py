@@ -290,23 +290,27 @@ def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
 
 
 def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params, ops) -> None:
-    """A moving obstacle runs with scheme projection (restitution 0; linear and nonlinear models) and with scheme
-    paper's explicit penalty (linear models) whose law reads the obstacle's rate; the rest is refused in one line."""
+    """A moving obstacle runs with scheme projection (restitution 0; linear and nonlinear models), and with a linear
+    model under scheme paper (either penalty) and newmark, whose law reads the obstacle's rate (the gap rate
+    v − ψ_t); the rest is refused in one line."""
     if not scene.obstacle_moves:
         return
     if name == "projection":
         if scene.restitution:
             raise SceneError("restitution: a moving obstacle (obstacle in t) runs with restitution 0 only")
         return
-    if name != "paper" or penalty != "explicit" or ops.nonlinear is not None:
-        what = "a nonlinear model" if ops.nonlinear is not None else f"scheme {name!r} with penalty {penalty!r}"
-        raise SceneError(f"obstacle: a moving obstacle (an expression in t) runs with scheme 'projection', or scheme "
-                         f"'paper' with penalty 'explicit' and a linear model; not {what}")
+    if ops.nonlinear is not None:
+        raise SceneError(f"obstacle: a moving obstacle (an expression in t) runs with scheme 'projection', or with a "
+                         f"linear model under schemes 'paper' and 'newmark'; not a nonlinear model under {name!r}")
+    law = model.penalty if penalty == "explicit" else model.penalty_damping
+    what = "penalty" if penalty == "explicit" else "penalty_damping"
+    if law is None:  # no such law: the scheme refuses the model itself
+        return
     eta, v = fem.Function(V), fem.Function(V)
-    if params.extra[RATE] not in ufl.algorithms.extract_coefficients(model.penalty(eta, v, params)):
-        raise SceneError(f"obstacle: model '{model.name}''s penalty does not read the obstacle's rate "
+    if params.extra[RATE] not in ufl.algorithms.extract_coefficients(law(eta, v, params)):
+        raise SceneError(f"obstacle: model '{model.name}''s {what} does not read the obstacle's rate "
                          f"p.extra['{RATE}'] (its gap rate v - psi_t), which a moving obstacle needs; use scheme "
-                         "'projection' or a penalty in the gap rate (model 'loaded_obstacle')")
+                         "'projection' or a law in the gap rate (model 'loaded_obstacle')")
 
 
 def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:

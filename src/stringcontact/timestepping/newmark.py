@@ -14,6 +14,13 @@ Only the diagonal changes with the active set; the matrix is refactorised then. 
 η^{n+1} − η^n gives the energy identity exactly: ½|v|²_M + ½|η|²_K changes by −(Δt/4)|v^{n+1} + v^n|²_C
 (viscous), −(Δt/2) v^{n+1}·D(v^{n+1} + v^n) (contact) and the load's work. There is no numerical
 dissipation: with no contact and α = 0 the energy is conserved to round-off. Any Δt, either mass matrix.
+
+A moving obstacle ψ(x, t) (`base.MovingObstacle`): the damping brakes the gap rate, −D(v^{n+1} − ψ_t^{n+1}), on
+the active set χ{η^n < ψ^n, v^n < ψ_t^n}, with ψ_t^k the centred quotient (ψ^{k+1} − ψ^{k−1})/(2Δt) (exact on a
+uniformly accelerating obstacle, which the nodal velocity then follows at the force m a) in
+``p.extra["obstacle_rate"]``; the right-hand side gains 2Dψ_t^{n+1}. The force f = −D(v^{n+1} − ψ_t^{n+1})
+does the work f·(η^{n+1} − η^n) on the string: its share f·(ψ^{n+1} − ψ^n) is the obstacle's work, booked as
+external work, and the rest, −f·(gap^{n+1} − gap^n), the contact dissipation. The identity stays exact.
 """
 
 from __future__ import annotations
@@ -70,6 +77,10 @@ class Scheme(Base):
                                                   ("v_new", self.v_new), ("work", self.work[0]))}  # wrapped once
         self.D = np.zeros(n)  # m_F d on the active interior nodes
         self.force_density = np.zeros(n)
+        self.moving = s.obstacle is not None  # ψ(x, t): the damping brakes v − ψ_t (module docstring)
+        self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
+        self.k = 0  # the step index: η^k is the current state
+        self.rate_new = np.zeros(n)  # ψ_t^{k+1}, the rate the step's damping brakes towards
 
     @property
     def eta(self):
@@ -94,7 +105,20 @@ class Scheme(Base):
         self.Ms.mult(self.vec[name] if name else wrap(u, self.s.comm), self.vec["Mu"])
         return self.Mu
 
+    def _rate(self, t: float) -> np.ndarray:
+        """A moving obstacle's ψ_t(·, t) on the owned dofs: the centred quotient (ψ(t + Δt) − ψ(t − Δt))/(2Δt)."""
+        o = self.s.obstacle
+        return (o.at(t + o.dt)[: o.n] - o.at(t - o.dt)[: o.n]) / (2.0 * o.dt)
+
+    def _obstacle_at(self, t: float) -> None:
+        """The law's fields at the time t: ψ and the centred ψ_t in place of `MovingObstacle.set`'s backward one."""
+        o = self.s.obstacle
+        o.set(t)
+        o.rate_field.x.array[: o.n] = self._rate(t)
+
     def start(self, eta0, v0):
+        if self.moving:
+            self._obstacle_at(0.0)
         self.eta_[:], self.v_[:] = eta0, v0
         self.KC.mult(wrap(self.eta_, self.s.comm), self.KC_now[0])
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
@@ -133,6 +157,10 @@ class Scheme(Base):
         rhs += a
         np.multiply(2.0, s.ops.load, out=b)
         rhs += b
+        if self.moving:  # the damping's target, −D(v^{n+1} − ψ_t^{n+1}): 2Dψ_t^{n+1} on the right
+            np.multiply(2.0, D, out=b)
+            b *= self.rate_new
+            rhs += b
         s.hold_ends(rhs)
         if self.lu.iterative:  # CG starts from the guess η^n + Δt v^n
             np.add(eta, dt * v, out=self.new)
@@ -143,32 +171,51 @@ class Scheme(Base):
         v_new[s.bc] = 0.0
         return v_new
 
+    def _obstacle_work(self, con: float) -> tuple[float, float]:
+        """A moving obstacle: its work f·(ψ^{n+1} − ψ^n) with f = −D(v^{n+1} − ψ_t^{n+1}) moves from the contact
+        term to the external work (module docstring); returns (its share of the contact term, the work)."""
+        o, t = self.s.obstacle, (self.k + 1) * self.s.dt
+        f = np.subtract(self.v_new, self.rate_new, out=self.work[1])
+        f *= self.D
+        np.negative(f, out=f)
+        work = float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
+        return con + work, work
+
     def step(self):
         s, dt = self.s, self.s.dt
         eta, v, D = self.eta_, self.v_, self.D
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
         self._active_damping()
+        if self.moving:
+            self.rate_new[:] = self._rate((self.k + 1) * dt)
         v_new = self._solve()
         # A damping that holds a node down (F = −D v^{n+1} < 0, it wants to lift) would do work against the
         # mean velocity and raise the energy: release such nodes and solve again (a few times at most).
-        while self.anysum(bool(np.any(sticky := (D > 0) & (v_new > 0)))):
+        while self.anysum(bool(np.any(sticky := (D > 0) & (v_new > self.rate_new)))):
             D[sticky] = 0.0
             v_new = self._solve()
         self.KC.mult(self.vec["new"], self.KC_new[0])
         mean, b = np.add(v_new, v, out=self.work[0]), self.work[1]
         np.subtract(KC_new[1], KC_now[1], out=b)
         visc = 0.5 * float(np.dot(mean, b))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
-        con = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b)))
-        ext = 0.5 * dt * float(np.dot(s.ops.load, mean))
+        if self.moving:  # −(Δt/2) f·(v^{n+1} + v^n), f = −D(v^{n+1} − ψ_t^{n+1})
+            con = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new - self.rate_new, out=b)))
+            con, work = self._obstacle_work(con)
+        else:
+            con, work = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b))), 0.0
+        ext = 0.5 * dt * float(np.dot(s.ops.load, mean)) + work
         kin = 0.5 * float(np.dot(v_new, self._mass(v_new, "v_new")))
         el = 0.5 * float(np.dot(self.new, KC_new[0]))
         kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
         b[:] = 0.0  # −(D/m_F)·v^{n+1}, 0 where no force acts (m_F = 0)
         np.divide(D, s.ops.m_force, out=b, where=s.ops.m_force > 0)
         np.negative(b, out=b)
-        np.multiply(b, v_new, out=self.force_density)
+        np.multiply(b, v_new - self.rate_new if self.moving else v_new, out=self.force_density)
         eta[:], v[:] = self.new, v_new
         self.KC_now, self.KC_new = self.KC_new, self.KC_now
+        self.k += 1
+        if self.moving:  # the law's fields at t^{k}: the stored row's contact set, the next step's active set
+            self._obstacle_at(self.k * dt)
         return kin, el, visc, con, 0.0, ext, 0.0
 
 

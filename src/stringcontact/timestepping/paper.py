@@ -6,7 +6,9 @@ With v^n = (η^n − η^{n−1})/Δt,
 
 so A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n + b with A = M/Δt² + C/Δt + K, factorised
 once. ``penalty="semi-implicit"`` applies the same law as a damping d on the new velocity,
-F = −d v^{n+1} on the active set; only A's diagonal changes, and only when the active set does.
+F = −d v^{n+1} on the active set; only A's diagonal changes, and only when the active set does. With a
+moving obstacle ψ(x, t) the damping brakes the gap rate of the step, F = −d (v^{n+1} − (ψ^{n+1} − ψ^n)/Δt):
+its known part gains (d/Δt)(ψ^{n+1} − ψ^n).
 
 Energy identity per step (M, K symmetric): ½|v^{n+1}|²_M + ½|η^{n+1}|²_K + Δt v^{n+1}·C v^{n+1}
 + ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K = ½|v^n|²_M + ½|η^n|²_K + Δt v^{n+1}·(m_F∘F + b). The two
@@ -25,7 +27,7 @@ import numpy as np
 
 from ..fem.operators import stacked, step_matrices
 from .base import Scheme as Base
-from .base import check_law_stability, summer, wrap
+from .base import any_rank, check_law_stability, summer, wrap
 from .linear import DampedLU, dirichlet_rows
 
 
@@ -57,6 +59,7 @@ class Scheme(Base):
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
         self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # the semi-implicit penalty's damping goes on its diagonal
         self.allsum = summer(comm)
+        self.anysum = any_rank(comm)
 
         self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
         self.vels = np.zeros((2, n))  # v^{n+1}, v^n in rotating rows
@@ -169,6 +172,10 @@ class Scheme(Base):
         # Refactorise when the damping on the diagonal changes (the active set, or a state-dependent
         # coefficient of a model variant).
         self.lu.update(diag_w)
+        if self.moving:  # the gap rate's: (d/Δt)(η^n + ψ^{n+1} − ψ^n)
+            self.dpsi = self.s.obstacle.owned((self.step_index + 1) * self.dt) - self.psi_levels[1]
+            np.multiply(diag_w, e0 + self.dpsi, out=f_applied)
+            return
         np.multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
 
     def step(self):
@@ -183,11 +190,26 @@ class Scheme(Base):
             np.subtract(e0, em, out=self.eta_new[1])
             np.add(self.eta_new[1], e0, out=self.eta_new[1])
         self.lu.solve(self.rhs[0], self.eta_new[0])
+        if self.moving and not self.explicit:
+            self._release(e0)
         terms = self._energy_terms(e0)
         if self.moving:
             terms = self._obstacle_moved(terms)
         self._rotate()
         return terms
+
+    def _release(self, e0) -> None:
+        """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (the step's gap
+        rate > 0, F < 0: an obstacle that stops under a string it lifted) is released and the step solved again (a
+        few times at most), as newmark does."""
+        diag_w, f_applied, b, shift = self.diag_w, self.by_v[1], self.rhs[1], e0 + self.dpsi
+        while self.anysum(bool(np.any(sticky := (diag_w > 0) & (self.eta_new[1] > shift)))):
+            diag_w[sticky] = 0.0
+            self.lu.update(diag_w)
+            b -= f_applied
+            np.multiply(diag_w, shift, out=f_applied)
+            b += f_applied
+            self.lu.solve(self.rhs[0], self.eta_new[0])
 
     def _obstacle_moved(self, terms):
         """A moving obstacle: the law's fields to t^{n+1} (the next step's law, the stored row's force), and the
@@ -230,9 +252,13 @@ class Scheme(Base):
         dt, e1, v1, f_applied = self.dt, self.eta_new[1], self.v_new[1], self.by_v[1]
         np.subtract(e1, e0, out=v1)
         v1 *= 1.0 / dt
-        if not self.explicit:  # the force actually applied: −m_F d v^{n+1}
-            np.multiply(self.diag_w, v1, out=f_applied)
-            f_applied *= -dt
+        if not self.explicit:  # the force actually applied: −m_F d v^{n+1} (d times the gap rate with ψ moving)
+            if self.moving:  # (d/Δt)(η^n + Δψ − η^{n+1}): ≥ 0 exactly on the nodes `_release` kept
+                np.subtract(e0 + self.dpsi, e1, out=f_applied)
+                f_applied *= self.diag_w
+            else:
+                np.multiply(self.diag_w, v1, out=f_applied)
+                f_applied *= -dt
         self.KC.mult(self.eta_new[0], self.KC_new[0])  # K η^{n+1} and (C/Δt) η^{n+1}
         np.subtract(self.KC_new[1][1], self.KC_old[1][1], out=self.by_v[0])  # = C v^{n+1}
         self._apply_mass(self.v_new, self.M_v_new)
