@@ -106,15 +106,16 @@ class Scheme(Base):
         return self.Mu
 
     def _rate(self, t: float) -> np.ndarray:
-        """A moving obstacle's ψ_t(·, t) on the owned dofs: the centred quotient (ψ(t + Δt) − ψ(t − Δt))/(2Δt)."""
+        """A moving obstacle's ψ_t(·, t) at every dof (owned, then ghosts): the centred quotient
+        (ψ(t + Δt) − ψ(t − Δt))/(2Δt)."""
         o = self.s.obstacle
-        return (o.at(t + o.dt)[: o.n] - o.at(t - o.dt)[: o.n]) / (2.0 * o.dt)
+        return (o.at(t + o.dt) - o.at(t - o.dt)) / (2.0 * o.dt)
 
     def _obstacle_at(self, t: float) -> None:
         """The law's fields at the time t: ψ and the centred ψ_t in place of `MovingObstacle.set`'s backward one."""
         o = self.s.obstacle
         o.set(t)
-        o.rate_field.x.array[: o.n] = self._rate(t)
+        o.rate_field.x.array[:] = self._rate(t)
 
     def start(self, eta0, v0):
         if self.moving:
@@ -187,7 +188,7 @@ class Scheme(Base):
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
         self._active_damping()
         if self.moving:
-            self.rate_new[:] = self._rate((self.k + 1) * dt)
+            self.rate_new[:] = self._rate((self.k + 1) * dt)[: self.s.n_owned]
         v_new = self._solve()
         # A damping that holds a node down (F = −D v^{n+1} < 0, it wants to lift) would do work against the
         # mean velocity and raise the energy: release such nodes and solve again (a few times at most).
