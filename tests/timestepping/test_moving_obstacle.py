@@ -181,7 +181,8 @@ def test_the_cli_runs_the_piston_and_refuses_a_restitution(capfd, tmp_path):
     assert "external work" in out and ": closes" in out and "within the bound" in out
     assert main(["run", "piston", "--scheme", "newmark", "--nx", "100", "--no-progress", "--no-pictures",
                  "--out", str(tmp_path / "n")]) == 0
-    assert "external work" in capfd.readouterr().out
+    out = capfd.readouterr().out  # a penalty's depth against a moving obstacle has no bound: no verdict
+    assert "external work" in out and "EXCEEDS" not in out and "moving obstacle has no known penetration bound" in out
     assert main(["run", "piston", "--restitution", "0.5", "--no-progress", "--no-pictures"]) == 2
     assert "restitution: a moving obstacle" in capfd.readouterr().err
 

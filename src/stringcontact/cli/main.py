@@ -233,7 +233,7 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
 
     p = checks_of(res)["penetration"]
     if p["bound"] is None:  # the model's contact law has no known bound: the depth alone, no verdict
-        return f"penetration: max depth {p['depth']:.4g} (the model's contact law has no known penetration bound)", True
+        return f"penetration: max depth {p['depth']:.4g} ({p['law']})", True
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
     verdict = "within" if p["within_bound"] else "EXCEEDS"
     if p.get("eps_free"):  # a contact step (scheme projection): no eps in the bound

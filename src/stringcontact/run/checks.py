@@ -112,7 +112,9 @@ def penetration_check(result) -> dict:
 
     with ψ the scene's obstacle (0 unless it gives one). For a spring of stiffness 1/ε ("spring", the
     `elastic` variant) ε·V becomes √ε·V; a contact step (scheme projection) has no ε. A law with no known
-    bound (None: a user's penalty) gets the depth alone: "bound" and "within_bound" are None. A run beyond the
+    bound (None: a user's penalty; any penalty against a moving obstacle, which brakes the gap rate v − ψ_t but
+    never restores the gap, so an accelerating obstacle drives the string ever deeper, docs/howto/nonlinear_models.md)
+    gets the depth alone: "bound" and "within_bound" are None. A run beyond the
     bound holds the string down by something the penalty cannot stop (a static load, a model variant, an
     r > 1 rebound): see docs/explanation/reliability.md.
     """
@@ -133,6 +135,8 @@ def penetration_check(result) -> dict:
         v_max, depth, start_depth = _penetration_from_series(result)
     eps_free = getattr(result, "penalty", None) == "none"  # a contact step (projection): no ε brakes the string
     kind = "contact step" if eps_free else getattr(result, "penetration_bound", "velocity")
+    if not eps_free and getattr(scene, "obstacle_moves", False):
+        kind = "moving obstacle"  # a penalty brakes the gap rate but never restores the gap: no bound
     braking, law = _BRAKING[kind]
     check = {"depth": depth, "initial_depth": start_depth, "max_speed": v_max, "law": law, "eps_free": eps_free,
              "bound_kind": kind}
@@ -149,7 +153,8 @@ _BRAKING = {
     "contact step": (lambda eps: 0.0, "no penalty (contact step)"),
     "velocity": (lambda eps: eps, "velocity penalty (eps)"),
     "spring": (math.sqrt, "spring (sqrt(eps))"),
-    None: (None, "no known bound (the model's contact law)"),
+    None: (None, "the model's contact law has no known penetration bound"),
+    "moving obstacle": (None, "a penalty against a moving obstacle has no known penetration bound"),
 }
 
 
