@@ -13,6 +13,9 @@ obstacle) is written into it as a literal by the run, computed over all stored r
 - `velocity` on the symmetric range −V … V, V = max |velocity| over every stored row, in a diverging map
   whose middle (v = 0) is a dark grey: a string at rest stands out on the white background (pick it in the
   colouring menu, or name it on the command line: its range is fixed too);
+- a film's `pressure` p − p_a (model "film") on −P … P, P = max |p − p_a| over every stored row, blue, a
+  middle grey at p = p_a, red (`PRESSURE_COLOURS`: a membrane at ambient pressure stays seen; picked like the
+  velocity);
 - the obstacle ψ of the scene (the plane 0 unless the scene gives a profile), in grey: for a string the
   region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch;
 - a title (scene, model, scheme), the time t in the upper left corner and axes named x and eta (x, y and
@@ -21,8 +24,8 @@ obstacle) is written into it as a literal by the run, computed over all stored r
   and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
   different times line up (an animation does not jump).
 
-`pvpython view.py TIME PNG [contact|velocity]` saves a screenshot at time TIME instead of opening a window and
-prints one JSON line: the time, the field, its colour range and the camera.
+`pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead of opening a window
+and prints one JSON line: the time, the field, its colour range and the camera.
 """
 
 from __future__ import annotations
@@ -38,6 +41,11 @@ CONTACT_RANGE = (0.0, 1.0)
 #: velocity's colours at −V, 0 and V (RGB in 0 … 1): blue, a dark grey, red. The middle is dark so that a
 #: string at rest (v = 0) is seen on the white background (Cool to Warm's light grey middle vanishes there).
 VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
+#: a film's pressure p − p_a at −P, 0 and P: blue, a middle grey, red. A membrane where p = p_a (its rim, and
+#: all of it before the film is squeezed) is seen on the white background and on the light grey obstacle, and
+#: black labels on it are read (a light middle vanished there, the velocity's dark grey hid them); the
+#: membrane's pictures (plot/mesh_pictures.py) use these colours too
+PRESSURE_COLOURS = ((0.085, 0.40, 0.85), (0.55, 0.55, 0.55), (0.85, 0.10, 0.08))
 #: the obstacle's grey, and the white background
 OBSTACLE_GREY = (0.80, 0.80, 0.80)
 #: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
@@ -151,6 +159,7 @@ OBSTACLE_POINTS = {_literal(numbers.get("obstacle_points") or [])}  # x, y, z
 OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices into OBSTACLE_POINTS each
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
 PRESSURE_RANGE = {_literal(numbers["pressure_range"]) if numbers.get("pressure_range") else None}  # a film's p - p_a
+PRESSURE_COLOURS = {_literal(PRESSURE_COLOURS)}  # at -P, 0 (dark: seen on white), P
 '''
     return head + _BODY
 
@@ -184,7 +193,7 @@ def fixed_map(name, low, high, preset=None, colours=None):
 
 
 MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS),
-        **({"pressure": (PRESSURE_RANGE, "Cool to Warm", None)} if PRESSURE_RANGE else {})}
+        **({"pressure": (PRESSURE_RANGE, None, PRESSURE_COLOURS)} if PRESSURE_RANGE else {})}
 
 
 def colour_by(view, display, field):
