@@ -367,8 +367,8 @@ def show_row(surface, result, row: int, view: MembraneView) -> None:
 
 def _set_pressure(surface, result, row: int, scale: PressureScale) -> None:
     """`pressure`: p − p_a at the nodes; `pressure_colour`: where it lies on `scale` (−1 … 1), the array drawn."""
-    values = np.asarray(result.pressure[row], dtype=float)
-    if "pressure" in surface.point_data:
+    values = np.array(result.pressure[row], dtype=float)  # a copy: pyvista shares the array it is given, and
+    if "pressure" in surface.point_data:  # the next row written into it would overwrite the Result's row
         surface.point_data["pressure"][:] = values
         surface.point_data["pressure_colour"][:] = scale.unit(values)
     else:
