@@ -13,7 +13,7 @@ import pytest
 
 import stringcontact as sc
 from stringcontact.cli.main import main
-from stringcontact.io.paraview_view import PRESSURE_COLOURS
+from stringcontact.io.paraview_view import PRESSURE_COLOURS, pressure_points, symlog_unit
 from stringcontact.plot import animation, charts, mesh_pictures, viz
 from stringcontact.scene import scene_to_toml
 
@@ -94,6 +94,23 @@ def test_the_pressure_scale_is_symmetric_centred_at_zero_and_fixed_by_the_peak()
     assert mesh_pictures.PressureScale.of(np.zeros((3, 4))).peak == 1.0  # a film never squeezed: a scale all the same
     colours = np.asarray(scale.colour_map()([0.0, 0.5, 1.0]))[:, :3]
     np.testing.assert_allclose(colours, PRESSURE_COLOURS, atol=4e-3)  # to one of the 256 steps  # ParaView's view has the same colours
+
+
+@pytest.mark.parametrize("peak", [1.0, 381.0, 2.5e4])
+def test_the_symmetric_log_scale_is_pressure_pngs_and_paraviews(peak):
+    """The pictures' and ParaView's scale is matplotlib's SymLogNorm, which pressure.png draws with; ParaView's
+    control points give the pictures' colours at their values."""
+    from matplotlib.colors import SymLogNorm
+
+    values = np.concatenate([np.linspace(-peak, peak, 101), peak * np.logspace(-5, 0, 41)])
+    norm = SymLogNorm(linthresh=1e-3 * peak, vmin=-peak, vmax=peak, base=10)
+    np.testing.assert_allclose(symlog_unit(values, peak), 2 * np.asarray(norm(values)) - 1, atol=1e-12)
+    points = np.array(pressure_points(peak))
+    assert points[0, 0] == -peak and points[-1, 0] == peak and 0.0 in points[:, 0]
+    assert np.all(np.diff(points[:, 0]) > 0) and len(points) == 2 * 13 + 1  # 0, and 4 a decade over 3 decades each way
+    scale = mesh_pictures.PressureScale(peak)
+    pictures = np.asarray(scale.colour_map()(0.5 * (scale.unit(points[:, 0]) + 1)))[:, :3]
+    np.testing.assert_allclose(points[:, 1:], pictures, atol=4e-3)  # to one of the colour map's 256 steps
 
 
 # --- the scene in a plotter --------------------------------------------------------------------------

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.paraview_view import PRESSURE_COLOURS
+from ..io.paraview_view import PRESSURE_COLOURS, PRESSURE_LINEAR_SHARE, symlog_unit
 from ..io.publish import atomic_path
 from .catalogue import WINDOW_SIZE
 from .charts import (
@@ -461,7 +461,7 @@ def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
 # --- a film's pressure (model "film") --------------------------------------------------------------
 
 #: the share of the largest |p − p_a| within which the pressure's colour scale is linear (pressure.png's)
-LINEAR_SHARE = 1e-3
+LINEAR_SHARE = PRESSURE_LINEAR_SHARE
 #: the least distance of a power of ten's tick from the bar's ends (±peak), in half-bars: their labels apart
 TICK_GAP = 0.16
 
@@ -471,8 +471,9 @@ class PressureScale:
     """A film's pressure p − p_a on one colour scale for every row and panel: blue below ambient, a dark grey
     at it (`PRESSURE_COLOURS`: ParaView's view has the same; a light middle vanished on the white background
     and on the grey obstacle wherever p ≈ p_a, as before the landing), red above; ±`peak` (the largest
-    |p − p_a| over all stored rows) at the ends. Symmetric-log (matplotlib's SymLogNorm, linear within
-    ±LINEAR_SHARE·peak, as pressure.png): a landing's peak is 1e3–1e4 times the pressure before and after it."""
+    |p − p_a| over all stored rows) at the ends. Symmetric-log (`paraview_view.symlog_unit`: matplotlib's
+    SymLogNorm, linear within ±LINEAR_SHARE·peak, as pressure.png and ParaView's view): a landing's peak is
+    1e3–1e4 times the pressure before and after it."""
 
     peak: float
 
@@ -485,10 +486,7 @@ class PressureScale:
 
     def unit(self, values) -> np.ndarray:
         """Where `values` lie on the scale: −1 at −peak, 0 at 0, 1 at peak (clipped beyond)."""
-        from matplotlib.colors import SymLogNorm
-
-        norm = SymLogNorm(linthresh=LINEAR_SHARE * self.peak, vmin=-self.peak, vmax=self.peak, base=10)
-        return np.clip(2.0 * np.ma.filled(norm(np.asarray(values, dtype=float)), np.nan) - 1.0, -1.0, 1.0)
+        return symlog_unit(values, self.peak, LINEAR_SHARE)
 
     @staticmethod
     def colour_map():
