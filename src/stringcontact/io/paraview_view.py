@@ -52,6 +52,10 @@ PRESSURE_COLOURS = ((0.085, 0.40, 0.85), (0.55, 0.55, 0.55), (0.85, 0.10, 0.08))
 PRESSURE_LINEAR_SHARE = 1e-3
 #: control points of the pressure's colours per decade of |p − p_a| (ParaView interpolates between them)
 POINTS_PER_DECADE = 4
+#: the obstacle's grey, and the white background
+OBSTACLE_GREY = (0.80, 0.80, 0.80)
+#: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
+OBSTACLE_SAMPLES = 200
 
 
 def symlog_unit(values, peak: float, share: float = PRESSURE_LINEAR_SHARE) -> np.ndarray:
@@ -77,16 +81,12 @@ def pressure_points(peak: float) -> list:
     low, mid, high = (np.array(c) for c in PRESSURE_COLOURS)
     colours = np.where(unit[:, None] < 0, mid + (low - mid) * -unit[:, None], mid + (high - mid) * unit[:, None])
     return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
-#: the obstacle's grey, and the white background
-OBSTACLE_GREY = (0.80, 0.80, 0.80)
-#: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
-OBSTACLE_SAMPLES = 200
 
 
 def view_numbers(result) -> dict:
     """What view.py needs, from the stored rows: the kind, the warp's normal, the velocity's symmetric range,
     the obstacle (points and quadrilaterals) and the box the camera frames over all times (x0, x1, y0, y1, z0,
-    z1: the warped shape and the obstacle), and the title."""
+    z1: the warped shape and the obstacle), the title, and a film's pressure range and colour points."""
     x = np.asarray(result.x, dtype=float)
     eta = np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
@@ -102,10 +102,11 @@ def view_numbers(result) -> dict:
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
     pressure = getattr(result, "pressure", None)  # model "film": its symmetric range, like the velocity's
     peak = float(np.nanmax(np.abs(pressure))) if pressure is not None and np.size(pressure) else 0.0
-    return {"pressure_points": pressure_points(peak or 1.0) if pressure is not None else None,"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
+    return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
             "times": [float(t) for t in result.t], "obstacle_points": points, "obstacle_quads": quads,
             "title": view_title(result),
-            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None}
+            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None,
+            "pressure_points": pressure_points(peak or 1.0) if pressure is not None else None}
 
 
 def view_title(result) -> str:
