@@ -283,3 +283,42 @@ def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
     assert contrast > 450, f"the string at rest ({string.tolist()}) is hardly seen on white"
     thick = int((np.abs(string - np.array(ZERO_RGB)).max(axis=-1) <= 40).sum())
     assert thick >= 3, f"the string at rest is {thick} px thick in v = 0's colour: {string.tolist()}"
+
+
+# --- a film's membrane coloured by its pressure ----------------------------------------------------------------
+
+
+def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
+    """A membrane on a fluid film (model "film"): `view.py T PNG pressure` colours it by p − p_a on ±max|p − p_a|
+    over all stored rows, in paraview_view.PRESSURE_COLOURS: a middle grey where p = p_a (all of it at t = 0,
+    where contact colours it blue), red where the squeezed film pushes it up."""
+    command = pvpython()
+    out = tmp_path / "film_drum"
+    res = sc.simulate(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.12, nt=48, output_times=[]),
+                      output_dir=out, max_frames=7,
+                      pictures=False)
+    assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    k = int(np.argmax([np.abs(res.pressure[np.flatnonzero(res.t == t)[0]]).max() for t in back.t]))
+    t_k = float(back.t[k])
+    shots = [(0.0, tmp_path / "pressure_0.png", "pressure"), (0.0, tmp_path / "contact_0.png", "contact"),
+             (t_k, tmp_path / "pressure_k.png", "pressure")]
+    (r0, img0), (_, contact0), (rk, imgk) = _views(command, out, shots)
+    peak = float(np.abs(res.pressure).max())
+    for report in (r0, rk):
+        assert report["field"] == "pressure"
+        np.testing.assert_allclose(report["range"], [-peak, peak], rtol=1e-12)
+
+    def counts(img):
+        img = img[MIDDLE].astype(int)
+        red = (img[..., 0] - np.maximum(img[..., 1], img[..., 2])) > 60
+        blue = (img[..., 2] - np.maximum(img[..., 0], img[..., 1])) > 60
+        grey = (np.ptp(img, axis=-1) < 12) & (img.max(axis=-1) > 50) & (img.max(axis=-1) < 185)  # lit; not the obstacle's 204
+        return int(red.sum()), int(blue.sum()), int(grey.sum())
+
+    assert np.abs(res.pressure[0]).max() == 0.0
+    red0, blue0, grey0 = counts(img0)
+    assert red0 == blue0 == 0 and grey0 > 5000, (red0, blue0, grey0)  # p = p_a: the whole membrane grey, and seen
+    assert counts(contact0)[1] > 5000  # the same frame coloured by contact: blue (free)
+    redk, _, _ = counts(imgk)
+    assert redk > 500, redk  # the film's peak pressure under the falling skin

@@ -13,6 +13,10 @@ obstacle) is written into it as a literal by the run, computed over all stored r
 - `velocity` on the symmetric range −V … V, V = max |velocity| over every stored row, in a diverging map
   whose middle (v = 0) is a dark grey: a string at rest stands out on the white background (pick it in the
   colouring menu, or name it on the command line: its range is fixed too);
+- a film's `pressure` p − p_a (model "film") on −P … P, P = max |p − p_a| over every stored row, blue, a
+  middle grey at p = p_a, red (`PRESSURE_COLOURS`: a membrane at ambient pressure stays seen), on a
+  symmetric-log scale (`symlog_unit`, as the pictures: a landing's peak would leave every other time grey);
+  picked like the velocity;
 - the obstacle ψ of the scene (the plane 0 unless the scene gives a profile), in grey: for a string the
   region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch;
 - a title (scene, model, scheme), the time t in the upper left corner and axes named x and eta (x, y and
@@ -21,8 +25,8 @@ obstacle) is written into it as a literal by the run, computed over all stored r
   and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
   different times line up (an animation does not jump).
 
-`pvpython view.py TIME PNG [contact|velocity]` saves a screenshot at time TIME instead of opening a window and
-prints one JSON line: the time, the field, its colour range and the camera.
+`pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead of opening a window
+and prints one JSON line: the time, the field, its colour range and the camera.
 """
 
 from __future__ import annotations
@@ -38,16 +42,51 @@ CONTACT_RANGE = (0.0, 1.0)
 #: velocity's colours at −V, 0 and V (RGB in 0 … 1): blue, a dark grey, red. The middle is dark so that a
 #: string at rest (v = 0) is seen on the white background (Cool to Warm's light grey middle vanishes there).
 VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
+#: a film's pressure p − p_a at −P, 0 and P: blue, a middle grey, red. A membrane where p = p_a (its rim, and
+#: all of it before the film is squeezed) is seen on the white background and on the light grey obstacle, and
+#: black labels on it are read (a light middle vanished there, the velocity's dark grey hid them); the
+#: membrane's pictures (plot/mesh_pictures.py) use these colours too
+PRESSURE_COLOURS = ((0.085, 0.40, 0.85), (0.55, 0.55, 0.55), (0.85, 0.10, 0.08))
+#: the share of the largest |p − p_a| within which the pressure's colours are linear in it; beyond, logarithmic
+#: (a landing's peak is 1e3-1e4 times the pressure before and after it: on a linear scale all that is grey)
+PRESSURE_LINEAR_SHARE = 1e-3
+#: control points of the pressure's colours per decade of |p − p_a| (ParaView interpolates between them)
+POINTS_PER_DECADE = 4
 #: the obstacle's grey, and the white background
 OBSTACLE_GREY = (0.80, 0.80, 0.80)
 #: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
 OBSTACLE_SAMPLES = 200
 
 
+def symlog_unit(values, peak: float, share: float = PRESSURE_LINEAR_SHARE) -> np.ndarray:
+    """`values` from −peak … peak onto −1 … 1 on a symmetric-log scale (clipped beyond): matplotlib's
+    SymLogNorm (base 10, linscale 1) with linthresh = share·peak, which pressure.png uses; linear within ±linthresh."""
+    c = share * peak
+    linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
+
+    def forward(v):
+        a = np.abs(v)
+        return np.sign(v) * np.where(a > c, linear + np.log10(np.maximum(a, c) / c), a * linear / c)
+
+    return np.clip(forward(np.asarray(values, dtype=float)) / forward(peak), -1.0, 1.0)
+
+
+def pressure_points(peak: float) -> list:
+    """ParaView's control points (value, r, g, b) of the pressure's colours on −peak … peak: `PRESSURE_COLOURS`
+    at −1, 0 and 1 of `symlog_unit`, at 0, ±linthresh and POINTS_PER_DECADE values per decade up to ±peak."""
+    decades = -float(np.log10(PRESSURE_LINEAR_SHARE))
+    above = peak * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
+    values = np.concatenate([-above[::-1], [0.0], above])
+    unit = symlog_unit(values, peak)
+    low, mid, high = (np.array(c) for c in PRESSURE_COLOURS)
+    colours = np.where(unit[:, None] < 0, mid + (low - mid) * -unit[:, None], mid + (high - mid) * unit[:, None])
+    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
+
+
 def view_numbers(result) -> dict:
     """What view.py needs, from the stored rows: the kind, the warp's normal, the velocity's symmetric range,
     the obstacle (points and quadrilaterals) and the box the camera frames over all times (x0, x1, y0, y1, z0,
-    z1: the warped shape and the obstacle), and the title."""
+    z1: the warped shape and the obstacle), the title, and a film's pressure range and colour points."""
     x = np.asarray(result.x, dtype=float)
     eta = np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
@@ -66,7 +105,8 @@ def view_numbers(result) -> dict:
     return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
             "times": [float(t) for t in result.t], "obstacle_points": points, "obstacle_quads": quads,
             "title": view_title(result),
-            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None}
+            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None,
+            "pressure_points": pressure_points(peak or 1.0) if pressure is not None else None}
 
 
 def view_title(result) -> str:
@@ -151,6 +191,7 @@ OBSTACLE_POINTS = {_literal(numbers.get("obstacle_points") or [])}  # x, y, z
 OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices into OBSTACLE_POINTS each
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
 PRESSURE_RANGE = {_literal(numbers["pressure_range"]) if numbers.get("pressure_range") else None}  # a film's p - p_a
+PRESSURE_POINTS = {_literal(numbers.get("pressure_points") or [])}  # value, r, g, b: symmetric-log colours
 '''
     return head + _BODY
 
@@ -170,7 +211,13 @@ def folder():
 def fixed_map(name, low, high, preset=None, colours=None):
     """The colour map of array `name` on [low, high], never rescaled when the time changes."""
     lut = GetColorTransferFunction(name)
-    if colours:  # evenly spaced colours from low to high
+    if colours and len(colours[0]) == 4:  # (value, r, g, b): each colour at its value
+        lut.RGBPoints = [v for point in colours for v in point]
+        lut.ColorSpace = "RGB"
+        # not 256 table values: their bins (2·peak/256) are wider than the linear part near 0, and the texture
+        # drew p = 0 in red and blue stripes
+        lut.Discretize = 0
+    elif colours:  # evenly spaced colours from low to high
         step = (high - low) / (len(colours) - 1)
         lut.RGBPoints = [v for k, c in enumerate(colours) for v in (low + k * step, *c)]
         lut.ColorSpace = "Lab"
@@ -184,7 +231,7 @@ def fixed_map(name, low, high, preset=None, colours=None):
 
 
 MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS),
-        **({"pressure": (PRESSURE_RANGE, "Cool to Warm", None)} if PRESSURE_RANGE else {})}
+        **({"pressure": (PRESSURE_RANGE, None, PRESSURE_POINTS)} if PRESSURE_RANGE else {})}
 
 
 def colour_by(view, display, field):

@@ -4,6 +4,9 @@
 the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
 panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). The animation
 ``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
+A membrane on a fluid film (model "film") is coloured by the film's pressure p − p_a instead (`PressureScale`:
+one fixed symmetric-log scale over all stored rows, its bar drawn by `add_pressure_bar`), the edge of its
+contact set drawn on it as a line (`contact_edge`).
 
 VTK's scalar bar and pyvista's `show_bounds` format their labels with `std::regex`, which aborts the
 process (`std::bad_alloc`) once dolfinx's C++ module is loaded (a run's pictures drawn in its own process,
@@ -22,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.paraview_view import PRESSURE_COLOURS, PRESSURE_LINEAR_SHARE, symlog_unit
 from ..io.publish import atomic_path
 from .catalogue import WINDOW_SIZE
 from .charts import (
@@ -39,6 +43,10 @@ from .vtk_modules import search_once
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"
 MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
+#: the edge of a film membrane's contact set: yellow, seen on the pressure's blue, dark grey and red alike
+CONTACT_EDGE_COLOUR = "#ffd400"
+#: its colour in the legend's text, on white (the line's yellow is hardly read there)
+CONTACT_EDGE_TEXT = "#b08f00"
 
 
 #: VTK render windows that draw on an X server: without one, VTK 9 fails to make them and then crashes (SIGSEGV).
@@ -268,6 +276,7 @@ class MembraneView:
     bounds: tuple  # (x0, x1, y0, y1, z0, z1), drawn coordinates
     camera: list
     neighbours: object = None  # the mean over each node's mesh neighbours, a sparse matrix (`neighbour_mean`)
+    pressure: PressureScale | None = None  # a film's: the membrane coloured by p − p_a on this scale
 
     def shade(self, contact: np.ndarray) -> np.ndarray:
         """What the colour is drawn from: 0.6 × the nodal contact indicator + 0.4 × its mean over the node's
@@ -301,7 +310,9 @@ def membrane_view(result) -> MembraneView:
     bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
     centre = np.array([0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])])
     eye = centre + width * np.array([-0.4, -1.1, 1.5])
-    return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)))
+    pressure = getattr(result, "pressure", None)
+    return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)),
+                        None if pressure is None else PressureScale.of(pressure))
 
 
 def _span(v) -> tuple[float, float]:
@@ -321,15 +332,21 @@ def triangles(result, z):
 
 
 def add_membrane(p, result, row: int, view: MembraneView):
-    """The membrane at `row` (coloured by contact) and the obstacle (grey) in the plotter `p`; returns the
-    membrane's PolyData, whose points' z and point data "contact" may be changed in place afterwards."""
+    """The membrane at `row` and the obstacle (grey) in the plotter `p`: coloured by contact, or by the film's
+    pressure on `view.pressure`'s scale (then `add_contact_edge` draws its contact set's edge). Returns the
+    membrane's PolyData, whose heights and colours `show_row` changes in place afterwards."""
     psi = obstacle_profile(result)
     lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
     # smooth (Gouraud) shading: the flat shading showed every triangle as a facet
-    p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
-               show_scalar_bar=False, ambient=0.3, smooth_shading=True)
+    if view.pressure is None:
+        p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
+                   show_scalar_bar=False, ambient=0.3, smooth_shading=True)
+    else:
+        _set_pressure(surface, result, row, view.pressure)
+        p.add_mesh(surface, scalars="pressure_colour", cmap=view.pressure.colour_map(), clim=(-1, 1),
+                   show_scalar_bar=False, ambient=0.3, smooth_shading=True)
     # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
     # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
     p.add_mesh(triangles(result, psi * view.scale - _below(lo, hi, view.scale)), color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
@@ -337,6 +354,26 @@ def add_membrane(p, result, row: int, view: MembraneView):
     p.reset_camera(bounds=view.bounds)
     p.camera.zoom(1.1)  # reset_camera fits the box's bounding sphere: room to spare
     return surface
+
+
+def show_row(surface, result, row: int, view: MembraneView) -> None:
+    """The membrane `surface` of `add_membrane` moved to `row` in place: its heights and the arrays it is coloured by."""
+    surface.points[:, 2] = result.eta[row] * view.scale  # in place: the scene stays, the heights change
+    surface.point_data["contact"][:] = view.shade(result.contact[row])
+    if view.pressure is not None:
+        _set_pressure(surface, result, row, view.pressure)
+    surface.Modified()
+
+
+def _set_pressure(surface, result, row: int, scale: PressureScale) -> None:
+    """`pressure`: p − p_a at the nodes; `pressure_colour`: where it lies on `scale` (−1 … 1), the array drawn."""
+    values = np.array(result.pressure[row], dtype=float)  # a copy: pyvista shares the array it is given, and
+    if "pressure" in surface.point_data:  # the next row written into it would overwrite the Result's row
+        surface.point_data["pressure"][:] = values
+        surface.point_data["pressure_colour"][:] = scale.unit(values)
+    else:
+        surface.point_data["pressure"] = values
+        surface.point_data["pressure_colour"] = scale.unit(values)
 
 
 #: the membrane axes' font size (VTK points): digits 12 px high (7 gave 6 px, too small to read)
@@ -367,14 +404,29 @@ def membrane_title(result, view: MembraneView, what: str, sep: str = ", ") -> st
     """The title's lines; `sep` joins the two halves of the parameter line (a newline for a narrow picture)."""
     stretched = f"heights ×{view.scale:.2g}; " if view.scale > 1 else ""
     psi = obstacle_name(result)
-    return (f"{what}: {result.scene.name}\n{parameter_line(result, sep)}\n"
-            f"{stretched}red: in contact (η ≤ {psi}), blue: free, grey: the obstacle {psi}")
+    colours = (f"red: in contact (η ≤ {psi}), blue: free" if view.pressure is None else
+               f"colour: the film's pressure p − p_a (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
+    return f"{what}: {result.scene.name}\n{parameter_line(result, sep)}\n{stretched}{colours}, grey: the obstacle {psi}"
+
+
+def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
+    """The colour key's quantity and its (label, colour) entries: contact, or a film's pressure."""
+    psi = obstacle_name(result)
+    if view.pressure is None:
+        return "colour: contact", [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR),
+                                   (f"obstacle {psi}", OBSTACLE_COLOUR)]
+    return "colour: p − p_a", [("edge of contact", CONTACT_EDGE_TEXT), (f"obstacle {psi}", OBSTACLE_COLOUR)]
+
+
+#: the height of a film membrane's colour bar row in membrane.png, against a panel's 1 and the title's 0.25
+BAR_ROW = 0.16
 
 
 def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     """The membrane z = η(x, y, t) at the scene's output times (one panel each; the stored row nearest to
     each), red where in contact, above the obstacle (grey). Each panel names its time, contact area and
-    number of contact patches."""
+    number of contact patches. A film's membrane is coloured by its pressure p − p_a instead, on one scale
+    for all panels (its bar in a row under them), the edge of its contact set drawn in yellow."""
     path = Path(path)
     rows = snapshot_rows(result)
     ncols = 3 if len(rows) > 4 else min(len(rows), 2)
@@ -382,23 +434,191 @@ def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     view = membrane_view(result)
     area = result.contact_measure
     patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
-    # a title row across the top, then the panels
-    p = _plotter(window_size, shape=(nrows + 1, ncols), groups=[(0, np.s_[:])], row_weights=[0.25] + [1] * nrows)
+    # a title row across the top, then the panels (and a film's colour bar across the bottom)
+    bar = view.pressure is not None
+    p = _plotter(window_size, shape=(nrows + 1 + bar, ncols), groups=[(0, np.s_[:])] + [(nrows + 1, np.s_[:])] * bar,
+                 row_weights=[0.25] + [1] * nrows + [BAR_ROW] * bar)
     p.subplot(0, 0)
     note = panels_note(result, rows)
     _title(p, membrane_title(result, view, "The membrane at the output times") + (f"; {note}" if note else ""))
-    psi = obstacle_name(result)
-    legend = [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)]
     # the colour key in the title row's right corner: in a panel, the next panel cut its lines off
-    add_colour_legend(p, "colour: contact", legend, top=0.72, font_size=7, left=0.86, step=0.2)
+    add_colour_legend(p, *membrane_legend(result, view), top=0.72, font_size=7, left=0.86, step=0.2)
     for k, i in enumerate(rows):
         p.subplot(1 + k // ncols, k % ncols)
-        add_membrane(p, result, i, view)
+        surface = add_membrane(p, result, i, view)
+        if bar:
+            add_contact_edge(p, surface, view)
         add_membrane_axes(p, view)
         p.add_text(membrane_label(result, i, area[i], int(patches[k])).replace(": ", "\n", 1), position=(0.03, 0.85),
                    viewport=True, font_size=7, color="black", font_file=_font_file())
+    if bar:
+        p.subplot(nrows + 1, 0)
+        add_pressure_bar(p, view.pressure, (0.3, 0.55, 0.7, 0.9), font_size=8)
     _screenshot(p, path)
     return path
+
+
+# --- a film's pressure (model "film") --------------------------------------------------------------
+
+#: the share of the largest |p − p_a| within which the pressure's colour scale is linear (pressure.png's)
+LINEAR_SHARE = PRESSURE_LINEAR_SHARE
+#: the least distance of a power of ten's tick from the bar's ends (±peak), in half-bars: their labels apart
+TICK_GAP = 0.16
+
+
+@dataclass(frozen=True)
+class PressureScale:
+    """A film's pressure p − p_a on one colour scale for every row and panel: blue below ambient, a dark grey
+    at it (`PRESSURE_COLOURS`: ParaView's view has the same; a light middle vanished on the white background
+    and on the grey obstacle wherever p ≈ p_a, as before the landing), red above; ±`peak` (the largest
+    |p − p_a| over all stored rows) at the ends. Symmetric-log (`paraview_view.symlog_unit`: matplotlib's
+    SymLogNorm, linear within ±LINEAR_SHARE·peak, as pressure.png and ParaView's view): a landing's peak is
+    1e3–1e4 times the pressure before and after it."""
+
+    peak: float
+
+    @classmethod
+    def of(cls, pressure) -> PressureScale:
+        """The scale of the pressure rows `pressure` (its peak 1 if they are all 0 or not finite)."""
+        values = np.asarray(pressure, dtype=float)
+        peak = float(np.nanmax(np.abs(values))) if values.size and not np.isnan(values).all() else 0.0
+        return cls(peak if np.isfinite(peak) and peak > 0 else 1.0)
+
+    def unit(self, values) -> np.ndarray:
+        """Where `values` lie on the scale: −1 at −peak, 0 at 0, 1 at peak (clipped beyond)."""
+        return symlog_unit(values, self.peak, LINEAR_SHARE)
+
+    @staticmethod
+    def colour_map():
+        """The colours from −1 to 1: `PRESSURE_COLOURS` (blue, dark grey, red), blended in between."""
+        from matplotlib.colors import LinearSegmentedColormap
+
+        return LinearSegmentedColormap.from_list("pressure", PRESSURE_COLOURS)
+
+    def ticks(self) -> np.ndarray:
+        """0, ±peak, and ± the powers of ten from LINEAR_SHARE·peak up that lie TICK_GAP or more inside ±peak."""
+        low = LINEAR_SHARE * self.peak
+        powers = 10.0 ** np.arange(np.ceil(np.log10(low)), np.floor(np.log10(self.peak)) + 1)
+        powers = powers[self.unit(powers) <= 1.0 - TICK_GAP]
+        return np.concatenate([[-self.peak], -powers[::-1], [0.0], powers, [self.peak]])
+
+
+def _pressure_label(v: float, peak: float) -> str:
+    """A tick's label: the ends to 3 digits, the powers of ten as they are; a true minus sign."""
+    text = f"{abs(v):.3g}" if np.isclose(abs(v), peak) else f"{abs(v):g}"
+    return ("−" if v < 0 else "") + text
+
+
+def _actor_2d(points, polys=(), lines=(), colours=None, colour=(0.0, 0.0, 0.0), width: float = 1.0):
+    """A 2-D actor of quadrilaterals and lines at `points` in the panel's coordinates (0 … 1 each way), the
+    quadrilaterals coloured by the RGB rows of `colours` (0 … 255), else everything in `colour`."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+    from vtkmodules.vtkRenderingCore import vtkActor2D, vtkCoordinate, vtkPolyDataMapper2D
+
+    vtk_points = vtkPoints()
+    for x, y in points:
+        vtk_points.InsertNextPoint(float(x), float(y), 0.0)
+    data = vtkPolyData()
+    data.SetPoints(vtk_points)
+    for cells, setter in ((polys, data.SetPolys), (lines, data.SetLines)):
+        array = vtkCellArray()
+        for cell in cells:
+            array.InsertNextCell(len(cell), [int(i) for i in cell])
+        setter(array)
+    mapper = vtkPolyDataMapper2D()
+    if colours is not None:
+        rgb = numpy_to_vtk(np.ascontiguousarray(colours, dtype=np.uint8), deep=True)
+        data.GetCellData().SetScalars(rgb)
+        mapper.SetScalarModeToUseCellData()
+        mapper.SetColorModeToDirectScalars()
+    else:
+        mapper.ScalarVisibilityOff()
+    mapper.SetInputData(data)
+    coordinate = vtkCoordinate()
+    coordinate.SetCoordinateSystemToNormalizedViewport()
+    mapper.SetTransformCoordinate(coordinate)
+    actor = vtkActor2D()
+    actor.SetMapper(mapper)
+    actor.GetProperty().SetColor(*colour)
+    actor.GetProperty().SetLineWidth(width)
+    return actor
+
+
+def add_pressure_bar(p, scale: PressureScale, box: tuple, vertical: bool = False, font_size: int = 8) -> list[str]:
+    """The pressure's colour bar in the current panel of `p` within `box` = (x0, y0, x1, y1) (the panel's
+    0 … 1): −peak at its left (bottom) end, +peak at its right (top); its ticks' labels below it (left of it),
+    its name beside it. Coloured rectangles and text actors, not VTK's scalar bar, whose labels are formatted
+    with std::regex (the module's docstring). Returns the labels drawn."""
+    x0, y0, x1, y1 = box
+    steps = np.linspace(-1.0, 1.0, 257)
+    colours = (255 * np.asarray(scale.colour_map()(0.25 * (steps[:-1] + steps[1:]) + 0.5))[:, :3]).round()
+
+    def at(u, across):  # a point of the bar: u along it (−1 … 1), `across` 0 … 1 over its thickness
+        along = 0.5 * (np.asarray(u) + 1.0)
+        return (x0 + across * (x1 - x0), y0 + along * (y1 - y0)) if vertical else (x0 + along * (x1 - x0), y0 + across * (y1 - y0))
+
+    points = [at(u, a) for u in steps for a in (0.0, 1.0)]
+    quads = [(2 * k, 2 * k + 2, 2 * k + 3, 2 * k + 1) for k in range(len(steps) - 1)]
+    p.add_actor(_actor_2d(points, polys=quads, colours=colours), reset_camera=False, pickable=False)
+    ticks = scale.ticks()
+    where = scale.unit(ticks)
+    frame = [at(-1, 0), at(1, 0), at(1, 1), at(-1, 1)]
+    marks = [point for u in where for point in (at(u, 0.0), at(u, -0.35))]
+    lines = [(0, 1, 2, 3, 0)] + [(4 + 2 * k, 5 + 2 * k) for k in range(len(where))]
+    p.add_actor(_actor_2d(frame + marks, lines=lines, width=1.5), reset_camera=False, pickable=False)
+    labels = [_pressure_label(v, scale.peak) for v in ticks]
+    for u, label in zip(where, labels):
+        text = p.add_text(label, position=at(u, -0.45), viewport=True, font_size=font_size, color="black",
+                          font_file=_font_file())
+        if vertical:
+            text.prop.SetJustificationToRight()
+            text.prop.SetVerticalJustificationToCentered()
+        else:
+            text.prop.SetJustificationToCentered()
+            text.prop.SetVerticalJustificationToTop()
+    name = p.add_text("film pressure p − p_a" if not vertical else "p − p_a", viewport=True, font_size=font_size + 1,
+                      color="black", font_file=_font_file(),
+                      position=(x1 + 0.02, 0.5 * (y0 + y1)) if not vertical else (x1, y1 + 0.02))
+    if vertical:
+        name.prop.SetJustificationToRight()
+    else:
+        name.prop.SetVerticalJustificationToCentered()
+    return labels
+
+
+def contact_edge(surface, view: MembraneView, into=None):
+    """The edge of the contact set on the drawn membrane `surface`: the 0.5 iso-line of its "contact" shade
+    (`MembraneView.shade`), lifted by 0.5 % of the drawing's height so that the surface does not hide it;
+    copied into the PolyData `into` if given (a GIF's next frame). Empty when nothing is in contact."""
+    line = surface.contour([0.5], scalars="contact")
+    if line.n_points:
+        line.points[:, 2] += 0.005 * (view.bounds[5] - view.bounds[4])
+    if into is None:
+        return line
+    into.copy_from(line)
+    return into
+
+
+def add_contact_edge(p, surface, view: MembraneView):
+    """The contact set's edge (`contact_edge`) on `surface` as a yellow line; returns its PolyData, which
+    `contact_edge(surface, view, into=...)` updates in place. Drawn through VTK's own mapper: pyvista refuses
+    an empty mesh, the edge of a membrane not in contact."""
+    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+
+    edge = contact_edge(surface, view)
+    mapper = vtkPolyDataMapper()
+    mapper.SetInputData(edge)
+    mapper.ScalarVisibilityOff()
+    actor = vtkActor()
+    actor.SetMapper(mapper)
+    prop = actor.GetProperty()
+    prop.SetColor(*(int(CONTACT_EDGE_COLOUR[i : i + 2], 16) / 255 for i in (1, 3, 5)))
+    prop.SetLineWidth(3.0)
+    prop.LightingOff()
+    p.add_actor(actor, reset_camera=False, pickable=False)
+    return edge
 
 
 def warm_up() -> None:

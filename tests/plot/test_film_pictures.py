@@ -1,0 +1,227 @@
+"""A membrane on a fluid film (model "film"): membrane.png and membrane.gif coloured by the film's pressure
+p − p_a on one fixed symmetric-log scale with its colour bar, the contact set's edge drawn in yellow; a
+membrane without a pressure drawn as before (coloured by contact)."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import warnings
+
+import numpy as np
+import pytest
+
+import stringcontact as sc
+from stringcontact.cli.main import main
+from stringcontact.io.paraview_view import PRESSURE_COLOURS, pressure_points, symlog_unit
+from stringcontact.plot import animation, charts, mesh_pictures, viz
+from stringcontact.scene import scene_to_toml
+
+#: a coarse film drum (81 nodes): pressure p = p_a at t = 0, building up (red) at 0.1, first contact at 0.11,
+#: in contact at 0.15 (under high pressure) and at 0.3 (under suction, p < p_a)
+SMALL_FILM_DRUM = {"cells": [8, 8], "T": 0.3, "nt": 120, "output_times": [0.0, 0.1, 0.15, 0.3]}
+
+
+def small_film_drum():
+    return sc.load_scene("film_drum").replace(**SMALL_FILM_DRUM)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """The coarse film drum written with its pictures (drawn in this process), and its in-memory result."""
+    folder = tmp_path_factory.mktemp("film_membrane") / "film_drum"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = sc.simulate(small_film_drum(), output_dir=folder, progress=False)
+    return folder, res
+
+
+def _image(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB")).astype(int)
+
+
+def _rgb(colour) -> np.ndarray:
+    return np.array([int(colour[i : i + 2], 16) for i in (1, 3, 5)]) if isinstance(colour, str) else np.round(255 * np.array(colour))
+
+
+def _near(img, colour, tol: int) -> np.ndarray:
+    return np.all(np.abs(img - _rgb(colour)) <= tol, axis=-1)
+
+
+def _reddish(img):
+    return (img[..., 0] - np.maximum(img[..., 1], img[..., 2])) > 50
+
+
+def _bluish(img):
+    return (img[..., 2] - np.maximum(img[..., 0], img[..., 1])) > 50
+
+
+def _yellow(img):
+    """The contact edge's yellow (#ffd400, unlit), not the legend's darker text (#b08f00)."""
+    return (img[..., 0] > 200) & (img[..., 1] > 150) & (img[..., 2] < 90)
+
+
+def _rows_of(img, nrows: int):
+    """membrane.png of a film: the title row (weight 0.25), `nrows` panel rows (1 each), the bar's row (BAR_ROW)."""
+    weights = np.array([0.25] + [1.0] * nrows + [mesh_pictures.BAR_ROW])
+    edges = np.round(np.concatenate([[0], np.cumsum(weights)]) / weights.sum() * img.shape[0]).astype(int)
+    return [img[a:b] for a, b in itertools.pairwise(edges)]
+
+
+def _panels(img, nrows: int, ncols: int):
+    rows = _rows_of(img, nrows)
+    width = img.shape[1] / ncols
+    return [row[:, int(c * width) : int((c + 1) * width)] for row in rows[1:-1] for c in range(ncols)]
+
+
+# --- the scale ---------------------------------------------------------------------------------------
+
+
+def test_the_pressure_scale_is_symmetric_centred_at_zero_and_fixed_by_the_peak():
+    scale = mesh_pictures.PressureScale.of(np.array([[0.0, 2.0], [-381.0, 50.0]]))
+    assert scale.peak == 381.0
+    np.testing.assert_allclose(scale.unit([-381.0, 0.0, 381.0, 1e4]), [-1.0, 0.0, 1.0, 1.0])
+    values = np.linspace(-381, 381, 201)
+    units = scale.unit(values)
+    assert np.all(np.diff(units) > 0) and np.allclose(units, -scale.unit(-values))  # increasing and odd
+    assert scale.unit(0.381) == pytest.approx(0.27, abs=0.01)  # symmetric-log: 1e-3 of the peak is still coloured
+    ticks = scale.ticks()
+    np.testing.assert_array_equal(ticks, [-381, -10, -1, 0, 1, 10, 381])  # 100 lies too close to 381 for its label
+    assert [mesh_pictures._pressure_label(v, scale.peak) for v in ticks] == ["−381", "−10", "−1", "0", "1", "10", "381"]
+    assert mesh_pictures.PressureScale.of(np.zeros((3, 4))).peak == 1.0  # a film never squeezed: a scale all the same
+    colours = np.asarray(scale.colour_map()([0.0, 0.5, 1.0]))[:, :3]
+    np.testing.assert_allclose(colours, PRESSURE_COLOURS, atol=4e-3)  # to one of the 256 steps  # ParaView's view has the same colours
+
+
+@pytest.mark.parametrize("peak", [1.0, 381.0, 2.5e4])
+def test_the_symmetric_log_scale_is_pressure_pngs_and_paraviews(peak):
+    """The pictures' and ParaView's scale is matplotlib's SymLogNorm, which pressure.png draws with; ParaView's
+    control points give the pictures' colours at their values."""
+    from matplotlib.colors import SymLogNorm
+
+    values = np.concatenate([np.linspace(-peak, peak, 101), peak * np.logspace(-5, 0, 41)])
+    norm = SymLogNorm(linthresh=1e-3 * peak, vmin=-peak, vmax=peak, base=10)
+    np.testing.assert_allclose(symlog_unit(values, peak), 2 * np.asarray(norm(values)) - 1, atol=1e-12)
+    points = np.array(pressure_points(peak))
+    assert points[0, 0] == -peak and points[-1, 0] == peak and 0.0 in points[:, 0]
+    assert np.all(np.diff(points[:, 0]) > 0) and len(points) == 2 * 13 + 1  # 0, and 4 a decade over 3 decades each way
+    scale = mesh_pictures.PressureScale(peak)
+    pictures = np.asarray(scale.colour_map()(0.5 * (scale.unit(points[:, 0]) + 1)))[:, :3]
+    np.testing.assert_allclose(points[:, 1:], pictures, atol=4e-3)  # to one of the colour map's 256 steps
+
+
+# --- the scene in a plotter --------------------------------------------------------------------------
+
+
+def _surface_actor(p, surface):
+    (actor,) = [a for a in p.actors.values() if getattr(a.mapper, "dataset", None) is not None
+                and a.mapper.dataset.n_points == surface.n_points and a.mapper.array_name]
+    return actor
+
+
+def test_the_film_membranes_mesh_carries_its_pressure_and_is_coloured_by_it(run):
+    _, res = run
+    view = mesh_pictures.membrane_view(res)
+    assert view.pressure == mesh_pictures.PressureScale(float(np.abs(res.pressure).max()))
+    row, later = 40, 60  # t = 0.1 (free), 0.15 (in contact)
+    kept = res.pressure.copy()
+    p = mesh_pictures._plotter((300, 200))
+    try:
+        surface = mesh_pictures.add_membrane(p, res, row, view)
+        np.testing.assert_array_equal(surface.point_data["pressure"], res.pressure[row])
+        np.testing.assert_array_equal(surface.point_data["pressure_colour"], view.pressure.unit(res.pressure[row]))
+        actor = _surface_actor(p, surface)
+        assert actor.mapper.array_name == "pressure_colour" and tuple(actor.mapper.scalar_range) == (-1.0, 1.0)
+        edge = mesh_pictures.add_contact_edge(p, surface, view)
+        assert edge.n_points == 0  # not in contact yet: no edge
+        mesh_pictures.show_row(surface, res, later, view)  # a GIF's next frame: the arrays follow the row
+        mesh_pictures.contact_edge(surface, view, into=edge)
+        np.testing.assert_array_equal(surface.point_data["pressure"], res.pressure[later])
+        np.testing.assert_array_equal(res.pressure, kept)  # the mesh's arrays are copies: the Result's rows stay
+        np.testing.assert_array_equal(surface.points[:, 2], res.eta[later] * view.scale)
+        assert res.contact[later].any() and edge.n_points > 4
+        inside = res.x[res.contact[later]]  # the edge surrounds the nodes in contact
+        lo, hi = edge.points[:, :2].min(axis=0), edge.points[:, :2].max(axis=0)
+        assert np.all(inside >= lo) and np.all(inside <= hi)
+        assert edge.points[:, 2].min() > 0  # lifted above the surface lying on the obstacle
+    finally:
+        p.close()
+
+
+def test_a_membrane_without_a_pressure_is_coloured_by_contact_as_before(run):
+    _, res = run
+    bare = dataclasses.replace(res, pressure=None)
+    view = mesh_pictures.membrane_view(bare)
+    assert view.pressure is None
+    p = mesh_pictures._plotter((300, 200))
+    try:
+        surface = mesh_pictures.add_membrane(p, bare, 60, view)
+        assert set(surface.point_data.keys()) == {"contact"}
+        assert _surface_actor(p, surface).mapper.array_name == "contact"
+    finally:
+        p.close()
+    assert "red: in contact" in mesh_pictures.membrane_title(bare, view, "x")
+    assert mesh_pictures.membrane_legend(bare, view)[0] == "colour: contact"
+
+
+# --- the pictures ------------------------------------------------------------------------------------
+
+
+def test_membrane_png_colours_the_film_by_its_pressure_with_its_bar_and_contact_edge(run, tmp_path):
+    folder, res = run
+    rows = charts.snapshot_rows(res)
+    img = _image(folder / "membrane.png")
+    assert img.shape == (viz.WINDOW_SIZE[1], viz.WINDOW_SIZE[0], 3)
+    bar = _rows_of(img, 2)[-1]
+    for end in (PRESSURE_COLOURS[0], PRESSURE_COLOURS[-1]):  # the bar's ends, unlit: the map's own colours
+        assert _near(bar, end, 6).sum() > 20, end
+    assert (bar.max(axis=-1) < 80).sum() > 100  # its labels and frame in black
+    panels = _panels(img, 2, 2)
+    peak = np.abs(res.pressure[rows]).max(axis=1)
+    red, blue, yellow = ([int(f(p).sum()) for p in panels] for f in (_reddish, _bluish, _yellow))
+    assert peak[0] == 0 and red[0] == blue[0] == yellow[0] == 0  # t = 0: p = p_a everywhere, a grey membrane
+    assert red[1] > 3000 and yellow[1] == 0  # t = 0.1: the squeezed film pushes up, nothing in contact yet
+    assert res.contact[rows[2]].any() and res.contact[rows[3]].any()
+    assert red[2] > 3000 and yellow[2] > 100  # t = 0.15: landed under high pressure, the patch's edge drawn
+    assert blue[3] > 1000 > red[3] and yellow[3] > 100  # t = 0.3: in contact, mostly under suction
+    # the same rows without the pressure: the contact colours, no bar and no yellow edge
+    plain = _image(viz.draw("membrane.png", dataclasses.replace(res, pressure=None), tmp_path))
+    assert _yellow(plain).sum() == 0 and _near(plain, PRESSURE_COLOURS[-1], 6).sum() == 0
+    assert _near(plain, charts.CONTACT_COLOUR, 60).sum() > 500
+
+
+def test_membrane_gif_colours_each_frame_by_its_pressure_with_the_edge_of_its_contact(run):
+    import imageio.v3 as iio
+
+    folder, res = run
+    frames = iio.imread(folder / "membrane.gif", index=None)[..., :3].astype(int)
+    rows = animation.frame_rows(res)
+    assert len(frames) == len(rows)
+    width = frames.shape[2]
+    x0, _, x1, _ = animation.FILM_BAR
+    bar = frames[:, :, int(x0 * width) - 2 : int(x1 * width) + 3]
+    for end in (PRESSURE_COLOURS[0], PRESSURE_COLOURS[-1]):  # the bar in every frame (the palette kept its ends)
+        assert all(_near(frame, end, 25).sum() > 10 for frame in bar), end
+    scene = frames[:, :, : int(0.9 * width)]  # the membrane, left of the bar
+    red = np.array([_reddish(f).sum() for f in scene])
+    yellow = np.array([_yellow(f).sum() for f in scene])
+    touching = res.contact[rows].any(axis=1)
+    assert touching.any() and not touching.all()
+    assert np.all((yellow > 0) == touching), (yellow, touching)  # the edge exactly while in contact
+    assert red[0] == 0 and red.max() > 2000  # p = p_a at t = 0, then the film's pressure shows
+
+
+def test_stringcontact_run_draws_the_film_membranes_pictures_in_its_painter(run, tmp_path):
+    """The CLI: the painter process (the Result handed over as a payload, the pressure with it) draws the same
+    membrane.png as this process did."""
+    folder, _ = run
+    path = tmp_path / "small_film_drum.toml"
+    path.write_text(scene_to_toml(small_film_drum()))
+    out = tmp_path / "out"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["run", str(path), "--out", str(out), "--no-progress"]) == 0
+    np.testing.assert_array_equal(_image(out / "membrane.png"), _image(folder / "membrane.png"))
