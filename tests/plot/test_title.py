@@ -55,3 +55,16 @@ def test_the_search_ends_at_its_cap_or_at_the_panels_height(window_size, panels,
     p.close()
     assert (size == mesh_pictures.ANNOTATION["FIT"]) is capped, size
     assert 0 < size <= mesh_pictures.ANNOTATION["FIT"]
+
+
+@pytest.mark.parametrize("model", ["film", "cubic_foundation", None])
+def test_the_parameter_line_names_the_model_and_the_scheme_once(model):
+    from types import SimpleNamespace
+
+    from stringcontact.plot.charts import parameter_line
+
+    scene = SimpleNamespace(nx=40, dt=1e-3, alpha=0.1, eps=1e-3)
+    result = SimpleNamespace(scene=scene, x=np.linspace(0, 1, 41), model=model, scheme="paper", penalty="explicit",
+                             mass="lumped")
+    line = parameter_line(result)
+    assert line.count(f"model {model or 'inelastic'}") == 1 and line.count("scheme paper") == 1, line

@@ -101,8 +101,6 @@ def parameter_line(result, sep: str = ", ") -> str:
     s = result.scene
     scheme = f"model {getattr(result, 'model', None) or 'inelastic'}, scheme {getattr(result, 'scheme', 'paper')}"
     mesh = f"nx = {s.nx}" if np.ndim(result.x) == 1 else f"{len(result.x)} nodes, {len(result.cells)} triangles"
-    model = getattr(result, "model", None)
-    mesh = f"model {model}, {mesh}" if model not in (None, "inelastic") else mesh  # a variant says which
     if result.penalty in (None, "none"):  # a scheme without ε (projection)
         return f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}{scheme}, no penalty (no ε), {result.mass} mass"
     return (
