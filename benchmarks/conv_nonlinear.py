@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/conv_nonlinear.py                          # the table in docs/howto/nonlinear_models.md
     .venv/bin/python benchmarks/conv_nonlinear.py --scheme paper --model large_deflection --scene contact
-    .venv/bin/python benchmarks/conv_nonlinear.py --sizes 50 100 200 400 --reference 1600 --example1
+    .venv/bin/python benchmarks/conv_nonlinear.py --example1 --sizes 100 200 400 800 1600 --reference 6400
 
 Models: the user's route, ``dataclasses.replace(sc.inelastic, momentum_form=..., stored_energy=...)`` adding
 k3 η³ w dx (k3 = 10) and its energy ¼ k3 η⁴,
@@ -11,7 +11,8 @@ string on smooth data, thrown onto the obstacle (contact) or swinging above it (
 fixed under refinement, Δt = Δx/2. For each, the runs at Δx = 1/n are compared with the same scheme and model at
 n = --reference (`analysis.convergence.reference_study`): the L∞(0, T; L²) error of η at the coarsest run's
 steps, the pairwise observed orders, and the order fitted over the pairs whose reference is at least 8× finer.
---example1 runs Example 1 itself instead (v0 = −50, T = 0.3, ε = 0.005, Δt = Δx/2). Writes
+--example1 runs Example 1 itself instead (v0 = −50, T = 0.3, ε = 0.005, Δt = Δx/2) and splits the error in time:
+the pairwise orders of the error over the landing (t ≤ 0.1) and of the error at T. Writes
 benchmarks/out/conv_nonlinear.json.
 """
 
@@ -26,10 +27,12 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import ufl
 
 import stringcontact as sc
-from stringcontact.analysis.convergence import fitted_order, reference_study
+from stringcontact.analysis.convergence import fitted_order, observed_orders, reference_study
+from stringcontact.analysis.norms import common_rows, l2_norm, to_nodes
 from stringcontact.analysis.problems import string_scene
 from stringcontact.model import nonlinear
 
@@ -58,6 +61,17 @@ def example1_at(n: int):
     return sc.load_scene("example1").replace(T=0.3, eps=0.005, nx=n, nt=round(0.6 * n), output_times=[])
 
 
+def split_orders(out: dict, landing: float = 0.1) -> tuple[list, list]:
+    """Pairwise orders of the L∞(0, landing; L²) error and of the L² error at T."""
+    ref, early, final = out["reference"], [], []
+    for run in out["runs"]:
+        e = l2_norm(run.x, run.eta - to_nodes(ref.x, ref.eta[common_rows(run.t, ref.t)], run.x))
+        early.append(float(np.max(e[run.t <= landing + 1e-12])))
+        final.append(float(e[-1]))
+    h = [1.0 / n for n in out["sizes"]]
+    return [float(p) for p in observed_orders(h, early)], [float(p) for p in observed_orders(h, final)]
+
+
 def one(scheme: str, model: str, scene: str, sizes, reference_n: int, example1: bool) -> dict:
     def scene_at(n):
         return example1_at(n) if example1 else string_scene(n, contact=scene == "contact")
@@ -69,8 +83,10 @@ def one(scheme: str, model: str, scene: str, sizes, reference_n: int, example1: 
     ref = out["reference"]
     far = [i for i, n in enumerate(sizes) if reference_n >= 8 * n]  # the reference's own error is small beside theirs
     fit = fitted_order([1.0 / sizes[i] for i in far], [out["errors"][i] for i in far]) if len(far) >= 2 else math.nan
+    early, final = split_orders(out)
     return {"scheme": scheme, "model": model, "scene": "example1" if example1 else scene, "sizes": list(sizes),
             "reference": reference_n, "errors": out["errors"], "orders": out["orders"], "fitted": fit,
+            "orders_landing": early, "orders_at_T": final,
             "min_eta_reference": float(ref.min_eta), "wall_s": time.perf_counter() - t0}
 
 
@@ -79,17 +95,18 @@ def main() -> None:
     parser.add_argument("--scheme", nargs="+", default=list(SCHEMES), choices=SCHEMES)
     parser.add_argument("--model", nargs="+", default=list(MODELS), choices=list(MODELS))
     parser.add_argument("--scene", nargs="+", default=["contact", "no contact"], choices=["contact", "no contact"])
-    parser.add_argument("--sizes", nargs="+", type=int, default=[50, 100, 200, 400])
-    parser.add_argument("--reference", type=int, default=1600)
+    parser.add_argument("--sizes", nargs="+", type=int, default=[60, 120, 240, 480])
+    parser.add_argument("--reference", type=int, default=3840)
     parser.add_argument("--example1", action="store_true")
     args = parser.parse_args()
     scenes = ["example1"] if args.example1 else args.scene
     sizes = sorted(args.sizes)
     print(f"nx = {', '.join(map(str, sizes))} against nx = {args.reference}; {platform.node()} "
           f"({platform.processor() or platform.machine()})", flush=True)
+    split = " | orders, t ≤ 0.1 | orders at T" if args.example1 else ""
     print("| scheme | model | scene | " + " | ".join(f"error, nx = {n}" for n in sizes)
-          + " | pairwise orders | fitted order | min η (reference) |", flush=True)
-    print("| --- " * (len(sizes) + 6) + "|", flush=True)
+          + f" | pairwise orders | fitted order | min η (reference){split} |", flush=True)
+    print("| --- " * (len(sizes) + 6 + 2 * args.example1) + "|", flush=True)
     rows = []
     for scheme in args.scheme:
         for model in args.model:
@@ -98,7 +115,9 @@ def main() -> None:
                 rows.append(r)
                 print(f"| {scheme} | {model} | {r['scene']} | " + " | ".join(f"{e:.2e}" for e in r["errors"])
                       + " | " + ", ".join(f"{p:.2f}" for p in r["orders"]) + f" | {r['fitted']:.2f} | "
-                      + f"{r['min_eta_reference']:.3f} |", flush=True)
+                      + f"{r['min_eta_reference']:.3f} |"
+                      + ("".join(" " + ", ".join(f"{p:.2f}" for p in r[k]) + " |" for k in ("orders_landing", "orders_at_T"))
+                         if args.example1 else ""), flush=True)
     out = Path(__file__).with_name("out")
     out.mkdir(exist_ok=True)
     (out / "conv_nonlinear.json").write_text(json.dumps(rows, indent=1))
