@@ -55,7 +55,7 @@ def study(scheme: str, model: str, scene: str) -> dict:
     key = (scheme, model, scene)
     if key not in _studies:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the coarsest paper run's r = Δt/ε = 0.83 warns; it is a result here
+            warnings.simplefilter("ignore")  # simulate's notes on the scene and the law are not what is checked here
             _studies[key] = reference_study(lambda n: string_scene(n, contact=scene == "contact"), scheme, SIZES,
                                             REFERENCE, model=MODELS[model])
     return _studies[key]
