@@ -1,5 +1,6 @@
 r"""The convergence study: observed orders under :math:`\Delta t = \Delta x \to 0` and under
-:math:`\varepsilon \to 0` (penetration and error) on the flat landing."""
+:math:`\varepsilon \to 0` (penetration and error) on the flat landing; `reference_study`: a scheme and a
+model (nonlinear ones too) refined against its own fine run (docs/howto/nonlinear_models.md)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 
 import numpy as np
 
-from .norms import errors_against_exact
+from .norms import errors_against_exact, errors_against_reference
 from .problems import METHODS, Method, flat_landing_exact, flat_landing_scene
 from .runs import run_method, warm_up
 from .schedule import distribute
@@ -80,3 +81,31 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
                                "order": fitted_order([r[variable] for r in fit], values),
                                "from": max(r[variable] for r in fit), "to": min(r[variable] for r in fit)})
     return {"runs": rows, "orders": orders}
+
+
+#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalty schemes
+#: converge to the penalised model; `paper` with its explicit penalty, `newmark` with its semi-implicit one).
+SCHEME_METHODS = {
+    "paper": Method("paper", "paper: explicit penalty, lumped, the scene's ε", "explicit", "lumped", "fixed"),
+    "projection": METHODS["projection"],
+    "newmark": Method("newmark", "newmark: semi-implicit penalty, lumped, the scene's ε", "semi-implicit", "lumped",
+                      "fixed", scheme="newmark"),
+}
+
+
+def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
+    """Errors of `scheme` (with `model`) on ``scene_at(n)`` for each n in `sizes` against the same scheme and
+    model on ``scene_at(reference_n)``: ``err_eta``, the L∞(0, T; L²) error at the coarsest run's stored times
+    (every one of its steps; the finer runs' step counts must be multiples of it), the reference interpolated.
+
+    Returns {"sizes", "errors", "orders" (pairwise, in Δx), "reference" (its `Run`), "runs"}.
+    """
+    method = SCHEME_METHODS[scheme]
+    rows = scene_at(min(sizes)).nt
+    reference = run_method(scene_at(reference_n), method, rows=rows, model=model)
+    runs = [run_method(scene_at(n), method, rows=rows, model=model) for n in sizes]
+    errors = [errors_against_reference(run, reference)["err_eta"] if run.status == "complete" else math.nan
+              for run in runs]
+    orders = observed_orders([1.0 / n for n in sizes], errors)
+    return {"sizes": list(sizes), "errors": errors, "orders": [float(p) for p in orders], "reference": reference,
+            "runs": runs}
