@@ -20,6 +20,8 @@ A form nonlinear in η or η_t (or a model with several fields) keeps the same o
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import dolfinx.fem.petsc  # noqa: F401 - dolfinx 0.9 no longer imports the PETSc layer with dolfinx.fem
@@ -73,6 +75,7 @@ class NonlinearForm:
     viscous_linear: bool = False  # ∂R/∂η_t is constant: the viscous force is C η_t (a mat-vec, no assembly)
     space: object = None  # the unknowns' space: V, or the mixed space of (η, *fields)
     eta_dofs: object = None  # the mixed space's local dof of each local dof of V (None: the space is V)
+    energy_derived: bool = False  # `stored_energy` is the form's potential (`potential_energy`), not declared
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
@@ -111,6 +114,30 @@ def _row_sums(A: PETSc.Mat) -> np.ndarray:
 def default_stored_energy(eta, p):
     """The paper's stored energy density ½|∇η|² (a model without `stored_energy` stores this)."""
     return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta))
+
+
+#: Gauss–Legendre on [0, 1], 3 points: the potential's s-integral exact for a static force of degree ≤ 5 in η
+#: (the paper's and a cubic foundation's), a few digits for a smooth one (a model with a closed form declares it).
+_GAUSS_S = ((0.5 - 0.5 * math.sqrt(0.6), 5 / 18), (0.5, 8 / 18), (0.5 + 0.5 * math.sqrt(0.6), 5 / 18))
+
+
+def potential_energy(R, placeholders, w, V):
+    """The stored energy of a momentum form R(η, η_t, η_tt, F; w) that declares none: the potential of its static
+    force G(η; w) = R(η, 0, 0, 0; w) − R(0, 0, 0, 0; w) (the load apart, which the ledger books as external work),
+
+        Π(η) = ∫₀¹ G(sη; η) ds,
+
+    by Gauss–Legendre in s (`_GAUSS_S`). For a conservative form (G the derivative of an energy, as every
+    elastic or foundation term is) this is that energy, zero at η = 0: ½∫η_x² for the paper's form,
+    ½∫η_x² + k3/4∫η⁴ with a cubic foundation. Returns the UFL functional and the Function on V it reads."""
+    eta, eta_t, eta_tt, force = placeholders
+    e = fem.Function(V)
+    zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+    rest = {eta_t: zero, eta_tt: zero, force: zero, w: e}
+    energy = -ufl.replace(R, rest | {eta: zero})
+    for s, weight in _GAUSS_S:
+        energy = energy + weight * ufl.replace(R, rest | {eta: s * e})
+    return energy, e
 
 
 def semi_discrete_operators(model, V, params) -> Operators:
@@ -171,9 +198,14 @@ def semi_discrete_operators(model, V, params) -> Operators:
                                       stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta, space=Z,
                                       eta_dofs=compat.sub_dofs(V, Z, 0))
     elif nonlinear_in or getattr(model, "newton", False):
+        if getattr(model, "stored_energy", None) is None:  # the form's own potential, not the paper's ½|∇η|²
+            stored, energy_eta = potential_energy(R, placeholders, w, V)
+        else:
+            stored, energy_eta = energy(eta, params) * ufl.dx, eta
         ops.nonlinear = NonlinearForm(residual=R, eta=eta, eta_t=eta_t, eta_tt=eta_tt, force=force, V=V,
-                                      params=params, stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta,
-                                      viscous_linear=eta_t not in nonlinear_in, space=V)
+                                      params=params, stored_energy=stored, energy_eta=energy_eta,
+                                      viscous_linear=eta_t not in nonlinear_in, space=V,
+                                      energy_derived=getattr(model, "stored_energy", None) is None)
     return ops
 
 
@@ -265,6 +297,7 @@ __all__ = [
     "Operators",
     "bc_dofs",
     "default_stored_energy",
+    "potential_energy",
     "node_coordinates",
     "semi_discrete_operators",
     "stacked",

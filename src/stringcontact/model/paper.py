@@ -50,7 +50,8 @@ A model is a `Model`: a few plain functions that return UFL.
 
 ``stored_energy(eta, p)`` (optional)
     The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
-    Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the paper's ½|∇η|².
+    Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the potential of the form's static force,
+    ∫₀¹ G(sη; η) ds (`fem.operators.potential_energy`; ½|∇η|² for the paper's form).
 
 ``penetration_bound`` (default ``"auto"``)
     The penetration bound the contact law has (`run.checks.penetration_check`): ``"velocity"`` (the paper's

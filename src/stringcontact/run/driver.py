@@ -276,6 +276,9 @@ def discretise(scene, model: Model, comm):
     return V, params, semi_discrete_operators(model, V, params)
 
 
+#: energy.png's legend of a nonlinear form's stored energy when the model declares none (`fem.operators.potential_energy`)
+POTENTIAL_LABEL = r"stored: the potential $\int_0^1 G(s\eta;\eta)\,ds$ of momentum_form"
+
 #: The moving obstacle's rate ψ_t in `Parameters.extra` (the backward quotient of ψ; `MovingObstacle`).
 RATE = "obstacle_rate"
 
@@ -482,6 +485,7 @@ class _Run:
         self.stepper, self.rows, self.geometry, self.row_series, self.timings = stepper, rows, geometry, row_series, timings
         self.ledger = self.writer = None
         self.origin = {}  # where the model came from (`_model_origin`)
+        self.energy_label = model.energy_label  # the stored energy's legend (`start` names a derived one)
         self.dt = scene.dt  # a property of the scene: read once, not per stored row
 
     def start(self, s: Setting, V, output: Output) -> None:
@@ -490,6 +494,8 @@ class _Run:
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
                               conservative=self.model.contact_energy is not None or stepper.energy_may_rise,
                               floor=energy_roundoff(s.ops.K, stepper.eta, s.comm), slack=stepper.energy_slack)
+        derived = s.ops.nonlinear is not None and s.ops.nonlinear.energy_derived  # the form's potential is booked
+        self.energy_label = self.model.energy_label or (POTENTIAL_LABEL if derived else None)
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
 
@@ -512,7 +518,7 @@ class _Run:
                         **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin,
-                        penetration_bound=penetration_bound_of(self.model), energy_label=self.model.energy_label,
+                        penetration_bound=penetration_bound_of(self.model), energy_label=self.energy_label,
                         status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
