@@ -21,7 +21,6 @@ A form nonlinear in η or η_t (or a model with several fields) keeps the same o
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import dolfinx.fem.petsc  # noqa: F401 - dolfinx 0.9 no longer imports the PETSc layer with dolfinx.fem
@@ -297,8 +296,8 @@ __all__ = [
     "Operators",
     "bc_dofs",
     "default_stored_energy",
-    "potential_energy",
     "node_coordinates",
+    "potential_energy",
     "semi_discrete_operators",
     "stacked",
     "step_matrices",
