@@ -120,6 +120,17 @@ def obstacle_profile(result, t: float = 0.0) -> np.ndarray:
     return result.scene.obstacle_values(x, t) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
 
 
+def obstacle_moves(result) -> bool:
+    """Whether the run's obstacle moves (ψ(x, t), `Scene.obstacle_moves`): then each picture draws it at its time."""
+    return bool(getattr(result.scene, "obstacle_moves", False))
+
+
+def obstacle_history(result, rows) -> np.ndarray:
+    """ψ at the nodes at the times of the stored `rows`, one row each: (len(rows), N)."""
+    n = np.asarray(result.x).shape[0]
+    return np.array([np.broadcast_to(obstacle_profile(result, float(result.t[i])), (n,)) for i in rows], dtype=float).reshape(-1, n)
+
+
 # --- matplotlib ---------------------------------------------------------------------------------------
 
 
