@@ -354,3 +354,25 @@ def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(
         assert abs(top - expected) <= 4, f"t = {t}: the obstacle's top at row {top}, psi = {psi} is at row {expected:.1f}"
         tops.append(top)
     assert tops[0] - tops[2] > 50, tops  # it rose on the picture
+
+
+def test_the_folders_view_draws_a_membranes_moving_obstacle_at_the_time_shown(tmp_path):
+    """A dome rising under a coarse drum (ψ = 0.25 min(t/0.3, 1)(1 − r²)): the grey surface ParaView draws at each
+    time (its box, reported by view.py) has ψ's top at that time, 1 % of the height range lower."""
+    command = pvpython()
+    out = tmp_path / "dome"
+    scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.2, 0.4],
+                                          obstacle="0.25*min(t/0.3, 1)*(1 - x**2 - y**2)")
+    res = sc.simulate(scene, output_dir=out, max_frames=6, pictures=False)
+    times = [0.0, 0.2, 0.4]
+    views = _views(command, out, [(t, tmp_path / f"dome_{k}.png", "contact") for k, t in enumerate(times)])
+    assert views[0][0]["camera"] == views[-1][0]["camera"]
+    bounds = json.loads((out / "view.py").read_text().split("BOUNDS = ", 1)[1].split("  #", 1)[0])
+    drop = 0.01 * (bounds[5] - bounds[4])
+    tops = []
+    for (report, _), t in zip(views, times):
+        top = float(res.scene.obstacle_values(res.x, t).max())
+        assert abs(report["obstacle"][5] - (top - drop)) < 1e-6, (t, report["obstacle"], top - drop)
+        tops.append(report["obstacle"][5])
+    assert tops[-1] - tops[0] > 0.2, tops
+    assert bounds[5] >= tops[-1]  # the camera's box holds the risen dome

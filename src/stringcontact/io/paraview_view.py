@@ -28,7 +28,8 @@ obstacle) is written into it as a literal by the run, computed over all stored r
   different times line up (an animation does not jump).
 
 `pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead of opening a window
-and prints one JSON line: the time, the field, its colour range and the camera.
+and prints one JSON line: the time, the field, its colour range, the camera, the axes' titles and the box of the
+obstacle drawn at that time.
 """
 
 from __future__ import annotations
@@ -134,14 +135,13 @@ def _psi(scene, points, t: float = 0.0) -> np.ndarray:
 
 
 def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
-    """The height range (lo, hi) widened to ψ's values at `times` on the obstacle's sample grid."""
+    """The height range (lo, hi) widened to ψ's values at `times` where the view draws a moving obstacle: a
+    string's sample grid, a membrane's nodes (at most OBSTACLE_SAMPLES² / 16 of them, evenly picked)."""
     if x.ndim == 1 or x.shape[1] == 1:
         xs = x.reshape(-1)
         grid = np.linspace(xs.min(), xs.max(), min(OBSTACLE_SAMPLES, len(xs)))
     else:
-        n = min(OBSTACLE_SAMPLES // 4, int(np.sqrt(len(x))) + 1)
-        gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))
-        grid = np.column_stack([gx.ravel(), gy.ravel()])
+        grid = x[:: max(1, len(x) * 16 // OBSTACLE_SAMPLES**2), :2]
     for t in np.unique(np.asarray(times, dtype=float)):
         psi = _psi(scene, grid, float(t))
         lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
@@ -417,6 +417,15 @@ def axes(view):
     return [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else []
 
 
+def obstacle_bounds(t):
+    """The box of the obstacle drawn at the time t: x0, x1, y0, y1, z0, z1."""
+    from paraview.simple import FindSource
+
+    source = FindSource("obstacle")
+    source.UpdatePipeline(t)  # its data information is of the last update's time
+    return list(source.GetDataInformation().GetBounds())
+
+
 def main(argv):
     animation, view, display = build()
     if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity|pressure]
@@ -425,7 +434,8 @@ def main(argv):
         SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
         points = GetColorTransferFunction(field).RGBPoints
         print(json.dumps({"time": view.ViewTime, "field": field, "range": [points[0], points[-4]],
-                          "camera": camera(view), "axes": axes(view)}), flush=True)
+                          "camera": camera(view), "axes": axes(view),
+                          "obstacle": obstacle_bounds(view.ViewTime)}), flush=True)
         return
     Render(view)
     if argv[0]:  # pvpython view.py: a window of its own (ParaView's GUI runs the script with sys.argv == [""])
