@@ -125,10 +125,20 @@ def obstacle_moves(result) -> bool:
     return bool(getattr(result.scene, "obstacle_moves", False))
 
 
-def obstacle_history(result, rows) -> np.ndarray:
-    """ψ at the nodes at the times of the stored `rows`, one row each: (len(rows), N)."""
-    n = np.asarray(result.x).shape[0]
-    return np.array([np.broadcast_to(obstacle_profile(result, float(result.t[i])), (n,)) for i in rows], dtype=float).reshape(-1, n)
+def obstacle_history(result, rows, nodes=slice(None)) -> np.ndarray:
+    """ψ at the `nodes` (indices, default all) at the times of the stored `rows`, one row each: (len(rows), nodes)."""
+    x = np.asarray(result.x, dtype=float)[nodes]
+    psi = [np.broadcast_to(result.scene.obstacle_values(x, float(result.t[i])), x.shape[:1]) for i in rows]
+    return np.array(psi, dtype=float).reshape(-1, x.shape[0])
+
+
+def obstacle_range(result) -> tuple[float, float]:
+    """The least and the largest ψ at the nodes over every stored time (at t = 0 when it does not move)."""
+    low, high = np.inf, -np.inf
+    for t in result.t if obstacle_moves(result) else [0.0]:  # one time at a time: rows × nodes may not fit
+        psi = obstacle_profile(result, float(t))
+        low, high = min(low, float(np.min(psi))), max(high, float(np.max(psi)))
+    return low, high
 
 
 # --- matplotlib ---------------------------------------------------------------------------------------

@@ -36,6 +36,7 @@ from .charts import (
     obstacle_moves,
     obstacle_name,
     obstacle_profile,
+    obstacle_range,
     panels_note,
     parameter_line,
     snapshot_rows,
@@ -234,7 +235,7 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
     x, t, eta = result.x[cols], result.t[rows], result.eta[np.ix_(rows, cols)]
     moves = obstacle_moves(result)
-    psi = obstacle_history(result, rows)[:, cols] if moves else obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
+    psi = obstacle_history(result, rows, cols) if moves else obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
     lo, hi = min(eta.min(), psi.min()), max(eta.max(), psi.max())
     length = float(x[-1] - x[0])
     depth = -0.8 * length / (float(t[-1] - t[0]) or 1.0)  # t runs out of the picture over 0.8 l: t = 0 at the back
@@ -313,8 +314,8 @@ def membrane_view(result) -> MembraneView:
     """Heights exaggerated (at least ×1) so that the height range is 0.3 of the domain's width; a camera
     above the front edge, looking down at 50° or so, that sees every row and the obstacle."""
     x = result.x
-    psi = obstacle_history(result, range(len(result.t))) if obstacle_moves(result) else obstacle_profile(result)  # all times
-    lo, hi = min(float(result.eta.min()), float(psi.min())), max(float(result.eta.max()), float(psi.max()))
+    psi_lo, psi_hi = obstacle_range(result)  # over all stored times: a moving obstacle stays in the box
+    lo, hi = min(float(result.eta.min()), psi_lo), max(float(result.eta.max()), psi_hi)
     width = float(max(np.ptp(x[:, 0]), np.ptp(x[:, 1])))
     scale = max(1.0, 0.3 * width / (hi - lo or 1.0))
     bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
