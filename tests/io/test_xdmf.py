@@ -372,3 +372,38 @@ def test_frames_on_a_filling_disk_end_in_an_error_and_a_clean_exit(tmpfs):
                           timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout == "249\n" and proc.stderr == ""
+
+
+# --- a moving obstacle: ψ(x, t) at each frame, read back by meshio --------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def piston(tmp_path_factory):
+    out = tmp_path_factory.mktemp("xdmf") / "piston"
+    scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
+    res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
+    return out, res
+
+
+def test_a_moving_obstacle_is_a_field_at_each_frame_where_it_is_then(piston):
+    out, res = piston
+    assert res.scene.obstacle_moves
+    data = meshio_read(out / "solution.xdmf")
+    x = np.array(data["points"])[:, 0]
+    tops = []
+    for t, point_data in zip(data["times"], data["data"]):
+        assert sorted(point_data) == sorted((*FIELDS, "obstacle"))
+        psi = np.array(point_data["obstacle"])
+        np.testing.assert_allclose(psi, res.scene.obstacle_values(x, t), rtol=0, atol=1e-15)
+        tops.append(psi.max())
+    # the piston rises from 0 to 0.3 by t = 0.15 and stays: the field follows it, not ψ(x, 0)
+    assert tops[0] == 0.0 and np.isclose(max(tops), 0.3) and tops[-1] == max(tops)
+    back = readback.read_output(out, from_xdmf=True)  # the extra field does not disturb the read-back
+    assert len(back.t) == len(data["times"])
+
+
+def test_an_obstacle_at_rest_writes_no_obstacle_field(run):
+    out, res = run
+    assert not res.scene.obstacle_moves
+    names = {a.get("Name") for a in ET.parse(out / "solution.xdmf").getroot().iter("Attribute")}
+    assert names == set(FIELDS)

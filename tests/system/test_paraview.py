@@ -322,3 +322,57 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     assert counts(contact0)[1] > 5000  # the same frame coloured by contact: blue (free)
     redk, _, _ = counts(imgk)
     assert redk > 500, redk  # the film's peak pressure under the falling skin
+
+
+@pytest.fixture(scope="module")
+def piston(tmp_path_factory):
+    out = tmp_path_factory.mktemp("paraview") / "piston"
+    scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
+    res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
+    return out, res
+
+
+def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(tmp_path, piston):
+    """The piston rises from ψ = 0 to 0.3 by t = 0.15: the top of the grey region is where ψ is at each time
+    (from solution.xdmf's `obstacle` field), under one camera whose box holds the obstacle at every time."""
+    command = pvpython()
+    out, res = piston
+    times = [0.0, 0.1, 0.3]
+    views = _views(command, out, [(t, tmp_path / f"piston_{k}.png", "contact") for k, t in enumerate(times)])
+    cameras = [report["camera"] for report, _ in views]
+    assert cameras[0] == cameras[1] == cameras[2], cameras
+    tops = []
+    for (report, img), t in zip(views, times):
+        grey = np.all(np.abs(img[MIDDLE[0], :850].astype(int) - np.array(GREY_RGB)) <= 12, axis=-1)  # not the title
+        centre = int(np.argmax(grey.sum(axis=0)))  # a column through the piston: the tallest grey column
+        rows = np.flatnonzero(grey[:, centre])
+        gaps = np.flatnonzero(np.diff(rows) > 1)  # the grey run from the floor up, not an axis line's smoothed edge
+        top = MIDDLE[0].start + int(rows[gaps[-1] + 1] if gaps.size else rows[0])
+        cam, half = report["camera"], img.shape[0] / 2
+        psi = float(res.scene.obstacle_values(np.array([0.5]), t)[0])
+        expected = half - (psi - cam["focal_point"][1]) * half / cam["parallel_scale"]
+        assert abs(top - expected) <= 4, f"t = {t}: the obstacle's top at row {top}, psi = {psi} is at row {expected:.1f}"
+        tops.append(top)
+    assert tops[0] - tops[2] > 50, tops  # it rose on the picture
+
+
+def test_the_folders_view_draws_a_membranes_moving_obstacle_at_the_time_shown(tmp_path):
+    """A dome rising under a coarse drum (ψ = 0.25 min(t/0.3, 1)(1 − r²)): the grey surface ParaView draws at each
+    time (its box, reported by view.py) has ψ's top at that time, 1 % of the height range lower."""
+    command = pvpython()
+    out = tmp_path / "dome"
+    scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.2, 0.4],
+                                          obstacle="0.25*min(t/0.3, 1)*(1 - x**2 - y**2)")
+    res = sc.simulate(scene, output_dir=out, max_frames=6, pictures=False)
+    times = [0.0, 0.2, 0.4]
+    views = _views(command, out, [(t, tmp_path / f"dome_{k}.png", "contact") for k, t in enumerate(times)])
+    assert views[0][0]["camera"] == views[-1][0]["camera"]
+    bounds = json.loads((out / "view.py").read_text().split("BOUNDS = ", 1)[1].split("  #", 1)[0])
+    drop = 0.01 * (bounds[5] - bounds[4])
+    tops = []
+    for (report, _), t in zip(views, times):
+        top = float(res.scene.obstacle_values(res.x, t).max())
+        assert abs(report["obstacle"][5] - (top - drop)) < 1e-6, (t, report["obstacle"], top - drop)
+        tops.append(report["obstacle"][5])
+    assert tops[-1] - tops[0] > 0.2, tops
+    assert bounds[5] >= tops[-1]  # the camera's box holds the risen dome

@@ -52,6 +52,21 @@ from .signals import signals_held
 from .tables import DIAGNOSTIC_COLUMNS, ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows  # noqa: F401 - re-exported
 from .xdmf import Hdf5Quiet, XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
 
+#: The XDMF field written after `FIELDS` when the scene's obstacle moves (`Scene.obstacle_moves`): ψ at the
+#: nodes at each frame's time. An obstacle at rest is not written (view.py draws it), so such runs keep the
+#: layout of `FIELDS` alone; the gap η − ψ is one Calculator away in ParaView.
+OBSTACLE_FIELD = "obstacle"
+
+
+def obstacle_at(scene, points, t: float) -> np.ndarray:
+    """ψ(·, t) at the mesh `points` ((N, 3), as written to the XDMF); where the expression gives no finite
+    value, its lowest finite value (a reader warps by it: no NaN)."""
+    points = np.asarray(points, dtype=float)
+    psi = np.asarray(scene.obstacle_values(points[:, 0] if scene.dim == 1 else points[:, :2], t), dtype=float).reshape(-1)
+    psi = np.broadcast_to(psi, points.shape[:1]) if psi.size == 1 else psi
+    finite = np.isfinite(psi)
+    return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
+
 # --- the writer ------------------------------------------------------------------------------------------
 
 
@@ -160,6 +175,8 @@ class OutputWriter:
 
     def _write_frame(self, t: float, fields: dict) -> None:
         t0 = time.perf_counter()
+        if getattr(self.scene, "obstacle_moves", False):  # ψ where it is at t: ParaView's view warps by it
+            fields = {**fields, OBSTACLE_FIELD: obstacle_at(self.scene, self.xdmf.mesh.points, t)}
         try:
             with signals_held():
                 self.xdmf.write(t, fields)

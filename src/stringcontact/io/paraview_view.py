@@ -18,15 +18,18 @@ obstacle) is written into it as a literal by the run, computed over all stored r
   symmetric-log scale (`symlog_unit`, as the pictures: a landing's peak would leave every other time grey);
   picked like the velocity;
 - the obstacle ψ of the scene (the plane 0 unless the scene gives a profile), in grey: for a string the
-  region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch;
+  region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch; an
+  obstacle at rest from literal points, a moving one (ψ(x, t)) as `solution.xdmf` warped by its `obstacle`
+  field, so that it is drawn where it is at the time shown;
 - a title (scene, model, scheme), the time t in the upper left corner and axes named x and eta (x, y and
   eta for a membrane), with ticks;
-- one camera for all times: it frames the box of the warped shape over all stored rows and the obstacle,
+- one camera for all times: it frames the box of the warped shape and of the obstacle over all stored rows,
   and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
   different times line up (an animation does not jump).
 
 `pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead of opening a window
-and prints one JSON line: the time, the field, its colour range and the camera.
+and prints one JSON line: the time, the field, its colour range, the camera, the axes' titles and the box of the
+obstacle drawn at that time.
 """
 
 from __future__ import annotations
@@ -56,6 +59,8 @@ POINTS_PER_DECADE = 4
 OBSTACLE_GREY = (0.80, 0.80, 0.80)
 #: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
 OBSTACLE_SAMPLES = 200
+#: a membrane's obstacle is drawn this share of the height range below ψ (a patch on ψ would flicker with it)
+_MEMBRANE_DROP = 0.01
 
 
 def symlog_unit(values, peak: float, share: float = PRESSURE_LINEAR_SHARE) -> np.ndarray:
@@ -91,19 +96,27 @@ def view_numbers(result) -> dict:
     eta = np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
     lo, hi = (float(np.nanmin(eta)), float(np.nanmax(eta))) if eta.size else (0.0, 0.0)
+    moves = bool(getattr(result.scene, "obstacle_moves", False))
+    if moves:  # the box holds the obstacle at every stored time, not only at t = 0
+        lo, hi = _moving_range(result.scene, x, result.t, lo, hi)
     if x.ndim == 1 or x.shape[1] == 1:
         kind, normal = "string", (0.0, 1.0, 0.0)
         points, quads, (lo, hi) = _string_obstacle(result.scene, x.reshape(-1), lo, hi)
         xs = x.reshape(-1)
         bounds = (float(xs.min()), float(xs.max()), lo, hi, 0.0, 0.0)
+        shift = (0.0, 0.0, points[0][2])  # behind the string, as the obstacle at rest
     else:
         kind, normal = "membrane", (0.0, 0.0, 1.0)
         points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
+        shift = (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
     pressure = getattr(result, "pressure", None)  # model "film": its symmetric range, like the velocity's
     peak = float(np.nanmax(np.abs(pressure))) if pressure is not None and np.size(pressure) else 0.0
     return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
-            "times": [float(t) for t in result.t], "obstacle_points": points, "obstacle_quads": quads,
+            "times": [float(t) for t in result.t],
+            # a moving obstacle is drawn from solution.xdmf's `obstacle` field: no literal points then
+            "obstacle_points": [] if moves else points, "obstacle_quads": [] if moves else quads,
+            "obstacle_moves": moves, "obstacle_shift": shift,
             "title": view_title(result),
             "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None,
             "pressure_points": pressure_points(peak or 1.0) if pressure is not None else None}
@@ -114,11 +127,25 @@ def view_title(result) -> str:
     return f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}"
 
 
-def _psi(scene, points) -> np.ndarray:
-    """ψ at `points`; a value the expression does not give there (outside its domain) is ψ's lowest value."""
-    psi = np.asarray(scene.obstacle_values(points), dtype=float).reshape(-1)
+def _psi(scene, points, t: float = 0.0) -> np.ndarray:
+    """ψ at `points` at the time t; a value the expression does not give there (outside its domain) is ψ's lowest value."""
+    psi = np.asarray(scene.obstacle_values(points, t), dtype=float).reshape(-1)
     finite = np.isfinite(psi)
     return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
+
+
+def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
+    """The height range (lo, hi) widened to ψ's values at `times` where the view draws a moving obstacle: a
+    string's sample grid, a membrane's nodes (at most OBSTACLE_SAMPLES² / 16 of them, evenly picked)."""
+    if x.ndim == 1 or x.shape[1] == 1:
+        xs = x.reshape(-1)
+        grid = np.linspace(xs.min(), xs.max(), min(OBSTACLE_SAMPLES, len(xs)))
+    else:
+        grid = x[:: max(1, len(x) * 16 // OBSTACLE_SAMPLES**2), :2]
+    for t in np.unique(np.asarray(times, dtype=float)):
+        psi = _psi(scene, grid, float(t))
+        lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
+    return lo, hi
 
 
 def _string_obstacle(scene, xs, lo, hi):
@@ -144,7 +171,7 @@ def _membrane_obstacle(scene, x, lo, hi):
     gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))
     psi = _psi(scene, np.column_stack([gx.ravel(), gy.ravel()]))
     lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
-    psi = psi - 0.01 * max(hi - lo, 1e-12)
+    psi = psi - _MEMBRANE_DROP * max(hi - lo, 1e-12)
     points = [(float(a), float(b), float(c)) for a, b, c in zip(gx.ravel(), gy.ravel(), psi)]
     quads = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i) for j in range(n - 1) for i in range(n - 1)]
     return points, quads, (min(lo, float(psi.min())), hi)
@@ -189,6 +216,8 @@ BOUNDS = {_literal(numbers["bounds"])}  # the warped shape and the obstacle over
 OBSTACLE_GREY = {_literal(OBSTACLE_GREY)}
 OBSTACLE_POINTS = {_literal(numbers.get("obstacle_points") or [])}  # x, y, z
 OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices into OBSTACLE_POINTS each
+OBSTACLE_MOVES = {bool(numbers.get("obstacle_moves"))}  # psi(x, t): drawn from solution.xdmf's obstacle field
+OBSTACLE_SHIFT = {_literal(numbers.get("obstacle_shift") or (0.0, 0.0, 0.0))}  # the moving obstacle moved by this: behind/below the shape
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
 PRESSURE_RANGE = {_literal(numbers["pressure_range"]) if numbers.get("pressure_range") else None}  # a film's p - p_a
 PRESSURE_POINTS = {_literal(numbers.get("pressure_points") or [])}  # value, r, g, b: symmetric-log colours
@@ -261,12 +290,40 @@ OBSTACLE_SCRIPT = (
 )
 
 
-def obstacle(view):
+def moving_obstacle(reader):
+    """ψ(x, t) from solution.xdmf's `obstacle` field, where it is at the time shown: the mesh warped by it, for a
+    string extruded downwards and cut at the box's floor (the region below ψ, as an obstacle at rest), moved
+    by OBSTACLE_SHIFT."""
+    from paraview.simple import Clip, ExtractSurface, LinearExtrusion, Transform
+
+    source = WarpByScalar(registrationName="warped by obstacle", Input=reader, Scalars=["POINTS", "obstacle"])
+    source.Normal = NORMAL
+    source.ScaleFactor = 1.0
+    if KIND == "string":
+        source = LinearExtrusion(registrationName="below the obstacle", Input=ExtractSurface(Input=source))
+        source.Vector = [0.0, -1.0, 0.0]
+        source.ScaleFactor = 2.0 * (BOUNDS[3] - BOUNDS[2]) + (BOUNDS[1] - BOUNDS[0])
+        source.Capping = 0
+        source = Clip(registrationName="above the floor", Input=source, ClipType="Plane")
+        source.ClipType.Origin = [0.0, BOUNDS[2], 0.0]
+        source.ClipType.Normal = [0.0, 1.0, 0.0]
+        source.Invert = 0  # keep y > the floor
+    moved = Transform(registrationName="obstacle", Input=source)
+    moved.Transform.Translate = list(OBSTACLE_SHIFT)
+    return moved
+
+
+def obstacle(view, reader):
     """The obstacle ψ in grey: the region below it (a string), the surface z = ψ (a membrane)."""
-    source = ProgrammableSource(registrationName="obstacle")
-    source.OutputDataSetType = "vtkPolyData"
-    source.Script = f"POINTS = {OBSTACLE_POINTS!r}\\nQUADS = {OBSTACLE_QUADS!r}\\n" + OBSTACLE_SCRIPT
+    if OBSTACLE_MOVES:
+        source = moving_obstacle(reader)
+    else:
+        source = ProgrammableSource(registrationName="obstacle")
+        source.OutputDataSetType = "vtkPolyData"
+        source.Script = f"POINTS = {OBSTACLE_POINTS!r}\\nQUADS = {OBSTACLE_QUADS!r}\\n" + OBSTACLE_SCRIPT
     display = Show(source, view)
+    if OBSTACLE_MOVES:
+        ColorBy(display, None)  # one grey, not the fields' colours
     display.AmbientColor = display.DiffuseColor = list(OBSTACLE_GREY)
     display.Ambient, display.Diffuse, display.Specular = 1.0, 0.0, 0.0  # unlit: the same grey everywhere
     return display
@@ -308,7 +365,7 @@ def build(size=(1000, 600)):
     except AttributeError:  # ParaView before 5.10
         pass
     view.OrientationAxesVisibility = 0  # the named axes below say which way is which
-    obstacle(view)
+    obstacle(view, reader)
     display = Show(warp, view)
     if KIND == "string":
         display.LineWidth = 4.0
@@ -360,6 +417,15 @@ def axes(view):
     return [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else []
 
 
+def obstacle_bounds(t):
+    """The box of the obstacle drawn at the time t: x0, x1, y0, y1, z0, z1."""
+    from paraview.simple import FindSource
+
+    source = FindSource("obstacle")
+    source.UpdatePipeline(t)  # its data information is of the last update's time
+    return list(source.GetDataInformation().GetBounds())
+
+
 def main(argv):
     animation, view, display = build()
     if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity|pressure]
@@ -368,7 +434,8 @@ def main(argv):
         SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
         points = GetColorTransferFunction(field).RGBPoints
         print(json.dumps({"time": view.ViewTime, "field": field, "range": [points[0], points[-4]],
-                          "camera": camera(view), "axes": axes(view)}), flush=True)
+                          "camera": camera(view), "axes": axes(view),
+                          "obstacle": obstacle_bounds(view.ViewTime)}), flush=True)
         return
     Render(view)
     if argv[0]:  # pvpython view.py: a window of its own (ParaView's GUI runs the script with sys.argv == [""])

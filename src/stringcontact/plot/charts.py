@@ -120,6 +120,27 @@ def obstacle_profile(result, t: float = 0.0) -> np.ndarray:
     return result.scene.obstacle_values(x, t) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
 
 
+def obstacle_moves(result) -> bool:
+    """Whether the run's obstacle moves (ψ(x, t), `Scene.obstacle_moves`): then each picture draws it at its time."""
+    return bool(getattr(result.scene, "obstacle_moves", False))
+
+
+def obstacle_history(result, rows, nodes=slice(None)) -> np.ndarray:
+    """ψ at the `nodes` (indices, default all) at the times of the stored `rows`, one row each: (len(rows), nodes)."""
+    x = np.asarray(result.x, dtype=float)[nodes]
+    psi = [np.broadcast_to(result.scene.obstacle_values(x, float(result.t[i])), x.shape[:1]) for i in rows]
+    return np.array(psi, dtype=float).reshape(-1, x.shape[0])
+
+
+def obstacle_range(result) -> tuple[float, float]:
+    """The least and the largest ψ at the nodes over every stored time (at t = 0 when it does not move)."""
+    low, high = np.inf, -np.inf
+    for t in result.t if obstacle_moves(result) else [0.0]:  # one time at a time: rows × nodes may not fit
+        psi = obstacle_profile(result, float(t))
+        low, high = min(low, float(np.min(psi))), max(high, float(np.max(psi)))
+    return low, high
+
+
 # --- matplotlib ---------------------------------------------------------------------------------------
 
 

@@ -2,7 +2,8 @@
 
 ``space_time.png``: a 1-D run as the surface η(x, t) over the (x, t) plane, coloured by contact, above
 the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
-panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). The animation
+panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). A moving obstacle ψ(x, t) is drawn at
+each panel's and frame's time, and as the surface ψ(x, t) in ``space_time.png``. The animation
 ``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
 A membrane on a fluid film (model "film") is coloured by the film's pressure p − p_a instead (`PressureScale`:
 one fixed symmetric-log scale over all stored rows, its bar drawn by `add_pressure_bar`), the edge of its
@@ -31,8 +32,11 @@ from .catalogue import WINDOW_SIZE
 from .charts import (
     CONTACT_COLOUR,
     PNG_COMPRESSION,
+    obstacle_history,
+    obstacle_moves,
     obstacle_name,
     obstacle_profile,
+    obstacle_range,
     panels_note,
     parameter_line,
     snapshot_rows,
@@ -223,13 +227,15 @@ def _every_kth(n: int, most: int) -> np.ndarray:
 
 
 def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int = 300, max_rows: int = 200) -> Path:
-    """η(x, t) as a surface over the (x, t) plane, red where in contact, above the obstacle ψ (grey)."""
+    """η(x, t) as a surface over the (x, t) plane, red where in contact, above the obstacle ψ (grey): the
+    surface ψ(x, t) when the obstacle moves."""
     pv = _pyvista()
     path = Path(path)
     # the surface spans ~800 pixels across and ~400 deep: finer meshes cost llvmpipe time, not detail
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
     x, t, eta = result.x[cols], result.t[rows], result.eta[np.ix_(rows, cols)]
-    psi = obstacle_profile(result)[cols]
+    moves = obstacle_moves(result)
+    psi = obstacle_history(result, rows, cols) if moves else obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
     lo, hi = min(eta.min(), psi.min()), max(eta.max(), psi.max())
     length = float(x[-1] - x[0])
     depth = -0.8 * length / (float(t[-1] - t[0]) or 1.0)  # t runs out of the picture over 0.8 l: t = 0 at the back
@@ -238,7 +244,10 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     surface = pv.StructuredGrid(X, T, eta * height)
     surface.point_data["contact"] = result.contact[np.ix_(rows, cols)].astype(float).ravel(order="F")  # points in Fortran order
     below = 0.02 * (hi - lo) * height  # under the penalty's penetration (about ε|v|), which it would otherwise hide
-    obstacle = pv.StructuredGrid(*np.meshgrid(x, t[[0, -1]] * depth), np.tile(psi * height - below, (2, 1)))
+    if moves:  # the surface ψ(x, t) on the same grid as η
+        obstacle = pv.StructuredGrid(X, T, psi * height - below)
+    else:  # ψ(x) at every t: a band between t = 0 and T
+        obstacle = pv.StructuredGrid(*np.meshgrid(x, t[[0, -1]] * depth), np.tile(psi * height - below, (2, 1)))
 
     p = _plotter(window_size)
     p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
@@ -277,6 +286,7 @@ class MembraneView:
     camera: list
     neighbours: object = None  # the mean over each node's mesh neighbours, a sparse matrix (`neighbour_mean`)
     pressure: PressureScale | None = None  # a film's: the membrane coloured by p − p_a on this scale
+    obstacle: object = None  # a moving obstacle's PolyData last drawn by `add_membrane`: `show_row` moves it
 
     def shade(self, contact: np.ndarray) -> np.ndarray:
         """What the colour is drawn from: 0.6 × the nodal contact indicator + 0.4 × its mean over the node's
@@ -303,8 +313,9 @@ def neighbour_mean(cells: np.ndarray, nodes: int):
 def membrane_view(result) -> MembraneView:
     """Heights exaggerated (at least ×1) so that the height range is 0.3 of the domain's width; a camera
     above the front edge, looking down at 50° or so, that sees every row and the obstacle."""
-    x, psi = result.x, obstacle_profile(result)
-    lo, hi = min(float(result.eta.min()), float(psi.min())), max(float(result.eta.max()), float(psi.max()))
+    x = result.x
+    psi_lo, psi_hi = obstacle_range(result)  # over all stored times: a moving obstacle stays in the box
+    lo, hi = min(float(result.eta.min()), psi_lo), max(float(result.eta.max()), psi_hi)
     width = float(max(np.ptp(x[:, 0]), np.ptp(x[:, 1])))
     scale = max(1.0, 0.3 * width / (hi - lo or 1.0))
     bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
@@ -334,8 +345,10 @@ def triangles(result, z):
 def add_membrane(p, result, row: int, view: MembraneView):
     """The membrane at `row` and the obstacle (grey) in the plotter `p`: coloured by contact, or by the film's
     pressure on `view.pressure`'s scale (then `add_contact_edge` draws its contact set's edge). Returns the
-    membrane's PolyData, whose heights and colours `show_row` changes in place afterwards."""
-    psi = obstacle_profile(result)
+    membrane's PolyData, whose heights and colours `show_row` changes in place afterwards. A moving obstacle
+    is drawn at the row's time (kept in `view.obstacle` for `show_row`)."""
+    moves = obstacle_moves(result)
+    psi = obstacle_profile(result, float(result.t[row]) if moves else 0.0)
     lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
@@ -349,7 +362,10 @@ def add_membrane(p, result, row: int, view: MembraneView):
                    show_scalar_bar=False, ambient=0.3, smooth_shading=True)
     # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
     # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
-    p.add_mesh(triangles(result, psi * view.scale - _below(lo, hi, view.scale)), color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
+    obstacle = triangles(result, psi * view.scale - _below(lo, hi, view.scale))
+    p.add_mesh(obstacle, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
+    if moves:
+        view.obstacle = obstacle
     p.camera_position = view.camera
     p.reset_camera(bounds=view.bounds)
     p.camera.zoom(1.1)  # reset_camera fits the box's bounding sphere: room to spare
@@ -357,12 +373,17 @@ def add_membrane(p, result, row: int, view: MembraneView):
 
 
 def show_row(surface, result, row: int, view: MembraneView) -> None:
-    """The membrane `surface` of `add_membrane` moved to `row` in place: its heights and the arrays it is coloured by."""
+    """The membrane `surface` of `add_membrane` moved to `row` in place: its heights and the arrays it is coloured
+    by, and a moving obstacle's heights."""
     surface.points[:, 2] = result.eta[row] * view.scale  # in place: the scene stays, the heights change
     surface.point_data["contact"][:] = view.shade(result.contact[row])
     if view.pressure is not None:
         _set_pressure(surface, result, row, view.pressure)
     surface.Modified()
+    if view.obstacle is not None:  # a moving obstacle: where it is at this row's time
+        lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
+        view.obstacle.points[:, 2] = obstacle_profile(result, float(result.t[row])) * view.scale - _below(lo, hi, view.scale)
+        view.obstacle.Modified()
 
 
 def _set_pressure(surface, result, row: int, scale: PressureScale) -> None:
