@@ -102,7 +102,7 @@ class NewtonStep:
         self.lumped = s.mass == "lumped"
         args = (self.u, self.e0, self.em, self.v0, s.dt)
         q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
-        zero = fem.Constant(Z.mesh, PETSc.ScalarType(0.0))
+        zero = ufl.zero()  # UFL's zero, not a Constant 0: the terms it multiplies leave the compiled kernel
         k = nl.eta.ufl_shape[0] if nl.eta_dofs is not None else 0  # the number of fields, η's among them
         if k:  # several fields: η's inertia is lumped on the nodes, the other fields keep their own η_tt
             zeros = ufl.as_vector([0.0] * k)
@@ -134,6 +134,7 @@ class NewtonStep:
         self.m_tt = self.a_tt * s.ops.m if self.lumped else np.zeros(n)
         self.inertia = self.a_tt * s.ops.m
         self.f = np.zeros(n)  # the applied nodal force
+        self.viscous_vecs = None  # C's (right, left) vectors for `viscous_force`
         self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
         self.arrays = [np.zeros(n) for _ in range(3)]  # η^n, η^{n−1}, v^n (owned)
         self.levels = [np.zeros(self.N) for _ in range(4)]  # all fields: η^n, η^{n−1}, v^n, the last solution
@@ -242,9 +243,11 @@ class NewtonStep:
         """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
         ∂R/∂η_t is constant, else two assemblies."""
         if self.s.ops.nonlinear.viscous_linear:
-            q_t = self.q["eta_t"](u, *self.arrays, self.s.dt)
-            out = self.s.ops.C.createVecLeft()
-            self.s.ops.C.mult(wrap(np.ascontiguousarray(q_t), self.s.comm), out)
+            if self.viscous_vecs is None:
+                self.viscous_vecs = self.s.ops.C.createVecs()
+            q_t, out = self.viscous_vecs
+            q_t.array[:] = self.q["eta_t"](u, *self.arrays, self.s.dt)
+            self.s.ops.C.mult(q_t, out)
             return out.array.copy()
         return self.residual_at(u) - self.residual_at(u, self.G_static_form)
 
@@ -298,8 +301,8 @@ class NewtonStep:
             return False
         r0 = snes.getFunctionNorm()
         rtol, atol = snes.getTolerances()[:2]
-        self.kept = self.drift * self.age * r0 < max(atol, rtol * r0)
-        self.kept_age = self.age
+        self.kept_age = max(self.age, 1)  # 0: assembled in this step, by a VI's plain Newton step
+        self.kept = self.drift * self.kept_age * r0 < max(atol, rtol * r0)
         if not self.kept:
             self.drift *= 0.5
         return self.kept
@@ -445,6 +448,7 @@ class PaperStep(_NewtonScheme):
         self.allsum = summer(s.comm)
         n = s.n_owned
         self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.older = None
         self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
         self.force_density = np.zeros(n)
 
@@ -494,7 +498,8 @@ class PaperStep(_NewtonScheme):
         else:  # F = −d v^{n+1}: (m_F d/Δt)(u − η^n) on the diagonal
             nw.d[:] = s.ops.m_force * self.law / dt
             nw.c[:] = e0
-        u = nw.solve(2 * e0 - em)
+        u = nw.solve(3 * e0 - 3 * em + self.older if self.older is not None else 2 * e0 - em)
+        self.older = em.copy()
         v1 = (u - e0) / dt
         f = nw.f if s.penalty == "explicit" else -nw.d * (u - e0)
         delta = u - e0
@@ -604,8 +609,8 @@ class ProjectionStep(_NewtonScheme):
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now, out=self.psi_levels[0])
         d = (ahead - now) / s.dt
-        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)),
-                              0.5 * (self._stored(ahead) + self._stored(now)))
+        self.stored_ahead = self._stored(ahead)  # the next step's Π(η^n), this rank's share
+        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + self._stored(now)))
         self.E = kin + el
         self.pending = self._advance()
         self.v0 = np.array(v0, dtype=float)
@@ -635,8 +640,9 @@ class ProjectionStep(_NewtonScheme):
         work = 0.5 * float(np.dot(F, psi_new - psi_before)) if self.moving else 0.0  # the obstacle's share of F's work
         visc_vec = nw.viscous_force(u)
         d = (u - e0) / dt
+        stored_e0, self.stored_ahead = self.stored_ahead, self._stored(u)  # Π(η^n) assembled last step, as its Π(u)
         kin, el, visc, con, ext = self.allsum(
-            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self._stored(u) + self._stored(e0)),
+            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + stored_e0),
             float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)) + work, float(np.dot(s.ops.load, delta)) + work)
         num = self.E - (kin + el) - visc - con + ext
         self.E = kin + el
@@ -672,7 +678,7 @@ class NewmarkStep(_NewtonScheme):
         self.newton = NewtonStep(s, NEWMARK)
         self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
         n = s.n_owned
-        self.eta_, self.v = np.zeros(n), np.zeros(n)
+        self.eta_, self.v, self.v_old = np.zeros(n), np.zeros(n), np.zeros(n)
         self.force_density = np.zeros(n)
 
     eta = property(lambda self: self.eta_)
@@ -681,7 +687,7 @@ class NewmarkStep(_NewtonScheme):
     _kinetic = PaperStep._kinetic
 
     def start(self, eta0, v0):
-        self.eta_[:], self.v[:] = eta0, v0
+        self.eta_[:], self.v[:], self.v_old[:] = eta0, v0, v0
         kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
         self.E = kin + el
         return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -694,7 +700,7 @@ class NewmarkStep(_NewtonScheme):
         D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
         while True:  # −D v^{n+1} = −(2D/Δt)(u − η^n − (Δt/2) v^n)
             nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * v
-            u = nw.solve(e0 + dt * v)
+            u = nw.solve(e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated linearly
             v1 = 2.0 * (u - e0) / dt - v
             v1[s.bc] = 0.0
             sticky = (D > 0) & (v1 > 0)  # a damping that would hold a node down: released (as on the linear path)
@@ -711,7 +717,7 @@ class NewmarkStep(_NewtonScheme):
         self.E = kin + el
         np.divide(f, s.ops.m_force, out=self.force_density, where=s.ops.m_force > 0)
         self.force_density[s.ops.m_force <= 0] = 0.0
-        self.eta_[:], self.v[:] = u, v1
+        self.v_old[:], self.eta_[:], self.v[:] = v, u, v1
         return kin, el, visc, con, num, ext, 0.0
 
 
