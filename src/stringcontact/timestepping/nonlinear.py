@@ -11,11 +11,14 @@ with f the scheme's nodal contact force (the penalty law, lumped as on the linea
 implicit damping on the diagonal (the semi-implicit penalty). With lumped mass the η_tt term is m∘q_tt(u),
 the row-sum mass, as on the linear path; R is affine in η_tt and in the force (`semi_discrete_operators`
 checks), so only η and η_t may enter nonlinearly. The Jacobian is ``ufl.derivative`` of the compiled
-residual (plus the lumped mass and the damping on its diagonal); both forms are compiled once.
+residual (plus the lumped mass and the damping on its diagonal); both forms are compiled once, integer
+powers as products (`powers_as_products`). A step's first iteration may keep an earlier step's Jacobian
+and its LU factor (`NewtonStep._keeps_jacobian`); later iterations take a fresh one.
 
 `projection`'s contact step is the variational inequality G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``, bounds
-u ≥ ψ at the interior nodes); its contact force is the reaction G₀(u) of the unconstrained residual on the
-active set: ≥ 0, and 0 off the contact set.
+u ≥ ψ at the interior nodes), tried as a plain Newton step first while the last solution touched no bound;
+its contact force is the reaction G₀(u) of the unconstrained residual on the active set: ≥ 0, and 0 off the
+contact set.
 
 Energy (every scheme): the ledger gets the kinetic energy of its velocity, the stored energy ∫Π(η) of the model
 (`Model.stored_energy`, default ½|∇η|²) assembled at the new level, the viscous dissipation as the work of
