@@ -139,6 +139,7 @@ class NewtonStep:
         self.f = np.zeros(n)  # the applied nodal force
         self.viscous_vecs = None  # C's (right, left) vectors for `viscous_force`
         self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
+        self.nodal_slope, self.nodal_known = np.zeros(n), np.zeros(n)  # G's nodal terms, set by `solve`
         self.arrays = [np.zeros(n) for _ in range(3)]  # η^n, η^{n−1}, v^n (owned)
         self.levels = [np.zeros(self.N) for _ in range(4)]  # all fields: η^n, η^{n−1}, v^n, the last solution
         self.iterations, self.solves, self.history = 0, 0, []
@@ -270,12 +271,9 @@ class NewtonStep:
         fem.petsc.assemble_vector(G, self.G_form)
         G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         g = G.array
-        u_eta = u[self.idx]
-        extra = self.d * (u_eta - self.c)
-        extra -= self.f
-        if self.lumped:
-            extra += self.s.ops.m * self.q["eta_tt"](u_eta, *self.arrays, self.s.dt)
-        g[self.idx] += extra
+        nodal = self.nodal_slope * u[self.idx]
+        nodal -= self.nodal_known
+        g[self.idx] += nodal
         g[self.bc] = u[self.bc] - self.g
 
     def _jacobian(self, snes, x, J, P) -> None:
@@ -338,6 +336,11 @@ class NewtonStep:
             for snes in (self.snes, self.free) if self.free is not None else (self.snes,):
                 snes.setTolerances(atol=floor)
         self.age += 1
+        # the nodal terms of G, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known
+        self.nodal_slope[:] = self.d + self.m_tt
+        self.nodal_known[:] = self.d * self.c + self.f
+        if self.lumped:
+            self.nodal_known -= self.s.ops.m * self.q["eta_tt"](0.0, *self.arrays, self.s.dt)
         x = self.x.array
         if self.free is not None and self.try_free:
             reason = self._run(self.free, guess)
