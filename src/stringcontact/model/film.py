@@ -80,16 +80,16 @@ def pressure_lower(p: Parameters) -> dict:
 
 #: The membrane's Newton step factorises its Jacobian by MUMPS' LU, in serial and on several ranks: the size
 #: rule's CG (above 1e3 nodes on several ranks) does not fit the film's nonsymmetric Jacobian, and PETSc's own LU
-#: of the mixed system is far slower at 1e5 nodes (docs/explanation/film.md, "Cost").
+#: of the mixed system is slower at 1e5 nodes (docs/explanation/film.md, "Cost").
 MEMBRANE_LU = (("ksp_type", "preonly"), ("pc_type", "lu"), ("pc_factor_mat_solver_type", "mumps"))
 #: The string's on several ranks: each rank factorises the whole (banded) Jacobian by PETSc's own LU
 #: (PCREDUNDANT); MUMPS' analysis and communication per factorisation cost more at these sizes.
 STRING_PARALLEL = (("ksp_type", "preonly"), ("pc_type", "redundant"))
 
 
-def linear_options(dim: int, ranks: int) -> tuple:
+def linear_options(dim: int, ranks: int, p: Parameters) -> tuple:
     """The film's linear solver (`Model.linear_options`): MUMPS' LU on a membrane, the redundant LU on a string on
-    several ranks, else the size rule's (a string's LU in serial)."""
+    several ranks, else the size rule's (a string's LU in serial). `p`: the same with or without cavitation."""
     if dim == 2:
         return MEMBRANE_LU
     return STRING_PARALLEL if ranks > 1 else ()

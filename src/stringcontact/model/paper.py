@@ -85,9 +85,9 @@ A model is a `Model`: a few plain functions that return UFL.
     The model's own defaults for its Newton step, (name, value) pairs of the `petsc_options` a scene may
     give (``(("snes_linesearch_type", "l2"),)``): above the schemes' defaults, below the user's options.
 
-``linear_options(dim, ranks)`` (optional)
+``linear_options(dim, ranks, p)`` (optional)
     The model's defaults for its Newton step's linear solver on a mesh of dimension `dim` run on `ranks`
-    ranks: (name, value) pairs as for ``newton_options``, on top of them. Naming ``ksp_type`` or ``pc_type``
+    ranks with the parameters `p`: (name, value) pairs as for ``newton_options``, on top of them. Naming ``ksp_type`` or ``pc_type``
     replaces the size rule's choice (`timestepping.linear.solver_options`); the user's options still win.
 
 The paper's model (Definition 2.1), the default `inelastic`::
