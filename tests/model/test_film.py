@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -278,3 +279,48 @@ def test_the_film_model_named_in_python_without_mu_is_refused_in_one_line():
     with pytest.raises(SceneError, match=r"^mu: model 'film' needs the film's viscosity .*; allowed: ") as info:
         run(scene, model="film")
     assert "\n" not in str(info.value)
+
+
+# --- the film's linear solvers (`film.linear_options`) ----------------------------------------------------
+
+
+def _solver_cases():
+    """The string through its landing (0.0235) and the shipped drum through its first contact."""
+    return {"string": sc.load_scene("film_landing").replace(nx=200, T=0.03, output_times=[]),
+            "drum": sc.load_scene("film_drum").replace(T=0.2, output_times=[])}
+
+
+def test_the_film_solvers_give_the_serial_lu_answer(tmp_path):
+    """The film's own linear solvers (the string's redundant LU on 2 ranks, the membrane's MUMPS in serial and on
+    2 ranks; the size rule's CG cannot solve the membrane there) against PETSc's serial LU. Measured: 1.2e-14 (η)
+    and 6.5e-14 (the pressure) of their largest values at most."""
+    from conftest import mpirun
+
+    proc = mpirun([sys.executable, Path(__file__).resolve(), tmp_path], ranks=2, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    got = np.load(tmp_path / "film_solvers.npz")
+    lu = {"ksp_type": "preonly", "pc_type": "lu"}
+    for name, scene in _solver_cases().items():
+        serial = run(scene, comm=MPI.COMM_SELF, petsc_options=lu)
+        assert serial.contact.any() and serial.pressure.max() > 0
+        runs = {"2 ranks": (got[f"{name}-eta"], got[f"{name}-pressure"])}
+        if name == "drum":
+            default = run(scene, comm=MPI.COMM_SELF)
+            runs["serial MUMPS"] = (default.eta, default.pressure)
+        for label, (eta, pressure) in runs.items():
+            assert np.max(np.abs(eta - serial.eta)) <= 1e-9 * np.max(np.abs(serial.eta)), (name, label)
+            assert np.max(np.abs(pressure - serial.pressure)) <= 1e-8 * np.max(np.abs(serial.pressure)), (name, label)
+
+
+def _solver_worker(out: Path) -> None:
+    arrays = {}
+    for name, scene in _solver_cases().items():
+        r = run(scene, comm=MPI.COMM_WORLD)
+        if MPI.COMM_WORLD.rank == 0:
+            arrays[f"{name}-eta"], arrays[f"{name}-pressure"] = r.eta, r.pressure
+    if MPI.COMM_WORLD.rank == 0:
+        np.savez(out / "film_solvers.npz", **arrays)
+
+
+if __name__ == "__main__":
+    _solver_worker(Path(sys.argv[1]))

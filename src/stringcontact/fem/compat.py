@@ -97,18 +97,21 @@ def cell_dofs(V) -> np.ndarray:
 
 
 def mixed_space(msh, fields: int):
-    """P1^fields on `msh` as one mixed space: `ufl.MixedElement` (0.5) or `basix.ufl.mixed_element` (0.7+)."""
+    """P1^fields on `msh` as one blocked space (a vector P1 element: `ufl.VectorElement` on 0.5,
+    `basix.ufl.element(..., shape=(fields,))` on 0.7+). Its dofs are interleaved node by node and its matrices
+    carry the block size `fields`, so PETSc's PCFIELDSPLIT splits the fields by that block size, with no index
+    sets; `ufl.split` gives the fields as its components."""
     from dolfinx import fem
 
     try:
         import basix.ufl
 
-        element = basix.ufl.mixed_element([basix.ufl.element("Lagrange", msh.basix_cell(), 1)] * fields)
+        element = basix.ufl.element("Lagrange", msh.basix_cell(), 1, shape=(fields,))
         return fem.functionspace(msh, element)
     except (ImportError, AttributeError):
         import ufl
 
-        element = ufl.MixedElement([ufl.FiniteElement("Lagrange", msh.ufl_cell(), 1)] * fields)
+        element = ufl.VectorElement("Lagrange", msh.ufl_cell(), 1, dim=fields)
         return fem.FunctionSpace(msh, element)
 
 

@@ -78,6 +78,23 @@ def pressure_lower(p: Parameters) -> dict:
     return {"pressure": float(p_cav.value) - (float(p_a.value) if p_a is not None else 0.0)}
 
 
+#: The membrane's Newton step factorises its Jacobian by MUMPS' LU, in serial and on several ranks: the size
+#: rule's CG (above 1e3 nodes on several ranks) does not fit the film's nonsymmetric Jacobian, and PETSc's own LU
+#: of the mixed system is slower at 1e5 nodes (docs/explanation/film.md, "Cost").
+MEMBRANE_LU = (("ksp_type", "preonly"), ("pc_type", "lu"), ("pc_factor_mat_solver_type", "mumps"))
+#: The string's on several ranks: each rank factorises the whole (banded) Jacobian by PETSc's own LU
+#: (PCREDUNDANT); MUMPS' analysis and communication per factorisation cost more at these sizes.
+STRING_PARALLEL = (("ksp_type", "preonly"), ("pc_type", "redundant"))
+
+
+def linear_options(dim: int, ranks: int, p: Parameters) -> tuple:
+    """The film's linear solver (`Model.linear_options`): MUMPS' LU on a membrane, the redundant LU on a string on
+    several ranks, else the size rule's (a string's LU in serial). `p`: the same with or without cavitation."""
+    if dim == 2:
+        return MEMBRANE_LU
+    return STRING_PARALLEL if ranks > 1 else ()
+
+
 film = dataclasses.replace(
     inelastic,
     name="film",
@@ -88,10 +105,12 @@ film = dataclasses.replace(
     dissipative_fields=("pressure",),
     schemes=("paper",),
     newton_options=(("snes_linesearch_type", "l2"),),
+    linear_options=linear_options,
     scheme_note="its pressure has no time derivative, so it needs an L-stable step (the paper's backward Euler); "
                 "newmark's midpoint rule is not L-stable and projection's elastic term is explicit",
     description="a Reynolds lubrication film (viscosity mu) between the string and the obstacle; the paper's "
                 "penalty as a backstop; each step by Newton",
 )
 
-__all__ = ["H_MIN", "KEYS", "film", "film_residual", "mobility", "pressure_lower"]
+__all__ = ["H_MIN", "KEYS", "MEMBRANE_LU", "STRING_PARALLEL", "film", "film_residual", "linear_options", "mobility",
+           "pressure_lower"]

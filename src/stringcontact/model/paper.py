@@ -86,6 +86,11 @@ A model is a `Model`: a few plain functions that return UFL.
     The model's own defaults for its Newton step, (name, value) pairs of the `petsc_options` a scene may
     give (``(("snes_linesearch_type", "l2"),)``): above the schemes' defaults, below the user's options.
 
+``linear_options(dim, ranks, p)`` (optional)
+    The model's defaults for its Newton step's linear solver on a mesh of dimension `dim` run on `ranks`
+    ranks with the parameters `p`: (name, value) pairs as for ``newton_options``, on top of them. Naming ``ksp_type`` or ``pc_type``
+    replaces the size rule's choice (`timestepping.linear.solver_options`); the user's options still win.
+
 The paper's model (Definition 2.1), the default `inelastic`::
 
     ∫ η_tt w dx + α ∫ η_tx w_x dx + ∫ η_x w_x dx = ∫ F w dx,    F = (1/ε) χ{η<0} (η_t)⁻.
@@ -205,6 +210,7 @@ class Model:
     schemes: tuple = ()
     scheme_note: str = ""
     newton_options: tuple = ()
+    linear_options: Callable | None = None
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
     penetration_bound: str | None = "auto"
     energy_label: str | None = None

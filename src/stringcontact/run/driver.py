@@ -323,10 +323,23 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
     bc, g = agreed(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
-    options = petsc_options_of(scene, petsc_options)
+    given = petsc_options_of(scene, petsc_options)
+    options = _model_options(model, ops, params, scene.dim, comm.size, given) | given
     return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x,
                    nt=scene.nt, petsc_options=options, restitution=scene.restitution or 0.0,
                    obstacle=_moving_obstacle(scene, V, params))
+
+
+def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:
+    """A nonlinear model's own solver defaults (`Model.newton_options`, `Model.linear_options`): below the
+    scene's and the user's options (`given`), above the size rule's choice (`solver_options` reads them as
+    given). A user who names ksp_type or pc_type chooses the linear solver: the model's linear options go."""
+    if ops.nonlinear is None:
+        return {}
+    linear = getattr(model, "linear_options", None)
+    if linear is None or "ksp_type" in given or "pc_type" in given:
+        return dict(getattr(model, "newton_options", ()))
+    return dict(getattr(model, "newton_options", ())) | dict(linear(dim, ranks, params))
 
 
 def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
