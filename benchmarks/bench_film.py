@@ -6,7 +6,8 @@
     mpirun -n 2 .venv/bin/python benchmarks/bench_film.py cost --case drum
     .venv/bin/python benchmarks/bench_film.py floor                         # h_min's effect
 
-`cost` runs the film's own solvers (`film.linear_options`; `--lu`: PETSc's LU in serial, MUMPS on several ranks)
+`cost` runs the film's own solvers (`film.linear_options`; `--solver lu`: PETSc's LU in serial, MUMPS on several
+ranks; `--solver mumps`: MUMPS' LU)
 `--repeat` times and prints Newton iterations per step and the solve time per step (the driver's "solve" timing,
 output apart), the minimum and the median over the repeats;
 `floor` runs the flat landing and film_landing at several h_min and prints each run's thinnest gap, its
@@ -31,20 +32,24 @@ def _run(scene, **kw):
         return sc.simulate(scene, **kw)
 
 
-def cost(case: str, steps: int, repeat: int, lu: bool = False) -> None:
+#: `cost --solver`: the film's own (None) or a plain LU
+SOLVERS = {"film": None, "lu": {"ksp_type": "preonly", "pc_type": "lu"},
+           "mumps": {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}}
+
+
+def cost(case: str, steps: int, repeat: int, solver: str = "film") -> None:
     if case == "string":  # the landing at 0.0235: steps from 0.02 on would need a restart; run from 0
         scene = sc.load_scene("film_landing").replace(nx=5000, dt=0.00025, T=steps * 0.00025, output_times=[])
     else:
         scene = sc.load_scene("film_drum").replace(cells=[316, 316], dt=0.0025, T=steps * 0.0025, output_times=[])
     times = []
     for _ in range(repeat):
-        r = _run(scene, storage=sc.Storage(max_rows=2),
-                 petsc_options={"ksp_type": "preonly", "pc_type": "lu"} if lu else None)
+        r = _run(scene, storage=sc.Storage(max_rows=2), petsc_options=SOLVERS[solver])
         times.append(r.timings["solve"] / scene.nt)
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
         its = r.timings["newton iterations"]
-        print(f"{case}: {scene.node_estimate} nodes, {comm.size} rank(s), {scene.nt} steps: {its / scene.nt:.2f} Newton "
+        print(f"{case}: {scene.node_estimate} nodes, {comm.size} rank(s), solver {solver}, {scene.nt} steps: {its / scene.nt:.2f} Newton "
               f"iterations per step, {1e3 * min(times):.1f} ms per step (median {1e3 * np.median(times):.1f} of "
               f"{repeat}; setup {r.timings['setup']:.2f} s)")
 
@@ -82,13 +87,13 @@ def main() -> None:
     c.add_argument("--case", choices=("string", "drum"), default="string")
     c.add_argument("--steps", type=int, default=None, help="default: 200 (string), 4 (drum)")
     c.add_argument("--repeat", type=int, default=None, help="default: 3 (string), 2 (drum)")
-    c.add_argument("--lu", action="store_true", help="the plain LU (PETSc's own in serial, MUMPS on several ranks), not the "
-                   "film's own solvers")
+    c.add_argument("--solver", choices=tuple(SOLVERS), default="film",
+                   help="film: the film's own (default); lu: PETSc's LU in serial, MUMPS on several ranks; mumps")
     sub.add_parser("floor")
     args = parser.parse_args()
     if args.what == "cost":
         string = args.case == "string"
-        cost(args.case, args.steps or (200 if string else 4), args.repeat or (3 if string else 2), args.lu)
+        cost(args.case, args.steps or (200 if string else 4), args.repeat or (3 if string else 2), args.solver)
     else:
         floor()
 

@@ -312,3 +312,19 @@ def _worker(out: Path) -> None:
 
 if __name__ == "__main__":
     _worker(Path(sys.argv[1]))
+
+
+@pytest.mark.parametrize("ordering", [2, 6])
+def test_options_read_at_set_up_reach_the_solver(ordering):
+    """MUMPS reads its ICNTL when it factorises, inside KSP.setUp: the options must still be in PETSc's database
+    there (`linear.options_held`), or the solver silently keeps its default ordering (ICNTL(7) = 7)."""
+    from mpi4py import MPI
+
+    A = PETSc.Mat().createAIJ([6, 6], nnz=1, comm=MPI.COMM_SELF)
+    for i in range(6):
+        A.setValue(i, i, 2.0)
+    A.assemble()
+    options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps", "mat_mumps_icntl_7": ordering}
+    ksp = linear.configured_ksp(A, MPI.COMM_SELF, options)
+    assert ksp.getPC().getFactorMatrix().getMumpsIcntl(7) == ordering
+    assert not PETSc.Options().hasName(linear.PREFIX + "mat_mumps_icntl_7")  # nothing left for another solver

@@ -248,21 +248,30 @@ def _option_text(value) -> str:
     return repr(value) if isinstance(value, float) else str(value)
 
 
-def set_from_options(solver, prefix: str, options: dict) -> None:
-    """`solver.setFromOptions()` (a KSP, a SNES) with `options` under `prefix`: they are put into PETSc's
-    database just before and removed just after, so that nothing leaks into another solver."""
-    solver.setOptionsPrefix(prefix)
+@contextlib.contextmanager
+def options_held(prefix: str, options: dict):
+    """`options` in PETSc's database under `prefix` for the block, removed after, so that nothing leaks into another
+    solver. A solver reads some options only when it is set up (MUMPS' ``mat_mumps_icntl_*``, a fieldsplit's
+    ``fieldsplit_*`` sub-solvers), which happens inside ``KSP.setUp`` or ``SNES.solve``: hold them there too."""
     db = PETSc.Options()
     try:
         for name, value in options.items():
             db.setValue(prefix + name, _option_text(value))
-        solver.setFromOptions()
-    except PETSc.Error as exc:  # a value `check_option_values` cannot ask about (pc_hypre_type = 'bogus'): one line
-        reason = str(exc).strip().splitlines()[-1].split("] ", 1)[-1].replace("-" + prefix, "")
-        raise SceneError(f"petsc_options: PETSc refused a value ({reason}); allowed: the values PETSc lists") from None
+        yield
     finally:
         for name in options:
             db.delValue(prefix + name)
+
+
+def set_from_options(solver, prefix: str, options: dict) -> None:
+    """`solver.setFromOptions()` (a KSP, a SNES) with `options` under `prefix` (`options_held`)."""
+    solver.setOptionsPrefix(prefix)
+    try:
+        with options_held(prefix, options):
+            solver.setFromOptions()
+    except PETSc.Error as exc:  # a value `check_option_values` cannot ask about (pc_hypre_type = 'bogus'): one line
+        reason = str(exc).strip().splitlines()[-1].split("] ", 1)[-1].replace("-" + prefix, "")
+        raise SceneError(f"petsc_options: PETSc refused a value ({reason}); allowed: the values PETSc lists") from None
 
 
 def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
@@ -271,7 +280,8 @@ def configured_ksp(A: PETSc.Mat, comm, options: dict) -> PETSc.KSP:
     ksp.setOperators(A)
     set_from_options(ksp, PREFIX, options)
     try:
-        ksp.setUp()
+        with options_held(PREFIX, options):  # MUMPS reads its ICNTL at the factorisation
+            ksp.setUp()
     except PETSc.Error as exc:  # a combination the checks cannot foresee: the options' fault, one line
         chosen = ", ".join(f"{k} = {_option_text(v)}" for k, v in options.items() if k.endswith("_type"))
         raise SceneError(f"petsc_options: PETSc cannot set up the linear solver ({chosen}): {_petsc_reason(exc)}; "

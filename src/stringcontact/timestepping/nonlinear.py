@@ -48,7 +48,7 @@ from ..errors import InstabilityError, SolverError
 from ..fem import compat
 from .base import Scheme as Base
 from .base import any_rank, check_law_stability, summer, wrap
-from .linear import PREFIX, dirichlet_rows, set_from_options, solver_options
+from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
 
 #: Newton's defaults (a scene's or the command line's `petsc_options` go on top): the relative residual and the
 #: relative step (quadratic convergence makes the error after a step of 1e-9 |u| about 1e-18 |u|).
@@ -183,6 +183,8 @@ class NewtonStep:
         model_defaults = dict(getattr(s.laws.model, "newton_options", ()))  # the model's, below the user's
         options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | model_defaults | options
         set_from_options(snes, PREFIX, options)
+        # the linear solver's options held again while SNES solves: its KSP reads some at set-up (`options_held`)
+        self.ksp_options = {k: v for k, v in options.items() if not k.startswith("snes_")}
         if lower is not None:
             lo, hi = self.x.duplicate(), self.x.duplicate()
             lo.array[:] = lower
@@ -364,7 +366,8 @@ class NewtonStep:
             x[self.bc] = self.g
             self.kept, self.fresh_only = False, fresh
             try:
-                snes.solve(None, self.x)
+                with options_held(PREFIX, self.ksp_options):
+                    snes.solve(None, self.x)
             finally:
                 self.fresh_only = False
             reason = snes.getConvergedReason()
