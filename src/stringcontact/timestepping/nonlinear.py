@@ -440,7 +440,10 @@ PAPER = {
 class PaperStep(_NewtonScheme):
     """The paper's Section 6 scheme for a nonlinear model: η and η_t implicit, the penalty explicit (or
     semi-implicit: d v^{n+1} on the diagonal), the mass lumped or consistent. Energy: the module docstring,
-    with the kinetic energy ½|v^{n+1}|²_M, δ = η^{n+1} − η^n and the contact work −(Δt/2) f·(v^n + v^{n+1})."""
+    with the kinetic energy ½|v^{n+1}|²_M, δ = η^{n+1} − η^n and the contact work −(Δt/2) f·(v^n + v^{n+1}).
+    A moving obstacle ψ(x, t), as on the linear path (paper.py): the law's fields at t^n; the semi-implicit
+    damping brakes the step's gap rate, centre c = η^n + ψ^{n+1} − ψ^n, and a node it would hold down is released
+    (`_release`); the obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work."""
 
     def __init__(self, s):
         super().__init__(s)
@@ -455,6 +458,7 @@ class PaperStep(_NewtonScheme):
         n = s.n_owned
         self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
         self.older = None
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
         self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
         self.force_density = np.zeros(n)
 
@@ -479,7 +483,6 @@ class PaperStep(_NewtonScheme):
 
     def start(self, eta0, v0):
         s = self.s
-        self.moving, self.k = s.obstacle is not None, 0
         if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
             self.psi_levels = [s.obstacle.owned(-s.dt).copy(), s.obstacle.set(0.0).copy()]
         self.eta_[:], self.v[:] = eta0, v0
@@ -706,7 +709,9 @@ class NewmarkStep(_NewtonScheme):
     """`newmark` for a nonlinear model: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
     η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule of a linear model), the
     semi-implicit penalty −D v^{n+1} on the diagonal, with the same release of nodes it would hold down.
-    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1})."""
+    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1}). A moving obstacle
+    ψ(x, t), as on the linear path (newmark.py): the law reads the centred ψ_t^n, the damping brakes
+    v^{n+1} − ψ_t^{n+1}, and the obstacle's work f·(ψ^{n+1} − ψ^n) is external work."""
 
     def __init__(self, s):
         super().__init__(s)
@@ -718,6 +723,7 @@ class NewmarkStep(_NewtonScheme):
         n = s.n_owned
         self.eta_, self.v, self.v_old = np.zeros(n), np.zeros(n), np.zeros(n)
         self.force_density = np.zeros(n)
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
 
     eta = property(lambda self: self.eta_)
     velocity = property(lambda self: self.v)
@@ -737,7 +743,6 @@ class NewmarkStep(_NewtonScheme):
         o.rate_field.x.array[:] = self._rate(t)
 
     def start(self, eta0, v0):
-        self.moving, self.k = self.s.obstacle is not None, 0
         if self.moving:
             self._obstacle_at(0.0)
         self.eta_[:], self.v[:], self.v_old[:] = eta0, v0, v0
