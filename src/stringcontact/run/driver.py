@@ -293,18 +293,15 @@ def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
 
 
 def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params, ops) -> None:
-    """A moving obstacle runs with scheme projection (restitution 0; linear and nonlinear models), and with a linear
-    model under scheme paper (either penalty) and newmark, whose law reads the obstacle's rate (the gap rate
-    v − ψ_t); the rest is refused in one line."""
+    """A moving obstacle runs with scheme projection (restitution 0), and with schemes paper (either penalty) and
+    newmark when the model's law reads the obstacle's rate (the gap rate v − ψ_t); linear and nonlinear models
+    alike. The rest is refused in one line."""
     if not scene.obstacle_moves:
         return
     if name == "projection":
         if scene.restitution:
             raise SceneError("restitution: a moving obstacle (obstacle in t) runs with restitution 0 only")
         return
-    if ops.nonlinear is not None:
-        raise SceneError(f"obstacle: a moving obstacle (an expression in t) runs with scheme 'projection', or with a "
-                         f"linear model under schemes 'paper' and 'newmark'; not a nonlinear model under {name!r}")
     law = model.penalty if penalty == "explicit" else model.penalty_damping
     what = "penalty" if penalty == "explicit" else "penalty_damping"
     if law is None:  # no such law: the scheme refuses the model itself

@@ -443,7 +443,10 @@ PAPER = {
 class PaperStep(_NewtonScheme):
     """The paper's Section 6 scheme for a nonlinear model: η and η_t implicit, the penalty explicit (or
     semi-implicit: d v^{n+1} on the diagonal), the mass lumped or consistent. Energy: the module docstring,
-    with the kinetic energy ½|v^{n+1}|²_M, δ = η^{n+1} − η^n and the contact work −(Δt/2) f·(v^n + v^{n+1})."""
+    with the kinetic energy ½|v^{n+1}|²_M, δ = η^{n+1} − η^n and the contact work −(Δt/2) f·(v^n + v^{n+1}).
+    A moving obstacle ψ(x, t), as on the linear path (paper.py): the law's fields at t^n; the semi-implicit
+    damping brakes the step's gap rate, centre c = η^n + ψ^{n+1} − ψ^n, and a node it would hold down is released
+    (`_release`); the obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work."""
 
     def __init__(self, s):
         super().__init__(s)
@@ -454,10 +457,11 @@ class PaperStep(_NewtonScheme):
         law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
         self.force_law = laws.compile(law(laws.eta, laws.quotient, laws.params))
         self.newton = NewtonStep(s, PAPER)
-        self.allsum = summer(s.comm)
+        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
         n = s.n_owned
         self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
         self.older = None
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
         self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
         self.force_density = np.zeros(n)
 
@@ -482,6 +486,8 @@ class PaperStep(_NewtonScheme):
 
     def start(self, eta0, v0):
         s = self.s
+        if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
+            self.psi_levels = [s.obstacle.owned(-s.dt).copy(), s.obstacle.set(0.0).copy()]
         self.eta_[:], self.v[:] = eta0, v0
         self.old[:] = eta0 - s.dt * self.v
         kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
@@ -502,28 +508,56 @@ class PaperStep(_NewtonScheme):
         s, dt, nw = self.s, self.s.dt, self.newton
         e0, em = self.eta_, self.old
         nw.set_known(e0, em)
+        # a moving obstacle: the semi-implicit damping brakes the step's gap rate, v^{n+1} − (ψ^{n+1} − ψ^n)/Δt
+        dpsi = s.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
         if s.penalty == "explicit":
             nw.f[:] = s.ops.m_force * self.law
-        else:  # F = −d v^{n+1}: (m_F d/Δt)(u − η^n) on the diagonal
+        else:  # F = −d (v^{n+1} − Δψ/Δt): (m_F d/Δt)(u − η^n − Δψ) on the diagonal
             nw.d[:] = s.ops.m_force * self.law / dt
-            nw.c[:] = e0
+            nw.c[:] = e0 + dpsi
         # η extrapolated quadratically: a smaller first residual, so that a kept Jacobian serves more steps
         u = nw.solve(3 * e0 - 3 * em + self.older if self.older is not None else 2 * e0 - em)
+        if self.moving and s.penalty != "explicit":
+            u = self._release(u)
         self.older = em.copy()
         v1 = (u - e0) / dt
-        f = nw.f if s.penalty == "explicit" else -nw.d * (u - e0)
+        f = nw.f if s.penalty == "explicit" else nw.d * (nw.c - u)
         delta = u - e0
         visc_vec = nw.viscous_force(u)
-        kin, el, visc, con, ext = self.allsum(
+        work = self._obstacle_work(f)  # (and the law's fields to t^{n+1})
+        kin, el, visc, con, ext, work = self.allsum(
             self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
-            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)))
+            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)), work)
         num = self.E - (kin + el) - visc - con + ext
+        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
         self.E = kin + el
         if s.penalty != "explicit":
             self.force_density[:] = f * self.inv_mF
         self.old[:], self.eta_[:], self.v[:] = e0, u, v1
         self._force()
         return kin, el, visc, con, num, ext, 0.0
+
+    def _release(self, u: np.ndarray) -> np.ndarray:
+        """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (u above the
+        centre η^n + Δψ, F < 0: an obstacle that stops under a string it lifted) is released and the step solved
+        again from u, as on the linear path. The kept Jacobian takes the change of d on its diagonal
+        (`NewtonStep._update_damping`); the centre c enters only the residual."""
+        nw = self.newton
+        while self.anysum(bool(np.any(sticky := (nw.d > 0) & (u > nw.c)))):
+            nw.d[sticky] = 0.0
+            u = nw.solve(u)
+        return u
+
+    def _obstacle_work(self, f: np.ndarray) -> float:
+        """A moving obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work (this rank's), with the law's
+        fields moved to t^{n+1} (the next step's law, the stored row's force); 0 for an obstacle at rest."""
+        if not self.moving:
+            return 0.0
+        self.k += 1
+        psi_new = self.s.obstacle.set(self.k * self.s.dt).copy()
+        work = 0.5 * float(np.dot(f, psi_new - self.psi_levels[0]))
+        self.psi_levels = [self.psi_levels[1], psi_new]
+        return work
 
 
 # --- projection: central differences, η explicit, the contact step a variational inequality ---------------
@@ -678,7 +712,9 @@ class NewmarkStep(_NewtonScheme):
     """`newmark` for a nonlinear model: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
     η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule of a linear model), the
     semi-implicit penalty −D v^{n+1} on the diagonal, with the same release of nodes it would hold down.
-    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1})."""
+    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1}). A moving obstacle
+    ψ(x, t), as on the linear path (newmark.py): the law reads the centred ψ_t^n, the damping brakes
+    v^{n+1} − ψ_t^{n+1}, and the obstacle's work f·(ψ^{n+1} − ψ^n) is external work."""
 
     def __init__(self, s):
         super().__init__(s)
@@ -690,13 +726,28 @@ class NewmarkStep(_NewtonScheme):
         n = s.n_owned
         self.eta_, self.v, self.v_old = np.zeros(n), np.zeros(n), np.zeros(n)
         self.force_density = np.zeros(n)
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
 
     eta = property(lambda self: self.eta_)
     velocity = property(lambda self: self.v)
     contact_force = property(lambda self: self.force_density)
     _kinetic = PaperStep._kinetic
 
+    def _rate(self, t: float) -> np.ndarray:
+        """A moving obstacle's ψ_t(·, t) at every dof (owned, then ghosts): the centred quotient
+        (ψ(t + Δt) − ψ(t − Δt))/(2Δt), as on the linear path (newmark.py)."""
+        o = self.s.obstacle
+        return (o.at(t + o.dt) - o.at(t - o.dt)) / (2.0 * o.dt)
+
+    def _obstacle_at(self, t: float) -> None:
+        """The law's fields at the time t: ψ and the centred ψ_t in place of `MovingObstacle.set`'s backward one."""
+        o = self.s.obstacle
+        o.set(t)
+        o.rate_field.x.array[:] = self._rate(t)
+
     def start(self, eta0, v0):
+        if self.moving:
+            self._obstacle_at(0.0)
         self.eta_[:], self.v[:], self.v_old[:] = eta0, v0, v0
         kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
         self.E = kin + el
@@ -708,27 +759,39 @@ class NewmarkStep(_NewtonScheme):
         nw.set_known(e0, None, v)
         s.laws.set(eta=e0, v=v)
         D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
-        while True:  # −D v^{n+1} = −(2D/Δt)(u − η^n − (Δt/2) v^n)
-            nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * v
+        rate = self._rate((self.k + 1) * dt)[: s.n_owned] if self.moving else 0.0  # ψ_t^{n+1}: D brakes v − ψ_t
+        while True:  # −D (v^{n+1} − ψ_t^{n+1}) = −(2D/Δt)(u − η^n − (Δt/2)(v^n + ψ_t^{n+1}))
+            nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
             u = nw.solve(e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated linearly
             v1 = 2.0 * (u - e0) / dt - v
             v1[s.bc] = 0.0
-            sticky = (D > 0) & (v1 > 0)  # a damping that would hold a node down: released (as on the linear path)
+            sticky = (D > 0) & (v1 > rate)  # a damping that would hold a node down: released (as on the linear path)
             if not self.anysum(bool(np.any(sticky))):
                 break
             D[sticky] = 0.0
-        f = -D * v1
+        f = -D * (v1 - rate)
         delta = u - e0
         visc_vec = nw.viscous_force(u)
-        kin, el, visc, con, ext = self.allsum(
+        kin, el, visc, con, ext, work = self.allsum(
             self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
-            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)))
+            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)), self._obstacle_work(f))
         num = self.E - (kin + el) - visc - con + ext
+        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
         self.E = kin + el
         np.divide(f, s.ops.m_force, out=self.force_density, where=s.ops.m_force > 0)
         self.force_density[s.ops.m_force <= 0] = 0.0
         self.v_old[:], self.eta_[:], self.v[:] = v, u, v1
+        self.k += 1
+        if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
+            self._obstacle_at(self.k * dt)
         return kin, el, visc, con, num, ext, 0.0
+
+    def _obstacle_work(self, f: np.ndarray) -> float:
+        """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's); 0 for an obstacle at rest."""
+        if not self.moving:
+            return 0.0
+        o, t = self.s.obstacle, (self.k + 1) * self.s.dt
+        return float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
 
 
 __all__ = [
