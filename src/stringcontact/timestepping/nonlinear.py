@@ -515,8 +515,16 @@ class PaperStep(_NewtonScheme):
         else:  # F = −d (v^{n+1} − Δψ/Δt): (m_F d/Δt)(u − η^n − Δψ) on the diagonal
             nw.d[:] = s.ops.m_force * self.law / dt
             nw.c[:] = e0 + dpsi
-        # η extrapolated quadratically: a smaller first residual, so that a kept Jacobian serves more steps
-        u = nw.solve(3 * e0 - 3 * em + self.older if self.older is not None else 2 * e0 - em)
+        # η extrapolated quadratically: a smaller first residual, so that a kept Jacobian serves more steps; past a
+        # sudden stop (film_landing at nx = 200 lands in one step) that guess overshoots and Newton diverges from it:
+        # then from the linear one
+        linear = 2 * e0 - em
+        try:
+            u = nw.solve(3 * e0 - 3 * em + self.older if self.older is not None else linear)
+        except SolverError:
+            if self.older is None:
+                raise
+            u = nw.solve(linear)
         if self.moving and s.penalty != "explicit":
             u = self._release(u)
         self.older = em.copy()
