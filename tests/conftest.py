@@ -120,6 +120,18 @@ def tmpfs(tmp_path):
         subprocess.run(["umount", "-l", str(folder)], check=False)
 
 
+@pytest.fixture(scope="session")
+def piston_folder(tmp_path_factory):
+    """A short `piston` run (the obstacle moves) written to a folder, XDMF frames and all, no pictures: the folder
+    and its Result, read by the XDMF and the ParaView tests alike (neither writes into it)."""
+    import stringcontact as sc
+
+    out = tmp_path_factory.mktemp("piston") / "piston"
+    scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
+    res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
+    return out, res
+
+
 def grid_mesh(n: int):
     """The cells and points of an n x n node grid of the unit square (2 (n-1)^2 triangles), for mesh files."""
     import numpy as np

@@ -377,16 +377,8 @@ def test_frames_on_a_filling_disk_end_in_an_error_and_a_clean_exit(tmpfs):
 # --- a moving obstacle: ψ(x, t) at each frame, read back by meshio --------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def piston(tmp_path_factory):
-    out = tmp_path_factory.mktemp("xdmf") / "piston"
-    scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
-    res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
-    return out, res
-
-
-def test_a_moving_obstacle_is_a_field_at_each_frame_where_it_is_then(piston):
-    out, res = piston
+def test_a_moving_obstacle_is_a_field_at_each_frame_where_it_is_then(piston_folder):
+    out, res = piston_folder
     assert res.scene.obstacle_moves
     data = meshio_read(out / "solution.xdmf")
     x = np.array(data["points"])[:, 0]

@@ -324,19 +324,11 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     assert redk > 500, redk  # the film's peak pressure under the falling skin
 
 
-@pytest.fixture(scope="module")
-def piston(tmp_path_factory):
-    out = tmp_path_factory.mktemp("paraview") / "piston"
-    scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
-    res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
-    return out, res
-
-
-def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(tmp_path, piston):
+def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(tmp_path, piston_folder):
     """The piston rises from ψ = 0 to 0.3 by t = 0.15: the top of the grey region is where ψ is at each time
     (from solution.xdmf's `obstacle` field), under one camera whose box holds the obstacle at every time."""
     command = pvpython()
-    out, res = piston
+    out, res = piston_folder
     times = [0.0, 0.1, 0.3]
     views = _views(command, out, [(t, tmp_path / f"piston_{k}.png", "contact") for k, t in enumerate(times)])
     cameras = [report["camera"] for report, _ in views]

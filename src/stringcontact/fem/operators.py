@@ -189,22 +189,22 @@ def semi_discrete_operators(model, V, params) -> Operators:
     m = _row_sums(M)
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
     ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
-    energy = getattr(model, "stored_energy", None) or default_stored_energy
-    if mixed is not None:
+    declared = getattr(model, "stored_energy", None)
+    if mixed is not None:  # several fields: the declared energy, else the paper's ½|∇η|² of η
+        energy = declared or default_stored_energy
         (U, U_t, U_tt), R_Z, _ = mixed
         Z = U.function_space
         ops.nonlinear = NonlinearForm(residual=R_Z, eta=U, eta_t=U_t, eta_tt=U_tt, force=force, V=V, params=params,
                                       stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta, space=Z,
                                       eta_dofs=compat.sub_dofs(V, Z, 0))
     elif nonlinear_in or getattr(model, "newton", False):
-        if getattr(model, "stored_energy", None) is None:  # the form's own potential, not the paper's ½|∇η|²
+        if declared is None:  # the form's own potential, not the paper's ½|∇η|²
             stored, energy_eta = potential_energy(R, placeholders, w, V)
         else:
-            stored, energy_eta = energy(eta, params) * ufl.dx, eta
+            stored, energy_eta = declared(eta, params) * ufl.dx, eta
         ops.nonlinear = NonlinearForm(residual=R, eta=eta, eta_t=eta_t, eta_tt=eta_tt, force=force, V=V,
                                       params=params, stored_energy=stored, energy_eta=energy_eta,
-                                      viscous_linear=eta_t not in nonlinear_in, space=V,
-                                      energy_derived=getattr(model, "stored_energy", None) is None)
+                                      viscous_linear=eta_t not in nonlinear_in, space=V, energy_derived=declared is None)
     return ops
 
 

@@ -292,7 +292,7 @@ def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
                           params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
 
 
-def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params, ops) -> None:
+def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params) -> None:
     """A moving obstacle runs with scheme projection (restitution 0), and with schemes paper (either penalty) and
     newmark when the model's law reads the obstacle's rate (the gap rate v − ψ_t); linear and nonlinear models
     alike. The rest is refused in one line."""
@@ -495,7 +495,9 @@ class _Run:
         self.stepper, self.rows, self.geometry, self.row_series, self.timings = stepper, rows, geometry, row_series, timings
         self.ledger = self.writer = None
         self.origin = {}  # where the model came from (`_model_origin`)
-        self.energy_label = model.energy_label  # the stored energy's legend (`start` names a derived one)
+        nonlinear = stepper.s.ops.nonlinear
+        derived = nonlinear is not None and nonlinear.energy_derived  # the form's potential is booked
+        self.energy_label = model.energy_label or (POTENTIAL_LABEL if derived else None)  # energy.png's legend
         self.dt = scene.dt  # a property of the scene: read once, not per stored row
 
     def start(self, s: Setting, V, output: Output) -> None:
@@ -504,8 +506,6 @@ class _Run:
         self.ledger = _Ledger(stepper.start(*agreed(s.comm, _initial_state, self.scene, s)),  # eta0, v0: one outcome
                               conservative=self.model.contact_energy is not None or stepper.energy_may_rise,
                               floor=energy_roundoff(s.ops.K, stepper.eta, s.comm), slack=stepper.energy_slack)
-        derived = s.ops.nonlinear is not None and s.ops.nonlinear.energy_derived  # the form's potential is booked
-        self.energy_label = self.model.energy_label or (POTENTIAL_LABEL if derived else None)
         rows.min_eta = float(np.min(stepper.eta[s.interior])) if s.interior.any() else math.inf
         self.writer = _writer(self.scene, V, self.comm, rows, output)
 
@@ -622,7 +622,7 @@ def simulate(
     _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm)
     t0 = time.perf_counter()
     V, params, ops = discretise(scene, model, comm)
-    _check_moving_obstacle(scene, name, penalty, model, V, params, ops)
+    _check_moving_obstacle(scene, name, penalty, model, V, params)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
     stepper = Scheme(s)
     rows, geometry, row_series = _storage(scene, s, V, storage)

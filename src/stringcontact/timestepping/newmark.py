@@ -105,21 +105,9 @@ class Scheme(Base):
         self.Ms.mult(self.vec[name] if name else wrap(u, self.s.comm), self.vec["Mu"])
         return self.Mu
 
-    def _rate(self, t: float) -> np.ndarray:
-        """A moving obstacle's ψ_t(·, t) at every dof (owned, then ghosts): the centred quotient
-        (ψ(t + Δt) − ψ(t − Δt))/(2Δt)."""
-        o = self.s.obstacle
-        return (o.at(t + o.dt) - o.at(t - o.dt)) / (2.0 * o.dt)
-
-    def _obstacle_at(self, t: float) -> None:
-        """The law's fields at the time t: ψ and the centred ψ_t in place of `MovingObstacle.set`'s backward one."""
-        o = self.s.obstacle
-        o.set(t)
-        o.rate_field.x.array[:] = self._rate(t)
-
     def start(self, eta0, v0):
         if self.moving:
-            self._obstacle_at(0.0)
+            self.s.obstacle.set_centred(0.0)
         self.eta_[:], self.v_[:] = eta0, v0
         self.KC.mult(wrap(self.eta_, self.s.comm), self.KC_now[0])
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
@@ -188,7 +176,7 @@ class Scheme(Base):
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
         self._active_damping()
         if self.moving:
-            self.rate_new[:] = self._rate((self.k + 1) * dt)[: self.s.n_owned]
+            self.rate_new[:] = self.s.obstacle.centred_rate((self.k + 1) * dt)[: self.s.n_owned]
         v_new = self._solve()
         # A damping that holds a node down (F = −D v^{n+1} < 0, it wants to lift) would do work against the
         # mean velocity and raise the energy: release such nodes and solve again (a few times at most).
@@ -216,7 +204,7 @@ class Scheme(Base):
         self.KC_now, self.KC_new = self.KC_new, self.KC_now
         self.k += 1
         if self.moving:  # the law's fields at t^{k}: the stored row's contact set, the next step's active set
-            self._obstacle_at(self.k * dt)
+            self.s.obstacle.set_centred(self.k * dt)
         return kin, el, visc, con, 0.0, ext, 0.0
 
 

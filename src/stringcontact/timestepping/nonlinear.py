@@ -741,21 +741,9 @@ class NewmarkStep(_NewtonScheme):
     contact_force = property(lambda self: self.force_density)
     _kinetic = PaperStep._kinetic
 
-    def _rate(self, t: float) -> np.ndarray:
-        """A moving obstacle's ψ_t(·, t) at every dof (owned, then ghosts): the centred quotient
-        (ψ(t + Δt) − ψ(t − Δt))/(2Δt), as on the linear path (newmark.py)."""
-        o = self.s.obstacle
-        return (o.at(t + o.dt) - o.at(t - o.dt)) / (2.0 * o.dt)
-
-    def _obstacle_at(self, t: float) -> None:
-        """The law's fields at the time t: ψ and the centred ψ_t in place of `MovingObstacle.set`'s backward one."""
-        o = self.s.obstacle
-        o.set(t)
-        o.rate_field.x.array[:] = self._rate(t)
-
     def start(self, eta0, v0):
         if self.moving:
-            self._obstacle_at(0.0)
+            self.s.obstacle.set_centred(0.0)
         self.eta_[:], self.v[:], self.v_old[:] = eta0, v0, v0
         kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
         self.E = kin + el
@@ -767,7 +755,7 @@ class NewmarkStep(_NewtonScheme):
         nw.set_known(e0, None, v)
         s.laws.set(eta=e0, v=v)
         D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
-        rate = self._rate((self.k + 1) * dt)[: s.n_owned] if self.moving else 0.0  # ψ_t^{n+1}: D brakes v − ψ_t
+        rate = s.obstacle.centred_rate((self.k + 1) * dt)[: s.n_owned] if self.moving else 0.0  # ψ_t^{n+1}: D brakes v − ψ_t
         while True:  # −D (v^{n+1} − ψ_t^{n+1}) = −(2D/Δt)(u − η^n − (Δt/2)(v^n + ψ_t^{n+1}))
             nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
             u = nw.solve(e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated linearly
@@ -791,7 +779,7 @@ class NewmarkStep(_NewtonScheme):
         self.v_old[:], self.eta_[:], self.v[:] = v, u, v1
         self.k += 1
         if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
-            self._obstacle_at(self.k * dt)
+            self.s.obstacle.set_centred(self.k * dt)
         return kin, el, visc, con, num, ext, 0.0
 
     def _obstacle_work(self, f: np.ndarray) -> float:
