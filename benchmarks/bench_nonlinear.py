@@ -8,8 +8,11 @@ For each scheme, the models (the paper's linear `inelastic`, `cubic_foundation`,
 turn, `--repeat` rounds, in one process (warm JIT cache), so that a change in the machine's load hits them
 alike. Per model: the solve time per step (the driver's "solve" timing: the march without set-up and output),
 its least and its median over the rounds; the step's cost against the linear model's (least over least);
-Newton's iterations per step (all steps, retries included), the most in one step, and the Jacobian
-assemblies per step. Prints a Markdown table and `uptime`'s load; writes benchmarks/out/nonlinear.json.
+Newton's iterations per step (all steps, retries included), the most in one step, the Jacobian
+assemblies per step, and the floor: what the calls no Newton step can skip cost on the run's own forms (two
+residual assemblies, one stored-energy assembly, one back-substitution; `floor_ms`), in ms and against the
+linear step, and one residual assembly with its packed coefficients against dolfinx packing them afresh.
+Prints a Markdown table and `uptime`'s load; writes benchmarks/out/nonlinear.json.
 """
 
 from __future__ import annotations
@@ -19,9 +22,11 @@ import json
 import os
 import platform
 import statistics
+import timeit
 import warnings
 from pathlib import Path
 
+import dolfinx.fem.petsc
 from mpi4py import MPI
 
 import stringcontact as sc
@@ -30,15 +35,43 @@ from stringcontact.timestepping import nonlinear
 MODELS = ("inelastic", "cubic_foundation", "large_deflection")
 
 
+def floor_ms(newton) -> tuple[float, float, float]:
+    """The calls no Newton step can skip, timed on the run's own Newton step after its last step: the residual
+    assembled twice (at the guess and to confirm the root), the stored energy once, and one solve with the kept
+    LU factor; least of 5 rounds of 200. Also one residual assembly with the packed coefficients
+    (`PackedForm`) and with dolfinx packing them afresh."""
+    b = newton.work_vec
+    x = b.duplicate()
+    ksp = newton.snes.getKSP()
+
+    def residual():
+        with b.localForm() as local:
+            local.set(0.0)
+        newton.G.assemble_vector(b)
+
+    def least(call):
+        return min(timeit.repeat(call, number=200, repeat=5)) / 200
+
+    def repacked():
+        with b.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(b, newton.G.form)
+
+    packed = least(residual)
+    floor = 2 * packed + least(newton.energy.assemble_scalar) + least(lambda: ksp.solve(b, x))
+    return 1e3 * floor, 1e3 * packed, 1e3 * least(repacked)
+
+
 def run_once(scene, scheme: str, model: str) -> dict:
-    """One run: the solve time per step, and Newton's iterations of every step."""
-    counts = []
+    """One run: the solve time per step, Newton's iterations of every step, and the floor (`floor_ms`)."""
+    counts, steps = [], []
     original = nonlinear.NewtonStep.solve
 
     def counting(self, guess):  # the iterations of every step, not only their sum
         before = self.iterations
         out = original(self, guess)
         counts.append(self.iterations - before)
+        steps[:] = [self]
         return out
 
     nonlinear.NewtonStep.solve = counting
@@ -49,7 +82,8 @@ def run_once(scene, scheme: str, model: str) -> dict:
     finally:
         nonlinear.NewtonStep.solve = original
     return {"step_ms": 1e3 * res.timings["solve"] / scene.nt, "counts": counts, "status": res.status,
-            "jacobians": res.timings.get("jacobian assemblies", 0)}
+            "jacobians": res.timings.get("jacobian assemblies", 0),
+            "floor_ms": floor_ms(steps[0]) if steps else (0.0, 0.0, 0.0)}
 
 
 def measure(scene, scheme: str, repeat: int) -> list[dict]:
@@ -65,10 +99,12 @@ def measure(scene, scheme: str, repeat: int) -> list[dict]:
         rows.append({"model": model, "scheme": scheme, "step_ms": min(times), "median_ms": statistics.median(times),
                      "newton_per_step": sum(counts) / len(counts) if counts else 0.0,
                      "newton_max": max(counts, default=0), "jacobians_per_step": done[-1]["jacobians"] / scene.nt,
-                     "status": done[-1]["status"]})
+                     "status": done[-1]["status"], "floor_ms": min(r["floor_ms"][0] for r in done),
+                     "residual_ms": [min(r["floor_ms"][i] for r in done) for i in (1, 2)]})
     linear = rows[0]["step_ms"]
     for r in rows:
         r["ratio"] = r["step_ms"] / linear
+        r["floor_ratio"] = r["floor_ms"] / linear
     return rows
 
 
@@ -88,15 +124,17 @@ def main() -> None:
           f"({platform.processor() or platform.machine()}); load average {load_before[0]:.1f} before, "
           f"{load_after[0]:.1f} after")
     print("| scheme | model | step (ms), least | median | × linear | Newton iterations per step | most in one step "
-          "| Jacobian assemblies per step |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+          "| Jacobian assemblies per step | floor (ms), × linear | residual (ms): packed, by dolfinx |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for r in rows:
         linear = r["model"] == "inelastic"
         newton = "none (linear)" if linear else f"{r['newton_per_step']:.2f}"
         most = "-" if linear else str(r["newton_max"])
         jac = "-" if linear else f"{r['jacobians_per_step']:.2f}"
+        floor = "-" if linear else f"{r['floor_ms']:.3f}, {r['floor_ratio']:.1f}"
+        residual = "-" if linear else "{:.3f}, {:.3f}".format(*r["residual_ms"])
         print(f"| {r['scheme']} | {r['model']} | {r['step_ms']:.3f} | {r['median_ms']:.3f} | {r['ratio']:.1f} | "
-              f"{newton} | {most} | {jac} |")
+              f"{newton} | {most} | {jac} | {floor} | {residual} |")
     out = Path(__file__).with_name("out")
     out.mkdir(exist_ok=True)
     (out / "nonlinear.json").write_text(json.dumps({"nx": scene.nx, "nt": scene.nt, "repeat": args.repeat,

@@ -155,17 +155,19 @@ def test_newton_converges_quadratically():
     assert r[2] / r[1] ** 2 < 1e2 * (r[1] / r[0] ** 2)  # quadratic: r_{k+1}/r_k² does not grow
 
 
+@pytest.mark.parametrize("model", ["cubic_foundation", "large_deflection"])
 @pytest.mark.parametrize("scheme,penalty", [("paper", "explicit"), ("paper", "semi-implicit"), ("projection", None),
                                             ("newmark", None)])
-def test_a_kept_jacobian_gives_the_fresh_jacobians_answer(ex1, scheme, penalty, monkeypatch):
-    """The Jacobian kept across steps (the default) against a fresh one at every iteration: the same η to within
-    Newton's tolerance (measured up to 1.0e-9, paper: a kept J stops just below the absolute tolerance, a
-    fresh one far below; 0 on projection, whose Jacobian is constant), with fewer assemblies than steps on the cubic foundation."""
+def test_a_kept_jacobian_gives_the_fresh_jacobians_answer(ex1, scheme, penalty, model, monkeypatch):
+    """The Jacobian kept across steps and iterations (the default: chord iterations) against a fresh one at every
+    iteration: the same η to within Newton's tolerance (measured up to 1.0e-9, paper: a kept J stops just below the
+    absolute tolerance, a fresh one far below; 0 on projection, whose Jacobian is constant), with fewer assemblies
+    than steps."""
     from stringcontact.timestepping.nonlinear import NewtonStep
 
-    kept = run(ex1, scheme=scheme, penalty=penalty, model=variants.cubic_foundation)
+    kept = run(ex1, scheme=scheme, penalty=penalty, model=getattr(variants, model))
     monkeypatch.setattr(NewtonStep, "reuse_jacobian", False)
-    fresh = run(ex1, scheme=scheme, penalty=penalty, model=variants.cubic_foundation)
+    fresh = run(ex1, scheme=scheme, penalty=penalty, model=getattr(variants, model))
     assert kept.contact.any()
     assert np.max(np.abs(kept.eta - fresh.eta)) <= 1e-8
     assert fresh.timings["jacobian assemblies"] >= fresh.timings["newton iterations"] >= ex1.nt

@@ -67,6 +67,15 @@ def create_vector(form):
     return dolfinx.fem.petsc.create_vector(form)
 
 
+def pack_coefficients(form) -> dict:
+    """dolfinx's packed coefficients of a compiled form, {(integral type, id): (entities, values) array}: the C++
+    packer takes the C++ form, which is the compiled form itself in 0.5 and its `_cpp_object` from 0.7 on (0.9's
+    `fem.assemble.pack_coefficients` hands it the Python form and fails)."""
+    from dolfinx.cpp.fem import pack_coefficients as pack
+
+    return pack(getattr(form, "_cpp_object", form))
+
+
 def coordinate_domain(cell: str, gdim: int):
     """The `ufl.Mesh` of a P1 coordinate element for `mesh.create_mesh`: `ufl.VectorElement` (0.5) or
     `basix.ufl.element(..., shape=(gdim,))` (0.7+)."""

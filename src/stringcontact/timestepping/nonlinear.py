@@ -12,8 +12,9 @@ implicit damping on the diagonal (the semi-implicit penalty). With lumped mass t
 the row-sum mass, as on the linear path; R is affine in η_tt and in the force (`semi_discrete_operators`
 checks), so only η and η_t may enter nonlinearly. The Jacobian is ``ufl.derivative`` of the compiled
 residual (plus the lumped mass and the damping on its diagonal); both forms are compiled once, integer
-powers as products (`powers_as_products`). A step's first iteration may keep an earlier step's Jacobian
-and its LU factor (`NewtonStep._keeps_jacobian`); later iterations take a fresh one.
+powers as products (`powers_as_products`), the residual and the stored energy with their coefficients packed once
+(`fem.packed.PackedForm`). A step may keep an earlier step's Jacobian and its LU factor for a few chord
+iterations (`NewtonStep._keeps_jacobian`); once it takes a fresh one, its later iterations do too.
 
 `projection`'s contact step is the variational inequality G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``, bounds
 u ≥ ψ at the interior nodes), tried as a plain Newton step first while the last solution touched no bound;
@@ -46,6 +47,7 @@ from ufl.corealg.multifunction import MultiFunction
 
 from ..errors import InstabilityError, SolverError
 from ..fem import compat
+from ..fem.packed import PackedForm
 from .base import Scheme as Base
 from .base import any_rank, check_law_stability, summer, wrap
 from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
@@ -56,6 +58,12 @@ from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solv
 ROUNDOFF = 1e-13
 SNES_DEFAULTS = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_stol": 1e-9, "snes_max_it": 50}
 
+
+#: The most iterations a kept Jacobian serves in one step, and the surplus iterations (beyond one a step) it may
+#: cost before a fresh one is assembled: a chord iteration (a residual and a triangular solve) costs about 0.2 ms
+#: at nx = 5000, a fresh J with its LU factor about ten of them. See `_keeps_jacobian`.
+CHORD_ITERATIONS = 3
+CHORD_BUDGET = 10
 
 #: The largest integer power that `powers_as_products` writes out as a product.
 MAX_PRODUCT_POWER = 8
@@ -91,8 +99,8 @@ class NewtonStep:
     that they work on UFL functions and on NumPy arrays alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity);
     "fields" (optional, default "eta"'s): the value of the other fields of a model with several.
     ``lower``: the nodal lower bound of the VI (−inf where free), or None for a plain Newton step.
-    `reuse_jacobian` (default True): a step's first iteration may keep the Jacobian and its LU factor from an
-    earlier step (`_keeps_jacobian`); False gives Newton's fresh Jacobian at every iteration.
+    `reuse_jacobian` (default True): a step's iterations may keep the Jacobian and its LU factor from an
+    earlier step (chord iterations, `_keeps_jacobian`); False gives Newton's fresh Jacobian at every iteration.
     """
 
     reuse_jacobian = True
@@ -101,6 +109,7 @@ class NewtonStep:
         nl = s.ops.nonlinear
         Z, n = nl.space, s.n_owned
         self.s, self.n, self.q = s, n, quotients
+        self.allsum, self.anyrank = summer(s.comm), any_rank(s.comm)
         self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
         self.lumped = s.mass == "lumped"
         args = (self.u, self.e0, self.em, self.v0, s.dt)
@@ -119,14 +128,15 @@ class NewtonStep:
         G = powers_as_products(ufl.replace(nl.residual, mapping))
         G_static = powers_as_products(
             ufl.replace(nl.residual, mapping | {nl.eta_t: zeros} | _without_dissipative(s, q_eta, k)))
-        self.G_form = fem.form(G)
+        self.G = PackedForm(G)  # assembled at least twice a step: its coefficients gathered, not packed again
+        self.known = [f for f in self.G.functions if f is not self.u]  # what `_residual` does not refresh
         self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
         self.G_static_form = fem.form(G_static)
         self.energy_eta = nl.energy_eta
-        self.energy_form = fem.form(powers_as_products(nl.stored_energy))
+        self.energy = PackedForm(powers_as_products(nl.stored_energy))
         self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, s.dt))  # ∂q_tt/∂u
-        self.G_vec = compat.create_vector(self.G_form)
-        self.work_vec = compat.create_vector(self.G_form)
+        self.G_vec = compat.create_vector(self.G.form)
+        self.work_vec = compat.create_vector(self.G.form)
         self.J = fem.petsc.create_matrix(self.J_form)
         self.x = self.G_vec.duplicate()
         # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
@@ -144,6 +154,8 @@ class NewtonStep:
         self.levels = [np.zeros(self.N) for _ in range(4)]  # all fields: η^n, η^{n−1}, v^n, the last solution
         self.iterations, self.solves, self.history = 0, 0, []
         self.jacobians, self.kept, self.fresh_only = 0, False, False  # kept: this solve started from an old J
+        self.chord, self.norms = False, []  # chord: the J in use is a kept one; norms: this solve's residual norms
+        self.surplus = 0  # the kept J's iterations beyond the first of each step, since it was assembled
         self.age, self.kept_age, self.drift = 0, 0, 0.0  # J's age in steps; r₁/(r₀ × age) when a kept J was last tried
         self.d_in_J = np.zeros(n)  # the damping on J's diagonal when it was assembled
         if lower is not None and nl.eta_dofs is not None:
@@ -230,7 +242,11 @@ class NewtonStep:
         vec = self.work_vec
         with vec.localForm() as local:
             local.set(0.0)
-        fem.petsc.assemble_vector(vec, form or self.G_form)
+        if form is None:
+            self.G.refresh(self.u)
+            self.G.assemble_vector(vec)
+        else:
+            fem.petsc.assemble_vector(vec, form)
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         r = vec.array[self.idx].copy()
         if self.lumped:
@@ -260,7 +276,8 @@ class NewtonStep:
     def stored_energy(self, eta: np.ndarray) -> float:
         """∫Π(η) on this rank's cells (the caller sums over the ranks)."""
         self._set(self.energy_eta, eta)
-        return float(fem.assemble_scalar(self.energy_form))
+        self.energy.refresh()
+        return self.energy.assemble_scalar()
 
     # -- SNES callbacks
 
@@ -268,9 +285,10 @@ class NewtonStep:
     def _residual(self, snes, x, G) -> None:
         u = x.array_r
         self._set(self.u, u)
+        self.G.refresh(self.u)
         with G.localForm() as local:
             local.set(0.0)
-        fem.petsc.assemble_vector(G, self.G_form)
+        self.G.assemble_vector(G)
         G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         g = G.array
         nodal = self.nodal_slope * u[self.idx]
@@ -292,29 +310,45 @@ class NewtonStep:
         dirichlet_rows(J, self.bc)  # identity rows; the guess holds the ends, so their columns need no lift
         self.d_in_J[:] = self.d
         self.jacobians += 1
-        self.age = 0
+        self.age = self.surplus = 0
 
     def _keeps_jacobian(self, snes) -> bool:
-        """Whether the last J (and its LU factor), from an earlier step, serves this step's first iteration: if
-        its predicted residual after that iteration, drift × age × r₀, is below what Newton stops at (drift:
-        r₁/(r₀ × age) when a kept J was last tried, halved at each step that did not try one, so that one
-        bad step, an active set that changes, does not stop the reuse for good). The caller then leaves J
-        untouched, so PETSc keeps its factor. Later iterations get a fresh J."""
-        if not self.reuse_jacobian or self.fresh_only or self.jacobians == 0 or snes.getIterationNumber() > 0:
+        """Whether the last J (and its LU factor), from an earlier step, serves this iteration; the caller then
+        leaves J untouched, so PETSc keeps its factor. A kept J contracts the residual by a rate ρ per iteration
+        (a chord iteration) where a fresh one converges quadratically, but its iteration costs a residual and a
+        triangular solve, a fifth to a third of assembling and factorising J at nx = 5000. So it is kept while
+        it is predicted to reach what Newton stops at within CHORD_ITERATIONS iterations: at the first
+        iteration with ρ = drift × age (drift: r₁/(r₀ × age) when a kept J was last tried, halved at each step
+        that did not try one, so that one bad step, an active set that changes, does not stop the reuse for
+        good), at later ones with the rate just seen; and while the iterations it cost beyond one a step stay
+        below CHORD_BUDGET, the cost of a fresh J (the rent-or-buy rule: at most twice the better of the two).
+        Once J is fresh, it stays fresh (Newton's own iterations)."""
+        it = snes.getIterationNumber()
+        if it == 0:
+            self.chord, self.norms = False, []
+        self.norms.append(snes.getFunctionNorm())
+        if (not self.reuse_jacobian or self.fresh_only or self.jacobians == 0 or (it and not self.chord)
+                or self.surplus >= CHORD_BUDGET):
             return False
-        r0 = snes.getFunctionNorm()
+        r = self.norms
         rtol, atol = snes.getTolerances()[:2]
-        self.kept_age = max(self.age, 1)  # 0: assembled in this step, by a VI's plain Newton step
-        self.kept = self.drift * self.kept_age * r0 < max(atol, rtol * r0)
-        if not self.kept:
-            self.drift *= 0.5
-        return self.kept
+        stop = max(atol, rtol * r[0])
+        if it == 0:
+            self.kept_age = max(self.age, 1)  # 0: assembled in this step, by a VI's plain Newton step
+            self.kept = self.chord = (self.drift * self.kept_age) ** CHORD_ITERATIONS * r[0] < stop
+            if not self.kept:
+                self.drift *= 0.5
+            return self.chord
+        rate = r[it] / r[it - 1] if r[it - 1] > 0 else 0.0
+        self.chord = it < CHORD_ITERATIONS and rate ** (CHORD_ITERATIONS - it) * r[it] < stop
+        self.surplus += self.chord
+        return self.chord
 
     def _update_damping(self, J) -> None:
         """A kept J with the step's damping d on its diagonal: the change since J was assembled, added (a new
         factor then, but no assembly); nothing when d has not changed on any rank."""
         change = self.d - self.d_in_J
-        if not self.s.comm.allreduce(bool(np.any(change)), op=MPI.LOR):
+        if not self.anyrank(bool(np.any(change))):
             return
         self.diag.set(0.0)
         self.diag.array[self.idx] = change
@@ -334,10 +368,12 @@ class NewtonStep:
         # (a good predictor) would stall at the floor (2.6e-9 against 2.4e-9 asked at nx = 5000).
         if "snes_atol" not in (self.s.petsc_options or {}):  # the user's wins
             inertia = self.inertia * guess
-            floor = max(ROUNDOFF * math.sqrt(self.s.comm.allreduce(float(np.dot(inertia, inertia)))), 1e-50)
+            floor = max(ROUNDOFF * math.sqrt(self.allsum(float(np.dot(inertia, inertia)))[0]), 1e-50)
             for snes in (self.snes, self.free) if self.free is not None else (self.snes,):
                 snes.setTolerances(atol=floor)
         self.age += 1
+        if self.known:  # the known levels and any field that moved with the step (an obstacle ψ(x, t))
+            self.G.refresh(*self.known)
         # the nodal terms of G, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known
         self.nodal_slope[:] = self.d + self.m_tt
         self.nodal_known[:] = self.d * self.c + self.f
@@ -346,7 +382,7 @@ class NewtonStep:
         x = self.x.array
         if self.free is not None and self.try_free:
             reason = self._run(self.free, guess)
-            if reason >= 0 and not self.s.comm.allreduce(bool(np.any(x < self.bounds[0].array)), op=MPI.LOR):
+            if reason >= 0 and not self.anyrank(bool(np.any(x < self.bounds[0].array))):
                 self.free_solves += 1
                 return self._accept()
         reason = self._run(self.snes, guess)
@@ -354,7 +390,7 @@ class NewtonStep:
             raise SolverError(f"Newton did not converge (SNES reason {reason}) after {self.snes.getIterationNumber()} "
                               "iterations; use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
         if self.free is not None:
-            self.try_free = not self.s.comm.allreduce(bool(np.any(x <= self.bounds[0].array)), op=MPI.LOR)
+            self.try_free = not self.anyrank(bool(np.any(x <= self.bounds[0].array)))
         return self._accept()
 
     def _run(self, snes, guess: np.ndarray) -> int:
@@ -791,6 +827,8 @@ class NewmarkStep(_NewtonScheme):
 
 
 __all__ = [
+    "CHORD_BUDGET",
+    "CHORD_ITERATIONS",
     "MAX_PRODUCT_POWER",
     "NEWMARK",
     "PAPER",
