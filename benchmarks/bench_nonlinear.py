@@ -10,7 +10,7 @@ alike. Per model: the solve time per step (the driver's "solve" timing: the marc
 its least and its median over the rounds; the step's cost against the linear model's (least over least);
 Newton's iterations per step (all steps, retries included), the most in one step, the Jacobian
 assemblies per step, and the floor: what the calls no Newton step can skip cost on the run's own forms (two
-residual assemblies, one stored-energy assembly, one back-substitution; `floor_ms`), in ms and against the
+residual assemblies, one stored-energy assembly, one back-substitution; `floor_timings`), in ms and against the
 linear step, and one residual assembly with its packed coefficients against dolfinx packing them afresh.
 Prints a Markdown table and `uptime`'s load; writes benchmarks/out/nonlinear.json.
 """
@@ -35,35 +35,33 @@ from stringcontact.timestepping import nonlinear
 MODELS = ("inelastic", "cubic_foundation", "large_deflection")
 
 
-def floor_ms(newton) -> tuple[float, float, float]:
+def floor_timings(newton) -> tuple[float, float, float]:
     """The calls no Newton step can skip, timed on the run's own Newton step after its last step: the residual
     assembled twice (at the guess and to confirm the root), the stored energy once, and one solve with the kept
-    LU factor; least of 5 rounds of 200. Also one residual assembly with the packed coefficients
-    (`PackedForm`) and with dolfinx packing them afresh."""
+    LU factor; least of 5 rounds of 200. Returns that floor, and one residual assembly with the packed
+    coefficients (`PackedForm`) and with dolfinx packing them afresh, in ms."""
     b = newton.work_vec
     x = b.duplicate()
     ksp = newton.snes.getKSP()
 
-    def residual():
-        with b.localForm() as local:
-            local.set(0.0)
-        newton.G.assemble_vector(b)
+    def residual(assemble):
+        def call():
+            with b.localForm() as local:
+                local.set(0.0)
+            assemble(b)
+        return call
 
     def least(call):
         return min(timeit.repeat(call, number=200, repeat=5)) / 200
 
-    def repacked():
-        with b.localForm() as local:
-            local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(b, newton.G.form)
-
-    packed = least(residual)
+    packed = least(residual(newton.G.assemble_vector))
+    repacked = least(residual(lambda vec: dolfinx.fem.petsc.assemble_vector(vec, newton.G.form)))
     floor = 2 * packed + least(newton.energy.assemble_scalar) + least(lambda: ksp.solve(b, x))
-    return 1e3 * floor, 1e3 * packed, 1e3 * least(repacked)
+    return 1e3 * floor, 1e3 * packed, 1e3 * repacked
 
 
 def run_once(scene, scheme: str, model: str) -> dict:
-    """One run: the solve time per step, Newton's iterations of every step, and the floor (`floor_ms`)."""
+    """One run: the solve time per step, Newton's iterations of every step, and the floor (`floor_timings`)."""
     counts, steps = [], []
     original = nonlinear.NewtonStep.solve
 
@@ -83,7 +81,7 @@ def run_once(scene, scheme: str, model: str) -> dict:
         nonlinear.NewtonStep.solve = original
     return {"step_ms": 1e3 * res.timings["solve"] / scene.nt, "counts": counts, "status": res.status,
             "jacobians": res.timings.get("jacobian assemblies", 0),
-            "floor_ms": floor_ms(steps[0]) if steps else (0.0, 0.0, 0.0)}
+            "timings": floor_timings(steps[0]) if steps else (0.0, 0.0, 0.0)}
 
 
 def measure(scene, scheme: str, repeat: int) -> list[dict]:
@@ -99,8 +97,8 @@ def measure(scene, scheme: str, repeat: int) -> list[dict]:
         rows.append({"model": model, "scheme": scheme, "step_ms": min(times), "median_ms": statistics.median(times),
                      "newton_per_step": sum(counts) / len(counts) if counts else 0.0,
                      "newton_max": max(counts, default=0), "jacobians_per_step": done[-1]["jacobians"] / scene.nt,
-                     "status": done[-1]["status"], "floor_ms": min(r["floor_ms"][0] for r in done),
-                     "residual_ms": [min(r["floor_ms"][i] for r in done) for i in (1, 2)]})
+                     "status": done[-1]["status"], "floor_ms": min(r["timings"][0] for r in done),
+                     "residual_ms": [min(r["timings"][i] for r in done) for i in (1, 2)]})
     linear = rows[0]["step_ms"]
     for r in rows:
         r["ratio"] = r["step_ms"] / linear

@@ -4,9 +4,8 @@ dolfinx packs a form's coefficients (their values cell by cell) at every assembl
 On a 1D P1 mesh that packing costs about as much as the assembly's kernels: at nx = 5000 the cubic foundation's
 Newton residual assembles in 0.24 ms with its two coefficients packed by dolfinx and in 0.13 ms with them handed
 over (`benchmarks/bench_nonlinear.py`, its last column), while refreshing one coefficient's slots by a NumPy
-gather costs about 0.02 ms (timeit). A Newton
-step assembles its residual at least twice and its stored energy once, so `PackedForm` keeps the packed arrays
-and gathers into them only what changed.
+gather costs about 0.02 ms (timeit). A Newton step assembles its residual at least twice and its stored energy
+once, so `PackedForm` keeps the packed arrays and gathers into them only what changed.
 
 The slots are found by dolfinx itself (`_probe`): each coefficient is packed once with the values 1, 2, …, N, so
 every slot that changes names its dof. The gather is then checked against dolfinx's packing with random values;
@@ -41,13 +40,15 @@ class PackedForm:
         self.flat = {key: a.reshape(-1) for key, a in self.coeffs.items()}  # views: a flat index is the fastest gather
         self.slots = {f: _probe(self.form, f) for f in self.functions}
         self.fast = _gather_matches(self)
-        self.refresh()
+        self.refresh()  # the check above left its random values in the packed arrays
 
     def refresh(self, *functions) -> None:
         """The packed slots of `functions` (default: every coefficient) set from their values."""
-        if not self.fast:
-            return
-        for f in functions or self.functions:
+        if self.fast:
+            self._gather(functions or self.functions)
+
+    def _gather(self, functions) -> None:
+        for f in functions:
             values = f.x.array
             for key, (slots, dofs) in self.slots[f].items():
                 self.flat[key][slots] = values[dofs]
@@ -87,8 +88,7 @@ def _gather_matches(packed: PackedForm) -> bool:
     try:
         for f in packed.functions:
             f.x.array[:] = rng.random(f.x.array.size)
-        packed.fast = True
-        packed.refresh()
+        packed._gather(packed.functions)
         reference = pack_coefficients(packed.form)
         return all(np.array_equal(packed.coeffs[key], reference[key]) for key in reference)
     except IndexError:  # transformed values name no dof

@@ -316,7 +316,7 @@ class NewtonStep:
         """Whether the last J (and its LU factor), from an earlier step, serves this iteration; the caller then
         leaves J untouched, so PETSc keeps its factor. A kept J contracts the residual by a rate ρ per iteration
         (a chord iteration) where a fresh one converges quadratically, but its iteration costs a residual and a
-        triangular solve, a fifth to a third of assembling and factorising J at nx = 5000. So it is kept while
+        triangular solve, about a tenth of assembling and factorising J at nx = 5000 (CHORD_BUDGET). So it is kept while
         it is predicted to reach what Newton stops at within CHORD_ITERATIONS iterations: at the first
         iteration with ρ = drift × age (drift: r₁/(r₀ × age) when a kept J was last tried, halved at each step
         that did not try one, so that one bad step, an active set that changes, does not stop the reuse for
