@@ -60,23 +60,23 @@ def floor() -> None:
     from stringcontact.model.film import H_MIN
 
     flat = problem_scenes()["flat"]
-    cases = [("flat landing", flat.replace(model="film", mu=mu, eps=FILM_EPS), {"penalty": "semi-implicit"})
+    cases = [("flat landing", flat.replace(model="film", parameters={"mu": mu}, eps=FILM_EPS), {"penalty": "semi-implicit"})
              for mu in (1e-2, 1e-3, 1e-4)]
     cases.append(("film_landing", sc.load_scene("film_landing"), {}))
     for label, scene, kw in cases:
         runs = {}
         for h_min in (1e-2, 3e-3, H_MIN, 3e-4, 1e-4):
             try:
-                runs[h_min] = _run(scene.replace(h_min=h_min), storage=sc.Storage(max_rows=scene.nt), **kw)
+                runs[h_min] = _run(scene.replace(parameters=dict(scene.parameters) | {"h_min": h_min}), storage=sc.Storage(max_rows=scene.nt), **kw)
             except SolverError:
                 runs[h_min] = None
         base = runs[H_MIN]
         for h_min, r in runs.items():
             if r is None:
-                print(f"{label} mu={scene.mu:g} h_min={h_min:g}: Newton failed")
+                print(f"{label} mu={dict(scene.parameters)['mu']:g} h_min={h_min:g}: Newton failed")
                 continue
             d = np.sqrt(trapezoid((r.eta - base.eta) ** 2, r.x, axis=1)).max()
-            print(f"{label} mu={scene.mu:g} h_min={h_min:g}: min gap {np.min(r.eta[:, 1:-1]):.3e}, "
+            print(f"{label} mu={dict(scene.parameters)['mu']:g} h_min={h_min:g}: min gap {np.min(r.eta[:, 1:-1]):.3e}, "
                   f"distance to h_min={H_MIN:g} {d:.2e}")
 
 

@@ -35,7 +35,7 @@ from stringcontact.fem.compat import trapezoid
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_film"))  # where the picture goes
 OUT.mkdir(parents=True, exist_ok=True)
 flat = sc.load_scene("film_landing").replace(name="flat", eta0="0.2", v0="-1", h=0.2, T=0.6, dt=0.001, nx=100,
-                                            output_times=[], model=None, mu=None, scheme=None)
+                                            output_times=[], model=None, parameters=None, scheme=None)
 
 
 def run(scene, **kwargs):
@@ -45,7 +45,7 @@ def run(scene, **kwargs):
 
 
 inelastic = run(flat, scheme="projection")
-films = {mu: run(flat.replace(model="film", mu=mu, eps=1e-6), scheme="paper", penalty="semi-implicit")
+films = {mu: run(flat.replace(model="film", parameters={"mu": mu}, eps=1e-6), scheme="paper", penalty="semi-implicit")
          for mu in (1e-3, 1e-2, 1e-1)}
 # -
 
@@ -58,7 +58,7 @@ fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
 ax.plot(inelastic.t, inelastic.eta[:, mid], "k", label="inelastic (projection)")
 for mu, r in films.items():
     ax.plot(r.t, r.eta[:, mid], label=f"film, μ = {mu:g}")
-    bx.plot(r.t, r.pressure[:, mid], label=f"μ = {mu:g}")
+    bx.plot(r.t, r.fields["pressure"][:, mid], label=f"μ = {mu:g}")
 ax.set(xlabel="t", ylabel="η(l/2, t)")
 bx.set(xlabel="t", ylabel="p − p_a at l/2", yscale="symlog")
 ax.legend()

@@ -60,7 +60,8 @@ OUT.mkdir(parents=True, exist_ok=True)
 # Our ground changes only `penalty` (and adds `contact_energy`). We choose a bed that a string point
 # hitting it at speed $V = 50$ indents by $\delta = 0.1$ (an undamped spring stops it after
 # $V/\sqrt{k}$), so $k = (V/\delta)^2$, and the dashpot for a restitution of one half. Its constants
-# are plain Python numbers: UFL takes them as they are.
+# $k$ and $c$ are the model's declared constants (`ModelConstant`): a scene changes them in its
+# `[parameters]` table, and the UFL reads them as `p.constants["k"]`.
 #
 # ## A model is a package: `examples/soft_ground`
 #

@@ -135,3 +135,41 @@ def test_the_checker_catches_an_upward_and_a_private_import():
     assert violations(cli, "from ..run.driver import _march\n") == [
         "cli/main.py imports private ['_march'] from stringcontact.run.driver"]
     assert violations(cli, "from ..run.driver import simulate\n") == []
+
+
+CORE = ("scene", "fem", "timestepping", "io", "plot", "run")
+
+
+def _declared_words() -> dict[str, str]:
+    """Each shipped model that declares constants or output fields: its name, its constants' and fields' names
+    (longer than one letter), word -> the model that owns it. Constants are matched as written (`Mu`, a matrix
+    in newmark, is not the film's `mu`), model and field names in any case."""
+    from stringcontact.model.interface import output_fields
+    from stringcontact.model.registry import load_model
+    from stringcontact.scene.names import package_of, registered
+
+    words = {}
+    for name, (ep,) in registered().items():
+        model = load_model(name)
+        if package_of(ep) != "stringcontact" or not (model.constants or output_fields(model)):
+            continue
+        words.update({f"(?i:{word})": name for word in (name, *(f.name for f in output_fields(model)))})
+        words.update({c.name: name for c in model.constants if len(c.name) > 1})
+    return words
+
+
+def test_the_core_names_no_particular_model():
+    """A model reaches the core through the interface every user model has: no core module names a shipped
+    model with its own constants or fields, nor those constants and fields (whole words)."""
+    import re
+
+    words = _declared_words()
+    assert {"(?i:film)", "mu", "(?i:pressure)"} <= set(words)  # the film declares them: the check can fail
+    patterns = {re.compile(rf"\b{word}\b"): owner for word, owner in words.items()}
+    found = []
+    for layer in CORE:
+        for path in sorted((ROOT / layer).rglob("*.py")):
+            for number, line in enumerate(path.read_text().splitlines(), 1):
+                found += [f"{path.relative_to(ROOT)}:{number}: {m.group(0)} ({owner})"
+                          for pattern, owner in patterns.items() for m in pattern.finditer(line)]
+    assert not found, "\n".join(found)

@@ -4,9 +4,13 @@ Each table is made from the definitions the program itself uses, so a page canno
 
 * `scene_keys`: `scene.limits` (FILE_KEYS, KEY_DOCS, DOMAIN_KEYS) and `scene.checks.allowed`, the text of the
   error messages;
+* `models`: the constants (a scene's ``[parameters]``) and output fields of every model this package registers,
+  from the models themselves (`Model.constants`, `Model.outputs`; `ModelConstant.allowed` is the error messages'
+  text);
 * `cli`: the argparse parsers of `stringcontact.cli.main.build_parser`;
 * `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
-* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.catalogue`'s pictures;
+* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.catalogue`'s pictures,
+  and what a run writes of its model's output fields (`MODEL_FIELD_FILES`);
 * `api`: autodoc directives for `stringcontact.__all__` and the public modules' `__all__`.
 
 A name the code adds without a description here (a scene key, a CSV column, a field) is an error, which fails
@@ -59,6 +63,18 @@ FIELDS = {
 SOME_FIELDS = {
     "obstacle": "a moving obstacle only (ψ an expression in t): ψ at the nodes at the frame's time; the gap is "
                 "η − ψ (ParaView's Calculator: `eta-obstacle`). An obstacle at rest is not written",
+}
+#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.catalogue): where -> what.
+MODEL_FIELD_FILES = {
+    "solution.xdmf": "`NAME`: the field at the nodes, at each written time",
+    "rows.npz": "`NAME`: the field's stored rows (`field_NAME` where NAME is one of the file's own arrays)",
+    "diagnostics.csv": "`min_NAME`, `max_NAME`: the field's least and largest value over the nodes, after the "
+                       "columns below (`field_NAME` where those are core columns)",
+    "summary.json": "`fields`: how each field is shown (label, unit, colours, scale); `parameters`: the model's "
+                    "constants as the run used them",
+    "NAME.png": "a string's field over (x, t) with the contact set outlined, a membrane's at the stored time of its "
+                "largest |value|, beside the field's least and largest value against t (`field_NAME.png` where "
+                "NAME.png is one of the pictures below)",
 }
 #: The pictures of a run (plot.catalogue): 1D and 2D.
 PICTURES = {
@@ -121,6 +137,48 @@ def scene_keys() -> str:
                 f"{expressions._ALLOWED_TEXT} (`where(cond, a, b)`; `piecewise(c1, v1, c2, v2, ..., default)`: the first true condition wins). "
                 "`x` (and `y` in 2D) is the point, `l` the length, `h` the end height when the scene gives one.\n")
     return _table(["key", "meaning", "type", "unit", "default", "allowed", "domain"], rows) + "\n" + language
+
+
+def shipped_models() -> dict:
+    """The models this package registers (their entry point's package is stringcontact), loaded: name -> Model.
+    A plugin's models (another package's entry points) are not part of this site."""
+    from stringcontact.model.registry import load_model
+    from stringcontact.scene.names import package_of, registered
+
+    return {name: load_model(name) for name, eps in registered().items() if package_of(eps[0]) == "stringcontact"}
+
+
+def models() -> str:
+    """Every shipped model's constants (name, default, allowed range, unit, meaning) and output fields (name,
+    label, unit, what they are), and the models that have none."""
+    from stringcontact.model.interface import output_fields
+
+    shipped = shipped_models()
+    constants, fields = [], []
+    for name, model in shipped.items():
+        for c in model.constants:
+            constants.append([f"`{c.name}`", f"`{name}`", c.default_text, c.allowed, c.unit or "–", c.description])
+        unknowns = set(getattr(model, "fields", ()))
+        for f in output_fields(model):
+            what = "derived from the unknowns" if f.expression is not None else (
+                "an unknown of the model" if f.name in unknowns else "")
+            fields.append([f"`{f.name}`", f"`{name}`", f.label or f.name, f.unit or "–", what])
+    without = [f"`{n}`" for n, m in shipped.items() if not m.constants]
+    silent = [f"`{n}`" for n, m in shipped.items() if not output_fields(m)]
+    out = ["### Constants\n",
+           "A scene gives them in its `[parameters]` table; a constant not given takes its default (\"required\": the "
+           "scene must give it; \"none\": the feature is off). A name the model does not declare, or a value outside "
+           "*allowed* (the text of the error message), is refused in one line.\n",
+           _table(["constant", "model", "default", "allowed", "unit", "meaning"], constants)]
+    if without:
+        out.append(f"Without constants: {', '.join(without)}.\n")
+    out += ["### Output fields\n",
+            "Besides `eta`, `velocity`, `contact` and `contact_force`, each run writes its model's output fields: "
+            "`Result.fields[name]`, `rows.npz`, `solution.xdmf` and the picture `NAME.png`.\n",
+            _table(["field", "model", "label", "unit", "what"], fields)]
+    if silent:
+        out.append(f"Without output fields: {', '.join(silent)}.\n")
+    return "\n".join(out)
 
 
 def _walk(parser: argparse.ArgumentParser, prog: str, help_text: str, level: int) -> list[str]:
@@ -188,6 +246,10 @@ def output_files() -> str:
              + ("2D" if name in MEMBRANE_PICTURES else "") for name in dict.fromkeys(pictures + MEMBRANE_PICTURES)}
     return "\n".join([
         "## Files\n", _table(["file", "what it holds"], [[f"`{k}`", v] for k, v in FILES.items()]),
+        "## A model's output fields\n",
+        "Each field a model declares (`Model.outputs`, and each of its further unknowns; `stringcontact models` lists "
+        "them, the scene-keys page those of the shipped models), under its name `NAME`:\n",
+        _table(["file", "what it holds of the field"], [[f"`{k}`", v] for k, v in MODEL_FIELD_FILES.items()]),
         "## Fields of `solution.xdmf`\n",
         _table(["field", "meaning"], [[f"`{k}`", FIELDS[k]] for k in fields]
                + [[f"`{k}`", SOME_FIELDS[k]] for k in [OBSTACLE_FIELD]]),
@@ -255,7 +317,7 @@ def api() -> str:
     return "\n".join(out)
 
 
-PAGES = {"scene_keys": scene_keys, "cli": cli, "exit_codes": exit_codes, "output_files": output_files, "api": api}
+PAGES = {"scene_keys": scene_keys, "models": models, "cli": cli, "exit_codes": exit_codes, "output_files": output_files, "api": api}
 
 
 def write_all(folder: Path) -> list[Path]:

@@ -19,6 +19,10 @@ __version__ = "0.1.0"
 # argument checks do not load dolfinx, PETSc and UFL (0.6 s).
 _LAZY = {
     "Model": "model.paper",
+    "ModelConstant": "model.interface",
+    "OutputField": "model.interface",
+    "SolverHints": "model.interface",
+    "DeprecatedKeyWarning": "scene",
     "Parameters": "model.paper",
     "inelastic": "model.paper",
     "Result": "io.result",
@@ -37,15 +41,19 @@ __getattr__, _ = _lazy_names(__name__, _LAZY, globals())
 
 __all__ = [
     "SCHEMES",
+    "DeprecatedKeyWarning",
     "InstabilityError",
     "InstabilityWarning",
     "Model",
+    "ModelConstant",
     "Output",
+    "OutputField",
     "Parameters",
     "Result",
     "Scene",
     "SceneError",
     "SceneWarning",
+    "SolverHints",
     "Storage",
     "inelastic",
     "list_scenes",

@@ -43,6 +43,67 @@ def test_a_key_without_a_description_fails_the_reference(monkeypatch):
         reference_pages.scene_keys()
 
 
+def _rows(table: str, columns: int) -> list[list[str]]:
+    """The rows of the markdown tables in `table` that have `columns` cells, each cell stripped."""
+    rows = [[c.strip() for c in line.strip().strip("|").split(" | ")] for line in table.splitlines()
+            if line.startswith("| `")]
+    return [r for r in rows if len(r) == columns]
+
+
+def test_every_shipped_models_constants_and_fields_are_on_the_scene_keys_page():
+    """The models this package registers (pyproject.toml's entry points) with each constant's default, range, unit
+    and meaning and each output field's label and unit; a plugin's models are not on the page."""
+    from stringcontact.model.interface import output_fields
+
+    page = reference_pages.models()
+    ours = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]["stringcontact.models"]
+    shipped = reference_pages.shipped_models()
+    assert set(shipped) == set(ours) and "soft_ground" not in page
+    constants = {(r[1].strip("`"), r[0].strip("`")): r[2:] for r in _rows(page, 6)}
+    fields = {(r[1].strip("`"), r[0].strip("`")): r[2:] for r in _rows(page, 5)}
+    expected_constants, expected_fields = {}, {}
+    for name, model in shipped.items():
+        for c in model.constants:
+            expected_constants[name, c.name] = [c.default_text, c.allowed, c.unit or "–", c.description]
+        for f in output_fields(model):
+            expected_fields[name, f.name] = [f.label or f.name, f.unit or "–"]
+    assert {k: v for k, v in constants.items()} == expected_constants
+    assert {k: v[:2] for k, v in fields.items()} == expected_fields
+    assert ("film", "mu") in constants and ("stiff_string", "beta") in constants  # the page is not empty
+    assert ("film", "pressure") in fields and ("stiff_string", "curvature") in fields
+    without = [n for n, m in shipped.items() if not m.constants]
+    assert f"Without constants: {', '.join(f'`{n}`' for n in without)}." in page
+
+
+def test_a_shipped_models_new_constant_reaches_the_page(monkeypatch):
+    import dataclasses
+
+    from stringcontact.model.interface import ModelConstant
+
+    shipped = reference_pages.shipped_models()
+    film = shipped["film"]
+    extra = ModelConstant("gamma", 0.5, 0.0, 1.0, description="a constant added to the film")
+    monkeypatch.setattr(reference_pages, "shipped_models",
+                        lambda: shipped | {"film": dataclasses.replace(film, constants=(*film.constants, extra))})
+    assert ["`gamma`", "`film`", "0.5", "a number in [0, 1]", "–", "a constant added to the film"] in \
+        _rows(reference_pages.models(), 6)
+
+
+def test_the_models_page_says_what_the_constants_error_message_says():
+    from stringcontact.scene.parameters import MAGNITUDE, resolve_parameters
+
+    page = reference_pages.models()
+    for name, model in reference_pages.shipped_models().items():
+        required = {c.name: (c.low + c.high) / 2 for c in model.constants if c.required}  # inside their ranges
+        for c in model.constants:
+            outside = c.high * 2 + 1 if c.high < MAGNITUDE else c.low * 2 - 1
+            with pytest.raises(SceneError, match=f"^{re.escape(c.name)}: ") as error:
+                resolve_parameters(name, model.constants, required | {c.name: outside})
+            assert f"allowed: {c.allowed}" in str(error.value) and f"| {c.allowed} |" in page
+            with pytest.raises(SceneError, match=f"model {name!r} has no constant 'not_a_constant'"):
+                resolve_parameters(name, model.constants, {"not_a_constant": 1.0})
+
+
 EXAMPLE1 = load_scene("example1").as_dict()
 _MEMBRANE = {"T": 0.1, "alpha": 0.01, "eps": 0.01, "nt": 10, "eta0": "1", "v0": "0"}
 RECTANGLE = {"domain": "rectangle", "size": [1, 1], "cells": [4, 4], **_MEMBRANE}

@@ -6,6 +6,7 @@ function is called: neither file may appear.
 """
 
 import os
+import re
 import subprocess
 import sys
 
@@ -77,16 +78,20 @@ def test_a_scene_file_cannot_name_a_module(sandbox, spec):
     assert _nothing_ran(sandbox)
 
 
-def test_checking_a_registered_name_imports_nothing(sandbox, capsys):
+def test_checking_a_registered_name_calls_nothing(sandbox, capsys):
+    """A scene naming a registered model loads that installed package to read the model's constants (the user's
+    `pip install` is the trust boundary), but calls nothing in it; an object that is not a Model is refused."""
     scene = sandbox / "plugin.toml"
     scene.write_text(SCENE + 'model = "sentinel"\n')
     assert load_scene(scene).model == "sentinel"
-    assert main(["show", str(scene)]) == 0 and 'model = "sentinel"' in capsys.readouterr().out
-    assert _nothing_ran(sandbox)
-    # A run loads the installed package (the user installed it); the object is still never called.
+    assert (sandbox / "imported").exists() and not (sandbox / "called").exists()
+    assert main(["show", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert "model: 'sentinel' is registered as sentinel_plugin:model" in err and "a function" in err
+    assert err.count("\n") == 1
     with pytest.raises(SceneError, match=r"model: 'sentinel' is registered as sentinel_plugin:model .* a function"):
         registry.load_model("sentinel")
-    assert (sandbox / "imported").exists() and not (sandbox / "called").exists()
+    assert not (sandbox / "called").exists()
 
 
 @pytest.mark.parametrize("command", [["show"], ["check", "--levels", "1"], ["run", "--tol", "0.01"]])
@@ -134,7 +139,8 @@ def test_the_example_package_is_what_a_user_would_copy():
     meta = tomllib.loads((root / "examples" / "soft_ground" / "pyproject.toml").read_text())
     assert meta["project"]["entry-points"][registry.GROUP] == {"soft_ground": "soft_ground:soft_ground"}
     ours = tomllib.loads((root / "pyproject.toml").read_text())["project"]["entry-points"][registry.GROUP]
-    assert set(ours) == {"inelastic", "elastic", "loaded_obstacle", "cubic_foundation", "large_deflection", "film"}
+    assert set(ours) == {"inelastic", "elastic", "loaded_obstacle", "cubic_foundation", "large_deflection", "film",
+                         "stiff_string"}
 
 
 def test_check_uses_the_scenes_model():
@@ -161,3 +167,84 @@ def test_an_output_folder_whose_model_is_no_longer_registered_still_plots(tmp_pa
     (tmp_path / "run" / "summary.json").write_text(json.dumps(summary))
     back = readback.read_output(tmp_path / "run")
     assert back.scene.model is None and back.model == "elastic"
+
+
+# --- a plugin's constants: the scene's [parameters] reach its forms; unknown or out-of-range ones are refused ---------
+
+GROUND = SCENE.replace("v0 = 0", "v0 = -5") + 'model = "soft_ground"\n'
+
+
+@pytest.fixture
+def soft_ground():
+    if "soft_ground" not in registry.registered():
+        pytest.skip("examples/soft_ground is not installed (scripts/setup installs it)")
+    return registry.load_model("soft_ground")
+
+
+def test_a_plugins_constant_from_the_scene_reaches_its_form(tmp_path, soft_ground):
+    """examples/soft_ground's spring k from a scene file's [parameters]: a softer bed lets the string sink deeper,
+    and its output field spring_force is k η⁻ with the scene's k."""
+    import numpy as np
+
+    import stringcontact as sc
+
+    (tmp_path / "soft.toml").write_text(GROUND + "\n[parameters]\nk = 1e4\n")
+    soft = load_scene(tmp_path / "soft.toml")
+    assert soft.parameters == (("k", 1e4),)
+    default = load_scene("example1").replace(nx=100, model="soft_ground")  # the example package's own numbers
+    stiff, softer = sc.simulate(default), sc.simulate(default.replace(parameters={"k": 1e4}))
+    assert stiff.parameters == {"k": 250000.0, "c": soft_ground.constants[1].default}
+    assert softer.parameters["k"] == 1e4 and softer.parameters["c"] == stiff.parameters["c"]
+    assert stiff.min_eta == pytest.approx(-0.08455, abs=1e-4)  # examples/soft_ground at its defaults, unchanged
+    assert softer.min_eta < 2 * stiff.min_eta  # depth ~ V/sqrt(k): five times softer, more than twice as deep
+    for res in (stiff, softer):
+        k = res.parameters["k"]
+        assert np.allclose(res.fields["spring_force"], k * np.maximum(-res.eta, 0), rtol=1e-10, atol=1e-8 * k)
+    run = sc.simulate(soft)
+    assert run.parameters["k"] == 1e4 and run.min_eta < 0
+
+
+def test_a_top_level_constant_still_works_with_a_warning(tmp_path, soft_ground):
+    from stringcontact.scene import DeprecatedKeyWarning
+
+    (tmp_path / "old.toml").write_text(GROUND + "k = 1e4\n")
+    with pytest.warns(DeprecatedKeyWarning, match=r"k at the top level .* \[parameters\] table"):
+        scene = load_scene(tmp_path / "old.toml")
+    assert scene.parameters == (("k", 1e4),)
+
+
+@pytest.mark.parametrize("name, value, message", [
+    ("kk", 1.0, r"kk: model 'soft_ground' has no constant 'kk' \(its constants: k, c\); remove it from \[parameters\]"),
+    ("k", -1.0, r"k: -1 is out of range; allowed: a number in \(0, 1000000000000\]"),
+    ("c", -1.0, r"c: -1 is out of range; allowed: a number in \[0, 1000000000000\]"),
+    ("k", "stiff", r"k: expected a number, got str"),
+])
+def test_an_unknown_or_out_of_range_constant_is_refused_naming_it(tmp_path, capsys, soft_ground, name, value, message):
+    """In a scene file, in Scene.replace and on the command line: a one-line SceneError naming the constant."""
+    path = tmp_path / "bad.toml"
+    path.write_text(GROUND + f"\n[parameters]\n{name} = {value!r}\n".replace("'", '"'))
+    with pytest.raises(SceneError, match=message) as error:
+        load_scene(path)
+    assert "\n" not in str(error.value)
+    with pytest.raises(SceneError, match=message):
+        load_scene("example1").replace(model="soft_ground", parameters={name: value})
+    assert main(["show", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and re.search(message, err)
+
+
+def test_a_model_named_on_the_command_line_checks_the_scenes_constants(tmp_path, soft_ground, capsys):
+    """A scene that names no model may carry [parameters]; the model that runs (--model, a Model handed to
+    simulate) checks them before anything is written."""
+    import stringcontact as sc
+
+    scene = load_scene("example1").replace(nx=20, nt=100, T=0.02, output_times=[], parameters={"kk": 1.0})
+    with pytest.raises(SceneError, match=r"kk: model 'soft_ground' has no constant 'kk'"):
+        sc.simulate(scene, model=soft_ground, output_dir=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    (tmp_path / "plain.toml").write_text(SCENE + "\n[parameters]\nk = 0.0\n")
+    code = main(["run", str(tmp_path / "plain.toml"), "--model", "soft_ground:soft_ground", "--no-pictures",
+                 "--no-progress", "--out", str(tmp_path / "cli")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "k: 0 is out of range" in err, err
+    assert not (tmp_path / "cli").exists()

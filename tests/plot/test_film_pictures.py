@@ -1,6 +1,7 @@
 """A membrane on a fluid film (model "film"): membrane.png and membrane.gif coloured by the film's pressure
-p − p_a on one fixed symmetric-log scale with its colour bar, the contact set's edge drawn in yellow; a
-membrane without a pressure drawn as before (coloured by contact)."""
+p − p_a (its surface output field) on one fixed symmetric-log scale with its colour bar, the contact set's edge
+drawn in yellow; a membrane without a surface field drawn as before (coloured by contact). The pictures' code
+names no model: the pressure's colours and scale come from its `OutputField` (`Result.field_info`)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,17 @@ import pytest
 
 import stringcontact as sc
 from stringcontact.cli.main import main
-from stringcontact.io.paraview_view import PRESSURE_COLOURS, pressure_points, symlog_unit
+from stringcontact.io.paraview_view import field_points, symlog_unit
+from stringcontact.model.film import PRESSURE
 from stringcontact.plot import animation, charts, mesh_pictures, viz
+from stringcontact.plot.fields import FieldScale
 from stringcontact.scene import scene_to_toml
+
+#: the pressure's colours at −P, 0 and P, as the pictures and ParaView's view have drawn them: blue, a middle
+#: grey (seen on white and on the grey obstacle), red
+PRESSURE_COLOURS = ((0.085, 0.40, 0.85), (0.55, 0.55, 0.55), (0.85, 0.10, 0.08))
+#: how the film's pressure is shown (summary.json's "fields")
+INFO = PRESSURE.metadata()
 
 #: a coarse film drum (81 nodes): pressure p = p_a at t = 0, building up (red) at 0.1, first contact at 0.11,
 #: in contact at 0.15 (under high pressure) and at 0.3 (under suction, p < p_a)
@@ -80,9 +89,14 @@ def _panels(img, nrows: int, ncols: int):
 # --- the scale ---------------------------------------------------------------------------------------
 
 
+def test_the_pressure_is_described_by_the_colours_and_scale_it_was_drawn_in():
+    assert INFO["colours"] == [list(c) for c in PRESSURE_COLOURS]
+    assert (INFO["scale"], INFO["linear_share"], INFO["symmetric"], INFO["surface"]) == ("symlog", 1e-3, True, True)
+
+
 def test_the_pressure_scale_is_symmetric_centred_at_zero_and_fixed_by_the_peak():
-    scale = mesh_pictures.PressureScale.of(np.array([[0.0, 2.0], [-381.0, 50.0]]))
-    assert scale.peak == 381.0
+    scale = FieldScale.of(np.array([[0.0, 2.0], [-381.0, 50.0]]), INFO)
+    assert (scale.low, scale.high) == (-381.0, 381.0)
     np.testing.assert_allclose(scale.unit([-381.0, 0.0, 381.0, 1e4]), [-1.0, 0.0, 1.0, 1.0])
     values = np.linspace(-381, 381, 201)
     units = scale.unit(values)
@@ -90,8 +104,8 @@ def test_the_pressure_scale_is_symmetric_centred_at_zero_and_fixed_by_the_peak()
     assert scale.unit(0.381) == pytest.approx(0.27, abs=0.01)  # symmetric-log: 1e-3 of the peak is still coloured
     ticks = scale.ticks()
     np.testing.assert_array_equal(ticks, [-381, -10, -1, 0, 1, 10, 381])  # 100 lies too close to 381 for its label
-    assert [mesh_pictures._pressure_label(v, scale.peak) for v in ticks] == ["−381", "−10", "−1", "0", "1", "10", "381"]
-    assert mesh_pictures.PressureScale.of(np.zeros((3, 4))).peak == 1.0  # a film never squeezed: a scale all the same
+    assert [scale.tick_label(v) for v in ticks] == ["−381", "−10", "−1", "0", "1", "10", "381"]
+    assert FieldScale.of(np.zeros((3, 4)), INFO).high == 1.0  # a film never squeezed: a scale all the same
     colours = np.asarray(scale.colour_map()([0.0, 0.5, 1.0]))[:, :3]
     np.testing.assert_allclose(colours, PRESSURE_COLOURS, atol=4e-3)  # to one of the 256 steps  # ParaView's view has the same colours
 
@@ -104,11 +118,11 @@ def test_the_symmetric_log_scale_is_pressure_pngs_and_paraviews(peak):
 
     values = np.concatenate([np.linspace(-peak, peak, 101), peak * np.logspace(-5, 0, 41)])
     norm = SymLogNorm(linthresh=1e-3 * peak, vmin=-peak, vmax=peak, base=10)
-    np.testing.assert_allclose(symlog_unit(values, peak), 2 * np.asarray(norm(values)) - 1, atol=1e-12)
-    points = np.array(pressure_points(peak))
+    np.testing.assert_allclose(symlog_unit(values, peak, 1e-3), 2 * np.asarray(norm(values)) - 1, atol=1e-12)
+    points = np.array(field_points(-peak, peak, INFO))
     assert points[0, 0] == -peak and points[-1, 0] == peak and 0.0 in points[:, 0]
     assert np.all(np.diff(points[:, 0]) > 0) and len(points) == 2 * 13 + 1  # 0, and 4 a decade over 3 decades each way
-    scale = mesh_pictures.PressureScale(peak)
+    scale = FieldScale.of([peak], INFO)
     pictures = np.asarray(scale.colour_map()(0.5 * (scale.unit(points[:, 0]) + 1)))[:, :3]
     np.testing.assert_allclose(points[:, 1:], pictures, atol=4e-3)  # to one of the colour map's 256 steps
 
@@ -124,23 +138,24 @@ def _surface_actor(p, surface):
 
 def test_the_film_membranes_mesh_carries_its_pressure_and_is_coloured_by_it(run):
     _, res = run
+    pressure = res.fields["pressure"]
     view = mesh_pictures.membrane_view(res)
-    assert view.pressure == mesh_pictures.PressureScale(float(np.abs(res.pressure).max()))
+    assert view.field == FieldScale.of(pressure, INFO) and view.field.high == float(np.abs(pressure).max())
     row, later = 40, 60  # t = 0.1 (free), 0.15 (in contact)
-    kept = res.pressure.copy()
+    kept = pressure.copy()
     p = mesh_pictures._plotter((300, 200))
     try:
         surface = mesh_pictures.add_membrane(p, res, row, view)
-        np.testing.assert_array_equal(surface.point_data["pressure"], res.pressure[row])
-        np.testing.assert_array_equal(surface.point_data["pressure_colour"], view.pressure.unit(res.pressure[row]))
+        np.testing.assert_array_equal(surface.point_data["pressure"], pressure[row])
+        np.testing.assert_array_equal(surface.point_data["pressure_colour"], view.field.unit(pressure[row]))
         actor = _surface_actor(p, surface)
         assert actor.mapper.array_name == "pressure_colour" and tuple(actor.mapper.scalar_range) == (-1.0, 1.0)
         edge = mesh_pictures.add_contact_edge(p, surface, view)
         assert edge.n_points == 0  # not in contact yet: no edge
         mesh_pictures.show_row(surface, res, later, view)  # a GIF's next frame: the arrays follow the row
         mesh_pictures.contact_edge(surface, view, into=edge)
-        np.testing.assert_array_equal(surface.point_data["pressure"], res.pressure[later])
-        np.testing.assert_array_equal(res.pressure, kept)  # the mesh's arrays are copies: the Result's rows stay
+        np.testing.assert_array_equal(surface.point_data["pressure"], pressure[later])
+        np.testing.assert_array_equal(pressure, kept)  # the mesh's arrays are copies: the Result's rows stay
         np.testing.assert_array_equal(surface.points[:, 2], res.eta[later] * view.scale)
         assert res.contact[later].any() and edge.n_points > 4
         inside = res.x[res.contact[later]]  # the edge surrounds the nodes in contact
@@ -151,11 +166,11 @@ def test_the_film_membranes_mesh_carries_its_pressure_and_is_coloured_by_it(run)
         p.close()
 
 
-def test_a_membrane_without_a_pressure_is_coloured_by_contact_as_before(run):
+def test_a_membrane_without_a_surface_field_is_coloured_by_contact_as_before(run):
     _, res = run
-    bare = dataclasses.replace(res, pressure=None)
+    bare = dataclasses.replace(res, field_info={"pressure": INFO | {"surface": False}})  # its pressure kept, not on the membrane
     view = mesh_pictures.membrane_view(bare)
-    assert view.pressure is None
+    assert view.field is None
     p = mesh_pictures._plotter((300, 200))
     try:
         surface = mesh_pictures.add_membrane(p, bare, 60, view)
@@ -180,7 +195,7 @@ def test_membrane_png_colours_the_film_by_its_pressure_with_its_bar_and_contact_
         assert _near(bar, end, 6).sum() > 20, end
     assert (bar.max(axis=-1) < 80).sum() > 100  # its labels and frame in black
     panels = _panels(img, 2, 2)
-    peak = np.abs(res.pressure[rows]).max(axis=1)
+    peak = np.abs(res.fields["pressure"][rows]).max(axis=1)
     red, blue, yellow = ([int(f(p).sum()) for p in panels] for f in (_reddish, _bluish, _yellow))
     assert peak[0] == 0 and red[0] == blue[0] == yellow[0] == 0  # t = 0: p = p_a everywhere, a grey membrane
     assert red[1] > 3000 and yellow[1] == 0  # t = 0.1: the squeezed film pushes up, nothing in contact yet
@@ -188,7 +203,7 @@ def test_membrane_png_colours_the_film_by_its_pressure_with_its_bar_and_contact_
     assert red[2] > 3000 and yellow[2] > 100  # t = 0.15: landed under high pressure, the patch's edge drawn
     assert blue[3] > 1000 > red[3] and yellow[3] > 100  # t = 0.3: in contact, mostly under suction
     # the same rows without the pressure: the contact colours, no bar and no yellow edge
-    plain = _image(viz.draw("membrane.png", dataclasses.replace(res, pressure=None), tmp_path))
+    plain = _image(viz.draw("membrane.png", dataclasses.replace(res, fields={}, field_info={}), tmp_path))
     assert _yellow(plain).sum() == 0 and _near(plain, PRESSURE_COLOURS[-1], 6).sum() == 0
     assert _near(plain, charts.CONTACT_COLOUR, 60).sum() > 500
 
@@ -201,7 +216,7 @@ def test_membrane_gif_colours_each_frame_by_its_pressure_with_the_edge_of_its_co
     rows = animation.frame_rows(res)
     assert len(frames) == len(rows)
     width = frames.shape[2]
-    x0, _, x1, _ = animation.FILM_BAR
+    x0, _, x1, _ = animation.FIELD_BAR
     bar = frames[:, :, int(x0 * width) - 2 : int(x1 * width) + 3]
     for end in (PRESSURE_COLOURS[0], PRESSURE_COLOURS[-1]):  # the bar in every frame (the palette kept its ends)
         assert all(_near(frame, end, 25).sum() > 10 for frame in bar), end

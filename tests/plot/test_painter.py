@@ -95,6 +95,25 @@ def test_the_payload_maps_the_large_arrays_and_keeps_every_value(run, tmp_path):
     assert back.scene == res.scene and back.contact_force.size == 0  # no picture shows the force
 
 
+def test_the_payload_maps_the_large_output_fields_too(run, tmp_path):
+    """An output field as large as eta is mapped from its own file, a small one pickled with the rest."""
+    import dataclasses
+
+    _, res = run
+    fields = {"reaction": res.eta**2, "small": np.arange(4.0).reshape(2, 2)}
+    old = payload.MAPPED_BYTES
+    try:
+        payload.MAPPED_BYTES = res.eta.nbytes
+        payload.write_payload(tmp_path, dataclasses.replace(res, fields=fields), ("out", (10, 10), ("energy.png",)))
+    finally:
+        payload.MAPPED_BYTES = old
+    assert sorted(p.name for p in tmp_path.glob("fields.*")) == ["fields.reaction.npy"]
+    back, _ = payload.read_payload(tmp_path)
+    assert isinstance(back.fields["reaction"], np.memmap) and not isinstance(back.fields["small"], np.memmap)
+    for name, values in fields.items():
+        np.testing.assert_array_equal(back.fields[name], values, err_msg=name)
+
+
 def test_the_payload_maps_the_rows_file_the_run_wrote(run, tmp_path):
     """eta and velocity are mapped from the output folder's rows.npz (stored uncompressed there), not written again."""
     from stringcontact.io.tables import write_rows

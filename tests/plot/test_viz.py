@@ -613,3 +613,20 @@ def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
     assert np.all(marks.get_ydata() == floor) and 0 < floor < 1e-15 and ax.get_yscale() == "log"
     assert "exactly 0 (4 of 11 rows" in ax.get_legend().get_texts()[1].get_text()
     charts.pyplot().close(fig)
+
+
+def test_the_space_time_title_gives_a_heights_round_off_as_0(tmp_path, monkeypatch):
+    """A string held at η ≥ 1 above a narrow bump whose foot is 1e-110: the title's height range starts at 0, not
+    at the bump's round-off (it read 'height η from 1.32e-112')."""
+    from stringcontact.plot import mesh_pictures
+
+    scene = sc.load_scene("example1").replace(nx=40, nt=20, T=0.01, v0="0", output_times=[],
+                                              obstacle="0.05*exp(-1000*(x - 0.5)**2)", model="loaded_obstacle")
+    res = sc.simulate(scene)
+    assert 0 < res.scene.obstacle_values(res.x).min() < 1e-100 and res.eta.min() >= 1.0
+    titles = []
+    monkeypatch.setattr(mesh_pictures, "_title", lambda p, text, **kw: titles.append(text))
+    mesh_pictures.space_time_picture(res, tmp_path / "st.png")
+    (line,) = [line for line in titles[0].splitlines() if line.startswith("height")]
+    assert line == f"height η from 0 to {res.eta.max():.3g} over x and t", line
+    assert mesh_pictures._height_text(-0.0123, 1.0) == "-0.0123" and mesh_pictures._height_text(2e-6, 1.0) == "2e-06"

@@ -3,7 +3,8 @@
 
 For each reader (Xdmf3ReaderT, Xdmf3ReaderS, XDMFReader): open solution.xdmf, Warp By Scalar with
 Scalars = eta and Normal = (0, 1, 0), colour by contact, Line Width 3, go to time TIME. Prints one JSON line
-per reader with what ParaView shows there; saves a screenshot of the Xdmf3ReaderT view to PNG.
+per reader with what ParaView shows there (each point array's range at TIME among it); saves a screenshot of
+the Xdmf3ReaderT view to PNG.
 tests/system/test_paraview.py runs it and checks the numbers against the solver's own.
 """
 
@@ -57,6 +58,7 @@ def describe(data, source, warp, t):
     arrays = [point_data.GetArrayName(i) for i in range(point_data.GetNumberOfArrays())]
     y = vtk_to_numpy(data.GetPoints().GetData())[:, 1]
     out = {"class": data.GetClassName(), "points": data.GetNumberOfPoints(), "arrays": arrays,
+           "ranges": {name: list(point_data.GetArray(name).GetRange()) for name in arrays},
            "times": list(source.TimestepValues), "time": t}
     if "contact" in arrays and "eta" in arrays:
         contact, eta = vtk_to_numpy(point_data.GetArray("contact")), vtk_to_numpy(point_data.GetArray("eta"))

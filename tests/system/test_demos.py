@@ -18,6 +18,8 @@ EXPECTED = {
     "demo_example2.py": ["most components at one time", "two or more components"],
     "demo_membrane.py": ["the contact patch is a disk at every stored time: True", "two patches that join into one: True",
                          "the inelastic skin stays down longer: True", "the spring loses under 1% of E(0) in contact: True"],
+    "demo_stiff_string.py": ["dispersion relation: largest relative error", "the landing stays above the obstacle: True",
+                             "the contact force is >= 0 and 0 off the contact set: True", "energy ledger closes: True"],
 }
 PAPER_FILES = ("solution.xdmf", "solution.h5", "contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")
 FILES = {
@@ -25,6 +27,7 @@ FILES = {
     "demo_example2.py": PAPER_FILES,
     "demo_membrane.py": ("solution.xdmf", "solution.h5", "membrane.png", "contact_area.png", "energy.png", "membrane.gif",
                          "drum_variants.png"),
+    "demo_stiff_string.py": ("stiff_string_modes.png", "stiff_string_landing.png"),
 }
 
 

@@ -290,8 +290,8 @@ def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
 
 def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     """A membrane on a fluid film (model "film"): `view.py T PNG pressure` colours it by p − p_a on ±max|p − p_a|
-    over all stored rows, in paraview_view.PRESSURE_COLOURS: a middle grey where p = p_a (all of it at t = 0,
-    where contact colours it blue), red where the squeezed film pushes it up."""
+    over all stored rows, in the colours its output field declares: a middle grey where p = p_a (all of it at
+    t = 0, where contact colours it blue), red where the squeezed film pushes it up."""
     command = pvpython()
     out = tmp_path / "film_drum"
     res = sc.simulate(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.12, nt=48, output_times=[]),
@@ -299,12 +299,13 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
                       pictures=False)
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
     back = read_output(out, from_xdmf=True)  # the frames ParaView reads
-    k = int(np.argmax([np.abs(res.pressure[np.flatnonzero(res.t == t)[0]]).max() for t in back.t]))
+    pressure = res.fields["pressure"]
+    k = int(np.argmax([np.abs(pressure[np.flatnonzero(res.t == t)[0]]).max() for t in back.t]))
     t_k = float(back.t[k])
     shots = [(0.0, tmp_path / "pressure_0.png", "pressure"), (0.0, tmp_path / "contact_0.png", "contact"),
              (t_k, tmp_path / "pressure_k.png", "pressure")]
     (r0, img0), (_, contact0), (rk, imgk) = _views(command, out, shots)
-    peak = float(np.abs(res.pressure).max())
+    peak = float(np.abs(pressure).max())
     for report in (r0, rk):
         assert report["field"] == "pressure"
         np.testing.assert_allclose(report["range"], [-peak, peak], rtol=1e-12)
@@ -316,12 +317,45 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
         grey = (np.ptp(img, axis=-1) < 12) & (img.max(axis=-1) > 50) & (img.max(axis=-1) < 185)  # lit; not the obstacle's 204
         return int(red.sum()), int(blue.sum()), int(grey.sum())
 
-    assert np.abs(res.pressure[0]).max() == 0.0
+    assert np.abs(pressure[0]).max() == 0.0
     red0, blue0, grey0 = counts(img0)
     assert red0 == blue0 == 0 and grey0 > 5000, (red0, blue0, grey0)  # p = p_a: the whole membrane grey, and seen
     assert counts(contact0)[1] > 5000  # the same frame coloured by contact: blue (free)
     redk, _, _ = counts(imgk)
     assert redk > 500, redk  # the film's peak pressure under the falling skin
+
+
+def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_colours(tmp_path):
+    """A model of the user's with a derived output field `reaction` (η², from black to pure red): solution.xdmf
+    carries it, every reader of the README's recipe gives its values at the time shown, and `view.py T PNG
+    reaction` colours the string by it on its least … largest value over all stored rows, red where it is large."""
+    import dataclasses
+
+    from stringcontact.model.interface import OutputField
+    from stringcontact.model.paper import inelastic
+
+    command = pvpython()
+    field = OutputField("reaction", expression=lambda U, p: U[0] ** 2, label="reaction", colours=((0, 0, 0), (1, 0, 0)))
+    out = tmp_path / "reacting"
+    res = sc.simulate(sc.load_scene("example1").replace(nx=200, nt=600), output_dir=out, max_frames=10, pictures=False,
+                      model=dataclasses.replace(inelastic, name="reacting", outputs=(field,)))
+    assert 'Attribute Name="reaction"' in (out / "solution.xdmf").read_text()
+    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    t = float(back.t[0])
+    proc = subprocess.run([*command, str(SCRIPT), str(out / "solution.xdmf"), repr(t), str(tmp_path / "readme.png")],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
+    reports = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    assert len(reports) == 3
+    at_t = res.fields["reaction"][0]
+    for report in reports:
+        assert set(report["arrays"]) == {*FIELDS, "reaction"}, report["reader"]
+        np.testing.assert_allclose(report["ranges"]["reaction"], [at_t.min(), at_t.max()], rtol=1e-12)
+    ((report, img),) = _views(command, out, [(t, tmp_path / "reaction.png", "reaction")])
+    np.testing.assert_allclose(report["range"], [res.fields["reaction"].min(), res.fields["reaction"].max()], rtol=1e-12)
+    middle = img[MIDDLE].astype(int)
+    red = (middle[..., 0] > 150) & (middle[..., 1] < 40) & (middle[..., 2] < 40)
+    assert red.sum() > 100, "no string drawn in the field's high colour"
 
 
 def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(tmp_path, piston_folder):

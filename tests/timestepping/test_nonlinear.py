@@ -262,6 +262,11 @@ def two_field_residual(U, U_t, U_tt, force, W, p):
     return paper.momentum_form(eta, U_t[0], U_tt[0], force, w, p) + foundation * w * ufl.dx + (q - eta) * r * ufl.dx
 
 
+def two_field_energy(U, p):
+    """The cubic foundation's stored energy, in η = U[0] (q = η stores none of its own)."""
+    return variants.cubic_foundation.stored_energy(U[0], p)
+
+
 @pytest.mark.parametrize("scheme", ["paper", "projection", "newmark"])
 def test_a_second_field_gives_the_single_field_answer(ex1, scheme, monkeypatch):
     """A fresh Jacobian at every iteration on both: a kept one stops each at its own point below the tolerance
@@ -269,7 +274,8 @@ def test_a_second_field_gives_the_single_field_answer(ex1, scheme, monkeypatch):
     from stringcontact.timestepping.nonlinear import NewtonStep
 
     monkeypatch.setattr(NewtonStep, "reuse_jacobian", False)
-    two = dataclasses.replace(variants.cubic_foundation, name="two_fields", fields=("q",), residual=two_field_residual)
+    two = dataclasses.replace(variants.cubic_foundation, name="two_fields", fields=("q",), residual=two_field_residual,
+                              stored_energy=two_field_energy)
     single = run(ex1, scheme=scheme, model=variants.cubic_foundation)
     res = run(ex1, scheme=scheme, model=two)
     assert res.contact.any() and res.checks["energy_balance"]["closes"]
@@ -277,7 +283,8 @@ def test_a_second_field_gives_the_single_field_answer(ex1, scheme, monkeypatch):
 
 
 def test_the_second_field_is_solved_not_lagged(ex1):
-    two = dataclasses.replace(variants.cubic_foundation, name="two_fields", fields=("q",), residual=two_field_residual)
+    two = dataclasses.replace(variants.cubic_foundation, name="two_fields", fields=("q",), residual=two_field_residual,
+                              stored_energy=two_field_energy)
     s = _setting(ex1, two, "paper", penalty="explicit")
     stepper = scheme_class("paper")(s)
     stepper.start(np.asarray(ex1.initial_displacement(s.x)), np.where(s.interior, -50.0, 0.0))
@@ -294,7 +301,8 @@ def test_a_scene_load_read_only_by_the_residual_counts_as_used():
     def residual(U, U_t, U_tt, force, W, p):
         return two_field_residual(U, U_t, U_tt, force, W, p) - p.extra["load"] * W[0] * ufl.dx
 
-    loaded = dataclasses.replace(variants.cubic_foundation, name="loaded_two", fields=("q",), residual=residual)
+    loaded = dataclasses.replace(variants.cubic_foundation, name="loaded_two", fields=("q",), residual=residual,
+                                 stored_energy=two_field_energy)
     scene = sc.load_scene("example1").replace(nx=50, nt=300, load="-1")
     assert run(scene, scheme="projection", model=loaded).status == "complete"
     with pytest.raises(ValueError, match="load"):  # the same scene with a model that ignores the load

@@ -50,7 +50,8 @@ def problem_scenes(quick: bool = False) -> dict:
 
     nx = 100 if quick else 200
     example = sc.load_scene("film_landing").replace(nx=nx, dt=0.00025, T=0.15 if quick else 0.3, output_times=[],
-                                                    model=None, mu=None, scheme=None, name="film-example1")
+                                                    model=None, parameters=None, scheme=None,
+                                                    name="film-example1")
     flat = example.replace(name="film-flat", eta0="0.2", v0="-1", h=0.2, T=0.4 if quick else 0.8, dt=0.0005)
     return {"example1": example, "flat": flat}
 
@@ -75,8 +76,8 @@ def references(scene) -> dict:
 def film_run(scene, mu: float, p_cav):
     """The film at viscosity `mu` (cavitation at p_cav, or none), the semi-implicit penalty at ε = `FILM_EPS` as
     its backstop."""
-    changes = {"model": "film", "mu": mu, "eps": FILM_EPS} | ({"p_cav": p_cav} if p_cav is not None else {})
-    return _run(scene.replace(**changes), scheme="paper", penalty="semi-implicit")
+    constants = {"mu": mu} | ({"p_cav": p_cav} if p_cav is not None else {})
+    return _run(scene.replace(model="film", parameters=constants, eps=FILM_EPS), scheme="paper", penalty="semi-implicit")
 
 
 def landing_times(reference) -> tuple[float, float, int]:

@@ -142,12 +142,36 @@ def show_scene(scene) -> str:
 
     data = scene.as_dict()
     options = data.pop("petsc_options", None)
+    data.pop("parameters", None)
     data.setdefault("model", DEFAULT_MODEL)
     data.setdefault("scheme", DEFAULT_SCHEME)
     missing = [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
     header = scene_to_toml(scene).split("\n", 1)[0] + "\n"  # its derived values: dt, dx, r
     table = tomli_w.dumps({"petsc_options": options}) if options else ""
-    return header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing) + table
+    return (header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing)
+            + _parameters_table(data["model"], dict(scene.parameters)) + table)
+
+
+def _parameters_table(model_name: str, given: dict) -> str:
+    """The model's constants as a ``[parameters]`` table: each with its value (the scene's, else its default), its
+    unit, range and meaning in a comment; an optional constant without a value as a comment line."""
+    import tomli_w
+
+    from ..model.registry import load_model
+
+    constants = load_model(model_name).constants
+    if not constants:
+        return ""
+    lines = [f"\n[parameters]  # model {model_name!r}'s constants (`stringcontact models`)\n"]
+    for c in constants:
+        value = given.get(c.name, c.default)
+        about = "; ".join(part for part in (c.description, f"unit {c.unit}" if c.unit else "", f"allowed: {c.allowed}",
+                                            "" if c.name in given else f"default {c.default_text}") if part)
+        if value is None:
+            lines.append(f"# {c.name}: not given ({about})\n")
+        else:
+            lines.append(f"{tomli_w.dumps({c.name: value}).strip():24s}# {about}\n")
+    return "".join(lines)
 
 
 class _OneLineWarningHandler(logging.Handler):

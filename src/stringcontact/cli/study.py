@@ -138,8 +138,8 @@ def _print_orders(orders, quick: bool) -> None:
 def _write_film(out: Path, rows: list[dict]) -> list[Path]:
     """`study film`'s rows, its fitted power laws in mu, and its chart; the laws printed."""
     from ..analysis.film import FILM_COLUMNS, RATE_COLUMNS, fit_rates
+    from ..analysis.film_charts import plot_film_study
     from ..model.film import H_MIN
-    from ..plot.film_charts import plot_film_study
 
     rates = fit_rates(rows)
     for r in rates:

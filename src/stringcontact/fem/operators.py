@@ -190,13 +190,17 @@ def semi_discrete_operators(model, V, params) -> Operators:
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
     ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
     declared = getattr(model, "stored_energy", None)
-    if mixed is not None:  # several fields: the declared energy, else the paper's ½|∇η|² of η
-        energy = declared or default_stored_energy
+    if mixed is not None:  # several fields: the energy the model declares in all of them
+        if declared is None:
+            raise ModelError(f"model '{model.name}': a model with fields {model.fields} must declare stored_energy(U, p), "
+                             "the energy density its form stores in U = (eta, *fields) (the paper's: "
+                             "0.5*inner(grad(U[0]), grad(U[0])); the energy ledger books it)")
         (U, U_t, U_tt), R_Z, _ = mixed
         Z = U.function_space
+        state = fem.Function(Z)  # the unknowns whose energy is booked: η and the fields of the same solve
         ops.nonlinear = NonlinearForm(residual=R_Z, eta=U, eta_t=U_t, eta_tt=U_tt, force=force, V=V, params=params,
-                                      stored_energy=energy(eta, params) * ufl.dx, energy_eta=eta, space=Z,
-                                      eta_dofs=compat.sub_dofs(V, Z, 0))
+                                      stored_energy=declared(ufl.split(state), params) * ufl.dx, energy_eta=state,
+                                      space=Z, eta_dofs=compat.sub_dofs(V, Z, 0))
     elif nonlinear_in or getattr(model, "newton", False):
         if declared is None:  # the form's own potential, not the paper's ½|∇η|²
             stored, energy_eta = potential_energy(R, placeholders, w, V)

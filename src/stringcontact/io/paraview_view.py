@@ -13,9 +13,10 @@ obstacle) is written into it as a literal by the run, computed over all stored r
 - `velocity` on the symmetric range −V … V, V = max |velocity| over every stored row, in a diverging map
   whose middle (v = 0) is a dark grey: a string at rest stands out on the white background (pick it in the
   colouring menu, or name it on the command line: its range is fixed too);
-- a film's `pressure` p − p_a (model "film") on −P … P, P = max |p − p_a| over every stored row, blue, a
-  middle grey at p = p_a, red (`PRESSURE_COLOURS`: a membrane at ambient pressure stays seen), on a
-  symmetric-log scale (`symlog_unit`, as the pictures: a landing's peak would leave every other time grey);
+- each output field of the model (`Result.fields`) on its own fixed range over every stored row and in its own
+  colours (`Result.field_info`, `field_range` and `field_points`): −P … P, P its largest |value|, for a
+  symmetric field, on a symmetric-log scale for a ``"symlog"`` one (`symlog_unit`, as the pictures: a peak
+  1e3 times the rest would leave every other time in the middle colour), else its least … largest value;
   picked like the velocity;
 - the obstacle ψ of the scene (the plane 0 unless the scene gives a profile), in grey: for a string the
   region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch; an
@@ -27,7 +28,7 @@ obstacle) is written into it as a literal by the run, computed over all stored r
   and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
   different times line up (an animation does not jump).
 
-`pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead of opening a window
+`pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead of opening a window
 and prints one JSON line: the time, the field, its colour range, the camera, the axes' titles and the box of the
 obstacle drawn at that time.
 """
@@ -39,21 +40,14 @@ from pathlib import Path
 import numpy as np
 
 from .publish import atomic_path
+from .tables import field_info
 
 VIEW_NAME = "view.py"
 CONTACT_RANGE = (0.0, 1.0)
 #: velocity's colours at −V, 0 and V (RGB in 0 … 1): blue, a dark grey, red. The middle is dark so that a
 #: string at rest (v = 0) is seen on the white background (Cool to Warm's light grey middle vanishes there).
 VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
-#: a film's pressure p − p_a at −P, 0 and P: blue, a middle grey, red. A membrane where p = p_a (its rim, and
-#: all of it before the film is squeezed) is seen on the white background and on the light grey obstacle, and
-#: black labels on it are read (a light middle vanished there, the velocity's dark grey hid them); the
-#: membrane's pictures (plot/mesh_pictures.py) use these colours too
-PRESSURE_COLOURS = ((0.085, 0.40, 0.85), (0.55, 0.55, 0.55), (0.85, 0.10, 0.08))
-#: the share of the largest |p − p_a| within which the pressure's colours are linear in it; beyond, logarithmic
-#: (a landing's peak is 1e3-1e4 times the pressure before and after it: on a linear scale all that is grey)
-PRESSURE_LINEAR_SHARE = 1e-3
-#: control points of the pressure's colours per decade of |p − p_a| (ParaView interpolates between them)
+#: control points of a symmetric-log field's colours per decade of its |value| (ParaView interpolates between them)
 POINTS_PER_DECADE = 4
 #: the obstacle's grey, and the white background
 OBSTACLE_GREY = (0.80, 0.80, 0.80)
@@ -63,9 +57,10 @@ OBSTACLE_SAMPLES = 200
 _MEMBRANE_DROP = 0.01
 
 
-def symlog_unit(values, peak: float, share: float = PRESSURE_LINEAR_SHARE) -> np.ndarray:
+def symlog_unit(values, peak: float, share: float) -> np.ndarray:
     """`values` from −peak … peak onto −1 … 1 on a symmetric-log scale (clipped beyond): matplotlib's
-    SymLogNorm (base 10, linscale 1) with linthresh = share·peak, which pressure.png uses; linear within ±linthresh."""
+    SymLogNorm (base 10, linscale 1) with linthresh = share·peak, which a field's picture uses; linear within
+    ±linthresh."""
     c = share * peak
     linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
 
@@ -76,22 +71,59 @@ def symlog_unit(values, peak: float, share: float = PRESSURE_LINEAR_SHARE) -> np
     return np.clip(forward(np.asarray(values, dtype=float)) / forward(peak), -1.0, 1.0)
 
 
-def pressure_points(peak: float) -> list:
-    """ParaView's control points (value, r, g, b) of the pressure's colours on −peak … peak: `PRESSURE_COLOURS`
-    at −1, 0 and 1 of `symlog_unit`, at 0, ±linthresh and POINTS_PER_DECADE values per decade up to ±peak."""
-    decades = -float(np.log10(PRESSURE_LINEAR_SHARE))
-    above = peak * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
+def field_range(values, info: dict) -> tuple[float, float]:
+    """The fixed colour range of an output field's rows `values` shown as `info` says (`OutputField.metadata`):
+    −P … P, P the largest finite |value|, for a symmetric (or ``"symlog"``) field, else its least … largest
+    finite value; a range of width 0 (a field all 0) widened to one."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if info.get("symmetric") or info.get("scale") == "symlog":
+        peak = float(np.max(np.abs(v))) if v.size else 0.0
+        return (-(peak or 1.0), peak or 1.0)
+    low, high = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
+    pad = 0.0 if high > low else 0.5 * (abs(low) or 1.0)
+    return low - pad, high + pad
+
+
+def blend(colours, unit) -> np.ndarray:
+    """The RGB rows at `unit` (−1 … 1) of the colours `colours` spread evenly from −1 to 1, blended linearly in
+    RGB (matplotlib's `LinearSegmentedColormap.from_list`)."""
+    stops = np.linspace(-1.0, 1.0, len(colours))
+    rgb = np.asarray(colours, dtype=float)
+    return np.column_stack([np.interp(np.asarray(unit, dtype=float), stops, rgb[:, k]) for k in range(3)])
+
+
+def field_points(low: float, high: float, info: dict) -> list:
+    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high`: a linear field's
+    colours at evenly spaced values; a ``"symlog"`` one's at −1, 0 and 1 of `symlog_unit` and between, at 0,
+    ±linthresh and `POINTS_PER_DECADE` values per decade up to ±high."""
+    colours = info["colours"]
+    if info.get("scale") != "symlog":
+        values = np.linspace(low, high, len(colours))
+        return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
+    share = float(info.get("linear_share", 1e-3))
+    decades = -float(np.log10(share))
+    above = high * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
     values = np.concatenate([-above[::-1], [0.0], above])
-    unit = symlog_unit(values, peak)
-    low, mid, high = (np.array(c) for c in PRESSURE_COLOURS)
-    colours = np.where(unit[:, None] < 0, mid + (low - mid) * -unit[:, None], mid + (high - mid) * unit[:, None])
-    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
+    rgb = blend(colours, symlog_unit(values, high, share))
+    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, rgb)]
+
+
+def field_maps(result) -> dict:
+    """Each output field of `result` -> ``[[low, high], points]``: its fixed range (`field_range`) and colour
+    points (`field_points`) in view.py."""
+    fields = getattr(result, "fields", None) or {}
+    maps = {}
+    for name, info in field_info(result).items():
+        low, high = field_range(fields[name], info)
+        maps[name] = [[low, high], field_points(low, high, info)]
+    return maps
 
 
 def view_numbers(result) -> dict:
     """What view.py needs, from the stored rows: the kind, the warp's normal, the velocity's symmetric range,
     the obstacle (points and quadrilaterals) and the box the camera frames over all times (x0, x1, y0, y1, z0,
-    z1: the warped shape and the obstacle), the title, and a film's pressure range and colour points."""
+    z1: the warped shape and the obstacle), the title, and each output field's range and colour points."""
     x = np.asarray(result.x, dtype=float)
     eta = np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
@@ -110,16 +142,12 @@ def view_numbers(result) -> dict:
         points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
         shift = (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
-    pressure = getattr(result, "pressure", None)  # model "film": its symmetric range, like the velocity's
-    peak = float(np.nanmax(np.abs(pressure))) if pressure is not None and np.size(pressure) else 0.0
     return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
             "times": [float(t) for t in result.t],
             # a moving obstacle is drawn from solution.xdmf's `obstacle` field: no literal points then
             "obstacle_points": [] if moves else points, "obstacle_quads": [] if moves else quads,
             "obstacle_moves": moves, "obstacle_shift": shift,
-            "title": view_title(result),
-            "pressure_range": (-(peak or 1.0), peak or 1.0) if pressure is not None else None,
-            "pressure_points": pressure_points(peak or 1.0) if pressure is not None else None}
+            "title": view_title(result), "fields": field_maps(result)}
 
 
 def view_title(result) -> str:
@@ -179,6 +207,8 @@ def _membrane_obstacle(scene, x, lo, hi):
 
 def _literal(value) -> str:
     """A Python literal of floats written so that they read back exactly (repr); integers stay integers."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_literal(k)}: {_literal(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(_literal(v) for v in value) + "]"
     if isinstance(value, str):
@@ -192,8 +222,8 @@ def view_script(numbers: dict) -> str:
     """The text of view.py for `numbers` (`view_numbers`)."""
     head = f'''"""ParaView view of this folder, written by the run: `pvpython view.py` or `paraview --script=view.py`.
 
-`pvpython view.py TIME PNG [contact|velocity|pressure]` saves a screenshot at time TIME instead (pressure: a
-film's run).
+`pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead (FIELD: one of
+FIELD_MAPS, the model's output fields).
 The numbers below were computed by the run over all its stored rows.
 """
 
@@ -219,8 +249,8 @@ OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices
 OBSTACLE_MOVES = {bool(numbers.get("obstacle_moves"))}  # psi(x, t): drawn from solution.xdmf's obstacle field
 OBSTACLE_SHIFT = {_literal(numbers.get("obstacle_shift") or (0.0, 0.0, 0.0))}  # the moving obstacle moved by this: behind/below the shape
 FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
-PRESSURE_RANGE = {_literal(numbers["pressure_range"]) if numbers.get("pressure_range") else None}  # a film's p - p_a
-PRESSURE_POINTS = {_literal(numbers.get("pressure_points") or [])}  # value, r, g, b: symmetric-log colours
+# the model's output fields: name: [[low, high] (fixed, over all stored rows), [[value, r, g, b], ...] (its colours)]
+FIELD_MAPS = {_literal(numbers.get("fields") or {})}
 '''
     return head + _BODY
 
@@ -243,8 +273,8 @@ def fixed_map(name, low, high, preset=None, colours=None):
     if colours and len(colours[0]) == 4:  # (value, r, g, b): each colour at its value
         lut.RGBPoints = [v for point in colours for v in point]
         lut.ColorSpace = "RGB"
-        # not 256 table values: their bins (2·peak/256) are wider than the linear part near 0, and the texture
-        # drew p = 0 in red and blue stripes
+        # not 256 table values: their bins (2·peak/256) are wider than a symmetric-log map's linear part near 0,
+        # and the texture drew 0 in stripes of both ends' colours
         lut.Discretize = 0
     elif colours:  # evenly spaced colours from low to high
         step = (high - low) / (len(colours) - 1)
@@ -260,7 +290,7 @@ def fixed_map(name, low, high, preset=None, colours=None):
 
 
 MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS),
-        **({"pressure": (PRESSURE_RANGE, None, PRESSURE_POINTS)} if PRESSURE_RANGE else {})}
+        **{name: (tuple(span), None, points) for name, (span, points) in FIELD_MAPS.items()}}
 
 
 def colour_by(view, display, field):
@@ -427,9 +457,12 @@ def obstacle_bounds(t):
 
 
 def main(argv):
+    shot = len(argv) >= 3 and argv[2].lower().endswith(".png")  # pvpython view.py TIME PNG [contact|velocity|FIELD]
+    field = argv[3] if shot and len(argv) > 3 else "contact"
+    if field not in MAPS:
+        sys.exit(f"view.py: no field {field!r} to colour by; choose one of {', '.join(MAPS)}")
     animation, view, display = build()
-    if len(argv) >= 3 and argv[2].lower().endswith(".png"):  # pvpython view.py TIME PNG [contact|velocity|pressure]
-        field = argv[3] if len(argv) > 3 else "contact"
+    if shot:
         show_at(animation, view, display, float(argv[1]), field)
         SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
         points = GetColorTransferFunction(field).RGBPoints

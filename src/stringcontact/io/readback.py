@@ -9,6 +9,11 @@ gives its triangles (the HDF5 topology), and the nodal areas are computed from t
 Python): the h5py wheel bundles its own libhdf5, which clashes with the system libhdf5 that dolfinx has
 already loaded ("Not a datatype"). Every defect of the folder is a ValueError with one line naming the
 file and what is wrong with it (the CLI's exit code 2).
+
+The model's output fields come back by name, whatever the model: their names and how each is shown from
+summary.json's ``"fields"`` (checked as an `OutputField` is), their rows from rows.npz (or the XDMF's attributes
+of those names), the model's constants from its ``"parameters"``. A folder whose summary.json has no
+``"fields"`` (written before it had them) gives rows.npz's further arrays as plain fields.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ from ..errors import OutputError, SceneError, one_line
 from ..scene.limits import MAX_MEMBRANE_NODES, MAX_STORED_BYTES
 from .publish import small_regular_file
 from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
-from .tables import ROWS_FILE
+from .tables import ROW_ARRAYS, ROWS_FILE, field_members
 from .xdmf import read_xdmf
 
 FILES = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
@@ -34,6 +39,8 @@ MAX_JSON_BYTES = 10_000_000
 #: its stored rows may take (the run's own budget, `scene.limits.MAX_STORED_BYTES`): checked from the files'
 #: headers before any array is read, so a small crafted file cannot claim gigabytes.
 MAX_NODES = MAX_MEMBRANE_NODES
+#: The most output fields a folder may name (a model has a few).
+MAX_OUTPUT_FIELDS = 64
 
 
 def read_output(folder, from_xdmf: bool = False):
@@ -46,14 +53,17 @@ def read_output(folder, from_xdmf: bool = False):
     """
     folder = _check_folder(Path(folder))
     summary, scene = _read_summary(folder / "summary.json")
+    info = _field_info(folder / "summary.json", summary)
     column = _read_diagnostics(folder / "diagnostics.csv")
     if (folder / ROWS_FILE).is_file() and not from_xdmf:
-        x, fields, mesh = _read_rows(folder / ROWS_FILE, column, scene.dim)
+        x, fields, mesh = _read_rows(folder / ROWS_FILE, column, scene.dim, info)
     else:
         geometry, series = _read_series(folder / "solution.xdmf")
         column = _frame_rows(column, series, folder)
         topology = _topology(folder / "solution.xdmf") if scene.dim == 2 else None
+        series = _field_series(folder / "solution.xdmf", series, info)
         x, fields, mesh = _read_fields(folder / "solution.h5", geometry, series, topology)
+    outputs = {name: fields.pop(name) for name in list(fields) if name not in FIELDS}
     return Result(
         scene=scene,
         x=x,
@@ -76,7 +86,9 @@ def read_output(folder, from_xdmf: bool = False):
         timings=summary.get("timings", {}),
         message=summary.get("message", ""),
         scheme=summary.get("scheme", "paper"),
-        pressure=fields.get("pressure"),  # model "film", from rows.npz
+        fields=outputs,
+        field_info={name: _plain(name, info) for name in outputs},
+        parameters=_parameters(folder / "summary.json", summary),
         **mesh,
     )
 
@@ -134,6 +146,96 @@ def _read_summary(path: Path):
     return summary, scene
 
 
+#: The keys of an output field's description in summary.json, and the types each must have.
+FIELD_KEYS = {"label": str, "unit": str, "colours": list, "scale": str, "linear_share": float, "symmetric": bool,
+              "surface": bool, "derived": bool}
+#: The longest label or unit read (a title's line).
+MAX_LABEL = 200
+
+
+def _field_info(path: Path, summary: dict) -> dict | None:
+    """summary.json's ``"fields"``: name -> its description, each checked as an `OutputField` is; None for a
+    folder written before summary.json had them."""
+    fields = summary.get("fields")
+    if fields is None:
+        return None
+    if not isinstance(fields, dict) or len(fields) > MAX_OUTPUT_FIELDS:
+        raise ValueError(f"plot: {path}: its 'fields' is not an object of at most {MAX_OUTPUT_FIELDS} output fields")
+    return {name: _field_entry(path, name, entry) for name, entry in fields.items()}
+
+
+def _field_entry(path: Path, name: str, entry) -> dict:
+    """One output field's description, as `OutputField.metadata` gives it; a ValueError naming what is wrong."""
+    from ..model.interface import OutputField
+
+    try:
+        if not isinstance(entry, dict):
+            raise TypeError(f"a JSON {type(entry).__name__}, not an object")
+        given = {key: _typed(key, entry[key]) for key in FIELD_KEYS if key in entry}
+        derived = given.pop("derived", False)
+        if "colours" in given:
+            given["colours"] = tuple(tuple(c) if isinstance(c, list) else c for c in given["colours"])
+        field = OutputField(name, **given)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"plot: {path}: its output field {name!r} is not valid ({one_line(exc, 200)})") from None
+    return field.metadata() | {"derived": derived}
+
+
+def _typed(key: str, value):
+    """`value` of the description's `key` if it has the type `FIELD_KEYS` gives (a number for a float), else a TypeError."""
+    kind = FIELD_KEYS[key]
+    number = kind is float and isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not (number or kind is not float and isinstance(value, kind)):
+        raise TypeError(f"its {key} is a JSON {type(value).__name__}")
+    if kind is str and len(value) > MAX_LABEL:
+        raise TypeError(f"its {key} is longer than {MAX_LABEL} characters")
+    return float(value) if number else value
+
+
+def _plain(name: str, info: dict | None) -> dict:
+    """The description of the output field `name`: summary.json's (`info`), else a plain field's."""
+    from ..model.interface import OutputField
+
+    return info[name] if info is not None else OutputField(name).metadata()
+
+
+def _parameters(path: Path, summary: dict) -> dict[str, float]:
+    """summary.json's ``"parameters"``: the model's constants, each a number ({} if it has none)."""
+    given = summary.get("parameters", {})
+    if not isinstance(given, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in given.values()):
+        raise ValueError(f"plot: {path}: its 'parameters' is not an object of numbers (the model's constants)")
+    return {str(name): float(value) for name, value in given.items()}
+
+
+def _row_fields(path: Path, info: dict | None) -> tuple[str, ...]:
+    """The output fields to read from rows.npz: those `info` names; without it (an older folder) the arrays
+    beyond `ROW_ARRAYS` whose names could be a field's."""
+    if info is not None:
+        return tuple(info)
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = [name[:-4] for name in archive.namelist() if name.endswith(".npy")]
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"plot: {path} is not a readable .npz file ({type(exc).__name__}: {one_line(exc, 200)})") from None
+    return tuple(name for name in members if name not in ROW_ARRAYS and name.isidentifier())[:MAX_OUTPUT_FIELDS]
+
+
+def _field_series(path: Path, series: dict, info: dict | None) -> dict:
+    """`series` of the XDMF's `FIELDS` and of its output fields (those `info` names; without it, the attributes
+    beyond `FIELDS` and the moving obstacle's), each at the times of the others."""
+    from .folder import OBSTACLE_FIELD
+
+    names = [name for name in series if name not in FIELDS and name != OBSTACLE_FIELD] if info is None else [
+        name for name in info if name in series]
+    chosen = {name: series[name] for name in (*FIELDS, *names[:MAX_OUTPUT_FIELDS])}
+    times = [t for t, _ in series[FIELDS[0]]]
+    if any([t for t, _ in frames] != times for frames in chosen.values()):
+        raise ValueError(f"plot: {path}: its fields are not given at the same times")
+    return chosen
+
+
 def _read_series(path: Path):
     try:
         geometry, series = read_xdmf(path)
@@ -163,11 +265,14 @@ def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
         raise ValueError(f"plot: {path} is not a diagnostics table ({one_line(exc, 200)})") from None
 
 
-def _read_rows(path: Path, column: dict, dim: int):
-    """x, the fields and (2D) {"cells", "weights"} from `ROWS_FILE`, checked against diagnostics.csv's rows."""
+def _read_rows(path: Path, column: dict, dim: int, info: dict | None):
+    """x, the fields (the output fields of `info` by name: `_field_info`) and (2D) {"cells", "weights"} from
+    `ROWS_FILE`, checked against diagnostics.csv's rows."""
     import zipfile
 
-    names = ("t", "steps", "x", *FIELDS) + (("cells", "weights") if dim == 2 else ())
+    core = ("t", "steps", "x", *FIELDS) + (("cells", "weights") if dim == 2 else ())
+    members = field_members(_row_fields(path, info))
+    names = core + tuple(members.values())
     _check_row_headers(path, names, len(column["t"]), dim)
     try:
         with np.load(path, allow_pickle=False) as npz:
@@ -175,15 +280,13 @@ def _read_rows(path: Path, column: dict, dim: int):
             if absent:
                 raise ValueError(f"plot: {path} has no array {', '.join(map(repr, absent))}")
             arrays = {name: npz[name] for name in names}
-            if "pressure" in npz.files:  # model "film"
-                arrays["pressure"] = npz["pressure"]
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         if str(exc).startswith("plot: "):
             raise
         raise ValueError(f"plot: {path} is not a readable .npz file ({type(exc).__name__}: {one_line(exc, 200)})") from None
     k, n = len(column["t"]), len(arrays["x"])
     shapes = {"t": (k,), "steps": (k,), "x": (n,) if dim == 1 else (n, 2),
-              **{name: (k, n) for name in (*FIELDS, *(("pressure",) if "pressure" in arrays else ()))}}
+              **{name: (k, n) for name in (*FIELDS, *members.values())}}
     if dim == 2:
         shapes["weights"] = (n,)
         cells = arrays["cells"]
@@ -195,8 +298,7 @@ def _read_rows(path: Path, column: dict, dim: int):
     if not np.array_equal(arrays["t"], column["t"]):
         raise ValueError(f"plot: {path}: its times are not those of diagnostics.csv")
     _check_row_values(path, arrays, dim)
-    fields = {name: arrays[name] for name in FIELDS if name in arrays} | (
-        {"pressure": arrays["pressure"]} if "pressure" in arrays else {})
+    fields = {name: arrays[name] for name in FIELDS} | {name: arrays[member] for name, member in members.items()}
     fields["contact"] = fields["contact"].astype(float)  # as read from the XDMF: Result takes contact > 0.5
     mesh = {"cells": arrays["cells"].astype(np.int64), "weights": arrays["weights"]} if dim == 2 else {}
     return arrays["x"], fields, mesh
@@ -270,7 +372,7 @@ def _h5_path(ref: str) -> str:
 
 
 def _read_fields(path: Path, geometry: str, series: dict, topology=None):
-    """x (sorted) and each field as a (frames, nodes) array in that order, read from the HDF5 file; with a
+    """x (sorted) and each field of `series` as a (frames, nodes) array in that order, read from the HDF5 file; with a
     `topology` (2D: its HDF5 reference and nodes per cell) also {"cells", "weights"} of the sorted nodes."""
     import pyfive  # pure-Python HDF5: h5py's wheel clashes with the libhdf5 that dolfinx has already loaded
 
@@ -280,7 +382,7 @@ def _read_fields(path: Path, geometry: str, series: dict, topology=None):
             points = np.asarray(_bounded(h5[_h5_path(geometry)], 3 * MAX_NODES, path)[:], dtype=float)
             x_all = points[:, 0] if topology is None else points[:, :2]
             order = np.argsort(_sort_key(x_all), kind="stable")
-            fields = {name: np.stack([_dataset(h5, ref, len(x_all), path)[order] for _, ref in series[name]]) for name in FIELDS}
+            fields = {name: np.stack([_dataset(h5, ref, len(x_all), path)[order] for _, ref in frames]) for name, frames in series.items()}
             if topology is not None:
                 mesh = _mesh(_cells(h5, *topology, len(x_all), path), x_all, order)
     except ValueError as exc:

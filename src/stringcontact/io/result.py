@@ -20,10 +20,9 @@ ENERGY_KEYS = (
 )
 #: The fields stored at each node and stored time (the XDMF's attributes, in this order).
 FIELDS = ("eta", "velocity", "contact", "contact_force")
-#: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks.
-#: The other fields of a model with several (`Model.fields`) that a Result stores, when the model has them.
-MODEL_FIELDS = ("pressure",)
-PER_NODE = ("x", *FIELDS, *MODEL_FIELDS, "weights", "cells")
+#: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks. `fields`
+#: holds the model's output fields (`Model.outputs`) by name.
+PER_NODE = ("x", *FIELDS, "fields", "weights", "cells")
 CHUNK_VALUES = 2**24  # contact_measure converts at most this many contact values to float at once (128 MB)
 
 
@@ -80,8 +79,10 @@ class Result:
     `energy` holds (k,) arrays; the dissipations and the external work are cumulative from t=0.
     `numerical_dissipation` is the scheme's own consistency term: ½|v^{n+1}−v^n|²_M + ½|η^{n+1}−η^n|²_K
     per step, so that the discrete balance below closes to round-off.
-    `pressure` (model "film" only, else None): the film's pressure above ambient, p − p_a, at each node and
-    stored time; the film's viscous dissipation is in `viscous_dissipation` (docs/explanation/film.md).
+    `fields` holds the model's output fields by name (`Model.outputs`: its further unknowns and derived fields;
+    ``result.fields["reaction"]`` of a model that declares a field ``reaction``), (k, nodes) arrays like `eta`; `field_info` says how each is shown (`OutputField.metadata`: label, unit, colours, scale).
+    `parameters` holds the model's constants as the run used them (the scene's ``[parameters]`` and the
+    defaults).
     """
 
     scene: object
@@ -109,7 +110,9 @@ class Result:
     model_origin: dict = field(default_factory=dict)  # where the model came from: model.registry.model_origin
     penetration_bound: str | None = "velocity"  # the model's contact law's bound: model.paper.penetration_bound_of
     energy_label: str | None = None  # the legend of the model's stored energy (None: the paper's ½∫|∇η|²)
-    pressure: np.ndarray | None = None  # model "film": p − p_a, (k, nodes) like eta
+    fields: dict = field(default_factory=dict)  # the model's output fields: name -> (k, nodes), like eta
+    field_info: dict = field(default_factory=dict)  # name -> OutputField.metadata(): how each field is shown
+    parameters: dict = field(default_factory=dict)  # the model's constants as the run used them
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):

@@ -1,5 +1,11 @@
 """The tables of an output folder: `diagnostics.csv` (one row per stored time), `summary.json`, and
-`rows.npz`: the stored rows themselves, what the pictures are drawn from (`write_rows`)."""
+`rows.npz`: the stored rows themselves, what the pictures are drawn from (`write_rows`).
+
+A model's output fields (`Result.fields`) are written by name, whatever the model: each as an array of rows.npz,
+as the columns ``min_NAME`` and ``max_NAME`` of diagnostics.csv, and with how it is shown (`Result.field_info`)
+under ``"fields"`` of summary.json, beside the model's constants (``"parameters"``). A name that is already one of
+the file's own (a field ``x`` in rows.npz, a field ``eta`` beside the column ``min_eta``) is written as
+``field_NAME`` (`field_key`)."""
 
 from __future__ import annotations
 
@@ -12,13 +18,38 @@ import numpy as np
 
 from .result import ENERGY_KEYS, FIELDS
 
-__all__ = ["DIAGNOSTIC_COLUMNS", "FILM_COLUMNS", "ROWS_FILE", "clean_json", "diagnostic_columns", "member_offset",
-           "most_components", "summary_dict", "write_diagnostics", "write_npy", "write_rows"]
+__all__ = ["DIAGNOSTIC_COLUMNS", "ROWS_FILE", "ROW_ARRAYS", "clean_json", "diagnostic_columns", "field_columns",
+           "field_info", "field_key", "field_members", "member_offset", "most_components", "summary_dict",
+           "write_diagnostics", "write_npy", "write_rows"]
 
 #: the stored rows of a run, in NumPy's .npz (a zip of .npy arrays: `numpy.load`, or any zip reader)
 ROWS_FILE = "rows.npz"
 #: zlib's level for rows.npz's compressed members (`write_rows`)
 ZLIB_LEVEL = 1
+#: rows.npz's own arrays; the output fields come after them (`field_members`)
+ROW_ARRAYS = ("t", "steps", "x", *FIELDS, "cells", "weights")
+
+
+def field_key(name: str, taken) -> str:
+    """How an output field `name` is written where the names `taken` are the file's own: `name` itself, else
+    ``field_NAME`` (prefixed again while that is taken too)."""
+    while name in taken:
+        name = f"field_{name}"
+    return name
+
+
+def field_members(names) -> dict[str, str]:
+    """The output fields `names` -> their arrays' names in rows.npz (`field_key` past `ROW_ARRAYS`)."""
+    return {name: field_key(name, ROW_ARRAYS) for name in names}
+
+
+def field_info(result) -> dict[str, dict]:
+    """How each output field of `result` is shown: its `Result.field_info`, or a plain field's
+    (`model.interface.OutputField` of that name) where the result has none."""
+    from ..model.interface import OutputField
+
+    info = getattr(result, "field_info", None) or {}
+    return {name: info.get(name) or OutputField(name).metadata() for name in (getattr(result, "fields", None) or {})}
 
 
 def clean_json(o):
@@ -54,9 +85,6 @@ DIAGNOSTIC_COLUMNS = (
 
 
 INTEGER_COLUMNS = ("step", "contact_components")
-#: Added after DIAGNOSTIC_COLUMNS for a run with a film's pressure: its thinnest gap (η − ψ, ψ the obstacle,
-#: 0 unless the scene gives one) and its largest pressure above ambient.
-FILM_COLUMNS = ("min_gap", "max_pressure")
 
 
 def diagnostic_columns(dim: int = 1) -> tuple[str, ...]:
@@ -66,7 +94,17 @@ def diagnostic_columns(dim: int = 1) -> tuple[str, ...]:
     return tuple(measure if c == "contact_length" else c for c in DIAGNOSTIC_COLUMNS)
 
 
+def field_columns(names, dim: int = 1) -> dict[str, tuple[str, str]]:
+    """The output fields `names` -> their (least, largest) columns after `diagnostic_columns(dim)`: ``min_NAME``
+    and ``max_NAME``, or of ``field_NAME`` where those are core columns (`field_key`)."""
+    core = {c.split("_", 1)[1] for c in diagnostic_columns(dim) if c.startswith(("min_", "max_"))}
+    keys = {name: field_key(name, core) for name in names}
+    return {name: (f"min_{key}", f"max_{key}") for name, key in keys.items()}
+
+
 def write_diagnostics(path: Path, result) -> None:
+    """diagnostics.csv: one row per stored time, `diagnostic_columns`, then each output field's least and largest
+    value over the nodes (`field_columns`)."""
     cols = {
         "step": result.steps,
         "t": result.t,
@@ -79,10 +117,11 @@ def write_diagnostics(path: Path, result) -> None:
         "max_contact_force": result.contact_force.max(axis=1),
     }
     names = diagnostic_columns(result.dim)
-    if getattr(result, "pressure", None) is not None:
-        psi = result.scene.obstacle_values(result.x)
-        cols.update(min_gap=(result.eta - psi).min(axis=1), max_pressure=result.pressure.max(axis=1))
-        names = names + FILM_COLUMNS
+    fields = getattr(result, "fields", None) or {}
+    for name, (low, high) in field_columns(fields, result.dim).items():
+        values = np.asarray(fields[name], dtype=float)
+        cols.update({low: values.min(axis=1), high: values.max(axis=1)})
+        names = (*names, low, high)
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(names)
@@ -91,6 +130,8 @@ def write_diagnostics(path: Path, result) -> None:
 
 
 def summary_dict(result) -> dict:
+    """summary.json's contents: the run's status, scene, options and checks, the model's constants
+    (``parameters``) and how its output fields are shown (``fields``), and the energies at its ends."""
     import dolfinx
 
     scene = result.scene
@@ -105,6 +146,8 @@ def summary_dict(result) -> dict:
         "model_origin": getattr(result, "model_origin", None) or {"name": result.model},
         "penetration_bound": getattr(result, "penetration_bound", "velocity"),
         "energy_label": getattr(result, "energy_label", None),
+        "parameters": dict(getattr(result, "parameters", None) or {}),
+        "fields": field_info(result),
         "r": scene.dt / scene.eps,
         "dolfinx": dolfinx.__version__,
         "timings": result.timings,
@@ -120,7 +163,8 @@ def summary_dict(result) -> dict:
 
 def write_rows(path: Path, result) -> None:
     """The stored rows, as the run holds them: `ROWS_FILE` with t, steps, x and the fields `FIELDS` (eta,
-    velocity, contact_force in float64, contact as bool), in 2D also cells and weights.
+    velocity, contact_force in float64, contact as bool), in 2D also cells and weights, then the model's output
+    fields (`Result.fields`, named by `field_members`).
 
     The pictures are drawn from these rows; solution.xdmf holds about `max_frames` of them, so `stringcontact
     plot` reads them back from here to draw the same pictures (`readback.read_output`).
@@ -136,10 +180,10 @@ def write_rows(path: Path, result) -> None:
     import zipfile
 
     arrays = {"t": result.t, "steps": result.steps, "x": result.x, **{name: getattr(result, name) for name in FIELDS}}
-    if getattr(result, "pressure", None) is not None:  # model "film"
-        arrays["pressure"] = result.pressure
     if result.dim == 2:
         arrays.update(cells=result.cells, weights=result.weights)
+    fields = getattr(result, "fields", None) or {}
+    arrays.update((member, fields[name]) for name, member in field_members(fields).items())
     with zipfile.ZipFile(path, "w") as archive:
         for name, values in arrays.items():
             member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))

@@ -16,15 +16,16 @@ q held at 0 on the boundary. Testing the film's row with r = q shows where the e
 work on the string, ∫ q η_t, is −∫ m(η)|q_x|², the film's viscous dissipation, so
 dE/dt = −α‖η_tx‖² − ∫ m(η)|q_x|² (the ledger books it with the viscous dissipation).
 
-Options (scene keys): `mu` > 0 (required), `p_ambient` (p_a, default 0), `p_cav` (cavitation: the pressure
-p ≥ p_cav, half-Sommerfeld, as a lower bound q ≥ p_cav − p_a of the variational inequality; default none),
-`h_min` (the mobility's floor, default `H_MIN`). The stored `pressure` is q = p − p_a.
+Its constants (`CONSTANTS`, the scene's ``[parameters]`` table): `mu` > 0 (required), `p_ambient` (p_a, default 0),
+`p_cav` (cavitation: the pressure p ≥ p_cav, half-Sommerfeld, as a lower bound q ≥ p_cav − p_a of the variational
+inequality; default none), `h_min` (the mobility's floor, default `H_MIN`). Its output field `pressure` is
+q = p − p_a, drawn on a symmetric-log scale and colouring a membrane (`PRESSURE`).
 
 The pressure has no time derivative: the scheme must damp its stiff modes (L-stable). The paper's scheme is
 backward Euler in η and η_t with q at the new level; `newmark`'s midpoint rule is not L-stable and
 `projection`'s elastic term is explicit and its fields one step ahead of its report: both are refused.
 
-Newton's line search is ``l2`` (`Model.newton_options`): with PETSc's default ``bt`` 3 of the 20 runs of
+Newton's line search is ``l2`` (`Model.solver`): with PETSc's default ``bt`` 3 of the 20 runs of
 `stringcontact study film` stalled (Example 1 at μ = 1, with and without cavitation; the flat landing at
 μ = 1e-4 with cavitation), with ``l2`` none did, at the same iteration counts elsewhere.
 """
@@ -36,27 +37,39 @@ import dataclasses
 import ufl
 
 from ..errors import SceneError
+from .interface import DIVERGING, ModelConstant, OutputField, SolverHints
 from .paper import Parameters, inelastic
 
 #: The film's default thickness floor in the mobility max(η, h_min)³/(12 μ): it keeps the pressure's equation
 #: nonsingular where the string touches (η ≤ 0 under the penalty); docs/explanation/film.md measures its effect.
 H_MIN = 1e-3
-#: The scene keys the film reads (all optional but `mu`).
-KEYS = ("mu", "p_ambient", "p_cav", "h_min")
+#: The film's constants: a scene's ``[parameters]`` (all optional but `mu`).
+CONSTANTS = (
+    ModelConstant("mu", required=True, low=0.0, high=1e6, low_open=True,
+                  description="the film's viscosity μ in the Reynolds mobility η³/(12μ)"),
+    ModelConstant("p_ambient", 0.0, -1e6, 1e6, unit="pressure", description="the ambient pressure at the film's open ends"),
+    ModelConstant("p_cav", None, -1e6, 1e6, unit="pressure",
+                  description="cavitation, p ≥ p_cav (at most p_ambient; none: no cavitation)"),
+    ModelConstant("h_min", H_MIN, 0.0, 1e3, low_open=True, unit="η",
+                  description="the film-thickness floor in the mobility, max(η, h_min)³"),
+)
+#: The film's output field: the gauge pressure q = p − p_a, symmetric-log (a landing's peak is 1e3-1e4 times the
+#: pressure before and after it), blue below ambient, grey at it, red above; it colours a membrane.
+PRESSURE = OutputField("pressure", label="film pressure p − p_a", unit="pressure", colours=DIVERGING, scale="symlog",
+                       linear_share=1e-3, surface=True)
 
 
-def _constant(p: Parameters, key: str):
-    return p.constants.get(key)
+def check_cavitation(values: dict) -> None:
+    """The film's rule between its constants: the cavitation pressure p_cav at most the ambient p_ambient."""
+    p_cav, p_a = values.get("p_cav"), values.get("p_ambient", 0.0)
+    if p_cav is not None and p_cav > p_a:
+        raise SceneError(f"p_cav: {p_cav:g} is above the ambient pressure p_ambient = {p_a:g}; "
+                         f"allowed: a number in [-1e+06, {p_a:g}]")
 
 
 def mobility(eta, p: Parameters):
-    """m(η) = max(η, h_min)³/(12 μ): the film's flow per unit pressure gradient (SceneError without mu)."""
-    mu = _constant(p, "mu")
-    if mu is None:
-        raise SceneError("mu: model 'film' needs the film's viscosity (scene key mu); allowed: a number in (0, 1e+06]")
-    h_min = _constant(p, "h_min")
-    floor = h_min if h_min is not None else H_MIN
-    return ufl.max_value(eta, floor) ** 3 / (12 * mu)
+    """m(η) = max(η, h_min)³/(12 μ): the film's flow per unit pressure gradient."""
+    return ufl.max_value(eta, p.constants["h_min"]) ** 3 / (12 * p.constants["mu"])
 
 
 def film_residual(U, U_t, U_tt, force, W, p: Parameters):
@@ -69,13 +82,20 @@ def film_residual(U, U_t, U_tt, force, W, p: Parameters):
     return (string + film) * ufl.dx
 
 
+def string_energy(U, p: Parameters):
+    """The energy the film's string stores, ½|∇η|²: the pressure stores none (its work is the film's dissipation)."""
+    return 0.5 * ufl.inner(ufl.grad(U[0]), ufl.grad(U[0]))
+
+
 def pressure_lower(p: Parameters) -> dict:
     """Cavitation: q = p − p_a ≥ p_cav − p_a where the scene gives p_cav; no bound otherwise."""
-    p_cav = _constant(p, "p_cav")
-    if p_cav is None:
+    return _lower({name: float(c.value) for name, c in p.constants.items()})
+
+
+def _lower(values: dict) -> dict:
+    if values.get("p_cav") is None:
         return {}
-    p_a = _constant(p, "p_ambient")
-    return {"pressure": float(p_cav.value) - (float(p_a.value) if p_a is not None else 0.0)}
+    return {"pressure": values["p_cav"] - values.get("p_ambient", 0.0)}
 
 
 #: A cavitating membrane's Newton step factorises its Jacobian by MUMPS' LU, in serial and on several ranks: the
@@ -99,11 +119,11 @@ MEMBRANE_FIELDSPLIT = (
 STRING_PARALLEL = (("ksp_type", "preonly"), ("pc_type", "redundant"))
 
 
-def linear_options(dim: int, ranks: int, p: Parameters) -> tuple:
-    """The film's linear solver (`Model.linear_options`): on a membrane the Schur fieldsplit, or MUMPS' LU when the
-    film cavitates (`p`'s ``p_cav``); on a string the redundant LU on several ranks, else the size rule's (LU)."""
+def linear_options(dim: int, ranks: int, constants: dict) -> tuple:
+    """The film's linear solver (`SolverHints.linear_options`): on a membrane the Schur fieldsplit, or MUMPS' LU when
+    the film cavitates (``p_cav`` given); on a string the redundant LU on several ranks, else the size rule's (LU)."""
     if dim == 2:
-        return MEMBRANE_LU if pressure_lower(p) else MEMBRANE_FIELDSPLIT
+        return MEMBRANE_LU if _lower(constants) else MEMBRANE_FIELDSPLIT
     return STRING_PARALLEL if ranks > 1 else ()
 
 
@@ -112,17 +132,20 @@ film = dataclasses.replace(
     name="film",
     fields=("pressure",),
     residual=film_residual,
+    stored_energy=string_energy,
     held_fields=("pressure",),
     field_lower=pressure_lower,
     dissipative_fields=("pressure",),
     schemes=("paper",),
-    newton_options=(("snes_linesearch_type", "l2"),),
-    linear_options=linear_options,
+    constants=CONSTANTS,
+    check_constants=check_cavitation,
+    outputs=(PRESSURE,),
+    solver=SolverHints(newton_options=(("snes_linesearch_type", "l2"),), linear_options=linear_options),
     scheme_note="its pressure has no time derivative, so it needs an L-stable step (the paper's backward Euler); "
                 "newmark's midpoint rule is not L-stable and projection's elastic term is explicit",
     description="a Reynolds lubrication film (viscosity mu) between the string and the obstacle; the paper's "
                 "penalty as a backstop; each step by Newton",
 )
 
-__all__ = ["H_MIN", "KEYS", "MEMBRANE_FIELDSPLIT", "MEMBRANE_LU", "STRING_PARALLEL", "film", "film_residual",
-           "linear_options", "mobility", "pressure_lower"]
+__all__ = ["CONSTANTS", "H_MIN", "MEMBRANE_FIELDSPLIT", "MEMBRANE_LU", "PRESSURE", "STRING_PARALLEL", "check_cavitation",
+           "film", "film_residual", "linear_options", "mobility", "pressure_lower", "string_energy"]

@@ -51,7 +51,9 @@ A model is a `Model`: a few plain functions that return UFL.
 ``stored_energy(eta, p)`` (optional)
     The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
     Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the potential of the form's static force,
-    ∫₀¹ G(sη; η) ds (`fem.operators.potential_energy`; ½|∇η|² for the paper's form).
+    ∫₀¹ G(sη; η) ds (`fem.operators.potential_energy`; ½|∇η|² for the paper's form). A model with ``fields``
+    must declare it, as ``stored_energy(U, p)`` in all its unknowns ``U = (η, *fields)`` (a field that stores no
+    energy, such as a film's pressure, simply does not appear in it).
 
 ``penetration_bound`` (default ``"auto"``)
     The penetration bound the contact law has (`run.checks.penetration_check`): ``"velocity"`` (the paper's
@@ -82,14 +84,20 @@ A model is a `Model`: a few plain functions that return UFL.
     in η's equation dissipate (their work on η over a step is booked with the viscous dissipation); and the
     schemes that may run the model (empty: all), with ``scheme_note`` saying why the others may not.
 
-``newton_options`` (optional)
-    The model's own defaults for its Newton step, (name, value) pairs of the `petsc_options` a scene may
-    give (``(("snes_linesearch_type", "l2"),)``): above the schemes' defaults, below the user's options.
+``constants`` (optional)
+    The model's own constants, a tuple of `ModelConstant` (name, default, allowed range, unit, one line): a
+    scene sets them in its ``[parameters]`` table, Python through ``Scene.replace(parameters={...})``; the forms
+    read each as a dolfinx ``Constant`` ``p.constants[name]``, so a value can change between steps without
+    recompiling. ``check_constants(values)`` (optional) refuses combinations (a `SceneError` naming one).
 
-``linear_options(dim, ranks, p)`` (optional)
-    The model's defaults for its Newton step's linear solver on a mesh of dimension `dim` run on `ranks`
-    ranks with the parameters `p`: (name, value) pairs as for ``newton_options``, on top of them. Naming ``ksp_type`` or ``pc_type``
-    replaces the size rule's choice (`timestepping.linear.solver_options`); the user's options still win.
+``outputs`` (optional)
+    The fields the model writes besides η, v, the contact set and force (`OutputField`: an unknown of
+    ``fields`` by name, or a derived UFL expression of the unknowns, with how it is shown). Every unknown of
+    ``fields`` is written whether named here or not.
+
+``solver`` (optional)
+    `SolverHints`: the model's defaults for its Newton step (``newton_options``) and its linear solver
+    (``linear_options(dim, ranks, constants)``): above the schemes' defaults, below the user's options.
 
 The paper's model (Definition 2.1), the default `inelastic`::
 
@@ -103,6 +111,8 @@ from typing import Callable
 
 import ufl
 
+from .interface import SolverHints
+
 
 @dataclass(frozen=True)
 class Parameters:
@@ -110,8 +120,8 @@ class Parameters:
 
     `alpha` and `eps` are `fem.Constant`s, `x` the spatial coordinate, `length` the string's length,
     `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`, and
-    `constants` each model constant the scene gives (``mu``, ``p_ambient``, ``p_cav``, ``h_min``) to a
-    `fem.Constant`.
+    `constants` each of the model's constants (`Model.constants`: the scene's ``[parameters]``, else their
+    defaults) to a `fem.Constant`.
     """
 
     alpha: object
@@ -119,7 +129,7 @@ class Parameters:
     x: object
     length: float
     extra: dict = field(default_factory=dict)
-    constants: dict = field(default_factory=dict)  # a model's scene constants (`mu`, ...) as fem.Constants
+    constants: dict = field(default_factory=dict)  # the model's constants (`Model.constants`) as fem.Constants
 
 
 def momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
@@ -209,11 +219,13 @@ class Model:
     dissipative_fields: tuple = ()
     schemes: tuple = ()
     scheme_note: str = ""
-    newton_options: tuple = ()
-    linear_options: Callable | None = None
     description: str = "the paper's model: viscoelastic string, inelastic velocity penalty on the obstacle y = 0"
     penetration_bound: str | None = "auto"
     energy_label: str | None = None
+    constants: tuple = ()
+    check_constants: Callable | None = None
+    outputs: tuple = ()
+    solver: SolverHints = SolverHints()
 
 
 #: The penetration bounds a contact law may have (`Model.penetration_bound`; None: no known bound).

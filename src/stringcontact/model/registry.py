@@ -23,7 +23,7 @@ import os
 import sys
 
 from ..errors import SceneError, one_line
-from ..scene.names import GROUP, check_name, registered  # noqa: F401 - GROUP re-exported
+from ..scene.names import GROUP, check_name, load_registered, registered  # noqa: F401 - GROUP re-exported
 from ..scene.names import package_of as _package
 
 
@@ -43,13 +43,9 @@ def load_model(spec):
 
 
 def _load_registered(name: str, Model):
-    (ep,) = registered()[name]
-    try:
-        obj = ep.load()  # imports the installed package's module
-    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
-        raise SceneError(f"model: cannot load {name!r} ({ep.value}, from {_package(ep)}): "
-                         f"{type(exc).__name__}: {one_line(exc)}") from None
+    obj = load_registered(name)  # imports the installed package's module
     if not isinstance(obj, Model):
+        (ep,) = registered()[name]
         raise SceneError(f"model: {name!r} is registered as {ep.value} (from {_package(ep)}), "
                          f"a {type(obj).__name__}, not a stringcontact.Model")
     return obj
@@ -133,7 +129,23 @@ def describe() -> list[tuple[str, str, str]]:
     return rows
 
 
+def declared_text(model) -> list[str]:
+    """One line per constant (name = default, range, unit, meaning) and per output field (name: label [unit]) that
+    `model` declares: what `stringcontact models` shows under its name."""
+    from .interface import output_fields
+
+    lines = [f"[parameters] {c.name} = {c.default_text}: {c.allowed}" + (f" [{c.unit}]" if c.unit else "")
+             + (f", {c.description}" if c.description else "") for c in model.constants]
+    return lines + [f"field {f.name}: {f.title}" for f in output_fields(model)]
+
+
 def command(args) -> int:
     for name, where, description in describe():
         print(f"{name:16s} {description}\n{'':16s} {where}")
+        try:
+            extra = declared_text(load_model(name))
+        except SceneError:
+            extra = []
+        for line in extra:
+            print(f"{'':16s} {line}")
     return 0

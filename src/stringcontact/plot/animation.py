@@ -4,8 +4,8 @@ One plotter holds the scene of `mesh_pictures.add_membrane` (the membrane colour
 obstacle in grey); each frame changes the membrane's heights and contact colours and the title in place,
 so a frame costs one render and one GIF frame, not a new scene. The frames are every k-th stored row (and
 the last), at most `max_frames` of them: the membrane falls, lands, and its contact patches spread and
-shrink. A membrane on a film is coloured by the film's pressure on one scale for all frames (its bar at the
-right), the edge of its contact set drawn in yellow and moved with each frame.
+shrink. A membrane with a surface field (`mesh_pictures.MembraneView.field`) is coloured by it on one scale for
+all frames (its bar at the right), the edge of its contact set drawn in yellow and moved with each frame.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from .mesh_pictures import (
     _font_file,
     _plotter,
     add_contact_edge,
+    add_field_bar,
     add_membrane,
     add_membrane_axes,
-    add_pressure_bar,
     contact_edge,
     membrane_label,
     membrane_title,
@@ -39,11 +39,12 @@ FPS = 12
 SIZE_SHARE = 0.6
 #: colours of the GIF: two shaded surface colours, the grey obstacle and black text need few
 PALETTE = 64
-#: of a film's GIF: the pressure's blends from blue through grey to red, shaded. Against its unquantised frames
-#: (a 12x12 film_drum, 41 frames): 64 colours, mean error 1.91 and 99th percentile 10 of 255; 128 and 256: 1.69, 8
-FILM_PALETTE = 128
-#: where a film's colour bar stands in the frame (x0, y0, x1, y1, 0 … 1): the upper right, clear of the axes
-FILM_BAR = (0.955, 0.45, 0.975, 0.86)
+#: of a GIF coloured by a field: its colours' blends (blue through grey to red, say), shaded. Against its
+#: unquantised frames (a 12x12 film_drum, 41 frames): 64 colours, mean error 1.91 and 99th percentile 10 of 255;
+#: 128 and 256: 1.69, 8
+FIELD_PALETTE = 128
+#: where a field's colour bar stands in the frame (x0, y0, x1, y1, 0 … 1): the upper right, clear of the axes
+FIELD_BAR = (0.955, 0.45, 0.975, 0.86)
 #: font sizes (points) of the frame's caption (time, contact area, patches: letters about 15 px high) and of
 #: the title; the caption was 6 points (8 px)
 CAPTION_FONT = 11
@@ -61,8 +62,8 @@ def gif_size(window_size) -> tuple[int, int]:
 
 
 def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = MAX_FRAMES, fps: float = FPS) -> Path:
-    """``membrane.gif``: the membrane z = η(x, y, t) at every few stored rows, red where in contact (a film's:
-    coloured by its pressure, the contact set's edge in yellow), above the obstacle (grey), the time, contact
+    """``membrane.gif``: the membrane z = η(x, y, t) at every few stored rows, red where in contact (or coloured
+    by its surface field, the contact set's edge in yellow), above the obstacle (grey), the time, contact
     area and number of contact patches in the title of each frame."""
     path = Path(path)
     rows = frame_rows(result, max_frames)
@@ -72,9 +73,9 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     p = _plotter(gif_size(window_size))
     try:
         surface = add_membrane(p, result, rows[0], view)
-        edge = None if view.pressure is None else add_contact_edge(p, surface, view)
-        if view.pressure is not None:
-            add_pressure_bar(p, view.pressure, FILM_BAR, vertical=True, font_size=TITLE_FONT)
+        edge = None if view.field is None else add_contact_edge(p, surface, view)
+        if view.field is not None:
+            add_field_bar(p, view.field, FIELD_BAR, vertical=True, font_size=TITLE_FONT)
         add_membrane_axes(p, view)  # x, y and η with ticks, as in membrane.png (static: drawn once per frame's render)
         # the title below, the frame's time, contact area and patches above, each CAPTION_FONT high (15 px);
         # text actors of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
@@ -94,7 +95,7 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     finally:
         p.close()
     write_gif(path, frames, fps, landmarks=[int(np.argmax(area[rows]))],
-              colours=PALETTE if view.pressure is None else FILM_PALETTE)
+              colours=PALETTE if view.field is None else FIELD_PALETTE)
     return path
 
 

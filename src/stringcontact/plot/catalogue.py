@@ -19,15 +19,27 @@ MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
 PAINTED = tuple(dict.fromkeys(PICTURES + MEMBRANE_PICTURES))
 
 
-#: of a run with a film's pressure (model "film"), 1D or 2D: drawn by the run itself, not the painter
-PRESSURE_PICTURE = "pressure.png"
+#: every picture a run draws whatever its model; an output field's picture takes another name (`field_picture_names`)
+CORE_PICTURES = PAINTED
+
+
+def field_picture_names(result) -> dict[str, str]:
+    """The picture of each of the model's output fields (`Result.fields`), drawn by the run itself, not the
+    painter: picture -> field, ``NAME.png``, or ``field_NAME.png`` where that is a core picture's name."""
+    names = {}
+    for name in getattr(result, "fields", None) or {}:
+        picture = f"{name}.png"
+        while picture in CORE_PICTURES:
+            picture = f"field_{picture}"
+        names[picture] = name
+    return names
 
 
 def pictures_of(result) -> tuple[str, ...]:
-    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D), and
-    `PRESSURE_PICTURE` of a run with a film's pressure."""
+    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D), then one per
+    output field of its model (`field_picture_names`)."""
     names = PICTURES if result.dim == 1 else MEMBRANE_PICTURES
-    return names + (PRESSURE_PICTURE,) if getattr(result, "pressure", None) is not None else names
+    return names + tuple(field_picture_names(result))
 
 
 def painted(result, names=PAINTED) -> tuple[str, ...]:

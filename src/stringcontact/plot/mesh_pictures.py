@@ -5,9 +5,9 @@ the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at th
 panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). A moving obstacle ψ(x, t) is drawn at
 each panel's and frame's time, and as the surface ψ(x, t) in ``space_time.png``. The animation
 ``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
-A membrane on a fluid film (model "film") is coloured by the film's pressure p − p_a instead (`PressureScale`:
-one fixed symmetric-log scale over all stored rows, its bar drawn by `add_pressure_bar`), the edge of its
-contact set drawn on it as a line (`contact_edge`).
+A membrane whose model has a surface field (an output field whose description says ``surface``) is coloured by
+that field instead (`fields.FieldScale`: one fixed scale over all stored rows, in the field's own colours, its bar
+drawn by `add_field_bar`), the edge of its contact set drawn on it as a line (`contact_edge`).
 
 VTK's scalar bar and pyvista's `show_bounds` format their labels with `std::regex`, which aborts the
 process (`std::bad_alloc`) once dolfinx's C++ module is loaded (a run's pictures drawn in its own process,
@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.paraview_view import PRESSURE_COLOURS, PRESSURE_LINEAR_SHARE, symlog_unit
 from ..io.publish import atomic_path
 from .catalogue import WINDOW_SIZE
 from .charts import (
@@ -42,12 +41,13 @@ from .charts import (
     snapshot_rows,
     without_axes3d_warning,
 )
+from .fields import FieldScale, info_of, surface_field
 from .vtk_modules import search_once
 
 FREE_COLOUR = "#92c5de"
 OBSTACLE_COLOUR = "#777777"
 MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
-#: the edge of a film membrane's contact set: yellow, seen on the pressure's blue, dark grey and red alike
+#: the edge of the contact set of a membrane coloured by a field: yellow, seen on blue, grey and red alike
 CONTACT_EDGE_COLOUR = "#ffd400"
 #: its colour in the legend's text, on white (the line's yellow is hardly read there)
 CONTACT_EDGE_TEXT = "#b08f00"
@@ -175,6 +175,11 @@ def nice_ticks(low: float, high: float, most: int = 5) -> np.ndarray:
     return ticks if ticks.size >= 2 else np.array([low, high])
 
 
+def _height_text(value: float, span: float) -> str:
+    """`value` to 3 digits; 0 where it lies within a millionth of `span` of 0 (a profile's 1.32e-112 is 0)."""
+    return f"{0.0 if abs(value) <= 1e-6 * abs(span) else float(value):.3g}"
+
+
 def _tick_label(v: float) -> str:
     return f"{0.0 if abs(v) < 1e-12 else v:g}"
 
@@ -212,10 +217,10 @@ def add_axis(p, axis: Axis, font_size: int = 11, most: int = 5) -> list[str]:
 
 def add_colour_legend(p, quantity: str, entries, top: float = 0.86, font_size: int = 9, left: float = 0.74,
                       step: float = 0.028) -> None:
-    """A colour key at the upper right naming what the colours show: the `quantity` (a first line in black),
-    then one "■ label" line per (label, colour) of `entries`, in that colour (DejaVu Sans: Greek letters too;
-    VTK's legend box has no such font)."""
-    lines = [(quantity, "black"), *[(f"■ {label}", colour) for label, colour in entries]]
+    """A colour key at the upper right naming what the colours show: the `quantity` (its lines in black), then
+    one "■ label" line per (label, colour) of `entries`, in that colour (DejaVu Sans: Greek letters too; VTK's
+    legend box has no such font)."""
+    lines = [*[(line, "black") for line in quantity.split("\n")], *[(f"■ {label}", colour) for label, colour in entries]]
     for k, (text, colour) in enumerate(lines):
         p.add_text(text, position=(left, top - step * k), viewport=True, font_size=font_size, color=colour,
                    font_file=_font_file())
@@ -264,7 +269,7 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
                       top=0.82)  # under the title's five lines
     # one short line each: at the window's width a longer title line ran off both edges
     _title(p, f"Space-time surface η(x, t): {result.scene.name}\n{parameter_line(result, sep=chr(10))}\n"
-              f"height η from {lo:.3g} to {hi:.3g} over x and t\n"
+              f"height η from {_height_text(lo, hi - lo)} to {_height_text(hi, hi - lo)} over x and t\n"
               f"red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
     centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
     p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact
@@ -285,7 +290,7 @@ class MembraneView:
     bounds: tuple  # (x0, x1, y0, y1, z0, z1), drawn coordinates
     camera: list
     neighbours: object = None  # the mean over each node's mesh neighbours, a sparse matrix (`neighbour_mean`)
-    pressure: PressureScale | None = None  # a film's: the membrane coloured by p − p_a on this scale
+    field: FieldScale | None = None  # the model's surface field: the membrane coloured by it on this scale
     obstacle: object = None  # a moving obstacle's PolyData last drawn by `add_membrane`: `show_row` moves it
 
     def shade(self, contact: np.ndarray) -> np.ndarray:
@@ -321,9 +326,9 @@ def membrane_view(result) -> MembraneView:
     bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
     centre = np.array([0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])])
     eye = centre + width * np.array([-0.4, -1.1, 1.5])
-    pressure = getattr(result, "pressure", None)
+    field = surface_field(result)
     return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)),
-                        None if pressure is None else PressureScale.of(pressure))
+                        None if field is None else FieldScale.of(result.fields[field], info_of(result, field)))
 
 
 def _span(v) -> tuple[float, float]:
@@ -343,8 +348,8 @@ def triangles(result, z):
 
 
 def add_membrane(p, result, row: int, view: MembraneView):
-    """The membrane at `row` and the obstacle (grey) in the plotter `p`: coloured by contact, or by the film's
-    pressure on `view.pressure`'s scale (then `add_contact_edge` draws its contact set's edge). Returns the
+    """The membrane at `row` and the obstacle (grey) in the plotter `p`: coloured by contact, or by the surface
+    field on `view.field`'s scale (then `add_contact_edge` draws its contact set's edge). Returns the
     membrane's PolyData, whose heights and colours `show_row` changes in place afterwards. A moving obstacle
     is drawn at the row's time (kept in `view.obstacle` for `show_row`)."""
     moves = obstacle_moves(result)
@@ -353,12 +358,12 @@ def add_membrane(p, result, row: int, view: MembraneView):
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
     # smooth (Gouraud) shading: the flat shading showed every triangle as a facet
-    if view.pressure is None:
+    if view.field is None:
         p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
                    show_scalar_bar=False, ambient=0.3, smooth_shading=True)
     else:
-        _set_pressure(surface, result, row, view.pressure)
-        p.add_mesh(surface, scalars="pressure_colour", cmap=view.pressure.colour_map(), clim=(-1, 1),
+        _set_field(surface, result, row, view.field)
+        p.add_mesh(surface, scalars=f"{view.field.name}_colour", cmap=view.field.colour_map(), clim=(-1, 1),
                    show_scalar_bar=False, ambient=0.3, smooth_shading=True)
     # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
     # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
@@ -377,8 +382,8 @@ def show_row(surface, result, row: int, view: MembraneView) -> None:
     by, and a moving obstacle's heights."""
     surface.points[:, 2] = result.eta[row] * view.scale  # in place: the scene stays, the heights change
     surface.point_data["contact"][:] = view.shade(result.contact[row])
-    if view.pressure is not None:
-        _set_pressure(surface, result, row, view.pressure)
+    if view.field is not None:
+        _set_field(surface, result, row, view.field)
     surface.Modified()
     if view.obstacle is not None:  # a moving obstacle: where it is at this row's time
         lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
@@ -386,15 +391,16 @@ def show_row(surface, result, row: int, view: MembraneView) -> None:
         view.obstacle.Modified()
 
 
-def _set_pressure(surface, result, row: int, scale: PressureScale) -> None:
-    """`pressure`: p − p_a at the nodes; `pressure_colour`: where it lies on `scale` (−1 … 1), the array drawn."""
-    values = np.array(result.pressure[row], dtype=float)  # a copy: pyvista shares the array it is given, and
-    if "pressure" in surface.point_data:  # the next row written into it would overwrite the Result's row
-        surface.point_data["pressure"][:] = values
-        surface.point_data["pressure_colour"][:] = scale.unit(values)
+def _set_field(surface, result, row: int, scale: FieldScale) -> None:
+    """NAME: the field `scale.name` at the nodes; NAME_colour: where it lies on `scale` (−1 … 1), the array drawn."""
+    name, colour = scale.name, f"{scale.name}_colour"
+    values = np.array(result.fields[name][row], dtype=float)  # a copy: pyvista shares the array it is given, and
+    if name in surface.point_data:  # the next row written into it would overwrite the Result's row
+        surface.point_data[name][:] = values
+        surface.point_data[colour][:] = scale.unit(values)
     else:
-        surface.point_data["pressure"] = values
-        surface.point_data["pressure_colour"] = scale.unit(values)
+        surface.point_data[name] = values
+        surface.point_data[colour] = scale.unit(values)
 
 
 #: the membrane axes' font size (VTK points): digits 12 px high (7 gave 6 px, too small to read)
@@ -425,29 +431,29 @@ def membrane_title(result, view: MembraneView, what: str, sep: str = ", ") -> st
     """The title's lines; `sep` joins the two halves of the parameter line (a newline for a narrow picture)."""
     stretched = f"heights ×{view.scale:.2g}; " if view.scale > 1 else ""
     psi = obstacle_name(result)
-    colours = (f"red: in contact (η ≤ {psi}), blue: free" if view.pressure is None else
-               f"colour: the film's pressure p − p_a (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
+    colours = (f"red: in contact (η ≤ {psi}), blue: free" if view.field is None else
+               f"colour: {view.field.label} (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
     return f"{what}: {result.scene.name}\n{parameter_line(result, sep)}\n{stretched}{colours}, grey: the obstacle {psi}"
 
 
 def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
-    """The colour key's quantity and its (label, colour) entries: contact, or a film's pressure."""
+    """The colour key's quantity and its (label, colour) entries: contact, or the surface field."""
     psi = obstacle_name(result)
-    if view.pressure is None:
+    if view.field is None:
         return "colour: contact", [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR),
                                    (f"obstacle {psi}", OBSTACLE_COLOUR)]
-    return "colour: p − p_a", [("edge of contact", CONTACT_EDGE_TEXT), (f"obstacle {psi}", OBSTACLE_COLOUR)]
+    return f"colour:\n{view.field.label}", [("edge of contact", CONTACT_EDGE_TEXT), (f"obstacle {psi}", OBSTACLE_COLOUR)]
 
 
-#: the height of a film membrane's colour bar row in membrane.png, against a panel's 1 and the title's 0.25
+#: the height of the colour bar's row in membrane.png of a membrane coloured by a field, against a panel's 1 and the title's 0.25
 BAR_ROW = 0.16
 
 
 def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     """The membrane z = η(x, y, t) at the scene's output times (one panel each; the stored row nearest to
     each), red where in contact, above the obstacle (grey). Each panel names its time, contact area and
-    number of contact patches. A film's membrane is coloured by its pressure p − p_a instead, on one scale
-    for all panels (its bar in a row under them), the edge of its contact set drawn in yellow."""
+    number of contact patches. A membrane with a surface field is coloured by it instead, on one scale for
+    all panels (its bar in a row under them), the edge of its contact set drawn in yellow."""
     path = Path(path)
     rows = snapshot_rows(result)
     ncols = 3 if len(rows) > 4 else min(len(rows), 2)
@@ -455,8 +461,8 @@ def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
     view = membrane_view(result)
     area = result.contact_measure
     patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
-    # a title row across the top, then the panels (and a film's colour bar across the bottom)
-    bar = view.pressure is not None
+    # a title row across the top, then the panels (and the surface field's colour bar across the bottom)
+    bar = view.field is not None
     p = _plotter(window_size, shape=(nrows + 1 + bar, ncols), groups=[(0, np.s_[:])] + [(nrows + 1, np.s_[:])] * bar,
                  row_weights=[0.25] + [1] * nrows + [BAR_ROW] * bar)
     p.subplot(0, 0)
@@ -474,60 +480,12 @@ def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
                    viewport=True, font_size=7, color="black", font_file=_font_file())
     if bar:
         p.subplot(nrows + 1, 0)
-        add_pressure_bar(p, view.pressure, (0.3, 0.55, 0.7, 0.9), font_size=8)
+        add_field_bar(p, view.field, (0.3, 0.55, 0.7, 0.9), font_size=8)
     _screenshot(p, path)
     return path
 
 
-# --- a film's pressure (model "film") --------------------------------------------------------------
-
-#: the share of the largest |p − p_a| within which the pressure's colour scale is linear (pressure.png's)
-LINEAR_SHARE = PRESSURE_LINEAR_SHARE
-#: the least distance of a power of ten's tick from the bar's ends (±peak), in half-bars: their labels apart
-TICK_GAP = 0.16
-
-
-@dataclass(frozen=True)
-class PressureScale:
-    """A film's pressure p − p_a on one colour scale for every row and panel: blue below ambient, a dark grey
-    at it (`PRESSURE_COLOURS`: ParaView's view has the same; a light middle vanished on the white background
-    and on the grey obstacle wherever p ≈ p_a, as before the landing), red above; ±`peak` (the largest
-    |p − p_a| over all stored rows) at the ends. Symmetric-log (`paraview_view.symlog_unit`: matplotlib's
-    SymLogNorm, linear within ±LINEAR_SHARE·peak, as pressure.png and ParaView's view): a landing's peak is
-    1e3–1e4 times the pressure before and after it."""
-
-    peak: float
-
-    @classmethod
-    def of(cls, pressure) -> PressureScale:
-        """The scale of the pressure rows `pressure` (its peak 1 if they are all 0 or not finite)."""
-        values = np.asarray(pressure, dtype=float)
-        peak = float(np.nanmax(np.abs(values))) if values.size and not np.isnan(values).all() else 0.0
-        return cls(peak if np.isfinite(peak) and peak > 0 else 1.0)
-
-    def unit(self, values) -> np.ndarray:
-        """Where `values` lie on the scale: −1 at −peak, 0 at 0, 1 at peak (clipped beyond)."""
-        return symlog_unit(values, self.peak, LINEAR_SHARE)
-
-    @staticmethod
-    def colour_map():
-        """The colours from −1 to 1: `PRESSURE_COLOURS` (blue, dark grey, red), blended in between."""
-        from matplotlib.colors import LinearSegmentedColormap
-
-        return LinearSegmentedColormap.from_list("pressure", PRESSURE_COLOURS)
-
-    def ticks(self) -> np.ndarray:
-        """0, ±peak, and ± the powers of ten from LINEAR_SHARE·peak up that lie TICK_GAP or more inside ±peak."""
-        low = LINEAR_SHARE * self.peak
-        powers = 10.0 ** np.arange(np.ceil(np.log10(low)), np.floor(np.log10(self.peak)) + 1)
-        powers = powers[self.unit(powers) <= 1.0 - TICK_GAP]
-        return np.concatenate([[-self.peak], -powers[::-1], [0.0], powers, [self.peak]])
-
-
-def _pressure_label(v: float, peak: float) -> str:
-    """A tick's label: the ends to 3 digits, the powers of ten as they are; a true minus sign."""
-    text = f"{abs(v):.3g}" if np.isclose(abs(v), peak) else f"{abs(v):g}"
-    return ("−" if v < 0 else "") + text
+# --- a field's colour bar -------------------------------------------------------------------------
 
 
 def _actor_2d(points, polys=(), lines=(), colours=None, colour=(0.0, 0.0, 0.0), width: float = 1.0):
@@ -567,10 +525,10 @@ def _actor_2d(points, polys=(), lines=(), colours=None, colour=(0.0, 0.0, 0.0), 
     return actor
 
 
-def add_pressure_bar(p, scale: PressureScale, box: tuple, vertical: bool = False, font_size: int = 8) -> list[str]:
-    """The pressure's colour bar in the current panel of `p` within `box` = (x0, y0, x1, y1) (the panel's
-    0 … 1): −peak at its left (bottom) end, +peak at its right (top); its ticks' labels below it (left of it),
-    its name beside it. Coloured rectangles and text actors, not VTK's scalar bar, whose labels are formatted
+def add_field_bar(p, scale: FieldScale, box: tuple, vertical: bool = False, font_size: int = 8) -> list[str]:
+    """A field's colour bar in the current panel of `p` within `box` = (x0, y0, x1, y1) (the panel's 0 … 1):
+    its scale's `low` at its left (bottom) end, `high` at its right (top); its ticks' labels below it (left of
+    it), its name beside it (its title; above a vertical bar its label). Coloured rectangles and text actors, not VTK's scalar bar, whose labels are formatted
     with std::regex (the module's docstring). Returns the labels drawn."""
     x0, y0, x1, y1 = box
     steps = np.linspace(-1.0, 1.0, 257)
@@ -589,7 +547,7 @@ def add_pressure_bar(p, scale: PressureScale, box: tuple, vertical: bool = False
     marks = [point for u in where for point in (at(u, 0.0), at(u, -0.35))]
     lines = [(0, 1, 2, 3, 0)] + [(4 + 2 * k, 5 + 2 * k) for k in range(len(where))]
     p.add_actor(_actor_2d(frame + marks, lines=lines, width=1.5), reset_camera=False, pickable=False)
-    labels = [_pressure_label(v, scale.peak) for v in ticks]
+    labels = [scale.tick_label(v) for v in ticks]
     for u, label in zip(where, labels):
         text = p.add_text(label, position=at(u, -0.45), viewport=True, font_size=font_size, color="black",
                           font_file=_font_file())
@@ -599,7 +557,7 @@ def add_pressure_bar(p, scale: PressureScale, box: tuple, vertical: bool = False
         else:
             text.prop.SetJustificationToCentered()
             text.prop.SetVerticalJustificationToTop()
-    name = p.add_text("film pressure p − p_a" if not vertical else "p − p_a", viewport=True, font_size=font_size + 1,
+    name = p.add_text(scale.title if not vertical else scale.label, viewport=True, font_size=font_size + 1,
                       color="black", font_file=_font_file(),
                       position=(x1 + 0.02, 0.5 * (y0 + y1)) if not vertical else (x1, y1 + 0.02))
     if vertical:

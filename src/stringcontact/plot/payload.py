@@ -1,5 +1,6 @@
 """The payload a run hands its picture process (`painter`): the Result in a private folder, each large array
-as NumPy's .npy file that the painter and its helper map into memory, the rest pickled.
+(an output field's of `Result.fields` too) as NumPy's .npy file that the painter and its helper map into memory,
+the rest pickled.
 
 Files, not a pipe: writing to a pipe whose reader died raises SIGPIPE, which PETSc turns into an abort. A
 module of its own so that `painter`, which the run imports first thing, does not import NumPy (`catalogue`).
@@ -40,12 +41,24 @@ def write_payload(folder: Path, result, job: tuple) -> None:
         if name not in where:
             np.save(folder / f"{name}.npy", values, allow_pickle=False)
             where[name] = None
-    bare = dataclasses.replace(result, **dict.fromkeys(large))
+    bare = dataclasses.replace(result, **dict.fromkeys(large), fields=_fields_apart(folder, result.fields))
     bare.__dict__.update(made)
     part = folder / "payload.part"
     with open(part, "wb") as f:
         pickle.dump((bare, where, job), f, protocol=pickle.HIGHEST_PROTOCOL)
     os.replace(part, folder / "payload.pickle")
+
+
+def _fields_apart(folder: Path, fields: dict) -> dict:
+    """The output fields with each large array written to ``fields.NAME.npy`` in `folder` and left as None
+    (`read_payload` maps it back)."""
+    kept = {}
+    for name, values in fields.items():
+        large = isinstance(values, np.ndarray) and values.nbytes >= MAPPED_BYTES
+        if large:
+            np.save(folder / f"fields.{name}.npy", values, allow_pickle=False)
+        kept[name] = None if large else values
+    return kept
 
 
 def stored_in(npz: Path, arrays: dict) -> dict:
@@ -92,7 +105,9 @@ def read_payload(folder: Path):
     arrays = {name: np.load(folder / f"{name}.npy", mmap_mode="r", allow_pickle=False) if at is None
               else np.memmap(at[0], dtype=np.dtype(at[2]), mode="r", offset=at[1], shape=at[3], order=at[4])
               for name, at in where.items()}
-    result = dataclasses.replace(bare, **arrays)
+    fields = {name: np.load(folder / f"fields.{name}.npy", mmap_mode="r", allow_pickle=False) if values is None else values
+              for name, values in bare.fields.items()}
+    result = dataclasses.replace(bare, **arrays, fields=fields)
     result.__dict__.update(readings(bare))
     return result, job
 

@@ -13,7 +13,9 @@ import numpy as np
 
 
 @contextlib.contextmanager
-def _figure(path, *args, **kwargs):
+def study_figure(path, *args, **kwargs):
+    """A study's figure: ``with study_figure(path, rows, cols, **subplots) as (fig, axes):`` draws into
+    matplotlib's subplots, written to `path` (whole or not at all) when the block ends without an error."""
     from ..io.publish import atomic_path
     from .charts import pyplot
 
@@ -47,7 +49,7 @@ def plot_work_precision(rows: list[dict], path, labels: dict) -> Path:
     """Error against wall-clock time, log-log: a row of panels per problem, a panel per error; a line per method
     in `labels` (method name: legend label), in its order."""
     probs = list(dict.fromkeys(r["problem"] for r in rows))
-    with _figure(path, len(probs), 3, figsize=(15, 4.6 * len(probs)), squeeze=False, layout="constrained") as (fig, axes):
+    with study_figure(path, len(probs), 3, figsize=(15, 4.6 * len(probs)), squeeze=False, layout="constrained") as (fig, axes):
         for i, p in enumerate(probs):
             for j, key in enumerate(ERROR_LABELS):
                 ax = axes[i, j]
@@ -81,7 +83,7 @@ def plot_convergence(result: dict, path, labels: dict, impact_speed: float) -> P
     """Left: errors against Δt = Δx with reference slopes. Right: penetration and error against ε, with the
     penetration ε·V of a landing at `impact_speed` V. `labels`: method name -> legend label."""
     rows = result["runs"]
-    with _figure(path, 1, 3, figsize=(15, 4.4)) as (fig, axes):
+    with study_figure(path, 1, 3, figsize=(15, 4.4)) as (fig, axes):
         ax = axes[0]
         for m in ("explicit-r1", "semi-implicit", "consistent"):
             sel = sorted((r for r in rows if r["sweep"] == "dt" and r["method"] == m and r["status"] == "complete"),
@@ -131,7 +133,7 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
     """The map (outcome over r and Δt per treatment), restitution against r with the theory, the α sweep."""
     treatments = list(dict.fromkeys((r["penalty"], r["mass"]) for r in rows))
     ncols = 2 + (1 if alpha_rows else 0)
-    with _figure(path, 1, ncols, figsize=(5.2 * ncols, 4.6)) as (fig, axes):
+    with study_figure(path, 1, ncols, figsize=(5.2 * ncols, 4.6)) as (fig, axes):
         ax = axes[0]
         labels = []
         dts = sorted({r["dt"] for r in rows}, reverse=True)
@@ -193,7 +195,7 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
 def plot_step_size(rows: list[dict], path) -> Path:
     """Outcome over Δt/Δx for the schemes without ε, with each one's Δt_max from the operators."""
     keys = list(dict.fromkeys((r["scheme"], r["alpha"]) for r in rows))
-    with _figure(path, 1, 1, figsize=(7.5, 3.2)) as (fig, ax):
+    with study_figure(path, 1, 1, figsize=(7.5, 3.2)) as (fig, ax):
         for y, (scheme, alpha) in enumerate(keys):
             sel = [r for r in rows if (r["scheme"], r["alpha"]) == (scheme, alpha)]
             ax.scatter([r["dt_over_dx"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k",

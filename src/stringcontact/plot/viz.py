@@ -7,7 +7,9 @@ for ``space_time.png``, the surface η(x, t) in 3-D coloured by contact.
 
 A 2-D run (a membrane) has its own `MEMBRANE_PICTURES`: ``membrane.png`` (pyvista: the membrane at the
 output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the animation ``membrane.gif``
-(:mod:`stringcontact.plot.animation`). `pictures_of(result)` says which.
+(:mod:`stringcontact.plot.animation`). Each output field of the run's model (`Result.fields`) has its own
+picture, ``NAME.png`` (:func:`stringcontact.plot.fields.field_picture`; ``field_NAME.png`` where ``NAME.png`` is
+one of the pictures above). `pictures_of(result)` says which.
 
 :func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.painter.PictureProcess`,
 the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
@@ -29,6 +31,7 @@ from .catalogue import (  # noqa: F401 - the names are used as viz.* by the demo
     PAINTED,
     PICTURES,
     WINDOW_SIZE,
+    field_picture_names,
     painted,
     pictures_of,
 )
@@ -52,8 +55,14 @@ from .charts import (  # noqa: F401 - the pictures and readings are used as viz.
 
 
 def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
-    """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES) of `result` into `folder`."""
+    """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES, or an output field's of `result`:
+    `field_picture_names`) of `result` into `folder`."""
     path = Path(folder) / name
+    field = field_picture_names(result).get(name)
+    if field is not None:
+        from .fields import field_picture
+
+        return field_picture(result, field, path)
     if name == "membrane.gif" or name in MESH_PICTURES:
         # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load
         # vtkCommonMath"): a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
@@ -61,10 +70,6 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
             return _draw_with_vtk(name, result, path, window_size)
     if name == "contact_area.png":
         return contact_area_picture(result, path)
-    if name == "pressure.png":
-        from .film_charts import pressure_picture
-
-        return pressure_picture(result, path)
     if name == "contact_set.png":
         return contact_set_picture(result, path, window_size)
     if name == "velocity_field.png":
@@ -124,7 +129,8 @@ def show_pictures(folder) -> list[Path]:
 
     folder = Path(folder)
     membrane = any((folder / name).exists() for name in set(MEMBRANE_PICTURES) - set(PICTURES))
-    paths = [folder / name for name in (MEMBRANE_PICTURES if membrane else PICTURES) if (folder / name).exists()]
+    names = (MEMBRANE_PICTURES if membrane else PICTURES) + tuple(field_picture_names(_named_fields(folder)))
+    paths = [folder / name for name in names if (folder / name).exists()]
     if "ipykernel" in sys.modules:
         from IPython.display import Image, display
 
@@ -135,12 +141,25 @@ def show_pictures(folder) -> list[Path]:
     return paths
 
 
+def _named_fields(folder: Path):
+    """A stand-in for a result with the output fields summary.json names (none if it cannot be read)."""
+    from types import SimpleNamespace
+
+    try:
+        fields = json.loads((folder / "summary.json").read_text()).get("fields")
+    except (OSError, ValueError, AttributeError):
+        fields = None
+    return SimpleNamespace(fields=dict.fromkeys(n for n in fields if str(n).isidentifier()) if isinstance(fields, dict) else {})
+
+
 # --- the `plot` subcommand ----------------------------------------------------------------------
 
 
 def add_arguments(parser) -> None:
+    """`stringcontact plot`'s arguments: the folder, --out, --force and --size."""
     parser.description = (
-        f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}) "
+        f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}; "
+        "and NAME.png of each output field NAME of the run's model) "
         "from its saved files alone: the stored rows the run drew them from (rows.npz; of an older folder the "
         "frames of solution.xdmf/.h5), diagnostics.csv and summary.json: the same pictures as the run's."
     )
@@ -185,6 +204,8 @@ def _launched_rank() -> int:
 
 
 def command(args) -> int:
+    """`stringcontact plot DIR`: every picture of the run in DIR (its output fields' too) drawn again from its
+    files, into DIR or a new --out folder; 0 when done."""
     from ..io.readback import read_output
 
     size = parse_size(args.size)

@@ -23,9 +23,11 @@ from ..errors import InstabilityError, SceneError, SolverError
 from ..fem import compat, domains
 from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
-from ..io.result import ENERGY_KEYS, FIELDS, MODEL_FIELDS, Result, canonical_cells, node_sort_key
+from ..fem.outputs import OutputValues
+from ..io.result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from ..io.signals import StopTogether
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
+from ..scene.parameters import resolve_parameters
 from ..scene import BYTES_PER_STORED_NODE, STORED_ROWS, check_petsc_options
 from ..timestepping import check_model, check_restitution, scheme_class
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
@@ -158,7 +160,7 @@ class _Rows:
         self.steps, self.gather, self.n = steps, gather, 0
         k = len(steps)
         self.fields = {}
-        if gather.holds:  # `extra`: a model's other fields (the film's pressure)
+        if gather.holds:  # `extra`: the model's output fields (`Model.outputs`)
             self.fields = {name: np.empty((k, gather.nodes)) for name in ("eta", "velocity", "contact_force", *extra)}
             self.fields["contact"] = np.empty((k, gather.nodes), dtype=bool)
         self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
@@ -245,8 +247,15 @@ def energy_roundoff(K, eta: np.ndarray, comm) -> float:
     return 8 * np.finfo(float).eps * height**2 * K.getSize()[0] * K.norm(PETSc.NormType.INFINITY)
 
 
-def discretise(scene, model: Model, comm):
-    """The P1 space on the scene's mesh, the model's parameters (scene fields as P1 functions), its operators."""
+def model_constants(scene, model: Model) -> dict[str, float]:
+    """The model's constants for a run: the scene's ``[parameters]`` checked against `Model.constants` (the model
+    actually run, which a ``--model`` or a `Model` object may make another than the scene's), defaults filled in."""
+    return resolve_parameters(model.name, model.constants, dict(scene.parameters), model.check_constants)
+
+
+def discretise(scene, model: Model, comm, constants: dict | None = None):
+    """The P1 space on the scene's mesh, the model's parameters (scene fields as P1 functions, its `constants` as
+    dolfinx Constants: default, `model_constants`), its operators."""
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
@@ -262,7 +271,8 @@ def discretise(scene, model: Model, comm):
         x=ufl.SpatialCoordinate(msh),
         length=scene.length,
         extra=extra,
-        constants={k: fem.Constant(msh, PETSc.ScalarType(v)) for k, v in getattr(scene, "model_constants", {}).items()},
+        constants={k: fem.Constant(msh, PETSc.ScalarType(v))
+                   for k, v in (model_constants(scene, model) if constants is None else constants).items()},
     )
     unused = unused_fields(model, V, params)
     if unused:  # a load the model ignores would give a plausible but wrong answer
@@ -328,15 +338,15 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
 
 
 def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:
-    """A nonlinear model's own solver defaults (`Model.newton_options`, `Model.linear_options`): below the
-    scene's and the user's options (`given`), above the size rule's choice (`solver_options` reads them as
-    given). A user who names ksp_type or pc_type chooses the linear solver: the model's linear options go."""
+    """A nonlinear model's own solver defaults (`Model.solver`): below the scene's and the user's options
+    (`given`), above the size rule's choice (`solver_options` reads them as given). A user who names ksp_type or
+    pc_type chooses the linear solver: the model's linear options go."""
     if ops.nonlinear is None:
         return {}
-    linear = getattr(model, "linear_options", None)
-    if linear is None or "ksp_type" in given or "pc_type" in given:
-        return dict(getattr(model, "newton_options", ()))
-    return dict(getattr(model, "newton_options", ())) | dict(linear(dim, ranks, params))
+    hints = model.solver
+    if "ksp_type" in given or "pc_type" in given:
+        return dict(hints.newton_options)
+    return hints.options(dim, ranks, {name: float(c.value) for name, c in params.constants.items()})
 
 
 def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -410,7 +420,7 @@ def _march(scene, name: str, stepper, ledger: _Ledger, rows: _Rows, store, progr
         bar.close()
 
 
-def _storage(scene, s: Setting, V, storage: Storage):
+def _storage(scene, s: Setting, V, storage: Storage, outputs: OutputValues):
     """The stored rows (steps within the budget, gathered to rank 0 or every rank), the mesh rows, and the
     function that sums a stored time's series over the ranks. Collective."""
     gather = _Gather(s.comm, s.x, to_all=storage.gather == "all")
@@ -421,7 +431,7 @@ def _storage(scene, s: Setting, V, storage: Storage):
     weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
     obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
     geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
-    extra = tuple(f for f in getattr(s.laws.model, "fields", ()) if f in MODEL_FIELDS)
+    extra = tuple(f.name for f in outputs.fields)
     if s.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
         return (_Rows(steps, gather, extra), geometry,
                 lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t)))
@@ -495,6 +505,8 @@ class _Run:
         self.stepper, self.rows, self.geometry, self.row_series, self.timings = stepper, rows, geometry, row_series, timings
         self.ledger = self.writer = None
         self.origin = {}  # where the model came from (`_model_origin`)
+        self.outputs = None  # the model's output fields at the nodes (`fem.outputs.OutputValues`)
+        self.constants = {}  # the model's constants, resolved (`model_constants`)
         nonlinear = stepper.s.ops.nonlinear
         derived = nonlinear is not None and nonlinear.energy_derived  # the form's potential is booked
         self.energy_label = model.energy_label or (POTENTIAL_LABEL if derived else None)  # energy.png's legend
@@ -513,7 +525,7 @@ class _Run:
         stepper = self.stepper
         fields = {"eta": stepper.eta, "velocity": stepper.velocity, "contact": stepper.contact(),
                   "contact_force": stepper.contact_force}
-        fields.update((k, v) for k, v in getattr(stepper, "fields", {}).items() if k in MODEL_FIELDS)
+        fields.update(self.outputs(stepper.eta, getattr(stepper, "fields", {})))
         t = float(step_times([n], self.dt, self.scene.output_times)[0])
         self.rows.store(fields, self.ledger.cumulative, self.row_series(fields, t))
         if self.writer is not None:
@@ -522,7 +534,11 @@ class _Run:
     def result(self, status: str, message: str) -> Result:
         rows, comm, scene = self.rows, self.comm, self.scene
         n, mins = rows.n, comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
-        per_node = {k: v[:n] for k, v in rows.fields.items()} if rows.gather.holds else dict.fromkeys(FIELDS)
+        if rows.gather.holds:
+            stored = {k: v[:n] for k, v in rows.fields.items()}
+            per_node = {k: stored.pop(k) for k in FIELDS} | {"fields": stored}  # the rest: the model's output fields
+        else:
+            per_node = dict.fromkeys(FIELDS) | {"fields": {}}
         result = Result(scene=scene, x=rows.gather.x, t=step_times(rows.steps[:n], scene.dt, scene.output_times),
                         steps=rows.steps[:n],
                         **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
@@ -530,6 +546,7 @@ class _Run:
                         model_origin=self.origin,
                         penetration_bound=penetration_bound_of(self.model), energy_label=self.energy_label,
                         status=status, timings=self.timings, message=message, scheme=self.name, **self.geometry,
+                        field_info=self.outputs.info, parameters=dict(self.constants),
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
         return result
@@ -619,16 +636,18 @@ def simulate(
         scene = scene.replace(restitution=restitution)
     spec = model if model is not None else (getattr(scene, "model", None) or "inelastic")
     name, Scheme, penalty, mass, model = _choose_scheme(scene, scheme, penalty, mass, model)
+    constants = model_constants(scene, model)
     _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm)
     t0 = time.perf_counter()
-    V, params, ops = discretise(scene, model, comm)
+    V, params, ops = discretise(scene, model, comm, constants)
     _check_moving_obstacle(scene, name, penalty, model, V, params)
     s = _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options)
     stepper = Scheme(s)
-    rows, geometry, row_series = _storage(scene, s, V, storage)
+    outputs = OutputValues(model, V, params)
+    rows, geometry, row_series = _storage(scene, s, V, storage, outputs)
     run = _Run(scene, name, model, penalty, mass, comm, stepper, rows, geometry, row_series,
                timings={"setup": time.perf_counter() - t0})
-    run.origin = _model_origin(spec, model)
+    run.origin, run.outputs, run.constants = _model_origin(spec, model), outputs, constants
     run.start(s, V, output)
     _march_and_store(run, output.progress and comm.rank == 0)
     return _write(run)

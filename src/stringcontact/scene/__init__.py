@@ -20,6 +20,8 @@ _LAZY = {
                      "MAX_STORED_BYTES", "REQUIRED_KEYS", "STORED_ROWS", "stored_bytes"), "limits"),
     "Scene": "scene",
     "SceneWarning": "scene",
+    "DeprecatedKeyWarning": "scene",
+    "ModelConstant": "parameters",
     **dict.fromkeys(("list_scenes", "load_scene", "scene_to_toml"), "toml"),
 }
 __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
@@ -27,11 +29,13 @@ __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
 __all__ = [
     "BYTES_PER_STORED_NODE",
+    "DeprecatedKeyWarning",
     "FIELD_KEYS",
     "FILE_KEYS",
     "MAX_FILE_BYTES",
     "MAX_OUTPUT_TIMES",
     "MAX_STORED_BYTES",
+    "ModelConstant",
     "REQUIRED_KEYS",
     "STORED_ROWS",
     "Scene",

@@ -14,15 +14,13 @@ import stat
 import numpy as np
 
 from ..errors import SceneError
-from . import names
+from . import names, parameters
 from .limits import (
     BOUNDS,
     BYTES_PER_STORED_NODE,
     DOMAIN_KEYS,
     DT_RELATIVE_TOLERANCE,
     FILE_KEYS,
-    FILM_MODEL,
-    FILM_REQUIRED,
     INT_BOUNDS,
     MAX_CELLS,
     MAX_DISK_RATIO,
@@ -30,7 +28,6 @@ from .limits import (
     MAX_MEMBRANE_NODES,
     MAX_OUTPUT_TIMES,
     MAX_STORED_BYTES,
-    MODEL_CONSTANT_KEYS,
     NAME_MAX,
     PETSC_MAX_OPTIONS,
     PETSC_PREFIXES,
@@ -79,6 +76,8 @@ def allowed(key: str) -> str:
         "mesh_size": _MESH_SIZE_ALLOWED,
         "mesh": "the path of an XDMF triangle mesh (*.xdmf)",
         "petsc_options": _PETSC_ALLOWED,
+        "parameters": f"a table of at most {parameters.PARAMETERS_MAX} constants the model declares, name = number, "
+                      "each in its range (the models' constants below)",
     }
     return texts[key]
 
@@ -301,24 +300,15 @@ def check_model(value) -> str:
     return names.check_name(value)
 
 
-def check_model_constants(scene, put) -> None:
-    """The film's constants (`MODEL_CONSTANT_KEYS`): numbers in range; `mu` required by model 'film'; p_cav at
-    most p_ambient; refused under another named model (it would ignore them)."""
-    given = {key: getattr(scene, key) for key in MODEL_CONSTANT_KEYS if getattr(scene, key) is not None}
-    for key, value in given.items():
-        put(key, number(key, value))
-    if scene.model == FILM_MODEL and FILM_REQUIRED not in given:
-        raise SceneError(f"{FILM_REQUIRED}: model '{FILM_MODEL}' needs the film's viscosity; allowed: "
-                         f"{_range_text(FILM_REQUIRED)}")
-    if given and scene.model not in (None, FILM_MODEL):
-        key = next(iter(given))
-        raise SceneError(f"{key}: read by model '{FILM_MODEL}' only, not by model {scene.model!r}; "
-                         f"remove it or set model = '{FILM_MODEL}'")
-    if "p_cav" in given:
-        p_a = scene.p_ambient or 0.0
-        if scene.p_cav > p_a:
-            raise SceneError(f"p_cav: {fmt(scene.p_cav)} is above the ambient pressure p_ambient = {fmt(p_a)}; "
-                             f"allowed: a number in [{fmt(BOUNDS['p_cav'][0])}, {fmt(p_a)}]")
+def check_parameters(scene, put) -> None:
+    """The ``[parameters]`` table: its form always (`parameters.check_table`); against the constants of the model the
+    scene names when that model declares some (loading it: `names.declared`). A table under a model without
+    constants waits for the run, which checks it against the model it runs (a ``--model`` may bring them)."""
+    put("parameters", parameters.check_table(scene.parameters))
+    if scene.model is not None:
+        constants, rule = names.declared(scene.model)
+        if constants:
+            parameters.resolve_parameters(scene.model, constants, dict(scene.parameters), rule)
 
 
 def check_scheme(value) -> str:

@@ -13,8 +13,6 @@ __all__ = [
     "DT_RELATIVE_TOLERANCE",
     "FIELD_KEYS",
     "FILE_KEYS",
-    "FILM_MODEL",
-    "FILM_REQUIRED",
     "INT_BOUNDS",
     "KEY_DOCS",
     "MAX_CELLS",
@@ -24,7 +22,6 @@ __all__ = [
     "MAX_MEMBRANE_NODES",
     "MAX_OUTPUT_TIMES",
     "MAX_STORED_BYTES",
-    "MODEL_CONSTANT_KEYS",
     "NAME_MAX",
     "PETSC_MAX_OPTIONS",
     "PETSC_PREFIXES",
@@ -40,13 +37,8 @@ __all__ = [
 FILE_KEYS = (
     "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
     "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
-    "domain", "size", "cells", "radius", "mesh_size", "mesh", "restitution", "petsc_options",
-    "mu", "p_ambient", "p_cav", "h_min",
+    "domain", "size", "cells", "radius", "mesh_size", "mesh", "restitution", "parameters", "petsc_options",
 )
-#: A model's constants (`Parameters.constants`): the fluid film's (model "film", docs/explanation/film.md).
-MODEL_CONSTANT_KEYS = ("mu", "p_ambient", "p_cav", "h_min")
-#: The model that reads them, and the one of them it needs.
-FILM_MODEL, FILM_REQUIRED = "film", "mu"
 #: The domains and the geometry keys each one takes (docs/howto/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
     "interval": ("length", "nx", "h_left", "h_right"),
@@ -77,10 +69,6 @@ BOUNDS = {
     "h_right": (-1e6, 1e6, False, False),
     # scheme 'projection's restitution coefficient e (Paoli-Schatzman): 0 inelastic (the paper's (A4)), 1 elastic
     "restitution": (0.0, 1.0, False, False),
-    "mu": (0.0, 1e6, True, False),  # the film's viscosity: > 0
-    "p_ambient": (-1e6, 1e6, False, False),
-    "p_cav": (-1e6, 1e6, False, False),  # at most p_ambient (checks.check_film)
-    "h_min": (0.0, 1e3, True, False),  # the mobility's thickness floor: > 0 keeps the pressure's equation regular
 }
 # nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
 # (benchmarks/bench_mesh_size.py).
@@ -159,8 +147,6 @@ KEY_DOCS = {
     "mesh": ("string", "", "required (file)", "the path of an XDMF triangle mesh (the domain 'file')"),
     "petsc_options": ("table", "", "not given: the scheme's solver", "PETSc options for the linear solver"),
     "restitution": ("number", "", "0 (inelastic)", "scheme projection's restitution coefficient e (Paoli-Schatzman)"),
-    "mu": ("number", "", "required (model film)", "the film's viscosity μ in the Reynolds mobility η³/(12μ)"),
-    "p_ambient": ("number", "pressure", "0", "model film: the ambient pressure at the film's open ends"),
-    "p_cav": ("number", "pressure", "none (no cavitation)", "model film: cavitation, p ≥ p_cav (at most p_ambient)"),
-    "h_min": ("number", "η", "0.001", "model film: the film-thickness floor in the mobility, max(η, h_min)³"),
+    "parameters": ("table", "", "the model's defaults",
+                   "the model's constants, name = number (each model's in the table below; `stringcontact show`)"),
 }

@@ -1,7 +1,8 @@
 """The names a scene may use that are registered elsewhere: models (entry points) and time schemes.
 
-Reading them imports nothing: a model's name is checked against the installed packages' metadata (the
-entry-point group `GROUP`), a scheme's against `SCHEMES`, the time-scheme registry (the class `Scheme` of
+Checking a name imports nothing: a model's name is checked against the installed packages' metadata (the
+entry-point group `GROUP`), a scheme's against `SCHEMES`. A model's declared constants (`declared`) are read from
+the registered object itself, which loads its entry point (the user's ``pip install`` is the trust boundary), the time-scheme registry (the class `Scheme` of
 scheme NAME is in `stringcontact.timestepping.NAME`; `timestepping.scheme_class` loads it). Adding a
 scheme: its module plus one line here.
 """
@@ -56,3 +57,21 @@ def check_name(value) -> str:
 def package_of(ep) -> str:
     dist = getattr(ep, "dist", None)
     return dist.name if dist is not None else "unknown package"
+
+
+def load_registered(name: str):
+    """The object registered as model `name` (its entry point loaded: the installed package's module imported);
+    a one-line `SceneError` naming ``model`` if it cannot be loaded."""
+    (ep,) = registered()[check_name(name)]
+    try:
+        return ep.load()
+    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
+        raise SceneError(f"model: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
+                         f"{type(exc).__name__}: {one_line(exc)}") from None
+
+
+def declared(name: str) -> tuple:
+    """(the constants, the rule between them) that registered model `name` declares (`Model.constants`,
+    `Model.check_constants`): what a scene's ``[parameters]`` table is checked against."""
+    obj = load_registered(name)
+    return tuple(getattr(obj, "constants", ())), getattr(obj, "check_constants", None)

@@ -48,14 +48,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
-from . import checks, expressions
-from .limits import DOMAIN_KEYS, FIELD_KEYS, MODEL_CONSTANT_KEYS, REQUIRED_KEYS
+from . import checks, expressions, names
+from .limits import DOMAIN_KEYS, FIELD_KEYS, FILE_KEYS, REQUIRED_KEYS
 
-__all__ = ["Scene", "SceneWarning"]
+__all__ = ["DeprecatedKeyWarning", "Scene", "SceneWarning"]
 
 
 class SceneWarning(UserWarning):
     """Legal but doubtful scene data (reproduced as given, with a warning)."""
+
+
+class DeprecatedKeyWarning(SceneWarning, FutureWarning):
+    """A scene key in a form that still works but will not in a later release (a model's constant at the top level
+    of the file instead of in its ``[parameters]`` table)."""
 
 
 @dataclass(frozen=True)
@@ -97,10 +102,7 @@ class Scene:
     mesh: str | None = None  # file: path of an XDMF triangle mesh
     petsc_options: tuple = ()  # (name, value) pairs for the linear solver (`check_petsc_options`)
     restitution: float | None = None  # scheme 'projection's restitution coefficient e in [0, 1] (None: 0)
-    mu: float | None = None  # model "film": the film's viscosity (> 0, required by that model)
-    p_ambient: float | None = None  # model "film": the ambient pressure at the film's open ends (default 0)
-    p_cav: float | None = None  # model "film": cavitation, p >= p_cav (at most p_ambient; default none)
-    h_min: float | None = None  # model "film": the mobility's thickness floor (default film.H_MIN)
+    parameters: tuple = ()  # (name, value) pairs: the model's constants the scene gives ([parameters])
 
     @property
     def dim(self) -> int:
@@ -137,7 +139,7 @@ class Scene:
             put("scheme", checks.check_scheme(self.scheme))
         if self.restitution is not None:
             put("restitution", checks.number("restitution", self.restitution))
-        checks.check_model_constants(self, put)
+        checks.check_parameters(self, put)
         put("output_times", checks.check_output_times(self.output_times, self.T))
         options = self.petsc_options
         put("petsc_options", checks.check_petsc_options(dict(options) if isinstance(options, tuple) else options))
@@ -298,15 +300,12 @@ class Scene:
             d["scheme"] = self.scheme
         if self.restitution is not None:
             d["restitution"] = self.restitution
-        d.update(self.model_constants)
-        if self.petsc_options:  # last: a TOML table ends the file's plain keys
-            d["petsc_options"] = dict(self.petsc_options)
+        d.update(self._tables())
         return d
 
-    @property
-    def model_constants(self) -> dict[str, float]:
-        """The model constants the scene gives (``mu``, ``p_ambient``, ``p_cav``, ``h_min``), name -> value."""
-        return {key: getattr(self, key) for key in MODEL_CONSTANT_KEYS if getattr(self, key) is not None}
+    def _tables(self) -> dict:
+        """The TOML tables (last: a table ends the file's plain keys): parameters, petsc_options, where given."""
+        return {key: dict(getattr(self, key)) for key in ("parameters", "petsc_options") if getattr(self, key)}
 
     def _as_dict_2d(self) -> dict:
         d = {"name": self.name, "description": self.description, "notes": self.notes, "domain": self.domain}
@@ -317,9 +316,7 @@ class Scene:
         d.update(self.fields)
         d["output_times"] = list(self.output_times)
         d.update({key: getattr(self, key) for key in ("model", "scheme", "restitution") if getattr(self, key) is not None})
-        d.update(self.model_constants)
-        if self.petsc_options:
-            d["petsc_options"] = dict(self.petsc_options)
+        d.update(self._tables())
         return d
 
     @classmethod
@@ -330,7 +327,8 @@ class Scene:
         """
         label = source if source is not None else str(data.get("name", default_name or "scene"))
         try:
-            scene = _build(dict(data), default_name=default_name)
+            data = _top_level_constants(dict(data), data.get("model"), label)
+            scene = _build(data, default_name=default_name)
             x, values = _grid_values(scene)
             checks.check_magnitudes(values)
             _warn_doubtful(scene, label, x, values)
@@ -348,8 +346,10 @@ class Scene:
         * ``h`` replaces ``h_left``/``h_right`` and vice versa;
         * when ``eta0`` or ``length`` changes and no boundary height is given, an end
           height that equalled eta0's old end value follows the new eta0;
-        * a value of ``None`` removes the key (e.g. ``h=None``, ``model=None``).
+        * a value of ``None`` removes the key (e.g. ``h=None``, ``model=None``);
+        * ``parameters`` (the model's constants, a dict) replaces the whole table.
         """
+        changes = _top_level_constants(changes, changes.get("model", self.model), self.name, self.parameters)
         checks.check_keys(changes)
         data = self.as_dict()
         domain = changes.get("domain") or ("file" if changes.get("mesh") else self.domain)
@@ -382,6 +382,30 @@ class Scene:
 # --- building and validating ------------------------------------------------------------------
 
 
+def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
+    """`data` with the top-level keys that the named `model` declares as constants moved into its ``parameters``
+    table (on top of `table`), each with a one-line `DeprecatedKeyWarning`. The model is loaded only when `data`
+    has keys a scene does not know."""
+    unknown = [k for k in data if k not in FILE_KEYS]
+    if not unknown or not isinstance(model, str) or model not in names.registered():
+        return data
+    declared = {c.name for c in names.declared(model)[0]}
+    moved = [k for k in unknown if k in declared]
+    if not moved:
+        return data
+    data = dict(data)
+    merged = dict(data.get("parameters") or table)
+    for key in moved:
+        if key in merged and key in (data.get("parameters") or {}):
+            raise SceneError(f"{key}: given twice, at the top level and in [parameters]; keep the one in [parameters]")
+        merged[key] = data.pop(key)
+    data["parameters"] = merged
+    warnings.warn(f"scene {label!r}: {', '.join(moved)} at the top level of a scene is deprecated; put "
+                  f"{'it' if len(moved) == 1 else 'them'} in the [parameters] table (model {model!r})",
+                  DeprecatedKeyWarning, stacklevel=4)
+    return data
+
+
 def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
     """A membrane scene: the geometry keys of `domain` (checked in Scene), no ends."""
     geometry = {key: data[key] for key in DOMAIN_KEYS[domain] if key in data}
@@ -397,7 +421,7 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
         scheme=data.get("scheme"), restitution=data.get("restitution"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
-        **{key: data[key] for key in MODEL_CONSTANT_KEYS if key in data},
+        parameters=data.get("parameters", ()),
     )
 
 
@@ -461,7 +485,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         restitution=data.get("restitution"),
         **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
-        **{key: data[key] for key in MODEL_CONSTANT_KEYS if key in data},
+        parameters=data.get("parameters", ()),
     )
 
 

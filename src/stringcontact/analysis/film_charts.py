@@ -1,4 +1,5 @@
-"""The chart of `stringcontact study film` (matplotlib): the film's measures against its viscosity μ."""
+"""The chart of `stringcontact study film` (matplotlib): the film's measures against its viscosity μ
+(`analysis.film`'s rows)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .study_charts import _figure
+from ..plot.study_charts import study_figure
+
+__all__ = ["CAVITATION_STYLE", "PANELS", "REFERENCE_STYLE", "plot_film_study"]
 
 #: The panels: (column, axis label, log scale).
 PANELS = (
@@ -25,7 +28,7 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
     """A row of panels per problem: each measure against μ, the film with and without cavitation, the references
     as horizontal lines; the distance panel shows before (solid) and after (hollow) the first lift-off."""
     probs = list(dict.fromkeys(r["problem"] for r in rows))
-    with _figure(path, len(probs), len(PANELS), figsize=(4.2 * len(PANELS), 3.6 * len(probs)), squeeze=False,
+    with study_figure(path, len(probs), len(PANELS), figsize=(4.2 * len(PANELS), 3.6 * len(probs)), squeeze=False,
                  layout="constrained") as (_fig, axes):
         for i, p in enumerate(probs):
             mine = [r for r in rows if r["problem"] == p]
@@ -69,42 +72,3 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
 def _energy(problem: str, rows: list[dict]) -> float:
     """E(0) of a problem (the rows carry it as ``E0``)."""
     return next(r["E0"] for r in rows if r["problem"] == problem)
-
-
-__all__ = ["PANELS", "plot_film_study", "pressure_picture"]
-
-
-def pressure_picture(result, path) -> Path:
-    """The film's pressure p − p_a: a string's over the (x, t) plane (red above ambient, blue below, the contact
-    set {η ≤ 0} outlined); a membrane's at the stored time of its largest value, with that largest value over t."""
-    from matplotlib.colors import SymLogNorm
-
-    from .charts import pyplot, savefig
-
-    plt = pyplot()
-    p = result.pressure
-    scale = float(np.max(np.abs(p))) or 1.0
-    norm = SymLogNorm(linthresh=1e-3 * scale, vmin=-scale, vmax=scale)  # a landing's peak is 1e3-1e4 its rest
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.4, 1]}, layout="constrained")
-    if result.dim == 1:
-        mesh = ax.pcolormesh(result.x, result.t, p, cmap="RdBu_r", norm=norm, shading="auto")
-        if result.contact.any():
-            ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
-        ax.set_xlabel("x")
-        ax.set_ylabel("t")
-        ax.set_title("film pressure p − p_a (contact set outlined)")
-    else:
-        k = int(np.argmax(p.max(axis=1)))
-        mesh = ax.tripcolor(result.x[:, 0], result.x[:, 1], result.cells, p[k], cmap="RdBu_r", norm=norm,
-                            shading="gouraud")
-        ax.set_aspect("equal")
-        ax.set_title(f"film pressure p − p_a at t = {result.t[k]:.4g} (its largest)")
-    fig.colorbar(mesh, ax=ax, label="p − p_a")
-    bx.plot(result.t, p.max(axis=1), label="max p − p_a")
-    bx.plot(result.t, p.min(axis=1), label="min p − p_a")
-    bx.set_yscale("symlog", linthresh=1e-3 * scale)
-    bx.set_xlabel("t")
-    bx.legend()
-    bx.grid(True, alpha=0.3)
-    savefig(fig, Path(path))
-    return Path(path)

@@ -1,0 +1,148 @@
+"""A model's output fields in the pictures, whatever the model: how each is shown comes from its description
+(`Result.field_info`, `OutputField.metadata`: label, unit, colours, scale), never from its name.
+
+`FieldScale` is one field's fixed colour scale over all stored rows (the range of `io.paraview_view.field_range`,
+ParaView's view has the same): linear, or symmetric-log about 0 (`io.paraview_view.symlog_unit`, matplotlib's
+SymLogNorm); the membrane pictures colour a membrane by it (`mesh_pictures`). `field_picture` draws ``NAME.png``:
+a string's field over the (x, t) plane with the contact set outlined, a membrane's at the stored time of its
+largest |value|, and beside it the field's least and largest value over the nodes against t.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io.paraview_view import field_range, symlog_unit
+from ..io.tables import field_info
+from .charts import literal, savefig
+
+__all__ = ["TICK_GAP", "FieldScale", "field_picture", "info_of", "surface_field"]
+
+#: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
+TICK_GAP = 0.16
+
+
+def info_of(result, name: str) -> dict:
+    """How the output field `name` of `result` is shown (`io.tables.field_info`)."""
+    return field_info(result)[name]
+
+
+def surface_field(result) -> str | None:
+    """The output field that colours a membrane instead of the contact set (its description's ``surface``;
+    the first if several say so), or None."""
+    return next((name for name, info in field_info(result).items() if info.get("surface")), None)
+
+
+@dataclass(frozen=True)
+class FieldScale:
+    """An output field on one colour scale for every row and panel: `low` … `high` onto −1 … 1 (`unit`), in its
+    `colours` spread evenly over that (`colour_map`); linear, or for `scale` ``"symlog"`` symmetric-log with
+    the linear part within ±`linear_share`·`high` (a landing's peak 1e3–1e4 times the rest would leave the rest
+    in the middle colour). `title` names it on its colour bar, `label` in a sentence."""
+
+    name: str
+    low: float
+    high: float
+    colours: tuple
+    scale: str = "linear"
+    linear_share: float = 1e-3
+    label: str = ""
+    title: str = ""
+
+    @classmethod
+    def of(cls, values, info: dict) -> FieldScale:
+        """The scale of the field's rows `values` as its description `info` says (`io.paraview_view.field_range`)."""
+        low, high = field_range(values, info)
+        label = info.get("label") or info["name"]
+        title = f"{label} [{info['unit']}]" if info.get("unit") else label
+        return cls(info["name"], low, high, tuple(tuple(c) for c in info["colours"]), info.get("scale", "linear"),
+                   float(info.get("linear_share", 1e-3)), label, title)
+
+    def unit(self, values) -> np.ndarray:
+        """Where `values` lie on the scale: −1 at `low`, 1 at `high` (clipped beyond); 0 at 0 on a symmetric one."""
+        if self.scale == "symlog":
+            return symlog_unit(values, self.high, self.linear_share)
+        return np.clip(2.0 * (np.asarray(values, dtype=float) - self.low) / (self.high - self.low) - 1.0, -1.0, 1.0)
+
+    def colour_map(self):
+        """The colours from −1 to 1 (`unit`), blended in between."""
+        from matplotlib.colors import LinearSegmentedColormap
+
+        return LinearSegmentedColormap.from_list(self.name, self.colours)
+
+    def norm(self):
+        """matplotlib's normalisation of the scale: `SymLogNorm` (base 10) or `Normalize` from `low` to `high`."""
+        from matplotlib.colors import Normalize, SymLogNorm
+
+        if self.scale == "symlog":
+            return SymLogNorm(linthresh=self.linear_share * self.high, vmin=self.low, vmax=self.high, base=10)
+        return Normalize(vmin=self.low, vmax=self.high)
+
+    def ticks(self) -> np.ndarray:
+        """The ends, and inside them the round values (a symmetric-log scale's: 0 and ± the powers of ten from
+        `linear_share`·`high` up) that lie `TICK_GAP` or more from them."""
+        if self.scale == "symlog":
+            powers = 10.0 ** np.arange(np.ceil(np.log10(self.linear_share * self.high)), np.floor(np.log10(self.high)) + 1)
+            inner = np.concatenate([-powers[::-1], [0.0], powers])
+        else:
+            from matplotlib.ticker import MaxNLocator
+
+            inner = MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]).tick_values(self.low, self.high)
+        inner = inner[np.abs(self.unit(inner)) <= 1.0 - TICK_GAP]
+        return np.concatenate([[self.low], inner, [self.high]])
+
+    def tick_label(self, v: float) -> str:
+        """A tick's label: the ends to 3 digits, the round values as they are; a true minus sign."""
+        v = 0.0 if abs(v) < 1e-9 * (self.high - self.low) else float(v)  # a locator's round-off about 0
+        text = f"{abs(v):.3g}" if np.isclose(v, self.low) or np.isclose(v, self.high) else f"{abs(v):g}"
+        return ("−" if v < 0 else "") + text
+
+
+def field_picture(result, name: str, path) -> Path:
+    """``NAME.png``: the output field `name` of `result` on its scale (`FieldScale`): a string's over the (x, t)
+    plane with the contact set outlined, a membrane's at the stored time of its largest |value|; beside it its
+    least and largest value over the nodes at each stored time."""
+    from .charts import pyplot
+
+    values = np.asarray(result.fields[name], dtype=float)
+    scale = FieldScale.of(values, info_of(result, name))
+    fig, (ax, bx) = pyplot().subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.4, 1]}, layout="constrained")
+    mesh = _string_panel(ax, result, values, scale) if result.dim == 1 else _membrane_panel(ax, result, values, scale)
+    fig.colorbar(mesh, ax=ax, label=literal(scale.title))
+    _extremes_panel(bx, result.t, values, scale)
+    fig.suptitle(f"{literal(scale.label)}: {literal(result.scene.name)}", fontsize=11)
+    savefig(fig, Path(path))
+    return Path(path)
+
+
+def _string_panel(ax, result, values, scale: FieldScale):
+    mesh = ax.pcolormesh(result.x, result.t, values, cmap=scale.colour_map(), norm=scale.norm(), shading="auto")
+    if result.contact.any():
+        ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
+    ax.set_xlabel("x")
+    ax.set_ylabel("t")
+    ax.set_title("over (x, t), the contact set outlined")
+    return mesh
+
+
+def _membrane_panel(ax, result, values, scale: FieldScale):
+    k = int(np.argmax(np.fmax.reduce(np.abs(values), axis=1)))
+    mesh = ax.tripcolor(result.x[:, 0], result.x[:, 1], result.cells, values[k], cmap=scale.colour_map(),
+                        norm=scale.norm(), shading="gouraud")
+    ax.set_aspect("equal")
+    ax.set_title(f"at t = {result.t[k]:.4g} (its largest |value|)")
+    return mesh
+
+
+def _extremes_panel(bx, t, values, scale: FieldScale) -> None:
+    bx.plot(t, np.fmax.reduce(values, axis=1), label="largest")
+    bx.plot(t, np.fmin.reduce(values, axis=1), label="least")
+    if scale.scale == "symlog":
+        bx.set_yscale("symlog", linthresh=scale.linear_share * scale.high)
+    bx.set_xlabel("t")
+    bx.set_title("its least and largest value over the nodes")
+    bx.legend()
+    bx.grid(True, alpha=0.3)
