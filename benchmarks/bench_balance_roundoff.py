@@ -14,20 +14,20 @@ import argparse
 import math
 
 import stringcontact as sc
-from stringcontact.run import checks, driver
+from stringcontact.run import checks, stepper
 
 
-class _FsumLedger(driver._Ledger):
+class _FsumLedger(stepper._Ledger):
     """The ledger with each cumulative term an exact sum (math.fsum over every step's term)."""
 
-    def __init__(self, start, conservative):
-        super().__init__(start, conservative)
+    def __init__(self, start, conservative, **kwargs):
+        super().__init__(start, conservative, **kwargs)
         self.parts = ([], [], [], [])
 
-    def add(self, terms):
+    def add(self, terms, slack=0.0):
         for part, value in zip(self.parts, terms[2:6]):
             part.append(value)
-        return super().add(terms)
+        return super().add(terms, slack)
 
     @property
     def cumulative(self):
@@ -40,15 +40,15 @@ def main() -> None:
     parser.add_argument("--nt", type=int, nargs="+", default=[20000, 100000, 200000])
     args = parser.parse_args()
     print("nx,nt,relative_residual,relative_residual_fsum,estimate,ratio,tolerance")
-    plain = driver._Ledger
+    plain = stepper._Ledger
     for nt in args.nt:
         scene = sc.load_scene("example1").replace(nx=args.nx, nt=nt)
         res = sc.simulate(scene, progress=False)
-        driver._Ledger = _FsumLedger
+        stepper._Ledger = _FsumLedger
         try:
             exact = sc.simulate(scene, progress=False)
         finally:
-            driver._Ledger = plain
+            stepper._Ledger = plain
         b = checks.energy_balance(res)
         estimate = checks.roundoff_growth(res) * 1e-8 / checks.ROUNDOFF_FACTOR
         print(f"{args.nx},{nt},{b['relative_residual']:.3g},{checks.energy_balance(exact)['relative_residual']:.3g},"

@@ -275,13 +275,13 @@ def law_timing(repeats: int) -> None:
     from mpi4py import MPI
 
     import stringcontact as sc
-    from stringcontact.run import driver
+    from stringcontact.run import setup
 
     scene = sc.load_scene("example1")
     res = sc.simulate(scene, comm=MPI.COMM_SELF)
-    model = driver._resolve_model(None, scene)
-    V, params, ops = driver.discretise(scene, model, MPI.COMM_SELF)
-    s = driver._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
+    model = setup._resolve_model(None, scene)
+    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
+    s = setup._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
     law = s.laws.compile(model.penalty(s.laws.eta, s.laws.quotient, params))
     full, sub = [], []
     for row in range(1, len(res.t)):
@@ -307,9 +307,9 @@ def _module_of(src: str, name: str):
 
 
 class _Still:
-    """A scheme that does nothing: `_march` alone, the driver's per-step Python."""
+    """A scheme that does nothing: `Stepper._advance` alone, the driver's per-step Python."""
 
-    PENALTIES, situation, remedy = (), "", ""
+    PENALTIES, situation, remedy, energy_slack = (), "", "", 0.0
     terms = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __init__(self):
@@ -321,49 +321,64 @@ class _Still:
         return self.terms
 
 
+def _still_stepper(scene):
+    """A `Stepper` of Example 1 whose scheme does nothing and whose rows store nothing: its `_advance` is the driver's
+    per-step Python alone."""
+    import numpy as np
+    from mpi4py import MPI
+
+    from stringcontact.run import ledger, rows
+    from stringcontact.run.stepper import Stepper
+
+    st = Stepper(scene, comm=MPI.COMM_SELF)
+    st.scheme = _Still()
+    st.ledger = ledger._Ledger(_Still.terms, conservative=False)
+    st.rows = rows._Rows(np.array([scene.nt + 1]), rows._Gather(MPI.COMM_SELF, st.setting.x))
+    st.rows.min_eta = 0.0
+    return st
+
+
 def loop_timing(src: str, runs: int) -> None:
-    """In one process, alternately: the paper scheme's 1500 steps (`Scheme.step` alone) and `_march` with a scheme
-    that does nothing, of this checkout and of `src`'s. Thread CPU time, so that other jobs on the machine weigh
-    less; medians and the median of paired ratios."""
+    """In one process, alternately: the paper scheme's 1500 steps (`Scheme.step` alone) of this checkout and of
+    `src`'s, and this checkout's per-step driver Python (`Stepper._advance` with a scheme that does nothing). Thread
+    CPU time, so that other jobs on the machine weigh less; medians and the median of paired ratios."""
     import numpy as np
     from mpi4py import MPI
 
     import stringcontact as sc
-    from stringcontact.run import driver
+    from stringcontact.run import setup
     from stringcontact.timestepping import paper
 
     scene = sc.load_scene("example1")
-    model = driver._resolve_model(None, scene)
-    V, params, ops = driver.discretise(scene, model, MPI.COMM_SELF)
-    s = driver._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
+    model = setup._resolve_model(None, scene)
+    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
+    s = setup._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
     schemes = {"this checkout": paper, src: _module_of(src, "stringcontact.timestepping.paper")}
-    marches = {"this checkout": driver._march, src: _module_of(src, "stringcontact.run.driver")._march}
     steps = {k: [] for k in schemes}
-    march = {k: [] for k in schemes}
+    march = []
     np.seterr(all="ignore")
     for r in range(runs):
         for label in (list(schemes) if r % 2 == 0 else list(schemes)[::-1]):
             scheme = schemes[label].Scheme(s)
-            scheme.start(*driver._initial_state(scene, s))
+            scheme.start(*setup._initial_state(scene, s))
             t0 = time.thread_time()
             for _ in range(scene.nt):
                 scheme.step()
             steps[label].append((time.thread_time() - t0) / scene.nt * 1e6)
-            still, rows = _Still(), driver._Rows(np.array([scene.nt + 1]), driver._Gather(MPI.COMM_SELF, s.x))
-            rows.min_eta = 0.0
-            ledger = driver._Ledger(still.terms, conservative=False)
-            t0 = time.thread_time()
-            marches[label](scene, "paper", still, ledger, rows, lambda n: None, False)
-            march[label].append((time.thread_time() - t0) / scene.nt * 1e6)
+        st = _still_stepper(scene)
+        t0 = time.thread_time()
+        for _ in range(scene.nt):
+            st._advance()
+        march.append((time.thread_time() - t0) / scene.nt * 1e6)
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; load average {os.getloadavg()[0]:.2f}; {runs} runs each, "
           "thread CPU time\n")
-    print("| checkout | paper's step alone [µs] | `_march` with a still scheme [µs/step] |")
-    print("|---|---:|---:|")
+    print("| checkout | paper's step alone [µs] |")
+    print("|---|---:|")
     for label in schemes:
-        print(f"| {label} | {statistics.median(steps[label]):.1f} | {statistics.median(march[label]):.2f} |")
+        print(f"| {label} | {statistics.median(steps[label]):.1f} |")
     first, second = schemes
-    for what, t in (("step", steps), ("march", march)):
-        print(f"{what}: median paired ratio {statistics.median(a / b for a, b in zip(t[first], t[second])):.3f}")
+    print(f"step: median paired ratio {statistics.median(a / b for a, b in zip(steps[first], steps[second])):.3f}")
+    print(f"this checkout's driver per step (`Stepper._advance`, a still scheme): {statistics.median(march):.2f} µs")
 
 
 def save_fields(path: str, scenes: list[str]) -> None:

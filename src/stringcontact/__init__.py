@@ -33,6 +33,7 @@ _LAZY = {
     "load_model": "model.registry",
     "SCHEMES": "timestepping",
     "simulate": "run.driver",
+    "Stepper": "run.stepper",
     "Storage": "run.options",
     "Output": "run.options",
 }
@@ -54,6 +55,7 @@ __all__ = [
     "SceneError",
     "SceneWarning",
     "SolverHints",
+    "Stepper",
     "Storage",
     "inelastic",
     "list_scenes",

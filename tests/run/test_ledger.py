@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.run import checks, driver
+from stringcontact.run import checks, ledger
 
 #: Example 1's shape with many small steps: its relative residual is 4.0e-8 (round-off, benchmarks/
 #: bench_balance_roundoff.py), above the fixed 1e-8 it used to be held to ("unbalanced", exit 3).
@@ -23,7 +23,7 @@ def test_a_fine_step_run_closes_its_balance():
 
 
 def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
-    add = driver._Ledger.add
+    add = ledger._Ledger.add
     calls = {"n": 0}
 
     def interrupt_after_the_impact(self, terms, slack=0.0):
@@ -32,7 +32,7 @@ def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
             raise KeyboardInterrupt
         return add(self, terms, slack)
 
-    monkeypatch.setattr(driver._Ledger, "add", interrupt_after_the_impact)
+    monkeypatch.setattr(ledger._Ledger, "add", interrupt_after_the_impact)
     with pytest.raises(KeyboardInterrupt) as info:
         sc.simulate(sc.load_scene("example1").replace(**FINE), progress=False)
     res = info.value.result

@@ -128,7 +128,7 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     from mpi4py import MPI
 
     from stringcontact.model.registry import load_model
-    from stringcontact.run import driver as solver
+    from stringcontact.run import setup as solver
     from stringcontact.timestepping import projection
 
     scene = small_drum(mesh_size=0.15)

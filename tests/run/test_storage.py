@@ -15,7 +15,8 @@ import pytest
 import stringcontact as sc
 from stringcontact.io.result import PER_NODE, RowsElsewhere
 from stringcontact.run.checks import penetration_check
-from stringcontact.run.driver import ROW_BUDGET, STORED_ROWS, StorageWarning, budget_steps, output_steps, stored_steps
+from stringcontact.run.driver import ROW_BUDGET, STORED_ROWS, StorageWarning
+from stringcontact.run.rows import budget_steps, output_steps, stored_steps
 from stringcontact.scene import BYTES_PER_STORED_NODE
 
 

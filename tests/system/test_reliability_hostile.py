@@ -447,19 +447,19 @@ def test_sigterm_during_rank_0s_pictures_marks_the_folder_interrupted_on_every_r
 ONE_RANK_FAILS = r"""
 import os, signal, sys
 from mpi4py import MPI
-import stringcontact.run.driver as driver
+import stringcontact.run.setup as setup
 rank = MPI.COMM_WORLD.rank
 if sys.argv[1] == "memory" and rank == 0:
     def no_memory(*args, **kwargs):
         raise MemoryError()
-    driver.discretise = no_memory
+    setup.discretise = no_memory
 if sys.argv[1] == "sigterm" and rank == 1:
-    set_up = driver._setting
+    set_up = setup._setting
     def set_up_then_signal(*args, **kwargs):
         setting = set_up(*args, **kwargs)
         os.kill(os.getpid(), signal.SIGTERM)
         return setting
-    driver._setting = set_up_then_signal
+    setup._setting = set_up_then_signal
 from stringcontact.cli.main import main
 sys.argv = ["stringcontact", *sys.argv[2:]]
 sys.exit(main())
@@ -482,16 +482,14 @@ def test_one_rank_failing_or_signalled_ends_the_job(tmp_path, how, code, fragmen
 SIGTERM_TO_RANK_1_MID_RUN = r"""
 import os, signal, sys
 from mpi4py import MPI
-import stringcontact.run.driver as driver
+from stringcontact.run.stepper import Stepper
 if MPI.COMM_WORLD.rank == 1:
-    march = driver._march
-    def march_with_a_signal(scene, name, stepper, ledger, rows, store, *rest):
-        def store_then_signal(n):
-            store(n)
-            if n > 0:
-                os.kill(os.getpid(), signal.SIGTERM)
-        return march(scene, name, stepper, ledger, rows, store_then_signal, *rest)
-    driver._march = march_with_a_signal
+    store = Stepper._store
+    def store_then_signal(self, n):
+        store(self, n)
+        if n > 0:
+            os.kill(os.getpid(), signal.SIGTERM)
+    Stepper._store = store_then_signal
 from stringcontact.cli.main import main
 sys.argv = ["stringcontact", *sys.argv[1:]]
 sys.exit(main())

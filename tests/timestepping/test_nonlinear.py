@@ -21,7 +21,7 @@ import stringcontact as sc
 from stringcontact.fem.compat import trapezoid
 from stringcontact.model import nonlinear as variants
 from stringcontact.model import paper
-from stringcontact.run import driver
+from stringcontact.run import setup
 from stringcontact.timestepping import scheme_class
 
 K3 = 10.0
@@ -81,9 +81,9 @@ def test_the_cubic_variant_runs_with_every_scheme(ex1):
 
 
 def _setting(scene, model, scheme, penalty=None):
-    _name, _Scheme, penalty, mass, model = driver._choose_scheme(scene, scheme, penalty, None, model)
-    V, params, ops = driver.discretise(scene, model, MPI.COMM_SELF)
-    return driver._setting(scene, model, V, params, ops, penalty, mass, MPI.COMM_SELF)
+    _name, _Scheme, penalty, mass, model = setup._choose_scheme(scene, scheme, penalty, None, model)
+    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
+    return setup._setting(scene, model, V, params, ops, penalty, mass, MPI.COMM_SELF)
 
 
 class Manufactured:

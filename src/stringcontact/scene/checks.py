@@ -63,8 +63,8 @@ def allowed(key: str) -> str:
         "description": "a string",
         "notes": "a string",
         "dt": f"T/dt an integer in [{lo}, {hi}] (up to {DT_RELATIVE_TOLERANCE:g} relative), or give nt",
-        "eta0": f"an expression in x (2D: x, y) or a number; {values}",
-        "v0": f"an expression in x (2D: x, y) or a number; {values}",
+        "eta0": f"an expression in x (2D: x, y) or a number; 1D: also nx + 1 nodal values; {values}",
+        "v0": f"an expression in x (2D: x, y) or a number; 1D: also nx + 1 nodal values; {values}",
         "load": f"an expression in x (2D: x, y) or a number; {values}",
         "obstacle": f"an expression in x (2D: x, y) and t, or a number; {values}",
         "output_times": f"at most {MAX_OUTPUT_TIMES} numbers in [0, T], ascending, no duplicates",
@@ -271,6 +271,38 @@ def expression_text(key: str, value) -> str:
             raise SceneError(f"{key}: {value!r} is not finite; allowed: an expression in x or a finite number")
         return repr(v)
     raise SceneError(f"{key}: expected an expression string or a number, got {describe(value)}")
+
+
+def initial_data(key: str, value):
+    """`eta0` or `v0`: an expression (as `expression_text`), or a string's nodal values as an array (a NumPy array, a
+    list or a tuple of numbers; a restart from a state): a tuple of finite floats within MAX_MAGNITUDE. Whether their
+    number fits the mesh is `check_nodal_values`' question."""
+    if isinstance(value, str) or is_number(value):
+        return expression_text(key, value)
+    if isinstance(value, (list, tuple, np.ndarray)):
+        try:
+            values = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise SceneError(f"{key}: expected numbers in its array, got {describe(value)}") from None
+        if values.ndim != 1 or values.size < 3:
+            raise SceneError(f"{key}: an array of nodal values must be flat, nx + 1 numbers; got shape {values.shape}")
+        bad = np.flatnonzero(~np.isfinite(values) | (np.abs(values) > MAX_MAGNITUDE))
+        if bad.size:
+            raise SceneError(f"{key}: value {values[bad[0]]!r} at node {int(bad[0])} is not finite or too large; "
+                             f"allowed: nodal values in [-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}]")
+        return tuple(values.tolist())
+    raise SceneError(f"{key}: expected an expression string, a number or an array of nodal values, got "
+                     f"{describe(value)}")
+
+
+def check_nodal_values(key: str, values: tuple, nx: int | None) -> None:
+    """An array of nodal values fits a string of `nx` cells: nx + 1 of them (a membrane takes none)."""
+    if nx is None:
+        raise SceneError(f"{key}: an array of nodal values is for a string (domain interval); allowed on a membrane: "
+                         "an expression in x, y or a number")
+    if len(values) != nx + 1:
+        raise SceneError(f"{key}: {len(values)} nodal values for nx = {nx} cells; allowed: nx + 1 = {nx + 1} values in "
+                         "the order of x")
 
 
 def text(key: str, value) -> str:

@@ -13,6 +13,9 @@ import importlib.metadata
 
 from ..errors import SceneError, one_line
 
+#: The scheme and the model of a scene that names none (`stringcontact show` writes them out).
+DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
+
 #: The time schemes: name -> one-line description (`stringcontact.SCHEMES`); the code is timestepping/NAME.py.
 SCHEMES = {
     "paper": "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step",

@@ -67,7 +67,8 @@ class DeprecatedKeyWarning(SceneWarning, FutureWarning):
 class Scene:
     """One validated scene. Build it with :func:`load_scene`, :meth:`from_dict` or :meth:`replace`.
 
-    ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.scene.expressions`);
+    ``eta0`` and ``v0`` are expressions in ``x`` (see :mod:`stringcontact.scene.expressions`), or for a string
+    its nx + 1 nodal values in the order of x (a tuple of floats; a restart from a `Stepper`'s state);
     ``h_left``/``h_right`` are the (resolved) heights at which the ends are held.
     ``load`` (an external force density f) and ``obstacle`` (a profile ψ) are optional expressions
     in ``x`` too; they are data for a model that reads them (``loaded_obstacle``),
@@ -82,8 +83,8 @@ class Scene:
     eps: float
     nx: int  # cells
     nt: int  # time steps
-    eta0: str  # initial displacement, expression in x
-    v0: str  # initial velocity, expression in x
+    eta0: str | tuple  # initial displacement, expression in x (1D: or nx + 1 nodal values)
+    v0: str | tuple  # initial velocity, expression in x (1D: or nx + 1 nodal values)
     h_left: float  # height of the left end
     h_right: float  # height of the right end
     h: float | None = None  # the single h if the file gave one (also an expression variable)
@@ -147,7 +148,12 @@ class Scene:
             checks.check_storage(self.node_estimate - 1, self.nt, len(self.output_times))
         else:  # the solver thins a membrane's rows to its budget (solver.ROW_BUDGET): 0, T and the output times must fit
             checks.check_membrane_storage(self.node_estimate, len(self.output_times))
-        keys = ("eta0", "v0") + tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
+        for key in ("eta0", "v0"):
+            put(key, checks.initial_data(key, getattr(self, key)))
+            if isinstance(getattr(self, key), tuple):
+                checks.check_nodal_values(key, getattr(self, key), self.nx if self.dim == 1 else None)
+        keys = tuple(k for k in ("eta0", "v0") if isinstance(getattr(self, k), str))
+        keys += tuple(self.fields) + (("h",) if isinstance(self.h, str) else ())
         for key in keys:
             put(key, checks.expression_text(key, getattr(self, key)))
             for t in (0.0, self.T / 2, self.T) if key == "obstacle" else (0.0,):  # a moving obstacle over [0, T]
@@ -197,9 +203,12 @@ class Scene:
             return np.column_stack([(r * np.cos(th)).ravel(), (r * np.sin(th)).ravel()])
         return np.zeros((0, 2))
 
-    def _evaluate(self, key: str, expr: str, points, t: float = 0.0) -> np.ndarray:
-        """`expr` at the points: (N,) in 1D, (N, 2) in 2D; the obstacle at the time t."""
+    def _evaluate(self, key: str, expr, points, t: float = 0.0) -> np.ndarray:
+        """`expr` at the points: (N,) in 1D, (N, 2) in 2D; the obstacle at the time t. Nodal values (a tuple, 1D):
+        their piecewise-linear interpolant, exact at the nodes."""
         p = np.asarray(points, dtype=float)
+        if isinstance(expr, tuple):
+            return np.interp(p.reshape(-1), self.x(), np.asarray(expr))
         if self.dim == 1:
             return expressions.evaluate(expr, p, field=key, names=self._names(key, t))
         return expressions.evaluate(expr, p[:, 0], field=key, names=self._names(key, t), y=p[:, 1])
@@ -284,8 +293,8 @@ class Scene:
             "eps": self.eps,
             "nx": self.nx,
             "nt": self.nt,
-            "eta0": self.eta0,
-            "v0": self.v0,
+            "eta0": list(self.eta0) if isinstance(self.eta0, tuple) else self.eta0,
+            "v0": list(self.v0) if isinstance(self.v0, tuple) else self.v0,
         }
         if self.h is not None:
             d["h"] = self.h
@@ -448,16 +457,19 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         return _build_2d(data, domain, name, T, nt)
     length = checks.number("length", data.get("length", 1.0))
     h = checks.number("h", data["h"]) if "h" in data else None
-    eta0 = checks.expression_text("eta0", data["eta0"])
+    eta0 = checks.initial_data("eta0", data["eta0"])
 
     names = {"l": length} if h is None else {"l": length, "h": h}
     if h is not None:
         h_left = h_right = h
     else:
         # The ends default to eta0's end values: a string held where it starts.
-        expressions.check(eta0, field="eta0", names=names)
         need = [k for k in ("h_left", "h_right") if k not in data]
-        ends = expressions.evaluate(eta0, np.array([0.0, length]), field="eta0", names=names) if need else (None, None)
+        if isinstance(eta0, tuple):
+            ends = (eta0[0], eta0[-1])
+        else:
+            expressions.check(eta0, field="eta0", names=names)
+            ends = expressions.evaluate(eta0, np.array([0.0, length]), field="eta0", names=names) if need else (None, None)
         h_left = data["h_left"] if "h_left" in data else float(ends[0])
         h_right = data["h_right"] if "h_right" in data else float(ends[1])
 

@@ -1,0 +1,216 @@
+"""The stored rows of a run: which steps are kept (within a memory budget), gathered in x order to rank 0 (or every
+rank), and the per-time series every rank sums (contact measure, largest speed, depth below the obstacle)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+from mpi4py import MPI
+
+from ..fem import compat, domains
+from ..io.result import ENERGY_KEYS, canonical_cells, node_sort_key
+from ..scene import BYTES_PER_STORED_NODE
+
+if TYPE_CHECKING:
+    from ..fem.outputs import OutputValues
+    from ..timestepping.base import Setting
+    from .options import Storage
+
+__all__ = ["SERIES_KEYS", "StorageWarning", "budget_steps", "output_steps", "step_times", "stored_steps"]
+
+
+def output_steps(nt: int, dt: float, output_times) -> set[int]:
+    """The steps nearest to the scene's output times."""
+    return {min(nt, max(0, round(t / dt))) for t in output_times}
+
+
+def step_times(steps, dt: float, output_times=()) -> np.ndarray:
+    """The times of `steps`, stored exactly: n·Δt rounded to 12 significant digits (0.04, not the product
+    0.039999999999999994), and a scene's output time as given where its step is that time (to round-off)."""
+    steps = np.asarray(steps, dtype=np.int64)
+    times = np.array([float(f"{n * dt:.12g}") for n in steps.tolist()], dtype=float)
+    for t in output_times:
+        hit = np.flatnonzero(np.abs(steps * dt - float(t)) <= 1e-9 * max(dt, abs(float(t))))
+        times[hit] = float(t)
+    return times
+
+
+def stored_steps(nt: int, dt: float, output_times, max_rows: int) -> np.ndarray:
+    """Every k-th step so that about `max_rows` rows are kept, plus 0, nt and the scene's output times."""
+    stride = max(1, math.ceil(nt / max(1, max_rows)))
+    steps = set(range(0, nt + 1, stride)) | {0, nt} | output_steps(nt, dt, output_times)
+    return np.array(sorted(steps), dtype=np.int64)
+
+
+class StorageWarning(UserWarning):
+    """The stored rows were thinned to fit the row budget."""
+
+
+def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, budget: int):
+    """`stored_steps`, thinned so that the rows (`nodes` × BYTES_PER_STORED_NODE bytes each) fit `budget` bytes.
+
+    Returns (steps, note): note is None, or one line saying what was kept. 0, T and the output times are
+    always kept (if they alone do not fit, ValueError), with every k-th step for the smallest k that fits.
+    """
+    steps = stored_steps(nt, dt, output_times, max_rows)
+    row = max(1, nodes) * BYTES_PER_STORED_NODE
+    allowed = budget // row
+    if len(steps) <= allowed:
+        return steps, None
+    fixed = {0, nt} | output_steps(nt, dt, output_times)
+    if allowed < len(fixed):
+        raise ValueError(
+            f"output_times: 0, T and the output times are {len(fixed)} stored rows of {nodes} nodes "
+            f"({len(fixed) * row / 1e9:.3g} GB); allowed: at most {allowed} rows (row budget {budget / 1e9:.3g} GB); "
+            "give fewer output times or a coarser mesh")
+    lo, hi = 1, nt + 1  # stride nt + 1 keeps the fixed steps only, which fit
+    while lo < hi:  # the smallest stride that fits (a bisection: the count falls with the stride, nearly monotone)
+        mid = (lo + hi) // 2
+        if nt // mid + 1 + sum(1 for f in fixed if f % mid) <= allowed:
+            hi = mid
+        else:
+            lo = mid + 1
+    kept = np.array(sorted(set(range(0, nt + 1, hi)) | fixed), dtype=np.int64)
+    note = (f"max_rows = {max_rows}: {len(steps)} stored rows of {nodes} nodes would take {len(steps) * row / 1e9:.3g} GB, "
+            f"over the row budget of {budget / 1e9:.3g} GB; keeping {len(kept)} rows (every {hi}-th step, with 0, T "
+            "and the output times)")
+    return kept, note
+
+
+class _Gather:
+    """Gathers owned dof arrays in x order (2D: by x, then y; the same for any number of ranks) to rank 0,
+    or with `to_all` to every rank. Where they are not gathered, `holds` is False and `x` is None.
+
+    The concatenation of the ranks' owned dofs is dolfinx's global dof numbering; `order` maps x order to it.
+    """
+
+    def __init__(self, comm, x_owned: np.ndarray, to_all: bool = False):
+        self.comm, self.to_all = comm, to_all
+        self.counts = comm.allgather(len(x_owned)) if comm.size > 1 else [len(x_owned)]
+        self.nodes = int(sum(self.counts))
+        self.holds = to_all or comm.rank == 0
+        xs = _collect(comm, x_owned, to_all)
+        self.order = self.x = None
+        self.identity = False
+        self._buffers = {}
+        if self.holds:
+            x = np.concatenate(xs)
+            self.order = np.argsort(node_sort_key(x), kind="stable")
+            self.x = x[self.order]
+            self.identity = bool(np.array_equal(self.order, np.arange(self.order.size)))
+
+    def __call__(self, a: np.ndarray, out: np.ndarray | None = None) -> np.ndarray | None:
+        """The gathered array in x order (into `out`) where held; None elsewhere. Collective."""
+        a = np.ascontiguousarray(a, dtype=out.dtype if out is not None else None)
+        if self.comm.size == 1 and self.identity:  # serial, dofs already in x order: one copy
+            if out is None:
+                return a.copy()
+            out[...] = a
+            return out
+        send = a.view(np.uint8) if a.dtype == bool else a  # MPI has no NumPy bool: its bytes
+        buf = self._buffer(send.dtype) if self.holds else None
+        if self.comm.size == 1:
+            buf[...] = send
+        elif self.to_all:
+            self.comm.Allgatherv(send, [buf, self.counts])
+        else:
+            self.comm.Gatherv(send, [buf, self.counts] if self.holds else None, root=0)
+        if not self.holds:
+            return None
+        return np.take(buf.view(a.dtype), self.order, out=out)
+
+    def _buffer(self, dtype) -> np.ndarray:
+        if dtype not in self._buffers:
+            self._buffers[dtype] = np.empty(self.nodes, dtype=dtype)
+        return self._buffers[dtype]
+
+
+def _collect(comm, a: np.ndarray, to_all: bool) -> list | None:
+    """The ranks' arrays, in rank order: on rank 0 (every rank with `to_all`); None elsewhere."""
+    if comm.size == 1:
+        return [a]
+    return comm.allgather(a) if to_all else comm.gather(a, root=0)
+
+
+class _Rows:
+    """The stored rows where they are gathered (rank 0, or every rank), and on every rank the cumulative
+    energy terms and the `series` the ranks sum at each stored time (Result.series)."""
+
+    def __init__(self, steps: np.ndarray, gather: _Gather, extra: tuple = ()):
+        self.steps, self.gather, self.n = steps, gather, 0
+        k = len(steps)
+        self.fields = {}
+        if gather.holds:  # `extra`: the model's output fields (`Model.outputs`)
+            self.fields = {name: np.empty((k, gather.nodes)) for name in ("eta", "velocity", "contact_force", *extra)}
+            self.fields["contact"] = np.empty((k, gather.nodes), dtype=bool)
+        self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
+        self.series = {key: np.empty(k) for key in SERIES_KEYS}
+
+    @property
+    def next_step(self) -> int:
+        return self.steps[self.n] if self.n < len(self.steps) else -1
+
+    def store(self, fields: dict, energies, series) -> None:
+        for name, arr in fields.items():
+            arr = np.asarray(arr, dtype=bool if name == "contact" else float)  # the same bytes from every rank
+            self.gather(arr, out=self.fields[name][self.n] if self.fields else None)
+        for key, value in zip(ENERGY_KEYS, energies):
+            self.energy[key][self.n] = value
+        for key, value in zip(SERIES_KEYS, series):
+            self.series[key][self.n] = value
+        self.n += 1
+
+
+SERIES_KEYS = ("contact_measure", "max_speed", "depth")
+
+
+def _row_series(comm, fields: dict, weights: np.ndarray, obstacle: np.ndarray) -> tuple[float, float, float]:
+    """One stored time's series over all ranks: Σ weights·contact (the contact length or area), max |v|,
+    max (obstacle − η). Collective: two allreduces of a few numbers."""
+    measure = float(np.dot(weights, np.asarray(fields["contact"], dtype=float)))
+    highs = np.array([np.max(np.abs(fields["velocity"]), initial=-np.inf),
+                      np.max(obstacle - fields["eta"], initial=-np.inf)])
+    if comm.size > 1:
+        measure = comm.allreduce(measure, op=MPI.SUM)
+        mine, highs = highs, np.empty(2)
+        comm.Allreduce(mine, highs, op=MPI.MAX)
+    return measure, float(highs[0]), float(highs[1])
+
+
+def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
+    """2D: the nodal areas (`weights`, this rank's owned ones, gathered) and the triangles, both in the gathered
+    node order, where the rows are gathered; 1D: none. Each rank sends its triangles in global dof numbers (the
+    order the ranks' owned dofs are concatenated in), so that no rank needs the others' coordinates. Collective."""
+    if V.mesh.topology.dim == 1:
+        return {}
+    n_cells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local
+    local = compat.cell_dofs(V)[:n_cells]
+    cells = V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32)).reshape(local.shape)
+    parts = _collect(gather.comm, cells, gather.to_all)
+    weights = gather(weights)
+    if not gather.holds:
+        return {}
+    position = np.empty_like(gather.order)
+    position[gather.order] = np.arange(gather.order.size)  # global dof -> place in x order
+    return {"weights": weights, "cells": canonical_cells(position[np.concatenate(parts)])}
+
+
+def _storage(scene, s: Setting, V, storage: Storage, outputs: OutputValues):
+    """The stored rows (steps within the budget, gathered to rank 0 or every rank), the mesh rows, and the
+    function that sums a stored time's series over the ranks. Collective."""
+    gather = _Gather(s.comm, s.x, to_all=storage.gather == "all")
+    steps, note = budget_steps(scene.nt, scene.dt, scene.output_times, storage.max_rows, gather.nodes, storage.row_budget)
+    if note is not None and s.comm.rank == 0:
+        warnings.warn(note, StorageWarning, stacklevel=3)
+    n_owned = s.x.shape[0]
+    weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
+    obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
+    geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
+    extra = tuple(f.name for f in outputs.fields)
+    if s.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
+        return (_Rows(steps, gather, extra), geometry,
+                lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t)))
+    return _Rows(steps, gather, extra), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)
