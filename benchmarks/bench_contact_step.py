@@ -175,7 +175,7 @@ def candidates(scene, label):
             res = sc.simulate(scene, scheme="projection")
             wall = MPI.COMM_WORLD.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         out[name] = {"wall_s": wall, "solve_s": res.timings["solve"], "steps": scene.nt,
-                     "contact step": res.timings["contact step"]}
+                     "contact step": res.solver["contact step"]}
     complementarity.MAX_ITERATIONS = default
     if MPI.COMM_WORLD.rank == 0:
         for name, r in out.items():

@@ -48,7 +48,7 @@ def cost(case: str, steps: int, repeat: int, solver: str = "film") -> None:
         times.append(r.timings["solve"] / scene.nt)
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
-        its = r.timings["newton iterations"]
+        its = r.counters["newton iterations"]
         print(f"{case}: {scene.node_estimate} nodes, {comm.size} rank(s), solver {solver}, {scene.nt} steps: {its / scene.nt:.2f} Newton "
               f"iterations per step, {1e3 * min(times):.1f} ms per step (median {1e3 * np.median(times):.1f} of "
               f"{repeat}; setup {r.timings['setup']:.2f} s)")

@@ -90,7 +90,7 @@ def run_stringcontact(n: int, steps: int, out: Path, solver: str = "auto", kind:
         np.save(out / f"eta{n}-{solver}-{comm.size}.npy", res.eta[-1])  # solver_table compares it with LU's
     return {"nodes": (n + 1) ** 2, "setup_s": res.timings["setup"], "step_ms": 1e3 * res.timings["solve"] / steps,
             "total_s": total, "ranks": comm.size, "rss_mb": rss, "solver": solver,
-            "linear_solver": res.timings.get("linear solver", "")}
+            "linear_solver": res.solver.get("linear solver", "")}
 
 
 def p1_operators(x: np.ndarray, cells: np.ndarray):

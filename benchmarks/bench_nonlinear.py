@@ -80,7 +80,7 @@ def run_once(scene, scheme: str, model: str) -> dict:
     finally:
         nonlinear.NewtonStep.solve = original
     return {"step_ms": 1e3 * res.timings["solve"] / scene.nt, "counts": counts, "status": res.status,
-            "jacobians": res.timings.get("jacobian assemblies", 0),
+            "jacobians": res.counters.get("jacobian assemblies", 0),
             "timings": floor_timings(steps[0]) if steps else (0.0, 0.0, 0.0)}
 
 

@@ -152,7 +152,7 @@ def semi_vs_explicit(N: int, nt: int, repeats: int) -> dict:
         for penalty in times:
             r = sc.simulate(scene, penalty=penalty)
             times[penalty].append(r.timings["solve"])
-            refac = r.timings.get("refactorisations", refac)
+            refac = r.counters.get("refactorisations", refac)
     med = {k: statistics.median(v) for k, v in times.items()}
     return {"N": N, "steps": nt, **med, "refactorisations": refac}
 

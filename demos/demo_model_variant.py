@@ -192,8 +192,8 @@ cubic = dataclasses.replace(sc.inelastic, name="cubic", momentum_form=foundation
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", sc.SceneWarning)
     res = sc.simulate(scene, model=cubic)
-print(f"cubic: {res.timings['newton iterations']} Newton iterations in {scene.nt} steps "
-      f"({res.timings['nonlinear solver']}); E(0) = {res.total_energy[0]:.2f} "
+print(f"cubic: {res.counters['newton iterations']} Newton iterations in {scene.nt} steps "
+      f"({res.solver['nonlinear solver']}); E(0) = {res.total_energy[0]:.2f} "
       f"(the paper's model: {paper.total_energy[0]:.2f}); balance residual {abs(res.balance_residual[-1]):.1e}")
 assert abs(res.balance_residual[-1]) < 1e-8 * res.total_energy[0]
 # -

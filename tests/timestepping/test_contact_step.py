@@ -140,7 +140,7 @@ def test_snes_vi_gives_the_active_set_s_answer(monkeypatch):
     active = run(scene, scheme="projection")
     monkeypatch.setattr(complementarity, "MAX_ITERATIONS", 0)  # every step by PETSc's SNES VI
     vi = run(scene, scheme="projection")
-    assert "SNES VI fallbacks" in vi.timings["contact step"]
+    assert "SNES VI fallbacks" in vi.solver["contact step"]
     assert np.max(np.abs(vi.eta - active.eta)) <= 1e-9 * np.max(np.abs(active.eta))
     assert np.max(np.abs(vi.contact_force - active.contact_force)) <= 1e-8 * np.max(active.contact_force)
 

@@ -22,12 +22,12 @@ def _run(scene):
 def test_diagonal_contact_step_is_the_active_set_answer_without_a_solve(name, monkeypatch):
     scene = sc.load_scene(name).replace(nx=300, nt=600, alpha=0.0)  # A = M/Δt²: diagonal
     nodal = _run(scene)
-    assert nodal.timings["linear solver"].startswith("none")
-    assert nodal.timings["contact step"].startswith("nodal maximum")
+    assert nodal.solver["linear solver"].startswith("none")
+    assert nodal.solver["contact step"].startswith("nodal maximum")
     assert nodal.contact.any()
     monkeypatch.setattr(complementarity, "inverse_diagonal", lambda A, comm: None)  # the active-set method on LU
     active_set = _run(scene)
-    assert active_set.timings["linear solver"].startswith("LU")
+    assert active_set.solver["linear solver"].startswith("LU")
     for field in ("eta", "velocity", "contact", "contact_force"):
         assert np.array_equal(getattr(nodal, field), getattr(active_set, field)), field
     for key, values in nodal.energy.items():
@@ -36,4 +36,4 @@ def test_diagonal_contact_step_is_the_active_set_answer_without_a_solve(name, mo
 
 def test_with_viscosity_the_step_matrix_is_not_diagonal():
     res = _run(sc.load_scene("example1").replace(nx=300, nt=600))
-    assert res.timings["linear solver"].startswith("LU")
+    assert res.solver["linear solver"].startswith("LU")

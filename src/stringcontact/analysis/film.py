@@ -141,7 +141,7 @@ def film_study(quick: bool = False, mus=None) -> list[dict]:
         for p_cav in CAVITATION:
             for mu in (mus or (QUICK_MUS if quick else MUS))[problem]:
                 r = film_run(scene, mu, p_cav)
-                per_step = r.timings.get("newton iterations", np.nan) / scene.nt if r is not None else np.nan
+                per_step = r.counters.get("newton iterations", np.nan) / scene.nt if r is not None else np.nan
                 rows.append(base | {"method": "film", "mu": mu, "p_cav": np.nan if p_cav is None else p_cav,
                                     "newton_per_step": per_step} | measures(r, refs["inelastic"], t_lift, star))
     return rows

@@ -298,15 +298,12 @@ def report(res) -> None:
             "cannot stop holds it down (a static load, a model variant, r > 1); see docs/explanation/reliability.md",
             PenetrationWarning,
         )
-    times = []
-    for k, v in res.timings.items():
-        if k not in ("linear solver", "nonlinear solver"):
-            times.append(f"{k} {v:.3g} s" if isinstance(v, float) else f"{k} {v}")
-    if times:
-        print("time: " + ", ".join(times))
-    for solver in ("linear solver", "nonlinear solver"):
-        if solver in res.timings:
-            print(f"{solver}: {res.timings[solver]}")
+    if res.timings:
+        print("time: " + ", ".join(f"{k} {v:.3g} s" for k, v in res.timings.items()))
+    if res.counters:
+        print("counts: " + ", ".join(f"{k} {v}" for k, v in res.counters.items()))
+    for what, description in res.solver.items():
+        print(f"{what}: {description}")
 
 
 def _components_note(res) -> str:

@@ -82,7 +82,10 @@ class Result:
     `fields` holds the model's output fields by name (`Model.outputs`: its further unknowns and derived fields;
     ``result.fields["reaction"]`` of a model that declares a field ``reaction``), (k, nodes) arrays like `eta`; `field_info` says how each is shown (`OutputField.metadata`: label, unit, colours, scale).
     `parameters` holds the model's constants as the run used them (the scene's ``[parameters]`` and the
-    defaults).
+    defaults; a `Stepper` that changed one: the values at the end). `timings` holds seconds (set-up, the time
+    steps, output, pictures), `counters` the schemes' counts (refactorisations, Newton iterations, Jacobian
+    assemblies, linear solves) and `solver` what solved the steps, in words (linear solver, nonlinear solver,
+    contact step).
     """
 
     scene: object
@@ -99,7 +102,7 @@ class Result:
     mass: str
     model: str
     status: str = "complete"
-    timings: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)  # seconds: "setup", "solve", "output", "pictures"
     message: str = ""
     scheme: str = "paper"
     weights: np.ndarray | None = None  # 2D: the nodal areas ∫φ_i dx (lumped), in the order of x
@@ -113,6 +116,8 @@ class Result:
     fields: dict = field(default_factory=dict)  # the model's output fields: name -> (k, nodes), like eta
     field_info: dict = field(default_factory=dict)  # name -> OutputField.metadata(): how each field is shown
     parameters: dict = field(default_factory=dict)  # the model's constants as the run used them
+    counters: dict = field(default_factory=dict)  # the schemes' counts: "refactorisations", "newton iterations", ...
+    solver: dict = field(default_factory=dict)  # what solved the steps, in words: "linear solver", "contact step", ...
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):

@@ -151,6 +151,8 @@ def summary_dict(result) -> dict:
         "r": scene.dt / scene.eps,
         "dolfinx": dolfinx.__version__,
         "timings": result.timings,
+        "counters": getattr(result, "counters", {}),
+        "solver": getattr(result, "solver", {}),
         "min_eta": result.min_eta,
         "stored_rows": len(result.t),
         "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},

@@ -86,6 +86,7 @@ class Stepper:
         self.outputs = OutputValues(self.model, V, params)
         self.rows, self.geometry, self.row_series = _storage(scene, s, V, storage, self.outputs)
         self.timings = {"setup": time.perf_counter() - t0}
+        self.counters, self.solver = {}, {}
         self.origin = setup._model_origin(spec, self.model)
         nonlinear = ops.nonlinear
         derived = nonlinear is not None and nonlinear.energy_derived  # the form's potential is booked
@@ -233,7 +234,9 @@ class Stepper:
             raise ValueError(f"result: the run is at step {self.step} of {self.nt} (t = {self.t:g}); advance() to T")
         writer = self.writer
         self.timings["solve"] = self._loop_time - (writer.write_time if writer is not None else 0.0)  # I/O apart
-        self.timings.update(_summed(*self._past_timings, self.scheme.timings))
+        summed = _summed(*self._past_timings, self.scheme.timings)
+        self.counters = {k: v for k, v in summed.items() if isinstance(v, int)}
+        self.solver = {k: v for k, v in summed.items() if isinstance(v, str)}
         result = self._result("complete", "")
         unbalanced = unbalanced_message(result)  # a balance that does not close is not a complete run
         if unbalanced is not None:
@@ -259,6 +262,7 @@ class Stepper:
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin, penetration_bound=penetration_bound_of(self.model),
                         energy_label=self.energy_label, status=status, timings=self.timings, message=message,
+                        counters=self.counters, solver=self.solver,
                         scheme=self.name, **self.geometry, field_info=self.outputs.info, parameters=dict(self.constants),
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)

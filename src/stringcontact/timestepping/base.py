@@ -14,6 +14,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 from dolfinx import fem
@@ -24,9 +25,19 @@ from ..errors import InstabilityError, InstabilityWarning
 from ..fem import nodal
 from ..fem.operators import Operators
 
-#: (kinetic, elastic, viscous, contact, numerical, external, stored): the state energies after a step, then
-#: the step's increments of the cumulative terms, then the energy held by a conservative contact law.
-StepEnergy = tuple
+
+class StepEnergy(NamedTuple):
+    """A scheme's energy terms at the start or after one step: the state's kinetic and elastic (stored) energy, the
+    step's increments of the viscous, contact and numerical dissipation and of the external work, and the energy
+    held by a conservative contact law (a spring)."""
+
+    kinetic: float
+    elastic: float
+    viscous: float
+    contact: float
+    numerical: float
+    external: float
+    stored: float
 
 
 class NodalLaws:

@@ -30,7 +30,7 @@ from petsc4py import PETSc
 
 from ..fem.operators import diagonal_matrix, stacked
 from .base import Scheme as Base
-from .base import any_rank, check_law_stability, summer, wrap
+from .base import StepEnergy, any_rank, check_law_stability, summer, wrap
 from .linear import DampedLU, dirichlet_rows
 
 
@@ -113,7 +113,7 @@ class Scheme(Base):
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
         el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
         self.kin, self.el = self.allsum(kin, el)
-        return self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0
+        return StepEnergy(self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def _active_damping(self) -> None:
         """D = m_F d at η^n, v^n."""
@@ -205,7 +205,7 @@ class Scheme(Base):
         self.k += 1
         if self.moving:  # the law's fields at t^{k}: the stored row's contact set, the next step's active set
             self.s.obstacle.set_centred(self.k * dt)
-        return kin, el, visc, con, 0.0, ext, 0.0
+        return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0)
 
 
 __all__ = ["Scheme"]

@@ -72,7 +72,7 @@ from .affine import (
     literal_components,
 )
 from .base import Scheme as Base
-from .base import any_rank, check_law_stability, summer, wrap
+from .base import StepEnergy, any_rank, check_law_stability, summer, wrap
 from .linear import PREFIX, DampedLU, Linear, dirichlet_rows, options_held, set_from_options, solver_options
 from .spectrum import dt_of_mode, top_mode_of_shell
 
@@ -779,7 +779,7 @@ class PaperStep(_NewtonScheme):
         kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
         self.E = kin + el
         self._force()
-        return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def _force(self) -> None:
         """The law at (η^n, η^{n−1}): the explicit force density (0 where no force acts), or the damping weights."""
@@ -832,7 +832,7 @@ class PaperStep(_NewtonScheme):
             self.force_density[:] = f * self.inv_mF
         self.old[:], self.eta_[:], self.v[:] = e0, u, v1
         self._force()
-        return kin, el, visc, con, num, ext, 0.0
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
 
     def _release(self, u: np.ndarray) -> np.ndarray:
         """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (u above the
@@ -977,7 +977,7 @@ class ProjectionStep(_NewtonScheme):
         self.E = kin + el
         self.pending = self._advance()
         self.v0 = np.array(v0, dtype=float)
-        return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
         reported, self.pending = self.pending, self._advance()
@@ -1014,7 +1014,7 @@ class ProjectionStep(_NewtonScheme):
         self.forces[0][:] = F * self.inv_mF
         self.etas = [self.etas[3], new, e0, em]
         self.forces = [self.forces[3], self.forces[0], self.forces[1], self.forces[2]]
-        return kin, el, visc, con, num, ext, 0.0
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
 
 
 # --- newmark: the trapezoidal rule, the midpoint in η -----------------------------------------------------
@@ -1059,7 +1059,7 @@ class NewmarkStep(_NewtonScheme):
         self.newton.start_fields(eta0, v0)
         kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
         self.E = kin + el
-        return kin, el, 0.0, 0.0, 0.0, 0.0, 0.0
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
         s, dt, nw = self.s, self.s.dt, self.newton
@@ -1092,7 +1092,7 @@ class NewmarkStep(_NewtonScheme):
         self.k += 1
         if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
             self.s.obstacle.set_centred(self.k * dt)
-        return kin, el, visc, con, num, ext, 0.0
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
 
     def _obstacle_work(self, f: np.ndarray) -> float:
         """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's); 0 for an obstacle at rest."""

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..fem.operators import stacked, step_matrices
 from .base import Scheme as Base
-from .base import any_rank, check_law_stability, summer, wrap
+from .base import StepEnergy, any_rank, check_law_stability, summer, wrap
 from .linear import DampedLU, dirichlet_rows
 
 
@@ -151,7 +151,7 @@ class Scheme(Base):
             self.stored_energy(self.eta_now[1]),
         )
         self.kin, self.el = kin, el
-        return kin, el, 0.0, 0.0, 0.0, 0.0, stored
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, stored)
 
     def _law(self):
         """F(η^n, v^n) at the state the environment points at; `contact_force` may have evaluated it already."""
@@ -219,7 +219,7 @@ class Scheme(Base):
         (work,) = self.allsum(0.5 * float(np.dot(self.by_v[1], psi_new - self.psi_levels[0])))
         self.psi_levels = [self.psi_levels[1], psi_new]
         kin, el, visc, con, num, ext, stored = terms
-        return kin, el, visc, con + work, num, ext + work, stored
+        return StepEnergy(kin, el, visc, con + work, num, ext + work, stored)
 
     def _right_hand_side(self, e0, em) -> None:
         """b = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n (+ the load), the ends held; F^n is the law at
@@ -285,7 +285,7 @@ class Scheme(Base):
         split = 0.5 * (work + split)
         num = kin_new + self.kin + el_new + self.el - cross - (split - work)
         self.kin, self.el = kin_new, el_new
-        return kin_new, el_new, visc, split, num, ext, stored
+        return StepEnergy(kin_new, el_new, visc, split, num, ext, stored)
 
     def _rotate(self) -> None:
         """η^{n−1} ← η^n ← η^{n+1}; the new step's v, K η, (C/Δt) η and M v become the old ones."""

@@ -66,7 +66,7 @@ from ..errors import InstabilityError
 from ..fem.operators import diagonal_matrix, stacked
 from ..scene import SceneWarning
 from .base import Scheme as Base
-from .base import any_rank, summer, wrap
+from .base import StepEnergy, any_rank, summer, wrap
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .spectrum import gershgorin_bound, largest_stable_dt, top_mode, top_mode_krylov  # noqa: F401 - re-exported
@@ -242,7 +242,7 @@ class Scheme(Base):
                                                  0.25 * float(np.dot(d, ahead.kc[1] - now.kc[1])))
         self.pending = self._advance()  # η¹: the first row's centred velocity needs it
         self.v0 = np.array(v0, dtype=float)
-        return (kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
         (reported, self.energy_slack), self.pending = self.pending, self._advance()
@@ -298,7 +298,7 @@ class Scheme(Base):
         kin, el, visc, con, ext, slack = self.allsum(kin, el, visc, con, ext, slack)
         np.multiply(F, self.inv_mF, out=new.force)
         self.levels = [self.levels[3], new, e0, em]  # before is free; next → ahead → now → before
-        return (kin, el, visc, con, 0.0, ext, 0.0), slack
+        return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0), slack
 
     def _weighted_step(self, new, em, rhs):
         """Paoli and Schatzman's step with restitution e: the contact step for z = (η^{n+1} + e η^{n−1})/(1 + e),
