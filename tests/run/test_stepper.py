@@ -178,9 +178,9 @@ def test_the_command_line_simulate_and_a_stepper_record_the_same_settings(tmp_pa
     while st.step < st.nt:
         st.advance()
     st.result()
-    keys = ("scene", "scheme", "penalty", "mass", "model", "model_origin", "parameters", "fields")
+    keys = ("scene", "scheme", "penalty", "mass", "model", "model_origin", "parameters", "fields", "petsc_options")
     import json
 
     recorded = [{k: json.loads((tmp_path / d / "summary.json").read_text())[k] for k in keys} for d in ("cli", "py", "st")]
-    assert recorded[0]["scene"]["petsc_options"] == options
+    assert recorded[0]["scene"]["petsc_options"] == options and recorded[0]["petsc_options"]["pc_type"] == "lu"
     assert recorded[0] == recorded[1] == recorded[2]

@@ -56,7 +56,9 @@ def _check_scheme_flags(args, scene) -> None:
     """--eps or --penalty with a scheme that has no penalty: refused, as `run` refuses them."""
     from ..timestepping import scheme_class
 
-    name = args.scheme or scene.scheme or "paper"
+    from ..scene.names import DEFAULT_SCHEME
+
+    name = args.scheme or scene.scheme or DEFAULT_SCHEME
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
         given = "--eps" if args.eps is not None else "--penalty"
         raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it refines nx and nt only")

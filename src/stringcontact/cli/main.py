@@ -30,6 +30,7 @@ import warnings
 
 from ..errors import one_line
 from .mpi_start import quick_singleton
+from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 from ..timestepping import SCHEMES
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -120,8 +121,6 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     return parser
 
 
-#: What a scene that names no scheme or model runs with (`simulate`'s defaults), as `show` prints them.
-DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
 #: `show`'s line for an optional key the scene does not give.
 _NOT_GIVEN = {
     "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
@@ -421,7 +420,7 @@ def _check_scheme_options(args, scene) -> None:
     projection: refused before anything runs."""
     from ..timestepping import check_restitution, scheme_class
 
-    name = args.scheme or scene.scheme or "paper"
+    name = args.scheme or scene.scheme or DEFAULT_SCHEME
     check_restitution(name, scene.restitution or 0.0)
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
         given = "--eps" if args.eps is not None else "--penalty"

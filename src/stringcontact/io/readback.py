@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import OutputError, SceneError, one_line
 from ..scene.limits import MAX_MEMBRANE_NODES, MAX_STORED_BYTES
+from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 from .publish import small_regular_file
 from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
 from .tables import ROW_ARRAYS, ROWS_FILE, field_members
@@ -77,7 +78,7 @@ def read_output(folder, from_xdmf: bool = False):
         min_eta=float(summary.get("min_eta", np.min(fields["eta"]))),
         penalty=summary.get("penalty", "explicit"),
         mass=summary.get("mass", "lumped"),
-        model=summary.get("model", "inelastic"),
+        model=summary.get("model", DEFAULT_MODEL),
         model_origin=summary.get("model_origin") or {},
         # a folder written before the model recorded its bound: the elastic variant's spring, else the velocity penalty
         penetration_bound=summary.get("penetration_bound", "spring" if summary.get("model") == "elastic" else "velocity"),
@@ -86,8 +87,9 @@ def read_output(folder, from_xdmf: bool = False):
         timings=summary.get("timings", {}),
         counters=summary.get("counters", {}),
         solver=summary.get("solver", {}),
+        petsc_options=summary.get("petsc_options", {}),
         message=summary.get("message", ""),
-        scheme=summary.get("scheme", "paper"),
+        scheme=summary.get("scheme", DEFAULT_SCHEME),
         fields=outputs,
         field_info={name: _plain(name, info) for name in outputs},
         parameters=_parameters(folder / "summary.json", summary),

@@ -118,6 +118,7 @@ class Result:
     parameters: dict = field(default_factory=dict)  # the model's constants as the run used them
     counters: dict = field(default_factory=dict)  # the schemes' counts: "refactorisations", "newton iterations", ...
     solver: dict = field(default_factory=dict)  # what solved the steps, in words: "linear solver", "contact step", ...
+    petsc_options: dict = field(default_factory=dict)  # the options the solver was given: the model's, then the user's
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):

@@ -153,6 +153,7 @@ def summary_dict(result) -> dict:
         "timings": result.timings,
         "counters": getattr(result, "counters", {}),
         "solver": getattr(result, "solver", {}),
+        "petsc_options": getattr(result, "petsc_options", {}),
         "min_eta": result.min_eta,
         "stored_rows": len(result.t),
         "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},

@@ -262,7 +262,7 @@ class Stepper:
                         min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin, penetration_bound=penetration_bound_of(self.model),
                         energy_label=self.energy_label, status=status, timings=self.timings, message=message,
-                        counters=self.counters, solver=self.solver,
+                        counters=self.counters, solver=self.solver, petsc_options=dict(self.setting.petsc_options or {}),
                         scheme=self.name, **self.geometry, field_info=self.outputs.info, parameters=dict(self.constants),
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
