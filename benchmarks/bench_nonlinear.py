@@ -30,7 +30,7 @@ import dolfinx.fem.petsc
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact.timestepping import nonlinear
+from stringcontact.timestepping import newton as nonlinear
 
 MODELS = ("inelastic", "cubic_foundation", "large_deflection")
 

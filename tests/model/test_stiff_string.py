@@ -1,6 +1,6 @@
 """The stiff string (model "stiff_string", model/stiff_string.py): its dispersion relation, its contact, its output,
 its constant's checks, its schemes and their energy ledgers, and the linear path its affine residual takes
-(timestepping/nonlinear.py). No timing here: benchmarks/bench_stiff_string.py measures its step."""
+(timestepping/newton.py). No timing here: benchmarks/bench_stiff_string.py measures its step."""
 
 import dataclasses
 import math

@@ -184,3 +184,50 @@ def test_the_command_line_simulate_and_a_stepper_record_the_same_settings(tmp_pa
     recorded = [{k: json.loads((tmp_path / d / "summary.json").read_text())[k] for k in keys} for d in ("cli", "py", "st")]
     assert recorded[0]["scene"]["petsc_options"] == options and recorded[0]["petsc_options"]["pc_type"] == "lu"
     assert recorded[0] == recorded[1] == recorded[2]
+
+
+def test_a_failed_newton_step_is_sub_stepped_as_the_smaller_dt_would_take_it(monkeypatch):
+    """Newton forced to fail once, on the first step at Δt: the step is taken again as two sub-steps of Δt/2 from the
+    restored state, and ends where a run with Δt/2 from the start is after 2 steps, to round-off; the run goes on at
+    Δt, closes its balance and counts the sub-steps."""
+    from stringcontact.errors import SolverError
+    from stringcontact.timestepping.newton import NewtonStep
+
+    s = scene(output_times=[], T=0.02)
+    calls = {"n": 0}
+    solve = NewtonStep.solve
+
+    def failing(self, guess):
+        calls["n"] += 1
+        if calls["n"] == 1 and self.s.dt == s.dt:
+            raise SolverError("Newton did not converge (SNES reason -5) after 50 iterations (forced)")
+        return solve(self, guess)
+
+    monkeypatch.setattr(NewtonStep, "solve", failing)
+    st = quiet(sc.Stepper, s, scheme="paper", model="cubic_foundation")
+    st.advance()
+    monkeypatch.setattr(NewtonStep, "solve", solve)
+    fine = quiet(sc.Stepper, s.replace(nt=2 * s.nt), scheme="paper", model="cubic_foundation")
+    for _ in range(2):
+        fine.advance()
+    assert np.max(np.abs(st.eta - fine.eta)) <= 1e-12 * np.max(np.abs(fine.eta))
+    while st.step < st.nt:
+        st.advance()
+    result = st.result()
+    assert result.counters["sub-stepped steps"] == 1 and result.counters["sub-steps"] == 2
+    assert result.status == "complete" and result.checks["energy_balance"]["closes"]
+
+
+def test_a_step_that_fails_at_every_sub_step_stops_the_run_in_one_line(monkeypatch):
+    from stringcontact.errors import SolverError
+    from stringcontact.timestepping.newton import NewtonStep
+
+    def failing(self, guess):
+        raise SolverError("Newton did not converge (SNES reason -5) after 50 iterations (forced)")
+
+    monkeypatch.setattr(NewtonStep, "solve", failing)
+    st = quiet(sc.Stepper, scene(output_times=[]), scheme="paper", model="cubic_foundation")
+    with pytest.raises(SolverError, match=r"^step 1, t = 0.0005: Newton did not converge .* again in 16 sub-steps "
+                                          r"of dt/16; use a smaller dt \(nt >= 8000\)") as info:
+        st.advance()
+    assert "\n" not in str(info.value)

@@ -1,4 +1,4 @@
-"""Nonlinear models: every scheme's Newton step (timestepping/nonlinear.py), the shipped nonlinear variants.
+"""Nonlinear models: every scheme's Newton step (timestepping/newton.py), the shipped nonlinear variants.
 
 No timing here: the speed figures are in benchmarks/bench_nonlinear.py.
 """
@@ -163,7 +163,7 @@ def test_a_kept_jacobian_gives_the_fresh_jacobians_answer(ex1, scheme, penalty, 
     iteration: the same η to within Newton's tolerance (measured up to 1.0e-9, paper: a kept J stops just below the
     absolute tolerance, a fresh one far below; 0 on projection, whose Jacobian is constant), with fewer assemblies
     than steps."""
-    from stringcontact.timestepping.nonlinear import NewtonStep
+    from stringcontact.timestepping.newton import NewtonStep
 
     kept = run(ex1, scheme=scheme, penalty=penalty, model=getattr(variants, model))
     monkeypatch.setattr(NewtonStep, "reuse_jacobian", False)
@@ -180,7 +180,7 @@ def test_integer_powers_are_compiled_as_products():
     from ufl.corealg.traversal import unique_pre_traversal
 
     from stringcontact.fem.compat import function_space
-    from stringcontact.timestepping.nonlinear import powers_as_products
+    from stringcontact.fem.powers import powers_as_products
 
     eta = fem.Function(function_space(mesh.create_unit_interval(MPI.COMM_SELF, 8)))
     eta.interpolate(lambda x: 1.5 + x[0])
@@ -271,7 +271,7 @@ def two_field_energy(U, p):
 def test_a_second_field_gives_the_single_field_answer(ex1, scheme, monkeypatch):
     """A fresh Jacobian at every iteration on both: a kept one stops each at its own point below the tolerance
     (2.4e-9 apart on newmark)."""
-    from stringcontact.timestepping.nonlinear import NewtonStep
+    from stringcontact.timestepping.newton import NewtonStep
 
     monkeypatch.setattr(NewtonStep, "reuse_jacobian", False)
     two = dataclasses.replace(variants.cubic_foundation, name="two_fields", fields=("q",), residual=two_field_residual,

@@ -54,9 +54,8 @@ def _check_grid_flags(args) -> None:
 
 def _check_scheme_flags(args, scene) -> None:
     """--eps or --penalty with a scheme that has no penalty: refused, as `run` refuses them."""
-    from ..timestepping import scheme_class
-
     from ..scene.names import DEFAULT_SCHEME
+    from ..timestepping import scheme_class
 
     name = args.scheme or scene.scheme or DEFAULT_SCHEME
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):

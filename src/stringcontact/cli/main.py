@@ -29,9 +29,9 @@ import threading
 import warnings
 
 from ..errors import one_line
-from .mpi_start import quick_singleton
 from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 from ..timestepping import SCHEMES
+from .mpi_start import quick_singleton
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 

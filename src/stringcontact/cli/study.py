@@ -11,8 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.publish import check_target, staged_folder
-
 from ..analysis.study import (
     ALPHA_COLUMNS,
     CONVERGENCE_COLUMNS,
@@ -33,6 +31,7 @@ from ..analysis.study import (
     work_precision,
     write_csv,
 )
+from ..io.publish import check_target, staged_folder
 
 
 def add_arguments(parser):

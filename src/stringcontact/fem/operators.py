@@ -15,7 +15,7 @@ system, A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n 
 
 A form nonlinear in η or η_t (or a model with several fields) keeps the same operators, linearised at 0
 (the stability estimates and round-off floors read them), and hands the residual itself to the schemes
-(`NonlinearForm`), which solve each step by Newton (`timestepping.nonlinear`).
+(`NonlinearForm`), which solve each step by Newton (`timestepping.newton`).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ class Operators:
 @dataclass
 class NonlinearForm:
     """A model whose momentum form is nonlinear in η or η_t: the residual R and its placeholders, for a
-    scheme that solves each step with Newton (`timestepping.nonlinear`).
+    scheme that solves each step with Newton (`timestepping.newton`).
 
     R is affine in η_tt and in the force with constant coefficients (M = ∂R/∂η_tt and B = −∂R/∂F are the
     `Operators`' M and m_force), so a scheme keeps its mass lumping and its nodal force; `stored_energy` is

@@ -34,8 +34,8 @@ from .lock import TargetLock, lock_path  # noqa: F401 - re-exported
 from .paraview_view import write_view
 from .publish import (  # noqa: F401 - re-exported
     DISK_ERRNOS,
-    NEARLY_FULL_BYTES,
     MANIFEST,
+    NEARLY_FULL_BYTES,
     STATUSES,
     atomic_path,
     check_target,

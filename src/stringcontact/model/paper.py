@@ -12,7 +12,7 @@ A model is a `Model`: a few plain functions that return UFL.
     time scheme (`scheme.py`) replaces by its difference quotients, and `force` is a placeholder for
     the contact force density. R linear in the four placeholders gives constant operators, assembled once;
     R nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``) makes every step a Newton solve
-    (`timestepping.nonlinear`); R must be affine in `eta_tt` and `force` with constant coefficients (the
+    (`timestepping.newton`); R must be affine in `eta_tt` and `force` with constant coefficients (the
     scheme checks). Terms in none of them (an external load ``- f*w*dx``) are the constant load
     b = -R(0, 0, 0, 0). `w` is the test function.
 
@@ -67,7 +67,7 @@ A model is a `Model`: a few plain functions that return UFL.
     summary.json; ``None``: the paper's "elastic ½∫η_x²".
 
 ``newton`` (a flag, default False)
-    Solve every step by Newton (`timestepping.nonlinear`) even when the form is linear: a form nonlinear in
+    Solve every step by Newton (`timestepping.newton`) even when the form is linear: a form nonlinear in
     η or η_t always is; a linear one otherwise keeps the constant operators (a comparison or a test).
 
 ``fields`` and ``residual(U, U_t, U_tt, force, W, p)`` (optional, together)

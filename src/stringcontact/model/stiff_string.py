@@ -27,7 +27,7 @@ row carries the bending force β K κ = β K M₀⁻¹ K η. Why this form and n
   and the curvature is conservative: it is not one of the `dissipative_fields`.
 
 The form is linear in (η, κ) and their derivatives: its steps take the Newton module's linear path
-(`timestepping.nonlinear`: J factorised once, one solve per step, no Newton iteration), and κ starts from η0's
+(`timestepping.newton`: J factorised once, one solve per step, no Newton iteration), and κ starts from η0's
 curvature. κ has no time derivative, so every scheme solves it with the η its row reads: `paper` at the new level,
 `newmark` at the midpoint (κ's midpoint is the midpoint η's curvature, so each κ^n is η^n's), `projection` at its
 explicit η^n: the bending force is then explicit too, and the stable Δt shrinks like Δx²/√β (`stable_dt`; the

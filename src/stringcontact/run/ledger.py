@@ -49,14 +49,18 @@ class _Ledger:
         self.E_prev = E
         return None
 
-    def rebase(self, start) -> float:
-        """A model's constant changed between steps: the energies of the same state under the new constants (a
-        scheme's `start` terms) replace the old, and the difference is booked as external work, the work done on
-        the string by changing it; returns that work."""
+    def rebase(self, start, numerical: bool = False) -> float:
+        """A scheme started afresh from the state: the state's energies as the new scheme counts them (its `start`
+        terms) replace the old, and the difference is booked as external work (a model's constant changed: the work
+        done on the string by changing it) or, with `numerical`, as numerical dissipation (a sub-stepped step: the
+        schemes at Δt/m and Δt count the kinetic energy of the same state differently); returns it."""
         kin, el, _, _, _, _, stored = start
         work = kin + el - self.kin - self.el + ((stored - self.stored) if self.conservative else 0.0)
-        self.ext += work
-        self.kin, self.el, self.stored = kin, el, stored  # E = kin + el − ext (+ stored) is unchanged: the guard holds
+        if numerical:
+            self.num -= work
+        else:
+            self.ext += work
+        self.kin, self.el, self.stored = kin, el, stored  # E − ext (− num) is unchanged: the guard holds
         return work
 
     @property

@@ -23,13 +23,17 @@ from ..io.result import FIELDS, Result, node_sort_key
 from ..model.paper import penetration_bound_of
 from ..scene.names import DEFAULT_MODEL
 from ..scene.parameters import resolve_parameters
+from ..timestepping.base import StepEnergy
 from . import setup
 from .checks import checks_of, unbalanced_message
 from .ledger import _Ledger, energy_roundoff
 from .options import grouped
 from .rows import _storage, step_times
 
-__all__ = ["Stepper"]
+__all__ = ["MAX_HALVINGS", "Stepper"]
+
+#: A Newton step that fails is retried as 2, 4, … 2^MAX_HALVINGS sub-steps before the run stops.
+MAX_HALVINGS = 4
 
 
 class Stepper:
@@ -82,6 +86,8 @@ class Stepper:
         s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
         self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
         self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
+        self._newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
+        self._restart = None  # the start terms of a scheme restarted after sub-steps
         self.parameters = _Constants(self)
         self.outputs = OutputValues(self.model, V, params)
         self.rows, self.geometry, self.row_series = _storage(scene, s, V, storage, self.outputs)
@@ -176,7 +182,10 @@ class Stepper:
         """`advance` without its guards: the loop of `simulate` holds them once for all its steps."""
         t0 = time.perf_counter()
         scheme, rows = self.scheme, self.rows
-        why = self.ledger.add(scheme.step(), scheme.energy_slack)
+        why = self.ledger.add(self._step() if self._newton else scheme.step(), scheme.energy_slack)
+        if self._restart is not None:  # a sub-stepped step left a scheme at Δt started afresh from its end
+            self.ledger.rebase(self._restart, numerical=True)
+            scheme, self._restart = self.scheme, None
         eta = scheme.eta  # once per step: a property of the scheme
         if eta.size:
             rows.min_eta = min(rows.min_eta, float(eta.min()))
@@ -186,6 +195,50 @@ class Stepper:
         if self.step == rows.next_step:
             self._store(self.step)
         self._loop_time += time.perf_counter() - t0
+
+    def _step(self):
+        """A Newton path's step, retried as 2, 4, … up to 2^MAX_HALVINGS sub-steps from the same state when Newton fails
+        (`_substeps`); a SolverError naming the time, the step and what to change only when the finest fails."""
+        scheme = self.scheme
+        eta, v = scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy()
+        try:
+            return scheme.step()
+        except SolverError as exc:
+            if self.scene.obstacle_moves:  # a scheme restarted mid-run would start its obstacle at t = 0
+                raise
+            for halvings in range(1, MAX_HALVINGS + 1):
+                try:
+                    begin, step, restart = self._substeps(eta, v, 2**halvings)
+                except SolverError:
+                    continue
+                self.ledger.rebase(begin, numerical=True)  # the state before the step, as the sub-steps count it
+                self._restart = restart  # booked after the step (`_advance`): the ledger holds the step's end first
+                return step
+            raise SolverError(f"step {self.step + 1}, t = {(self.step + 1) * self.dt:.6g}: {exc}, and again in "
+                              f"{2**MAX_HALVINGS} sub-steps of dt/{2**MAX_HALVINGS}; use a smaller dt (nt >= "
+                              f"{self.nt * 2**MAX_HALVINGS}) or scheme 'paper'") from None
+
+    def _substeps(self, eta, v, m: int):
+        """One step as `m` sub-steps of Δt/m by a scheme started afresh from (η, v) (the state before the failed step,
+        restored exactly), their energy terms summed; then a scheme at Δt started from the sub-steps' end. Returns
+        the fine scheme's start terms, the step's terms and the restarted scheme's start terms (the ledger books the
+        two starts' differences from the energies it holds as numerical dissipation: `_Ledger.rebase`)."""
+        fine = setup._setting(self.scene.replace(nt=self.nt * m), self.model, self._V, self._params,
+                              self.setting.ops, self.penalty, self.mass, self.comm, self._petsc_options)
+        scheme = self._Scheme(fine)
+        begin = scheme.start(eta, v)
+        increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the energies of the state: the last
+        for _ in range(m):
+            terms = scheme.step()
+            increments += terms[2:6]
+        self.counters["sub-stepped steps"] = self.counters.get("sub-stepped steps", 0) + 1
+        self.counters["sub-steps"] = self.counters.get("sub-steps", 0) + m
+        end_eta, end_v = scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy()
+        self._past_timings.append(self.scheme.timings)
+        self._past_timings.append(scheme.timings)
+        self.scheme = self._Scheme(self.setting)
+        step = StepEnergy(terms.kinetic, terms.elastic, *increments.tolist(), terms.stored)
+        return begin, step, self.scheme.start(end_eta, end_v)
 
     def _unstable(self, why: str) -> InstabilityError:
         n, scheme, scene = self.step, self.scheme, self.scene
@@ -235,7 +288,7 @@ class Stepper:
         writer = self.writer
         self.timings["solve"] = self._loop_time - (writer.write_time if writer is not None else 0.0)  # I/O apart
         summed = _summed(*self._past_timings, self.scheme.timings)
-        self.counters = {k: v for k, v in summed.items() if isinstance(v, int)}
+        self.counters |= {k: v for k, v in summed.items() if isinstance(v, int)}
         self.solver = {k: v for k, v in summed.items() if isinstance(v, str)}
         result = self._result("complete", "")
         unbalanced = unbalanced_message(result)  # a balance that does not close is not a complete run

@@ -84,7 +84,7 @@ STORED_ROWS = 400
 NAME_MAX = 100
 #: petsc_options: a scene is data, so only solver settings, never an option that opens, writes or runs anything.
 PETSC_PREFIXES = ("ksp_", "pc_", "mat_mumps_icntl_", "mat_mumps_cntl_", "mat_superlu_dist_",
-                  # a nonlinear model's Newton step (timestepping/nonlinear.py): its tolerances and line search only
+                  # a nonlinear model's Newton step (timestepping/newton.py): its tolerances and line search only
                   "snes_rtol", "snes_atol", "snes_stol", "snes_max_it", "snes_linesearch_type")
 #: Refused inside a name: viewers, monitors and reasons (they take a viewer: a file, a window), debuggers, logs,
 #: Python classes. Refused names: MUMPS' ICNTL 1-4 are Fortran output units (files fort.N), ICNTL 22 is

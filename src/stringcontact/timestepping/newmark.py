@@ -32,6 +32,8 @@ from ..fem.operators import diagonal_matrix, stacked
 from .base import Scheme as Base
 from .base import StepEnergy, any_rank, check_law_stability, summer, wrap
 from .linear import DampedLU, dirichlet_rows
+from .newton import NewtonStep, _NewtonScheme  # the Newton path
+from .paper import PaperStep
 
 
 class Scheme(Base):
@@ -46,9 +48,7 @@ class Scheme(Base):
         return None
 
     def __new__(cls, s):
-        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (nonlinear.py)
-            from .nonlinear import NewmarkStep
-
+        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (its Newton path below)
             return NewmarkStep(s)
         return super().__new__(cls)
 
@@ -208,4 +208,90 @@ class Scheme(Base):
         return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0)
 
 
-__all__ = ["Scheme"]
+
+# --- newmark: the trapezoidal rule, the midpoint in η -----------------------------------------------------
+
+
+NEWMARK = {
+    "eta": lambda u, e0, em, v0, dt: (u + e0) / 2,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: 2 * (u - e0) / dt**2 - 2 * v0 / dt,
+}
+
+
+class NewmarkStep(_NewtonScheme):
+    """`newmark` for a nonlinear model: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
+    η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule of a linear model), the
+    semi-implicit penalty −D v^{n+1} on the diagonal, with the same release of nodes it would hold down.
+    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1}). A moving obstacle
+    ψ(x, t), as on the linear path (newmark.py): the law reads the centred ψ_t^n, the damping brakes
+    v^{n+1} − ψ_t^{n+1}, and the obstacle's work f·(ψ^{n+1} − ψ^n) is external work."""
+
+    def __init__(self, s):
+        super().__init__(s)
+        laws = s.laws
+        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
+        self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
+        self.newton = NewtonStep(s, NEWMARK)
+        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
+        n = s.n_owned
+        self.eta_, self.v, self.v_old = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.force_density = np.zeros(n)
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
+
+    eta = property(lambda self: self.eta_)
+    velocity = property(lambda self: self.v)
+    contact_force = property(lambda self: self.force_density)
+    _kinetic = PaperStep._kinetic
+
+    def start(self, eta0, v0):
+        if self.moving:
+            self.s.obstacle.set_centred(0.0)
+        self.eta_[:], self.v[:], self.v_old[:] = eta0, v0, v0
+        self.newton.start_fields(eta0, v0)
+        kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
+        self.E = kin + el
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def step(self):
+        s, dt, nw = self.s, self.s.dt, self.newton
+        e0, v = self.eta_, self.v
+        nw.set_known(e0, None, v)
+        s.laws.set(eta=e0, v=v)
+        D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
+        rate = s.obstacle.centred_rate((self.k + 1) * dt)[: s.n_owned] if self.moving else 0.0  # ψ_t^{n+1}: D brakes v − ψ_t
+        while True:  # −D (v^{n+1} − ψ_t^{n+1}) = −(2D/Δt)(u − η^n − (Δt/2)(v^n + ψ_t^{n+1}))
+            nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
+            u = nw.solve(None if nw.guessless else e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated
+            v1 = 2.0 * (u - e0) / dt - v
+            v1[s.bc] = 0.0
+            sticky = (D > 0) & (v1 > rate)  # a damping that would hold a node down: released (as on the linear path)
+            if not self.anysum(bool(np.any(sticky))):
+                break
+            D[sticky] = 0.0
+        f = -D * (v1 - rate)
+        delta = u - e0
+        visc_vec = nw.viscous_force(u)
+        kin, el, visc, con, ext, work = self.allsum(
+            self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
+            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)), self._obstacle_work(f))
+        num = self.E - (kin + el) - visc - con + ext
+        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
+        self.E = kin + el
+        np.divide(f, s.ops.m_force, out=self.force_density, where=s.ops.m_force > 0)
+        self.force_density[s.ops.m_force <= 0] = 0.0
+        self.v_old[:], self.eta_[:], self.v[:] = v, u, v1
+        self.k += 1
+        if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
+            self.s.obstacle.set_centred(self.k * dt)
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
+
+    def _obstacle_work(self, f: np.ndarray) -> float:
+        """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's); 0 for an obstacle at rest."""
+        if not self.moving:
+            return 0.0
+        o, t = self.s.obstacle, (self.k + 1) * self.s.dt
+        return float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
+
+
+__all__ = ["NEWMARK", "NewmarkStep", "Scheme"]

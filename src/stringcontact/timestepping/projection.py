@@ -54,6 +54,7 @@ when C = αK). On a 2D mesh a Δt below 2/√(Gershgorin's bound of λ) is stabl
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -69,7 +70,8 @@ from .base import Scheme as Base
 from .base import StepEnergy, any_rank, summer, wrap
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
-from .spectrum import gershgorin_bound, largest_stable_dt, top_mode, top_mode_krylov  # noqa: F401 - re-exported
+from .newton import NewtonStep, _NewtonScheme  # the Newton path
+from .spectrum import dt_of_mode, gershgorin_bound, largest_stable_dt, top_mode, top_mode_krylov, top_mode_of_shell
 
 #: A node within CONTACT_TOL × (the data's height scale) of the obstacle is in contact: the implicit viscous
 #: solve spreads round-off-size values (1e-64 ... 1e-14 seen on Example 1) over a region lying on it.
@@ -95,9 +97,7 @@ class Scheme(Base):
         return None
 
     def __new__(cls, s):
-        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (nonlinear.py)
-            from .nonlinear import ProjectionStep
-
+        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (its Newton path below)
             return ProjectionStep(s, largest_stable_dt, cls._obstacle, CONTACT_TOL)
         return super().__new__(cls)
 
@@ -339,4 +339,165 @@ class _Level:
         self.eta_vec, self.kc_vec = wrap(self.eta, comm), wrap(self.kc, comm)
 
 
-__all__ = ["CONTACT_TOL", "Scheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]
+
+# --- projection: central differences, η explicit, the contact step a variational inequality ---------------
+
+
+PROJECTION = {
+    "eta": lambda u, e0, em, v0, dt: e0,
+    "fields": lambda u, e0, em, v0, dt: u,  # the other fields implicit: an algebraic one is solved, not lagged
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
+}
+
+
+class ProjectionStep(_NewtonScheme):
+    """`projection` for a nonlinear model: the elastic term explicit (η → η^n), η_t implicit, lumped mass, and
+    the step the VI G(u) ⊥ u − ψ ≥ 0 by SNES ``vinewtonrsls``. The contact force is the reaction G(u) on the
+    active set (≥ 0, 0 elsewhere). With a restitution e > 0 (Paoli-Schatzman, as on the linear path) the bound is
+    on the weighted position, (u + e η^{n−1})/(1 + e) ≥ ψ, that is u ≥ (1 + e)ψ − e η^{n−1}. Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
+    ½(Π(η^{n+1}) + Π(η^n)), δ = (η^{n+1} − η^{n−1})/2, contact −½ F·(η^{n+1} − η^{n−1}) as on the linear path.
+    The stored velocity is centred, so the scheme reports one step behind the one it computes, as `projection`.
+    The stable Δt is the linear path's bound for the tangent at η = 0. `projection` hands over its
+    `largest_stable_dt`, its obstacle from the model's gap and its contact tolerance (no import circle)."""
+
+    def __init__(self, s, largest_stable_dt, obstacle, contact_tol: float):
+        super().__init__(s)
+        self.contact_tol = contact_tol
+        self.dt_max = largest_stable_dt(s.ops, s.interior, krylov=s.x.ndim == 2, dt=s.dt)
+        if s.dt > self.dt_max * (1 + 1e-12):
+            raise InstabilityError(
+                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} (its explicit "
+                f"elastic term, linearised at eta = 0); use nt >= {math.ceil(s.dt * s.nt / self.dt_max)} or scheme "
+                "'paper' or 'newmark'", step=0, time=0.0)
+        laws = s.laws
+        self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
+        self.psi = obstacle(self)
+        lower = np.where(s.interior, self.psi, PETSc.NINFINITY)
+        self.newton = NewtonStep(s, PROJECTION, lower=lower)
+        self._check_fields_stiffness(largest_stable_dt)
+        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
+        n = s.n_owned
+        self.etas = [np.zeros(n) for _ in range(4)]  # [next, ahead, now, before]
+        self.forces = [np.zeros(n) for _ in range(4)]
+        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.v0 = None
+        self.e = s.restitution
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle: ψ^{k+1} in each step's bounds
+
+    def _check_fields_stiffness(self, largest_stable_dt) -> None:
+        """A model whose other fields add to η's stiffness (a fourth-order term through η's second derivative:
+        K + βKM⁻¹K) has them explicit here too (their rows read η^n): its stable Δt is that of η's stiffness with the
+        fields eliminated (`NewtonStep.eta_stiffness`, on the linear path), a smaller one than the fields-at-0
+        tangent's checked above."""
+        s = self.s
+        S = self.newton.eta_stiffness()
+        if S is None:
+            return
+        if s.x.ndim == 2:  # no Gershgorin bound or SLEPc copy of a shell: its top mode by SLEPc on the shell
+            lam, phi = top_mode_of_shell(S, s.ops.m, s.interior)
+            self.dt_max = min(self.dt_max, dt_of_mode(lam, phi, S, s.ops.C))
+        else:  # a string: power iteration from the alternating mode, as for K
+            self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(s.ops, K=S), s.interior))
+        if s.dt > self.dt_max * (1 + 1e-12):
+            raise InstabilityError(
+                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} (its explicit "
+                f"elastic term with the model's fields {', '.join(s.laws.model.fields)}); use nt >= "
+                f"{math.ceil(s.dt * s.nt / self.dt_max)} or scheme 'paper' or 'newmark'", step=0, time=0.0)
+
+    def _move_to(self, k: int) -> np.ndarray:
+        """A moving obstacle's ψ^k = −gap(0) with the fields at t = kΔt into the VI's lower bound; returns it."""
+        s, laws = self.s, self.s.laws
+        s.obstacle.set(k * s.dt)
+        psi = -np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): np.zeros(s.n_owned)}), dtype=float)
+        self.psi[:] = psi
+        self.newton.set_lower(np.where(s.interior, self.psi, PETSc.NINFINITY))
+        return self.psi.copy()
+
+    @property
+    def eta(self):
+        return self.etas[2]
+
+    @property
+    def velocity(self):
+        if self.v0 is not None:
+            return self.v0
+        return (self.etas[1] - self.etas[3]) / (2.0 * self.s.dt)
+
+    @property
+    def contact_force(self):
+        return self.forces[2]
+
+    def contact(self) -> np.ndarray:
+        laws = self.s.laws
+        if self.moving:  # the obstacle where the reported level is, one step behind the computed one
+            self.s.obstacle.set((self.k - 1) * self.s.dt)
+        laws.set(eta=self.eta)
+        return self._contact_law.evaluate_env(laws.env)
+
+    def start(self, eta0, v0):
+        s, laws = self.s, self.s.laws
+        scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
+                    float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
+        if self.moving:  # ψ^{−1}, ψ^0; the heights the obstacle carries the string to count in the contact tolerance
+            scale = max(scale, s.comm.allreduce(float(np.max(np.abs(self._move_to(s.nt)[s.interior]), initial=0.0)),
+                                                op=MPI.MAX))
+            self.psi_levels = [self._move_to(-1), self._move_to(0)]
+        self.tol = self.contact_tol * scale
+        tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(self.tol))
+        self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
+        ahead, now = self.etas[1], self.etas[2]
+        ahead[:] = eta0
+        below = s.interior & (ahead < self.psi)
+        ahead[below] = self.psi[below]
+        now[:] = ahead - s.dt * v0
+        if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
+            np.minimum(self.psi_levels[0], now, out=self.psi_levels[0])
+        d = (ahead - now) / s.dt
+        self.newton.start_fields(ahead, v0)
+        self.stored_ahead = self._stored(ahead)  # the next step's Π(η^n), this rank's share
+        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + self._stored(now)))
+        self.E = kin + el
+        self.pending = self._advance()
+        self.v0 = np.array(v0, dtype=float)
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def step(self):
+        reported, self.pending = self.pending, self._advance()
+        self.v0 = None
+        return reported
+
+    def _advance(self):
+        s, dt, nw = self.s, self.s.dt, self.newton
+        e0, em = self.etas[1], self.etas[2]
+        if self.moving:  # ψ^{k+1}; the obstacle's work ½ F·(ψ^{k+1} − ψ^{k−1}) is booked as external work
+            self.k += 1
+            psi_before, psi_new = self.psi_levels[0], self._move_to(self.k)
+            self.psi_levels = [self.psi_levels[1], psi_new]
+        nw.set_known(e0, em)
+        lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
+        if self.e:
+            nw.set_lower(np.where(s.interior, lower, PETSc.NINFINITY))
+        u = nw.solve(np.maximum(2 * e0 - em, np.where(s.interior, lower, -np.inf)))
+        r = nw.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
+        active = s.interior & (u <= lower + self.tol)
+        F = np.where(active, np.maximum(r, 0.0), 0.0)
+        delta = 0.5 * (u - em)
+        work = 0.5 * float(np.dot(F, psi_new - psi_before)) if self.moving else 0.0  # the obstacle's share of F's work
+        visc_vec = nw.viscous_force(u)
+        d = (u - e0) / dt
+        stored_e0, self.stored_ahead = self.stored_ahead, self._stored(u)  # Π(η^n) assembled last step, as its Π(u)
+        kin, el, visc, con, ext = self.allsum(
+            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + stored_e0),
+            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)) + work, float(np.dot(s.ops.load, delta)) + work)
+        num = self.E - (kin + el) - visc - con + ext
+        self.E = kin + el
+        new = self.etas[0]
+        new[:] = u
+        self.forces[0][:] = F * self.inv_mF
+        self.etas = [self.etas[3], new, e0, em]
+        self.forces = [self.forces[3], self.forces[0], self.forces[1], self.forces[2]]
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
+
+
+__all__ = ["CONTACT_TOL", "gershgorin_bound", "largest_stable_dt", "PROJECTION", "ProjectionStep", "Scheme", "top_mode", "top_mode_krylov"]

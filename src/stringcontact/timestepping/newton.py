@@ -1,0 +1,512 @@
+"""A nonlinear model's step, solved by Newton's method with line search (PETSc SNES): the machinery every scheme's
+Newton path shares (`NewtonStep`, `_NewtonScheme`); each scheme's own step is in its module.
+
+The model writes its residual R(η, η_t, η_tt, F; w) once (`model.paper`); a nonlinear one reaches the schemes
+as `Operators.nonlinear` (`fem.operators.NonlinearForm`). Each scheme writes the placeholders as its difference
+quotients in the unknown u = η^{n+1} and the known levels η^n, η^{n−1} (and a nodal velocity v^n), and the
+step is the root of
+
+    G(u) = R(q_η(u), q_t(u), q_tt(u), 0; w) − f + d∘(u − c),      u = g at the fixed ends,
+
+with f the scheme's nodal contact force (the penalty law, lumped as on the linear path) and d∘(u − c) an
+implicit damping on the diagonal (the semi-implicit penalty). With lumped mass the η_tt term is m∘q_tt(u),
+the row-sum mass, as on the linear path; R is affine in η_tt and in the force (`semi_discrete_operators`
+checks), so only η and η_t may enter nonlinearly. The Jacobian is ``ufl.derivative`` of the compiled
+residual (plus the lumped mass and the damping on its diagonal); both forms are compiled once, integer
+powers as products (`powers_as_products`), the residual and the stored energy with their coefficients packed once
+(`fem.packed.PackedForm`). A step may keep an earlier step's Jacobian and its LU factor for a few chord
+iterations (`NewtonStep._keeps_jacobian`); once it takes a fresh one, its later iterations do too.
+
+`projection`'s contact step is the variational inequality G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``, bounds
+u ≥ ψ at the interior nodes), tried as a plain Newton step first while the last solution touched no bound;
+its contact force is the reaction G₀(u) of the unconstrained residual on the active set: ≥ 0, and 0 off the
+contact set.
+
+The linear path. A model with several fields reaches this module even when its residual is linear (a
+fourth-order term written with a second unknown, η's second derivative). A residual affine in its unknowns with
+constant coefficients (`affine_in`: its derivatives read no Function), of a model that does not ask for Newton
+(`Model.newton`), takes no Newton iteration and no SNES: G(u) = J u + G(0) with a constant J, assembled and
+factorised once (again only when a damping on its diagonal changes), and the step is one back-substitution (`NewtonStep._linear_path`). G(0), the
+ledger's viscous work and a quadratic stored energy (`QuadraticEnergy`) come from the residual's constant matrices
+(`affine.AffineResidual`) by products with the solutions, one stacked mat-vec per step (`affine.LevelTerms`). A VI tries that
+solve first and keeps SNES for the steps that touch a bound. On this path the other fields start from η0 (their
+rows solved with η = η0, `NewtonStep.start_fields`; the Newton path starts them at 0), and `projection` checks
+its Δt against η's stiffness with the fields eliminated (`NewtonStep.eta_stiffness`). Measured on a linear
+two-field string model at nx = 5000, such a step costs 2.3× the paper's linear step, by SNES 12-20×.
+
+Energy (every scheme): the ledger gets the kinetic energy of its velocity, the stored energy ∫Π(η) of the model
+(`Model.stored_energy`, default ½|∇η|²) assembled at the new level, the viscous dissipation as the work of
+R's η_t-dependent part over the step, [R(q_η, q_t) − R(q_η, 0)]·δ, the external work b·δ (δ the scheme's test
+increment), the contact dissipation as on the linear path, and as numerical dissipation what is left of the
+identity: E^n − E^{n+1} − D_visc − D_con + W_ext. So the ledger closes by construction, and the numerical
+dissipation says how far the scheme is from conserving the model's energy (for the paper's implicit step
+and a convex Π it is ≥ 0; the leapfrog and the midpoint rule of a nonlinear force make it change sign, so
+these steps declare ``energy_may_rise`` and the driver's guard allows what it allows a contact spring).
+"""
+
+from __future__ import annotations
+
+import math
+
+import dolfinx.fem.petsc  # noqa: F401 - dolfinx 0.9 no longer imports the PETSc layer with dolfinx.fem
+import numpy as np
+import ufl
+from dolfinx import fem
+from petsc4py import PETSc
+
+from ..errors import SolverError
+from ..fem import compat
+from ..fem.packed import PackedForm
+from ..fem.powers import powers_as_products
+from .affine import (
+    LinearPath,
+    _as_slice,
+    affine_in,
+)
+from .base import Scheme as Base
+from .base import any_rank, summer
+from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
+
+#: Newton's defaults (a scene's or the command line's `petsc_options` go on top): the relative residual and the
+#: relative step (quadratic convergence makes the error after a step of 1e-9 |u| about 1e-18 |u|).
+#: The absolute residual Newton stops at, relative to the inertia term's norm: a few hundred round-offs of it.
+ROUNDOFF = 1e-13
+SNES_DEFAULTS = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_stol": 1e-9, "snes_max_it": 50}
+
+
+#: The most iterations a kept Jacobian serves in one step, and the surplus iterations (beyond one a step) it may
+#: cost before a fresh one is assembled: a chord iteration (a residual and a triangular solve) costs about 0.2 ms
+#: at nx = 5000, a fresh J with its LU factor about ten of them. See `_keeps_jacobian`.
+CHORD_ITERATIONS = 3
+CHORD_BUDGET = 10
+
+
+class NewtonStep(LinearPath):
+    """G(u) = 0 (or the VI with lower bounds) for one scheme's quotients; see the module docstring.
+
+    `quotients` maps "eta", "eta_t", "eta_tt" to functions (u, e0, em, v0, dt) -> the quotient, written so
+    that they work on UFL functions and on NumPy arrays alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity);
+    "fields" (optional, default "eta"'s): the value of the other fields of a model with several.
+    ``lower``: the nodal lower bound of the VI (−inf where free), or None for a plain Newton step.
+    `reuse_jacobian` (default True): a step's iterations may keep the Jacobian and its LU factor from an
+    earlier step (chord iterations, `_keeps_jacobian`); False gives Newton's fresh Jacobian at every iteration.
+    """
+
+    reuse_jacobian = True
+
+    def __init__(self, s, quotients: dict, lower: np.ndarray | None = None):
+        nl = s.ops.nonlinear
+        Z, n = nl.space, s.n_owned
+        self.s, self.n, self.q = s, n, quotients
+        self.allsum, self.anyrank = summer(s.comm), any_rank(s.comm)
+        self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
+        self.lumped = s.mass == "lumped"
+        args = (self.u, self.e0, self.em, self.v0, s.dt)
+        q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
+        zero = ufl.zero()  # UFL's zero, not a Constant 0: the terms it multiplies leave the compiled kernel
+        k = nl.eta.ufl_shape[0] if nl.eta_dofs is not None else 0  # the number of fields, η's among them
+        if k:  # several fields: η's inertia is lumped on the nodes, the other fields keep their own η_tt
+            zeros = ufl.as_vector([0.0] * k)
+            q_fields = quotients.get("fields", quotients["eta"])(*args)  # the other fields' values
+            q_eta = ufl.as_vector([q_eta[0], *(q_fields[i] for i in range(1, k))])
+            q_tt = ufl.as_vector([0.0, *(q_tt[i] for i in range(1, k))]) if self.lumped else q_tt
+        else:
+            zeros = zero
+            q_tt = zero if self.lumped else q_tt
+        mapping = {nl.eta: q_eta, nl.eta_t: q_t, nl.eta_tt: q_tt, nl.force: zero}
+        G = powers_as_products(ufl.replace(nl.residual, mapping))
+        G_static = powers_as_products(
+            ufl.replace(nl.residual, mapping | {nl.eta_t: zeros} | _without_dissipative(s, q_eta, k)))
+        self.G = PackedForm(G)  # assembled at least twice a step: its coefficients gathered, not packed again
+        self.known = [f for f in self.G.functions if f is not self.u]  # what `_residual` does not refresh
+        self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
+        self.G_static_form = fem.form(G_static)
+        self.energy_eta = nl.energy_eta
+        self.energy = PackedForm(powers_as_products(nl.stored_energy))
+        self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, s.dt))  # ∂q_tt/∂u
+        self.G_vec = compat.create_vector(self.G.form)
+        self.work_vec = compat.create_vector(self.G.form)
+        self.J = fem.petsc.create_matrix(self.J_form)
+        self.x = self.G_vec.duplicate()
+        # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
+        self.idx = slice(0, n) if nl.eta_dofs is None else np.asarray(nl.eta_dofs[:n])
+        self.bc = s.bc if nl.eta_dofs is None else self.idx[s.bc]
+        self.at = _as_slice(self.idx)  # the same entries, as a strided slice where they are one (a blocked space's)
+        self.N = self.x.getLocalSize()
+        self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
+        self.m_tt = self.a_tt * s.ops.m if self.lumped else np.zeros(n)
+        self.inertia = self.a_tt * s.ops.m
+        self.f = np.zeros(n)  # the applied nodal force
+        self.viscous_vecs = None  # C's (right, left) vectors for `viscous_force`
+        self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
+        self.nodal_slope, self.nodal_known = np.zeros(n), np.zeros(n)  # G's nodal terms, set by `solve`
+        self.arrays = [np.zeros(n) for _ in range(3)]  # η^n, η^{n−1}, v^n (owned)
+        self.unsynced = set()  # the known levels not yet in their Functions (`_sync`)
+        self.levels = [np.zeros(self.N) for _ in range(4)]  # all fields: η^n, η^{n−1}, v^n, the last solution
+        self.iterations, self.solves, self.history = 0, 0, []
+        self.jacobians, self.kept, self.fresh_only = 0, False, False  # kept: this solve started from an old J
+        self.chord, self.norms = False, []  # chord: the J in use is a kept one; norms: this solve's residual norms
+        self.surplus = 0  # the kept J's iterations beyond the first of each step, since it was assembled
+        self.age, self.kept_age, self.drift = 0, 0, 0.0  # J's age in steps; r₁/(r₀ × age) when a kept J was last tried
+        self.d_in_J = np.zeros(n)  # the damping on J's diagonal when it was assembled
+        if lower is not None and nl.eta_dofs is not None:
+            full = np.full(self.N, PETSc.NINFINITY)
+            full[self.idx] = lower
+            lower = full
+        self.g = s.g
+        lower = self._held_and_bounded(lower)
+        self.snes = self._snes(lower)
+        self.free = self._snes(None) if lower is not None else None  # a VI's plain Newton step, tried first
+        self.try_free, self.free_solves = True, 0
+        self.linear = self.quadratic = None  # the linear path (`_linear_path`), the energy as a quadratic form
+        if not getattr(s.laws.model, "newton", False) and affine_in(
+                ufl.replace(nl.residual, {nl.force: zero}), (nl.eta, nl.eta_t, nl.eta_tt)):
+            self._linear_path()
+
+    def _held_and_bounded(self, lower):
+        """A model's other fields held at 0 on the boundary (`Model.held_fields`: their rows join η's ends in
+        `bc`, their values in `g`) and bounded below (`Model.field_lower`: the step becomes the VI)."""
+        s, nl = self.s, self.s.ops.nonlinear
+        model = s.laws.model
+        if nl.eta_dofs is None:
+            return lower
+        dofs = {name: compat.sub_dofs(nl.V, nl.space, i + 1)[: self.n] for i, name in enumerate(model.fields)}
+        for name in getattr(model, "held_fields", ()):
+            self.bc = np.concatenate([self.bc, dofs[name][s.bc]])
+            self.g = np.concatenate([self.g, np.zeros(len(s.bc))])
+        bounds = model.field_lower(nl.params) if getattr(model, "field_lower", None) is not None else {}
+        if bounds and lower is None:
+            lower = np.full(self.N, PETSc.NINFINITY)
+        for name, value in bounds.items():
+            lower[dofs[name]] = value
+        return lower
+
+    def _snes(self, lower):
+        s = self.s
+        snes = PETSc.SNES().create(s.comm)
+        snes.setFunction(self._residual, self.G_vec)
+        snes.setJacobian(self._jacobian, self.J)
+        options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
+        # s.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
+        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | options
+        set_from_options(snes, PREFIX, options)
+        # the linear solver's options held again while SNES solves: its KSP reads some at set-up (`options_held`)
+        self.ksp_options = {k: v for k, v in options.items() if not k.startswith("snes_")}
+        if lower is not None:
+            lo, hi = self.x.duplicate(), self.x.duplicate()
+            lo.array[:] = lower
+            hi.set(PETSc.INFINITY)
+            snes.setVariableBounds(lo, hi)
+            self.bounds = (lo, hi)
+        snes.setConvergenceHistory(reset=True)
+        return snes
+
+    def set_lower(self, lower: np.ndarray) -> None:
+        """η's lower bound of the VI, for the next solve (a restitution moves it every step)."""
+        self.bounds[0].array[self.idx] = lower
+
+    # -- the state the forms read
+
+    def _set(self, f: fem.Function, a: np.ndarray) -> None:
+        f.x.array[: a.size] = a
+        f.x.scatter_forward()
+
+    def _full(self, eta: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """η's values in the unknowns' array, the other fields' from `rest` (η itself for one field)."""
+        if isinstance(self.idx, slice):
+            return eta
+        full = rest.copy()
+        full[self.at] = eta
+        return full
+
+    def set_known(self, e0, em=None, v0=None) -> None:
+        """The known levels η^n, η^{n−1} and the velocity v^n (owned arrays) into the forms; once per step. Several
+        fields: theirs are the last two solutions (and their difference quotient)."""
+        levels = self.levels
+        if not isinstance(self.idx, slice):  # (by reference: `_accept` puts each solution in an array of its own)
+            levels[1], levels[0] = levels[0], levels[3]
+            if v0 is not None:
+                levels[2] = (levels[0] - levels[1]) / self.s.dt
+        for i, (a, keep) in enumerate(zip((e0, em, v0), self.arrays)):
+            if a is not None:
+                keep[:] = a
+                self.unsynced.add(i)
+        if self.linear is None:
+            self._sync()
+        else:  # the forms read them only if SNES solves a step (`_sync`)
+            self.level_products = [self._products_of(e0, 0), self._products_of(em, 1)]
+
+    def _sync(self) -> None:
+        """The known levels `set_known` was given into the forms' Functions (all the unknowns' values)."""
+        functions = (self.e0, self.em, self.v0)
+        for i in self.unsynced:
+            values = functions[i].x.array
+            if not isinstance(self.idx, slice):
+                values[: self.N] = self.levels[i]
+            values[self.at] = self.arrays[i]
+            functions[i].x.scatter_forward()
+        self.unsynced.clear()
+
+    def residual_at(self, u: np.ndarray, form=None) -> np.ndarray:
+        """The assembled residual (`form`: the compiled G by default) at u, η's owned dofs, no force, no ends."""
+        self._sync()
+        self._set(self.u, self._full(u, self.levels[3]))
+        vec = self.work_vec
+        with vec.localForm() as local:
+            local.set(0.0)
+        if form is None:
+            self.G.refresh(self.u)
+            self.G.assemble_vector(vec)
+        else:
+            fem.petsc.assemble_vector(vec, form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        r = vec.array[self.idx].copy()
+        if self.lumped:
+            r += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
+        return r
+
+    def last_residual(self, u: np.ndarray) -> np.ndarray:
+        """`residual_at(u)` for the u that `solve` just returned, without assembling: SNES's last residual (the linear
+        path's, by mat-vecs) with the force and the damping taken out again (the ends' rows hold u − g there, 0)."""
+        if self.stale:
+            self._linear_residual()
+        r = self.G_vec.array[self.at].copy()
+        r += self.f
+        r -= self.d * (u - self.c)
+        return r
+
+    def viscous_force(self, u: np.ndarray) -> np.ndarray:
+        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
+        ∂R/∂η_t is constant, else two assemblies."""
+        if self.s.ops.nonlinear.viscous_linear:
+            if self.viscous_vecs is None:
+                self.viscous_vecs = self.s.ops.C.createVecs()
+            q_t, out = self.viscous_vecs
+            q_t.array[:] = self.q["eta_t"](u, *self.arrays, self.s.dt)
+            self.s.ops.C.mult(q_t, out)
+            return out.array.copy()
+        if self.linear is not None:  # ∂R/∂U_t q_t, and ∂R/∂U on the dissipative fields' values: kept products
+            return self.terms.viscous(*self._at(u), self.at)
+        return self.residual_at(u) - self.residual_at(u, self.G_static_form)
+
+    def stored_energy(self, eta: np.ndarray) -> float:
+        """∫Π(η) on this rank's cells (the caller sums over the ranks); several fields: ∫Π(η, *fields), the fields
+        of the last solve."""
+        if self.quadratic is not None:
+            levels, products = self._at(eta)
+            return self.terms.stored(levels[0], products[0])
+        self._set(self.energy_eta, self._full(eta, self.levels[3]))
+        self.energy.refresh()
+        return self.energy.assemble_scalar()
+
+    # -- SNES callbacks
+
+    # SNES hands the callbacks x locked for reading (PETSc 3.22, trixie): read it through array_r, never array.
+    def _residual(self, snes, x, G) -> None:
+        u = x.array_r
+        self._set(self.u, u)
+        self.G.refresh(self.u)
+        with G.localForm() as local:
+            local.set(0.0)
+        self.G.assemble_vector(G)
+        G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        g = G.array
+        nodal = self.nodal_slope * u[self.idx]
+        nodal -= self.nodal_known
+        g[self.idx] += nodal
+        g[self.bc] = u[self.bc] - self.g
+
+    def _jacobian(self, snes, x, J, P) -> None:
+        if self._keeps_jacobian(snes):
+            self._update_damping(J)
+            return
+        self._set(self.u, x.array_r)
+        J.zeroEntries()
+        fem.petsc.assemble_matrix(J, self.J_form)
+        J.assemble()
+        diag = self.diag.array
+        diag[self.idx] = self.d + self.m_tt
+        J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
+        dirichlet_rows(J, self.bc)  # identity rows; the guess holds the ends, so their columns need no lift
+        self.d_in_J[:] = self.d
+        self.jacobians += 1
+        self.age = self.surplus = 0
+
+    def _keeps_jacobian(self, snes) -> bool:
+        """Whether the last J (and its LU factor), from an earlier step, serves this iteration; the caller then
+        leaves J untouched, so PETSc keeps its factor. A kept J contracts the residual by a rate ρ per iteration
+        (a chord iteration) where a fresh one converges quadratically, but its iteration costs a residual and a
+        triangular solve, about a tenth of assembling and factorising J at nx = 5000 (CHORD_BUDGET). So it is kept while
+        it is predicted to reach what Newton stops at within CHORD_ITERATIONS iterations: at the first
+        iteration with ρ = drift × age (drift: r₁/(r₀ × age) when a kept J was last tried, halved at each step
+        that did not try one, so that one bad step, an active set that changes, does not stop the reuse for
+        good), at later ones with the rate just seen; and while the iterations it cost beyond one a step stay
+        below CHORD_BUDGET, the cost of a fresh J (the rent-or-buy rule: at most twice the better of the two).
+        Once J is fresh, it stays fresh (Newton's own iterations)."""
+        it = snes.getIterationNumber()
+        if it == 0:
+            self.chord, self.norms = False, []
+        self.norms.append(snes.getFunctionNorm())
+        if (not self.reuse_jacobian or self.fresh_only or self.jacobians == 0 or (it and not self.chord)
+                or self.surplus >= CHORD_BUDGET):
+            return False
+        r = self.norms
+        rtol, atol = snes.getTolerances()[:2]
+        stop = max(atol, rtol * r[0])
+        if it == 0:
+            self.kept_age = max(self.age, 1)  # 0: assembled in this step, by a VI's plain Newton step
+            self.kept = self.chord = (self.drift * self.kept_age) ** CHORD_ITERATIONS * r[0] < stop
+            if not self.kept:
+                self.drift *= 0.5
+            return self.chord
+        rate = r[it] / r[it - 1] if r[it - 1] > 0 else 0.0
+        self.chord = it < CHORD_ITERATIONS and rate ** (CHORD_ITERATIONS - it) * r[it] < stop
+        self.surplus += self.chord
+        return self.chord
+
+    def _update_damping(self, J) -> None:
+        """A kept J with the step's damping d on its diagonal: the change since J was assembled, added (a new
+        factor then, but no assembly); nothing when d has not changed on any rank."""
+        change = self.d - self.d_in_J
+        if not self.anyrank(bool(np.any(change))):
+            return
+        self.diag.set(0.0)
+        self.diag.array[self.idx] = change
+        self.diag.array[self.bc] = 0.0
+        J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
+        J.assemble()
+        self.d_in_J[:] = self.d
+
+    def solve(self, guess: np.ndarray) -> np.ndarray:
+        """The root from `guess` (η; the ends set to their heights, the other fields from their last solution);
+        η's owned values. SolverError if SNES fails.
+
+        A VI first tries the plain Newton step when the last step's solution touched no bound: if that root
+        respects the bounds it is the VI's solution. (SNES VI builds and factorises its inactive rows' matrix
+        again at every iteration, ordering included: 2.2 of a 3.5 ms step at nx = 5000.)
+
+        On the linear path (an affine residual, `_linear_path`) that step is one linear solve, without SNES."""
+        self.age += 1
+        # the nodal terms of G, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known (the slope is
+        # on the linear path's J already)
+        if self.linear is None:
+            self.nodal_slope[:] = self.d + self.m_tt
+        self.nodal_known[:] = self.d * self.c + self.f
+        if self.lumped:
+            self.nodal_known -= self.s.ops.m * self.q["eta_tt"](0.0, *self.arrays, self.s.dt)
+        x = self.x.array
+        if self.linear is not None and (self.free is None or self.try_free):
+            self._solve_linear(guess)
+            if self.free is None or not self.anyrank(bool(np.any(x < self.bounds[0].array))):
+                self.free_solves += self.free is not None
+                return self._accept()
+        # The residual's round-off floor: ROUNDOFF × the inertia term's norm (its largest term). An rtol below it
+        # (a good predictor) would stall at the floor (2.6e-9 against 2.4e-9 asked at nx = 5000).
+        if "snes_atol" not in (self.s.petsc_options or {}):  # the user's wins
+            inertia = self.inertia * guess
+            floor = max(ROUNDOFF * math.sqrt(self.allsum(float(np.dot(inertia, inertia)))[0]), 1e-50)
+            for snes in (self.snes, self.free) if self.free is not None else (self.snes,):
+                snes.setTolerances(atol=floor)
+        self._sync()
+        if self.linear is not None:
+            self.nodal_slope[:] = self.d + self.m_tt
+        if self.known:  # the known levels and any field that moved with the step (an obstacle ψ(x, t))
+            self.G.refresh(*self.known)
+        self.stale = False  # SNES's residual in G_vec
+        if self.free is not None and self.try_free and self.linear is None:
+            reason = self._run(self.free, guess)
+            if reason >= 0 and not self.anyrank(bool(np.any(x < self.bounds[0].array))):
+                self.free_solves += 1
+                return self._accept()
+        reason = self._run(self.snes, guess)
+        if reason < 0:
+            raise SolverError(f"Newton did not converge (SNES reason {reason}) after {self.snes.getIterationNumber()} "
+                              "iterations; use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
+        if self.free is not None:
+            self.try_free = not self.anyrank(bool(np.any(x <= self.bounds[0].array)))
+        return self._accept()
+
+    def _run(self, snes, guess: np.ndarray) -> int:
+        """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray; its
+        converged reason."""
+        x = self.x.array
+        for fresh in (False, True):
+            x[:] = self._full(guess, self.levels[3])
+            x[self.bc] = self.g
+            self.kept, self.fresh_only = False, fresh
+            try:
+                with options_held(PREFIX, self.ksp_options):
+                    snes.solve(None, self.x)
+            finally:
+                self.fresh_only = False
+            reason = snes.getConvergedReason()
+            self.iterations += snes.getIterationNumber()
+            self.history = list(snes.getConvergenceHistory()[0])
+            if self.kept and len(self.history) > 1 and self.history[0] > 0:
+                self.drift = self.history[1] / (self.history[0] * self.kept_age)
+            if reason >= 0 or not self.kept:
+                return reason
+        return reason
+
+    def _accept(self) -> np.ndarray:
+        self.solves += 1
+        self.levels[3] = self.x.array.copy()  # a new array: `set_known` passes it on by reference
+        eta = self.x.array[self.at].copy()
+        if self.linear is not None:  # S's products of the solution: its ledger's, the next two steps' known part
+            self.solutions = [(self.levels[3], self.terms.products(self.levels[3]))] + self.solutions[:2]
+            self.returned = eta
+        return eta
+
+    def field(self, i: int) -> np.ndarray:
+        """Field `i` (0 is η) of the last solution, at the nodes of η's owned dofs."""
+        nl = self.s.ops.nonlinear
+        if nl.eta_dofs is None:
+            return self.levels[3].copy()
+        return self.levels[3][compat.sub_dofs(nl.V, nl.space, i)[: self.n]]
+
+    def describe(self) -> dict:
+        """Newton's counters for the summary."""
+        if self.linear is not None:
+            refactored = self.step_solver.refactorisations
+            how = (f"none: the residual is affine, {self.linear_solves} linear solves for {self.solves} steps with J "
+                   f"factorised once" + (f" and again {refactored} times for the damping" if refactored else ""))
+            if self.free is not None:
+                how += (f"; {self.solves - self.free_solves} contact steps by SNES {self.snes.getType()}, "
+                        f"{self.iterations} Newton iterations")
+            return {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians,
+                    "linear solves": self.linear_solves, "nonlinear solver": how}
+        per_step = self.iterations / self.solves if self.solves else 0.0
+        free = f", {self.free_solves} of {self.solves} steps solved without the VI" if self.free is not None else ""
+        return {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians,
+                "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step{free}"}
+
+
+def _without_dissipative(s, q_eta, k: int) -> dict:
+    """The model's dissipative fields (`Model.dissipative_fields`) at 0 in η's value: their work on η is then
+    in the viscous work, as the η_t-dependent terms' (a lubricating fluid's)."""
+    model = s.laws.model
+    names = getattr(model, "dissipative_fields", ())
+    if not k or not names:
+        return {}
+    kept = [q_eta[i] if i == 0 or model.fields[i - 1] not in names else 0.0 for i in range(k)]
+    return {s.ops.nonlinear.eta: ufl.as_vector(kept)}
+
+
+class _NewtonScheme(Base):
+    """What the three schemes' Newton steps share: the stored energy summed over the ranks, the counters."""
+
+    energy_may_rise = True
+
+    @property
+    def fields(self) -> dict:
+        """A model's other fields (`Model.fields`) by name, at η's owned nodes, from the last solve ({} for one
+        field). `paper` and `newmark` report them with the η they solved for; `projection` reports its η one step
+        behind its solve, so its fields would be a step ahead of its η (a model may refuse it: `Model.schemes`)."""
+        return {name: self.newton.field(i + 1) for i, name in enumerate(self.s.laws.model.fields)}
+
+    def _stored(self, eta) -> float:
+        return self.newton.stored_energy(eta)
+
+    @property
+    def timings(self):
+        return self.newton.describe()
