@@ -160,7 +160,7 @@ FILE_CASES = [
     ("nx-string", scene_text(nx='"ten"').encode(), "nx: expected an integer, got str"),
     ("T-string", scene_text(T='"0.3"').encode(), "T: expected a number, got str"),
     ("alpha-bool", scene_text(alpha="true").encode(), "alpha: expected a number, got bool"),
-    ("eta0-list", scene_text().replace('eta0 = "1 + x*(1 - x)"', "eta0 = [1, 2]").encode(), "eta0: expected an expression"),
+    ("eta0-list", scene_text().replace('eta0 = "1 + x*(1 - x)"', "eta0 = [1, 2]").encode(), "eta0: 2 nodal values for nx ="),
     ("nx-1e13", scene_text(nx="1e13").encode(), "nx: 10000000000000 is out of range"),
     ("dt-over-eps-huge", scene_text(eps="1e-12").encode(), "r = dt/eps = 5e+09"),
     ("T-zero", scene_text(T="0").encode(), "T: 0 is out of range"),

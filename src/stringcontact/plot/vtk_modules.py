@@ -1,4 +1,4 @@
-"""VTK's module search with each folder listed once.
+"""VTK's module search with each folder listed once, and the font its text is drawn in (`_font_file`).
 
 Every ``import vtkmodules.vtkX`` goes through VTK's own finder (``vtkmodules.VTKMetaHook``), which looks the
 extension module up with ``vtkmodules.find_lib_path``: a ``Path.glob`` of the whole vtkmodules folder (543
@@ -57,3 +57,13 @@ def find_lib_path(paths, vtk_module_name: str) -> str | None:
                     if resolved.is_file() and ext in resolved.suffixes:
                         return str(resolved)
     return None
+
+
+def _font_file() -> str | None:
+    """A TrueType font with Greek letters (VTK's built-in fonts have none): matplotlib's DejaVu Sans."""
+    from matplotlib import font_manager
+
+    try:
+        return font_manager.findfont("DejaVu Sans", fallback_to_default=False)
+    except ValueError:  # no such font: VTK's own, without Greek letters
+        return None

@@ -284,8 +284,9 @@ def initial_data(key: str, value):
             values = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
             raise SceneError(f"{key}: expected numbers in its array, got {describe(value)}") from None
-        if values.ndim != 1 or values.size < 3:
-            raise SceneError(f"{key}: an array of nodal values must be flat, nx + 1 numbers; got shape {values.shape}")
+        if values.ndim != 1:
+            raise SceneError(f"{key}: an array of nodal values must be a flat list of nx + 1 numbers; got shape "
+                             f"{values.shape}")
         bad = np.flatnonzero(~np.isfinite(values) | (np.abs(values) > MAX_MAGNITUDE))
         if bad.size:
             raise SceneError(f"{key}: value {values[bad[0]]!r} at node {int(bad[0])} is not finite or too large; "

@@ -156,10 +156,12 @@ def _stack(mats: list) -> PETSc.Mat:
     `fem.operators.stacked` for two)."""
     ia, ja, a = zip(*(A.getValuesCSR() for A in mats))
     offsets = np.cumsum([0] + [i[-1] for i in ia[:-1]])
-    starts = np.concatenate([ia[0][:1]] + [i[1:] + o for i, o in zip(ia, offsets)])
+    # PETSc's own index type (int32 on trixie's PETSc): the offsets' sums are int64
+    starts = np.concatenate([ia[0][:1]] + [i[1:] + o for i, o in zip(ia, offsets)]).astype(PETSc.IntType)
     rows, cols = sum(A.getLocalSize()[0] for A in mats), mats[0].getLocalSize()[1]
     S = PETSc.Mat().createAIJ(size=((rows, PETSc.DECIDE), (cols, PETSc.DECIDE)),
-                              csr=(starts, np.concatenate(ja), np.concatenate(a)), comm=mats[0].getComm())
+                              csr=(starts, np.concatenate(ja).astype(PETSc.IntType), np.concatenate(a)),
+                              comm=mats[0].getComm())
     S.assemble()
     return S
 
