@@ -428,12 +428,7 @@ class ProjectionStep(_NewtonScheme):
     def contact_force(self):
         return self.forces[2]
 
-    def contact(self) -> np.ndarray:
-        laws = self.s.laws
-        if self.moving:  # the obstacle where the reported level is, one step behind the computed one
-            self.s.obstacle.set((self.k - 1) * self.s.dt)
-        laws.set(eta=self.eta)
-        return self._contact_law.evaluate_env(laws.env)
+    contact = Scheme.contact  # the linear path's: the contact set of the reported level
 
     def start(self, eta0, v0):
         s, laws = self.s, self.s.laws
