@@ -10,7 +10,8 @@ import pytest
 import ufl
 
 import stringcontact as sc
-from stringcontact.cli.main import _fmt_penetration_line, main
+from stringcontact.cli.main import main
+from stringcontact.cli.report import _fmt_penetration_line
 from stringcontact.io.readback import read_output
 from stringcontact.model.paper import penetration_bound_of
 from stringcontact.model.variants import elastic, loaded_obstacle

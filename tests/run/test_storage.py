@@ -175,7 +175,7 @@ def test_stored_times_are_the_scheduled_times_exactly(tmp_path):
 
 def test_an_eps_free_run_states_a_bound_without_eps():
     """The projection scheme has no ε: its penetration bound is 2Δt max|v| and the CLI's line names no eps."""
-    from stringcontact.cli.main import _fmt_penetration_line
+    from stringcontact.cli.report import _fmt_penetration_line
 
     res = sc.simulate(small_string(), scheme="projection")
     p = penetration_check(res)
