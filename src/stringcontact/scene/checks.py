@@ -289,7 +289,7 @@ def initial_data(key: str, value):
                              f"{values.shape}")
         bad = np.flatnonzero(~np.isfinite(values) | (np.abs(values) > MAX_MAGNITUDE))
         if bad.size:
-            raise SceneError(f"{key}: value {values[bad[0]]!r} at node {int(bad[0])} is not finite or too large; "
+            raise SceneError(f"{key}: value {float(values[bad[0]])!r} at node {int(bad[0])} is not finite or too large; "
                              f"allowed: nodal values in [-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}]")
         return tuple(values.tolist())
     raise SceneError(f"{key}: expected an expression string, a number or an array of nodal values, got "
