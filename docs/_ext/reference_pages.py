@@ -31,6 +31,8 @@ PUBLIC_MODULES = {
     "stringcontact.model.paper": ("The model in UFL, what a model variant reuses or replaces", None),
     "stringcontact.model.variants": ("The model variants shipped with the package", None),
     "stringcontact.run.options": ("The options of simulate", None),
+    "stringcontact.timestepping.implicit": ("A time scheme from its difference quotients", ("ImplicitScheme",)),
+    "stringcontact.timestepping.base": ("The time-scheme contract", ("Scheme", "StepEnergy")),
     "stringcontact.io.result": ("A run's result", ("Result",)),
     "stringcontact.scene": ("Scenes", None),
     "stringcontact.errors": ("Errors", ("SolverError", "OutputError", "Interrupted", "PenetrationWarning", "one_line")),

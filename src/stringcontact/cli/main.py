@@ -85,8 +85,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
     run.add_argument("--restitution", type=float, metavar="E",
                      help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
-    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper): "
-                     + "; ".join(f"{k}: {v}" for k, v in SCHEMES.items()))
+    # the names only: a description is read from the scheme's class, which would load dolfinx before the run starts
+    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
+                     "stringcontact.SCHEMES describes each")
     run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
     run.add_argument("--mass", choices=("lumped", "consistent"), help="default: lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")

@@ -139,11 +139,11 @@ def potential_energy(R, placeholders, w, V):
     return energy, e
 
 
-def semi_discrete_operators(model, V, params) -> Operators:
+def semi_discrete_operators(model, V, params, residual: bool = False) -> Operators:
     """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V.
 
     A form that is linear in its placeholders gives the constant operators. A form nonlinear in η or η_t (or a
-    model with ``newton=True``) gives the same operators linearised at 0 plus `Operators.nonlinear`, the
+    model with ``newton=True``, or any model when `residual` is set: a scheme that steps every model by Newton) gives the same operators linearised at 0 plus `Operators.nonlinear`, the
     residual for the Newton step; ModelError if it is nonlinear in η_tt or the force, or if they multiply η.
     """
     eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
@@ -201,7 +201,7 @@ def semi_discrete_operators(model, V, params) -> Operators:
         ops.nonlinear = NonlinearForm(residual=R_Z, eta=U, eta_t=U_t, eta_tt=U_tt, force=force, V=V, params=params,
                                       stored_energy=declared(ufl.split(state), params) * ufl.dx, energy_eta=state,
                                       space=Z, eta_dofs=compat.sub_dofs(V, Z, 0))
-    elif nonlinear_in or getattr(model, "newton", False):
+    elif nonlinear_in or residual or getattr(model, "newton", False):
         if declared is None:  # the form's own potential, not the paper's ½|∇η|²
             stored, energy_eta = potential_energy(R, placeholders, w, V)
         else:

@@ -23,7 +23,7 @@ from .setup import discretise, model_constants  # noqa: F401 - importable from h
 from .stepper import Stepper
 
 #: `ROW_BUDGET`, `STORED_ROWS`: the storage defaults (`options.Storage`), importable from here as before.
-__all__ = ["ROW_BUDGET", "STORED_ROWS", "Output", "Storage", "StorageWarning", "Stepper", "simulate"]
+__all__ = ["ROW_BUDGET", "STORED_ROWS", "Output", "Stepper", "Storage", "StorageWarning", "simulate"]
 
 
 def _march(st: Stepper, progress: bool, comm=None) -> None:
@@ -49,7 +49,7 @@ def _march(st: Stepper, progress: bool, comm=None) -> None:
 
 def simulate(
     scene,
-    scheme: str | None = None,
+    scheme: str | type | None = None,
     penalty: str | None = None,
     mass: str | None = None,
     *,
@@ -62,6 +62,9 @@ def simulate(
     **keywords,
 ) -> Result:
     """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
+
+    `scheme` is a registered name or a scheme class itself (a subclass of `timestepping.base.Scheme`, e.g. of
+    `timestepping.implicit.ImplicitScheme`); an unregistered class is named "module:Class" in the result.
 
     `model` is a `Model`, a registered name (`stringcontact models`) or "package.module:name"; default:
     the scene's `model`, else the paper's.

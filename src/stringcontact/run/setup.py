@@ -19,7 +19,7 @@ from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, un
 from ..scene import check_petsc_options
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
-from ..timestepping import check_model, check_restitution, scheme_class
+from ..timestepping import check_model, check_restitution, resolve_scheme
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
 from .options import Output
@@ -34,9 +34,10 @@ def model_constants(scene, model: Model) -> dict[str, float]:
     return resolve_parameters(model.name, model.constants, dict(scene.parameters), model.check_constants)
 
 
-def discretise(scene, model: Model, comm, constants: dict | None = None):
+def discretise(scene, model: Model, comm, constants: dict | None = None, residual: bool = False):
     """The P1 space on the scene's mesh, the model's parameters (scene fields as P1 functions, its `constants` as
-    dolfinx Constants: default, `model_constants`), its operators."""
+    dolfinx Constants: default, `model_constants`), its operators (with the residual for any model if `residual`:
+    a scheme without a linear path of its own, ``Scheme.LINEAR_PATH``)."""
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
@@ -64,7 +65,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None):
     if scene.obstacle_moves:  # ψ_t for the penalty's gap rate v − ψ_t: set each step (`MovingObstacle`)
         rate = extra[RATE] = fem.Function(V, name=RATE)
         rate.x.array[:] = (values["obstacle"] - scene.field_values("obstacle", dof_x, -scene.dt)) / scene.dt
-    return V, params, semi_discrete_operators(model, V, params)
+    return V, params, semi_discrete_operators(model, V, params, residual)
 
 
 #: energy.png's legend of a nonlinear form's stored energy when the model declares none (`fem.operators.potential_energy`)
@@ -84,13 +85,13 @@ def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
                           params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
 
 
-def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params) -> None:
-    """A moving obstacle runs with scheme projection (restitution 0), and with schemes paper (either penalty) and
-    newmark when the model's law reads the obstacle's rate (the gap rate v − ψ_t); linear and nonlinear models
-    alike. The rest is refused in one line."""
+def _check_moving_obstacle(scene, Scheme, penalty, model: Model, V, params) -> None:
+    """A moving obstacle runs with a scheme without penalty (`projection`: the obstacle through the model's gap;
+    restitution 0), and with the penalty schemes (`paper`, `newmark`) when the model's law reads the obstacle's
+    rate (the gap rate v − ψ_t); linear and nonlinear models alike. The rest is refused in one line."""
     if not scene.obstacle_moves:
         return
-    if name == "projection":
+    if not Scheme.PENALTIES:
         if scene.restitution:
             raise SceneError("restitution: a moving obstacle (obstacle in t) runs with restitution 0 only")
         return
@@ -168,12 +169,11 @@ def _model_origin(spec, model) -> dict:
 
 def _choose_scheme(scene, scheme, penalty, mass, model):
     """The scheme's name and class, its penalty and mass (its defaults, or refused), the model it must take."""
-    name = scheme or getattr(scene, "scheme", None) or DEFAULT_SCHEME
-    Scheme = scheme_class(name)
+    name, Scheme = resolve_scheme(scheme or getattr(scene, "scheme", None) or DEFAULT_SCHEME)
     penalty, mass = Scheme.check_options(name, penalty, mass)
-    check_restitution(name, getattr(scene, "restitution", None) or 0.0)
+    check_restitution(name, getattr(scene, "restitution", None) or 0.0, Scheme)
     model = _resolve_model(model, scene)
-    check_model(name, model)
+    check_model(name, model, Scheme)
     penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
     return name, Scheme, penalty, mass, model
 

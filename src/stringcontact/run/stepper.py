@@ -66,7 +66,7 @@ class Stepper:
     (``exc.result``), as `simulate` does, and marks its output folder so.
     """
 
-    def __init__(self, scene, scheme: str | None = None, penalty: str | None = None, mass: str | None = None, *,
+    def __init__(self, scene, scheme: str | type | None = None, penalty: str | None = None, mass: str | None = None, *,
                  model=None, storage=None, output=None, comm=MPI.COMM_WORLD, petsc_options: dict | None = None,
                  restitution: float | None = None, **keywords):
         storage, self.output = grouped(storage, output, keywords)
@@ -81,8 +81,8 @@ class Stepper:
         self.constants = setup.model_constants(scene, self.model)
         setup._check_before_mesh(scene, Scheme, self.penalty, self.model, petsc_options, comm)
         t0 = time.perf_counter()
-        V, params, ops = setup.discretise(scene, self.model, comm, self.constants)
-        setup._check_moving_obstacle(scene, self.name, self.penalty, self.model, V, params)
+        V, params, ops = setup.discretise(scene, self.model, comm, self.constants, not Scheme.LINEAR_PATH)
+        setup._check_moving_obstacle(scene, Scheme, self.penalty, self.model, V, params)
         s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
         self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
         self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
@@ -169,7 +169,7 @@ class Stepper:
         jump of the state's energy booked as external work (`_Ledger.rebase`)."""
         old = self.scheme
         eta, v = old.eta.copy(), np.asarray(old.velocity, dtype=float).copy()
-        ops = semi_discrete_operators(self.model, self._V, self._params)
+        ops = semi_discrete_operators(self.model, self._V, self._params, not self._Scheme.LINEAR_PATH)
         s = setup._setting(self.scene, self.model, self._V, self._params, ops, self.penalty, self.mass, self.comm,
                            self._petsc_options)
         self._past_timings.append(old.timings)

@@ -29,15 +29,15 @@ __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
 __all__ = [
     "BYTES_PER_STORED_NODE",
-    "DeprecatedKeyWarning",
     "FIELD_KEYS",
     "FILE_KEYS",
     "MAX_FILE_BYTES",
     "MAX_OUTPUT_TIMES",
     "MAX_STORED_BYTES",
-    "ModelConstant",
     "REQUIRED_KEYS",
     "STORED_ROWS",
+    "DeprecatedKeyWarning",
+    "ModelConstant",
     "Scene",
     "SceneWarning",
     "check_petsc_options",

@@ -39,7 +39,7 @@ from simpleeval import SimpleEval
 
 from ..errors import SceneError, one_line
 
-__all__ = ["evaluate", "check", "uses_name", "ALLOWED_NAMES", "ALLOWED_FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH"]
+__all__ = ["ALLOWED_FUNCTIONS", "ALLOWED_NAMES", "MAX_DEPTH", "MAX_LENGTH", "check", "evaluate", "uses_name"]
 
 MAX_LENGTH = 500  # characters in one expression
 MAX_DEPTH = 50  # nesting of operators/calls; also keeps the recursive evaluator far from Python's recursion limit

@@ -1,30 +1,95 @@
-"""The names a scene may use that are registered elsewhere: models (entry points) and time schemes.
+"""The names a scene may use that installed packages register: models and time schemes (entry points).
 
-Checking a name imports nothing: a model's name is checked against the installed packages' metadata (the
-entry-point group `GROUP`), a scheme's against `SCHEMES`. A model's declared constants (`declared`) are read from
-the registered object itself, which loads its entry point (the user's ``pip install`` is the trust boundary), the time-scheme registry (the class `Scheme` of
-scheme NAME is in `stringcontact.timestepping.NAME`; `timestepping.scheme_class` loads it). Adding a
-scheme: its module plus one line here.
+Checking a name imports nothing: a name is checked against the installed packages' metadata, models under the
+entry-point group `GROUP`, time schemes under `SCHEME_GROUP`. What a name stands for is read from the registered
+object itself, which loads its entry point (the user's ``pip install`` is the trust boundary): a model's declared
+constants (`declared`), a scheme's class (`scheme_class`: its description, whether it takes an ε). Adding a scheme
+is its module plus one entry point, as adding a model is.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib.metadata
+from collections.abc import Mapping
 
 from ..errors import SceneError, one_line
 
 #: The scheme and the model of a scene that names none (`stringcontact show` writes them out).
 DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
 
-#: The time schemes: name -> one-line description (`stringcontact.SCHEMES`); the code is timestepping/NAME.py.
-SCHEMES = {
-    "paper": "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step",
-    "projection": "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)",
-    "newmark": "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set",
-}
+#: The entry-point group a package registers its time schemes under (``[project.entry-points."stringcontact.schemes"]``):
+#: name = "package.module:Class", a subclass of `stringcontact.timestepping.base.Scheme`.
+SCHEME_GROUP = "stringcontact.schemes"
 
-#: The schemes without a penalty (no ε): the ones whose class has no PENALTIES (tests/scene/test_show.py checks it).
-EPS_FREE = frozenset({"projection"})
+
+def _entry_points(group: str) -> dict[str, list[importlib.metadata.EntryPoint]]:
+    """name -> the entry points registered under `group` (one per distinct target; two mean a conflict)."""
+    found: dict[str, list[importlib.metadata.EntryPoint]] = {}
+    for ep in importlib.metadata.entry_points(group=group):
+        targets = found.setdefault(ep.name, [])
+        if all(other.value != ep.value for other in targets):  # the same package seen twice is one entry
+            targets.append(ep)
+    return found
+
+
+class SchemeNames(Mapping):
+    """The registered time schemes (`stringcontact.SCHEMES`): name -> its one-line description.
+
+    The names come from the installed packages' metadata (`SCHEME_GROUP`), the default scheme first, the rest in
+    alphabetical order; iterating and ``in`` import nothing. A description is the class's ``DESCRIPTION``, read when
+    it is asked for (the scheme's module is imported then).
+    """
+
+    def _names(self) -> list[str]:
+        found = _entry_points(SCHEME_GROUP)
+        return sorted(found, key=lambda name: (name != DEFAULT_SCHEME, name))
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __contains__(self, name) -> bool:
+        return isinstance(name, str) and name in _entry_points(SCHEME_GROUP)
+
+    def __getitem__(self, name: str) -> str:
+        if name not in self:
+            raise KeyError(name)
+        return scheme_class(name).DESCRIPTION
+
+    def __repr__(self) -> str:
+        return f"SchemeNames({', '.join(self)})"
+
+
+#: The registered time schemes: name -> one-line description (`SchemeNames`).
+SCHEMES = SchemeNames()
+
+
+@functools.cache
+def scheme_class(name: str):
+    """The class registered as time scheme `name` (its module imported); a one-line `SceneError` naming
+    ``scheme`` for a name nobody registered, one registered twice, or a class that cannot be loaded."""
+    found = _entry_points(SCHEME_GROUP)
+    if not isinstance(name, str) or name not in found:
+        shown = repr(name) if isinstance(name, str) else f"{type(name).__name__} {name!r}"
+        raise SceneError(f"scheme: unknown scheme {one_line(shown)[:80]}; allowed: {', '.join(SCHEMES)}")
+    if len(found[name]) > 1:
+        targets = ", ".join(f"{ep.value} ({package_of(ep)})" for ep in found[name])
+        raise SceneError(f"scheme: {name!r} is registered twice, as {targets}; uninstall one of the packages")
+    (ep,) = found[name]
+    try:
+        return ep.load()
+    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
+        raise SceneError(f"scheme: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
+                         f"{type(exc).__name__}: {one_line(exc)}") from None
+
+
+def eps_free(name: str) -> bool:
+    """Whether registered scheme `name` uses no penalty, hence no ε (its class has no ``PENALTIES``)."""
+    return not scheme_class(name).PENALTIES
+
 
 #: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
 GROUP = "stringcontact.models"
@@ -32,12 +97,7 @@ GROUP = "stringcontact.models"
 
 def registered() -> dict[str, list[importlib.metadata.EntryPoint]]:
     """The registered models: name -> its entry points (one per distinct target; two mean a conflict)."""
-    found: dict[str, list[importlib.metadata.EntryPoint]] = {}
-    for ep in importlib.metadata.entry_points(group=GROUP):
-        targets = found.setdefault(ep.name, [])
-        if all(other.value != ep.value for other in targets):  # the same package seen twice is one entry
-            targets.append(ep)
-    return dict(sorted(found.items()))
+    return dict(sorted(_entry_points(GROUP).items()))
 
 
 def _allowed(names) -> str:

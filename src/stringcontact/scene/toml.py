@@ -12,7 +12,7 @@ import tomli_w
 
 from ..errors import SceneError, one_line
 from .limits import MAX_FILE_BYTES
-from .names import EPS_FREE
+from .names import DEFAULT_SCHEME, eps_free
 from .scene import Scene
 
 __all__ = ["list_scenes", "load_scene", "scene_to_toml"]
@@ -129,6 +129,6 @@ def scene_to_toml(scene: Scene) -> str:
     Written by tomli-w: strings with line breaks (notes) as multi-line strings, ``petsc_options`` as a table
     at the end (it is the last key of `Scene.as_dict`, so the keys keep their order).
     """
-    penalty = "" if scene.scheme in EPS_FREE else f", r = dt/eps = {scene.r:.6g}"  # a scheme without eps: no r
+    penalty = "" if eps_free(scene.scheme or DEFAULT_SCHEME) else f", r = dt/eps = {scene.r:.6g}"  # a scheme without eps: no r
     comment = f"# scene {scene.name!r}: dt = {scene.dt:.6g}, dx = {scene.dx:.6g}{penalty}\n"
     return comment + tomli_w.dumps(scene.as_dict(), multiline_strings=True)

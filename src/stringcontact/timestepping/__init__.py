@@ -1,46 +1,54 @@
 """Time schemes. Each is one module here with a class `Scheme` (see `base.Scheme` for the contract).
 
 The driver (`run.driver.simulate`) knows none of them: it hands a scheme the model's assembled operators and
-the step size, then calls ``step()`` and sums the energy terms the scheme reports. Adding a scheme is
-a new module here plus one line in `scene.names.SCHEMES` (the names a scene may use). Importing this
-package does not load dolfinx.
+the step size, then calls ``step()`` and sums the energy terms the scheme reports. A scheme is registered
+under the entry-point group ``stringcontact.schemes`` (`scene.names.SCHEME_GROUP`), as models are: adding one is
+its module plus one line in its package's ``pyproject.toml``; in Python a `Scheme` class may also be handed to
+`simulate` or `Stepper` directly. Importing this package does not load dolfinx.
 """
 
 from __future__ import annotations
 
-import importlib
-
-from ..scene.names import SCHEMES
+from ..scene.names import SCHEMES, scheme_class
 
 
-def scheme_class(name: str):
-    """The `Scheme` class of the scheme called `name`; ValueError (one line) for an unknown name."""
-    if name not in SCHEMES:
-        raise ValueError(f"scheme: unknown scheme {name!r}; allowed: {', '.join(SCHEMES)}")
-    return importlib.import_module(f".{name}", __name__).Scheme
+def resolve_scheme(scheme) -> tuple[str, type]:
+    """(its name, the class) of `scheme`: a registered name, or a `Scheme` class handed over in Python (named
+    ``module:Class``, the form of an entry point, unless it is the class registered under a name)."""
+    if isinstance(scheme, type):
+        from .base import Scheme
+
+        if not issubclass(scheme, Scheme):
+            raise TypeError(f"scheme: {scheme.__qualname__} is not a subclass of stringcontact.timestepping.base.Scheme")
+        registered = [name for name in SCHEMES if scheme_class(name) is scheme]
+        return (registered[0] if registered else f"{scheme.__module__}:{scheme.__qualname__}"), scheme
+    return scheme, scheme_class(scheme)
 
 
-def _why_not(name: str, model) -> str | None:
+def _why_not(name: str, Scheme: type, model) -> str | None:
     """Why scheme `name` cannot run `model`: the scheme's reason, or the model's (`Model.schemes`)."""
     allowed = getattr(model, "schemes", ())
     if allowed and name not in allowed:
         return f"model '{model.name}' runs with scheme {' or '.join(allowed)} only: {model.scheme_note}"
-    return scheme_class(name).requires(model)
+    return Scheme.requires(model)
 
 
-def check_model(name: str, model) -> None:
-    """ValueError (one line) if scheme `name` cannot run `model`, naming the schemes that can."""
-    why = _why_not(name, model)
+def check_model(name: str, model, Scheme: type | None = None) -> None:
+    """ValueError (one line) if scheme `name` (class `Scheme`, the registered one by default) cannot run
+    `model`, naming the registered schemes that can."""
+    why = _why_not(name, Scheme or scheme_class(name), model)
     if why is not None:
-        usable = [other for other in SCHEMES if _why_not(other, model) is None]
+        usable = [other for other in SCHEMES if _why_not(other, scheme_class(other), model) is None]
         raise ValueError(f"scheme {name!r}: {why}; this model runs with scheme {' or '.join(usable) or 'none'}")
 
 
-def check_restitution(name: str, restitution: float) -> None:
-    """ValueError (one line, naming `projection`) if scheme `name` is given a restitution e > 0 it does not take."""
-    if restitution and not scheme_class(name).RESTITUTION:
+def check_restitution(name: str, restitution: float, Scheme: type | None = None) -> None:
+    """ValueError (one line, naming the schemes that take one) if scheme `name` is given a restitution e > 0 it
+    does not take (its class's ``RESTITUTION``)."""
+    if restitution and not (Scheme or scheme_class(name)).RESTITUTION:
+        takers = [other for other in SCHEMES if scheme_class(other).RESTITUTION]
         raise ValueError(f"restitution: scheme {name!r} takes no restitution coefficient (e = {restitution:g} given); "
-                         "only scheme 'projection' does")
+                         f"only scheme {' or '.join(repr(t) for t in takers)} does")
 
 
-__all__ = ["SCHEMES", "check_model", "check_restitution", "scheme_class"]
+__all__ = ["SCHEMES", "check_model", "check_restitution", "resolve_scheme", "scheme_class"]

@@ -164,6 +164,10 @@ class Scheme:
     * ``RESTITUTION``: True if it takes a restitution coefficient e > 0 (`Setting.restitution`); the others
       are refused one;
     * ``MASSES``: the mass matrices it accepts, its default first;
+    * ``DESCRIPTION``: one line for `stringcontact.SCHEMES`;
+    * ``LINEAR_PATH``: True if it steps a linear model with the constant operators M, C, K alone; False if every
+      model reaches it with its residual (`Operators.nonlinear`, as a nonlinear one always does:
+      `implicit.ImplicitScheme`);
     * ``__init__(setting)``: assemble and factorise (set-up time);
     * ``start(eta0, v0) -> StepEnergy``: the initial state (ends already at their heights, v0 = 0 there);
     * ``step() -> StepEnergy``: one step;
@@ -174,6 +178,8 @@ class Scheme:
 
     PENALTIES: tuple = ()
     MASSES: tuple = ("lumped", "consistent")
+    DESCRIPTION = ""
+    LINEAR_PATH = True
     #: A non-negative part of the scheme's energy that the ledger does not show, at the state last reported; the
     #: energy guard watches E + energy_slack, the quantity the scheme does not increase (projection's (Δt/4)|v|²_C).
     energy_slack = 0.0
@@ -235,20 +241,25 @@ def check_law_stability(model, dt: float, eps: float, penalty: str) -> None:
     warnings.warn(why, InstabilityWarning, stacklevel=4)
 
 
-def wrap(a: np.ndarray, comm) -> PETSc.Vec:
+def petsc_vector(a: np.ndarray, comm) -> PETSc.Vec:
     """A PETSc vector over `a`'s memory (this rank's part of the vector is all of `a`)."""
     return PETSc.Vec().createWithArray(a.reshape(-1), size=(a.size, PETSc.DECIDE), comm=comm)
 
 
-def any_rank(comm):
-    """anyrank(flag): whether the flag is set on any rank (one allreduce), or the flag itself in serial."""
-    if comm.size == 1:
-        return lambda flag: flag
-    return lambda flag: comm.allreduce(flag, op=MPI.LOR)
+class Ranks:
+    """Reductions over the ranks of `comm` in one allreduce each, free in serial: `sum` and `any`."""
 
+    def __init__(self, comm):
+        self.comm, self.serial = comm, comm.size == 1
 
-def summer(comm):
-    """allsum(*values): the sums over the ranks (one allreduce), or the values themselves in serial."""
-    if comm.size == 1:
-        return lambda *vals: vals
-    return lambda *vals: comm.allreduce(np.array(vals), op=MPI.SUM).tolist()
+    def sum(self, *values) -> list | tuple:
+        """The sums of `values` over the ranks (the values themselves in serial)."""
+        if self.serial:
+            return values
+        return self.comm.allreduce(np.array(values), op=MPI.SUM).tolist()
+
+    def any(self, flag: bool) -> bool:
+        """Whether `flag` is set on any rank (the flag itself in serial)."""
+        if self.serial:
+            return flag
+        return self.comm.allreduce(flag, op=MPI.LOR)

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from .base import any_rank
+from .base import Ranks
 from .linear import Linear, _symmetric_rows, dirichlet_rows, set_from_options
 
 #: Active-set iterations before the step falls back to SNES VI. For an M-matrix they are at most the nodes that
@@ -62,7 +62,7 @@ class ActiveSet:
         self.A, self.bc, self.g = A, bc, g
         self.psi, self.interior, self.force_tol = psi, interior, force_tol
         self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
-        self.anywhere, self.comm = any_rank(comm), comm
+        self.anywhere, self.comm = Ranks(comm).any, comm
         self.inverse_diagonal = inverse_diagonal(A, comm)
         if self.inverse_diagonal is not None:  # α = 0: no linear solver at all (`_nodal_maximum`)
             self.linear = self.free = None
@@ -187,7 +187,7 @@ def inverse_diagonal(A: PETSc.Mat, comm) -> np.ndarray | None:
     rows = np.repeat(np.arange(ia.size - 1), np.diff(ia)) + A.getOwnershipRange()[0]
     d = A.getDiagonal().array
     diagonal = bool(np.all(a[ja != rows] == 0.0)) and bool(np.all(d != 0.0))
-    if any_rank(comm)(not diagonal):
+    if Ranks(comm).any(not diagonal):
         return None
     return 1.0 / d
 

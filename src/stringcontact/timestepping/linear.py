@@ -19,7 +19,7 @@ from petsc4py import PETSc
 
 from ..errors import SceneError
 from ..scene.limits import MAX_MEMBRANE_NODES
-from .base import any_rank
+from .base import Ranks
 
 #: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG. It is
 #: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²). Measured (docs/explanation/linear_solvers.md,
@@ -369,7 +369,7 @@ class DampedLU:
         self.linear = Linear(A, comm, options, bc, g, dim)
         self.solve, self.iterative = self.linear.solve, self.linear.iterative
         self.refactorisations = 0
-        self.anywhere = any_rank(comm)
+        self.anywhere = Ranks(comm).any
 
     def update(self, extra: np.ndarray) -> None:
         if self.anywhere(not np.array_equal(extra, self.current)):

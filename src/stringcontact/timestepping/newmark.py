@@ -21,6 +21,11 @@ uniformly accelerating obstacle, which the nodal velocity then follows at the fo
 ``p.extra["obstacle_rate"]``; the right-hand side gains 2Dψ_t^{n+1}. The force f = −D(v^{n+1} − ψ_t^{n+1})
 does the work f·(η^{n+1} − η^n) on the string: its share f·(ψ^{n+1} − ψ^n) is the obstacle's work, booked as
 external work, and the rest, −f·(gap^{n+1} − gap^n), the contact dissipation. The identity stays exact.
+
+A nonlinear model takes the Newton path: the same step with the quotients `NEWMARK` in the model's residual, the
+semi-implicit penalty −D v^{n+1} on the diagonal, the same release of nodes it would hold down. Energy: kinetic
+½|v^{n+1}|²_M, the model's stored energy, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1}), and as numerical
+dissipation the rest of the identity (the midpoint rule of a nonlinear force does not conserve its energy).
 """
 
 from __future__ import annotations
@@ -29,14 +34,27 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..fem.operators import diagonal_matrix, stacked
-from .base import Scheme as Base
-from .base import StepEnergy, any_rank, check_law_stability, summer, wrap
+from .base import Ranks, StepEnergy, check_law_stability, petsc_vector
+from .implicit import kinetic_energy
 from .linear import DampedLU, dirichlet_rows
-from .newton import NewtonStep, _NewtonScheme  # the Newton path
-from .paper import PaperStep
+from .newton import NewtonStep, _NewtonScheme
+
+#: The scheme's difference quotients on its Newton path (a nonlinear model): v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n,
+#: η_tt → (v^{n+1} − v^n)/Δt, η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule
+#: of a linear model).
+NEWMARK = {
+    "eta": lambda u, e0, em, v0, dt: (u + e0) / 2,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: 2 * (u - e0) / dt**2 - 2 * v0 / dt,
+}
 
 
-class Scheme(Base):
+class Scheme(_NewtonScheme):
+    """The trapezoidal rule: the linear path (the module docstring's matrix, refactorised when the active set
+    changes) for a linear model, the Newton path for a nonlinear one, with one damping law, one release of held
+    nodes and one bookkeeping of a moving obstacle's work for both."""
+
+    DESCRIPTION = "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set"
     PENALTIES = ("semi-implicit",)
     MASSES = ("lumped", "consistent")
     remedy = "use a smaller dt"
@@ -47,16 +65,27 @@ class Scheme(Base):
             return f"model '{model.name}' has no penalty_damping (its law is not a velocity damping)"
         return None
 
-    def __new__(cls, s):
-        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (its Newton path below)
-            return NewmarkStep(s)
-        return super().__new__(cls)
-
     def __init__(self, s):
         super().__init__(s)
+        n, laws = s.n_owned, s.laws
+        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
+        self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
+        self.allsum, self.anysum = Ranks(s.comm).sum, Ranks(s.comm).any
+        self.eta_, self.v_ = np.zeros(n), np.zeros(n)
+        self.force_density = np.zeros(n)
+        self.moving = s.obstacle is not None  # ψ(x, t): the damping brakes v − ψ_t (module docstring)
+        self.k = 0  # the step index: η^k is the current state
+        if s.ops.nonlinear is not None:
+            self.newton = NewtonStep(s, NEWMARK)
+            self.v_old = np.zeros(n)  # v^{n−1}: the guess extrapolates v
+        else:
+            self.newton = None
+            self._linear_operators(s)
+            self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
+
+    def _linear_operators(self, s) -> None:
+        """The linear path's matrix, its factorisation, the stacked [K; C] and the scratch vectors."""
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
-        laws = s.laws
-        check_law_stability(laws.model, dt, s.eps, s.penalty)
         same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
         self.Ms = diagonal_matrix(ops.M, ops.m) if s.mass == "lumped" else ops.M
         self.A = ops.K.copy()
@@ -65,21 +94,13 @@ class Scheme(Base):
         dirichlet_rows(self.A, s.bc)
         self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # 4D/Δt goes on its diagonal
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
-        self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
-        self.allsum = summer(comm)
-        self.anysum = any_rank(comm)
-        self.eta_, self.v_ = np.zeros(n), np.zeros(n)
-        self.KC_now, self.KC_new = ((wrap(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
+        self.KC_now, self.KC_new = ((petsc_vector(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
         self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)
         self.v_new = np.zeros(n)
         self.work = np.zeros((2, n))  # scratch for the right-hand side: no temporaries per step (measured: bench_step)
-        self.vec = {k: wrap(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu),
+        self.vec = {k: petsc_vector(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu),
                                                   ("v_new", self.v_new), ("work", self.work[0]))}  # wrapped once
         self.D = np.zeros(n)  # m_F d on the active interior nodes
-        self.force_density = np.zeros(n)
-        self.moving = s.obstacle is not None  # ψ(x, t): the damping brakes v − ψ_t (module docstring)
-        self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
-        self.k = 0  # the step index: η^k is the current state
         self.rate_new = np.zeros(n)  # ψ_t^{k+1}, the rate the step's damping brakes towards
 
     @property
@@ -96,20 +117,28 @@ class Scheme(Base):
 
     @property
     def timings(self):
+        if self.newton is not None:
+            return self.newton.describe()
         return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.linear.describe()}
 
     def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""
         if self.s.mass == "lumped":
             return np.multiply(self.s.ops.m, u, out=self.Mu)
-        self.Ms.mult(self.vec[name] if name else wrap(u, self.s.comm), self.vec["Mu"])
+        self.Ms.mult(self.vec[name] if name else petsc_vector(u, self.s.comm), self.vec["Mu"])
         return self.Mu
 
     def start(self, eta0, v0):
         if self.moving:
             self.s.obstacle.set_centred(0.0)
         self.eta_[:], self.v_[:] = eta0, v0
-        self.KC.mult(wrap(self.eta_, self.s.comm), self.KC_now[0])
+        if self.newton is not None:
+            self.v_old[:] = v0
+            self.newton.start_fields(eta0, v0)
+            kin, el = self.allsum(kinetic_energy(self.s, self.v_), self._stored(self.eta_))
+            self.E = kin + el
+            return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self.KC.mult(petsc_vector(self.eta_, self.s.comm), self.KC_now[0])
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
         el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
         self.kin, self.el = self.allsum(kin, el)
@@ -160,17 +189,17 @@ class Scheme(Base):
         v_new[s.bc] = 0.0
         return v_new
 
-    def _obstacle_work(self, con: float) -> tuple[float, float]:
-        """A moving obstacle: its work f·(ψ^{n+1} − ψ^n) with f = −D(v^{n+1} − ψ_t^{n+1}) moves from the contact
-        term to the external work (module docstring); returns (its share of the contact term, the work)."""
+    def _obstacle_work(self, f: np.ndarray) -> float:
+        """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's; the module docstring), which moves
+        from the contact term to the external work; 0 for an obstacle at rest."""
+        if not self.moving:
+            return 0.0
         o, t = self.s.obstacle, (self.k + 1) * self.s.dt
-        f = np.subtract(self.v_new, self.rate_new, out=self.work[1])
-        f *= self.D
-        np.negative(f, out=f)
-        work = float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
-        return con + work, work
+        return float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
 
     def step(self):
+        if self.newton is not None:
+            return self._newton_step()
         s, dt = self.s, self.s.dt
         eta, v, D = self.eta_, self.v_, self.D
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
@@ -189,7 +218,11 @@ class Scheme(Base):
         visc = 0.5 * float(np.dot(mean, b))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
         if self.moving:  # −(Δt/2) f·(v^{n+1} + v^n), f = −D(v^{n+1} − ψ_t^{n+1})
             con = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new - self.rate_new, out=b)))
-            con, work = self._obstacle_work(con)
+            f = np.subtract(self.v_new, self.rate_new, out=self.work[1])  # f = −D(v^{n+1} − ψ_t^{n+1})
+            f *= self.D
+            np.negative(f, out=f)
+            work = self._obstacle_work(f)
+            con += work
         else:
             con, work = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b))), 0.0
         ext = 0.5 * dt * float(np.dot(s.ops.load, mean)) + work
@@ -207,55 +240,10 @@ class Scheme(Base):
             self.s.obstacle.set_centred(self.k * dt)
         return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0)
 
-
-
-# --- newmark: the trapezoidal rule, the midpoint in η -----------------------------------------------------
-
-
-NEWMARK = {
-    "eta": lambda u, e0, em, v0, dt: (u + e0) / 2,
-    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
-    "eta_tt": lambda u, e0, em, v0, dt: 2 * (u - e0) / dt**2 - 2 * v0 / dt,
-}
-
-
-class NewmarkStep(_NewtonScheme):
-    """`newmark` for a nonlinear model: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
-    η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule of a linear model), the
-    semi-implicit penalty −D v^{n+1} on the diagonal, with the same release of nodes it would hold down.
-    Energy: kinetic ½|v^{n+1}|²_M, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1}). A moving obstacle
-    ψ(x, t), as on the linear path (newmark.py): the law reads the centred ψ_t^n, the damping brakes
-    v^{n+1} − ψ_t^{n+1}, and the obstacle's work f·(ψ^{n+1} − ψ^n) is external work."""
-
-    def __init__(self, s):
-        super().__init__(s)
-        laws = s.laws
-        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
-        self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
-        self.newton = NewtonStep(s, NEWMARK)
-        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
-        n = s.n_owned
-        self.eta_, self.v, self.v_old = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.force_density = np.zeros(n)
-        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
-
-    eta = property(lambda self: self.eta_)
-    velocity = property(lambda self: self.v)
-    contact_force = property(lambda self: self.force_density)
-    _kinetic = PaperStep._kinetic
-
-    def start(self, eta0, v0):
-        if self.moving:
-            self.s.obstacle.set_centred(0.0)
-        self.eta_[:], self.v[:], self.v_old[:] = eta0, v0, v0
-        self.newton.start_fields(eta0, v0)
-        kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
-        self.E = kin + el
-        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def step(self):
+    def _newton_step(self):
+        """The Newton path's step: the quotients `NEWMARK` in the model's residual, the damping on the diagonal."""
         s, dt, nw = self.s, self.s.dt, self.newton
-        e0, v = self.eta_, self.v
+        e0, v = self.eta_, self.v_
         nw.set_known(e0, None, v)
         s.laws.set(eta=e0, v=v)
         D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
@@ -273,25 +261,18 @@ class NewmarkStep(_NewtonScheme):
         delta = u - e0
         visc_vec = nw.viscous_force(u)
         kin, el, visc, con, ext, work = self.allsum(
-            self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
+            kinetic_energy(s, v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
             -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)), self._obstacle_work(f))
         num = self.E - (kin + el) - visc - con + ext
         con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
         self.E = kin + el
         np.divide(f, s.ops.m_force, out=self.force_density, where=s.ops.m_force > 0)
         self.force_density[s.ops.m_force <= 0] = 0.0
-        self.v_old[:], self.eta_[:], self.v[:] = v, u, v1
+        self.v_old[:], self.eta_[:], self.v_[:] = v, u, v1
         self.k += 1
         if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
             self.s.obstacle.set_centred(self.k * dt)
         return StepEnergy(kin, el, visc, con, num, ext, 0.0)
 
-    def _obstacle_work(self, f: np.ndarray) -> float:
-        """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's); 0 for an obstacle at rest."""
-        if not self.moving:
-            return 0.0
-        o, t = self.s.obstacle, (self.k + 1) * self.s.dt
-        return float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
 
-
-__all__ = ["NEWMARK", "NewmarkStep", "Scheme"]
+__all__ = ["NEWMARK", "Scheme"]

@@ -63,8 +63,8 @@ from .affine import (
     _as_slice,
     affine_in,
 )
+from .base import Ranks
 from .base import Scheme as Base
-from .base import any_rank, summer
 from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
 
 #: Newton's defaults (a scene's or the command line's `petsc_options` go on top): the relative residual and the
@@ -98,7 +98,7 @@ class NewtonStep(LinearPath):
         nl = s.ops.nonlinear
         Z, n = nl.space, s.n_owned
         self.s, self.n, self.q = s, n, quotients
-        self.allsum, self.anyrank = summer(s.comm), any_rank(s.comm)
+        self.allsum, self.anyrank = Ranks(s.comm).sum, Ranks(s.comm).any
         self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
         self.lumped = s.mass == "lumped"
         args = (self.u, self.e0, self.em, self.v0, s.dt)
@@ -501,7 +501,10 @@ class _NewtonScheme(Base):
     def fields(self) -> dict:
         """A model's other fields (`Model.fields`) by name, at η's owned nodes, from the last solve ({} for one
         field). `paper` and `newmark` report them with the η they solved for; `projection` reports its η one step
-        behind its solve, so its fields would be a step ahead of its η (a model may refuse it: `Model.schemes`)."""
+        behind its solve, so its fields would be a step ahead of its η (a model may refuse it: `Model.schemes`).
+        A scheme's linear path (no Newton step) has none."""
+        if self.newton is None:
+            return {}
         return {name: self.newton.field(i + 1) for i, name in enumerate(self.s.laws.model.fields)}
 
     def _stored(self, eta) -> float:

@@ -25,52 +25,58 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import SolverError
 from ..fem.operators import stacked, step_matrices
+from .base import Ranks, StepEnergy, petsc_vector
 from .base import Scheme as Base
-from .base import StepEnergy, any_rank, check_law_stability, summer, wrap
+from .implicit import ImplicitScheme
 from .linear import DampedLU, dirichlet_rows
-from .newton import NewtonStep, _NewtonScheme  # the Newton path
+
+#: The scheme's difference quotients (its Newton path: `implicit.ImplicitScheme`): implicit Euler in η.
+PAPER = {
+    "eta": lambda u, e0, em, v0, dt: u,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
+}
 
 
-class Scheme(Base):
-    PENALTIES = ("explicit", "semi-implicit")
-    MASSES = ("lumped", "consistent")
+class Scheme(ImplicitScheme):
+    """The paper's scheme. A nonlinear model takes the Newton path (`ImplicitScheme` with the quotients `PAPER`); a
+    linear one the same step with its constant operators: A factorised once, each step one back-substitution and a
+    few NumPy operations (the module docstring)."""
 
-    def __new__(cls, s):
-        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (its Newton path below)
-            return PaperStep(s)
-        return super().__new__(cls)
+    DESCRIPTION = "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step"
+    QUOTIENTS = PAPER
+    LINEAR_PATH = True
 
     def __init__(self, s):
-        super().__init__(s)
+        if s.ops.nonlinear is not None:  # the Newton path
+            super().__init__(s)
+            return
+        Base.__init__(self, s)
+        self.newton = None
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
         laws = s.laws
-        if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
-            raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
-        check_law_stability(laws.model, dt, s.eps, s.penalty)
+        self.force_law = self._penalty_law(s)
         self.A, self.Ms, C_over_dt = step_matrices(ops, dt, s.mass)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
         dirichlet_rows(self.A, s.bc)
-        law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
-        self.force_law = laws.compile(law(laws.eta, laws.quotient, laws.params))
         self.energy_law = None
         if laws.model.contact_energy is not None:
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
         self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # the semi-implicit penalty's damping goes on its diagonal
-        self.allsum = summer(comm)
-        self.anysum = any_rank(comm)
+        self.allsum = Ranks(comm).sum
+        self.anysum = Ranks(comm).any
 
         self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
         self.vels = np.zeros((2, n))  # v^{n+1}, v^n in rotating rows
         # Dotted with v^{n+1}: C v^{n+1}, the applied force m_F∘F, M v^{n+1} and M v^n (rows 2, 3 alternate).
         self.by_v = np.zeros((4, n))
         self.KC_etas = np.zeros((2, 2, n))  # [K η, (C/Δt) η] of η^{n+1} and of η^n
-        self.eta_new, self.eta_now, self.eta_old = ((wrap(r, comm), r) for r in self.etas)
-        self.v_new, self.v_now = ((wrap(r, comm), r) for r in self.vels)
-        self.M_v_new, self.M_v = ((wrap(r, comm), r) for r in self.by_v[2:])
-        self.KC_new, self.KC_old = ((wrap(p, comm), p) for p in self.KC_etas)
-        self.rhs, self.two_steps = ((wrap(r, comm), r) for r in np.zeros((2, n)))  # b; consistent mass: 2η^n − η^{n−1}
+        self.eta_new, self.eta_now, self.eta_old = ((petsc_vector(r, comm), r) for r in self.etas)
+        self.v_new, self.v_now = ((petsc_vector(r, comm), r) for r in self.vels)
+        self.M_v_new, self.M_v = ((petsc_vector(r, comm), r) for r in self.by_v[2:])
+        self.KC_new, self.KC_old = ((petsc_vector(p, comm), p) for p in self.KC_etas)
+        self.rhs, self.two_steps = ((petsc_vector(r, comm), r) for r in np.zeros((2, n)))  # b; consistent mass: 2η^n − η^{n−1}
         self.dots_v, self.dots_K = np.zeros(4), np.zeros(2)
         self.diag_w = np.zeros(n)  # semi-implicit: the damping weights m_F d / Δt on the active set
         m, mF = ops.m, ops.m_force
@@ -93,17 +99,19 @@ class Scheme(Base):
 
     @property
     def eta(self):
-        return self.eta_now[1]
+        return self.eta_now[1] if self.newton is None else self.eta_
 
     @property
     def velocity(self):
-        return self.v_now[1]
+        return self.v_now[1] if self.newton is None else self.v
 
     @property
     def contact_force(self):
         """The force density at the current state: with the explicit penalty the paper's F(η^n, v^n), the force
         the next step applies (so it lives on the contact set at t_n); semi-implicit, the one the last step
         applied, −d v^n on its active set (which it brakes, so those nodes are still below the obstacle)."""
+        if self.newton is not None:
+            return self.force_density
         if self.s.penalty == "explicit":
             self.s.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
             law = self.force_law.evaluate_env(self.s.laws.env)
@@ -114,13 +122,9 @@ class Scheme(Base):
         return self.force_density
 
     @property
-    def situation(self) -> str:
-        return f"r = dt/eps = {self.s.dt / self.s.eps:.4g}, penalty {self.s.penalty}"
-
-    remedy = "use penalty='semi-implicit', scheme 'projection' or a smaller dt"
-
-    @property
     def timings(self):
+        if self.newton is not None:
+            return self.newton.describe()
         counts = {"refactorisations": self.lu.refactorisations} if self.s.penalty != "explicit" else {}
         return counts | {"linear solver": self.lu.linear.describe()}
 
@@ -138,6 +142,8 @@ class Scheme(Base):
             self.Ms.mult(u[0], out[0])
 
     def start(self, eta0, v0):
+        if self.newton is not None:
+            return super().start(eta0, v0)
         if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
             self.psi_levels = [self.s.obstacle.owned(-self.dt).copy(), self.s.obstacle.set(0.0).copy()]
         self.eta_now[1][:] = eta0
@@ -179,6 +185,8 @@ class Scheme(Base):
         np.multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
 
     def step(self):
+        if self.newton is not None:
+            return super().step()
         # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
         # flags and arrays read every step are attributes of the scheme set once in __init__ (not s.ops.m_force,
         # s.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and 0.990 in three passes of
@@ -191,14 +199,14 @@ class Scheme(Base):
             np.add(self.eta_new[1], e0, out=self.eta_new[1])
         self.lu.solve(self.rhs[0], self.eta_new[0])
         if self.moving and not self.explicit:
-            self._release(e0)
+            self._release_linear(e0)
         terms = self._energy_terms(e0)
         if self.moving:
             terms = self._obstacle_moved(terms)
         self._rotate()
         return terms
 
-    def _release(self, e0) -> None:
+    def _release_linear(self, e0) -> None:
         """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (the step's gap
         rate > 0, F < 0: an obstacle that stops under a string it lifted) is released and the step solved again (a
         few times at most), as newmark does."""
@@ -296,147 +304,4 @@ class Scheme(Base):
         self.step_index += 1
 
 
-
-# --- paper: implicit Euler in η, the force from the previous step -----------------------------------------
-
-
-PAPER = {
-    "eta": lambda u, e0, em, v0, dt: u,
-    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
-    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
-}
-
-
-class PaperStep(_NewtonScheme):
-    """The paper's Section 6 scheme for a nonlinear model: η and η_t implicit, the penalty explicit (or
-    semi-implicit: d v^{n+1} on the diagonal), the mass lumped or consistent. Energy: the module docstring,
-    with the kinetic energy ½|v^{n+1}|²_M, δ = η^{n+1} − η^n and the contact work −(Δt/2) f·(v^n + v^{n+1}).
-    A moving obstacle ψ(x, t), as on the linear path (paper.py): the law's fields at t^n; the semi-implicit
-    damping brakes the step's gap rate, centre c = η^n + ψ^{n+1} − ψ^n, and a node it would hold down is released
-    (`_release`); the obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work."""
-
-    def __init__(self, s):
-        super().__init__(s)
-        laws = s.laws
-        if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
-            raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
-        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
-        law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
-        self.force_law = laws.compile(law(laws.eta, laws.quotient, laws.params))
-        self.newton = NewtonStep(s, PAPER)
-        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
-        n = s.n_owned
-        self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.older = None
-        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
-        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
-        self.force_density = np.zeros(n)
-
-    @property
-    def eta(self):
-        return self.eta_
-
-    @property
-    def velocity(self):
-        return self.v
-
-    @property
-    def contact_force(self):
-        return self.force_density
-
-    def _kinetic(self, v) -> float:
-        if self.s.mass == "lumped":
-            return 0.5 * float(np.dot(v, self.s.ops.m * v))
-        out = self.s.ops.M.createVecLeft()
-        self.s.ops.M.mult(wrap(v, self.s.comm), out)
-        return 0.5 * float(np.dot(v, out.array))
-
-    def start(self, eta0, v0):
-        s = self.s
-        if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
-            self.psi_levels = [s.obstacle.owned(-s.dt).copy(), s.obstacle.set(0.0).copy()]
-        self.eta_[:], self.v[:] = eta0, v0
-        self.old[:] = eta0 - s.dt * self.v
-        self.newton.start_fields(eta0, v0)
-        kin, el = self.allsum(self._kinetic(self.v), self._stored(self.eta_))
-        self.E = kin + el
-        self._force()
-        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def _force(self) -> None:
-        """The law at (η^n, η^{n−1}): the explicit force density (0 where no force acts), or the damping weights."""
-        laws = self.s.laws
-        laws.set(eta=self.eta_, eta_old=self.old)
-        law = np.asarray(self.force_law.evaluate_env(laws.env), dtype=float) * np.ones(self.s.n_owned)
-        self.law = law * self.s.interior
-        if self.s.penalty == "explicit":
-            np.multiply(self.law, self.inv_mF > 0, out=self.force_density)
-
-    def step(self):
-        s, dt, nw = self.s, self.s.dt, self.newton
-        e0, em = self.eta_, self.old
-        nw.set_known(e0, em)
-        # a moving obstacle: the semi-implicit damping brakes the step's gap rate, v^{n+1} − (ψ^{n+1} − ψ^n)/Δt
-        dpsi = s.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
-        if s.penalty == "explicit":
-            nw.f[:] = s.ops.m_force * self.law
-        else:  # F = −d (v^{n+1} − Δψ/Δt): (m_F d/Δt)(u − η^n − Δψ) on the diagonal
-            nw.d[:] = s.ops.m_force * self.law / dt
-            nw.c[:] = e0 + dpsi
-        # η extrapolated quadratically: a smaller first residual, so that a kept Jacobian serves more steps; past a
-        # sudden stop (a landing through a lubricating layer at nx = 200 lands in one step) that guess overshoots and Newton diverges from it:
-        # then from the linear one
-        if nw.guessless:  # the linear path's one direct solve
-            u = nw.solve(None)
-        else:
-            linear = 2 * e0 - em
-            try:
-                u = nw.solve(3 * e0 - 3 * em + self.older if self.older is not None else linear)
-            except SolverError:
-                if self.older is None:
-                    raise
-                u = nw.solve(linear)
-        if self.moving and s.penalty != "explicit":
-            u = self._release(u)
-        self.older = em.copy()
-        v1 = (u - e0) / dt
-        f = nw.f if s.penalty == "explicit" else nw.d * (nw.c - u)
-        delta = u - e0
-        visc_vec = nw.viscous_force(u)
-        work = self._obstacle_work(f)  # (and the law's fields to t^{n+1})
-        kin, el, visc, con, ext, work = self.allsum(
-            self._kinetic(v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
-            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)), work)
-        num = self.E - (kin + el) - visc - con + ext
-        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
-        self.E = kin + el
-        if s.penalty != "explicit":
-            self.force_density[:] = f * self.inv_mF
-        self.old[:], self.eta_[:], self.v[:] = e0, u, v1
-        self._force()
-        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
-
-    def _release(self, u: np.ndarray) -> np.ndarray:
-        """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (u above the
-        centre η^n + Δψ, F < 0: an obstacle that stops under a string it lifted) is released and the step solved
-        again from u, as on the linear path. The kept Jacobian takes the change of d on its diagonal
-        (`NewtonStep._update_damping`); the centre c enters only the residual."""
-        nw = self.newton
-        while self.anysum(bool(np.any(sticky := (nw.d > 0) & (u > nw.c)))):
-            nw.d[sticky] = 0.0
-            u = nw.solve(u)
-        return u
-
-    def _obstacle_work(self, f: np.ndarray) -> float:
-        """A moving obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work (this rank's), with the law's
-        fields moved to t^{n+1} (the next step's law, the stored row's force); 0 for an obstacle at rest."""
-        if not self.moving:
-            return 0.0
-        self.k += 1
-        psi_new = self.s.obstacle.set(self.k * self.s.dt).copy()
-        work = 0.5 * float(np.dot(f, psi_new - self.psi_levels[0]))
-        self.psi_levels = [self.psi_levels[1], psi_new]
-        return work
-
-
-__all__ = ["PAPER", "PaperStep", "Scheme"]
+__all__ = ["PAPER", "Scheme"]

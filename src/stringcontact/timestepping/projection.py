@@ -46,6 +46,14 @@ law, whatever α (the constraint is nodal; with viscosity G also carries the fre
 velocity jump costs α|[v]|²/Δx per unit time, so with viscosity the string's restitution falls below e, more
 on finer grids (docs/explanation/restitution.md).
 
+A nonlinear model takes the Newton path, the same step with the elastic term R(η^n) explicit, η_t implicit and the
+other fields implicit: the VI G(u) ⊥ u − ψ ≥ 0 by SNES ``vinewtonrsls`` (`newton.NewtonStep` with bounds). Its
+contact force is the reaction G(u) on the active set (≥ 0, 0 elsewhere); with a restitution e > 0 the bound is on
+the weighted position, u ≥ (1 + e)ψ − e η^{n−1}. Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
+½(Π(η^{n+1}) + Π(η^n)), δ = (η^{n+1} − η^{n−1})/2, contact −½ F·(η^{n+1} − η^{n−1}); the numerical dissipation is
+the rest of the identity. Its stable Δt is that of the tangent at η = 0 (and of η's stiffness with a model's other
+fields eliminated, `_check_fields_stiffness`).
+
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
 μ = φ·Cφ/φ·Kφ, that is Δt < μ + √(μ² + 4/λ): Δx on a uniform mesh with α = 0, more with viscosity (exact
@@ -66,8 +74,7 @@ from petsc4py import PETSc
 from ..errors import InstabilityError
 from ..fem.operators import diagonal_matrix, stacked
 from ..scene import SceneWarning
-from .base import Scheme as Base
-from .base import StepEnergy, any_rank, summer, wrap
+from .base import Ranks, StepEnergy, petsc_vector
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
@@ -83,8 +90,22 @@ CONTACT_TOL = 1e-9
 #: must agree; 1e-14: 6e-12.)
 FORCE_TOL = 1e-14
 
+#: The scheme's difference quotients on its Newton path (a nonlinear model): η explicit, the other fields implicit
+#: (an algebraic one is solved, not lagged), η_t implicit.
+PROJECTION = {
+    "eta": lambda u, e0, em, v0, dt: e0,
+    "fields": lambda u, e0, em, v0, dt: u,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
+}
 
-class Scheme(Base):
+
+class Scheme(_NewtonScheme):
+    """The ε-free scheme: the linear path (A = M/Δt² + C/Δt factorised once, each step `complementarity.ActiveSet`)
+    for a linear model, the Newton path (SNES VI) for a nonlinear one; one obstacle, one stability check, one
+    bookkeeping of the levels for both (the module docstring)."""
+
+    DESCRIPTION = "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)"
     PENALTIES = ()
     MASSES = ("lumped",)
     RESTITUTION = True
@@ -96,23 +117,39 @@ class Scheme(Base):
             return f"model '{model.name}' declares no gap (its law lets the string through the obstacle)"
         return None
 
-    def __new__(cls, s):
-        if s.ops.nonlinear is not None:  # a nonlinear model: each step by Newton (its Newton path below)
-            return ProjectionStep(s, largest_stable_dt, cls._obstacle, CONTACT_TOL)
-        return super().__new__(cls)
-
     def __init__(self, s):
         super().__init__(s)
+        n, comm = s.n_owned, s.comm
+        nonlinear = s.ops.nonlinear is not None
+        self.dt_max = largest_stable_dt(s.ops, s.interior, krylov=s.x.ndim == 2, dt=s.dt)
+        self._check_dt("(its explicit elastic term, linearised at eta = 0)" if nonlinear else
+                       "(its explicit elastic term; dt_max from the operators)")
+        laws = s.laws
+        self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
+        self.psi = self._obstacle()
+        self.allsum, self.anysum = Ranks(comm).sum, Ranks(comm).any
+        # Four rotating time levels [next, ahead, now, before], each η, [K η, (C/Δt) η] and the force density
+        # that produced it: `now` is what the scheme reports, `ahead` (one step on) gives its centred velocity.
+        self.levels = [_Level(comm, n) for _ in range(4)]
+        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.v0 = None  # the given initial velocity, reported at t = 0
+        self.e = s.restitution
+        self.moving = s.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
+        self.k = 0  # the level `ahead` holds: η^k at t = kΔt
+        self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's)
+        if nonlinear:
+            self.newton = NewtonStep(s, PROJECTION, lower=self._lower(self.psi))
+            self._check_fields_stiffness()
+            self.energy_may_rise = True  # a nonlinear force in a non-dissipative step
+        else:
+            self.newton = None
+            self._linear_operators(s)
+            # a rebound gives back in its later steps what its first steps took; a moving obstacle gives energy
+            self.energy_may_rise = bool(self.e) or self.moving
+
+    def _linear_operators(self, s) -> None:
+        """The linear path's constant operators, its contact step and its scratch vectors."""
         ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
-        self.dt_max = largest_stable_dt(ops, s.interior, krylov=s.x.ndim == 2, dt=dt)
-        if dt > self.dt_max * (1 + 1e-12):
-            T = dt * s.nt
-            raise InstabilityError(
-                f"scheme 'projection' is unstable with dt = {dt:.6g} > dt_max = {self.dt_max:.6g} (its explicit "
-                f"elastic term; dt_max from the operators); use nt >= {math.ceil(T / self.dt_max)} "
-                f"(dt <= {self.dt_max:.6g}), or scheme 'newmark' for larger steps",
-                step=0, time=0.0,
-            )
         A = diagonal_matrix(ops.M, ops.m / dt**2)
         A.axpy(1.0 / dt, ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         dirichlet_rows(A, s.bc)
@@ -120,34 +157,43 @@ class Scheme(Base):
         C_over_dt = ops.C.copy()
         C_over_dt.scale(1.0 / dt)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
-        laws = s.laws
-        self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
-        self.psi = self._obstacle()
         self.m_dt2 = ops.m / dt**2
         self.contact_step = ActiveSet(A, comm, s.petsc_options, s.bc, s.g, s.x.ndim, self.psi, s.interior,
                                       force_tol=np.zeros(n))
-        self.allsum = summer(comm)
-        self.anysum = any_rank(comm)
-        # Four rotating time levels [next, ahead, now, before], each η, [K η, (C/Δt) η] and the force density
-        # that produced it: `now` is what the scheme reports, `ahead` (one step on) gives its centred velocity.
-        self.levels = [_Level(comm, n) for _ in range(4)]
         rhs = np.zeros(n)
-        self.rhs = (wrap(rhs, comm), rhs)
+        self.rhs = (petsc_vector(rhs, comm), rhs)
         self.R = np.zeros(n)  # A η − b of the latest iterate
         self.work = np.zeros((2, n))  # scratch rows for the energy terms
-        self.inv_mF = np.divide(1.0, ops.m_force, out=np.zeros(n), where=ops.m_force > 0)
         self.has_load = bool(np.any(ops.load != 0))
-        self.v0 = None  # the given initial velocity, reported at t = 0
-        self.e = s.restitution
-        self.moving = s.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
-        self.k = 0  # the level `ahead` holds: η^k at t = kΔt
-        self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's)
-        # a rebound gives back in its later steps what its first steps took; a moving obstacle gives energy
-        self.energy_may_rise = bool(self.e) or self.moving
         if self.e:  # the weighted position z = (η^{n+1} + e η^{n−1})/(1 + e): its level and right-hand side
             self.z = _Level(comm, n)
             rhs_z = np.zeros(n)
-            self.rhs_z = (wrap(rhs_z, comm), rhs_z)
+            self.rhs_z = (petsc_vector(rhs_z, comm), rhs_z)
+
+    def _check_dt(self, why: str) -> None:
+        """InstabilityError (one line) if Δt is above the stable `dt_max` of the explicit elastic term."""
+        s = self.s
+        if s.dt > self.dt_max * (1 + 1e-12):
+            raise InstabilityError(
+                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} {why}; use "
+                f"nt >= {math.ceil(s.dt * s.nt / self.dt_max)} (dt <= {self.dt_max:.6g}), or scheme 'newmark' or "
+                "'paper' for larger steps", step=0, time=0.0)
+
+    def _check_fields_stiffness(self) -> None:
+        """A model whose other fields add to η's stiffness (a fourth-order term through η's second derivative:
+        K + βKM⁻¹K) has them explicit here too (their rows read η^n): its stable Δt is that of η's stiffness with the
+        fields eliminated (`NewtonStep.eta_stiffness`, on the linear path), a smaller one than the fields-at-0
+        tangent's checked above."""
+        s = self.s
+        S = self.newton.eta_stiffness()
+        if S is None:
+            return
+        if s.x.ndim == 2:  # no Gershgorin bound or SLEPc copy of a shell: its top mode by SLEPc on the shell
+            lam, phi = top_mode_of_shell(S, s.ops.m, s.interior)
+            self.dt_max = min(self.dt_max, dt_of_mode(lam, phi, S, s.ops.C))
+        else:  # a string: power iteration from the alternating mode, as for K
+            self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(s.ops, K=S), s.interior))
+        self._check_dt(f"(its explicit elastic term with the model's fields {', '.join(s.laws.model.fields)})")
 
     def _obstacle(self) -> np.ndarray:
         """ψ at the nodes, from gap(η) = η − ψ; ValueError unless gap has slope 1 in η and gap ≤ 0 is the contact set."""
@@ -166,6 +212,10 @@ class Scheme(Base):
                                  "set); a variant that moves the obstacle must give both")
         return psi
 
+    def _lower(self, bound: np.ndarray) -> np.ndarray:
+        """The Newton path's VI bound: `bound` at the interior nodes, none at the held ends."""
+        return np.where(self.s.interior, bound, PETSc.NINFINITY)
+
     @property
     def eta(self):
         return self.levels[2].eta
@@ -182,6 +232,8 @@ class Scheme(Base):
 
     @property
     def timings(self):
+        if self.newton is not None:
+            return self.newton.describe()
         return {"linear solver": self.contact_step.describe_solver(), "contact step": self.contact_step.describe()}
 
     def contact(self) -> np.ndarray:
@@ -206,7 +258,10 @@ class Scheme(Base):
         before, now = self.psi_levels
         new = self._obstacle_at(self.k * self.s.dt)
         np.copyto(self.psi, new)
-        self.contact_step.moved()
+        if self.newton is None:
+            self.contact_step.moved()
+        else:
+            self.newton.set_lower(self._lower(self.psi))
         self.psi_levels = [now, new]
         return lambda F: 0.5 * float(np.dot(F, new - before))
 
@@ -220,9 +275,11 @@ class Scheme(Base):
                                                              initial=0.0)), op=MPI.MAX))
             self.psi_levels = [self._obstacle_at(-s.dt), self._obstacle_at(0.0)]
             np.copyto(self.psi, self.psi_levels[1])
-        tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(CONTACT_TOL * scale))
+            if self.newton is not None:
+                self.newton.set_lower(self._lower(self.psi))
+        self.scale, self.tol = scale, CONTACT_TOL * scale
+        tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(self.tol))
         self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
-        self.contact_step.force_tol = FORCE_TOL * scale * self.A_diagonal
         ahead, now = self.levels[1], self.levels[2]
         ahead.eta[:] = eta0
         below = s.interior & (ahead.eta < self.psi)
@@ -234,20 +291,39 @@ class Scheme(Base):
         np.subtract(ahead.eta, s.dt * v0, out=now.eta)
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
+        terms = self._start_linear(ahead, now) if self.newton is None else self._start_newton(ahead, now, v0)
+        self.pending = self._advance()  # η¹: the first row's centred velocity needs it
+        self.v0 = np.array(v0, dtype=float)
+        return terms
+
+    def _start_linear(self, ahead, now) -> StepEnergy:
+        self.contact_step.force_tol = FORCE_TOL * self.scale * self.A_diagonal
         for level in (ahead, now):
             self.KC.mult(level.eta_vec, level.kc_vec)
         d = ahead.eta - now.eta
         kin, el, self.energy_slack = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)),
                                                  0.5 * float(np.dot(ahead.eta, now.kc[0])),
                                                  0.25 * float(np.dot(d, ahead.kc[1] - now.kc[1])))
-        self.pending = self._advance()  # η¹: the first row's centred velocity needs it
-        self.v0 = np.array(v0, dtype=float)
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def _start_newton(self, ahead, now, v0) -> StepEnergy:
+        s = self.s
+        d = (ahead.eta - now.eta) / s.dt
+        self.newton.start_fields(ahead.eta, v0)
+        self.stored_ahead = self._stored(ahead.eta)  # the next step's Π(η^n), this rank's share
+        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + self._stored(now.eta)))
+        self.E = kin + el
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
         (reported, self.energy_slack), self.pending = self.pending, self._advance()
         self.v0 = None
         return reported
+
+    def _advance(self):
+        """Compute the next level from `ahead` (η^n) and `now` (η^{n−1}); the energy terms of that step and the
+        energy guard's slack."""
+        return self._advance_linear() if self.newton is None else self._advance_newton()
 
     def _residual(self, level, rhs):
         """A η − b at the level's η (0 at the ends), with [K η, (C/Δt) η] left in the level for its energy."""
@@ -260,8 +336,8 @@ class Scheme(Base):
             return self.R
         return residual
 
-    def _advance(self):
-        """Compute the next level from `ahead` (η^n) and `now` (η^{n−1}); the energy terms of that step."""
+    def _advance_linear(self):
+        """The linear path's step: the contact step of A η^{n+1} = b + F (`complementarity.ActiveSet`)."""
         s = self.s
         new, e0, em = self.levels[0], self.levels[1], self.levels[2]
         rhs_v, rhs = self.rhs
@@ -329,6 +405,36 @@ class Scheme(Base):
         G *= 1.0 + e
         return G
 
+    def _advance_newton(self):
+        """The Newton path's step: the VI G(u) ⊥ u − lower ≥ 0, the force the reaction on the active set."""
+        s, dt, newton = self.s, self.s.dt, self.newton
+        new, ahead, now = self.levels[0], self.levels[1], self.levels[2]
+        e0, em = ahead.eta, now.eta
+        obstacle_work = self._move() if self.moving else None
+        newton.set_known(e0, em)
+        lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
+        if self.e:
+            newton.set_lower(self._lower(lower))
+        u = newton.solve(np.maximum(2 * e0 - em, np.where(s.interior, lower, -np.inf)))
+        r = newton.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
+        active = s.interior & (u <= lower + self.tol)
+        F = np.where(active, np.maximum(r, 0.0), 0.0)
+        delta = 0.5 * (u - em)
+        work = obstacle_work(F) if obstacle_work is not None else 0.0  # the obstacle's share of F's work
+        visc_vec = newton.viscous_force(u)
+        d = (u - e0) / dt
+        stored_e0, self.stored_ahead = self.stored_ahead, self._stored(u)  # Π(η^n) assembled last step, as its Π(u)
+        kin, el, visc, con, ext = self.allsum(
+            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + stored_e0),
+            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)) + work,
+            float(np.dot(s.ops.load, delta)) + work)
+        num = self.E - (kin + el) - visc - con + ext
+        self.E = kin + el
+        new.eta[:] = u
+        np.multiply(F, self.inv_mF, out=new.force)
+        self.levels = [self.levels[3], new, ahead, now]  # before is free; next → ahead → now → before
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0), 0.0
+
 
 class _Level:
     """One time level of the projection scheme: η, [K η, (C/Δt) η] (as arrays and PETSc vectors over them) and the
@@ -336,163 +442,7 @@ class _Level:
 
     def __init__(self, comm, n: int):
         self.eta, self.kc, self.force = np.zeros(n), np.zeros((2, n)), np.zeros(n)
-        self.eta_vec, self.kc_vec = wrap(self.eta, comm), wrap(self.kc, comm)
+        self.eta_vec, self.kc_vec = petsc_vector(self.eta, comm), petsc_vector(self.kc, comm)
 
 
-
-# --- projection: central differences, η explicit, the contact step a variational inequality ---------------
-
-
-PROJECTION = {
-    "eta": lambda u, e0, em, v0, dt: e0,
-    "fields": lambda u, e0, em, v0, dt: u,  # the other fields implicit: an algebraic one is solved, not lagged
-    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
-    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
-}
-
-
-class ProjectionStep(_NewtonScheme):
-    """`projection` for a nonlinear model: the elastic term explicit (η → η^n), η_t implicit, lumped mass, and
-    the step the VI G(u) ⊥ u − ψ ≥ 0 by SNES ``vinewtonrsls``. The contact force is the reaction G(u) on the
-    active set (≥ 0, 0 elsewhere). With a restitution e > 0 (Paoli-Schatzman, as on the linear path) the bound is
-    on the weighted position, (u + e η^{n−1})/(1 + e) ≥ ψ, that is u ≥ (1 + e)ψ − e η^{n−1}. Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
-    ½(Π(η^{n+1}) + Π(η^n)), δ = (η^{n+1} − η^{n−1})/2, contact −½ F·(η^{n+1} − η^{n−1}) as on the linear path.
-    The stored velocity is centred, so the scheme reports one step behind the one it computes, as `projection`.
-    The stable Δt is the linear path's bound for the tangent at η = 0. `projection` hands over its
-    `largest_stable_dt`, its obstacle from the model's gap and its contact tolerance (no import circle)."""
-
-    def __init__(self, s, largest_stable_dt, obstacle, contact_tol: float):
-        super().__init__(s)
-        self.contact_tol = contact_tol
-        self.dt_max = largest_stable_dt(s.ops, s.interior, krylov=s.x.ndim == 2, dt=s.dt)
-        if s.dt > self.dt_max * (1 + 1e-12):
-            raise InstabilityError(
-                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} (its explicit "
-                f"elastic term, linearised at eta = 0); use nt >= {math.ceil(s.dt * s.nt / self.dt_max)} or scheme "
-                "'paper' or 'newmark'", step=0, time=0.0)
-        laws = s.laws
-        self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
-        self.psi = obstacle(self)
-        lower = np.where(s.interior, self.psi, PETSc.NINFINITY)
-        self.newton = NewtonStep(s, PROJECTION, lower=lower)
-        self._check_fields_stiffness(largest_stable_dt)
-        self.allsum, self.anysum = summer(s.comm), any_rank(s.comm)
-        n = s.n_owned
-        self.etas = [np.zeros(n) for _ in range(4)]  # [next, ahead, now, before]
-        self.forces = [np.zeros(n) for _ in range(4)]
-        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
-        self.v0 = None
-        self.e = s.restitution
-        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle: ψ^{k+1} in each step's bounds
-
-    def _check_fields_stiffness(self, largest_stable_dt) -> None:
-        """A model whose other fields add to η's stiffness (a fourth-order term through η's second derivative:
-        K + βKM⁻¹K) has them explicit here too (their rows read η^n): its stable Δt is that of η's stiffness with the
-        fields eliminated (`NewtonStep.eta_stiffness`, on the linear path), a smaller one than the fields-at-0
-        tangent's checked above."""
-        s = self.s
-        S = self.newton.eta_stiffness()
-        if S is None:
-            return
-        if s.x.ndim == 2:  # no Gershgorin bound or SLEPc copy of a shell: its top mode by SLEPc on the shell
-            lam, phi = top_mode_of_shell(S, s.ops.m, s.interior)
-            self.dt_max = min(self.dt_max, dt_of_mode(lam, phi, S, s.ops.C))
-        else:  # a string: power iteration from the alternating mode, as for K
-            self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(s.ops, K=S), s.interior))
-        if s.dt > self.dt_max * (1 + 1e-12):
-            raise InstabilityError(
-                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} (its explicit "
-                f"elastic term with the model's fields {', '.join(s.laws.model.fields)}); use nt >= "
-                f"{math.ceil(s.dt * s.nt / self.dt_max)} or scheme 'paper' or 'newmark'", step=0, time=0.0)
-
-    def _move_to(self, k: int) -> np.ndarray:
-        """A moving obstacle's ψ^k = −gap(0) with the fields at t = kΔt into the VI's lower bound; returns it."""
-        s, laws = self.s, self.s.laws
-        s.obstacle.set(k * s.dt)
-        psi = -np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): np.zeros(s.n_owned)}), dtype=float)
-        self.psi[:] = psi
-        self.newton.set_lower(np.where(s.interior, self.psi, PETSc.NINFINITY))
-        return self.psi.copy()
-
-    @property
-    def eta(self):
-        return self.etas[2]
-
-    @property
-    def velocity(self):
-        if self.v0 is not None:
-            return self.v0
-        return (self.etas[1] - self.etas[3]) / (2.0 * self.s.dt)
-
-    @property
-    def contact_force(self):
-        return self.forces[2]
-
-    contact = Scheme.contact  # the linear path's: the contact set of the reported level
-
-    def start(self, eta0, v0):
-        s, laws = self.s, self.s.laws
-        scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
-                    float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
-        if self.moving:  # ψ^{−1}, ψ^0; the heights the obstacle carries the string to count in the contact tolerance
-            scale = max(scale, s.comm.allreduce(float(np.max(np.abs(self._move_to(s.nt)[s.interior]), initial=0.0)),
-                                                op=MPI.MAX))
-            self.psi_levels = [self._move_to(-1), self._move_to(0)]
-        self.tol = self.contact_tol * scale
-        tol = fem.Constant(laws.eta.function_space.mesh, PETSc.ScalarType(self.tol))
-        self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
-        ahead, now = self.etas[1], self.etas[2]
-        ahead[:] = eta0
-        below = s.interior & (ahead < self.psi)
-        ahead[below] = self.psi[below]
-        now[:] = ahead - s.dt * v0
-        if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
-            np.minimum(self.psi_levels[0], now, out=self.psi_levels[0])
-        d = (ahead - now) / s.dt
-        self.newton.start_fields(ahead, v0)
-        self.stored_ahead = self._stored(ahead)  # the next step's Π(η^n), this rank's share
-        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + self._stored(now)))
-        self.E = kin + el
-        self.pending = self._advance()
-        self.v0 = np.array(v0, dtype=float)
-        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def step(self):
-        reported, self.pending = self.pending, self._advance()
-        self.v0 = None
-        return reported
-
-    def _advance(self):
-        s, dt, nw = self.s, self.s.dt, self.newton
-        e0, em = self.etas[1], self.etas[2]
-        if self.moving:  # ψ^{k+1}; the obstacle's work ½ F·(ψ^{k+1} − ψ^{k−1}) is booked as external work
-            self.k += 1
-            psi_before, psi_new = self.psi_levels[0], self._move_to(self.k)
-            self.psi_levels = [self.psi_levels[1], psi_new]
-        nw.set_known(e0, em)
-        lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
-        if self.e:
-            nw.set_lower(np.where(s.interior, lower, PETSc.NINFINITY))
-        u = nw.solve(np.maximum(2 * e0 - em, np.where(s.interior, lower, -np.inf)))
-        r = nw.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
-        active = s.interior & (u <= lower + self.tol)
-        F = np.where(active, np.maximum(r, 0.0), 0.0)
-        delta = 0.5 * (u - em)
-        work = 0.5 * float(np.dot(F, psi_new - psi_before)) if self.moving else 0.0  # the obstacle's share of F's work
-        visc_vec = nw.viscous_force(u)
-        d = (u - e0) / dt
-        stored_e0, self.stored_ahead = self.stored_ahead, self._stored(u)  # Π(η^n) assembled last step, as its Π(u)
-        kin, el, visc, con, ext = self.allsum(
-            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + stored_e0),
-            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)) + work, float(np.dot(s.ops.load, delta)) + work)
-        num = self.E - (kin + el) - visc - con + ext
-        self.E = kin + el
-        new = self.etas[0]
-        new[:] = u
-        self.forces[0][:] = F * self.inv_mF
-        self.etas = [self.etas[3], new, e0, em]
-        self.forces = [self.forces[3], self.forces[0], self.forces[1], self.forces[2]]
-        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
-
-
-__all__ = ["CONTACT_TOL", "gershgorin_bound", "largest_stable_dt", "PROJECTION", "ProjectionStep", "Scheme", "top_mode", "top_mode_krylov"]
+__all__ = ["CONTACT_TOL", "PROJECTION", "Scheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]

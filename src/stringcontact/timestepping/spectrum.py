@@ -9,7 +9,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .base import wrap
+from .base import petsc_vector
 
 __all__ = ["dt_of_mode", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov", "top_mode_of_shell"]
 
@@ -23,7 +23,7 @@ def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol
     comm = K.getComm().tompi4py()
     phi = np.where(np.arange(m.size) % 2 == 0, 1.0, -1.0) * interior
     y = np.zeros_like(phi)
-    vx, vy = wrap(phi, K.getComm()), wrap(y, K.getComm())
+    vx, vy = petsc_vector(phi, K.getComm()), petsc_vector(y, K.getComm())
     lam = 0.0
     for _ in range(iterations):
         K.mult(vx, vy)
@@ -110,7 +110,7 @@ def gershgorin_bound(K, m: np.ndarray, interior: np.ndarray) -> float:
     absK.assemble()
     d = np.where(interior, 1.0 / np.sqrt(np.where(m > 0, m, 1.0)), 0.0)
     out = absK.createVecLeft()
-    absK.mult(wrap(d, K.getComm()), out)
+    absK.mult(petsc_vector(d, K.getComm()), out)
     return K.getComm().tompi4py().allreduce(float(np.max(d * out.array, initial=0.0)), op=MPI.MAX)
 
 
@@ -136,7 +136,7 @@ def dt_of_mode(lam: float, phi: np.ndarray, K: PETSc.Mat, C: PETSc.Mat) -> float
     if lam <= 0:
         return math.inf
     comm = K.getComm()
-    v, Kv, Cv = wrap(phi, comm), K.createVecLeft(), C.createVecLeft()
+    v, Kv, Cv = petsc_vector(phi, comm), K.createVecLeft(), C.createVecLeft()
     K.mult(v, Kv)
     C.mult(v, Cv)
     mpi = comm.tompi4py()

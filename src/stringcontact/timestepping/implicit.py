@@ -1,0 +1,196 @@
+"""A time scheme given by its difference quotients: each step by Newton (`newton.NewtonStep`), the contact force
+from the previous step (the paper's explicit penalty) or a damping on the new velocity (semi-implicit).
+
+A scheme writes the momentum form's placeholders η, η_t, η_tt as functions of the unknown u = η^{n+1}, the known
+levels η^n, η^{n−1}, the nodal velocity v^n and Δt (``QUOTIENTS``; ``"fields"`` for a model's other unknowns,
+u by default). The step solves
+
+    R(q_η(u), q_t(u), q_tt(u), 0; w) = m_F∘F(η^n, v^n) + b          (explicit penalty)
+
+with the ends held; the semi-implicit penalty puts the damping m_F d on the diagonal, F = −d (v^{n+1} − Δψ/Δt).
+Every model takes this path, linear ones too: their residual is affine, so Newton's step is one back-substitution
+of a matrix factorised once (`affine.LinearPath`). A scheme with a faster path of its own for linear models
+(``LINEAR_PATH = True``: `paper`) is given the model's constant operators only.
+
+Energy: kinetic ½|v^{n+1}|²_M with v^{n+1} = (η^{n+1} − η^n)/Δt, the model's stored energy at η^{n+1}, the viscous
+work of R's η_t-dependent part over δ = η^{n+1} − η^n, the contact work −(Δt/2) f·(v^n + v^{n+1}), the external
+work b·δ, and as numerical dissipation the rest of the identity (`newton`'s module docstring): the ledger closes by
+construction and the numerical term says how far the quotients are from conserving the model's energy. A moving
+obstacle ψ(x, t): the law's fields at t^n; the semi-implicit damping brakes the step's gap rate, centre
+c = η^n + ψ^{n+1} − ψ^n, and a node it would hold down is released (`_release`); the obstacle's share
+½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work.
+
+A scheme of one's own: a module with ``class Scheme(ImplicitScheme)`` that sets ``DESCRIPTION`` and ``QUOTIENTS``,
+registered under the entry-point group ``stringcontact.schemes`` (or handed to `simulate` as a class).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from ..errors import SolverError
+from .base import Ranks, StepEnergy, check_law_stability, petsc_vector
+from .newton import NewtonStep, _NewtonScheme
+
+
+def kinetic_energy(s, v: np.ndarray) -> float:
+    """½ v·M v on this rank's nodes, with the setting's mass (lumped: the row sums m; consistent: M)."""
+    if s.mass == "lumped":
+        return 0.5 * float(np.dot(v, s.ops.m * v))
+    out = s.ops.M.createVecLeft()
+    s.ops.M.mult(petsc_vector(v, s.comm), out)
+    return 0.5 * float(np.dot(v, out.array))
+
+
+class ImplicitScheme(_NewtonScheme):
+    """A scheme given by its difference quotients (``QUOTIENTS``), stepped by Newton for every model; the penalty
+    explicit (the law at (η^n, η^{n−1})) or semi-implicit (a damping d v^{n+1} on the diagonal), the mass lumped or
+    consistent. Energy and moving obstacles: the module docstring."""
+
+    DESCRIPTION = "a scheme given by its difference quotients, each step by Newton"
+    PENALTIES = ("explicit", "semi-implicit")
+    MASSES = ("lumped", "consistent")
+    LINEAR_PATH = False  # every model by Newton: a linear one's step is one back-substitution (`affine.LinearPath`)
+    #: The difference quotients: placeholder name -> f(u, η^n, η^{n−1}, v^n, Δt) (UFL in u, arrays otherwise).
+    QUOTIENTS: ClassVar[dict] = {}
+    remedy = "use penalty='semi-implicit', scheme 'projection' or a smaller dt"
+
+    def __init__(self, s):
+        super().__init__(s)
+        self.force_law = self._penalty_law(s)
+        self.newton = NewtonStep(s, self.QUOTIENTS)
+        self.allsum, self.anysum = Ranks(s.comm).sum, Ranks(s.comm).any
+        n = s.n_owned
+        self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.older = None
+        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
+        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.force_density = np.zeros(n)
+
+    def _penalty_law(self, s):
+        """The model's contact law for the scene's penalty, compiled; refused if the model has none, warned (or
+        refused) by the law's own bound on Δt/ε."""
+        laws = s.laws
+        if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
+            raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
+        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
+        law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
+        return laws.compile(law(laws.eta, laws.quotient, laws.params))
+
+    @property
+    def situation(self) -> str:
+        """r = Δt/ε and the penalty, for an instability message."""
+        return f"r = dt/eps = {self.s.dt / self.s.eps:.4g}, penalty {self.s.penalty}"
+
+    @property
+    def eta(self):
+        """η^n at this rank's nodes."""
+        return self.eta_
+
+    @property
+    def velocity(self):
+        """v^n = (η^n − η^{n−1})/Δt at this rank's nodes."""
+        return self.v
+
+    @property
+    def contact_force(self):
+        """The contact force density at this rank's nodes: the one the next step applies (explicit penalty), the
+        one the last step applied (semi-implicit)."""
+        return self.force_density
+
+    def start(self, eta0, v0):
+        """The initial state (η^0, v^0), η^{−1} = η^0 − Δt v^0; the initial energy."""
+        s = self.s
+        if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
+            self.psi_levels = [s.obstacle.owned(-s.dt).copy(), s.obstacle.set(0.0).copy()]
+        self.eta_[:], self.v[:] = eta0, v0
+        self.old[:] = eta0 - s.dt * self.v
+        self.newton.start_fields(eta0, v0)
+        kin, el = self.allsum(kinetic_energy(s, self.v), self._stored(self.eta_))
+        self.E = kin + el
+        self._force()
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def _force(self) -> None:
+        """The law at (η^n, η^{n−1}): the explicit force density (0 where no force acts), or the damping weights."""
+        laws = self.s.laws
+        laws.set(eta=self.eta_, eta_old=self.old)
+        law = np.asarray(self.force_law.evaluate_env(laws.env), dtype=float) * np.ones(self.s.n_owned)
+        self.law = law * self.s.interior
+        if self.s.penalty == "explicit":
+            np.multiply(self.law, self.inv_mF > 0, out=self.force_density)
+
+    def _solve(self, e0, em):
+        """η^{n+1} by Newton from η extrapolated quadratically (a smaller first residual, so that a kept Jacobian
+        serves more steps); past a sudden stop that guess overshoots and Newton may diverge from it (a landing through
+        a lubricating layer at nx = 200 lands in one step): then from the linear one."""
+        newton = self.newton
+        if newton.guessless:  # the linear path's one direct solve
+            return newton.solve(None)
+        linear = 2 * e0 - em
+        if self.older is None:
+            return newton.solve(linear)
+        try:
+            return newton.solve(3 * e0 - 3 * em + self.older)
+        except SolverError:
+            return newton.solve(linear)
+
+    def step(self):
+        """One step n → n+1 by Newton; its terms of the energy identity (`StepEnergy`)."""
+        s, dt, newton = self.s, self.s.dt, self.newton
+        e0, em = self.eta_, self.old
+        newton.set_known(e0, em)
+        # a moving obstacle: the semi-implicit damping brakes the step's gap rate, v^{n+1} − (ψ^{n+1} − ψ^n)/Δt
+        dpsi = s.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
+        if s.penalty == "explicit":
+            newton.f[:] = s.ops.m_force * self.law
+        else:  # F = −d (v^{n+1} − Δψ/Δt): (m_F d/Δt)(u − η^n − Δψ) on the diagonal
+            newton.d[:] = s.ops.m_force * self.law / dt
+            newton.c[:] = e0 + dpsi
+        u = self._solve(e0, em)
+        if self.moving and s.penalty != "explicit":
+            u = self._release(u)
+        self.older = em.copy()
+        v1 = (u - e0) / dt
+        f = newton.f if s.penalty == "explicit" else newton.d * (newton.c - u)
+        delta = u - e0
+        visc_vec = newton.viscous_force(u)
+        work = self._obstacle_work(f)  # (and the law's fields to t^{n+1})
+        kin, el, visc, con, ext, work = self.allsum(
+            kinetic_energy(s, v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
+            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)), work)
+        num = self.E - (kin + el) - visc - con + ext
+        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
+        self.E = kin + el
+        if s.penalty != "explicit":
+            self.force_density[:] = f * self.inv_mF
+        self.old[:], self.eta_[:], self.v[:] = e0, u, v1
+        self._force()
+        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
+
+    def _release(self, u: np.ndarray) -> np.ndarray:
+        """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (u above the
+        centre η^n + Δψ, F < 0: an obstacle that stops under a string it lifted) is released and the step solved
+        again from u. The kept Jacobian takes the change of d on its diagonal (`NewtonStep._update_damping`); the
+        centre c enters only the residual."""
+        newton = self.newton
+        while self.anysum(bool(np.any(sticky := (newton.d > 0) & (u > newton.c)))):
+            newton.d[sticky] = 0.0
+            u = newton.solve(u)
+        return u
+
+    def _obstacle_work(self, f: np.ndarray) -> float:
+        """A moving obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work (this rank's), with the law's
+        fields moved to t^{n+1} (the next step's law, the stored row's force); 0 for an obstacle at rest."""
+        if not self.moving:
+            return 0.0
+        self.k += 1
+        psi_new = self.s.obstacle.set(self.k * self.s.dt).copy()
+        work = 0.5 * float(np.dot(f, psi_new - self.psi_levels[0]))
+        self.psi_levels = [self.psi_levels[1], psi_new]
+        return work
+
+
+__all__ = ["ImplicitScheme", "kinetic_energy"]
