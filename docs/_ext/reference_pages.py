@@ -59,7 +59,7 @@ FIELDS = {
     "contact": "1 where η ≤ ψ (on or below the obstacle), else 0",
     "contact_force": "the nodal contact force F",
 }
-#: The fields written only by some runs (io.folder.OBSTACLE_FIELD): after the fields above.
+#: The fields written only by some runs (io.result.OBSTACLE_FIELD): after the fields above.
 SOME_FIELDS = {
     "obstacle": "a moving obstacle only (ψ an expression in t): ψ at the nodes at the frame's time; the gap is "
                 "η − ψ (ParaView's Calculator: `eta-obstacle`). An obstacle at rest is not written",
@@ -232,15 +232,15 @@ def exit_codes() -> str:
 
 def output_files() -> str:
     """The output folder's files, solution.xdmf's fields, diagnostics.csv's columns, the pictures."""
-    from stringcontact.io.folder import OBSTACLE_FIELD
     from stringcontact.io.result import FIELDS as fields
+    from stringcontact.io.result import OBSTACLE_FIELD
     from stringcontact.io.tables import DIAGNOSTIC_COLUMNS
     from stringcontact.plot.catalogue import MEMBRANE_PICTURES
     from stringcontact.plot.catalogue import PICTURES as pictures
 
     _undocumented("diagnostics.csv columns (io/tables.py)", DIAGNOSTIC_COLUMNS, COLUMNS)
     _undocumented("XDMF fields (io/result.py FIELDS)", fields, FIELDS)
-    _undocumented("XDMF fields of some runs (io/folder.py OBSTACLE_FIELD)", [OBSTACLE_FIELD], SOME_FIELDS)
+    _undocumented("XDMF fields of some runs (io/result.py OBSTACLE_FIELD)", [OBSTACLE_FIELD], SOME_FIELDS)
     _undocumented("pictures (plot/catalogue.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
     shown = {name: ("1D" if name in pictures else "") + (", " if name in pictures and name in MEMBRANE_PICTURES else "")
              + ("2D" if name in MEMBRANE_PICTURES else "") for name in dict.fromkeys(pictures + MEMBRANE_PICTURES)}

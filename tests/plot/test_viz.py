@@ -262,7 +262,7 @@ def _thinning_writer(folder):
 
 
 def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
-    from stringcontact.io.xdmf import xdmf_series
+    from stringcontact.io.readback import xdmf_series
 
     writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
@@ -362,7 +362,7 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
 
 
 def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
-    from stringcontact.io.xdmf import read_xdmf
+    from stringcontact.io.readback import read_xdmf
 
     class StopsAfterOneField(dict):  # Ctrl-C arriving between two fields of a row
         def items(self):

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from stringcontact.cli.main import main
 from stringcontact.io.lock import TargetLock
-from stringcontact.io.xdmf import xdmf_series
+from stringcontact.io.readback import xdmf_series
 from stringcontact.run.checks import energy_balance, penetration_check
 
 QUICK = ["--no-progress", "--no-pictures"]

@@ -30,6 +30,7 @@ from ..errors import (
     OutputError,  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
     one_line,
 )
+from .hdf5 import Hdf5Quiet
 from .lock import TargetLock, lock_path  # noqa: F401 - re-exported
 from .paraview_view import write_view
 from .publish import (  # noqa: F401 - re-exported
@@ -47,15 +48,11 @@ from .publish import (  # noqa: F401 - re-exported
     staged_folder,
     sync_soon,
 )
-from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
+from .readback import xdmf_series
+from .result import FIELDS, OBSTACLE_FIELD  # the XDMF's attributes (also read as output.FIELDS)
 from .signals import signals_held
 from .tables import DIAGNOSTIC_COLUMNS, ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows  # noqa: F401 - re-exported
-from .xdmf import Hdf5Quiet, XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
-
-#: The XDMF field written after `FIELDS` when the scene's obstacle moves (`Scene.obstacle_moves`): ψ at the
-#: nodes at each frame's time. An obstacle at rest is not written (view.py draws it), so such runs keep the
-#: layout of `FIELDS` alone; the gap η − ψ is one Calculator away in ParaView.
-OBSTACLE_FIELD = "obstacle"
+from .xdmf import XdmfTimeSeries, mesh_arrays
 
 
 def obstacle_at(scene, points, t: float) -> np.ndarray:
