@@ -183,7 +183,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
 
 
 def test_a_picture_is_written_whole_or_not_at_all(tmp_path):
-    from stringcontact.io.publish import atomic_path
+    from stringcontact.io.manifest import atomic_path
 
     target = tmp_path / "energy.png"
     with pytest.raises(KeyboardInterrupt):

@@ -469,7 +469,7 @@ def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs
 
 
 def test_disk_failure_looks_through_the_exception_chain():
-    from stringcontact.io.publish import disk_failure
+    from stringcontact.io.disk import disk_failure
 
     def raised(inner):
         try:
@@ -550,7 +550,7 @@ def small_result(nx=8, nt=4):
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
     from stringcontact.io.folder import OutputWriter
-    from stringcontact.io.publish import write_manifest
+    from stringcontact.io.manifest import write_manifest
 
     res = small_result()
     out = tmp_path / "out"

@@ -215,7 +215,7 @@ def _run(args, painter=None) -> int:
     if args.frames < 1:
         raise ValueError(f"--frames: must be a whole number >= 1 (XDMF frames), not {args.frames}")
     if args.out is not None:
-        from ..io.publish import check_target
+        from ..io.target import check_target
 
         check_target(args.out, args.force)  # before --tol's pilots and the set-up: a refused folder costs nothing
     if args.tol is not None:

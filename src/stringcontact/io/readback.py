@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import OutputError, SceneError, one_line
 from ..scene.limits import MAX_MEMBRANE_NODES, MAX_STORED_BYTES
 from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
-from .publish import small_regular_file
+from .manifest import small_regular_file
 from .result import ENERGY_KEYS, FIELDS, OBSTACLE_FIELD, Result, canonical_cells, node_sort_key
 from .tables import ROW_ARRAYS, ROWS_FILE, field_members
 

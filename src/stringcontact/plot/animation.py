@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from ..io.publish import atomic_path
+from ..io.manifest import atomic_path
 from .catalogue import WINDOW_SIZE
 from .mesh_pictures import (
     _every_kth,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.publish import atomic_path
+from ..io.manifest import atomic_path
 from .catalogue import WINDOW_SIZE
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.

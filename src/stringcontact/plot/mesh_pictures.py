@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.publish import atomic_path
+from ..io.manifest import atomic_path
 from .catalogue import WINDOW_SIZE
 from .charts import (
     CONTACT_COLOUR,

@@ -215,7 +215,8 @@ def command(args) -> int:
         for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
             print(f"wrote {path}")
         return 0
-    from ..io.publish import check_target, staged_folder
+    from ..io.publish import staged_folder
+    from ..io.target import check_target
 
     out = Path(args.out)
     _check_not_the_data(Path(args.folder), out)
