@@ -110,10 +110,10 @@ print(time.process_time() - c0)
 
 VTK_SEARCH = """
 import sys, time
-from stringcontact.plot import charts, mesh_pictures
+from stringcontact.plot import charts, mesh_pictures, vtk_start
 charts.warm_up()  # as the painter: matplotlib first, then pyvista
 if sys.argv[1] == "vtk":
-    mesh_pictures.search_once = lambda: False  # VTK's own search
+    vtk_start.search_once = lambda: False  # VTK's own search
 c0 = time.process_time()
 mesh_pictures.warm_up()
 print(time.process_time() - c0)
@@ -135,9 +135,9 @@ def fresh_cpu(code: str, ways: tuple[str, ...], repeats: int) -> dict[str, list[
 
 def vtk_search_costs(repeats: int) -> list[tuple[str, float, float]]:
     """(what, CPU median, min): pyvista's import and warm-up picture with VTK's module search and with
-    `vtk_modules.search_once`, alternating fresh processes."""
+    `vtk_start.search_once`, alternating fresh processes."""
     runs = fresh_cpu(VTK_SEARCH, ("vtk", "once"), repeats)
-    names = {"vtk": "VTK's search (a glob per module and extension)", "once": "vtk_modules.search_once"}
+    names = {"vtk": "VTK's search (a glob per module and extension)", "once": "vtk_start.search_once"}
     return [(f"import pyvista + warm-up, {names[way]}", statistics.median(t), min(t)) for way, t in runs.items()]
 
 

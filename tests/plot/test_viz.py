@@ -401,7 +401,7 @@ def test_no_axes3d_warning_once_a_picture_module_is_loaded():
 
 def _recorded_axes(monkeypatch):
     """The axes and colour keys the mesh pictures draw, recorded as they are drawn."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import membrane, mesh_pictures
 
     drawn = {"axes": [], "labels": [], "keys": []}
     add_axis, add_key = mesh_pictures.add_axis, mesh_pictures.add_colour_legend
@@ -415,7 +415,8 @@ def _recorded_axes(monkeypatch):
         drawn["keys"].append((quantity, [label for label, _ in entries]))
         return add_key(p, quantity, entries, **kwargs)
 
-    monkeypatch.setattr(mesh_pictures, "add_axis", axis)
+    monkeypatch.setattr(mesh_pictures, "add_axis", axis)  # the space-time surface's
+    monkeypatch.setattr(membrane, "add_axis", axis)  # a membrane's
     monkeypatch.setattr(mesh_pictures, "add_colour_legend", key)
     return drawn
 
@@ -423,7 +424,7 @@ def _recorded_axes(monkeypatch):
 def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_colour_key(tmp_path, run, monkeypatch):
     """Issue 26: x, t and eta axes with round ticks (not corner labels at the obstacle's plane), and a key naming
     the quantity the colours show."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import annotations, mesh_pictures
 
     _, res = run
     drawn = _recorded_axes(monkeypatch)
@@ -437,7 +438,7 @@ def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_col
     assert x_axis.start[2] < 0 and t_axis.start[2] < 0  # on a floor below the obstacle ψ = 0, not on its plane
     (quantity, entries), = drawn["keys"]
     assert "contact" in quantity and any("in contact" in e for e in entries)
-    np.testing.assert_array_equal(mesh_pictures.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(annotations.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
 
 
 def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch):
