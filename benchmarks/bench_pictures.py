@@ -6,7 +6,7 @@ painter process does, then each picture `--repeats` times (medians), and the sur
 pyvista's default 8x multisampling, which `mesh_pictures` turns off. CPU time counts llvmpipe's threads;
 on a shared machine it is steadier than the wall clock.
 
-Then what `stringcontact run` does after its solve, `--repeats` times: a `painter.PictureProcess` started
+Then what `stringcontact run` does after its solve, `--repeats` times: a `picture_process.PictureProcess` started
 `--settle` seconds before (time to warm up, as it does during a run) is sent the Result and draws every
 picture with its helper; the wall clock from `send` to the reply, and the CPU seconds of both processes in
 that span (from /proc before `send`, and from `getrusage` once they are gone).
@@ -60,8 +60,8 @@ def group_cpu(pgid: int) -> float:
 
 def painted(res, out: Path, settle: float) -> tuple[float, float]:
     """(CPU, wall) of the painter and its helper drawing every picture of `res`, from `send` to the reply."""
-    from stringcontact.plot import viz
-    from stringcontact.plot.painter import PictureProcess
+    from stringcontact.plot import run_pictures as viz
+    from stringcontact.plot.picture_process import PictureProcess
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     process = PictureProcess.start(viz.PICTURES)
@@ -150,7 +150,8 @@ def gc_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
     """(what, CPU median, memory growth median [MB] or nan) with the collector on and off, alternating."""
     import gc
 
-    from stringcontact.plot import charts, mesh_pictures, viz
+    from stringcontact.plot import charts, mesh_pictures
+    from stringcontact.plot import run_pictures as viz
 
     warm = fresh_cpu(WARM_UP, ("on", "off"), repeats)
     charts.warm_up()
@@ -184,7 +185,8 @@ def main(argv=None) -> int:
     import stringcontact as sc
 
     res = sc.simulate(sc.load_scene("example1"), progress=False)
-    from stringcontact.plot import charts, mesh_pictures, viz
+    from stringcontact.plot import charts, mesh_pictures
+    from stringcontact.plot import run_pictures as viz
 
     out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
     if args.title:

@@ -9,7 +9,7 @@ Each table is made from the definitions the program itself uses, so a page canno
   text);
 * `cli`: the argparse parsers of `stringcontact.cli.main.build_parser`;
 * `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
-* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.catalogue`'s pictures,
+* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.picture_names`'s pictures,
   and what a run writes of its model's output fields (`MODEL_FIELD_FILES`);
 * `api`: autodoc directives for `stringcontact.__all__` and the public modules' `__all__`.
 
@@ -64,7 +64,7 @@ SOME_FIELDS = {
     "obstacle": "a moving obstacle only (ψ an expression in t): ψ at the nodes at the frame's time; the gap is "
                 "η − ψ (ParaView's Calculator: `eta-obstacle`). An obstacle at rest is not written",
 }
-#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.catalogue): where -> what.
+#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.picture_names): where -> what.
 MODEL_FIELD_FILES = {
     "solution.xdmf": "`NAME`: the field at the nodes, at each written time",
     "rows.npz": "`NAME`: the field's stored rows (`field_NAME` where NAME is one of the file's own arrays)",
@@ -76,7 +76,7 @@ MODEL_FIELD_FILES = {
                 "largest |value|, beside the field's least and largest value against t (`field_NAME.png` where "
                 "NAME.png is one of the pictures below)",
 }
-#: The pictures of a run (plot.catalogue): 1D and 2D.
+#: The pictures of a run (plot.picture_names): 1D and 2D.
 PICTURES = {
     "contact_set.png": "the space-time contact set {η ≤ ψ}",
     "velocity_field.png": "the velocity η_t over (x, t)",
@@ -235,13 +235,13 @@ def output_files() -> str:
     from stringcontact.io.result import FIELDS as fields
     from stringcontact.io.result import OBSTACLE_FIELD
     from stringcontact.io.tables import DIAGNOSTIC_COLUMNS
-    from stringcontact.plot.catalogue import MEMBRANE_PICTURES
-    from stringcontact.plot.catalogue import PICTURES as pictures
+    from stringcontact.plot.picture_names import MEMBRANE_PICTURES
+    from stringcontact.plot.picture_names import PICTURES as pictures
 
     _undocumented("diagnostics.csv columns (io/tables.py)", DIAGNOSTIC_COLUMNS, COLUMNS)
     _undocumented("XDMF fields (io/result.py FIELDS)", fields, FIELDS)
     _undocumented("XDMF fields of some runs (io/result.py OBSTACLE_FIELD)", [OBSTACLE_FIELD], SOME_FIELDS)
-    _undocumented("pictures (plot/catalogue.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
+    _undocumented("pictures (plot/picture_names.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
     shown = {name: ("1D" if name in pictures else "") + (", " if name in pictures and name in MEMBRANE_PICTURES else "")
              + ("2D" if name in MEMBRANE_PICTURES else "") for name in dict.fromkeys(pictures + MEMBRANE_PICTURES)}
     return "\n".join([

@@ -16,7 +16,8 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io.paraview_view import field_points, symlog_unit
 from stringcontact.model.film import PRESSURE
-from stringcontact.plot import animation, charts, membrane, mesh_pictures, viz, vtk_start
+from stringcontact.plot import animation, charts, membrane, mesh_pictures, vtk_start
+from stringcontact.plot import run_pictures as viz
 from stringcontact.plot.fields import FieldScale
 from stringcontact.scene import scene_to_toml
 

@@ -12,8 +12,9 @@ from conftest import plot_refusal
 import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback
-from stringcontact.plot import animation, charts, viz
-from stringcontact.plot.painter import PictureProcess
+from stringcontact.plot import animation, charts
+from stringcontact.plot import run_pictures as viz
+from stringcontact.plot.picture_process import PictureProcess
 from stringcontact.scene import scene_to_toml
 
 #: a coarse drum (about 100 nodes) that lands at t = 0.12 and is in contact until T; its rim starts at 0.3

@@ -13,8 +13,8 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback
 from stringcontact.io.result import ENERGY_KEYS
-from stringcontact.plot import viz
-from stringcontact.plot.painter import PictureProcess
+from stringcontact.plot import run_pictures as viz
+from stringcontact.plot.picture_process import PictureProcess
 
 
 @pytest.fixture(scope="module")
@@ -324,9 +324,9 @@ def test_the_output_module_does_not_import_the_picture_code():
     tree = ast.parse(Path(output.__file__).read_text())
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert not {m for m in imported if m.split(".")[-1] in ("viz", "charts", "painter", "mesh_pictures")}
+    assert not {m for m in imported if m.split(".")[-1] in ("run_pictures", "charts", "picture_process", "mesh_pictures")}
     assert not hasattr(output, "registered_pictures")  # no entry point of its own: no circle to hide
-    code = "import sys, stringcontact.plot.viz; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
+    code = "import sys, stringcontact.plot.run_pictures; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
 
 

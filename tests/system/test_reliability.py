@@ -495,7 +495,7 @@ def test_picture_failure_removes_the_folder_only_when_the_device_fails(tmp_path,
         except (OSError, KeyError) as exc:
             raise ValueError("the picture layer wrapped it") from exc
 
-    monkeypatch.setattr("stringcontact.plot.viz.write_pictures", failing_pictures)
+    monkeypatch.setattr("stringcontact.plot.run_pictures.write_pictures", failing_pictures)
     out = tmp_path / "out"
     assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress", "--out", str(out)]) == code
     err = capfd.readouterr().err

@@ -38,10 +38,10 @@ EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3
 # Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
 # and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
 SUBCOMMANDS = {
-    "plot": ("stringcontact.plot.viz", "redraw the pictures of an output folder from its saved files"),
+    "plot": ("stringcontact.cli.plot", "redraw the pictures of an output folder from its saved files"),
     "study": ("stringcontact.cli.study", "work-precision, convergence and stability studies"),
     "check": ("stringcontact.cli.check", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
-    "models": ("stringcontact.model.registry", "list the models a scene may name (registered under stringcontact.models)"),
+    "models": ("stringcontact.cli.models", "list the models a scene may name (registered under stringcontact.models)"),
 }
 
 
@@ -187,7 +187,7 @@ def _signals_interrupt(petsc: bool = True):
 
 
 def _run(args, painter=None) -> int:
-    """`run`; `painter` (a `painter.PictureProcess`) was started by `main` before PETSc and dolfinx were imported."""
+    """`run`; `painter` (a `picture_process.PictureProcess`) was started by `main` before PETSc and dolfinx were imported."""
     import time
 
     import stringcontact as sc
@@ -304,7 +304,7 @@ def _pictures(args, painter):
     """`simulate`'s `pictures`: the picture function, with the started painter, or whether to draw them."""
     if painter is None:
         return not args.no_pictures
-    from ..plot.viz import write_pictures
+    from ..plot.run_pictures import write_pictures
 
     return functools.partial(write_pictures, painter=painter)
 
@@ -468,7 +468,7 @@ def _main(argv) -> int:
         return EXIT_INPUT
     painter = None
     if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
-        from ..plot.painter import PictureProcess
+        from ..plot.picture_process import PictureProcess
 
         painter = PictureProcess.start()  # first: its start-up then overlaps the whole run, imports included
     try:

@@ -17,7 +17,6 @@ import numpy as np
 from PIL import Image
 
 from ..io.manifest import atomic_path
-from .catalogue import WINDOW_SIZE
 from .colour_bar import add_field_bar
 from .membrane import (
     add_contact_edge,
@@ -30,6 +29,7 @@ from .membrane import (
     show_row,
 )
 from .mesh_pictures import _every_kth
+from .picture_names import WINDOW_SIZE
 from .vtk_start import _font_file, _plotter
 
 MAX_FRAMES = 50

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.manifest import atomic_path
-from .catalogue import WINDOW_SIZE
 from .colours import CONTACT_COLOUR
+from .picture_names import WINDOW_SIZE
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0

@@ -24,7 +24,6 @@ import numpy as np
 
 from ..io.manifest import atomic_path
 from .annotations import Axis, _title, add_axis, add_colour_legend
-from .catalogue import WINDOW_SIZE
 from .charts import (
     PNG_COMPRESSION,
     obstacle_history,
@@ -46,6 +45,7 @@ from .membrane import (
     membrane_title,
     membrane_view,
 )
+from .picture_names import WINDOW_SIZE
 from .vtk_start import _font_file, _plotter, _pyvista
 
 

@@ -202,7 +202,7 @@ def _writer(scene, V, comm, rows: _Rows, output: Output):
 
     pictures = output.pictures
     if pictures is True:
-        from ..plot.viz import write_pictures as pictures  # matplotlib and pyvista load when a picture is drawn
+        from ..plot.run_pictures import write_pictures as pictures  # matplotlib and pyvista: when a picture is drawn
 
     frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), output.max_frames)
     return OutputWriter(output.dir, scene, V, comm, force=output.force, pictures=pictures or None, frames=frames)
