@@ -7,7 +7,7 @@ Each table is made from the definitions the program itself uses, so a page canno
 * `models`: the constants (a scene's ``[parameters]``) and output fields of every model this package registers,
   from the models themselves (`Model.constants`, `Model.outputs`; `ModelConstant.allowed` is the error messages'
   text);
-* `cli`: the argparse parsers of `stringcontact.cli.main.build_parser`;
+* `cli`: the argparse parsers of `stringcontact.cli.parser.build_parser`;
 * `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
 * `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.picture_names`'s pictures,
   and what a run writes of its model's output fields (`MODEL_FIELD_FILES`);
@@ -211,7 +211,7 @@ def _walk(parser: argparse.ArgumentParser, prog: str, help_text: str, level: int
 
 def cli() -> str:
     """Every subcommand of `stringcontact`: usage and arguments, from the parsers the command line builds."""
-    from stringcontact.cli.main import SUBCOMMANDS, build_parser
+    from stringcontact.cli.parser import SUBCOMMANDS, build_parser
 
     parser = build_parser(["run", "list", "show", *SUBCOMMANDS])  # every subcommand with its arguments
     return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
@@ -226,7 +226,7 @@ def exit_codes() -> str:
     rows = [[f"`{code}`", " ".join(what.split()).rstrip(";.")] for code, what in items]
     codes = {c for code, _ in items for c in re.findall(r"\d+", code)}
     constants = {str(v) for k, v in vars(main).items() if k.startswith("EXIT_")}
-    _undocumented("exit codes (cli/main.py EXIT_*)", sorted(constants), codes)
+    _undocumented("exit codes (cli/process.py EXIT_*)", sorted(constants), codes)
     return _table(["exit code", "meaning"], rows)
 
 
