@@ -53,7 +53,8 @@ def per_picture(scene: str, repeats: int, folder: Path) -> None:
     import stringcontact as sc
 
     res = sc.simulate(sc.load_scene(scene), progress=False)
-    from stringcontact.plot import animation, charts, mesh_pictures, viz
+    from stringcontact.plot import animation, charts, mesh_pictures
+    from stringcontact.plot import run_pictures as viz
 
     rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
             ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up))]
@@ -77,7 +78,8 @@ def per_picture(scene: str, repeats: int, folder: Path) -> None:
 
 def pyvista_gif(res, path: Path) -> None:
     """The same frames written by pyvista's own GIF writer (imageio, a median-cut palette per frame)."""
-    from stringcontact.plot import animation, mesh_pictures, viz
+    from stringcontact.plot import animation, mesh_pictures
+    from stringcontact.plot import run_pictures as viz
 
     view = mesh_pictures.membrane_view(res)
     p = mesh_pictures._plotter(animation.gif_size(viz.WINDOW_SIZE))

@@ -6,7 +6,7 @@ painter process does, then each picture `--repeats` times (medians), and the sur
 pyvista's default 8x multisampling, which `mesh_pictures` turns off. CPU time counts llvmpipe's threads;
 on a shared machine it is steadier than the wall clock.
 
-Then what `stringcontact run` does after its solve, `--repeats` times: a `painter.PictureProcess` started
+Then what `stringcontact run` does after its solve, `--repeats` times: a `picture_process.PictureProcess` started
 `--settle` seconds before (time to warm up, as it does during a run) is sent the Result and draws every
 picture with its helper; the wall clock from `send` to the reply, and the CPU seconds of both processes in
 that span (from /proc before `send`, and from `getrusage` once they are gone).
@@ -60,8 +60,8 @@ def group_cpu(pgid: int) -> float:
 
 def painted(res, out: Path, settle: float) -> tuple[float, float]:
     """(CPU, wall) of the painter and its helper drawing every picture of `res`, from `send` to the reply."""
-    from stringcontact.plot import viz
-    from stringcontact.plot.painter import PictureProcess
+    from stringcontact.plot import run_pictures as viz
+    from stringcontact.plot.picture_process import PictureProcess
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     process = PictureProcess.start(viz.PICTURES)
@@ -110,10 +110,10 @@ print(time.process_time() - c0)
 
 VTK_SEARCH = """
 import sys, time
-from stringcontact.plot import charts, mesh_pictures
+from stringcontact.plot import charts, mesh_pictures, vtk_start
 charts.warm_up()  # as the painter: matplotlib first, then pyvista
 if sys.argv[1] == "vtk":
-    mesh_pictures.search_once = lambda: False  # VTK's own search
+    vtk_start.search_once = lambda: False  # VTK's own search
 c0 = time.process_time()
 mesh_pictures.warm_up()
 print(time.process_time() - c0)
@@ -135,9 +135,9 @@ def fresh_cpu(code: str, ways: tuple[str, ...], repeats: int) -> dict[str, list[
 
 def vtk_search_costs(repeats: int) -> list[tuple[str, float, float]]:
     """(what, CPU median, min): pyvista's import and warm-up picture with VTK's module search and with
-    `vtk_modules.search_once`, alternating fresh processes."""
+    `vtk_start.search_once`, alternating fresh processes."""
     runs = fresh_cpu(VTK_SEARCH, ("vtk", "once"), repeats)
-    names = {"vtk": "VTK's search (a glob per module and extension)", "once": "vtk_modules.search_once"}
+    names = {"vtk": "VTK's search (a glob per module and extension)", "once": "vtk_start.search_once"}
     return [(f"import pyvista + warm-up, {names[way]}", statistics.median(t), min(t)) for way, t in runs.items()]
 
 
@@ -150,7 +150,8 @@ def gc_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
     """(what, CPU median, memory growth median [MB] or nan) with the collector on and off, alternating."""
     import gc
 
-    from stringcontact.plot import charts, mesh_pictures, viz
+    from stringcontact.plot import charts, mesh_pictures
+    from stringcontact.plot import run_pictures as viz
 
     warm = fresh_cpu(WARM_UP, ("on", "off"), repeats)
     charts.warm_up()
@@ -184,7 +185,8 @@ def main(argv=None) -> int:
     import stringcontact as sc
 
     res = sc.simulate(sc.load_scene("example1"), progress=False)
-    from stringcontact.plot import charts, mesh_pictures, viz
+    from stringcontact.plot import charts, mesh_pictures
+    from stringcontact.plot import run_pictures as viz
 
     out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
     if args.title:

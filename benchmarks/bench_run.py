@@ -7,7 +7,7 @@
 2. The same work in a fresh process, timed by phase: import (stringcontact, dolfinx, petsc4py),
    setup (mesh, the forms' JIT-cache load and assembly, LU factorisation), solve (the time loop),
    XDMF + tables (the XDMF frames streamed to solution.xdmf/h5, diagnostics.csv, summary.json) and
-   pictures. "overlapped" is what the CLI does: the pyvista picture is drawn by a `painter.PictureProcess`
+   pictures. "overlapped" is what the CLI does: the pyvista picture is drawn by a `picture_process.PictureProcess`
    started before the import; "in-process" draws all pictures after the run.
 3. The XDMF cost against the number of frames (`simulate(..., max_frames=...)`): dolfinx 0.5's
    XDMFFile rewrites its whole XML on every write, so the cost grows like frames².
@@ -59,8 +59,8 @@ def phases(out: str, max_frames: int, mode: str) -> dict:
     if mode == "overlapped":
         import functools
 
-        from stringcontact.plot.painter import PictureProcess
-        from stringcontact.plot.viz import write_pictures
+        from stringcontact.plot.picture_process import PictureProcess
+        from stringcontact.plot.run_pictures import write_pictures
 
         pictures = functools.partial(write_pictures, painter=PictureProcess.start())
     import dolfinx  # noqa: F401
@@ -75,7 +75,7 @@ def phases(out: str, max_frames: int, mode: str) -> dict:
     tm = summary.get("timings", {})
     pictures = tm.get("pictures", 0.0)
     if mode == "in-process":
-        from stringcontact.plot import viz
+        from stringcontact.plot import run_pictures as viz
 
         t1 = time.perf_counter()
         viz.write_pictures(res, out)

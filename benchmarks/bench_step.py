@@ -333,7 +333,7 @@ def _still_stepper(scene):
     st = Stepper(scene, comm=MPI.COMM_SELF)
     st.scheme = _Still()
     st.ledger = ledger._Ledger(_Still.terms, conservative=False)
-    st.rows = rows._Rows(np.array([scene.nt + 1]), rows._Gather(MPI.COMM_SELF, st.setting.x))
+    st.rows = rows.StoredRows(np.array([scene.nt + 1]), rows._Gather(MPI.COMM_SELF, st.setting.x))
     st.rows.min_eta = 0.0
     return st
 

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 import stringcontact as sc
-from stringcontact.plot import viz
+from stringcontact.plot import run_pictures
 
 FAST = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"  # reduced resolution for the test suite
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_example1"))
@@ -76,7 +76,7 @@ print(f"{scene.name}: nx = {scene.nx}, dt = {scene.dt:g}, {len(res.t)} stored ro
 # `contact_set.png` and `velocity_field.png` are its Figure 2, and `energy.png` shows the balance.
 # In a notebook they are displayed here; as a script the paths are printed.
 
-pictures = viz.show_pictures(run_dir)
+pictures = run_pictures.show_pictures(run_dir)
 
 # ## What the paper observes, measured
 #
@@ -86,8 +86,8 @@ pictures = viz.show_pictures(run_dir)
 fraction = res.contact_length / l
 i_max = int(np.argmax(fraction))
 print(f"largest contact fraction {fraction[i_max]:.3f} of the string, at t = {res.t[i_max]:.4f}")
-for i in viz.snapshot_rows(res):
-    parts = viz.contact_components(res.x, res.contact[i])
+for i in run_pictures.snapshot_rows(res):
+    parts = run_pictures.contact_components(res.x, res.contact[i])
     span = ", ".join(f"[{a:.3f}, {b:.3f}]" for a, b in parts) or "none"
     print(f"  t = {res.t[i]:.2f}: contact fraction {fraction[i]:.3f}, contact set {span}")
 

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 import stringcontact as sc
-from stringcontact.plot import viz
+from stringcontact.plot import run_pictures
 
 FAST = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"  # reduced resolution for the test suite
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_example2"))
@@ -67,15 +67,15 @@ print(f"{scene.name}: nx = {scene.nx}, dt = {scene.dt:g}, {len(res.t)} stored ro
 # `snapshots.png` is the paper's Figure 3 (t = 0, 0.04, 0.08, 0.16, 0.28, 0.32), `contact_set.png`
 # and `velocity_field.png` its Figure 4, `energy.png` the energy balance.
 
-pictures = viz.show_pictures(run_dir)
+pictures = run_pictures.show_pictures(run_dir)
 
 # ## What the paper observes, measured
 #
 # **The contact set splits into several disconnected components.** A component is a maximal run of
-# at least two neighbouring nodes with $\eta \le 0$ (`viz.contact_components`). Single nodes are
+# at least two neighbouring nodes with $\eta \le 0$ (`run_pictures.contact_components`). Single nodes are
 # left out: the left end is held at $\eta = 0$ and so always touches the obstacle at one point.
 
-components = [viz.contact_components(res.x, row) for row in res.contact]
+components = [run_pictures.contact_components(res.x, row) for row in res.contact]
 count = np.array([len(c) for c in components])
 i_most = int(np.argmax(count))
 several = count >= 2
@@ -84,7 +84,7 @@ print(f"most components at one time: {count[i_most]}, at t = {res.t[i_most]:.4f}
 if several.any():
     print(f"two or more components in {several.sum()} of {len(res.t)} stored rows, "
           f"between t = {res.t[several].min():.4f} and t = {res.t[several].max():.4f}")
-for i in viz.snapshot_rows(res):
+for i in run_pictures.snapshot_rows(res):
     span = ", ".join(f"[{a:.3f}, {b:.3f}]" for a, b in components[i]) or "none"
     print(f"  t = {res.t[i]:.2f}: {count[i]} component(s): {span}")
 

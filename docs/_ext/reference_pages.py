@@ -7,9 +7,9 @@ Each table is made from the definitions the program itself uses, so a page canno
 * `models`: the constants (a scene's ``[parameters]``) and output fields of every model this package registers,
   from the models themselves (`Model.constants`, `Model.outputs`; `ModelConstant.allowed` is the error messages'
   text);
-* `cli`: the argparse parsers of `stringcontact.cli.main.build_parser`;
+* `cli`: the argparse parsers of `stringcontact.cli.parser.build_parser`;
 * `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
-* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.catalogue`'s pictures,
+* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.picture_names`'s pictures,
   and what a run writes of its model's output fields (`MODEL_FIELD_FILES`);
 * `api`: autodoc directives for `stringcontact.__all__` and the public modules' `__all__`.
 
@@ -61,12 +61,12 @@ FIELDS = {
     "contact": "1 where η ≤ ψ (on or below the obstacle), else 0",
     "contact_force": "the nodal contact force F",
 }
-#: The fields written only by some runs (io.folder.OBSTACLE_FIELD): after the fields above.
+#: The fields written only by some runs (io.result.OBSTACLE_FIELD): after the fields above.
 SOME_FIELDS = {
     "obstacle": "a moving obstacle only (ψ an expression in t): ψ at the nodes at the frame's time; the gap is "
                 "η − ψ (ParaView's Calculator: `eta-obstacle`). An obstacle at rest is not written",
 }
-#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.catalogue): where -> what.
+#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.picture_names): where -> what.
 MODEL_FIELD_FILES = {
     "solution.xdmf": "`NAME`: the field at the nodes, at each written time",
     "rows.npz": "`NAME`: the field's stored rows (`field_NAME` where NAME is one of the file's own arrays)",
@@ -78,7 +78,7 @@ MODEL_FIELD_FILES = {
                 "largest |value|, beside the field's least and largest value against t (`field_NAME.png` where "
                 "NAME.png is one of the pictures below)",
 }
-#: The pictures of a run (plot.catalogue): 1D and 2D.
+#: The pictures of a run (plot.picture_names): 1D and 2D.
 PICTURES = {
     "contact_set.png": "the space-time contact set {η ≤ ψ}",
     "velocity_field.png": "the velocity η_t over (x, t)",
@@ -213,7 +213,7 @@ def _walk(parser: argparse.ArgumentParser, prog: str, help_text: str, level: int
 
 def cli() -> str:
     """Every subcommand of `stringcontact`: usage and arguments, from the parsers the command line builds."""
-    from stringcontact.cli.main import SUBCOMMANDS, build_parser
+    from stringcontact.cli.parser import SUBCOMMANDS, build_parser
 
     parser = build_parser(["run", "list", "show", *SUBCOMMANDS])  # every subcommand with its arguments
     return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
@@ -228,22 +228,22 @@ def exit_codes() -> str:
     rows = [[f"`{code}`", " ".join(what.split()).rstrip(";.")] for code, what in items]
     codes = {c for code, _ in items for c in re.findall(r"\d+", code)}
     constants = {str(v) for k, v in vars(main).items() if k.startswith("EXIT_")}
-    _undocumented("exit codes (cli/main.py EXIT_*)", sorted(constants), codes)
+    _undocumented("exit codes (cli/process.py EXIT_*)", sorted(constants), codes)
     return _table(["exit code", "meaning"], rows)
 
 
 def output_files() -> str:
     """The output folder's files, solution.xdmf's fields, diagnostics.csv's columns, the pictures."""
-    from stringcontact.io.folder import OBSTACLE_FIELD
     from stringcontact.io.result import FIELDS as fields
+    from stringcontact.io.result import OBSTACLE_FIELD
     from stringcontact.io.tables import DIAGNOSTIC_COLUMNS
-    from stringcontact.plot.catalogue import MEMBRANE_PICTURES
-    from stringcontact.plot.catalogue import PICTURES as pictures
+    from stringcontact.plot.picture_names import MEMBRANE_PICTURES
+    from stringcontact.plot.picture_names import PICTURES as pictures
 
     _undocumented("diagnostics.csv columns (io/tables.py)", DIAGNOSTIC_COLUMNS, COLUMNS)
     _undocumented("XDMF fields (io/result.py FIELDS)", fields, FIELDS)
-    _undocumented("XDMF fields of some runs (io/folder.py OBSTACLE_FIELD)", [OBSTACLE_FIELD], SOME_FIELDS)
-    _undocumented("pictures (plot/catalogue.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
+    _undocumented("XDMF fields of some runs (io/result.py OBSTACLE_FIELD)", [OBSTACLE_FIELD], SOME_FIELDS)
+    _undocumented("pictures (plot/picture_names.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
     shown = {name: ("1D" if name in pictures else "") + (", " if name in pictures and name in MEMBRANE_PICTURES else "")
              + ("2D" if name in MEMBRANE_PICTURES else "") for name in dict.fromkeys(pictures + MEMBRANE_PICTURES)}
     return "\n".join([

@@ -131,7 +131,7 @@ def test_1d_only_commands_say_so_for_a_membrane(argv):
 
 
 def _parser():
-    from stringcontact.cli.main import _Parser
+    from stringcontact.cli.parser import _Parser
 
     parser = _Parser(prog="stringcontact study")
     study_cli.add_arguments(parser)

@@ -8,16 +8,9 @@ from pathlib import Path
 import pytest
 
 from stringcontact.errors import OutputError
-from stringcontact.io.publish import (
-    MANIFEST,
-    MARKER,
-    atomic_path,
-    check_target,
-    foreign_file,
-    open_partial,
-    publish_partial,
-    read_manifest,
-)
+from stringcontact.io.manifest import MANIFEST, atomic_path, foreign_file, read_manifest
+from stringcontact.io.publish import MARKER, open_partial, publish_partial
+from stringcontact.io.target import check_target
 
 
 def published(tmp_path, files: dict[str, str]) -> Path:
@@ -138,7 +131,7 @@ def test_the_python_api_makes_the_missing_parents_it_is_given(tmp_path):
 
 def test_sync_soon_tolerates_a_missing_file(tmp_path):
     """The early sync only starts the writing; a file it cannot open is left to publishing's own fsync."""
-    from stringcontact.io.publish import sync_soon
+    from stringcontact.io.disk import sync_soon
 
     (tmp_path / "there").write_bytes(b"x" * 4096)
     thread = sync_soon([tmp_path / "gone", tmp_path / "there"])

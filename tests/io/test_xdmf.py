@@ -66,7 +66,8 @@ def test_the_xdmf_is_well_formed_after_every_frame(tmp_path):
     from mpi4py import MPI
 
     from stringcontact.fem import compat
-    from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays, xdmf_series
+    from stringcontact.io.readback import xdmf_series
+    from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 
     V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
     series = XdmfTimeSeries(tmp_path, mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
@@ -254,7 +255,7 @@ def test_writing_frames_makes_no_fsync(tmp_path):
 
 
 def xdmf_series_of(folder):
-    from stringcontact.io.xdmf import xdmf_series
+    from stringcontact.io.readback import xdmf_series
 
     return xdmf_series(folder / "solution.xdmf")
 
@@ -286,7 +287,7 @@ def test_another_program_reads_every_finished_frame_while_the_file_is_open(tmp_p
 def test_hdf5_failures_are_raised_with_their_reason(tmp_path):
     """A failed HDF5 call raises: OSError with the system's errno where a system call failed, else
     RuntimeError naming the HDF5 function; what HDF5 prints on the way is held back."""
-    from stringcontact.io.xdmf import Hdf5File, stderr_held
+    from stringcontact.io.hdf5 import Hdf5File, stderr_held
 
     with pytest.raises(OSError) as missing, stderr_held(replay=False):
         Hdf5File(tmp_path / "no-such-folder" / "solution.h5")
@@ -307,10 +308,11 @@ from dolfinx import mesh
 from mpi4py import MPI
 from stringcontact.fem import compat
 import stringcontact.io.xdmf as xdmf
+from stringcontact.io.hdf5 import Hdf5Quiet
 xdmf._check_room = lambda *a: None
 V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
 try:
-    with xdmf.Hdf5Quiet():
+    with Hdf5Quiet():
         xdmf.XdmfTimeSeries(sys.argv[1], xdmf.mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
 except OSError as exc:
     print(f"error: {exc.strerror}", file=sys.stderr)
@@ -340,11 +342,12 @@ from dolfinx import mesh
 from mpi4py import MPI
 from stringcontact.fem import compat
 import stringcontact.io.xdmf as xdmf
+from stringcontact.io.hdf5 import Hdf5Quiet
 xdmf._check_room = lambda *a: None
 folder = Path(sys.argv[1])
 arrays = xdmf.mesh_arrays(compat.function_space(mesh.create_interval(MPI.COMM_SELF, 50, [0.0, 1.0])), MPI.COMM_SELF)
 failed = 0
-with xdmf.Hdf5Quiet():
+with Hdf5Quiet():
     for free_kib in range(1, 250):
         for path in folder.iterdir():
             path.unlink()

@@ -293,7 +293,7 @@ def test_film_drum_a_membrane_on_its_film(tmp_path):
     assert r.status == "complete" and r.fields["pressure"].shape == r.eta.shape
     assert r.fields["pressure"].max() > 0.1 and np.all(r.fields["pressure"][:, r.x[:, 0] == 0.0] == 0.0)
     assert np.max(np.abs(r.balance_residual)) < 1e-9 * r.total_energy[0]
-    from stringcontact.plot.viz import draw
+    from stringcontact.plot.run_pictures import draw
 
     assert draw("pressure.png", r, tmp_path).stat().st_size > 10_000
 

@@ -15,7 +15,7 @@ import tomli_w
 import stringcontact as sc
 from stringcontact.errors import InstabilityError
 from stringcontact.fem.compat import trapezoid
-from stringcontact.io.xdmf import xdmf_series
+from stringcontact.io.readback import xdmf_series
 from stringcontact.model import stiff_string as model
 
 H, AMPLITUDE = 1.0, 1e-3

@@ -16,7 +16,8 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io.paraview_view import field_points, symlog_unit
 from stringcontact.model.film import PRESSURE
-from stringcontact.plot import animation, charts, mesh_pictures, viz
+from stringcontact.plot import animation, charts, membrane, mesh_pictures, vtk_start
+from stringcontact.plot import run_pictures as viz
 from stringcontact.plot.fields import FieldScale
 from stringcontact.scene import scene_to_toml
 
@@ -139,21 +140,21 @@ def _surface_actor(p, surface):
 def test_the_film_membranes_mesh_carries_its_pressure_and_is_coloured_by_it(run):
     _, res = run
     pressure = res.fields["pressure"]
-    view = mesh_pictures.membrane_view(res)
+    view = membrane.membrane_view(res)
     assert view.field == FieldScale.of(pressure, INFO) and view.field.high == float(np.abs(pressure).max())
     row, later = 40, 60  # t = 0.1 (free), 0.15 (in contact)
     kept = pressure.copy()
-    p = mesh_pictures._plotter((300, 200))
+    p = vtk_start._plotter((300, 200))
     try:
-        surface = mesh_pictures.add_membrane(p, res, row, view)
+        surface = membrane.add_membrane(p, res, row, view)
         np.testing.assert_array_equal(surface.point_data["pressure"], pressure[row])
         np.testing.assert_array_equal(surface.point_data["pressure_colour"], view.field.unit(pressure[row]))
         actor = _surface_actor(p, surface)
         assert actor.mapper.array_name == "pressure_colour" and tuple(actor.mapper.scalar_range) == (-1.0, 1.0)
-        edge = mesh_pictures.add_contact_edge(p, surface, view)
+        edge = membrane.add_contact_edge(p, surface, view)
         assert edge.n_points == 0  # not in contact yet: no edge
-        mesh_pictures.show_row(surface, res, later, view)  # a GIF's next frame: the arrays follow the row
-        mesh_pictures.contact_edge(surface, view, into=edge)
+        membrane.show_row(surface, res, later, view)  # a GIF's next frame: the arrays follow the row
+        membrane.contact_edge(surface, view, into=edge)
         np.testing.assert_array_equal(surface.point_data["pressure"], pressure[later])
         np.testing.assert_array_equal(pressure, kept)  # the mesh's arrays are copies: the Result's rows stay
         np.testing.assert_array_equal(surface.points[:, 2], res.eta[later] * view.scale)
@@ -169,17 +170,17 @@ def test_the_film_membranes_mesh_carries_its_pressure_and_is_coloured_by_it(run)
 def test_a_membrane_without_a_surface_field_is_coloured_by_contact_as_before(run):
     _, res = run
     bare = dataclasses.replace(res, field_info={"pressure": INFO | {"surface": False}})  # its pressure kept, not on the membrane
-    view = mesh_pictures.membrane_view(bare)
+    view = membrane.membrane_view(bare)
     assert view.field is None
-    p = mesh_pictures._plotter((300, 200))
+    p = vtk_start._plotter((300, 200))
     try:
-        surface = mesh_pictures.add_membrane(p, bare, 60, view)
+        surface = membrane.add_membrane(p, bare, 60, view)
         assert set(surface.point_data.keys()) == {"contact"}
         assert _surface_actor(p, surface).mapper.array_name == "contact"
     finally:
         p.close()
-    assert "red: in contact" in mesh_pictures.membrane_title(bare, view, "x")
-    assert mesh_pictures.membrane_legend(bare, view)[0] == "colour: contact"
+    assert "red: in contact" in membrane.membrane_title(bare, view, "x")
+    assert membrane.membrane_legend(bare, view)[0] == "colour: contact"
 
 
 # --- the pictures ------------------------------------------------------------------------------------

@@ -12,8 +12,9 @@ from conftest import plot_refusal
 import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback
-from stringcontact.plot import animation, charts, viz
-from stringcontact.plot.painter import PictureProcess
+from stringcontact.plot import animation, charts
+from stringcontact.plot import run_pictures as viz
+from stringcontact.plot.picture_process import PictureProcess
 from stringcontact.scene import scene_to_toml
 
 #: a coarse drum (about 100 nodes) that lands at t = 0.12 and is in contact until T; its rim starts at 0.3
@@ -292,9 +293,9 @@ def test_plot_redraws_a_membranes_pictures_pixel_for_pixel(tmp_path, capsys):
 
 def _boundary_length(result, values) -> float:
     """The length of the 0.5 iso-line of `values` (one per node) interpolated across the flat triangles."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import membrane
 
-    flat = mesh_pictures.triangles(result, np.zeros(len(result.x)))
+    flat = membrane.triangles(result, np.zeros(len(result.x)))
     flat.point_data["c"] = values
     line = flat.contour([0.5], scalars="c")
     return float(line.compute_cell_sizes(length=True, area=False, volume=False).cell_data["Length"].sum())
@@ -302,11 +303,11 @@ def _boundary_length(result, values) -> float:
 
 def test_the_contact_patch_is_drawn_without_the_meshs_staircase():
     """Issue 26, item 6: the membrane's patches had staircase edges at the default mesh (mesh_size 0.05)."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import membrane
 
     res = sc.simulate(sc.load_scene("drum").replace(T=0.3, nt=60, output_times=[0.3]), progress=False)
     row = int(np.argmax(res.contact_measure))
-    view = mesh_pictures.membrane_view(res)
+    view = membrane.membrane_view(res)
     shade = view.shade(res.contact[row])
     contact = res.contact[row]
     assert shade[contact].min() >= 0.6 and shade[~contact].max() <= 0.4  # each node in the colour of its state
@@ -326,10 +327,10 @@ def test_the_gifs_caption_is_at_least_14_pixels_high(run):
 
 
 def _label_height(font_size: int) -> int:
-    """The height in pixels of the tick label "0.5" drawn as `mesh_pictures.add_axis` draws it, at `font_size`."""
-    from stringcontact.plot import mesh_pictures
+    """The height in pixels of the tick label "0.5" drawn as `annotations.add_axis` draws it, at `font_size`."""
+    from stringcontact.plot import vtk_start
 
-    p = mesh_pictures._plotter((300, 200))
+    p = vtk_start._plotter((300, 200))
     p.add_point_labels(np.array([[0.0, 0.0, 0.0]]), ["0.5"], font_size=font_size, text_color="black", shape=None,
                        show_points=False, always_visible=True, font_family="arial", justification_horizontal="center")
     image = p.screenshot(None, return_img=True)[..., :3].astype(int)
@@ -340,17 +341,17 @@ def _label_height(font_size: int) -> int:
 
 def test_the_membrane_pictures_tick_labels_are_at_least_12_pixels_high(run, tmp_path, monkeypatch):
     """membrane.png's and membrane.gif's axes: their tick labels were about 6 px high (font size 7 and 8)."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import membrane, mesh_pictures
 
     _, res = run
     sizes = []
-    draw = mesh_pictures.add_axis
+    draw = membrane.add_axis
 
     def spy(p, axis, font_size=11, most=5):
         sizes.append(font_size)
         return draw(p, axis, font_size, most)
 
-    monkeypatch.setattr(mesh_pictures, "add_axis", spy)
+    monkeypatch.setattr(membrane, "add_axis", spy)  # the axes of membrane.png and membrane.gif alike
     mesh_pictures.membrane_picture(res, tmp_path / "membrane.png")
     picture = set(sizes)
     sizes.clear()

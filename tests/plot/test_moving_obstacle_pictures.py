@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.plot import charts, mesh_pictures
+from stringcontact.plot import charts, colours, membrane, mesh_pictures, vtk_start
 
 #: the piston rises from ψ = 0 to 0.3 by t = 0.15 on |x − 1/2| < 0.2; a coarse, short run
 SMALL_PISTON = {"nx": 40, "T": 0.3, "nt": 75, "output_times": [0.0, 0.1, 0.15, 0.3]}
@@ -56,7 +56,7 @@ def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston
     assert piston.scene.obstacle_moves
     mesh_pictures.space_time_picture(piston, tmp_path / "space_time.png")
     assert (tmp_path / "space_time.png").stat().st_size > 0
-    (obstacle,) = _in_colour(drawn, mesh_pictures.OBSTACLE_COLOUR)
+    (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
     points = np.asarray(obstacle.points)
     centre = np.abs(points[:, 0] - 0.5) < 1e-9  # the piston's middle, at every drawn time
     depth, z = points[centre, 1], points[centre, 2]
@@ -76,22 +76,22 @@ def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston
 def test_an_obstacle_at_rest_is_still_a_band_over_t(drawn, tmp_path):
     res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), progress=False)
     mesh_pictures.space_time_picture(res, tmp_path / "space_time.png")
-    (obstacle,) = _in_colour(drawn, mesh_pictures.OBSTACLE_COLOUR)
+    (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
     assert np.unique(np.round(np.asarray(obstacle.points)[:, 1], 12)).size == 2  # t = 0 and T only
 
 
 def test_each_membrane_panel_draws_the_obstacle_at_its_time(dome, drawn, tmp_path):
     assert dome.scene.obstacle_moves
     mesh_pictures.membrane_picture(dome, tmp_path / "membrane.png")
-    obstacles = _in_colour(drawn, mesh_pictures.MEMBRANE_OBSTACLE_COLOUR)
+    obstacles = _in_colour(drawn, colours.MEMBRANE_OBSTACLE_COLOUR)
     rows = charts.snapshot_rows(dome)
     assert len(obstacles) == len(rows)
-    view = mesh_pictures.membrane_view(dome)
+    view = membrane.membrane_view(dome)
     lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
     tops = []
     for mesh, row in zip(obstacles, rows):
         psi = dome.scene.obstacle_values(dome.x, float(dome.t[row]))
-        expected = psi * view.scale - mesh_pictures._below(lo, hi, view.scale)
+        expected = psi * view.scale - membrane._below(lo, hi, view.scale)
         np.testing.assert_allclose(np.asarray(mesh.points)[:, 2], expected, atol=1e-12, err_msg=f"t = {dome.t[row]}")
         tops.append(float(np.max(expected)))
     assert tops[0] < tops[-1] - 0.2 * view.scale, tops  # the dome rose between the first and the last panel
@@ -99,17 +99,17 @@ def test_each_membrane_panel_draws_the_obstacle_at_its_time(dome, drawn, tmp_pat
 
 
 def test_the_gifs_frames_move_the_obstacle_with_the_time(dome):
-    pv = mesh_pictures._pyvista()
-    view = mesh_pictures.membrane_view(dome)
+    pv = vtk_start._pyvista()
+    view = membrane.membrane_view(dome)
     p = pv.Plotter(off_screen=True, window_size=(200, 150))
     try:
-        surface = mesh_pictures.add_membrane(p, dome, 0, view)
+        surface = membrane.add_membrane(p, dome, 0, view)
         assert view.obstacle is not None
         lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
         for row in (len(dome.t) // 2, len(dome.t) - 1):
-            mesh_pictures.show_row(surface, dome, row, view)
+            membrane.show_row(surface, dome, row, view)
             psi = dome.scene.obstacle_values(dome.x, float(dome.t[row]))
-            np.testing.assert_allclose(view.obstacle.points[:, 2], psi * view.scale - mesh_pictures._below(lo, hi, view.scale), atol=1e-12)
+            np.testing.assert_allclose(view.obstacle.points[:, 2], psi * view.scale - membrane._below(lo, hi, view.scale), atol=1e-12)
     finally:
         p.close()
 

@@ -1,4 +1,4 @@
-"""The picture process of `stringcontact run` (plot/painter.py): the painter, its forked helper, the payload,
+"""The picture process of `stringcontact run` (plot/picture_process.py): the painter, its forked helper, the payload,
 and how they stop."""
 
 from __future__ import annotations
@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.plot import painter, payload, viz
-from stringcontact.plot.painter import PictureProcess
+from stringcontact.plot import handover as payload
+from stringcontact.plot import picture_process as painter
+from stringcontact.plot import run_pictures as viz
+from stringcontact.plot.picture_process import PictureProcess
 
 
 @pytest.fixture(scope="module")
@@ -55,8 +57,8 @@ def started_with_helper(names=viz.PICTURES) -> PictureProcess:
 def test_the_run_hands_every_picture_over_and_imports_no_plotting_library(run, tmp_path):
     """Issue 28: the run drew snapshots.png and energy.png itself, importing matplotlib after its solve."""
     folder, _ = run
-    code = ("import sys\nfrom stringcontact.plot.painter import PictureProcess\np = PictureProcess.start()\n"
-            "from stringcontact.io.readback import read_output\nfrom stringcontact.plot import viz\n"
+    code = ("import sys\nfrom stringcontact.plot.picture_process import PictureProcess\np = PictureProcess.start()\n"
+            "from stringcontact.io.readback import read_output\nfrom stringcontact.plot import run_pictures as viz\n"
             f"viz.write_pictures(read_output({str(folder)!r}), {str(tmp_path)!r}, painter=p)\n"
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'matplotlib', 'pyvista', 'vtk', 'PIL'}), sorted(p.drawn))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
@@ -204,7 +206,7 @@ def test_what_the_painter_did_not_draw_is_drawn_here(run, tmp_path, monkeypatch)
 
 @pytest.mark.parametrize("wait_for_helper", [False, True])
 def test_the_picture_processes_end_and_clean_up_when_the_run_dies(tmp_path, wait_for_helper):
-    code = ("from stringcontact.plot.painter import PictureProcess; p = PictureProcess.start(); "
+    code = ("from stringcontact.plot.picture_process import PictureProcess; p = PictureProcess.start(); "
             "print(p.proc.pid, p.folder, flush=True)")  # and exit at once, without cancel(): a killed run
     if wait_for_helper:  # exit once the helper is forked
         code = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); from test_painter import started_with_helper; "

@@ -1,4 +1,4 @@
-"""The pyvista pictures' title (`mesh_pictures._title`) is pyvista's add_text(position="upper_edge"), pixel for
+"""The pyvista pictures' title (`annotations._title`) is pyvista's add_text(position="upper_edge"), pixel for
 pixel, at the size vtkCornerAnnotation would pick, whether the search stops at its cap or at the panel's height."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stringcontact.plot import mesh_pictures
+from stringcontact.plot import annotations, vtk_start
 
 pytest.importorskip("pyvista")
 
@@ -20,7 +20,7 @@ TEXTS = {
 def _shot(window_size, text, draw, panels=None):
     """The picture of `text` drawn by `draw(p, text)` in a white plotter (in its title row if `panels`)."""
     layout = {} if panels is None else {"shape": (panels, 1), "groups": [(0, np.s_[:])], "row_weights": [0.25] + [1] * (panels - 1)}
-    p = mesh_pictures._plotter(window_size, **layout)
+    p = vtk_start._plotter(window_size, **layout)
     p.subplot(0, 0)
     draw(p, text)
     image = p.screenshot(None, return_img=True)
@@ -29,13 +29,13 @@ def _shot(window_size, text, draw, panels=None):
 
 
 def _pyvistas(p, text):
-    p.add_text(text, position="upper_edge", font_size=9, color="black", font_file=mesh_pictures._font_file())
+    p.add_text(text, position="upper_edge", font_size=9, color="black", font_file=vtk_start._font_file())
 
 
 @pytest.mark.parametrize("text", TEXTS, ids=list(TEXTS))
 @pytest.mark.parametrize(("window_size", "panels"), [((1100, 900), None), ((1100, 900), 3), ((300, 200), None), ((64, 48), None)])
 def test_the_title_is_pyvistas_upper_edge_text_pixel_for_pixel(window_size, panels, text):
-    ours = _shot(window_size, TEXTS[text], mesh_pictures._title, panels)
+    ours = _shot(window_size, TEXTS[text], annotations._title, panels)
     theirs = _shot(window_size, TEXTS[text], _pyvistas, panels)
     assert np.array_equal(ours, theirs), f"{int((ours != theirs).any(axis=-1).sum())} pixels differ"
 
@@ -46,15 +46,15 @@ def test_the_search_ends_at_its_cap_or_at_the_panels_height(window_size, panels,
     the title row of three panels (a fifth of the height) stops them below it."""
     from vtkmodules.vtkRenderingCore import vtkTextMapper
 
-    p = mesh_pictures._plotter(window_size, **({} if panels is None else {"shape": (panels, 1)}))
+    p = vtk_start._plotter(window_size, **({} if panels is None else {"shape": (panels, 1)}))
     mapper = vtkTextMapper()
     mapper.SetInput(TEXTS["four lines"])
-    mapper.SetTextProperty(mesh_pictures._pyvista().TextProperty(font_file=mesh_pictures._font_file()))
+    mapper.SetTextProperty(vtk_start._pyvista().TextProperty(font_file=vtk_start._font_file()))
     height = p.renderer.GetSize()[1]
-    size = mesh_pictures._annotation_size(mapper, p.renderer, int(0.9 * height))
+    size = annotations._annotation_size(mapper, p.renderer, int(0.9 * height))
     p.close()
-    assert (size == mesh_pictures.ANNOTATION["FIT"]) is capped, size
-    assert 0 < size <= mesh_pictures.ANNOTATION["FIT"]
+    assert (size == annotations.ANNOTATION["FIT"]) is capped, size
+    assert 0 < size <= annotations.ANNOTATION["FIT"]
 
 
 @pytest.mark.parametrize("model", ["film", "cubic_foundation", None])

@@ -13,8 +13,8 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback
 from stringcontact.io.result import ENERGY_KEYS
-from stringcontact.plot import viz
-from stringcontact.plot.painter import PictureProcess
+from stringcontact.plot import run_pictures as viz
+from stringcontact.plot.picture_process import PictureProcess
 
 
 @pytest.fixture(scope="module")
@@ -183,7 +183,7 @@ def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
 
 
 def test_a_picture_is_written_whole_or_not_at_all(tmp_path):
-    from stringcontact.io.publish import atomic_path
+    from stringcontact.io.manifest import atomic_path
 
     target = tmp_path / "energy.png"
     with pytest.raises(KeyboardInterrupt):
@@ -262,7 +262,7 @@ def _thinning_writer(folder):
 
 
 def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
-    from stringcontact.io.xdmf import xdmf_series
+    from stringcontact.io.readback import xdmf_series
 
     writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
@@ -324,9 +324,9 @@ def test_the_output_module_does_not_import_the_picture_code():
     tree = ast.parse(Path(output.__file__).read_text())
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert not {m for m in imported if m.split(".")[-1] in ("viz", "charts", "painter", "mesh_pictures")}
+    assert not {m for m in imported if m.split(".")[-1] in ("run_pictures", "charts", "picture_process", "mesh_pictures")}
     assert not hasattr(output, "registered_pictures")  # no entry point of its own: no circle to hide
-    code = "import sys, stringcontact.plot.viz; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
+    code = "import sys, stringcontact.plot.run_pictures; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
 
 
@@ -362,7 +362,7 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
 
 
 def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_path):
-    from stringcontact.io.xdmf import read_xdmf
+    from stringcontact.io.readback import read_xdmf
 
     class StopsAfterOneField(dict):  # Ctrl-C arriving between two fields of a row
         def items(self):
@@ -401,7 +401,7 @@ def test_no_axes3d_warning_once_a_picture_module_is_loaded():
 
 def _recorded_axes(monkeypatch):
     """The axes and colour keys the mesh pictures draw, recorded as they are drawn."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import membrane, mesh_pictures
 
     drawn = {"axes": [], "labels": [], "keys": []}
     add_axis, add_key = mesh_pictures.add_axis, mesh_pictures.add_colour_legend
@@ -415,7 +415,8 @@ def _recorded_axes(monkeypatch):
         drawn["keys"].append((quantity, [label for label, _ in entries]))
         return add_key(p, quantity, entries, **kwargs)
 
-    monkeypatch.setattr(mesh_pictures, "add_axis", axis)
+    monkeypatch.setattr(mesh_pictures, "add_axis", axis)  # the space-time surface's
+    monkeypatch.setattr(membrane, "add_axis", axis)  # a membrane's
     monkeypatch.setattr(mesh_pictures, "add_colour_legend", key)
     return drawn
 
@@ -423,7 +424,7 @@ def _recorded_axes(monkeypatch):
 def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_colour_key(tmp_path, run, monkeypatch):
     """Issue 26: x, t and eta axes with round ticks (not corner labels at the obstacle's plane), and a key naming
     the quantity the colours show."""
-    from stringcontact.plot import mesh_pictures
+    from stringcontact.plot import annotations, mesh_pictures
 
     _, res = run
     drawn = _recorded_axes(monkeypatch)
@@ -437,7 +438,7 @@ def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_col
     assert x_axis.start[2] < 0 and t_axis.start[2] < 0  # on a floor below the obstacle ψ = 0, not on its plane
     (quantity, entries), = drawn["keys"]
     assert "contact" in quantity and any("in contact" in e for e in entries)
-    np.testing.assert_array_equal(mesh_pictures.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(annotations.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
 
 
 def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch):

@@ -302,7 +302,7 @@ if __name__ == "__main__":
 def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_path):
     from conftest import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
 
-    from stringcontact.plot import viz
+    from stringcontact.plot import run_pictures as viz
 
     scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.1])
     res = sc.simulate(scene, output_dir=tmp_path / "drum", pictures=True)

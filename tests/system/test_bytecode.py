@@ -31,7 +31,7 @@ RUN = textwrap.dedent(
     except SystemExit as stop:
         assert not stop.code, stop.code
     import slepc4py  # the membranes' dt_max on 2-D meshes
-    from stringcontact.plot import charts, mesh_pictures, painter, viz  # what the picture process imports
+    from stringcontact.plot import charts, mesh_pictures, picture_process, run_pictures  # what the picture process imports
     print("MODULES", *(m.__file__ for m in list(sys.modules.values()) if getattr(m, "__file__", None)), sep="\\n")
     print("COMPILED", *compiled, sep="\\n")
     """

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from stringcontact.cli.main import main
 from stringcontact.io.lock import TargetLock
-from stringcontact.io.xdmf import xdmf_series
+from stringcontact.io.readback import xdmf_series
 from stringcontact.run.checks import energy_balance, penetration_check
 
 QUICK = ["--no-progress", "--no-pictures"]
@@ -469,7 +469,7 @@ def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs
 
 
 def test_disk_failure_looks_through_the_exception_chain():
-    from stringcontact.io.publish import disk_failure
+    from stringcontact.io.disk import disk_failure
 
     def raised(inner):
         try:
@@ -495,7 +495,7 @@ def test_picture_failure_removes_the_folder_only_when_the_device_fails(tmp_path,
         except (OSError, KeyError) as exc:
             raise ValueError("the picture layer wrapped it") from exc
 
-    monkeypatch.setattr("stringcontact.plot.viz.write_pictures", failing_pictures)
+    monkeypatch.setattr("stringcontact.plot.run_pictures.write_pictures", failing_pictures)
     out = tmp_path / "out"
     assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress", "--out", str(out)]) == code
     err = capfd.readouterr().err
@@ -550,7 +550,7 @@ def small_result(nx=8, nt=4):
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
     from stringcontact.io.folder import OutputWriter
-    from stringcontact.io.publish import write_manifest
+    from stringcontact.io.manifest import write_manifest
 
     res = small_result()
     out = tmp_path / "out"

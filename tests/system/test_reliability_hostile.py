@@ -18,7 +18,8 @@ from conftest import CTRL_C_AT_IMPORT, leftovers, mpirun, plot_refusal
 
 from stringcontact.cli.main import main
 from stringcontact.io.lock import TargetLock
-from stringcontact.io.publish import atomic_path, staged_folder
+from stringcontact.io.manifest import atomic_path
+from stringcontact.io.publish import staged_folder
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01", *QUICK]

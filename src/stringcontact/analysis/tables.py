@@ -10,7 +10,7 @@ import numpy as np
 
 def write_csv(path, rows: list[dict], columns) -> Path:
     """Write rows with exactly `columns`, atomically (a temporary file renamed into place)."""
-    from ..io.publish import atomic_path
+    from ..io.manifest import atomic_path
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

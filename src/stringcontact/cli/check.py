@@ -98,7 +98,7 @@ def command(args) -> int:
     if args.delay is not None and args.delay >= scene.T:
         raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
     if args.out is not None:
-        from ..io.publish import check_target
+        from ..io.target import check_target
 
         check_target(args.out, args.force, command="check")
     V = FLAT_V if scene.name == FLAT_LANDING else None

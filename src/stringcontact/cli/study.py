@@ -31,7 +31,8 @@ from ..analysis.study import (
     work_precision,
     write_csv,
 )
-from ..io.publish import check_target, staged_folder
+from ..io.publish import staged_folder
+from ..io.target import check_target
 
 
 def add_arguments(parser):

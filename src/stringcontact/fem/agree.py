@@ -2,7 +2,7 @@
 
 Under MPI a check that fails on one rank only (a scene expression that is not finite at that rank's nodes,
 gmsh on rank 0, a mesh file read on rank 0) must not leave the other ranks waiting in the next collective
-call forever (`mpirun -n 2` would hang). `agreed` runs the work, then the ranks exchange their
+call forever (`mpirun -n 2` would hang). `one_outcome` runs the work, then the ranks exchange their
 outcome (one allgather); if it failed anywhere, every rank raises the first failing rank's error, so every
 rank ends with the same one line and exit code.
 """
@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import pickle
 
-__all__ = ["agreed"]
+__all__ = ["one_outcome"]
 
 
-def agreed(comm, work, *args, root: int | None = None):
+def one_outcome(comm, work, *args, root: int | None = None):
     """`work(*args)` on every rank (on `root` only, if given; the others return None), with one outcome.
 
     Collective: every rank must call it. The work itself must not make a collective call before it can fail.

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
 # dolfinx is imported inside the helpers, not here: `Result` uses `trapezoid`, and the picture process
-# (`painter.PictureProcess`) unpickles Results without loading dolfinx (0.6 s).
+# (`picture_process.PictureProcess`) unpickles Results without loading dolfinx (0.6 s).
 
 
 def dolfinx_version() -> tuple[int, int]:

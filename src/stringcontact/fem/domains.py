@@ -20,7 +20,7 @@ from petsc4py import PETSc
 
 from ..errors import SceneError
 from . import compat, meshfile
-from .agree import agreed
+from .agree import one_outcome
 
 __all__ = ["create", "boundary_dofs", "nodal_areas"]
 
@@ -41,7 +41,7 @@ def create(scene, comm):
 
 def _disk(comm, radius: float, size: float):
     """gmsh's triangulation of the disk of `radius` centred at 0, made on rank 0 and distributed."""
-    cells, x = agreed(comm, _gmsh_disk, radius, size, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
+    cells, x = one_outcome(comm, _gmsh_disk, radius, size, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
     return mesh.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
 
 
@@ -78,7 +78,7 @@ def _read(comm, path: str):
     """An XDMF triangle mesh, read and checked on rank 0 (`meshfile.read`) and handed to `mesh.create_mesh` as
     arrays, which distributes it: dolfinx's own XDMF reader is never given the file (it may read another file
     than the one checked, and hangs or crashes on a bad one)."""
-    cells, x = agreed(comm, meshfile.read, path, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
+    cells, x = one_outcome(comm, meshfile.read, path, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
     return mesh.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
 
 

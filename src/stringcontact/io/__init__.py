@@ -1,4 +1,5 @@
-"""Output folders: the folder itself (lock, publish, signals), the writers (XDMF, CSV, JSON), read-back, `Result`.
+"""Output folders: the folder itself (target, lock, publish, manifest, disk, signals), the writers (XDMF and HDF5,
+CSV, JSON), read-back, `Result`.
 
 Layer: imports `fem.compat` (no dolfinx at import), `model.registry` and `scene`; never the picture code.
 """

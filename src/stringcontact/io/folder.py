@@ -9,8 +9,6 @@ partial folder and raises :class:`OutputError` with one line, on every MPI rank.
 The run's numbers checks (energy balance, penetration) come with the `Result` (`result.checks`, made by
 `run.checks`); this module writes them into summary.json and knows no physics. The pictures are drawn by
 the function the caller passes (`pictures`); this module never imports the picture code.
-
-The names of the other `io` modules that callers took from here before the split stay importable here.
 """
 
 from __future__ import annotations
@@ -30,32 +28,15 @@ from ..errors import (
     OutputError,  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
     one_line,
 )
-from .lock import TargetLock, lock_path  # noqa: F401 - re-exported
+from .disk import describe_os_error, disk_failure, sync_soon
+from .hdf5 import Hdf5Quiet
 from .paraview_view import write_view
-from .publish import (  # noqa: F401 - re-exported
-    DISK_ERRNOS,
-    MANIFEST,
-    NEARLY_FULL_BYTES,
-    STATUSES,
-    atomic_path,
-    check_target,
-    describe_os_error,
-    disk_failure,
-    move_into_place,
-    open_partial,
-    publish_partial,
-    staged_folder,
-    sync_soon,
-)
-from .result import FIELDS  # the XDMF's attributes (also read as output.FIELDS)
+from .publish import open_partial, publish_partial
+from .readback import xdmf_series
+from .result import FIELDS, OBSTACLE_FIELD  # the XDMF's attributes (also read as output.FIELDS)
 from .signals import signals_held
-from .tables import DIAGNOSTIC_COLUMNS, ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows  # noqa: F401 - re-exported
-from .xdmf import Hdf5Quiet, XdmfTimeSeries, hdf5_library, mesh_arrays, read_xdmf, xdmf_series  # noqa: F401 - re-exported
-
-#: The XDMF field written after `FIELDS` when the scene's obstacle moves (`Scene.obstacle_moves`): ψ at the
-#: nodes at each frame's time. An obstacle at rest is not written (view.py draws it), so such runs keep the
-#: layout of `FIELDS` alone; the gap η − ψ is one Calculator away in ParaView.
-OBSTACLE_FIELD = "obstacle"
+from .tables import ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows
+from .xdmf import XdmfTimeSeries, mesh_arrays
 
 
 def obstacle_at(scene, points, t: float) -> np.ndarray:

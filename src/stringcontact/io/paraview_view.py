@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .publish import atomic_path
+from .manifest import atomic_path
 from .tables import field_info
 
 VIEW_NAME = "view.py"

@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import json
 import warnings
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -28,10 +29,9 @@ import numpy as np
 from ..errors import OutputError, SceneError, one_line
 from ..scene.limits import MAX_MEMBRANE_NODES, MAX_STORED_BYTES
 from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
-from .publish import small_regular_file
-from .result import ENERGY_KEYS, FIELDS, Result, canonical_cells, node_sort_key
+from .manifest import small_regular_file
+from .result import ENERGY_KEYS, FIELDS, OBSTACLE_FIELD, Result, canonical_cells, node_sort_key
 from .tables import ROW_ARRAYS, ROWS_FILE, field_members
-from .xdmf import read_xdmf
 
 FILES = ("solution.xdmf", "solution.h5", "diagnostics.csv", "summary.json")
 #: The largest summary.json read (a run's is a few kB; 1000 output times add 20 kB).
@@ -229,8 +229,6 @@ def _row_fields(path: Path, info: dict | None) -> tuple[str, ...]:
 def _field_series(path: Path, series: dict, info: dict | None) -> dict:
     """`series` of the XDMF's `FIELDS` and of its output fields (those `info` names; without it, the attributes
     beyond `FIELDS` and the moving obstacle's), each at the times of the others."""
-    from .folder import OBSTACLE_FIELD
-
     names = [name for name in series if name not in FIELDS and name != OBSTACLE_FIELD] if info is None else [
         name for name in info if name in series]
     chosen = {name: series[name] for name in (*FIELDS, *names[:MAX_OUTPUT_FIELDS])}
@@ -238,6 +236,37 @@ def _field_series(path: Path, series: dict, info: dict | None) -> dict:
     if any([t for t, _ in frames] != times for frames in chosen.values()):
         raise ValueError(f"plot: {path}: its fields are not given at the same times")
     return chosen
+
+
+def read_xdmf(path) -> tuple[str | None, dict[str, list[tuple[float, str]]]]:
+    """The mesh and the time series of `solution.xdmf`: ``(geometry, series)``.
+
+    `geometry` is the HDF5 reference of the first grid's point coordinates (``"solution.h5:/geometry"``;
+    None if there is no grid); `series` is {field: [(t, "solution.h5:/eta_0"), ...]} in file order. Raises
+    OutputError naming the file, with the parser's error as its ``__cause__``, if the file is not
+    well-formed XML (a truncated write), has no temporal collection, or holds a time that is not a number.
+    """
+    try:
+        root = ET.parse(path).getroot()
+        collection = root.find("Domain/Grid[@CollectionType='Temporal']")
+        if collection is None:
+            raise ValueError("no temporal collection of grids")
+        geometry, series = None, {}
+        for grid in collection.findall("Grid"):
+            t = float(grid.find("Time").get("Value"))
+            if geometry is None:
+                geometry = (grid.find("Geometry/DataItem").text or "").strip() or None
+            for attribute in grid.findall("Attribute"):
+                ref = (attribute.find("DataItem").text or "").strip()
+                series.setdefault(attribute.get("Name"), []).append((t, ref))
+    except (ET.ParseError, OSError, TypeError, ValueError, AttributeError) as exc:
+        raise OutputError(f"{path} is not a readable XDMF file ({one_line(exc, 300)})") from exc
+    return geometry, series
+
+
+def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
+    """The time series of `solution.xdmf`, {field: [(t, "solution.h5:/eta_0"), ...]} (see `read_xdmf`)."""
+    return read_xdmf(path)[1]
 
 
 def _read_series(path: Path):

@@ -20,6 +20,10 @@ ENERGY_KEYS = (
 )
 #: The fields stored at each node and stored time (the XDMF's attributes, in this order).
 FIELDS = ("eta", "velocity", "contact", "contact_force")
+#: The XDMF field written after `FIELDS` when the scene's obstacle moves (`Scene.obstacle_moves`): ψ at the
+#: nodes at each frame's time. An obstacle at rest is not written (view.py draws it), so such runs keep the
+#: layout of `FIELDS` alone; the gap η − ψ is one Calculator away in ParaView.
+OBSTACLE_FIELD = "obstacle"
 #: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks. `fields`
 #: holds the model's output fields (`Model.outputs`) by name.
 PER_NODE = ("x", *FIELDS, "fields", "weights", "cells")

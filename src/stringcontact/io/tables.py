@@ -178,7 +178,7 @@ def write_rows(path: Path, result) -> None:
     24.6 MB all compressed in 0.85 s, 30.6 MB this way). The compressed members are deflated at zlib's level 1
     (`ZLIB_LEVEL`): Example 1's rows.npz in a median 41 against 70 ms at zlib's default level 6, 30.56 against
     30.50 MB (each write the first of a fresh process, as in a run: `benchmarks/bench_rows.py --against-numpy 10
-    --fresh`). The pictures wait for this file (`plot.payload` maps eta and velocity from it).
+    --fresh`). The pictures wait for this file (`plot.handover` maps eta and velocity from it).
     """
     import zipfile
 

@@ -1,7 +1,7 @@
 """The model: the paper's weak momentum equation and contact law, in UFL.
 
 This is the one place to edit for a model variant (see `docs/howto/models.md` and
-`demos/demo_model_variant.py`). The time loop (`solver`) never looks inside these functions; it
+`demos/demo_model_variant.py`). The time loop (`timestepping`) never looks inside these functions; it
 only asks them for UFL.
 
 A model is a `Model`: a few plain functions that return UFL.
@@ -9,7 +9,7 @@ A model is a `Model`: a few plain functions that return UFL.
 ``momentum_form(eta, eta_t, eta_tt, force, w, p)``
     The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the
     unknowns' time derivatives, as in Irksome: `eta`, `eta_t`, `eta_tt` are placeholders that the
-    time scheme (`scheme.py`) replaces by its difference quotients, and `force` is a placeholder for
+    time scheme (`timestepping`) replaces by its difference quotients, and `force` is a placeholder for
     the contact force density. R linear in the four placeholders gives constant operators, assembled once;
     R nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``) makes every step a Newton solve
     (`timestepping.newton`); R must be affine in `eta_tt` and `force` with constant coefficients (the
@@ -19,7 +19,7 @@ A model is a `Model`: a few plain functions that return UFL.
 ``penalty(eta, v, p)``
     The contact force density F as a *pointwise* UFL expression in the previous step's η^n and
     v^n = (η^n − η^{n−1})/Δt (P1 functions) and the P1 scene fields in ``p.extra``. It may be
-    nonlinear: it is evaluated at the nodes (`nodal.py`: arithmetic, conditional, max/min, abs,
+    nonlinear: it is evaluated at the nodes (`fem/nodal.py`: arithmetic, conditional, max/min, abs,
     sqrt, exp, ln, sin, cos, tanh) and lumped onto them with the row sums of ∂R/∂force, so it is
     explicit: the matrices never change.
 

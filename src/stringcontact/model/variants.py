@@ -1,6 +1,6 @@
 """Model variants shipped with stringcontact, registered by name in pyproject.toml (`stringcontact models`).
 
-Each variant changes one or two of the paper's UFL functions (`model.py`) and keeps the rest:
+Each variant changes one or two of the paper's UFL functions (`paper.py`) and keeps the rest:
 
 ``elastic``
     Elastic (bouncing) contact: the classic Signorini displacement penalty F = (1/ε) η⁻ in place

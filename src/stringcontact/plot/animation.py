@@ -1,10 +1,10 @@
 """``membrane.gif``: a 2-D run as an animation, drawn with pyvista (off-screen) and written by Pillow.
 
-One plotter holds the scene of `mesh_pictures.add_membrane` (the membrane coloured by contact, the
+One plotter holds the scene of `membrane.add_membrane` (the membrane coloured by contact, the
 obstacle in grey); each frame changes the membrane's heights and contact colours and the title in place,
 so a frame costs one render and one GIF frame, not a new scene. The frames are every k-th stored row (and
 the last), at most `max_frames` of them: the membrane falls, lands, and its contact patches spread and
-shrink. A membrane with a surface field (`mesh_pictures.MembraneView.field`) is coloured by it on one scale for
+shrink. A membrane with a surface field (`membrane.MembraneView.field`) is coloured by it on one scale for
 all frames (its bar at the right), the edge of its contact set drawn in yellow and moved with each frame.
 """
 
@@ -16,14 +16,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from ..io.publish import atomic_path
-from .catalogue import WINDOW_SIZE
-from .mesh_pictures import (
-    _every_kth,
-    _font_file,
-    _plotter,
+from ..io.manifest import atomic_path
+from .colour_bar import add_field_bar
+from .membrane import (
     add_contact_edge,
-    add_field_bar,
     add_membrane,
     add_membrane_axes,
     contact_edge,
@@ -32,6 +28,9 @@ from .mesh_pictures import (
     membrane_view,
     show_row,
 )
+from .mesh_pictures import _every_kth
+from .picture_names import WINDOW_SIZE
+from .vtk_start import _font_file, _plotter
 
 MAX_FRAMES = 50
 FPS = 12

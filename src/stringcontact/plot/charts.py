@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.publish import atomic_path
-from .catalogue import WINDOW_SIZE
+from ..io.manifest import atomic_path
+from .colours import CONTACT_COLOUR
+from .picture_names import WINDOW_SIZE
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0
-CONTACT_COLOUR = "#b2182b"
 DPI = 100
 #: at most this many panels in snapshots.png and membrane.png, whatever the number of output times: a panel
 #: costs a fixed time (Example 1's 200 output times took 50 s), so more output times are thinned evenly

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .fields import FieldScale
-from .vtk_modules import _font_file
+from .vtk_start import _font_file
 
 __all__ = ["add_field_bar"]
 

@@ -16,7 +16,7 @@ import numpy as np
 def study_figure(path, *args, **kwargs):
     """A study's figure: ``with study_figure(path, rows, cols, **subplots) as (fig, axes):`` draws into
     matplotlib's subplots, written to `path` (whole or not at all) when the block ends without an error."""
-    from ..io.publish import atomic_path
+    from ..io.manifest import atomic_path
     from .charts import pyplot
 
     plt = pyplot()

@@ -135,7 +135,7 @@ def _collect(comm, a: np.ndarray, to_all: bool) -> list | None:
     return comm.allgather(a) if to_all else comm.gather(a, root=0)
 
 
-class _Rows:
+class StoredRows:
     """The stored rows where they are gathered (rank 0, or every rank), and on every rank the cumulative
     energy terms and the `series` the ranks sum at each stored time (Result.series)."""
 
@@ -211,6 +211,6 @@ def _storage(scene, s: Setting, V, storage: Storage, outputs: OutputValues):
     geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
     extra = tuple(f.name for f in outputs.fields)
     if s.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
-        return (_Rows(steps, gather, extra), geometry,
+        return (StoredRows(steps, gather, extra), geometry,
                 lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t)))
-    return _Rows(steps, gather, extra), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)
+    return StoredRows(steps, gather, extra), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)

@@ -13,7 +13,7 @@ from petsc4py import PETSc
 
 from ..errors import SceneError
 from ..fem import compat, domains
-from ..fem.agree import agreed
+from ..fem.agree import one_outcome
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import check_petsc_options
@@ -23,7 +23,7 @@ from ..timestepping import check_model, check_restitution, resolve_scheme
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
 from .options import Output
-from .rows import _Rows, output_steps
+from .rows import StoredRows, output_steps
 
 __all__ = ["POTENTIAL_LABEL", "RATE", "discretise", "model_constants", "petsc_options_of"]
 
@@ -41,7 +41,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None, residua
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
-    values = agreed(comm, lambda: {name: scene.field_values(name, dof_x) for name in scene.fields})  # one outcome
+    values = one_outcome(comm, lambda: {name: scene.field_values(name, dof_x) for name in scene.fields})  # one outcome
     extra = {}
     for name in scene.fields:
         f = fem.Function(V, name=name)
@@ -110,7 +110,7 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
     """What the scheme is given (`Setting`), from the scene, the model's operators and the run's options."""
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
-    bc, g = agreed(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
+    bc, g = one_outcome(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
     fields = {f: f.x.array[:n_owned] for f in params.extra.values()}
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     given = petsc_options_of(scene, petsc_options)
@@ -194,7 +194,7 @@ def _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm) -> No
             check_law_stability(model, scene.dt, scene.eps, penalty)
 
 
-def _writer(scene, V, comm, rows: _Rows, output: Output):
+def _writer(scene, V, comm, rows: StoredRows, output: Output):
     """The output folder's writer (None without `output.dir`): its lock is taken now, its frames chosen."""
     if output.dir is None:
         return None
@@ -202,7 +202,7 @@ def _writer(scene, V, comm, rows: _Rows, output: Output):
 
     pictures = output.pictures
     if pictures is True:
-        from ..plot.viz import write_pictures as pictures  # matplotlib and pyvista load when a picture is drawn
+        from ..plot.run_pictures import write_pictures as pictures  # matplotlib and pyvista: when a picture is drawn
 
     frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), output.max_frames)
     return OutputWriter(output.dir, scene, V, comm, force=output.force, pictures=pictures or None, frames=frames)

@@ -16,7 +16,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InstabilityError, SolverError
-from ..fem.agree import agreed
+from ..fem.agree import one_outcome
 from ..fem.operators import semi_discrete_operators
 from ..fem.outputs import OutputValues
 from ..io.result import FIELDS, Result, node_sort_key
@@ -105,7 +105,7 @@ class Stepper:
     def _start(self, V) -> None:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any, and the row at t = 0."""
         s, scheme, rows = self.setting, self.scheme, self.rows
-        self.ledger = _Ledger(scheme.start(*agreed(s.comm, setup._initial_state, self.scene, s)),  # one outcome
+        self.ledger = _Ledger(scheme.start(*one_outcome(s.comm, setup._initial_state, self.scene, s)),  # one outcome
                               conservative=self.model.contact_energy is not None or scheme.energy_may_rise,
                               floor=energy_roundoff(s.ops.K, scheme.eta, s.comm), slack=scheme.energy_slack)
         rows.min_eta = float(np.min(scheme.eta[s.interior])) if s.interior.any() else math.inf

@@ -5,8 +5,8 @@ use that are registered elsewhere (models, time schemes) are checked through `na
 
 Modules: `scene` (the `Scene` dataclass: building, derived values, conversions, warnings), `checks` (the
 validation of each value, one-line `SceneError`s), `limits` (the keys and the limits on their values, the
-stored rows' memory), `toml` (scene files in and out), `expressions`, `names`. `data` is the old single-module
-path, kept as a re-export.
+stored rows' memory), `parameters` (a model's constants in the `[parameters]` table), `toml` (scene files in
+and out), `expressions`, `names`.
 """
 
 from ..lazy import lazy_names

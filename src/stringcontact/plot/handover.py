@@ -1,9 +1,9 @@
-"""The payload a run hands its picture process (`painter`): the Result in a private folder, each large array
+"""The payload a run hands its picture process (`picture_process`): the Result in a private folder, each large array
 (an output field's of `Result.fields` too) as NumPy's .npy file that the painter and its helper map into memory,
 the rest pickled.
 
 Files, not a pipe: writing to a pipe whose reader died raises SIGPIPE, which PETSc turns into an abort. A
-module of its own so that `painter`, which the run imports first thing, does not import NumPy (`catalogue`).
+module of its own so that `picture_process`, which the run imports first thing, does not import NumPy (`picture_names`).
 """
 
 from __future__ import annotations

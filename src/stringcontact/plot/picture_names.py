@@ -1,7 +1,7 @@
 """Which pictures a run has: their names and size, and nothing else.
 
 This module imports nothing (no NumPy, no plotting library), so that `stringcontact run` can start its
-picture process (`painter.PictureProcess`) before it imports anything heavy: importing NumPy and the
+picture process (`picture_process.PictureProcess`) before it imports anything heavy: importing NumPy and the
 charts first delayed the start by 0.08 s, and the run's end with it (docs/explanation/performance.md).
 """
 
@@ -14,7 +14,7 @@ PICTURES = CHART_PICTURES + ("space_time.png",)  # of a 1-D run
 MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
 MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
 #: what `stringcontact run` hands to its painter process, of the pictures the run has (`painted`): all of them.
-#: The painter and its helper (`painter.main`) share them out over both cores, and the run, which would draw
+#: The painter and its helper (`picture_process.main`) share them out over both cores, and the run, which would draw
 #: one at a time, imports no plotting library at all (matplotlib alone: 0.2 s on its critical path)
 PAINTED = tuple(dict.fromkeys(PICTURES + MEMBRANE_PICTURES))
 

@@ -1,4 +1,6 @@
-"""VTK's module search with each folder listed once, and the font its text is drawn in (`_font_file`).
+"""VTK's start-up in this process: pyvista imported to draw off-screen (`_pyvista`: EGL where there is no
+display), a plotter on a white background (`_plotter`), VTK's module search with each folder listed once
+(`search_once`), and the font its text is drawn in (`_font_file`).
 
 Every ``import vtkmodules.vtkX`` goes through VTK's own finder (``vtkmodules.VTKMetaHook``), which looks the
 extension module up with ``vtkmodules.find_lib_path``: a ``Path.glob`` of the whole vtkmodules folder (543
@@ -12,7 +14,10 @@ first picture: CPU medians in fresh processes, VTK's search against this one (`b
 from __future__ import annotations
 
 import functools
+import os
 from pathlib import Path
+
+from .charts import without_axes3d_warning
 
 #: VTK's own `find_lib_path`, kept by `search_once` (for the tests, which compare the two)
 VTK_OWN = None
@@ -67,3 +72,33 @@ def _font_file() -> str | None:
         return font_manager.findfont("DejaVu Sans", fallback_to_default=False)
     except ValueError:  # no such font: VTK's own, without Greek letters
         return None
+
+
+#: VTK render windows that draw on an X server: without one, VTK 9 fails to make them and then crashes (SIGSEGV).
+X_WINDOWS = ("vtkXOpenGLRenderWindow",)
+
+
+def _pyvista():
+    if "DISPLAY" not in os.environ:  # EGL needs no display; on a desktop VTK's default window works too
+        window = os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        if window in X_WINDOWS:  # refused before VTK is asked: it would take the process down
+            raise ValueError(f"VTK_DEFAULT_OPENGL_WINDOW={window} needs an X display and DISPLAY is not set; the "
+                               "3-D pictures are left out (unset it, or set it to vtkEGLRenderWindow)")
+    search_once()  # VTK's module search lists its folder once, not twice per module
+    import pyvista as pv
+
+    with without_axes3d_warning():  # pyvista's colour maps import matplotlib's projections
+        import matplotlib.projections  # noqa: F401
+
+    pv.OFF_SCREEN = True
+    return pv
+
+
+def _plotter(window_size, **layout):
+    """An off-screen plotter; `layout`: pyvista's shape, groups, row_weights for several panels."""
+    if layout:
+        layout.setdefault("border", False)
+    p = _pyvista().Plotter(window_size=list(window_size), off_screen=True, **layout)
+    p.disable_anti_aliasing()  # pyvista's 8× MSAA: 0.71 s of llvmpipe's CPU for the surface instead of 0.39 s (bench_pictures.py)
+    p.set_background("white")
+    return p

@@ -6,7 +6,7 @@ before the first picture, importing matplotlib and drawing its first figure 0.3-
 (benchmarks/bench_pictures.py). `stringcontact run --out` starts a `PictureProcess` first thing, before the
 scene (1D or 2D) is known. The process (the *painter*) warms matplotlib up, forks a *helper* that inherits
 that warm matplotlib (no second start-up), then warms pyvista up; both wait for the run's rows. The run then
-hands them every picture it has (`viz.painted`) and imports no plotting library at all: the painter draws
+hands them every picture it has (`picture_names.painted`) and imports no plotting library at all: the painter draws
 the pyvista pictures (only it has pyvista), and both take the matplotlib pictures one at a time, the
 costliest first, so that the two cores finish together. Neither process imports dolfinx.
 """
@@ -28,7 +28,7 @@ import threading
 import time
 from pathlib import Path
 
-from .catalogue import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
+from .picture_names import MESH_PICTURES, PAINTED, WINDOW_SIZE, painted
 
 #: the order in which the processes take the pictures: costliest first (benchmarks/bench_pictures.py), so that
 #: the last picture taken is a short one and both cores finish at about the same time
@@ -40,7 +40,7 @@ class PictureProcess:
     """Some pictures (`names`) drawn in a second Python process and its helper.
 
     `start(names)` launches it; it warms up, then waits. `send(result, folder)` hands it those of `names`
-    that the result has (`viz.painted`), the Result written into a private temporary folder (files, not a
+    that the result has (`picture_names.painted`), the Result written into a private temporary folder (files, not a
     pipe: writing to a pipe whose reader died raises SIGPIPE, which PETSc turns into an abort), and sets
     `names` to them; `wait()` returns True once they are all written, and sets `drawn` to those that were.
     `cancel()` stops both processes. Any failure makes `send`/`wait` return False, and `error` says why if it can.
@@ -65,7 +65,7 @@ class PictureProcess:
         # 0.283 CPU-s (medians of 10)
         env.setdefault("ALLOW_PLOTTING", "true")
         folder = tempfile.mkdtemp(prefix="stringcontact-pictures-")
-        code = "from stringcontact.plot.painter import main; main()"
+        code = "from stringcontact.plot.picture_process import main; main()"
         try:
             proc = subprocess.Popen(
                 [sys.executable, "-c", code, folder, ",".join(names), str(os.getpid())],
@@ -88,7 +88,7 @@ class PictureProcess:
         if not names:  # none of its pictures is a picture of this run
             self.cancel()
             return False
-        from .payload import write_payload  # NumPy: loaded by the run long before it sends
+        from .handover import write_payload  # NumPy: loaded by the run long before it sends
 
         try:
             write_payload(Path(self.folder), result, (str(folder), tuple(window_size), names))
@@ -143,7 +143,7 @@ def _until_closed(pipe, timeout: float) -> None:
 def draw_claimed(result, job: tuple, folder: Path, can_draw) -> list[str]:
     """Draw, costliest first, each picture of `job` that `can_draw` and that no other process took first
     (a claim is a file created with O_EXCL: exactly one process gets it). Returns the names drawn."""
-    from . import viz
+    from . import run_pictures
 
     out, window_size, names = job
     drawn = []
@@ -154,7 +154,7 @@ def draw_claimed(result, job: tuple, folder: Path, can_draw) -> list[str]:
             os.close(os.open(folder / f"{name}.claim", os.O_CREAT | os.O_EXCL | os.O_WRONLY))
         except FileExistsError:
             continue
-        viz.draw(name, result, out, window_size)
+        run_pictures.draw(name, result, out, window_size)
         drawn.append(name)
     return drawn
 
@@ -162,7 +162,7 @@ def draw_claimed(result, job: tuple, folder: Path, can_draw) -> list[str]:
 def _fork_helper(folder: Path) -> tuple[int, int]:
     """Fork the helper: it inherits this process's warm matplotlib, draws matplotlib pictures only, and
     writes the names it drew as one JSON line to the pipe whose read end is returned (with its pid)."""
-    from .payload import await_payload
+    from .handover import await_payload
 
     read, write = os.pipe()
     painter = os.getpid()
@@ -212,7 +212,7 @@ def main() -> None:
     """The body of `PictureProcess`: warm up (for the names it was started with), fork the helper, wait for
     the payload, draw with the helper the names the payload gives, report on stdout."""
     from . import charts, mesh_pictures
-    from .payload import await_payload
+    from .handover import await_payload
 
     # No cyclic collector in these two short-lived processes: importing the libraries sets off 372 collections,
     # drawing more. CPU medians, on against off (benchmarks/bench_pictures.py --gc --repeats 12): the warm-ups

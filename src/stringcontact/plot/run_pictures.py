@@ -11,7 +11,7 @@ output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the ani
 picture, ``NAME.png`` (:func:`stringcontact.plot.fields.field_picture`; ``field_NAME.png`` where ``NAME.png`` is
 one of the pictures above). `pictures_of(result)` says which.
 
-:func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.painter.PictureProcess`,
+:func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.picture_process.PictureProcess`,
 the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
 run. ``stringcontact plot DIR`` redraws them from an output folder alone, from the same stored rows
 (``rows.npz``, :func:`stringcontact.io.readback.read_output`): the same pictures, pixel for pixel.
@@ -20,22 +20,10 @@ run. ``stringcontact plot DIR`` redraws them from an output folder alone, from t
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 from ..io.signals import signals_held
-from .catalogue import (  # noqa: F401 - the names are used as viz.* by the demos and tests
-    CHART_PICTURES,
-    MEMBRANE_PICTURES,
-    MESH_PICTURES,
-    PAINTED,
-    PICTURES,
-    WINDOW_SIZE,
-    field_picture_names,
-    painted,
-    pictures_of,
-)
-from .charts import (  # noqa: F401 - the pictures and readings are used as viz.* by the demos and tests
+from .charts import (  # noqa: F401 - the pictures and readings are used as run_pictures.* by the demos and tests
     CONTACT_COLOUR,
     contact_area_picture,
     contact_components,
@@ -49,6 +37,17 @@ from .charts import (  # noqa: F401 - the pictures and readings are used as viz.
     stored_rows_at,
     velocity_clip,
     velocity_picture,
+)
+from .picture_names import (  # noqa: F401 - the names are used as run_pictures.* by the demos and tests
+    CHART_PICTURES,
+    MEMBRANE_PICTURES,
+    MESH_PICTURES,
+    PAINTED,
+    PICTURES,
+    WINDOW_SIZE,
+    field_picture_names,
+    painted,
+    pictures_of,
 )
 
 # --- all pictures of a run ------------------------------------------------------------------------
@@ -92,7 +91,7 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
     """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`; the function
     `simulate(..., pictures=True)` calls.
 
-    With a started `painter.PictureProcess`, its pictures are drawn there while this process draws the
+    With a started `picture_process.PictureProcess`, its pictures are drawn there while this process draws the
     others (none, for `stringcontact run`'s painter); whatever it fails to draw is then drawn here. The
     painter is stopped however this ends, so nothing writes into `folder` after it returns.
     """
@@ -150,80 +149,3 @@ def _named_fields(folder: Path):
     except (OSError, ValueError, AttributeError):
         fields = None
     return SimpleNamespace(fields=dict.fromkeys(n for n in fields if str(n).isidentifier()) if isinstance(fields, dict) else {})
-
-
-# --- the `plot` subcommand ----------------------------------------------------------------------
-
-
-def add_arguments(parser) -> None:
-    """`stringcontact plot`'s arguments: the folder, --out, --force and --size."""
-    parser.description = (
-        f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}; "
-        "and NAME.png of each output field NAME of the run's model) "
-        "from its saved files alone: the stored rows the run drew them from (rows.npz; of an older folder the "
-        "frames of solution.xdmf/.h5), diagnostics.csv and summary.json: the same pictures as the run's."
-    )
-    parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
-    parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR (a new folder)")
-    parser.add_argument("--force", action="store_true", help="replace an --out folder of earlier pictures")
-    parser.add_argument(
-        "--size",
-        metavar="WxH",
-        default=f"{WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}",
-        help=f"pixel size of the space-time and 3-D pictures (default {WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}; membrane.gif: 0.6 of it)",
-    )
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """'WxH' -> (W, H), each in 200..4000."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 1100x900, got {text!r}") from None
-    if not (200 <= w <= 4000 and 200 <= h <= 4000):
-        raise ValueError(f"--size: width and height must be in 200..4000 pixels, got {text!r}")
-    return w, h
-
-
-def _check_not_the_data(folder: Path, out: Path) -> None:
-    """Refuse an --out that is the folder being plotted or contains it: replacing it would delete the data."""
-    data, target = folder.resolve(), out.resolve()
-    if target.name and (target == data or target in data.parents):  # the root folder: check_target's refusal
-        raise ValueError(f"--out {out}: is the folder being plotted ({folder}) or contains it, whose data replacing it "
-                         "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
-
-
-def _launched_rank() -> int:
-    """This process's rank when a launcher (mpirun) started several; 0 otherwise. Read from the launcher's
-    environment: `plot` needs no MPI, and a picture process must not wait for it."""
-    for name in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"):
-        value = os.environ.get(name, "").strip()
-        if value.isdigit():
-            return int(value)
-    return 0
-
-
-def command(args) -> int:
-    """`stringcontact plot DIR`: every picture of the run in DIR (its output fields' too) drawn again from its
-    files, into DIR or a new --out folder; 0 when done."""
-    from ..io.readback import read_output
-
-    size = parse_size(args.size)
-    if _launched_rank() > 0:  # `mpirun -n 2 stringcontact plot`: one process draws, the others would race it
-        return 0
-    if args.out is None:  # into the run's own folder, each picture replaced whole (atomic_path)
-        for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
-            print(f"wrote {path}")
-        return 0
-    from ..io.publish import check_target, staged_folder
-
-    out = Path(args.out)
-    _check_not_the_data(Path(args.folder), out)
-    check_target(out, args.force, command="plot")  # the rules of `run --out`: not /, not ., never a run's result
-    result = read_output(args.folder)
-    with staged_folder(out, args.force, command="plot") as partial:  # the whole folder or nothing
-        names = [p.name for p in write_pictures(result, partial, window_size=size)]
-        (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
-    for name in names:
-        print(f"wrote {out / name}")
-    return 0

@@ -1,0 +1,98 @@
+"""The command line's parser: `build_parser`, with the arguments of `run`, `list` and `show`, and those of a
+subcommand of `SUBCOMMANDS` (its module's `add_arguments`) only when the command line names it."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..errors import one_line
+from ..timestepping import SCHEMES
+from .process import EXIT_INPUT, EXIT_OK
+
+# Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
+# and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
+SUBCOMMANDS = {
+    "plot": ("stringcontact.cli.plot", "redraw the pictures of an output folder from its saved files"),
+    "study": ("stringcontact.cli.study", "work-precision, convergence and stability studies"),
+    "check": ("stringcontact.cli.check", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
+    "models": ("stringcontact.cli.models", "list the models a scene may name (registered under stringcontact.models)"),
+}
+
+
+class _Version(argparse.Action):
+    """--version: the installed distribution's version, read only when asked (importlib.metadata)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import importlib.metadata
+
+        try:
+            version = importlib.metadata.version("stringcontact")
+        except importlib.metadata.PackageNotFoundError:
+            version = "unknown (not installed: run scripts/setup)"
+        sys.stdout.write(f"stringcontact {version}\n")
+        parser.exit(EXIT_OK)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2, like every other input error; "stringcontact: error:" first
+        root, _, sub = self.prog.partition(" ")  # a subcommand's parser is "stringcontact run"
+        self.exit(EXIT_INPUT, f"{root}: error: {sub + ': ' if sub else ''}{one_line(message)}\n")
+
+
+def build_parser(argv=None) -> argparse.ArgumentParser:
+    """The command line's parser. The subcommands of `SUBCOMMANDS` get their arguments only when `argv` (default:
+    the process's own) names them: their modules import NumPy and more, 0.08 s that `stringcontact run` would
+    spend before it starts its picture process (docs/explanation/performance.md)."""
+    named = set(sys.argv[1:] if argv is None else argv)
+    parser = _Parser(prog="stringcontact", description="Inelastic contact of a viscoelastic string with an obstacle.")
+    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser("run", help="simulate a scene and write XDMF, CSV and JSON")
+    run.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
+    run.add_argument("--nx", type=int, help="number of cells")
+    run.add_argument("--nt", type=int, help="number of time steps")
+    run.add_argument("--eps", type=float, help="penalty parameter ε > 0")
+    run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
+    run.add_argument("--restitution", type=float, metavar="E",
+                     help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
+    # the names only: a description is read from the scheme's class, which would load dolfinx before the run starts
+    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
+                     "stringcontact.SCHEMES describes each")
+    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+    run.add_argument("--mass", choices=("lumped", "consistent"), help="default: lumped")
+    run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
+    run.add_argument("--force", action="store_true", help="replace an output folder holding a stringcontact result (only by a complete run)")
+    run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.add_argument("--model", metavar="NAME",
+                     help="model: a name from `stringcontact models`, or package.module:name of a Model object "
+                          "(default: the scene's, else the paper's)")
+    run.add_argument("--tol", type=float, help="choose the cheapest method and resolution with estimated error below TOL")
+    run.add_argument("--no-pictures", action="store_true", help="write only XDMF, CSV and JSON")
+    run.add_argument("--petsc-option", action="append", default=[], metavar="NAME=VALUE",
+                     help="a PETSc option for the linear solver, e.g. ksp_type=cg or pc_type=hypre (repeatable; over "
+                          "the scene's petsc_options; names ksp_*, pc_*, mat_mumps_*: see docs/explanation/linear_solvers.md)")
+    run.add_argument("--profile", action="store_true",
+                     help="print where the run's time went: start-up, imports, set-up, solve, output, pictures")
+    run.add_argument("--frames", type=int, default=100, metavar="N",
+                     help="XDMF frames: at most N of the ~400 stored rows: 0, T, the output times, then evenly "
+                          "spaced rows (default 100; dolfinx 0.5 writes N frames in time ~N²)")
+
+    sub.add_parser("list", help="list the built-in scenes")
+    show = sub.add_parser("show", help="print a scene as TOML: every key it sets, the scheme and model it runs with")
+    show.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
+    for name, (module, help_text) in SUBCOMMANDS.items():
+        sub_parser = sub.add_parser(name, help=help_text)
+        if name not in named:
+            continue
+        try:
+            importlib.import_module(module).add_arguments(sub_parser)
+        except Exception as exc:  # noqa: BLE001 - one broken subcommand must not take `run` down with it
+            sub_parser.set_defaults(_unavailable=f"{type(exc).__name__}: {one_line(exc)}"[:200])
+            sub_parser.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+    return parser

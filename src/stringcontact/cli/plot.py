@@ -1,0 +1,86 @@
+"""`stringcontact plot DIR`: every picture of a run drawn again from its output folder alone
+(`plot.run_pictures.write_pictures` on `io.readback.read_output`), into DIR or a new `--out` folder."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from ..plot.picture_names import MEMBRANE_PICTURES, PICTURES, WINDOW_SIZE
+from ..plot.run_pictures import write_pictures
+
+
+def add_arguments(parser) -> None:
+    """`stringcontact plot`'s arguments: the folder, --out, --force and --size."""
+    parser.description = (
+        f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}; "
+        "and NAME.png of each output field NAME of the run's model) "
+        "from its saved files alone: the stored rows the run drew them from (rows.npz; of an older folder the "
+        "frames of solution.xdmf/.h5), diagnostics.csv and summary.json: the same pictures as the run's."
+    )
+    parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
+    parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR (a new folder)")
+    parser.add_argument("--force", action="store_true", help="replace an --out folder of earlier pictures")
+    parser.add_argument(
+        "--size",
+        metavar="WxH",
+        default=f"{WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}",
+        help=f"pixel size of the space-time and 3-D pictures (default {WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}; membrane.gif: 0.6 of it)",
+    )
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H), each in 200..4000."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 1100x900, got {text!r}") from None
+    if not (200 <= w <= 4000 and 200 <= h <= 4000):
+        raise ValueError(f"--size: width and height must be in 200..4000 pixels, got {text!r}")
+    return w, h
+
+
+def _check_not_the_data(folder: Path, out: Path) -> None:
+    """Refuse an --out that is the folder being plotted or contains it: replacing it would delete the data."""
+    data, target = folder.resolve(), out.resolve()
+    if target.name and (target == data or target in data.parents):  # the root folder: check_target's refusal
+        raise ValueError(f"--out {out}: is the folder being plotted ({folder}) or contains it, whose data replacing it "
+                         "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
+
+
+def _launched_rank() -> int:
+    """This process's rank when a launcher (mpirun) started several; 0 otherwise. Read from the launcher's
+    environment: `plot` needs no MPI, and a picture process must not wait for it."""
+    for name in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"):
+        value = os.environ.get(name, "").strip()
+        if value.isdigit():
+            return int(value)
+    return 0
+
+
+def command(args) -> int:
+    """`stringcontact plot DIR`: every picture of the run in DIR (its output fields' too) drawn again from its
+    files, into DIR or a new --out folder; 0 when done."""
+    from ..io.readback import read_output
+
+    size = parse_size(args.size)
+    if _launched_rank() > 0:  # `mpirun -n 2 stringcontact plot`: one process draws, the others would race it
+        return 0
+    if args.out is None:  # into the run's own folder, each picture replaced whole (atomic_path)
+        for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
+            print(f"wrote {path}")
+        return 0
+    from ..io.publish import staged_folder
+    from ..io.target import check_target
+
+    out = Path(args.out)
+    _check_not_the_data(Path(args.folder), out)
+    check_target(out, args.force, command="plot")  # the rules of `run --out`: not /, not ., never a run's result
+    result = read_output(args.folder)
+    with staged_folder(out, args.force, command="plot") as partial:  # the whole folder or nothing
+        names = [p.name for p in write_pictures(result, partial, window_size=size)]
+        (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
+    for name in names:
+        print(f"wrote {out / name}")
+    return 0

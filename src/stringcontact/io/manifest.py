@@ -1,0 +1,130 @@
+"""The files a stringcontact command writes: each one whole or not at all (`atomic_path`), and the folder's
+manifest that lists them with their sizes (`read_manifest`, `write_manifest`), which is all that `--force` may
+replace (`foreign_file`, `is_run_result`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import stat
+import tempfile
+from pathlib import Path
+
+from .disk import _umask
+
+#: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
+MANIFEST = "manifest.json"
+
+
+#: The largest manifest read: a folder's few dozen names and sizes take a few kB.
+MAX_MANIFEST_BYTES = 1 << 20
+
+
+def read_manifest(folder: Path) -> dict[str, int] | None:
+    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote.
+
+    Only a regular file of at most MAX_MANIFEST_BYTES counts: it is opened with O_NONBLOCK and O_NOFOLLOW, so a
+    FIFO or a link to /dev/zero planted there is neither waited on nor read without end."""
+    text = small_regular_file(Path(folder) / MANIFEST, MAX_MANIFEST_BYTES)
+    try:
+        data = json.loads(text) if text is not None else None
+    except (ValueError, RecursionError, MemoryError):
+        return None
+    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "stringcontact" else None
+    if not isinstance(files, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in files.values()):
+        return None
+    return files
+
+
+def small_regular_file(path: Path, limit: int) -> bytes | None:
+    """The bytes of `path` if it is a regular file (not a link to one) of at most `limit` bytes, else None.
+
+    Opened with O_NONBLOCK and O_NOFOLLOW: a FIFO is never waited on, a link to a device never followed."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+            return None
+        data = os.read(fd, limit + 1)
+        return data if len(data) <= limit else None
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def write_manifest(folder: Path, files: dict[str, int]) -> None:
+    """Write `folder`'s manifest, whole (`atomic_path`): {name: size} of the files a command wrote there."""
+    with atomic_path(Path(folder) / MANIFEST, record=False) as tmp:
+        tmp.write_text(json.dumps({"written_by": "stringcontact", "files": dict(sorted(files.items()))}, indent=1) + "\n")
+
+
+def foreign_file(folder: Path, depth: int = 3) -> str | None:
+    """Why `--force` may not replace `folder`: the first file in it that its manifest does not list as written,
+    with that size, by a stringcontact command (a file the user added or changed); None if it may.
+
+    A folder inside it that a command published there, whole (``plot RUN --out RUN/pictures``, as
+    ``make docs`` does), counts as written by stringcontact too (`depth` levels down).
+    """
+    files = read_manifest(folder)
+    if files is None:
+        return (f"this folder has no {MANIFEST} of a stringcontact command (results written before "
+                "stringcontact kept one have none: delete such a folder yourself once)")
+    for p in sorted(Path(folder).iterdir()):
+        if p.name == MANIFEST:
+            continue
+        if p.name not in files and depth > 0 and p.is_dir() and not p.is_symlink() and foreign_file(p, depth - 1) is None:
+            continue
+        if p.name not in files or p.is_symlink() or not p.is_file():
+            return f"{p.name} is not a file stringcontact wrote there"
+        if p.stat().st_size != files[p.name]:
+            return f"{p.name} was changed after stringcontact wrote it ({p.stat().st_size} bytes, not {files[p.name]})"
+    return None
+
+
+def _record(path: Path) -> None:
+    """Add `path` (just written whole) to its folder's manifest, if the folder has one: ``plot FOLDER``
+    redraws the pictures of a result, which stays replaceable by `--force`."""
+    files = read_manifest(path.parent)
+    if files is not None and path.name != MANIFEST:
+        write_manifest(path.parent, files | {path.name: path.stat().st_size})
+
+
+def is_run_result(folder: Path) -> bool:
+    """`folder` holds the result of `stringcontact run` (its manifest lists summary.json and solution.xdmf)."""
+    files = read_manifest(folder) or {}
+    return "summary.json" in files and "solution.xdmf" in files
+
+
+
+@contextlib.contextmanager
+def atomic_path(path, record: bool = True):
+    """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
+
+    `tmp` is a hidden sibling ``.NAME.tmp-<random>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
+    the format from it), made by `tempfile.mkstemp` (O_CREAT|O_EXCL|O_NOFOLLOW, an unpredictable name: a
+    symbolic link planted in the folder is never written through); on success it is renamed onto `path`
+    (``os.replace``), on any exception, Ctrl-C included, it is removed and the exception goes on. With
+    `record`, the file is added to the folder's manifest if it has one (a published result: ``plot FOLDER``).
+    """
+    path = Path(path)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
+    tmp = Path(name)
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes it private; a picture is an ordinary file
+    finally:
+        os.close(fd)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+        if record:
+            _record(path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise

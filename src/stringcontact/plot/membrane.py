@@ -1,0 +1,223 @@
+"""A membrane (a 2-D run) drawn in a pyvista plotter, what ``membrane.png`` (`mesh_pictures.membrane_picture`) and
+``membrane.gif`` (`animation`) share: its view (`membrane_view`: height scale, box, camera), the membrane and the
+obstacle at a stored row (`add_membrane`), moved to another row in place (`show_row`), the axes, the labels, the
+title, the colour key, and the edge of the contact set (`add_contact_edge`) where a surface field
+(`fields.FieldScale`) colours the membrane.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .annotations import Axis, add_axis
+from .charts import obstacle_moves, obstacle_name, obstacle_profile, obstacle_range, parameter_line
+from .colours import (
+    CONTACT_COLOUR,
+    CONTACT_EDGE_COLOUR,
+    CONTACT_EDGE_TEXT,
+    FREE_COLOUR,
+    MEMBRANE_OBSTACLE_COLOUR,
+    OBSTACLE_COLOUR,
+)
+from .fields import FieldScale, info_of, surface_field
+from .vtk_start import _pyvista
+
+
+@dataclass
+class MembraneView:
+    """How a membrane is drawn: heights times `scale`, within the box `bounds`, seen from `camera`; the
+    contact indicator coloured through `neighbours` (`shade`)."""
+
+    scale: float
+    bounds: tuple  # (x0, x1, y0, y1, z0, z1), drawn coordinates
+    camera: list
+    neighbours: object = None  # the mean over each node's mesh neighbours, a sparse matrix (`neighbour_mean`)
+    field: FieldScale | None = None  # the model's surface field: the membrane coloured by it on this scale
+    obstacle: object = None  # a moving obstacle's PolyData last drawn by `add_membrane`: `show_row` moves it
+
+    def shade(self, contact: np.ndarray) -> np.ndarray:
+        """What the colour is drawn from: 0.6 × the nodal contact indicator + 0.4 × its mean over the node's
+        neighbours. Its 0.5 iso-line (where the two colours meet, interpolated across the triangles) lies where
+        that of the bare indicator lies on average, without the zigzag of the bare indicator, whose iso-line
+        alternates between a triangle's corner and its edge midpoints (the staircase at the default mesh).
+        A node is red if and only if it is in contact (≥ 0.6 against ≤ 0.4)."""
+        c = np.asarray(contact, dtype=float)
+        return c if self.neighbours is None else 0.6 * c + 0.4 * (self.neighbours @ c)
+
+
+def neighbour_mean(cells: np.ndarray, nodes: int):
+    """The sparse matrix of the mean over each node's neighbours along the mesh's edges."""
+    from scipy.sparse import coo_matrix
+
+    edges = np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]])
+    edges = np.unique(np.sort(edges, axis=1), axis=0)
+    both = np.concatenate([edges, edges[:, ::-1]])
+    adjacency = coo_matrix((np.ones(len(both)), tuple(both.T)), shape=(nodes, nodes)).tocsr()
+    degree = np.maximum(np.asarray(adjacency.sum(axis=1)).ravel(), 1.0)
+    return adjacency.multiply(1.0 / degree[:, None]).tocsr()
+
+
+def membrane_view(result) -> MembraneView:
+    """Heights exaggerated (at least ×1) so that the height range is 0.3 of the domain's width; a camera
+    above the front edge, looking down at 50° or so, that sees every row and the obstacle."""
+    x = result.x
+    psi_lo, psi_hi = obstacle_range(result)  # over all stored times: a moving obstacle stays in the box
+    lo, hi = min(float(result.eta.min()), psi_lo), max(float(result.eta.max()), psi_hi)
+    width = float(max(np.ptp(x[:, 0]), np.ptp(x[:, 1])))
+    scale = max(1.0, 0.3 * width / (hi - lo or 1.0))
+    bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
+    centre = np.array([0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])])
+    eye = centre + width * np.array([-0.4, -1.1, 1.5])
+    field = surface_field(result)
+    return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)),
+                        None if field is None else FieldScale.of(result.fields[field], info_of(result, field)))
+
+
+def _span(v) -> tuple[float, float]:
+    return float(v.min()), float(v.max())
+
+
+def _below(lo: float, hi: float, scale: float) -> float:
+    """How far under ψ the obstacle is drawn: a contact region lies on ψ, which would otherwise hide it."""
+    return 0.01 * (hi - lo or 1.0) * scale
+
+
+def triangles(result, z):
+    """The membrane's triangles as a pyvista PolyData with points (x, y, z)."""
+    pv = _pyvista()
+    faces = np.hstack([np.full((len(result.cells), 1), 3), result.cells]).astype(np.int64).ravel()
+    return pv.PolyData(np.column_stack([result.x, z]).astype(float), faces)
+
+
+def add_membrane(p, result, row: int, view: MembraneView):
+    """The membrane at `row` and the obstacle (grey) in the plotter `p`: coloured by contact, or by the surface
+    field on `view.field`'s scale (then `add_contact_edge` draws its contact set's edge). Returns the
+    membrane's PolyData, whose heights and colours `show_row` changes in place afterwards. A moving obstacle
+    is drawn at the row's time (kept in `view.obstacle` for `show_row`)."""
+    moves = obstacle_moves(result)
+    psi = obstacle_profile(result, float(result.t[row]) if moves else 0.0)
+    lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
+    surface = triangles(result, result.eta[row] * view.scale)
+    surface.point_data["contact"] = view.shade(result.contact[row])
+    # smooth (Gouraud) shading: the flat shading showed every triangle as a facet
+    if view.field is None:
+        p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
+                   show_scalar_bar=False, ambient=0.3, smooth_shading=True)
+    else:
+        _set_field(surface, result, row, view.field)
+        p.add_mesh(surface, scalars=f"{view.field.name}_colour", cmap=view.field.colour_map(), clim=(-1, 1),
+                   show_scalar_bar=False, ambient=0.3, smooth_shading=True)
+    # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
+    # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
+    obstacle = triangles(result, psi * view.scale - _below(lo, hi, view.scale))
+    p.add_mesh(obstacle, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
+    if moves:
+        view.obstacle = obstacle
+    p.camera_position = view.camera
+    p.reset_camera(bounds=view.bounds)
+    p.camera.zoom(1.1)  # reset_camera fits the box's bounding sphere: room to spare
+    return surface
+
+
+def show_row(surface, result, row: int, view: MembraneView) -> None:
+    """The membrane `surface` of `add_membrane` moved to `row` in place: its heights and the arrays it is coloured
+    by, and a moving obstacle's heights."""
+    surface.points[:, 2] = result.eta[row] * view.scale  # in place: the scene stays, the heights change
+    surface.point_data["contact"][:] = view.shade(result.contact[row])
+    if view.field is not None:
+        _set_field(surface, result, row, view.field)
+    surface.Modified()
+    if view.obstacle is not None:  # a moving obstacle: where it is at this row's time
+        lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
+        view.obstacle.points[:, 2] = obstacle_profile(result, float(result.t[row])) * view.scale - _below(lo, hi, view.scale)
+        view.obstacle.Modified()
+
+
+def _set_field(surface, result, row: int, scale: FieldScale) -> None:
+    """NAME: the field `scale.name` at the nodes; NAME_colour: where it lies on `scale` (−1 … 1), the array drawn."""
+    name, colour = scale.name, f"{scale.name}_colour"
+    values = np.array(result.fields[name][row], dtype=float)  # a copy: pyvista shares the array it is given, and
+    if name in surface.point_data:  # the next row written into it would overwrite the Result's row
+        surface.point_data[name][:] = values
+        surface.point_data[colour][:] = scale.unit(values)
+    else:
+        surface.point_data[name] = values
+        surface.point_data[colour] = scale.unit(values)
+
+
+#: the membrane axes' font size (VTK points): digits 12 px high (7 gave 6 px, too small to read)
+TICK_FONT = 16
+
+
+def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT) -> None:
+    """x and y along the front and right edges of the floor under the obstacle, and the height η (in its own
+    units: the ticks undo the drawing's `scale`) up the front left corner."""
+    x0, x1, y0, y1, z0, z1 = view.bounds
+    unit = 0.05 * max(x1 - x0, y1 - y0)
+    add_axis(p, Axis((x0, y0, z0), (x1, y0, z0), x0, x1, (0, -unit, 0), "x"), font_size, most=4)
+    add_axis(p, Axis((x1, y0, z0), (x1, y1, z0), y0, y1, (unit, 0, 0), "y"), font_size, most=4)
+    add_axis(p, Axis((x0, y0, z0), (x0, y0, z1), z0 / view.scale, z1 / view.scale, (-unit, 0, 0), "eta"), font_size, most=3)
+    margin = 5 * unit  # the ticks' labels and the axes' names
+    p.reset_camera(bounds=(x0 - margin, x1 + margin, y0 - margin, y1, z0, z1))
+    p.camera.zoom(1.15)
+
+
+def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
+    """'t = 0.2: contact area 2.17 (69%), 1 patch': the share is of the domain's area (patches left out if None)."""
+    share = 100 * area / float(np.sum(result.weights))
+    text = f"t = {result.t[row]:.3g}: contact area {area:.3g} ({share:.0f}%)"
+    return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
+
+
+def membrane_title(result, view: MembraneView, what: str, sep: str = ", ") -> str:
+    """The title's lines; `sep` joins the two halves of the parameter line (a newline for a narrow picture)."""
+    stretched = f"heights ×{view.scale:.2g}; " if view.scale > 1 else ""
+    psi = obstacle_name(result)
+    colours = (f"red: in contact (η ≤ {psi}), blue: free" if view.field is None else
+               f"colour: {view.field.label} (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
+    return f"{what}: {result.scene.name}\n{parameter_line(result, sep)}\n{stretched}{colours}, grey: the obstacle {psi}"
+
+
+def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
+    """The colour key's quantity and its (label, colour) entries: contact, or the surface field."""
+    psi = obstacle_name(result)
+    if view.field is None:
+        return "colour: contact", [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR),
+                                   (f"obstacle {psi}", OBSTACLE_COLOUR)]
+    return f"colour:\n{view.field.label}", [("edge of contact", CONTACT_EDGE_TEXT), (f"obstacle {psi}", OBSTACLE_COLOUR)]
+
+
+def contact_edge(surface, view: MembraneView, into=None):
+    """The edge of the contact set on the drawn membrane `surface`: the 0.5 iso-line of its "contact" shade
+    (`MembraneView.shade`), lifted by 0.5 % of the drawing's height so that the surface does not hide it;
+    copied into the PolyData `into` if given (a GIF's next frame). Empty when nothing is in contact."""
+    line = surface.contour([0.5], scalars="contact")
+    if line.n_points:
+        line.points[:, 2] += 0.005 * (view.bounds[5] - view.bounds[4])
+    if into is None:
+        return line
+    into.copy_from(line)
+    return into
+
+
+def add_contact_edge(p, surface, view: MembraneView):
+    """The contact set's edge (`contact_edge`) on `surface` as a yellow line; returns its PolyData, which
+    `contact_edge(surface, view, into=...)` updates in place. Drawn through VTK's own mapper: pyvista refuses
+    an empty mesh, the edge of a membrane not in contact."""
+    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+
+    edge = contact_edge(surface, view)
+    mapper = vtkPolyDataMapper()
+    mapper.SetInputData(edge)
+    mapper.ScalarVisibilityOff()
+    actor = vtkActor()
+    actor.SetMapper(mapper)
+    prop = actor.GetProperty()
+    prop.SetColor(*(int(CONTACT_EDGE_COLOUR[i : i + 2], 16) / 255 for i in (1, 3, 5)))
+    prop.SetLineWidth(3.0)
+    prop.LightingOff()
+    p.add_actor(actor, reset_camera=False, pickable=False)
+    return edge
+
