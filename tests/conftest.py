@@ -25,6 +25,37 @@ settings.load_profile("stringcontact")
 #: (`pythonpath` in pyproject's [tool.pytest.ini_options]).
 TESTS = Path(__file__).resolve().parent
 
+
+def pytest_configure(config):
+    """In a pytest-xdist worker (`make test` runs one per core): a longer wait for a form another worker compiles.
+
+    ffcx's JIT cache is shared by the processes of a machine: the first to need a form creates its C file
+    (exclusively) and compiles it; another that needs the same form polls for the finished module once a second,
+    `timeout` times, and then raises TimeoutError (dolfinx's default: 10). On a cold cache two workers often need
+    the same form at once, and on a busy machine a compile can take longer than 10 s."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        try:
+            import dolfinx.jit
+        except ImportError:
+            return
+        for name in ("DOLFINX_DEFAULT_JIT_PARAMETERS", "DOLFINX_DEFAULT_JIT_OPTIONS"):  # 0.5; 0.7 and later
+            defaults = getattr(dolfinx.jit, name, None)
+            if defaults is not None and "timeout" in defaults:
+                defaults["timeout"] = (JIT_WAIT, defaults["timeout"][1])
+
+
+#: seconds a pytest-xdist worker waits for a form that another process is compiling
+JIT_WAIT = 300
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test under `mpirun` (`mpi`) starts two Python processes that each import dolfinx and run: it is `slow` too,
+    so that `make test-fast` (``-m "not slow"``) leaves it out."""
+    for item in items:
+        if item.get_closest_marker("mpi") is not None and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.slow)
+
+
 # If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
 _MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
 
@@ -109,7 +140,8 @@ def tmpfs(tmp_path):
         folder.mkdir()
         if shutil.which("mount") is None or os.geteuid() != 0:
             pytest.skip("mounting a tmpfs needs root and the mount command")
-        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True, text=True)
+        mount_argv = ["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)]
+        proc = subprocess.run(mount_argv, capture_output=True, text=True, check=False)
         if proc.returncode != 0:
             pytest.skip(f"cannot mount a tmpfs here ({proc.stderr.strip()}); needs CAP_SYS_ADMIN")
         mounted.append(folder)
