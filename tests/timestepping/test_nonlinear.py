@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import ufl
+from conftest import run_setting
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -21,7 +22,6 @@ import stringcontact as sc
 from stringcontact.fem.compat import trapezoid
 from stringcontact.model import nonlinear as variants
 from stringcontact.model import paper
-from stringcontact.run import setup
 from stringcontact.timestepping import scheme_class
 
 K3 = 10.0
@@ -81,9 +81,7 @@ def test_the_cubic_variant_runs_with_every_scheme(ex1):
 
 
 def _setting(scene, model, scheme, penalty=None):
-    _name, _Scheme, penalty, mass, model = setup._choose_scheme(scene, scheme, penalty, None, model)
-    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-    return setup._setting(scene, model, V, params, ops, penalty, mass, MPI.COMM_SELF)
+    return run_setting(scene, scheme, penalty, model=model)[0]
 
 
 class Manufactured:
