@@ -49,9 +49,12 @@ JIT_WAIT = 300
 
 
 def pytest_collection_modifyitems(config, items):
-    """A test under `mpirun` (`mpi`) starts two Python processes that each import dolfinx and run: it is `slow` too,
-    so that `make test-fast` (``-m "not slow"``) leaves it out."""
+    """A test that calls `mpirun` is an `mpi` test, marked or not; an `mpi` test starts two Python processes that
+    each import dolfinx and run, so it is `slow` too and `make test-fast` (``-m "not slow"``) leaves it out."""
     for item in items:
+        code = getattr(getattr(item, "function", None), "__code__", None)
+        if code is not None and "mpirun" in code.co_names and item.get_closest_marker("mpi") is None:
+            item.add_marker(pytest.mark.mpi)
         if item.get_closest_marker("mpi") is not None and item.get_closest_marker("slow") is None:
             item.add_marker(pytest.mark.slow)
 
