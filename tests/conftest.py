@@ -57,6 +57,10 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.mpi)
         if item.get_closest_marker("mpi") is not None and item.get_closest_marker("slow") is None:
             item.add_marker(pytest.mark.slow)
+    # The files with slow tests first, each file's tests in their order: pytest-xdist (`--dist loadfile`) hands the
+    # files out in this order, so the long ones start first and no worker is left alone with one at the end.
+    slow_files = {item.path for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.path not in slow_files)
 
 
 # If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
