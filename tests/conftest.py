@@ -50,11 +50,15 @@ JIT_WAIT = 300
 
 def pytest_collection_modifyitems(config, items):
     """A test that calls `mpirun` is an `mpi` test, marked or not; an `mpi` test starts two Python processes that
-    each import dolfinx and run, so it is `slow` too and `make test-fast` (``-m "not slow"``) leaves it out."""
+    each import dolfinx and run, and a test that calls `pvpython` (tests/system/test_paraview.py) starts ParaView
+    under xvfb-run: both are `slow` too, and `make test-fast` (``-m "not slow"``) leaves them out."""
     for item in items:
         code = getattr(getattr(item, "function", None), "__code__", None)
-        if code is not None and "mpirun" in code.co_names and item.get_closest_marker("mpi") is None:
+        calls = set(code.co_names) if code is not None else set()
+        if "mpirun" in calls and item.get_closest_marker("mpi") is None:
             item.add_marker(pytest.mark.mpi)
+        if "pvpython" in calls and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.slow)
         if item.get_closest_marker("mpi") is not None and item.get_closest_marker("slow") is None:
             item.add_marker(pytest.mark.slow)
     # The files with slow tests first, each file's tests in their order: pytest-xdist (`--dist loadfile`) hands the
