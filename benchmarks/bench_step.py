@@ -161,14 +161,12 @@ def law_timing(repeats: int) -> None:
     from mpi4py import MPI
 
     import stringcontact as sc
-    from stringcontact.run import setup
+    from stringcontact.run.stepper import Stepper
 
     scene = sc.load_scene("example1")
     res = sc.simulate(scene, comm=MPI.COMM_SELF)
-    model = setup._resolve_model(None, scene)
-    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-    s = setup._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
-    law = s.laws.compile(model.penalty(s.laws.eta, s.laws.quotient, params))
+    s = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).setting  # what the paper scheme is given
+    law = s.laws.compile(s.laws.model.penalty(s.laws.eta, s.laws.quotient, s.laws.params))
     full, sub = [], []
     for row in range(1, len(res.t)):
         s.laws.set(eta=res.eta[row].copy(), eta_old=res.eta[row] - scene.dt * res.velocity[row])
@@ -236,13 +234,14 @@ def loop_timing(src: str, runs: int) -> None:
     from mpi4py import MPI
 
     import stringcontact as sc
-    from stringcontact.run import setup
+    from stringcontact.run.stepper import Stepper
     from stringcontact.timestepping import paper
 
     scene = sc.load_scene("example1")
-    model = setup._resolve_model(None, scene)
-    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-    s = setup._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
+    s = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).setting  # what the paper scheme is given
+    eta0 = np.asarray(scene.initial_displacement(s.x), dtype=float).copy()
+    eta0[s.bc] = s.g  # the start the driver gives a scheme: the ends at their heights, at rest
+    v0 = np.asarray(scene.initial_velocity(s.x), dtype=float) * s.interior
     schemes = {"this checkout": paper, src: _module_of(src, "stringcontact.timestepping.paper")}
     steps = {k: [] for k in schemes}
     march = []
@@ -250,7 +249,7 @@ def loop_timing(src: str, runs: int) -> None:
     for r in range(runs):
         for label in list(schemes) if r % 2 == 0 else list(schemes)[::-1]:
             scheme = schemes[label].Scheme(s)
-            scheme.start(*setup._initial_state(scene, s))
+            scheme.start(eta0, v0)
             t0 = time.thread_time()
             for _ in range(scene.nt):
                 scheme.step()
