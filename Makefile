@@ -18,11 +18,15 @@ test test-fast: export STRINGCONTACT_REQUIRE_PARAVIEW = 1
 demo: setup
 	$(VENV)/bin/stringcontact run example1 --out out/example1 --force
 
+# one pytest worker per core (pytest-xdist); --dist loadfile keeps a file's tests in one worker, so that the runs its
+# tests share (module and session fixtures) are computed once, not once per worker. DEVELOPERS.md has the times.
+PYTEST_WORKERS ?= auto
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile
 
+# the inner loop: everything but the tests marked slow (whole runs in subprocesses, mpirun, the paper's resolution)
 test-fast: setup
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile -m "not slow"
 
 # the site, docs/_build/html: warnings are errors (-W), every internal link must resolve (-n), docstrings read
 # afresh (-E: autodoc does not notice a changed module); the demos run again only when they or src/ changed

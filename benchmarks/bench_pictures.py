@@ -21,6 +21,10 @@ the warm-ups (charts and pyvista) in `--repeats` fresh processes each way, alter
 five pictures drawn `--repeats` times each way in one warm process (the collector on: Python's default),
 with the growth of the resident memory.
 
+With `--panels N ...`, only `snapshots.png` of Example 1 at nx = 200 with N evenly spaced output times (default
+12, 100, 1000: the most a scene may give): the picture draws at most `charts.MAX_PANELS` of them, so its time does
+not grow with N.
+
 With `--vtk-search`, only pyvista's import and warm-up picture, after matplotlib's warm-up as in the painter,
 in `--repeats` fresh processes each way, alternating: VTK's own module search (a glob of its folder per module
 and extension) and `vtk_modules.search_once` (each folder listed once); CPU medians and minima.
@@ -70,7 +74,9 @@ def painted(res, out: Path, settle: float) -> tuple[float, float]:
     w0 = time.perf_counter()
     assert process.send(res, out) and process.wait(), process.error
     wall = time.perf_counter() - w0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)  # the painter, reaped by cancel(), and its helper, reaped by it
+    after = resource.getrusage(
+        resource.RUSAGE_CHILDREN
+    )  # the painter, reaped by cancel(), and its helper, reaped by it
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) - warm
     return cpu, wall
 
@@ -92,8 +98,14 @@ def title_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
             mesh_pictures._title = title
             times.append(timed(lambda: mesh_pictures.space_time_picture(res, out / "space_time.png")))
     mesh_pictures._title = ours
-    return [(f"space_time.png, title by {name}", statistics.median(r[0] for r in times),
-             statistics.median(r[1] for r in times)) for name, times in runs.items()]
+    return [
+        (
+            f"space_time.png, title by {name}",
+            statistics.median(r[0] for r in times),
+            statistics.median(r[1] for r in times),
+        )
+        for name, times in runs.items()
+    ]
 
 
 WARM_UP = """
@@ -167,9 +179,39 @@ def gc_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
             runs.append((time.process_time() - c0, _rss_mb() - before))
             gc.enable()
             gc.collect()
-    rows = [(f"warm-ups, collector {mode} (fresh processes)", statistics.median(t), float("nan")) for mode, t in warm.items()]
-    return rows + [(f"the five pictures, collector {mode} (one process)",
-                    statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)) for mode, runs in draw.items()]
+    rows = [
+        (f"warm-ups, collector {mode} (fresh processes)", statistics.median(t), float("nan"))
+        for mode, t in warm.items()
+    ]
+    return rows + [
+        (
+            f"the five pictures, collector {mode} (one process)",
+            statistics.median(r[0] for r in runs),
+            statistics.median(r[1] for r in runs),
+        )
+        for mode, runs in draw.items()
+    ]
+
+
+def panel_costs(counts) -> int:
+    """`snapshots.png` of Example 1 at nx = 200 with each count of evenly spaced output times: its panels and
+    wall time."""
+    import numpy as np
+
+    import stringcontact as sc
+    from stringcontact.plot import charts
+
+    scene = sc.load_scene("example1")
+    for n in counts:
+        times = np.round(np.linspace(0.0, scene.T, n), 12).tolist()
+        res = sc.simulate(scene.replace(nx=200, output_times=times), progress=False)
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            charts.snapshots_picture(res, Path(tmp) / "snapshots.png")
+            took = time.perf_counter() - t0
+        panels = len(charts.snapshot_rows(res))
+        print(f"{n} output times ({len(res.t)} stored rows): snapshots.png {panels} panels in {took:.2f} s")
+    return 0
 
 
 def main(argv=None) -> int:
@@ -179,7 +221,16 @@ def main(argv=None) -> int:
     ap.add_argument("--title", action="store_true", help="only the space-time picture's title, two ways")
     ap.add_argument("--gc", action="store_true", help="only the warm-ups and the pictures, collector on and off")
     ap.add_argument("--vtk-search", action="store_true", help="only pyvista's warm-up, VTK's module search two ways")
+    ap.add_argument(
+        "--panels",
+        type=int,
+        nargs="*",
+        metavar="N",
+        help="only snapshots.png with N output times (default 12 100 1000)",
+    )
     args = ap.parse_args(argv)
+    if args.panels is not None:
+        return panel_costs(args.panels or [12, 100, 1000])
     if args.vtk_search:
         return _table(None, vtk_search_costs(args.repeats), args.repeats, third="min [s]")
     import stringcontact as sc
@@ -193,8 +244,10 @@ def main(argv=None) -> int:
         return _table(res, title_costs(res, out, args.repeats), args.repeats)
     if args.gc:
         return _table(res, gc_costs(res, out, args.repeats), args.repeats, third="RSS growth [MB]")
-    rows = [("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
-            ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up))]
+    rows = [
+        ("import matplotlib.pyplot + warm-up", *timed(charts.warm_up)),
+        ("import pyvista + warm-up (EGL, shaders)", *timed(mesh_pictures.warm_up)),
+    ]
     for name in viz.PICTURES:
         runs = [timed(lambda name=name: viz.draw(name, res, out)) for _ in range(args.repeats)]
         rows.append((name, statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)))
@@ -207,10 +260,17 @@ def main(argv=None) -> int:
 
     mesh_pictures._plotter = with_msaa
     runs = [timed(lambda: viz.draw("space_time.png", res, out)) for _ in range(args.repeats)]
-    rows.append(("space_time.png with 8x MSAA", statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)))
+    rows.append(
+        ("space_time.png with 8x MSAA", statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs))
+    )
     runs = [painted(res, out, args.settle) for _ in range(args.repeats)]
-    rows.append(("all pictures: painter + helper, send to reply", statistics.median(r[0] for r in runs),
-                 statistics.median(r[1] for r in runs)))
+    rows.append(
+        (
+            "all pictures: painter + helper, send to reply",
+            statistics.median(r[0] for r in runs),
+            statistics.median(r[1] for r in runs),
+        )
+    )
     return _table(res, rows, args.repeats)
 
 

@@ -1,7 +1,7 @@
 """Speed and memory of `stringcontact.simulate` against a hand-written NumPy/SciPy peer.
 
-The peer is the paper's Section 6 scheme as a researcher would write it for Example 1: the
-finite-difference form of the lumped scheme, a tridiagonal matrix factorised once with
+The peer (`stringcontact.verification.peers.paper_peer`) is the paper's Section 6 scheme as a researcher would
+write it for Example 1: the finite-difference form of the lumped scheme, a tridiagonal matrix factorised once with
 `scipy.sparse.linalg.splu`, a vectorised right-hand side, the explicit velocity penalty, and the
 same stored rows as `simulate`. It computes no energies; `simulate` computes the full discrete
 energy balance and the energy guard at every step.
@@ -28,50 +28,8 @@ import sys
 import time
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
-
-def numpy_peer(scene, stored_steps):
-    """Section 6, explicit penalty, lumped mass = finite differences; stores η, v at `stored_steps`."""
-    N, nt, dt = scene.nx, scene.nt, scene.dt
-    dx = scene.length / N
-    x = np.linspace(0.0, scene.length, N + 1)
-    r = step_conditioning(scene)
-    lu = splu(sp.diags([-r, 1 + 2 * r, -r], [-1, 0, 1], shape=(N - 1, N - 1), format="csc"))
-    eta = np.asarray(scene.initial_displacement(x), dtype=float).copy()
-    eta[0], eta[-1] = scene.h_left, scene.h_right
-    v0 = np.asarray(scene.initial_velocity(x), dtype=float).copy()
-    v0[[0, -1]] = 0.0
-    eta_old = eta - dt * v0
-    rows_eta = np.empty((len(stored_steps), N + 1))
-    rows_v = np.empty((len(stored_steps), N + 1))
-    row = 0
-    if stored_steps[0] == 0:
-        rows_eta[0], rows_v[0] = eta, v0
-        row = 1
-    a_dt, inv_eps, dt2 = scene.alpha * dt / dx**2, 1.0 / scene.eps, dt**2
-    for n in range(nt):
-        e = eta[1:-1]
-        v = (e - eta_old[1:-1]) / dt
-        rhs = 2 * e - eta_old[1:-1] - a_dt * (eta[2:] - 2 * e + eta[:-2])
-        rhs += dt2 * inv_eps * np.where(e < 0, np.maximum(-v, 0.0), 0.0)
-        rhs[0] += r * scene.h_left
-        rhs[-1] += r * scene.h_right
-        eta_new = np.empty_like(eta)
-        eta_new[0], eta_new[-1] = scene.h_left, scene.h_right
-        eta_new[1:-1] = lu.solve(rhs)
-        eta_old, eta = eta, eta_new
-        if row < len(stored_steps) and stored_steps[row] == n + 1:
-            rows_eta[row] = eta
-            rows_v[row] = (eta - eta_old) / dt
-            row += 1
-    return rows_eta, rows_v
-
-
-def step_conditioning(scene) -> float:
-    """r = (αΔt + Δt²)/Δx²: the step matrix's condition number is about 1 + 4r, so r ∝ N² at fixed Δt."""
-    return (scene.alpha * scene.dt + scene.dt**2) / (scene.length / scene.nx) ** 2
+from stringcontact.verification.peers import paper_peer, step_conditioning
 
 
 def tolerance(scene) -> float:
@@ -95,8 +53,16 @@ def round_off_floor(scene, peer_final) -> float:
 
     x = np.linspace(0.0, scene.length, scene.nx + 1)
     _, ref, _ = reference.fd_solve(
-        scene.initial_displacement(x), scene.initial_velocity(x), length=scene.length, T=scene.T, nt=scene.nt,
-        alpha=scene.alpha, eps=scene.eps, h_left=scene.h_left, h_right=scene.h_right, store_every=scene.nt,
+        scene.initial_displacement(x),
+        scene.initial_velocity(x),
+        length=scene.length,
+        T=scene.T,
+        nt=scene.nt,
+        alpha=scene.alpha,
+        eps=scene.eps,
+        h_left=scene.h_left,
+        h_right=scene.h_right,
+        store_every=scene.nt,
     )
     return float(np.max(np.abs(ref[-1] - peer_final)))
 
@@ -113,7 +79,7 @@ def compare(N: int, nt: int, repeats: int) -> dict:
 
     scene = _scene(N, nt)
     res = sc.simulate(scene)
-    peer_eta, _ = numpy_peer(scene, res.steps)
+    peer_eta, _ = paper_peer(scene, res.steps)
     diff = float(np.max(np.abs(res.eta - peer_eta)))
     floor = round_off_floor(scene, peer_eta[-1])
     tol = tolerance(scene)
@@ -126,7 +92,7 @@ def compare(N: int, nt: int, repeats: int) -> dict:
         t_sc.append(time.perf_counter() - t0)
         t_loop.append(r.timings["solve"])
         t0 = time.perf_counter()
-        numpy_peer(scene, r.steps)
+        paper_peer(scene, r.steps)
         t_peer.append(time.perf_counter() - t0)
     med = statistics.median
     return {
@@ -149,9 +115,9 @@ def semi_vs_explicit(N: int, nt: int, repeats: int) -> dict:
     times = {"explicit": [], "semi-implicit": []}
     refac = 0
     for _ in range(repeats):
-        for penalty in times:
+        for penalty, spent in times.items():
             r = sc.simulate(scene, penalty=penalty)
-            times[penalty].append(r.timings["solve"])
+            spent.append(r.timings["solve"])
             refac = r.counters.get("refactorisations", refac)
     med = {k: statistics.median(v) for k, v in times.items()}
     return {"N": N, "steps": nt, **med, "refactorisations": refac}
@@ -180,7 +146,9 @@ def child(spec: dict) -> dict:
 
 
 def run_child(spec: dict) -> dict:
-    proc = subprocess.run([sys.executable, __file__, "--child", json.dumps(spec)], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, __file__, "--child", json.dumps(spec)], capture_output=True, text=True, check=False
+    )
     if proc.returncode != 0:
         raise SystemExit(proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else f"child failed: {spec}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -198,16 +166,23 @@ def main(argv=None) -> int:
 
     Ns = (1000, 5000) if args.quick else (1000, 5000, 20000, 80000)
     nt = 1500
-    print("Example 1 (explicit penalty, lumped mass), dt = 2e-4, 1500 steps; medians of "
-          f"{args.repeats} alternating runs; agreement with the peer checked first\n")
-    print("| N | steps | stringcontact [s] | NumPy peer [s] | ratio | µs/step (loop) | µs/step/1000 nodes | peak RSS [MB] | max |Δη| vs peer | tolerance | round-off floor |")
+    print(
+        "Example 1 (explicit penalty, lumped mass), dt = 2e-4, 1500 steps; medians of "
+        f"{args.repeats} alternating runs; agreement with the peer checked first\n"
+    )
+    print(
+        "| N | steps | stringcontact [s] | NumPy peer [s] | ratio | µs/step (loop) | µs/step/1000 nodes | peak RSS [MB] | max |Δη| vs peer | tolerance | round-off floor |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for N in Ns:
         reps = args.repeats if N <= 20000 else max(3, args.repeats // 2)
         o = run_child({"kind": "compare", "N": N, "nt": nt, "repeats": reps})
         us = o["loop"] / nt * 1e6
-        print(f"| {N} | {nt} | {o['simulate']:.3f} | {o['peer']:.3f} | {statistics.median(o['ratios']):.2f} | "
-              f"{us:.0f} | {us / (N / 1000):.1f} | {o['peak_rss_mb']:.0f} | {o['diff']:.1e} | {o['tol']:.0e} | {o['floor']:.1e} |", flush=True)
+        print(
+            f"| {N} | {nt} | {o['simulate']:.3f} | {o['peer']:.3f} | {statistics.median(o['ratios']):.2f} | "
+            f"{us:.0f} | {us / (N / 1000):.1f} | {o['peak_rss_mb']:.0f} | {o['diff']:.1e} | {o['tol']:.0e} | {o['floor']:.1e} |",
+            flush=True,
+        )
 
     print("\nPeak memory of Example 1 (N = 5000, Δt = 2e-4) as the number of steps grows (storage is thinned):\n")
     print("| steps | stored rows | time [s] | peak RSS [MB] |")
@@ -220,7 +195,9 @@ def main(argv=None) -> int:
     print("\nSemi-implicit against explicit penalty, Example 1, N = 5000, 1500 steps (time loop only):\n")
     print("| explicit [s] | semi-implicit [s] | ratio | refactorisations |")
     print("|---:|---:|---:|---:|")
-    print(f"| {o['explicit']:.3f} | {o['semi-implicit']:.3f} | {o['semi-implicit'] / o['explicit']:.2f} | {o['refactorisations']} |")
+    print(
+        f"| {o['explicit']:.3f} | {o['semi-implicit']:.3f} | {o['semi-implicit'] / o['explicit']:.2f} | {o['refactorisations']} |"
+    )
     return 0
 
 

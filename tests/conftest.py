@@ -1,5 +1,5 @@
 """Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
-`plot_refusal` for damaged folders, `meshio_read` for the XDMF files;
+`plot_refusal` for damaged folders, `meshio_read` for the XDMF files, `run_setting` for a scheme driven directly;
 the hypothesis profile of every property test."""
 
 from __future__ import annotations
@@ -24,6 +24,48 @@ settings.load_profile("stringcontact")
 #: command line, MPI, ParaView, the container, the demos and the repository as a whole) and import it as `conftest`
 #: (`pythonpath` in pyproject's [tool.pytest.ini_options]).
 TESTS = Path(__file__).resolve().parent
+
+
+def pytest_configure(config):
+    """In a pytest-xdist worker (`make test` runs one per core): a longer wait for a form another worker compiles.
+
+    ffcx's JIT cache is shared by the processes of a machine: the first to need a form creates its C file
+    (exclusively) and compiles it; another that needs the same form polls for the finished module once a second,
+    `timeout` times, and then raises TimeoutError (dolfinx's default: 10). On a cold cache two workers often need
+    the same form at once, and on a busy machine a compile can take longer than 10 s."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        try:
+            import dolfinx.jit
+        except ImportError:
+            return
+        for name in ("DOLFINX_DEFAULT_JIT_PARAMETERS", "DOLFINX_DEFAULT_JIT_OPTIONS"):  # 0.5; 0.7 and later
+            defaults = getattr(dolfinx.jit, name, None)
+            if defaults is not None and "timeout" in defaults:
+                defaults["timeout"] = (JIT_WAIT, defaults["timeout"][1])
+
+
+#: seconds a pytest-xdist worker waits for a form that another process is compiling
+JIT_WAIT = 300
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test that calls `mpirun` is an `mpi` test, marked or not; an `mpi` test starts two Python processes that
+    each import dolfinx and run, and a test that calls `pvpython` (tests/system/test_paraview.py) starts ParaView
+    under xvfb-run: both are `slow` too, and `make test-fast` (``-m "not slow"``) leaves them out."""
+    for item in items:
+        code = getattr(getattr(item, "function", None), "__code__", None)
+        calls = set(code.co_names) if code is not None else set()
+        if "mpirun" in calls and item.get_closest_marker("mpi") is None:
+            item.add_marker(pytest.mark.mpi)
+        if "pvpython" in calls and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.slow)
+        if item.get_closest_marker("mpi") is not None and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.slow)
+    # The files with slow tests first, each file's tests in their order: pytest-xdist (`--dist loadfile`) hands the
+    # files out in this order, so the long ones start first and no worker is left alone with one at the end.
+    slow_files = {item.path for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.path not in slow_files)
+
 
 # If pytest itself runs inside an MPI job, that job's wiring must not reach the new one.
 _MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_orte", "OMPI_MCA_pmix", "PRTE_")
@@ -109,7 +151,8 @@ def tmpfs(tmp_path):
         folder.mkdir()
         if shutil.which("mount") is None or os.geteuid() != 0:
             pytest.skip("mounting a tmpfs needs root and the mount command")
-        proc = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True, text=True)
+        mount_argv = ["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)]
+        proc = subprocess.run(mount_argv, capture_output=True, text=True, check=False)
         if proc.returncode != 0:
             pytest.skip(f"cannot mount a tmpfs here ({proc.stderr.strip()}); needs CAP_SYS_ADMIN")
         mounted.append(folder)
@@ -130,6 +173,20 @@ def piston_folder(tmp_path_factory):
     scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
     res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
     return out, res
+
+
+def run_setting(scene, scheme=None, penalty=None, mass=None, model=None):
+    """(the `Setting` a serial run of `scene` hands its scheme, η⁰, v⁰): a `Stepper`'s setting, for a test that
+    drives a scheme object itself; η⁰ with the ends at their heights, v⁰ at rest at the ends, in its dof order."""
+    import numpy as np
+    from mpi4py import MPI
+
+    from stringcontact.run.stepper import Stepper
+
+    s = Stepper(scene, scheme, penalty, mass, model=model, comm=MPI.COMM_SELF).setting
+    eta0 = np.asarray(scene.initial_displacement(s.x), dtype=float).copy()
+    eta0[s.bc] = s.g
+    return s, eta0, np.asarray(scene.initial_velocity(s.x), dtype=float) * s.interior
 
 
 def grid_mesh(n: int):

@@ -125,16 +125,12 @@ def test_contact_area_is_the_lumped_area_of_the_contact_nodes():
 def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     import scipy.sparse as sp
     import scipy.sparse.linalg as sla
-    from mpi4py import MPI
+    from conftest import run_setting
 
-    from stringcontact.model.registry import load_model
-    from stringcontact.run import setup as solver
     from stringcontact.timestepping import projection
 
-    scene = small_drum(mesh_size=0.15)
-    model = load_model(scene.model)
-    V, params, ops = solver.discretise(scene, model, MPI.COMM_SELF)
-    s = solver._setting(scene, model, V, params, ops, None, "lumped", MPI.COMM_SELF)
+    s, _, _ = run_setting(small_drum(mesh_size=0.15), "projection", mass="lumped")
+    ops = s.ops
     ia, ja, a = ops.K.getValuesCSR()
     inner = np.flatnonzero(s.interior)
     K = sp.csr_matrix((a, ja, ia))[inner][:, inner]

@@ -2,14 +2,9 @@
 
 import numpy as np
 import pytest
-import ufl
-from dolfinx import fem, mesh
-from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact.fem import compat, nodal
-from stringcontact.fem.operators import ModelError
-from stringcontact.model.paper import Model, Parameters
+from stringcontact.fem import compat
 from stringcontact.verification import exact, reference
 
 
@@ -38,7 +33,7 @@ def fd_reference(scene, penalty="explicit"):
 @pytest.mark.parametrize("penalty", ["explicit", "semi-implicit"])
 def test_lumped_fem_is_the_papers_finite_difference_scheme(ex1_small, penalty):
     res = sc.simulate(ex1_small, penalty=penalty)
-    t, eta, vel = fd_reference(ex1_small, penalty)
+    _, eta, vel = fd_reference(ex1_small, penalty)
     assert res.min_eta < 0  # contact happened, so the penalty is part of the comparison
     assert np.max(np.abs(res.eta - eta[res.steps])) <= 1e-10
     assert np.max(np.abs(res.velocity - vel[res.steps])) <= 1e-10 / ex1_small.dt
@@ -121,30 +116,3 @@ def test_consistent_mass_runs_and_agrees_with_lumped_to_discretisation_error(ex1
     assert np.max(np.abs(b.balance_residual)) <= 1e-9 * b.total_energy[0]
     diff = np.max(np.abs(a.eta - b.eta))
     assert 0 < diff < 0.2
-
-
-def test_nodal_evaluation_matches_dolfinx_interpolation():
-    msh = mesh.create_interval(MPI.COMM_WORLD, 40, [0.0, 1.0])
-    V = compat.function_space(msh)
-    eta, eta_old = fem.Function(V), fem.Function(V)
-    eta.interpolate(lambda x: np.sin(7 * x[0]) - 0.3)
-    eta_old.interpolate(lambda x: np.sin(7 * x[0]) - 0.3 + 0.01 * np.cos(3 * x[0]))
-    p = Parameters(alpha=fem.Constant(msh, 0.01), eps=fem.Constant(msh, 5e-4), x=ufl.SpatialCoordinate(msh), length=1.0)
-    dt = fem.Constant(msh, 2e-4)
-    expr = sc.inelastic.penalty(eta, (eta - eta_old) / dt, p) + ufl.exp(p.x[0]) * abs(eta)
-    ref = fem.Function(V)
-    ref.interpolate(fem.Expression(expr, compat.interpolation_points(V)))
-    x = V.tabulate_dof_coordinates()[:, 0]
-    got = nodal.evaluate(expr, {eta: eta.x.array, eta_old: eta_old.x.array}, x)
-    assert np.max(np.abs(ref.x.array)) > 1  # the penalty is active somewhere
-    assert np.allclose(got, ref.x.array, rtol=1e-12, atol=1e-9)
-
-
-def test_a_momentum_form_nonlinear_in_eta_tt_is_refused(ex1_small):
-    """Nonlinear in η and η_t is solved by Newton (tests/timestepping/test_nonlinear.py); a mass that depends on the
-    state is not (the schemes lump M = ∂R/∂η_tt)."""
-    def momentum_form(eta, eta_t, eta_tt, force, w, p):
-        return ((1 + eta**2) * eta_tt * w + ufl.inner(ufl.grad(eta), ufl.grad(w)) - force * w) * ufl.dx
-
-    with pytest.raises(ModelError, match="affine in eta_tt"):
-        sc.simulate(ex1_small, model=Model(name="cubic", momentum_form=momentum_form))

@@ -36,6 +36,7 @@ def test_there_are_demos():
     assert {"demo_example1.py", "demo_example2.py"} <= names
 
 
+@pytest.mark.slow  # each demo is a script of several whole runs with pictures, in its own process
 @pytest.mark.parametrize("demo", DEMOS, ids=[d.stem for d in DEMOS])
 def test_demo_runs(demo, tmp_path):
     out = tmp_path / "out"

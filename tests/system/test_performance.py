@@ -15,7 +15,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import stringcontact as sc
-from stringcontact.fem import compat, nodal
+from stringcontact.fem import compat
 from stringcontact.model.paper import Model, Parameters
 
 
@@ -135,14 +135,3 @@ def test_storage_does_not_grow_with_the_number_of_steps(small):
     b = sc.simulate(small.replace(nt=1000, T=0.4), max_rows=20)
     assert len(b.t) <= 21 and len(a.t) <= 21
     assert b.eta.shape == a.eta.shape
-
-
-def test_nodal_subtraction_is_bit_identical_to_ufl_sum():
-    msh = mesh.create_interval(MPI.COMM_WORLD, 30, [0.0, 1.0])
-    V = compat.function_space(msh)
-    f, g = fem.Function(V), fem.Function(V)
-    rng = np.random.default_rng(1)
-    fa, ga = rng.standard_normal(31), rng.standard_normal(31)
-    x = np.linspace(0, 1, 31)
-    got = nodal.evaluate((f - g) + (-1 * f + g * 2), {f: fa, g: ga}, x)
-    assert np.array_equal(got, (fa - ga) + (ga * 2 - fa))

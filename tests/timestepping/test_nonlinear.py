@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import ufl
+from conftest import run_setting
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -21,7 +22,6 @@ import stringcontact as sc
 from stringcontact.fem.compat import trapezoid
 from stringcontact.model import nonlinear as variants
 from stringcontact.model import paper
-from stringcontact.run import setup
 from stringcontact.timestepping import scheme_class
 
 K3 = 10.0
@@ -81,9 +81,7 @@ def test_the_cubic_variant_runs_with_every_scheme(ex1):
 
 
 def _setting(scene, model, scheme, penalty=None):
-    _name, _Scheme, penalty, mass, model = setup._choose_scheme(scene, scheme, penalty, None, model)
-    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-    return setup._setting(scene, model, V, params, ops, penalty, mass, MPI.COMM_SELF)
+    return run_setting(scene, scheme, penalty, model=model)[0]
 
 
 class Manufactured:
@@ -172,24 +170,6 @@ def test_a_kept_jacobian_gives_the_fresh_jacobians_answer(ex1, scheme, penalty, 
     assert np.max(np.abs(kept.eta - fresh.eta)) <= 1e-8
     assert fresh.counters["jacobian assemblies"] >= fresh.counters["newton iterations"] >= ex1.nt
     assert kept.counters["jacobian assemblies"] < ex1.nt
-
-
-def test_integer_powers_are_compiled_as_products():
-    """`powers_as_products`: η³ and η⁴ become products (no libm pow in the kernel), with the same value."""
-    from dolfinx import mesh
-    from ufl.corealg.traversal import unique_pre_traversal
-
-    from stringcontact.fem.compat import function_space
-    from stringcontact.fem.powers import powers_as_products
-
-    eta = fem.Function(function_space(mesh.create_unit_interval(MPI.COMM_SELF, 8)))
-    eta.interpolate(lambda x: 1.5 + x[0])
-    energy = (0.25 * eta**4 + eta**3 - eta**2 + eta**-2 + eta**0.5) * ufl.dx
-    products = powers_as_products(energy)
-    powers = [o for o in unique_pre_traversal(products.integrals()[0].integrand())
-              if isinstance(o, ufl.classes.Power)]
-    assert sorted(str(p.ufl_operands[1]) for p in powers) == ["-2", "0.5"]  # only these stay powers
-    assert fem.assemble_scalar(fem.form(products)) == pytest.approx(fem.assemble_scalar(fem.form(energy)), rel=1e-14)
 
 
 # --- contact and energy -------------------------------------------------------------------------------------

@@ -6,21 +6,20 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import run_setting
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import stringcontact as sc
 from stringcontact.fem import nodal
 from stringcontact.fem.operators import step_matrices
-from stringcontact.run import setup
 from stringcontact.timestepping.linear import dirichlet_rows
 
 
 def _plain(scene, steps):
     """A η^{n+1} = (M/Δt²)((η^n − η^{n−1}) + η^n) + (C/Δt) η^n + m_F∘F(η^n, v^n), ends held; η, v at `steps`."""
-    model = setup._resolve_model(None, scene)
-    V, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-    s = setup._setting(scene, model, V, params, ops, "explicit", "lumped", MPI.COMM_SELF)
+    s, eta, v = run_setting(scene, "paper", "explicit", "lumped")
+    ops, model, params = s.ops, s.laws.model, s.laws.params
     A, _, C_dt = step_matrices(ops, scene.dt, "lumped")
     dirichlet_rows(A, s.bc)
     ksp = PETSc.KSP().create(MPI.COMM_SELF)
@@ -28,7 +27,6 @@ def _plain(scene, steps):
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
     law = nodal.NodalExpression(model.penalty(s.laws.eta, s.laws.quotient, params))
-    eta, v = setup._initial_state(scene, s)
     eta_old, dt = eta - scene.dt * v, scene.dt
     rows = {0: (eta, v)}
     b, x, c_eta = A.createVecLeft(), A.createVecRight(), A.createVecLeft()

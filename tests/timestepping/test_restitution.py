@@ -6,11 +6,11 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import run_setting
 from mpi4py import MPI
 
 import stringcontact as sc
 from stringcontact.analysis.problems import flat_landing_scene
-from stringcontact.run import setup
 from stringcontact.run.checks import energy_balance
 from stringcontact.timestepping import projection
 from stringcontact.verification import exact
@@ -28,11 +28,9 @@ class _TruthyZero(float):
 def _march(scene, restitution):
     """η, the centred velocity, the contact force and the energy terms of every step of projection on `scene`,
     from the scheme's own object (as the driver makes it) with `Setting.restitution` = `restitution`."""
-    model = setup._resolve_model(None, scene)
-    V_, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-    s = setup._setting(scene, model, V_, params, ops, None, "lumped", MPI.COMM_SELF)
+    s, eta0, v0 = run_setting(scene, "projection", mass="lumped")
     stepper = projection.Scheme(dataclasses.replace(s, restitution=restitution))
-    terms = [stepper.start(*setup._initial_state(scene, s))]
+    terms = [stepper.start(eta0, v0)]
     rows = []
     for _ in range(scene.nt):
         terms.append(stepper.step())
@@ -61,10 +59,8 @@ def test_the_weighted_step_is_paoli_schatzman_written_out():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = sc.simulate(scene, scheme="projection", restitution=e, max_rows=scene.nt, comm=MPI.COMM_SELF)
-        model = setup._resolve_model(None, scene)
-        V_, params, ops = setup.discretise(scene, model, MPI.COMM_SELF)
-        s = setup._setting(scene, model, V_, params, ops, None, "lumped", MPI.COMM_SELF)
-        eta, v = setup._initial_state(scene, s)
+        s, eta, v = run_setting(scene, "projection", mass="lumped")
+    ops = s.ops
     K = ops.K.convert("dense").getDenseArray()
     m, dt, inner = ops.m, scene.dt, s.interior
     old, now = eta - dt * v, eta.copy()
