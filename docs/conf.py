@@ -75,7 +75,15 @@ MATHJAX_PARTS = (
     "localization/en",
 )
 mathjax_path = "mathjax/MathJax.js?config=TeX-AMS_CHTML"
-mathjax2_config = {"messageStyle": "none"}
+# MyST marks its sections tex2jax_ignore and the formulas `math`: MathJax 2 typesets those only (as Sphinx's
+# configuration of MathJax 3 does)
+mathjax2_config = {
+    "messageStyle": "none",
+    "tex2jax": {
+        "processClass": "tex2jax_process|mathjax_process|math|output_area",
+        "ignoreClass": "tex2jax_ignore|mathjax_ignore|document",
+    },
+}
 # figures stay in docs/ (the README shows them too); the pages refer to them as ../NAME.png
 
 

@@ -13,8 +13,8 @@ ROOT = Path(__file__).resolve().parents[2]
 def _listing(page: Path) -> list[str]:
     """The lines of the `text` block that follows the page's `stringcontact list` command."""
     text = page.read_text()
-    after = text[text.index("stringcontact list\n"):]
-    block = re.search(r"```text\n(.*?)```", after, re.S)
+    after = text[text.index("stringcontact list\n") :]
+    block = re.search(r"```text\n(.*?)```", after, re.DOTALL)
     assert block, f"{page}: no output block after `stringcontact list`"
     return block.group(1).splitlines()
 
