@@ -77,8 +77,10 @@ MATHJAX_PARTS = (
 mathjax_path = "mathjax/MathJax.js?config=TeX-AMS_CHTML"
 # MyST marks its sections tex2jax_ignore and the formulas `math`: MathJax 2 typesets those only (as Sphinx's
 # configuration of MathJax 3 does)
+# (and a display formula wider than the text breaks into lines instead of being cut off)
 mathjax2_config = {
     "messageStyle": "none",
+    "CommonHTML": {"linebreaks": {"automatic": True}},
     "tex2jax": {
         "processClass": "tex2jax_process|mathjax_process|math|output_area",
         "ignoreClass": "tex2jax_ignore|mathjax_ignore|document",

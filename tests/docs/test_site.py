@@ -132,6 +132,7 @@ def test_the_formulas_are_typeset_by_the_sites_own_mathjax(site):
         text = page.read_text()
         config = json.loads(text.split("MathJax.Hub.Config(", 1)[1].split(")</script>", 1)[0])
         assert "tex2jax_ignore" in text and "math" in config["tex2jax"]["processClass"].split("|"), config
+        assert config["CommonHTML"]["linebreaks"]["automatic"] is True, config  # a long formula breaks
     mathjax = html / "_static" / "mathjax"
     for part in (
         "config/TeX-AMS_CHTML.js",
