@@ -1,9 +1,12 @@
 """The site builds with warnings as errors and every internal link checked (`make docs`), the demos' pages show
-their pictures, and a broken internal link fails the build."""
+their pictures, the formulas are typeset offline by the site's own MathJax, wide content stays in the page, and a
+broken internal link fails the build. One build serves all tests here (the `site` fixture)."""
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -28,20 +31,50 @@ def _checkout(tmp_path: Path) -> Path:
 
 def _build(repo: Path, work: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ, STRINGCONTACT_DOCS_DEMO_WORK=str(work))
-    return subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-n", "-q", "-b", "html",
-                           str(repo / "docs"), str(repo / "docs" / "_build" / "html")],
-                          env=env, capture_output=True, text=True, timeout=1800, check=False)
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sphinx",
+            "-W",
+            "--keep-going",
+            "-n",
+            "-q",
+            "-b",
+            "html",
+            str(repo / "docs"),
+            str(repo / "docs" / "_build" / "html"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+        check=False,
+    )
 
 
-@pytest.mark.slow
-def test_the_site_builds_without_a_warning_and_a_broken_link_fails_it(tmp_path):
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """One build of the site for this file's tests (it takes minutes): (checkout, demo work folder, html)."""
+    tmp_path = tmp_path_factory.mktemp("site")
     repo, work = _checkout(tmp_path), tmp_path / "demo-runs"
     proc = _build(repo, work)
     assert proc.returncode == 0, proc.stderr[-5000:]
-    html = repo / "docs" / "_build" / "html"
+    return repo, work, repo / "docs" / "_build" / "html"
+
+
+#: pages with formulas: the index, the model, a demo
+MATH_PAGES = ("index.html", "explanation/model.html", "tutorial/demos/demo_example1.html")
+
+
+@pytest.mark.slow
+def test_the_site_builds_without_a_warning(site):
+    _, work, html = site
     keys = (html / "reference" / "scene_keys.html").read_text()
-    assert all(f"<code class=\"docutils literal notranslate\"><span class=\"pre\">{k}</span></code>" in keys
-               for k in limits.FILE_KEYS)
+    assert all(
+        f'<code class="docutils literal notranslate"><span class="pre">{k}</span></code>' in keys
+        for k in limits.FILE_KEYS
+    )
     assert 'id="stringcontact.simulate"' in (html / "reference" / "api.html").read_text()
     assert "stringcontact show" in (html / "reference" / "cli.html").read_text()
     demos = sorted((ROOT / "demos").glob("demo_*.py"))
@@ -62,9 +95,81 @@ def test_the_site_builds_without_a_warning_and_a_broken_link_fails_it(tmp_path):
     for folder in (work / "demo_example1" / "example1", work / "demo_membrane"):
         written = {p.name for p in folder.rglob("*") if p.is_file() and p.parent.name != "pictures"}
         assert written and not written - set(reference_pages.FILES) - set(reference_pages.PICTURES) - {
-            "drum_variants.png"}, written
-    # a link to a page that does not exist is an error (the demos are not run again: their sources are unchanged)
+            "drum_variants.png"
+        }, written
+
+
+def _scripts(page: Path) -> list[dict]:
+    """The attributes of each <script> of an HTML page."""
+    from html.parser import HTMLParser
+
+    found = []
+
+    class Scripts(HTMLParser):
+        def handle_starttag(self, tag, attrs):
+            if tag == "script":
+                found.append(dict(attrs))
+
+    Scripts().feed(page.read_text())
+    return found
+
+
+@pytest.mark.slow
+def test_the_formulas_are_typeset_by_the_sites_own_mathjax(site):
+    """No page with formulas loads a script from the network (a cluster without internet shows the formulas
+    too): MathJax is the site's copy in _static/mathjax, with what its configuration loads."""
+    _, _, html = site
+    for name in MATH_PAGES:
+        page = html / name
+        assert "\\[" in page.read_text() or "\\(" in page.read_text(), f"{name}: no formula to typeset"
+        scripts = _scripts(page)
+        remote = [s["src"] for s in scripts if re.match(r"(https?:)?//", s.get("src") or "")]
+        assert remote == [], f"{name} loads {remote}"
+        (mathjax,) = [s["src"] for s in scripts if "MathJax.js" in (s.get("src") or "")]
+        assert (page.parent / mathjax.split("?", 1)[0]).resolve().is_file(), mathjax
+        assert mathjax.endswith("?config=TeX-AMS_CHTML"), mathjax
+        # MyST marks the sections tex2jax_ignore: MathJax 2 must be told to typeset the formulas' class `math`
+        text = page.read_text()
+        config = json.loads(text.split("MathJax.Hub.Config(", 1)[1].split(")</script>", 1)[0])
+        assert "tex2jax_ignore" in text and "math" in config["tex2jax"]["processClass"].split("|"), config
+        assert config["CommonHTML"]["linebreaks"]["automatic"] is True, config  # a long formula breaks
+    mathjax = html / "_static" / "mathjax"
+    for part in (
+        "config/TeX-AMS_CHTML.js",
+        "jax/input/TeX/config.js",
+        "jax/output/CommonHTML/jax.js",
+        "extensions/MathMenu.js",
+        "fonts/HTML-CSS/TeX/woff/MathJax_Main-Regular.woff",
+    ):
+        assert (mathjax / part).is_file(), part
+
+
+@pytest.mark.slow
+def test_wide_tables_long_signatures_and_code_stay_in_the_page(site):
+    """The site's CSS is on every page (wrapping cells, code and the contents' names); a class's signature is
+    apart from its heading, one parameter a line."""
+    _, _, html = site
+    css = (html / "_static" / "custom.css").read_text()
+    assert ".bd-article table td" in css and "div.highlight pre" in css and "bd-sidebar-secondary" in css
+    for name in ("reference/scene_keys.html", "reference/api.html", *MATH_PAGES):
+        assert any('href="' in line and "custom.css" in line for line in (html / name).read_text().splitlines()), name
+    api = (html / "reference" / "api.html").read_text()
+    heading = api.split('id="stringcontact.Model"', 1)[1].split("</dt>", 1)[0]
+    assert "sig-param" not in heading, "Model's parameters in its heading"
+    init = api.split('id="stringcontact.Model.__init__"', 1)[1].split("</dt>", 1)[0]
+    assert init.count('<dd><em class="sig-param">') > 5, "Model's parameters not one a line"
+
+
+@pytest.mark.slow
+def test_a_broken_link_fails_the_build(site):
+    """A link to a page that does not exist is an error (the demos are not run again: their sources are
+    unchanged)."""
+    repo, work, _ = site
     install = repo / "docs" / "tutorial" / "install.md"
-    install.write_text(install.read_text() + "\nSee [a page that does not exist](../howto/no_such_page.md).\n")
-    proc = _build(repo, work)
+    text = install.read_text()
+    install.write_text(text + "\nSee [a page that does not exist](../howto/no_such_page.md).\n")
+    try:
+        proc = _build(repo, work)
+    finally:
+        install.write_text(text)
     assert proc.returncode != 0 and "no_such_page" in proc.stderr

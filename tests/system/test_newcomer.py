@@ -55,8 +55,15 @@ def test_the_installed_command_finds_a_model_module_in_the_current_folder(tmp_pa
     module = tmp_path / "my_ground.py"
     shutil.copy(REPO / "examples" / "soft_ground" / "soft_ground.py", module)
     out = tmp_path / "out"
-    proc = subprocess.run([str(COMMAND), "run", "example1", *SOFT, "--model", "my_ground:soft_ground", "--out", "out"],
-                          cwd=tmp_path, capture_output=True, text=True, env=_environment(), timeout=600)
+    proc = subprocess.run(
+        [str(COMMAND), "run", "example1", *SOFT, "--model", "my_ground:soft_ground", "--out", "out"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=_environment(),
+        timeout=600,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["model"] == "soft_ground"
@@ -67,13 +74,22 @@ def test_the_installed_command_finds_a_model_module_in_the_current_folder(tmp_pa
     # and from elsewhere it is not found: the current folder, not the module's, is searched
     away = tmp_path / "elsewhere"
     away.mkdir()
-    proc = subprocess.run([str(COMMAND), "run", "example1", *SOFT, "--model", "my_ground:soft_ground"],
-                          cwd=away, capture_output=True, text=True, env=_environment(), timeout=600)
+    proc = subprocess.run(
+        [str(COMMAND), "run", "example1", *SOFT, "--model", "my_ground:soft_ground"],
+        cwd=away,
+        capture_output=True,
+        text=True,
+        env=_environment(),
+        timeout=600,
+        check=False,
+    )
     assert proc.returncode == 2 and "cannot import module 'my_ground'" in proc.stderr, proc.stderr
 
 
-@pytest.mark.parametrize(("model", "source", "package"), [(None, "built-in", "stringcontact"),
-                                                          ("soft_ground", "entry point", "stringcontact-soft-ground")])
+@pytest.mark.parametrize(
+    ("model", "source", "package"),
+    [(None, "built-in", "stringcontact"), ("soft_ground", "entry point", "stringcontact-soft-ground")],
+)
 def test_summary_says_where_a_registered_model_came_from(tmp_path, capsys, model, source, package):
     from stringcontact.model.registry import registered
 
@@ -141,8 +157,12 @@ def test_a_membranes_diagnostics_name_the_contact_area(tmp_path):
     assert max(float(r["contact_area"]) for r in rows) > 0.5  # an area of the unit disk's π, not a length
     back = read_output(tmp_path / "drum")  # the reader keeps working
     assert back.contact_measure == pytest.approx(res.contact_measure)
-    string = sc.simulate(sc.load_scene("example1").replace(nx=100, nt=40, eps=0.01), output_dir=tmp_path / "s",
-                         pictures=False, progress=False)
+    string = sc.simulate(
+        sc.load_scene("example1").replace(nx=100, nt=40, eps=0.01),
+        output_dir=tmp_path / "s",
+        pictures=False,
+        progress=False,
+    )
     with open(tmp_path / "s" / "diagnostics.csv", newline="") as f:
         header = next(csv.reader(f))
     assert "contact_length" in header and "contact_area" not in header
@@ -167,13 +187,15 @@ def test_progress_bars_only_on_a_terminal(tmp_path):
     if not COMMAND.exists():
         pytest.skip(f"{COMMAND} is not installed (scripts/setup)")
     argv = [str(COMMAND), "run", "example1", "--nx", "200", "--nt", "40", "--eps", "0.01", "--no-pictures"]
-    piped = subprocess.run(argv, capture_output=True, text=True, env=_environment(), timeout=600)
+    piped = subprocess.run(argv, capture_output=True, text=True, env=_environment(), timeout=600, check=False)
     assert piped.returncode == 0, piped.stderr
     assert "step" not in piped.stderr and "%|" not in piped.stderr, piped.stderr
     leader, follower = pty.openpty()
     fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a new pty is 0 columns wide
     try:
-        proc = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=follower, env=_environment(), timeout=600)
+        proc = subprocess.run(
+            argv, stdout=subprocess.DEVNULL, stderr=follower, env=_environment(), timeout=600, check=False
+        )
         os.close(follower)
         follower = None
         written = b""
@@ -191,3 +213,56 @@ def test_progress_bars_only_on_a_terminal(tmp_path):
             os.close(follower)
     assert proc.returncode == 0
     assert b"0/40" in written and b"step/s" in written, written[-500:]
+
+
+def _shell_block(text: str, after: str) -> list[str]:
+    """The command lines of the first ```sh block after `after` in `text` (comments dropped)."""
+    block = text[text.index(after) :].split("```sh\n", 1)[1].split("```", 1)[0]
+    lines = [line.split("  #", 1)[0].strip() for line in block.splitlines()]
+    return [line for line in lines if line and not line.startswith("#")]
+
+
+def test_the_readmes_quick_start_runs_as_written_after_make_demo(tmp_path):
+    """`make demo` (its recipe in the Makefile), then the README's quick start in order, in one folder: every
+    stringcontact command exits 0 (a `run` into the folder make demo wrote needs --force, else exit 2). The runs
+    are shortened with --nx/--nt/--no-pictures, which the folder check does not look at; ParaView's line is
+    tests/system/test_paraview.py's."""
+    import shlex
+
+    if not COMMAND.exists():
+        pytest.skip(f"{COMMAND} is not installed (scripts/setup)")
+    recipe = (REPO / "Makefile").read_text().split("\ndemo:", 1)[1].split("\n\n", 1)[0]
+    (demo,) = [line.strip() for line in recipe.splitlines()[1:] if "stringcontact" in line]
+    readme = (REPO / "README.md").read_text()
+    assert "make demo" in _shell_block(readme, "## Two commands")[0]
+    quick = _shell_block(readme, "## Quick start")
+    assert any(line.startswith("paraview") for line in quick)
+    commands = [demo.replace("$(VENV)/bin/", ".venv/bin/")] + [line for line in quick if "stringcontact" in line]
+    assert len(commands) == 5, commands
+    short = ["--nx", "200", "--nt", "600", "--no-progress", "--no-pictures"]
+    for line in commands:
+        words = shlex.split(line)
+        assert words[0] == ".venv/bin/stringcontact", line
+        stdout = None
+        if ">" in words:
+            words, stdout = words[: words.index(">")], tmp_path / words[words.index(">") + 1]
+        argv = [str(COMMAND), *words[1:]]
+        if words[1] == "run":
+            argv = (
+                [*argv, *short]
+                if "--nx" not in words
+                else [*argv[: argv.index("--nx")], *argv[argv.index("--nx") + 2 :], *short]
+            )
+        proc = subprocess.run(
+            argv,
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            env=dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1"),
+            timeout=600,
+            check=False,
+        )
+        assert proc.returncode == 0, f"{line}: exit {proc.returncode}: {proc.stderr[-1000:]}"
+        if stdout is not None:
+            stdout.write_text(proc.stdout)
+    assert (tmp_path / "out" / "example1" / "view.py").is_file() and (tmp_path / "out" / "mine").is_dir()

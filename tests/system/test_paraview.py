@@ -66,8 +66,12 @@ def test_the_readme_recipe_colours_the_warped_string_by_contact(tmp_path, run):
     assert 0.3 < solver_fraction < 1
 
     png = tmp_path / "contact.png"
-    proc = subprocess.run([*command, str(SCRIPT), str(out / "solution.xdmf"), repr(t), str(png)],
-                          capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [*command, str(SCRIPT), str(out / "solution.xdmf"), repr(t), str(png)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
     reports = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
     assert [r["reader"] for r in reports] == ["Xdmf3ReaderT", "Xdmf3ReaderS", "XDMFReader"]
@@ -101,8 +105,12 @@ def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
     assert 0 < res.contact[row].sum() < len(res.x)
 
     png = tmp_path / "membrane.png"
-    proc = subprocess.run([*command, str(SCRIPT.with_name("paraview_membrane.py")), str(out / "solution.xdmf"), repr(t),
-                           str(png)], capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [*command, str(SCRIPT.with_name("paraview_membrane.py")), str(out / "solution.xdmf"), repr(t), str(png)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
     (report,) = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
     assert report["class"] == "vtkUnstructuredGrid"
@@ -114,7 +122,9 @@ def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
     assert report["max_z_in_contact"] <= 1e-6  # the nodes marked in contact lie on the floor
     img = np.asarray(Image.open(png).convert("RGB"))
     assert _pixels_near(img, CONTACT_RGB) > 500, "no contact patch drawn in the contact colour"
-    bluish = (img[..., 2].astype(int) - np.maximum(img[..., 0], img[..., 1]).astype(int)) > 60  # lit: shades of FREE_RGB
+    bluish = (
+        img[..., 2].astype(int) - np.maximum(img[..., 0], img[..., 1]).astype(int)
+    ) > 60  # lit: shades of FREE_RGB
     assert int(bluish.sum()) > 1000, "no free membrane drawn"
 
 
@@ -129,8 +139,10 @@ def _views(command, folder, shots):
     from PIL import Image
 
     xvfb, pv = command[:-1], command[-1]
-    script = "; ".join(f"{pv} {shlex.quote(str(folder / 'view.py'))} {float(t)!r} {shlex.quote(str(png))} {field} || exit 1"
-                       for t, png, field in shots)
+    script = "; ".join(
+        f"{pv} {shlex.quote(str(folder / 'view.py'))} {float(t)!r} {shlex.quote(str(png))} {field} || exit 1"
+        for t, png, field in shots
+    )
     proc = subprocess.run([*xvfb, "sh", "-c", script], capture_output=True, text=True, check=False, cwd=folder)
     assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
     reports = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
@@ -145,6 +157,28 @@ def _drawn_box(img):
     return rows.min(), rows.max(), cols.min(), cols.max()
 
 
+def test_view_py_is_the_packages_program_with_the_runs_numbers(run):
+    """The folder's view.py is the package's io/paraview/view.py (a Python file that ruff lints, shipped as
+    package data) with only its numbers' lines changed, and it compiles."""
+    import fnmatch
+    import tomllib
+    from importlib import resources
+
+    out, res = run
+    program = resources.files("stringcontact.io").joinpath("paraview", "view.py").read_text()
+    written = (out / "view.py").read_text()
+    compile(written, "view.py", "exec")
+    start, end = "# --- the run's numbers", "# --- end of the run's numbers ---"
+    assert program.split(start)[0] == written.split(start)[0]
+    assert program.split(end)[1] == written.split(end)[1]
+    changed = [line for line in written.split(start)[1].split(end)[0].splitlines() if line not in program]
+    assert {line.split(" = ")[0] for line in changed} >= {"TITLE", "VELOCITY_RANGE", "BOUNDS", "FOLDER"}, changed
+    assert f"VELOCITY_RANGE = [{-float(np.abs(res.velocity).max())!r}" in written
+    data = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text())
+    patterns = data["tool"]["setuptools"]["package-data"]["stringcontact"]
+    assert any(fnmatch.fnmatch("io/paraview/view.py", pattern) for pattern in patterns), patterns
+
+
 def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run):
     """view.py written by the run: contact on 0 … 1 at t = 0 (all blue) and in contact (red and blue), velocity on
     ±max|v| over all stored rows, the string inside the picture at every time."""
@@ -152,7 +186,7 @@ def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run)
     out, res = run
     text = (out / "view.py").read_text()
     imports = {line.split()[1] for line in text.splitlines() if line.startswith(("import ", "from "))}
-    assert imports == {"json", "os", "sys", "paraview.simple"}, imports  # data, not this package's code
+    assert imports == {"json", "math", "os", "sys", "paraview.simple"}, imports  # data, not this package's code
     # the folder's own path is data (the image's user is called stringcontact: /tmp/pytest-of-stringcontact/...)
     code = "\n".join(line for line in text.splitlines() if not line.startswith("FOLDER = "))
     assert "stringcontact" not in code.replace("stringcontact run", "")
@@ -187,8 +221,11 @@ def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
     back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     k = int(np.argmax(back.contact_measure))
     t_k = float(back.t[k])
-    shots = [(0.0, tmp_path / "drum_0.png", "contact"), (t_k, tmp_path / "drum_k.png", "contact"),
-             (t_k, tmp_path / "drum_velocity.png", "velocity")]
+    shots = [
+        (0.0, tmp_path / "drum_0.png", "contact"),
+        (t_k, tmp_path / "drum_k.png", "contact"),
+        (t_k, tmp_path / "drum_velocity.png", "velocity"),
+    ]
     (r0, img0), (rk, imgk), (rv, _) = _views(command, out, shots)
     for t, touching, report, img in ((0.0, False, r0, img0), (t_k, True, rk, imgk)):
         assert report["range"] == [0.0, 1.0], report
@@ -246,18 +283,27 @@ def test_the_folders_view_keeps_one_camera_and_draws_the_obstacle_time_and_axes(
         assert _ink(img, slice(0, 30), slice(0, 120)) > 20, f"t = {t}: no time label in the upper left corner"
         assert _ink(img, slice(0, 30), slice(300, 700)) > 100, f"t = {t}: no title"
     labels = [img[0:30, 0:120] for _, img in views]
-    assert not np.array_equal(labels[0], labels[1]) and not np.array_equal(labels[1], labels[2]), "the time label does not change"
+    assert not np.array_equal(labels[0], labels[1]) and not np.array_equal(labels[1], labels[2]), (
+        "the time label does not change"
+    )
     if which == "string":
         # the string spans x = 0 ... 1 at every time: the same columns (the camera used to follow the shape)
         strings = [_string_columns(img) for _, img in views]
-        assert np.ptp(np.array(strings), axis=0).max() <= 3, strings  # to the line's round ends (was 537 against 420 px wide)
+        assert np.ptp(np.array(strings), axis=0).max() <= 3, (
+            strings
+        )  # to the line's round ends (was 537 against 420 px wide)
+        # the 1D string fills the picture's width left of the colour bar (its heights stretched to fit), not a
+        # narrow column of it
+        left, right = strings[0]
+        assert (right - left) / img.shape[1] > 0.65, strings
+        assert views[0][0]["scale"][1] != 1.0 and views[0][0]["scale"][::2] == [1.0, 1.0], views[0][0]["scale"]
         left, _ = obstacle[0]
         assert _ink(img, slice(40, 560), slice(0, left - 5)) > 50, "no tick labels left of the string"
 
 
 def _string_columns(img):
     """The first and last column of the string drawn in the contact map (blue free, red in contact)."""
-    strong = (np.abs(img[..., 0].astype(int) - img[..., 2].astype(int)) > 80)
+    strong = np.abs(img[..., 0].astype(int) - img[..., 2].astype(int)) > 80
     cols = np.flatnonzero(strong[40:560].any(axis=0)[:850])
     return int(cols.min()), int(cols.max())
 
@@ -278,7 +324,7 @@ def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
     column = img[:, round(left + (x - back.x[0]) / (back.x[-1] - back.x[0]) * (right - left))].astype(int)
     grey_rows = np.flatnonzero(np.all(np.abs(column - np.array(GREY_RGB)) <= 12, axis=-1))
     top = int(grey_rows.min())  # the obstacle's top edge, where the string lies
-    string = column[max(top - 8, 0):top + 9]  # the line lies on ψ, half of it over the grey
+    string = column[max(top - 8, 0) : top + 9]  # the line lies on ψ, half of it over the grey
     contrast = np.abs(string - 255).sum(axis=-1).max()  # the string's darkest pixel against the white background
     assert contrast > 450, f"the string at rest ({string.tolist()}) is hardly seen on white"
     thick = int((np.abs(string - np.array(ZERO_RGB)).max(axis=-1) <= 40).sum())
@@ -294,16 +340,22 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     t = 0, where contact colours it blue), red where the squeezed film pushes it up."""
     command = pvpython()
     out = tmp_path / "film_drum"
-    res = sc.simulate(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.12, nt=48, output_times=[]),
-                      output_dir=out, max_frames=7,
-                      pictures=False)
+    res = sc.simulate(
+        sc.load_scene("film_drum").replace(cells=[8, 8], T=0.12, nt=48, output_times=[]),
+        output_dir=out,
+        max_frames=7,
+        pictures=False,
+    )
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
     back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     pressure = res.fields["pressure"]
     k = int(np.argmax([np.abs(pressure[np.flatnonzero(res.t == t)[0]]).max() for t in back.t]))
     t_k = float(back.t[k])
-    shots = [(0.0, tmp_path / "pressure_0.png", "pressure"), (0.0, tmp_path / "contact_0.png", "contact"),
-             (t_k, tmp_path / "pressure_k.png", "pressure")]
+    shots = [
+        (0.0, tmp_path / "pressure_0.png", "pressure"),
+        (0.0, tmp_path / "contact_0.png", "contact"),
+        (t_k, tmp_path / "pressure_k.png", "pressure"),
+    ]
     (r0, img0), (_, contact0), (rk, imgk) = _views(command, out, shots)
     peak = float(np.abs(pressure).max())
     for report in (r0, rk):
@@ -314,7 +366,9 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
         img = img[MIDDLE].astype(int)
         red = (img[..., 0] - np.maximum(img[..., 1], img[..., 2])) > 60
         blue = (img[..., 2] - np.maximum(img[..., 0], img[..., 1])) > 60
-        grey = (np.ptp(img, axis=-1) < 12) & (img.max(axis=-1) > 50) & (img.max(axis=-1) < 185)  # lit; not the obstacle's 204
+        grey = (
+            (np.ptp(img, axis=-1) < 12) & (img.max(axis=-1) > 50) & (img.max(axis=-1) < 185)
+        )  # lit; not the obstacle's 204
         return int(red.sum()), int(blue.sum()), int(grey.sum())
 
     assert np.abs(pressure[0]).max() == 0.0
@@ -323,6 +377,27 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     assert counts(contact0)[1] > 5000  # the same frame coloured by contact: blue (free)
     redk, _, _ = counts(imgk)
     assert redk > 500, redk  # the film's peak pressure under the falling skin
+    # its colour bar is on its symmetric-log scale: ticks at 0, +-linthresh and a decade apart up to +-peak, evenly
+    # spaced on the bar, each named by the pressure there
+    ticks = [float(label) for label in rk["ticks"]]
+    above = [t for t in ticks if t > 0]
+    assert ticks == sorted(ticks) and 0.0 in ticks and above[-1] == pytest.approx(peak, rel=1e-2), ticks
+    np.testing.assert_allclose(np.array(above[1:]) / np.array(above[:-1]), 10.0, rtol=1e-2)
+    assert ticks == [-t for t in reversed(ticks)]
+    rows = _bar_label_rows(imgk)
+    assert len(rows) == len(ticks), (rows, ticks)
+    assert np.ptp(np.diff(rows)) <= 3, rows  # a decade takes the same length of the bar
+
+
+def _bar_label_rows(img):
+    """The first row of each label left of the colour bar (the bar: the right part's strongly coloured columns)."""
+    from scipy import ndimage
+
+    colour = (img.max(axis=-1).astype(int) - img.min(axis=-1)) > 60
+    bar = np.flatnonzero(colour[:, 850:].sum(axis=0) > 100) + 850
+    ink = (img[:, bar.min() - 75 : bar.min() - 2].max(axis=-1) < 120).any(axis=1)
+    labels, n = ndimage.label(ink)
+    return [int(np.flatnonzero(labels == k).min()) for k in range(1, n + 1)]
 
 
 def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_colours(tmp_path):
@@ -337,13 +412,22 @@ def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_c
     command = pvpython()
     field = OutputField("reaction", expression=lambda U, p: U[0] ** 2, label="reaction", colours=((0, 0, 0), (1, 0, 0)))
     out = tmp_path / "reacting"
-    res = sc.simulate(sc.load_scene("example1").replace(nx=200, nt=600), output_dir=out, max_frames=10, pictures=False,
-                      model=dataclasses.replace(inelastic, name="reacting", outputs=(field,)))
+    res = sc.simulate(
+        sc.load_scene("example1").replace(nx=200, nt=600),
+        output_dir=out,
+        max_frames=10,
+        pictures=False,
+        model=dataclasses.replace(inelastic, name="reacting", outputs=(field,)),
+    )
     assert 'Attribute Name="reaction"' in (out / "solution.xdmf").read_text()
     back = read_output(out, from_xdmf=True)  # the frames ParaView reads
     t = float(back.t[0])
-    proc = subprocess.run([*command, str(SCRIPT), str(out / "solution.xdmf"), repr(t), str(tmp_path / "readme.png")],
-                          capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [*command, str(SCRIPT), str(out / "solution.xdmf"), repr(t), str(tmp_path / "readme.png")],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
     reports = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
     assert len(reports) == 3
@@ -352,7 +436,9 @@ def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_c
         assert set(report["arrays"]) == {*FIELDS, "reaction"}, report["reader"]
         np.testing.assert_allclose(report["ranges"]["reaction"], [at_t.min(), at_t.max()], rtol=1e-12)
     ((report, img),) = _views(command, out, [(t, tmp_path / "reaction.png", "reaction")])
-    np.testing.assert_allclose(report["range"], [res.fields["reaction"].min(), res.fields["reaction"].max()], rtol=1e-12)
+    np.testing.assert_allclose(
+        report["range"], [res.fields["reaction"].min(), res.fields["reaction"].max()], rtol=1e-12
+    )
     middle = img[MIDDLE].astype(int)
     red = (middle[..., 0] > 150) & (middle[..., 1] < 40) & (middle[..., 2] < 40)
     assert red.sum() > 100, "no string drawn in the field's high colour"
@@ -372,12 +458,15 @@ def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(
         grey = np.all(np.abs(img[MIDDLE[0], :850].astype(int) - np.array(GREY_RGB)) <= 12, axis=-1)  # not the title
         centre = int(np.argmax(grey.sum(axis=0)))  # a column through the piston: the tallest grey column
         rows = np.flatnonzero(grey[:, centre])
-        gaps = np.flatnonzero(np.diff(rows) > 1)  # the grey run from the floor up, not an axis line's smoothed edge
-        top = MIDDLE[0].start + int(rows[gaps[-1] + 1] if gaps.size else rows[0])
+        # the longest grey run (from the floor up), not an axis line's or a tick label's smoothed edge
+        runs = np.split(rows, np.flatnonzero(np.diff(rows) > 1) + 1)
+        top = MIDDLE[0].start + int(max(runs, key=len)[0])
         cam, half = report["camera"], img.shape[0] / 2
         psi = float(res.scene.obstacle_values(np.array([0.5]), t)[0])
-        expected = half - (psi - cam["focal_point"][1]) * half / cam["parallel_scale"]
-        assert abs(top - expected) <= 4, f"t = {t}: the obstacle's top at row {top}, psi = {psi} is at row {expected:.1f}"
+        expected = half - (psi * report["scale"][1] - cam["focal_point"][1]) * half / cam["parallel_scale"]
+        assert abs(top - expected) <= 4, (
+            f"t = {t}: the obstacle's top at row {top}, psi = {psi} is at row {expected:.1f}"
+        )
         tops.append(top)
     assert tops[0] - tops[2] > 50, tops  # it rose on the picture
 
@@ -387,8 +476,9 @@ def test_the_folders_view_draws_a_membranes_moving_obstacle_at_the_time_shown(tm
     time (its box, reported by view.py) has ψ's top at that time, 1 % of the height range lower."""
     command = pvpython()
     out = tmp_path / "dome"
-    scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.2, 0.4],
-                                          obstacle="0.25*min(t/0.3, 1)*(1 - x**2 - y**2)")
+    scene = sc.load_scene("drum").replace(
+        mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.2, 0.4], obstacle="0.25*min(t/0.3, 1)*(1 - x**2 - y**2)"
+    )
     res = sc.simulate(scene, output_dir=out, max_frames=6, pictures=False)
     times = [0.0, 0.2, 0.4]
     views = _views(command, out, [(t, tmp_path / f"dome_{k}.png", "contact") for k, t in enumerate(times)])

@@ -1,10 +1,13 @@
 """`view.py`: a ready ParaView view of an output folder, opened with one command.
 
+The program is `paraview/view.py` beside this module, a Python file of the package (linted as the others,
+shipped as package data); the run writes it into the output folder with its numbers filled in (`view_script`).
+
     pvpython view.py                         # a window (or, with arguments, a screenshot, see below)
     paraview --script=view.py                # the same view in ParaView's GUI
 
 The file is data, not code of this package: it imports only `paraview.simple` (and the standard library's
-`json`, `os` and `sys`), and every number it needs (the colour ranges, the box the camera frames, the
+`json`, `math`, `os` and `sys`), and every number it needs (the colour ranges, the box the camera frames, the
 obstacle) is written into it as a literal by the run, computed over all stored rows:
 
 - `solution.xdmf` opened with Xdmf3ReaderT, Warp By Scalar on `eta` along (0, 1, 0) for a string and
@@ -22,8 +25,12 @@ obstacle) is written into it as a literal by the run, computed over all stored r
   region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch; an
   obstacle at rest from literal points, a moving one (ψ(x, t)) as `solution.xdmf` warped by its `obstacle`
   field, so that it is drawn where it is at the time shown;
+- a symmetric-log field, when shown, coloured by its values on that scale (a PythonCalculator), its colour
+  bar's ticks at 0, ±linthresh and a decade apart up to ±P, named by the field's values (`symlog_view`);
 - a title (scene, model, scheme), the time t in the upper left corner and axes named x and eta (x, y and
   eta for a membrane), with ticks;
+- a string's heights stretched (the displays' scale, the axes still labelled with the heights) so that its
+  box over all times fills the picture's width and height, as a plot's axes do, whatever its height range;
 - one camera for all times: it frames the box of the warped shape and of the obstacle over all stored rows,
   and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
   different times line up (an animation does not jump).
@@ -35,6 +42,7 @@ obstacle drawn at that time.
 
 from __future__ import annotations
 
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -109,6 +117,22 @@ def field_points(low: float, high: float, info: dict) -> list:
     return [(float(v), *(float(x) for x in c)) for v, c in zip(values, rgb)]
 
 
+def symlog_view(high: float, info: dict) -> list:
+    """A symmetric-log field's scale in view.py, `[linthresh, colours, ticks]`: its colours (r, g, b) evenly spread
+    on the unit scale −1 … 1 of `symlog_unit` as ``[unit, r, g, b]``, and its colour bar's ticks ``[unit, label]``
+    at 0, ±linthresh and a decade apart up to ±`high` (the label the field's value, 3 digits)."""
+    share = float(info.get("linear_share", 1e-3))
+    colours = info["colours"]
+    units = np.linspace(-1.0, 1.0, len(colours))
+    points = [[float(u), *(float(x) for x in c)] for u, c in zip(units, colours)]
+    above = high * 10.0 ** -np.arange(0, int(np.floor(-np.log10(share) + 1e-9)) + 1)
+    if above[-1] > share * high * (1 + 1e-9):
+        above = np.append(above, share * high)
+    values = np.concatenate([-above, [0.0], above[::-1]])
+    ticks = [[float(u), f"{v:.3g}" if v else "0"] for u, v in zip(symlog_unit(values, high, share), values)]
+    return [share * high, points, ticks]
+
+
 def field_maps(result) -> dict:
     """Each output field of `result` -> ``[[low, high], points]``: its fixed range (`field_range`) and colour
     points (`field_points`) in view.py."""
@@ -142,12 +166,31 @@ def view_numbers(result) -> dict:
         points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
         shift = (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
-    return {"kind": kind, "normal": normal, "velocity_range": (-(speed or 1.0), speed or 1.0), "bounds": bounds,
-            "times": [float(t) for t in result.t],
-            # a moving obstacle is drawn from solution.xdmf's `obstacle` field: no literal points then
-            "obstacle_points": [] if moves else points, "obstacle_quads": [] if moves else quads,
-            "obstacle_moves": moves, "obstacle_shift": shift,
-            "title": view_title(result), "fields": field_maps(result)}
+    return {
+        "kind": kind,
+        "normal": normal,
+        "velocity_range": (-(speed or 1.0), speed or 1.0),
+        "bounds": bounds,
+        "times": [float(t) for t in result.t],
+        # a moving obstacle is drawn from solution.xdmf's `obstacle` field: no literal points then
+        "obstacle_points": [] if moves else points,
+        "obstacle_quads": [] if moves else quads,
+        "obstacle_moves": moves,
+        "obstacle_shift": shift,
+        "title": view_title(result),
+        "fields": field_maps(result),
+        "symlog": symlog_views(result),
+    }
+
+
+def symlog_views(result) -> dict:
+    """Each output field of `result` on a symmetric-log scale -> its `symlog_view` on its fixed range."""
+    fields = getattr(result, "fields", None) or {}
+    views = {}
+    for name, info in field_info(result).items():
+        if info.get("scale") == "symlog":
+            views[name] = symlog_view(field_range(fields[name], info)[1], info)
+    return views
 
 
 def view_title(result) -> str:
@@ -201,7 +244,9 @@ def _membrane_obstacle(scene, x, lo, hi):
     lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
     psi = psi - _MEMBRANE_DROP * max(hi - lo, 1e-12)
     points = [(float(a), float(b), float(c)) for a, b, c in zip(gx.ravel(), gy.ravel(), psi)]
-    quads = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i) for j in range(n - 1) for i in range(n - 1)]
+    quads = [
+        (j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i) for j in range(n - 1) for i in range(n - 1)
+    ]
     return points, quads, (min(lo, float(psi.min())), hi)
 
 
@@ -211,272 +256,58 @@ def _literal(value) -> str:
         return "{" + ", ".join(f"{_literal(k)}: {_literal(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(_literal(v) for v in value) + "]"
-    if isinstance(value, str):
+    if isinstance(value, (str, bool)):
         return repr(value)
-    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+    if isinstance(value, (int, np.integer)):
         return str(int(value))
     return repr(float(value))
 
 
+#: the program of view.py, a Python file of this package (linted as its other files), the run's numbers written
+#: into it between these two lines
+PROGRAM = ("paraview", "view.py")
+_NUMBERS_START = "# --- the run's numbers"
+_NUMBERS_END = "# --- end of the run's numbers ---"
+
+
+def view_program() -> str:
+    """The text of the package's view.py (its numbers placeholders)."""
+    return resources.files(__package__).joinpath(*PROGRAM).read_text(encoding="utf-8")
+
+
 def view_script(numbers: dict) -> str:
-    """The text of view.py for `numbers` (`view_numbers`)."""
-    head = f'''"""ParaView view of this folder, written by the run: `pvpython view.py` or `paraview --script=view.py`.
-
-`pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead (FIELD: one of
-FIELD_MAPS, the model's output fields).
-The numbers below were computed by the run over all its stored rows.
-"""
-
-import json
-import os
-import sys
-
-import paraview.simple
-from paraview.simple import (AnnotateTime, ColorBy, GetActiveViewOrCreate, GetAnimationScene, GetColorTransferFunction,
-                             GetOpacityTransferFunction, GetScalarBar, HideScalarBarIfNotNeeded, Interact,
-                             ProgrammableSource, Render, SaveScreenshot, Show, Text, WarpByScalar, Xdmf3ReaderT)
-
-KIND = {_literal(numbers["kind"])}
-TITLE = {_literal(numbers.get("title") or "")}
-NORMAL = {_literal(numbers["normal"])}  # Warp By Scalar's direction: y for a string, z for a membrane
-CONTACT_RANGE = {_literal(CONTACT_RANGE)}  # fixed: 0 free (blue), 1 in contact (red), at every time
-VELOCITY_RANGE = {_literal(numbers["velocity_range"])}  # symmetric, max |velocity| over all stored rows
-VELOCITY_COLOURS = {_literal(VELOCITY_COLOURS)}  # at -V, 0 (dark: seen on white), V
-BOUNDS = {_literal(numbers["bounds"])}  # the warped shape and the obstacle over all times: x0, x1, y0, y1, z0, z1
-OBSTACLE_GREY = {_literal(OBSTACLE_GREY)}
-OBSTACLE_POINTS = {_literal(numbers.get("obstacle_points") or [])}  # x, y, z
-OBSTACLE_QUADS = {_literal(numbers.get("obstacle_quads") or [])}  # four indices into OBSTACLE_POINTS each
-OBSTACLE_MOVES = {bool(numbers.get("obstacle_moves"))}  # psi(x, t): drawn from solution.xdmf's obstacle field
-OBSTACLE_SHIFT = {_literal(numbers.get("obstacle_shift") or (0.0, 0.0, 0.0))}  # the moving obstacle moved by this: behind/below the shape
-FOLDER = {_literal(numbers.get("folder") or "")}  # where the run wrote this folder (for ParaView's GUI)
-# the model's output fields: name: [[low, high] (fixed, over all stored rows), [[value, r, g, b], ...] (its colours)]
-FIELD_MAPS = {_literal(numbers.get("fields") or {})}
-'''
-    return head + _BODY
-
-
-_BODY = '''
-
-def folder():
-    """This file's folder; ParaView's GUI (`paraview --script`) runs it without __file__: then the current
-    folder if it holds solution.xdmf, else the folder the run wrote."""
-    here = globals().get("__file__")
-    for candidate in ([os.path.dirname(os.path.abspath(here))] if here else []) + [os.getcwd(), FOLDER]:
-        if candidate and os.path.isfile(os.path.join(candidate, "solution.xdmf")):
-            return candidate
-    return os.getcwd()
-
-
-def fixed_map(name, low, high, preset=None, colours=None):
-    """The colour map of array `name` on [low, high], never rescaled when the time changes."""
-    lut = GetColorTransferFunction(name)
-    if colours and len(colours[0]) == 4:  # (value, r, g, b): each colour at its value
-        lut.RGBPoints = [v for point in colours for v in point]
-        lut.ColorSpace = "RGB"
-        # not 256 table values: their bins (2·peak/256) are wider than a symmetric-log map's linear part near 0,
-        # and the texture drew 0 in stripes of both ends' colours
-        lut.Discretize = 0
-    elif colours:  # evenly spaced colours from low to high
-        step = (high - low) / (len(colours) - 1)
-        lut.RGBPoints = [v for k, c in enumerate(colours) for v in (low + k * step, *c)]
-        lut.ColorSpace = "Lab"
-    else:
-        lut.ApplyPreset(preset, True)
-    lut.AutomaticRescaleRangeMode = "Never"
-    lut.ScalarRangeInitialized = 1  # so that colouring by it keeps this range instead of the data's at this time
-    lut.RescaleTransferFunction(low, high)
-    GetOpacityTransferFunction(name).RescaleTransferFunction(low, high)
-    return lut
-
-
-MAPS = {"contact": (CONTACT_RANGE, "Cool to Warm", None), "velocity": (VELOCITY_RANGE, None, VELOCITY_COLOURS),
-        **{name: (tuple(span), None, points) for name, (span, points) in FIELD_MAPS.items()}}
-
-
-def colour_by(view, display, field):
-    """Colour by `field` on its fixed range, with its colour bar (and no other)."""
-    ColorBy(display, ("POINTS", field))
-    (low, high), preset, colours = MAPS[field]
-    lut = fixed_map(field, low, high, preset, colours)  # again: ColorBy rescales to the data at this time
-    for other in MAPS:
-        if other != field:
-            HideScalarBarIfNotNeeded(GetColorTransferFunction(other), view)
-    display.SetScalarBarVisibility(view, True)
-    bar = GetScalarBar(lut, view)
-    bar.Title = field
-    bar.ComponentTitle = ""
-    bar.TitleColor = bar.LabelColor = [0.0, 0.0, 0.0]
-    bar.TitleFontSize = bar.LabelFontSize = 18
-    bar.RangeLabelFormat = "%-#6.3g"
-
-
-OBSTACLE_SCRIPT = (
-    "from vtkmodules.vtkCommonCore import vtkPoints\\n"
-    "from vtkmodules.vtkCommonDataModel import vtkCellArray\\n"
-    "points, cells = vtkPoints(), vtkCellArray()\\n"
-    "for p in POINTS:\\n    points.InsertNextPoint(p)\\n"
-    "for q in QUADS:\\n    cells.InsertNextCell(4, q)\\n"
-    "out = self.GetPolyDataOutput()\\nout.SetPoints(points)\\nout.SetPolys(cells)\\n"
-)
-
-
-def moving_obstacle(reader):
-    """ψ(x, t) from solution.xdmf's `obstacle` field, where it is at the time shown: the mesh warped by it, for a
-    string extruded downwards and cut at the box's floor (the region below ψ, as an obstacle at rest), moved
-    by OBSTACLE_SHIFT."""
-    from paraview.simple import Clip, ExtractSurface, LinearExtrusion, Transform
-
-    source = WarpByScalar(registrationName="warped by obstacle", Input=reader, Scalars=["POINTS", "obstacle"])
-    source.Normal = NORMAL
-    source.ScaleFactor = 1.0
-    if KIND == "string":
-        source = LinearExtrusion(registrationName="below the obstacle", Input=ExtractSurface(Input=source))
-        source.Vector = [0.0, -1.0, 0.0]
-        source.ScaleFactor = 2.0 * (BOUNDS[3] - BOUNDS[2]) + (BOUNDS[1] - BOUNDS[0])
-        source.Capping = 0
-        source = Clip(registrationName="above the floor", Input=source, ClipType="Plane")
-        source.ClipType.Origin = [0.0, BOUNDS[2], 0.0]
-        source.ClipType.Normal = [0.0, 1.0, 0.0]
-        source.Invert = 0  # keep y > the floor
-    moved = Transform(registrationName="obstacle", Input=source)
-    moved.Transform.Translate = list(OBSTACLE_SHIFT)
-    return moved
-
-
-def obstacle(view, reader):
-    """The obstacle ψ in grey: the region below it (a string), the surface z = ψ (a membrane)."""
-    if OBSTACLE_MOVES:
-        source = moving_obstacle(reader)
-    else:
-        source = ProgrammableSource(registrationName="obstacle")
-        source.OutputDataSetType = "vtkPolyData"
-        source.Script = f"POINTS = {OBSTACLE_POINTS!r}\\nQUADS = {OBSTACLE_QUADS!r}\\n" + OBSTACLE_SCRIPT
-    display = Show(source, view)
-    if OBSTACLE_MOVES:
-        ColorBy(display, None)  # one grey, not the fields' colours
-    display.AmbientColor = display.DiffuseColor = list(OBSTACLE_GREY)
-    display.Ambient, display.Diffuse, display.Specular = 1.0, 0.0, 0.0  # unlit: the same grey everywhere
-    return display
-
-
-def labels(view):
-    """The title (scene, model, scheme) at the top, the time in the upper left corner, the axes named."""
-    title = Show(Text(registrationName="title", Text=TITLE), view)
-    title.WindowLocation, title.FontSize, title.Color = "Upper Center", 20, [0.0, 0.0, 0.0]
-    clock = Show(AnnotateTime(registrationName="time", Format="t = {time:.4g}"), view)
-    clock.WindowLocation, clock.FontSize, clock.Color = "Upper Left Corner", 20, [0.0, 0.0, 0.0]
-    grid = view.AxesGrid
-    grid.Visibility = 1
-    grid.XTitle, grid.YTitle, grid.ZTitle = ("x", "eta", "") if KIND == "string" else ("x", "y", "eta")
-    for axis in "XYZ":
-        for part in ("Title", "Label"):
-            setattr(grid, f"{axis}{part}Color", [0.0, 0.0, 0.0])
-            setattr(grid, f"{axis}{part}FontSize", 16)
-    grid.GridColor = [0.3, 0.3, 0.3]
-    grid.UseCustomBounds, grid.CustomBounds = 1, list(BOUNDS)  # the same axes at every time
-    grid.AxesToLabel = 7  # the lower edges only (min x, min y, min z): the others would repeat them
-
-
-def build(size=(1000, 600)):
-    disable = getattr(paraview.simple, "_DisableFirstRenderCameraReset", None)
-    if disable is not None:  # else the first Render resets the camera to this time's shape
-        disable()
-    reader = Xdmf3ReaderT(registrationName="solution.xdmf", FileName=[os.path.join(folder(), "solution.xdmf")])
-    animation = GetAnimationScene()
-    animation.UpdateAnimationUsingDataTimeSteps()
-    warp = WarpByScalar(registrationName="warped by eta", Input=reader, Scalars=["POINTS", "eta"])
-    warp.Normal = NORMAL
-    warp.ScaleFactor = 1.0
-    view = GetActiveViewOrCreate("RenderView")
-    view.ViewSize = list(size)
-    view.Background = [1.0, 1.0, 1.0]
-    try:
-        view.UseColorPaletteForBackground = 0
-    except AttributeError:  # ParaView before 5.10
-        pass
-    view.OrientationAxesVisibility = 0  # the named axes below say which way is which
-    obstacle(view, reader)
-    display = Show(warp, view)
-    if KIND == "string":
-        display.LineWidth = 4.0
-    for name, ((low, high), preset, colours) in MAPS.items():  # every field's map fixed, for the GUI's colour menu
-        fixed_map(name, low, high, preset, colours)
-    colour_by(view, display, "contact")
-    labels(view)
-    frame(view)
-    return animation, view, display
-
-
-def frame(view):
-    """The camera on the box of all times: a string from the front, a membrane from above its front edge."""
-    # no max() here: ParaView runs the obstacle's script in this module's namespace, after
-    # `from vtkmodules.numpy_interface.algorithms import *`, whose max and min take arrays
-    centre = [0.5 * (BOUNDS[0] + BOUNDS[1]), 0.5 * (BOUNDS[2] + BOUNDS[3]), 0.5 * (BOUNDS[4] + BOUNDS[5])]
-    width = sorted([BOUNDS[1] - BOUNDS[0], BOUNDS[3] - BOUNDS[2], BOUNDS[5] - BOUNDS[4], 1e-12])[-1]
-    view.CameraFocalPoint = centre
-    if KIND == "string":  # the box's height, or its width at the view's aspect, and room for the labels
-        aspect = view.ViewSize[0] / view.ViewSize[1]
-        half = sorted([0.5 * (BOUNDS[3] - BOUNDS[2]), 0.5 * (BOUNDS[1] - BOUNDS[0]) / aspect])[-1]
-        view.CameraPosition = [centre[0], centre[1], centre[2] + 3.0 * width]
-        view.CameraViewUp = [0.0, 1.0, 0.0]
-        view.CameraParallelProjection = 1
-        view.CameraParallelScale = 1.2 * half
-        return
-    view.CameraPosition = [centre[0] - 0.4 * width, centre[1] - 1.1 * width, centre[2] + 1.5 * width]
-    view.CameraViewUp = [0.0, 0.0, 1.0]
-    view.ResetCamera(*BOUNDS)
-
-
-def show_at(animation, view, display, t, field="contact"):
-    animation.AnimationTime = t
-    view.ViewTime = t
-    colour_by(view, display, field)
-    Render(view)
-
-
-def camera(view):
-    """The camera VTK renders with (not the proxy's copy): position, focal point, parallel scale, view angle."""
-    cam = view.GetActiveCamera()
-    return {"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
-            "parallel_scale": cam.GetParallelScale(), "view_angle": cam.GetViewAngle()}
-
-
-def axes(view):
-    """The titles of the axes shown (none when they are hidden)."""
-    grid = view.AxesGrid
-    return [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else []
-
-
-def obstacle_bounds(t):
-    """The box of the obstacle drawn at the time t: x0, x1, y0, y1, z0, z1."""
-    from paraview.simple import FindSource
-
-    source = FindSource("obstacle")
-    source.UpdatePipeline(t)  # its data information is of the last update's time
-    return list(source.GetDataInformation().GetBounds())
-
-
-def main(argv):
-    shot = len(argv) >= 3 and argv[2].lower().endswith(".png")  # pvpython view.py TIME PNG [contact|velocity|FIELD]
-    field = argv[3] if shot and len(argv) > 3 else "contact"
-    if field not in MAPS:
-        sys.exit(f"view.py: no field {field!r} to colour by; choose one of {', '.join(MAPS)}")
-    animation, view, display = build()
-    if shot:
-        show_at(animation, view, display, float(argv[1]), field)
-        SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
-        points = GetColorTransferFunction(field).RGBPoints
-        print(json.dumps({"time": view.ViewTime, "field": field, "range": [points[0], points[-4]],
-                          "camera": camera(view), "axes": axes(view),
-                          "obstacle": obstacle_bounds(view.ViewTime)}), flush=True)
-        return
-    Render(view)
-    if argv[0]:  # pvpython view.py: a window of its own (ParaView's GUI runs the script with sys.argv == [""])
-        Interact(view)
-
-
-main(list(getattr(sys, "argv", None) or [""]))
-'''
+    """The text of view.py for `numbers` (`view_numbers`): the package's program, each of its numbers' lines
+    (``NAME = value  # comment``) given the run's value."""
+    program = view_program()
+    start = program.index("\n", program.index(_NUMBERS_START)) + 1
+    end = program.index(_NUMBERS_END)
+    values = {
+        "KIND": numbers["kind"],
+        "TITLE": numbers.get("title") or "",
+        "NORMAL": numbers["normal"],
+        "CONTACT_RANGE": CONTACT_RANGE,
+        "VELOCITY_RANGE": numbers["velocity_range"],
+        "VELOCITY_COLOURS": VELOCITY_COLOURS,
+        "BOUNDS": numbers["bounds"],
+        "OBSTACLE_GREY": OBSTACLE_GREY,
+        "OBSTACLE_POINTS": numbers.get("obstacle_points") or [],
+        "OBSTACLE_QUADS": numbers.get("obstacle_quads") or [],
+        "OBSTACLE_MOVES": bool(numbers.get("obstacle_moves")),
+        "OBSTACLE_SHIFT": numbers.get("obstacle_shift") or (0.0, 0.0, 0.0),
+        "FOLDER": numbers.get("folder") or "",
+        "FIELD_MAPS": numbers.get("fields") or {},
+        "SYMLOG": numbers.get("symlog") or {},
+    }
+    lines = []
+    for line in program[start:end].splitlines():
+        name, equals, rest = line.partition(" = ")
+        if equals and name in values:
+            comment = rest.partition("  #")[2]
+            line = f"{name} = {_literal(values.pop(name))}" + (f"  #{comment}" if comment else "")
+        lines.append(line)
+    if values:  # the program and this module out of step: a packaging error, not the user's
+        raise RuntimeError(f"{'/'.join(PROGRAM)} has no line for {sorted(values)}")
+    return program[:start] + "\n".join(lines) + "\n" + program[end:]
 
 
 def write_view(result, folder, target=None) -> Path:
