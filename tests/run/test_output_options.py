@@ -81,6 +81,9 @@ def test_a_projection_scene_may_omit_eps(tmp_path):
     data = {"T": 0.1, "alpha": 0.01, "nx": 40, "nt": 100, "eta0": "0.1", "v0": -5, "h": 0.1, "scheme": "projection"}
     scene = sc.Scene.from_dict(data)
     assert scene.eps is None and "eps" not in scene.as_dict()
+    from stringcontact.cli.report import show_scene
+
+    assert "# eps: not given: scheme projection does not read it" in show_scene(scene)
     res = sc.simulate(scene, output=sc.Output(tmp_path / "run", pictures=False))
     assert res.status == "complete" and res.penalty == "none"
     assert '"r": "nan"' in (tmp_path / "run" / "summary.json").read_text()

@@ -12,6 +12,7 @@ __all__ = ["report", "show_scene"]
 
 #: `show`'s line for an optional key the scene does not give.
 _NOT_GIVEN = {
+    "eps": "scheme projection does not read it; a penalty scheme (--scheme paper, newmark) needs it",
     "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
     "obstacle": "the flat obstacle psi = 0 (the paper's y = 0)",
     "petsc_options": "the scheme's own linear solver",

@@ -94,9 +94,10 @@ class Result:
     the implicit Euler's two squares (≥ 0) and the force's work with the velocity's jump, which has either sign: the
     explicit penalty's f = m_F∘F(η^n, v^n) brakes a node whose velocity then rises (v^{n+1} > v^n, f > 0), and that
     term is negative. `newmark` and `projection` on a linear model book no D_num; the Newton paths (a nonlinear
-    model) book what the step's energy change leaves after the physical terms, of either sign. So D_num can be negative (Example 1: −4.1 of E(0) = 1311): it is the scheme's time error in
-    energy terms, O(Δt), not a dissipation of a definite sign; the run's report flags it when it is a large share of
-    the energy (`run.checks.NUMERICAL_SHARE`).
+    model) book what the step's energy change leaves after the physical terms, of either sign. So D_num can be
+    negative (Example 1: −4.1 of E(0) = 1311): it is the scheme's time error in energy terms, O(Δt), not a
+    dissipation of a definite sign; the run's report flags it when it is a large share of the energy
+    (`run.checks.NUMERICAL_SHARE`).
     `fields` holds the model's output fields by name (`Model.outputs`: its further unknowns and derived fields;
     ``result.fields["reaction"]`` of a model that declares a field ``reaction``), (k, nodes) arrays like `eta`; `field_info` says how each is shown (`OutputField.metadata`: label, unit, colours, scale).
     `parameters` holds the model's constants as the run used them (the scene's ``[parameters]`` and the
