@@ -49,7 +49,8 @@ COLUMNS = {
     "numerical_dissipation": "energy taken by the scheme itself up to t (cumulative)",
     "external_work": "work of an external load up to t (cumulative; 0 without a load)",
     "balance_residual": "E(0) − [E(t) + dissipations − external work]: closes to round-off",
-    "min_eta": "min over the nodes of η − ψ (below 0: below the obstacle)",
+    "min_eta": "min over the nodes of the height η at the row (η itself, whatever the obstacle; summary.json's `min_eta`: over every step)",
+    "min_gap": "min over the nodes of the gap η − ψ at the row, ψ at the row's time (below 0: below the obstacle, that deep; ψ = 0 without an obstacle, where it is `min_eta`; summary.json's `min_gap`: over every step)",
     "contact_length": "the length of the contact set {η ≤ ψ}; a membrane's file names this column `contact_area`, its area",
     "contact_components": "the number of contact intervals (2D: patches)",
     "max_contact_force": "the largest nodal contact force",
@@ -130,7 +131,7 @@ def scene_keys() -> str:
         kind, unit, default, meaning = limits.KEY_DOCS[key]
         domain = domains.get(key)
         where = "1D" if domain == "interval" else f"2D ({domain})" if domain else "1D, 2D"
-        if key in limits.REQUIRED_KEYS:
+        if key in limits.REQUIRED_KEYS and not default.startswith("required"):  # eps says when it is required
             default = "required" + (" (1D)" if domain == "interval" else "")
         rows.append([f"`{key}`", meaning, kind, unit or "–", default, checks.allowed(key), where])
     from stringcontact.scene import expressions

@@ -276,6 +276,8 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "study", "film", "--quick", "--out", str(out)],
                           check=False, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+    line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("study film:"))
+    assert line.endswith("the cases ran one after another on rank 0") and "per rank: " not in line, line
     from stringcontact.analysis.tables import read_csv
 
     rows = read_csv(out / "study_film.csv")

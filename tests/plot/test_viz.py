@@ -338,7 +338,7 @@ def test_simulate_calls_a_given_picture_function_before_the_folder_is_published(
         (Path(folder) / "mine.png").write_bytes(b"png")
 
     scene = sc.load_scene("example1").replace(nx=20, nt=40, eps=0.01)
-    res = sc.simulate(scene, output_dir=tmp_path / "out", pictures=draw)
+    res = sc.simulate(scene, output=sc.Output(tmp_path / "out", pictures=draw, default_pictures=False))  # its own only
     [(result, folder)] = calls
     assert result is res and folder.name.startswith(".out.partial") and not folder.exists()
     assert sorted(p.name for p in (tmp_path / "out").glob("*.png")) == ["mine.png"]
@@ -617,8 +617,9 @@ def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
 
 
 def test_the_space_time_title_gives_a_heights_round_off_as_0(tmp_path, monkeypatch):
-    """A string held at η ≥ 1 above a narrow bump whose foot is 1e-110: the title's height range starts at 0, not
-    at the bump's round-off (it read 'height η from 1.32e-112')."""
+    """A string held at η ≥ 1 above a narrow bump whose foot is 1e-110: the title gives η's own range (from 1, not
+    from the drawn box's bottom, which read 'height η from 1.32e-112' and then 'from 0') and the bump's, whose
+    round-off foot reads 0."""
     from stringcontact.plot import mesh_pictures
 
     scene = sc.load_scene("example1").replace(nx=40, nt=20, T=0.01, v0="0", output_times=[],
@@ -628,6 +629,6 @@ def test_the_space_time_title_gives_a_heights_round_off_as_0(tmp_path, monkeypat
     titles = []
     monkeypatch.setattr(mesh_pictures, "_title", lambda p, text, **kw: titles.append(text))
     mesh_pictures.space_time_picture(res, tmp_path / "st.png")
-    (line,) = [line for line in titles[0].splitlines() if line.startswith("height")]
-    assert line == f"height η from 0 to {res.eta.max():.3g} over x and t", line
+    (line,) = [line for line in titles[0].splitlines() if line.startswith("η from")]
+    assert line == f"η from {res.eta.min():.3g} to {res.eta.max():.3g} over x and t, ψ from 0 to 0.05", line
     assert mesh_pictures._height_text(-0.0123, 1.0) == "-0.0123" and mesh_pictures._height_text(2e-6, 1.0) == "2e-06"

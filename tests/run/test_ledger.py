@@ -75,3 +75,30 @@ def test_a_small_motion_on_a_large_height_is_not_called_unstable(scheme):
     assert res.status != "unstable"
     assert len(res.t) and res.t[-1] == pytest.approx(0.1)  # ran to T
 
+
+
+def test_the_numerical_dissipation_is_the_results_formula_and_can_be_negative():
+    """`Result`'s D_num for `paper` with the explicit penalty, step by step: ½|Δv|²_M + ½|Δη|²_K − (Δt/2) f·Δv with
+    f = m_F∘F(η^n, v^n) the applied force; the force term is negative where the penalty brakes a node (Δv > 0), and
+    it outweighs the squares over Example 1's landing (D_num < 0, as its report prints −4.1 at full size)."""
+    st = sc.Stepper(sc.load_scene("example1").replace(nx=100, nt=600, output_times=[]), progress=False)
+    ops, dt = st.setting.ops, st.dt
+    vec = ops.K.createVecRight()
+    force_terms, worst = [], 0.0
+    while st.step < st.nt:
+        eta0, v0 = st.scheme.eta.copy(), np.asarray(st.scheme.velocity, dtype=float).copy()
+        f = ops.m_force * np.asarray(st.scheme.contact_force, dtype=float)  # F(η^n, v^n): what this step applies
+        before = st.ledger.num
+        st.advance()
+        d_eta, d_v = st.scheme.eta - eta0, np.asarray(st.scheme.velocity, dtype=float) - v0
+        vec.array[:] = d_eta
+        K_d = ops.K.createVecLeft()
+        ops.K.mult(vec, K_d)
+        squares = 0.5 * float(np.dot(d_v, ops.m * d_v)) + 0.5 * float(np.dot(d_eta, K_d.array))
+        force_terms.append(-0.5 * dt * float(np.dot(f, d_v)))
+        booked = st.ledger.num - before
+        worst = max(worst, abs(booked - (squares + force_terms[-1])) / max(abs(booked), 1e-12 * st.ledger.E_ref))
+    assert worst < 1e-6
+    assert min(force_terms) < 0 and st.ledger.num < 0
+    doc = sc.Result.__doc__
+    assert "½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n)" in doc and "negative" in doc

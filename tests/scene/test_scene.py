@@ -227,11 +227,34 @@ def test_direct_construction_validates():
 
 
 def test_warns_below_obstacle(tmp_path):
-    pattern = r"eta0 is below the obstacle \(eta0 < 0\) at 25 of 51 nodes \(min -0.5 at x=0\); used as given"
+    pattern = r"eta0 is below the obstacle \(eta0 < 0\) at 25 of 51 nodes \(min -0.25 at x=0.5\); used as given"
     with pytest.warns(SceneWarning, match=pattern) as record:
-        s = load_scene(write(tmp_path, with_line("eta0", 'eta0 = "x - 0.5"')))
+        s = load_scene(write(tmp_path, with_line("eta0", 'eta0 = "abs(x - 0.5) - 0.25"')))
     assert len(record) == 1  # the ends default to eta0's end values: no second warning
-    assert (s.h_left, s.h_right) == (-0.5, 0.5)
+    assert (s.h_left, s.h_right) == (0.25, 0.25)
+
+
+@pytest.mark.parametrize(("lines", "message"), [
+    # the ends default to eta0's: the left one inside the flat obstacle
+    ('eta0 = "x - 0.5"\n', ("h_left: the left end is held at -0.5, inside the obstacle psi = 0, which is 0 at x = 0; "
+                            "allowed: h_left >= the obstacle at the ends")),
+    # the issue's case: a raised obstacle above both ends
+    ('eta0 = "3"\nh = 1\nobstacle = "2"\nmodel = "loaded_obstacle"\n',
+     "h: the left end is held at 1, inside the obstacle '2', which is 2 at x = 0; allowed: h >= the obstacle"),
+    ('eta0 = "3"\nh_left = 3\nh_right = 1\nobstacle = "2*x"\nmodel = "loaded_obstacle"\n',
+     "h_right: the right end is held at 1, inside the obstacle '2\\*x', which is 2 at x = 1"),
+    # a moving obstacle over the right end at the start
+    ('eta0 = "1"\nobstacle = "where(x > 0.9, 2 + t, -1)"\nmodel = "loaded_obstacle"\n',
+     "h_right: the right end is held at 1, inside the obstacle .* which is 2 at x = 1 at t = 0;"),
+])
+def test_refuses_held_ends_inside_the_obstacle(tmp_path, lines, message):
+    """An end held below the obstacle is refused in one line naming the key, the end's height and the obstacle's
+    value there (the CLI: exit 2, nothing written); an end on the obstacle is allowed."""
+    text = "".join(line + "\n" for line in VALID.splitlines() if not line.startswith(("eta0", "h ", "h=")))
+    with pytest.raises(SceneError, match=message):
+        load_scene(write(tmp_path, text + lines))
+    on = load_scene(write(tmp_path, text + 'eta0 = "2"\nh = 2\nobstacle = "2"\nmodel = "loaded_obstacle"\n'))
+    assert (on.h_left, on.h_right) == (2.0, 2.0)
 
 
 def test_warns_when_ends_differ_from_eta0(tmp_path):

@@ -83,7 +83,7 @@ def _run(args, painter=None) -> int:
     from ..run.options import Output
 
     output = Output(args.out, max_frames=args.frames, force=args.force, pictures=_pictures(args, painter),
-                    progress=not args.no_progress)
+                    progress=not args.no_progress, default_pictures=painter is None)  # the painter's are the defaults
     res = sc.simulate(scene, **options, model=spec, output=output)  # the name: summary.json says where it came from
     if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
         from .report import report

@@ -12,6 +12,7 @@ __all__ = ["report", "show_scene"]
 
 #: `show`'s line for an optional key the scene does not give.
 _NOT_GIVEN = {
+    "eps": "scheme projection does not read it; a penalty scheme (--scheme paper, newmark) needs it",
     "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
     "obstacle": "the flat obstacle psi = 0 (the paper's y = 0)",
     "petsc_options": "the scheme's own linear solver",
@@ -75,10 +76,34 @@ def _fmt_energy_line(res) -> str:
     )
 
 
+def _fmt_numerical_line(res) -> str | None:
+    """A line when the scheme's own dissipation D_num is a large share of the energy (`run.checks.NUMERICAL_SHARE`):
+    what it is and what to change; None otherwise."""
+    from ..run.checks import NUMERICAL_SHARE, checks_of
+
+    b = checks_of(res)["energy_balance"]
+    share = b.get("numerical_share", 0.0)
+    if not share > NUMERICAL_SHARE:
+        return None
+    advice = ("a smaller dt (D_num falls like dt: --nt 4x, about a quarter of it)"
+              if res.scheme == "paper" else "a smaller dt (D_num falls with dt)")
+    if res.scheme == "paper":
+        advice += ", or scheme newmark (trapezoidal: no dissipation of its own on a linear model)"
+    return (f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % of the "
+            f"energy {b['energy_scale']:.6g} (over {100 * NUMERICAL_SHARE:.0f} %): the balance closes, but the "
+            f"dissipations are that far from the equation's; for numbers to trust use {advice}")
+
+
 def _fmt_penetration_line(res) -> tuple[str, bool]:
-    from ..run.checks import PENETRATION_FACTOR, checks_of
+    from ..run.checks import PENETRATION_FACTOR, PRESS_SPAN, checks_of
 
     p = checks_of(res)["penetration"]
+    if p.get("bound_kind") == "pressed":  # a sustained press: the depth is the penalty's creep, no impact bound
+        return (f"penetration: max depth {p['depth']:.4g}: the string is pressed on the obstacle (a contact force "
+                f"{p['press_force']:.4g} at a node, held for {p['press_time']:.4g}, over {PRESS_SPAN:g} eps), where a "
+                f"velocity penalty lets it creep in at eps x the force: eps x the force's integral over time = "
+                f"{p['creep']:.4g}; this is O(eps) (a smaller eps, or scheme projection, holds the string out), and "
+                f"the impact bound {PENETRATION_FACTOR:g}(eps + dt) max|v| does not apply"), True
     if p["bound"] is None:  # the model's contact law has no known bound: the depth alone, no verdict
         return f"penetration: max depth {p['depth']:.4g} ({p['law']})", True
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
@@ -94,7 +119,8 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
 
 
 def report(res) -> None:
-    """The run's closing lines on stdout: parameters, min η, the energy balance and the penetration check."""
+    """The run's closing lines on stdout: parameters, the least gap η − ψ and height η, the energy balance (with a
+    note when the scheme's own dissipation is a large share of it) and the penetration check."""
     from ..errors import PenetrationWarning
 
     scene = res.scene
@@ -107,18 +133,20 @@ def report(res) -> None:
     if len(res.t) == 0:
         return
     if res.dim == 1:
-        print(f"min eta = {res.min_eta:.6g}; final contact length = {res.contact_length[-1]:.4g}"
-              + _components_note(res))
+        print(f"{_fmt_minima(res)}; final contact length = {res.contact_length[-1]:.4g}" + _components_note(res))
     else:
-        print(f"min eta = {res.min_eta:.6g}; final contact area = {res.contact_measure[-1]:.4g} "
+        print(f"{_fmt_minima(res)}; final contact area = {res.contact_measure[-1]:.4g} "
               f"in {res.contact_components[-1]} patch(es)")
     print(_fmt_energy_line(res))
+    numerical = _fmt_numerical_line(res)
+    if numerical is not None:
+        print(numerical)
     line, ok = _fmt_penetration_line(res)
     print(line)
     if not ok:
         warnings.warn(
-            "the string went further below the obstacle than its contact law allows; a force the penalty "
-            "cannot stop holds it down (a static load, a model variant, r > 1); see docs/explanation/reliability.md",
+            "the string went further below the obstacle than its contact law allows, with no press to explain it; "
+            "a force the penalty cannot stop holds it down (a model variant, r > 1); see docs/explanation/reliability.md",
             PenetrationWarning,
         )
     if res.timings:
@@ -127,6 +155,15 @@ def report(res) -> None:
         print("counts: " + ", ".join(f"{k} {v}" for k, v in res.counters.items()))
     for what, description in res.solver.items():
         print(f"{what}: {description}")
+
+
+def _fmt_minima(res) -> str:
+    """"min gap eta - psi = G (min eta = E)": the least gap to the obstacle (below 0: below it) and the least height,
+    over every node and step; one number under the flat obstacle psi = 0."""
+    gap = getattr(res, "min_gap", float("nan"))
+    if res.scene.obstacle is None:
+        return f"min gap eta - psi = min eta = {res.min_eta + 0.0:.6g} (the obstacle psi = 0)"  # + 0.0: no "-0"
+    return f"min gap eta - psi = {gap + 0.0:.6g} (min eta = {res.min_eta + 0.0:.6g})"
 
 
 def _components_note(res) -> str:

@@ -94,10 +94,18 @@ def command(args) -> int:
         elapsed = time.perf_counter() - t0
         per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
         print(f"study {args.study}: {comm.size} rank(s), {elapsed:.2f} s wall-clock, of which the sweep "
-              f"{sweep:.2f} s; CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank))
+              f"{sweep:.2f} s; " + _cpu_text(per_rank))
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _cpu_text(per_rank) -> str:
+    """The report's CPU-time clause: the cases' time on each rank, or, for a study whose cases are not timed per
+    rank (`study film` runs its sweep on rank 0), where they ran."""
+    if len(per_rank) == 0:
+        return "the cases ran one after another on rank 0"
+    return "CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank)
 
 
 def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Path]:

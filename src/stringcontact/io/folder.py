@@ -88,6 +88,24 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
     mask[candidates] = True
 
 
+#: The command line's words in the output folder's messages (`publish.check_target`) and a Python caller's, who
+#: gave the folder and the flag as `run.options.Output(dir, force=True)`.
+_PYTHON_TERMS = (
+    ("pass --force to replace it", "pass Output(..., force=True) to replace it"),
+    ("--force replaces only", "Output(force=True) replaces only"),
+    ("--out ", "output folder "),
+)
+
+
+def in_python_terms(message: str) -> str:
+    """An output folder's refusal as a Python caller says it: ``Output(..., force=True)`` for ``--force``, "output
+    folder X" for ``--out X``. The command line checks its --out itself first (`publish.check_target`), in its own
+    words; what reaches `OutputWriter` comes from `simulate`/`Stepper`'s `Output`."""
+    for cli, python in _PYTHON_TERMS:
+        message = message.replace(cli, python)
+    return message
+
+
 class OutputWriter:
     """Streams the stored rows to XDMF during the run and writes the tables at the end.
 
@@ -120,7 +138,7 @@ class OutputWriter:
             try:
                 self.target, self.lock, self.partial = open_partial(path, force)
             except OutputError as exc:
-                failure = str(exc)
+                failure = in_python_terms(str(exc))
         failure, partial = comm.bcast((failure, self.partial), root=0) if comm.size > 1 else (failure, self.partial)
         if failure is not None:
             raise OutputError(failure)
@@ -273,7 +291,7 @@ class OutputWriter:
             "status": None,
             "message": "",
             "scene": scene.as_dict(),
-            "r": scene.dt / scene.eps,
+            "r": scene.r,  # nan without eps (scheme projection)
             "dolfinx": dolfinx.__version__,
             "stored_rows": self._row,
             "xdmf_frames": len(self.times),

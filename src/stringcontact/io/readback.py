@@ -76,6 +76,7 @@ def read_output(folder, from_xdmf: bool = False):
         contact_force=fields["contact_force"],
         energy={key: column[key] for key in ENERGY_KEYS},
         min_eta=float(summary.get("min_eta", np.min(fields["eta"]))),
+        min_gap=float(summary.get("min_gap", "nan")),  # a folder written before the gap was recorded: not known
         penalty=summary.get("penalty", "explicit"),
         mass=summary.get("mass", "lumped"),
         model=summary.get("model", DEFAULT_MODEL),

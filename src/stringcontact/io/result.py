@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -69,20 +70,38 @@ class Result:
     are gathered to rank 0 only (`simulate(gather="root")`, the default): on the other ranks `has_rows` is
     False, they are None, and reading one raises `RowsElsewhere` (an AttributeError) that says so, rather
     than give numbers of part of the mesh. The per-time series are the same on every rank: t, steps,
-    energy, min_eta, status, message, and `series` (computed in parallel at each stored time):
+    energy, min_eta, min_gap, status, message, and `series` (computed in parallel at each stored time):
     "contact_measure", "max_speed" (max `|v|`) and "depth" (max of obstacle − η; the obstacle is 0 unless
     the scene gives one), which `contact_measure` and `run.checks.penetration_check` use where the rows are
     absent. `simulate(gather="all")` gives every rank the rows.
 
-    `contact` is η ≤ 0 (on or below the obstacle); the penalty acts where η < 0.
+    `min_gap` is the least gap η − ψ to the obstacle ψ over every node and every step (not only the stored ones),
+    ψ at each step's time when the obstacle moves: below 0 the string is below the obstacle, −min_gap deep. `min_eta`
+    is the least height η itself over the same nodes and steps (at t = 0 the interior nodes only): the two are one
+    number under the paper's flat obstacle ψ = 0, and differ under a raised or moving one (a string draped over a
+    bump of top 0.2 has min_eta −0.095 where min_gap is −0.009). `stored_min_gap` gives the gap at each stored time.
+
+    `contact` is η ≤ ψ (on or below the obstacle); the penalty acts where η < ψ.
     `contact_force` at t_n is a contact force density (per unit length or area): ≥ 0, and 0 off the contact
     set at t_n, under every scheme. `projection`: the multiplier of the step that ends at t_n (its contact
     step is a complementarity problem); `paper` with the explicit penalty: the paper's F(η^n, v^n), which
     the next step applies; the semi-implicit penalties (`paper`, `newmark`): the force of the step that
     ends at t_n, −d v^n on its active set.
     `energy` holds (k,) arrays; the dissipations and the external work are cumulative from t=0.
-    `numerical_dissipation` is the scheme's own consistency term: ½|v^{n+1}−v^n|²_M + ½|η^{n+1}−η^n|²_K
-    per step, so that the discrete balance below closes to round-off.
+    `numerical_dissipation` (D_num) is what the scheme's own discrete energy identity holds besides the physical
+    terms, so that E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off (run/ledger.py sums the terms each
+    scheme reports). Every scheme books the contact dissipation as the work of the applied nodal contact force f with
+    the step's mean velocity, ΔD_con = −(Δt/2) f·(v^n + v^{n+1}); the rest of the force's work is D_num's. For `paper`:
+
+        ΔD_num = ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n)   per step,
+
+    the implicit Euler's two squares (≥ 0) and the force's work with the velocity's jump, which has either sign: the
+    explicit penalty's f = m_F∘F(η^n, v^n) brakes a node whose velocity then rises (v^{n+1} > v^n, f > 0), and that
+    term is negative. `newmark` and `projection` on a linear model book no D_num; the Newton paths (a nonlinear
+    model) book what the step's energy change leaves after the physical terms, of either sign. So D_num can be
+    negative (Example 1: −4.1 of E(0) = 1311): it is the scheme's time error in energy terms, O(Δt), not a
+    dissipation of a definite sign; the run's report flags it when it is a large share of the energy
+    (`run.checks.NUMERICAL_SHARE`).
     `fields` holds the model's output fields by name (`Model.outputs`: its further unknowns and derived fields;
     ``result.fields["reaction"]`` of a model that declares a field ``reaction``), (k, nodes) arrays like `eta`; `field_info` says how each is shown (`OutputField.metadata`: label, unit, colours, scale).
     `parameters` holds the model's constants as the run used them (the scene's ``[parameters]`` and the
@@ -123,12 +142,13 @@ class Result:
     counters: dict = field(default_factory=dict)  # the schemes' counts: "refactorisations", "newton iterations", ...
     solver: dict = field(default_factory=dict)  # what solved the steps, in words: "linear solver", "contact step", ...
     petsc_options: dict = field(default_factory=dict)  # the options the solver was given: the model's, then the user's
+    min_gap: float = math.nan  # min over every node and step of η − ψ (see above); nan: not known (an old folder)
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):
             raise RowsElsewhere(
                 f"Result.{name}: the per-node rows are on rank 0 only (simulate(gather='root')); this rank holds the "
-                "series (t, energy, min_eta, contact_measure); use simulate(..., gather='all') for rows on every rank")
+                "series (t, energy, min_eta, min_gap, contact_measure); use simulate(..., gather='all') for rows on every rank")
         return object.__getattribute__(self, name)
 
     def __repr__(self) -> str:
@@ -146,6 +166,22 @@ class Result:
         e = self.energy
         spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
         return self.total_energy[0] + e["external_work"] - (self.total_energy + spent)
+
+    @cached_property
+    def stored_min_gap(self) -> np.ndarray:
+        """min over the nodes of η − ψ at each stored time (ψ at that time when the obstacle moves; ψ = 0 when the
+        scene gives none): diagnostics.csv's ``min_gap``. The series the run summed over the ranks where it has one
+        (−``series["depth"]``), else from the rows."""
+        depth = (self.series or {}).get("depth")
+        if depth is not None and len(depth) == len(self.t):
+            return -np.asarray(depth, dtype=float)
+        scene, x = self.scene, np.asarray(self.x, dtype=float)
+        if getattr(scene, "obstacle", None) is None:
+            return np.min(self.eta, axis=1, initial=np.inf)
+        moves = getattr(scene, "obstacle_moves", False)
+        psi = None if moves else scene.obstacle_values(x)
+        return np.array([np.min(row - (scene.obstacle_values(x, float(t)) if moves else psi), initial=np.inf)
+                         for t, row in zip(self.t, self.eta)])
 
     @property
     def dim(self) -> int:
@@ -199,6 +235,6 @@ class Result:
         for row in self.contact:
             keep = row[edges[:, 0]] & row[edges[:, 1]]
             graph = coo_matrix((np.ones(int(keep.sum())), tuple(edges[keep].T)), shape=(row.size, row.size))
-            n, labels = connected_components(graph, directed=False)
+            _n, labels = connected_components(graph, directed=False)
             counts.append(np.unique(labels[row]).size)
         return np.array(counts)

@@ -4,7 +4,7 @@
 A model's output fields (`Result.fields`) are written by name, whatever the model: each as an array of rows.npz,
 as the columns ``min_NAME`` and ``max_NAME`` of diagnostics.csv, and with how it is shown (`Result.field_info`)
 under ``"fields"`` of summary.json, beside the model's constants (``"parameters"``). A name that is already one of
-the file's own (a field ``x`` in rows.npz, a field ``eta`` beside the column ``min_eta``) is written as
+the file's own (a field ``x`` in rows.npz, a field ``eta`` beside the column ``min_eta``, a field ``gap`` beside ``min_gap``) is written as
 ``field_NAME`` (`field_key`)."""
 
 from __future__ import annotations
@@ -78,6 +78,7 @@ DIAGNOSTIC_COLUMNS = (
     *ENERGY_KEYS,
     "balance_residual",
     "min_eta",
+    "min_gap",
     "contact_length",
     "contact_components",
     "max_contact_force",
@@ -111,6 +112,7 @@ def write_diagnostics(path: Path, result) -> None:
         **result.energy,
         "balance_residual": result.balance_residual,
         "min_eta": result.eta.min(axis=1),
+        "min_gap": result.stored_min_gap,
         "contact_length": result.contact_measure,
         "contact_area": result.contact_measure,
         "contact_components": result.contact_components,
@@ -148,13 +150,14 @@ def summary_dict(result) -> dict:
         "energy_label": getattr(result, "energy_label", None),
         "parameters": dict(getattr(result, "parameters", None) or {}),
         "fields": field_info(result),
-        "r": scene.dt / scene.eps,
+        "r": scene.r,  # nan without eps (scheme projection)
         "dolfinx": dolfinx.__version__,
         "timings": result.timings,
         "counters": getattr(result, "counters", {}),
         "solver": getattr(result, "solver", {}),
         "petsc_options": getattr(result, "petsc_options", {}),
         "min_eta": result.min_eta,
+        "min_gap": getattr(result, "min_gap", math.nan),
         "stored_rows": len(result.t),
         "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
         "initial_energy": float(result.total_energy[0]),

@@ -108,7 +108,9 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
                       top=0.82)  # under the title's five lines
     # one short line each: at the window's width a longer title line ran off both edges
     _title(p, f"Space-time surface η(x, t): {result.scene.name}\n{parameter_line(result, sep=chr(10))}\n"
-              f"height η from {_height_text(lo, hi - lo)} to {_height_text(hi, hi - lo)} over x and t\n"
+              f"η from {_height_text(result.eta.min(), hi - lo)} to {_height_text(result.eta.max(), hi - lo)} over x and t"
+              + (f", {psi_name} from {_height_text(psi.min(), hi - lo)} to {_height_text(psi.max(), hi - lo)}\n"
+                 if psi_name == "ψ" else "\n") +
               f"red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
     centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
     p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact

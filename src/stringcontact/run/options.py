@@ -49,20 +49,28 @@ class Storage:
 @dataclass(frozen=True)
 class Output:
     """What a run writes: with a folder `dir`, solution.xdmf (about `max_frames` of the stored rows, always with
-    0, T and the output times), CSV, JSON and, with `pictures` (True, or a function `(result, folder)` that draws
-    them), PNGs; `force` replaces an existing output folder. `progress`: a progress bar on rank 0."""
+    0, T and the output times), CSV, JSON and PNGs; `force` replaces an existing output folder. `progress`: a
+    progress bar on rank 0.
+
+    `pictures`: True draws the default pictures (`plot.picture_names`), False or None none. A function
+    ``fn(result, folder)`` draws a picture of your own into the folder *besides* the default ones:
+    ``Output("out/run", pictures=my_picture)``. To draw only your own, say so with ``default_pictures=False``:
+    ``Output("out/run", pictures=my_picture, default_pictures=False)``."""
 
     dir: str | os.PathLike | None = None
     max_frames: int = 100
     force: bool = False
     pictures: bool | Callable | None = True
     progress: bool = False
+    default_pictures: bool = True
 
     def __post_init__(self) -> None:
         frames = self.max_frames
+        if not (self.pictures in (True, False, None) or callable(self.pictures)):
+            raise ValueError(f"pictures: expected True, False or a function (result, folder), got {self.pictures!r}")
         if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or not 1 <= frames <= MAX_FRAMES:
             raise ValueError(f"max_frames: expected a whole number in [1, {MAX_FRAMES}] (XDMF frames), got {frames!r}")
-        for name in ("force", "progress"):  # force="no" is truthy: it would replace a result
+        for name in ("force", "progress", "default_pictures"):  # force="no" is truthy: it would replace a result
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")  # noqa: TRY004 - exit 2
 
@@ -100,4 +108,24 @@ def grouped(storage: Storage | None, output: Output | None, keywords: dict) -> t
     return storage, output
 
 
-__all__ = ["KEYWORDS", "ROW_BUDGET", "Output", "Storage", "grouped"]
+def picture_function(output: Output):
+    """The function that draws `output`'s pictures into a run's folder, or None: the default pictures
+    (`plot.run_pictures.write_pictures`, imported when a picture is drawn), the caller's function after them, or the
+    caller's alone (``default_pictures=False``)."""
+    own = output.pictures if callable(output.pictures) else None
+    defaults = output.pictures is True or (own is not None and output.default_pictures)
+    if not defaults:
+        return own
+
+    def draw(result, folder):
+        from ..plot.run_pictures import write_pictures  # matplotlib and pyvista load when a picture is drawn
+
+        written = write_pictures(result, folder)
+        if own is not None:
+            own(result, folder)
+        return written
+
+    return draw
+
+
+__all__ = ["KEYWORDS", "ROW_BUDGET", "Output", "Storage", "grouped", "picture_function"]

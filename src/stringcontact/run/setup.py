@@ -22,7 +22,7 @@ from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, resolve_scheme
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
-from .options import Output
+from .options import Output, picture_function
 from .rows import StoredRows, output_steps
 
 __all__ = ["POTENTIAL_LABEL", "RATE", "discretise", "model_constants", "petsc_options_of"]
@@ -49,7 +49,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None, residua
         extra[name] = f
     params = Parameters(
         alpha=fem.Constant(msh, PETSc.ScalarType(scene.alpha)),
-        eps=fem.Constant(msh, PETSc.ScalarType(scene.eps)),
+        eps=fem.Constant(msh, PETSc.ScalarType(scene.eps if scene.eps is not None else np.nan)),  # nan: no eps (projection)
         x=ufl.SpatialCoordinate(msh),
         length=scene.length,
         extra=extra,
@@ -171,6 +171,9 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     """The scheme's name and class, its penalty and mass (its defaults, or refused), the model it must take."""
     name, Scheme = resolve_scheme(scheme or getattr(scene, "scheme", None) or DEFAULT_SCHEME)
     penalty, mass = Scheme.check_options(name, penalty, mass)
+    if Scheme.PENALTIES and scene.eps is None:  # a scene for an ε-free scheme, run with a penalty
+        raise SceneError(f"eps: scheme {name!r} needs the penalty's eps, and the scene gives none (a scheme without "
+                         f"a penalty, such as projection, does not read it); add eps to the scene")
     check_restitution(name, getattr(scene, "restitution", None) or 0.0, Scheme)
     model = _resolve_model(model, scene)
     check_model(name, model, Scheme)
@@ -200,9 +203,6 @@ def _writer(scene, V, comm, rows: StoredRows, output: Output):
         return None
     from ..io.folder import OutputWriter, xdmf_frames
 
-    pictures = output.pictures
-    if pictures is True:
-        from ..plot.run_pictures import write_pictures as pictures  # matplotlib and pyvista: when a picture is drawn
-
+    pictures = picture_function(output)  # the default pictures and/or the caller's function
     frames = xdmf_frames(rows.steps, output_steps(scene.nt, scene.dt, scene.output_times), output.max_frames)
     return OutputWriter(output.dir, scene, V, comm, force=output.force, pictures=pictures or None, frames=frames)

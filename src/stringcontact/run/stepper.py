@@ -109,6 +109,11 @@ class Stepper:
                               conservative=self.model.contact_energy is not None or scheme.energy_may_rise,
                               floor=energy_roundoff(s.ops.K, scheme.eta, s.comm), slack=scheme.energy_slack)
         rows.min_eta = float(np.min(scheme.eta[s.interior])) if s.interior.any() else math.inf
+        # ψ at the owned nodes for the gap η − ψ (`Result.min_gap`): None for the flat ψ = 0 (the gap is η) and for a
+        # moving obstacle (ψ at each step's time, `_gap`)
+        self._psi = (np.asarray(self.scene.obstacle_values(s.x), dtype=float)
+                     if self.scene.obstacle is not None and s.obstacle is None else None)
+        rows.min_gap = self._gap(scheme.eta, 0)
         self.writer = setup._writer(self.scene, V, self.comm, rows, self.output)
         with self._guarded():
             if rows.next_step == 0:
@@ -188,13 +193,24 @@ class Stepper:
             scheme, self._restart = self.scheme, None
         eta = scheme.eta  # once per step: a property of the scheme
         if eta.size:
-            rows.min_eta = min(rows.min_eta, float(eta.min()))
+            low = float(eta.min())
+            rows.min_eta = min(rows.min_eta, low)
+            rows.min_gap = min(rows.min_gap, low if self.scene.obstacle is None else self._gap(eta, self.step + 1))
         self.step += 1
         if why is not None:
             raise self._unstable(why)
         if self.step == rows.next_step:
             self._store(self.step)
         self._loop_time += time.perf_counter() - t0
+
+    def _gap(self, eta: np.ndarray, n: int) -> float:
+        """min (η − ψ) over this rank's nodes at step n (inf without nodes): ψ = 0, the scene's ψ(x) or ψ(x, t_n)."""
+        if not eta.size:
+            return math.inf
+        if self.scene.obstacle is None:
+            return float(eta.min())
+        psi = self._psi if self._psi is not None else self.setting.obstacle.owned(n * self.dt)
+        return float(np.min(eta - psi))
 
     def _step(self):
         """A Newton path's step, retried as 2, 4, … up to 2^MAX_HALVINGS sub-steps from the same state when Newton fails
@@ -304,7 +320,9 @@ class Stepper:
     def _result(self, status: str, message: str) -> Result:
         rows, comm, scene = self.rows, self.comm, self.scene
         n = rows.n
-        mins = comm.allreduce(rows.min_eta, op=MPI.MIN) if comm.size > 1 and status == "complete" else rows.min_eta
+        together = comm.size > 1 and status == "complete"  # a stopped run's ranks may not all get here
+        mins = comm.allreduce(rows.min_eta, op=MPI.MIN) if together else rows.min_eta
+        gap = comm.allreduce(rows.min_gap, op=MPI.MIN) if together else rows.min_gap
         if rows.gather.holds:
             stored = {k: v[:n] for k, v in rows.fields.items()}
             per_node = {k: stored.pop(k) for k in FIELDS} | {"fields": stored}  # the rest: the model's output fields
@@ -312,7 +330,7 @@ class Stepper:
             per_node = dict.fromkeys(FIELDS) | {"fields": {}}
         result = Result(scene=scene, x=rows.gather.x, t=step_times(rows.steps[:n], scene.dt, scene.output_times),
                         steps=rows.steps[:n], **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
-                        min_eta=float(mins), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
+                        min_eta=float(mins), min_gap=float(gap), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin, penetration_bound=penetration_bound_of(self.model),
                         energy_label=self.energy_label, status=status, timings=self.timings, message=message,
                         counters=self.counters, solver=self.solver, petsc_options=dict(self.setting.petsc_options or {}),

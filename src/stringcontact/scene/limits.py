@@ -48,7 +48,8 @@ DOMAIN_KEYS = {
 }
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
-#: Required keys; besides these, exactly one of nt or dt.
+#: Required keys; besides these, exactly one of nt or dt. `eps` is not required under a scheme without a penalty
+#: (`names.EPS_FREE`: projection), which does not read it.
 REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
 #: The largest scene file read, in bytes.
 MAX_FILE_BYTES = 1_000_000
@@ -122,7 +123,9 @@ KEY_DOCS = {
     "length": ("number", "x", "1", "the string's length l: the interval (0, l)"),
     "T": ("number", "t", "required", "the final time"),
     "alpha": ("number", "t", "required", "viscosity α (the damping term α η_txx)"),
-    "eps": ("number", "t", "required", "penalty ε: the contact force is (1/ε) χ{η < ψ} (η_t)⁻"),
+    "eps": ("number", "t", "required, except with scheme = \"projection\"",
+            ("penalty ε: the contact force is (1/ε) χ{η < ψ} (η_t)⁻; scheme projection (no penalty) does not read "
+             "it, and a scene with that scheme may omit it")),
     "nx": ("integer", "", "required (1D)", "number of cells of the interval"),
     "nt": ("integer", "", "one of nt, dt", "number of time steps"),
     "dt": ("number", "t", "one of nt, dt", "time step; T/dt must be an integer (stored as nt)"),

@@ -50,6 +50,7 @@ import numpy as np
 from ..errors import SceneError
 from . import checks, expressions, names
 from .limits import DOMAIN_KEYS, FIELD_KEYS, FILE_KEYS, REQUIRED_KEYS
+from .names import EPS_FREE
 
 __all__ = ["DeprecatedKeyWarning", "Scene", "SceneWarning"]
 
@@ -80,7 +81,7 @@ class Scene:
     length: float
     T: float
     alpha: float
-    eps: float
+    eps: float | None  # None: not given, under scheme "projection" only (which does not read it)
     nx: int  # cells
     nt: int  # time steps
     eta0: str | tuple  # initial displacement, expression in x (1D: or nx + 1 nodal values)
@@ -117,7 +118,11 @@ class Scene:
 
         put("name", checks.check_name(self.name))
         checks.check_domain(self, put)
-        for key in ("T", "alpha", "eps") + (("length", "h_left", "h_right") if self.dim == 1 else ()):
+        if self.eps is None and self.scheme not in names.EPS_FREE:
+            raise SceneError(f"eps: required (the penalty's ε) unless scheme = \"projection\", which does not read it; "
+                             f"the scene's scheme is {self.scheme or names.DEFAULT_SCHEME!r}")
+        numbers = ("T", "alpha") + (("eps",) if self.eps is not None else ())
+        for key in numbers + (("length", "h_left", "h_right") if self.dim == 1 else ()):
             put(key, checks.number(key, getattr(self, key)))
         if self.dim == 1:
             put("nx", checks.integer("nx", self.nx))
@@ -161,6 +166,28 @@ class Scene:
                     expressions.check(getattr(self, key), field=key, names=self._names(key, t))
                 else:
                     self._evaluate(key, getattr(self, key), self.probe_points(), t)
+        if self.dim == 1:
+            self._check_ends()
+
+    def _check_ends(self) -> None:
+        """1D: refuse an end held inside the obstacle (its height below ψ there), whose node no scheme can move: the
+        penalty schemes push the string up from it and projection lifts every other node onto ψ, so the run would
+        answer another question. An end on the obstacle (h = ψ, Example 2's left end) is allowed. A moving obstacle
+        is checked at t = 0: one that later rises over a held end (a piston as wide as the string) is run as given,
+        the end held at h and the string next to it carried up from it."""
+        ends = np.array([0.0, self.length])
+        for t in (0.0,):
+            psi = self.obstacle_values(ends, t)
+            for side, key, height, at, value in (("left", "h_left", self.h_left, 0.0, psi[0]),
+                                                 ("right", "h_right", self.h_right, self.length, psi[1])):
+                if height < value and not checks.close(height, float(value)):
+                    name = "h" if self.h is not None else key
+                    obstacle = f"the obstacle {self.obstacle!r}" if self.obstacle is not None else "the obstacle psi = 0"
+                    when = f" at t = {checks.fmt(t)}" if self.obstacle_moves else ""
+                    raise SceneError(
+                        f"{name}: the {side} end is held at {checks.fmt(height)}, inside {obstacle}, which is "
+                        f"{float(value):.6g} at x = {checks.fmt(at)}{when}; allowed: {name} >= the obstacle at the "
+                        "ends (an end on or above it)")
 
     # --- derived quantities -----------------------------------------------------------
 
@@ -221,8 +248,8 @@ class Scene:
 
     @property
     def r(self) -> float:
-        """dt/eps, the penalty's weight per step (explicit penalty: large r means trouble)."""
-        return self.dt / self.eps
+        """dt/eps, the penalty's weight per step (explicit penalty: large r means trouble); nan without eps."""
+        return self.dt / self.eps if self.eps is not None else math.nan
 
     def x(self) -> np.ndarray:
         """Node coordinates, shape (nx+1,) (1D only: a 2D mesh's nodes come from the solver)."""
@@ -290,7 +317,7 @@ class Scene:
             "length": self.length,
             "T": self.T,
             "alpha": self.alpha,
-            "eps": self.eps,
+            **({"eps": self.eps} if self.eps is not None else {}),
             "nx": self.nx,
             "nt": self.nt,
             "eta0": list(self.eta0) if isinstance(self.eta0, tuple) else self.eta0,
@@ -319,7 +346,8 @@ class Scene:
     def _as_dict_2d(self) -> dict:
         d = {"name": self.name, "description": self.description, "notes": self.notes, "domain": self.domain}
         d.update({key: list(v) if isinstance(v := getattr(self, key), tuple) else v for key in DOMAIN_KEYS[self.domain]})
-        d.update({"T": self.T, "alpha": self.alpha, "eps": self.eps, "nt": self.nt, "eta0": self.eta0, "v0": self.v0})
+        d.update({"T": self.T, "alpha": self.alpha, **({"eps": self.eps} if self.eps is not None else {}), "nt": self.nt,
+                  "eta0": self.eta0, "v0": self.v0})
         if self.h is not None:
             d["h"] = self.h
         d.update(self.fields)
@@ -424,7 +452,7 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         geometry.setdefault("radius", 1.0)
     output_times = data.get("output_times", ())
     return Scene(
-        name=name, length=None, T=T, alpha=data["alpha"], eps=data["eps"], nx=None, nt=nt,
+        name=name, length=None, T=T, alpha=data["alpha"], eps=data.get("eps"), nx=None, nt=nt,
         eta0=checks.expression_text("eta0", data["eta0"]), v0=data["v0"], h_left=None, h_right=None, h=data.get("h"),
         output_times=tuple(output_times) if isinstance(output_times, (list, tuple)) else output_times,
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
@@ -439,12 +467,15 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
     domain = checks.domain_of(data)
     checks.check_domain_keys(data, domain)
     required = REQUIRED_KEYS if domain == "interval" else tuple(k for k in REQUIRED_KEYS if k != "nx")
+    if data.get("scheme") in EPS_FREE:  # projection does not read eps
+        required = tuple(k for k in required if k != "eps")
     missing = [k for k in required if k not in data]
     if missing or ("nt" not in data and "dt" not in data):
         parts = ", ".join(missing)
         if "nt" not in data and "dt" not in data:
             parts = f"{parts} and one of nt or dt" if parts else "one of nt or dt"
-        raise SceneError(f"missing required key(s): {parts}")
+        why = " (eps may be left out with scheme = \"projection\" only, which does not read it)" if "eps" in missing else ""
+        raise SceneError(f"missing required key(s): {parts}{why}")
     if "nt" in data and "dt" in data:
         raise SceneError("nt, dt: give exactly one of nt or dt, not both")
     if "h" in data and ("h_left" in data or "h_right" in data):
@@ -481,7 +512,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         length=length,
         T=T,
         alpha=data["alpha"],
-        eps=data["eps"],
+        eps=data.get("eps"),
         nx=data["nx"],
         nt=nt,
         eta0=eta0,
