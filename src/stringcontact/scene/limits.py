@@ -49,7 +49,7 @@ DOMAIN_KEYS = {
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
 #: Required keys; besides these, exactly one of nt or dt. `eps` is not required under a scheme without a penalty
-#: (`names.EPS_FREE`: projection), which does not read it.
+#: (`names.eps_free`: projection), which does not read it.
 REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
 #: The largest scene file read, in bytes.
 MAX_FILE_BYTES = 1_000_000

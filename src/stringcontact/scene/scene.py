@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import SceneError
 from . import checks, expressions, names
 from .limits import DOMAIN_KEYS, FIELD_KEYS, FILE_KEYS, REQUIRED_KEYS
-from .names import EPS_FREE
+from .names import SCHEMES, eps_free
 
 __all__ = ["DeprecatedKeyWarning", "Scene", "SceneWarning"]
 
@@ -118,7 +118,7 @@ class Scene:
 
         put("name", checks.check_name(self.name))
         checks.check_domain(self, put)
-        if self.eps is None and self.scheme not in names.EPS_FREE:
+        if self.eps is None and not eps_free(self.scheme or names.DEFAULT_SCHEME):
             raise SceneError(f"eps: required (the penalty's ε) unless scheme = \"projection\", which does not read it; "
                              f"the scene's scheme is {self.scheme or names.DEFAULT_SCHEME!r}")
         numbers = ("T", "alpha") + (("eps",) if self.eps is not None else ())
@@ -467,7 +467,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
     domain = checks.domain_of(data)
     checks.check_domain_keys(data, domain)
     required = REQUIRED_KEYS if domain == "interval" else tuple(k for k in REQUIRED_KEYS if k != "nx")
-    if data.get("scheme") in EPS_FREE:  # projection does not read eps
+    if data.get("scheme") in SCHEMES and eps_free(data["scheme"]):  # projection does not read eps
         required = tuple(k for k in required if k != "eps")
     missing = [k for k in required if k not in data]
     if missing or ("nt" not in data and "dt" not in data):
