@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import wrap
+from .base import petsc_vector
 
 #: The model's `release` values: the paper's (A4), and Signorini contact with half-cell impulses.
 RELEASES = ("inelastic", "signorini")
@@ -44,8 +44,8 @@ def start_correction(s, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: 
     ops, n = s.ops, s.n_owned
     eta, vel = np.array(eta0, dtype=float), np.array(v0, dtype=float)
     k_eta, c_v = np.zeros(n), np.zeros(n)
-    ops.K.mult(wrap(eta, s.comm), wrap(k_eta, s.comm))
-    ops.C.mult(wrap(vel, s.comm), wrap(c_v, s.comm))
+    ops.K.mult(petsc_vector(eta, s.comm), petsc_vector(k_eta, s.comm))
+    ops.C.mult(petsc_vector(vel, s.comm), petsc_vector(c_v, s.comm))
     a0 = (ops.load - k_eta - c_v) / ops.m
     free = s.interior & (eta > psi + tol)
     return np.where(free, 0.5 * s.dt**2 * a0, 0.0)
