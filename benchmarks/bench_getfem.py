@@ -2,26 +2,33 @@
 
 The problem is that of GetFEM's ``interface/tests/python/demo_dynamic_contact_1D.py`` (Y. Renard,
 F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `stringcontact.verification.rod` and docs/explanation/getfem.md.
-`getfem_rod` below re-implements two of that demo's explicit (β = 0) Newmark schemes with GetFEM's own
-assembly and MUMPS solves, following the demo line by line: Taylor-Flanagan (``version = 4``) and
-exact contact with the redistributed mass matrix (``version = 0, mass_matrix_type = 1``). The demo's
-``linsolve_superlu`` segfaults in Debian's build, so ``gf.linsolve_mumps`` is used, as in the demo once
-per solve (it factorises M at every call). stringcontact runs the same problem mirrored into a string
-on (0, 2) over a point obstacle at x = 1, for every method of `METHODS`.
+`getfem_rod` below runs the demo's time loop with GetFEM's own assembly and solves, following the demo line by
+line, for each combination of `GETFEM_METHODS`: its contact treatments (``version`` 0 Signorini, 2 penalty,
+3 Nitsche, 4 Taylor-Flanagan), mass matrices (consistent, redistributed, singular dynamic mass) and Newmark's
+β (0 explicit, ¼ implicit), at the Δt/h of each. The demo's ``linsolve_superlu`` segfaults in Debian's build,
+so ``gf.linsolve_mumps`` is used, as in the demo once per solve (it factorises the matrix at every call).
+stringcontact runs the same problem mirrored into a string on (0, 2) over a point obstacle at x = 1, for every
+method of `METHODS`; the headline one (`SIGNORINI`) is `projection` with the contact point released as
+Signorini's (`Model.release`), at Δt = h.
 
-Measured for each run: the relative max-in-time L² error of u against the exact solution (every time
-step, the demo's ``LinfL2u``), the energy at T over the energy at 0, the lowest u at the contact
-point, and the CPU time of the time loop (``time.process_time``: the machine is shared, so wall time is
-noisier). The GetFEM side runs in a child process that never imports dolfinx (both bring a MUMPS).
+Measured for each run: the relative max-in-time L² error of u (every time step, the demo's ``LinfL2u``) and
+the relative L²(0,T;L²) error of v (the demo's ``L2L2v``) against the exact solution, the energy at T over
+the energy at 0, the lowest u at the contact point, and the CPU time of the time loop (``time.process_time``).
+The process table runs each GetFEM method with Δt ≥ h/4 and the headline method at NX = 80 and 160 in a process
+of its own and takes its wall time from outside: the whole process (interpreter, imports, set-up, run,
+errors), what a user waits for. The GetFEM side always runs in processes that never import dolfinx (both
+bring a MUMPS).
 
-    .venv/bin/python benchmarks/bench_getfem.py --out docs            # NX = 20, 40, 80 (about 2 minutes)
+    .venv/bin/python benchmarks/bench_getfem.py --out docs            # NX = 20 to 160 (15 to 25 minutes here)
     .venv/bin/python benchmarks/bench_getfem.py --quick --out /tmp/g  # NX = 20 only
     .venv/bin/python benchmarks/bench_getfem.py --out docs --getfem-rows docs/getfem_comparison.csv  # no GetFEM here
 
-Writes getfem_comparison.csv, getfem_sinking.csv, getfem_restitution.csv and getfem_comparison.png to --out
-and prints the tables. Exits 0 with one line if GetFEM is not installed (``apt-get install python3-getfem``),
-unless ``--getfem-rows`` gives GetFEM's rows of an earlier run (its CSV: the rows whose side is "getfem";
-GetFEM's numbers are deterministic but for the CPU time). getfem_restitution.csv: `projection` with
+Writes getfem_comparison.csv (with err_v and, for the timed methods, process_s), getfem_sinking.csv,
+getfem_restitution.csv and getfem_comparison.png to --out and prints the tables, the first of them the
+summary: GetFEM's best err_u and err_v per NX against the headline method's, and the two processes' times.
+Exits 0 with one line if GetFEM is not installed (``apt-get install python3-getfem``), unless ``--getfem-rows``
+gives GetFEM's rows of an earlier run (its CSV: the rows whose side is "getfem", their process times too;
+GetFEM's numbers are deterministic but for the times). getfem_restitution.csv: `projection` with
 restitution e = 0 and e = 1 over three periods at four resolutions (`RESTITUTION_NXS`), the energy at each
 period and its largest deviation over the run.
 """
@@ -30,15 +37,17 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import importlib.util
 import json
+import resource
 import subprocess
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -46,7 +55,6 @@ from stringcontact.verification import rod
 
 NXS = (20, 40, 80)  # rod cells; the string has twice as many, of the same size h = 1/NX
 DT_OVER_H = 0.04  # the issue's Δt = 0.04 h, well inside the explicit schemes' CFL limit h/2
-GETFEM_SCHEMES = ("taylor-flanagan", "redistributed-mass")
 SINKING_NXS = (20, 40, 80, 160)
 SINKING_DT_OVER_H = (0.04, 1.0)
 LANDING = 1.0  # the rod first touches the obstacle at t = 1: energy lost before it is the bulk scheme's own
@@ -65,12 +73,21 @@ class Method:
     dt_over_h: float = DT_OVER_H  # the schemes without a CFL limit below h may take their natural step
     restitution: float = 0.0  # scheme projection's restitution coefficient e (passed to `simulate` when > 0)
     nxs: tuple | None = None  # its own resolutions (default: the run's)
+    release: str = "inelastic"  # the point contact's `Model.release`: "signorini" for the rod's elastic contact
 
 
+#: The headline method: `projection` with the rod's contact point released as Signorini's (`Model.release`), Δt = h.
+SIGNORINI = "projection, release=signorini, dt=h"
 METHODS = (
     Method("paper, semi-implicit, eps=1e-9", "paper", "semi-implicit", "inelastic", lambda h, dt: 1e-9),
-    Method("paper, semi-implicit, eps=1e-9, consistent", "paper", "semi-implicit", "inelastic",
-           lambda h, dt: 1e-9, mass="consistent"),
+    Method(
+        "paper, semi-implicit, eps=1e-9, consistent",
+        "paper",
+        "semi-implicit",
+        "inelastic",
+        lambda h, dt: 1e-9,
+        mass="consistent",
+    ),
     Method("paper, explicit, r=1", "paper", "explicit", "inelastic", lambda h, dt: dt),
     Method("elastic, explicit, r=1.9", "paper", "explicit", "elastic", lambda h, dt: dt / 1.9),
     Method("elastic, explicit, eps=h^2", "paper", "explicit", "elastic", lambda h, dt: h * h),
@@ -79,12 +96,47 @@ METHODS = (
     Method("projection", "projection", None, "inelastic", lambda h, dt: 1e-9),
     Method("newmark, semi-implicit, eps=1e-9", "newmark", "semi-implicit", "inelastic", lambda h, dt: 1e-9),
     Method("projection, dt=h", "projection", None, "inelastic", lambda h, dt: 1e-9, dt_over_h=1.0),
-    Method("newmark, semi-implicit, eps=1e-9, dt=h", "newmark", "semi-implicit", "inelastic", lambda h, dt: 1e-9,
-           dt_over_h=1.0),
-    Method("projection, e=1", "projection", None, "inelastic", lambda h, dt: 1e-9, restitution=1.0,
-           nxs=(20, 40, 80, 160)),
-    Method("projection, e=1, dt=h", "projection", None, "inelastic", lambda h, dt: 1e-9, dt_over_h=1.0,
-           restitution=1.0, nxs=(20, 40, 80, 160)),
+    Method(
+        "newmark, semi-implicit, eps=1e-9, dt=h",
+        "newmark",
+        "semi-implicit",
+        "inelastic",
+        lambda h, dt: 1e-9,
+        dt_over_h=1.0,
+    ),
+    Method(
+        "projection, e=1", "projection", None, "inelastic", lambda h, dt: 1e-9, restitution=1.0, nxs=(20, 40, 80, 160)
+    ),
+    Method(
+        "projection, e=1, dt=h",
+        "projection",
+        None,
+        "inelastic",
+        lambda h, dt: 1e-9,
+        dt_over_h=1.0,
+        restitution=1.0,
+        nxs=(20, 40, 80, 160),
+    ),
+    Method(
+        SIGNORINI,
+        "projection",
+        None,
+        "inelastic",
+        lambda h, dt: 1e-9,
+        dt_over_h=1.0,
+        nxs=(20, 40, 80, 160),
+        release="signorini",
+    ),
+    Method(
+        "projection, release=signorini, dt=h/2",
+        "projection",
+        None,
+        "inelastic",
+        lambda h, dt: 1e-9,
+        dt_over_h=0.5,
+        nxs=(20, 40, 80, 160),
+        release="signorini",
+    ),
 )
 #: `restitution_rows`: scheme projection with e = 0 and 1 at these Δt/h, over RESTITUTION_PERIODS periods, at these NX.
 RESTITUTION_NXS = (20, 40, 80, 160)
@@ -92,92 +144,262 @@ RESTITUTION_DT_OVER_H = (0.04, 0.5, 1.0)
 RESTITUTION_PERIODS = 3
 SINKING_METHODS = METHODS[0], METHODS[2]
 
-FIELDS = ("side", "method", "nx", "dt", "eps", "r", "status", "cpu_s", "err_u", "energy_ratio", "energy_landing",
-          "min_u_contact", "contact_loss")
+
+@dataclass(frozen=True)
+class GetfemMethod:
+    """One of the demo's combinations: ``version`` (0 Signorini, 1 Paoli-Schatzman, 2 penalty, 3 Nitsche,
+    4 Taylor-Flanagan), ``mass`` (0 consistent, 1 redistributed, 2 singular dynamic mass) and Newmark's β (0 explicit,
+    ¼ implicit), at Δt = dt_over_h · h. The demo's other parameters keep its defaults: γ = ½, Nitsche γ0 = 5 and
+    θ = 0, penalty γ0 = 1, e_PS = 0, P1."""
+
+    label: str
+    version: int
+    mass: int
+    beta: float
+    dt_over_h: float
+    nxs: tuple | None = (20, 40, 80, 160)  # its own resolutions with the default NXS (None: the run's)
+
+
+GETFEM_METHODS = (
+    GetfemMethod("taylor-flanagan", 4, 0, 0.0, DT_OVER_H, nxs=(20, 40, 80)),
+    GetfemMethod("redistributed-mass", 0, 1, 0.0, DT_OVER_H, nxs=(20, 40, 80)),
+    GetfemMethod("Signorini, singular mass, explicit, dt=h/4", 0, 2, 0.0, 0.25),
+    GetfemMethod("penalty, redistributed mass, explicit, dt=h/4", 2, 1, 0.0, 0.25),
+    GetfemMethod("Signorini, singular mass, implicit, dt=h", 0, 2, 0.25, 1.0),
+    GetfemMethod("Signorini, singular mass, implicit, dt=h/2", 0, 2, 0.25, 0.5),
+    GetfemMethod("Nitsche, singular mass, implicit, dt=h/2", 3, 2, 0.25, 0.5),
+    GetfemMethod("penalty, singular mass, implicit, dt=h/2", 2, 2, 0.25, 0.5),
+    GetfemMethod("Signorini, redistributed mass, implicit, dt=h/2", 0, 1, 0.25, 0.5),
+    GetfemMethod("penalty, redistributed mass, implicit, dt=h/2", 2, 1, 0.25, 0.5),
+)
+
+
+FIELDS = (
+    "side",
+    "method",
+    "nx",
+    "dt",
+    "eps",
+    "r",
+    "status",
+    "cpu_s",
+    "err_u",
+    "err_v",
+    "energy_ratio",
+    "energy_landing",
+    "min_u_contact",
+    "contact_loss",
+)
 
 
 # --- GetFEM's side (child process) ---------------------------------------------------------------
 
 
-def getfem_rod(scheme: str, nx: int, dt: float, T: float = rod.PERIOD) -> dict:
-    """One run of GetFEM's demo scheme on the rod: every step's u, the energy, the loop's CPU time."""
+def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms: bool = False) -> dict:
+    """One run of the demo's scheme `method` on the rod, with GetFEM's assembly and solves, as the demo writes it
+    (``interface/tests/python/demo_dynamic_contact_1D.py``, GetFEM 5.4): every step's u and v, the energy and the
+    loop's CPU time. The demo's ``linsolve_superlu`` is ``gf.linsolve_mumps`` here (Debian's SuperLU segfaults).
+    With `demo_norms` every step also does what the demo does there: the exact u and v at the nodes (vectorised here;
+    the demo loops over the nodes in Python) and its six norms by ``gf.compute_L2_norm``/``compute_H1_norm`` (the
+    errors returned are still computed from U and V)."""
     import getfem as gf
 
+    h, dt, beta, gamma, version, mass = 1.0 / nx, method.dt_over_h / nx, method.beta, 0.5, method.version, method.mass
+    gamma_n, theta_n, gamma_p = 5.0, 0.0, 1.0  # the demo's Nitsche and penalty parameters
     m = gf.Mesh("cartesian", np.linspace(0.0, 1.0, nx + 1))
+    border = m.outer_faces()
+    normals = m.normal_of_faces(border)
+    m.set_region(1, border[:, np.nonzero(normals[0] < -0.01)[0]])  # GAMMAC: x = 0
     mfu = gf.MeshFem(m)
     mfu.set_classical_fem(1)
     mim = gf.MeshIm(m, 4)
     md = gf.Model("real")
     md.add_fem_variable("u", mfu)
+    md.add_initialized_data("t_N", theta_n)
+    md.add_initialized_data("g_N", gamma_n / h)
     x = mfu.basic_dof_nodes()[0]
     if not (x[0] == 0.0 and x[-1] == 1.0 and np.all(np.diff(x) > 0)):  # the demo's rows 0 and n−1 need this order
         raise RuntimeError("GetFEM numbered the rod's dofs out of x order; the demo's scheme assumes x order")
+    n = x.size
     M = gf.asm_generic(mim, 2, "u*Test_u", -1, md)
     K = gf.asm_generic(mim, 2, "Grad_u*Grad_Test_u", -1, md)
-    n = x.size
     for A in (M, K):  # Dirichlet row at x = 1
         A[n - 1, n - 2] = 0.0
         A[n - 1, n - 1] = 1.0
     M2 = gf.Spmat("copy", M)
-    if scheme == "redistributed-mass":  # the contact node's mass goes to its neighbour
+    if mass == 1:  # redistributed: the contact node's mass goes to its neighbour
         M[1, 1] += M[0, 0] + M[1, 0]
         M[0, 0] = M[0, 1] = M[1, 0] = 0.0
+    elif mass == 2:  # singular dynamic mass (Renard): the contact node massless, its neighbour's 7h/12
+        M[1, 1] = 7.0 * h / 12.0
+        M[0, 0] = M[0, 1] = M[1, 0] = 0.0
+    if mass:
         M2 = gf.Spmat("copy", M)
         M2[0, 0] = 1.0
 
     def solve(A, b):
         return gf.linsolve_mumps(A, b)[:, 0]
 
-    U0 = 0.5 - 0.5 * x
-    V0 = np.zeros(n)
+    U0, V0 = 0.5 - 0.5 * x, np.zeros(n)
+    MV0, MA0 = M.mult(V0), -K.mult(U0)
+    if mass:
+        MA0[0] = 0.0
+    K_m = gf.Spmat("copy", K)
+    K_m.scale(dt * dt * beta)
+    K_N = gf.Spmat("add", M, K_m)  # Newmark's matrix without contact
+    K_N_C = gf.Spmat("copy", K_N)  # with the contact
+    if version in (0, 1, 4):
+        K_N_C[0, 1] = 0.0
+        K_N_C[0, 0] = 1.0
+    elif version == 2:
+        K_N_C[0, 0] += dt * dt * beta * gamma_p / h
+    else:  # Nitsche
+        K_N1 = gf.asm_generic(mim, 2, "-(t_N/g_N)*Grad_u*Grad_Test_u", 1, md)
+        K_nitsche1 = gf.Spmat("add", K, K_N1)
+        K_N1.scale(dt * dt * beta)
+        K_N = gf.Spmat("add", K_N, K_N1)
+        K_N2 = gf.asm_generic(mim, 2, "(1/g_N)*(g_N*u+Grad_u)*(g_N*Test_u+t_N*Grad_Test_u)", 1, md)
+        K_nitsche2 = gf.Spmat("add", K_nitsche1, K_N2)
+        K_N2.scale(dt * dt * beta)
+        K_N_C = gf.Spmat("add", K_N, K_N2)
+        nitsche = "(t_N/g_N)*Grad_u*Grad_Test_u+(1/g_N)*neg_part(g_N*u+Grad_u)*(g_N*Test_u+t_N*Grad_Test_u)"
     Fc = np.zeros(n)
     nt = round(T / dt)
-    U = np.empty((nt + 1, n))
-    U[0] = U0
+    U, V = np.empty((nt + 1, n)), np.empty((nt + 1, n))
+    U[0], V[0] = U0, V0
     k_landing, energy_landing = round(LANDING / dt), float("nan")
     cpu = time.process_time()
     for k in range(1, nt + 1):
-        FF = solve(M2, Fc - K.mult(U0))
-        U1 = U0 + dt * V0 + (dt * dt / 2) * FF
-        V1 = V0 + (dt / 2) * FF
-        if scheme == "redistributed-mass":  # exact contact: the massless node solves its own equation
+        if beta == 0:  # explicit Newmark
+            F = Fc - K.mult(U0)
+            FF = solve(M2, F)
+            U1 = U0 + dt * V0 + (dt * dt / 2) * FF
+            V1 = V0 + (dt * (1 - gamma)) * FF
             a = K[0, 1] * U1[1]
-            U1[0] = max(0.0, -a) / K[0, 0]
-            Fc[0] = max(0.0, a)
-        elif U1[0] < 0:  # Taylor-Flanagan: the contact force that brings u(0) back to 0
-            e0 = np.zeros(n)
-            e0[0] = 1.0
-            s1 = V1[0] / (solve(M, e0)[0] * dt)
-            e0[0] = -s1
-            F2 = solve(M, e0)
-            U1 += dt * dt * F2
-            V1 += dt * F2
-        V1 += (dt / 2) * solve(M2, Fc - K.mult(U1))
-        if scheme == "redistributed-mass":
+            if version == 0:
+                if not mass:
+                    raise ValueError("the demo has no explicit pure Signorini scheme with the consistent mass")
+                U1[0] = max(0.0, -a) / K[0, 0]
+                Fc[0] = max(0.0, a)
+            elif version == 1:
+                if mass:
+                    U1[0] = max(0.0, -a) / K[0, 0]
+                elif U1[0] < 0:  # e_PS = 0
+                    U1_0 = U1.copy()
+                    B = M.mult(U0) + dt * M.mult(V0) - (dt * dt / 2) * K.mult(U0)
+                    B0 = B.copy()
+                    B0[0] = 0.0
+                    U1 = solve(K_N_C, B0)
+                    V1 += (U1 - U1_0) / dt
+                Fc[0] = 0.0
+            elif version == 4:
+                if mass:
+                    U1[0] = max(0.0, -a) / K[0, 0]
+                elif U1[0] < 0:  # Taylor-Flanagan: the force that brings u(0) back to 0
+                    e0 = np.zeros(n)
+                    e0[0] = 1.0
+                    s1 = V1[0] / (solve(M, e0)[0] * dt)
+                    e0[0] = -s1
+                    F2 = solve(M, e0)
+                    U1 += dt * dt * F2
+                    V1 += dt * F2
+            elif version == 2:
+                if mass:
+                    U1[0] = -a / K[0, 0]
+                    if U1[0] < 0:
+                        U1[0] = -a / (K[0, 0] + gamma_p / h)
+                Fc[0] = -(gamma_p / h) * min(0.0, U1[0])
+            else:
+                if mass:
+                    U1[0] = -K_nitsche1[0, 1] * U1[1] / K_nitsche1[0, 0]
+                    if U1[0] < 0:
+                        U1[0] = -K_nitsche2[0, 1] * U1[1] / K_nitsche2[0, 0]
+                md.set_variable("u", U1)
+                Fc = gf.asm_generic(mim, 1, nitsche, 1, md)
+            FF = solve(M2, Fc - K.mult(U1))
+            V1 += dt * gamma * FF
+        else:  # implicit Newmark
+            B = M.mult(U0) + dt * MV0 + (dt * dt * (1 - 2 * beta) / 2) * MA0
+            U1 = solve(K_N, B)
+            MV1 = MV0.copy()
+            Fc1 = np.zeros(n)
+            if version == 0:
+                if U1[0] < 0:
+                    B2 = B.copy()
+                    B2[0] = 0.0
+                    U1 = solve(K_N_C, B2)
+                    Fc1 = (K_N.mult(U1) - B) / (beta * dt * dt)
+            elif version == 1:
+                if U1[0] < 0:  # e_PS = 0
+                    B2 = B.copy()
+                    B2[0] = 0.0
+                    U1 = solve(K_N_C, B2)
+                    MV1 += dt * (K_N.mult(U1) - B) / (dt * dt)
+            elif version == 2:
+                if U1[0] < 0:
+                    U1 = solve(K_N_C, B)
+                    Fc1 = (K_N.mult(U1) - B) / (beta * dt * dt)
+            else:
+                md.set_variable("u", U1)
+                ux = md.interpolation("Grad_u", [0.0], m)[0]
+                if (gamma_n / h) * U1[0] + ux < 0:
+                    U1 = solve(K_N_C, B)
+                Fc1 = (K_N.mult(U1) - B) / (beta * dt * dt)
+            MA1 = Fc1 - K.mult(U1)
+            MV1 += dt * ((1 - gamma) * MA0 + gamma * MA1)
+            V1 = solve(M2, MV1)
+            V1[n - 1] = 0.0
+            MA0, MV0 = MA1, MV1
+        if mass:
             V1[0] = (U1[0] - U0[0]) / dt
         U0, V0 = U1, V1
-        U[k] = U0
+        U[k], V[k] = U0, V0
+        if demo_norms:  # the demo's per-step work: the exact solution at the nodes, six norms by GetFEM
+            u_ex, v_ex = rod.rod_exact(x, k * dt), rod.rod_exact(x, k * dt, "t")  # (the demo: node by node)
+            for field in (v_ex, u_ex, V0 - v_ex, U0 - u_ex):
+                gf.compute_L2_norm(mfu, field, mim)
+            for field in (u_ex, U0 - u_ex):
+                gf.compute_H1_norm(mfu, field, mim)
         if k == k_landing:
             energy_landing = 0.5 * (V0 @ M.mult(V0) + U0 @ K.mult(U0))
     cpu = time.process_time() - cpu
     energy = 0.5 * (V0 @ M.mult(V0) + U0 @ K.mult(U0))
-    return {"x": x, "u": U, "cpu_s": cpu, "energy": energy, "energy_landing": energy_landing, "nt": nt}
+    return {
+        "x": x,
+        "u": U,
+        "v": V,
+        "cpu_s": cpu,
+        "energy": energy,
+        "energy_landing": energy_landing,
+        "nt": nt,
+        "dt": dt,
+    }
 
 
-def getfem_rows(nxs, T: float) -> list[dict]:
-    rows = []
-    for scheme in GETFEM_SCHEMES:
-        for nx in nxs:
-            dt = DT_OVER_H / nx
-            run = getfem_rod(scheme, nx, dt, T)
-            t = dt * np.arange(run["nt"] + 1)
-            err = rod.relative_error(run["x"], t, run["u"], exact=rod.rod_exact)
-            rows.append({"side": "getfem", "method": scheme, "nx": nx, "dt": dt, "eps": "", "r": "",
-                         "status": "complete", "cpu_s": run["cpu_s"], "err_u": err,
-                         "energy_ratio": run["energy"] / rod.ROD_ENERGY,
-                         "energy_landing": run["energy_landing"] / rod.ROD_ENERGY,
-                         "min_u_contact": float(run["u"][:, 0].min()), "contact_loss": ""})
-    return rows
+def getfem_row(method: GetfemMethod, nx: int, T: float, demo_norms: bool = False) -> dict:
+    """`getfem_rod`'s run as a row of the comparison: the errors of u and v, the energy, the contact point."""
+    run = getfem_rod(method, nx, T, demo_norms)
+    t = run["dt"] * np.arange(run["nt"] + 1)
+    return {
+        "side": "getfem",
+        "method": method.label,
+        "nx": nx,
+        "dt": run["dt"],
+        "eps": "",
+        "r": "",
+        "status": "complete",
+        "cpu_s": run["cpu_s"],
+        "err_u": rod.relative_error(run["x"], t, run["u"], exact=rod.rod_exact),
+        "err_v": rod.relative_velocity_error(run["x"], t, run["v"], exact=rod.rod_exact),
+        "energy_ratio": run["energy"] / rod.ROD_ENERGY,
+        "energy_landing": run["energy_landing"] / rod.ROD_ENERGY,
+        "min_u_contact": float(run["u"][:, 0].min()),
+        "contact_loss": "",
+    }
+
+
+def getfem_rows(nxs, T: float, methods=None) -> list[dict]:
+    return [getfem_row(m, nx, T) for m in (methods or GETFEM_METHODS) for nx in _resolutions(m, nxs)]
 
 
 # --- stringcontact's side --------------------------------------------------------------------------
@@ -195,7 +417,7 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
     eps = method.eps(h, dt)
     row = {"side": "stringcontact", "method": method.label, "nx": nx, "dt": dt, "eps": eps, "r": dt / eps}
     law = {"inelastic": inelastic, "elastic": elastic}[method.model]
-    kwargs = {"mass": method.mass, "model": rod.point_contact(law, h)}
+    kwargs = {"mass": method.mass, "model": dataclasses.replace(rod.point_contact(law, h), release=method.release)}
     if method.penalty is not None:
         kwargs["penalty"] = method.penalty
     if method.restitution:
@@ -212,18 +434,28 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
             res = sc.simulate(scene, max_rows=scene.nt + 1, **kwargs)
     except InstabilityError as exc:
         return {**row, "status": "refused" if exc.step == 0 else "unstable"}
-    except (ValueError, TypeError) as exc:  # a combination (or, in an older checkout, an option) the solver does not offer
+    except (
+        ValueError,
+        TypeError,
+    ) as exc:  # a combination (or, in an older checkout, an option) the solver does not offer
         return {**row, "status": f"n/a: {exc}"[:60]}
     cpu = time.process_time() - cpu
     E = res.total_energy
     at_contact = np.argmin(np.abs(res.x - rod.CONTACT_POINT))
     periods = np.arange(1, round(T / rod.PERIOD) + 1) * rod.PERIOD
-    return {**row, "status": res.status, "cpu_s": cpu, "err_u": rod.relative_error(res.x, res.t, res.eta),
-            "energy_ratio": E[-1] / E[0], "energy_landing": E[np.argmin(np.abs(res.t - LANDING))] / E[0],
-            "min_u_contact": float(res.eta[:, at_contact].min()),
-            "contact_loss": res.energy["contact_dissipation"][-1] / E[0],
-            "energy_periods": " ".join(f"{E[np.argmin(np.abs(res.t - p))] / E[0]:.6f}" for p in periods),
-            "energy_max_deviation": float(np.max(np.abs(E / E[0] - 1)))}
+    return {
+        **row,
+        "status": res.status,
+        "cpu_s": cpu,
+        "err_u": rod.relative_error(res.x, res.t, res.eta),
+        "err_v": rod.relative_velocity_error(res.x, res.t, res.velocity),
+        "energy_ratio": E[-1] / E[0],
+        "energy_landing": E[np.argmin(np.abs(res.t - LANDING))] / E[0],
+        "min_u_contact": float(res.eta[:, at_contact].min()),
+        "contact_loss": res.energy["contact_dissipation"][-1] / E[0],
+        "energy_periods": " ".join(f"{E[np.argmin(np.abs(res.t - p))] / E[0]:.6f}" for p in periods),
+        "energy_max_deviation": float(np.max(np.abs(E / E[0] - 1))),
+    }
 
 
 def our_rows(nxs, T: float) -> list[dict]:
@@ -241,8 +473,7 @@ def restitution_rows(nxs, periods: int) -> list[dict]:
     rows = []
     for q in RESTITUTION_DT_OVER_H:
         for e in (0.0, 1.0):
-            method = Method(f"projection, e={e:g}", "projection", None, "inelastic", lambda h, dt: 1e-9,
-                            restitution=e)
+            method = Method(f"projection, e={e:g}", "projection", None, "inelastic", lambda h, dt: 1e-9, restitution=e)
             rows += [ours(method, nx, q, periods * rod.PERIOD) | {"dt_over_h": q, "restitution": e} for nx in nxs]
     return rows
 
@@ -269,14 +500,42 @@ def fmt(value, spec: str) -> str:
 
 
 def print_table(rows: list[dict], columns: tuple[str, ...]) -> None:
-    specs = {"dt": ".2e", "eps": ".2e", "r": ".3g", "cpu_s": ".2f", "err_u": ".3f", "energy_ratio": ".4f",
-             "energy_landing": ".4f", "min_u_contact": ".4f", "contact_loss": ".3f", "dt_over_h": "g",
-             "energy_max_deviation": ".2e"}
+    specs = {
+        "dt": ".2e",
+        "eps": ".2e",
+        "r": ".3g",
+        "cpu_s": ".2f",
+        "err_u": ".3g",
+        "err_v": ".3g",
+        "process_s": ".2f",
+        "getfem_u": ".3g",
+        "getfem_v": ".3g",
+        "ours_u": ".3g",
+        "ours_v": ".3g",
+        "ratio_u": ".3g",
+        "ratio_v": ".3g",
+        "getfem_process_s": ".2f",
+        "getfem_demo_process_s": ".2f",
+        "ours_process_s": ".2f",
+        "getfem_process_cpu_s": ".2f",
+        "getfem_demo_process_cpu_s": ".2f",
+        "ours_process_cpu_s": ".2f",
+        "energy_ratio": ".4f",
+        "energy_landing": ".4f",
+        "min_u_contact": ".4f",
+        "contact_loss": ".3f",
+        "dt_over_h": "g",
+        "energy_max_deviation": ".2e",
+    }
     print("| " + " | ".join(columns) + " |")
     print("|" + "---|" * len(columns))
     for row in rows:
         print("| " + " | ".join(fmt(row.get(c, ""), specs.get(c, "")) for c in columns) + " |")
     print()
+
+
+#: The chart's lowest error: a run exact to round-off (1e-13) is drawn there.
+FLOOR = 1e-3
 
 
 def chart(path: Path, rows: list[dict]) -> None:
@@ -293,30 +552,45 @@ def chart(path: Path, rows: list[dict]) -> None:
         mine = sorted((r for r in complete if r["method"] == label), key=lambda r: r["nx"])
         getfem = mine[0]["side"] == "getfem"
         big_step = mine[0]["dt"] * mine[0]["nx"] > 0.5  # Δt = h rather than 0.04 h
-        style = dict(marker="s" if getfem else ("D" if big_step else "o"), ls="--" if getfem else ("-." if big_step else "-"),
-                     color=colours[(2 * k) % 20 if k < 10 else (2 * k + 1) % 20], label=f"{mine[0]['side']}: {label}")
-        err = [r["err_u"] for r in mine]
+        style = {
+            "marker": "s" if getfem else ("D" if big_step else "o"),
+            "ls": "--" if getfem else ("-." if big_step else "-"),
+            "color": colours[(2 * k) % 20 if k < 10 else (2 * k + 1) % 20],
+            "label": f"{mine[0]['side']}: {label}",
+        }
+        err = [max(r["err_u"], FLOOR) for r in mine]  # exact to round-off: drawn at the floor
+        if any(r["err_u"] < FLOOR for r in mine):
+            style["label"] += f" (round-off, drawn at {FLOOR:g})"
         ax_cpu.loglog([r["cpu_s"] for r in mine], err, **style)
         ax_nx.loglog([r["nx"] for r in mine], err, **style)
-    ax_cpu.set(xlabel="CPU time of one run [s] (process time)", ylabel="relative max-in-time L² error of u",
-               title="error against CPU time")
-    ax_nx.set(xlabel="NX (rod cells; h = 1/NX, Δt = 0.04 h unless the label says Δt = h; T = 3)",
-              title="error against resolution")
+    ax_cpu.set(
+        xlabel="CPU time of one run [s] (process time)",
+        ylabel="relative max-in-time L² error of u",
+        title="error against CPU time",
+    )
+    ax_nx.set(
+        xlabel="NX (rod cells; h = 1/NX; Δt as the label says, else 0.04 h; T = 3)",
+        title="error against resolution",
+    )
     for ax in (ax_cpu, ax_nx):
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_major_formatter(ScalarFormatter())
             axis.set_minor_formatter(NullFormatter())
         ax.grid(True, which="both", alpha=0.3)
     ax_nx.set_xticks(sorted({r["nx"] for r in complete}))
-    ax_nx.set_yticks([0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2])
-    ax_cpu.set_yticks([0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2])
+    ax_nx.set_yticks([FLOOR, 0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2])
+    ax_cpu.set_yticks([FLOOR, 0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2])
     try:
         fig.legend(*ax_nx.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=8)
     except ValueError:  # matplotlib < 3.7 (Debian bookworm's 3.6) has no "outside": below the figure instead
-        fig.legend(*ax_nx.get_legend_handles_labels(), loc="upper center", bbox_to_anchor=(0.5, 0.0), ncols=2,
-                   fontsize=8)
-    fig.suptitle("GetFEM's impacting rod (demo_dynamic_contact_1D): "
-                 "GetFEM's schemes (squares) and stringcontact's (circles; diamonds at Δt = h)", fontsize=10)
+        fig.legend(
+            *ax_nx.get_legend_handles_labels(), loc="upper center", bbox_to_anchor=(0.5, 0.0), ncols=2, fontsize=8
+        )
+    fig.suptitle(
+        "GetFEM's impacting rod (demo_dynamic_contact_1D): "
+        "GetFEM's schemes (squares) and stringcontact's (circles; diamonds at Δt = h)",
+        fontsize=10,
+    )
     tmp = path.with_name("." + path.name)
     fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight")
     plt.close(fig)
@@ -326,17 +600,115 @@ def chart(path: Path, rows: list[dict]) -> None:
 # --- command line ---------------------------------------------------------------------------------------
 
 
+# --- whole processes ------------------------------------------------------------------------------------
+
+#: The resolutions of the process table: the wall time of a whole process (start, imports, set-up, run, errors).
+PROCESS_NXS = (80, 160)
+
+
+def one_row(side: str, label: str, nx: int, T: float) -> dict:
+    """The row of one method at one NX, computed in this process (the child of `process_rows`)."""
+    if side in ("getfem", "getfem-demo"):
+        return getfem_row(next(m for m in GETFEM_METHODS if m.label == label), nx, T, demo_norms=side == "getfem-demo")
+    method = next(m for m in METHODS if m.label == label)
+    return ours(method, nx, method.dt_over_h, T)
+
+
+def process_rows(jobs, T: float) -> list[dict]:
+    """Each (side, method, NX) of `jobs` in a process of its own, timed from outside: its wall time
+    (`time.perf_counter`, what a user waits for) and its CPU time (user + system, `resource.getrusage`: on a shared
+    machine the steadier of the two). Side "getfem" is GetFEM's loop alone, "getfem-demo" the same with the demo's
+    per-step norms (`getfem_rod`'s `demo_norms`), "stringcontact" ours."""
+    rows = []
+    for side, label, nx in jobs:
+        cmd = [sys.executable, __file__, "--one", side, label, "--nx", str(nx), "--T", str(T)]
+        cpu, wall = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+        wall, after = time.perf_counter() - wall, resource.getrusage(resource.RUSAGE_CHILDREN)
+        row = json.loads(out)
+        rows.append(
+            {
+                "side": side,
+                "method": label,
+                "nx": nx,
+                "process_s": wall,
+                "process_cpu_s": after.ru_utime - cpu.ru_utime + after.ru_stime - cpu.ru_stime,
+                "err_u": row["err_u"],
+                "err_v": row["err_v"],
+            }
+        )
+    return rows
+
+
+def process_jobs(rows: list[dict], nxs=PROCESS_NXS) -> list[tuple]:
+    """GetFEM's best method in u and in v at each NX (from `rows`), in both of GetFEM's process variants, and ours."""
+    jobs = []
+    for nx in nxs:
+        theirs = [r for r in rows if r["side"] == "getfem" and r["nx"] == nx and r["status"] == "complete"]
+        best = dict.fromkeys(min(theirs, key=lambda r: r[k])["method"] for k in ("err_u", "err_v")) if theirs else {}
+        jobs += [(side, label, nx) for label in best for side in ("getfem", "getfem-demo")]
+        jobs.append(("stringcontact", SIGNORINI, nx))
+    return jobs
+
+
+def summary_rows(rows: list[dict], processes: list[dict], nxs=PROCESS_NXS) -> list[dict]:
+    """Per NX: GetFEM's best err_u and err_v (over its methods) against our headline method's, with the ratios
+    (GetFEM's over ours: above 1, ours is smaller), and the whole processes' wall and CPU times: GetFEM's fastest of
+    its two best methods (its loop alone, and as the demo runs it), and ours."""
+    out = []
+    for nx in nxs:
+        theirs = [r for r in rows if r["side"] == "getfem" and r["nx"] == nx and r["status"] == "complete"]
+        mine = [r for r in rows if r["method"] == SIGNORINI and r["nx"] == nx]
+        if not theirs or not mine:
+            continue
+        best_u, best_v = min(theirs, key=lambda r: r["err_u"]), min(theirs, key=lambda r: r["err_v"])
+        here = [p for p in processes if p["nx"] == nx]
+
+        def fastest(side, key, here=here, labels=(best_u["method"], best_v["method"])):
+            times = [float(p[key]) for p in here if p["side"] == side and p["method"] in labels and p.get(key) != ""]
+            return min(times) if times else float("nan")
+
+        out.append(
+            {
+                "nx": nx,
+                "getfem_u": best_u["err_u"],
+                "getfem_u_method": best_u["method"],
+                "getfem_v": best_v["err_v"],
+                "getfem_v_method": best_v["method"],
+                "ours_u": mine[0]["err_u"],
+                "ours_v": mine[0]["err_v"],
+                "ratio_u": best_u["err_u"] / max(mine[0]["err_u"], 1e-300),
+                "ratio_v": best_v["err_v"] / mine[0]["err_v"],
+                "getfem_process_s": fastest("getfem", "process_s"),
+                "getfem_demo_process_s": fastest("getfem-demo", "process_s"),
+                "ours_process_s": fastest("stringcontact", "process_s", labels=(SIGNORINI,)),
+                "getfem_process_cpu_s": fastest("getfem", "process_cpu_s"),
+                "getfem_demo_process_cpu_s": fastest("getfem-demo", "process_cpu_s"),
+                "ours_process_cpu_s": fastest("stringcontact", "process_cpu_s", labels=(SIGNORINI,)),
+            }
+        )
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("out/getfem"))
     ap.add_argument("--quick", action="store_true", help="NX = 20 only")
     ap.add_argument("--nx", type=int, nargs="+", help="rod cells (default 20 40 80)")
     ap.add_argument("--T", type=float, default=rod.PERIOD)
-    ap.add_argument("--getfem-rows", type=Path, metavar="CSV",
-                    help="GetFEM's rows from an earlier run's getfem_comparison.csv (when GetFEM is not installed here)")
+    ap.add_argument(
+        "--getfem-rows",
+        type=Path,
+        metavar="CSV",
+        help="GetFEM's rows from an earlier run's getfem_comparison.csv (when GetFEM is not installed here)",
+    )
     ap.add_argument("--getfem-side", action="store_true", help=argparse.SUPPRESS)  # the child: JSON rows on stdout
+    ap.add_argument("--one", nargs=2, metavar=("SIDE", "METHOD"), help=argparse.SUPPRESS)  # a timed child: one row
     args = ap.parse_args(argv)
     nxs = args.nx or (NXS[:1] if args.quick else NXS)
+    if args.one is not None:
+        print(json.dumps(one_row(*args.one, nxs[0], args.T), default=float))
+        return 0
     if args.getfem_rows is not None:
         rows = stored_getfem_rows(args.getfem_rows, nxs)
     elif importlib.util.find_spec("getfem") is None:
@@ -348,20 +720,71 @@ def main(argv=None) -> int:
     else:
         child = [sys.executable, __file__, "--getfem-side", "--T", str(args.T), "--nx", *map(str, nxs)]
         rows = json.loads(subprocess.run(child, check=True, capture_output=True, text=True).stdout)
+    timed_nxs = PROCESS_NXS[:1] if args.quick else PROCESS_NXS
+    jobs = process_jobs(rows, timed_nxs)
+    processes = []
+    if args.getfem_rows is not None:  # GetFEM's process times from the stored run, next to its CSV
+        jobs = [job for job in jobs if job[0] == "stringcontact"]
+        stored = args.getfem_rows.with_name("getfem_processes.csv")
+        if stored.exists():
+            with stored.open(newline="") as f:
+                processes = [{**r, "nx": int(r["nx"])} for r in csv.DictReader(f) if r["side"] != "stringcontact"]
+    processes += process_rows(jobs, args.T)
     rows += our_rows(nxs, args.T)
+    summary = summary_rows(rows, processes, timed_nxs)
     sinking = sinking_rows(SINKING_NXS[:2] if args.quick else SINKING_NXS, args.T)
     restitution = restitution_rows(RESTITUTION_NXS[:2] if args.quick else RESTITUTION_NXS, RESTITUTION_PERIODS)
     args.out.mkdir(parents=True, exist_ok=True)
     write_csv(args.out / "getfem_comparison.csv", rows)
     write_csv(args.out / "getfem_sinking.csv", sinking)
     write_csv(args.out / "getfem_restitution.csv", restitution)
+    write_csv(args.out / "getfem_processes.csv", processes)
     chart(args.out / "getfem_comparison.png", rows)
-    print_table(rows, ("side", "method", "nx", "r", "status", "err_u", "energy_ratio", "energy_landing",
-                       "min_u_contact", "cpu_s"))
+    print_table(
+        summary,
+        (
+            "nx",
+            "getfem_u",
+            "getfem_u_method",
+            "getfem_v",
+            "getfem_v_method",
+            "ours_u",
+            "ours_v",
+            "ratio_u",
+            "ratio_v",
+            "getfem_process_s",
+            "getfem_demo_process_s",
+            "ours_process_s",
+            "getfem_process_cpu_s",
+            "getfem_demo_process_cpu_s",
+            "ours_process_cpu_s",
+        ),
+    )
+    print_table(
+        rows,
+        (
+            "side",
+            "method",
+            "nx",
+            "r",
+            "status",
+            "err_u",
+            "err_v",
+            "energy_ratio",
+            "energy_landing",
+            "min_u_contact",
+            "cpu_s",
+        ),
+    )
     print_table(sinking, ("method", "dt_over_h", "nx", "r", "min_u_contact", "err_u", "energy_ratio", "contact_loss"))
-    print_table(restitution, ("method", "dt_over_h", "nx", "err_u", "energy_periods", "energy_max_deviation",
-                              "min_u_contact", "cpu_s"))
-    print(f"wrote {args.out}/getfem_comparison.csv, getfem_sinking.csv, getfem_restitution.csv, getfem_comparison.png")
+    print_table(
+        restitution,
+        ("method", "dt_over_h", "nx", "err_u", "energy_periods", "energy_max_deviation", "min_u_contact", "cpu_s"),
+    )
+    print(
+        f"wrote {args.out}/getfem_comparison.csv, getfem_sinking.csv, getfem_restitution.csv, getfem_processes.csv, "
+        "getfem_comparison.png"
+    )
     return 0
 
 
@@ -369,7 +792,7 @@ def stored_getfem_rows(path: Path, nxs) -> list[dict]:
     """GetFEM's rows (side "getfem") at the resolutions `nxs` from a getfem_comparison.csv this script wrote."""
     with path.open(newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["side"] == "getfem" and int(r["nx"]) in nxs]
-    numbers = ("dt", "cpu_s", "err_u", "energy_ratio", "energy_landing", "min_u_contact")
+    numbers = ("dt", "cpu_s", "err_u", "err_v", "energy_ratio", "energy_landing", "min_u_contact")
     return [{**r, "nx": int(r["nx"]), **{k: float(r[k]) for k in numbers}} for r in rows]
 
 

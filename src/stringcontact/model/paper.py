@@ -95,6 +95,13 @@ A model is a `Model`: a few plain functions that return UFL.
     ``fields`` by name, or a derived UFL expression of the unknowns, with how it is shown). Every unknown of
     ``fields`` is written whether named here or not.
 
+``release`` (default ``"inelastic"``)
+    How scheme `projection` lets a node that rests on the obstacle leave it: ``"inelastic"``, the paper's (A4),
+    with the free step's velocity; ``"signorini"``, Signorini contact without (A4), as at the massless contact
+    point of an elastic rod: the force that held the node still acts over the first half of the leapfrog's
+    impulse cell, and the scheme starts at second order (`timestepping.release`). The other schemes have no
+    release rule of their own (their penalty law decides).
+
 ``solver`` (optional)
     `SolverHints`: the model's defaults for its Newton step (``newton_options``) and its linear solver
     (``linear_options(dim, ranks, constants)``): above the schemes' defaults, below the user's options.
@@ -226,6 +233,7 @@ class Model:
     check_constants: Callable | None = None
     outputs: tuple = ()
     solver: SolverHints = SolverHints()
+    release: str = "inelastic"
 
 
 #: The penetration bounds a contact law may have (`Model.penetration_bound`; None: no known bound).

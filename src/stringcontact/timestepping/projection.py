@@ -54,6 +54,12 @@ the weighted position, u ≥ (1 + e)ψ − e η^{n−1}. Energy at the half step
 the rest of the identity. Its stable Δt is that of the tangent at η = 0 (and of η's stiffness with a model's other
 fields eliminated, `_check_fields_stiffness`).
 
+A model that declares Signorini's release (``Model.release = "signorini"``, `release.py`; linear path, e = 0, a fixed
+obstacle) gets the half-cell impulses: the second-order start η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 on the free nodes,
+and ½F^{n−1} carried into the right-hand side of a node that rested on ψ at t_{n−2}, t_{n−1}, t_n, so that
+A η^{n+1} = b + C^n + G with the complementarity on G, F^n = C^n + G (C^n stored with η^n, where its node rests).
+Landings are unchanged; a release gives back what a landing took, so the energy may rise within a run.
+
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
 μ = φ·Cφ/φ·Kφ, that is Δt < μ + √(μ² + 4/λ): Δx on a uniform mesh with α = 0, more with viscosity (exact
@@ -78,6 +84,7 @@ from .base import Ranks, StepEnergy, petsc_vector
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
+from .release import carried_force, release_of, start_correction
 from .spectrum import dt_of_mode, gershgorin_bound, largest_stable_dt, top_mode, top_mode_krylov, top_mode_of_shell
 
 #: A node within CONTACT_TOL × (the data's height scale) of the obstacle is in contact: the implicit viscous
@@ -137,6 +144,12 @@ class Scheme(_NewtonScheme):
         self.moving = s.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
         self.k = 0  # the level `ahead` holds: η^k at t = kΔt
         self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's)
+        # the model's release (`Model.release`): "signorini" adds the half-cell impulses of `release.py`
+        self.signorini = release_of(laws.model) == "signorini"
+        if self.signorini and (self.e or self.moving or nonlinear):
+            raise ValueError(f"release: model '{laws.model.name}' declares release 'signorini', which scheme "
+                             "'projection' takes on its linear path with restitution 0 and a fixed obstacle only")
+        self.F_last = np.zeros(n)  # the nodal contact force of the last step, F^{n−1}
         if nonlinear:
             self.newton = NewtonStep(s, PROJECTION, lower=self._lower(self.psi))
             self._check_fields_stiffness()
@@ -145,7 +158,7 @@ class Scheme(_NewtonScheme):
             self.newton = None
             self._linear_operators(s)
             # a rebound gives back in its later steps what its first steps took; a moving obstacle gives energy
-            self.energy_may_rise = bool(self.e) or self.moving
+            self.energy_may_rise = bool(self.e) or self.moving or self.signorini  # a release gives a landing's back
 
     def _linear_operators(self, s) -> None:
         """The linear path's constant operators, its contact step and its scratch vectors."""
@@ -289,6 +302,8 @@ class Scheme(_NewtonScheme):
                           SceneWarning, stacklevel=4)
             ahead.eta[below] = self.psi[below]
         np.subtract(ahead.eta, s.dt * v0, out=now.eta)
+        if self.signorini:  # + (Δt²/2) a0: the elastic force acts over the first half-cell only
+            now.eta += start_correction(s, ahead.eta, v0, self.psi, self.tol)
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
         terms = self._start_linear(ahead, now) if self.newton is None else self._start_newton(ahead, now, v0)
@@ -350,6 +365,10 @@ class Scheme(_NewtonScheme):
         if self.has_load:
             rhs += s.ops.load
         s.hold_ends(rhs)
+        carry = None
+        if self.signorini:  # ½F^{n−1} on the nodes resting since t_{n−2}: the first half of their cell
+            carry = carried_force(e0.eta, em.eta, self.levels[3].eta, self.psi, self.F_last, s.interior, self.tol)
+            rhs += carry
         if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
             np.subtract(e0.eta, em.eta, out=new.eta)
             new.eta += e0.eta
@@ -359,6 +378,11 @@ class Scheme(_NewtonScheme):
         else:
             F, _ = self.contact_step.solve(rhs_v, new.eta_vec, self._residual(new, rhs))
             np.maximum(F, 0.0, out=F)  # within the active set's round-off allowance
+        np.multiply(F, self.inv_mF, out=new.force)  # stored with the step's end
+        if carry is not None:  # the carried half is stored at t_n, where its node rests; F^n = C^n + G
+            e0.force += carry * self.inv_mF
+            F = F + carry
+            self.F_last[:] = F
         d, w = np.subtract(new.eta, e0.eta, out=self.work[0]), self.work[1]  # scratch rows: no temporaries
         kin = 0.5 * float(np.dot(d, np.multiply(self.m_dt2, d, out=w)))
         el = 0.5 * float(np.dot(new.eta, e0.kc[0]))
@@ -372,7 +396,6 @@ class Scheme(_NewtonScheme):
             work = obstacle_work(F)
             con, ext = con + work, ext + work
         kin, el, visc, con, ext, slack = self.allsum(kin, el, visc, con, ext, slack)
-        np.multiply(F, self.inv_mF, out=new.force)
         self.levels = [self.levels[3], new, e0, em]  # before is free; next → ahead → now → before
         return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0), slack
 

@@ -136,6 +136,17 @@ def relative_error(x: np.ndarray, t: np.ndarray, u: np.ndarray, exact=string_exa
     return float(np.max(p1_l2_norms(u - u_ex, h)) / np.max(p1_l2_norms(u_ex, h)))
 
 
+def relative_velocity_error(x: np.ndarray, t: np.ndarray, v: np.ndarray, exact=string_exact) -> float:
+    """(Σ_t ‖v − I_h v_ex‖²_{L²} / Σ_t ‖I_h v_ex‖²_{L²})^½: GetFEM's demo's relative L²(0,T;L²) error of v.
+
+    `v` has one row per time in `t` (uniform steps, so the demo's factor Δt cancels), at the uniform nodes `x`;
+    `exact` is called with ``derivative="t"``.
+    """
+    v_ex = np.array([exact(x, tk, "t") for tk in t])
+    h = x[1] - x[0]
+    return float(np.sqrt(np.sum(p1_l2_norms(v - v_ex, h) ** 2) / np.sum(p1_l2_norms(v_ex, h) ** 2)))
+
+
 __all__ = [
     "CONTACT_POINT",
     "PERIOD",
@@ -143,6 +154,7 @@ __all__ = [
     "p1_l2_norms",
     "point_contact",
     "relative_error",
+    "relative_velocity_error",
     "rod_exact",
     "rod_scene",
     "string_exact",
