@@ -6,6 +6,6 @@ import sys
 if sys.path and sys.path[0] and os.path.realpath(sys.path[0]) == os.path.realpath(os.getcwd()) and not sys.flags.safe_path:
     del sys.path[0]
 
-from .cli.main import main  # noqa: E402 - after the current folder left sys.path
+from .cli.main import main  # after the current folder left sys.path
 
 sys.exit(main())

@@ -61,3 +61,47 @@ def test_python_m_stringcontact_imports_nothing_from_the_working_folder(tmp_path
     proc = stringcontact("run", "example1", *SMALL, "--no-progress", "--out", tmp_path / "o", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert sorted(p.name for p in tmp_path.glob("imported-*")) == []
+
+
+# --- study and check take their folder before they compute ---------------------------------------------------------
+
+@pytest.mark.parametrize(("argv", "module", "name"), [
+    (["study", "film", "--quick"], "stringcontact.analysis.film", "film_study"),
+    (["check", "example1", "--levels", "1"], "stringcontact.cli.check", "run_checks"),
+])
+def test_study_and_check_hold_their_folder_while_they_compute(tmp_path, monkeypatch, argv, module, name):
+    """They took the lock only when they wrote: two `study film --out out/s` at once both computed, and the second
+    was refused at the end, its result lost. While computing, the folder's lock is held."""
+    import importlib
+
+    from stringcontact.cli.main import main
+    from stringcontact.io.lock import TargetLock
+
+    out = tmp_path / "s"
+    held = []
+
+    def computing(*args, **kwargs):
+        held.append(TargetLock.holder(out))
+        raise KeyboardInterrupt  # enough: what matters is who holds the folder now
+
+    monkeypatch.setattr(importlib.import_module(module), name, computing)
+    assert main([*argv, "--out", str(out)]) == 130
+    assert held == [os.getpid()]
+    assert not out.exists() and leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize(("argv", "module", "name"), [
+    (["study", "film", "--quick"], "stringcontact.analysis.film", "film_study"),
+    (["check", "example1", "--levels", "1"], "stringcontact.cli.check", "run_checks"),
+])
+def test_study_and_check_refuse_a_folder_they_cannot_make_before_computing(capsys, monkeypatch, argv, module, name):
+    """`--out /proc/x` passed the checks, ran the whole study (7-12 s), then was refused."""
+    import importlib
+
+    from stringcontact.cli.main import main
+
+    computed = []
+    monkeypatch.setattr(importlib.import_module(module), name, lambda *a, **k: computed.append(1))
+    assert main([*argv, "--out", "/proc/x"]) == 2
+    one_error_line(capsys.readouterr().err, "--out /proc/x")
+    assert computed == []

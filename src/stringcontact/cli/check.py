@@ -16,6 +16,7 @@ from ..analysis.theorems import (
     penalised,
     run_checks,
 )
+from .staged import staged_output
 
 
 def add_arguments(parser):
@@ -82,9 +83,29 @@ def _scene_from_args(args):
     return scene.replace(**changes) if changes else scene
 
 
+def _compute(args, scene):
+    """The levels' runs and their checks, the table and the trends printed: ``(finest, results, checks)``."""
+    import warnings
+
+    V = FLAT_V if scene.name == FLAT_LANDING else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
+        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V,
+                                             scheme=args.scheme)
+    if penalised(finest):
+        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}" for r in results)
+        levels += f" (r = dt/eps = {scene.r:.3g})"
+    else:
+        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
+    print(f"scene {scene.name}, scheme {finest.scheme}, restitution e = {scene.restitution or 0:g}: levels {levels}")
+    print(format_table(checks))
+    print()
+    print(format_trends(checks))
+    return finest, results, checks
+
+
 def command(args) -> int:
     import json
-    import warnings
 
     if not 1 <= args.levels <= 6:
         raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
@@ -101,32 +122,20 @@ def command(args) -> int:
         from ..io.publish import check_target
 
         check_target(args.out, args.force, command="check")
-    V = FLAT_V if scene.name == FLAT_LANDING else None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
-        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V,
-                                             scheme=args.scheme)
-    if penalised(finest):
-        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}" for r in results)
-        levels += f" (r = dt/eps = {scene.r:.3g})"
-    else:
-        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
-    print(f"scene {scene.name}, scheme {finest.scheme}, restitution e = {scene.restitution or 0:g}: levels {levels}")
-    print(format_table(checks))
-    print()
-    print(format_trends(checks))
     from mpi4py import MPI
 
-    if args.out is not None and MPI.COMM_WORLD.rank == 0:  # one rank writes: several would race for the folder
-        from ..io.publish import staged_folder
-
-        with staged_folder(args.out, args.force, command="check") as partial:  # the whole folder or nothing, under the run lock
+    # the folder is locked and its partial folder made (by rank 0, which writes) before the levels are computed: a
+    # second check into it, or a folder that cannot be made, is refused before the computing, not after it
+    with staged_output(args.out, args.force, "check", MPI.COMM_WORLD) as partial:
+        finest, results, checks = _compute(args, scene)
+        if partial is not None:
             (partial / "checks.json").write_text(json.dumps(
                 {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
                  "checks": [c.as_dict() for c in checks]}, indent=1, default=float))
             (partial / "checks.txt").write_text(format_table(checks) + "\n\n" + format_trends(checks) + "\n")
             balance = next(c.data for c in checks if c.name == STRESS_JUMP)  # computed by run_checks
             draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
+    if args.out is not None and MPI.COMM_WORLD.rank == 0:
         target = Path(args.out)
         print(f"wrote {target}")
     return 0

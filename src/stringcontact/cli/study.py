@@ -31,7 +31,8 @@ from ..analysis.study import (
     work_precision,
     write_csv,
 )
-from ..io.publish import check_target, staged_folder
+from ..io.publish import check_target
+from .staged import staged_output
 
 
 def add_arguments(parser):
@@ -64,9 +65,27 @@ def command(args) -> int:
     if args.study == "work-precision" and not 1 <= args.repeat <= MAX_REPEAT:
         raise ValueError(f"--repeat: {args.repeat} is out of range; allowed: an integer in [1, {MAX_REPEAT}] (each run "
                          "is timed that many times)")
-    check_target(out, args.force, command="study")  # the rules of `run --out`, before the sweep; never a run's result
+    check_target(out, args.force, command="study")  # the rules of `run --out`, on every rank; never a run's result
     t0 = time.perf_counter()
     busy = []
+    # the folder is locked and its partial folder made before the sweep: a second study into it, or a folder that
+    # cannot be made, is refused before the computing, not after it
+    with staged_output(out, args.force, "study", comm) as partial:
+        sweep, written = _sweep_and_write(args, comm, partial, busy)
+    written = [out / p.name for p in written]
+    if comm.rank == 0:
+        elapsed = time.perf_counter() - t0
+        per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
+        print(f"study {args.study}: {comm.size} rank(s), {elapsed:.2f} s wall-clock, of which the sweep "
+              f"{sweep:.2f} s; CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank))
+        for path in written:
+            print(f"wrote {path}")
+    return 0
+
+
+def _sweep_and_write(args, comm, partial: Path | None, busy: list) -> tuple[float, list[Path]]:
+    """The study's sweep (its time in seconds), then its files written into `partial` on the rank that has the
+    results (rank 0; the others have None and write nothing)."""
     t_sweep = time.perf_counter()
     if args.study == "work-precision":
         names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)
@@ -82,21 +101,12 @@ def command(args) -> int:
         alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
         step_rows = step_size_map(quick=args.quick, comm=comm, busy=busy)
     sweep = time.perf_counter() - t_sweep
-    written = []
-    if result is not None:  # None on ranks > 0: rank 0 has the results
-        with staged_folder(out, args.force, command="study") as partial:  # the whole folder or nothing, under the lock
-            written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
-            (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
-                                                            "files": [p.name for p in written]}, indent=1) + "\n")
-        written = [out / p.name for p in written]
-    if comm.rank == 0:
-        elapsed = time.perf_counter() - t0
-        per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
-        print(f"study {args.study}: {comm.size} rank(s), {elapsed:.2f} s wall-clock, of which the sweep "
-              f"{sweep:.2f} s; CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank))
-        for path in written:
-            print(f"wrote {path}")
-    return 0
+    if result is None or partial is None:  # None on ranks > 0: rank 0 has the results
+        return sweep, []
+    written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
+    (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
+                                                    "files": [p.name for p in written]}, indent=1) + "\n")
+    return sweep, written
 
 
 def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Path]:
