@@ -105,3 +105,50 @@ def test_study_and_check_refuse_a_folder_they_cannot_make_before_computing(capsy
     assert main([*argv, "--out", "/proc/x"]) == 2
     one_error_line(capsys.readouterr().err, "--out /proc/x")
     assert computed == []
+
+
+# --- a user's form, checked before anything is compiled ----------------------------------------------------------
+
+FORMS = '''
+import dataclasses
+import ufl
+from stringcontact.model.paper import inelastic, momentum_form
+
+def model(name, form):
+    return dataclasses.replace(inelastic, name=name, momentum_form=form)
+
+def paper(eta, eta_t, eta_tt, force, w, p):
+    return momentum_form(eta, eta_t, eta_tt, force, w, p)
+
+def _trial(w):
+    return ufl.TrialFunction(w.ufl_function_space())
+
+bilinear = model("bilinear", lambda eta, eta_t, eta_tt, force, w, p: _trial(w) * w * ufl.dx)
+negative = model("negative", lambda *a: paper(*a) - 3 * a[2] * a[4] * ufl.dx)
+massless = model("massless", lambda *a: paper(*a) - a[2] * a[4] * ufl.dx)
+no_dx = model("no_dx", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * w + ufl.inner(ufl.grad(eta), ufl.grad(w)))
+boundary_only = model("boundary_only", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * w * ufl.ds)
+functional = model("functional", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * eta * ufl.dx)
+quadratic = model("quadratic", lambda eta, eta_t, eta_tt, force, w, p: paper(eta, eta_t, eta_tt, force, w, p)
+                  + w * w * ufl.dx)
+'''
+
+
+@pytest.mark.parametrize(("name", "scheme", "fragment"), [
+    ("bilinear", "paper", "momentum_form is bilinear (rank 2: a TrialFunction in it)"),  # SIGABRT in the assembler
+    ("negative", "paper", "momentum_form's mass (the coefficient of eta_tt) is -2 at x = (0)"),  # eta to 1e30, complete
+    ("negative", "newmark", "momentum_form's mass (the coefficient of eta_tt) is -2"),
+    ("massless", "projection", "momentum_form's mass (the coefficient of eta_tt) is 0"),
+    ("no_dx", "paper", "momentum_form returned a Sum, not a form"),  # internal error AttributeError
+    ("boundary_only", "paper", "momentum_form has no term integrated over the domain (ufl.dx)"),  # "smaller dt"
+    ("functional", "paper", "momentum_form is a functional (rank 0: no test function w)"),  # internal error
+    ("quadratic", "paper", "momentum_form is not linear in the test function w"),  # internal error
+])
+def test_a_form_that_is_no_residual_is_refused_before_it_is_compiled(tmp_path, name, scheme, fragment):
+    (tmp_path / "forms.py").write_text(FORMS)
+    grid = SMALL if scheme != "projection" else SMALL[:4]  # projection has no eps
+    proc = stringcontact("run", "example1", *grid, *QUICK, "--scheme", scheme, "--model", f"forms:{name}", "--out",
+                         tmp_path / "o", cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    one_error_line(proc.stderr, f"model '{name}': ", fragment, "allowed: ")
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
