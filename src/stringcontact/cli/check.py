@@ -118,10 +118,6 @@ def command(args) -> int:
                          "(the half-width of the band around the fronts)")
     if args.delay is not None and args.delay >= scene.T:
         raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
-    if args.out is not None:
-        from ..io.publish import check_target
-
-        check_target(args.out, args.force, command="check")
     from mpi4py import MPI
 
     # the folder is locked and its partial folder made (by rank 0, which writes) before the levels are computed: a

@@ -31,7 +31,6 @@ from ..analysis.study import (
     work_precision,
     write_csv,
 )
-from ..io.publish import check_target
 from .staged import staged_output
 
 
@@ -65,11 +64,10 @@ def command(args) -> int:
     if args.study == "work-precision" and not 1 <= args.repeat <= MAX_REPEAT:
         raise ValueError(f"--repeat: {args.repeat} is out of range; allowed: an integer in [1, {MAX_REPEAT}] (each run "
                          "is timed that many times)")
-    check_target(out, args.force, command="study")  # the rules of `run --out`, on every rank; never a run's result
     t0 = time.perf_counter()
     busy = []
-    # the folder is locked and its partial folder made before the sweep: a second study into it, or a folder that
-    # cannot be made, is refused before the computing, not after it
+    # the folder is checked (the rules of `run --out`; never a run's result), locked and its partial folder made
+    # before the sweep: a second study into it, or a folder that cannot be made, is refused before the computing
     with staged_output(out, args.force, "study", comm) as partial:
         sweep, written = _sweep_and_write(args, comm, partial, busy)
     written = [out / p.name for p in written]
