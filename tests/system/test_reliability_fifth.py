@@ -152,3 +152,36 @@ def test_a_form_that_is_no_residual_is_refused_before_it_is_compiled(tmp_path, n
     assert proc.returncode == 2, proc.stderr[-3000:]
     one_error_line(proc.stderr, f"model '{name}': ", fragment, "allowed: ")
     assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+# --- a plugin that ends the process -------------------------------------------------------------------------------
+
+PLUGIN = '''
+import dataclasses, sys
+from stringcontact.model.paper import inelastic
+
+def _exits(*args):
+    sys.exit(0)
+
+def _interrupts(*args):
+    raise KeyboardInterrupt
+
+exits = dataclasses.replace(inelastic, name="exits", momentum_form=_exits)
+interrupts = dataclasses.replace(inelastic, name="interrupts", momentum_form=_interrupts)
+'''
+
+
+@pytest.mark.parametrize(("module", "spec", "fragment"), [
+    ("import sys\nsys.exit(0)\n", "plugin:model", "model: importing module 'plugin' for 'plugin:model' called sys.exit(0)"),
+    ("raise KeyboardInterrupt\n", "plugin:model", "'plugin:model' raised KeyboardInterrupt itself"),
+    (PLUGIN, "plugin:exits", "model 'exits' called sys.exit(0)"),
+    (PLUGIN, "plugin:interrupts", "model 'interrupts' raised KeyboardInterrupt itself"),
+])
+def test_a_plugin_that_exits_is_one_line_and_exit_2(tmp_path, module, spec, fragment):
+    """Only `Exception` was caught: a plugin's sys.exit(0) on import or in a model function ended the run with exit 0,
+    nothing done and nothing said; its own KeyboardInterrupt was reported as a Ctrl-C (130)."""
+    (tmp_path / "plugin.py").write_text(module)
+    proc = stringcontact("run", "example1", *SMALL, *QUICK, "--model", spec, "--out", tmp_path / "o", cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    one_error_line(proc.stderr, fragment)
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []

@@ -15,7 +15,7 @@ from collections.abc import MutableMapping
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InstabilityError, SolverError
+from ..errors import InstabilityError, SolverError, plugin_code
 from ..fem.agree import agreed
 from ..fem.operators import semi_discrete_operators
 from ..fem.outputs import OutputValues
@@ -78,18 +78,19 @@ class Stepper:
         spec = model if model is not None else (scene.model or DEFAULT_MODEL)
         self.name, Scheme, self.penalty, self.mass, self.model = setup._choose_scheme(scene, scheme, penalty, mass,
                                                                                       model)
-        self.constants = setup.model_constants(scene, self.model)
-        setup._check_before_mesh(scene, Scheme, self.penalty, self.model, petsc_options, comm)
-        t0 = time.perf_counter()
-        V, params, ops = setup.discretise(scene, self.model, comm, self.constants)
-        setup._check_moving_obstacle(scene, self.name, self.penalty, self.model, V, params)
-        s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
-        self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
-        self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
-        self._newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
-        self._restart = None  # the start terms of a scheme restarted after sub-steps
-        self.parameters = _Constants(self)
-        self.outputs = OutputValues(self.model, V, params)
+        with plugin_code(f"model '{self.model.name}'"):  # its functions' sys.exit: one line, not exit 0
+            self.constants = setup.model_constants(scene, self.model)
+            setup._check_before_mesh(scene, Scheme, self.penalty, self.model, petsc_options, comm)
+            t0 = time.perf_counter()
+            V, params, ops = setup.discretise(scene, self.model, comm, self.constants)
+            setup._check_moving_obstacle(scene, self.name, self.penalty, self.model, V, params)
+            s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
+            self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
+            self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
+            self._newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
+            self._restart = None  # the start terms of a scheme restarted after sub-steps
+            self.parameters = _Constants(self)
+            self.outputs = OutputValues(self.model, V, params)
         self.rows, self.geometry, self.row_series = _storage(scene, s, V, storage, self.outputs)
         self.timings = {"setup": time.perf_counter() - t0}
         self.counters, self.solver = {}, {}
