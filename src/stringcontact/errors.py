@@ -77,8 +77,12 @@ def plugin_code(what: str):
     except Interrupted:
         raise
     except SystemExit as exc:
-        raise SceneError(f"{what} called sys.exit({exc.code!r}); a model's code must return its value or raise an "
-                         "exception, never end the process") from None
+        raise SceneError(
+            f"{what} called sys.exit({exc.code!r}); a model's code must return its value or raise an "
+            "exception, never end the process"
+        ) from None
     except KeyboardInterrupt:
-        raise SceneError(f"{what} raised KeyboardInterrupt itself (no Ctrl-C was pressed); a model's code must "
-                         "return its value or raise an exception") from None
+        raise SceneError(
+            f"{what} raised KeyboardInterrupt itself (no Ctrl-C was pressed); a model's code must "
+            "return its value or raise an exception"
+        ) from None

@@ -46,8 +46,10 @@ def check_form(model_name: str, what: str, R, test) -> None:
 
         check_form_arity(remove_complex_nodes(apply_derivatives(apply_algebra_lowering(R))), arguments)  # real mode
     except (ArityMismatch, NotImplementedError):  # UFL's own message about a product of w with itself fails so
-        raise FormError(f"{where} is not linear in the test function w (w times w, or w in a nonlinear function); "
-                        f"allowed: {_ALLOWED}") from None
+        raise FormError(
+            f"{where} is not linear in the test function w (w times w, or w in a nonlinear function); "
+            f"allowed: {_ALLOWED}"
+        ) from None
 
 
 def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> object:
@@ -62,8 +64,10 @@ def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> objec
     if a.empty():
         return ufl.as_ufl(0.0)
     if set(ufl.algorithms.extract_coefficients(a)) & set(unknowns):
-        raise FormError(f"model '{model_name}': {what} must be affine in eta_tt with a constant coefficient (a mass "
-                        "that does not depend on eta, eta_t or eta_tt); it may be nonlinear in eta and eta_t")
+        raise FormError(
+            f"model '{model_name}': {what} must be affine in eta_tt with a constant coefficient (a mass "
+            "that does not depend on eta, eta_t or eta_tt); it may be nonlinear in eta and eta_t"
+        )
     one = ufl.as_ufl(1.0)
     tested = apply_derivatives(ufl.replace(a, {direction: one, test: one}))
     integrands = [i.integrand() for i in tested.integrals_by_type("cell")]
