@@ -185,3 +185,46 @@ def test_a_plugin_that_exits_is_one_line_and_exit_2(tmp_path, module, spec, frag
     assert proc.returncode == 2, proc.stderr[-3000:]
     one_error_line(proc.stderr, fragment)
     assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+# --- Newton's options ----------------------------------------------------------------------------------------------
+
+FILM_CAVITATING = """
+name = "film_cavitating"
+length = 1.0
+T = 0.1
+dt = 0.00025
+nx = 100
+alpha = 0.01
+eps = 0.0005
+eta0 = "1 + 0.5*sin(10*pi*x)**2"
+v0 = "-50"
+h = 1.0
+model = "film"
+scheme = "paper"
+
+[parameters]
+mu = 0.001
+p_cav = 0
+"""
+
+
+@pytest.mark.parametrize(("scene", "option", "fragment"), [
+    # 0 Newton iterations: η = −2, the energy up 30 %, "complete"
+    ("cubic", "snes_atol=1e300", "snes_atol = 1e+300 is out of range; allowed: a number in [0, 1e-06]"),
+    ("cubic", "snes_rtol=0.5", "snes_rtol = 0.5 is out of range; allowed: a number in [0, 0.01]"),
+    ("cubic", "snes_max_it=0", "snes_max_it = 0 is out of range; allowed: an integer in [1, 1000]"),
+    ("cubic", "snes_linesearch_type=shell", "snes_linesearch_type = 'shell' is not a line search"),  # error code 83
+    # error code 60, "Nonconforming object sizes", once the film cavitates (a VI)
+    ("film", "snes_linesearch_type=nleqerr", "snes_linesearch_type = 'nleqerr' does not take the bounds"),
+])
+def test_newton_options_that_make_its_test_vacuous_or_fail_are_refused(tmp_path, scene, option, fragment):
+    if scene == "film":
+        (tmp_path / "film.toml").write_text(FILM_CAVITATING)
+        argv = [tmp_path / "film.toml"]
+    else:
+        argv = ["example1", *SMALL, "--model", "cubic_foundation"]
+    proc = stringcontact("run", *argv, *QUICK, "--petsc-option", option, "--out", tmp_path / "o")
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    one_error_line(proc.stderr, "petsc_options", fragment)
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []

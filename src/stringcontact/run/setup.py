@@ -22,6 +22,7 @@ from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, scheme_class
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
+from ..timestepping.newton import check_snes_options
 from .options import Output
 from .rows import _Rows, output_steps
 
@@ -187,7 +188,9 @@ def _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm) -> No
     """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
     option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
     same on every rank, so a refusal ends every rank alike."""
-    check_option_values(petsc_options_of(scene, petsc_options), ranks=comm.size)
+    given = petsc_options_of(scene, petsc_options)
+    check_option_values(given, ranks=comm.size)
+    check_snes_options(given)  # tolerances that would make Newton's stopping test pass without solving
     if Scheme.PENALTIES and penalty is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
