@@ -113,6 +113,7 @@ FORMS = '''
 import dataclasses
 import ufl
 from stringcontact.model.paper import inelastic, momentum_form
+from stringcontact.model.stiff_string import stiff_string
 
 def model(name, form):
     return dataclasses.replace(inelastic, name=name, momentum_form=form)
@@ -129,6 +130,7 @@ massless = model("massless", lambda *a: paper(*a) - a[2] * a[4] * ufl.dx)
 no_dx = model("no_dx", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * w + ufl.inner(ufl.grad(eta), ufl.grad(w)))
 boundary_only = model("boundary_only", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * w * ufl.ds)
 functional = model("functional", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * eta * ufl.dx)
+held_unknown = dataclasses.replace(stiff_string, name="held_unknown", held_fields=("zz",))
 quadratic = model("quadratic", lambda eta, eta_t, eta_tt, force, w, p: paper(eta, eta_t, eta_tt, force, w, p)
                   + w * w * ufl.dx)
 '''
@@ -143,6 +145,7 @@ quadratic = model("quadratic", lambda eta, eta_t, eta_tt, force, w, p: paper(eta
     ("boundary_only", "paper", "momentum_form has no term integrated over the domain (ufl.dx)"),  # "smaller dt"
     ("functional", "paper", "momentum_form is a functional (rank 0: no test function w)"),  # internal error
     ("quadratic", "paper", "momentum_form is not linear in the test function w"),  # internal error
+    ("held_unknown", "paper", "held_fields names 'zz', not a field of the model"),  # internal error KeyError
 ])
 def test_a_form_that_is_no_residual_is_refused_before_it_is_compiled(tmp_path, name, scheme, fragment):
     (tmp_path / "forms.py").write_text(FORMS)

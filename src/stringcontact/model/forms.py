@@ -14,7 +14,7 @@ import ufl
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
 
-__all__ = ["FormError", "check_form", "mass_density"]
+__all__ = ["FormError", "check_declarations", "check_form", "mass_density"]
 
 #: What a model's momentum form is made of, for the messages.
 _ALLOWED = "a UFL Form linear in the test function w, with terms times ufl.dx (e.g. eta_tt*w*dx + ...)"
@@ -72,3 +72,18 @@ def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> objec
     tested = apply_derivatives(ufl.replace(a, {direction: one, test: one}))
     integrands = [i.integrand() for i in tested.integrals_by_type("cell")]
     return sum(integrands[1:], integrands[0]) if integrands else ufl.as_ufl(0.0)
+
+
+def check_declarations(model) -> None:
+    """FormError (one line) if a model names a field it does not have: each of its ``held_fields`` and
+    ``dissipative_fields`` must be one of its ``fields`` (``held_fields=("zz",)`` ended in an internal KeyError)."""
+    fields = tuple(getattr(model, "fields", ()))
+    for what in ("held_fields", "dissipative_fields"):
+        named = getattr(model, what, ())
+        if isinstance(named, str) or not isinstance(named, (tuple, list)):
+            raise FormError(f"model '{model.name}': {what} must be a tuple of field names, not {named!r}")
+        unknown = [name for name in named if name not in fields]
+        if unknown:
+            allowed = ", ".join(map(repr, fields)) or "none (the model has no fields)"
+            raise FormError(f"model '{model.name}': {what} names {', '.join(map(repr, unknown))}, not a field of the "
+                            f"model; allowed: {allowed}")

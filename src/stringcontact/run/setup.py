@@ -15,6 +15,7 @@ from ..errors import SceneError
 from ..fem import compat, domains
 from ..fem.agree import agreed
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
+from ..model.forms import check_declarations
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import check_petsc_options
 from ..scene.names import DEFAULT_SCHEME
@@ -176,6 +177,7 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     model = _resolve_model(model, scene)
     check_model(name, model)
     penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
+    check_declarations(model)  # the fields it holds or books as dissipative are its own
     return name, Scheme, penalty, mass, model
 
 
