@@ -8,8 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
-from conftest import leftovers
+from conftest import leftovers, plot_refusal
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01"]
@@ -231,3 +232,36 @@ def test_newton_options_that_make_its_test_vacuous_or_fail_are_refused(tmp_path,
     assert proc.returncode == 2, proc.stderr[-3000:]
     one_error_line(proc.stderr, "petsc_options", fragment)
     assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+# --- a model's field read back -------------------------------------------------------------------------------------
+
+FILM_SMALL = FILM_CAVITATING.replace("T = 0.1", "T = 0.01").replace("p_cav = 0\n", "").replace("nx = 100", "nx = 40")
+
+
+@pytest.fixture(scope="module")
+def a_film_result(tmp_path_factory):
+    """A complete film run folder (its pressure in rows.npz and solution.h5; no pictures)."""
+    from stringcontact.cli.main import main
+
+    folder = tmp_path_factory.mktemp("film")
+    (folder / "film.toml").write_text(FILM_SMALL)
+    assert main(["run", str(folder / "film.toml"), *QUICK, "--out", str(folder / "run")]) == 0
+    return folder / "run"
+
+
+@pytest.mark.parametrize(("values", "fragment"), [
+    (lambda p: np.where(p == p.max(), np.inf, p), "its field 'pressure' holds a value that is not finite"),  # drawn
+    (lambda p: np.full_like(p, np.nan), "its field 'pressure' holds a value that is not finite"),  # "Invalid vmin"
+    (lambda p: p.astype("U8"), "its array 'pressure' holds <U8 values; allowed: real numbers"),
+    (lambda p: p.astype(complex), "its array 'pressure' holds complex128 values; allowed: real numbers"),
+], ids=["inf", "nan", "strings", "complex"])
+def test_a_model_field_in_rows_is_checked_like_eta(tmp_path, a_film_result, capsys, values, fragment):
+    def damage(copy):
+        with np.load(copy / "rows.npz") as npz:
+            arrays = {name: npz[name] for name in npz.files}
+        arrays["pressure"] = values(arrays["pressure"])
+        np.savez(copy / "rows.npz", **arrays)
+
+    _, err = plot_refusal(a_film_result, damage, tmp_path, capsys)
+    assert fragment in err and "allowed: " in err, err
