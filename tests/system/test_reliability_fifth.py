@@ -265,3 +265,32 @@ def test_a_model_field_in_rows_is_checked_like_eta(tmp_path, a_film_result, caps
 
     _, err = plot_refusal(a_film_result, damage, tmp_path, capsys)
     assert fragment in err and "allowed: " in err, err
+
+
+# --- resource figures ----------------------------------------------------------------------------------------------
+
+def test_the_memory_estimate_covers_a_model_with_two_unknowns_per_node(tmp_path):
+    """The film at cells = [1000, 1000] took 5.5 GB, 1.8 times the 3.1 KB per node the scene's cap assumes: its own
+    cost per node (`SolverHints.setup_bytes_per_node`) is counted, and the run refused before the mesh."""
+    import stringcontact as sc
+
+    scene_file = Path(sc.__file__).parent / "scenes" / "film_drum.toml"
+    lines = [("cells = [1000, 1000]" if line.startswith("cells") else line)
+             for line in scene_file.read_text().splitlines()]
+    (tmp_path / "big.toml").write_text("\n".join(lines) + "\n")
+    proc = stringcontact("run", tmp_path / "big.toml", *QUICK, "--out", tmp_path / "o", timeout=120)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    one_error_line(proc.stderr, "cells: [1000, 1000] gives 1002001 nodes, about 5.51 GB to set up with model 'film'",
+                   "allowed: at most 564764 nodes with this model")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_run_over_an_hour_says_so_at_its_start():
+    """nx = 1e5 with nt = 1e8 (about 65 hours) was accepted without a word."""
+    import stringcontact as sc
+
+    scene = sc.load_scene("example1").replace(nx=100_000, nt=100_000_000)
+    Stepper = sc.Stepper  # imported first: dolfinx's import hands warnings to logging, past pytest.warns
+    with pytest.warns(UserWarning, match=r"nt = 100000000 steps of 100001 nodes: this run will take about 69\.4 hours"):
+        stepper = Stepper(scene)
+    assert stepper.step == 0

@@ -18,6 +18,7 @@ from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..model.forms import check_declarations
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import check_petsc_options
+from ..scene.limits import MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, scheme_class
@@ -193,10 +194,39 @@ def _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm) -> No
     given = petsc_options_of(scene, petsc_options)
     check_option_values(given, ranks=comm.size)
     check_snes_options(given)  # tolerances that would make Newton's stopping test pass without solving
+    _check_size(scene, model)
     if Scheme.PENALTIES and penalty is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             check_law_stability(model, scene.dt, scene.eps, penalty)
+
+
+#: The least wall time one node's time step takes (a string on the linear path, measured on the 2-core VM: Example 1
+#: at nx = 2e4 took 2.5e-7 s; 2.3e-8 s in the fastest runs): the estimate below which a long run is told it is long.
+SECONDS_PER_NODE_STEP = 2.5e-8
+#: A run predicted to take longer than this is told so at its start, with its estimate.
+LONG_RUN_SECONDS = 3600.0
+
+
+def _check_size(scene, model: Model) -> None:
+    """A membrane's set-up memory with the model's own cost per node (`SolverHints.setup_bytes_per_node`; the core's
+    `SETUP_BYTES_PER_NODE` without) within the scene's budget (`MAX_MEMBRANE_NODES` such nodes), else SceneError;
+    a run predicted to take over an hour (`SECONDS_PER_NODE_STEP`) says so in a warning, with its estimate."""
+    nodes = scene.node_estimate
+    per_node = getattr(model.solver, "setup_bytes_per_node", None) or SETUP_BYTES_PER_NODE
+    budget = MAX_MEMBRANE_NODES * SETUP_BYTES_PER_NODE
+    if scene.dim == 2 and nodes * per_node > budget:
+        key = {"rectangle": "cells", "disk": "mesh_size"}.get(scene.domain, "mesh")
+        value = getattr(scene, key, None)
+        raise SceneError(f"{key}: {list(value) if isinstance(value, tuple) else value} gives {'about ' if key == 'mesh_size' else ''}{nodes} "
+                         f"nodes, about {nodes * per_node / 1e9:.3g} GB to set up with model '{model.name}' "
+                         f"({per_node / 1e3:g} KB per node, measured); allowed: at most {int(budget // per_node)} "
+                         f"nodes with this model ({budget / 1e9:.2g} GB)")
+    seconds = nodes * scene.nt * SECONDS_PER_NODE_STEP
+    if seconds > LONG_RUN_SECONDS:
+        warnings.warn(f"nt = {scene.nt} steps of {nodes} nodes: this run will take about {seconds / 3600:.3g} hours or "
+                      f"more (at least {SECONDS_PER_NODE_STEP:g} s per node and step); reduce nt or the mesh for a "
+                      "shorter one", UserWarning, stacklevel=2)
 
 
 def _writer(scene, V, comm, rows: _Rows, output: Output):
