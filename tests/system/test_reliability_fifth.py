@@ -294,3 +294,37 @@ def test_a_run_over_an_hour_says_so_at_its_start():
     with pytest.warns(UserWarning, match=r"nt = 100000000 steps of 100001 nodes: this run will take about 69\.4 hours"):
         stepper = Stepper(scene)
     assert stepper.step == 0
+
+
+# --- the obstacle, checked at every step -------------------------------------------------------------------------
+
+MOVING = """
+name = "moving"
+length = 1.0
+T = 0.2
+nt = 400
+nx = 50
+alpha = 0.01
+eps = 0.01
+eta0 = "1 + x*(1 - x)"
+v0 = "0"
+h = 1.0
+scheme = "projection"
+model = "loaded_obstacle"
+obstacle = "{obstacle}"
+"""
+
+
+@pytest.mark.parametrize(("obstacle", "fragment"), [
+    # 0 at t = 0, T/2 and T, where the scene's check samples it; 1.9e7 between them: the run completed
+    ("5e6*sin(pi*t/0.2)**2 - 1",
+     "obstacle: at t = 0.03 it is 1.031e+06 at x = (0); allowed: finite values in [-1e+06, 1e+06] at every node"),
+    # NaN at t = 0.05 only: exit 1, "step failed", no time named
+    ("-1 + sqrt(abs(t - 0.05) - 1e-6)", "obstacle at t = 0.05: '-1 + sqrt(abs(t - 0.05) - 1e-6)' is not finite"),
+])
+def test_a_moving_obstacle_is_checked_at_every_step(tmp_path, obstacle, fragment):
+    (tmp_path / "moving.toml").write_text(MOVING.format(obstacle=obstacle))
+    proc = stringcontact("run", tmp_path / "moving.toml", *QUICK, "--out", tmp_path / "o")
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    one_error_line(proc.stderr, fragment)
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []

@@ -18,7 +18,7 @@ from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..model.forms import check_declarations
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import check_petsc_options
-from ..scene.limits import MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
+from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, scheme_class
@@ -43,7 +43,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None):
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
-    values = agreed(comm, lambda: {name: scene.field_values(name, dof_x) for name in scene.fields})  # one outcome
+    values = agreed(comm, lambda: {name: _checked_values(scene, name, dof_x) for name in scene.fields})  # one outcome
     extra = {}
     for name in scene.fields:
         f = fem.Function(V, name=name)
@@ -66,7 +66,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None):
         )
     if scene.obstacle_moves:  # ψ_t for the penalty's gap rate v − ψ_t: set each step (`MovingObstacle`)
         rate = extra[RATE] = fem.Function(V, name=RATE)
-        rate.x.array[:] = (values["obstacle"] - scene.field_values("obstacle", dof_x, -scene.dt)) / scene.dt
+        rate.x.array[:] = (values["obstacle"] - _checked_values(scene, "obstacle", dof_x, -scene.dt)) / scene.dt
     return V, params, semi_discrete_operators(model, V, params)
 
 
@@ -78,13 +78,37 @@ POTENTIAL_LABEL = r"stored: the potential $\int_0^1 G(s\eta;\eta)\,ds$ of moment
 RATE = "obstacle_rate"
 
 
+def _checked_values(scene, name: str, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """The scene's field `name` at the nodes `x` and the time `t`, finite and within ±MAX_MAGNITUDE at every node,
+    else SceneError naming the field, the time, the value and where (the scene's own check samples a few points
+    and times: 5e6·sin²(πt/0.2) is 0 at t = 0, T/2 and T)."""
+    try:
+        values = np.asarray(scene.field_values(name, x, t), dtype=float)
+    except SceneError as exc:
+        raise SceneError(f"{name} at t = {t:.6g}: {str(exc).removeprefix(f'{name}: ')}") from None
+    bad = np.flatnonzero(~(np.abs(values) <= MAX_MAGNITUDE))
+    if bad.size:
+        i = bad[np.argmax(np.nan_to_num(np.abs(values[bad]), nan=np.inf))]
+        where = ", ".join(f"{c:.4g}" for c in np.atleast_1d(x[i]))
+        raise SceneError(f"{name}: at t = {t:.6g} it is {values[i]:.4g} at x = ({where}); allowed: finite values in "
+                         f"[-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}] at every node and time step")
+    return values
+
+
 def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
-    """The scene's obstacle ψ(x, t) as the scheme sets it each step, or None for an obstacle at rest."""
+    """The scene's obstacle ψ(x, t) as the scheme sets it each step, or None for an obstacle at rest: checked at
+    every time it is evaluated (`_checked_values`), with one outcome on every rank."""
     if not scene.obstacle_moves:
         return None
     dof_x = node_coordinates(V)
-    return MovingObstacle(lambda t: scene.field_values("obstacle", dof_x, t), params.extra["obstacle"],
-                          params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
+    comm = V.mesh.comm
+
+    def values(t: float) -> np.ndarray:
+        if comm.size == 1:
+            return _checked_values(scene, "obstacle", dof_x, t)
+        return agreed(comm, _checked_values, scene, "obstacle", dof_x, t)
+
+    return MovingObstacle(values, params.extra["obstacle"], params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
 
 
 def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params) -> None:

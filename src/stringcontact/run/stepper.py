@@ -15,7 +15,7 @@ from collections.abc import MutableMapping
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InstabilityError, SolverError, plugin_code
+from ..errors import InstabilityError, SceneError, SolverError, plugin_code
 from ..fem.agree import agreed
 from ..fem.operators import semi_discrete_operators
 from ..fem.outputs import OutputValues
@@ -273,6 +273,8 @@ class Stepper:
         except BaseException as exc:
             if self.writer is not None:
                 self.writer.discard()  # an unexpected error: no half-written folder, no stale lock
+            if isinstance(exc, SceneError):  # a scene's field checked where it is evaluated (an obstacle in t)
+                raise
             if isinstance(exc, ValueError):  # the input was checked before the march: no input error
                 raise SolverError(f"step failed: {exc}") from exc
             raise
