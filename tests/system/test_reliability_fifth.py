@@ -328,3 +328,13 @@ def test_a_moving_obstacle_is_checked_at_every_step(tmp_path, obstacle, fragment
     assert proc.returncode == 2, proc.stderr[-3000:]
     one_error_line(proc.stderr, fragment)
     assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+def test_frames_is_named_as_the_flag(tmp_path, capsys):
+    """--frames 100000000 was refused as "max_frames: ...", the API's argument, which the user never typed."""
+    from stringcontact.cli.main import main
+
+    assert main(["run", "example1", *SMALL, *QUICK, "--frames", "100000000", "--out", str(tmp_path / "o")]) == 2
+    line = one_error_line(capsys.readouterr().err, "--frames: 100000000 is out of range; allowed: a whole number in [1, ")
+    assert "max_frames" not in line
+    assert not (tmp_path / "o").exists()
