@@ -131,6 +131,8 @@ massless = model("massless", lambda *a: paper(*a) - a[2] * a[4] * ufl.dx)
 no_dx = model("no_dx", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * w + ufl.inner(ufl.grad(eta), ufl.grad(w)))
 boundary_only = model("boundary_only", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * w * ufl.ds)
 functional = model("functional", lambda eta, eta_t, eta_tt, force, w, p: eta_tt * eta * ufl.dx)
+root_of_negative = model("root_of_negative", lambda *a: paper(*a) + ufl.sqrt(a[0] - 5) * a[4] * ufl.dx)
+overflowing = model("overflowing", lambda *a: paper(*a) + ufl.exp(1000 * a[0]) * a[4] * ufl.dx)
 held_unknown = dataclasses.replace(stiff_string, name="held_unknown", held_fields=("zz",))
 quadratic = model("quadratic", lambda eta, eta_t, eta_tt, force, w, p: paper(eta, eta_t, eta_tt, force, w, p)
                   + w * w * ufl.dx)
@@ -338,3 +340,15 @@ def test_frames_is_named_as_the_flag(tmp_path, capsys):
     line = one_error_line(capsys.readouterr().err, "--frames: 100000000 is out of range; allowed: a whole number in [1, ")
     assert "max_frames" not in line
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("name", "value"), [("root_of_negative", "nan"), ("overflowing", "inf")])
+def test_a_form_that_is_not_finite_is_named_not_the_step_size(tmp_path, name, value):
+    """sqrt(eta - 5) or exp(1000 eta) in a form was reported as "Newton did not converge (SNES reason -4) ... use a
+    smaller dt", after 16 sub-steps that could not help."""
+    (tmp_path / "forms.py").write_text(FORMS)
+    proc = stringcontact("run", "example1", *SMALL, *QUICK, "--model", f"forms:{name}", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    line = one_error_line(proc.stderr, f"step 1, t = 0.0075: model '{name}': its momentum_form is {value} (not "
+                          "finite)", "a smaller dt does not change it")
+    assert "sub-steps" not in line and "use a smaller dt" not in line

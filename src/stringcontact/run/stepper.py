@@ -205,6 +205,8 @@ class Stepper:
         try:
             return scheme.step()
         except SolverError as exc:
+            if getattr(exc, "not_finite", False):  # the model's form, not the step size: sub-steps cannot help
+                raise SolverError(f"step {self.step + 1}, t = {(self.step + 1) * self.dt:.6g}: {exc}") from None
             if self.scene.obstacle_moves:  # a scheme restarted mid-run would start its obstacle at t = 0
                 raise
             for halvings in range(1, MAX_HALVINGS + 1):

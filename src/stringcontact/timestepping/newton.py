@@ -455,12 +455,31 @@ class NewtonStep(LinearPath):
                 self.free_solves += 1
                 return self._accept()
         reason = self._run(self.snes, guess)
+        if reason == PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN and self.snes.getIterationNumber() == 0:
+            raise self._not_finite(guess)
         if reason < 0:
             raise SolverError(f"Newton did not converge (SNES reason {reason}) after {self.snes.getIterationNumber()} "
                               "iterations; use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
         if self.free is not None:
             self.try_free = not self.anyrank(bool(np.any(x <= self.bounds[0].array)))
         return self._accept()
+
+    def _not_finite(self, guess: np.ndarray) -> SolverError:
+        """The model's form is not finite at the step's first guess (its residual there, before any
+        Newton iteration): its cause is the form, which no smaller dt or sub-step changes. The error says so
+        (``not_finite``: the run does not sub-step it)."""
+        model = self.s.laws.model
+        residual = self.G_vec.array
+        bad = residual[~np.isfinite(residual)]
+        value = f"{bad[0]:g}" if bad.size else "not finite"
+        lo, hi = (float(np.min(guess)), float(np.max(guess))) if guess.size else (math.nan, math.nan)
+        what = "residual" if getattr(model, "fields", ()) else "momentum_form"
+        exc = SolverError(f"model '{model.name}': its {what} is {value} (not finite) at the step's first guess "
+                          f"(eta in [{lo:.4g}, {hi:.4g}] on this rank): a square root or logarithm of a negative "
+                          "number, a division by zero or an exponential that overflows in the form; a smaller dt "
+                          "does not change it")
+        exc.not_finite = True
+        return exc
 
     def _run(self, snes, guess: np.ndarray) -> int:
         """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray; its
