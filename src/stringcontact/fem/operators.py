@@ -229,6 +229,8 @@ def _check_mass(name: str, what: str, density, V, params) -> bool:
     try:
         values = np.broadcast_to(evaluate(density, {f: f.x.array for f in params.extra.values()}, x), x.shape[:1])
     except (ValueError, KeyError, TypeError, AttributeError, NotImplementedError):
+        values = None
+    if not all(V.mesh.comm.allgather(values is not None)):  # one outcome on every rank: each then checks alike
         return False
     _refuse_mass(name, what, values, x, V.mesh.comm, "mass")
     return True
