@@ -97,18 +97,13 @@ def _checked_values(scene, name: str, x: np.ndarray, t: float = 0.0) -> np.ndarr
 
 def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
     """The scene's obstacle ψ(x, t) as the scheme sets it each step, or None for an obstacle at rest: checked at
-    every time it is evaluated (`_checked_values`), with one outcome on every rank."""
+    every time it is evaluated (`_checked_values`)."""
     if not scene.obstacle_moves:
         return None
     dof_x = node_coordinates(V)
-    comm = V.mesh.comm
-
-    def values(t: float) -> np.ndarray:
-        if comm.size == 1:
-            return _checked_values(scene, "obstacle", dof_x, t)
-        return agreed(comm, _checked_values, scene, "obstacle", dof_x, t)
-
-    return MovingObstacle(values, params.extra["obstacle"], params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
+    # not collective: a rank may evaluate it alone; a rank that fails alone ends the whole job (the CLI aborts it)
+    return MovingObstacle(lambda t: _checked_values(scene, "obstacle", dof_x, t), params.extra["obstacle"],
+                          params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
 
 
 def _check_moving_obstacle(scene, name: str, penalty, model: Model, V, params) -> None:
