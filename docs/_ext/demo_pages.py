@@ -23,6 +23,9 @@ import sys
 from pathlib import Path
 
 PICTURE_SUFFIXES = (".png", ".gif")
+#: The file that marks a demo's output folder as made by this module: only a folder holding it is ever removed
+#: (STRINGCONTACT_DOCS_DEMO_WORK may name a folder of the user's, whose demo_* subfolders are theirs).
+MARKER = ".stringcontact-docs-demo"
 #: Printed lines kept per cell on the page (the rest is cut, with a note).
 MAX_LINES = 40
 
@@ -72,7 +75,7 @@ def _execute(demo: Path, work: Path, package: Path) -> tuple[list[dict], Path]:
     out, record, stamp = work / demo.stem, work / f"{demo.stem}.json", work / f"{demo.stem}.stamp"
     want = _stamp(demo, package)
     if not (record.exists() and stamp.exists() and stamp.read_text() == want):
-        shutil.rmtree(out, ignore_errors=True)
+        _fresh_folder(out)
         proc = subprocess.run([sys.executable, __file__, str(demo), str(out), str(record)], cwd=work,
                               capture_output=True, text=True, check=False)
         if proc.returncode != 0:
@@ -80,6 +83,17 @@ def _execute(demo: Path, work: Path, package: Path) -> tuple[list[dict], Path]:
                                f"{proc.stderr[-4000:]}")
         stamp.write_text(want)
     return json.loads(record.read_text()), out
+
+
+def _fresh_folder(out: Path) -> None:
+    """`out` made empty and marked as this module's (`MARKER`): removed first only if it holds the marker; any
+    other folder (or file) there is the user's and stops the build, untouched."""
+    if out.is_symlink() or (out.exists() and not (out.is_dir() and (out / MARKER).is_file())):
+        raise RuntimeError(f"{out} exists and was not made by the docs build (no {MARKER} in it); move it away or "
+                           "set STRINGCONTACT_DOCS_DEMO_WORK to another folder")
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    (out / MARKER).write_text("made by docs/_ext/demo_pages.py; removed and made again by the docs build\n")
 
 
 def _printed(text: str) -> str:

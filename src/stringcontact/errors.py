@@ -5,6 +5,7 @@ The command line maps them to exit codes (see `stringcontact.cli.main`): `SceneE
 :func:`one_line` puts a message (or the text of an exception) on the one line those errors are shown on.
 """
 
+import contextlib
 import signal
 
 
@@ -64,3 +65,24 @@ def one_line(text, limit: int | None = None) -> str:
     """
     line = " ".join(str(text).split())
     return line if limit is None else line[:limit]
+
+
+@contextlib.contextmanager
+def plugin_code(what: str):
+    """Run a model's own code (its module's import, its functions): a `SystemExit` (``sys.exit(0)``) or a
+    `KeyboardInterrupt` it raises itself becomes a one-line `SceneError` naming `what`, instead of ending the
+    process with exit 0 and nothing said. A signal (`Interrupted`, raised by the run's own handlers) passes."""
+    try:
+        yield
+    except Interrupted:
+        raise
+    except SystemExit as exc:
+        raise SceneError(
+            f"{what} called sys.exit({exc.code!r}); a model's code must return its value or raise an "
+            "exception, never end the process"
+        ) from None
+    except KeyboardInterrupt:
+        raise SceneError(
+            f"{what} raised KeyboardInterrupt itself (no Ctrl-C was pressed); a model's code must "
+            "return its value or raise an exception"
+        ) from None

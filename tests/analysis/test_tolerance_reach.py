@@ -47,3 +47,28 @@ def test_the_refusal_names_what_the_limits_allow(pilots):
     # a tolerance at that bound is not refused by the extrapolation: it is tried (its pilots may go finer)
     choice = tolerance.estimate_for_tolerance(scene, 1e-300)
     assert all(c["why"] == "out of reach" and c["floor"] > tolerance.REACH_MARGIN * 1e-300 for c in choice)
+
+
+def test_tol_tries_only_the_schemes_the_model_runs_with(monkeypatch):
+    """`--tol` on a film scene ran its first candidate, projection, and the film's refusal of it ended the run: a
+    scheme the user never chose was blamed. Candidates the model refuses are not tried; a model none of them runs
+    is refused naming --tol."""
+    import dataclasses
+
+    from stringcontact.model.film import film
+    from stringcontact.model.paper import inelastic
+
+    tried = []
+
+    def stand_in(scene, method, **kw):
+        tried.append(method.scheme)
+        raise StopIteration  # enough: which schemes were tried, not what they give
+
+    monkeypatch.setattr(tolerance, "run_method", stand_in)
+    with pytest.raises(StopIteration):
+        tolerance.estimate_for_tolerance(tolerance.flat_landing_scene(50), 1e-2, model=film)
+    assert tried == ["paper"]
+    nowhere = dataclasses.replace(inelastic, name="nowhere", schemes=("no-such-scheme",), scheme_note="a test")
+    with pytest.raises(ValueError, match=r"--tol: model 'nowhere' runs with none of the schemes --tol chooses among"):
+        tolerance.choose_for_tolerance(tolerance.flat_landing_scene(50), 1e-2, model=nowhere)
+    assert tried == ["paper"]

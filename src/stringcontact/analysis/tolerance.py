@@ -60,6 +60,8 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
         method = METHODS[name]
         if method.penalty == "semi-implicit" and model is not None and model.penalty_damping is None:
             continue
+        if model is not None and not _runs(method.scheme, model):  # a scheme the model refuses is no candidate
+            continue
         if method.scheme == "projection" and model is not None and model.gap is None:
             continue
         nx = max(2, min(nx_start, scene.nx))
@@ -86,6 +88,17 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
     return found
 
 
+def _runs(scheme: str, model) -> bool:
+    """Whether `scheme` can run `model` (`timestepping.check_model`)."""
+    from ..timestepping import check_model
+
+    try:
+        check_model(scheme, model)
+    except ValueError:
+        return False
+    return True
+
+
 def choose_for_tolerance(scene, tol: float, *, model=None):
     """`run SCENE --tol X`: the cheapest method and resolution whose estimated error of η is below X.
 
@@ -103,6 +116,10 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
         from ..model.registry import load_model
 
         model = load_model(scene.model)
+    if model is not None and not any(_runs(METHODS[name].scheme, model) for name in TOL_METHODS):
+        schemes = sorted({METHODS[name].scheme for name in TOL_METHODS})
+        raise ValueError(f"--tol: model '{model.name}' runs with none of the schemes --tol chooses among "
+                         f"({', '.join(schemes)}); give nx and nt (--nx, --nt) instead")
     choice = _estimate_on_rank_0(scene, tol, model=model)
     chosen, method, best = _pick(scene, tol, choice)
     others = "; ".join(f"{c['method']}: nx={c['nx']} est {c['estimate']:.3g} ({c['fine_wall_s']:.2g} s"

@@ -16,6 +16,7 @@ from ..analysis.theorems import (
     penalised,
     run_checks,
 )
+from .staged import staged_output
 
 
 def add_arguments(parser):
@@ -82,25 +83,10 @@ def _scene_from_args(args):
     return scene.replace(**changes) if changes else scene
 
 
-def command(args) -> int:
-    import json
+def _compute(args, scene):
+    """The levels' runs and their checks, the table and the trends printed: ``(finest, results, checks)``."""
     import warnings
 
-    if not 1 <= args.levels <= 6:
-        raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
-    if args.delay is not None and not args.delay > 0:
-        raise ValueError(f"--delay must be > 0, got {args.delay}")
-    scene = _scene_from_args(args)
-    _check_scheme_flags(args, scene)
-    if not 0 < args.delta <= scene.length:  # a band half-width in x: 1e308 overflowed (and nan is refused)
-        raise ValueError(f"--delta: {args.delta:g} is out of range; allowed: a number in (0, length = {scene.length:g}] "
-                         "(the half-width of the band around the fronts)")
-    if args.delay is not None and args.delay >= scene.T:
-        raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
-    if args.out is not None:
-        from ..io.target import check_target
-
-        check_target(args.out, args.force, command="check")
     V = FLAT_V if scene.name == FLAT_LANDING else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
@@ -115,18 +101,37 @@ def command(args) -> int:
     print(format_table(checks))
     print()
     print(format_trends(checks))
+    return finest, results, checks
+
+
+def command(args) -> int:
+    import json
+
+    if not 1 <= args.levels <= 6:
+        raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
+    if args.delay is not None and not args.delay > 0:
+        raise ValueError(f"--delay must be > 0, got {args.delay}")
+    scene = _scene_from_args(args)
+    _check_scheme_flags(args, scene)
+    if not 0 < args.delta <= scene.length:  # a band half-width in x: 1e308 overflowed (and nan is refused)
+        raise ValueError(f"--delta: {args.delta:g} is out of range; allowed: a number in (0, length = {scene.length:g}] "
+                         "(the half-width of the band around the fronts)")
+    if args.delay is not None and args.delay >= scene.T:
+        raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
     from mpi4py import MPI
 
-    if args.out is not None and MPI.COMM_WORLD.rank == 0:  # one rank writes: several would race for the folder
-        from ..io.publish import staged_folder
-
-        with staged_folder(args.out, args.force, command="check") as partial:  # the whole folder or nothing, under the run lock
+    # the folder is locked and its partial folder made (by rank 0, which writes) before the levels are computed: a
+    # second check into it, or a folder that cannot be made, is refused before the computing, not after it
+    with staged_output(args.out, args.force, "check", MPI.COMM_WORLD) as partial:
+        finest, results, checks = _compute(args, scene)
+        if partial is not None:
             (partial / "checks.json").write_text(json.dumps(
                 {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
                  "checks": [c.as_dict() for c in checks]}, indent=1, default=float))
             (partial / "checks.txt").write_text(format_table(checks) + "\n\n" + format_trends(checks) + "\n")
             balance = next(c.data for c in checks if c.name == STRESS_JUMP)  # computed by run_checks
             draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
+    if args.out is not None and MPI.COMM_WORLD.rank == 0:
         target = Path(args.out)
         print(f"wrote {target}")
     return 0

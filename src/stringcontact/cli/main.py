@@ -69,8 +69,10 @@ def _run(args, painter=None) -> int:
         spec = args.model or scene.model
         with _current_folder_importable(args.model):
             model = load_model(spec)
-    if args.frames < 1:
-        raise ValueError(f"--frames: must be a whole number >= 1 (XDMF frames), not {args.frames}")
+    from ..run.options import MAX_FRAMES
+
+    if not 1 <= args.frames <= MAX_FRAMES:  # named as the flag, not as the API's max_frames
+        raise ValueError(f"--frames: {args.frames} is out of range; allowed: a whole number in [1, {MAX_FRAMES}] (XDMF frames)")
     if args.out is not None:
         from ..io.target import check_target
 

@@ -31,8 +31,7 @@ from ..analysis.study import (
     work_precision,
     write_csv,
 )
-from ..io.publish import staged_folder
-from ..io.target import check_target
+from .staged import staged_output
 
 
 def add_arguments(parser):
@@ -65,31 +64,13 @@ def command(args) -> int:
     if args.study == "work-precision" and not 1 <= args.repeat <= MAX_REPEAT:
         raise ValueError(f"--repeat: {args.repeat} is out of range; allowed: an integer in [1, {MAX_REPEAT}] (each run "
                          "is timed that many times)")
-    check_target(out, args.force, command="study")  # the rules of `run --out`, before the sweep; never a run's result
     t0 = time.perf_counter()
     busy = []
-    t_sweep = time.perf_counter()
-    if args.study == "work-precision":
-        names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)
-        result = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
-    elif args.study == "convergence":
-        result = convergence(quick=args.quick, comm=comm, busy=busy)
-    elif args.study == "film":  # serial: rank 0 runs the sweep
-        from ..analysis.film import film_study
-
-        result = film_study(quick=args.quick) if comm.rank == 0 else None
-    else:
-        result = stability_map(quick=args.quick, comm=comm, busy=busy)
-        alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
-        step_rows = step_size_map(quick=args.quick, comm=comm, busy=busy)
-    sweep = time.perf_counter() - t_sweep
-    written = []
-    if result is not None:  # None on ranks > 0: rank 0 has the results
-        with staged_folder(out, args.force, command="study") as partial:  # the whole folder or nothing, under the lock
-            written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
-            (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
-                                                            "files": [p.name for p in written]}, indent=1) + "\n")
-        written = [out / p.name for p in written]
+    # the folder is checked (the rules of `run --out`; never a run's result), locked and its partial folder made
+    # before the sweep: a second study into it, or a folder that cannot be made, is refused before the computing
+    with staged_output(out, args.force, "study", comm) as partial:
+        sweep, written = _sweep_and_write(args, comm, partial, busy)
+    written = [out / p.name for p in written]
     if comm.rank == 0:
         elapsed = time.perf_counter() - t0
         per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
@@ -106,6 +87,32 @@ def _cpu_text(per_rank) -> str:
     if len(per_rank) == 0:
         return "the cases ran one after another on rank 0"
     return "CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank)
+
+
+def _sweep_and_write(args, comm, partial: Path | None, busy: list) -> tuple[float, list[Path]]:
+    """The study's sweep (its time in seconds), then its files written into `partial` on the rank that has the
+    results (rank 0; the others have None and write nothing)."""
+    t_sweep = time.perf_counter()
+    if args.study == "work-precision":
+        names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)
+        result = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
+    elif args.study == "convergence":
+        result = convergence(quick=args.quick, comm=comm, busy=busy)
+    elif args.study == "film":  # serial: rank 0 runs the sweep
+        from ..analysis.film import film_study
+
+        result = film_study(quick=args.quick) if comm.rank == 0 else None
+    else:
+        result = stability_map(quick=args.quick, comm=comm, busy=busy)
+        alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
+        step_rows = step_size_map(quick=args.quick, comm=comm, busy=busy)
+    sweep = time.perf_counter() - t_sweep
+    if result is None or partial is None:  # None on ranks > 0: rank 0 has the results
+        return sweep, []
+    written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
+    (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
+                                                    "files": [p.name for p in written]}, indent=1) + "\n")
+    return sweep, written
 
 
 def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Path]:

@@ -31,6 +31,7 @@ from petsc4py import PETSc
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
 
+from ..model.forms import FormError, check_form, mass_density
 from . import compat
 
 
@@ -152,12 +153,16 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
     mixed = _mixed_residual(model, V, params, force) if getattr(model, "fields", ()) else None
     if mixed is None:
         R = model.momentum_form(eta, eta_t, eta_tt, force, w, params)
+        check_form(model.name, "momentum_form", R, w)  # before anything is compiled: a bilinear form aborted
     else:  # η's equation with the other fields at 0: the operators below are its tangent at 0
         k = len(model.fields)
         Z_fns, R_Z, W = mixed
         as_eta = [ufl.as_vector([f, *[0.0] * k]) for f in (eta, eta_t, eta_tt, w)]
         R = ufl.replace(R_Z, dict(zip((*Z_fns, W), as_eta)))
     placeholders = (eta, eta_t, eta_tt, force)
+    what = "residual" if mixed is not None else "momentum_form"
+    density = mass_density(model.name, what, R, eta_tt, w, (*placeholders, *(mixed[0] if mixed else ())))
+    mass_known = _check_mass(model.name, what, density, V, params)
     zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
     at_zero = dict.fromkeys(placeholders, zero)
 
@@ -187,6 +192,8 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
     b_form = -ufl.replace(R, {f: zero for f in placeholders})
     b_form = ufl.algorithms.expand_derivatives(b_form)
     m = _row_sums(M)
+    if not mass_known:  # a mass density the nodes cannot give (a field's gradient in it): its lumped rows
+        _refuse_mass(model.name, what, m, node_coordinates(V)[: m.size], V.mesh.comm, "lumped mass")
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
     ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
     declared = getattr(model, "stored_energy", None)
@@ -212,6 +219,36 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
     return ops
 
 
+def _check_mass(name: str, what: str, density, V, params) -> bool:
+    """FormError unless the mass density (`model.forms.mass_density`) is positive and finite at every node: a
+    negative or zero mass ran to 1e30 and more, marked complete. False if the density is no pointwise expression
+    of the nodes (the caller then checks the assembled mass)."""
+    from .nodal import evaluate
+
+    x = node_coordinates(V)
+    try:
+        values = np.broadcast_to(evaluate(density, {f: f.x.array for f in params.extra.values()}, x), x.shape[:1])
+    except (ValueError, KeyError, TypeError, AttributeError, NotImplementedError):
+        values = None
+    if not all(V.mesh.comm.allgather(values is not None)):  # one outcome on every rank: each then checks alike
+        return False
+    _refuse_mass(name, what, values, x, V.mesh.comm, "mass")
+    return True
+
+
+def _refuse_mass(name: str, what: str, values: np.ndarray, x: np.ndarray, comm, kind: str) -> None:
+    """FormError on every rank if `values` (a mass per node) is not positive and finite at some node of some rank."""
+    bad = np.flatnonzero(~(np.asarray(values) > 0) | ~np.isfinite(values))
+    found = (float(values[bad[0]]), np.atleast_1d(x[bad[0]]).tolist()) if bad.size else None
+    found = next((f for f in comm.allgather(found) if f is not None), None)
+    if found is not None:
+        value, where = found
+        at = ", ".join(f"{c:.4g}" for c in where)
+        raise FormError(f"model '{name}': {what}'s {kind} (the coefficient of eta_tt) is {value:.4g} at x = ({at}); "
+                        "allowed: positive and finite at every node (with a zero or negative mass no time step is "
+                        "stable)")
+
+
 def _mixed_residual(model, V, params, force):
     """A model with `fields`: its residual on the mixed space of (η, *fields), with mixed placeholders."""
     if model.residual is None:
@@ -221,6 +258,7 @@ def _mixed_residual(model, V, params, force):
     U, U_t, U_tt = (fem.Function(Z) for _ in range(3))
     W = ufl.TestFunction(Z)
     R = model.residual(ufl.split(U), ufl.split(U_t), ufl.split(U_tt), force, ufl.split(W), params)
+    check_form(model.name, "residual", R, W)  # before anything is compiled
     return (U, U_t, U_tt), R, W
 
 

@@ -57,13 +57,16 @@ def read_output(folder, from_xdmf: bool = False):
     info = _field_info(folder / "summary.json", summary)
     column = _read_diagnostics(folder / "diagnostics.csv")
     if (folder / ROWS_FILE).is_file() and not from_xdmf:
-        x, fields, mesh = _read_rows(folder / ROWS_FILE, column, scene.dim, info)
+        source = folder / ROWS_FILE
+        x, fields, mesh = _read_rows(source, column, scene.dim, info)
     else:
         geometry, series = _read_series(folder / "solution.xdmf")
         column = _frame_rows(column, series, folder)
         topology = _topology(folder / "solution.xdmf") if scene.dim == 2 else None
         series = _field_series(folder / "solution.xdmf", series, info)
-        x, fields, mesh = _read_fields(folder / "solution.h5", geometry, series, topology)
+        source = folder / "solution.h5"
+        x, fields, mesh = _read_fields(source, geometry, series, topology)
+    _check_fields(source, fields)
     outputs = {name: fields.pop(name) for name in list(fields) if name not in FIELDS}
     return Result(
         scene=scene,
@@ -96,6 +99,17 @@ def read_output(folder, from_xdmf: bool = False):
         parameters=_parameters(folder / "summary.json", summary),
         **mesh,
     )
+
+
+def _check_fields(path: Path, fields: dict) -> None:
+    """Every field read back, η, v and a model's own alike: real numbers, finite (an inf or NaN pressure was drawn,
+    or failed in matplotlib's "Invalid vmin or vmax"; a string or complex one was an internal error)."""
+    for name, values in fields.items():
+        values = np.asarray(values)
+        if values.dtype.kind not in "fiub":
+            raise ValueError(f"plot: {path}: its field {name!r} holds {values.dtype} values; allowed: real numbers")
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"plot: {path}: its field {name!r} holds a value that is not finite; allowed: finite numbers")
 
 
 def _check_folder(folder: Path) -> Path:

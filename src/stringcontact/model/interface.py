@@ -85,11 +85,14 @@ class SolverHints:
     "l2"),)``), above the schemes' defaults. `linear_options`: ``(dim, ranks, constants) -> pairs`` for the Newton
     step's linear solver on a mesh of dimension `dim` on `ranks` ranks with the model's constants (a dict of
     floats); naming ``ksp_type`` or ``pc_type`` replaces the size rule's choice
-    (`timestepping.linear.solver_options`).
+    (`timestepping.linear.solver_options`). `setup_bytes_per_node`: the memory a membrane's set-up takes per node
+    with this model (mesh, operators, the Newton step's factor), measured; None: the core's estimate for one unknown
+    per node (`scene.limits.SETUP_BYTES_PER_NODE`). A run's size is checked against it before the mesh is built.
     """
 
     newton_options: tuple = ()
     linear_options: Callable | None = None
+    setup_bytes_per_node: float | None = None
 
     def options(self, dim: int, ranks: int, constants: dict) -> dict:
         """The model's defaults for a run: `newton_options`, then `linear_options` on top."""

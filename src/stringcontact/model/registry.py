@@ -22,7 +22,7 @@ import importlib.metadata
 import os
 import sys
 
-from ..errors import SceneError, one_line
+from ..errors import SceneError, one_line, plugin_code
 from ..scene.names import GROUP, check_name, load_registered, registered  # noqa: F401 - GROUP re-exported
 from ..scene.names import package_of as _package
 
@@ -55,11 +55,12 @@ def _load_path(spec: str, Model):
     module_name, _, attr = spec.partition(":")
     if not module_name or not all(part.isidentifier() for part in module_name.split(".")) or not attr.isidentifier():
         raise SceneError(f"model: invalid value {spec!r}; allowed: a registered name or 'package.module:name'")
-    try:
-        module = importlib.import_module(module_name)
-    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the user's module itself
-        reason = one_line(exc) or type(exc).__name__
-        raise SceneError(f"model: cannot import module {module_name!r} for {spec!r} ({reason})") from None
+    with plugin_code(f"model: importing module {module_name!r} for {spec!r}"):  # its sys.exit too
+        try:
+            module = importlib.import_module(module_name)
+        except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the user's module itself
+            reason = one_line(exc) or type(exc).__name__
+            raise SceneError(f"model: cannot import module {module_name!r} for {spec!r} ({reason})") from None
     obj = getattr(module, attr, None)
     if obj is None:
         raise SceneError(f"model: module {module_name!r} has no {attr!r} (for {spec!r})")

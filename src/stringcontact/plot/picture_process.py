@@ -68,7 +68,9 @@ class PictureProcess:
         code = "from stringcontact.plot.picture_process import main; main()"
         try:
             proc = subprocess.Popen(
-                [sys.executable, "-c", code, folder, ",".join(names), str(os.getpid())],
+                # -P: no current folder on sys.path (`-c` would put it first, and a pyvista.py or stringcontact.py
+                # there would be imported); PYTHONPATH, which may be how the package is found, still holds
+                [sys.executable, "-P", "-c", code, folder, ",".join(names), str(os.getpid())],
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,  # VTK's own warnings; failures come back on stdout

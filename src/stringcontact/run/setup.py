@@ -15,13 +15,16 @@ from ..errors import SceneError
 from ..fem import compat, domains
 from ..fem.agree import one_outcome
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
+from ..model.forms import check_declarations
 from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import check_petsc_options
+from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, resolve_scheme
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
+from ..timestepping.newton import check_snes_options
 from .options import Output, picture_function
 from .rows import StoredRows, output_steps
 
@@ -41,7 +44,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None, residua
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
-    values = one_outcome(comm, lambda: {name: scene.field_values(name, dof_x) for name in scene.fields})  # one outcome
+    values = one_outcome(comm, lambda: {name: _checked_values(scene, name, dof_x) for name in scene.fields})  # one outcome
     extra = {}
     for name in scene.fields:
         f = fem.Function(V, name=name)
@@ -64,7 +67,7 @@ def discretise(scene, model: Model, comm, constants: dict | None = None, residua
         )
     if scene.obstacle_moves:  # ψ_t for the penalty's gap rate v − ψ_t: set each step (`MovingObstacle`)
         rate = extra[RATE] = fem.Function(V, name=RATE)
-        rate.x.array[:] = (values["obstacle"] - scene.field_values("obstacle", dof_x, -scene.dt)) / scene.dt
+        rate.x.array[:] = (values["obstacle"] - _checked_values(scene, "obstacle", dof_x, -scene.dt)) / scene.dt
     return V, params, semi_discrete_operators(model, V, params, residual)
 
 
@@ -76,12 +79,31 @@ POTENTIAL_LABEL = r"stored: the potential $\int_0^1 G(s\eta;\eta)\,ds$ of moment
 RATE = "obstacle_rate"
 
 
+def _checked_values(scene, name: str, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """The scene's field `name` at the nodes `x` and the time `t`, finite and within ±MAX_MAGNITUDE at every node,
+    else SceneError naming the field, the time, the value and where (the scene's own check samples a few points
+    and times: 5e6·sin²(πt/0.2) is 0 at t = 0, T/2 and T)."""
+    try:
+        values = np.asarray(scene.field_values(name, x, t), dtype=float)
+    except SceneError as exc:
+        raise SceneError(f"{name} at t = {t:.6g}: {str(exc).removeprefix(f'{name}: ')}") from None
+    bad = np.flatnonzero(~(np.abs(values) <= MAX_MAGNITUDE))
+    if bad.size:
+        i = bad[np.argmax(np.nan_to_num(np.abs(values[bad]), nan=np.inf))]
+        where = ", ".join(f"{c:.4g}" for c in np.atleast_1d(x[i]))
+        raise SceneError(f"{name}: at t = {t:.6g} it is {values[i]:.4g} at x = ({where}); allowed: finite values in "
+                         f"[-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}] at every node and time step")
+    return values
+
+
 def _moving_obstacle(scene, V, params) -> MovingObstacle | None:
-    """The scene's obstacle ψ(x, t) as the scheme sets it each step, or None for an obstacle at rest."""
+    """The scene's obstacle ψ(x, t) as the scheme sets it each step, or None for an obstacle at rest: checked at
+    every time it is evaluated (`_checked_values`)."""
     if not scene.obstacle_moves:
         return None
     dof_x = node_coordinates(V)
-    return MovingObstacle(lambda t: scene.field_values("obstacle", dof_x, t), params.extra["obstacle"],
+    # not collective: a rank may evaluate it alone; a rank that fails alone ends the whole job (the CLI aborts it)
+    return MovingObstacle(lambda t: _checked_values(scene, "obstacle", dof_x, t), params.extra["obstacle"],
                           params.extra[RATE], scene.dt, V.dofmap.index_map.size_local)
 
 
@@ -178,6 +200,7 @@ def _choose_scheme(scene, scheme, penalty, mass, model):
     model = _resolve_model(model, scene)
     check_model(name, model, Scheme)
     penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
+    check_declarations(model)  # the fields it holds or books as dissipative are its own
     return name, Scheme, penalty, mass, model
 
 
@@ -190,11 +213,42 @@ def _check_before_mesh(scene, Scheme, penalty, model, petsc_options, comm) -> No
     """What needs no mesh, checked before the mesh is built (seconds to minutes on a large one): the PETSc
     option values and the contact law's bound on r = Δt/ε (its warnings come from the scheme, once). The
     same on every rank, so a refusal ends every rank alike."""
-    check_option_values(petsc_options_of(scene, petsc_options), ranks=comm.size)
+    given = petsc_options_of(scene, petsc_options)
+    check_option_values(given, ranks=comm.size)
+    check_snes_options(given)  # tolerances that would make Newton's stopping test pass without solving
+    _check_size(scene, model)
     if Scheme.PENALTIES and penalty is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             check_law_stability(model, scene.dt, scene.eps, penalty)
+
+
+#: The least wall time one node's time step takes (a string on the linear path, measured on the 2-core VM: Example 1
+#: at nx = 2e4 took 2.5e-7 s; 2.3e-8 s in the fastest runs): the estimate below which a long run is told it is long.
+SECONDS_PER_NODE_STEP = 2.5e-8
+#: A run predicted to take longer than this is told so at its start, with its estimate.
+LONG_RUN_SECONDS = 3600.0
+
+
+def _check_size(scene, model: Model) -> None:
+    """A membrane's set-up memory with the model's own cost per node (`SolverHints.setup_bytes_per_node`; the core's
+    `SETUP_BYTES_PER_NODE` without) within the scene's budget (`MAX_MEMBRANE_NODES` such nodes), else SceneError;
+    a run predicted to take over an hour (`SECONDS_PER_NODE_STEP`) says so in a warning, with its estimate."""
+    nodes = scene.node_estimate
+    per_node = getattr(model.solver, "setup_bytes_per_node", None) or SETUP_BYTES_PER_NODE
+    budget = MAX_MEMBRANE_NODES * SETUP_BYTES_PER_NODE
+    if scene.dim == 2 and nodes * per_node > budget:
+        key = {"rectangle": "cells", "disk": "mesh_size"}.get(scene.domain, "mesh")
+        value = getattr(scene, key, None)
+        raise SceneError(f"{key}: {list(value) if isinstance(value, tuple) else value} gives {'about ' if key == 'mesh_size' else ''}{nodes} "
+                         f"nodes, about {nodes * per_node / 1e9:.3g} GB to set up with model '{model.name}' "
+                         f"({per_node / 1e3:g} KB per node, measured); allowed: at most {int(budget // per_node)} "
+                         f"nodes with this model ({budget / 1e9:.2g} GB)")
+    seconds = nodes * scene.nt * SECONDS_PER_NODE_STEP
+    if seconds > LONG_RUN_SECONDS:
+        warnings.warn(f"nt = {scene.nt} steps of {nodes} nodes: this run will take about {seconds / 3600:.3g} hours or "
+                      f"more (at least {SECONDS_PER_NODE_STEP:g} s per node and step); reduce nt or the mesh for a "
+                      "shorter one", UserWarning, stacklevel=2)
 
 
 def _writer(scene, V, comm, rows: StoredRows, output: Output):

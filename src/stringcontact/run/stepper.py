@@ -15,7 +15,7 @@ from collections.abc import MutableMapping
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InstabilityError, SolverError
+from ..errors import InstabilityError, SceneError, SolverError, plugin_code
 from ..fem.agree import one_outcome
 from ..fem.operators import semi_discrete_operators
 from ..fem.outputs import OutputValues
@@ -78,18 +78,19 @@ class Stepper:
         spec = model if model is not None else (scene.model or DEFAULT_MODEL)
         self.name, Scheme, self.penalty, self.mass, self.model = setup._choose_scheme(scene, scheme, penalty, mass,
                                                                                       model)
-        self.constants = setup.model_constants(scene, self.model)
-        setup._check_before_mesh(scene, Scheme, self.penalty, self.model, petsc_options, comm)
-        t0 = time.perf_counter()
-        V, params, ops = setup.discretise(scene, self.model, comm, self.constants, not Scheme.LINEAR_PATH)
-        setup._check_moving_obstacle(scene, Scheme, self.penalty, self.model, V, params)
-        s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
-        self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
-        self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
-        self._newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
-        self._restart = None  # the start terms of a scheme restarted after sub-steps
-        self.parameters = _Constants(self)
-        self.outputs = OutputValues(self.model, V, params)
+        with plugin_code(f"model '{self.model.name}'"):  # its functions' sys.exit: one line, not exit 0
+            self.constants = setup.model_constants(scene, self.model)
+            setup._check_before_mesh(scene, Scheme, self.penalty, self.model, petsc_options, comm)
+            t0 = time.perf_counter()
+            V, params, ops = setup.discretise(scene, self.model, comm, self.constants, not Scheme.LINEAR_PATH)
+            setup._check_moving_obstacle(scene, Scheme, self.penalty, self.model, V, params)
+            s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
+            self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
+            self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
+            self._newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
+            self._restart = None  # the start terms of a scheme restarted after sub-steps
+            self.parameters = _Constants(self)
+            self.outputs = OutputValues(self.model, V, params)
         self.rows, self.geometry, self.row_series = _storage(scene, s, V, storage, self.outputs)
         self.timings = {"setup": time.perf_counter() - t0}
         self.counters, self.solver = {}, {}
@@ -220,6 +221,8 @@ class Stepper:
         try:
             return scheme.step()
         except SolverError as exc:
+            if getattr(exc, "not_finite", False):  # the model's form, not the step size: sub-steps cannot help
+                raise SolverError(f"step {self.step + 1}, t = {(self.step + 1) * self.dt:.6g}: {exc}") from None
             if self.scene.obstacle_moves:  # a scheme restarted mid-run would start its obstacle at t = 0
                 raise
             for halvings in range(1, MAX_HALVINGS + 1):
@@ -288,6 +291,8 @@ class Stepper:
         except BaseException as exc:
             if self.writer is not None:
                 self.writer.discard()  # an unexpected error: no half-written folder, no stale lock
+            if isinstance(exc, SceneError):  # a scene's field checked where it is evaluated (an obstacle in t)
+                raise
             if isinstance(exc, ValueError):  # the input was checked before the march: no input error
                 raise SolverError(f"step failed: {exc}") from exc
             raise

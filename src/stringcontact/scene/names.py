@@ -13,7 +13,7 @@ import functools
 import importlib.metadata
 from collections.abc import Mapping
 
-from ..errors import SceneError, one_line
+from ..errors import SceneError, one_line, plugin_code
 
 #: The scheme and the model of a scene that names none (`stringcontact show` writes them out).
 DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
@@ -126,11 +126,12 @@ def load_registered(name: str):
     """The object registered as model `name` (its entry point loaded: the installed package's module imported);
     a one-line `SceneError` naming ``model`` if it cannot be loaded."""
     (ep,) = registered()[check_name(name)]
-    try:
-        return ep.load()
-    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
-        raise SceneError(f"model: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
-                         f"{type(exc).__name__}: {one_line(exc)}") from None
+    with plugin_code(f"model: loading {name!r} ({ep.value}, from {package_of(ep)})"):  # its sys.exit too
+        try:
+            return ep.load()
+        except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
+            raise SceneError(f"model: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
+                             f"{type(exc).__name__}: {one_line(exc)}") from None
 
 
 def declared(name: str) -> tuple:

@@ -54,7 +54,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from ..errors import SolverError
+from ..errors import SceneError, SolverError
 from ..fem import compat
 from ..fem.packed import PackedForm
 from ..fem.powers import powers_as_products
@@ -72,6 +72,40 @@ from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solv
 #: The absolute residual Newton stops at, relative to the inertia term's norm: a few hundred round-offs of it.
 ROUNDOFF = 1e-13
 SNES_DEFAULTS = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_stol": 1e-9, "snes_max_it": 50}
+#: The largest tolerances Newton's stopping test may be given: above them it passes at once (snes_atol = 1e300
+#: took the guess as the step's solution after 0 iterations: η = −2, the energy up 30 %, the run "complete").
+SNES_TOLERANCE_MAX = {"snes_atol": 1e-6, "snes_rtol": 1e-2, "snes_stol": 1e-2}
+#: The line searches a Newton step may take: "shell" needs a function of the caller's (PETSc stops with error 83),
+#: and the error-oriented "nleqerr" does not take the bounds of a variational inequality (`VI_LINESEARCHES`).
+LINESEARCHES = ("bt", "basic", "l2", "cp", "nleqerr")
+VI_LINESEARCHES = ("bt", "basic", "l2", "cp")
+
+
+def check_snes_options(options: dict, key: str = "petsc_options") -> None:
+    """SceneError (one line naming the option and its allowed range) for a Newton tolerance that makes its stopping
+    test vacuous (`SNES_TOLERANCE_MAX`), fewer than one iteration, or a line search it cannot run (`LINESEARCHES`).
+    Cheap: checked before the mesh is built."""
+    for name, high in SNES_TOLERANCE_MAX.items():
+        value = options.get(name)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and not 0 <= value <= high:
+            raise SceneError(f"{key}: {name} = {value:g} is out of range; allowed: a number in [0, {high:g}] (a "
+                             "larger one passes Newton's stopping test without solving the step)")
+    iterations = options.get("snes_max_it")
+    if isinstance(iterations, int) and not isinstance(iterations, bool) and iterations < 1:
+        raise SceneError(f"{key}: snes_max_it = {iterations} is out of range; allowed: an integer in [1, 1000]")
+    search = options.get("snes_linesearch_type")
+    if search is not None and search not in LINESEARCHES:
+        raise SceneError(f"{key}: snes_linesearch_type = {search!r} is not a line search a Newton step can take "
+                         f"(it needs code or is unknown); allowed: {', '.join(LINESEARCHES)}")
+
+
+def _check_vi_linesearch(options: dict) -> None:
+    """SceneError if a step with bounds (a VI: a field bounded below, `Model.field_lower`) is given a line search
+    that does not take bounds."""
+    search = options.get("snes_linesearch_type")
+    if search is not None and search not in VI_LINESEARCHES:
+        raise SceneError(f"petsc_options: snes_linesearch_type = {search!r} does not take the bounds of this model's "
+                         f"step (a variational inequality: a field bounded below); allowed: {', '.join(VI_LINESEARCHES)}")
 
 
 #: The most iterations a kept Jacobian serves in one step, and the surplus iterations (beyond one a step) it may
@@ -189,6 +223,8 @@ class NewtonStep(LinearPath):
         options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
         # s.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
         options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | options
+        if lower is not None:
+            _check_vi_linesearch(options)
         set_from_options(snes, PREFIX, options)
         # the linear solver's options held again while SNES solves: its KSP reads some at set-up (`options_held`)
         self.ksp_options = {k: v for k, v in options.items() if not k.startswith("snes_")}
@@ -419,12 +455,31 @@ class NewtonStep(LinearPath):
                 self.free_solves += 1
                 return self._accept()
         reason = self._run(self.snes, guess)
+        if reason == PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN and self.snes.getIterationNumber() == 0:
+            raise self._not_finite(guess)
         if reason < 0:
             raise SolverError(f"Newton did not converge (SNES reason {reason}) after {self.snes.getIterationNumber()} "
                               "iterations; use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
         if self.free is not None:
             self.try_free = not self.anyrank(bool(np.any(x <= self.bounds[0].array)))
         return self._accept()
+
+    def _not_finite(self, guess: np.ndarray) -> SolverError:
+        """The model's form is not finite at the step's first guess (its residual there, before any
+        Newton iteration): its cause is the form, which no smaller dt or sub-step changes. The error says so
+        (``not_finite``: the run does not sub-step it)."""
+        model = self.s.laws.model
+        residual = self.G_vec.array
+        bad = residual[~np.isfinite(residual)]
+        value = f"{bad[0]:g}" if bad.size else "not finite"
+        lo, hi = (float(np.min(guess)), float(np.max(guess))) if guess.size else (math.nan, math.nan)
+        what = "residual" if getattr(model, "fields", ()) else "momentum_form"
+        exc = SolverError(f"model '{model.name}': its {what} is {value} (not finite) at the step's first guess "
+                          f"(eta in [{lo:.4g}, {hi:.4g}] on this rank): a square root or logarithm of a negative "
+                          "number, a division by zero or an exponential that overflows in the form; a smaller dt "
+                          "does not change it")
+        exc.not_finite = True
+        return exc
 
     def _run(self, snes, guess: np.ndarray) -> int:
         """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray; its

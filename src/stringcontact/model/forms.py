@@ -1,0 +1,89 @@
+"""What a model's form must be, checked in UFL before anything is compiled: a `Form` with a ``dx`` term, linear in
+the test function (rank 1), and a mass (the coefficient of η_tt) that is constant in the unknowns.
+
+A bilinear form (a ``TrialFunction`` in it) aborted the process inside the assembler, a form without ``dx`` or a
+functional (rank 0) ended in an internal error, and a negative or zero mass ran to values of 1e30 and more that
+the ledger and the penetration check could not tell from a result. `check_form` refuses the first in one line
+naming the model and the function; `mass_density` gives the mass per length (per area) as a pointwise UFL
+expression, which the caller evaluates at the nodes (it must be positive: `fem.operators`).
+"""
+
+from __future__ import annotations
+
+import ufl
+from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
+from ufl.algorithms.apply_derivatives import apply_derivatives
+
+__all__ = ["FormError", "check_declarations", "check_form", "mass_density"]
+
+#: What a model's momentum form is made of, for the messages.
+_ALLOWED = "a UFL Form linear in the test function w, with terms times ufl.dx (e.g. eta_tt*w*dx + ...)"
+
+
+class FormError(ValueError):
+    """A model's form is not a residual a scheme can take: not a Form, without ``dx``, of rank other than 1, or with
+    a mass that is not constant in the unknowns. The message names the model and the function."""
+
+
+def check_form(model_name: str, what: str, R, test) -> None:
+    """FormError (one line) unless `R`, the form the model's function `what` returned, is a UFL `Form` with at
+    least one ``dx`` integral, whose only argument is `test` (the test function: linear in it, rank 1)."""
+    where = f"model '{model_name}': {what}"
+    if not isinstance(R, ufl.Form):
+        raise FormError(f"{where} returned a {type(R).__name__}, not a form (no ufl.dx?); allowed: {_ALLOWED}")
+    if not R.integrals_by_type("cell"):
+        raise FormError(f"{where} has no term integrated over the domain (ufl.dx); allowed: {_ALLOWED}")
+    arguments = R.arguments()
+    if len(arguments) != 1 or arguments[0] != test:
+        kind = {0: "a functional (rank 0: no test function w)", 2: "bilinear (rank 2: a TrialFunction in it)"}
+        found = kind.get(len(arguments), f"of rank {len(arguments)}")
+        if len(arguments) == 1:
+            found = "linear in another test function than the w it was given"
+        raise FormError(f"{where} is {found}; allowed: {_ALLOWED}")
+    try:
+        from ufl.algorithms.check_arities import ArityMismatch, check_form_arity
+        from ufl.algorithms.remove_complex_nodes import remove_complex_nodes
+
+        check_form_arity(remove_complex_nodes(apply_derivatives(apply_algebra_lowering(R))), arguments)  # real mode
+    except (ArityMismatch, NotImplementedError):  # UFL's own message about a product of w with itself fails so
+        raise FormError(
+            f"{where} is not linear in the test function w (w times w, or w in a nonlinear function); "
+            f"allowed: {_ALLOWED}"
+        ) from None
+
+
+def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> object:
+    """The mass per length (per area) of `R`: the coefficient ρ of η_tt in its ``dx`` terms (∂R/∂η_tt, applied to
+    1 and tested with 1), a pointwise UFL expression in x, the scene's fields and the model's constants.
+
+    FormError if ρ depends on the `unknowns` (the placeholders η, η_t, η_tt, the force): the schemes need a
+    constant mass.
+    """
+    direction = ufl.TrialFunction(test.ufl_function_space())
+    a = apply_derivatives(ufl.derivative(apply_algebra_lowering(R), eta_tt, direction))
+    if a.empty():
+        return ufl.as_ufl(0.0)
+    if set(ufl.algorithms.extract_coefficients(a)) & set(unknowns):
+        raise FormError(
+            f"model '{model_name}': {what} must be affine in eta_tt with a constant coefficient (a mass "
+            "that does not depend on eta, eta_t or eta_tt); it may be nonlinear in eta and eta_t"
+        )
+    one = ufl.as_ufl(1.0)
+    tested = apply_derivatives(ufl.replace(a, {direction: one, test: one}))
+    integrands = [i.integrand() for i in tested.integrals_by_type("cell")]
+    return sum(integrands[1:], integrands[0]) if integrands else ufl.as_ufl(0.0)
+
+
+def check_declarations(model) -> None:
+    """FormError (one line) if a model names a field it does not have: each of its ``held_fields`` and
+    ``dissipative_fields`` must be one of its ``fields`` (``held_fields=("zz",)`` ended in an internal KeyError)."""
+    fields = tuple(getattr(model, "fields", ()))
+    for what in ("held_fields", "dissipative_fields"):
+        named = getattr(model, what, ())
+        if isinstance(named, str) or not isinstance(named, (tuple, list)):
+            raise FormError(f"model '{model.name}': {what} must be a tuple of field names, not {named!r}")
+        unknown = [name for name in named if name not in fields]
+        if unknown:
+            allowed = ", ".join(map(repr, fields)) or "none (the model has no fields)"
+            raise FormError(f"model '{model.name}': {what} names {', '.join(map(repr, unknown))}, not a field of the "
+                            f"model; allowed: {allowed}")
