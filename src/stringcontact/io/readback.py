@@ -102,7 +102,7 @@ def read_output(folder, from_xdmf: bool = False):
 
 
 def _check_fields(path: Path, fields: dict) -> None:
-    """Every field read back, η, v and a model's own alike: real numbers, finite (an inf or NaN pressure was drawn,
+    """Every field read back, η, v and a model's own alike: real numbers, finite (an inf or NaN model field was drawn,
     or failed in matplotlib's "Invalid vmin or vmax"; a string or complex one was an internal error)."""
     for name, values in fields.items():
         values = np.asarray(values)
