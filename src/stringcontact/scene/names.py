@@ -71,19 +71,31 @@ SCHEMES = SchemeNames()
 def scheme_class(name: str):
     """The class registered as time scheme `name` (its module imported); a one-line `SceneError` naming
     ``scheme`` for a name nobody registered, one registered twice, or a class that cannot be loaded."""
-    found = _entry_points(SCHEME_GROUP)
-    if not isinstance(name, str) or name not in found:
-        shown = repr(name) if isinstance(name, str) else f"{type(name).__name__} {name!r}"
-        raise SceneError(f"scheme: unknown scheme {one_line(shown)[:80]}; allowed: {', '.join(SCHEMES)}")
-    if len(found[name]) > 1:
-        targets = ", ".join(f"{ep.value} ({package_of(ep)})" for ep in found[name])
-        raise SceneError(f"scheme: {name!r} is registered twice, as {targets}; uninstall one of the packages")
-    (ep,) = found[name]
-    try:
-        return ep.load()
-    except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
-        raise SceneError(f"scheme: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
-                         f"{type(exc).__name__}: {one_line(exc)}") from None
+    ep = _one_entry_point("scheme", name, _entry_points(SCHEME_GROUP), f"allowed: {', '.join(SCHEMES)}")
+    return _load("scheme", name, ep)
+
+
+def _one_entry_point(kind: str, value, found: dict, allowed: str):
+    """The one entry point registered as `value` among `found` (name -> entry points), else a one-line `SceneError`
+    naming the `kind` (``model``, ``scheme``): an unknown name (with `allowed`), or a name registered twice."""
+    if not isinstance(value, str) or value not in found:
+        shown = repr(value) if isinstance(value, str) else f"{type(value).__name__} {value!r}"
+        raise SceneError(f"{kind}: unknown {kind} {one_line(shown)[:80]}; {allowed}")
+    if len(found[value]) > 1:
+        targets = ", ".join(f"{ep.value} ({package_of(ep)})" for ep in found[value])
+        raise SceneError(f"{kind}: {value!r} is registered twice, as {targets}; uninstall one of the packages")
+    return found[value][0]
+
+
+def _load(kind: str, name: str, ep):
+    """The object entry point `ep` names (the installed package's module imported); a one-line `SceneError` naming
+    the `kind` if it cannot be loaded, or if the plugin's code exits (`errors.plugin_code`)."""
+    with plugin_code(f"{kind}: loading {name!r} ({ep.value}, from {package_of(ep)})"):  # its sys.exit too
+        try:
+            return ep.load()
+        except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
+            raise SceneError(f"{kind}: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
+                             f"{type(exc).__name__}: {one_line(exc)}") from None
 
 
 def eps_free(name: str) -> bool:
@@ -108,12 +120,7 @@ def _allowed(names) -> str:
 def check_name(value) -> str:
     """`value` if it is a registered model name, else a one-line `SceneError` naming ``model``. Imports nothing."""
     models = registered()
-    if not isinstance(value, str) or value not in models:
-        shown = repr(value) if isinstance(value, str) else f"{type(value).__name__} {value!r}"
-        raise SceneError(f"model: unknown model {one_line(shown)[:80]}; {_allowed(models)}")
-    if len(models[value]) > 1:
-        targets = ", ".join(f"{ep.value} ({package_of(ep)})" for ep in models[value])
-        raise SceneError(f"model: {value!r} is registered twice, as {targets}; uninstall one of the packages")
+    _one_entry_point("model", value, models, _allowed(models))
     return value
 
 
@@ -125,13 +132,7 @@ def package_of(ep) -> str:
 def load_registered(name: str):
     """The object registered as model `name` (its entry point loaded: the installed package's module imported);
     a one-line `SceneError` naming ``model`` if it cannot be loaded."""
-    (ep,) = registered()[check_name(name)]
-    with plugin_code(f"model: loading {name!r} ({ep.value}, from {package_of(ep)})"):  # its sys.exit too
-        try:
-            return ep.load()
-        except Exception as exc:  # noqa: BLE001 - an ImportError, or any error raised by the plugin itself
-            raise SceneError(f"model: cannot load {name!r} ({ep.value}, from {package_of(ep)}): "
-                             f"{type(exc).__name__}: {one_line(exc)}") from None
+    return _load("model", name, registered()[check_name(name)][0])
 
 
 def declared(name: str) -> tuple:
