@@ -81,7 +81,7 @@ SNES_DEFAULTS = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_stol": 
 #: projection onto the bounds puts a node on its bound exactly, so 0 misses none (benchmarks/bench_vi.py).
 VI_DEFAULTS = {"snes_vi_zero_tolerance": 0.0}
 #: When Newton fails with one line search the step is tried again with the other (a fresh J, the same first guess):
-#: `l2` accepts a rising residual and diverged on the film's landing at nt = 600, `bt` stalled on others.
+#: `l2` accepts a rising residual and diverged on a landing's step at nt = 600 (benchmarks/bench_vi.py), `bt` stalled on others.
 RESCUE_LINE_SEARCH = {"l2": "bt", "bt": "l2", "basic": "bt", "cp": "bt"}
 
 
