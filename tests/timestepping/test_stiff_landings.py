@@ -1,6 +1,6 @@
-"""Steps that do not give up: landings whose Newton contact step failed at Δt run to T with a few steps taken as
-halved sub-steps, the constraint and the contact force intact, the energy balance closing. No clock: the solver's
-own counts are asserted."""
+"""Stiff landings converge at Δt: the nonlinear contact step (SNES VI) on a cubic foundation thrown onto the obstacle,
+and the film's landing (plain Newton), run to T without sub-steps, the constraint and the contact force intact, the
+energy balance closing. No clock: the solver's own counts are asserted."""
 
 import dataclasses
 import warnings
@@ -33,25 +33,30 @@ def run(scene, **kwargs):
 
 
 @pytest.mark.parametrize("nx", [500, 1000])
-def test_a_stiff_cubic_landing_runs_under_projection(nx):
-    """η0 = 1 + 0.3 sin πx thrown down by v0 = −3 sin 2πx, α = 0.02, Δt = Δx: Newton's VI fails on one contact step
-    at Δt (measured: at nx = 500 and 1000); that step is taken in sub-steps and the run completes."""
-    scene = sc.load_scene("example1").replace(nx=nx, alpha=0.02, eta0="1 + 0.3*sin(pi*x)", v0="-3*sin(2*pi*x)",
-                                              h=1.0, T=1.0, dt=1.0 / nx, output_times=[])
+def test_a_stiff_cubic_landing_converges_at_dt_under_projection(nx):
+    """η0 = 1 + 0.3 sin πx thrown down by v0 = −3 sin 2πx, α = 0.02, Δt = Δx: every contact step converges at Δt, in a
+    few Newton iterations. (With PETSc's zero tolerance of the VI, 1e-8, nodes within 1e-8 above the obstacle were
+    held active off their bound and one step cycled: a sub-stepped step and 1.4 iterations a step at nx = 500.)"""
+    scene = sc.load_scene("example1").replace(
+        nx=nx, alpha=0.02, eta0="1 + 0.3*sin(pi*x)", v0="-3*sin(2*pi*x)", h=1.0, T=1.0, dt=1.0 / nx, output_times=[]
+    )
     r = run(scene, scheme="projection", model=CUBIC)
     assert r.status == "complete" and r.checks["energy_balance"]["closes"], r.message
     assert r.eta.min() >= -1e-12 and r.contact.any()
     assert r.contact_force.min() >= 0.0 and np.all(r.contact_force[~r.contact] == 0.0)
-    assert 1 <= r.counters["sub-stepped steps"] <= 3
-    assert r.counters["newton iterations"] <= 3 * scene.nt  # Newton converges in a few iterations a step
+    assert r.counters.get("sub-stepped steps", 0) == 0
+    assert r.counters.get("line search rescues", 0) == 0  # no SNES solve failed
+    assert r.counters["newton iterations"] <= 1.25 * (scene.nt + 1)  # measured 1.13 (nx = 500), 1.17 (nx = 1000)
 
 
-def test_film_landing_runs_at_600_steps():
-    """The film thrown onto the obstacle with Δt = 5e-4: Newton failed on the landing's step at Δt; it is taken in
-    sub-steps, the pressure stays finite and the ledger closes."""
+def test_film_landing_converges_at_600_steps():
+    """The film thrown onto the obstacle with Δt = 5e-4: the landing's step, where the film's line search (l2) lets
+    the residual rise until it diverges, is tried again with bt from the same guess and converges at Δt; the
+    pressure stays finite and the ledger closes."""
     scene = sc.load_scene("film_landing").replace(nt=600)
     r = run(scene)
     assert r.status == "complete" and r.checks["energy_balance"]["closes"], r.message
-    assert 1 <= r.counters["sub-stepped steps"] <= 3
-    assert r.counters["newton iterations"] <= 10 * scene.nt
+    assert r.counters.get("sub-stepped steps", 0) == 0
+    assert 1 <= r.counters["line search rescues"] <= 3
+    assert r.counters["newton iterations"] <= 4 * scene.nt  # measured 2.96 a step
     assert np.all(np.isfinite(r.fields["pressure"])) and r.fields["pressure"].max() > 0

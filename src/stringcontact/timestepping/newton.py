@@ -20,7 +20,9 @@ iterations (`NewtonStep._keeps_jacobian`); once it takes a fresh one, its later 
 `projection`'s contact step is the variational inequality G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``, bounds
 u ≥ ψ at the interior nodes), tried as a plain Newton step first while the last solution touched no bound;
 its contact force is the reaction G₀(u) of the unconstrained residual on the active set: ≥ 0, and 0 off the
-contact set.
+contact set. A node is on its bound only where it is exactly there (`VI_DEFAULTS`: PETSc's own zero tolerance
+froze nodes just above the obstacle and a stiff landing cycled). A step whose SNES fails is tried once more with
+the other line search (`RESCUE_LINE_SEARCH`) before the caller sub-steps it.
 
 The linear path. A model with several fields reaches this module even when its residual is linear (a
 fourth-order term written with a second unknown, η's second derivative). A residual affine in its unknowns with
@@ -108,6 +110,17 @@ def _check_vi_linesearch(options: dict) -> None:
                          f"step (a variational inequality: a field bounded below); allowed: {', '.join(VI_LINESEARCHES)}")
 
 
+#: The VI's (`vinewtonrsls`) defaults on top: an unknown counts as on its bound only where it is exactly there. PETSc's
+#: default, 1e-8, holds a node within 1e-8 above the obstacle with a positive residual in the active set, frozen off
+#: its bound: its residual never vanishes, and a stiff landing cycled (the cubic landing at nx = 500: 45 such nodes,
+#: the residual stuck at 5e-8 for 50 iterations; 1e-12 and 1e-14 still cost a step 30-40 iterations). The
+#: projection onto the bounds puts a node on its bound exactly, so 0 misses none (benchmarks/bench_vi.py).
+VI_DEFAULTS = {"snes_vi_zero_tolerance": 0.0}
+#: When Newton fails with one line search the step is tried again with the other (a fresh J, the same first guess):
+#: `l2` accepts a rising residual and diverged on a landing's step at nt = 600 (benchmarks/bench_vi.py), `bt` stalled on others.
+RESCUE_LINE_SEARCH = {"l2": "bt", "bt": "l2", "basic": "bt", "cp": "bt"}
+
+
 #: The most iterations a kept Jacobian serves in one step, and the surplus iterations (beyond one a step) it may
 #: cost before a fresh one is assembled: a chord iteration (a residual and a triangular solve) costs about 0.2 ms
 #: at nx = 5000, a fresh J with its LU factor about ten of them. See `_keeps_jacobian`.
@@ -189,8 +202,10 @@ class NewtonStep(LinearPath):
             lower = full
         self.g = s.g
         lower = self._held_and_bounded(lower)
+        self.bounds = None
         self.snes = self._snes(lower)
         self.free = self._snes(None) if lower is not None else None  # a VI's plain Newton step, tried first
+        self.rescue, self.rescues = None, 0  # the other line search's SNES (made at the first failure), its solves
         self.try_free, self.free_solves = True, 0
         self.linear = self.quadratic = None  # the linear path (`_linear_path`), the energy as a quadratic form
         if not getattr(s.laws.model, "newton", False) and affine_in(
@@ -215,16 +230,24 @@ class NewtonStep(LinearPath):
             lower[dofs[name]] = value
         return lower
 
-    def _snes(self, lower):
+    def _snes(self, lower, line_search: str | None = None):
+        """A SNES for G; a VI's (``vinewtonrsls``, `VI_DEFAULTS`) with `lower` (None: plain Newton, or the bounds
+        already made, `bounds`, for a VI's rescue). `line_search` replaces the options' (a rescue's)."""
         s = self.s
         snes = PETSc.SNES().create(s.comm)
         snes.setFunction(self._residual, self.G_vec)
         snes.setJacobian(self._jacobian, self.J)
         options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
+        vi = lower is not None or (line_search is not None and self.bounds is not None)
         # s.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
-        options = {"snes_type": "vinewtonrsls" if lower is not None else "newtonls"} | SNES_DEFAULTS | options
-        if lower is not None:
+        options = (
+            {"snes_type": "vinewtonrsls" if vi else "newtonls"} | SNES_DEFAULTS | (VI_DEFAULTS if vi else {}) | options
+        )
+        if vi:
             _check_vi_linesearch(options)
+        self.line_search = options["snes_linesearch_type"]
+        if line_search is not None:
+            options["snes_linesearch_type"] = line_search
         set_from_options(snes, PREFIX, options)
         # the linear solver's options held again while SNES solves: its KSP reads some at set-up (`options_held`)
         self.ksp_options = {k: v for k, v in options.items() if not k.startswith("snes_")}
@@ -232,8 +255,9 @@ class NewtonStep(LinearPath):
             lo, hi = self.x.duplicate(), self.x.duplicate()
             lo.array[:] = lower
             hi.set(PETSc.INFINITY)
-            snes.setVariableBounds(lo, hi)
             self.bounds = (lo, hi)
+        if vi:
+            snes.setVariableBounds(*self.bounds)
         snes.setConvergenceHistory(reset=True)
         return snes
 
@@ -457,6 +481,12 @@ class NewtonStep(LinearPath):
         reason = self._run(self.snes, guess)
         if reason == PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN and self.snes.getIterationNumber() == 0:
             raise self._not_finite(guess)
+        if reason < 0 and RESCUE_LINE_SEARCH.get(self.line_search):  # the other line search: same guess, fresh J
+            if self.rescue is None:
+                self.other = RESCUE_LINE_SEARCH[self.line_search]
+                self.rescue = self._snes(None, line_search=self.other)
+            self.rescues += 1
+            reason = self._run(self.rescue, guess, fresh_only=True)
         if reason < 0:
             raise SolverError(f"Newton did not converge (SNES reason {reason}) after {self.snes.getIterationNumber()} "
                               "iterations; use a smaller dt or petsc_options snes_max_it / snes_linesearch_type")
@@ -481,11 +511,11 @@ class NewtonStep(LinearPath):
         exc.not_finite = True
         return exc
 
-    def _run(self, snes, guess: np.ndarray) -> int:
-        """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray; its
-        converged reason."""
+    def _run(self, snes, guess: np.ndarray, fresh_only: bool = False) -> int:
+        """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray (or only so,
+        `fresh_only`); its converged reason."""
         x = self.x.array
-        for fresh in (False, True):
+        for fresh in (True,) if fresh_only else (False, True):
             x[:] = self._full(guess, self.levels[3])
             x[self.bc] = self.g
             self.kept, self.fresh_only = False, fresh
@@ -529,11 +559,17 @@ class NewtonStep(LinearPath):
                 how += (f"; {self.solves - self.free_solves} contact steps by SNES {self.snes.getType()}, "
                         f"{self.iterations} Newton iterations")
             return {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians,
-                    "linear solves": self.linear_solves, "nonlinear solver": how}
+                    "linear solves": self.linear_solves, "nonlinear solver": how,
+                    **({"line search rescues": self.rescues} if self.rescues else {})}
         per_step = self.iterations / self.solves if self.solves else 0.0
         free = f", {self.free_solves} of {self.solves} steps solved without the VI" if self.free is not None else ""
-        return {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians,
-                "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step{free}"}
+        rescued = f", {self.rescues} steps tried again with line search {self.other}" if self.rescues else ""
+        return {
+            "newton iterations": self.iterations,
+            "jacobian assemblies": self.jacobians,
+            **({"line search rescues": self.rescues} if self.rescues else {}),
+            "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step{free}{rescued}",
+        }
 
 
 def _without_dissipative(s, q_eta, k: int) -> dict:
