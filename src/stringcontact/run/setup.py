@@ -24,7 +24,7 @@ from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, resolve_scheme
 from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
 from ..timestepping.linear import check_option_values
-from ..timestepping.newton import check_snes_options
+from ..timestepping.newton_options import check_snes_options
 from .options import Output, picture_function
 from .rows import StoredRows, output_steps
 
