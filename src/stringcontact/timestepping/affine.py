@@ -100,23 +100,23 @@ class AffineResidual:
     (a load, an obstacle that moves), which `affine_in` allows there and nowhere else.
     """
 
-    def __init__(self, nl, lumped: bool):
+    def __init__(self, form, lumped: bool):
         zero = ufl.zero()
-        R = ufl.replace(nl.residual, {nl.force: zero})
-        U_tt = nl.eta_tt
-        if lumped and nl.eta_dofs is not None:  # η's U_tt column off: as the scheme's mapping writes it
-            U_tt = ufl.as_vector([0.0, *(nl.eta_tt[i] for i in range(1, nl.eta_tt.ufl_shape[0]))])
-        R_tt = literal_components(ufl.replace(R, {nl.eta_tt: U_tt}))
-        parts = {"eta": _derivative(R, nl.eta), "eta_t": _derivative(R, nl.eta_t)}
-        if not (lumped and nl.eta_dofs is None):
-            parts["eta_tt"] = _derivative(R_tt, nl.eta_tt)
+        R = ufl.replace(form.residual, {form.force: zero})
+        U_tt = form.eta_tt
+        if lumped and form.eta_dofs is not None:  # η's U_tt column off: as the scheme's mapping writes it
+            U_tt = ufl.as_vector([0.0, *(form.eta_tt[i] for i in range(1, form.eta_tt.ufl_shape[0]))])
+        R_tt = literal_components(ufl.replace(R, {form.eta_tt: U_tt}))
+        parts = {"eta": _derivative(R, form.eta), "eta_t": _derivative(R, form.eta_t)}
+        if not (lumped and form.eta_dofs is None):
+            parts["eta_tt"] = _derivative(R_tt, form.eta_tt)
         self.matrices = {name: A for name, a in parts.items() if (A := _assembled(a)) is not None}
         self.vecs = {name: A.createVecs() for name, A in self.matrices.items()}
-        shape = nl.eta.ufl_shape
+        shape = form.eta.ufl_shape
         r0 = ufl.algorithms.expand_derivatives(
-            ufl.replace(R, {f: ufl.zero(*shape) for f in (nl.eta, nl.eta_t, nl.eta_tt)}))
+            ufl.replace(R, {f: ufl.zero(*shape) for f in (form.eta, form.eta_t, form.eta_tt)}))
         self.r0_form = None if r0.empty() else fem.form(r0)
-        self.r0 = np.zeros(nl.space.dofmap.index_map.size_local * nl.space.dofmap.index_map_bs)
+        self.r0 = np.zeros(form.space.dofmap.index_map.size_local * form.space.dofmap.index_map_bs)
         self.moving = not r0.empty() and bool(_functions(r0))
         if self.r0_form is not None:
             self.r0_vec = compat.create_vector(self.r0_form)
@@ -320,8 +320,8 @@ class LinearPath:
         G(0) from the residual's constant matrices (`AffineResidual`) by mat-vecs, no assembly and no SNES; the
         ledger's viscous work and a quadratic stored energy (`QuadraticEnergy`) by mat-vecs too. A VI tries this
         step first, as its plain Newton step, and keeps SNES for the steps that touch a bound."""
-        s, nl = self.s, self.s.ops.nonlinear
-        self.linear = AffineResidual(nl, self.lumped)
+        s, form = self.s, self.s.ops.nonlinear
+        self.linear = AffineResidual(form, self.lumped)
         J = fem.petsc.assemble_matrix(self.J_form)
         J.assemble()
         self.diag.set(0.0)
@@ -335,10 +335,10 @@ class LinearPath:
         self.step_solver = DampedLU(J, s.comm, self.ksp_options, self.bc, self.g, s.x.ndim)
         self.rhs, self.work = J.createVecLeft(), np.zeros(self.N)
         self.extra, self.d_lin = np.zeros(self.N), np.zeros(self.n)  # the damping on J's diagonal: all rows, η's
-        self.quadratic = QuadraticEnergy.of(nl.stored_energy, self.energy_eta)
+        self.quadratic = QuadraticEnergy.of(form.stored_energy, self.energy_eta)
         names = getattr(s.laws.model, "dissipative_fields", ())
         fields = getattr(s.laws.model, "fields", ())
-        k = nl.eta.ufl_shape[0] if nl.eta_dofs is not None else 1
+        k = form.eta.ufl_shape[0] if form.eta_dofs is not None else 1
         self.terms = LevelTerms(self.linear, self.q, s.dt, k, tuple(i + 1 for i, f in enumerate(fields) if f in names),
                                 self.quadratic)
         self.linear_solves, self.stale = 0, False  # stale: G_vec does not hold the last solve's residual

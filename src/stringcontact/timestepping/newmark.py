@@ -242,15 +242,15 @@ class Scheme(_NewtonScheme):
 
     def _newton_step(self):
         """The Newton path's step: the quotients `NEWMARK` in the model's residual, the damping on the diagonal."""
-        s, dt, nw = self.s, self.s.dt, self.newton
+        s, dt, newton = self.s, self.s.dt, self.newton
         e0, v = self.eta_, self.v_
-        nw.set_known(e0, None, v)
+        newton.set_known(e0, None, v)
         s.laws.set(eta=e0, v=v)
         D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
         rate = s.obstacle.centred_rate((self.k + 1) * dt)[: s.n_owned] if self.moving else 0.0  # ψ_t^{n+1}: D brakes v − ψ_t
         while True:  # −D (v^{n+1} − ψ_t^{n+1}) = −(2D/Δt)(u − η^n − (Δt/2)(v^n + ψ_t^{n+1}))
-            nw.d[:], nw.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
-            u = nw.solve(None if nw.guessless else e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated
+            newton.d[:], newton.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
+            u = newton.solve(None if newton.guessless else e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated
             v1 = 2.0 * (u - e0) / dt - v
             v1[s.bc] = 0.0
             sticky = (D > 0) & (v1 > rate)  # a damping that would hold a node down: released (as on the linear path)
@@ -259,7 +259,7 @@ class Scheme(_NewtonScheme):
             D[sticky] = 0.0
         f = -D * (v1 - rate)
         delta = u - e0
-        visc_vec = nw.viscous_force(u)
+        visc_vec = newton.viscous_force(u)
         kin, el, visc, con, ext, work = self.allsum(
             kinetic_energy(s, v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
             -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)), self._obstacle_work(f))

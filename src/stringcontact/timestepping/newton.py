@@ -107,8 +107,8 @@ class NewtonStep(LinearPath):
     reuse_jacobian = True
 
     def __init__(self, s, quotients: dict, lower: np.ndarray | None = None):
-        nl = s.ops.nonlinear
-        Z, n = nl.space, s.n_owned
+        form = s.ops.nonlinear
+        Z, n = form.space, s.n_owned
         self.s, self.n, self.q = s, n, quotients
         self.allsum, self.anyrank = Ranks(s.comm).sum, Ranks(s.comm).any
         self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
@@ -116,7 +116,7 @@ class NewtonStep(LinearPath):
         args = (self.u, self.e0, self.em, self.v0, s.dt)
         q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
         zero = ufl.zero()  # UFL's zero, not a Constant 0: the terms it multiplies leave the compiled kernel
-        k = nl.eta.ufl_shape[0] if nl.eta_dofs is not None else 0  # the number of fields, η's among them
+        k = form.eta.ufl_shape[0] if form.eta_dofs is not None else 0  # the number of fields, η's among them
         if k:  # several fields: η's inertia is lumped on the nodes, the other fields keep their own η_tt
             zeros = ufl.as_vector([0.0] * k)
             q_fields = quotients.get("fields", quotients["eta"])(*args)  # the other fields' values
@@ -125,24 +125,24 @@ class NewtonStep(LinearPath):
         else:
             zeros = zero
             q_tt = zero if self.lumped else q_tt
-        mapping = {nl.eta: q_eta, nl.eta_t: q_t, nl.eta_tt: q_tt, nl.force: zero}
-        G = powers_as_products(ufl.replace(nl.residual, mapping))
+        mapping = {form.eta: q_eta, form.eta_t: q_t, form.eta_tt: q_tt, form.force: zero}
+        G = powers_as_products(ufl.replace(form.residual, mapping))
         G_static = powers_as_products(
-            ufl.replace(nl.residual, mapping | {nl.eta_t: zeros} | _without_dissipative(s, q_eta, k)))
+            ufl.replace(form.residual, mapping | {form.eta_t: zeros} | _without_dissipative(s, q_eta, k)))
         self.G = PackedForm(G)  # assembled at least twice a step: its coefficients gathered, not packed again
         self.known = [f for f in self.G.functions if f is not self.u]  # what `_residual` does not refresh
         self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
         self.G_static_form = fem.form(G_static)
-        self.energy_eta = nl.energy_eta
-        self.energy = PackedForm(powers_as_products(nl.stored_energy))
+        self.energy_eta = form.energy_eta
+        self.energy = PackedForm(powers_as_products(form.stored_energy))
         self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, s.dt))  # ∂q_tt/∂u
         self.G_vec = compat.create_vector(self.G.form)
         self.work_vec = compat.create_vector(self.G.form)
         self.J = fem.petsc.create_matrix(self.J_form)
         self.x = self.G_vec.duplicate()
         # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
-        self.idx = slice(0, n) if nl.eta_dofs is None else np.asarray(nl.eta_dofs[:n])
-        self.bc = s.bc if nl.eta_dofs is None else self.idx[s.bc]
+        self.idx = slice(0, n) if form.eta_dofs is None else np.asarray(form.eta_dofs[:n])
+        self.bc = s.bc if form.eta_dofs is None else self.idx[s.bc]
         self.at = _as_slice(self.idx)  # the same entries, as a strided slice where they are one (a blocked space's)
         self.N = self.x.getLocalSize()
         self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
@@ -161,7 +161,7 @@ class NewtonStep(LinearPath):
         self.surplus = 0  # the kept J's iterations beyond the first of each step, since it was assembled
         self.age, self.kept_age, self.drift = 0, 0, 0.0  # J's age in steps; r₁/(r₀ × age) when a kept J was last tried
         self.d_in_J = np.zeros(n)  # the damping on J's diagonal when it was assembled
-        if lower is not None and nl.eta_dofs is not None:
+        if lower is not None and form.eta_dofs is not None:
             full = np.full(self.N, PETSc.NINFINITY)
             full[self.idx] = lower
             lower = full
@@ -174,21 +174,21 @@ class NewtonStep(LinearPath):
         self.try_free, self.free_solves = True, 0
         self.linear = self.quadratic = None  # the linear path (`_linear_path`), the energy as a quadratic form
         if not getattr(s.laws.model, "newton", False) and affine_in(
-                ufl.replace(nl.residual, {nl.force: zero}), (nl.eta, nl.eta_t, nl.eta_tt)):
+                ufl.replace(form.residual, {form.force: zero}), (form.eta, form.eta_t, form.eta_tt)):
             self._linear_path()
 
     def _held_and_bounded(self, lower):
         """A model's other fields held at 0 on the boundary (`Model.held_fields`: their rows join η's ends in
         `bc`, their values in `g`) and bounded below (`Model.field_lower`: the step becomes the VI)."""
-        s, nl = self.s, self.s.ops.nonlinear
+        s, form = self.s, self.s.ops.nonlinear
         model = s.laws.model
-        if nl.eta_dofs is None:
+        if form.eta_dofs is None:
             return lower
-        dofs = {name: compat.sub_dofs(nl.V, nl.space, i + 1)[: self.n] for i, name in enumerate(model.fields)}
+        dofs = {name: compat.sub_dofs(form.V, form.space, i + 1)[: self.n] for i, name in enumerate(model.fields)}
         for name in getattr(model, "held_fields", ()):
             self.bc = np.concatenate([self.bc, dofs[name][s.bc]])
             self.g = np.concatenate([self.g, np.zeros(len(s.bc))])
-        bounds = model.field_lower(nl.params) if getattr(model, "field_lower", None) is not None else {}
+        bounds = model.field_lower(form.params) if getattr(model, "field_lower", None) is not None else {}
         if bounds and lower is None:
             lower = np.full(self.N, PETSc.NINFINITY)
         for name, value in bounds.items():
@@ -509,10 +509,10 @@ class NewtonStep(LinearPath):
 
     def field(self, i: int) -> np.ndarray:
         """Field `i` (0 is η) of the last solution, at the nodes of η's owned dofs."""
-        nl = self.s.ops.nonlinear
-        if nl.eta_dofs is None:
+        form = self.s.ops.nonlinear
+        if form.eta_dofs is None:
             return self.levels[3].copy()
-        return self.levels[3][compat.sub_dofs(nl.V, nl.space, i)[: self.n]]
+        return self.levels[3][compat.sub_dofs(form.V, form.space, i)[: self.n]]
 
     def describe(self) -> dict:
         """Newton's counters for the summary."""
