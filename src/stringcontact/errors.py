@@ -13,6 +13,10 @@ class SceneError(ValueError):
     """A scene (file, key or expression) is invalid. The message names the key and what is allowed."""
 
 
+class ModelError(ValueError):
+    """The model's UFL does not fit the scheme (for example it is not linear in η, η_t, η_tt)."""
+
+
 class InstabilityError(RuntimeError):
     """The time stepping is, or became, unstable. The message names the step, the time, r and a remedy."""
 

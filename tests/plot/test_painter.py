@@ -169,7 +169,9 @@ def test_cancel_stops_the_helper_too(run, tmp_path):
     process = started_with_helper()
     pgid = process.proc.pid
     process.cancel()
-    assert group(pgid) == [] and process.folder is None
+    assert process.folder is None
+    # SIGKILLed with its group, the helper may still be tearing down (files closed, not yet a zombie) on a busy machine
+    until(lambda: group(pgid) == [], "the helper gone after cancel", limit=5.0)
 
 
 def test_cancel_while_drawing_leaves_no_process(run, tmp_path):

@@ -27,3 +27,12 @@ def test_no_binaries_in_the_tree():
         if b"\0" in head and not figure:
             binaries.append(str(path.relative_to(ROOT)))
     assert binaries == []
+
+
+def test_no_two_test_files_share_a_name():
+    """The test folders have no __init__.py, so pytest imports each file by its name alone: two test_x.py in two
+    folders stop the collection ("import file mismatch")."""
+    seen: dict[str, list[str]] = {}
+    for path in (ROOT / "tests").rglob("test_*.py"):
+        seen.setdefault(path.name, []).append(str(path.relative_to(ROOT)))
+    assert {name: paths for name, paths in seen.items() if len(paths) > 1} == {}

@@ -31,12 +31,9 @@ from petsc4py import PETSc
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
 
+from ..errors import ModelError
 from ..model.forms import FormError, check_form, mass_density
 from . import compat
-
-
-class ModelError(ValueError):
-    """The model's UFL does not fit the scheme (for example it is not linear in η, η_t, η_tt)."""
 
 
 @dataclass

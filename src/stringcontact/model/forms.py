@@ -14,13 +14,15 @@ import ufl
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
 
+from ..errors import ModelError
+
 __all__ = ["FormError", "check_declarations", "check_form", "mass_density"]
 
 #: What a model's momentum form is made of, for the messages.
 _ALLOWED = "a UFL Form linear in the test function w, with terms times ufl.dx (e.g. eta_tt*w*dx + ...)"
 
 
-class FormError(ValueError):
+class FormError(ModelError):
     """A model's form is not a residual a scheme can take: not a Form, without ``dx``, of rank other than 1, or with
     a mass that is not constant in the unknowns. The message names the model and the function."""
 
