@@ -352,3 +352,104 @@ def test_a_form_that_is_not_finite_is_named_not_the_step_size(tmp_path, name, va
     line = one_error_line(proc.stderr, f"step 1, t = 0.0075: model '{name}': its momentum_form is {value} (not "
                           "finite)", "a smaller dt does not change it")
     assert "sub-steps" not in line and "use a smaller dt" not in line
+
+
+# --- a form singular at eta = 0, on a string that stays above it -------------------------------------------------
+
+SINGULAR = '''
+import dataclasses
+import ufl
+from stringcontact.model.paper import inelastic, momentum_form
+
+def _repelled(eta, eta_t, eta_tt, force, w, p):
+    return momentum_form(eta, eta_t, eta_tt, force, w, p) - 0.01 / eta * w * ufl.dx
+
+def _repelled_energy(eta, p):
+    return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta)) - 0.01 * ufl.ln(eta)
+
+def _rooted(eta, eta_t, eta_tt, force, w, p):
+    return momentum_form(eta, eta_t, eta_tt, force, w, p) + ufl.sqrt(eta) * w * ufl.dx
+
+repelled = dataclasses.replace(inelastic, name="repelled", momentum_form=_repelled, stored_energy=_repelled_energy)
+undeclared = dataclasses.replace(inelastic, name="undeclared", momentum_form=_repelled)
+rooted = dataclasses.replace(inelastic, name="rooted", momentum_form=_rooted)
+'''
+
+#: example1 thrown down slowly: eta stays above 0.7, where k/eta and sqrt(eta) are smooth
+HELD_HIGH = """
+name = "held_high"
+length = 1.0
+T = 0.3
+nt = 40
+nx = 50
+alpha = 0.01
+eps = 0.01
+eta0 = "1 + 0.5*sin(10*pi*x)**2"
+v0 = "-1"
+h = 1.0
+"""
+
+
+def _singular(tmp_path):
+    (tmp_path / "singular.py").write_text(SINGULAR)
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import importlib
+
+        return importlib.import_module("singular")
+    finally:
+        sys.path.remove(str(tmp_path))
+        sys.modules.pop("singular", None)
+
+
+@pytest.mark.parametrize("scheme", ["paper", "newmark", "projection"])
+def test_a_form_singular_at_zero_runs_on_a_string_that_stays_above_it(tmp_path, scheme):
+    """k/eta in the form, with its stored energy declared, on a string that never comes near eta = 0: the operators
+    were its tangent and load at eta = 0 (inf), and the run stopped at step 1 with "a value is not finite ... use a
+    smaller dt". They are taken at the initial state, and the load is what the declared energy leaves of the form
+    there (0 to round-off: the energy is the form's)."""
+    import stringcontact as sc
+
+    (tmp_path / "high.toml").write_text(HELD_HIGH)
+    stepper = sc.Stepper(sc.load_scene(tmp_path / "high.toml"), scheme, model=_singular(tmp_path).repelled)
+    while stepper.step < stepper.nt:
+        stepper.advance()  # InstabilityError at step 1
+    result = stepper.result()
+    assert result.eta.min() > 0.7
+    assert np.abs(result.balance_residual).max() < 1e-10 * result.total_energy[0]
+    assert stepper.setting.ops.linearised_at == "the state"
+    assert np.abs(stepper.setting.ops.load).max() < 1e-15
+
+
+def test_a_form_whose_tangent_is_infinite_at_zero_keeps_its_guards(tmp_path):
+    """sqrt(eta) (no stored energy declared: its potential is finite) has an infinite tangent at eta = 0: the energy
+    guard's round-off floor was inf and projection's stable dt_max nan, so neither could ever refuse."""
+    import stringcontact as sc
+
+    (tmp_path / "high.toml").write_text(HELD_HIGH)
+    stepper = sc.Stepper(sc.load_scene(tmp_path / "high.toml"), "projection", model=_singular(tmp_path).rooted)
+    assert 0 < stepper.scheme.dt_max < 1
+    assert np.isfinite(stepper.ledger.tol)
+
+
+@pytest.mark.parametrize(("model", "eta0", "fragments"), [
+    # "unstable at step 1 ... use a smaller dt" (exit 3)
+    ("undeclared", "1 + 0.5*sin(10*pi*x)**2", ("model 'undeclared': momentum_form is evaluated at eta = 0 for its load",
+                                               "its load -R(0) is not finite (a term singular at eta = 0)",
+                                               "stored_energy(eta, p)")),
+    ("repelled", "max(0, x - 0.5)", ("model 'repelled': momentum_form's tangent (C, K) is not finite at eta = 0",
+                                     "(a term singular there) nor at the initial state (eta0, v0)")),
+])
+def test_a_form_singular_at_zero_that_cannot_be_linearised_is_named(tmp_path, model, eta0, fragments):
+    """Without a declared energy the load -R(0) and the potential's zero are taken at eta = 0, where k/eta is inf; a
+    string that starts on eta = 0 gives no state to linearise at either. The run stopped at step 1 with "unstable
+    ... use a smaller dt" (exit 3): one line naming the cause, exit 2, nothing written."""
+    (tmp_path / "singular.py").write_text(SINGULAR)
+    scene = HELD_HIGH.replace('"1 + 0.5*sin(10*pi*x)**2"', f'"{eta0}"').replace("\nh = 1.0", "\nh_left = 0\nh_right = 0.5")
+    (tmp_path / "scene.toml").write_text(scene if model == "repelled" else HELD_HIGH)
+    proc = stringcontact("run", "scene.toml", *QUICK, "--model", f"singular:{model}", "--out", tmp_path / "o",
+                         cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    line = one_error_line(proc.stderr, *fragments)
+    assert "smaller dt" not in line
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
