@@ -446,3 +446,57 @@ def test_a_form_singular_at_zero_without_a_stored_energy_is_named(tmp_path):
     assert "smaller dt" not in line
     assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
 
+
+# --- plot redrawing a run's folder holds it --------------------------------------------------------------------------
+
+@pytest.fixture
+def a_run_folder(tmp_path):
+    """A complete run folder (no pictures: the tests stand in for their drawing)."""
+    from stringcontact.cli.main import main
+
+    assert main(["run", "example1", *SMALL, *QUICK, "--out", str(tmp_path / "r")]) == 0
+    return tmp_path / "r"
+
+
+def test_run_force_is_refused_while_plot_redraws_the_folder(a_run_folder, capsys, monkeypatch):
+    """`run --out DIR --force` while `plot DIR` drew was refused naming plot's temporary picture
+    (".energy.png.tmp-92mjtdy1.png is not a file stringcontact wrote there"), or, a moment later, replaced the
+    folder under plot, which then wrote the old run's pictures into the new result. `plot` holds the folder's lock."""
+    import stringcontact.cli.plot as plot_command
+    from stringcontact.cli.main import main
+
+    folder, seen = a_run_folder, []
+
+    def drawing(result, into, window_size):
+        (into / ".energy.png.tmp-92mjtdy1.png").write_bytes(b"")  # what atomic_path has there while it draws
+        seen.append(main(["run", "example1", *SMALL, *QUICK, "--out", str(folder), "--force"]))
+        seen.append(capsys.readouterr().err)
+        (into / ".energy.png.tmp-92mjtdy1.png").unlink()
+        return []
+
+    monkeypatch.setattr(plot_command, "write_pictures", drawing)
+    assert main(["plot", str(folder)]) == 0
+    code, err = seen
+    assert code == 2
+    line = one_error_line(err, f"--out {folder}: `stringcontact plot` (pid {os.getpid()}) is drawing its pictures in "
+                          "this folder; wait for it to finish")
+    assert ".png" not in line
+    assert leftovers(folder.parent) == []
+
+
+def test_plot_refuses_a_folder_a_run_is_writing(a_run_folder, capsys, monkeypatch):
+    """`plot DIR` while `run --out DIR --force` ran drew into the folder the run was about to replace."""
+    import stringcontact.cli.plot as plot_command
+    from stringcontact.cli.main import main
+    from stringcontact.io.lock import TargetLock
+
+    drawn = []
+    monkeypatch.setattr(plot_command, "write_pictures", lambda *args, **kwargs: drawn.append(1) or [])
+    lock = TargetLock(a_run_folder)  # as a run writing there holds it
+    try:
+        assert main(["plot", str(a_run_folder)]) == 2
+    finally:
+        lock.release()
+    one_error_line(capsys.readouterr().err, f"{a_run_folder}: another stringcontact run (pid {os.getpid()}) is writing "
+                   "to this folder")
+    assert drawn == []
