@@ -352,3 +352,151 @@ def test_a_form_that_is_not_finite_is_named_not_the_step_size(tmp_path, name, va
     line = one_error_line(proc.stderr, f"step 1, t = 0.0075: model '{name}': its momentum_form is {value} (not "
                           "finite)", "a smaller dt does not change it")
     assert "sub-steps" not in line and "use a smaller dt" not in line
+
+
+# --- a form singular at eta = 0, on a string that stays above it -------------------------------------------------
+
+SINGULAR = '''
+import dataclasses
+import ufl
+from stringcontact.model.paper import inelastic, momentum_form
+
+def _repelled(eta, eta_t, eta_tt, force, w, p):
+    return momentum_form(eta, eta_t, eta_tt, force, w, p) - 0.01 / eta * w * ufl.dx
+
+def _repelled_energy(eta, p):
+    return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta)) - 0.01 * ufl.ln(eta)
+
+def _rooted(eta, eta_t, eta_tt, force, w, p):
+    return momentum_form(eta, eta_t, eta_tt, force, w, p) + ufl.sqrt(eta) * w * ufl.dx
+
+repelled = dataclasses.replace(inelastic, name="repelled", momentum_form=_repelled, stored_energy=_repelled_energy)
+undeclared = dataclasses.replace(inelastic, name="undeclared", momentum_form=_repelled)
+rooted = dataclasses.replace(inelastic, name="rooted", momentum_form=_rooted)
+'''
+
+#: example1 thrown down slowly: eta stays above 0.7, where k/eta and sqrt(eta) are smooth
+HELD_HIGH = """
+name = "held_high"
+length = 1.0
+T = 0.3
+nt = 40
+nx = 50
+alpha = 0.01
+eps = 0.01
+eta0 = "1 + 0.5*sin(10*pi*x)**2"
+v0 = "-1"
+h = 1.0
+"""
+
+
+def _singular(tmp_path):
+    (tmp_path / "singular.py").write_text(SINGULAR)
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import importlib
+
+        return importlib.import_module("singular")
+    finally:
+        sys.path.remove(str(tmp_path))
+        sys.modules.pop("singular", None)
+
+
+@pytest.mark.parametrize("scheme", ["paper", "newmark", "projection"])
+def test_a_form_singular_at_zero_runs_on_a_string_that_stays_above_it(tmp_path, scheme):
+    """k/eta in the form, with its stored energy declared, on a string that never comes near eta = 0: the operators
+    were its tangent and load at eta = 0 (inf), and the run stopped at step 1 with "a value is not finite ... use a
+    smaller dt". They are taken at the initial state, and the load is what the declared energy leaves of the form
+    there (0 to round-off: the energy is the form's)."""
+    import stringcontact as sc
+
+    (tmp_path / "high.toml").write_text(HELD_HIGH)
+    stepper = sc.Stepper(sc.load_scene(tmp_path / "high.toml"), scheme, model=_singular(tmp_path).repelled)
+    while stepper.step < stepper.nt:
+        stepper.advance()  # InstabilityError at step 1
+    result = stepper.result()
+    assert result.eta.min() > 0.7
+    assert np.abs(result.balance_residual).max() < 1e-10 * result.total_energy[0]
+    assert stepper.setting.ops.linearised_at == "the state"
+    assert np.abs(stepper.setting.ops.load).max() < 1e-15
+
+
+def test_a_form_whose_tangent_is_infinite_at_zero_keeps_its_guards(tmp_path):
+    """sqrt(eta) (no stored energy declared: its potential is finite) has an infinite tangent at eta = 0: the energy
+    guard's round-off floor was inf and projection's stable dt_max nan, so neither could ever refuse."""
+    import stringcontact as sc
+
+    (tmp_path / "high.toml").write_text(HELD_HIGH)
+    stepper = sc.Stepper(sc.load_scene(tmp_path / "high.toml"), "projection", model=_singular(tmp_path).rooted)
+    assert 0 < stepper.scheme.dt_max < 1
+    assert np.isfinite(stepper.ledger.tol)
+
+
+def test_a_form_singular_at_zero_without_a_stored_energy_is_named(tmp_path):
+    """Without a declared energy the load -R(0) and the potential's zero are taken at eta = 0, where k/eta is inf
+    (it is finite at the initial state): the run stopped at step 1 with "unstable ... use a smaller dt" (exit 3).
+    One line naming the cause, exit 2, nothing written."""
+    (tmp_path / "singular.py").write_text(SINGULAR)
+    (tmp_path / "scene.toml").write_text(HELD_HIGH)
+    proc = stringcontact("run", "scene.toml", *QUICK, "--model", "singular:undeclared", "--out", tmp_path / "o",
+                         cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    line = one_error_line(proc.stderr, "model 'undeclared': momentum_form is evaluated at eta = 0 for its load",
+                          "its load -R(0) is not finite (a term singular at eta = 0)", "stored_energy(eta, p)")
+    assert "smaller dt" not in line
+    assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
+
+
+# --- plot redrawing a run's folder holds it --------------------------------------------------------------------------
+
+@pytest.fixture
+def a_run_folder(tmp_path):
+    """A complete run folder (no pictures: the tests stand in for their drawing)."""
+    from stringcontact.cli.main import main
+
+    assert main(["run", "example1", *SMALL, *QUICK, "--out", str(tmp_path / "r")]) == 0
+    return tmp_path / "r"
+
+
+def test_run_force_is_refused_while_plot_redraws_the_folder(a_run_folder, capsys, monkeypatch):
+    """`run --out DIR --force` while `plot DIR` drew was refused naming plot's temporary picture
+    (".energy.png.tmp-92mjtdy1.png is not a file stringcontact wrote there"), or, a moment later, replaced the
+    folder under plot, which then wrote the old run's pictures into the new result. `plot` holds the folder's lock."""
+    import stringcontact.cli.plot as plot_command
+    from stringcontact.cli.main import main
+
+    folder, seen = a_run_folder, []
+
+    def drawing(result, into, window_size):
+        (into / ".energy.png.tmp-92mjtdy1.png").write_bytes(b"")  # what atomic_path has there while it draws
+        seen.append(main(["run", "example1", *SMALL, *QUICK, "--out", str(folder), "--force"]))
+        seen.append(capsys.readouterr().err)
+        (into / ".energy.png.tmp-92mjtdy1.png").unlink()
+        return []
+
+    monkeypatch.setattr(plot_command, "write_pictures", drawing)
+    assert main(["plot", str(folder)]) == 0
+    code, err = seen
+    assert code == 2
+    line = one_error_line(err, f"--out {folder}: `stringcontact plot` (pid {os.getpid()}) is drawing its pictures in "
+                          "this folder; wait for it to finish")
+    assert ".png" not in line
+    assert leftovers(folder.parent) == []
+
+
+def test_plot_refuses_a_folder_a_run_is_writing(a_run_folder, capsys, monkeypatch):
+    """`plot DIR` while `run --out DIR --force` ran drew into the folder the run was about to replace."""
+    import stringcontact.cli.plot as plot_command
+    from stringcontact.cli.main import main
+    from stringcontact.io.lock import TargetLock
+
+    drawn = []
+    monkeypatch.setattr(plot_command, "write_pictures", lambda *args, **kwargs: drawn.append(1) or [])
+    lock = TargetLock(a_run_folder)  # as a run writing there holds it
+    try:
+        assert main(["plot", str(a_run_folder)]) == 2
+    finally:
+        lock.release()
+    one_error_line(capsys.readouterr().err, f"{a_run_folder}: another stringcontact run (pid {os.getpid()}) is writing "
+                   "to this folder")
+    assert drawn == []

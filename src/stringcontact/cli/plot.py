@@ -1,8 +1,13 @@
 """`stringcontact plot DIR`: every picture of a run drawn again from its output folder alone
-(`plot.run_pictures.write_pictures` on `io.readback.read_output`), into DIR or a new `--out` folder."""
+(`plot.run_pictures.write_pictures` on `io.readback.read_output`), into DIR or a new `--out` folder.
+
+Into DIR, it holds DIR's lock (`io.lock.TargetLock`, the one a run writing there holds) while it reads and draws:
+a `run --out DIR --force` meanwhile is refused naming `plot` and its pid, and `plot` refuses a folder a run is
+writing."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -49,6 +54,28 @@ def _check_not_the_data(folder: Path, out: Path) -> None:
                          "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
 
 
+@contextlib.contextmanager
+def _redrawing(folder: Path):
+    """Hold the lock of the run folder `folder` while its pictures are drawn in place (nothing to hold if it is no
+    folder: `read_output` then says what it is)."""
+    if not folder.is_dir():
+        yield
+        return
+    from ..errors import OutputError
+    from ..io.disk import describe_os_error
+    from ..io.lock import TargetLock
+
+    try:
+        lock = TargetLock(folder, "plot", label=str(folder))
+    except OSError as exc:
+        raise OutputError(f"{folder}: cannot take its lock to draw in it: "
+                          f"{describe_os_error(exc, folder.resolve().parent)}") from None
+    try:
+        yield
+    finally:
+        lock.release()
+
+
 def _launched_rank() -> int:
     """This process's rank when a launcher (mpirun) started several; 0 otherwise. Read from the launcher's
     environment: `plot` needs no MPI, and a picture process must not wait for it."""
@@ -67,9 +94,10 @@ def command(args) -> int:
     size = parse_size(args.size)
     if _launched_rank() > 0:  # `mpirun -n 2 stringcontact plot`: one process draws, the others would race it
         return 0
-    if args.out is None:  # into the run's own folder, each picture replaced whole (atomic_path)
-        for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
-            print(f"wrote {path}")
+    if args.out is None:  # into the run's own folder, under its lock, each picture replaced whole (atomic_path)
+        with _redrawing(Path(args.folder)):
+            for path in write_pictures(read_output(args.folder), Path(args.folder), window_size=size):
+                print(f"wrote {path}")
         return 0
     from ..io.publish import staged_folder
     from ..io.target import check_target

@@ -15,7 +15,10 @@ system, A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n 
 
 A form nonlinear in η or η_t (or a model with several fields) keeps the same operators, linearised at 0
 (the stability estimates and round-off floors read them), and hands the residual itself to the schemes
-(`NonlinearForm`), which solve each step by Newton (`timestepping.newton`).
+(`NonlinearForm`), which solve each step by Newton (`timestepping.newton`). A form that is not finite at 0 (a
+term k/η or √η: singular where the string touches a flat obstacle, never reached by a run that stays above it)
+is linearised at the run's state instead (its initial state), and its load is what its declared stored energy
+leaves of its static force there, b = δΠ(η⁰) − R(η⁰, 0, 0, 0).
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ class Operators:
     load: np.ndarray  # b on owned dofs (zero for the paper's model)
     V: object = None  # the function space: kept alive with its matrices (dolfinx 0.9 segfaults otherwise)
     nonlinear: NonlinearForm | None = None  # a nonlinear model's residual (then M, C, K are its tangent at 0)
+    linearised_at: str = "eta = 0"  # where C and K are the tangent: "eta = 0", or "the state" (not finite at 0)
 
 
 @dataclass
@@ -137,12 +141,17 @@ def potential_energy(R, placeholders, w, V):
     return energy, e
 
 
-def semi_discrete_operators(model, V, params, residual: bool = False) -> Operators:
+def semi_discrete_operators(model, V, params, residual: bool = False, state=None) -> Operators:
     """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V.
 
     A form that is linear in its placeholders gives the constant operators. A form nonlinear in η or η_t (or a
-    model with ``newton=True``, or any model when `residual` is set: a scheme that steps every model by Newton) gives the same operators linearised at 0 plus `Operators.nonlinear`, the
-    residual for the Newton step; ModelError if it is nonlinear in η_tt or the force, or if they multiply η.
+    model with ``newton=True``, or any model when `residual` is set: a scheme that steps every model by Newton)
+    gives the same operators linearised at 0 plus `Operators.nonlinear`, the residual for the Newton step;
+    ModelError if it is nonlinear in η_tt or the force, or if they multiply η.
+
+    `state` (a callable giving η and η_t on V's owned dofs, the run's initial state) is where a nonlinear form is
+    linearised when its tangent at 0 is not finite (a term singular at η = 0), and where its load is taken, with
+    its declared stored energy, when R(0) is not finite; ModelError naming the cause if that cannot be done.
     """
     eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
     w = ufl.TestFunction(V)
@@ -164,9 +173,9 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
     at_zero = dict.fromkeys(placeholders, zero)
 
     R_lowered = apply_algebra_lowering(R)  # once, not per derivative
-    nonlinear_in = set()
+    tangents = {}  # the tangents that read the placeholders, before they are taken at 0
 
-    def part(f):
+    def part(f, at=at_zero):
         a = apply_derivatives(ufl.derivative(R_lowered, f, u))
         if a.empty():  # the model has no such term (e.g. α = 0 written out): a zero matrix, same pattern
             return zero * u * w * ufl.dx
@@ -177,14 +186,21 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
                 "coefficients (a constant mass and nodal force weights); it may be nonlinear in eta and eta_t"
             )
         if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
-            nonlinear_in.add(f)
-            a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at_zero)))
+            tangents[f] = a
+            a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at)))
             if a.empty():
                 return zero * u * w * ufl.dx
         return a
 
     K = _assemble_matrix(part(eta))
     M, C = (_assemble_matrix(part(f), pattern=K) for f in (eta_tt, eta_t))
+    nonlinear_in = set(tangents)
+    linearised_at = "eta = 0"
+    if nonlinear_in and not (_finite(K) and _finite(C)):  # singular at η = 0: the tangent at the run's state
+        at = _state(model.name, V, state, placeholders, zero, "its tangent (C, K) is not finite at eta = 0")
+        K_at, C_at = (_assemble_matrix(part(f, at), pattern=M) for f in (eta, eta_t))
+        if _finite(K_at) and _finite(C_at):  # else not finite at the state either: the first step names the form
+            K, C, linearised_at = K_at, C_at, "the state"
     m_force = -_assemble_row_sums(part(force), V)  # B = −∂R/∂F is only needed lumped
     b_form = -ufl.replace(R, {f: zero for f in placeholders})
     b_form = ufl.algorithms.expand_derivatives(b_form)
@@ -192,8 +208,10 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
     if not mass_known:  # a mass density the nodes cannot give (a field's gradient in it): its lumped rows
         _refuse_mass(model.name, what, m, node_coordinates(V)[: m.size], V.mesh.comm, "lumped mass")
     load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
-    ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V)
     declared = getattr(model, "stored_energy", None)
+    if nonlinear_in and mixed is None and not _all_ranks(V, np.isfinite(load).all()):  # R(0) singular
+        load = _load_at_state(model.name, what, R, placeholders, w, V, params, state, zero, declared, load)
+    ops = Operators(M=M, C=C, K=K, m=m, m_force=m_force, load=load, V=V, linearised_at=linearised_at)
     if mixed is not None:  # several fields: the energy the model declares in all of them
         if declared is None:
             raise ModelError(f"model '{model.name}': a model with fields {model.fields} must declare stored_energy(U, p), "
@@ -214,6 +232,54 @@ def semi_discrete_operators(model, V, params, residual: bool = False) -> Operato
                                       params=params, stored_energy=stored, energy_eta=energy_eta,
                                       viscous_linear=eta_t not in nonlinear_in, space=V, energy_derived=declared is None)
     return ops
+
+
+def _finite(A: PETSc.Mat) -> bool:
+    """Whether every entry of the assembled matrix is finite (its norm is: inf or nan otherwise). Collective."""
+    return math.isfinite(A.norm(PETSc.NormType.FROBENIUS))
+
+
+def _all_ranks(V, flag) -> bool:
+    """`flag` on every rank of V's mesh."""
+    return all(V.mesh.comm.allgather(bool(flag)))
+
+
+def _state(name: str, V, state, placeholders, zero, why: str) -> dict:
+    """The placeholders at the run's state: η and η_t as Functions on V holding `state()`'s owned values (η_tt and
+    the force at 0); ModelError naming `why` when there is no state to take (an operator built without a run)."""
+    if state is None:
+        raise ModelError(f"model '{name}': momentum_form is evaluated at eta = 0 for its operators, and {why}; "
+                         "allowed: a form finite at eta = 0, or a run from an initial state where it is")
+    eta, eta_t, eta_tt, force = placeholders
+    at = {eta_tt: zero, force: zero}
+    n = V.dofmap.index_map.size_local
+    for f, values in zip((eta, eta_t), state()):
+        g = fem.Function(V)
+        g.x.array[:n] = np.asarray(values, dtype=float)[:n]
+        g.x.scatter_forward()
+        at[f] = g
+    return at
+
+
+def _load_at_state(name: str, what: str, R, placeholders, w, V, params, state, zero, declared, load) -> np.ndarray:
+    """The load b of a form that is not finite at η = 0 (`load`, −R(0)): what the declared stored energy Π leaves of
+    the static force at the run's state η⁰, b = δΠ(η⁰) − R(η⁰, 0, 0, 0) (for a form G = δΠ − b, the same at every
+    state). ModelError naming the cause without a declared energy (the form's own potential starts at η = 0) if the
+    form is finite at η⁰; `load` as it is if it is not (the first step names the form)."""
+    why = "its load -R(0) is not finite (a term singular at eta = 0)"
+    at = _state(name, V, state, placeholders, zero, why)
+    at[placeholders[1]] = zero  # the static force: at rest
+    static = ufl.algorithms.expand_derivatives(ufl.replace(R, at))
+    if not _all_ranks(V, np.isfinite(_assemble_vector(static)).all()):
+        return load
+    if declared is None:
+        raise ModelError(f"model '{name}': {what} is evaluated at eta = 0 for its load and the zero of its potential "
+                         f"energy, and {why}; allowed: a form finite at eta = 0, or a model that declares "
+                         "stored_energy(eta, p), its energy density (the load is then taken at the initial state)")
+    state_eta = at[placeholders[0]]
+    energy = ufl.derivative(declared(state_eta, params) * ufl.dx, state_eta, w)
+    b = _assemble_vector(ufl.algorithms.expand_derivatives(energy - ufl.replace(R, at)))
+    return b if _all_ranks(V, np.isfinite(b).all()) else load
 
 
 def _check_mass(name: str, what: str, density, V, params) -> bool:

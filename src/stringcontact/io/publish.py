@@ -177,7 +177,7 @@ def open_partial(path, force: bool, command: str = "run") -> tuple[Path, TargetL
         # even where the lock file cannot be made (a read-only parent) or another run holds the lock.
         check_target(path, force, parents=True, command=command)  # the command line refused missing parents before
         target.parent.mkdir(parents=True, exist_ok=True)
-        lock = TargetLock(target)
+        lock = TargetLock(target, command)
         check_target(target, force, locked=True, parents=True, command=command)  # again under the lock: a run may have just finished there
         _recover_stale(target)
         partial = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-{os.getpid()}-", dir=target.parent))

@@ -26,7 +26,8 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
     cannot be written, a missing parent outside the current folder (unless `parents`: the Python API's
     ``output_dir`` makes them, as asked), a non-empty folder (unless `force`, and then only a folder holding
     nothing but what its manifest lists and, for a `command` other than ``run``, not a run's result), and a
-    folder another run writes to. `locked`: the caller holds the folder's lock itself (so the lock is not probed).
+    folder another command writes to (`TargetLock.busy`: checked before the files of a folder `force` would
+    replace, which a `plot` drawing there holds as temporary pictures). `locked`: the caller holds the folder's lock itself (so the lock is not probed).
     """
     target = Path(path)
     resolved = target.resolve()
@@ -47,6 +48,9 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
     if target.is_dir() and any(target.iterdir()):
         if not force:
             raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+        busy = None if locked else TargetLock.busy(target)  # before its files: a holder's own temporary ones
+        if busy is not None:
+            raise OutputError(busy)
         blocker = foreign_file(target)
         if blocker is not None:
             raise OutputError(f"--out {target}: --force replaces only a stringcontact result (the files its {MANIFEST} "
@@ -54,13 +58,9 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
         if command != "run" and is_run_result(target):
             raise OutputError(f"--out {target}: holds the result of a run (summary.json, solution.xdmf), which "
                               f"`{command} --force` does not replace; choose another folder")
-    holder = None if locked else TargetLock.holder(target)
-    if holder is not None:
-        who = f" (pid {holder})" if holder else ""
-        raise OutputError(
-            f"--out {target}: another stringcontact run{who} is writing to this folder; "
-            "wait for it to finish or choose another folder"
-        )
+    busy = None if locked else TargetLock.busy(target)
+    if busy is not None:
+        raise OutputError(busy)
     return target
 
 

@@ -51,8 +51,9 @@ A model is a `Model`: a few plain functions that return UFL.
 ``stored_energy(eta, p)`` (optional)
     The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
     Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the potential of the form's static force,
-    ∫₀¹ G(sη; η) ds (`fem.operators.potential_energy`; ½|∇η|² for the paper's form). A model with ``fields``
-    must declare it, as ``stored_energy(U, p)`` in all its unknowns ``U = (η, *fields)`` (a field that stores no
+    ∫₀¹ G(sη; η) ds (`fem.operators.potential_energy`; ½|∇η|² for the paper's form), which starts at η = 0: a
+    form not finite there (k/η) must declare its energy (its load is then taken at the initial state). A model
+    with ``fields`` must declare it, as ``stored_energy(U, p)`` in all its unknowns ``U = (η, *fields)`` (a field that stores no
     energy, such as a film's pressure, simply does not appear in it).
 
 ``penetration_bound`` (default ``"auto"``)

@@ -68,7 +68,12 @@ def discretise(scene, model: Model, comm, constants: dict | None = None, residua
     if scene.obstacle_moves:  # ψ_t for the penalty's gap rate v − ψ_t: set each step (`MovingObstacle`)
         rate = extra[RATE] = fem.Function(V, name=RATE)
         rate.x.array[:] = (values["obstacle"] - _checked_values(scene, "obstacle", dof_x, -scene.dt)) / scene.dt
-    return V, params, semi_discrete_operators(model, V, params, residual)
+    owned = dof_x[: V.dofmap.index_map.size_local]
+
+    def initial_state():  # where a form singular at η = 0 is linearised (`semi_discrete_operators`)
+        return scene.initial_displacement(owned), scene.initial_velocity(owned)
+
+    return V, params, semi_discrete_operators(model, V, params, residual, initial_state)
 
 
 #: energy.png's legend of a nonlinear form's stored energy when the model declares none (`fem.operators.potential_energy`)

@@ -175,7 +175,8 @@ class Stepper:
         jump of the state's energy booked as external work (`_Ledger.rebase`)."""
         old = self.scheme
         eta, v = old.eta.copy(), np.asarray(old.velocity, dtype=float).copy()
-        ops = semi_discrete_operators(self.model, self._V, self._params, not self._Scheme.LINEAR_PATH)
+        ops = semi_discrete_operators(self.model, self._V, self._params, not self._Scheme.LINEAR_PATH,
+                                      lambda: (eta, v))  # the state, where a form singular at 0 is linearised
         s = setup._setting(self.scene, self.model, self._V, self._params, ops, self.penalty, self.mass, self.comm,
                            self._petsc_options)
         self._past_timings.append(old.timings)

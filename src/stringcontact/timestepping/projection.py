@@ -129,7 +129,7 @@ class Scheme(_NewtonScheme):
         n, comm = s.n_owned, s.comm
         nonlinear = s.ops.nonlinear is not None
         self.dt_max = largest_stable_dt(s.ops, s.interior, krylov=s.x.ndim == 2, dt=s.dt)
-        self._check_dt("(its explicit elastic term, linearised at eta = 0)" if nonlinear else
+        self._check_dt(f"(its explicit elastic term, linearised at {s.ops.linearised_at})" if nonlinear else
                        "(its explicit elastic term; dt_max from the operators)")
         laws = s.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
