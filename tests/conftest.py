@@ -99,6 +99,17 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
+def one_error_line(stderr: str, *fragments) -> str:
+    """The command's one error line (warnings aside), asserted to be one line, not an internal error, and to hold
+    every fragment."""
+    lines = [line for line in stderr.splitlines() if not line.startswith("stringcontact: warning:")]
+    assert len(lines) == 1 and lines[0].startswith("stringcontact: error: "), stderr[-3000:]
+    assert "internal error" not in lines[0], lines[0]
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+    return lines[0]
+
+
 def leftovers(folder: Path) -> list[str]:
     """Anything a run may leave beside its target: partial folders, locks, .old swaps (all start with ".")."""
     return sorted(p.name for p in Path(folder).iterdir() if p.name.startswith("."))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import leftovers, plot_refusal
+from conftest import leftovers, one_error_line, plot_refusal
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01"]
@@ -23,15 +23,6 @@ def stringcontact(*argv, python=(), cwd=None, env=None, timeout=300) -> subproce
                               text=True, cwd=cwd, env=env, timeout=timeout, check=False)
     except subprocess.TimeoutExpired:
         pytest.fail(f"stringcontact {' '.join(map(str, argv))} did not end within {timeout} s")
-
-
-def one_error_line(stderr: str, *fragments) -> str:
-    lines = [line for line in stderr.splitlines() if not line.startswith("stringcontact: warning:")]
-    assert len(lines) == 1 and lines[0].startswith("stringcontact: error: "), stderr[-3000:]
-    assert "internal error" not in lines[0], lines[0]
-    for fragment in fragments:
-        assert fragment in lines[0], lines[0]
-    return lines[0]
 
 
 # --- code in the working folder ----------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CTRL_C_AT_IMPORT, leftovers, mpirun, plot_refusal
+from conftest import CTRL_C_AT_IMPORT, leftovers, mpirun, one_error_line, plot_refusal
 
 from stringcontact.cli.main import main
 from stringcontact.io.lock import TargetLock
@@ -32,15 +32,6 @@ def stringcontact(*argv, cwd=None, env=None, timeout=300) -> subprocess.Complete
                               cwd=cwd, env=env, timeout=timeout, check=False)
     except subprocess.TimeoutExpired:
         pytest.fail(f"stringcontact {' '.join(map(str, argv))} did not end within {timeout} s")
-
-
-def one_error_line(stderr: str, *fragments) -> str:
-    lines = [line for line in stderr.splitlines() if not line.startswith("stringcontact: warning:")]
-    assert len(lines) == 1 and lines[0].startswith("stringcontact: error: "), stderr[-3000:]
-    assert "internal error" not in lines[0], lines[0]
-    for fragment in fragments:
-        assert fragment in lines[0], lines[0]
-    return lines[0]
 
 
 # --- PETSc options that crashed (exit 59), hung, or exited 1 ---------------------------------------------------
