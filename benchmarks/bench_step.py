@@ -165,17 +165,17 @@ def law_timing(repeats: int) -> None:
 
     scene = sc.load_scene("example1")
     res = sc.simulate(scene, comm=MPI.COMM_SELF)
-    s = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).setting  # what the paper scheme is given
-    law = s.laws.compile(s.laws.model.penalty(s.laws.eta, s.laws.quotient, s.laws.params))
+    problem = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).problem  # what the paper scheme steps
+    law = problem.laws.compile(problem.laws.model.penalty(problem.laws.eta, problem.laws.quotient, problem.laws.params))
     full, sub = [], []
     for row in range(1, len(res.t)):
-        s.laws.set(eta=res.eta[row].copy(), eta_old=res.eta[row] - scene.dt * res.velocity[row])
+        problem.laws.set(eta=res.eta[row].copy(), eta_old=res.eta[row] - scene.dt * res.velocity[row])
         with np.errstate(all="ignore"):
             for _ in range(repeats):
                 full.append(
-                    min(timeit.repeat(lambda: np.where(True, law._f(s.laws.env), 0.0), number=20, repeat=3)) / 20
+                    min(timeit.repeat(lambda: np.where(True, law._f(problem.laws.env), 0.0), number=20, repeat=3)) / 20
                 )
-                sub.append(min(timeit.repeat(lambda: law.evaluate_env(s.laws.env), number=20, repeat=3)) / 20)
+                sub.append(min(timeit.repeat(lambda: law.evaluate_env(problem.laws.env), number=20, repeat=3)) / 20)
     print(
         f"penalty at {len(res.t) - 1} stored states of Example 1 (mean over them): every node "
         f"{1e6 * statistics.mean(full):.1f} µs, candidates only {1e6 * statistics.mean(sub):.1f} µs"
@@ -221,7 +221,7 @@ def _still_stepper(scene):
     st = Stepper(scene, comm=MPI.COMM_SELF)
     st.scheme = _Still()
     st.ledger = ledger._Ledger(_Still.terms, conservative=False)
-    st.rows = rows.StoredRows(np.array([scene.nt + 1]), rows._Gather(MPI.COMM_SELF, st.setting.x))
+    st.rows = rows.StoredRows(np.array([scene.nt + 1]), rows._Gather(MPI.COMM_SELF, st.problem.x))
     st.rows.min_eta = 0.0
     return st
 
@@ -238,17 +238,17 @@ def loop_timing(src: str, runs: int) -> None:
     from stringcontact.timestepping import paper
 
     scene = sc.load_scene("example1")
-    s = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).setting  # what the paper scheme is given
-    eta0 = np.asarray(scene.initial_displacement(s.x), dtype=float).copy()
-    eta0[s.bc] = s.g  # the start the driver gives a scheme: the ends at their heights, at rest
-    v0 = np.asarray(scene.initial_velocity(s.x), dtype=float) * s.interior
+    problem = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).problem  # what the paper scheme steps
+    eta0 = np.asarray(scene.initial_displacement(problem.x), dtype=float).copy()
+    eta0[problem.bc] = problem.g  # the start the driver gives a scheme: the ends at their heights, at rest
+    v0 = np.asarray(scene.initial_velocity(problem.x), dtype=float) * problem.interior
     schemes = {"this checkout": paper, src: _module_of(src, "stringcontact.timestepping.paper")}
     steps = {k: [] for k in schemes}
     march = []
     np.seterr(all="ignore")
     for r in range(runs):
         for label in list(schemes) if r % 2 == 0 else list(schemes)[::-1]:
-            scheme = schemes[label].Scheme(s)
+            scheme = schemes[label].Scheme(problem)
             scheme.start(eta0, v0)
             t0 = time.thread_time()
             for _ in range(scene.nt):

@@ -42,7 +42,8 @@ nitpick_ignore_regex = [
     ("py:class", r"(Path|Callable|Iterable|Sequence|Mapping|NDArray|ndarray|Function|Form|Constant|Expr|Comm)"),
     ("py:class", r"(optional|callable|array|float|int|str|bool|dict|tuple|list)( .*)?"),
     ("py:class", r"stringcontact\..*\._.*"),
-    ("py:class", r"(stringcontact\.timestepping\.base\.)?Setting"),  # what the driver hands a scheme (timestepping.base.Setting): internal, named in Scheme()
+    # what the driver hands a scheme (timestepping.base.DiscreteProblem): internal, named in Scheme()
+    ("py:class", r"(stringcontact\.timestepping\.base\.)?DiscreteProblem"),
     ("py:mod", r"stringcontact\..*"),  # the internal modules a docstring names are not pages of the site
 ]
 default_role = "code"  # the docstrings' `name`: code, as in the rest of the project

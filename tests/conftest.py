@@ -1,5 +1,5 @@
 """Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
-`plot_refusal` for damaged folders, `meshio_read` for the XDMF files, `run_setting` for a scheme driven directly;
+`plot_refusal` for damaged folders, `meshio_read` for the XDMF files, `run_problem` for a scheme driven directly;
 the hypothesis profile of every property test."""
 
 from __future__ import annotations
@@ -186,18 +186,19 @@ def piston_folder(tmp_path_factory):
     return out, res
 
 
-def run_setting(scene, scheme=None, penalty=None, mass=None, model=None):
-    """(the `Setting` a serial run of `scene` hands its scheme, η⁰, v⁰): a `Stepper`'s setting, for a test that
-    drives a scheme object itself; η⁰ with the ends at their heights, v⁰ at rest at the ends, in its dof order."""
+def run_problem(scene, scheme=None, penalty=None, mass=None, model=None):
+    """(the `DiscreteProblem` a serial run of `scene` hands its scheme, η⁰, v⁰): a `Stepper`'s problem, for a test
+    that drives a scheme object itself; η⁰ with the ends at their heights, v⁰ at rest at the ends, in its dof
+    order."""
     import numpy as np
     from mpi4py import MPI
 
     from stringcontact.run.stepper import Stepper
 
-    s = Stepper(scene, scheme, penalty, mass, model=model, comm=MPI.COMM_SELF).setting
-    eta0 = np.asarray(scene.initial_displacement(s.x), dtype=float).copy()
-    eta0[s.bc] = s.g
-    return s, eta0, np.asarray(scene.initial_velocity(s.x), dtype=float) * s.interior
+    problem = Stepper(scene, scheme, penalty, mass, model=model, comm=MPI.COMM_SELF).problem
+    eta0 = np.asarray(scene.initial_displacement(problem.x), dtype=float).copy()
+    eta0[problem.bc] = problem.g
+    return problem, eta0, np.asarray(scene.initial_velocity(problem.x), dtype=float) * problem.interior
 
 
 def grid_mesh(n: int):

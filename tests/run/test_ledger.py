@@ -82,7 +82,7 @@ def test_the_numerical_dissipation_is_the_results_formula_and_can_be_negative():
     f = m_F∘F(η^n, v^n) the applied force; the force term is negative where the penalty brakes a node (Δv > 0), and
     it outweighs the squares over Example 1's landing (D_num < 0, as its report prints −4.1 at full size)."""
     st = sc.Stepper(sc.load_scene("example1").replace(nx=100, nt=600, output_times=[]), progress=False)
-    ops, dt = st.setting.ops, st.dt
+    ops, dt = st.problem.ops, st.dt
     vec = ops.K.createVecRight()
     force_terms, worst = [], 0.0
     while st.step < st.nt:

@@ -125,23 +125,24 @@ def test_contact_area_is_the_lumped_area_of_the_contact_nodes():
 def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     import scipy.sparse as sp
     import scipy.sparse.linalg as sla
-    from conftest import run_setting
+    from conftest import run_problem
 
     from stringcontact.timestepping import projection
 
-    s, _, _ = run_setting(small_drum(mesh_size=0.15), "projection", mass="lumped")
-    ops = s.ops
+    problem, _, _ = run_problem(small_drum(mesh_size=0.15), "projection", mass="lumped")
+    ops = problem.ops
     ia, ja, a = ops.K.getValuesCSR()
-    inner = np.flatnonzero(s.interior)
+    inner = np.flatnonzero(problem.interior)
     K = sp.csr_matrix((a, ja, ia))[inner][:, inner]
     D = sp.diags(1 / np.sqrt(ops.m[inner]))
     lam = sla.eigsh(D @ K @ D, k=1, which="LA")[0][0]
-    assert projection.top_mode_krylov(ops.K, ops.m, s.interior)[0] == pytest.approx(lam, rel=1e-8)
-    bound = projection.gershgorin_bound(ops.K, ops.m, s.interior)
+    assert projection.top_mode_krylov(ops.K, ops.m, problem.interior)[0] == pytest.approx(lam, rel=1e-8)
+    bound = projection.gershgorin_bound(ops.K, ops.m, problem.interior)
     assert lam <= bound < 2 * lam
-    dt_max = projection.largest_stable_dt(ops, s.interior, krylov=True)
+    dt_max = projection.largest_stable_dt(ops, problem.interior, krylov=True)
     assert dt_max >= 2 / math.sqrt(lam) * (1 - 1e-8)  # α > 0: viscosity relieves the bound
-    assert projection.Scheme(s).dt_max == pytest.approx(2 / math.sqrt(bound))  # the scene's small dt: no eigenvalue
+    # the scene's small dt: no eigenvalue
+    assert projection.Scheme(problem).dt_max == pytest.approx(2 / math.sqrt(bound))
     T = 0.2
     for factor, stable in ((0.98, True), (1.05, False)):  # both above Gershgorin's dt: decided by the eigenvalue
         nt = math.ceil(T / (factor * dt_max)) if stable else math.floor(T / (factor * dt_max))

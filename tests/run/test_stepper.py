@@ -199,7 +199,7 @@ def test_a_failed_newton_step_is_sub_stepped_as_the_smaller_dt_would_take_it(mon
 
     def failing(self, guess):
         calls["n"] += 1
-        if calls["n"] == 1 and self.s.dt == s.dt:
+        if calls["n"] == 1 and self.problem.dt == s.dt:
             raise SolverError("Newton did not converge (SNES reason -5) after 50 iterations (forced)")
         return solve(self, guess)
 

@@ -446,12 +446,12 @@ if sys.argv[1] == "memory" and rank == 0:
         raise MemoryError()
     setup.discretise = no_memory
 if sys.argv[1] == "sigterm" and rank == 1:
-    set_up = setup._setting
+    set_up = setup._discrete_problem
     def set_up_then_signal(*args, **kwargs):
-        setting = set_up(*args, **kwargs)
+        problem = set_up(*args, **kwargs)
         os.kill(os.getpid(), signal.SIGTERM)
-        return setting
-    setup._setting = set_up_then_signal
+        return problem
+    setup._discrete_problem = set_up_then_signal
 from stringcontact.cli.main import main
 sys.argv = ["stringcontact", *sys.argv[2:]]
 sys.exit(main())

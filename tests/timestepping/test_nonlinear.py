@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import ufl
-from conftest import run_setting
+from conftest import run_problem
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -63,9 +63,9 @@ def test_the_newton_path_of_a_linear_model_is_the_linear_path(ex1, scheme, penal
 
 
 def test_a_linear_model_does_not_pay_for_newton(ex1):
-    s = _setting(ex1, sc.inelastic, "paper")
-    assert s.ops.nonlinear is None
-    assert type(scheme_class("paper")(s)).__module__.endswith("timestepping.paper")
+    problem = _problem(ex1, sc.inelastic, "paper")
+    assert problem.ops.nonlinear is None
+    assert type(scheme_class("paper")(problem)).__module__.endswith("timestepping.paper")
 
 
 def test_the_cubic_variant_runs_with_every_scheme(ex1):
@@ -80,8 +80,8 @@ def test_the_cubic_variant_runs_with_every_scheme(ex1):
 # --- the Newton step driven directly: a manufactured solution, Newton's convergence ---------------------------
 
 
-def _setting(scene, model, scheme, penalty=None):
-    return run_setting(scene, scheme, penalty, model=model)[0]
+def _problem(scene, model, scheme, penalty=None):
+    return run_problem(scene, scheme, penalty, model=model)[0]
 
 
 class Manufactured:
@@ -110,15 +110,15 @@ def _manufactured_error(base, scheme, n):
     mms = Manufactured(base)
     scene = sc.load_scene("example1").replace(nx=n, nt=n, T=0.5, eta0="1", v0="0", alpha=0.1, eps=1.0,
                                               output_times=[])
-    s = _setting(scene, mms.model(), scheme, penalty="explicit" if scheme == "paper" else None)
-    stepper = scheme_class(scheme)(s)
-    stepper.start(mms.exact(s.x, 0.0), 0 * s.x)  # projection computes η¹ here, at t = 0
+    problem = _problem(scene, mms.model(), scheme, penalty="explicit" if scheme == "paper" else None)
+    stepper = scheme_class(scheme)(problem)
+    stepper.start(mms.exact(problem.x, 0.0), 0 * problem.x)  # projection computes η¹ here, at t = 0
     # the residual's time: t^{n+1} (paper), the midpoint (newmark), t^n one step ahead (projection)
     shift = {"paper": 1.0, "newmark": 0.5, "projection": 1.0}[scheme]
     for k in range(scene.nt):
         mms.t.value = (k + shift) * scene.dt
         stepper.step()
-    return np.max(np.abs(stepper.eta - mms.exact(s.x, scene.T))), stepper.timings
+    return np.max(np.abs(stepper.eta - mms.exact(problem.x, scene.T))), stepper.timings
 
 
 @pytest.mark.parametrize("base", [variants.cubic_foundation, variants.large_deflection], ids=lambda m: m.name)
@@ -139,10 +139,10 @@ def test_newton_converges_quadratically():
     C = 1.9e-5 and 6.3e-5), not linearly (a constant ratio)."""
     scene = sc.load_scene("example1").replace(nx=200, nt=20, T=0.02, eta0="1 + sin(pi*x)", v0="-30",
                                               alpha=0.01, eps=1.0, output_times=[])
-    s = _setting(scene, variants.large_deflection, "paper", penalty="explicit")
-    stepper = scheme_class("paper")(s)
+    problem = _problem(scene, variants.large_deflection, "paper", penalty="explicit")
+    stepper = scheme_class("paper")(problem)
     stepper.newton.reuse_jacobian = False
-    stepper.start(np.asarray(scene.initial_displacement(s.x)), np.where(s.interior, -30.0, 0.0))
+    stepper.start(np.asarray(scene.initial_displacement(problem.x)), np.where(problem.interior, -30.0, 0.0))
     histories = []
     for _ in range(scene.nt):
         stepper.step()
@@ -265,9 +265,9 @@ def test_a_second_field_gives_the_single_field_answer(ex1, scheme, monkeypatch):
 def test_the_second_field_is_solved_not_lagged(ex1):
     two = dataclasses.replace(variants.cubic_foundation, name="two_fields", fields=("q",), residual=two_field_residual,
                               stored_energy=two_field_energy)
-    s = _setting(ex1, two, "paper", penalty="explicit")
-    stepper = scheme_class("paper")(s)
-    stepper.start(np.asarray(ex1.initial_displacement(s.x)), np.where(s.interior, -50.0, 0.0))
+    problem = _problem(ex1, two, "paper", penalty="explicit")
+    stepper = scheme_class("paper")(problem)
+    stepper.start(np.asarray(ex1.initial_displacement(problem.x)), np.where(problem.interior, -50.0, 0.0))
     for _ in range(5):
         stepper.step()
     nw = stepper.newton

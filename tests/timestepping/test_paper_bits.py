@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import run_setting
+from conftest import run_problem
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -18,26 +18,26 @@ from stringcontact.timestepping.linear import dirichlet_rows
 
 def _plain(scene, steps):
     """A η^{n+1} = (M/Δt²)((η^n − η^{n−1}) + η^n) + (C/Δt) η^n + m_F∘F(η^n, v^n), ends held; η, v at `steps`."""
-    s, eta, v = run_setting(scene, "paper", "explicit", "lumped")
-    ops, model, params = s.ops, s.laws.model, s.laws.params
+    problem, eta, v = run_problem(scene, "paper", "explicit", "lumped")
+    ops, model, params = problem.ops, problem.laws.model, problem.laws.params
     A, _, C_dt = step_matrices(ops, scene.dt, "lumped")
-    dirichlet_rows(A, s.bc)
+    dirichlet_rows(A, problem.bc)
     ksp = PETSc.KSP().create(MPI.COMM_SELF)
     ksp.setOperators(A)
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
-    law = nodal.NodalExpression(model.penalty(s.laws.eta, s.laws.quotient, params))
+    law = nodal.NodalExpression(model.penalty(problem.laws.eta, problem.laws.quotient, params))
     eta_old, dt = eta - scene.dt * v, scene.dt
     rows = {0: (eta, v)}
     b, x, c_eta = A.createVecLeft(), A.createVecRight(), A.createVecLeft()
     for n in range(1, scene.nt + 1):
-        s.laws.set(eta=eta, eta_old=eta_old)
+        problem.laws.set(eta=eta, eta_old=eta_old)
         with np.errstate(all="ignore"):
-            F = np.where(True, law._f(s.laws.env), 0.0)  # the whole UFL graph on every node
+            F = np.where(True, law._f(problem.laws.env), 0.0)  # the whole UFL graph on every node
         x.array[:] = eta
         C_dt.mult(x, c_eta)
         b.array[:] = ((eta - eta_old) + eta) * (ops.m / dt**2) + c_eta.array + ops.m_force * F
-        b.array[s.bc] = s.g
+        b.array[problem.bc] = problem.g
         ksp.solve(b, x)
         eta_old, eta = eta, x.array.copy()
         rows[n] = (eta, (eta - eta_old) * (1.0 / dt))

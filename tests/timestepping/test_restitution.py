@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import run_setting
+from conftest import run_problem
 from mpi4py import MPI
 
 import stringcontact as sc
@@ -27,9 +27,9 @@ class _TruthyZero(float):
 
 def _march(scene, restitution):
     """η, the centred velocity, the contact force and the energy terms of every step of projection on `scene`,
-    from the scheme's own object (as the driver makes it) with `Setting.restitution` = `restitution`."""
-    s, eta0, v0 = run_setting(scene, "projection", mass="lumped")
-    stepper = projection.Scheme(dataclasses.replace(s, restitution=restitution))
+    from the scheme's own object (as the driver makes it) with `DiscreteProblem.restitution` = `restitution`."""
+    problem, eta0, v0 = run_problem(scene, "projection", mass="lumped")
+    stepper = projection.Scheme(dataclasses.replace(problem, restitution=restitution))
     terms = [stepper.start(eta0, v0)]
     rows = []
     for _ in range(scene.nt):
@@ -59,10 +59,10 @@ def test_the_weighted_step_is_paoli_schatzman_written_out():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = sc.simulate(scene, scheme="projection", restitution=e, max_rows=scene.nt, comm=MPI.COMM_SELF)
-        s, eta, v = run_setting(scene, "projection", mass="lumped")
-    ops = s.ops
+        problem, eta, v = run_problem(scene, "projection", mass="lumped")
+    ops = problem.ops
     K = ops.K.convert("dense").getDenseArray()
-    m, dt, inner = ops.m, scene.dt, s.interior
+    m, dt, inner = ops.m, scene.dt, problem.interior
     old, now = eta - dt * v, eta.copy()
     rows = [now]
     for _ in range(scene.nt):
@@ -71,7 +71,7 @@ def test_the_weighted_step_is_paoli_schatzman_written_out():
         new = np.where(inner, (1 + e) * z - e * old, now)
         old, now = now, new
         rows.append(now)
-    order = np.argsort(s.x)
+    order = np.argsort(problem.x)
     assert np.abs(res.contact_force).max() > 0
     assert np.max(np.abs(res.eta - np.array(rows)[:, order])) < 1e-12
 

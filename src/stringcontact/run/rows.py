@@ -16,7 +16,7 @@ from ..scene import BYTES_PER_STORED_NODE
 
 if TYPE_CHECKING:
     from ..fem.outputs import OutputValues
-    from ..timestepping.base import Setting
+    from ..timestepping.base import DiscreteProblem
     from .options import Storage
 
 __all__ = ["SERIES_KEYS", "StorageWarning", "budget_steps", "output_steps", "step_times", "stored_steps"]
@@ -198,19 +198,20 @@ def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
     return {"weights": weights, "cells": canonical_cells(position[np.concatenate(parts)])}
 
 
-def _storage(scene, s: Setting, V, storage: Storage, outputs: OutputValues):
+def _storage(scene, problem: DiscreteProblem, V, storage: Storage, outputs: OutputValues):
     """The stored rows (steps within the budget, gathered to rank 0 or every rank), the mesh rows, and the
     function that sums a stored time's series over the ranks. Collective."""
-    gather = _Gather(s.comm, s.x, to_all=storage.gather == "all")
+    gather = _Gather(problem.comm, problem.x, to_all=storage.gather == "all")
     steps, note = budget_steps(scene.nt, scene.dt, scene.output_times, storage.max_rows, gather.nodes, storage.row_budget)
-    if note is not None and s.comm.rank == 0:
+    if note is not None and problem.comm.rank == 0:
         warnings.warn(note, StorageWarning, stacklevel=3)
-    n_owned = s.x.shape[0]
+    n_owned = problem.x.shape[0]
     weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
-    obstacle = np.asarray(scene.obstacle_values(s.x), dtype=float)
+    obstacle = np.asarray(scene.obstacle_values(problem.x), dtype=float)
     geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
     extra = tuple(f.name for f in outputs.fields)
-    if s.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
+    if problem.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
         return (StoredRows(steps, gather, extra), geometry,
-                lambda fields, t: _row_series(s.comm, fields, weights, s.obstacle.owned(t)))
-    return StoredRows(steps, gather, extra), geometry, lambda fields, t: _row_series(s.comm, fields, weights, obstacle)
+                lambda fields, t: _row_series(problem.comm, fields, weights, problem.obstacle.owned(t)))
+    return (StoredRows(steps, gather, extra), geometry,
+            lambda fields, t: _row_series(problem.comm, fields, weights, obstacle))

@@ -1,6 +1,6 @@
 """A run's set-up, checked before its mesh where it can be: the scheme and its options, the model and its
-constants, the mesh and the model's operators on it, what the scheme is given (`Setting`), the initial state, the
-output folder's writer. `Stepper` calls these in order; a test or a benchmark may call one alone."""
+constants, the mesh and the model's operators on it, the discrete problem the scheme steps (`DiscreteProblem`), the
+initial state, the output folder's writer. `Stepper` calls these in order; a test or a benchmark may call one alone."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NO
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, check_restitution, resolve_scheme
-from ..timestepping.base import MovingObstacle, NodalLaws, Setting, check_law_stability
+from ..timestepping.base import DiscreteProblem, MovingObstacle, NodalLaws, check_law_stability
 from ..timestepping.linear import check_option_values
 from ..timestepping.newton_options import check_snes_options
 from .options import Output, picture_function
@@ -133,8 +133,9 @@ def _check_moving_obstacle(scene, Scheme, penalty, model: Model, V, params) -> N
                          "'projection' or a law in the gap rate (model 'loaded_obstacle')")
 
 
-def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> Setting:
-    """What the scheme is given (`Setting`), from the scene, the model's operators and the run's options."""
+def _discrete_problem(scene, model, V, params, ops, penalty, mass, comm, petsc_options=None) -> DiscreteProblem:
+    """The discrete problem the scheme steps (`DiscreteProblem`), from the scene, the model's operators and the run's
+    options."""
     n_owned = V.dofmap.index_map.size_local
     x = node_coordinates(V)[:n_owned]
     bc, g = one_outcome(comm, _boundary, scene, V, x)  # h at this rank's boundary nodes: one outcome on every rank
@@ -142,9 +143,9 @@ def _setting(scene, model, V, params, ops, penalty, mass, comm, petsc_options=No
     laws = NodalLaws(model, V, params, scene.dt, fields, x)
     given = petsc_options_of(scene, petsc_options)
     options = _model_options(model, ops, params, scene.dim, comm.size, given) | given
-    return Setting(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm, eps=scene.eps, x=x,
-                   nt=scene.nt, petsc_options=options, restitution=scene.restitution or 0.0,
-                   obstacle=_moving_obstacle(scene, V, params))
+    return DiscreteProblem(ops=ops, dt=scene.dt, mass=mass, penalty=penalty, bc=bc, g=g, laws=laws, comm=comm,
+                           eps=scene.eps, x=x, nt=scene.nt, petsc_options=options,
+                           restitution=scene.restitution or 0.0, obstacle=_moving_obstacle(scene, V, params))
 
 
 def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:
@@ -171,11 +172,11 @@ def _boundary(scene, V, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return bc, np.concatenate([np.full(left.size, scene.h_left), np.full(right.size, scene.h_right)])
 
 
-def _initial_state(scene, s: Setting) -> tuple[np.ndarray, np.ndarray]:
+def _initial_state(scene, problem: DiscreteProblem) -> tuple[np.ndarray, np.ndarray]:
     """η⁰ with the ends at their heights, and v⁰ with the ends at rest (a fixed end does not move)."""
-    eta0 = np.asarray(scene.initial_displacement(s.x), dtype=float).copy()
-    eta0[s.bc] = s.g
-    return eta0, np.asarray(scene.initial_velocity(s.x), dtype=float) * s.interior
+    eta0 = np.asarray(scene.initial_displacement(problem.x), dtype=float).copy()
+    eta0[problem.bc] = problem.g
+    return eta0, np.asarray(scene.initial_velocity(problem.x), dtype=float) * problem.interior
 
 
 def _resolve_model(model, scene) -> Model:

@@ -84,14 +84,15 @@ class Stepper:
             t0 = time.perf_counter()
             V, params, ops = setup.discretise(scene, self.model, comm, self.constants, not Scheme.LINEAR_PATH)
             setup._check_moving_obstacle(scene, Scheme, self.penalty, self.model, V, params)
-            s = setup._setting(scene, self.model, V, params, ops, self.penalty, self.mass, comm, petsc_options)
-            self.scene, self.comm, self.setting, self.scheme = scene, comm, s, Scheme(s)
+            problem = setup._discrete_problem(scene, self.model, V, params, ops, self.penalty, self.mass, comm,
+                                              petsc_options)
+            self.scene, self.comm, self.problem, self.scheme = scene, comm, problem, Scheme(problem)
             self._Scheme, self._V, self._params, self._petsc_options = Scheme, V, params, petsc_options
             self._newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
             self._restart = None  # the start terms of a scheme restarted after sub-steps
             self.parameters = _Constants(self)
             self.outputs = OutputValues(self.model, V, params)
-        self.rows, self.geometry, self.row_series = _storage(scene, s, V, storage, self.outputs)
+        self.rows, self.geometry, self.row_series = _storage(scene, problem, V, storage, self.outputs)
         self.timings = {"setup": time.perf_counter() - t0}
         self.counters, self.solver = {}, {}
         self.origin = setup._model_origin(spec, self.model)
@@ -99,21 +100,22 @@ class Stepper:
         derived = nonlinear is not None and nonlinear.energy_derived  # the form's potential is booked
         self.energy_label = self.model.energy_label or (setup.POTENTIAL_LABEL if derived else None)
         self.dt, self.nt, self.step = scene.dt, scene.nt, 0
-        self._order = np.argsort(node_sort_key(s.x), kind="stable")  # this rank's nodes in x order
+        self._order = np.argsort(node_sort_key(problem.x), kind="stable")  # this rank's nodes in x order
         self._loop_time, self._done, self._past_timings = 0.0, None, []
         self._start(V)
 
     def _start(self, V) -> None:
         """The scheme's initial state (η⁰, v⁰) opens the ledger; then the writer, if any, and the row at t = 0."""
-        s, scheme, rows = self.setting, self.scheme, self.rows
-        self.ledger = _Ledger(scheme.start(*one_outcome(s.comm, setup._initial_state, self.scene, s)),  # one outcome
+        problem, scheme, rows = self.problem, self.scheme, self.rows
+        start = one_outcome(problem.comm, setup._initial_state, self.scene, problem)  # one outcome
+        self.ledger = _Ledger(scheme.start(*start),
                               conservative=self.model.contact_energy is not None or scheme.energy_may_rise,
-                              floor=energy_roundoff(s.ops.K, scheme.eta, s.comm), slack=scheme.energy_slack)
-        rows.min_eta = float(np.min(scheme.eta[s.interior])) if s.interior.any() else math.inf
+                              floor=energy_roundoff(problem.ops.K, scheme.eta, problem.comm), slack=scheme.energy_slack)
+        rows.min_eta = float(np.min(scheme.eta[problem.interior])) if problem.interior.any() else math.inf
         # ψ at the owned nodes for the gap η − ψ (`Result.min_gap`): None for the flat ψ = 0 (the gap is η) and for a
         # moving obstacle (ψ at each step's time, `_gap`)
-        self._psi = (np.asarray(self.scene.obstacle_values(s.x), dtype=float)
-                     if self.scene.obstacle is not None and s.obstacle is None else None)
+        self._psi = (np.asarray(self.scene.obstacle_values(problem.x), dtype=float)
+                     if self.scene.obstacle is not None and problem.obstacle is None else None)
         rows.min_gap = self._gap(scheme.eta, 0)
         self.writer = setup._writer(self.scene, V, self.comm, rows, self.output)
         with self._guarded():
@@ -130,7 +132,7 @@ class Stepper:
     @property
     def x(self) -> np.ndarray:
         """This rank's node coordinates, sorted as `Result.x` (by x, then y): (n,) for a string, (n, 2) for a membrane."""
-        return self.setting.x[self._order]
+        return self.problem.x[self._order]
 
     @property
     def eta(self) -> np.ndarray:
@@ -177,10 +179,10 @@ class Stepper:
         eta, v = old.eta.copy(), np.asarray(old.velocity, dtype=float).copy()
         ops = semi_discrete_operators(self.model, self._V, self._params, not self._Scheme.LINEAR_PATH,
                                       lambda: (eta, v))  # the state, where a form singular at 0 is linearised
-        s = setup._setting(self.scene, self.model, self._V, self._params, ops, self.penalty, self.mass, self.comm,
-                           self._petsc_options)
+        problem = setup._discrete_problem(self.scene, self.model, self._V, self._params, ops, self.penalty, self.mass,
+                                          self.comm, self._petsc_options)
         self._past_timings.append(old.timings)
-        self.setting, self.scheme = s, self._Scheme(s)
+        self.problem, self.scheme = problem, self._Scheme(problem)
         self.ledger.rebase(self.scheme.start(eta, v))
         self.constants = dict(self.parameters)
         self.parameters.changed = False
@@ -211,7 +213,7 @@ class Stepper:
             return math.inf
         if self.scene.obstacle is None:
             return float(eta.min())
-        psi = self._psi if self._psi is not None else self.setting.obstacle.owned(n * self.dt)
+        psi = self._psi if self._psi is not None else self.problem.obstacle.owned(n * self.dt)
         return float(np.min(eta - psi))
 
     def _step(self):
@@ -243,8 +245,8 @@ class Stepper:
         restored exactly), their energy terms summed; then a scheme at Δt started from the sub-steps' end. Returns
         the fine scheme's start terms, the step's terms and the restarted scheme's start terms (the ledger books the
         two starts' differences from the energies it holds as numerical dissipation: `_Ledger.rebase`)."""
-        fine = setup._setting(self.scene.replace(nt=self.nt * m), self.model, self._V, self._params,
-                              self.setting.ops, self.penalty, self.mass, self.comm, self._petsc_options)
+        fine = setup._discrete_problem(self.scene.replace(nt=self.nt * m), self.model, self._V, self._params,
+                                       self.problem.ops, self.penalty, self.mass, self.comm, self._petsc_options)
         scheme = self._Scheme(fine)
         begin = scheme.start(eta, v)
         increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the energies of the state: the last
@@ -256,7 +258,7 @@ class Stepper:
         end_eta, end_v = scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy()
         self._past_timings.append(self.scheme.timings)
         self._past_timings.append(scheme.timings)
-        self.scheme = self._Scheme(self.setting)
+        self.scheme = self._Scheme(self.problem)
         step = StepEnergy(terms.kinetic, terms.elastic, *increments.tolist(), terms.stored)
         return begin, step, self.scheme.start(end_eta, end_v)
 
@@ -339,8 +341,9 @@ class Stepper:
                         min_eta=float(mins), min_gap=float(gap), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin, penetration_bound=penetration_bound_of(self.model),
                         energy_label=self.energy_label, status=status, timings=self.timings, message=message,
-                        counters=self.counters, solver=self.solver, petsc_options=dict(self.setting.petsc_options or {}),
-                        scheme=self.name, **self.geometry, field_info=self.outputs.info, parameters=dict(self.constants),
+                        counters=self.counters, solver=self.solver,
+                        petsc_options=dict(self.problem.petsc_options or {}), scheme=self.name, **self.geometry,
+                        field_info=self.outputs.info, parameters=dict(self.constants),
                         series={k: v[:n] for k, v in rows.series.items()}, has_rows=rows.gather.holds)
         checks_of(result)  # the energy balance and the penetration check, once (summary.json, the CLI)
         return result

@@ -320,7 +320,7 @@ class LinearPath:
         G(0) from the residual's constant matrices (`AffineResidual`) by mat-vecs, no assembly and no SNES; the
         ledger's viscous work and a quadratic stored energy (`QuadraticEnergy`) by mat-vecs too. A VI tries this
         step first, as its plain Newton step, and keeps SNES for the steps that touch a bound."""
-        s, form = self.s, self.s.ops.nonlinear
+        problem, form = self.problem, self.problem.ops.nonlinear
         self.linear = AffineResidual(form, self.lumped)
         J = fem.petsc.assemble_matrix(self.J_form)
         J.assemble()
@@ -328,19 +328,19 @@ class LinearPath:
         self.diag.array[self.idx] = self.m_tt
         J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
         dirichlet_rows(J, self.bc)
-        if J.getBlockSize() > 1 and s.comm.size == 1 and self.ksp_options.get("pc_type") == "lu":
+        if J.getBlockSize() > 1 and problem.comm.size == 1 and self.ksp_options.get("pc_type") == "lu":
             # PETSc's own LU of the blocked matrix: its back-substitution by 2 × 2 blocks (two fields, 10⁴
             # unknowns: 53 µs against 142 as AIJ, timeit)
             J = J.convert("baij")
-        self.step_solver = DampedLU(J, s.comm, self.ksp_options, self.bc, self.g, s.x.ndim)
+        self.step_solver = DampedLU(J, problem.comm, self.ksp_options, self.bc, self.g, problem.x.ndim)
         self.rhs, self.work = J.createVecLeft(), np.zeros(self.N)
         self.extra, self.d_lin = np.zeros(self.N), np.zeros(self.n)  # the damping on J's diagonal: all rows, η's
         self.quadratic = QuadraticEnergy.of(form.stored_energy, self.energy_eta)
-        names = getattr(s.laws.model, "dissipative_fields", ())
-        fields = getattr(s.laws.model, "fields", ())
+        names = getattr(problem.laws.model, "dissipative_fields", ())
+        fields = getattr(problem.laws.model, "fields", ())
         k = form.eta.ufl_shape[0] if form.eta_dofs is not None else 1
-        self.terms = LevelTerms(self.linear, self.q, s.dt, k, tuple(i + 1 for i, f in enumerate(fields) if f in names),
-                                self.quadratic)
+        self.terms = LevelTerms(self.linear, self.q, problem.dt, k,
+                                tuple(i + 1 for i, f in enumerate(fields) if f in names), self.quadratic)
         self.linear_solves, self.stale = 0, False  # stale: G_vec does not hold the last solve's residual
         self.solutions, self.returned = [], None  # the last three solutions (values, S's products); η's last one
         self.level_products = [None, None]  # e0's and em's products, when they are one of `solutions`
@@ -418,8 +418,8 @@ class LinearPath:
             A = self.linear.matrices["eta"].copy()
             rows = np.union1d(self.idx, self.bc)
             dirichlet_rows(A, rows)
-            self.held = Linear(A, self.s.comm, {"ksp_type": "preonly", "pc_type": "lu"}, rows, np.zeros(rows.size),
-                               self.s.x.ndim)
+            self.held = Linear(A, self.problem.comm, {"ksp_type": "preonly", "pc_type": "lu"}, rows,
+                               np.zeros(rows.size), self.problem.x.ndim)
             self.held_rows, self.held_b = rows, A.createVecLeft()
         return self.held
 
@@ -447,7 +447,8 @@ class LinearPath:
         if self.linear is None or self._held_rows() is None:
             return None
         n = self.n
-        S = PETSc.Mat().createPython(((n, PETSc.DECIDE), (n, PETSc.DECIDE)), _SchurComplement(self), comm=self.s.comm)
+        S = PETSc.Mat().createPython(((n, PETSc.DECIDE), (n, PETSc.DECIDE)), _SchurComplement(self),
+                                     comm=self.problem.comm)
         S.setUp()
         return S
 

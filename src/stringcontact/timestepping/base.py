@@ -1,4 +1,4 @@
-"""What every scheme is given (`Setting`), what it must provide (`Scheme`), and the parts they share (the
+"""What every scheme steps (`DiscreteProblem`), what it must provide (`Scheme`), and the parts they share (the
 linear solves are `linear.py`'s).
 
 A scheme advances the nodal state (η, v) one step and reports the terms of its own discrete energy
@@ -114,8 +114,9 @@ class MovingObstacle:
 
 
 @dataclass
-class Setting:
-    """What a scheme is given: the model's operators on one mesh, Δt, the options, the ends and the laws."""
+class DiscreteProblem:
+    """The discrete problem a scheme steps: the model's operators on one mesh, Δt, the options, the fixed ends and
+    the nodal laws."""
 
     ops: Operators
     dt: float
@@ -161,14 +162,14 @@ class Scheme:
     """The contract. A scheme module defines ``class Scheme(base.Scheme)`` with:
 
     * ``PENALTIES``: the penalties it accepts, its default first; ``()`` when it uses no penalty (and no ε);
-    * ``RESTITUTION``: True if it takes a restitution coefficient e > 0 (`Setting.restitution`); the others
+    * ``RESTITUTION``: True if it takes a restitution coefficient e > 0 (`DiscreteProblem.restitution`); the others
       are refused one;
     * ``MASSES``: the mass matrices it accepts, its default first;
     * ``DESCRIPTION``: one line for `stringcontact.SCHEMES`;
     * ``LINEAR_PATH``: True if it steps a linear model with the constant operators M, C, K alone; False if every
       model reaches it with its residual (`Operators.nonlinear`, as a nonlinear one always does:
       `implicit.ImplicitScheme`);
-    * ``__init__(setting)``: assemble and factorise (set-up time);
+    * ``__init__(problem)``: assemble and factorise (set-up time);
     * ``start(eta0, v0) -> StepEnergy``: the initial state (ends already at their heights, v0 = 0 there);
     * ``step() -> StepEnergy``: one step;
     * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force
@@ -186,12 +187,12 @@ class Scheme:
     #: Whether the scheme's energy may rise for a while without an instability (a rebound giving energy back, a
     #: nonlinear force in a non-dissipative step): the guard then allows what it allows a contact spring.
     energy_may_rise = False
-    RESTITUTION = False  # whether it takes a restitution coefficient e > 0 (`Setting.restitution`)
+    RESTITUTION = False  # whether it takes a restitution coefficient e > 0 (`DiscreteProblem.restitution`)
     situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
     remedy = "use a smaller dt"
 
-    def __init__(self, setting: Setting):
-        self.s = setting
+    def __init__(self, problem: DiscreteProblem):
+        self.problem = problem
 
     @property
     def timings(self) -> dict:
@@ -219,7 +220,7 @@ class Scheme:
 
     def contact(self) -> np.ndarray:
         """The model's contact set at the current η (bool per node)."""
-        laws = self.s.laws
+        laws = self.problem.laws
         if not hasattr(self, "_contact_law"):
             self._contact_law = laws.compile(laws.model.contact_set(laws.eta, laws.params))
         laws.set(eta=self.eta)

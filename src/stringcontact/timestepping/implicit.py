@@ -35,12 +35,12 @@ from .base import Ranks, StepEnergy, check_law_stability, petsc_vector
 from .newton import NewtonStep, _NewtonScheme
 
 
-def kinetic_energy(s, v: np.ndarray) -> float:
-    """½ v·M v on this rank's nodes, with the setting's mass (lumped: the row sums m; consistent: M)."""
-    if s.mass == "lumped":
-        return 0.5 * float(np.dot(v, s.ops.m * v))
-    out = s.ops.M.createVecLeft()
-    s.ops.M.mult(petsc_vector(v, s.comm), out)
+def kinetic_energy(problem, v: np.ndarray) -> float:
+    """½ v·M v on this rank's nodes, with the problem's mass (lumped: the row sums m; consistent: M)."""
+    if problem.mass == "lumped":
+        return 0.5 * float(np.dot(v, problem.ops.m * v))
+    out = problem.ops.M.createVecLeft()
+    problem.ops.M.mult(petsc_vector(v, problem.comm), out)
     return 0.5 * float(np.dot(v, out.array))
 
 
@@ -57,32 +57,32 @@ class ImplicitScheme(_NewtonScheme):
     QUOTIENTS: ClassVar[dict] = {}
     remedy = "use penalty='semi-implicit', scheme 'projection' or a smaller dt"
 
-    def __init__(self, s):
-        super().__init__(s)
-        self.force_law = self._penalty_law(s)
-        self.newton = NewtonStep(s, self.QUOTIENTS)
-        self.allsum, self.anysum = Ranks(s.comm).sum, Ranks(s.comm).any
-        n = s.n_owned
+    def __init__(self, problem):
+        super().__init__(problem)
+        self.force_law = self._penalty_law(problem)
+        self.newton = NewtonStep(problem, self.QUOTIENTS)
+        self.allsum, self.anysum = Ranks(problem.comm).sum, Ranks(problem.comm).any
+        n = problem.n_owned
         self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
         self.older = None
-        self.moving, self.k = s.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
-        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.moving, self.k = problem.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
+        self.inv_mF = np.divide(1.0, problem.ops.m_force, out=np.zeros(n), where=problem.ops.m_force > 0)
         self.force_density = np.zeros(n)
 
-    def _penalty_law(self, s):
+    def _penalty_law(self, problem):
         """The model's contact law for the scene's penalty, compiled; refused if the model has none, warned (or
         refused) by the law's own bound on Δt/ε."""
-        laws = s.laws
-        if s.penalty == "semi-implicit" and laws.model.penalty_damping is None:
+        laws = problem.laws
+        if problem.penalty == "semi-implicit" and laws.model.penalty_damping is None:
             raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
-        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
-        law = laws.model.penalty if s.penalty == "explicit" else laws.model.penalty_damping
+        check_law_stability(laws.model, problem.dt, problem.eps, problem.penalty)
+        law = laws.model.penalty if problem.penalty == "explicit" else laws.model.penalty_damping
         return laws.compile(law(laws.eta, laws.quotient, laws.params))
 
     @property
     def situation(self) -> str:
         """r = Δt/ε and the penalty, for an instability message."""
-        return f"r = dt/eps = {self.s.dt / self.s.eps:.4g}, penalty {self.s.penalty}"
+        return f"r = dt/eps = {self.problem.dt / self.problem.eps:.4g}, penalty {self.problem.penalty}"
 
     @property
     def eta(self):
@@ -102,24 +102,24 @@ class ImplicitScheme(_NewtonScheme):
 
     def start(self, eta0, v0):
         """The initial state (η^0, v^0), η^{−1} = η^0 − Δt v^0; the initial energy."""
-        s = self.s
+        problem = self.problem
         if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
-            self.psi_levels = [s.obstacle.owned(-s.dt).copy(), s.obstacle.set(0.0).copy()]
+            self.psi_levels = [problem.obstacle.owned(-problem.dt).copy(), problem.obstacle.set(0.0).copy()]
         self.eta_[:], self.v[:] = eta0, v0
-        self.old[:] = eta0 - s.dt * self.v
+        self.old[:] = eta0 - problem.dt * self.v
         self.newton.start_fields(eta0, v0)
-        kin, el = self.allsum(kinetic_energy(s, self.v), self._stored(self.eta_))
+        kin, el = self.allsum(kinetic_energy(problem, self.v), self._stored(self.eta_))
         self.E = kin + el
         self._force()
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def _force(self) -> None:
         """The law at (η^n, η^{n−1}): the explicit force density (0 where no force acts), or the damping weights."""
-        laws = self.s.laws
+        laws = self.problem.laws
         laws.set(eta=self.eta_, eta_old=self.old)
-        law = np.asarray(self.force_law.evaluate_env(laws.env), dtype=float) * np.ones(self.s.n_owned)
-        self.law = law * self.s.interior
-        if self.s.penalty == "explicit":
+        law = np.asarray(self.force_law.evaluate_env(laws.env), dtype=float) * np.ones(self.problem.n_owned)
+        self.law = law * self.problem.interior
+        if self.problem.penalty == "explicit":
             np.multiply(self.law, self.inv_mF > 0, out=self.force_density)
 
     def _solve(self, e0, em):
@@ -139,32 +139,32 @@ class ImplicitScheme(_NewtonScheme):
 
     def step(self):
         """One step n → n+1 by Newton; its terms of the energy identity (`StepEnergy`)."""
-        s, dt, newton = self.s, self.s.dt, self.newton
+        problem, dt, newton = self.problem, self.problem.dt, self.newton
         e0, em = self.eta_, self.old
         newton.set_known(e0, em)
         # a moving obstacle: the semi-implicit damping brakes the step's gap rate, v^{n+1} − (ψ^{n+1} − ψ^n)/Δt
-        dpsi = s.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
-        if s.penalty == "explicit":
-            newton.f[:] = s.ops.m_force * self.law
+        dpsi = problem.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
+        if problem.penalty == "explicit":
+            newton.f[:] = problem.ops.m_force * self.law
         else:  # F = −d (v^{n+1} − Δψ/Δt): (m_F d/Δt)(u − η^n − Δψ) on the diagonal
-            newton.d[:] = s.ops.m_force * self.law / dt
+            newton.d[:] = problem.ops.m_force * self.law / dt
             newton.c[:] = e0 + dpsi
         u = self._solve(e0, em)
-        if self.moving and s.penalty != "explicit":
+        if self.moving and problem.penalty != "explicit":
             u = self._release(u)
         self.older = em.copy()
         v1 = (u - e0) / dt
-        f = newton.f if s.penalty == "explicit" else newton.d * (newton.c - u)
+        f = newton.f if problem.penalty == "explicit" else newton.d * (newton.c - u)
         delta = u - e0
         visc_vec = newton.viscous_force(u)
         work = self._obstacle_work(f)  # (and the law's fields to t^{n+1})
         kin, el, visc, con, ext, work = self.allsum(
-            kinetic_energy(s, v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
-            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(s.ops.load, delta)), work)
+            kinetic_energy(problem, v1), self._stored(u), float(np.dot(visc_vec * problem.interior, delta)),
+            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(problem.ops.load, delta)), work)
         num = self.E - (kin + el) - visc - con + ext
         con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
         self.E = kin + el
-        if s.penalty != "explicit":
+        if problem.penalty != "explicit":
             self.force_density[:] = f * self.inv_mF
         self.old[:], self.eta_[:], self.v[:] = e0, u, v1
         self._force()
@@ -187,7 +187,7 @@ class ImplicitScheme(_NewtonScheme):
         if not self.moving:
             return 0.0
         self.k += 1
-        psi_new = self.s.obstacle.set(self.k * self.s.dt).copy()
+        psi_new = self.problem.obstacle.set(self.k * self.problem.dt).copy()
         work = 0.5 * float(np.dot(f, psi_new - self.psi_levels[0]))
         self.psi_levels = [self.psi_levels[1], psi_new]
         return work

@@ -65,34 +65,35 @@ class Scheme(_NewtonScheme):
             return f"model '{model.name}' has no penalty_damping (its law is not a velocity damping)"
         return None
 
-    def __init__(self, s):
-        super().__init__(s)
-        n, laws = s.n_owned, s.laws
-        check_law_stability(laws.model, s.dt, s.eps, s.penalty)
+    def __init__(self, problem):
+        super().__init__(problem)
+        n, laws = problem.n_owned, problem.laws
+        check_law_stability(laws.model, problem.dt, problem.eps, problem.penalty)
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
-        self.allsum, self.anysum = Ranks(s.comm).sum, Ranks(s.comm).any
+        self.allsum, self.anysum = Ranks(problem.comm).sum, Ranks(problem.comm).any
         self.eta_, self.v_ = np.zeros(n), np.zeros(n)
         self.force_density = np.zeros(n)
-        self.moving = s.obstacle is not None  # ψ(x, t): the damping brakes v − ψ_t (module docstring)
+        self.moving = problem.obstacle is not None  # ψ(x, t): the damping brakes v − ψ_t (module docstring)
         self.k = 0  # the step index: η^k is the current state
-        if s.ops.nonlinear is not None:
-            self.newton = NewtonStep(s, NEWMARK)
+        if problem.ops.nonlinear is not None:
+            self.newton = NewtonStep(problem, NEWMARK)
             self.v_old = np.zeros(n)  # v^{n−1}: the guess extrapolates v
         else:
             self.newton = None
-            self._linear_operators(s)
+            self._linear_operators(problem)
             self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
 
-    def _linear_operators(self, s) -> None:
+    def _linear_operators(self, problem) -> None:
         """The linear path's matrix, its factorisation, the stacked [K; C] and the scratch vectors."""
-        ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
+        ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
         same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
-        self.Ms = diagonal_matrix(ops.M, ops.m) if s.mass == "lumped" else ops.M
+        self.Ms = diagonal_matrix(ops.M, ops.m) if problem.mass == "lumped" else ops.M
         self.A = ops.K.copy()
         self.A.axpy(2.0 / dt, ops.C, structure=same)
         self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
-        dirichlet_rows(self.A, s.bc)
-        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # 4D/Δt goes on its diagonal
+        dirichlet_rows(self.A, problem.bc)
+        # 4D/Δt goes on its diagonal
+        self.lu = DampedLU(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
         self.KC_now, self.KC_new = ((petsc_vector(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
         self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -123,22 +124,22 @@ class Scheme(_NewtonScheme):
 
     def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""
-        if self.s.mass == "lumped":
-            return np.multiply(self.s.ops.m, u, out=self.Mu)
-        self.Ms.mult(self.vec[name] if name else petsc_vector(u, self.s.comm), self.vec["Mu"])
+        if self.problem.mass == "lumped":
+            return np.multiply(self.problem.ops.m, u, out=self.Mu)
+        self.Ms.mult(self.vec[name] if name else petsc_vector(u, self.problem.comm), self.vec["Mu"])
         return self.Mu
 
     def start(self, eta0, v0):
         if self.moving:
-            self.s.obstacle.set_centred(0.0)
+            self.problem.obstacle.set_centred(0.0)
         self.eta_[:], self.v_[:] = eta0, v0
         if self.newton is not None:
             self.v_old[:] = v0
             self.newton.start_fields(eta0, v0)
-            kin, el = self.allsum(kinetic_energy(self.s, self.v_), self._stored(self.eta_))
+            kin, el = self.allsum(kinetic_energy(self.problem, self.v_), self._stored(self.eta_))
             self.E = kin + el
             return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
-        self.KC.mult(petsc_vector(self.eta_, self.s.comm), self.KC_now[0])
+        self.KC.mult(petsc_vector(self.eta_, self.problem.comm), self.KC_now[0])
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
         el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
         self.kin, self.el = self.allsum(kin, el)
@@ -146,15 +147,15 @@ class Scheme(_NewtonScheme):
 
     def _active_damping(self) -> None:
         """D = m_F d at η^n, v^n."""
-        s = self.s
-        s.laws.set(eta=self.eta_, v=self.v_)
-        d = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float)
-        np.multiply(d, s.interior, out=self.work[0])  # (d·1 is d: the old `* np.ones` only broadcast a constant)
-        np.multiply(s.ops.m_force, self.work[0], out=self.D)
+        problem = self.problem
+        problem.laws.set(eta=self.eta_, v=self.v_)
+        d = np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float)
+        np.multiply(d, problem.interior, out=self.work[0])  # (d·1 is d: the old `* np.ones` only broadcast a constant)
+        np.multiply(problem.ops.m_force, self.work[0], out=self.D)
 
     def _solve(self) -> np.ndarray:
         """η^{n+1} into self.new for the current D; returns v^{n+1}."""
-        s, dt = self.s, self.s.dt
+        problem, dt = self.problem, self.problem.dt
         eta, v, D = self.eta_, self.v_, self.D
         a, b = self.work  # the same operations as written out with temporaries, into two buffers (bit for bit)
         np.multiply(4.0 / dt, D, out=a)
@@ -173,20 +174,20 @@ class Scheme(_NewtonScheme):
         a += b
         a *= D
         rhs += a
-        np.multiply(2.0, s.ops.load, out=b)
+        np.multiply(2.0, problem.ops.load, out=b)
         rhs += b
         if self.moving:  # the damping's target, −D(v^{n+1} − ψ_t^{n+1}): 2Dψ_t^{n+1} on the right
             np.multiply(2.0, D, out=b)
             b *= self.rate_new
             rhs += b
-        s.hold_ends(rhs)
+        problem.hold_ends(rhs)
         if self.lu.iterative:  # CG starts from the guess η^n + Δt v^n
             np.add(eta, dt * v, out=self.new)
         self.lu.solve(self.vec["rhs"], self.vec["new"])
         v_new = np.subtract(self.new, eta, out=self.v_new)  # 2/Δt (η^{n+1} − η^n) − v^n
         np.multiply(2.0 / dt, v_new, out=v_new)
         v_new -= v
-        v_new[s.bc] = 0.0
+        v_new[problem.bc] = 0.0
         return v_new
 
     def _obstacle_work(self, f: np.ndarray) -> float:
@@ -194,18 +195,18 @@ class Scheme(_NewtonScheme):
         from the contact term to the external work; 0 for an obstacle at rest."""
         if not self.moving:
             return 0.0
-        o, t = self.s.obstacle, (self.k + 1) * self.s.dt
+        o, t = self.problem.obstacle, (self.k + 1) * self.problem.dt
         return float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
 
     def step(self):
         if self.newton is not None:
             return self._newton_step()
-        s, dt = self.s, self.s.dt
+        problem, dt = self.problem, self.problem.dt
         eta, v, D = self.eta_, self.v_, self.D
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
         self._active_damping()
         if self.moving:
-            self.rate_new[:] = self.s.obstacle.centred_rate((self.k + 1) * dt)[: self.s.n_owned]
+            self.rate_new[:] = self.problem.obstacle.centred_rate((self.k + 1) * dt)[: self.problem.n_owned]
         v_new = self._solve()
         # A damping that holds a node down (F = −D v^{n+1} < 0, it wants to lift) would do work against the
         # mean velocity and raise the energy: release such nodes and solve again (a few times at most).
@@ -225,34 +226,36 @@ class Scheme(_NewtonScheme):
             con += work
         else:
             con, work = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b))), 0.0
-        ext = 0.5 * dt * float(np.dot(s.ops.load, mean)) + work
+        ext = 0.5 * dt * float(np.dot(problem.ops.load, mean)) + work
         kin = 0.5 * float(np.dot(v_new, self._mass(v_new, "v_new")))
         el = 0.5 * float(np.dot(self.new, KC_new[0]))
         kin, el, visc, con, ext = self.allsum(kin, el, visc, con, ext)
         b[:] = 0.0  # −(D/m_F)·v^{n+1}, 0 where no force acts (m_F = 0)
-        np.divide(D, s.ops.m_force, out=b, where=s.ops.m_force > 0)
+        np.divide(D, problem.ops.m_force, out=b, where=problem.ops.m_force > 0)
         np.negative(b, out=b)
         np.multiply(b, v_new - self.rate_new if self.moving else v_new, out=self.force_density)
         eta[:], v[:] = self.new, v_new
         self.KC_now, self.KC_new = self.KC_new, self.KC_now
         self.k += 1
         if self.moving:  # the law's fields at t^{k}: the stored row's contact set, the next step's active set
-            self.s.obstacle.set_centred(self.k * dt)
+            self.problem.obstacle.set_centred(self.k * dt)
         return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0)
 
     def _newton_step(self):
         """The Newton path's step: the quotients `NEWMARK` in the model's residual, the damping on the diagonal."""
-        s, dt, newton = self.s, self.s.dt, self.newton
+        problem, dt, newton = self.problem, self.problem.dt, self.newton
         e0, v = self.eta_, self.v_
         newton.set_known(e0, None, v)
-        s.laws.set(eta=e0, v=v)
-        D = np.asarray(self.damping.evaluate_env(s.laws.env), dtype=float) * s.interior * s.ops.m_force
-        rate = s.obstacle.centred_rate((self.k + 1) * dt)[: s.n_owned] if self.moving else 0.0  # ψ_t^{n+1}: D brakes v − ψ_t
+        problem.laws.set(eta=e0, v=v)
+        D = (np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float) * problem.interior
+             * problem.ops.m_force)
+        # ψ_t^{n+1}: D brakes v − ψ_t
+        rate = problem.obstacle.centred_rate((self.k + 1) * dt)[: problem.n_owned] if self.moving else 0.0
         while True:  # −D (v^{n+1} − ψ_t^{n+1}) = −(2D/Δt)(u − η^n − (Δt/2)(v^n + ψ_t^{n+1}))
             newton.d[:], newton.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
             u = newton.solve(None if newton.guessless else e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated
             v1 = 2.0 * (u - e0) / dt - v
-            v1[s.bc] = 0.0
+            v1[problem.bc] = 0.0
             sticky = (D > 0) & (v1 > rate)  # a damping that would hold a node down: released (as on the linear path)
             if not self.anysum(bool(np.any(sticky))):
                 break
@@ -261,17 +264,17 @@ class Scheme(_NewtonScheme):
         delta = u - e0
         visc_vec = newton.viscous_force(u)
         kin, el, visc, con, ext, work = self.allsum(
-            kinetic_energy(s, v1), self._stored(u), float(np.dot(visc_vec * s.interior, delta)),
-            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(s.ops.load, delta)), self._obstacle_work(f))
+            kinetic_energy(problem, v1), self._stored(u), float(np.dot(visc_vec * problem.interior, delta)),
+            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(problem.ops.load, delta)), self._obstacle_work(f))
         num = self.E - (kin + el) - visc - con + ext
         con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
         self.E = kin + el
-        np.divide(f, s.ops.m_force, out=self.force_density, where=s.ops.m_force > 0)
-        self.force_density[s.ops.m_force <= 0] = 0.0
+        np.divide(f, problem.ops.m_force, out=self.force_density, where=problem.ops.m_force > 0)
+        self.force_density[problem.ops.m_force <= 0] = 0.0
         self.v_old[:], self.eta_[:], self.v_[:] = v, u, v1
         self.k += 1
         if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
-            self.s.obstacle.set_centred(self.k * dt)
+            self.problem.obstacle.set_centred(self.k * dt)
         return StepEnergy(kin, el, visc, con, num, ext, 0.0)
 
 

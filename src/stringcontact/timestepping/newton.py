@@ -106,14 +106,14 @@ class NewtonStep(LinearPath):
 
     reuse_jacobian = True
 
-    def __init__(self, s, quotients: dict, lower: np.ndarray | None = None):
-        form = s.ops.nonlinear
-        Z, n = form.space, s.n_owned
-        self.s, self.n, self.q = s, n, quotients
-        self.allsum, self.anyrank = Ranks(s.comm).sum, Ranks(s.comm).any
+    def __init__(self, problem, quotients: dict, lower: np.ndarray | None = None):
+        form = problem.ops.nonlinear
+        Z, n = form.space, problem.n_owned
+        self.problem, self.n, self.q = problem, n, quotients
+        self.allsum, self.anyrank = Ranks(problem.comm).sum, Ranks(problem.comm).any
         self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
-        self.lumped = s.mass == "lumped"
-        args = (self.u, self.e0, self.em, self.v0, s.dt)
+        self.lumped = problem.mass == "lumped"
+        args = (self.u, self.e0, self.em, self.v0, problem.dt)
         q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
         zero = ufl.zero()  # UFL's zero, not a Constant 0: the terms it multiplies leave the compiled kernel
         k = form.eta.ufl_shape[0] if form.eta_dofs is not None else 0  # the number of fields, η's among them
@@ -128,26 +128,26 @@ class NewtonStep(LinearPath):
         mapping = {form.eta: q_eta, form.eta_t: q_t, form.eta_tt: q_tt, form.force: zero}
         G = powers_as_products(ufl.replace(form.residual, mapping))
         G_static = powers_as_products(
-            ufl.replace(form.residual, mapping | {form.eta_t: zeros} | _without_dissipative(s, q_eta, k)))
+            ufl.replace(form.residual, mapping | {form.eta_t: zeros} | _without_dissipative(problem, q_eta, k)))
         self.G = PackedForm(G)  # assembled at least twice a step: its coefficients gathered, not packed again
         self.known = [f for f in self.G.functions if f is not self.u]  # what `_residual` does not refresh
         self.J_form = fem.form(ufl.derivative(G, self.u, ufl.TrialFunction(Z)))
         self.G_static_form = fem.form(G_static)
         self.energy_eta = form.energy_eta
         self.energy = PackedForm(powers_as_products(form.stored_energy))
-        self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, s.dt))  # ∂q_tt/∂u
+        self.a_tt = float(quotients["eta_tt"](1.0, 0.0, 0.0, 0.0, problem.dt))  # ∂q_tt/∂u
         self.G_vec = compat.create_vector(self.G.form)
         self.work_vec = compat.create_vector(self.G.form)
         self.J = fem.petsc.create_matrix(self.J_form)
         self.x = self.G_vec.duplicate()
         # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
         self.idx = slice(0, n) if form.eta_dofs is None else np.asarray(form.eta_dofs[:n])
-        self.bc = s.bc if form.eta_dofs is None else self.idx[s.bc]
+        self.bc = problem.bc if form.eta_dofs is None else self.idx[problem.bc]
         self.at = _as_slice(self.idx)  # the same entries, as a strided slice where they are one (a blocked space's)
         self.N = self.x.getLocalSize()
         self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
-        self.m_tt = self.a_tt * s.ops.m if self.lumped else np.zeros(n)
-        self.inertia = self.a_tt * s.ops.m
+        self.m_tt = self.a_tt * problem.ops.m if self.lumped else np.zeros(n)
+        self.inertia = self.a_tt * problem.ops.m
         self.f = np.zeros(n)  # the applied nodal force
         self.viscous_vecs = None  # C's (right, left) vectors for `viscous_force`
         self.d, self.c = np.zeros(n), np.zeros(n)  # an implicit damping d∘(u − c) on the diagonal
@@ -165,7 +165,7 @@ class NewtonStep(LinearPath):
             full = np.full(self.N, PETSc.NINFINITY)
             full[self.idx] = lower
             lower = full
-        self.g = s.g
+        self.g = problem.g
         lower = self._held_and_bounded(lower)
         self.bounds = None
         self.snes = self._snes(lower)
@@ -173,21 +173,21 @@ class NewtonStep(LinearPath):
         self.rescue, self.rescues = None, 0  # the other line search's SNES (made at the first failure), its solves
         self.try_free, self.free_solves = True, 0
         self.linear = self.quadratic = None  # the linear path (`_linear_path`), the energy as a quadratic form
-        if not getattr(s.laws.model, "newton", False) and affine_in(
+        if not getattr(problem.laws.model, "newton", False) and affine_in(
                 ufl.replace(form.residual, {form.force: zero}), (form.eta, form.eta_t, form.eta_tt)):
             self._linear_path()
 
     def _held_and_bounded(self, lower):
         """A model's other fields held at 0 on the boundary (`Model.held_fields`: their rows join η's ends in
         `bc`, their values in `g`) and bounded below (`Model.field_lower`: the step becomes the VI)."""
-        s, form = self.s, self.s.ops.nonlinear
-        model = s.laws.model
+        problem, form = self.problem, self.problem.ops.nonlinear
+        model = problem.laws.model
         if form.eta_dofs is None:
             return lower
         dofs = {name: compat.sub_dofs(form.V, form.space, i + 1)[: self.n] for i, name in enumerate(model.fields)}
         for name in getattr(model, "held_fields", ()):
-            self.bc = np.concatenate([self.bc, dofs[name][s.bc]])
-            self.g = np.concatenate([self.g, np.zeros(len(s.bc))])
+            self.bc = np.concatenate([self.bc, dofs[name][problem.bc]])
+            self.g = np.concatenate([self.g, np.zeros(len(problem.bc))])
         bounds = model.field_lower(form.params) if getattr(model, "field_lower", None) is not None else {}
         if bounds and lower is None:
             lower = np.full(self.N, PETSc.NINFINITY)
@@ -198,13 +198,13 @@ class NewtonStep(LinearPath):
     def _snes(self, lower, line_search: str | None = None):
         """A SNES for G; a VI's (``vinewtonrsls``, `VI_DEFAULTS`) with `lower` (None: plain Newton, or the bounds
         already made, `bounds`, for a VI's rescue). `line_search` replaces the options' (a rescue's)."""
-        s = self.s
-        snes = PETSc.SNES().create(s.comm)
+        problem = self.problem
+        snes = PETSc.SNES().create(problem.comm)
         snes.setFunction(self._residual, self.G_vec)
         snes.setJacobian(self._jacobian, self.J)
-        options = solver_options(self.J.getSize()[0], s.comm.size, s.petsc_options, dim=s.x.ndim)
+        options = solver_options(self.J.getSize()[0], problem.comm.size, problem.petsc_options, dim=problem.x.ndim)
         vi = lower is not None or (line_search is not None and self.bounds is not None)
-        # s.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
+        # problem.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
         options = (
             {"snes_type": "vinewtonrsls" if vi else "newtonls"} | SNES_DEFAULTS | (VI_DEFAULTS if vi else {}) | options
         )
@@ -251,7 +251,7 @@ class NewtonStep(LinearPath):
         if not isinstance(self.idx, slice):  # (by reference: `_accept` puts each solution in an array of its own)
             levels[1], levels[0] = levels[0], levels[3]
             if v0 is not None:
-                levels[2] = (levels[0] - levels[1]) / self.s.dt
+                levels[2] = (levels[0] - levels[1]) / self.problem.dt
         for i, (a, keep) in enumerate(zip((e0, em, v0), self.arrays)):
             if a is not None:
                 keep[:] = a
@@ -287,7 +287,7 @@ class NewtonStep(LinearPath):
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         r = vec.array[self.idx].copy()
         if self.lumped:
-            r += self.s.ops.m * self.q["eta_tt"](u, *self.arrays, self.s.dt)
+            r += self.problem.ops.m * self.q["eta_tt"](u, *self.arrays, self.problem.dt)
         return r
 
     def last_residual(self, u: np.ndarray) -> np.ndarray:
@@ -303,12 +303,12 @@ class NewtonStep(LinearPath):
     def viscous_force(self, u: np.ndarray) -> np.ndarray:
         """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
         ∂R/∂η_t is constant, else two assemblies."""
-        if self.s.ops.nonlinear.viscous_linear:
+        if self.problem.ops.nonlinear.viscous_linear:
             if self.viscous_vecs is None:
-                self.viscous_vecs = self.s.ops.C.createVecs()
+                self.viscous_vecs = self.problem.ops.C.createVecs()
             q_t, out = self.viscous_vecs
-            q_t.array[:] = self.q["eta_t"](u, *self.arrays, self.s.dt)
-            self.s.ops.C.mult(q_t, out)
+            q_t.array[:] = self.q["eta_t"](u, *self.arrays, self.problem.dt)
+            self.problem.ops.C.mult(q_t, out)
             return out.array.copy()
         if self.linear is not None:  # ∂R/∂U_t q_t, and ∂R/∂U on the dissipative fields' values: kept products
             return self.terms.viscous(*self._at(u), self.at)
@@ -418,7 +418,7 @@ class NewtonStep(LinearPath):
             self.nodal_slope[:] = self.d + self.m_tt
         self.nodal_known[:] = self.d * self.c + self.f
         if self.lumped:
-            self.nodal_known -= self.s.ops.m * self.q["eta_tt"](0.0, *self.arrays, self.s.dt)
+            self.nodal_known -= self.problem.ops.m * self.q["eta_tt"](0.0, *self.arrays, self.problem.dt)
         x = self.x.array
         if self.linear is not None and (self.free is None or self.try_free):
             self._solve_linear(guess)
@@ -427,7 +427,7 @@ class NewtonStep(LinearPath):
                 return self._accept()
         # The residual's round-off floor: ROUNDOFF × the inertia term's norm (its largest term). An rtol below it
         # (a good predictor) would stall at the floor (2.6e-9 against 2.4e-9 asked at nx = 5000).
-        if "snes_atol" not in (self.s.petsc_options or {}):  # the user's wins
+        if "snes_atol" not in (self.problem.petsc_options or {}):  # the user's wins
             inertia = self.inertia * guess
             floor = max(ROUNDOFF * math.sqrt(self.allsum(float(np.dot(inertia, inertia)))[0]), 1e-50)
             for snes in (self.snes, self.free) if self.free is not None else (self.snes,):
@@ -463,7 +463,7 @@ class NewtonStep(LinearPath):
         """The model's form is not finite at the step's first guess (its residual there, before any
         Newton iteration): its cause is the form, which no smaller dt or sub-step changes. The error says so
         (``not_finite``: the run does not sub-step it)."""
-        model = self.s.laws.model
+        model = self.problem.laws.model
         residual = self.G_vec.array
         bad = residual[~np.isfinite(residual)]
         value = f"{bad[0]:g}" if bad.size else "not finite"
@@ -509,7 +509,7 @@ class NewtonStep(LinearPath):
 
     def field(self, i: int) -> np.ndarray:
         """Field `i` (0 is η) of the last solution, at the nodes of η's owned dofs."""
-        form = self.s.ops.nonlinear
+        form = self.problem.ops.nonlinear
         if form.eta_dofs is None:
             return self.levels[3].copy()
         return self.levels[3][compat.sub_dofs(form.V, form.space, i)[: self.n]]
@@ -537,15 +537,15 @@ class NewtonStep(LinearPath):
         }
 
 
-def _without_dissipative(s, q_eta, k: int) -> dict:
+def _without_dissipative(problem, q_eta, k: int) -> dict:
     """The model's dissipative fields (`Model.dissipative_fields`) at 0 in η's value: their work on η is then
     in the viscous work, as the η_t-dependent terms' (a lubricating fluid's)."""
-    model = s.laws.model
+    model = problem.laws.model
     names = getattr(model, "dissipative_fields", ())
     if not k or not names:
         return {}
     kept = [q_eta[i] if i == 0 or model.fields[i - 1] not in names else 0.0 for i in range(k)]
-    return {s.ops.nonlinear.eta: ufl.as_vector(kept)}
+    return {problem.ops.nonlinear.eta: ufl.as_vector(kept)}
 
 
 class _NewtonScheme(Base):
@@ -561,7 +561,7 @@ class _NewtonScheme(Base):
         A scheme's linear path (no Newton step) has none."""
         if self.newton is None:
             return {}
-        return {name: self.newton.field(i + 1) for i, name in enumerate(self.s.laws.model.fields)}
+        return {name: self.newton.field(i + 1) for i, name in enumerate(self.problem.laws.model.fields)}
 
     def _stored(self, eta) -> float:
         return self.newton.stored_energy(eta)

@@ -48,22 +48,23 @@ class Scheme(ImplicitScheme):
     QUOTIENTS = PAPER
     LINEAR_PATH = True
 
-    def __init__(self, s):
-        if s.ops.nonlinear is not None:  # the Newton path
-            super().__init__(s)
+    def __init__(self, problem):
+        if problem.ops.nonlinear is not None:  # the Newton path
+            super().__init__(problem)
             return
-        Base.__init__(self, s)
+        Base.__init__(self, problem)
         self.newton = None
-        ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
-        laws = s.laws
-        self.force_law = self._penalty_law(s)
-        self.A, self.Ms, C_over_dt = step_matrices(ops, dt, s.mass)
+        ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
+        laws = problem.laws
+        self.force_law = self._penalty_law(problem)
+        self.A, self.Ms, C_over_dt = step_matrices(ops, dt, problem.mass)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
-        dirichlet_rows(self.A, s.bc)
+        dirichlet_rows(self.A, problem.bc)
         self.energy_law = None
         if laws.model.contact_energy is not None:
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
-        self.lu = DampedLU(self.A, comm, s.petsc_options, s.bc, s.g, s.x.ndim)  # the semi-implicit penalty's damping goes on its diagonal
+        # the semi-implicit penalty's damping goes on its diagonal
+        self.lu = DampedLU(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
         self.allsum = Ranks(comm).sum
         self.anysum = Ranks(comm).any
 
@@ -87,12 +88,12 @@ class Scheme(ImplicitScheme):
         self.step_index = 0
         self.law_ahead = (-1, None)  # (step index, F) of the law evaluated by `contact_force`
         # Read every step (see `step`): set once.
-        self.dt, self.explicit, self.lumped = dt, s.penalty == "explicit", s.mass == "lumped"
-        self.m, self.m_force, self.load, self.hold_ends = m, mF, ops.load, s.hold_ends
+        self.dt, self.explicit, self.lumped = dt, problem.penalty == "explicit", problem.mass == "lumped"
+        self.m, self.m_force, self.load, self.hold_ends = m, mF, ops.load, problem.hold_ends
         self.iterative = self.lu.iterative
         self.env, self.key_eta, self.key_eta_old = laws.env, laws.key("eta"), laws.key("eta_old")
         self.K_etas = self.KC_etas[:, 0]  # K η of η^{n+1} and of η^n: a view, taken once
-        self.moving = s.obstacle is not None  # ψ(x, t): the law's fields follow it (`_obstacle_moved`)
+        self.moving = problem.obstacle is not None  # ψ(x, t): the law's fields follow it (`_obstacle_moved`)
         self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
 
     # -- the state the driver reads
@@ -112,9 +113,9 @@ class Scheme(ImplicitScheme):
         applied, −d v^n on its active set (which it brakes, so those nodes are still below the obstacle)."""
         if self.newton is not None:
             return self.force_density
-        if self.s.penalty == "explicit":
-            self.s.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
-            law = self.force_law.evaluate_env(self.s.laws.env)
+        if self.problem.penalty == "explicit":
+            self.problem.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
+            law = self.force_law.evaluate_env(self.problem.laws.env)
             self.law_ahead = (self.step_index, law)  # the next step applies this F(η^n, v^n): kept, not recomputed
             np.multiply(law, self.inv_mF > 0, out=self.force_density)  # 0 where no force acts (the ends)
         else:
@@ -125,15 +126,15 @@ class Scheme(ImplicitScheme):
     def timings(self):
         if self.newton is not None:
             return self.newton.describe()
-        counts = {"refactorisations": self.lu.refactorisations} if self.s.penalty != "explicit" else {}
+        counts = {"refactorisations": self.lu.refactorisations} if self.problem.penalty != "explicit" else {}
         return counts | {"linear solver": self.lu.linear.describe()}
 
     def stored_energy(self, eta) -> float:
         """Σ m_F Φ(η) on owned dofs: the energy held by a conservative (spring) law."""
         if self.energy_law is None:
             return 0.0
-        self.s.laws.set(eta=eta)
-        return float(np.dot(self.s.ops.m_force, self.energy_law.evaluate_env(self.s.laws.env)))
+        self.problem.laws.set(eta=eta)
+        return float(np.dot(self.problem.ops.m_force, self.energy_law.evaluate_env(self.problem.laws.env)))
 
     def _apply_mass(self, u, out) -> None:
         if self.lumped:
@@ -145,10 +146,10 @@ class Scheme(ImplicitScheme):
         if self.newton is not None:
             return super().start(eta0, v0)
         if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
-            self.psi_levels = [self.s.obstacle.owned(-self.dt).copy(), self.s.obstacle.set(0.0).copy()]
+            self.psi_levels = [self.problem.obstacle.owned(-self.dt).copy(), self.problem.obstacle.set(0.0).copy()]
         self.eta_now[1][:] = eta0
         self.v_now[1][:] = v0
-        self.eta_old[1][:] = eta0 - self.s.dt * self.v_now[1]
+        self.eta_old[1][:] = eta0 - self.problem.dt * self.v_now[1]
         self.KC.mult(self.eta_now[0], self.KC_old[0])
         self._apply_mass(self.v_now, self.M_v)
         kin, el, stored = self.allsum(
@@ -171,15 +172,15 @@ class Scheme(ImplicitScheme):
         part (d/Δt) η^n into by_v[1], where the explicit penalty has m_F∘F^n."""
         law, f_applied, diag_w = self._law(), self.by_v[1], self.diag_w
         active = law > 0
-        active &= self.s.interior
-        np.multiply(self.s.ops.m_force, law, out=diag_w)
-        diag_w *= 1.0 / self.s.dt
+        active &= self.problem.interior
+        np.multiply(self.problem.ops.m_force, law, out=diag_w)
+        diag_w *= 1.0 / self.problem.dt
         np.multiply(diag_w, active, out=diag_w)
         # Refactorise when the damping on the diagonal changes (the active set, or a state-dependent
         # coefficient of a model variant).
         self.lu.update(diag_w)
         if self.moving:  # the gap rate's: (d/Δt)(η^n + ψ^{n+1} − ψ^n)
-            self.dpsi = self.s.obstacle.owned((self.step_index + 1) * self.dt) - self.psi_levels[1]
+            self.dpsi = self.problem.obstacle.owned((self.step_index + 1) * self.dt) - self.psi_levels[1]
             np.multiply(diag_w, e0 + self.dpsi, out=f_applied)
             return
         np.multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
@@ -188,10 +189,11 @@ class Scheme(ImplicitScheme):
         if self.newton is not None:
             return super().step()
         # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
-        # flags and arrays read every step are attributes of the scheme set once in __init__ (not s.ops.m_force,
-        # s.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and 0.990 in three passes of
-        # benchmarks/bench_step.py --loop, docs/explanation/performance.md). Three of its four parts as methods cost 1 %
-        # (paired 1.010 and 1.011 against the step written as one function): kept, for a step that reads on one screen.
+        # flags and arrays read every step are attributes of the scheme set once in __init__ (not
+        # problem.ops.m_force, problem.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and
+        # 0.990 in three passes of benchmarks/bench_step.py --loop, docs/explanation/performance.md). Three of its
+        # four parts as methods cost 1 % (paired 1.010 and 1.011 against the step written as one function): kept, for
+        # a step that reads on one screen.
         e0, em = self.eta_now[1], self.eta_old[1]
         self._right_hand_side(e0, em)
         if self.iterative:  # CG starts from the guess 2η^n − η^{n−1}
@@ -223,7 +225,7 @@ class Scheme(ImplicitScheme):
         """A moving obstacle: the law's fields to t^{n+1} (the next step's law, the stored row's force), and the
         obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work moved from the contact dissipation to the
         external work, so that D_con = −(Δt/2) f·((v − ψ_t)^n + (v − ψ_t)^{n+1}) is the work on the gap."""
-        psi_new = self.s.obstacle.set((self.step_index + 1) * self.dt).copy()
+        psi_new = self.problem.obstacle.set((self.step_index + 1) * self.dt).copy()
         (work,) = self.allsum(0.5 * float(np.dot(self.by_v[1], psi_new - self.psi_levels[0])))
         self.psi_levels = [self.psi_levels[1], psi_new]
         kin, el, visc, con, num, ext, stored = terms

@@ -29,7 +29,7 @@ velocities of the leapfrog (at t = 0 the given v0), so each stored row waits for
 runs one step ahead of what it reports. The one-sided (η^n − η^{n−1})/Δt aliases where a landing front
 crosses the grid (neighbours alternate between 0 and V where the exact value is V/2) and does not converge.
 
-Restitution e ∈ [0, 1] (Paoli and Schatzman; `Setting.restitution`, the scene's ``restitution``): the step
+Restitution e ∈ [0, 1] (Paoli and Schatzman; `DiscreteProblem.restitution`, the scene's ``restitution``): the step
 projects a weighted position. With the free predictor η̃ = A⁻¹b, the e = 0 step is η^{n+1} = argmin_{η ≥ ψ}
 ½|η − η̃|²_A; with e it is z = argmin_{z ≥ ψ} ½|z − z̃|²_A for z = (η^{n+1} + e η^{n−1})/(1 + e) and
 z̃ = (η̃ + e η^{n−1})/(1 + e), that is
@@ -124,24 +124,24 @@ class Scheme(_NewtonScheme):
             return f"model '{model.name}' declares no gap (its law lets the string through the obstacle)"
         return None
 
-    def __init__(self, s):
-        super().__init__(s)
-        n, comm = s.n_owned, s.comm
-        nonlinear = s.ops.nonlinear is not None
-        self.dt_max = largest_stable_dt(s.ops, s.interior, krylov=s.x.ndim == 2, dt=s.dt)
-        self._check_dt(f"(its explicit elastic term, linearised at {s.ops.linearised_at})" if nonlinear else
+    def __init__(self, problem):
+        super().__init__(problem)
+        n, comm = problem.n_owned, problem.comm
+        nonlinear = problem.ops.nonlinear is not None
+        self.dt_max = largest_stable_dt(problem.ops, problem.interior, krylov=problem.x.ndim == 2, dt=problem.dt)
+        self._check_dt(f"(its explicit elastic term, linearised at {problem.ops.linearised_at})" if nonlinear else
                        "(its explicit elastic term; dt_max from the operators)")
-        laws = s.laws
+        laws = problem.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
         self.psi = self._obstacle()
         self.allsum, self.anysum = Ranks(comm).sum, Ranks(comm).any
         # Four rotating time levels [next, ahead, now, before], each η, [K η, (C/Δt) η] and the force density
         # that produced it: `now` is what the scheme reports, `ahead` (one step on) gives its centred velocity.
         self.levels = [_Level(comm, n) for _ in range(4)]
-        self.inv_mF = np.divide(1.0, s.ops.m_force, out=np.zeros(n), where=s.ops.m_force > 0)
+        self.inv_mF = np.divide(1.0, problem.ops.m_force, out=np.zeros(n), where=problem.ops.m_force > 0)
         self.v0 = None  # the given initial velocity, reported at t = 0
-        self.e = s.restitution
-        self.moving = s.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
+        self.e = problem.restitution
+        self.moving = problem.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
         self.k = 0  # the level `ahead` holds: η^k at t = kΔt
         self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's)
         # the model's release (`Model.release`): "signorini" adds the half-cell impulses of `release.py`
@@ -151,28 +151,28 @@ class Scheme(_NewtonScheme):
                              "'projection' takes on its linear path with restitution 0 and a fixed obstacle only")
         self.F_last = np.zeros(n)  # the nodal contact force of the last step, F^{n−1}
         if nonlinear:
-            self.newton = NewtonStep(s, PROJECTION, lower=self._lower(self.psi))
+            self.newton = NewtonStep(problem, PROJECTION, lower=self._lower(self.psi))
             self._check_fields_stiffness()
             self.energy_may_rise = True  # a nonlinear force in a non-dissipative step
         else:
             self.newton = None
-            self._linear_operators(s)
+            self._linear_operators(problem)
             # a rebound gives back in its later steps what its first steps took; a moving obstacle gives energy
             self.energy_may_rise = bool(self.e) or self.moving or self.signorini  # a release gives a landing's back
 
-    def _linear_operators(self, s) -> None:
+    def _linear_operators(self, problem) -> None:
         """The linear path's constant operators, its contact step and its scratch vectors."""
-        ops, dt, comm, n = s.ops, s.dt, s.comm, s.n_owned
+        ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
         A = diagonal_matrix(ops.M, ops.m / dt**2)
         A.axpy(1.0 / dt, ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        dirichlet_rows(A, s.bc)
+        dirichlet_rows(A, problem.bc)
         self.A_diagonal = A.getDiagonal().array.copy()
         C_over_dt = ops.C.copy()
         C_over_dt.scale(1.0 / dt)
         self.KC = stacked(ops.K, C_over_dt)  # K η and (C/Δt) η of one η in one mat-vec
         self.m_dt2 = ops.m / dt**2
-        self.contact_step = ActiveSet(A, comm, s.petsc_options, s.bc, s.g, s.x.ndim, self.psi, s.interior,
-                                      force_tol=np.zeros(n))
+        self.contact_step = ActiveSet(A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim, self.psi,
+                                      problem.interior, force_tol=np.zeros(n))
         rhs = np.zeros(n)
         self.rhs = (petsc_vector(rhs, comm), rhs)
         self.R = np.zeros(n)  # A η − b of the latest iterate
@@ -185,32 +185,32 @@ class Scheme(_NewtonScheme):
 
     def _check_dt(self, why: str) -> None:
         """InstabilityError (one line) if Δt is above the stable `dt_max` of the explicit elastic term."""
-        s = self.s
-        if s.dt > self.dt_max * (1 + 1e-12):
+        problem = self.problem
+        if problem.dt > self.dt_max * (1 + 1e-12):
             raise InstabilityError(
-                f"scheme 'projection' is unstable with dt = {s.dt:.6g} > dt_max = {self.dt_max:.6g} {why}; use "
-                f"nt >= {math.ceil(s.dt * s.nt / self.dt_max)} (dt <= {self.dt_max:.6g}), or scheme 'newmark' or "
-                "'paper' for larger steps", step=0, time=0.0)
+                f"scheme 'projection' is unstable with dt = {problem.dt:.6g} > dt_max = {self.dt_max:.6g} {why}; use "
+                f"nt >= {math.ceil(problem.dt * problem.nt / self.dt_max)} (dt <= {self.dt_max:.6g}), or scheme "
+                "'newmark' or 'paper' for larger steps", step=0, time=0.0)
 
     def _check_fields_stiffness(self) -> None:
         """A model whose other fields add to η's stiffness (a fourth-order term through η's second derivative:
         K + βKM⁻¹K) has them explicit here too (their rows read η^n): its stable Δt is that of η's stiffness with the
         fields eliminated (`NewtonStep.eta_stiffness`, on the linear path), a smaller one than the fields-at-0
         tangent's checked above."""
-        s = self.s
+        problem = self.problem
         S = self.newton.eta_stiffness()
         if S is None:
             return
-        if s.x.ndim == 2:  # no Gershgorin bound or SLEPc copy of a shell: its top mode by SLEPc on the shell
-            lam, phi = top_mode_of_shell(S, s.ops.m, s.interior)
-            self.dt_max = min(self.dt_max, dt_of_mode(lam, phi, S, s.ops.C))
+        if problem.x.ndim == 2:  # no Gershgorin bound or SLEPc copy of a shell: its top mode by SLEPc on the shell
+            lam, phi = top_mode_of_shell(S, problem.ops.m, problem.interior)
+            self.dt_max = min(self.dt_max, dt_of_mode(lam, phi, S, problem.ops.C))
         else:  # a string: power iteration from the alternating mode, as for K
-            self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(s.ops, K=S), s.interior))
-        self._check_dt(f"(its explicit elastic term with the model's fields {', '.join(s.laws.model.fields)})")
+            self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(problem.ops, K=S), problem.interior))
+        self._check_dt(f"(its explicit elastic term with the model's fields {', '.join(problem.laws.model.fields)})")
 
     def _obstacle(self) -> np.ndarray:
         """ψ at the nodes, from gap(η) = η − ψ; ValueError unless gap has slope 1 in η and gap ≤ 0 is the contact set."""
-        laws, n = self.s.laws, self.s.n_owned
+        laws, n = self.problem.laws, self.problem.n_owned
         model = laws.model
         g = [np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): np.full(n, c)}), dtype=float) * np.ones(n)
              for c in (0.0, 1.0)]
@@ -220,14 +220,14 @@ class Scheme(_NewtonScheme):
         psi = -g[0]
         for shift, expected in ((1e-3, False), (-1e-3, True)):
             found = np.asarray(contact.evaluate_env(laws.env | {id(laws.eta): psi + shift}), dtype=bool) * np.ones(n, bool)
-            if np.any(found[self.s.interior] != expected):
+            if np.any(found[self.problem.interior] != expected):
                 raise ValueError(f"model '{model.name}': its gap and contact_set disagree (gap <= 0 must be the contact "
                                  "set); a variant that moves the obstacle must give both")
         return psi
 
     def _lower(self, bound: np.ndarray) -> np.ndarray:
         """The Newton path's VI bound: `bound` at the interior nodes, none at the held ends."""
-        return np.where(self.s.interior, bound, PETSc.NINFINITY)
+        return np.where(self.problem.interior, bound, PETSc.NINFINITY)
 
     @property
     def eta(self):
@@ -237,7 +237,7 @@ class Scheme(_NewtonScheme):
     def velocity(self):
         if self.v0 is not None:
             return self.v0
-        return (self.levels[1].eta - self.levels[3].eta) / (2.0 * self.s.dt)
+        return (self.levels[1].eta - self.levels[3].eta) / (2.0 * self.problem.dt)
 
     @property
     def contact_force(self):
@@ -250,18 +250,19 @@ class Scheme(_NewtonScheme):
         return {"linear solver": self.contact_step.describe_solver(), "contact step": self.contact_step.describe()}
 
     def contact(self) -> np.ndarray:
-        laws = self.s.laws
+        laws = self.problem.laws
         if self.moving:  # the obstacle where the reported level is, one step behind the computed one
-            self.s.obstacle.set((self.k - 1) * self.s.dt)
+            self.problem.obstacle.set((self.k - 1) * self.problem.dt)
         laws.set(eta=self.eta)
         return self._contact_law.evaluate_env(laws.env)
 
     def _obstacle_at(self, t: float) -> np.ndarray:
         """A moving obstacle's ψ(·, t) on the owned nodes, from the model's gap: −gap(0) with the fields at t."""
-        s, laws = self.s, self.s.laws
-        s.obstacle.set(t)
-        zeros = np.zeros(s.n_owned)
-        return -np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): zeros}), dtype=float) * np.ones(s.n_owned)
+        problem, laws = self.problem, self.problem.laws
+        problem.obstacle.set(t)
+        zeros = np.zeros(problem.n_owned)
+        return (-np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): zeros}), dtype=float)
+                * np.ones(problem.n_owned))
 
     def _move(self) -> float:
         """ψ^{k+1} into the contact step's bound; returns the obstacle's work ½ F·(ψ^{k+1} − ψ^{k−1}) to book (the
@@ -269,7 +270,7 @@ class Scheme(_NewtonScheme):
         −½ F·(gap^{k+1} − gap^{k−1}) ≥ 0), as a function of F."""
         self.k += 1
         before, now = self.psi_levels
-        new = self._obstacle_at(self.k * self.s.dt)
+        new = self._obstacle_at(self.k * self.problem.dt)
         np.copyto(self.psi, new)
         if self.newton is None:
             self.contact_step.moved()
@@ -279,14 +280,14 @@ class Scheme(_NewtonScheme):
         return lambda F: 0.5 * float(np.dot(F, new - before))
 
     def start(self, eta0, v0):
-        s = self.s
-        laws = s.laws
-        scale = max(float(s.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
-                    float(np.max(np.abs(s.g), initial=0.0)), 1e-300)
+        problem = self.problem
+        laws = problem.laws
+        scale = max(float(problem.comm.allreduce(np.max(np.abs(eta0), initial=0.0), op=MPI.MAX)),
+                    float(np.max(np.abs(problem.g), initial=0.0)), 1e-300)
         if self.moving:  # the heights the obstacle carries the string to
-            scale = max(scale, s.comm.allreduce(float(np.max(np.abs(self._obstacle_at(s.dt * s.nt)[s.interior]),
-                                                             initial=0.0)), op=MPI.MAX))
-            self.psi_levels = [self._obstacle_at(-s.dt), self._obstacle_at(0.0)]
+            carried = self._obstacle_at(problem.dt * problem.nt)[problem.interior]
+            scale = max(scale, problem.comm.allreduce(float(np.max(np.abs(carried), initial=0.0)), op=MPI.MAX))
+            self.psi_levels = [self._obstacle_at(-problem.dt), self._obstacle_at(0.0)]
             np.copyto(self.psi, self.psi_levels[1])
             if self.newton is not None:
                 self.newton.set_lower(self._lower(self.psi))
@@ -295,15 +296,15 @@ class Scheme(_NewtonScheme):
         self._contact_law = laws.compile(laws.model.contact_set(laws.eta - tol, laws.params))
         ahead, now = self.levels[1], self.levels[2]
         ahead.eta[:] = eta0
-        below = s.interior & (ahead.eta < self.psi)
+        below = problem.interior & (ahead.eta < self.psi)
         if self.anysum(bool(np.any(below))):
             warnings.warn("scheme 'projection': the initial displacement is below the obstacle at some nodes; "
                           "projected onto it at t = 0 (the penalty schemes let it rise through instead)",
                           SceneWarning, stacklevel=4)
             ahead.eta[below] = self.psi[below]
-        np.subtract(ahead.eta, s.dt * v0, out=now.eta)
+        np.subtract(ahead.eta, problem.dt * v0, out=now.eta)
         if self.signorini:  # + (Δt²/2) a0: the elastic force acts over the first half-cell only
-            now.eta += start_correction(s, ahead.eta, v0, self.psi, self.tol)
+            now.eta += start_correction(problem, ahead.eta, v0, self.psi, self.tol)
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
         terms = self._start_linear(ahead, now) if self.newton is None else self._start_newton(ahead, now, v0)
@@ -322,11 +323,12 @@ class Scheme(_NewtonScheme):
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def _start_newton(self, ahead, now, v0) -> StepEnergy:
-        s = self.s
-        d = (ahead.eta - now.eta) / s.dt
+        problem = self.problem
+        d = (ahead.eta - now.eta) / problem.dt
         self.newton.start_fields(ahead.eta, v0)
         self.stored_ahead = self._stored(ahead.eta)  # the next step's Π(η^n), this rank's share
-        kin, el = self.allsum(0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + self._stored(now.eta)))
+        kin, el = self.allsum(0.5 * float(np.dot(d, problem.ops.m * d)),
+                              0.5 * (self.stored_ahead + self._stored(now.eta)))
         self.E = kin + el
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
@@ -347,13 +349,13 @@ class Scheme(_NewtonScheme):
             np.multiply(self.m_dt2, eta, out=self.R)
             self.R += level.kc[1]
             self.R -= rhs
-            self.R *= self.s.interior
+            self.R *= self.problem.interior
             return self.R
         return residual
 
     def _advance_linear(self):
         """The linear path's step: the contact step of A η^{n+1} = b + F (`complementarity.ActiveSet`)."""
-        s = self.s
+        problem = self.problem
         new, e0, em = self.levels[0], self.levels[1], self.levels[2]
         rhs_v, rhs = self.rhs
         # A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n − K η^n + b + F
@@ -363,11 +365,11 @@ class Scheme(_NewtonScheme):
         rhs += e0.kc[1]
         rhs -= e0.kc[0]
         if self.has_load:
-            rhs += s.ops.load
-        s.hold_ends(rhs)
+            rhs += problem.ops.load
+        problem.hold_ends(rhs)
         carry = None
         if self.signorini:  # ½F^{n−1} on the nodes resting since t_{n−2}: the first half of their cell
-            carry = carried_force(e0.eta, em.eta, self.levels[3].eta, self.psi, self.F_last, s.interior, self.tol)
+            carry = carried_force(e0.eta, em.eta, self.levels[3].eta, self.psi, self.F_last, problem.interior, self.tol)
             rhs += carry
         if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
             np.subtract(e0.eta, em.eta, out=new.eta)
@@ -391,7 +393,7 @@ class Scheme(_NewtonScheme):
         d += e0.eta
         d -= em.eta  # now η^{n+1} − η^{n−1}
         con = -0.5 * float(np.dot(F, d))
-        ext = 0.5 * float(np.dot(s.ops.load, d)) if self.has_load else 0.0
+        ext = 0.5 * float(np.dot(problem.ops.load, d)) if self.has_load else 0.0
         if obstacle_work is not None:  # the obstacle's share of F's work is external work, not contact dissipation
             work = obstacle_work(F)
             con, ext = con + work, ext + work
@@ -413,7 +415,7 @@ class Scheme(_NewtonScheme):
         rhs_z *= e
         rhs_z += rhs
         rhs_z /= 1.0 + e
-        self.s.hold_ends(rhs_z)  # z = g at the ends, as η^{n+1} and η^{n−1} are
+        self.problem.hold_ends(rhs_z)  # z = g at the ends, as η^{n+1} and η^{n−1} are
         if self.contact_step.iterative:  # z of the leapfrog's guess
             np.multiply(e, em.eta, out=z.eta)
             z.eta += new.eta
@@ -422,7 +424,7 @@ class Scheme(_NewtonScheme):
         np.maximum(G, 0.0, out=G)
         np.multiply(1.0 + e, z.eta, out=new.eta)
         new.eta -= e * em.eta
-        self.s.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
+        self.problem.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
         np.multiply(1.0 + e, z.kc, out=new.kc)
         new.kc -= e * em.kc
         G *= 1.0 + e
@@ -430,7 +432,7 @@ class Scheme(_NewtonScheme):
 
     def _advance_newton(self):
         """The Newton path's step: the VI G(u) ⊥ u − lower ≥ 0, the force the reaction on the active set."""
-        s, dt, newton = self.s, self.s.dt, self.newton
+        problem, dt, newton = self.problem, self.problem.dt, self.newton
         new, ahead, now = self.levels[0], self.levels[1], self.levels[2]
         e0, em = ahead.eta, now.eta
         obstacle_work = self._move() if self.moving else None
@@ -438,9 +440,9 @@ class Scheme(_NewtonScheme):
         lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
         if self.e:
             newton.set_lower(self._lower(lower))
-        u = newton.solve(np.maximum(2 * e0 - em, np.where(s.interior, lower, -np.inf)))
+        u = newton.solve(np.maximum(2 * e0 - em, np.where(problem.interior, lower, -np.inf)))
         r = newton.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
-        active = s.interior & (u <= lower + self.tol)
+        active = problem.interior & (u <= lower + self.tol)
         F = np.where(active, np.maximum(r, 0.0), 0.0)
         delta = 0.5 * (u - em)
         work = obstacle_work(F) if obstacle_work is not None else 0.0  # the obstacle's share of F's work
@@ -448,9 +450,9 @@ class Scheme(_NewtonScheme):
         d = (u - e0) / dt
         stored_e0, self.stored_ahead = self.stored_ahead, self._stored(u)  # Π(η^n) assembled last step, as its Π(u)
         kin, el, visc, con, ext = self.allsum(
-            0.5 * float(np.dot(d, s.ops.m * d)), 0.5 * (self.stored_ahead + stored_e0),
-            float(np.dot(visc_vec * s.interior, delta)), -float(np.dot(F, delta)) + work,
-            float(np.dot(s.ops.load, delta)) + work)
+            0.5 * float(np.dot(d, problem.ops.m * d)), 0.5 * (self.stored_ahead + stored_e0),
+            float(np.dot(visc_vec * problem.interior, delta)), -float(np.dot(F, delta)) + work,
+            float(np.dot(problem.ops.load, delta)) + work)
         num = self.E - (kin + el) - visc - con + ext
         self.E = kin + el
         new.eta[:] = u

@@ -39,16 +39,16 @@ def release_of(model) -> str:
     return release
 
 
-def start_correction(s, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: float) -> np.ndarray:
+def start_correction(problem, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: float) -> np.ndarray:
     """(Δt²/2) a0 on the free interior nodes, a0 = m⁻¹(b − Kη0 − Cv0) (0 where η0 is within `tol` of ψ)."""
-    ops, n = s.ops, s.n_owned
+    ops, n = problem.ops, problem.n_owned
     eta, vel = np.array(eta0, dtype=float), np.array(v0, dtype=float)
     k_eta, c_v = np.zeros(n), np.zeros(n)
-    ops.K.mult(petsc_vector(eta, s.comm), petsc_vector(k_eta, s.comm))
-    ops.C.mult(petsc_vector(vel, s.comm), petsc_vector(c_v, s.comm))
+    ops.K.mult(petsc_vector(eta, problem.comm), petsc_vector(k_eta, problem.comm))
+    ops.C.mult(petsc_vector(vel, problem.comm), petsc_vector(c_v, problem.comm))
     a0 = (ops.load - k_eta - c_v) / ops.m
-    free = s.interior & (eta > psi + tol)
-    return np.where(free, 0.5 * s.dt**2 * a0, 0.0)
+    free = problem.interior & (eta > psi + tol)
+    return np.where(free, 0.5 * problem.dt**2 * a0, 0.0)
 
 
 def carried_force(eta_n, eta_nm1, eta_nm2, psi, F_last, interior, tol: float) -> np.ndarray:
