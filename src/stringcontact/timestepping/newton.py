@@ -113,7 +113,10 @@ class NewtonStep(LinearPath):
         self.allsum, self.anyrank = Ranks(problem.comm).sum, Ranks(problem.comm).any
         self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
         self.lumped = problem.mass == "lumped"
-        args = (self.u, self.e0, self.em, self.v0, problem.dt)
+        # Δt as a Constant, not a float in the kernels: a run of another Δt (a study, a retry's sub-steps) reuses
+        # the compiled forms (a cold JIT compiles a form in about 1 s)
+        dt = fem.Constant(Z.mesh, PETSc.ScalarType(problem.dt))
+        args = (self.u, self.e0, self.em, self.v0, dt)
         q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
         zero = ufl.zero()  # UFL's zero, not a Constant 0: the terms it multiplies leave the compiled kernel
         k = form.eta.ufl_shape[0] if form.eta_dofs is not None else 0  # the number of fields, η's among them
