@@ -186,6 +186,35 @@ def piston_folder(tmp_path_factory):
     return out, res
 
 
+#: the demos (demos/demo_*.py), in the order tests/system/test_demos.py runs them; the site build takes them backwards
+DEMOS = sorted((TESTS.parent / "demos").glob("demo_*.py"))
+
+
+@pytest.fixture(scope="session")
+def demo_work(tmp_path_factory, worker_id) -> Path:
+    """The folder the demos run into once per test run, shared by all pytest-xdist workers (their common base
+    folder, as pytest-xdist's documentation shares a session's data): the demo tests read the runs, and the site
+    build (tests/docs/test_site.py) renders them as its pages instead of running them again."""
+    base = tmp_path_factory.getbasetemp()
+    return (base if worker_id == "master" else base.parent) / "demo-runs"
+
+
+def demo_run(demo: Path, work: Path) -> tuple[list[dict], Path, str]:
+    """`demo` run by the docs build's own runner (docs/_ext/demo_pages.py's `execute`: cell by cell at reduced
+    resolution, in an empty working folder it must leave empty) into `work`, once: (its records, per code cell
+    what it printed and which pictures it wrote; its output folder; what it printed to stderr). Each demo has
+    its own lock, so two workers run two demos at once and a worker that needs a demo being run waits for it."""
+    from filelock import FileLock
+
+    sys.path.insert(0, str(TESTS.parent / "docs" / "_ext"))
+    import demo_pages
+
+    work.mkdir(parents=True, exist_ok=True)
+    with FileLock(str(work / f"{demo.stem}.lock")):
+        records, out = demo_pages.execute(demo, work, TESTS.parent / "src" / "stringcontact")
+    return records, out, (work / f"{demo.stem}.stderr").read_text()
+
+
 def run_problem(scene, scheme=None, penalty=None, mass=None, model=None):
     """(the `DiscreteProblem` a serial run of `scene` hands its scheme, η⁰, v⁰): a `Stepper`'s problem, for a test
     that drives a scheme object itself; η⁰ with the ends at their heights, v⁰ at rest at the ends, in its dof

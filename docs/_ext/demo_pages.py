@@ -6,8 +6,9 @@ what each code cell printed and which pictures it wrote. The page is the demo's 
 followed by its printed lines and its pictures, as dolfinx renders its demos (jupytext to MyST).
 
 Why executed and not cached: the pictures and numbers on a page are then those of the code beside them, and a
-demo that no longer runs fails the build. All nine take about 50 s on the 2-core VM. A page is made again only
-when its demo or the package's source changed (a hash of both, kept beside the records in the build folder).
+demo that no longer runs fails the build. A page is made again only when its demo or the package's source changed
+(a hash of both, kept beside the records in the build folder). The tests run the demos through `execute` too
+(tests/conftest.py's `demo_run`), into the folder their site build then reads: each demo runs once per test run.
 """
 
 from __future__ import annotations
@@ -70,17 +71,31 @@ def _stamp(demo: Path, package: Path) -> str:
     return digest.hexdigest()
 
 
-def _execute(demo: Path, work: Path, package: Path) -> tuple[list[dict], Path]:
-    """The records of `demo` and its output folder: run it unless a run of the same sources is kept in `work`."""
+#: seconds a demo may run (at reduced resolution each takes well under a minute): a hung demo fails the build
+TIMEOUT = 900
+
+
+def execute(demo: Path, work: Path, package: Path) -> tuple[list[dict], Path]:
+    """The records of `demo` and its output folder: run it unless a run of the same sources is kept in `work`.
+
+    The demo runs in an empty folder of its own (work/DEMO.cwd) and must leave it empty: a demo writes only under
+    STRINGCONTACT_DEMO_OUT. What it printed to stderr is kept in work/DEMO.stderr."""
     out, record, stamp = work / demo.stem, work / f"{demo.stem}.json", work / f"{demo.stem}.stamp"
     want = _stamp(demo, package)
     if not (record.exists() and stamp.exists() and stamp.read_text() == want):
         _fresh_folder(out)
-        proc = subprocess.run([sys.executable, __file__, str(demo), str(out), str(record)], cwd=work,
-                              capture_output=True, text=True, check=False)
+        stamp.unlink(missing_ok=True)
+        cwd = work / f"{demo.stem}.cwd"
+        shutil.rmtree(cwd, ignore_errors=True)
+        cwd.mkdir()
+        proc = subprocess.run([sys.executable, __file__, str(demo), str(out), str(record)], cwd=cwd,
+                              capture_output=True, text=True, check=False, timeout=TIMEOUT)
+        (work / f"{demo.stem}.stderr").write_text(proc.stderr)
         if proc.returncode != 0:
             raise RuntimeError(f"demo {demo.name} failed (exit {proc.returncode}):\n{proc.stdout[-2000:]}\n"
                                f"{proc.stderr[-4000:]}")
+        if left := sorted(p.name for p in cwd.iterdir()):
+            raise RuntimeError(f"demo {demo.name} wrote outside STRINGCONTACT_DEMO_OUT, in its working folder: {left}")
         stamp.write_text(want)
     return json.loads(record.read_text()), out
 
@@ -135,7 +150,7 @@ def write_pages(demos: Path, target: Path, work: Path, package: Path, link_base:
     pictures.mkdir(parents=True)
     pages = []
     for demo in sorted(demos.glob("demo_*.py")):
-        records, out = _execute(demo, work, package)
+        records, out = execute(demo, work, package)
         path = target / f"{demo.stem}.md"
         text = page(demo, records, out, pictures, f"{link_base}/{demo.name}")
         if not path.exists() or path.read_text() != text:

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import DEMOS, demo_run
 
 from stringcontact.scene import limits
 
@@ -54,13 +55,17 @@ def _build(repo: Path, work: Path) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(scope="module")
-def site(tmp_path_factory):
-    """One build of the site for this file's tests (it takes minutes): (checkout, demo work folder, html)."""
+def site(tmp_path_factory, demo_work):
+    """One build of the site for this file's tests (it takes minutes): (checkout, demo work folder, html). The
+    demos' pages come from the test run's one run of each demo (`conftest.demo_run`; taken last to first, while
+    tests/system/test_demos.py takes them first to last in another worker)."""
     tmp_path = tmp_path_factory.mktemp("site")
-    repo, work = _checkout(tmp_path), tmp_path / "demo-runs"
-    proc = _build(repo, work)
+    repo = _checkout(tmp_path)
+    for demo in reversed(DEMOS):
+        demo_run(demo, demo_work)
+    proc = _build(repo, demo_work)
     assert proc.returncode == 0, proc.stderr[-5000:]
-    return repo, work, repo / "docs" / "_build" / "html"
+    return repo, demo_work, repo / "docs" / "_build" / "html"
 
 
 #: pages with formulas: the index, the model, a demo

@@ -1,16 +1,14 @@
-"""Every demo in demos/ runs as a plain script at reduced resolution and writes only under its output folder."""
+"""Every demo in demos/ runs at reduced resolution and writes only under its output folder.
+
+The demos run as the site build runs them (docs/_ext/demo_pages.py: the script's code cells in order, in one
+namespace, as `python demo.py` runs them, in a process of its own), once per test run: `conftest.demo_run`
+shares the runs with tests/docs/test_site.py, whose build renders them as the demos' pages."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
+from conftest import DEMOS, demo_run
 
-DEMOS = sorted((Path(__file__).resolve().parents[2] / "demos").glob("*.py"))
-TIMEOUT = 900  # seconds per demo: generous, the machine is shared; a timing threshold is not the point
 # What the paper's demos must report (the observations of Section 6, measured at reduced resolution;
 # the full-resolution numbers are in docs/explanation/visualisation.md), and the files they must leave.
 EXPECTED = {
@@ -38,21 +36,13 @@ def test_there_are_demos():
 
 @pytest.mark.slow  # each demo is a script of several whole runs with pictures, in its own process
 @pytest.mark.parametrize("demo", DEMOS, ids=[d.stem for d in DEMOS])
-def test_demo_runs(demo, tmp_path):
-    out = tmp_path / "out"
-    cwd = tmp_path / "cwd"
-    cwd.mkdir()
-    env = dict(os.environ, STRINGCONTACT_DEMO_FAST="1", STRINGCONTACT_DEMO_OUT=str(out), MPLBACKEND="Agg")
-    env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    proc = subprocess.run(
-        [sys.executable, str(demo)], cwd=cwd, env=env, capture_output=True, text=True, timeout=TIMEOUT
-    )
-    assert proc.returncode == 0, f"{demo.name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    written = [p for p in out.rglob("*") if p.is_file()]
+def test_demo_runs(demo, demo_work):
+    records, out, stderr = demo_run(demo, demo_work)  # fails the test if it fails or writes outside `out`
+    written = [p for p in out.rglob("*") if p.is_file() and p.name != ".stringcontact-docs-demo"]
     assert written, f"{demo.name} wrote nothing under STRINGCONTACT_DEMO_OUT"
-    assert not any(cwd.iterdir()), f"{demo.name} wrote outside STRINGCONTACT_DEMO_OUT: {sorted(cwd.iterdir())}"
-    assert "Traceback" not in proc.stderr
+    assert "Traceback" not in stderr, stderr[-3000:]
+    stdout = "".join(cell["printed"] for cell in records)
     for words in EXPECTED.get(demo.name, []):
-        assert words in proc.stdout, f"{demo.name}: {words!r} not in its output:\n{proc.stdout}"
+        assert words in stdout, f"{demo.name}: {words!r} not in its output:\n{stdout}"
     for name in FILES.get(demo.name, ()):
         assert list(out.rglob(name)), f"{demo.name}: no {name}"
