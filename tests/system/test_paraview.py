@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import shlex
 import shutil
 import subprocess
 from pathlib import Path
@@ -53,6 +52,7 @@ def _pixels_near(img, rgb, tol=40):
     return int(np.all(np.abs(img[..., :3].astype(int) - np.array(rgb)) <= tol, axis=-1).sum())
 
 
+@pytest.mark.slow
 def test_the_readme_recipe_colours_the_warped_string_by_contact(tmp_path, run):
     from PIL import Image
 
@@ -91,6 +91,7 @@ def test_the_readme_recipe_colours_the_warped_string_by_contact(tmp_path, run):
     assert _pixels_near(img, FREE_RGB) > 100, "no free part of the string drawn"
 
 
+@pytest.mark.slow
 def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
     """A membrane's solution.xdmf in ParaView: triangles warped by eta (z), the solver's contact nodes, the patch drawn."""
     from PIL import Image
@@ -134,16 +135,13 @@ MIDDLE = (slice(40, 560), slice(120, 850))  # the picture without the colour bar
 
 
 def _views(command, folder, shots):
-    """`pvpython view.py TIME PNG FIELD` for each (t, png, field) of `shots`, all under one X server (one
-    xvfb-run each would start and stop a server per picture); returns [(report, image)]."""
+    """`pvpython view.py TIME PNG FIELD [TIME PNG FIELD ...]`: every (t, png, field) of `shots` in one ParaView
+    session; returns [(report, image)]."""
     from PIL import Image
 
-    xvfb, pv = command[:-1], command[-1]
-    script = "; ".join(
-        f"{pv} {shlex.quote(str(folder / 'view.py'))} {float(t)!r} {shlex.quote(str(png))} {field} || exit 1"
-        for t, png, field in shots
-    )
-    proc = subprocess.run([*xvfb, "sh", "-c", script], capture_output=True, text=True, check=False, cwd=folder)
+    groups = [str(a) for t, png, field in shots for a in (float(t), png, field)]
+    proc = subprocess.run([*command, str(folder / "view.py"), *groups], capture_output=True, text=True, check=False,
+                          cwd=folder)
     assert proc.returncode == 0, proc.stderr[:2000] + " ... " + proc.stderr[-1000:]
     reports = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
     assert len(reports) == len(shots), proc.stdout
@@ -179,6 +177,7 @@ def test_view_py_is_the_packages_program_with_the_runs_numbers(run):
     assert any(fnmatch.fnmatch("io/paraview/view.py", pattern) for pattern in patterns), patterns
 
 
+@pytest.mark.slow
 def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run):
     """view.py written by the run: contact on 0 … 1 at t = 0 (all blue) and in contact (red and blue), velocity on
     ±max|v| over all stored rows, the string inside the picture at every time."""
@@ -212,6 +211,7 @@ def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run)
             assert red > 300, f"t = {t}: no contact drawn in red"
 
 
+@pytest.mark.slow
 def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
     command = pvpython()
     out = tmp_path / "drum"
@@ -263,6 +263,7 @@ def drum(tmp_path_factory):
     return out, res
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["string", "membrane"])
 def test_the_folders_view_keeps_one_camera_and_draws_the_obstacle_time_and_axes(tmp_path, run, drum, which):
     """The camera frames every time step and does not move (paraview.simple's reset on the first render is
@@ -308,6 +309,7 @@ def _string_columns(img):
     return int(cols.min()), int(cols.max())
 
 
+@pytest.mark.slow
 def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
     """Coloured by velocity, where v = 0 (the string lying on the obstacle) the string is drawn in the map's
     dark middle, which stands out on the white background and on the grey obstacle."""
@@ -334,6 +336,7 @@ def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
 # --- a film's membrane coloured by its pressure ----------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     """A membrane on a fluid film (model "film"): `view.py T PNG pressure` colours it by p − p_a on ±max|p − p_a|
     over all stored rows, in the colours its output field declares: a middle grey where p = p_a (all of it at
@@ -400,6 +403,7 @@ def _bar_label_rows(img):
     return [int(np.flatnonzero(labels == k).min()) for k in range(1, n + 1)]
 
 
+@pytest.mark.slow
 def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_colours(tmp_path):
     """A model of the user's with a derived output field `reaction` (η², from black to pure red): solution.xdmf
     carries it, every reader of the README's recipe gives its values at the time shown, and `view.py T PNG
@@ -444,6 +448,7 @@ def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_c
     assert red.sum() > 100, "no string drawn in the field's high colour"
 
 
+@pytest.mark.slow
 def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(tmp_path, piston_folder):
     """The piston rises from ψ = 0 to 0.3 by t = 0.15: the top of the grey region is where ψ is at each time
     (from solution.xdmf's `obstacle` field), under one camera whose box holds the obstacle at every time."""
@@ -471,6 +476,7 @@ def test_the_folders_view_draws_a_moving_obstacle_where_it_is_at_the_time_shown(
     assert tops[0] - tops[2] > 50, tops  # it rose on the picture
 
 
+@pytest.mark.slow
 def test_the_folders_view_draws_a_membranes_moving_obstacle_at_the_time_shown(tmp_path):
     """A dome rising under a coarse drum (ψ = 0.25 min(t/0.3, 1)(1 − r²)): the grey surface ParaView draws at each
     time (its box, reported by view.py) has ψ's top at that time, 1 % of the height range lower."""

@@ -37,7 +37,7 @@ obstacle) is written into it as a literal by the run, computed over all stored r
 
 `pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead of opening a window
 and prints one JSON line: the time, the field, its colour range, the camera, the axes' titles and the box of the
-obstacle drawn at that time.
+obstacle drawn at that time; several TIME PNG [FIELD] groups save several screenshots in one ParaView session.
 """
 
 from __future__ import annotations

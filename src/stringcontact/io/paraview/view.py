@@ -2,7 +2,8 @@
 
 `pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead (FIELD: one of
 FIELD_MAPS, the model's output fields) and prints one JSON line: the time, the field, its colour range, the
-camera, the scale of the heights, the axes' titles and the box of the obstacle drawn at that time.
+camera, the scale of the heights, the axes' titles and the box of the obstacle drawn at that time. Several
+TIME PNG [FIELD] groups save several screenshots in one ParaView session, one JSON line each.
 The numbers below were computed by the run over all its stored rows.
 """
 
@@ -324,27 +325,53 @@ def obstacle_bounds(t):
     return list(source.GetDataInformation().GetBounds())
 
 
+def shots(args):
+    """The screenshots asked for: [(time, png, field)] from TIME PNG [FIELD] [TIME PNG [FIELD] ...]."""
+    found, args = [], list(args)
+    while len(args) >= 2 and args[1].lower().endswith(".png"):
+        t, png, args = float(args[0]), args[1], args[2:]
+        field = "contact"
+        if args and not _is_number(args[0]):
+            field, args = args[0], args[1:]
+        found.append((t, png, field))
+    return found if not args else []
+
+
+def _is_number(text):
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def screenshot(animation, view, display, t, png, field):
+    """Save the view at the time t coloured by `field` to `png`; the JSON report of what was drawn."""
+    show_at(animation, view, display, t, field)
+    SaveScreenshot(png, view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
+    report = {
+        "time": view.ViewTime,
+        "field": field,
+        "range": list(MAPS[field][0]),
+        "camera": camera(view),
+        "scale": list(display.Scale),
+        "axes": axes(view),
+        "obstacle": obstacle_bounds(view.ViewTime),
+    }
+    if field in SYMLOG:
+        report["ticks"] = [label for _, label in SYMLOG[field][2]]
+    return report
+
+
 def main(argv):
-    shot = len(argv) >= 3 and argv[2].lower().endswith(".png")  # pvpython view.py TIME PNG [contact|velocity|FIELD]
-    field = argv[3] if shot and len(argv) > 3 else "contact"
-    if field not in MAPS:
-        sys.exit(f"view.py: no field {field!r} to colour by; choose one of {', '.join(MAPS)}")
+    wanted = shots(argv[1:])  # several in one ParaView session: its start-up (seconds) is paid once
+    for _, _, field in wanted:
+        if field not in MAPS:
+            sys.exit(f"view.py: no field {field!r} to colour by; choose one of {', '.join(MAPS)}")
     animation, view, display = build()
-    if shot:
-        show_at(animation, view, display, float(argv[1]), field)
-        SaveScreenshot(argv[2], view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
-        report = {
-            "time": view.ViewTime,
-            "field": field,
-            "range": list(MAPS[field][0]),
-            "camera": camera(view),
-            "scale": list(display.Scale),
-            "axes": axes(view),
-            "obstacle": obstacle_bounds(view.ViewTime),
-        }
-        if field in SYMLOG:
-            report["ticks"] = [label for _, label in SYMLOG[field][2]]
-        print(json.dumps(report), flush=True)
+    for t, png, field in wanted:
+        print(json.dumps(screenshot(animation, view, display, t, png, field)), flush=True)
+    if wanted:
         return
     Render(view)
     if argv[0]:  # pvpython view.py: a window of its own (ParaView's GUI runs the script with sys.argv == [""])
