@@ -24,7 +24,8 @@ PYTEST_WORKERS ?= auto
 test: setup
 	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile
 
-# the inner loop: everything but the tests marked slow (whole runs in subprocesses, mpirun, the paper's resolution)
+# the inner loop: everything but the tests marked slow (a second or more each: whole runs in subprocesses, MPI,
+# ParaView, the demos and the site, sweeps; DEVELOPERS.md)
 test-fast: setup
 	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile -m "not slow"
 

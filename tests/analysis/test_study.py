@@ -118,6 +118,7 @@ def test_bad_tolerance_is_refused(tol):
         study.choose_for_tolerance(study.flat_landing_scene(100), tol)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [["run", "drum", "--tol", "1e-3"], ["check", "drum"]], ids=["tol", "check"])
 def test_1d_only_commands_say_so_for_a_membrane(argv):
     """--tol refines a string's nx and `check` states the paper's theorems on the string: one line, exit 2."""
@@ -143,6 +144,7 @@ def _header(path):
         return tuple(next(csv.reader(f)))
 
 
+@pytest.mark.slow
 def test_stability_cli_writes_documented_csv_and_chart(tmp_path):
     args = _parser().parse_args(["stability", "--quick", "--out", str(tmp_path)])
     assert study_cli.command(args) == 0
@@ -158,6 +160,7 @@ def test_stability_cli_writes_documented_csv_and_chart(tmp_path):
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_work_precision_cli_writes_documented_csv_and_chart(tmp_path):
     args = _parser().parse_args(["work-precision", "--quick", "--problem", "flat-landing", "--out", str(tmp_path)])
     assert study_cli.command(args) == 0

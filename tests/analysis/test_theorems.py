@@ -161,6 +161,7 @@ def test_energy_identity_closes_and_numerical_dissipation_is_first_order():
 # --- command line ------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_check_command_prints_table_and_writes_files(tmp_path, capsys):
     out = tmp_path / "checks"
     code = cli.main(["check", "flat-landing", "--nx", "100", "--nt", "120", "--levels", "2", "--out", str(out)])

@@ -66,6 +66,7 @@ def test_a_string_caught_by_a_rising_piston_is_at_rest_on_it(motion_ignored):
     assert a4.verdict != th.HOLDS and a4.measured > 1.0
 
 
+@pytest.mark.slow
 def test_the_cli_checks_the_piston(capsys):
     code = cli.main(["check", "piston", "--levels", "1"])
     out = capsys.readouterr().out

@@ -4,6 +4,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 from stringcontact.cli.main import main
 
 SMALL = ["--nx", "200", "--nt", "40", "--eps", "0.01", "--no-progress"]  # r = 0.75
@@ -20,6 +22,7 @@ def _sections(stdout: str) -> dict:
     return found
 
 
+@pytest.mark.slow
 def test_profile_prints_each_section_and_they_add_up(tmp_path, capsys):
     assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "run"), "--profile"]) == 0
     found = _sections(capsys.readouterr().out)
@@ -34,6 +37,7 @@ def test_without_profile_no_sections(tmp_path, capsys):
     assert "where the time went" not in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_as_a_command_the_start_up_is_a_section_too(tmp_path):
     """Started as `stringcontact run`, the process's own start-up (Python, the command line, PETSc) comes first."""
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "example1", *SMALL, "--no-pictures", "--out",

@@ -22,6 +22,7 @@ def _minima(out: str) -> tuple[float, float]:
     return float(match[1]), float(match[2])
 
 
+@pytest.mark.slow
 def test_loaded_string_reports_the_gap_and_the_penalty_creep(tmp_path, capfd):
     """The shipped loaded_string (a string draped over a bump of top 0.2 under gravity): the gap reaches −0.009
     (the penalty's creep into the bump) where η's least value is −0.095, far from the bump's top; and the depth is
@@ -89,6 +90,7 @@ def test_a_travelling_bump_reports_the_gap_not_the_height(capsys):
     assert gap == pytest.approx(res.min_gap, rel=1e-5) and low == pytest.approx(res.min_eta, rel=1e-5)
 
 
+@pytest.mark.slow
 def test_film_landing_flags_its_numerical_dissipation(capfd):
     """film_landing books a third of E(0) as the scheme's own dissipation: the report says so, with what to change;
     Example 1 (0.3 %) gets no such note."""

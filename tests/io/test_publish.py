@@ -139,6 +139,7 @@ def test_sync_soon_tolerates_a_missing_file(tmp_path):
     assert not thread.is_alive() and (tmp_path / "there").read_bytes() == b"x" * 4096
 
 
+@pytest.mark.slow
 def test_a_run_starts_writing_its_data_to_disk_before_its_pictures(tmp_path, monkeypatch):
     """solution.h5, rows.npz and diagnostics.csv, whole, go to the device while the pictures are drawn."""
     import stringcontact as sc

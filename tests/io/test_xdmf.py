@@ -138,6 +138,7 @@ series.close()
 """
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_a_triangle_mesh_distributed_over_two_ranks_is_one_whole_mesh(tmp_path):
     proc = mpirun([sys.executable, "-c", TRIANGLES_UNDER_MPI, tmp_path], ranks=2)
@@ -239,6 +240,7 @@ series.close()
 """
 
 
+@pytest.mark.slow
 def test_writing_frames_makes_no_fsync(tmp_path):
     """PETSc's viewer flushed the file after every dataset, through MPI-IO, an fsync each (23 for these 5
     frames); the writer hands the data to the OS, and the folder is fsynced once when it is published."""
@@ -320,6 +322,7 @@ except OSError as exc:
 """
 
 
+@pytest.mark.slow
 def test_a_failed_create_on_a_full_disk_says_nothing_at_exit(tmpfs):
     """libhdf5 1.10.8 leaks what a failed H5Fcreate opened and printed "HDF5: infinite loop closing library"
     and a line of its interfaces when the process ended, after the program's own one line."""
@@ -366,6 +369,7 @@ print(failed)
 """
 
 
+@pytest.mark.slow
 def test_frames_on_a_filling_disk_end_in_an_error_and_a_clean_exit(tmpfs):
     """libhdf5 1.10.8 cannot flush a file again after one flush failed, and crashed (SIGSEGV in
     H5F__close_cb) when the process ended, for 148 of these 249 disk sizes before the writer reserved the

@@ -84,6 +84,7 @@ def mode_error(m, mu, nx, nt, T):
     return float(np.max(np.abs(a - mode_exact(m, mu, t))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("m, mu", [(1, 0.01), (2, 0.1), (3, 1.0)])
 def test_b_a_small_mode_follows_the_dispersion_relation(m, mu):
     """δ/H = 1e-3; Δt and Δx halved together: the error halves (backward Euler's first order; measured 0.020,
@@ -97,6 +98,7 @@ def test_b_a_small_mode_follows_the_dispersion_relation(m, mu):
     assert np.max(np.abs(2 * fine[::2] - coarse - mode_exact(m, mu, t))) < 8e-3
 
 
+@pytest.mark.slow
 def test_b_the_dispersion_error_falls_with_nx():
     """At a small Δt the spatial error leads: it falls by about 4 per halving of Δx (measured 0.169, 0.042, 0.011)."""
     errors = [mode_error(2, 0.1, nx, 4000, 1.0) for nx in (6, 12, 24)]
@@ -119,6 +121,7 @@ def _cell_terms(x, eta, q, mu, h_min):
     return total
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("nt", [200, 400])
 def test_c_the_ledger_books_the_films_dissipation_step_by_step(nt):
     """No contact: E^n − E^{n+1} = α/Δt ∫δ_x² + Δt ∫ m(η^{n+1})|q_x^{n+1}|² + D_num at every step, the first two
@@ -141,6 +144,7 @@ def test_c_the_ledger_books_the_films_dissipation_step_by_step(nt):
     assert np.max(np.abs(r.balance_residual)) < 1e-9 * r.total_energy[0]
 
 
+@pytest.mark.slow
 def test_c_numerical_dissipation_is_first_order():
     """Backward Euler's numerical dissipation halves with Δt: the discrete identity tends to the exact law."""
     totals = []
@@ -153,6 +157,7 @@ def test_c_numerical_dissipation_is_first_order():
 # --- (d) the limits μ → 0 (the film vanishes: the paper's model) and μ → ∞ (the film freezes the string) --
 
 
+@pytest.mark.slow
 def test_d_small_mu_gives_the_papers_model():
     """μ → 0: p = O(μ), so η tends to the paper's model under the same scheme and penalty. Before the landing the
     difference is proportional to μ; after it, where η sits below the floor h_min, the mobility is
@@ -236,6 +241,7 @@ def test_the_film_refuses_a_scheme_that_is_not_l_stable():
         assert "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 def test_cli_missing_mu_exits_2_in_one_line(tmp_path):
     scene = sc.load_scene("film_landing").as_dict() | {"nx": 20}
     scene.pop("parameters")
@@ -248,6 +254,7 @@ def test_cli_missing_mu_exits_2_in_one_line(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "film_landing", "--nx", "100", "--out",
@@ -269,6 +276,7 @@ def test_film_landing_writes_the_pressure_everywhere(tmp_path):
     assert proc.returncode == 0 and (out / "pressure.png").is_file(), proc.stderr
 
 
+@pytest.mark.slow
 def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
     """`stringcontact study film --quick`: the references and the film's rows, the fitted laws, the chart; the
     inelastic reference is its own zero distance and the film's thinnest gap grows with μ on the flat landing."""
@@ -289,6 +297,7 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
     assert (out / "study_film.png").stat().st_size > 10_000 and (out / "study_film_rates.csv").is_file()
 
 
+@pytest.mark.slow
 def test_film_drum_a_membrane_on_its_film(tmp_path):
     """2D: the membrane's film, p = p_a on the rim; the pressure builds under the falling skin, the ledger closes."""
     r = run(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.1, nt=40, output_times=[]))
@@ -316,6 +325,7 @@ def _solver_cases():
             "drum": sc.load_scene("film_drum").replace(T=0.2, output_times=[])}
 
 
+@pytest.mark.slow
 def test_the_film_solvers_give_the_serial_lu_answer(tmp_path):
     """The film's own linear solvers (the string's redundant LU on 2 ranks, the membrane's MUMPS in serial and on
     2 ranks; the size rule's CG cannot solve the membrane there) against PETSc's serial LU. Measured: 1.2e-14 (η)

@@ -47,6 +47,7 @@ def run(scene, **kwargs):
         return sc.simulate(scene, **kwargs)
 
 
+@pytest.mark.slow
 def test_a_constant_from_parameters_reaches_the_form_and_the_result():
     """k from the scene's [parameters] is the k in the form: the solved reaction is k η at every node and time after
     the start (a field starts at 0: its value at t = 0 is not solved), for two values of k; the derived field is
@@ -84,6 +85,7 @@ def test_the_energy_ledger_closes_with_the_declared_energy():
     assert r.checks["energy_balance"]["closes"], r.checks["energy_balance"]
 
 
+@pytest.mark.slow
 def test_show_lists_the_models_constants_and_loads_again(tmp_path):
     """`stringcontact show` writes the model's [parameters]: the scene's values, the defaults, and an optional constant
     without a value as a comment; its output loads as the same scene."""

@@ -181,6 +181,7 @@ def soft_ground():
     return registry.load_model("soft_ground")
 
 
+@pytest.mark.slow
 def test_a_plugins_constant_from_the_scene_reaches_its_form(tmp_path, soft_ground):
     """examples/soft_ground's spring k from a scene file's [parameters]: a softer bed lets the string sink deeper,
     and its output field spring_force is k η⁻ with the scene's k."""

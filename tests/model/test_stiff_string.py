@@ -53,6 +53,7 @@ def exact_omega(m: int, beta: float) -> float:
 # --- the oracle: a mode's frequency, ω² = (mπ)² + β(mπ)⁴ --------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("beta", [1e-3, 1e-2])
 def test_a_mode_oscillates_at_the_dispersion_relation_converging_in_space(beta):
     """newmark (conservative, Δt = 1e-3: its own phase error (ωΔt)²/24 ~ 2e-6): the frequency error falls by about 4
@@ -82,6 +83,7 @@ def test_the_curvature_of_a_mode_is_minus_its_second_derivative():
     assert kappa[0] == 0.0 and kappa[-1] == 0.0  # held at 0 at the pinned ends
 
 
+@pytest.mark.slow
 def test_the_initial_energy_holds_the_bending():
     """E(0) = ½∫η_x² + ½β∫κ² = (a²(mπ)²/4)(1 + β(mπ)²) for the mode at rest, to O(Δx²) (1% at nx = 32); without the
     bending (β = 1e-2, m = 2) it would be 28% lower (measured −0.23%)."""
@@ -95,6 +97,7 @@ def test_the_initial_energy_holds_the_bending():
 # --- β = 0 is the paper's string --------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["paper", "newmark"])
 def test_beta_zero_is_the_papers_string(scheme):
     """At β = 0 the curvature's row decouples: η is the paper's model's (the linear path's solve against the
@@ -118,6 +121,7 @@ def landing():
     return run(scene, scheme="projection", storage=sc.Storage(max_rows=scene.nt + 1))
 
 
+@pytest.mark.slow
 def test_a_landing_under_projection_stays_above_the_obstacle(landing):
     assert landing.status == "complete", landing.message
     assert landing.contact.any() and landing.contact[-1].sum() < landing.contact.sum(axis=1).max()  # lands, lifts
@@ -160,6 +164,7 @@ def ex1_stiff():
                                              output_times=None)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["paper", "projection", "newmark"])
 def test_every_contact_scheme_runs_it_and_its_ledger_closes(ex1_stiff, scheme):
     result = run(ex1_stiff, scheme=scheme)
@@ -182,6 +187,7 @@ def test_every_contact_scheme_runs_it_and_its_ledger_closes(ex1_stiff, scheme):
     assert np.max(np.abs(mass - stiffness)) <= 1e-10 * np.max(np.abs(stiffness))  # measured 1e-14 to 4e-13
 
 
+@pytest.mark.slow
 def test_the_linear_path_gives_newtons_answer(ex1_stiff):
     """The affine residual's one linear solve per step against the same model forced through SNES (`newton=True`):
     the same η to Newton's tolerance (measured 1.4e-11 relative, the curvature 1.4e-12), and no Newton iteration on
@@ -198,6 +204,7 @@ def test_the_linear_path_gives_newtons_answer(ex1_stiff):
 # --- output ------------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_curvature_is_written_to_the_xdmf_and_the_result(tmp_path, ex1_stiff):
     out = tmp_path / "run"
     result = run(ex1_stiff.replace(T=0.02), scheme="paper", output=sc.Output(out, force=True, pictures=False))
@@ -217,6 +224,7 @@ def scene_file(tmp_path, parameters: dict):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("parameters, named", [({"beta": -1e-3}, "beta"), ({"beta": 1e-3, "gamma": 1.0}, "gamma")])
 def test_the_cli_refuses_a_bad_constant_in_one_line_and_writes_nothing(tmp_path, parameters, named):
     out = tmp_path / "out"

@@ -137,6 +137,7 @@ def _surface_actor(p, surface):
     return actor
 
 
+@pytest.mark.slow
 def test_the_film_membranes_mesh_carries_its_pressure_and_is_coloured_by_it(run):
     _, res = run
     pressure = res.fields["pressure"]
@@ -230,6 +231,7 @@ def test_membrane_gif_colours_each_frame_by_its_pressure_with_the_edge_of_its_co
     assert red[0] == 0 and red.max() > 2000  # p = p_a at t = 0, then the film's pressure shows
 
 
+@pytest.mark.slow
 def test_stringcontact_run_draws_the_film_membranes_pictures_in_its_painter(run, tmp_path):
     """The CLI: the painter process (the Result handed over as a payload, the pressure with it) draws the same
     membrane.png as this process did."""

@@ -53,6 +53,7 @@ def _red(img, tol=60):
     return np.all(np.abs(img - rgb) <= tol, axis=-1)
 
 
+@pytest.mark.slow
 def test_a_membrane_run_writes_its_four_pictures(run):
     folder, res = run
     assert res.contact[0].sum() == 0 and res.contact[-1].sum() > 0  # the comparisons below see both states
@@ -67,6 +68,7 @@ def test_a_membrane_run_writes_its_four_pictures(run):
     assert [p.name for p in viz.show_pictures(folder)] == list(viz.MEMBRANE_PICTURES)
 
 
+@pytest.mark.slow
 def test_the_gif_has_a_frame_per_drawn_row_and_shows_the_landing(run):
     folder, res = run
     frames = _gif_frames(folder / "membrane.gif")
@@ -179,6 +181,7 @@ def test_read_output_of_a_membrane_gives_the_in_memory_rows(written):
     np.testing.assert_array_equal(back.contact_patches(), res.contact_patches()[rows])
 
 
+@pytest.mark.slow
 def test_plot_of_a_membrane_folder_writes_the_membrane_pictures(run, tmp_path, capsys):
     folder, _ = run
     out = tmp_path / "again"
@@ -225,6 +228,7 @@ def _as_written_before_rows_npz(copy):
 # --- the painter process ----------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_the_painter_draws_the_membranes_pyvista_pictures(run, tmp_path):
     _, res = run
     process = PictureProcess.start()  # as the CLI starts it: before the scene is known
@@ -243,6 +247,7 @@ def test_a_painter_with_no_picture_of_a_membrane_is_not_sent_one(run, tmp_path):
     assert process.folder is None and process.proc.poll() is not None and not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_stringcontact_run_of_a_membrane_leaves_its_pictures_to_the_painter(tmp_path, monkeypatch, capsys):
     """The real CLI: the painter (started before the scene is read) and its helper draw all the pictures, this
     process none (it would import matplotlib after the solve)."""
@@ -258,6 +263,7 @@ def test_stringcontact_run_of_a_membrane_leaves_its_pictures_to_the_painter(tmp_
     assert _red(_gif_frames(out / "membrane.gif")[-1]).sum() > 2000
 
 
+@pytest.mark.slow
 def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(monkeypatch, tmp_path):
     """Issue 27, item 4: membrane.png drew one pyvista panel per output time."""
     from stringcontact.plot import mesh_pictures
@@ -277,6 +283,7 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     assert (rows - 1) * cols < 12 + cols  # a title row, then at most 12 panels (3 columns)
 
 
+@pytest.mark.slow
 def test_plot_redraws_a_membranes_pictures_pixel_for_pixel(tmp_path, capsys):
     """Issue 26, item 2: the drum's first contact moved from 0.12 to 0.125 and its largest area from 2.25 to
     2.24 in `plot`'s pictures, drawn from the XDMF frames (here 10 of 81 stored rows)."""
@@ -339,6 +346,7 @@ def _label_height(font_size: int) -> int:
     return int(rows.max() - rows.min() + 1) if rows.size else 0
 
 
+@pytest.mark.slow
 def test_the_membrane_pictures_tick_labels_are_at_least_12_pixels_high(run, tmp_path, monkeypatch):
     """membrane.png's and membrane.gif's axes: their tick labels were about 6 px high (font size 7 and 8)."""
     from stringcontact.plot import membrane, mesh_pictures

@@ -49,6 +49,7 @@ def _image(path):
         return np.asarray(im.convert("RGB")).astype(int)
 
 
+@pytest.mark.slow
 def test_the_run_holds_the_field_and_how_it_is_shown(run):
     _, res = run
     np.testing.assert_allclose(res.fields["reaction"], res.eta**2, rtol=1e-12, atol=0)  # P1 at the nodes: η_i²
@@ -83,6 +84,7 @@ def test_the_field_is_read_back_as_the_run_held_it(run):
     assert frames.field_info == res.field_info
 
 
+@pytest.mark.slow
 def test_the_fields_picture_is_drawn_in_its_colours_and_redrawn_alike(run, tmp_path, capsys):
     folder, res = run
     assert "reaction.png" in catalogue.pictures_of(res)

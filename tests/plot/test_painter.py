@@ -54,6 +54,7 @@ def started_with_helper(names=viz.PICTURES) -> PictureProcess:
     return process
 
 
+@pytest.mark.slow
 def test_the_run_hands_every_picture_over_and_imports_no_plotting_library(run, tmp_path):
     """Issue 28: the run drew snapshots.png and energy.png itself, importing matplotlib after its solve."""
     folder, _ = run
@@ -66,6 +67,7 @@ def test_the_run_hands_every_picture_over_and_imports_no_plotting_library(run, t
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(viz.PICTURES)
 
 
+@pytest.mark.slow
 def test_two_processes_never_draw_the_same_picture(run, tmp_path):
     """A claim is taken once: the second taker draws nothing; the helper (no pyvista) skips the mesh pictures."""
     _, res = run
@@ -184,6 +186,7 @@ def test_cancel_while_drawing_leaves_no_process(run, tmp_path):
     assert group(pgid) == [] and not private.exists()
 
 
+@pytest.mark.slow
 def test_the_painter_draws_the_helpers_share_when_the_helper_dies(run, tmp_path):
     _, res = run
     process = started_with_helper()
@@ -194,6 +197,7 @@ def test_the_painter_draws_the_helpers_share_when_the_helper_dies(run, tmp_path)
     assert sorted(process.drawn) == sorted(viz.PICTURES)
 
 
+@pytest.mark.slow
 def test_what_the_painter_did_not_draw_is_drawn_here(run, tmp_path, monkeypatch):
     """A painter that reports only some pictures drawn: the run draws the others itself."""
     _, res = run
@@ -206,6 +210,7 @@ def test_what_the_painter_did_not_draw_is_drawn_here(run, tmp_path, monkeypatch)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(viz.PICTURES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("wait_for_helper", [False, True])
 def test_the_picture_processes_end_and_clean_up_when_the_run_dies(tmp_path, wait_for_helper):
     code = ("from stringcontact.plot.picture_process import PictureProcess; p = PictureProcess.start(); "

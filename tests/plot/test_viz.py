@@ -26,6 +26,7 @@ def run(tmp_path_factory):
     return folder, res
 
 
+@pytest.mark.slow
 def test_read_output_matches_the_in_memory_result(run):
     folder, res = run
     back = readback.read_output(folder)
@@ -131,6 +132,7 @@ def test_contact_set_picture_is_blank_without_contact(tmp_path, run):
     assert _near(_image(tmp_path / "c.png"), viz.CONTACT_COLOUR).sum() < 2000
 
 
+@pytest.mark.slow
 def test_plot_command_redraws_from_files(tmp_path, run, capsys):
     folder, _ = run
     out = tmp_path / "again"
@@ -212,6 +214,7 @@ def test_snapshot_rows_are_the_scene_output_times(run):
     np.testing.assert_allclose(res.t[rows], res.scene.output_times, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
     from stringcontact.model.variants import load_model
 
@@ -272,6 +275,7 @@ def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
 
 
+@pytest.mark.slow
 def test_the_picture_process_draws_what_this_process_draws(tmp_path, run):
     """The painter and its helper (which share the pictures out) draw each picture as this process does."""
     _, res = run
@@ -288,6 +292,7 @@ def test_the_picture_process_draws_what_this_process_draws(tmp_path, run):
         np.testing.assert_array_equal(_image(there / name), _image(here / name), err_msg=name)
 
 
+@pytest.mark.slow
 def test_pictures_are_drawn_here_when_the_picture_process_dies(tmp_path, run):
     _, res = run
     process = PictureProcess.start()
@@ -305,6 +310,7 @@ def test_a_string_is_sent_to_the_picture_process_for_all_its_pictures(run):
     assert viz.painted(res) == viz.PICTURES == viz.pictures_of(res) and set(viz.painted(res)) < set(viz.PAINTED)
 
 
+@pytest.mark.slow
 def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
     _, res = run
     process = PictureProcess.start()
@@ -441,6 +447,7 @@ def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_col
     np.testing.assert_array_equal(annotations.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
 
 
+@pytest.mark.slow
 def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch):
     from stringcontact.plot import mesh_pictures
 
@@ -502,6 +509,7 @@ def assert_same_pictures(first, second, names):
         assert not differ.any(), f"{name}: {differ.mean():.2%} of the pixels differ"
 
 
+@pytest.mark.slow
 def test_plot_redraws_the_runs_pictures_pixel_for_pixel(tmp_path, capsys):
     """Issue 26, item 2: `plot` drew from the XDMF frames (here 12 of 121 stored rows), not the rows the run drew from."""
     scene = sc.load_scene("example1").replace(nx=80, nt=1200)

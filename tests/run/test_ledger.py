@@ -14,6 +14,7 @@ from stringcontact.run import checks, ledger
 FINE = {"nx": 50, "nt": 200_000}
 
 
+@pytest.mark.slow
 def test_a_fine_step_run_closes_its_balance():
     res = sc.simulate(sc.load_scene("example1").replace(**FINE), progress=False)
     b = checks.energy_balance(res)
@@ -22,6 +23,7 @@ def test_a_fine_step_run_closes_its_balance():
     assert b["tolerance"] < 1e-4  # still a check: a leak of 1e-4 E(0) would be caught
 
 
+@pytest.mark.slow
 def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
     add = ledger._Ledger.add
     calls = {"n": 0}
@@ -57,6 +59,7 @@ def test_the_tolerance_is_1e_8_at_the_papers_resolution_and_grows_with_the_steps
     assert checks.roundoff_growth(_fake(fine.nt, fine, 0.0)) == 1.0  # nothing moves: no velocity to round
 
 
+@pytest.mark.slow
 def test_a_leak_is_still_caught_at_many_steps():
     res = sc.simulate(sc.load_scene("example1").replace(nx=50, nt=20_000), progress=False)
     assert checks.energy_balance(res)["closes"]

@@ -242,6 +242,7 @@ def test_boundary_height_may_vary_along_the_boundary():
 # --- MPI parity ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 @pytest.mark.parametrize("scheme", ["projection", "newmark"])
 def test_mpi_2d_run_equals_serial(tmp_path, scheme):
@@ -296,6 +297,7 @@ if __name__ == "__main__":
     _worker(sys.argv[1], Path(sys.argv[2]))
 
 
+@pytest.mark.slow
 def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_path):
     from conftest import meshio_read  # meshio in its own process: h5py's libhdf5 must not meet dolfinx's
 

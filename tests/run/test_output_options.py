@@ -25,6 +25,7 @@ def _mine(result, folder):
     plt.close(fig)
 
 
+@pytest.mark.slow
 def test_a_picture_function_adds_to_the_default_pictures(tmp_path):
     scene = sc.load_scene("example1").replace(**SMALL)
     sc.simulate(scene, output=sc.Output(tmp_path / "both", pictures=_mine))

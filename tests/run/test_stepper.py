@@ -95,6 +95,7 @@ def test_stepping_past_t_and_a_result_before_t_are_refused():
         st.advance()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("values, match", [(np.zeros(7), "7 nodal values for nx = 120 cells; allowed: nx \\+ 1 = 121"),
                                            (np.full(121, np.nan), "value nan at node 0 is not finite")])
 def test_bad_arrays_are_refused_in_one_line(values, match, tmp_path):
@@ -110,6 +111,7 @@ def test_bad_arrays_are_refused_in_one_line(values, match, tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_two_ranks_step_to_the_serial_state(tmp_path):
     from conftest import mpirun
 
@@ -131,6 +133,7 @@ if __name__ == "__main__":
     _two_ranks(Path(sys.argv[1]))
 
 
+@pytest.mark.slow
 def test_a_constant_changed_between_steps_is_taken_up_and_booked():
     """β changed at step 100: the run goes on as a restart from that state with the new β (to the bit, under the
     paper's explicit penalty), and the ledger books the jump of the bending energy as external work: it closes."""
@@ -163,6 +166,7 @@ def test_a_bad_constant_between_steps_is_refused_in_one_line():
     assert dict(st.parameters) == {"beta": 0.0} and not st.parameters.changed
 
 
+@pytest.mark.slow
 def test_the_command_line_simulate_and_a_stepper_record_the_same_settings(tmp_path):
     """The same run started three ways: summary.json records the same scene (with the PETSc options and the
     restitution it ran with), scheme, penalty, mass, model and constants."""

@@ -274,6 +274,7 @@ def _extend(children):
     return binary | unary | calls | where
 
 
+@pytest.mark.slow
 @settings(max_examples=300)
 @given(expr=st.recursive(_leaf, _extend, max_leaves=30), names=NAME_SETS)
 def test_grammar(expr, names):

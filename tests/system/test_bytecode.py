@@ -15,6 +15,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 # Every module compiled from a .py file is reported by Python's "compile" audit event (importlib compiles a
@@ -45,6 +47,7 @@ def _lines(out: str, section: str, until: str | None = None) -> list[str]:
     return lines[start:end]
 
 
+@pytest.mark.slow
 def test_a_run_compiles_no_module_from_source(tmp_path):
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}  # the test writes no bytecode itself
     proc = subprocess.run([sys.executable, "-c", RUN, str(tmp_path / "out")], env=env, capture_output=True, text=True,

@@ -162,6 +162,7 @@ def test_a_broken_subcommand_does_not_break_run(monkeypatch, tmp_path, capsys):
     assert main(["run", "example1", *SMALL, "--out", str(tmp_path / "out")]) == 0
 
 
+@pytest.mark.slow
 def test_broken_pipe_ends_quietly():
     # `stringcontact run ... | head -c 0`: the reader is gone before the closing lines are written. The run
     # ends by the default SIGPIPE, as Unix tools do (the shell's 141 = 128 + 13; Popen reports -13), with

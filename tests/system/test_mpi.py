@@ -101,6 +101,7 @@ def contact_slack(serial) -> np.ndarray:
     return (serial.x[1] - serial.x[0]) * np.sum(np.abs(serial.eta) <= PARITY, axis=1) + PARITY
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
 def test_mpi_result_on_rank_0_equals_serial(parity_run, serial_results, penalty, mass):
     serial, _ = serial_results[(penalty, mass)]
@@ -159,6 +160,7 @@ def test_mpi_xdmf_is_one_collective_file_equal_to_serial(parity_run, serial_resu
     assert leftovers(parity_run) == []  # no partial folder, no lock
 
 
+@pytest.mark.slow
 def test_mpi_errors_are_raised_on_every_rank_without_a_hang(tmp_path):
     proc = run_worker("errors", tmp_path)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -175,6 +177,7 @@ def test_mpi_errors_are_raised_on_every_rank_without_a_hang(tmp_path):
     assert summary["status"] == "unstable" and "unstable at step" in summary["message"]
 
 
+@pytest.mark.slow
 def test_mpi_semi_implicit_refactorises_on_all_ranks_when_one_ranks_contact_changes(tmp_path):
     # The damping diagonal changes on one rank only (Example 2 lands on the left first); the collective
     # refactorisation must still run on every rank, or MUMPS fails or the ranks wait for each other.
@@ -199,6 +202,7 @@ def test_mpi_semi_implicit_refactorises_on_all_ranks_when_one_ranks_contact_chan
             assert rel_error(np.load(tmp_path / f"asym-{mass}.rank0.npz")["eta"], serial.eta) <= PARITY, mass
 
 
+@pytest.mark.slow
 def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
     import stringcontact
 
@@ -213,6 +217,7 @@ def test_mpi_cli_reports_bad_input_once_per_rank_and_exits_2(tmp_path):
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["projection", "newmark", "paper"])
 def test_mpi_schemes_equal_serial_on_every_rank(tmp_path, scheme):
     # Example 2 lands on the left first, so each rank's projection (or active set) changes at its own steps.
@@ -375,6 +380,7 @@ if __name__ == "__main__":
     {"parity": _worker_parity, "errors": _worker_errors, "asymmetric": _worker_asymmetric}[mode](Path(rest[0]))
 
 
+@pytest.mark.slow
 def test_mpi_cli_runs_a_membrane_and_reports_once(tmp_path):
     """`mpirun -n 2 stringcontact run` on a membrane: rank 0 reports and writes, the rowless rank ends cleanly."""
     import stringcontact as sc

@@ -46,6 +46,7 @@ def test_run_without_out_says_in_one_line_that_nothing_is_written(capsys):
     assert lines == ["nothing written (no --out): add --out DIR to write XDMF, CSV, JSON and pictures"]
 
 
+@pytest.mark.slow
 def test_the_installed_command_finds_a_model_module_in_the_current_folder(tmp_path):
     """`stringcontact run ... --model my_ground:soft_ground` from the folder holding my_ground.py (the demo's
     variant, copied as a plain module): found as under `python -m stringcontact`; summary.json names the file
@@ -168,6 +169,7 @@ def test_a_membranes_diagnostics_name_the_contact_area(tmp_path):
     assert string.contact_length is not None
 
 
+@pytest.mark.slow
 def test_check_of_scheme_projection_names_no_penalty_and_no_minus_zero(capsys):
     assert main(["check", "example1", "--scheme", "projection", "--nx", "100", "--nt", "600", "--levels", "2"]) == 0
     out = capsys.readouterr().out
@@ -176,6 +178,7 @@ def test_check_of_scheme_projection_names_no_penalty_and_no_minus_zero(capsys):
     assert " -0 " not in out and " -0\n" not in out and "=-0" not in out, out
 
 
+@pytest.mark.slow
 def test_progress_bars_only_on_a_terminal(tmp_path):
     """stderr a pipe (a log file, CI): no bar; stderr a terminal: the bar."""
     import fcntl
@@ -221,6 +224,7 @@ def _shell_block(text: str, after: str) -> list[str]:
     return [line for line in lines if line and not line.startswith("#")]
 
 
+@pytest.mark.slow
 def test_the_readmes_quick_start_runs_as_written_after_make_demo(tmp_path):
     """`make demo` (its recipe in the Makefile), then the README's quick start in order, in one folder: every
     stringcontact command exits 0 (a `run` into the folder make demo wrote needs --force, else exit 2). The runs

@@ -16,6 +16,7 @@ from stringcontact.verification import reference
 pytestmark = pytest.mark.slow
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["example1", "example2"])
 def test_paper_example_equals_the_papers_finite_differences(name):
     scene = sc.load_scene(name)

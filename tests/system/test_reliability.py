@@ -139,6 +139,7 @@ _TOKENS = ["x", "l", "pi", "h", "1", "0.5", "1e3", "+", "-", "*", "/", "**", "("
            "sin", "sqrt", "where", "min", "__class__", ".", "[", "]", "'", "lambda", ":", "import", "os", "\\"]
 
 
+@pytest.mark.slow
 @settings(max_examples=60, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(eta0=st.text(max_size=80) | st.lists(st.sampled_from(_TOKENS), max_size=25).map("".join) | st.sampled_from(HOSTILE))
 def test_random_and_hostile_text_via_cli(capfd, eta0):
@@ -231,6 +232,7 @@ def test_output_times_are_bounded_by_frames(tmp_path, capfd):
     assert "the scene's 29 output times do not fit in 10 XDMF frames" in capfd.readouterr().err
 
 
+@pytest.mark.slow
 def test_warnings_stay_one_line_after_the_form_compiler_is_loaded(tmp_path):
     # ffcx calls logging.captureWarnings(True) on import: warnings then went to "WARNING:py.warnings:FILE:LINE: ..."
     scene = tmp_path / "times.toml"
@@ -282,6 +284,7 @@ def wait_for_rows(proc, parent: Path, name: str, rows: int) -> Path:
     raise AssertionError(f"the run ended before it could be interrupted: {proc.communicate()}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["SIGINT", "SIGTERM"])
 def test_signal_stops_cleanly_and_keeps_a_readable_xdmf(tmp_path, capfd, signum, code):
     out = tmp_path / "out"
@@ -445,6 +448,7 @@ def test_disk_full_gives_one_line_and_leaves_nothing(capfd, tmpfs):
     assert shutil.disk_usage(folder).used == 0  # the partial folder is gone: the space is free again
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_disk_full_under_mpi_every_rank_exits_2_with_one_line(tmpfs):
     folder = tmpfs("mpi-full", "size=300k")  # the run needs about 3 MB
@@ -459,6 +463,7 @@ def test_disk_full_under_mpi_every_rank_exits_2_with_one_line(tmpfs):
     assert shutil.disk_usage(folder).used == 0
 
 
+@pytest.mark.slow
 def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs):
     folder = tmpfs("pictures", "size=640k")  # the data (~550 KB) fit, the pictures (~260 KB more) do not
     assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress",
@@ -729,6 +734,7 @@ def _bad_meshes():
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(_bad_meshes()))
 def test_a_broken_mesh_file_is_refused_in_one_line_and_never_hangs(tmp_path, case):
     """Issue 27, items 1 and 2: dolfinx hung (index out of range: deaf to SIGTERM) or crashed (duplicate cells)."""
@@ -771,6 +777,7 @@ def test_a_symlink_planted_as_the_lock_is_refused_and_its_target_kept(tmp_path, 
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == [".x.lock"]
 
 
+@pytest.mark.slow
 def test_a_fifo_planted_as_the_lock_is_refused_without_blocking(tmp_path):
     (tmp_path / "o").mkdir()
     os.mkfifo(tmp_path / "o" / ".x.lock")
@@ -813,6 +820,7 @@ def test_plot_and_study_refuse_the_folders_run_refuses(tmp_path, capfd, monkeypa
     assert sorted(os.listdir(tmp_path)) == ["full"] and (tmp_path / "full" / "energy.png").read_text() == "the user's own picture"
 
 
+@pytest.mark.slow
 def test_plot_out_writes_a_whole_folder_and_replaces_it_only_with_force(tmp_path, capfd, a_result):
     out = tmp_path / "pics"
     assert main(["plot", str(a_result), "--out", str(out)]) == 0

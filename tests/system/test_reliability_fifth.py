@@ -35,6 +35,7 @@ def _plant(folder: Path, *names: str) -> None:
         (folder / f"{name}.py").write_text(PLANTED.format(name=name))
 
 
+@pytest.mark.slow
 def test_the_picture_process_imports_nothing_from_the_working_folder(tmp_path):
     """The picture process was started with `python -c`, which puts the current folder first on sys.path: a
     stringcontact.py or pyvista.py there ran. `-P` (as the installed `stringcontact` command) keeps the run's own
@@ -47,6 +48,7 @@ def test_the_picture_process_imports_nothing_from_the_working_folder(tmp_path):
     assert sorted(p.name for p in tmp_path.glob("imported-*")) == []
 
 
+@pytest.mark.slow
 def test_python_m_stringcontact_imports_nothing_from_the_working_folder(tmp_path):
     """`python -m stringcontact` puts the current folder first on sys.path: a ufl.py there was imported by the run."""
     _plant(tmp_path, "ufl", "pyvista", "matplotlib")
@@ -141,6 +143,7 @@ quadratic = model("quadratic", lambda eta, eta_t, eta_tt, force, w, p: paper(eta
     ("quadratic", "paper", "momentum_form is not linear in the test function w"),  # internal error
     ("held_unknown", "paper", "held_fields names 'zz', not a field of the model"),  # internal error KeyError
 ])
+@pytest.mark.slow
 def test_a_form_that_is_no_residual_is_refused_before_it_is_compiled(tmp_path, name, scheme, fragment):
     (tmp_path / "forms.py").write_text(FORMS)
     grid = SMALL if scheme != "projection" else SMALL[:4]  # projection has no eps
@@ -174,6 +177,7 @@ interrupts = dataclasses.replace(inelastic, name="interrupts", momentum_form=_in
     (PLUGIN, "plugin:exits", "model 'exits' called sys.exit(0)"),
     (PLUGIN, "plugin:interrupts", "model 'interrupts' raised KeyboardInterrupt itself"),
 ])
+@pytest.mark.slow
 def test_a_plugin_that_exits_is_one_line_and_exit_2(tmp_path, module, spec, fragment):
     """Only `Exception` was caught: a plugin's sys.exit(0) on import or in a model function ended the run with exit 0,
     nothing done and nothing said; its own KeyboardInterrupt was reported as a Ctrl-C (130)."""
@@ -215,6 +219,7 @@ p_cav = 0
     # error code 60, "Nonconforming object sizes", once the film cavitates (a VI)
     ("film", "snes_linesearch_type=nleqerr", "snes_linesearch_type = 'nleqerr' does not take the bounds"),
 ])
+@pytest.mark.slow
 def test_newton_options_that_make_its_test_vacuous_or_fail_are_refused(tmp_path, scene, option, fragment):
     if scene == "film":
         (tmp_path / "film.toml").write_text(FILM_CAVITATING)
@@ -262,6 +267,7 @@ def test_a_model_field_in_rows_is_checked_like_eta(tmp_path, a_film_result, caps
 
 # --- resource figures ----------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_the_memory_estimate_covers_a_model_with_two_unknowns_per_node(tmp_path):
     """The film at cells = [1000, 1000] took 5.5 GB, 1.8 times the 3.1 KB per node the scene's cap assumes: its own
     cost per node (`SolverHints.setup_bytes_per_node`) is counted, and the run refused before the mesh."""
@@ -315,6 +321,7 @@ obstacle = "{obstacle}"
     # NaN at t = 0.05 only: exit 1, "step failed", no time named
     ("-1 + sqrt(abs(t - 0.05) - 1e-6)", "obstacle at t = 0.05: '-1 + sqrt(abs(t - 0.05) - 1e-6)' is not finite"),
 ])
+@pytest.mark.slow
 def test_a_moving_obstacle_is_checked_at_every_step(tmp_path, obstacle, fragment):
     (tmp_path / "moving.toml").write_text(MOVING.format(obstacle=obstacle))
     proc = stringcontact("run", tmp_path / "moving.toml", *QUICK, "--out", tmp_path / "o")
@@ -333,6 +340,7 @@ def test_frames_is_named_as_the_flag(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("name", "value"), [("root_of_negative", "nan"), ("overflowing", "inf")])
 def test_a_form_that_is_not_finite_is_named_not_the_step_size(tmp_path, name, value):
     """sqrt(eta - 5) or exp(1000 eta) in a form was reported as "Newton did not converge (SNES reason -4) ... use a
@@ -393,6 +401,7 @@ def _singular(tmp_path):
         sys.modules.pop("singular", None)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["paper", "newmark", "projection"])
 def test_a_form_singular_at_zero_runs_on_a_string_that_stays_above_it(tmp_path, scheme):
     """k/eta in the form, with its stored energy declared, on a string that never comes near eta = 0: the operators
@@ -412,6 +421,7 @@ def test_a_form_singular_at_zero_runs_on_a_string_that_stays_above_it(tmp_path, 
     assert np.abs(stepper.problem.ops.load).max() < 1e-15
 
 
+@pytest.mark.slow
 def test_a_form_whose_tangent_is_infinite_at_zero_keeps_its_guards(tmp_path):
     """sqrt(eta) (no stored energy declared: its potential is finite) has an infinite tangent at eta = 0: the energy
     guard's round-off floor was inf and projection's stable dt_max nan, so neither could ever refuse."""
@@ -423,6 +433,7 @@ def test_a_form_whose_tangent_is_infinite_at_zero_keeps_its_guards(tmp_path):
     assert np.isfinite(stepper.ledger.tol)
 
 
+@pytest.mark.slow
 def test_a_form_singular_at_zero_without_a_stored_energy_is_named(tmp_path):
     """Without a declared energy the load -R(0) and the potential's zero are taken at eta = 0, where k/eta is inf
     (it is finite at the initial state): the run stopped at step 1 with "unstable ... use a smaller dt" (exit 3).

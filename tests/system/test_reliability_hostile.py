@@ -46,6 +46,7 @@ def stringcontact(*argv, cwd=None, env=None, timeout=300) -> subprocess.Complete
     (["pc_type=fieldsplit"], "pc_type = 'fieldsplit' needs code or data"),
     (["ksp_type=cg", "pc_type=ilu", "pc_factor_levels=-1"], "pc_factor_levels = -1 is out of range"),
 ])
+@pytest.mark.slow
 def test_petsc_options_that_crashed_or_hung_are_refused_in_one_line(tmp_path, options, fragment):
     argv = [a for option in options for a in ("--petsc-option", option)]
     proc = stringcontact("run", "example1", *SMALL, *argv, "--out", tmp_path / "o")
@@ -54,6 +55,7 @@ def test_petsc_options_that_crashed_or_hung_are_refused_in_one_line(tmp_path, op
     assert not (tmp_path / "o").exists() and leftovers(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_petsc_factorisations_of_one_rank_are_refused_under_mpi(tmp_path):
     """ILU (and LU, ICC with PETSc's own factorisation) on 2 ranks exited 1, "internal error Error: error code 92"."""
     proc = mpirun([sys.executable, "-m", "stringcontact", "run", "example1", *SMALL, "--petsc-option", "ksp_type=cg",
@@ -81,6 +83,7 @@ def copy_of(a_result, tmp_path, name="run") -> Path:
     return copy
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["FIFO", "/dev/zero"])
 def test_a_planted_manifest_never_blocks_or_fills_memory(tmp_path, a_result, kind):
     """A FIFO manifest hung every --force; one linked to /dev/zero was read until memory ran out."""
@@ -199,6 +202,7 @@ def test_nan_rows_leave_an_in_place_plot_folder_untouched(tmp_path, a_result, ca
     assert {p.name: p.read_bytes() for p in run.iterdir()} == before
 
 
+@pytest.mark.slow
 def test_a_zip_bomb_rows_file_is_refused_from_its_header(tmp_path, a_result, capsys):
     """A 1.9 MB rows.npz declaring 1.9 GB drove `plot` to 1.9 GB: the declared shape is refused unread."""
     from numpy.lib import format as npy
@@ -316,6 +320,7 @@ def test_api_values_are_checked():
     (["plot", "{run}", "--out", "{out}"], "pictures.json"),
     (["check", "flat-landing", "--nx", "40", "--nt", "48", "--levels", "1", "--out", "{out}"], "checks.json"),
 ])
+@pytest.mark.slow
 def test_mpi_check_and_plot_out_write_once(tmp_path, a_result, argv, written):
     """`mpirun -n 2 check|plot --out` raced for the folder: one rank exited 2."""
     out = tmp_path / "out"
@@ -332,6 +337,7 @@ def _no_display(**extra) -> dict:
     return env
 
 
+@pytest.mark.slow
 def test_an_x_window_without_a_display_is_a_warning_and_the_run_completes(tmp_path):
     """`VTK_DEFAULT_OPENGL_WINDOW=vtkXOpenGLRenderWindow` without a display: exit 59, 19 lines, .lock and .partial left."""
     env = _no_display(VTK_DEFAULT_OPENGL_WINDOW="vtkXOpenGLRenderWindow")
@@ -344,6 +350,7 @@ def test_an_x_window_without_a_display_is_a_warning_and_the_run_completes(tmp_pa
     assert (tmp_path / "o" / "energy.png").is_file() and leftovers(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_plot_with_an_x_window_without_a_display_is_one_line(tmp_path, a_result):
     """`plot` exited 139 (a segfault)."""
     proc = stringcontact("plot", a_result, "--out", tmp_path / "p",
@@ -353,6 +360,7 @@ def test_plot_with_an_x_window_without_a_display_is_one_line(tmp_path, a_result)
     assert not (tmp_path / "p").exists() and leftovers(tmp_path) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module", ["pyvista", "vtkmodules.util.numpy_support"])
 @pytest.mark.parametrize("in_place", [False, True], ids=["--out", "in place"])
 def test_ctrl_c_inside_vtk_during_plot_is_exit_130_and_one_line(tmp_path, a_result, module, in_place):
@@ -372,6 +380,7 @@ def test_ctrl_c_inside_vtk_during_plot_is_exit_130_and_one_line(tmp_path, a_resu
 
 # --- MPI: one rank failing alone ends the job -------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
     """`mpirun -n 1 ... : -n 1 ... nonexistent.toml` hung: rank 1 waited in MPI's finalize for rank 0, which
     waited in the run's first collective call for rank 1. The failing rank now aborts the job after a grace
@@ -405,6 +414,7 @@ def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
     assert not (tmp_path / "o").exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".o.")]
 
 
+@pytest.mark.slow
 def test_a_scene_name_with_dollars_is_drawn_as_written(tmp_path):
     """A scene named `$x^{$` broke matplotlib's titles (mathtext), without naming the key."""
     scene = tmp_path / "s.toml"
@@ -419,6 +429,7 @@ def test_a_scene_name_with_dollars_is_drawn_as_written(tmp_path):
 SIGTERM_AT_IMPORT = CTRL_C_AT_IMPORT.replace("SIGINT", "SIGTERM")
 
 
+@pytest.mark.slow
 def test_sigterm_during_rank_0s_pictures_marks_the_folder_interrupted_on_every_rank(tmp_path):
     """Under MPI, a SIGTERM during rank 0's pictures left a folder marked complete without its pictures (and rank 1
     read rank 0's clean-up as its own outcome). Rank 0 sends it to itself at its import of pyvista; rank 1 never
@@ -458,6 +469,7 @@ sys.exit(main())
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("how", "code", "fragment"), [("memory", 2, "MemoryError"),
                                                        ("sigterm", 143, "interrupted by SIGTERM")])
 def test_one_rank_failing_or_signalled_ends_the_job(tmp_path, how, code, fragment):
@@ -488,6 +500,7 @@ sys.exit(main())
 """
 
 
+@pytest.mark.slow
 def test_sigterm_to_one_rank_mid_run_stops_every_rank_and_marks_the_folder(tmp_path):
     """`kill -TERM` to one rank's pid hung silently, and killing the job then left .lock and .partial. Every rank
     now leaves the time loop at the same step: the folder is marked interrupted, each rank prints its line."""

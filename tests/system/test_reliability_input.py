@@ -45,6 +45,7 @@ def strip_scene(folder: Path, mesh: Path, **keys) -> Path:
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 @pytest.mark.parametrize("key, value", [("eta0", "'1 + sqrt(x + 2)'"), ("v0", "'sqrt(x + 2) - sqrt(x + 2)'"),
                                         ("obstacle", "'-1 + sqrt(x + 2)'")])
@@ -60,6 +61,7 @@ def test_an_expression_failing_on_one_rank_ends_every_rank_with_one_line(tmp_pat
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 @pytest.mark.parametrize("option", ["ksp_type=bogus", "pc_factor_mat_ordering_type=external"])
 def test_a_bad_petsc_value_ends_every_rank_with_one_line(tmp_path, option):

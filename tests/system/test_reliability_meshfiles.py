@@ -68,6 +68,7 @@ def one_error_line(stderr: str, *fragments) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 def test_the_mesh_is_read_from_the_file_the_xdmf_names(tmp_path):
     """dolfinx 0.5 read `<xdmf stem>.h5` whatever the DataItem named: a good x_data.h5 named beside a bad x.h5
     (an index out of range) was checked, then dolfinx read x.h5 and spun forever. The file named is the file
@@ -84,6 +85,7 @@ def test_the_mesh_is_read_from_the_file_the_xdmf_names(tmp_path):
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["status"] == "complete"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("grid_name", ["x' or @Name='evil", 'a"b', "m]/../Grid[1"])
 def test_a_grid_name_is_never_code(tmp_path, grid_name):
     """dolfinx built an XPath from the grid's name: `x' or @Name='evil` hung it. The name is not used now."""
@@ -106,6 +108,7 @@ def _special(kind: str, path: Path) -> None:
         os.symlink(path.name + ".a", path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("kind", "fragment"), [("FIFO", "is a FIFO"), ("directory", "is a directory"),
                                                 ("loop", "loop of symbolic links")])
 def test_a_mesh_h5_that_is_not_a_file_is_one_line_and_never_blocks(tmp_path, kind, fragment):
@@ -132,6 +135,7 @@ def test_a_mesh_path_that_is_not_a_file_says_what_it_is(tmp_path, kind, fragment
     assert "no such file" not in line
 
 
+@pytest.mark.slow
 def test_string_coordinates_are_refused_before_they_are_read(tmp_path):
     """A 2.8 KB .h5 with string coordinates took 2 GB and then gave a wrong message."""
     cells, points = grid_mesh(5)
@@ -143,6 +147,7 @@ def test_string_coordinates_are_refused_before_they_are_read(tmp_path):
     one_error_line(proc.stderr, "mesh: ", "its geometry holds", "allowed: floating-point or integer numbers")
 
 
+@pytest.mark.slow
 def test_huge_coordinates_are_named_as_such(tmp_path):
     """Coordinates of 1e200 were reported as "cells of zero area (smallest inf)"."""
     cells, points = grid_mesh(5)

@@ -52,6 +52,7 @@ WITHOUT_ROOM_CHECK = ("import sys; import stringcontact.io.xdmf as x; x._check_r
                       "from stringcontact.cli.main import main; sys.exit(main(sys.argv[1:]))")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("room_check", [True, False], ids=["checked", "HDF5 meets the full disk"])
 @pytest.mark.parametrize("free_kib", [1, 4, 7, 13, 1599])
 def test_a_full_disk_gives_exactly_one_line_and_leaves_nothing(tmpfs, free_kib, room_check):
@@ -71,6 +72,7 @@ def test_a_full_disk_gives_exactly_one_line_and_leaves_nothing(tmpfs, free_kib, 
     assert sorted(p.name for p in folder.iterdir()) == ["filler"]  # no partial folder, no lock
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_a_nearly_full_disk_under_mpi_prints_no_hdf5_or_petsc_noise(tmpfs):
     folder = tmpfs("mpi-full", "size=2m")
@@ -87,6 +89,7 @@ def test_a_nearly_full_disk_under_mpi_prints_no_hdf5_or_petsc_noise(tmpfs):
 # --- item 11: closed stdout or stderr ----------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("closed", [1, 2], ids=["stdout closed", "stderr closed"])
 def test_a_run_with_a_closed_standard_stream_works_and_its_exit_code_tells(tmp_path, closed):
     out = tmp_path / "out"
@@ -102,6 +105,7 @@ def test_a_run_with_a_closed_standard_stream_works_and_its_exit_code_tells(tmp_p
         assert_exactly_one_error_line(missing.stderr, "no built-in scene")
 
 
+@pytest.mark.slow
 def test_pictures_are_drawn_with_stdout_closed(tmp_path):
     out = tmp_path / "out"
     proc = stringcontact("run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress",
@@ -113,6 +117,7 @@ def test_pictures_are_drawn_with_stdout_closed(tmp_path):
 # --- item 12: a --out path that is not UTF-8 --------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_non_utf8_out_path_works(tmp_path):
     out = tmp_path / os.fsdecode(b"o9/\xff\xfe")
     proc = stringcontact("run", "example1", *SMALL, "--out", os.fsdecode(b"o9/\xff\xfe"), cwd=tmp_path)
@@ -196,6 +201,7 @@ def test_force_does_not_trust_a_hand_written_summary(tmp_path, capfd, manifest):
     assert (out / "thesis.tex").read_text() == "years of work"
 
 
+@pytest.mark.slow
 def test_force_replaces_a_result_whose_pictures_plot_redrew(tmp_path, capfd):
     out = tmp_path / "out"
     assert main(["run", "example1", "--nx", "50", "--nt", "40", "--eps", "0.01", "--no-progress", "--out", str(out)]) == 0

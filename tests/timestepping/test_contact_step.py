@@ -80,6 +80,7 @@ def _small(scene):
 CASES = [(name, scheme) for name, _ in sc.list_scenes() for scheme in _schemes_for(sc.load_scene(name))]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, scheme", CASES)
 def test_the_stored_contact_force_is_a_contact_force(name, scheme):
     """(A1) F ≥ 0 and (A2) F = 0 off the contact set, at every stored time, for every scene and scheme."""
@@ -189,6 +190,7 @@ def _lcp_by_enumeration(A, b):
     raise AssertionError("no solution")
 
 
+@pytest.mark.slow
 def test_check_runs_on_the_projection_scheme():
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "check", "example1", "--scheme", "projection",
                            "--nx", "800", "--nt", "240", "--levels", "2"], capture_output=True, text=True, check=False)

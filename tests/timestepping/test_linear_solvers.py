@@ -160,6 +160,7 @@ def test_cg_keeps_the_ledger_closed_and_agrees_with_lu(scheme, options):
     assert np.max(np.abs(cg.eta - lu.eta)) <= AGREE * max(1.0, np.max(np.abs(lu.eta)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme, penalty", [("projection", None), ("newmark", None), ("paper", "semi-implicit")])
 def test_the_drum_lands_alike_with_cg(scheme, penalty):
     lu = sc.simulate(small_drum(), scheme=scheme, penalty=penalty)
@@ -282,6 +283,7 @@ def test_cli_refuses_bad_options_with_exit_2(tmp_path, capsys, item):
 # --- MPI ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_cg_on_two_ranks_gives_the_serial_lu_answer(tmp_path):
     from conftest import mpirun

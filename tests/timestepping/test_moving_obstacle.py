@@ -238,6 +238,7 @@ def test_a_nonlinear_model_rides_a_moving_obstacle_under_a_penalty(kwargs, name)
         assert np.all(np.diff(res.energy["contact_dissipation"]) >= -1e-12 * b["external_work"])
 
 
+@pytest.mark.slow
 def test_the_cli_runs_the_piston_and_refuses_a_restitution(capfd, tmp_path):
     assert main(["run", "piston", "--nx", "100", "--no-progress", "--no-pictures", "--out", str(tmp_path / "o")]) == 0
     out = capfd.readouterr().out

@@ -49,6 +49,7 @@ def ex1():
     return sc.load_scene("example1").replace(nx=100, nt=600)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme,penalty", [("paper", "explicit"), ("paper", "semi-implicit"), ("projection", None),
                                             ("newmark", None)])
 def test_the_newton_path_of_a_linear_model_is_the_linear_path(ex1, scheme, penalty):
@@ -68,6 +69,7 @@ def test_a_linear_model_does_not_pay_for_newton(ex1):
     assert type(scheme_class("paper")(problem)).__module__.endswith("timestepping.paper")
 
 
+@pytest.mark.slow
 def test_the_cubic_variant_runs_with_every_scheme(ex1):
     for scheme in ("paper", "projection", "newmark"):
         res = run(ex1, scheme=scheme, model=CUBIC)
@@ -121,6 +123,7 @@ def _manufactured_error(base, scheme, n):
     return np.max(np.abs(stepper.eta - mms.exact(problem.x, scene.T))), stepper.timings
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("base", [variants.cubic_foundation, variants.large_deflection], ids=lambda m: m.name)
 @pytest.mark.parametrize("scheme", ["paper", "projection", "newmark"])
 def test_a_manufactured_solution_converges_at_first_order_or_better(base, scheme):
@@ -132,6 +135,7 @@ def test_a_manufactured_solution_converges_at_first_order_or_better(base, scheme
     assert min(rates) >= {"paper": 0.8, "projection": 0.8, "newmark": 1.8}[scheme], (errors, rates)
 
 
+@pytest.mark.slow
 def test_newton_converges_quadratically():
     """A large slope (η_x up to 3) on the large-deflection string: with a fresh Jacobian at every iteration (no
     Jacobian kept from an earlier step), the residual norms of a step fall quadratically, r_{k+1} ≤ C r_k² with
@@ -153,6 +157,7 @@ def test_newton_converges_quadratically():
     assert r[2] / r[1] ** 2 < 1e2 * (r[1] / r[0] ** 2)  # quadratic: r_{k+1}/r_k² does not grow
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["cubic_foundation", "large_deflection"])
 @pytest.mark.parametrize("scheme,penalty", [("paper", "explicit"), ("paper", "semi-implicit"), ("projection", None),
                                             ("newmark", None)])
@@ -185,6 +190,7 @@ def test_projection_with_a_nonlinear_model_is_a_variational_inequality(ex1):
     assert np.max(f) > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["paper", "projection", "newmark"])
 @pytest.mark.parametrize("name", ["example1", "flat"])
 def test_the_energy_ledger_closes_for_the_cubic_variant(ex1, scheme, name):
@@ -209,6 +215,7 @@ def test_the_energy_ledger_closes_for_the_cubic_variant(ex1, scheme, name):
 # --- the shipped variants from the command line ---------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cubic_foundation", "large_deflection"])
 def test_a_shipped_nonlinear_variant_runs_from_the_command_line(tmp_path, name):
     import json
@@ -247,6 +254,7 @@ def two_field_energy(U, p):
     return variants.cubic_foundation.stored_energy(U[0], p)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheme", ["paper", "projection", "newmark"])
 def test_a_second_field_gives_the_single_field_answer(ex1, scheme, monkeypatch):
     """A fresh Jacobian at every iteration on both: a kept one stops each at its own point below the tolerance
@@ -276,6 +284,7 @@ def test_the_second_field_is_solved_not_lagged(ex1):
     assert np.max(np.abs(stepper.eta - stepper.old)) > 1e-3
 
 
+@pytest.mark.slow
 def test_a_scene_load_read_only_by_the_residual_counts_as_used():
     """`unused_fields` reads a model with fields through its residual: a load used there is not refused."""
     def residual(U, U_t, U_tt, force, W, p):
@@ -331,6 +340,7 @@ MPI_RUNS = [(case, scheme, model) for case in ("string", "membrane") for scheme 
 MPI_RUNS += [("piston", scheme, "cubic_foundation") for scheme in ("paper", "projection", "newmark")]  # ψ(x, t)
 
 
+@pytest.mark.slow
 def test_two_ranks_give_the_serial_answer(tmp_path):
     """Measured 3.5e-12 at most (the membrane's projection), 1e-13 on the string; the piston (a moving obstacle)
     2e-14."""

@@ -70,6 +70,7 @@ def check_first_order(out: dict, scene: str) -> None:
     assert (ref.min_eta <= 0.0 if scene == "contact" else ref.min_eta > 0.1), ref.min_eta  # the scene is what it says
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("scheme", SCHEMES)
 def test_the_users_cubic_variant_converges_at_first_order(scheme, scene):

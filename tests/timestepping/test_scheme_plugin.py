@@ -71,6 +71,7 @@ def _run(scene, **kwargs):
 SCENE = sc.load_scene("example1").replace(nx=100, nt=200, T=0.5, eps=0.0025, output_times=[])  # r = dt/eps = 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", [sc.inelastic, CUBIC], ids=["linear", "nonlinear"])
 def test_a_registered_scheme_runs_by_its_name(bdf2, model):
     """Listed with its description, named in a scene, it lands the string like the paper's scheme (first order
@@ -86,6 +87,7 @@ def test_a_registered_scheme_runs_by_its_name(bdf2, model):
     assert r.counters["newton iterations"] >= (SCENE.nt if model is CUBIC else 0)
 
 
+@pytest.mark.slow
 def test_a_scheme_class_can_be_handed_over(bdf2):
     """In Python the class itself is the scheme: named by where it lives, run by the same path."""
     import bdf2_scheme
@@ -103,6 +105,7 @@ class _Unregistered(ImplicitScheme):
     QUOTIENTS = PAPER
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("penalty", ["explicit", "semi-implicit"])
 def test_the_generic_implicit_step_is_the_papers_newton_path(penalty):
     """A nonlinear model: bit for bit the paper's Newton path, whichever penalty; an unregistered class is named

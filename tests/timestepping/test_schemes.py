@@ -51,6 +51,7 @@ def test_projection_is_its_finite_difference_reference(name):
     assert np.max(np.abs(res.velocity - vel[res.steps])) <= 1e-10 / scene.dt
 
 
+@pytest.mark.slow
 def test_projection_keeps_the_string_above_a_profiled_obstacle():
     scene = sc.load_scene("loaded_string").replace(nx=100, nt=4000, T=0.8, output_times=[0.4])
     res = run(scene, scheme="projection", model=variants.loaded_obstacle)

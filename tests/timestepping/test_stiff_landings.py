@@ -32,6 +32,7 @@ def run(scene, **kwargs):
         return sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt), **kwargs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("nx", [500, 1000])
 def test_a_stiff_cubic_landing_converges_at_dt_under_projection(nx):
     """η0 = 1 + 0.3 sin πx thrown down by v0 = −3 sin 2πx, α = 0.02, Δt = Δx: every contact step converges at Δt, in a
@@ -49,6 +50,7 @@ def test_a_stiff_cubic_landing_converges_at_dt_under_projection(nx):
     assert r.counters["newton iterations"] <= 1.25 * (scene.nt + 1)  # measured 1.13 (nx = 500), 1.17 (nx = 1000)
 
 
+@pytest.mark.slow
 def test_film_landing_converges_at_600_steps():
     """The film thrown onto the obstacle with Δt = 5e-4: the landing's step, where the film's line search (l2) lets
     the residual rise until it diverges, is tried again with bt from the same guess and converges at Δt; the
