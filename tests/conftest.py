@@ -72,7 +72,7 @@ _MPI_JOB_VARIABLES = ("PMIX_", "OMPI_COMM_WORLD_", "OMPI_MCA_ess", "OMPI_MCA_ort
 
 
 def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedProcess:
-    """`mpirun -n RANKS --oversubscribe ARGV...`, output captured as text.
+    """`mpirun -n RANKS --oversubscribe --bind-to none ARGV...` (idle ranks yield), output captured as text.
 
     Skips the test when there is no mpirun; fails it (killing the whole job) when it runs longer than
     `timeout` seconds, so that a hang fails instead of blocking the suite.
@@ -85,8 +85,12 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
     # a test file run as the MPI program (`python tests/system/test_mpi.py ...`) imports this module by name
     env["PYTHONPATH"] = os.pathsep.join(filter(None, (str(TESTS), env.get("PYTHONPATH"))))
     env.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    # The job shares two cores with the other pytest worker: a rank waiting for the other (a barrier while rank 0
+    # compiles a form, a solve's reductions) yields its core instead of spinning on it, and neither rank is pinned
+    # to a core the other worker is using (Open MPI binds to cores by default for two ranks).
+    env.setdefault("OMPI_MCA_mpi_yield_when_idle", "1")
     argv = [str(a) for a in argv]
-    cmd = [exe, "-n", str(ranks), "--oversubscribe", *argv]
+    cmd = [exe, "-n", str(ranks), "--oversubscribe", "--bind-to", "none", *argv]
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True
     )
