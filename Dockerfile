@@ -57,7 +57,8 @@ CMD ["--help"]
 
 
 # The test suite in the image: the demo image plus what the tests drive (ParaView's pvpython under xvfb-run,
-# the `test` extras). Its default command runs the whole suite as the image's user.
+# the `test` extras). Its default command runs the whole suite as the image's user, one pytest-xdist worker per
+# core as `make test` does.
 FROM demo AS test
 
 USER 0:0
@@ -72,7 +73,7 @@ RUN scripts/setup --test --only deps .venv \
 USER 1000:1000
 ENV STRINGCONTACT_REQUIRE_PARAVIEW=1
 ENTRYPOINT ["python", "-m", "pytest", "-p", "no:cacheprovider"]
-CMD ["-q"]
+CMD ["-q", "-n", "auto", "--dist", "loadfile"]
 
 
 # The default target: the demo image.
