@@ -42,8 +42,6 @@ nitpick_ignore_regex = [
     ("py:class", r"(Path|Callable|Iterable|Sequence|Mapping|NDArray|ndarray|Function|Form|Constant|Expr|Comm)"),
     ("py:class", r"(optional|callable|array|float|int|str|bool|dict|tuple|list)( .*)?"),
     ("py:class", r"stringcontact\..*\._.*"),
-    # what the driver hands a scheme (timestepping.base.DiscreteProblem): internal, named in Scheme()
-    ("py:class", r"(stringcontact\.timestepping\.base\.)?DiscreteProblem"),
     ("py:mod", r"stringcontact\..*"),  # the internal modules a docstring names are not pages of the site
 ]
 default_role = "code"  # the docstrings' `name`: code, as in the rest of the project

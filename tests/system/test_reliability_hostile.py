@@ -444,25 +444,27 @@ def test_sigterm_during_rank_0s_pictures_marks_the_folder_interrupted_on_every_r
     assert leftovers(tmp_path) == []
 
 
-# One rank fails on its own: rank 0 runs out of memory in the set-up, or rank 1 gets SIGTERM right after it. Before,
-# the other rank waited in the set-up's next collective call for ever (a hang); the job now ends with the failing
-# rank's exit code after the grace period.
+# One rank fails on its own: rank 0 runs out of memory in the set-up, or rank 1 gets SIGTERM as the scheme (the
+# registered `paper` class) is handed its discrete problem, the set-up's last part. Before, the other rank waited in
+# the set-up's next collective call for ever (a hang); the job now ends with the failing rank's exit code after the
+# grace period.
 ONE_RANK_FAILS = r"""
 import os, signal, sys
 from mpi4py import MPI
 import stringcontact.run.setup as setup
+from stringcontact.timestepping import scheme_class
 rank = MPI.COMM_WORLD.rank
 if sys.argv[1] == "memory" and rank == 0:
     def no_memory(*args, **kwargs):
         raise MemoryError()
     setup.discretise = no_memory
 if sys.argv[1] == "sigterm" and rank == 1:
-    set_up = setup._discrete_problem
-    def set_up_then_signal(*args, **kwargs):
-        problem = set_up(*args, **kwargs)
+    Paper = scheme_class("paper")
+    set_up = Paper.__init__
+    def set_up_then_signal(self, problem):
         os.kill(os.getpid(), signal.SIGTERM)
-        return problem
-    setup._discrete_problem = set_up_then_signal
+        set_up(self, problem)
+    Paper.__init__ = set_up_then_signal
 from stringcontact.cli.main import main
 sys.argv = ["stringcontact", *sys.argv[2:]]
 sys.exit(main())

@@ -41,17 +41,28 @@ from . import compat
 
 @dataclass
 class Operators:
-    """The assembled constant operators of one model on one mesh (PETSc objects, no BCs applied)."""
+    """The assembled constant operators of one model on one mesh (PETSc objects, no BCs applied).
+
+    Its fields:
+
+    * ``M``, ``C``, ``K``: the mass, viscous and stiffness matrices (∂R/∂η_tt, ∂R/∂η_t, ∂R/∂η);
+    * ``m``: the row sums of M on the owned dofs, the lumped mass; ``m_force``: the row sums of B, the lumped force
+      weights; ``load``: b on the owned dofs (zero for the paper's model);
+    * ``V``: the function space (kept alive with its matrices: dolfinx 0.9 crashes otherwise);
+    * ``nonlinear``: a nonlinear model's residual (`NonlinearForm`; M, C, K are then its tangent), else None;
+    * ``linearised_at``: where C and K are the tangent: ``"eta = 0"``, or ``"the state"`` for a form that is not
+      finite at 0.
+    """
 
     M: PETSc.Mat
     C: PETSc.Mat
     K: PETSc.Mat
-    m: np.ndarray  # row sums of M (owned dofs): the lumped mass
-    m_force: np.ndarray  # row sums of B (owned dofs): the lumped force weights
-    load: np.ndarray  # b on owned dofs (zero for the paper's model)
-    V: object = None  # the function space: kept alive with its matrices (dolfinx 0.9 segfaults otherwise)
-    nonlinear: NonlinearForm | None = None  # a nonlinear model's residual (then M, C, K are its tangent at 0)
-    linearised_at: str = "eta = 0"  # where C and K are the tangent: "eta = 0", or "the state" (not finite at 0)
+    m: np.ndarray
+    m_force: np.ndarray
+    load: np.ndarray
+    V: object = None
+    nonlinear: NonlinearForm | None = None
+    linearised_at: str = "eta = 0"
 
 
 @dataclass
@@ -62,21 +73,32 @@ class NonlinearForm:
     R is affine in η_tt and in the force with constant coefficients (M = ∂R/∂η_tt and B = −∂R/∂F are the
     `Operators`' M and m_force), so a scheme keeps its mass lumping and its nodal force; `stored_energy` is
     the model's stored energy density as UFL in `eta` (assembled by the scheme for its ledger).
+
+    Its fields:
+
+    * ``residual``: the UFL form R(eta, eta_t, eta_tt, force; w);
+    * ``eta``, ``eta_t``, ``eta_tt``: the placeholders, Functions on ``space``; ``force``: a Function on ``V``;
+    * ``V``: η's P1 space (the schemes' nodal arrays); ``params``: the model's constants;
+    * ``stored_energy``: the UFL form ∫Π(energy_eta) dx; ``energy_eta``: the Function on V that it reads;
+      ``energy_derived``: True when it is the form's potential (`potential_energy`), not declared;
+    * ``viscous_linear``: ∂R/∂η_t is constant, so the viscous force is C η_t (a mat-vec, no assembly);
+    * ``space``: the unknowns' space, V or the mixed space of ``(η, *fields)``; ``eta_dofs``: the mixed space's local
+      dof of each local dof of V (None when the space is V).
     """
 
-    residual: object  # the UFL form R(eta, eta_t, eta_tt, force; w)
-    eta: object  # the placeholders: Functions on `space` (η's P1 space, or the mixed space of several fields)
+    residual: object
+    eta: object
     eta_t: object
     eta_tt: object
-    force: object  # a Function on V
-    V: object  # η's P1 space (the schemes' nodal arrays)
+    force: object
+    V: object
     params: object
-    stored_energy: object  # UFL form ∫Π(energy_eta) dx
-    energy_eta: object  # the Function on V that `stored_energy` reads
-    viscous_linear: bool = False  # ∂R/∂η_t is constant: the viscous force is C η_t (a mat-vec, no assembly)
-    space: object = None  # the unknowns' space: V, or the mixed space of (η, *fields)
-    eta_dofs: object = None  # the mixed space's local dof of each local dof of V (None: the space is V)
-    energy_derived: bool = False  # `stored_energy` is the form's potential (`potential_energy`), not declared
+    stored_energy: object
+    energy_eta: object
+    viscous_linear: bool = False
+    space: object = None
+    eta_dofs: object = None
+    energy_derived: bool = False
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:

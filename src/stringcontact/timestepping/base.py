@@ -55,10 +55,13 @@ class NodalLaws:
         self.env = nodal.environment(fields, x)
         self._keys = {"eta": id(self.eta), "eta_old": id(self.eta_old), "v": id(self.v)}
 
-    def compile(self, expr) -> nodal.NodalExpression:
+    def compile(self, expr):
+        """`expr` (UFL in the placeholders and the model's fields) as a nodal NumPy expression: a
+        `fem.nodal.NodalExpression`, whose ``evaluate_env(self.env)`` gives its value at every node."""
         return nodal.NodalExpression(expr)
 
     def set(self, **arrays) -> None:
+        """Point the placeholders named by the keywords (``eta``, ``eta_old``, ``v``) at these arrays (no copy)."""
         for name, a in arrays.items():
             self.env[self._keys[name]] = a
 
@@ -115,26 +118,43 @@ class MovingObstacle:
 
 @dataclass
 class DiscreteProblem:
-    """The discrete problem a scheme steps: the model's operators on one mesh, Δt, the options, the fixed ends and
-    the nodal laws."""
+    """The discrete problem a scheme steps, what the driver hands ``Scheme.__init__`` (kept as ``self.problem``):
+    the model's operators on one mesh, Δt, the options, the fixed ends and the nodal laws.
+
+    Its fields:
+
+    * ``ops``: the model's assembled operators (`Operators`: M, C, K, the lumped mass and force weights, the load,
+      the residual of a nonlinear model);
+    * ``dt``, ``nt``: the time step and the number of steps; ``eps``: the penalty's ε (unused by an ε-free scheme);
+    * ``mass``, ``penalty``: the mass matrix and the penalty chosen (`Scheme.check_options`; penalty None for an
+      ε-free scheme);
+    * ``bc``, ``g``: the owned dof indices of the fixed ends (a membrane's boundary) and their heights;
+    * ``laws``: the model's pointwise laws at the nodes (`NodalLaws`);
+    * ``comm``: the run's MPI communicator; ``x``: the coordinates of the owned dofs (a string's x, a membrane's
+      (x, y) rows);
+    * ``petsc_options``: PETSc options on top of the size rule's, validated with the scene (or None);
+    * ``restitution``: the restitution coefficient e, for a scheme with ``RESTITUTION`` (checked with the scene);
+    * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest.
+    """
 
     ops: Operators
     dt: float
     mass: str
     penalty: str | None
-    bc: np.ndarray  # owned dof indices of the fixed ends
-    g: np.ndarray  # their heights
+    bc: np.ndarray
+    g: np.ndarray
     laws: NodalLaws
     comm: MPI.Comm
     eps: float
-    x: np.ndarray  # coordinates of the owned dofs
+    x: np.ndarray
     nt: int
-    petsc_options: dict | None = None  # on top of the size rule's (`solver_options`), validated by the scene
-    restitution: float = 0.0  # the restitution coefficient e, for a scheme with RESTITUTION (the scene's, checked)
-    obstacle: MovingObstacle | None = None  # a moving obstacle ψ(x, t) (the scene's obstacle in t), else None
+    petsc_options: dict | None = None
+    restitution: float = 0.0
+    obstacle: MovingObstacle | None = None
 
     @property
     def n_owned(self) -> int:
+        """The number of dofs this rank owns (the length of the schemes' nodal arrays)."""
         return self.ops.m.size
 
     @cached_property
@@ -153,6 +173,7 @@ class DiscreteProblem:
 
     @cached_property
     def interior(self) -> np.ndarray:  # read every step: computed once
+        """True at the owned dofs that are not fixed ends (bool per node)."""
         mask = np.ones(self.n_owned, dtype=bool)
         mask[self.bc] = False
         return mask
@@ -169,7 +190,7 @@ class Scheme:
     * ``LINEAR_PATH``: True if it steps a linear model with the constant operators M, C, K alone; False if every
       model reaches it with its residual (`Operators.nonlinear`, as a nonlinear one always does:
       `implicit.ImplicitScheme`);
-    * ``__init__(problem)``: assemble and factorise (set-up time);
+    * ``__init__(problem)``: assemble and factorise (set-up time); ``problem`` is the `DiscreteProblem`;
     * ``start(eta0, v0) -> StepEnergy``: the initial state (ends already at their heights, v0 = 0 there);
     * ``step() -> StepEnergy``: one step;
     * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force
