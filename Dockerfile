@@ -76,5 +76,64 @@ ENTRYPOINT ["python", "-m", "pytest", "-p", "no:cacheprovider"]
 CMD ["-q", "-n", "auto", "--dist", "loadfile"]
 
 
+# dolfinx 0.11 from PyPI's binary wheel (dolfinx-solver-real: its own PETSc, SLEPc and MPICH) instead of Debian's:
+# the third stack the suite runs on (`scripts/image wheel`). The same steps as the demo image, with `--wheel`.
+#
+#   docker build --target wheel-test -t stringcontact-wheel-test . && docker run --rm stringcontact-wheel-test
+FROM debian:trixie-slim AS wheel
+
+SHELL ["/bin/bash", "-o", "pipefail", "-c"]
+
+ENV LANG=C.UTF-8 \
+    PYTHONDONTWRITEBYTECODE=1 \
+    VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow \
+    MPLCONFIGDIR=/tmp/matplotlib
+
+WORKDIR /opt/stringcontact
+
+COPY scripts/setup scripts/setup
+RUN scripts/setup --wheel --only system \
+    && rm -rf /var/lib/apt/lists/* \
+    && useradd --create-home --uid 1000 --user-group --shell /bin/bash stringcontact \
+    && install -d -o stringcontact -g stringcontact /out
+
+COPY pyproject.toml ./
+RUN scripts/setup --wheel --only deps .venv && rm -rf /root/.cache
+
+COPY . .
+RUN scripts/setup --wheel --only package .venv && rm -rf /root/.cache
+
+USER 1000:1000
+ENV HOME=/home/stringcontact \
+    PATH=/opt/stringcontact/.venv/bin:$PATH
+
+RUN scripts/setup --wheel --only warm .venv \
+    && chmod 755 "$HOME" \
+    && chmod -R a+rwX "$HOME/.cache"
+
+WORKDIR /out
+ENTRYPOINT ["stringcontact"]
+CMD ["--help"]
+
+
+# The suite on the wheel's stack, and a wheelhouse (/opt/wheelhouse: every distribution `pip install ".[dolfinx]"`
+# needs) for the test that installs the package into a fresh venv without the network (tests/system/test_install.py).
+FROM wheel AS wheel-test
+
+USER 0:0
+WORKDIR /opt/stringcontact
+RUN scripts/setup --wheel --test --only system \
+    && rm -rf /var/lib/apt/lists/*
+RUN scripts/setup --wheel --test --wheelhouse /opt/wheelhouse --only deps .venv \
+    && rm -rf /root/.cache \
+    && chown stringcontact:stringcontact /opt/stringcontact
+
+USER 1000:1000
+ENV STRINGCONTACT_REQUIRE_PARAVIEW=1 \
+    STRINGCONTACT_WHEELHOUSE=/opt/wheelhouse
+ENTRYPOINT ["python", "-m", "pytest", "-p", "no:cacheprovider"]
+CMD ["-q", "-n", "auto", "--dist", "loadfile"]
+
+
 # The default target: the demo image.
 FROM demo

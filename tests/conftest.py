@@ -15,6 +15,12 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, settings
 
+from stringcontact import stack
+
+# The dolfinx wheel's MPI before any test module imports dolfinx, petsc4py or mpi4py (`stack.load`'s rule; nothing
+# happens on Debian's or conda's dolfinx).
+stack.load_mpi_first()
+
 # No clock in a test: hypothesis's per-example deadline (200 ms by default) and its too-slow health check
 # fail a correct test on a busy machine. Loaded here, before any test module is imported, for all of them.
 settings.register_profile("stringcontact", deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -79,7 +85,7 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
     """
     exe = shutil.which("mpirun") or shutil.which("mpiexec")
     if exe is None:
-        pytest.skip("mpirun not found (scripts/setup installs openmpi-bin)")
+        pytest.skip("mpirun not found (scripts/setup installs openmpi-bin; the wheel's stack has MPICH's)")
     env = {k: v for k, v in os.environ.items() if not k.startswith(_MPI_JOB_VARIABLES)}
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
     # a test file run as the MPI program (`python tests/system/test_mpi.py ...`) imports this module by name
@@ -90,7 +96,9 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
     # to a core the other worker is using (Open MPI binds to cores by default for two ranks).
     env.setdefault("OMPI_MCA_mpi_yield_when_idle", "1")
     argv = [str(a) for a in argv]
-    cmd = [exe, "-n", str(ranks), "--oversubscribe", "--bind-to", "none", *argv]
+    if len(argv) > 1 and argv[0] == sys.executable and argv[1].endswith(".py"):  # a test file as the MPI program:
+        argv = [argv[0], "-c", RUN_FILE, *argv[1:]]  # the stack's import order first, as the package's own modules do
+    cmd = [exe, "-n", str(ranks), *MPIRUN_FLAGS[mpi_flavour(exe)], *argv]
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True
     )
@@ -101,6 +109,23 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
         out, err = proc.communicate()
         pytest.fail(f"mpirun -n {ranks} {' '.join(argv)} hung for {timeout} s\n{out[-2000:]}\n{err[-2000:]}")
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+#: `python -c RUN_FILE FILE ARGS...`: FILE run as __main__ with ARGS, after `stack.load_mpi_first` (a test file that
+#: imports dolfinx or petsc4py at its top runs so on the dolfinx wheel, which needs its MPI loaded first).
+RUN_FILE = ("import runpy, sys; from stringcontact import stack; stack.load_mpi_first(); sys.argv = sys.argv[1:]; "
+            "runpy.run_path(sys.argv[0], run_name='__main__')")
+
+#: The launcher's flags for two ranks sharing the cores with the other pytest worker: Open MPI's (Debian) refuses
+#: more ranks than cores unless told, and pins each rank to a core; MPICH's hydra (the dolfinx wheel's) does neither
+#: unless told.
+MPIRUN_FLAGS = {"openmpi": ("--oversubscribe", "--bind-to", "none"), "mpich": ("-bind-to", "none")}
+
+
+def mpi_flavour(exe: str) -> str:
+    """"openmpi" or "mpich": the MPI whose launcher `exe` is (its ``--version`` names it)."""
+    out = subprocess.run([exe, "--version"], capture_output=True, text=True).stdout
+    return "mpich" if "HYDRA" in out or "MPICH" in out else "openmpi"
 
 
 def one_error_line(stderr: str, *fragments) -> str:

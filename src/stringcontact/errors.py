@@ -1,7 +1,7 @@
 """The errors a user can meet, each with a message that names the cause and the remedy.
 
-The command line maps them to exit codes (see `stringcontact.cli.main`): `SceneError` and `OutputError` to 2,
-`InstabilityError` to 3 (2 if it is found before the first step), `Interrupted` to 128 + the signal number.
+The command line maps them to exit codes (see `stringcontact.cli.main`): `SceneError`, `OutputError` and
+`StackError` to 2, `InstabilityError` to 3 (2 if it is found before the first step), `Interrupted` to 128 + the signal number.
 :func:`one_line` puts a message (or the text of an exception) on the one line those errors are shown on.
 """
 
@@ -34,6 +34,10 @@ class SolverError(RuntimeError):
 
 class OutputError(RuntimeError):
     """The output folder cannot be used: not empty, locked by another run, not writable, or the disk is full."""
+
+
+class StackError(ImportError):
+    """The installed FEniCS stack is not one this package runs on (a dolfinx too old or too new): exit code 2."""
 
 
 class Interrupted(KeyboardInterrupt):

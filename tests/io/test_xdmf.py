@@ -7,6 +7,7 @@ ParaView's readers are checked in tests/system/test_paraview.py.
 from __future__ import annotations
 
 import errno
+import importlib.util
 import json
 import os
 import shutil
@@ -124,10 +125,10 @@ def test_a_run_stopped_early_keeps_the_same_readable_layout(tmp_path):
 
 
 TRIANGLES_UNDER_MPI = r"""
+from stringcontact.fem import compat  # first: it loads the FEniCS stack in its order (the wheel's MPI)
 import sys
 from dolfinx import fem, mesh
 from mpi4py import MPI
-from stringcontact.fem import compat
 from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 V = compat.function_space(mesh.create_unit_square(MPI.COMM_WORLD, 6, 5))
 u, arrays = fem.Function(V), mesh_arrays(V, MPI.COMM_WORLD)
@@ -147,7 +148,8 @@ def test_a_triangle_mesh_distributed_over_two_ranks_is_one_whole_mesh(tmp_path):
     points, triangles = np.array(data["points"]), np.array(data["cells"]["triangle"])
     assert points.shape == (42, 3) and triangles.shape == (60, 3)
     corners = points[triangles][:, :, :2]
-    areas = 0.5 * np.abs(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+    a, b = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    areas = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])  # NumPy 2 refuses np.cross of 2-vectors
     assert areas.min() > 0 and areas.sum() == pytest.approx(1.0)  # the two ranks' halves tile the square
     np.testing.assert_allclose(data["data"][0]["membrane"], points[:, 0] + 10 * points[:, 1], atol=1e-12)
 
@@ -226,11 +228,11 @@ def test_the_hdf5_file_has_the_layout_petsc_s_viewer_wrote(tmp_path):
 
 
 FRAMES_UNDER_STRACE = r"""
+from stringcontact.fem import compat  # first: it loads the FEniCS stack in its order (the wheel's MPI)
 import sys
 import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
-from stringcontact.fem import compat
 from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 50, [0.0, 1.0]))
 series = XdmfTimeSeries(sys.argv[1], mesh_arrays(V, MPI.COMM_SELF), MPI.COMM_SELF)
@@ -305,10 +307,10 @@ def test_hdf5_failures_are_raised_with_their_reason(tmp_path):
 #: XdmfTimeSeries on a full disk with the room check off, so that HDF5's H5Fcreate itself meets it; the
 #: program reports one line, as the command does.
 CREATE_ON_A_FULL_DISK = r"""
+from stringcontact.fem import compat  # first: it loads the FEniCS stack in its order (the wheel's MPI)
 import sys
 from dolfinx import mesh
 from mpi4py import MPI
-from stringcontact.fem import compat
 import stringcontact.io.xdmf as xdmf
 from stringcontact.io.hdf5 import Hdf5Quiet
 xdmf._check_room = lambda *a: None
@@ -322,7 +324,14 @@ except OSError as exc:
 """
 
 
+#: The dolfinx wheel's libhdf5 (1.14, built with its assertions) aborts the process (an assertion in H5F__dest) when
+#: H5Fcreate or a flush meets a full disk; the room check before each write (`xdmf._check_room`) is what guards a run
+#: there. The two tests below switch that check off to meet HDF5's own failure, so they run where it is survivable.
+ENOSPC_ABORTS = importlib.util.find_spec("dolfinx_solver") is not None
+
+
 @pytest.mark.slow
+@pytest.mark.skipif(ENOSPC_ABORTS, reason="the wheel's libhdf5 aborts on a full disk; the room check guards it")
 def test_a_failed_create_on_a_full_disk_says_nothing_at_exit(tmpfs):
     """libhdf5 1.10.8 leaks what a failed H5Fcreate opened and printed "HDF5: infinite loop closing library"
     and a line of its interfaces when the process ended, after the program's own one line."""
@@ -338,12 +347,12 @@ def test_a_failed_create_on_a_full_disk_says_nothing_at_exit(tmpfs):
 #: XdmfTimeSeries on a 256 KiB disk with 1 to 249 KiB left and the room check off: frames until HDF5 meets
 #: the full disk, then the discard a failed run makes; one file after another in one process.
 FRAMES_ON_A_FILLING_DISK = r"""
+from stringcontact.fem import compat  # first: it loads the FEniCS stack in its order (the wheel's MPI)
 import shutil, sys
 from pathlib import Path
 import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
-from stringcontact.fem import compat
 import stringcontact.io.xdmf as xdmf
 from stringcontact.io.hdf5 import Hdf5Quiet
 xdmf._check_room = lambda *a: None
@@ -370,6 +379,7 @@ print(failed)
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(ENOSPC_ABORTS, reason="the wheel's libhdf5 aborts on a full disk; the room check guards it")
 def test_frames_on_a_filling_disk_end_in_an_error_and_a_clean_exit(tmpfs):
     """libhdf5 1.10.8 cannot flush a file again after one flush failed, and crashed (SIGSEGV in
     H5F__close_cb) when the process ended, for 148 of these 249 disk sizes before the writer reserved the

@@ -53,8 +53,9 @@ def test_a_flat_gap_closing_gives_the_parabola(mu, h, hdot):
     R = film_model.film_residual((eta, q), (eta_t, zero), (zero, zero), zero, (zero, r), p)
     ends = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0))
     bc = fem.dirichletbc(np.float64(0.0), ends, V)
-    pressure = LinearProblem(ufl.lhs(R), ufl.rhs(R), bcs=[bc],
-                             petsc_options={"ksp_type": "preonly", "pc_type": "lu"}).solve()
+    prefix = {"petsc_options_prefix": "film_parabola_"} if compat.dolfinx_version() >= (0, 10) else {}  # 0.10: required
+    pressure = LinearProblem(ufl.lhs(R), ufl.rhs(R), bcs=[bc], petsc_options={"ksp_type": "preonly", "pc_type": "lu"},
+                             **prefix).solve()
     x = V.tabulate_dof_coordinates()[:, 0]
     exact = 6 * mu * hdot * (x**2 - x) / h**3
     assert np.max(np.abs(pressure.x.array - exact)) < 1e-10 * np.max(np.abs(exact))
@@ -302,7 +303,8 @@ def test_film_drum_a_membrane_on_its_film(tmp_path):
     """2D: the membrane's film, p = p_a on the rim; the pressure builds under the falling skin, the ledger closes."""
     r = run(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.1, nt=40, output_times=[]))
     assert r.status == "complete" and r.fields["pressure"].shape == r.eta.shape
-    assert r.fields["pressure"].max() > 0.1 and np.all(r.fields["pressure"][:, r.x[:, 0] == 0.0] == 0.0)
+    rim = np.abs(r.fields["pressure"][:, r.x[:, 0] == 0.0]).max()  # p = p_a held by the Krylov solve, to its tolerance
+    assert r.fields["pressure"].max() > 0.1 and rim <= 1e-12 * r.fields["pressure"].max()
     assert np.max(np.abs(r.balance_residual)) < 1e-9 * r.total_energy[0]
     from stringcontact.plot.run_pictures import draw
 

@@ -158,15 +158,14 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
 
 def xdmf(tmp_path, name, cells, points, cell="triangle"):
     """A mesh file written by dolfinx itself (XDMF + HDF5), of any cells and points, degenerate or not."""
-    from dolfinx import mesh
     from dolfinx.io import XDMFFile
     from mpi4py import MPI
 
     from stringcontact.fem import compat
 
     points = np.asarray(points, dtype=float)
-    msh = mesh.create_mesh(MPI.COMM_SELF, np.asarray(cells, dtype=np.int64), points,
-                           compat.coordinate_domain(cell, points.shape[1]))
+    msh = compat.create_mesh(MPI.COMM_SELF, np.asarray(cells, dtype=np.int64), points,
+                             compat.coordinate_domain(cell, points.shape[1]))
     path = tmp_path / name
     with XDMFFile(MPI.COMM_SELF, str(path), "w") as f:
         f.write_mesh(msh)

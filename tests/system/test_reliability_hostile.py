@@ -398,10 +398,12 @@ def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
     per_rank = tmp_path / "per_rank.py"
     per_rank.write_text(
         "import os, runpy, sys\n"
-        "rank = int(os.environ.get('OMPI_COMM_WORLD_RANK', os.environ.get('PMIX_RANK', '0')))\n"
+        "rank = int(os.environ.get('OMPI_COMM_WORLD_RANK', os.environ.get('PMIX_RANK', os.environ.get('PMI_RANK', '0'))))\n"
         f"sys.argv = ['stringcontact', *({good!r} if rank == 0 else {bad!r})]\n"
         "runpy.run_module('stringcontact', run_name='__main__', alter_sys=True)\n")
-    proc = subprocess.Popen([exe, "--oversubscribe", "-n", "2", sys.executable, str(per_rank)], cwd=tmp_path, env=env,
+    from conftest import MPIRUN_FLAGS, mpi_flavour
+
+    proc = subprocess.Popen([exe, "-n", "2", *MPIRUN_FLAGS[mpi_flavour(exe)], sys.executable, str(per_rank)], cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         _, err = proc.communicate(timeout=300)  # a hang guard: the grace period is 10 s

@@ -24,6 +24,10 @@ from stringcontact.timestepping import linear
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: conftest.py
 
 CG_AMG = {"ksp_type": "cg", "pc_type": "hypre"}
+#: What a run with BoomerAMG reports: hypre's, or gamg in its place where PETSc has no hypre (the dolfinx wheel's).
+AMG_NAME = "hypre boomeramg" if linear.has_hypre() else "gamg"
+#: The size rule's AMG options as this PETSc takes them.
+AMG = linear.without_hypre(linear.AMG)[0]
 CG_JACOBI = {"ksp_type": "cg", "pc_type": "jacobi"}
 #: CG against LU: max |η_CG − η_LU| ≤ AGREE · max(1, max |η_LU|) (CG_RTOL = 1e-14 of the right-hand side).
 AGREE = 1e-11
@@ -55,9 +59,9 @@ def test_the_size_rule_picks_lu_up_to_the_limit_then_cg():
     assert linear.solver_options(linear.LU_MAX_NODES_PARALLEL + 1, 2)["ksp_type"] == "cg"
     assert linear.solver_options(linear.LU_MAX_NODES, 2, dim=1) == mumps  # a string: no fill, LU on any ranks
     big = linear.LU_MAX_NODES + 1
-    assert linear.solver_options(big, 1) == linear.ITERATIVE | linear.AMG  # condition unknown
+    assert linear.solver_options(big, 1) == linear.ITERATIVE | AMG  # condition unknown
     assert linear.solver_options(big, 1, condition=linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | linear.JACOBI
-    assert linear.solver_options(big, 2, condition=2 * linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | linear.AMG
+    assert linear.solver_options(big, 2, condition=2 * linear.JACOBI_MAX_CONDITION) == linear.ITERATIVE | AMG
 
 
 @pytest.mark.parametrize("nodes", [10_000, 100_489, 1_000_000, 1001 * 1001])
@@ -128,10 +132,26 @@ def test_above_the_limit_cg_takes_jacobi_for_a_mass_dominated_matrix_else_amg(mo
     light = sc.simulate(contact_scene(), scheme="projection")  # M/Δt² + C/Δt at a stable Δt
     heavy = sc.simulate(contact_scene(cells=[24, 24], nt=1), scheme="newmark")  # Δt = 10 Δx: K dominates
     assert light.solver["linear solver"].startswith("cg + jacobi")
-    assert heavy.solver["linear solver"].startswith("cg + hypre boomeramg")
+    assert heavy.solver["linear solver"].startswith("cg + " + AMG_NAME)
     assert np.max(np.abs(light.balance_residual)) <= 1e-10 * light.total_energy[0]
     diagonal = sc.simulate(contact_scene(alpha=0), scheme="projection")  # A = M/Δt²: the nodal maximum, no solve
     assert diagonal.solver["linear solver"].startswith("none: the step matrix is diagonal")
+
+
+def test_without_hypre_boomeramg_becomes_gamg_and_the_result_says_so(monkeypatch):
+    """PETSc without hypre (the dolfinx wheel's): BoomerAMG asked for, by the size rule, a model's hints (a
+    fieldsplit's sub-solvers) or the user, becomes gamg, hypre's own options go, and `Result.solver` says so."""
+    monkeypatch.setattr(linear, "has_hypre", lambda: False)
+    asked = {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg", "fieldsplit_1_pc_type": "hypre",
+             "ksp_rtol": 1e-12}
+    kept, note = linear.without_hypre(asked)
+    assert kept == {"ksp_type": "cg", "pc_type": "gamg", "fieldsplit_1_pc_type": "gamg", "ksp_rtol": 1e-12}
+    assert note is not None and "gamg" in note and "hypre" in note
+    assert linear.without_hypre(CG_JACOBI) == (CG_JACOBI, None)
+    linear.check_option_values(asked)  # accepted: it will run
+    res = sc.simulate(contact_scene(nt=8, T=0.04), scheme="newmark", petsc_options=CG_AMG)
+    assert res.solver["linear solver"].startswith("cg + gamg") and "in place of hypre" in res.solver["linear solver"]
+    assert res.status == "complete"
 
 
 def test_the_mean_iterations_count_the_contact_steps_free_solves_too():
@@ -153,7 +173,7 @@ def test_cg_keeps_the_ledger_closed_and_agrees_with_lu(scheme, options):
     lu = sc.simulate(contact_scene(), scheme=scheme)
     cg = sc.simulate(contact_scene(), scheme=scheme, petsc_options=options)
     assert lu.solver["linear solver"].startswith("LU")
-    assert cg.solver["linear solver"].startswith("cg + " + ("hypre boomeramg" if options is CG_AMG else "jacobi"))
+    assert cg.solver["linear solver"].startswith("cg + " + (AMG_NAME if options is CG_AMG else "jacobi"))
     assert cg.status == "complete"  # the energy guard (no rise above 1e-9 E(0) per step) never fired
     assert cg.contact_measure.max() > 0.1
     assert np.max(np.abs(cg.balance_residual)) <= 1e-10 * cg.total_energy[0]
@@ -217,7 +237,7 @@ def test_options_stay_with_their_simulation():
 
 def test_the_argument_overrides_the_scene_option_by_option():
     scene = contact_scene(nt=8, T=0.04, petsc_options={"ksp_type": "cg", "pc_type": "hypre"})
-    assert sc.simulate(scene).solver["linear solver"].startswith("cg + hypre boomeramg")
+    assert sc.simulate(scene).solver["linear solver"].startswith("cg + " + AMG_NAME)
     assert sc.simulate(scene, petsc_options={"pc_type": "jacobi"}).solver["linear solver"].startswith("cg + jacobi")
 
 
@@ -293,7 +313,7 @@ def test_cg_on_two_ranks_gives_the_serial_lu_answer(tmp_path):
     got = np.load(tmp_path / "cg.npz")
     for scheme in sc.SCHEMES:
         lu = sc.simulate(contact_scene(), scheme=scheme)
-        assert str(got[f"{scheme}_solver"]).startswith("cg + hypre boomeramg")
+        assert str(got[f"{scheme}_solver"]).startswith("cg + " + AMG_NAME)
         assert np.max(np.abs(got[f"{scheme}_eta"] - lu.eta)) <= AGREE * max(1.0, np.max(np.abs(lu.eta)))
         assert float(got[f"{scheme}_balance"]) <= 1e-10 * lu.total_energy[0]
 

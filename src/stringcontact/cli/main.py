@@ -220,9 +220,18 @@ def _main(argv) -> int:
 
 
 def _command(args, painter) -> int:
-    from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError
+    from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError, StackError
 
-    with _one_line_warnings(), _signals_interrupt(petsc=args.command not in ("list", "show", "plot", "models")):
+    petsc = args.command not in ("list", "show", "plot", "models")
+    if petsc:
+        from ..stack import load
+
+        try:
+            load()  # the FEniCS stack before PETSc installs its signal handlers: one line if it is not supported
+        except StackError as exc:
+            _error(exc)
+            return EXIT_INPUT
+    with _one_line_warnings(), _signals_interrupt(petsc=petsc):
         try:
             if args.command == "run":
                 return _run(args, painter)

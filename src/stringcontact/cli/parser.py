@@ -8,7 +8,7 @@ import importlib
 import sys
 
 from ..errors import one_line
-from ..timestepping import SCHEMES
+from ..scene.names import SCHEMES
 from .process import EXIT_INPUT, EXIT_OK
 
 # Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,

@@ -72,6 +72,9 @@ def _signals_interrupt(petsc: bool = True):
         yield
         return
     if petsc:
+        from ..stack import load
+
+        load()  # the wheel's MPI before PETSc's (`stack.load`)
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
 
         _mpi_exit_comm()

@@ -1,8 +1,9 @@
-"""Every dolfinx API difference between 0.5 (Debian bookworm) and 0.9/0.10 lives here.
+"""Every dolfinx API difference between 0.5 (Debian bookworm), 0.9 (Debian trixie) and 0.11 (the PyPI wheel) lives here.
 
 The rest of the package calls these helpers and never branches on the dolfinx version itself.
-DEVELOPERS.md lists each difference and which helper absorbs it. The whole test suite runs on both
-0.5.2 (`make test`) and Debian trixie's 0.9.0 (the Docker image's test suite, `scripts/image test`, in CI after the main suite).
+DEVELOPERS.md lists each difference and which helper absorbs it. The whole test suite runs on 0.5.2 (`make
+test`), on Debian trixie's 0.9.0 and on the wheel's 0.11.0 (the image targets `test` and `wheel-test`,
+`scripts/image test` and `scripts/image wheel`, in CI after the main suite).
 """
 
 from __future__ import annotations
@@ -89,10 +90,34 @@ def coordinate_domain(cell: str, gdim: int):
         return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), 1, dim=gdim))
 
 
+def create_mesh(comm, cells: np.ndarray, x: np.ndarray, domain):
+    """`mesh.create_mesh` of `cells` on the points `x` with the coordinate element `domain`: its arguments are
+    (comm, cells, x, domain) up to 0.9 and (comm, cells, domain, x) from 0.10 on."""
+    from dolfinx import mesh
+
+    if dolfinx_version() >= (0, 10):
+        return mesh.create_mesh(comm, cells, domain, x)
+    return mesh.create_mesh(comm, cells, x, domain)
+
+
+def snes_diverged_nan():
+    """PETSc's SNES reason for a residual that is NaN or infinite: ``DIVERGED_FNORM_NAN`` up to PETSc 3.24,
+    ``DIVERGED_FUNCTION_NANORINF`` from 3.25 (the dolfinx 0.11 wheel's)."""
+    from petsc4py import PETSc
+
+    reasons = PETSc.SNES.ConvergedReason
+    return getattr(reasons, "DIVERGED_FUNCTION_NANORINF", None) or reasons.DIVERGED_FNORM_NAN
+
+
 def geometry_nodes(msh) -> np.ndarray:
     """The geometry nodes of every local cell as a (cells, nodes per cell) array: `msh.geometry.dofmap` is
-    an AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""
-    nodes = msh.geometry.dofmap
+    an AdjacencyList in 0.5 (its flat `.array`), that 2-D array from 0.8 on, and `msh.geometry.dofmaps[0]` in
+    0.11 (where `dofmap` is deprecated; a method `dofmaps(0)` in 0.9)."""
+    dofmaps = getattr(msh.geometry, "dofmaps", None)
+    if dofmaps is None:
+        nodes = msh.geometry.dofmap
+    else:
+        nodes = dofmaps(0) if callable(dofmaps) else dofmaps[0]
     flat = nodes.array if hasattr(nodes, "array") else nodes
     return np.asarray(flat).reshape(-1, msh.topology.dim + 1)  # P1 simplices: one node per vertex
 

@@ -42,7 +42,7 @@ def create(scene, comm):
 def _disk(comm, radius: float, size: float):
     """gmsh's triangulation of the disk of `radius` centred at 0, made on rank 0 and distributed."""
     cells, x = one_outcome(comm, _gmsh_disk, radius, size, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
-    return mesh.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
+    return compat.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
 
 
 def _gmsh_disk(radius: float, size: float) -> tuple[np.ndarray, np.ndarray]:
@@ -79,7 +79,7 @@ def _read(comm, path: str):
     arrays, which distributes it: dolfinx's own XDMF reader is never given the file (it may read another file
     than the one checked, and hangs or crashes on a bad one)."""
     cells, x = one_outcome(comm, meshfile.read, path, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
-    return mesh.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
+    return compat.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
 
 
 def _check_areas(msh, comm, label: str) -> None:

@@ -91,6 +91,11 @@ def roundoff_growth(result) -> float:
     the relative residual may reach ROUNDOFF_FACTOR·u·n·|η|/(|v|·Δt): it grows with n/Δt, about n² at a fixed T
     (example1 at nx = 50: 5.6e-11 at 2e4 steps, 6.4e-9 at 1e5, 4.0e-8 at 2e5). Compensated sums of the ledger
     do not help (math.fsum of every term gave the same 4.04e-8 at 2e5 steps): the error is in the terms.
+
+    The step's solve adds its own: η^{n+1} is rounded relative to the step matrix's condition, which grows with the
+    Courant number Δt/h (A = M/Δt² + C/Δt + K), so the estimate is multiplied by max(1, Δt/h) (example1's 1500
+    steps: 5.1e-11 at Δt/h = 1, 2.2e-9 at 4, 8.0e-9 at 10 and 8.8e-9 at 20 on dolfinx 0.5; 1.5e-8 at 10 on 0.11:
+    `benchmarks/bench_balance_roundoff.py --nx ...`).
     """
     steps = int(np.max(result.steps)) if len(getattr(result, "steps", ())) else 0
     speeds = np.asarray(result.series.get("max_speed", ()) if getattr(result, "series", None) else (), dtype=float)
@@ -100,7 +105,13 @@ def roundoff_growth(result) -> float:
     if steps == 0 or not speed > 0.0 or not math.isfinite(speed):
         return 1.0
     estimate = ROUNDOFF_FACTOR * np.finfo(float).eps * steps * _eta_scale(result) / (speed * result.scene.dt)
-    return max(1.0, estimate / 1e-8)
+    return max(1.0, estimate * _courant(result) / 1e-8)
+
+
+def _courant(result) -> float:
+    """max(1, Δt/h) with the scene's mesh size h (1 where it has none: a mesh file)."""
+    h = float(result.scene.dx)
+    return max(1.0, result.scene.dt / h) if math.isfinite(h) and h > 0 else 1.0
 
 
 def _eta_scale(result) -> float:

@@ -17,6 +17,7 @@ from ..io.result import Result
 from ..io.signals import StopTogether
 from ..model.paper import Model
 from ..scene import STORED_ROWS
+from .blas import one_thread
 from .options import ROW_BUDGET, Output, Storage
 from .rows import StorageWarning, step_times  # noqa: F401 - importable from here as before
 from .setup import discretise, model_constants  # noqa: F401 - importable from here as before
@@ -36,7 +37,7 @@ def _march(st: Stepper, progress: bool, comm=None) -> None:
     mask = 0 if st.scene.dim == 2 else 63
     try:
         # NaN, overflow: the energy guard names the step
-        with st._guarded(), np.errstate(all="ignore"), StopTogether(comm) as stop:
+        with st._guarded(), np.errstate(all="ignore"), StopTogether(comm) as stop, one_thread(st.vector_length):
             for n in range(st.step, st.nt):  # computes step n + 1
                 st._advance()
                 if (n & mask) == 0:

@@ -25,6 +25,7 @@ from ..scene.names import DEFAULT_MODEL
 from ..scene.parameters import resolve_parameters
 from ..timestepping.base import StepEnergy
 from . import setup
+from .blas import one_thread
 from .checks import checks_of, unbalanced_message
 from .ledger import _Ledger, energy_roundoff
 from .options import grouped
@@ -100,6 +101,7 @@ class Stepper:
         derived = nonlinear is not None and nonlinear.energy_derived  # the form's potential is booked
         self.energy_label = self.model.energy_label or (setup.POTENTIAL_LABEL if derived else None)
         self.dt, self.nt, self.step = scene.dt, scene.nt, 0
+        self.vector_length = problem.n_owned * (1 + len(self.model.fields))  # this rank's unknowns
         self._order = np.argsort(node_sort_key(problem.x), kind="stable")  # this rank's nodes in x order
         self._loop_time, self._done, self._past_timings = 0.0, None, []
         self._start(V)
@@ -167,7 +169,8 @@ class Stepper:
         energy rose, ValueError past T."""
         if self.step >= self.nt:
             raise ValueError(f"advance: the run is at T = {self.scene.T:g} (step {self.nt}); take its result()")
-        with self._guarded(), np.errstate(all="ignore"):  # NaN, overflow: the energy guard names the step
+        # NaN, overflow: the energy guard names the step; BLAS on one thread for long vectors (`blas.one_thread`)
+        with self._guarded(), np.errstate(all="ignore"), one_thread(self.vector_length):
             if self.parameters.changed:
                 self._rebuild()
             self._advance()

@@ -10,6 +10,9 @@ its module plus one line in its package's ``pyproject.toml``; in Python a `Schem
 from __future__ import annotations
 
 from ..scene.names import SCHEMES, scheme_class
+from ..stack import load as _load_stack
+
+_load_stack()  # the wheel's dolfinx_solver before a scheme module imports dolfinx, PETSc or MPI
 
 
 def resolve_scheme(scheme) -> tuple[str, type]:

@@ -120,6 +120,8 @@ def check_option_values(options: dict, key: str = "petsc_options", ranks: int = 
             usable = [t for t in choices or () if t not in NEEDS_CODE[name]]
             raise SceneError(f"{key}: {name} = {value!r} needs code or data that this solver does not give (PETSc "
                              f"stops at set-up); allowed: {', '.join(usable)}")
+        if name.endswith("pc_type") and value == "hypre":  # `without_hypre` replaces it where PETSc has none
+            continue
         if choices is not None and value not in choices:
             raise SceneError(f"{key}: {name} = {value!r} is not a choice of this PETSc build; allowed: "
                              f"{', '.join(choices)}")
@@ -208,13 +210,14 @@ def _installed(name: str) -> tuple[str, ...]:
 
 
 def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf,
-                   dim: int = 2) -> dict:
+                   dim: int = 2, notes: list | None = None) -> dict:
     """The PETSc options for `n_global` unknowns: LU up to LU_MAX_NODES (LU_MAX_NODES_PARALLEL on several
     ranks, none for a string, `dim` 1), else CG; then `options`.
 
     A user's ksp_type (or, without one, pc_type) picks the path whose defaults the rest goes on top of. CG's
     preconditioner, unless the user names one: Jacobi if `condition` (`jacobi_condition_bound`) is at most
-    JACOBI_MAX_CONDITION, else AMG.
+    JACOBI_MAX_CONDITION, else AMG. Where this PETSc has no hypre, BoomerAMG becomes gamg (`without_hypre`) and a
+    line saying so goes to `notes` (the run's `Result.solver`).
     """
     options = dict(options or {})
     kind = options.get("ksp_type") or ({"lu": "preonly", "cholesky": "preonly"}.get(options.get("pc_type"), "cg")
@@ -228,7 +231,31 @@ def solver_options(n_global: int, ranks: int, options: dict | None = None, condi
     if "pc_type" in options and not direct:  # the user's preconditioner replaces the chosen one, sub-options too
         chosen = dict(ITERATIVE)
     chosen.update(options)
+    chosen, note = without_hypre(chosen)
+    if note and notes is not None:
+        notes.append(note)
     return chosen
+
+
+#: The preconditioner that takes BoomerAMG's place where PETSc has no hypre (the dolfinx wheel's PETSc): PETSc's own
+#: algebraic multigrid.
+HYPRE_STAND_IN = "gamg"
+
+
+@functools.cache
+def has_hypre() -> bool:
+    """Whether this PETSc build has hypre (Debian's has; the dolfinx 0.11 wheel's has not)."""
+    return bool(PETSc.Sys.hasExternalPackage("hypre"))
+
+
+def without_hypre(options: dict) -> tuple[dict, str | None]:
+    """`options` with every ``*pc_type = 'hypre'`` (a fieldsplit's sub-solvers' too) as `HYPRE_STAND_IN` and
+    hypre's own options left out, where this PETSc has no hypre; and a line saying so (None: nothing replaced)."""
+    if has_hypre() or not any(k.endswith("pc_type") and v == "hypre" for k, v in options.items()):
+        return options, None
+    kept = {k: (HYPRE_STAND_IN if k.endswith("pc_type") and v == "hypre" else v) for k, v in options.items()
+            if "pc_hypre_" not in k}
+    return kept, f"{HYPRE_STAND_IN} in place of hypre, which this PETSc build does not have"
 
 
 def jacobi_condition_bound(A: PETSc.Mat) -> float:
@@ -307,15 +334,16 @@ class Linear:
     """
 
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
-        self.A, self.bc = A, bc
-        self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim)
+        self.A, self.bc, self.notes = A, bc, []
+        self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim, notes=self.notes)
         kind = self.options["ksp_type"], self.options.get("pc_type")
         self.iterative = not (kind[0] == "preonly" and kind[1] in ("lu", "cholesky"))
         if self.iterative:
             self.lift, self.b = _symmetric_rows(A, bc, g), A.createVecLeft()
             if "pc_type" not in (options or {}):
                 self.condition = jacobi_condition_bound(A)
-                self.options = solver_options(A.getSize()[0], comm.size, options, self.condition, dim)
+                self.notes.clear()
+                self.options = solver_options(A.getSize()[0], comm.size, options, self.condition, dim, self.notes)
         self.ksp = configured_ksp(A, comm, self.options)
         self.iterations = self.solves = 0
         self._bind()
@@ -349,7 +377,8 @@ class Linear:
         kind = pc.getType() + (f" {pc.getHYPREType()}" if pc.getType() == "hypre" else "")
         solves = self.solves + sum(o.solves for o in others)
         mean = (self.iterations + sum(o.iterations for o in others)) / solves if solves else 0.0
-        return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve"
+        return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve" + "".join(
+            f" ({note})" for note in self.notes)
 
 
 class DampedLU:

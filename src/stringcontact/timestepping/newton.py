@@ -205,7 +205,9 @@ class NewtonStep(LinearPath):
         snes = PETSc.SNES().create(problem.comm)
         snes.setFunction(self._residual, self.G_vec)
         snes.setJacobian(self._jacobian, self.J)
-        options = solver_options(self.J.getSize()[0], problem.comm.size, problem.petsc_options, dim=problem.x.ndim)
+        self.notes = []
+        options = solver_options(self.J.getSize()[0], problem.comm.size, problem.petsc_options, dim=problem.x.ndim,
+                                 notes=self.notes)
         vi = lower is not None or (line_search is not None and self.bounds is not None)
         # problem.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
         options = (
@@ -447,7 +449,7 @@ class NewtonStep(LinearPath):
                 self.free_solves += 1
                 return self._accept()
         reason = self._run(self.snes, guess)
-        if reason == PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN and self.snes.getIterationNumber() == 0:
+        if reason == compat.snes_diverged_nan() and self.snes.getIterationNumber() == 0:
             raise self._not_finite(guess)
         if reason < 0 and RESCUE_LINE_SEARCH.get(self.line_search):  # the other line search: same guess, fresh J
             if self.rescue is None:
@@ -519,6 +521,7 @@ class NewtonStep(LinearPath):
 
     def describe(self) -> dict:
         """Newton's counters for the summary."""
+        fallback = {"preconditioner": "; ".join(self.notes)} if getattr(self, "notes", None) else {}
         if self.linear is not None:
             refactored = self.step_solver.refactorisations
             how = (f"none: the residual is affine, {self.linear_solves} linear solves for {self.solves} steps with J "
@@ -528,7 +531,7 @@ class NewtonStep(LinearPath):
                         f"{self.iterations} Newton iterations")
             return {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians,
                     "linear solves": self.linear_solves, "nonlinear solver": how,
-                    **({"line search rescues": self.rescues} if self.rescues else {})}
+                    **({"line search rescues": self.rescues} if self.rescues else {}), **fallback}
         per_step = self.iterations / self.solves if self.solves else 0.0
         free = f", {self.free_solves} of {self.solves} steps solved without the VI" if self.free is not None else ""
         rescued = f", {self.rescues} steps tried again with line search {self.other}" if self.rescues else ""
@@ -537,6 +540,7 @@ class NewtonStep(LinearPath):
             "jacobian assemblies": self.jacobians,
             **({"line search rescues": self.rescues} if self.rescues else {}),
             "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step{free}{rescued}",
+            **fallback,
         }
 
 
