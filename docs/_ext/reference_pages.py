@@ -28,7 +28,8 @@ from pathlib import Path
 #: The modules a user touches besides the top-level namespace, what the API reference documents: module ->
 #: (title, the public names; None: its `__all__`).
 PUBLIC_MODULES = {
-    "stringcontact.model.paper": ("The model in UFL, what a model variant reuses or replaces", None),
+    "stringcontact.model.interface": ("The model contract: what a model is and declares", None),
+    "stringcontact.model.inelastic": ("The paper's model in UFL, what a model variant reuses or replaces", None),
     "stringcontact.model.variants": ("The model variants shipped with the package", None),
     "stringcontact.run.options": ("The options of simulate", None),
     "stringcontact.timestepping.implicit": ("A time scheme from its difference quotients", ("ImplicitScheme",)),

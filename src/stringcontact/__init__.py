@@ -18,13 +18,13 @@ __version__ = "0.1.0"
 # Imported on first use (PEP 562), so that `import stringcontact.plot.run_pictures` in the picture process and the CLI's
 # argument checks do not load dolfinx, PETSc and UFL (0.6 s).
 _LAZY = {
-    "Model": "model.paper",
+    "Model": "model.interface",
     "ModelConstant": "model.interface",
     "OutputField": "model.interface",
     "SolverHints": "model.interface",
     "DeprecatedKeyWarning": "scene",
-    "Parameters": "model.paper",
-    "inelastic": "model.paper",
+    "Parameters": "model.interface",
+    "inelastic": "model.interface",
     "Result": "io.result",
     "Scene": "scene",
     "SceneWarning": "scene",

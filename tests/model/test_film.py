@@ -19,7 +19,7 @@ import stringcontact as sc
 from stringcontact.errors import SceneError
 from stringcontact.fem import compat
 from stringcontact.model import film as film_model
-from stringcontact.model.paper import Parameters
+from stringcontact.model.interface import Parameters
 
 H, DELTA, ALPHA = 0.5, 5e-4, 0.01
 

@@ -260,7 +260,7 @@ def test_unused_fields_finds_what_a_model_ignores():
     from mpi4py import MPI
 
     from stringcontact.fem import compat
-    from stringcontact.model.paper import Parameters, unused_fields
+    from stringcontact.model.interface import Parameters, unused_fields
 
     msh = mesh.create_interval(MPI.COMM_SELF, 4, [0.0, 1.0])
     V = compat.function_space(msh, "Lagrange", 1)

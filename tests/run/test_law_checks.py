@@ -13,7 +13,7 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.cli.report import _fmt_penetration_line
 from stringcontact.io.readback import read_output
-from stringcontact.model.paper import penetration_bound_of
+from stringcontact.model.interface import penetration_bound_of
 from stringcontact.model.variants import elastic, loaded_obstacle
 from stringcontact.run import checks
 from stringcontact.run.checks import penetration_check

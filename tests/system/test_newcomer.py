@@ -106,7 +106,7 @@ def test_summary_says_where_a_registered_model_came_from(tmp_path, capsys, model
 
 def test_a_model_object_from_python_is_named_in_titles_and_summary(tmp_path):
     from stringcontact.io.readback import read_output
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
     from stringcontact.plot import charts, mesh_pictures
 
     winkler = dataclasses.replace(inelastic, name="winkler")

@@ -333,7 +333,7 @@ def test_unstable_run_keeps_partial_output(tmp_path, capfd, monkeypatch):
     # r = dt/eps = 4 is refused before the start; let it through to see the guard stop it mid-run.
     import dataclasses
 
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
 
     monkeypatch.setattr("stringcontact.run.setup.inelastic", dataclasses.replace(inelastic, stability=None))
     out = tmp_path / "out"

@@ -106,7 +106,8 @@ def test_study_and_check_refuse_a_folder_they_cannot_make_before_computing(capsy
 FORMS = '''
 import dataclasses
 import ufl
-from stringcontact.model.paper import inelastic, momentum_form
+from stringcontact.model.interface import inelastic
+from stringcontact.model.inelastic import momentum_form
 from stringcontact.model.stiff_string import stiff_string
 
 def model(name, form):
@@ -158,7 +159,7 @@ def test_a_form_that_is_no_residual_is_refused_before_it_is_compiled(tmp_path, n
 
 PLUGIN = '''
 import dataclasses, sys
-from stringcontact.model.paper import inelastic
+from stringcontact.model.interface import inelastic
 
 def _exits(*args):
     sys.exit(0)
@@ -358,7 +359,8 @@ def test_a_form_that_is_not_finite_is_named_not_the_step_size(tmp_path, name, va
 SINGULAR = '''
 import dataclasses
 import ufl
-from stringcontact.model.paper import inelastic, momentum_form
+from stringcontact.model.interface import inelastic
+from stringcontact.model.inelastic import momentum_form
 
 def _repelled(eta, eta_t, eta_tt, force, w, p):
     return momentum_form(eta, eta_t, eta_tt, force, w, p) - 0.01 / eta * w * ufl.dx

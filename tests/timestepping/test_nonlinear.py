@@ -21,7 +21,7 @@ from petsc4py import PETSc
 import stringcontact as sc
 from stringcontact.fem.compat import trapezoid
 from stringcontact.model import nonlinear as variants
-from stringcontact.model import paper
+from stringcontact.model import inelastic as paper
 from stringcontact.timestepping import scheme_class
 
 K3 = 10.0

@@ -156,7 +156,7 @@ class _nothing:
 
 
 def _operators(scene):
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
     from stringcontact.run.driver import discretise
 
     return discretise(scene, inelastic, MPI.COMM_SELF)[2]

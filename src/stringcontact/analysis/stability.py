@@ -151,7 +151,7 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
     """
     from mpi4py import MPI
 
-    from ..model.paper import inelastic
+    from ..model.interface import inelastic
     from ..run.driver import discretise
     from ..timestepping.projection import largest_stable_dt
     from ..verification.reference import fd_projection

@@ -15,7 +15,7 @@ from mpi4py import MPI
 
 from ..io.result import Result
 from ..io.signals import StopTogether
-from ..model.paper import Model
+from ..model.interface import Model
 from ..scene import STORED_ROWS
 from .blas import one_thread
 from .options import ROW_BUDGET, Output, Storage

@@ -16,7 +16,7 @@ from ..fem import compat, domains
 from ..fem.agree import one_outcome
 from ..fem.operators import bc_dofs, node_coordinates, semi_discrete_operators
 from ..model.forms import check_declarations
-from ..model.paper import Model, Parameters, inelastic, penetration_bound_of, unused_fields
+from ..model.interface import Model, Parameters, inelastic, penetration_bound_of, unused_fields
 from ..scene import check_petsc_options
 from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 from ..scene.names import DEFAULT_SCHEME

@@ -20,7 +20,7 @@ from ..fem.agree import one_outcome
 from ..fem.operators import semi_discrete_operators
 from ..fem.outputs import OutputValues
 from ..io.result import FIELDS, Result, node_sort_key
-from ..model.paper import penetration_bound_of
+from ..model.interface import penetration_bound_of
 from ..scene.names import DEFAULT_MODEL
 from ..scene.parameters import resolve_parameters
 from ..timestepping.base import StepEnergy
