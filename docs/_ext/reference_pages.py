@@ -28,13 +28,19 @@ from pathlib import Path
 #: The modules a user touches besides the top-level namespace, what the API reference documents: module ->
 #: (title, the public names; None: its `__all__`).
 PUBLIC_MODULES = {
+    "stringcontact.core.problem": ("The core: a model on your own mesh and Functions", ("ContactProblem",)),
+    "stringcontact.core.stepper": ("The core: the time stepper you loop over", ("TimeStepper",)),
+    "stringcontact.core.ledger": ("The energy ledger", ("EnergyLedger",)),
+    "stringcontact.core.observers": ("What watches the steps", ("Observer",)),
+    "stringcontact.run.rows": ("The stored rows, an observer", ("RowObserver",)),
     "stringcontact.model.interface": ("The model contract: what a model is and declares", None),
     "stringcontact.model.inelastic": ("The paper's model in UFL, what a model variant reuses or replaces", None),
     "stringcontact.model.variants": ("The model variants shipped with the package", None),
     "stringcontact.run.options": ("The options of simulate", None),
     "stringcontact.timestepping.implicit": ("A time scheme from its difference quotients", ("ImplicitScheme",)),
     "stringcontact.timestepping.base": ("The time-scheme contract",
-                                        ("Scheme", "StepEnergy", "DiscreteProblem", "NodalLaws", "MovingObstacle")),
+                                        ("Scheme", "SchemeOption", "StepEnergy", "DiscreteProblem", "NodalLaws",
+                                         "MovingObstacle")),
     "stringcontact.fem.operators": ("The operators a scheme steps with", ("Operators", "NonlinearForm")),
     "stringcontact.io.result": ("A run's result", ("Result",)),
     "stringcontact.scene": ("Scenes", None),

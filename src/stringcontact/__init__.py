@@ -6,10 +6,12 @@
 """
 
 from . import fenics_versions as _fenics_versions
+from . import stack as _stack
 from . import jitlog as _jitlog
 from .errors import InstabilityError, InstabilityWarning, SceneError
 from .lazy import lazy_names as _lazy_names
 
+_stack.load_mpi_first()  # the dolfinx wheel's MPI before anything imports dolfinx (nothing elsewhere)
 _jitlog.quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 _fenics_versions.read_without_pkg_resources()  # before UFL is imported: 55-60 ms of start-up on bookworm
 
@@ -22,7 +24,6 @@ _LAZY = {
     "ModelConstant": "model.interface",
     "OutputField": "model.interface",
     "SolverHints": "model.interface",
-    "DeprecatedKeyWarning": "scene",
     "Parameters": "model.interface",
     "inelastic": "model.interface",
     "Result": "io.result",
@@ -34,6 +35,12 @@ _LAZY = {
     "SCHEMES": "timestepping",
     "simulate": "run.driver",
     "Stepper": "run.stepper",
+    "ContactProblem": "core.problem",
+    "TimeStepper": "core.stepper",
+    "EnergyLedger": "core.ledger",
+    "Observer": "core.observers",
+    "RowObserver": "run.rows",
+    "SchemeOption": "timestepping.base",
     "Storage": "run.options",
     "Output": "run.options",
 }
@@ -42,7 +49,12 @@ __getattr__, _ = _lazy_names(__name__, _LAZY, globals())
 
 __all__ = [
     "SCHEMES",
-    "DeprecatedKeyWarning",
+    "ContactProblem",
+    "EnergyLedger",
+    "Observer",
+    "RowObserver",
+    "SchemeOption",
+    "TimeStepper",
     "InstabilityError",
     "InstabilityWarning",
     "Model",

@@ -120,7 +120,10 @@ BAD = [  # key, a value outside its range, the scene it goes into
 @pytest.mark.parametrize(("key", "value", "base"), BAD, ids=[b[0] for b in BAD])
 def test_the_page_says_what_the_error_message_says(key, value, base):
     data = {k: v for k, v in base.items() if not (key == "mesh" and k in ("radius", "mesh_size"))}
-    data[key] = value
+    if key in ("eps", "restitution") and isinstance(data.get("scheme"), dict):  # options of the [scheme] table
+        data["scheme"] = {**data["scheme"], key: value}
+    else:
+        data[key] = value
     with pytest.raises(SceneError) as error:
         Scene.from_dict(data)
     assert str(error.value).startswith(f"scene 'scene': {key}:") or f": {key}:" in str(error.value)

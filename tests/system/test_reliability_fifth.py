@@ -419,8 +419,8 @@ def test_a_form_singular_at_zero_runs_on_a_string_that_stays_above_it(tmp_path, 
     result = stepper.result()
     assert result.eta.min() > 0.7
     assert np.abs(result.balance_residual).max() < 1e-10 * result.total_energy[0]
-    assert stepper.problem.ops.linearised_at == "the state"
-    assert np.abs(stepper.problem.ops.load).max() < 1e-15
+    assert stepper.discrete.ops.linearised_at == "the state"
+    assert np.abs(stepper.discrete.ops.load).max() < 1e-15
 
 
 @pytest.mark.slow

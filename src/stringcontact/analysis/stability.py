@@ -152,13 +152,13 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
     from mpi4py import MPI
 
     from ..model.interface import inelastic
-    from ..run.driver import discretise
+    from ..run.adapter import scene_problem
     from ..timestepping.projection import largest_stable_dt
     from ..verification.reference import fd_projection
 
     nt = max(1, round(T * n / ratio))
     scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)
-    ops = discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    ops = scene_problem(scene, inelastic, MPI.COMM_SELF).operators()
     interior = np.ones(ops.m.size, dtype=bool)
     interior[np.argsort(ops.m)[:2]] = False  # the ends: the two nodes with half a cell of mass
     dt_max = largest_stable_dt(ops, interior)

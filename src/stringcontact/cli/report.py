@@ -32,12 +32,19 @@ def show_scene(scene) -> str:
     data = scene.as_dict()
     options = data.pop("petsc_options", None)
     data.pop("parameters", None)
+    from ..timestepping import scheme_class
+
     data.setdefault("model", DEFAULT_MODEL)
-    data.setdefault("scheme", DEFAULT_SCHEME)
+    name = scene.scheme or DEFAULT_SCHEME
+    if isinstance(data.get("scheme"), dict):  # the [scheme] table, its name first
+        data["scheme"] = {"name": name} | {k: v for k, v in data["scheme"].items() if k != "name"}
+    else:
+        data["scheme"] = name
     missing = [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
-    header = scene_to_toml(scene).split("\n", 1)[0] + "\n"  # its derived values: dt, dx, r
+    header = scene_to_toml(scene, penalty=bool(scheme_class(name).PENALTIES)).split("\n", 1)[0] + "\n"  # dt, dx, r
     table = tomli_w.dumps({"petsc_options": options}) if options else ""
-    return (header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing)
+    scheme = tomli_w.dumps({"scheme": data.pop("scheme")}) if isinstance(data.get("scheme"), dict) else ""
+    return (header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing) + scheme
             + _parameters_table(data["model"], dict(scene.parameters)) + table)
 
 

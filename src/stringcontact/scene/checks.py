@@ -351,6 +351,24 @@ def check_scheme(value) -> str:
     return value
 
 
+def check_scheme_options(value) -> tuple:
+    """The (name, value) pairs of a ``[scheme]`` table's options (its name and eps, restitution apart): each a name
+    and a word, a number or true/false. What a scheme takes is its own to check, when the run is set up."""
+    from .limits import SCHEME_OPTIONS_MAX
+
+    pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
+    if len(pairs) > SCHEME_OPTIONS_MAX:
+        raise SceneError(f"scheme: {len(pairs)} options; allowed: at most {SCHEME_OPTIONS_MAX}")
+    for name, v in pairs:
+        if not (isinstance(name, str) and name.isidentifier()):
+            raise SceneError(f"scheme: option name {describe(name)}; allowed: a name (letters, digits, _)")
+        if isinstance(v, str):
+            text(f"scheme.{name}", v)
+        elif not isinstance(v, bool) and not (is_number(v) and math.isfinite(float(v))):
+            raise SceneError(f"scheme.{name}: {describe(v)}; allowed: a word, a finite number or true/false")
+    return pairs
+
+
 def check_petsc_options(value, key: str = "petsc_options") -> tuple:
     """The (name, value) pairs of a petsc_options table, checked against the allow-list; SceneError naming `key`."""
     if not isinstance(value, dict):

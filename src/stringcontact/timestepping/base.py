@@ -12,7 +12,7 @@ about 0 for a node held at rest on the obstacle; what a scheme's identity puts e
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
@@ -134,7 +134,8 @@ class DiscreteProblem:
       (x, y) rows);
     * ``petsc_options``: PETSc options on top of the size rule's, validated with the scene (or None);
     * ``restitution``: the restitution coefficient e, for a scheme with ``RESTITUTION`` (checked with the scene);
-    * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest.
+    * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest;
+    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them.
     """
 
     ops: Operators
@@ -151,6 +152,7 @@ class DiscreteProblem:
     petsc_options: dict | None = None
     restitution: float = 0.0
     obstacle: MovingObstacle | None = None
+    options: dict = field(default_factory=dict)
 
     @property
     def n_owned(self) -> int:
