@@ -1,6 +1,5 @@
-r"""The convergence study: observed orders under :math:`\Delta t = \Delta x \to 0` and under
-:math:`\varepsilon \to 0` (penetration and error) on the flat landing; `reference_study`: a scheme and a
-model (nonlinear ones too) refined against its own fine run (docs/howto/nonlinear_models.md)."""
+"""The convergence study: observed orders in Δt = Δx → 0 and in ε → 0 on the flat landing; `reference_study`: a
+scheme and model (nonlinear ones too) against its own fine run (docs/howto/nonlinear_models.md)."""
 
 from __future__ import annotations
 
@@ -35,10 +34,8 @@ def fitted_order(h, err) -> float:
 
 
 def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dict | None:
-    """Observed orders on the flat landing: in Δt = Δx (three methods) and in ε at a fixed grid (two penalties).
-
-    Returns {"runs": rows of CONVERGENCE_COLUMNS, "orders": rows of ORDER_COLUMNS} on rank 0.
-    """
+    """Observed orders on the flat landing, in Δt = Δx per method and in ε at a fixed grid per penalty:
+    {"runs": rows of CONVERGENCE_COLUMNS, "orders": rows of ORDER_COLUMNS} on rank 0."""
     sizes = (125, 250, 500) if quick else (125, 250, 500, 1000, 2000, 4000, 8000)
     n_eps = 400 if quick else 4000
     eps_values = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-8)
@@ -83,8 +80,7 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
     return {"runs": rows, "orders": orders}
 
 
-#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalty schemes
-#: converge to the penalised model; `paper` with its explicit penalty, `newmark` with its semi-implicit one).
+#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalised model).
 SCHEME_METHODS = {
     "paper": Method("paper", "paper: explicit penalty, lumped, the scene's ε", "explicit", "lumped", "fixed"),
     "projection": METHODS["projection"],
@@ -94,12 +90,9 @@ SCHEME_METHODS = {
 
 
 def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
-    """Errors of `scheme` (with `model`) on ``scene_at(n)`` for each n in `sizes` against the same scheme and
-    model on ``scene_at(reference_n)``: ``err_eta``, the L∞(0, T; L²) error at the coarsest run's stored times
-    (every one of its steps; the finer runs' step counts must be multiples of it), the reference interpolated.
-
-    Returns {"sizes", "errors", "orders" (pairwise, in Δx), "reference" (its `Run`), "runs"}.
-    """
+    """``err_eta`` of `scheme` and `model` on ``scene_at(n)`` for each n in `sizes` against ``scene_at(reference_n)``,
+    at every step of the coarsest run (the finer step counts multiples of it): {"sizes", "errors", "orders"
+    (pairwise, in Δx), "reference" (its `Run`), "runs"}."""
     method = SCHEME_METHODS[scheme]
     rows = scene_at(min(sizes)).nt
     reference = run_method(scene_at(reference_n), method, rows=rows, model=model)

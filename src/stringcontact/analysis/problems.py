@@ -1,8 +1,4 @@
-"""The studies' problem catalogue: the methods compared, the test problems and the scene factories.
-
-`flat_landing_scene` is the one factory of the exact α = 0 flat landing (`verification.exact.flat_landing`),
-for the studies and for the theorem checks alike; `example1_scene` is the paper's Example 1 on a chosen grid.
-"""
+"""The studies' methods, test problems and scene factories (the flat landing's for the theorem checks too)."""
 
 from __future__ import annotations
 
@@ -29,6 +25,7 @@ class Method:
     scheme: str = "paper"
 
     def eps(self, scene_eps: float, dt: float) -> float:
+        """The run's ε by the rule, from the scene's ε and the run's Δt."""
         return {"fixed": scene_eps, "dt": dt, "limit": EPS_LIMIT, "none": scene_eps}[self.eps_rule]
 
 
@@ -49,12 +46,8 @@ REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped",
 
 def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = None, r: float | None = None,
                        T: float = 0.6, alpha: float = 0.0):
-    """The exact case: l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n unless `nt` is given.
-
-    ε is `eps` (default the paper's 5e-4), or Δt/`r` if `r` is given: the studies fix ε (or their method
-    sets it), the theorem checks fix r = Δt/ε so that ε falls with Δx and Δt (`stringcontact check
-    flat-landing` uses r = 0.4).
-    """
+    """The exact case (`verification.exact.flat_landing`): l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n
+    unless `nt` is given; ε is `eps` (default 5e-4), or Δt/`r` (the theorem checks fix r, `check` uses 0.4)."""
     import stringcontact as sc
 
     if eps is not None and r is not None:
@@ -65,18 +58,8 @@ def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = Non
     elif eps is None:
         eps = EPS_PAPER
     return sc.load_scene("example1").replace(
-        name="flat-landing",
-        description="flat string landing on the obstacle (exact alpha = 0 solution)",
-        notes="",
-        eta0=str(FLAT_H),
-        v0=str(-FLAT_V),
-        alpha=alpha,
-        eps=eps,
-        T=T,
-        nx=n,
-        nt=nt,
-        output_times=[],
-    )
+        name="flat-landing", description="flat string landing on the obstacle (exact alpha = 0 solution)", notes="",
+        eta0=str(FLAT_H), v0=str(-FLAT_V), alpha=alpha, eps=eps, T=T, nx=n, nt=nt, output_times=[])
 
 
 def example1_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.3):
@@ -92,11 +75,8 @@ STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
 
 
 def string_scene(n: int, *, contact: bool, T: float = STRING_T, eps: float = STRING_EPS, dt_dx: float = STRING_DT_DX):
-    """Example 1's string (α = 0.01, l = 1) on smooth data at Δx = 1/n, Δt = `dt_dx` Δx, no stored output times.
-
-    ``contact=True``: η0 = ½ + ½ sin(πx) thrown down at v0 = −8 sin(πx); the middle lands on ψ = 0 at t ≈ 0.1 and
-    the contact set spreads. ``contact=False``: η0 = 1 + ½ sin(πx) from rest; it swings above the obstacle.
-    """
+    """Example 1's string (α = 0.01, l = 1) at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from
+    η0 = ½ + ½ sin(πx) at v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
     import stringcontact as sc
 
     data = {"eta0": "0.5 + 0.5*sin(pi*x)", "v0": "-8*sin(pi*x)"} if contact else {"eta0": "1 + 0.5*sin(pi*x)", "v0": "0"}
@@ -115,6 +95,7 @@ class Problem:
     reference_n: int | None = None  # None: exact solution
 
     def scene(self, n: int, eps: float = EPS_PAPER):
+        """The problem's scene at Δt = Δx = 1/n."""
         if self.name == "flat-landing":
             return flat_landing_scene(n, eps=eps, T=self.T)
         return example1_scene(n, eps=eps, T=self.T)
@@ -128,17 +109,14 @@ class Problem:
 def problems(quick: bool = False) -> dict[str, Problem]:
     """The two work-precision problems; `quick` shrinks them for tests and fast demos."""
     if quick:
-        return {
-            "flat-landing": Problem("flat-landing", 0.6, (125, 250, 500)),
-            "example1": Problem("example1", 0.06, (250, 500), reference_n=2000),
-        }
-    return {
-        "flat-landing": Problem("flat-landing", 0.6, (125, 250, 500, 1000, 2000, 4000)),
-        "example1": Problem("example1", 0.3, (250, 500, 1000, 2000, 4000), reference_n=16000),
-    }
+        return {"flat-landing": Problem("flat-landing", 0.6, (125, 250, 500)),
+                "example1": Problem("example1", 0.06, (250, 500), reference_n=2000)}
+    return {"flat-landing": Problem("flat-landing", 0.6, (125, 250, 500, 1000, 2000, 4000)),
+            "example1": Problem("example1", 0.3, (250, 500, 1000, 2000, 4000), reference_n=16000)}
 
 
 def flat_landing_exact(t, x):
+    """(η, η_t) of the exact flat landing at times t and points x (`verification.exact.flat_landing`)."""
     from ..verification.exact import flat_landing
 
     return flat_landing(t, x, h=FLAT_H, V=FLAT_V, length=1.0)

@@ -1,5 +1,4 @@
-"""One run of a study: `run_method` simulates a scene with a `Method` on this rank alone and keeps its cost,
-its outcome and the stored arrays that the errors need (`Run`)."""
+"""One run of a study: `run_method` simulates a scene with a `Method` on this rank alone (`Run`)."""
 
 from __future__ import annotations
 
@@ -35,15 +34,13 @@ class Run:
 
     @property
     def r(self) -> float:
+        """r = Δt/ε."""
         return self.dt / self.eps
 
 
 def simulate_self(scene, **kwargs):
-    """`simulate(scene, **kwargs)` on COMM_SELF (this rank alone), without its instability warnings.
-
-    A study case that goes unstable is a result, not a problem: the case records it, so the warning would
-    only be noise. An `InstabilityError` (refused at the start, or stopped by the running guard) still raises.
-    """
+    """`simulate(scene, **kwargs)` on COMM_SELF without its instability warnings (a study records the outcome);
+    an `InstabilityError` still raises."""
     from mpi4py import MPI
 
     import stringcontact as sc
@@ -58,10 +55,8 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
     import stringcontact as sc
 
     scene = scene.replace(eps=method.eps(scene.eps, scene.dt))
-    common = dict(
-        problem=scene.name, method=method.name, penalty=method.penalty or "none", mass=method.mass,
-        nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps if method.penalty else math.inf,
-    )
+    common = dict(problem=scene.name, method=method.name, penalty=method.penalty or "none", mass=method.mass,
+                  nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps if method.penalty else math.inf)
     best, res = math.inf, None
     for _ in range(repeat):
         try:
@@ -77,9 +72,6 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
 
 
 def warm_up():
-    """Compile the forms once per process (FFCx caches them), so the first timed run does not pay for it.
-
-    One run warms every method: the forms do not depend on the mass (lumping is the row sums of the
-    assembled M) nor on the penalty (evaluated at the nodes with NumPy, `stringcontact.fem.nodal`).
-    """
+    """Compile the forms once per process, so the first timed run does not pay for it (one run warms every
+    method: the forms depend on neither the mass nor the penalty)."""
     run_method(flat_landing_scene(8, nt=4), METHODS["semi-implicit"], rows=4)

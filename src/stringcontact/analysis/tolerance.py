@@ -1,5 +1,5 @@
 """``run SCENE --tol X``: the cheapest method and resolution whose estimated error of η is below X
-(:func:`choose_for_tolerance`), and how well the estimate tracks the true error (:func:`tolerance_tracking`)."""
+(`choose_for_tolerance`), and how well the estimate tracks the true error (`tolerance_tracking`)."""
 
 from __future__ import annotations
 
@@ -12,16 +12,14 @@ from .norms import common_rows, errors_against_exact, l2_norm, to_nodes
 from .problems import METHODS, flat_landing_exact, flat_landing_scene
 from .runs import Run, run_method
 
-#: What the studies taught `run --tol` (docs/explanation/study.md): the observed L∞(L²) order of η under Δt = Δx → 0
-#: on the flat landing, for the methods that converge to the inelastic limit, cheapest first. The explicit
-#: penalty is left out: at a single-point contact it cannot hold the string up (docs/explanation/getfem.md).
+#: The methods that converge to the inelastic limit, cheapest first, and their observed L∞(L²) orders of η on the
+#: flat landing (docs/explanation/study.md); not the explicit penalty, which a point contact sinks (getfem.md).
 TOL_METHODS = ("projection", "semi-implicit", "newmark")
 TOL_ORDER = {"projection": 1.0, "semi-implicit": 0.5, "newmark": 0.5}
-#: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots are not yet in
-#: the asymptotic range (example1, semi-implicit: estimates 1.3, 1.2, 0.46, 0.39, 0.12, 0.083 at nx 100 to 3200,
-#: `benchmarks/bench_tolerance_reach.py`), so their floor can be a few times too pessimistic.
+#: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots are before the
+#: asymptotic range, their floor a few times too pessimistic (benchmarks/bench_tolerance_reach.py).
 REACH_MARGIN = 100.0
-#: The finest pilot: the size limit of `run --tol` (scene nx is at most 1e5; this is the last doubling of 50 below it).
+#: The finest pilot: the last doubling of 50 below the scene's limit nx <= 1e5.
 NX_MAX = 64000
 TOLERANCE_COLUMNS = ("tol", "method", "nx", "nt", "estimate", "true_error", "ratio", "pilot_wall_s")
 
@@ -43,14 +41,9 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
                            model=None) -> list[dict]:
     """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`.
 
-    Returns one dict per method: method, nx, nt (of the finer run), estimate, fine_wall_s (the finer run's
-    wall time), ok (whether `tol` was reached below `nx_max`), floor (the estimate that refining to `nx_max`
-    would reach, extrapolated with the method's order from the last two runs), why (the reason it stopped
-    short: "out of reach" or "dearer") and run (the finer :class:`Run` itself).
-
-    The work is bounded: a method stops as soon as its floor is above REACH_MARGIN·`tol` (refining cannot reach it within
-    the size limit: `--tol 1e-300` stops after the first two pilots, nx 50 and 100, instead of running them up
-    to nx = 64000 for many minutes), or once it costs more than the cheapest success so far.
+    One dict per method: method, nx, nt (of the finer run), estimate, fine_wall_s, ok (`tol` reached below
+    `nx_max`), floor (the estimate extrapolated to `nx_max` with the method's order), why ("out of reach": the
+    floor is above REACH_MARGIN·`tol`; "dearer": it costs more than the cheapest success) and run (the finer `Run`).
     """
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
@@ -100,14 +93,9 @@ def _runs(scheme: str, model) -> bool:
 
 
 def choose_for_tolerance(scene, tol: float, *, model=None):
-    """`run SCENE --tol X`: the cheapest method and resolution whose estimated error of η is below X.
-
-    The candidates are the methods that converge to the inelastic limit ε → 0 (docs/explanation/study.md: the fixed-ε
-    paper scheme stops at its ε-error, which no resolution removes). Each is refined by doubling Δx and Δt
-    together (keeping the scene's ratio) until the Richardson estimate from the last two resolutions,
-    with the study's observed order, is below X; the cheaper of the finer runs wins. The pilot runs use
-    `model` (default: the scene's, else the paper's), so pass the model the run itself will use. Under MPI,
-    rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
+    """`run SCENE --tol X`: the cheapest of `TOL_METHODS` and resolution (Δx and Δt doubled together) whose
+    Richardson estimate is below X, the pilots run with `model` (default: the scene's). Under MPI rank 0 decides
+    and tells the others. Returns (scene, options for `simulate`, report).
     """
     if scene.dim != 1:  # its pilots refine nx and its error estimates are the string's
         raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
@@ -135,10 +123,8 @@ _STOPPED = {"dearer": ", stopped: above tol and already dearer", "out of reach":
 
 
 def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
-    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank.
-
-    Every rank must call it. The other ranks get the estimates without the pilot runs' arrays ("run").
-    """
+    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank
+    (without the pilot runs' arrays, "run"); every rank must call it."""
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
@@ -148,14 +134,11 @@ def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
             choice = estimate_for_tolerance(scene, tol, model=model)
         except ValueError as exc:
             choice = exc
-    if comm.size > 1:  # the other ranks need the estimates, not the pilot runs' arrays
-        light = None
-        if comm.rank == 0:
-            light = choice if isinstance(choice, Exception) else [{k: v for k, v in c.items() if k != "run"}
-                                                                  for c in choice]
+    if comm.size > 1:
+        light = choice if comm.rank or isinstance(choice, Exception) else [
+            {k: v for k, v in c.items() if k != "run"} for c in choice]
         light = comm.bcast(light, root=0)
-        if comm.rank != 0:
-            choice = light
+        choice = light if comm.rank else choice
     if isinstance(choice, Exception):
         raise choice
     return choice
@@ -182,11 +165,8 @@ def _pick(scene, tol: float, choice: list[dict]):
 
 
 def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
-    """On the flat landing: the chosen run's estimate against its true error (exact solution), per tolerance.
-
-    Serial (no MPI collective: under `mpirun` only rank 0 calls it). The true error is that of the chosen run
-    itself, the finer pilot run of the estimate (every coarse step stored); pilot_wall_s is the time the choice took.
-    """
+    """On the flat landing, per tolerance: the chosen run's estimate against its true error, and the time the
+    choice took (serial: under `mpirun` only rank 0 calls it)."""
     base = flat_landing_scene(100, T=T)
     rows = []
     for tol in tols:

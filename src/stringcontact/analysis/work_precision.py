@@ -1,6 +1,5 @@
-r"""The work-precision study: error against wall-clock time, one line per :class:`~.problems.Method`, on the
-exact :math:`\alpha = 0` flat landing (:func:`stringcontact.verification.exact.flat_landing`) and on the paper's
-Example 1 against a fine-grid reference."""
+"""The work-precision study: error against wall-clock time per `Method`, on the exact α = 0 flat landing and on
+the paper's Example 1 against a fine-grid reference."""
 
 from __future__ import annotations
 
@@ -11,13 +10,12 @@ from .problems import METHODS, REFERENCE, flat_landing_exact, problems
 from .runs import Run, run_method, warm_up
 from .schedule import distribute
 
-WORK_PRECISION_COLUMNS = (
-    "problem", "method", "penalty", "mass", "nx", "nt", "dt", "eps", "r", "status",
-    "wall_s", "err_eta", "err_vel", "err_contact", "min_eta",
-)
+WORK_PRECISION_COLUMNS = ("problem", "method", "penalty", "mass", "nx", "nt", "dt", "eps", "r", "status", "wall_s",
+                          "err_eta", "err_vel", "err_contact", "min_eta")
 
 
 def study_row(run: Run, errs: dict | None) -> dict:
+    """The row of `WORK_PRECISION_COLUMNS` of `run` and its errors (NaN if None)."""
     errs = errs or dict.fromkeys(("err_eta", "err_vel", "err_contact"), math.nan)
     return {
         "problem": run.problem, "method": run.method, "penalty": run.penalty, "mass": run.mass,
