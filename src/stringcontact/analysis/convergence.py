@@ -1,5 +1,6 @@
-"""The convergence study: observed orders in Δt = Δx → 0 and in ε → 0 on the flat landing; `reference_study`: a
-scheme and model (nonlinear ones too) against its own fine run (docs/howto/nonlinear_models.md)."""
+"""The accuracy studies: work-precision (error against wall-clock time per `Method`, on the exact flat landing and
+on Example 1 against a fine-grid reference), convergence (observed orders in Δt = Δx → 0 and in ε → 0 on the flat
+landing) and `reference_study` (a scheme and model, nonlinear ones too, against its own fine run)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,12 @@ import math
 import numpy as np
 
 from .norms import errors_against_exact, errors_against_reference
-from .problems import METHODS, Method, flat_landing_exact, flat_landing_scene
-from .runs import run_method, warm_up
+from .problems import METHODS, REFERENCE, Method, flat_landing_exact, flat_landing_scene, problems
+from .runs import Run, run_method, warm_up
 from .schedule import distribute
-from .work_precision import WORK_PRECISION_COLUMNS, study_row
 
+WORK_PRECISION_COLUMNS = ("problem", "method", "penalty", "mass", "nx", "nt", "dt", "eps", "r", "status", "wall_s",
+                          "err_eta", "err_vel", "err_contact", "min_eta")
 CONVERGENCE_COLUMNS = ("sweep", *WORK_PRECISION_COLUMNS, "order_eta")
 ORDER_COLUMNS = ("sweep", "problem", "method", "quantity", "order", "from", "to")
 
@@ -31,6 +33,43 @@ def fitted_order(h, err) -> float:
     if ok.sum() < 2:
         return math.nan
     return float(np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0])
+
+
+def study_row(run: Run, errs: dict | None) -> dict:
+    """The row of `WORK_PRECISION_COLUMNS` of `run` and its errors (NaN if None)."""
+    errs = errs or dict.fromkeys(("err_eta", "err_vel", "err_contact"), math.nan)
+    return {"problem": run.problem, "method": run.method, "penalty": run.penalty, "mass": run.mass, "nx": run.nx,
+            "nt": run.nt, "dt": run.dt, "eps": run.eps, "r": run.r, "status": run.status, "wall_s": run.wall_s, **errs,
+            "min_eta": run.min_eta}
+
+
+def work_precision(quick: bool = False, problem_names=("flat-landing", "example1"), methods=tuple(METHODS),
+                   repeat: int = 1, comm=None, busy: list | None = None) -> list[dict] | None:
+    """Rows of `WORK_PRECISION_COLUMNS`: every method at every size of every problem (None on ranks > 0)."""
+    probs = problems(quick)
+    unknown = set(problem_names) - set(probs)
+    if unknown:
+        raise ValueError(f"problem must be among {sorted(probs)}, not {sorted(unknown)}")
+    cases = [(p, m, n) for p in problem_names for m in methods for n in probs[p].sizes]
+    cases += [(p, REFERENCE.name, probs[p].reference_n) for p in problem_names if probs[p].reference_n]
+
+    def one(case):
+        p, m, n = case
+        method = REFERENCE if m == REFERENCE.name else METHODS[m]
+        return run_method(probs[p].scene(n), method, rows=probs[p].rows, repeat=1 if m == REFERENCE.name else repeat)
+
+    warm_up()
+    runs = distribute(one, cases, comm, cost=lambda c: probs[c[0]].T * c[2] ** 2, busy=busy)
+    if runs is None:
+        return None
+    refs = {run.problem: run for run in runs if run.method == REFERENCE.name}
+    rows = []
+    for run in (r for r in runs if r.method != REFERENCE.name):
+        errs = None if run.status != "complete" else (
+            errors_against_exact(run, flat_landing_exact) if run.problem == "flat-landing"
+            else errors_against_reference(run, refs[run.problem]))
+        rows.append(study_row(run, errs))
+    return rows + [study_row(ref, None) for ref in refs.values()]  # the references: their cost, no error
 
 
 def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dict | None:

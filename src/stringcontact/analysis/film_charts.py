@@ -9,8 +9,6 @@ import numpy as np
 
 from ..plot.study_charts import study_figure
 
-__all__ = ["CAVITATION_STYLE", "PANELS", "REFERENCE_STYLE", "plot_film_study"]
-
 #: The panels: (column, axis label, log scale).
 PANELS = (
     ("min_gap", "thinnest film min η", True),
@@ -29,10 +27,11 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
     as horizontal lines; the distance panel shows before (solid) and after (hollow) the first lift-off."""
     probs = list(dict.fromkeys(r["problem"] for r in rows))
     with study_figure(path, len(probs), len(PANELS), figsize=(4.2 * len(PANELS), 3.6 * len(probs)), squeeze=False,
-                 layout="constrained") as (_fig, axes):
+                      layout="constrained") as (_fig, axes):
         for i, p in enumerate(probs):
             mine = [r for r in rows if r["problem"] == p]
             e0 = {r["method"]: r for r in mine if r["method"] != "film"}
+            energy = next(r["E0"] for r in mine)  # E(0) of the problem
             for j, (key, label, log) in enumerate(PANELS):
                 ax = axes[i, j]
                 for cav, style in CAVITATION_STYLE.items():
@@ -41,7 +40,7 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
                     mu = np.array([r["mu"] for r in sel])
                     y = np.array([r[key] for r in sel], dtype=float)
                     if key == "energy_lost":
-                        y = y / _energy(p, rows)
+                        y = y / energy
                     if log and key != "min_gap":
                         y = np.where(y > 0, y, np.nan)
                     ax.plot(mu, y, **style)
@@ -51,7 +50,7 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
                 for name, style in REFERENCE_STYLE.items():
                     value = e0.get(name, {}).get(key, np.nan)
                     if key == "energy_lost":
-                        value = value / _energy(p, rows)
+                        value = value / energy
                     if np.isfinite(value) and (value > 0 or not log or key == "min_gap"):
                         ax.axhline(value, **style)
                 if key == "min_gap":
@@ -68,7 +67,3 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
             axes[i, -1].legend(fontsize=7)
     return Path(path)
 
-
-def _energy(problem: str, rows: list[dict]) -> float:
-    """E(0) of a problem (the rows carry it as ``E0``)."""
-    return next(r["E0"] for r in rows if r["problem"] == problem)

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 
 def require_every_step(result) -> None:
@@ -40,21 +41,16 @@ def interior(result) -> np.ndarray:
     return mask
 
 
-def free_boundary(contact: np.ndarray) -> np.ndarray:
+def free_boundary(contact: np.ndarray, neighbours=ndimage.generate_binary_structure(2, 1)) -> np.ndarray:
     """The discrete free boundary ∂{η ≤ 0} on the (step, node) grid: the points whose contact flag differs from one
-    of their four neighbours (both sides of the interface: two points thick and symmetric)."""
-    from scipy import ndimage
-
+    of their `neighbours` (default: the four; both sides of the interface, so two points thick and symmetric)."""
     c = np.asarray(contact, dtype=bool)
-    cross = ndimage.generate_binary_structure(2, 1)
-    return np.where(c, ~ndimage.binary_erosion(c, cross, border_value=1), ndimage.binary_dilation(c, cross))
+    return np.where(c, ~ndimage.binary_erosion(c, neighbours, border_value=1), ndimage.binary_dilation(c, neighbours))
 
 
 def distance_to_free_boundary(contact: np.ndarray) -> np.ndarray:
     """Chessboard distance (in cells or steps, whichever is larger) of each grid point to ∂{η ≤ 0} (a large one
     where there is no free boundary)."""
-    from scipy import ndimage
-
     b = free_boundary(contact)
     if not b.any():
         return np.full(b.shape, np.iinfo(np.int32).max, dtype=np.int64)
@@ -200,8 +196,6 @@ def upward_impulse(result) -> dict:
     neighbourhood, v ≥ 0 on rows n−1..n+1 and nodes j−1..j+1 (a discrete int{η_t ≥ 0}, the set of (A3)). A moving
     obstacle: where it moves up off it in the step the force acts in, q − ψ_t > 0 (`Momentum`) beyond the quotients'
     round-off, 1e-9 of the largest |q|, |ψ_t| (the force that carries the string acts where q − ψ_t = 0)."""
-    from scipy import ndimage
-
     I = impulse(result)
     total = I.sum()
     if obstacle_rows(result) is None:
@@ -247,17 +241,10 @@ def stress_jump_balance(result, width: int = 4) -> dict:
     totals, the mismatch |impulse − stress jump| / impulse, the identity's closure, the bands' share of all impulse
     and the per-row series of Figure 1.
     """
-    from scipy import ndimage
-
-    require_every_step(result)
     dt = result.scene.dt
     m = nodal_weights(result)
-    c = np.asarray(result.contact, dtype=bool)
     S = cell_stress(result)
-    front = np.zeros_like(c)
-    d = np.diff(c, axis=1)
-    front[:, :-1] |= d
-    front[:, 1:] |= d
+    front = free_boundary(result.contact, np.ones((1, 3), dtype=bool))  # the fronts in space at each row
     front[:, [0, -1]] = False
     band = ndimage.binary_dilation(front, structure=np.ones((1, 2 * width + 1), dtype=bool))
     N = result.x.size
@@ -302,7 +289,6 @@ def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
     """Theorem 2.3(2): for each node of a segment landing at once (less `margin` nodes at each side), the impulse
     density Σ Δt F^n over the landing window [n₀, n₀ + q] (q steps ≈ `decay_eps`·ε, in which the penalty stops the
     node) against the jump v(after) − v(before) of (2.12), and the window's share of the node's whole impulse."""
-    require_every_step(result)
     dt = result.scene.dt
     q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt))) if penalised(result) else 2
     terms = momentum_terms(result)

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import stringcontact as sc
+
+from ..verification.exact import flat_landing
+
 #: ε standing for the limit ε → 0 (the semi-implicit penalty is unconditionally stable, so any tiny ε works).
 EPS_LIMIT = 1e-9
 #: The paper's ε (Section 6).
@@ -29,18 +33,14 @@ class Method:
         return {"fixed": scene_eps, "dt": dt, "limit": EPS_LIMIT, "none": scene_eps}[self.eps_rule]
 
 
-METHODS = {
-    m.name: m
-    for m in (
-        Method("paper", "paper: explicit, lumped, ε = 5e-4", "explicit", "lumped", "fixed"),
-        Method("explicit-r1", "explicit, lumped, ε = Δt (r = 1)", "explicit", "lumped", "dt"),
-        Method("semi-implicit", "semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit"),
-        Method("consistent", "semi-implicit, consistent mass, ε → 0", "semi-implicit", "consistent", "limit"),
-        Method("projection", "projection (no ε), lumped", None, "lumped", "none", scheme="projection"),
-        Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"),
-    )
-}
-#: The reference for problems with no exact solution: the most accurate scheme (docs/explanation/study.md), at reference_n.
+METHODS = {m.name: m for m in (
+    Method("paper", "paper: explicit, lumped, ε = 5e-4", "explicit", "lumped", "fixed"),
+    Method("explicit-r1", "explicit, lumped, ε = Δt (r = 1)", "explicit", "lumped", "dt"),
+    Method("semi-implicit", "semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit"),
+    Method("consistent", "semi-implicit, consistent mass, ε → 0", "semi-implicit", "consistent", "limit"),
+    Method("projection", "projection (no ε), lumped", None, "lumped", "none", scheme="projection"),
+    Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"))}
+#: The reference of the problems without an exact solution, at reference_n: the most accurate scheme (study.md).
 REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped", "none", scheme="projection")
 
 
@@ -48,8 +48,6 @@ def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = Non
                        T: float = 0.6, alpha: float = 0.0):
     """The exact case (`verification.exact.flat_landing`): l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n
     unless `nt` is given; ε is `eps` (default 5e-4), or Δt/`r` (the theorem checks fix r, `check` uses 0.4)."""
-    import stringcontact as sc
-
     if eps is not None and r is not None:
         raise ValueError("flat_landing_scene: give eps or r = dt/eps, not both")
     nt = nt if nt is not None else max(1, round(T * n))
@@ -64,8 +62,6 @@ def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = Non
 
 def example1_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.3):
     """The paper's Example 1 with Δt = Δx = 1/n (n = 5000 is the paper's resolution)."""
-    import stringcontact as sc
-
     return sc.load_scene("example1").replace(T=T, eps=eps, nx=n, nt=max(1, round(T * n)), output_times=[])
 
 
@@ -77,8 +73,6 @@ STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
 def string_scene(n: int, *, contact: bool, T: float = STRING_T, eps: float = STRING_EPS, dt_dx: float = STRING_DT_DX):
     """Example 1's string (α = 0.01, l = 1) at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from
     η0 = ½ + ½ sin(πx) at v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
-    import stringcontact as sc
-
     data = {"eta0": "0.5 + 0.5*sin(pi*x)", "v0": "-8*sin(pi*x)"} if contact else {"eta0": "1 + 0.5*sin(pi*x)", "v0": "0"}
     return sc.load_scene("example1").replace(
         name="string-contact" if contact else "string-free", notes="", T=T, eps=eps, nx=n,
@@ -117,6 +111,4 @@ def problems(quick: bool = False) -> dict[str, Problem]:
 
 def flat_landing_exact(t, x):
     """(η, η_t) of the exact flat landing at times t and points x (`verification.exact.flat_landing`)."""
-    from ..verification.exact import flat_landing
-
     return flat_landing(t, x, h=FLAT_H, V=FLAT_V, length=1.0)

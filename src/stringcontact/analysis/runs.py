@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import stringcontact as sc
 from .problems import METHODS, Method, flat_landing_scene
 
 
@@ -43,8 +44,6 @@ def simulate_self(scene, **kwargs):
     an `InstabilityError` still raises."""
     from mpi4py import MPI
 
-    import stringcontact as sc
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sc.InstabilityWarning)
         return sc.simulate(scene, comm=MPI.COMM_SELF, **kwargs)
@@ -52,8 +51,6 @@ def simulate_self(scene, **kwargs):
 
 def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model=None) -> Run:
     """Simulate `scene` with `method` on COMM_SELF; the wall time is the best of `repeat` calls of `simulate`."""
-    import stringcontact as sc
-
     scene = scene.replace(eps=method.eps(scene.eps, scene.dt))
     common = dict(problem=scene.name, method=method.name, penalty=method.penalty or "none", mass=method.mass,
                   nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps if method.penalty else math.inf)

@@ -8,6 +8,10 @@ import math
 
 import numpy as np
 
+import stringcontact as sc
+
+from ..verification.exact import flat_landing_time
+from ..verification.reference import fd_projection, fd_solve
 from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene
 from .runs import simulate_self
 from .schedule import distribute
@@ -33,8 +37,6 @@ def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float 
                 window: float = 0.1) -> float:
     """The largest upward velocity of the flat landing's middle node in (t*, t* + window], t* = h/V, over the
     impact speed V (exactly, the middle rests until the waves from the ends reach it)."""
-    from ..verification.exact import flat_landing_time
-
     mid = int(np.argmin(np.abs(x - 0.5 * (x[0] + x[-1]))))
     t_star = flat_landing_time(h, V)
     sel = (t > t_star) & (t <= t_star + window)
@@ -86,8 +88,6 @@ def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[fl
 def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
     """(the row's outcome, restitution, growth_step, energy_max_ratio and min_eta; the Result or None) of `scene`
     run by `simulate`, whose guards refuse a run before its start ("refused") or stop it when its energy rises."""
-    import stringcontact as sc
-
     try:
         res = simulate_self(scene, max_rows=scene.nt, **options)
     except sc.InstabilityError as exc:
@@ -103,8 +103,6 @@ def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: f
     """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r. Lumped mass runs through
     `verification.reference.fd_solve` (`simulate`'s scheme to 1e-10, tests/run/test_solver.py, without its
     refusal of r ≥ 2), consistent mass through `simulate`."""
-    from ..verification.reference import fd_solve
-
     eps = dt / r
     scene = flat_landing_scene(round(1.0 / dt), eps=eps, T=T, nt=round(T / dt))
     row = {"penalty": penalty, "mass": mass, "dt": dt, "eps": eps, "r": r,
@@ -139,7 +137,6 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
     from ..model.interface import inelastic
     from ..run.driver import discretise
     from ..timestepping.projection import largest_stable_dt
-    from ..verification.reference import fd_projection
 
     scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=max(1, round(T * n / ratio)), alpha=alpha)
     ops = discretise(scene, inelastic, MPI.COMM_SELF)[2]

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..plot import study_charts
 from ..plot.study_charts import plot_stability, plot_step_size
-from .convergence import CONVERGENCE_COLUMNS, ORDER_COLUMNS, convergence, fitted_order, observed_orders
+from .convergence import (CONVERGENCE_COLUMNS, ORDER_COLUMNS, WORK_PRECISION_COLUMNS, convergence, fitted_order,
+                          observed_orders, work_precision)
 from .norms import errors_against_exact, errors_against_reference
 from .problems import FLAT_H, FLAT_V, METHODS, REFERENCE, example1_scene, flat_landing_exact, flat_landing_scene
 from .runs import run_method, warm_up
@@ -16,20 +18,15 @@ from .stability import (ALPHA_COLUMNS, REBOUND_THRESHOLD, STABILITY_COLUMNS, STE
                         stability_case, stability_map, step_size_map)
 from .tables import read_csv, write_csv
 from .tolerance import TOL_ORDER, TOLERANCE_COLUMNS, choose_for_tolerance, estimate_for_tolerance, tolerance_tracking
-from .work_precision import WORK_PRECISION_COLUMNS, work_precision
 
 
 def plot_work_precision(rows: list[dict], path) -> Path:
     """Error against wall-clock time (`plot.study_charts.plot_work_precision`), a line per method of `METHODS`."""
-    from ..plot import study_charts
-
     return study_charts.plot_work_precision(rows, path, {name: m.label for name, m in METHODS.items()})
 
 
 def plot_convergence(result: dict, path) -> Path:
     """Errors against Δt = Δx, penetration and error against ε (`plot.study_charts.plot_convergence`)."""
-    from ..plot import study_charts
-
     return study_charts.plot_convergence(result, path, {name: m.label for name, m in METHODS.items()}, FLAT_V)
 
 

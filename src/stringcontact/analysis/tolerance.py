@@ -26,8 +26,7 @@ TOLERANCE_COLUMNS = ("tol", "method", "nx", "nt", "estimate", "true_error", "rat
 
 def _scaled(scene, nx: int):
     """The scene at `nx` cells, keeping its ratio Δt/Δx."""
-    nt = max(1, round(scene.nt * nx / scene.nx))
-    return scene.replace(nx=nx, nt=nt)
+    return scene.replace(nx=nx, nt=max(1, round(scene.nt * nx / scene.nx)))
 
 
 def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
@@ -51,14 +50,10 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
     budget = math.inf  # a method that costs more than the cheapest success so far cannot win: stop refining it
     for name in methods:
         method = METHODS[name]
-        if method.penalty == "semi-implicit" and model is not None and model.penalty_damping is None:
-            continue
-        if model is not None and not _runs(method.scheme, model):  # a scheme the model refuses is no candidate
-            continue
-        if method.scheme == "projection" and model is not None and model.gap is None:
-            continue
-        nx = max(2, min(nx_start, scene.nx))
-        coarse_scene = _scaled(scene, nx)
+        if model is not None and ((method.penalty == "semi-implicit" and model.penalty_damping is None) or not _runs(
+                method.scheme, model) or (method.scheme == "projection" and model.gap is None)):
+            continue  # a scheme the model refuses, or a law it needs that the model lacks, is no candidate
+        coarse_scene = _scaled(scene, max(2, min(nx_start, scene.nx)))
         rows = coarse_scene.nt  # every coarse step; the finer run stores every second step, at the same times
         coarse = run_method(coarse_scene, method, rows=rows, model=model)
         while True:
@@ -77,7 +72,7 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
                 if ok:
                     budget = min(budget, fine.wall_s)
                 break
-            nx, coarse = 2 * nx, fine
+            coarse = fine
     return found
 
 
@@ -160,8 +155,7 @@ def _pick(scene, tol: float, choice: list[dict]):
     best = min(reached, key=lambda c: c["fine_wall_s"])
     method = METHODS[best["method"]]
     chosen = scene.replace(nx=best["nx"], nt=best["nt"])
-    chosen = chosen.replace(eps=method.eps(chosen.eps, chosen.dt))
-    return chosen, method, best
+    return chosen.replace(eps=method.eps(chosen.eps, chosen.dt)), method, best
 
 
 def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
@@ -174,7 +168,6 @@ def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
         best = _pick(base, tol, estimate_for_tolerance(base, tol))[2]
         pilot = time.perf_counter() - t0
         true = errors_against_exact(best["run"], flat_landing_exact)["err_eta"]
-        rows.append({"tol": tol, "method": best["method"], "nx": best["nx"], "nt": best["nt"],
-                     "estimate": best["estimate"], "true_error": true, "ratio": best["estimate"] / true,
-                     "pilot_wall_s": pilot})
+        rows.append({"tol": tol, "method": best["method"], "nx": best["nx"], "nt": best["nt"], "estimate":
+                     best["estimate"], "true_error": true, "ratio": best["estimate"] / true, "pilot_wall_s": pilot})
     return rows
