@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from .norms import errors_against_exact, errors_against_reference
-from .problems import METHODS, REFERENCE, Method, flat_landing_exact, flat_landing_scene, problems
-from .runs import Run, run_method, warm_up
+from .problems import (METHODS, REFERENCE, Method, Run, flat_landing_exact, flat_landing_scene, problems, run_method,
+                       warm_up)
 from .schedule import distribute
 
 WORK_PRECISION_COLUMNS = ("problem", "method", "penalty", "mass", "nx", "nt", "dt", "eps", "r", "status", "wall_s",
@@ -124,8 +124,7 @@ SCHEME_METHODS = {
     "paper": Method("paper", "paper: explicit penalty, lumped, the scene's ε", "explicit", "lumped", "fixed"),
     "projection": METHODS["projection"],
     "newmark": Method("newmark", "newmark: semi-implicit penalty, lumped, the scene's ε", "semi-implicit", "lumped",
-                      "fixed", scheme="newmark"),
-}
+                      "fixed", scheme="newmark")}
 
 
 def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:

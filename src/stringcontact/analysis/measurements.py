@@ -136,14 +136,6 @@ def relative_velocity(result) -> np.ndarray:
     return result.velocity - obstacle_velocity(result)
 
 
-def cell_stress(result) -> np.ndarray:
-    """S = η_x + α η_tx on the cells at every row (one-sided difference quotients, at the scheme's time
-    levels: `momentum_terms`), shape (rows, cells)."""
-    dx = np.diff(result.x)[None, :]
-    terms = momentum_terms(result)
-    return np.diff(terms.eta_s, axis=1) / dx + result.scene.alpha * np.diff(terms.q_s, axis=1) / dx
-
-
 def first_contact_rows(result) -> np.ndarray:
     """Row of each node's first contact (η ≤ 0); −1 if never, 0 if in contact from the start."""
     c = np.asarray(result.contact, dtype=bool)
@@ -243,15 +235,13 @@ def stress_jump_balance(result, width: int = 4) -> dict:
     """
     dt = result.scene.dt
     m = nodal_weights(result)
-    S = cell_stress(result)
+    terms, h = momentum_terms(result), np.diff(result.x)[None, :]
+    S = np.diff(terms.eta_s, axis=1) / h + result.scene.alpha * np.diff(terms.q_s, axis=1) / h  # η_x + α η_tx, cells
     front = free_boundary(result.contact, np.ones((1, 3), dtype=bool))  # the fronts in space at each row
     front[:, [0, -1]] = False
     band = ndimage.binary_dilation(front, structure=np.ones((1, 2 * width + 1), dtype=bool))
-    N = result.x.size
-    rows = result.t.size
+    N, rows, F, v = result.x.size, result.t.size, terms.force, terms.q
     I_row, J_row, K_row = np.zeros(rows), np.zeros(rows), np.zeros(rows)
-    terms = momentum_terms(result)
-    F, v = terms.force, terms.q
     for n in range(1, rows):
         for a, b in _runs(band[n]):
             if a < 1 or b > N - 2:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .runs import Run
+from .problems import Run
 
 #: Contact sets in the errors are {η ≤ δ}, δ = CONTACT_HEIGHT · Δx · max|η|/l, the height a grid resolves: with
 #: δ = 0 a string resting on the obstacle at ±round-off or 1e-6-sized tails of the implicit solve is noise.
@@ -64,5 +64,4 @@ def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:
     return {
         "err_eta": float(np.max(l2_norm(run.x, run.eta - eta))),
         "err_vel": float(l2_norm(run.x, run.velocity_T - vel_T)),
-        "err_contact": float(compat.trapezoid(measure, run.t)) if run.t.size > 1 else float(measure[0]),
-    }
+        "err_contact": float(compat.trapezoid(measure, run.t)) if run.t.size > 1 else float(measure[0])}

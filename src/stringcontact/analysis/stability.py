@@ -12,8 +12,7 @@ import stringcontact as sc
 
 from ..verification.exact import flat_landing_time
 from ..verification.reference import fd_projection, fd_solve
-from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene
-from .runs import simulate_self
+from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene, simulate_self
 from .schedule import distribute
 
 STABILITY_COLUMNS = ("penalty", "mass", "dt", "eps", "r", "outcome", "restitution", "restitution_theory",
@@ -64,13 +63,6 @@ def classify(restitution_value: float, energy: np.ndarray) -> tuple[str, int]:
     return "inelastic", -1
 
 
-def fd_energy(eta: np.ndarray, velocity: np.ndarray, dx: float) -> np.ndarray:
-    """Discrete energy ½|v|²_M + ½ ηᵀKη of the lumped scheme, per stored row (the solver's `total_energy`)."""
-    kinetic = 0.5 * dx * np.sum(velocity[:, 1:-1] ** 2, axis=1)
-    elastic = 0.5 * np.sum(np.diff(eta, axis=1) ** 2, axis=1) / dx
-    return kinetic + elastic
-
-
 def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[float, np.ndarray, dict]:
     """(restitution, energy per row, the row's energy_max_ratio and min_eta) of `scene` run by a NumPy reference
     `solve` (`verification.reference`), which has no pre-run refusal, so an unstable run is measured too."""
@@ -78,7 +70,8 @@ def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[fl
     with np.errstate(all="ignore"):
         t, eta, vel = solve(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=scene.T,
                             nt=scene.nt, alpha=scene.alpha, h_left=scene.h_left, h_right=scene.h_right, **options)
-        energy = fd_energy(eta, vel, scene.dx)
+        dx = scene.dx  # the lumped scheme's ½|v|²_M + ½ ηᵀKη per row, as the solver's `total_energy`
+        energy = 0.5 * dx * np.sum(vel[:, 1:-1] ** 2, axis=1) + 0.5 * np.sum(np.diff(eta, axis=1) ** 2, axis=1) / dx
         e = restitution(t, x, vel, window=window)
     finite = np.all(np.isfinite(energy))
     return e, energy, {"energy_max_ratio": float(np.max(energy) / energy[0]) if finite else math.inf,

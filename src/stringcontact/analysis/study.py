@@ -12,8 +12,8 @@ from ..plot.study_charts import plot_stability, plot_step_size
 from .convergence import (CONVERGENCE_COLUMNS, ORDER_COLUMNS, WORK_PRECISION_COLUMNS, convergence, fitted_order,
                           observed_orders, work_precision)
 from .norms import errors_against_exact, errors_against_reference
-from .problems import FLAT_H, FLAT_V, METHODS, REFERENCE, example1_scene, flat_landing_exact, flat_landing_scene
-from .runs import run_method, warm_up
+from .problems import (FLAT_H, FLAT_V, METHODS, REFERENCE, example1_scene, flat_landing_exact, flat_landing_scene,
+                       run_method, warm_up)
 from .stability import (ALPHA_COLUMNS, REBOUND_THRESHOLD, STABILITY_COLUMNS, STEP_COLUMNS, alpha_sweep, restitution,
                         stability_case, stability_map, step_size_map)
 from .tables import read_csv, write_csv
@@ -37,5 +37,4 @@ __all__ = [
     "estimate_for_tolerance", "example1_scene", "fitted_order", "flat_landing_exact", "flat_landing_scene",
     "observed_orders", "plot_convergence", "plot_stability", "plot_step_size", "plot_work_precision", "read_csv",
     "restitution", "run_method", "stability_case", "stability_map", "step_size_map", "tolerance_tracking", "warm_up",
-    "work_precision", "write_csv",
-]
+    "work_precision", "write_csv"]

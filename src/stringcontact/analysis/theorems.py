@@ -110,8 +110,7 @@ def check_force_sign(results) -> Check:
     return Check(
         f"(A1) F >= 0, D = F({rate})^- >= 0", worst / scale, "min F / max F >= 0",
         HOLDS if worst >= 0 and min(x["paper_dissipation_min"] for x in m) >= 0 else FAILS,
-        detail=f"max F = {scale:.4g}", trend=_trend(results, [x["min_force"] / scale for x in m]),
-    )
+        detail=f"max F = {scale:.4g}", trend=_trend(results, [x["min_force"] / scale for x in m]))
 
 
 def check_dissipation_sign(results) -> Check:
@@ -126,8 +125,7 @@ def check_dissipation_sign(results) -> Check:
         f"(A1) removed energy {removed} >= 0", vals[-1], "negative share 0, or -> 0 under refinement", verdict,
         detail="negative where the node moves up in the step after the force was set"
                + (" (explicit penalty)" if getattr(results[-1], "penalty", None) == "explicit" else ""),
-        trend=_trend(results, vals),
-    )
+        trend=_trend(results, vals))
 
 
 def check_support(results, ks=(1, 2, 4)) -> Check:
@@ -153,8 +151,7 @@ def check_support(results, ks=(1, 2, 4)) -> Check:
         + f"share within k cells/steps: {within}; |supp F| = {fine['support_measure']:.3g}",
         trend=_trend(results, outside),
         extra={"within_k": {k: fine[f"within_{k}"] for k in ks}, "length": L,
-               "support_measure": [x["support_measure"] for x in m]},
-    )
+               "support_measure": [x["support_measure"] for x in m]})
 
 
 def check_upward(results) -> list[Check]:
@@ -176,8 +173,7 @@ def check_upward(results) -> list[Check]:
               if nb_verdict == BY_CONSTRUCTION else "",
               trend=_trend(results, nb)),
         Check(f"(A3) impulse where {up.replace('v', 'v^n', 1)} (same step)", pw[-1], pw_expectation, pw_verdict,
-              trend=_trend(results, pw)),
-    ]
+              trend=_trend(results, pw))]
 
 
 def restitution_of(result) -> float:
@@ -203,8 +199,7 @@ def check_velocity_after_contact(results, delay: float | None = None) -> Check:
     return Check(
         f"(A4) {v} after contact / impact speed", vals[-1], expectation, verdict,
         detail=f"{fine['nodes']} nodes, 95th percentile {fine['p95']:.3g}, {fine['left_early']} left contact earlier",
-        trend=_trend(results, vals), extra={"delay": delay, "restitution": e},
-    )
+        trend=_trend(results, vals), extra={"delay": delay, "restitution": e})
 
 
 def check_stress_jump(results, delta: float = 0.02) -> Check:
@@ -232,8 +227,7 @@ def check_stress_jump(results, delta: float = 0.02) -> Check:
                 f"{fine['identity_closure']:.1e}"),
         trend=_trend(results, vals),
         extra={k: fine[k] for k in ("band_impulse", "stress_jump_impulse", "inertia", "band_share")},
-        data=fine,
-    )
+        data=fine)
 
 
 def check_landing(results, V: float | None = None) -> Check:
@@ -259,8 +253,7 @@ def check_landing(results, V: float | None = None) -> Check:
         detail=(f"{fine['segments']} segment(s), first at t = {fine['times'][0]:.4g}; mean impulse/length "
                 f"{fine['mean_density']:.4g}, mean jump {fine['mean_jump']:.4g}; {100 * fine['window_share']:.2f}% "
                 f"of it within {fine['window_steps']} steps"),
-        trend=_trend(results, vals),
-    )
+        trend=_trend(results, vals))
 
 
 def check_energy(result, time_refined=()) -> list[Check]:
@@ -277,8 +270,7 @@ def check_energy(result, time_refined=()) -> list[Check]:
         Check("(1.4) discrete energy identity", m["relative_residual"], "round-off (< 1e-9 E0)",
               HOLDS if m["relative_residual"] < 1e-9 else FAILS, detail=detail),
         Check("(1.4) without D_num: D_num / E0", m["continuous_residual"], "-> 0 as dt -> 0 (eps, h fixed)",
-              cont_verdict, detail=f"D_num / D_con = {m['numerical_over_contact']:.3g}", trend=trend),
-    ]
+              cont_verdict, detail=f"D_num / D_con = {m['numerical_over_contact']:.3g}", trend=trend)]
 
 
 def run_checks(scene, levels: int = 3, penalty: str | None = "explicit", delay: float | None = None,
@@ -339,5 +331,4 @@ __all__ = [
     "check_stress_jump", "check_support", "check_upward", "check_velocity_after_contact", "coarsened",
     "distance_to_free_boundary", "draw_figure1", "flat_landing_scene", "format_table", "format_trends", "free_boundary",
     "impulse", "momentum_terms", "moving_obstacle", "nodal_weights", "penalised", "refine", "refine_time",
-    "restitution_of", "run_checks", "stress_jump_balance",
-]
+    "restitution_of", "run_checks", "stress_jump_balance"]

@@ -6,11 +6,8 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
-
-from .norms import common_rows, errors_against_exact, l2_norm, to_nodes
-from .problems import METHODS, flat_landing_exact, flat_landing_scene
-from .runs import Run, run_method
+from .norms import errors_against_exact, errors_against_reference
+from .problems import METHODS, Run, flat_landing_exact, flat_landing_scene, run_method
 
 #: The methods that converge to the inelastic limit, cheapest first, and their observed L∞(L²) orders of η on the
 #: flat landing (docs/explanation/study.md); not the explicit penalty, which a point contact sinks (getfem.md).
@@ -31,9 +28,7 @@ def _scaled(scene, nx: int):
 
 def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
     """Error of `fine` in L∞(0,T;L²) of η: ‖η_fine − η_coarse‖ / (2^p − 1), p the method's observed order."""
-    rows = common_rows(coarse.t, fine.t)
-    diff = coarse.eta - to_nodes(fine.x, fine.eta[rows], coarse.x)
-    return float(np.max(l2_norm(coarse.x, diff))) / (2.0**order - 1.0)
+    return errors_against_reference(coarse, fine)["err_eta"] / (2.0**order - 1.0)
 
 
 def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: int = 50, nx_max: int = NX_MAX,
