@@ -11,6 +11,7 @@ import warnings
 import numpy as np
 
 import stringcontact as sc
+
 from ..errors import InstabilityError, SolverError
 from .norms import l2_norm
 from .problems import EPS_LIMIT
@@ -34,9 +35,8 @@ RATE_COLUMNS = ("problem", "p_cav", "quantity", "rate", "mus")
 def problem_scenes(quick: bool = False) -> dict:
     """The two throws (no film yet): Example 1's (the scene film_landing without its film) and the flat landing
     (η0 = h = 0.2, v0 = −1), both with α = 0.01 on (0, 1)."""
-    nx = 100 if quick else 200
-    example = sc.load_scene("film_landing").replace(nx=nx, dt=0.00025, T=0.15 if quick else 0.3, output_times=[],
-                                                    model=None, parameters=None, scheme=None,
+    example = sc.load_scene("film_landing").replace(nx=100 if quick else 200, dt=0.00025, T=0.15 if quick else 0.3,
+                                                    output_times=[], model=None, parameters=None, scheme=None,
                                                     name="film-example1")
     flat = example.replace(name="film-flat", eta0="0.2", v0="-1", h=0.2, T=0.4 if quick else 0.8, dt=0.0005)
     return {"example1": example, "flat": flat}
@@ -75,8 +75,7 @@ def landing_times(reference) -> tuple[float, float, int]:
     first = touching[0]
     free = np.flatnonzero(~interior[first:].any(axis=1))
     lift = first + free[0] if free.size else len(reference.t) - 1
-    nodes = np.flatnonzero(reference.contact[first])
-    nodes = nodes[(nodes > 0) & (nodes < len(reference.x) - 1)]
+    nodes = np.flatnonzero(interior[first]) + 1
     star = nodes[np.argmin(np.abs(reference.x[nodes] - 0.5 * (reference.x[0] + reference.x[-1])))]
     return float(reference.t[first]), float(reference.t[lift]), int(star)
 
@@ -128,16 +127,13 @@ def film_study(quick: bool = False, mus=None) -> list[dict]:
 
 def fit_rates(rows: list[dict]) -> list[dict]:
     """Power laws in μ, q ≈ C μ^rate, fitted to the film's rows per problem and cavitation (finite, positive q)."""
-    out = []
-    films = [r for r in rows if r["method"] == "film"]
-    for problem in dict.fromkeys(r["problem"] for r in films):
-        for p_cav in dict.fromkeys(r["p_cav"] for r in films if r["problem"] == problem):
-            sel = [r for r in films if r["problem"] == problem and (r["p_cav"] == p_cav or
-                                                                      (np.isnan(r["p_cav"]) and np.isnan(p_cav)))]
-            for q in ("min_gap", "dist_before", "dist_after"):
-                pts = [(r["mu"], r[q]) for r in sel if np.isfinite(r[q]) and r[q] > 0]
-                rate = np.polyfit(*np.log(pts).T, 1)[0] if len(pts) > 1 else np.nan
-                out.append({"problem": problem, "p_cav": p_cav, "quantity": q, "rate": float(rate),
-                            "mus": " ".join(f"{m:g}" for m, _ in pts)})
+    out, films = [], [r for r in rows if r["method"] == "film"]
+    for group in dict.fromkeys((r["problem"], repr(r["p_cav"])) for r in films):  # repr: nan equals nan
+        sel = [r for r in films if (r["problem"], repr(r["p_cav"])) == group]
+        for q in ("min_gap", "dist_before", "dist_after"):
+            pts = [(r["mu"], r[q]) for r in sel if np.isfinite(r[q]) and r[q] > 0]
+            rate = np.polyfit(*np.log(pts).T, 1)[0] if len(pts) > 1 else np.nan
+            out.append({"problem": group[0], "p_cav": sel[0]["p_cav"], "quantity": q, "rate": float(rate),
+                        "mus": " ".join(f"{m:g}" for m, _ in pts)})
     return out
 

@@ -1,10 +1,6 @@
-r"""The studies' error norms (all on the coarse run's nodes and stored times, the reference interpolated to them):
-
-* ``err_eta``: :math:`\max_k \|\eta_h(t_k) - \eta(t_k)\|_{L^2(0,l)}`, the :math:`L^\infty(0,T;L^2)` error;
-* ``err_vel``: :math:`\|\eta_{h,t}(T) - \eta_t(T)\|_{L^2(0,l)}`;
-* ``err_contact``: the space-time measure of the symmetric difference of the contact sets
-  :math:`\{\eta \le \delta\}` (trapezoidal in x and t, δ: `CONTACT_HEIGHT`).
-"""
+"""The studies' errors ``err_eta`` (L∞(0,T;L²) of η), ``err_vel`` (L² of η_t at T) and ``err_contact`` (the
+space-time measure of the contact sets' symmetric difference), on the coarse run's nodes and stored times, the
+reference interpolated to them (docs/explanation/study.md)."""
 
 from __future__ import annotations
 

@@ -57,10 +57,7 @@ def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = Non
     if eps is not None and r is not None:
         raise ValueError("flat_landing_scene: give eps or r = dt/eps, not both")
     nt = nt if nt is not None else max(1, round(T * n))
-    if r is not None:
-        eps = T / nt / r
-    elif eps is None:
-        eps = EPS_PAPER
+    eps = T / nt / r if r is not None else EPS_PAPER if eps is None else eps
     return sc.load_scene("example1").replace(
         name="flat-landing", description="flat string landing on the obstacle (exact alpha = 0 solution)", notes="",
         eta0=str(FLAT_H), v0=str(-FLAT_V), alpha=alpha, eps=eps, T=T, nx=n, nt=nt, output_times=[])

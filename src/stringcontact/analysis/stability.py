@@ -185,12 +185,9 @@ def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> lis
         scene = flat_landing_scene(n, eps=eps, alpha=alpha)
         res = simulate_self(scene, penalty=penalty, max_rows=scene.nt)
         E0 = res.total_energy[0]
-        e = res.energy
-        return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps,
-                "restitution": restitution(res.t, res.x, res.velocity),
-                "contact_dissipation": e["contact_dissipation"][-1] / E0,
-                "numerical_dissipation": e["numerical_dissipation"][-1] / E0,
-                "viscous_dissipation": e["viscous_dissipation"][-1] / E0,
-                "final_energy": res.total_energy[-1] / E0}
+        return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps, "final_energy":
+                res.total_energy[-1] / E0, "restitution": restitution(res.t, res.x, res.velocity),
+                **{k: res.energy[k][-1] / E0 for k in ("contact_dissipation", "numerical_dissipation",
+                                                        "viscous_dissipation")}}
 
     return distribute(one, cases, comm, busy=busy)

@@ -117,18 +117,16 @@ def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
     (without the pilot runs' arrays, "run"); every rank must call it."""
     from mpi4py import MPI
 
-    comm = MPI.COMM_WORLD
-    choice = None
+    comm, choice = MPI.COMM_WORLD, None
     if comm.rank == 0:
         try:
             choice = estimate_for_tolerance(scene, tol, model=model)
         except ValueError as exc:
             choice = exc
-    if comm.size > 1:
-        light = choice if comm.rank or isinstance(choice, Exception) else [
-            {k: v for k, v in c.items() if k != "run"} for c in choice]
-        light = comm.bcast(light, root=0)
-        choice = light if comm.rank else choice
+    if comm.size > 1:  # the root's list is broadcast, the others' is ignored
+        light = comm.bcast(choice if isinstance(choice, Exception) else [
+            {k: v for k, v in c.items() if k != "run"} for c in choice or ()], root=0)
+        choice = choice if comm.rank == 0 else light
     if isinstance(choice, Exception):
         raise choice
     return choice
