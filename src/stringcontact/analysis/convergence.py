@@ -47,8 +47,7 @@ def work_precision(quick: bool = False, problem_names=("flat-landing", "example1
                    repeat: int = 1, comm=None, busy: list | None = None) -> list[dict] | None:
     """Rows of `WORK_PRECISION_COLUMNS`: every method at every size of every problem (None on ranks > 0)."""
     probs = problems(quick)
-    unknown = set(problem_names) - set(probs)
-    if unknown:
+    if unknown := set(problem_names) - set(probs):
         raise ValueError(f"problem must be among {sorted(probs)}, not {sorted(unknown)}")
     cases = [(p, m, n) for p in problem_names for m in methods for n in probs[p].sizes]
     cases += [(p, REFERENCE.name, probs[p].reference_n) for p in problem_names if probs[p].reference_n]
@@ -102,15 +101,12 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
     orders = []
     for sweep, key, variable in (("dt", "method", "dt"), ("eps", "penalty", "eps")):
         for name in dict.fromkeys(r[key] for r in rows if r["sweep"] == sweep):
-            sel = [r for r in rows if r["sweep"] == sweep and r[key] == name and r["status"] == "complete"]
-            sel.sort(key=lambda r: -r[variable])
-            h = [r[variable] for r in sel]
-            for r, p in zip(sel[1:], observed_orders(h, [r["err_eta"] for r in sel])):
+            sel = sorted((r for r in rows if r["sweep"] == sweep and r[key] == name and r["status"] == "complete"),
+                         key=lambda r: -r[variable])
+            for r, p in zip(sel[1:], observed_orders([r[variable] for r in sel], [r["err_eta"] for r in sel])):
                 r["order_eta"] = p
-            quantities = ("err_eta", "err_vel", "err_contact") if sweep == "dt" else ("err_eta", "penetration")
-            for quantity in quantities:
-                # In ε, only ε ≥ 10 Δt measures the ε-error; below it the Δt-error is left.
-                fit = [r for r in sel if sweep == "dt" or r["eps"] >= 10 * r["dt"]]
+            fit = [r for r in sel if sweep == "dt" or r["eps"] >= 10 * r["dt"]]  # below 10 Δt the Δt-error is left
+            for quantity in ("err_eta", "err_vel", "err_contact") if sweep == "dt" else ("err_eta", "penetration"):
                 values = [(-r["min_eta"] if quantity == "penetration" else r[quantity]) for r in fit]
                 orders.append({"sweep": sweep, "problem": "flat-landing", "method": name, "quantity": quantity,
                                "order": fitted_order([r[variable] for r in fit], values),

@@ -58,8 +58,7 @@ def references(scene) -> dict:
 
 
 def film_run(scene, mu: float, p_cav):
-    """The film at viscosity `mu` (cavitation at p_cav, or none), the semi-implicit penalty at ε = `FILM_EPS` as
-    its backstop."""
+    """The film at viscosity `mu` (cavitation at `p_cav`, or none), backed by the penalty at ε = `FILM_EPS`."""
     constants = {"mu": mu} | ({"p_cav": p_cav} if p_cav is not None else {})
     return _run(scene.replace(model="film", parameters=constants, eps=FILM_EPS), scheme="paper",
                 penalty="semi-implicit")
@@ -92,8 +91,7 @@ def measures(r, reference, t_lift: float, star: int) -> dict:
     rebound = max(float(np.max(v[fastest:])), 0.0) / abs(float(v[fastest])) if v[fastest] < 0 else np.nan
     d = l2_norm(r.x, r.eta - reference.eta)
     return {"min_gap": float(np.min(r.eta[:, 1:-1])), "energy_lost": float(E[0] - E[lift]), "rebound": rebound,
-            "t_up": rise_time(r, star),
-            "dist_before": float(np.max(d[: lift + 1])),
+            "t_up": rise_time(r, star), "dist_before": float(np.max(d[: lift + 1])),
             "dist_after": float(np.max(d[lift + 1:])) if lift + 1 < len(d) else np.nan, "status": r.status}
 
 

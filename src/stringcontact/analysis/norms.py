@@ -37,17 +37,13 @@ def common_rows(t_run: np.ndarray, t_ref: np.ndarray) -> np.ndarray:
 
 def errors_against_exact(run: Run, exact) -> dict:
     """The three errors of `run` against `exact(t, x) -> (eta, velocity)`."""
-    eta, _ = exact(run.t, run.x)
-    _, vel_T = exact(run.t[-1], run.x)
-    return _errors(run, eta, vel_T)
+    return _errors(run, exact(run.t, run.x)[0], exact(run.t[-1], run.x)[1])
 
 
 def errors_against_reference(run: Run, ref: Run) -> dict:
     """The three errors of `run` against a finer run `ref` (interpolated to the run's nodes and times)."""
-    rows = common_rows(run.t, ref.t)
-    eta = to_nodes(ref.x, ref.eta[rows], run.x)
-    vel_T = to_nodes(ref.x, ref.velocity_T, run.x)[0]
-    return _errors(run, eta, vel_T)
+    eta = to_nodes(ref.x, ref.eta[common_rows(run.t, ref.t)], run.x)
+    return _errors(run, eta, to_nodes(ref.x, ref.velocity_T, run.x)[0])
 
 
 def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:

@@ -24,8 +24,7 @@ FLAT_H, FLAT_V = 0.2, 1.0
 
 @dataclass(frozen=True)
 class Method:
-    """A scheme, a penalty treatment, a mass matrix and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt),
-    "limit" (ε → 0) or "none" (the scheme uses no ε)."""
+    """A scheme, a penalty, a mass and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt), "limit" (ε → 0), "none"."""
 
     name: str
     label: str
@@ -68,8 +67,7 @@ def example1_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.3):
     return sc.load_scene("example1").replace(T=T, eps=eps, nx=n, nt=max(1, round(T * n)), output_times=[])
 
 
-#: The nonlinear models' refinement study (`convergence.reference_study`): final time, the penalty's ε (fixed
-#: under refinement: the penalty schemes converge to the penalised model) and Δt/Δx.
+#: The nonlinear models' refinement study (`convergence.reference_study`): T, the penalty's ε (fixed) and Δt/Δx.
 STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
 
 
@@ -93,9 +91,7 @@ class Problem:
 
     def scene(self, n: int, eps: float = EPS_PAPER):
         """The problem's scene at Δt = Δx = 1/n."""
-        if self.name == "flat-landing":
-            return flat_landing_scene(n, eps=eps, T=self.T)
-        return example1_scene(n, eps=eps, T=self.T)
+        return (flat_landing_scene if self.name == "flat-landing" else example1_scene)(n, eps=eps, T=self.T)
 
     @property
     def rows(self) -> int:
@@ -144,8 +140,7 @@ class Run:
 
 
 def simulate_self(scene, **kwargs):
-    """`simulate(scene, **kwargs)` on COMM_SELF without its instability warnings (a study records the outcome);
-    an `InstabilityError` still raises."""
+    """`simulate(scene, **kwargs)` on COMM_SELF without instability warnings (an `InstabilityError` still raises)."""
     from mpi4py import MPI
 
     with warnings.catch_warnings():
@@ -166,8 +161,7 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
                                  max_rows=rows)
             best = min(best, time.perf_counter() - t0)
         except sc.InstabilityError as exc:
-            status = "refused" if exc.step == 0 else "unstable"
-            return Run(**common, status=status, wall_s=math.nan)
+            return Run(**common, status="refused" if exc.step == 0 else "unstable", wall_s=math.nan)
     return Run(**common, status="complete", wall_s=best, min_eta=res.min_eta, t=res.t, x=res.x, eta=res.eta,
                velocity_T=res.velocity[-1])
 

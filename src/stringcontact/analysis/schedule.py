@@ -17,14 +17,12 @@ def distribute(function, cases: list, comm=None, cost=None, busy: list | None = 
         if busy is not None:
             busy.append(time.process_time() - t0)
         return out
-    order = sorted(range(len(cases)), key=lambda i: -(cost(cases[i]) if cost else 1.0))
-    load = [0.0] * comm.size
-    mine = []
-    for i in order:
+    weight = cost or (lambda case: 1.0)
+    load, mine = [0.0] * comm.size, []
+    for i in sorted(range(len(cases)), key=lambda i: -weight(cases[i])):
         rank = int(np.argmin(load))
-        load[rank] += cost(cases[i]) if cost else 1.0
-        if rank == comm.rank:
-            mine.append(i)
+        load[rank] += weight(cases[i])
+        mine += [i] if rank == comm.rank else []
     done = [(i, function(cases[i])) for i in mine]
     cpu = time.process_time() - t0
     # wait asleep, not in MPI's busy poll, which steals the CPU of the ranks still working
@@ -34,10 +32,7 @@ def distribute(function, cases: list, comm=None, cost=None, busy: list | None = 
     gathered = comm.gather((cpu, done), root=0)
     if comm.rank != 0:
         return None
-    out = [None] * len(cases)
-    for seconds, part in gathered:
-        for i, value in part:
-            out[i] = value
     if busy is not None:
         busy.extend(seconds for seconds, _ in gathered)
-    return out
+    out = dict(pair for _, part in gathered for pair in part)
+    return [out[i] for i in range(len(cases))]

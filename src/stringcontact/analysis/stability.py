@@ -42,9 +42,7 @@ def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float 
     if not sel.any():
         raise ValueError(f"no stored time in the restitution window ({t_star}, {t_star + window}]")
     v = velocity[sel, mid]
-    if not np.all(np.isfinite(v)):
-        return math.inf
-    return max(0.0, float(np.max(v))) / V
+    return max(0.0, float(np.max(v))) / V if np.all(np.isfinite(v)) else math.inf
 
 
 def restitution_theory(r: float, penalty: str) -> float:
@@ -58,9 +56,7 @@ def classify(restitution_value: float, energy: np.ndarray) -> tuple[str, int]:
     bad = ~np.isfinite(energy) | (energy > E0 * (1.0 + GROWTH_TOLERANCE))
     if bad.any():
         return "growth", int(np.argmax(bad))
-    if restitution_value > REBOUND_THRESHOLD:
-        return "rebound", -1
-    return "inelastic", -1
+    return ("rebound" if restitution_value > REBOUND_THRESHOLD else "inelastic"), -1
 
 
 def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[float, np.ndarray, dict]:

@@ -1,7 +1,5 @@
-"""The studies' public names in one place (`stringcontact study`, the demos, the benchmarks): work-precision,
-convergence, stability and ``run --tol``, each a function returning rows of numbers (dicts), their CSV files and
-charts. The modules are listed in DEVELOPERS.md; the errors are defined in `norms`.
-"""
+"""The studies' public names in one place, for `stringcontact study`, the demos and the benchmarks: each study a
+function returning rows of numbers (dicts), its CSV files and charts (the modules: DEVELOPERS.md)."""
 
 from __future__ import annotations
 

@@ -73,8 +73,7 @@ def _falls(values) -> bool:
 
 
 def _verdict(values, exact: bool, steep: bool = True) -> str:
-    """HOLDS if `exact`, else HOLDS_IN_LIMIT if the values fall at every level (and `steep`), FAILS if they do not
-    (INCONCLUSIVE from one level)."""
+    """HOLDS if `exact`, else HOLDS_IN_LIMIT if the values fall (and `steep`), FAILS if not (INCONCLUSIVE: 1 level)."""
     if exact:
         return HOLDS
     return HOLDS_IN_LIMIT if _falls(values) and steep else (FAILS if len(values) > 1 else INCONCLUSIVE)
@@ -89,8 +88,7 @@ def _as_list(results):
 
 
 def moving_obstacle(result) -> bool:
-    """Whether `result`'s obstacle moves (the scene's ``obstacle`` in t): the checks then read ψ(x, t) at each row's
-    time and the velocity relative to it, v − ψ_t (`measurements.relative_velocity`)."""
+    """Whether `result`'s obstacle moves: the checks then read ψ(x, t) at each row and the velocity relative to it."""
     return bool(getattr(result.scene, "obstacle_moves", False))
 
 
@@ -158,16 +156,14 @@ def check_upward(results) -> list[Check]:
     m = [upward_impulse(r) for r in results]
     nb, pw = [x["neighbourhood"] for x in m], [x["pointwise"] for x in m]
     nb_verdict = (BY_CONSTRUCTION if results[-1].penalty == "explicit" else HOLDS) if nb[-1] == 0 else FAILS
-    pw_verdict = _verdict(pw, pw[-1] == 0)
-    e = restitution_of(results[-1])
-    pw_expectation = "-> 0 under refinement"
-    if e > 0:  # a rebound's impulse acts in the steps in which the node already moves up
-        pw_verdict, pw_expectation = NOT_APPLICABLE, f"expected only at e = 0; here e = {e:g}: the rebound's impulse"
+    e = restitution_of(results[-1])  # e > 0: a rebound's impulse acts in the steps in which the node moves up
+    pw_verdict = NOT_APPLICABLE if e > 0 else _verdict(pw, pw[-1] == 0)
+    pw_expectation = (f"expected only at e = 0; here e = {e:g}: the rebound's impulse" if e > 0 else
+                      "-> 0 under refinement")
     return [
-        Check(f"(A3) impulse where {up} on a 3x3 nbhd", nb[-1], "0", nb_verdict,
+        Check(f"(A3) impulse where {up} on a 3x3 nbhd", nb[-1], "0", nb_verdict, trend=_trend(results, nb),
               detail="explicit: F^n is set by v^{n-1} < 0, which lies in every neighbourhood"
-              if nb_verdict == BY_CONSTRUCTION else "",
-              trend=_trend(results, nb)),
+              if nb_verdict == BY_CONSTRUCTION else ""),
         Check(f"(A3) impulse where {up.replace('v', 'v^n', 1)} (same step)", pw[-1], pw_expectation, pw_verdict,
               trend=_trend(results, pw))]
 

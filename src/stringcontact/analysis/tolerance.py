@@ -33,12 +33,10 @@ def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
 
 def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: int = 50, nx_max: int = NX_MAX,
                            model=None) -> list[dict]:
-    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`.
-
-    One dict per method: method, nx, nt (of the finer run), estimate, fine_wall_s, ok (`tol` reached below
-    `nx_max`), floor (the estimate extrapolated to `nx_max` with the method's order), why ("out of reach": the
-    floor is above REACH_MARGIN·`tol`; "dearer": it costs more than the cheapest success) and run (the finer `Run`).
-    """
+    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`: one
+    dict per method, method, nx, nt (of the finer run), estimate, fine_wall_s, ok (`tol` reached below `nx_max`),
+    floor (the estimate extrapolated to `nx_max` with the method's order), why ("out of reach": the floor is above
+    REACH_MARGIN·`tol`; "dearer": it costs more than the cheapest success) and run (the finer `Run`)."""
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
     found = []
@@ -85,8 +83,7 @@ def _runs(scheme: str, model) -> bool:
 def choose_for_tolerance(scene, tol: float, *, model=None):
     """`run SCENE --tol X`: the cheapest of `TOL_METHODS` and resolution (Δx and Δt doubled together) whose
     Richardson estimate is below X, the pilots run with `model` (default: the scene's). Under MPI rank 0 decides
-    and tells the others. Returns (scene, options for `simulate`, report).
-    """
+    and tells the others. Returns (scene, options for `simulate`, report)."""
     if scene.dim != 1:  # its pilots refine nx and its error estimates are the string's
         raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
                          "give its scheme (--scheme) and mesh (cells, mesh_size) instead")
@@ -152,8 +149,7 @@ def _pick(scene, tol: float, choice: list[dict]):
 
 
 def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
-    """On the flat landing, per tolerance: the chosen run's estimate against its true error, and the time the
-    choice took (serial: under `mpirun` only rank 0 calls it)."""
+    """On the flat landing, per tolerance: the chosen run's estimate against its true error (serial: rank 0 only)."""
     base = flat_landing_scene(100, T=T)
     rows = []
     for tol in tols:
