@@ -12,6 +12,8 @@ import dataclasses
 import numpy as np
 import ufl
 
+from ..scene import Scene
+
 PERIOD = 3.0
 ROD_ENERGY = 1.0 / 8.0
 CONTACT_POINT = 1.0  # of the string on (0, 2)
@@ -19,13 +21,10 @@ CONTACT_POINT = 1.0  # of the string on (0, 2)
 # u = a + b x + c τ in each (phase, zone) of one period, τ = time since the phase began (GetFEM's table).
 # Zones follow the characteristics through (0, 0) and (1, 0): 1 = τ < x, τ ≤ 1 − x; 2 = τ ≥ x, τ ≤ 1 − x;
 # 3 = τ < x, τ > 1 − x; 4 = τ ≥ x, τ > 1 − x.
-_COEFFICIENTS = np.array(
-    [
-        [[0.5, -0.5, 0.0], [0.5, 0.0, -0.5], [0.5, -0.5, 0.0], [0.5, 0.0, -0.5]],  # falling to the obstacle
-        [[0.0, 0.0, -0.5], [0.0, -0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]],  # in contact
-        [[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.5, -0.5, 0.0], [0.5, -0.5, 0.0]],  # lifting off
-    ]
-)
+_COEFFICIENTS = np.array([
+    [[0.5, -0.5, 0.0], [0.5, 0.0, -0.5], [0.5, -0.5, 0.0], [0.5, 0.0, -0.5]],  # falling to the obstacle
+    [[0.0, 0.0, -0.5], [0.0, -0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]],  # in contact
+    [[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.5, -0.5, 0.0], [0.5, -0.5, 0.0]]])  # lifting off
 
 
 def rod_exact(x, t: float, derivative: str = "u") -> np.ndarray:
@@ -48,8 +47,6 @@ def string_exact(x, t: float, derivative: str = "u") -> np.ndarray:
 
 def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD):
     """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2), so the cell size is the rod's 1/nx_rod."""
-    from ..scene import Scene
-
     return Scene.from_dict({
         "name": f"getfem_rod_{nx_rod}", "length": 2.0, "T": T, "alpha": 0.0, "eps": eps, "nx": 2 * nx_rod, "dt": dt,
         "description": "GetFEM's impacting rod mirrored into a string on (0, 2) over a point obstacle at x = 1",
