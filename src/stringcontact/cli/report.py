@@ -143,6 +143,8 @@ def report(res) -> None:
     scene = res.scene
     penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
                else "no penalty")
+    if res.penalty != "none" and not getattr(res, "law_reads_eps", True):  # a law of the model's own constants
+        penalty = f"penalty={res.penalty} (its contact law reads no eps)"
     grid = f"nx={scene.nx}" if res.dim == 1 else f"{scene.domain} with {len(res.x)} nodes"
     restitution = f" restitution={scene.restitution:g}" if scene.restitution else ""
     print(f"scene {scene.name}: scheme {res.scheme}, {grid} nt={scene.nt} dt={scene.dt:.4g} {penalty} "

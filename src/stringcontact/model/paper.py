@@ -286,6 +286,17 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     return [name for name, f in p.extra.items() if f not in used]
 
 
+def reads_eps(model: Model, V, p: Parameters) -> bool:
+    """Whether the model's contact law (its `penalty`, and `penalty_damping` if it has one) reads ε (`p.eps`): a law
+    of the model's own constants (a spring) does not, and the pictures and the report then name no ε."""
+    from dolfinx import fem
+    from ufl.algorithms.analysis import extract_constants
+
+    eta, v = fem.Function(V), fem.Function(V)
+    laws = [model.penalty(eta, v, p)] + ([model.penalty_damping(eta, v, p)] if model.penalty_damping is not None else [])
+    return any(p.eps in extract_constants(law) for law in laws)
+
+
 __all__ = [
     "PENETRATION_BOUNDS",
     "Model",
@@ -298,6 +309,7 @@ __all__ = [
     "penalty_damping",
     "penetration",
     "penetration_bound_of",
+    "reads_eps",
     "restitution_bound",
     "unused_fields",
 ]

@@ -20,7 +20,7 @@ from ..fem.agree import one_outcome
 from ..fem.operators import semi_discrete_operators
 from ..fem.outputs import OutputValues
 from ..io.result import FIELDS, Result, node_sort_key
-from ..model.paper import penetration_bound_of
+from ..model.paper import penetration_bound_of, reads_eps
 from ..scene.names import DEFAULT_MODEL
 from ..scene.parameters import resolve_parameters
 from ..timestepping.base import StepEnergy
@@ -340,6 +340,7 @@ class Stepper:
                         steps=rows.steps[:n], **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), min_gap=float(gap), penalty=self.penalty or "none", mass=self.mass, model=self.model.name,
                         model_origin=self.origin, penetration_bound=penetration_bound_of(self.model),
+                        law_reads_eps=reads_eps(self.model, self._V, self._params),
                         energy_label=self.energy_label, status=status, timings=self.timings, message=message,
                         counters=self.counters, solver=self.solver,
                         petsc_options=dict(self.problem.petsc_options or {}), scheme=self.name, **self.geometry,
