@@ -350,28 +350,40 @@ _ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
 
 def markdown(doc: str | None) -> str:
     """A docstring as markdown: its reStructuredText roles and double backquotes as code, its literal blocks
-    (``Usage::`` and the indented lines after it) as fenced Python."""
+    (``Usage::`` and the indented lines after it) fenced, as Python where they parse as Python, else as text."""
     lines = inspect.cleandoc(doc or "").replace("``", "`").splitlines()
     out, block = [], None
-    for line in lines:
+    for line in [*lines, "."]:  # a last line that ends a block
         line = _ROLE.sub(lambda m: f"`{m.group(1)}`", line)
         if block is not None:
-            if line.strip() and not line.startswith(" "):
-                out += ["```", ""]
-                block = None
-            else:
-                out.append(line[block:] if line.strip() else "")
+            if not line.strip() or line.startswith(" "):
+                block.append(line[4:] if line.strip() else "")
                 continue
+            out += _fenced(block)
+            block = None
         if line.rstrip().endswith("::"):
-            out += [line.rstrip()[:-1].rstrip(":") + ":" if line.strip() != "::" else "", "", "```python"]
-            block = 4
+            out.append(line.rstrip()[:-1] if line.strip() != "::" else "")
+            block = []
             continue
         out.append(line)
-    if block is not None:
-        out.append("```")
+    out.pop()  # the "." that ended the last block
     while out and not out[-1].strip():
         out.pop()
-    return "\n".join(out).replace("\n\n```\n", "\n```\n") + "\n"
+    return "\n".join(out) + "\n"
+
+
+def _fenced(block: list[str]) -> list[str]:
+    """The lines of a literal block fenced: as Python if they parse as Python, else as text; a blank line after."""
+    while block and not block[0].strip():
+        block.pop(0)
+    while block and not block[-1].strip():
+        block.pop()
+    try:
+        ast.parse("\n".join(block))
+        language = "python"
+    except SyntaxError:
+        language = "text"
+    return ["", f"```{language}", *block, "```", ""]
 
 
 def _members(cls) -> list[tuple[str, object]]:
