@@ -222,12 +222,20 @@ def _walk(parser: argparse.ArgumentParser, prog: str, help_text: str, level: int
     return out
 
 
+#: the width the usage lines are wrapped at (argparse's is the terminal's: the committed page must not depend on it)
+USAGE_WIDTH = 100
+
+
 def cli() -> str:
     """Every subcommand of `stringcontact`: usage and arguments, from the parsers the command line builds."""
     from stringcontact.cli.parser import SUBCOMMANDS, build_parser
 
+    import os
+    from unittest import mock
+
     parser = build_parser(["run", "list", "show", *SUBCOMMANDS])  # every subcommand with its arguments
-    return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
+    with mock.patch.dict(os.environ, {"COLUMNS": str(USAGE_WIDTH)}):  # argparse wraps the usage at the terminal's
+        return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
 
 
 def exit_codes() -> str:
@@ -420,7 +428,9 @@ def entry(qualified: str, obj, level: int = 3) -> str:
     if doc is None:
         raise RuntimeError(f"{qualified}: no #: comment where it is defined")
     value = repr(obj)
-    shown = f"{name} = {value}" if len(value) <= SIGNATURE_WIDTH and " at 0x" not in value else f"{name}: {type(obj).__name__}"
+    plain = isinstance(obj, (int, float, str, tuple)) and (not isinstance(obj, tuple) or all(  # the value, not a
+        isinstance(v, (int, float, str)) for v in obj))  # repr that depends on what is installed (SCHEMES)
+    shown = f"{name} = {value}" if plain and len(value) <= SIGNATURE_WIDTH else f"{name}: {type(obj).__name__}"
     return "\n".join([heading, f"data `{qualified}`\n", f"```python\n{shown}\n```\n", markdown("\n".join(doc))])
 
 
