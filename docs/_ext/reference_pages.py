@@ -228,10 +228,10 @@ USAGE_WIDTH = 100
 
 def cli() -> str:
     """Every subcommand of `stringcontact`: usage and arguments, from the parsers the command line builds."""
-    from stringcontact.cli.parser import SUBCOMMANDS, build_parser
-
     import os
     from unittest import mock
+
+    from stringcontact.cli.parser import SUBCOMMANDS, build_parser
 
     parser = build_parser(["run", "list", "show", *SUBCOMMANDS])  # every subcommand with its arguments
     with mock.patch.dict(os.environ, {"COLUMNS": str(USAGE_WIDTH)}):  # argparse wraps the usage at the terminal's
