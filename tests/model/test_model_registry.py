@@ -218,7 +218,7 @@ def test_a_top_level_constant_still_works_with_a_warning(tmp_path, soft_ground):
     ("kk", 1.0, r"kk: model 'soft_ground' has no constant 'kk' \(its constants: k, c\); remove it from \[parameters\]"),
     ("k", -1.0, r"k: -1 is out of range; allowed: a number in \(0, 1000000000000\]"),
     ("c", -1.0, r"c: -1 is out of range; allowed: a number in \[0, 1000000000000\]"),
-    ("k", "stiff", r"k: expected a number, got str"),
+    ("k", "stiff", r"k: expected a number, got str 'stiff'; allowed: a number in \(0, 1000000000000\]$"),  # its own range
 ])
 def test_an_unknown_or_out_of_range_constant_is_refused_naming_it(tmp_path, capsys, soft_ground, name, value, message):
     """In a scene file, in Scene.replace and on the command line: a one-line SceneError naming the constant."""

@@ -463,6 +463,25 @@ def test_a_fifo_or_device_is_not_a_regular_file(tmp_path, kind):
     assert str(info.value) == f"scene {str(path)!r}: is not a regular file ({expected}); expected a .toml scene file"
 
 
+@pytest.mark.parametrize("model, value, allowed", [
+    ("film", "thick", r"a number in \(0, "),  # film's mu: its own range
+    ("stiff_string", True, r"a number in \[0, "),  # stiff_string's beta
+    (None, "thick", "a number in the range its model declares"),  # no model yet: the run checks it
+])
+def test_a_wrong_typed_constant_is_told_its_own_range(model, value, allowed):
+    """A [parameters] value that is no number names the constant and the range its model declares, never the table's
+    own bound [-1e12, 1e12]."""
+    from stringcontact.model.registry import load_model
+
+    base = load_scene("example1")
+    name = load_model(model).constants[0].name if model else "mu"
+    with pytest.raises(SceneError, match=f"{name}: expected a number, got .*; allowed: {allowed}") as error:
+        base.replace(model=model, parameters={name: value})
+    assert "-1000000000000" not in str(error.value) and "1e12" not in str(error.value)
+    if model:
+        assert f"allowed: {load_model(model).constants[0].allowed}" in str(error.value)
+
+
 # --- the [scheme] table ---------------------------------------------------------------------------
 
 

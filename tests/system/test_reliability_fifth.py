@@ -471,7 +471,7 @@ def test_run_force_is_refused_while_plot_redraws_the_folder(a_run_folder, capsys
 
     folder, seen = a_run_folder, []
 
-    def drawing(result, into, window_size):
+    def drawing(result, into, look=None):
         (into / ".energy.png.tmp-92mjtdy1.png").write_bytes(b"")  # what atomic_path has there while it draws
         seen.append(main(["run", "example1", *SMALL, *QUICK, "--out", str(folder), "--force"]))
         seen.append(capsys.readouterr().err)

@@ -58,7 +58,7 @@ def _parameters_table(model_name: str, given: dict) -> str:
     constants = load_model(model_name).constants
     if not constants:
         return ""
-    lines = [f"\n[parameters]  # model {model_name!r}'s constants (`stringcontact models`)\n"]
+    lines = [f"\n[parameters]  # the constants of model {model_name} (`stringcontact models`)\n"]
     for c in constants:
         value = given.get(c.name, c.default)
         about = "; ".join(part for part in (c.description, f"unit {c.unit}" if c.unit else "", f"allowed: {c.allowed}",
@@ -94,11 +94,27 @@ def _fmt_numerical_line(res) -> str | None:
         return None
     advice = ("a smaller dt (D_num falls like dt: --nt 4x, about a quarter of it)"
               if res.scheme == "paper" else "a smaller dt (D_num falls with dt)")
-    if res.scheme == "paper":
+    if res.scheme == "paper" and _runs_with(res, "newmark"):
         advice += ", or scheme newmark (trapezoidal: no dissipation of its own on a linear model)"
     return (f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % of the "
             f"energy {b['energy_scale']:.6g} (over {100 * NUMERICAL_SHARE:.0f} %): the balance closes, but the "
             f"dissipations are that far from the equation's; for numbers to trust use {advice}")
+
+
+def _runs_with(res, scheme: str) -> bool:
+    """Whether scheme `scheme` runs the run's model (`timestepping.check_model`): the closing lines advise only a
+    scheme that does. False when the model cannot be loaded again by its name (a `Model` handed to `simulate`)."""
+    from ..model.registry import load_model
+    from ..timestepping import check_model
+
+    origin = getattr(res, "model_origin", None) or {}
+    if origin.get("source") == "object":
+        return False
+    try:
+        check_model(scheme, load_model(origin.get("spec") or res.model))
+    except Exception:  # noqa: BLE001 - no advice rather than a failed report
+        return False
+    return True
 
 
 def _fmt_penetration_line(res) -> tuple[str, bool]:
@@ -106,10 +122,11 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
 
     p = checks_of(res)["penetration"]
     if p.get("bound_kind") == "pressed":  # a sustained press: the depth is the penalty's creep, no impact bound
+        projection = ", or scheme projection," if _runs_with(res, "projection") else ""
         return (f"penetration: max depth {p['depth']:.4g}: the string is pressed on the obstacle (a contact force "
                 f"{p['press_force']:.4g} at a node, held for {p['press_time']:.4g}, over {PRESS_SPAN:g} eps), where a "
                 f"velocity penalty lets it creep in at eps x the force: eps x the force's integral over time = "
-                f"{p['creep']:.4g}; this is O(eps) (a smaller eps, or scheme projection, holds the string out), and "
+                f"{p['creep']:.4g}; this is O(eps) (a smaller eps{projection} holds the string out), and "
                 f"the impact bound {PENETRATION_FACTOR:g}(eps + dt) max|v| does not apply"), True
     if p["bound"] is None:  # the model's contact law has no known bound: the depth alone, no verdict
         return f"penetration: max depth {p['depth']:.4g} ({p['law']})", True
@@ -133,6 +150,8 @@ def report(res) -> None:
     scene = res.scene
     penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
                else "no penalty")
+    if res.penalty != "none" and not getattr(res, "law_reads_eps", True):  # a law of the model's own constants
+        penalty = f"penalty={res.penalty} (its contact law reads no eps)"
     grid = f"nx={scene.nx}" if res.dim == 1 else f"{scene.domain} with {len(res.x)} nodes"
     restitution = f" restitution={scene.restitution:g}" if scene.restitution else ""
     print(f"scene {scene.name}: scheme {res.scheme}, {grid} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
@@ -174,10 +193,13 @@ def _fmt_minima(res) -> str:
 
 
 def _components_note(res) -> str:
-    """"; at most K contact components (first at t = ...)": Example 2's point is a contact set of several."""
+    """"; first contact at t = A; at most K contact components at once (first at t = B)": when contact began, and
+    the largest number of components and when it first occurred (Example 2's point is a contact set of several)."""
     from ..io.tables import most_components
 
     most = most_components(res).get("contact_components")
     if most is None or most["most"] < 2:
         return ""
-    return f"; at most {most['most']} contact components (first at t = {most['first_at']:.4g})"
+    began = next(float(t) for t, k in zip(res.t, res.contact_components) if k > 0)
+    return (f"; first contact at t = {began:.4g}; at most {most['most']} contact components at once "
+            f"(first at t = {most['first_at']:.4g})")

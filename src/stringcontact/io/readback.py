@@ -87,6 +87,7 @@ def read_output(folder, from_xdmf: bool = False):
         # a folder written before the model recorded its bound: the elastic variant's spring, else the velocity penalty
         penetration_bound=summary.get("penetration_bound", "spring" if summary.get("model") == "elastic" else "velocity"),
         energy_label=summary.get("energy_label"),
+        law_reads_eps=bool(summary.get("law_reads_eps", True)),
         status=summary.get("status", "complete"),
         timings=summary.get("timings", {}),
         counters=summary.get("counters", {}),

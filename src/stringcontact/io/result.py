@@ -133,6 +133,7 @@ class Result:
     checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of, once per run
     model_origin: dict = field(default_factory=dict)  # where the model came from: model.registry.model_origin
     penetration_bound: str | None = "velocity"  # the model's contact law's bound: model.interface.penetration_bound_of
+    law_reads_eps: bool = True  # whether the contact law reads ε (model.interface.reads_eps): the pictures name ε only then
     energy_label: str | None = None  # the legend of the model's stored energy (None: the paper's ½∫|∇η|²)
     fields: dict = field(default_factory=dict)  # the model's output fields: name -> (k, nodes), like eta
     field_info: dict = field(default_factory=dict)  # name -> OutputField.metadata(): how each field is shown

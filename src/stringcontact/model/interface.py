@@ -121,7 +121,7 @@ from ..scene.parameters import ModelConstant
 from .inelastic import contact_set, gap, momentum_form, penalty, penalty_damping, restitution_bound
 
 __all__ = ["DIVERGING", "PENETRATION_BOUNDS", "SEQUENTIAL", "Model", "ModelConstant", "OutputField", "Parameters",
-           "SolverHints", "inelastic", "output_fields", "penetration_bound_of", "unused_fields"]
+           "SolverHints", "inelastic", "output_fields", "penetration_bound_of", "reads_eps", "unused_fields"]
 
 #: A diverging field's colours at −P, 0 and P (RGB in 0 … 1): blue, a middle grey, red. The grey middle stays seen on
 #: a white background and on the light grey obstacle, and black labels on it are read.
@@ -319,3 +319,15 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
     for e in exprs:
         used |= set(ufl.algorithms.extract_coefficients(e))
     return [name for name, f in p.extra.items() if f not in used]
+
+
+def reads_eps(model: Model, V, p: Parameters) -> bool:
+    """Whether the model's contact law (its `penalty`, and `penalty_damping` if it has one) reads ε (`p.eps`): a law
+    of the model's own constants (a spring) does not, and the pictures and the report then name no ε."""
+    from dolfinx import fem
+    from ufl.algorithms.analysis import extract_constants
+
+    eta, v = fem.Function(V), fem.Function(V)
+    laws = [model.penalty(eta, v, p)] + ([model.penalty_damping(eta, v, p)] if model.penalty_damping is not None else [])
+    return any(p.eps in extract_constants(law) for law in laws)
+

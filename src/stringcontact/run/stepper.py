@@ -11,7 +11,7 @@ from mpi4py import MPI
 
 from ..errors import InstabilityError, SceneError, SolverError, plugin_code
 from ..io.result import FIELDS, Result, node_sort_key
-from ..model.interface import penetration_bound_of
+from ..model.interface import penetration_bound_of, reads_eps
 from ..scene.names import DEFAULT_MODEL
 from . import adapter
 from .blas import one_thread
@@ -77,6 +77,7 @@ class Stepper:
         nonlinear = self.core.discrete.ops.nonlinear
         derived = nonlinear is not None and nonlinear.energy_derived  # the form's potential is booked
         self.energy_label = self.model.energy_label or (POTENTIAL_LABEL if derived else None)
+        self.law_reads_eps = reads_eps(self.model, self.problem.V, self.problem.params)
         self.dt, self.nt = scene.dt, scene.nt
         self._order = np.argsort(node_sort_key(self.problem.x), kind="stable")  # this rank's nodes in x order
         self._loop_time, self._done = 0.0, None
@@ -237,7 +238,8 @@ class Stepper:
                         steps=rows.steps[:n], **per_node, energy={k: v[:n] for k, v in rows.energy.items()},
                         min_eta=float(mins), min_gap=float(gap), penalty=self.penalty or "none", mass=self.mass,
                         model=self.model.name, model_origin=self.origin,
-                        penetration_bound=penetration_bound_of(self.model), energy_label=self.energy_label,
+                        penetration_bound=penetration_bound_of(self.model), law_reads_eps=self.law_reads_eps,
+                        energy_label=self.energy_label,
                         status=status, timings=self.timings, message=message, counters=self.counters,
                         solver=self.solver, petsc_options=dict(self.discrete.petsc_options or {}), scheme=self.name,
                         **rows.geometry, field_info=self.problem.outputs.info, parameters=dict(self.parameters),

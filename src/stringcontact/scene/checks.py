@@ -337,11 +337,10 @@ def check_parameters(scene, put) -> None:
     """The ``[parameters]`` table: its form always (`parameters.check_table`); against the constants of the model the
     scene names when that model declares some (loading it: `names.declared`). A table under a model without
     constants waits for the run, which checks it against the model it runs (a ``--model`` may bring them)."""
-    put("parameters", parameters.check_table(scene.parameters))
-    if scene.model is not None:
-        constants, rule = names.declared(scene.model)
-        if constants:
-            parameters.resolve_parameters(scene.model, constants, dict(scene.parameters), rule)
+    constants, rule = names.declared(scene.model) if scene.model is not None else ((), None)
+    put("parameters", parameters.check_table(scene.parameters, declared=constants))
+    if constants:
+        parameters.resolve_parameters(scene.model, constants, dict(scene.parameters), rule)
 
 
 def check_scheme(value) -> str:
