@@ -95,6 +95,7 @@ def mpirun(argv, ranks: int = 2, timeout: float = 300) -> subprocess.CompletedPr
     # compiles a form, a solve's reductions) yields its core instead of spinning on it, and neither rank is pinned
     # to a core the other worker is using (Open MPI binds to cores by default for two ranks).
     env.setdefault("OMPI_MCA_mpi_yield_when_idle", "1")
+    env.setdefault("MPIR_CVAR_ENABLE_HEAVY_YIELD", "1")  # MPICH's (the dolfinx wheel's): a waiting rank sleeps, not spins
     argv = [str(a) for a in argv]
     if len(argv) > 1 and argv[0] == sys.executable and argv[1].endswith(".py"):  # a test file as the MPI program:
         argv = [argv[0], "-c", RUN_FILE, *argv[1:]]  # the stack's import order first, as the package's own modules do

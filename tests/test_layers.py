@@ -173,3 +173,16 @@ def test_the_core_names_no_particular_model():
                 found += [f"{path.relative_to(ROOT)}:{number}: {m.group(0)} ({owner})"
                           for pattern, owner in patterns.items() for m in pattern.finditer(line)]
     assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize("module", ["stringcontact", "stringcontact.scene", "stringcontact.model.interface"])
+def test_the_lower_layers_load_no_dolfinx_at_run_time(module):
+    """The import rules checked where they matter: importing the package, a scene's layer or the model contract in a
+    fresh process loads neither dolfinx nor PETSc nor a time scheme."""
+    import subprocess
+    import sys
+
+    code = (f"import sys, {module}\n"
+            "print(sorted(m for m in ('dolfinx', 'petsc4py', 'stringcontact.timestepping') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]", out

@@ -62,6 +62,7 @@ class TimeStepper:
         problem.params.eps.value = self.options["eps"] if self.options["eps"] is not None else np.nan
         self.nt, self._dt, self.step, self._t0, self._step0 = nt, float(dt), 0, 0.0, 0
         self.observers: list = []
+        self._stepped: list = []  # the observers' `stepped` methods, called after every step
         self.counters, self.past_timings, self.energies = {}, [], None
         self._broken = None  # why the stepper may not go on (an error inside a step)
         self._restart = None  # the start terms of a scheme restarted after sub-steps
@@ -128,6 +129,7 @@ class TimeStepper:
                                    floor=energy_roundoff(self.discrete.ops.K, self.scheme.eta, self.comm),
                                    slack=self.scheme.energy_slack)
         self.energies = start
+        self._owned = (p.eta.x.array[: p.n_owned], p.v.x.array[: p.n_owned])  # views the state is copied into
         self._write_state()
 
     # --- the state ------------------------------------------------------------------------------------------
@@ -168,6 +170,8 @@ class TimeStepper:
     def attach(self, observer):
         """Attach `observer` (`core.observers.Observer`): it is told of the initial state now and of every step after."""
         self.observers.append(observer)
+        if getattr(observer, "stepped", None) is not None:
+            self._stepped.append(observer.stepped)
         started = getattr(observer, "started", None)
         if started is not None:
             started(self)
@@ -182,12 +186,14 @@ class TimeStepper:
 
     def _write_state(self) -> None:
         """The scheme's state into the problem's Functions (owned values, then the ghosts)."""
-        p, scheme, n = self.problem, self.scheme, self.problem.n_owned
-        pairs = [(p.eta, scheme.eta), (p.v, scheme.velocity)]
-        pairs += [(p.unknowns[name], values) for name, values in scheme.fields.items()]
-        for f, values in pairs:
-            f.x.array[:n] = values
-            if self.comm.size > 1:
+        p, scheme = self.problem, self.scheme
+        np.copyto(self._owned[0], scheme.eta)
+        np.copyto(self._owned[1], scheme.velocity)
+        fields = scheme.fields if p.unknowns else {}
+        for name, values in fields.items():
+            p.unknowns[name].x.array[: p.n_owned] = values
+        if self.comm.size > 1:
+            for f in (p.eta, p.v, *(p.unknowns[name] for name in fields)):
                 f.x.scatter_forward()
 
     # --- stepping -------------------------------------------------------------------------------------------
@@ -195,8 +201,9 @@ class TimeStepper:
     def advance(self) -> StepEnergy:
         """One time step from `t` to `t` + `dt`; returns its energy terms. `InstabilityError` if the energy rose."""
         if self._broken is not None:
-            raise RuntimeError(f"the stepper cannot go on: {self._broken}; make a new one from its last state")
-        self._broken = f"step {self.step + 1} did not finish"  # cleared below: Ctrl-C within a step leaves it
+            why = self._broken or f"step {self.step + 1} did not finish"
+            raise RuntimeError(f"the stepper cannot go on: {why}; make a new one from its last state")
+        self._broken = ""  # cleared below: an error within the step (Ctrl-C) leaves it set
         if self.parameters.changed:
             self._rebuild()
         terms = self._step() if self.newton else self.scheme.step()
@@ -211,10 +218,8 @@ class TimeStepper:
             raise self._unstable(why)
         self._write_state()
         self._broken = None
-        for observer in self.observers:
-            stepped = getattr(observer, "stepped", None)
-            if stepped is not None:
-                stepped(self)
+        for stepped in self._stepped:
+            stepped(self)
         return terms
 
     def _step(self) -> StepEnergy:

@@ -239,8 +239,9 @@ class RowObserver(StoredRows):
         """After a step: the lowest η and gap so far, and the row if this step is a stored one."""
         eta = stepper.scheme.eta
         if eta.size:
-            self.min_eta = min(self.min_eta, float(eta.min()))
-            self.min_gap = min(self.min_gap, self._gap(stepper, eta, stepper.step))
+            low = float(eta.min())
+            self.min_eta = min(self.min_eta, low)
+            self.min_gap = min(self.min_gap, self._gap(stepper, eta, stepper.step) if self.has_obstacle else low)
         if stepper.step == self.next_step:
             self._store(stepper, stepper.step)
 
