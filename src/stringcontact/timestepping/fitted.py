@@ -130,6 +130,7 @@ class Scheme(projection.Scheme):
 
     @property
     def timings(self):
+        """projection's counters, and the range of the blend θ on the linear path."""
         found = super().timings
         if self.newton is None:
             found = {**found, "blend": "theta in [{:.3g}, {:.3g}]".format(*self.theta_range)}

@@ -78,6 +78,7 @@ class ContactAccount:
         self.balance, self.turnover = np.zeros(n), np.zeros(n)
 
     def overdrawn(self, step: np.ndarray) -> np.ndarray:
+        """Where adding `step` would take the account below 0 by more than round-off (`ACCOUNT_ROUNDOFF`)."""
         return self.balance + step < -ACCOUNT_ROUNDOFF * (self.turnover + np.abs(step))
 
     def spent(self) -> np.ndarray:
@@ -85,6 +86,7 @@ class ContactAccount:
         return self.balance <= ACCOUNT_ROUNDOFF * self.turnover
 
     def book(self, step: np.ndarray) -> None:
+        """Add a step's contact dissipation, node by node."""
         self.balance += step
         self.turnover += np.abs(step)
 
@@ -139,6 +141,8 @@ class MasslessRelease:
         return self.steps[key]
 
     def step(self, new, e0, em, rhs: np.ndarray, residual) -> tuple[np.ndarray, np.ndarray]:
+        """η^{n+1} into ``new.eta`` from the levels `e0` (η^n) and `em` (η^{n−1}) and the step's right-hand side `rhs`;
+        `residual` is the scheme's momentum residual A η − b. Returns (the stored force, the force booked)."""
         problem, scheme = self.problem, self.scheme
         tol, psi = scheme.tol, scheme.psi
         resting = problem.interior & (np.abs(e0.eta - psi) <= tol) & (np.abs(em.eta - psi) <= tol)
