@@ -106,6 +106,7 @@ class MasslessRelease:
         self.B = problem.ops.K.copy()  # the massless row: K + C/Δt
         self.B.axpy(1.0 / problem.dt, problem.ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         self.massless = np.zeros(problem.n_owned, dtype=bool)
+        self.neighbours, self.border = _neighbours(problem.ops.K, problem.n_owned)
         self.account = ContactAccount(problem.n_owned)
         self.steps: OrderedDict = OrderedDict()
         self.ranks = Ranks(problem.comm)
@@ -146,7 +147,7 @@ class MasslessRelease:
         problem, scheme = self.problem, self.scheme
         tol, psi = scheme.tol, scheme.psi
         resting = problem.interior & (np.abs(e0.eta - psi) <= tol) & (np.abs(em.eta - psi) <= tol)
-        S = (self.massless & ~self.account.spent()) | resting
+        S = self._isolated((self.massless & ~self.account.spent()) | resting)
         guess = new.eta.copy()
         while True:
             self.rhs[:] = rhs
@@ -166,6 +167,13 @@ class MasslessRelease:
         self.massless = S
         return F, work
 
+    def _isolated(self, S: np.ndarray) -> np.ndarray:
+        """The nodes of S none of whose neighbours is in S (nor on another rank): a contact point, not a region."""
+        rows, neighbour = self.neighbours
+        crowded = np.zeros(S.size, dtype=bool)
+        crowded[rows[np.append(S, False)[neighbour]]] = True
+        return S & ~crowded & ~self.border
+
     def _massless_residual(self, level, S: np.ndarray, residual):
         """The contact step's residual: the momentum equations' (`residual`), the massless rows' on S."""
         def massless(eta):
@@ -173,6 +181,20 @@ class MasslessRelease:
             R[S] = level.kc[0][S] + level.kc[1][S] - self.rhs[S]
             return R
         return massless
+
+
+def _neighbours(K: PETSc.Mat, n: int) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """The owned nodes' neighbour pairs (row, neighbour) from K's off-diagonal entries, the neighbour as an owned index
+    (n for another rank's), and whether a node has a neighbour on another rank."""
+    ia, ja, _ = K.getValuesCSR()
+    rows = np.repeat(np.arange(ia.size - 1), np.diff(ia))
+    local = ja - K.getOwnershipRange()[0]
+    off = local != rows
+    rows, local = rows[off], local[off]
+    local = np.where((local >= 0) & (local < n), local, n)
+    border = np.zeros(n, dtype=bool)
+    border[rows[local == n]] = True
+    return (rows, local), border
 
 
 __all__ = ["ACCOUNT_ROUNDOFF", "RELEASES", "ContactAccount", "MasslessRelease", "release_of", "start_correction"]
