@@ -435,8 +435,9 @@ class Scheme(_NewtonScheme):
         then η^{n+1} = (1 + e) z − e η^{n−1} and A η^{n+1} = b + F with F = (1 + e) G. `new` gets η^{n+1} and its
         [K η, (C/Δt) η] (by linearity, from z's and η^{n−1}'s); `new.eta` holds the CG's first guess for η^{n+1}.
 
-        A node whose account (`release.ContactAccount`) the step would overdraw takes the bound η^{n+1} ≥ min(ψ, η^{n−1})
-        instead (z ≥ (min(ψ, η^{n−1}) + e η^{n−1})/(1 + e)), whose work is ≤ 0, and the step is solved again."""
+        A step that would take the contact dissipation as a whole below 0 (`release.ContactAccount.covers`) is solved
+        again with η^{n+1} ≥ min(ψ, η^{n−1}), whose work is ≤ 0, at the nodes the step's contact gives energy to (and at
+        any node that does so in the step solved again)."""
         e, z = self.e, self.z
         rhs_zv, rhs_z = self.rhs_z
         self._inertia(em.eta, rhs_z)  # A η^{n−1} = (M/Δt²) η^{n−1} + (C/Δt) η^{n−1}
@@ -449,31 +450,44 @@ class Scheme(_NewtonScheme):
             np.multiply(e, em.eta, out=z.eta)
             z.eta += new.eta
             z.eta /= 1.0 + e
-        guess, fallback = z.eta.copy(), None
+        guess, bound, settled = z.eta.copy(), None, np.zeros(z.eta.size, dtype=bool)
         while True:
             G, _ = self.contact_step.solve(rhs_zv, z.eta_vec, self._residual(z, rhs_z))
             np.maximum(G, 0.0, out=G)
             np.multiply(1.0 + e, z.eta, out=new.eta)
             new.eta -= e * em.eta
             self.problem.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
-            G *= 1.0 + e
-            step = -0.5 * G * (new.eta - em.eta)
-            over = self.account.overdrawn(step)
-            if fallback is not None:
-                over &= ~fallback  # its bound's work is ≤ 0: what is left there is round-off
-            if not self.anysum(bool(over.any())):
+            step = -0.5 * (1.0 + e) * G * (new.eta - em.eta)
+            deficit = self.account.deficit(step, self.allsum)
+            if deficit <= 0.0:  # the contact as a whole gives back no more than it took
                 break
-            fallback = over if fallback is None else fallback | over
-            self.contact_step.psi = np.where(fallback, (np.minimum(self.psi, em.eta) + e * em.eta) / (1.0 + e), self.psi)
+            giving = self._largest_gifts(np.where(settled, 0.0, step), deficit)  # η^{n+1} ≥ min(ψ, η^{n−1}) there
+            if not self.anysum(bool(giving.any())):
+                break
+            settled |= giving
+            bound = np.where(settled, (np.minimum(self.psi, em.eta) + e * em.eta) / (1.0 + e), self.psi)
+            self.contact_step.psi = bound
             self.contact_step.moved()
             z.eta[:] = guess
-        if fallback is not None:
+        G *= 1.0 + e
+        if bound is not None:
             self.contact_step.psi = self.psi
             self.contact_step.moved()
         self.account.book(step)
         np.multiply(1.0 + e, z.kc, out=new.kc)
         new.kc -= e * em.kc
         return G
+
+    def _largest_gifts(self, step: np.ndarray, deficit: float) -> np.ndarray:
+        """The nodes whose steps give the most energy back (step < 0), the fewest whose gifts together exceed
+        `deficit` (over every rank)."""
+        gifts = -step[step < 0]
+        every = np.sort(np.concatenate(self.problem.comm.allgather(gifts)))[::-1] if self.problem.comm.size > 1 \
+            else np.sort(gifts)[::-1]
+        if not every.size:
+            return np.zeros(step.size, dtype=bool)
+        k = min(int(np.searchsorted(np.cumsum(every), deficit)), every.size - 1)
+        return -step >= every[k]
 
     def _advance_newton(self):
         """The Newton path's step: the VI G(u) ⊥ u − lower ≥ 0, the force the reaction on the active set."""
@@ -491,10 +505,14 @@ class Scheme(_NewtonScheme):
             active = problem.interior & (u <= lower + self.tol)
             F = np.where(active, np.maximum(r, 0.0), 0.0)
             step = -0.5 * F * (u - em)
-            over = self.account.overdrawn(step) & (lower != np.minimum(self.psi, em))  # not yet on the fallback bound
-            if not self.e or not self.anysum(bool(over.any())):
+            deficit = self.account.deficit(step, self.allsum) if self.e else 0.0
+            if deficit <= 0.0:
                 break
-            lower = np.where(over, np.minimum(self.psi, em), lower)
+            open_ = lower != np.minimum(self.psi, em)  # not yet on the bound whose work is ≤ 0
+            giving = self._largest_gifts(np.where(open_, step, 0.0), deficit)
+            if not self.anysum(bool(giving.any())):
+                break
+            lower = np.where(giving, np.minimum(self.psi, em), lower)
         self.account.book(step)
         delta = 0.5 * (u - em)
         work = obstacle_work(F) if obstacle_work is not None else 0.0  # the obstacle's share of F's work

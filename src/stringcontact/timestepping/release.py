@@ -44,7 +44,10 @@ RELEASES = ("inelastic", "signorini")
 
 #: Round-off an account may be overdrawn by, relative to the sizes booked: a release that gives back exactly what the
 #: landing took (the rod at Courant number 1) does so to round-off.
-ACCOUNT_ROUNDOFF = 1e-9
+ACCOUNT_ROUNDOFF = 1e-12
+
+#: What of an account's turnover counts as spent: a massless node in flight has its mass back then.
+SPENT = 1e-9
 
 #: Contact steps kept, one per massless set (a point contact alternates between two or three).
 KEPT_STEPS = 4
@@ -81,9 +84,16 @@ class ContactAccount:
         """Where adding `step` would take the account below 0 by more than round-off (`ACCOUNT_ROUNDOFF`)."""
         return self.balance + step < -ACCOUNT_ROUNDOFF * (self.turnover + np.abs(step))
 
+    def deficit(self, step: np.ndarray, allsum) -> float:
+        """How far `step` would take the accounts together below 0, beyond round-off (≤ 0: they cover it); `allsum`
+        sums over the ranks."""
+        total, turnover, change = allsum(float(self.balance.sum()), float(self.turnover.sum()), float(step.sum()))
+        return -(total + change) - ACCOUNT_ROUNDOFF * (turnover + abs(change))
+
     def spent(self) -> np.ndarray:
-        """Where the account holds no more than round-off of what went through it."""
-        return self.balance <= ACCOUNT_ROUNDOFF * self.turnover
+        """Where the account holds no more than `SPENT` of what went through it (a release that gives back exactly
+        what the landing took leaves round-off of its size)."""
+        return self.balance <= SPENT * self.turnover
 
     def book(self, step: np.ndarray) -> None:
         """Add a step's contact dissipation, node by node."""
@@ -197,4 +207,4 @@ def _neighbours(K: PETSc.Mat, n: int) -> tuple[tuple[np.ndarray, np.ndarray], np
     return (rows, local), border
 
 
-__all__ = ["ACCOUNT_ROUNDOFF", "RELEASES", "ContactAccount", "MasslessRelease", "release_of", "start_correction"]
+__all__ = ["ACCOUNT_ROUNDOFF", "RELEASES", "SPENT", "ContactAccount", "MasslessRelease", "release_of", "start_correction"]
