@@ -31,6 +31,14 @@ gives GetFEM's rows of an earlier run (its CSV: the rows whose side is "getfem",
 GetFEM's numbers are deterministic but for the times). getfem_restitution.csv: `projection` with
 restitution e = 0 and e = 1 over three periods at four resolutions (`RESTITUTION_NXS`), the energy at each
 period and its largest deviation over the run.
+
+``--sweep`` (the Courant sweep, `COURANT` at `COURANT_NXS`): every combination of the demo's options that it runs at
+each Δt/h (`sweep_methods`: contact treatment, mass matrix, lumping, β, P1 or P2; each matrix factorised once) against
+`projection` and `fitted` with either release (`sweep_ours`); writes getfem_courant.csv and prints, per NX and Δt/h
+and over any Δt/h, GetFEM's best err_u and err_v against stringcontact's best that gains no energy
+(`courant_summary`). With ``--getfem-rows`` GetFEM's rows come from the getfem_courant.csv beside that CSV.
+
+    .venv/bin/python benchmarks/bench_getfem.py --sweep --out docs     # both sides (10 to 40 minutes here)
 """
 
 from __future__ import annotations

@@ -90,8 +90,8 @@ class Scheme(projection.Scheme):
     """`projection` with the effective mass M_θ + ¼Δt²K (the module docstring): its contact step, restitution and
     release, no Δt_max, a second-order start."""
 
-    DESCRIPTION = ("blended mass fitted to the Courant number, implicit elastic term (beta = 1/4), contact as a "
-                   "complementarity problem (no eps)")
+    DESCRIPTION = ("blended mass fitted to the Courant number, implicit elastic term (the trapezoidal average), "
+                   "contact as a complementarity problem (no eps)")
     MASSES = ("blended",)
     QUOTIENTS = FITTED
     remedy = "use a smaller dt"

@@ -55,10 +55,13 @@ the rest of the identity. Its stable Δt is that of the tangent at η = 0 (and o
 fields eliminated, `_check_fields_stiffness`).
 
 A model that declares Signorini's release (``Model.release = "signorini"``, `release.py`; linear path, e = 0, a fixed
-obstacle) gets the half-cell impulses: the second-order start η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 on the free nodes,
-and ½F^{n−1} carried into the right-hand side of a node that rested on ψ at t_{n−2}, t_{n−1}, t_n, so that
-A η^{n+1} = b + C^n + G with the complementarity on G, F^n = C^n + G (C^n stored with η^n, where its node rests).
-Landings are unchanged; a release gives back what a landing took, so the energy may rise within a run.
+obstacle) gets the second-order start η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 on the free nodes, and a node at rest on ψ
+with no neighbour there is massless: its row is the elastic equilibrium with the Signorini conditions
+(`release.MasslessRelease`), and it keeps no mass after it leaves while its contact account pays what a mass would
+need. Landings are unchanged; a release gives back at most what the node's landings took, so the energy may rise
+within a run but never above E(0) plus the external work.
+
+With e > 0 the same account keeps the contact's total dissipation ≥ 0 (`_weighted_step`).
 
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
@@ -146,8 +149,9 @@ class Scheme(_NewtonScheme):
         # the model's release (`Model.release`): "signorini" adds the half-cell impulses of `release.py`
         self.signorini = release_of(laws.model) == "signorini"
         if self.signorini and (self.e or self.moving or nonlinear):
-            raise ValueError(f"release: model '{laws.model.name}' declares release 'signorini', which scheme "
-                             "'projection' takes on its linear path with restitution 0 and a fixed obstacle only")
+            raise ValueError(f"release: model '{laws.model.name}' declares release 'signorini', which schemes "
+                             "'projection' and 'fitted' take on their linear path with restitution 0 and a fixed "
+                             "obstacle only")
         self.account = ContactAccount(n)  # each node's contact dissipation: a rebound spends at most that (`release`)
         if nonlinear:
             self.newton = NewtonStep(self._newton_problem(), self.QUOTIENTS, lower=self._lower(self.psi))
