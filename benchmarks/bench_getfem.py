@@ -31,6 +31,14 @@ gives GetFEM's rows of an earlier run (its CSV: the rows whose side is "getfem",
 GetFEM's numbers are deterministic but for the times). getfem_restitution.csv: `projection` with
 restitution e = 0 and e = 1 over three periods at four resolutions (`RESTITUTION_NXS`), the energy at each
 period and its largest deviation over the run.
+
+``--sweep`` (the Courant sweep, `COURANT` at `COURANT_NXS`): every combination of the demo's options that it runs at
+each Δt/h (`sweep_methods`: contact treatment, mass matrix, lumping, β, P1 or P2; each matrix factorised once) against
+`projection` and `fitted` with either release (`sweep_ours`); writes getfem_courant.csv and prints, per NX and Δt/h
+and over any Δt/h, GetFEM's best err_u and err_v against stringcontact's best that gains no energy
+(`courant_summary`). With ``--getfem-rows`` GetFEM's rows come from the getfem_courant.csv beside that CSV.
+
+    .venv/bin/python benchmarks/bench_getfem.py --sweep --out docs     # both sides (10 to 40 minutes here)
 """
 
 from __future__ import annotations
@@ -39,7 +47,9 @@ import argparse
 import csv
 import dataclasses
 import importlib.util
+import itertools
 import json
+import math
 import resource
 import subprocess
 import sys
@@ -158,6 +168,8 @@ class GetfemMethod:
     beta: float
     dt_over_h: float
     nxs: tuple | None = (20, 40, 80, 160)  # its own resolutions with the default NXS (None: the run's)
+    degree: int = 1  # the demo's u_degree: P1 or P2
+    lump: bool = False  # the demo's lump_mass_matrix (P1)
 
 
 GETFEM_METHODS = (
@@ -195,23 +207,26 @@ FIELDS = (
 # --- GetFEM's side (child process) ---------------------------------------------------------------
 
 
-def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms: bool = False) -> dict:
+def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms: bool = False,
+               factorised: bool = False) -> dict:
     """One run of the demo's scheme `method` on the rod, with GetFEM's assembly and solves, as the demo writes it
     (``interface/tests/python/demo_dynamic_contact_1D.py``, GetFEM 5.4): every step's u and v, the energy and the
     loop's CPU time. The demo's ``linsolve_superlu`` is ``gf.linsolve_mumps`` here (Debian's SuperLU segfaults).
     With `demo_norms` every step also does what the demo does there: the exact u and v at the nodes (vectorised here;
     the demo loops over the nodes in Python) and its six norms by ``gf.compute_L2_norm``/``compute_H1_norm`` (the
-    errors returned are still computed from U and V)."""
+    errors returned are still computed from U and V). With `factorised` each of the demo's matrices is factorised once
+    (SciPy's SuperLU) instead of by MUMPS at every solve: the same numbers to round-off, for the Courant sweep."""
     import getfem as gf
 
     h, dt, beta, gamma, version, mass = 1.0 / nx, method.dt_over_h / nx, method.beta, 0.5, method.version, method.mass
+    deg = method.degree
     gamma_n, theta_n, gamma_p = 5.0, 0.0, 1.0  # the demo's Nitsche and penalty parameters
     m = gf.Mesh("cartesian", np.linspace(0.0, 1.0, nx + 1))
     border = m.outer_faces()
     normals = m.normal_of_faces(border)
     m.set_region(1, border[:, np.nonzero(normals[0] < -0.01)[0]])  # GAMMAC: x = 0
     mfu = gf.MeshFem(m)
-    mfu.set_classical_fem(1)
+    mfu.set_classical_fem(deg)
     mim = gf.MeshIm(m, 4)
     md = gf.Model("real")
     md.add_fem_variable("u", mfu)
@@ -222,23 +237,50 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
         raise RuntimeError("GetFEM numbered the rod's dofs out of x order; the demo's scheme assumes x order")
     n = x.size
     M = gf.asm_generic(mim, 2, "u*Test_u", -1, md)
+    norm_matrix = gf.Spmat("copy", M)  # the L² norm of a function of this space, before any change of M
+    if method.lump:  # the demo's "basic lumped mass matrix" (P1 only)
+        for j in range(n):
+            for i in range(1, deg + 1):
+                if j + i < n:
+                    M[j, j] += M[j, j + i]
+                    M[j, j + i] = 0.0
+                if j - i >= 0:
+                    M[j, j] += M[j, j - i]
+                    M[j, j - i] = 0.0
     K = gf.asm_generic(mim, 2, "Grad_u*Grad_Test_u", -1, md)
     for A in (M, K):  # Dirichlet row at x = 1
-        A[n - 1, n - 2] = 0.0
+        for i in range(deg + 1):
+            A[n - 1, n - 1 - i] = 0.0
         A[n - 1, n - 1] = 1.0
     M2 = gf.Spmat("copy", M)
-    if mass == 1:  # redistributed: the contact node's mass goes to its neighbour
-        M[1, 1] += M[0, 0] + M[1, 0]
-        M[0, 0] = M[0, 1] = M[1, 0] = 0.0
+    if mass == 1:  # redistributed: the contact node's mass goes to its neighbours
+        M[1, 1] += M[0, 0]
+        M[0, 0] = 0.0
+        for i in range(1, deg + 1):
+            M[i, i] += M[i, 0]
+            M[0, i] = M[i, 0] = 0.0
     elif mass == 2:  # singular dynamic mass (Renard): the contact node massless, its neighbour's 7h/12
+        if deg != 1:
+            raise ValueError("the demo's singular mass is P1 only")
         M[1, 1] = 7.0 * h / 12.0
         M[0, 0] = M[0, 1] = M[1, 0] = 0.0
     if mass:
         M2 = gf.Spmat("copy", M)
         M2[0, 0] = 1.0
 
+    factors = {}
+
     def solve(A, b):
-        return gf.linsolve_mumps(A, b)[:, 0]
+        if not factorised:
+            return gf.linsolve_mumps(A, b)[:, 0]
+        if id(A) not in factors:  # the demo's matrices do not change after the set-up: factorised once
+            import scipy.sparse
+            import scipy.sparse.linalg
+
+            columns, rows = A.csc_ind()
+            factors[id(A)] = (A, scipy.sparse.linalg.splu(scipy.sparse.csc_matrix((A.csc_val(), rows, columns),
+                                                                                  shape=A.size())))
+        return factors[id(A)][1].solve(np.asarray(b, dtype=float))
 
     U0, V0 = 0.5 - 0.5 * x, np.zeros(n)
     MV0, MA0 = M.mult(V0), -K.mult(U0)
@@ -249,7 +291,8 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
     K_N = gf.Spmat("add", M, K_m)  # Newmark's matrix without contact
     K_N_C = gf.Spmat("copy", K_N)  # with the contact
     if version in (0, 1, 4):
-        K_N_C[0, 1] = 0.0
+        for i in range(deg + 1):
+            K_N_C[0, i] = 0.0
         K_N_C[0, 0] = 1.0
     elif version == 2:
         K_N_C[0, 0] += dt * dt * beta * gamma_p / h
@@ -268,6 +311,7 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
     U, V = np.empty((nt + 1, n)), np.empty((nt + 1, n))
     U[0], V[0] = U0, V0
     k_landing, energy_landing = round(LANDING / dt), float("nan")
+    energies = np.full(nt + 1, 0.5 * (V0 @ M.mult(V0) + U0 @ K.mult(U0)))  # the demo's energy at every step
     cpu = time.process_time()
     for k in range(1, nt + 1):
         if beta == 0:  # explicit Newmark
@@ -275,7 +319,7 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
             FF = solve(M2, F)
             U1 = U0 + dt * V0 + (dt * dt / 2) * FF
             V1 = V0 + (dt * (1 - gamma)) * FF
-            a = K[0, 1] * U1[1]
+            a = sum(K[0, i] * U1[i] for i in range(1, deg + 1))
             if version == 0:
                 if not mass:
                     raise ValueError("the demo has no explicit pure Signorini scheme with the consistent mass")
@@ -311,9 +355,9 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
                 Fc[0] = -(gamma_p / h) * min(0.0, U1[0])
             else:
                 if mass:
-                    U1[0] = -K_nitsche1[0, 1] * U1[1] / K_nitsche1[0, 0]
+                    U1[0] = -sum(K_nitsche1[0, i] * U1[i] for i in range(1, deg + 1)) / K_nitsche1[0, 0]
                     if U1[0] < 0:
-                        U1[0] = -K_nitsche2[0, 1] * U1[1] / K_nitsche2[0, 0]
+                        U1[0] = -sum(K_nitsche2[0, i] * U1[i] for i in range(1, deg + 1)) / K_nitsche2[0, 0]
                 md.set_variable("u", U1)
                 Fc = gf.asm_generic(mim, 1, nitsche, 1, md)
             FF = solve(M2, Fc - K.mult(U1))
@@ -360,8 +404,9 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
                 gf.compute_L2_norm(mfu, field, mim)
             for field in (u_ex, U0 - u_ex):
                 gf.compute_H1_norm(mfu, field, mim)
+        energies[k] = 0.5 * (V0 @ M.mult(V0) + U0 @ K.mult(U0))
         if k == k_landing:
-            energy_landing = 0.5 * (V0 @ M.mult(V0) + U0 @ K.mult(U0))
+            energy_landing = energies[k]
     cpu = time.process_time() - cpu
     energy = 0.5 * (V0 @ M.mult(V0) + U0 @ K.mult(U0))
     return {
@@ -370,15 +415,17 @@ def getfem_rod(method: GetfemMethod, nx: int, T: float = rod.PERIOD, demo_norms:
         "v": V,
         "cpu_s": cpu,
         "energy": energy,
+        "energy_max": float(energies.max()),
         "energy_landing": energy_landing,
         "nt": nt,
         "dt": dt,
+        "norm": norm_matrix,
     }
 
 
-def getfem_row(method: GetfemMethod, nx: int, T: float, demo_norms: bool = False) -> dict:
+def getfem_row(method: GetfemMethod, nx: int, T: float, demo_norms: bool = False, factorised: bool = False) -> dict:
     """`getfem_rod`'s run as a row of the comparison: the errors of u and v, the energy, the contact point."""
-    run = getfem_rod(method, nx, T, demo_norms)
+    run = getfem_rod(method, nx, T, demo_norms, factorised)
     t = run["dt"] * np.arange(run["nt"] + 1)
     return {
         "side": "getfem",
@@ -389,13 +436,28 @@ def getfem_row(method: GetfemMethod, nx: int, T: float, demo_norms: bool = False
         "r": "",
         "status": "complete",
         "cpu_s": run["cpu_s"],
-        "err_u": rod.relative_error(run["x"], t, run["u"], exact=rod.rod_exact),
-        "err_v": rod.relative_velocity_error(run["x"], t, run["v"], exact=rod.rod_exact),
+        "err_u": _getfem_error(run, t, "u", method.degree),
+        "err_v": _getfem_error(run, t, "t", method.degree),
         "energy_ratio": run["energy"] / rod.ROD_ENERGY,
+        "energy_max": run["energy_max"] / rod.ROD_ENERGY,
         "energy_landing": run["energy_landing"] / rod.ROD_ENERGY,
         "min_u_contact": float(run["u"][:, 0].min()),
         "contact_loss": "",
     }
+
+
+def _getfem_error(run: dict, t: np.ndarray, field: str, degree: int) -> float:
+    """The demo's LinfL2u (`field` "u") or L2L2v ("t"): P1 by `rod`'s exact nodal norms, P2 by GetFEM's mass matrix
+    (the L² norm of a P2 function, exact)."""
+    if degree == 1:
+        error = rod.relative_error if field == "u" else rod.relative_velocity_error
+        return error(run["x"], t, run["u" if field == "u" else "v"], exact=rod.rod_exact)
+    exact = np.array([rod.rod_exact(run["x"], tk, field) for tk in t])
+    diff = (run["u"] if field == "u" else run["v"]) - exact
+    norms = [np.sqrt(np.einsum("ij,ij->i", a, np.array([run["norm"].mult(r) for r in a]))) for a in (diff, exact)]
+    if field == "u":
+        return float(norms[0].max() / norms[1].max())
+    return float(np.sqrt(np.sum(norms[0] ** 2) / np.sum(norms[1] ** 2)))
 
 
 def getfem_rows(nxs, T: float, methods=None) -> list[dict]:
@@ -455,6 +517,8 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
         "contact_loss": res.energy["contact_dissipation"][-1] / E[0],
         "energy_periods": " ".join(f"{E[np.argmin(np.abs(res.t - p))] / E[0]:.6f}" for p in periods),
         "energy_max_deviation": float(np.max(np.abs(E / E[0] - 1))),
+        "energy_max": float(E.max() / E[0]),
+        "contact_min": float(res.energy["contact_dissipation"].min() / E[0]),
     }
 
 
@@ -480,6 +544,109 @@ def restitution_rows(nxs, periods: int) -> list[dict]:
 
 def sinking_rows(nxs, T: float) -> list[dict]:
     return [ours(m, nx, q, T) | {"dt_over_h": q} for q in SINKING_DT_OVER_H for m in SINKING_METHODS for nx in nxs]
+
+
+# --- the Courant sweep -----------------------------------------------------------------------------
+
+#: The sweep's Δt/h, ¼ to 1 by 0.05, and its resolutions (docs/explanation/getfem.md, "At every Courant number").
+COURANT = tuple(round(0.25 + 0.05 * k, 2) for k in range(16))
+COURANT_NXS = (80, 160)
+VERSIONS = {0: "Signorini", 1: "Paoli-Schatzman", 2: "penalty", 3: "Nitsche", 4: "Taylor-Flanagan"}
+MASS_TYPES = {0: "standard mass", 1: "redistributed mass", 2: "singular mass"}
+#: Round-off allowed in "no energy gained": E(t) <= (1 + this) E(0) and D_con >= -this E(0) at every step.
+ENERGY_ROUNDOFF = 1e-9
+
+
+def _explicit_limit(version: int, degree: int) -> float:
+    """The demo's largest explicit Δt/h: h/(2 degree), and 2h/γ0 for the penalty (γ0 = 1) and Nitsche (γ0 = 5)."""
+    return min(0.5 / degree, {2: 2.0, 3: 0.4}.get(version, math.inf))
+
+
+def sweep_methods(q: float) -> list[GetfemMethod]:
+    """Every combination of the demo's options that it runs at Δt/h = `q`: its contact treatment, mass matrix, lumping,
+    Newmark β (0 or ¼) and degree (P1, P2). The demo stops with an assertion for Taylor-Flanagan with β > 0, explicit
+    Signorini with the standard mass, the singular mass or the lumping with P2, and an explicit Δt above its bound."""
+    methods = []
+    for version, mass, lump, beta, degree in itertools.product(VERSIONS, MASS_TYPES, (False, True), (0.0, 0.25), (1, 2)):
+        if (version == 4 and beta) or (version == 0 and not beta and not mass) or (degree == 2 and (mass == 2 or lump)):
+            continue
+        if not beta and q > _explicit_limit(version, degree) + 1e-12:
+            continue
+        label = (f"{VERSIONS[version]}, {'lumped ' if lump else ''}{MASS_TYPES[mass]}, "
+                 f"{'implicit' if beta else 'explicit'}, P{degree}")
+        methods.append(GetfemMethod(label, version, mass, beta, q, nxs=None, degree=degree, lump=lump))
+    return methods
+
+
+def sweep_ours(q: float) -> list[Method]:
+    """stringcontact's ε-free schemes at Δt/h = `q`, each with the paper's release and with Signorini's."""
+    return [Method(f"{scheme}, release={release}", scheme, None, "inelastic", lambda h, dt: 1e-9, mass=mass, dt_over_h=q,
+                   release=release)
+            for scheme, mass in (("projection", "lumped"), ("fitted", "blended")) for release in ("inelastic", "signorini")]
+
+
+def getfem_sweep_rows(nxs, T: float) -> list[dict]:
+    return [getfem_row(m, nx, T, factorised=True) | {"dt_over_h": q} for q in COURANT for m in sweep_methods(q)
+            for nx in nxs]
+
+
+def our_sweep_rows(nxs, T: float) -> list[dict]:
+    return [ours(m, nx, q, T) | {"dt_over_h": q} for q in COURANT for m in sweep_ours(q) for nx in nxs]
+
+
+def _keeps_energy(row: dict) -> bool:
+    return row["energy_max"] <= 1 + ENERGY_ROUNDOFF and row.get("contact_min", 0.0) >= -ENERGY_ROUNDOFF
+
+
+def courant_summary(rows: list[dict], nxs=COURANT_NXS) -> list[dict]:
+    """Per NX and Δt/h (and over every Δt/h, "any"): GetFEM's best err_u and err_v over all its combinations, and
+    stringcontact's best over its runs that gain no energy, with the ratios (GetFEM's over ours: above 1, ours is
+    smaller)."""
+    out = []
+    for nx, q in itertools.product(nxs, [*COURANT, "any"]):
+        here = [r for r in rows if r["nx"] == nx and r["status"] == "complete" and q in ("any", r["dt_over_h"])]
+        theirs = [r for r in here if r["side"] == "getfem"]
+        mine = [r for r in here if r["side"] == "stringcontact" and _keeps_energy(r)]
+        if not theirs or not mine:
+            continue
+        row = {"nx": nx, "dt_over_h": q}
+        for key, short in (("err_u", "u"), ("err_v", "v")):
+            a, b = min(theirs, key=lambda r: r[key]), min(mine, key=lambda r: r[key])
+            at = (lambda r: f", dt={r['dt_over_h']:g}h") if q == "any" else (lambda r: "")
+            row |= {f"getfem_{short}": a[key], f"getfem_{short}_method": a["method"] + at(a),
+                    f"getfem_{short}_energy_max": a["energy_max"], f"ours_{short}": b[key],
+                    f"ours_{short}_method": b["method"] + at(b), f"ratio_{short}": a[key] / max(b[key], 1e-300)}
+        out.append(row)
+    return out
+
+
+def stored_sweep_rows(path: Path, nxs) -> list[dict]:
+    """GetFEM's rows of the sweep (side "getfem") at the resolutions `nxs` from a getfem_courant.csv this script wrote."""
+    with path.open(newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["side"] == "getfem" and int(r["nx"]) in nxs]
+    numbers = ("dt", "dt_over_h", "cpu_s", "err_u", "err_v", "energy_ratio", "energy_max")
+    return [{**r, "nx": int(r["nx"]), **{k: float(r[k]) for k in numbers}} for r in rows]
+
+
+def sweep(args) -> int:
+    """--sweep: both sides over `COURANT` at `COURANT_NXS` (or --nx), getfem_courant.csv and the summary table."""
+    nxs = args.nx or COURANT_NXS
+    if args.getfem_rows is not None:
+        rows = stored_sweep_rows(args.getfem_rows.with_name("getfem_courant.csv"), nxs)
+    elif importlib.util.find_spec("getfem") is None:
+        print("bench_getfem: GetFEM is not installed (apt-get install python3-getfem); skipped")
+        return 0
+    else:
+        child = [sys.executable, __file__, "--getfem-side", "--sweep", "--T", str(args.T), "--nx", *map(str, nxs)]
+        rows = json.loads(subprocess.run(child, check=True, capture_output=True, text=True).stdout)
+    rows += our_sweep_rows(nxs, args.T)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_csv(args.out / "getfem_courant.csv", rows)
+    print_table(courant_summary(rows, nxs), ("nx", "dt_over_h", "getfem_u", "getfem_u_method", "ours_u", "ours_u_method",
+                                             "ratio_u", "getfem_v", "getfem_v_method", "ours_v", "ours_v_method",
+                                             "ratio_v"))
+    print(f"wrote {args.out}/getfem_courant.csv")
+    return 0
 
 
 # --- tables and chart -------------------------------------------------------------------------------
@@ -702,9 +869,16 @@ def main(argv=None) -> int:
         metavar="CSV",
         help="GetFEM's rows from an earlier run's getfem_comparison.csv (when GetFEM is not installed here)",
     )
+    ap.add_argument("--sweep", action="store_true",
+                    help="the Courant sweep only: both sides at dt/h = 0.25 to 1, NX = 80 and 160 (getfem_courant.csv)")
     ap.add_argument("--getfem-side", action="store_true", help=argparse.SUPPRESS)  # the child: JSON rows on stdout
     ap.add_argument("--one", nargs=2, metavar=("SIDE", "METHOD"), help=argparse.SUPPRESS)  # a timed child: one row
     args = ap.parse_args(argv)
+    if args.sweep and args.getfem_side:
+        print(json.dumps(getfem_sweep_rows(args.nx or COURANT_NXS, args.T)))
+        return 0
+    if args.sweep:
+        return sweep(args)
     nxs = args.nx or (NXS[:1] if args.quick else NXS)
     if args.one is not None:
         print(json.dumps(one_row(*args.one, nxs[0], args.T), default=float))
@@ -790,8 +964,9 @@ def main(argv=None) -> int:
 
 def stored_getfem_rows(path: Path, nxs) -> list[dict]:
     """GetFEM's rows (side "getfem") at the resolutions `nxs` from a getfem_comparison.csv this script wrote."""
+    keep = {nx for m in GETFEM_METHODS for nx in _resolutions(m, nxs)}  # each method's own resolutions, as run
     with path.open(newline="") as f:
-        rows = [r for r in csv.DictReader(f) if r["side"] == "getfem" and int(r["nx"]) in nxs]
+        rows = [r for r in csv.DictReader(f) if r["side"] == "getfem" and int(r["nx"]) in keep]
     numbers = ("dt", "cpu_s", "err_u", "err_v", "energy_ratio", "energy_landing", "min_u_contact")
     return [{**r, "nx": int(r["nx"]), **{k: float(r[k]) for k in numbers}} for r in rows]
 

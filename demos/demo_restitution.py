@@ -79,8 +79,8 @@ for e, res in runs.items():
 
 # With $e = 0$ the contact set spreads, then shrinks, and the string lands once; with $e > 0$ the landed
 # parts leave within a step or two and the string comes down again later. At $e = 1$ the contact gives back
-# what it took within each impact (the energy dips to nearly 0 and returns): its net work is
-# $O(\Delta t)$ and of either sign, and the viscous term removes what the faster motion loses.
+# what it took within each impact (the energy dips to nearly 0 and returns), never more: its net work stays
+# $\ge 0$, and the viscous term removes what the faster motion loses.
 
 # ## The exact flat landing
 # $\alpha = 0$, $\eta_0 = h = 0.2$, $v_0 = -1$: the middle lands at $t^* = 0.2$ and leaves at $+e$. Until

@@ -106,16 +106,20 @@ def test_viscous_rebound_closes_the_ledger():
     assert res.status == "complete" and b["relative_residual"] < 1e-9
     middle = np.argmin(np.abs(res.x - 0.5))
     k = np.argmin(np.abs(res.t - 0.21))
-    assert res.velocity[k, middle] == pytest.approx(V, abs=1e-6)  # the nodal law: v⁺ = e v⁻ whatever α
+    # the nodal law v⁺ = e v⁻ whatever α, but for the nodes whose account the viscous pull would overdraw
+    assert res.velocity[k, middle] == pytest.approx(V, abs=1e-5)
     assert b["viscous_dissipation"] > 0
-    # the contact work is the landing's and the rebound's: at e = 1 they nearly cancel
-    assert abs(res.energy["contact_dissipation"][-1]) < 0.02 * exact.flat_landing_energy_loss(H, V, L)
+    assert res.energy["contact_dissipation"].min() >= 0.0  # the rebound never gives back more than the landing took
+    # the contact work is the landing's and the rebound's: at e = 1 the rebound gives back most of what the landing
+    # took, less what the neighbours' viscous pull would have had the contact give on top (a negative D_con)
+    loss = exact.flat_landing_energy_loss(H, V, L)
+    assert 0.0 <= res.energy["contact_dissipation"][-1] < 0.15 * loss
 
 
 @pytest.mark.parametrize("scheme", ["paper", "newmark"])
 def test_other_schemes_refuse_a_restitution(scheme):
     scene = flat_landing_scene(20, 24, r=0.4)
-    with pytest.raises(ValueError, match=r"^restitution: scheme .* only scheme 'projection'") as info:
+    with pytest.raises(ValueError, match=r"^restitution: scheme .* only scheme .*'projection' does") as info:
         sc.simulate(scene, scheme=scheme, restitution=0.5)
     assert "\n" not in str(info.value)
     sc.simulate(scene, scheme=scheme, restitution=0.0)  # e = 0 is every scheme's contact

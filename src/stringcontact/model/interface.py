@@ -97,11 +97,11 @@ for UFL.
     ``fields`` is written whether named here or not.
 
 ``release`` (default ``"inelastic"``)
-    How scheme `projection` lets a node that rests on the obstacle leave it: ``"inelastic"``, the paper's (A4),
-    with the free step's velocity; ``"signorini"``, Signorini contact without (A4), as at the massless contact
-    point of an elastic rod: the force that held the node still acts over the first half of the leapfrog's
-    impulse cell, and the scheme starts at second order (`timestepping.release`). The other schemes have no
-    release rule of their own (their penalty law decides).
+    How schemes `projection` and `fitted` let a node that rests on the obstacle leave it: ``"inelastic"``, the
+    paper's (A4), with the free step's velocity; ``"signorini"``, Signorini contact without (A4), as at the massless
+    contact point of an elastic rod: a node at rest on the obstacle has no mass, leaves at its neighbours'
+    equilibrium, and gives back at most what its landings took (`timestepping.release`); the scheme starts at second
+    order. The other schemes have no release rule of their own (their penalty law decides).
 
 ``solver`` (optional)
     `SolverHints`: the model's defaults for its Newton step (``newton_options``) and its linear solver

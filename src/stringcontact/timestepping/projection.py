@@ -55,10 +55,13 @@ the rest of the identity. Its stable Δt is that of the tangent at η = 0 (and o
 fields eliminated, `_check_fields_stiffness`).
 
 A model that declares Signorini's release (``Model.release = "signorini"``, `release.py`; linear path, e = 0, a fixed
-obstacle) gets the half-cell impulses: the second-order start η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 on the free nodes,
-and ½F^{n−1} carried into the right-hand side of a node that rested on ψ at t_{n−2}, t_{n−1}, t_n, so that
-A η^{n+1} = b + C^n + G with the complementarity on G, F^n = C^n + G (C^n stored with η^n, where its node rests).
-Landings are unchanged; a release gives back what a landing took, so the energy may rise within a run.
+obstacle) gets the second-order start η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 on the free nodes, and a node at rest on ψ
+with no neighbour there is massless: its row is the elastic equilibrium with the Signorini conditions
+(`release.MasslessRelease`), and it keeps no mass after it leaves while its contact account pays what a mass would
+need. Landings are unchanged; a release gives back at most what the node's landings took, so the energy may rise
+within a run but never above E(0) plus the external work.
+
+With e > 0 the same account keeps the contact's total dissipation ≥ 0 (`_weighted_step`).
 
 Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
 eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
@@ -84,7 +87,7 @@ from .base import PETSC_OPTIONS, RESTITUTION, Ranks, StepEnergy, mass_option, pe
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
-from .release import carried_force, release_of, start_correction
+from .release import ContactAccount, MasslessRelease, release_of, start_correction
 from .spectrum import dt_of_mode, gershgorin_bound, largest_stable_dt, top_mode, top_mode_krylov, top_mode_of_shell
 
 #: A node within CONTACT_TOL × (the data's height scale) of the obstacle is in contact: the implicit viscous
@@ -115,6 +118,7 @@ class ProjectionScheme(_NewtonScheme):
     DESCRIPTION = "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)"
     OPTIONS = (mass_option("lumped"), RESTITUTION, PETSC_OPTIONS)
     remedy = "use a smaller dt (nt >= T / dt_max) or scheme 'newmark'"
+    QUOTIENTS = PROJECTION  # the Newton path's difference quotients
 
     @staticmethod
     def requires(model) -> str | None:
@@ -126,9 +130,7 @@ class ProjectionScheme(_NewtonScheme):
         super().__init__(problem)
         n, comm = problem.n_owned, problem.comm
         nonlinear = problem.ops.nonlinear is not None
-        self.dt_max = largest_stable_dt(problem.ops, problem.interior, krylov=problem.x.ndim == 2, dt=problem.dt)
-        self._check_dt(f"(its explicit elastic term, linearised at {problem.ops.linearised_at})" if nonlinear else
-                       "(its explicit elastic term; dt_max from the operators)")
+        self._check_stability(nonlinear)
         laws = problem.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
         self.psi = self._obstacle()
@@ -145,11 +147,12 @@ class ProjectionScheme(_NewtonScheme):
         # the model's release (`Model.release`): "signorini" adds the half-cell impulses of `release.py`
         self.signorini = release_of(laws.model) == "signorini"
         if self.signorini and (self.e or self.moving or nonlinear):
-            raise ValueError(f"release: model '{laws.model.name}' declares release 'signorini', which scheme "
-                             "'projection' takes on its linear path with restitution 0 and a fixed obstacle only")
-        self.F_last = np.zeros(n)  # the nodal contact force of the last step, F^{n−1}
+            raise ValueError(f"release: model '{laws.model.name}' declares release 'signorini', which schemes "
+                             "'projection' and 'fitted' take on their linear path with restitution 0 and a fixed "
+                             "obstacle only")
+        self.account = ContactAccount(n)  # each node's contact dissipation: a rebound spends at most that (`release`)
         if nonlinear:
-            self.newton = NewtonStep(problem, PROJECTION, lower=self._lower(self.psi))
+            self.newton = NewtonStep(self._newton_problem(), self.QUOTIENTS, lower=self._lower(self.psi))
             self._check_fields_stiffness()
             self.energy_may_rise = True  # a nonlinear force in a non-dissipative step
         else:
@@ -161,7 +164,7 @@ class ProjectionScheme(_NewtonScheme):
     def _linear_operators(self, problem) -> None:
         """The linear path's constant operators, its contact step and its scratch vectors."""
         ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
-        A = diagonal_matrix(ops.M, ops.m / dt**2)
+        A = self._inertia_matrix()
         A.axpy(1.0 / dt, ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         dirichlet_rows(A, problem.bc)
         self.A_diagonal = A.getDiagonal().array.copy()
@@ -176,10 +179,39 @@ class ProjectionScheme(_NewtonScheme):
         self.R = np.zeros(n)  # A η − b of the latest iterate
         self.work = np.zeros((2, n))  # scratch rows for the energy terms
         self.has_load = bool(np.any(ops.load != 0))
+        self.release = MasslessRelease(self, A) if self.signorini else None
         if self.e:  # the weighted position z = (η^{n+1} + e η^{n−1})/(1 + e): its level and right-hand side
             self.z = _Level(comm, n)
             rhs_z = np.zeros(n)
             self.rhs_z = (petsc_vector(rhs_z, comm), rhs_z)
+
+    def _check_stability(self, nonlinear: bool) -> None:
+        """Refuse (one line) a Δt above the explicit elastic term's stable `dt_max`."""
+        problem = self.problem
+        self.dt_max = largest_stable_dt(problem.ops, problem.interior, krylov=problem.x.ndim == 2, dt=problem.dt)
+        self._check_dt(f"(its explicit elastic term, linearised at {problem.ops.linearised_at})" if nonlinear else
+                       "(its explicit elastic term; dt_max from the operators)")
+
+    def _newton_problem(self):
+        """The `DiscreteProblem` the Newton path is built on (its mass decides the inertia's lumping)."""
+        return self.problem
+
+    @property
+    def second_order_start(self) -> bool:
+        """Whether η^{−1} gets the second-order term (Δt²/2) a0 (`_start_correction`): under Signorini's release."""
+        return self.signorini
+
+    def _start_correction(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
+        """(Δt²/2) a0 on the free interior nodes, a0 = m⁻¹(b − Kη0 − Cv0) (`release.start_correction`)."""
+        return start_correction(self.problem, eta0, v0, self.psi, self.tol)
+
+    def _inertia_matrix(self) -> PETSc.Mat:
+        """The inertia operator over Δt², M/Δt²: the lumped mass's diagonal."""
+        return diagonal_matrix(self.problem.ops.M, self.problem.ops.m / self.problem.dt**2)
+
+    def _inertia(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """(M/Δt²) x into `out` (which may be x itself); returns `out`."""
+        return np.multiply(self.m_dt2, x, out=out)
 
     def _check_dt(self, why: str) -> None:
         """InstabilityError (one line) if Δt is above the stable `dt_max` of the explicit elastic term."""
@@ -252,7 +284,10 @@ class ProjectionScheme(_NewtonScheme):
         if self.moving:  # the obstacle where the reported level is, one step behind the computed one
             self.problem.obstacle.set((self.k - 1) * self.problem.dt)
         laws.set(eta=self.eta)
-        return self._contact_law.evaluate_env(laws.env)
+        touching = self._contact_law.evaluate_env(laws.env)
+        if self.e:  # the impact holds the weighted position z, not η: the nodes it pushes are in contact too
+            return np.asarray(touching, dtype=bool) | (self.contact_force > 0)
+        return touching
 
     def _obstacle_at(self, t: float) -> np.ndarray:
         """A moving obstacle's ψ(·, t) on the owned nodes, from the model's gap: −gap(0) with the fields at t."""
@@ -301,8 +336,8 @@ class ProjectionScheme(_NewtonScheme):
                           SceneWarning, stacklevel=4)
             ahead.eta[below] = self.psi[below]
         np.subtract(ahead.eta, problem.dt * v0, out=now.eta)
-        if self.signorini:  # + (Δt²/2) a0: the elastic force acts over the first half-cell only
-            now.eta += start_correction(problem, ahead.eta, v0, self.psi, self.tol)
+        if self.second_order_start:  # + (Δt²/2) a0: the elastic force acts over the first half-cell only
+            now.eta += self._start_correction(ahead.eta, v0)
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
         terms = self._start_linear(ahead, now) if self.newton is None else self._start_newton(ahead, now, v0)
@@ -315,7 +350,7 @@ class ProjectionScheme(_NewtonScheme):
         for level in (ahead, now):
             self.KC.mult(level.eta_vec, level.kc_vec)
         d = ahead.eta - now.eta
-        kin, el, self.energy_slack = self.allsum(0.5 * float(np.dot(d, self.m_dt2 * d)),
+        kin, el, self.energy_slack = self.allsum(0.5 * float(np.dot(d, self._inertia(d, np.empty_like(d)))),
                                                  0.5 * float(np.dot(ahead.eta, now.kc[0])),
                                                  0.25 * float(np.dot(d, ahead.kc[1] - now.kc[1])))
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -344,7 +379,7 @@ class ProjectionScheme(_NewtonScheme):
         """A η − b at the level's η (0 at the ends), with [K η, (C/Δt) η] left in the level for its energy."""
         def residual(eta):
             self.KC.mult(level.eta_vec, level.kc_vec)
-            np.multiply(self.m_dt2, eta, out=self.R)
+            self._inertia(eta, self.R)
             self.R += level.kc[1]
             self.R -= rhs
             self.R *= self.problem.interior
@@ -359,38 +394,33 @@ class ProjectionScheme(_NewtonScheme):
         # A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n − K η^n + b + F
         np.subtract(e0.eta, em.eta, out=rhs)
         rhs += e0.eta
-        rhs *= self.m_dt2
+        self._inertia(rhs, rhs)
         rhs += e0.kc[1]
         rhs -= e0.kc[0]
         if self.has_load:
             rhs += problem.ops.load
         problem.hold_ends(rhs)
-        carry = None
-        if self.signorini:  # ½F^{n−1} on the nodes resting since t_{n−2}: the first half of their cell
-            carry = carried_force(e0.eta, em.eta, self.levels[3].eta, self.psi, self.F_last, problem.interior, self.tol)
-            rhs += carry
         if self.contact_step.iterative:  # CG starts from the leapfrog's guess 2η^n − η^{n−1}
             np.subtract(e0.eta, em.eta, out=new.eta)
             new.eta += e0.eta
         obstacle_work = self._move() if self.moving else None
-        if self.e:
-            F = self._weighted_step(new, em, rhs)
+        if self.release is not None:  # the work booked is the momentum residual of the massless nodes too
+            F, booked = self.release.step(new, e0, em, rhs, self._residual(new, rhs))
+        elif self.e:
+            F = booked = self._weighted_step(new, em, rhs)
         else:
             F, _ = self.contact_step.solve(rhs_v, new.eta_vec, self._residual(new, rhs))
             np.maximum(F, 0.0, out=F)  # within the active set's round-off allowance
+            booked = F
         np.multiply(F, self.inv_mF, out=new.force)  # stored with the step's end
-        if carry is not None:  # the carried half is stored at t_n, where its node rests; F^n = C^n + G
-            e0.force += carry * self.inv_mF
-            F = F + carry
-            self.F_last[:] = F
         d, w = np.subtract(new.eta, e0.eta, out=self.work[0]), self.work[1]  # scratch rows: no temporaries
-        kin = 0.5 * float(np.dot(d, np.multiply(self.m_dt2, d, out=w)))
+        kin = 0.5 * float(np.dot(d, self._inertia(d, w)))
         el = 0.5 * float(np.dot(new.eta, e0.kc[0]))
         visc = 0.5 * float(np.dot(d, np.subtract(new.kc[1], em.kc[1], out=w)))  # (Δt/2) v¹·C(v¹ + v⁰), Δt v = η differences
         slack = 0.25 * float(np.dot(d, np.subtract(new.kc[1], e0.kc[1], out=w)))  # (Δt/4)|v¹|²_C
         d += e0.eta
         d -= em.eta  # now η^{n+1} − η^{n−1}
-        con = -0.5 * float(np.dot(F, d))
+        con = -0.5 * float(np.dot(booked, d))
         ext = 0.5 * float(np.dot(problem.ops.load, d)) if self.has_load else 0.0
         if obstacle_work is not None:  # the obstacle's share of F's work is external work, not contact dissipation
             work = obstacle_work(F)
@@ -405,10 +435,14 @@ class ProjectionScheme(_NewtonScheme):
             A z = (b + e A η^{n−1})/(1 + e) + G,   z ≥ ψ,   G ≥ 0,   G·(z − ψ) = 0,
 
         then η^{n+1} = (1 + e) z − e η^{n−1} and A η^{n+1} = b + F with F = (1 + e) G. `new` gets η^{n+1} and its
-        [K η, (C/Δt) η] (by linearity, from z's and η^{n−1}'s); `new.eta` holds the CG's first guess for η^{n+1}."""
+        [K η, (C/Δt) η] (by linearity, from z's and η^{n−1}'s); `new.eta` holds the CG's first guess for η^{n+1}.
+
+        A step that would take the contact dissipation as a whole below 0 (`release.ContactAccount.covers`) is solved
+        again with η^{n+1} ≥ min(ψ, η^{n−1}), whose work is ≤ 0, at the nodes the step's contact gives energy to (and at
+        any node that does so in the step solved again)."""
         e, z = self.e, self.z
         rhs_zv, rhs_z = self.rhs_z
-        np.multiply(self.m_dt2, em.eta, out=rhs_z)  # A η^{n−1} = (M/Δt²) η^{n−1} + (C/Δt) η^{n−1}
+        self._inertia(em.eta, rhs_z)  # A η^{n−1} = (M/Δt²) η^{n−1} + (C/Δt) η^{n−1}
         rhs_z += em.kc[1]
         rhs_z *= e
         rhs_z += rhs
@@ -418,15 +452,44 @@ class ProjectionScheme(_NewtonScheme):
             np.multiply(e, em.eta, out=z.eta)
             z.eta += new.eta
             z.eta /= 1.0 + e
-        G, _ = self.contact_step.solve(rhs_zv, z.eta_vec, self._residual(z, rhs_z))
-        np.maximum(G, 0.0, out=G)
-        np.multiply(1.0 + e, z.eta, out=new.eta)
-        new.eta -= e * em.eta
-        self.problem.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
+        guess, bound, settled = z.eta.copy(), None, np.zeros(z.eta.size, dtype=bool)
+        while True:
+            G, _ = self.contact_step.solve(rhs_zv, z.eta_vec, self._residual(z, rhs_z))
+            np.maximum(G, 0.0, out=G)
+            np.multiply(1.0 + e, z.eta, out=new.eta)
+            new.eta -= e * em.eta
+            self.problem.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
+            step = -0.5 * (1.0 + e) * G * (new.eta - em.eta)
+            deficit = self.account.deficit(step, self.allsum)
+            if deficit <= 0.0:  # the contact as a whole gives back no more than it took
+                break
+            giving = self._largest_gifts(np.where(settled, 0.0, step), deficit)  # η^{n+1} ≥ min(ψ, η^{n−1}) there
+            if not self.anysum(bool(giving.any())):
+                break
+            settled |= giving
+            bound = np.where(settled, (np.minimum(self.psi, em.eta) + e * em.eta) / (1.0 + e), self.psi)
+            self.contact_step.psi = bound
+            self.contact_step.moved()
+            z.eta[:] = guess
+        G *= 1.0 + e
+        if bound is not None:
+            self.contact_step.psi = self.psi
+            self.contact_step.moved()
+        self.account.book(step)
         np.multiply(1.0 + e, z.kc, out=new.kc)
         new.kc -= e * em.kc
-        G *= 1.0 + e
         return G
+
+    def _largest_gifts(self, step: np.ndarray, deficit: float) -> np.ndarray:
+        """The nodes whose steps give the most energy back (step < 0), the fewest whose gifts together exceed
+        `deficit` (over every rank)."""
+        gifts = -step[step < 0]
+        every = np.sort(np.concatenate(self.problem.comm.allgather(gifts)))[::-1] if self.problem.comm.size > 1 \
+            else np.sort(gifts)[::-1]
+        if not every.size:
+            return np.zeros(step.size, dtype=bool)
+        k = min(int(np.searchsorted(np.cumsum(every), deficit)), every.size - 1)
+        return -step >= every[k]
 
     def _advance_newton(self):
         """The Newton path's step: the VI G(u) ⊥ u − lower ≥ 0, the force the reaction on the active set."""
@@ -436,12 +499,23 @@ class ProjectionScheme(_NewtonScheme):
         obstacle_work = self._move() if self.moving else None
         newton.set_known(e0, em)
         lower = (1 + self.e) * self.psi - self.e * em if self.e else self.psi
-        if self.e:
-            newton.set_lower(self._lower(lower))
-        u = newton.solve(np.maximum(2 * e0 - em, np.where(problem.interior, lower, -np.inf)))
-        r = newton.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
-        active = problem.interior & (u <= lower + self.tol)
-        F = np.where(active, np.maximum(r, 0.0), 0.0)
+        while True:  # with e > 0, a node whose account the step would overdraw takes the bound min(ψ, η^{n−1})
+            if self.e:
+                newton.set_lower(self._lower(lower))
+            u = newton.solve(np.maximum(2 * e0 - em, np.where(problem.interior, lower, -np.inf)))
+            r = newton.last_residual(u)  # G(u) without the force: the reaction where u sits on its bound
+            active = problem.interior & (u <= lower + self.tol)
+            F = np.where(active, np.maximum(r, 0.0), 0.0)
+            step = -0.5 * F * (u - em)
+            deficit = self.account.deficit(step, self.allsum) if self.e else 0.0
+            if deficit <= 0.0:
+                break
+            open_ = lower != np.minimum(self.psi, em)  # not yet on the bound whose work is ≤ 0
+            giving = self._largest_gifts(np.where(open_, step, 0.0), deficit)
+            if not self.anysum(bool(giving.any())):
+                break
+            lower = np.where(giving, np.minimum(self.psi, em), lower)
+        self.account.book(step)
         delta = 0.5 * (u - em)
         work = obstacle_work(F) if obstacle_work is not None else 0.0  # the obstacle's share of F's work
         visc_vec = newton.viscous_force(u)

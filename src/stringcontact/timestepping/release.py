@@ -1,34 +1,56 @@
-"""Half-cell impulses for scheme `projection`: the second-order start and the held force carried into a release.
+"""Contact that gives energy back only out of what it took: each node's contact account, Signorini's release at a
+massless contact point, and the second-order start (schemes `projection` and `fitted`).
 
-The leapfrog's velocity jump at t_n, v^{n+1/2} − v^{n−1/2} = Δt m⁻¹(−Kη^n + b + F^n), is the impulse of the
-forces over the cell [t_n − Δt/2, t_n + Δt/2]. A force that begins or ends at t_n acts over half of that cell:
+**The account** (`ContactAccount`). The contact force does the work ½ F_i (η_i^{n+1} − η_i^{n−1}) on node i in a step;
+minus that is the node's contact dissipation, booked in the ledger's D_con. A node's account is the sum of its own
+contact dissipation so far. An inelastic landing only fills it (F ≥ 0, η^{n+1} = ψ ≤ η^{n−1}); a rule that gives
+energy back (a rebound with restitution e > 0, a release below) may spend it, never below 0. So every node's
+contact dissipation stays ≥ 0, the ledger's D_con ≥ 0 at every step, and E(t) ≤ E(0) + W_ext − D_visc: no scene gains
+energy through its contact.
 
-* **At t = 0** the elastic force begins: the first cell is [0, Δt/2], so v^{1/2} = v0 + (Δt/2) a0 with
-  a0 = m⁻¹(b − Kη0 − Cv0), that is η^{−1} = η0 − Δt v0 + (Δt²/2) a0 (`start_correction`), where the
-  first-order start η0 − Δt v0 applies a0 over the whole cell. A node that starts on the obstacle keeps the
-  first-order start: the contact force at t = 0 is not known.
-* **At a release** a node that rested on the obstacle at t_{n−2}, t_{n−1} and t_n was held over
-  [t_{n−1}, t_n] by F^{n−1}: the first half [t_n − Δt/2, t_n] of its cell still carries that force, and only
-  the second half is decided by the complementarity problem with the gap at t_{n+1}. So the step is
-  A η^{n+1} = b + C^n + G, G ≥ 0, G·(η^{n+1} − ψ) = 0 with C^n = ½F^{n−1} on the resting nodes
-  (`carried_force`) and F^n = C^n + G. While the node stays on the obstacle F^n is the same as without C^n
-  (the constraint fixes the total); when the free step lifts it off, it leaves with the half-cell impulse
-  of the force that held it, as a massless contact point of the elastic limit does. A node that landed in
-  the last two steps carries nothing: its F^{n−1} holds part of the landing impulse, and landings stay
-  exactly inelastic.
+**Signorini's release** (``Model.release = "signorini"``, `MasslessRelease`). The paper's (A4) makes a node that
+leaves the obstacle leave with the free step's velocity. At the massless contact point of an elastic rod (GetFEM's
+rod, docs/explanation/getfem.md) the point leaves with the wave that lifts it. Khenous, Laborde and Renard give such
+a point no mass (the singular mass method: the contact condition is then an algebraic one, with no impact law). Here
+a node **at rest on the obstacle** (η^n = η^{n−1} = ψ) is massless: its kinetic energy is 0, so taking its mass away
+costs nothing. Its row of the step is the elastic equilibrium instead of its momentum equation,
 
-This is the release of Signorini contact without the paper's (A4): the model opts in (``release =
-"signorini"``, `Model.release`). Under the paper's law (``"inelastic"``, the default) none of this runs.
+    K η^{n+1} + (C/Δt)(η^{n+1} − η^n) = b + F,      η^{n+1} ≥ ψ,  F ≥ 0,  F·(η^{n+1} − ψ) = 0      (its row only),
+
+so it stays while its neighbours press it down and leaves, at their equilibrium, as soon as they lift it. It stays
+massless after it leaves while its account can pay for the motion a mass would have: the step's contact work is the
+residual R_i of its momentum equation (what a mass would need), booked as contact dissipation −½ R_i (η_i^{n+1} − η_i^{n−1});
+once its account is spent (to round-off), or in the step that would overdraw it, the node moves with its mass again. A landing is unchanged (the node has its mass
+until it rests): landings stay inelastic, and a release gives back at most what the node's landings took.
+The stored contact force is the massless row's F (≥ 0, on the contact set only): R_i of a node in flight is no
+contact force, and is in the ledger only.
+
+**The second-order start** (`start_correction`): the elastic force begins at t = 0, so the first cell of the leapfrog
+is [0, Δt/2]: η^{−1} = η0 − Δt v0 + (Δt²/2) a0 with a0 = m⁻¹(b − Kη0 − Cv0), 0 at a node that starts on the obstacle.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
+from petsc4py import PETSc
 
-from .base import petsc_vector
+from .base import Ranks, petsc_vector
+from .complementarity import ActiveSet
 
-#: The model's `release` values: the paper's (A4), and Signorini contact with half-cell impulses.
+#: The model's `release` values: the paper's (A4), and Signorini contact at a massless contact point.
 RELEASES = ("inelastic", "signorini")
+
+#: Round-off an account may be overdrawn by, relative to the sizes booked: a release that gives back exactly what the
+#: landing took (the rod at Courant number 1) does so to round-off.
+ACCOUNT_ROUNDOFF = 1e-12
+
+#: What of an account's turnover counts as spent: a massless node in flight has its mass back then.
+SPENT = 1e-9
+
+#: Contact steps kept, one per massless set (a point contact alternates between two or three).
+KEPT_STEPS = 4
 
 
 def release_of(model) -> str:
@@ -51,13 +73,138 @@ def start_correction(problem, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray,
     return np.where(free, 0.5 * problem.dt**2 * a0, 0.0)
 
 
-def carried_force(eta_n, eta_nm1, eta_nm2, psi, F_last, interior, tol: float) -> np.ndarray:
-    """½F^{n−1} (nodal) on the interior nodes that rested on ψ (within `tol`) at the three levels and were pushed
-    (F^{n−1} > 0); 0 elsewhere."""
-    resting = interior & (F_last > 0.0)
-    for eta in (eta_n, eta_nm1, eta_nm2):
-        resting &= np.abs(eta - psi) <= tol
-    return np.where(resting, 0.5 * F_last, 0.0)
+class ContactAccount:
+    """Each node's contact dissipation so far (this rank's nodes): `overdrawn(step)` says where a step's
+    −½ F_i (η_i^{n+1} − η_i^{n−1}) would take it below 0 (beyond round-off), `book(step)` adds it."""
+
+    def __init__(self, n: int):
+        self.balance, self.turnover = np.zeros(n), np.zeros(n)
+
+    def overdrawn(self, step: np.ndarray) -> np.ndarray:
+        """Where adding `step` would take the account below 0 by more than round-off (`ACCOUNT_ROUNDOFF`)."""
+        return self.balance + step < -ACCOUNT_ROUNDOFF * (self.turnover + np.abs(step))
+
+    def deficit(self, step: np.ndarray, allsum) -> float:
+        """How far `step` would take the accounts together below 0, beyond round-off (≤ 0: they cover it); `allsum`
+        sums over the ranks."""
+        total, turnover, change = allsum(float(self.balance.sum()), float(self.turnover.sum()), float(step.sum()))
+        return -(total + change) - ACCOUNT_ROUNDOFF * (turnover + abs(change))
+
+    def spent(self) -> np.ndarray:
+        """Where the account holds no more than `SPENT` of what went through it (a release that gives back exactly
+        what the landing took leaves round-off of its size)."""
+        return self.balance <= SPENT * self.turnover
+
+    def book(self, step: np.ndarray) -> None:
+        """Add a step's contact dissipation, node by node."""
+        self.balance += step
+        self.turnover += np.abs(step)
 
 
-__all__ = ["RELEASES", "carried_force", "release_of", "start_correction"]
+class MasslessRelease:
+    """The linear path's contact step with the massless rows of Signorini's release (the module docstring).
+
+    `scheme` is the `projection.ProjectionScheme` (or a subclass) that owns it: its step matrix A, its operators, ψ, its
+    tolerances. ``step(new, e0, em, rhs, residual)`` solves the step into ``new.eta`` and returns (F, work): the stored
+    force (the contact step's, ≥ 0) and the force booked in the ledger (the momentum residual where a node is massless
+    or held). The contact step of each massless set is an `ActiveSet` on A with those rows replaced by K + C/Δt
+    (factorised once per set, the last `KEPT_STEPS` kept)."""
+
+    def __init__(self, scheme, A: PETSc.Mat):
+        problem = scheme.problem
+        self.scheme, self.problem, self.A = scheme, problem, A
+        self.B = problem.ops.K.copy()  # the massless row: K + C/Δt
+        self.B.axpy(1.0 / problem.dt, problem.ops.C, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.massless = np.zeros(problem.n_owned, dtype=bool)
+        self.neighbours, self.border = _neighbours(problem.ops.K, problem.n_owned)
+        self.account = ContactAccount(problem.n_owned)
+        self.steps: OrderedDict = OrderedDict()
+        self.ranks = Ranks(problem.comm)
+        self.rhs = np.zeros(problem.n_owned)
+        self.rhs_vec = petsc_vector(self.rhs, problem.comm)
+
+    def _contact_step(self, S: np.ndarray) -> ActiveSet:
+        """The `ActiveSet` of A with the rows of S replaced by K + C/Δt (made once per set); the scheme's own when S
+        is empty."""
+        if not self.ranks.any(bool(S.any())):
+            return self.scheme.contact_step
+        key = S.tobytes() if self.problem.comm.size == 1 else tuple(self.problem.comm.allgather(S.tobytes()))
+        if key not in self.steps:
+            problem, scheme = self.problem, self.scheme
+            ia, ja, a = self.A.getValuesCSR()
+            ib, jb, b = self.B.getValuesCSR()
+            values = a.copy()
+            for i in np.flatnonzero(S):
+                if not np.array_equal(ja[ia[i]:ia[i + 1]], jb[ib[i]:ib[i + 1]]):
+                    raise ValueError("release: the step and stiffness matrices differ in their sparsity")
+                values[ia[i]:ia[i + 1]] = b[ib[i]:ib[i + 1]]
+            A_S = self.A.duplicate(copy=True)
+            A_S.setValuesCSR(ia, ja, values)
+            A_S.assemble()
+            step = ActiveSet(A_S, problem.comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim,
+                             scheme.psi, problem.interior, force_tol=np.zeros(problem.n_owned))
+            diagonal = self.A.getDiagonal().array  # the force's round-off scales with the row's diagonal
+            step.force_tol = scheme.contact_step.force_tol * A_S.getDiagonal().array / np.maximum(diagonal, 1e-300)
+            self.steps[key] = step
+            while len(self.steps) > KEPT_STEPS:
+                self.steps.popitem(last=False)
+        self.steps.move_to_end(key)
+        return self.steps[key]
+
+    def step(self, new, e0, em, rhs: np.ndarray, residual) -> tuple[np.ndarray, np.ndarray]:
+        """η^{n+1} into ``new.eta`` from the levels `e0` (η^n) and `em` (η^{n−1}) and the step's right-hand side `rhs`;
+        `residual` is the scheme's momentum residual A η − b. Returns (the stored force, the force booked)."""
+        problem, scheme = self.problem, self.scheme
+        tol, psi = scheme.tol, scheme.psi
+        resting = problem.interior & (np.abs(e0.eta - psi) <= tol) & (np.abs(em.eta - psi) <= tol)
+        S = self._isolated((self.massless & ~self.account.spent()) | resting)
+        guess = new.eta.copy()
+        while True:
+            self.rhs[:] = rhs
+            self.rhs[S] = e0.kc[1][S] + problem.ops.load[S]  # the massless rows: (C/Δt) η^n + b
+            new.eta[:] = guess
+            F, _ = self._contact_step(S).solve(self.rhs_vec, new.eta_vec, self._massless_residual(new, S, residual))
+            np.maximum(F, 0.0, out=F)
+            R = residual(new.eta).copy()  # the momentum equations' residual: what the contact and the lost mass did
+            held = F > 0
+            work = np.where(S | held, R, 0.0)
+            step = -0.5 * work * (new.eta - em.eta)
+            over = S & self.account.overdrawn(step)
+            if not self.ranks.any(bool(over.any())):
+                break
+            S = S & ~over  # those nodes take their mass back for this step
+        self.account.book(step)
+        self.massless = S
+        return F, work
+
+    def _isolated(self, S: np.ndarray) -> np.ndarray:
+        """The nodes of S none of whose neighbours is in S (nor on another rank): a contact point, not a region."""
+        rows, neighbour = self.neighbours
+        crowded = np.zeros(S.size, dtype=bool)
+        crowded[rows[np.append(S, False)[neighbour]]] = True
+        return S & ~crowded & ~self.border
+
+    def _massless_residual(self, level, S: np.ndarray, residual):
+        """The contact step's residual: the momentum equations' (`residual`), the massless rows' on S."""
+        def massless(eta):
+            R = residual(eta)  # leaves [K η, (C/Δt) η] in the level
+            R[S] = level.kc[0][S] + level.kc[1][S] - self.rhs[S]
+            return R
+        return massless
+
+
+def _neighbours(K: PETSc.Mat, n: int) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """The owned nodes' neighbour pairs (row, neighbour) from K's off-diagonal entries, the neighbour as an owned index
+    (n for another rank's), and whether a node has a neighbour on another rank."""
+    ia, ja, _ = K.getValuesCSR()
+    rows = np.repeat(np.arange(ia.size - 1), np.diff(ia))
+    local = ja - K.getOwnershipRange()[0]
+    off = local != rows
+    rows, local = rows[off], local[off]
+    local = np.where((local >= 0) & (local < n), local, n)
+    border = np.zeros(n, dtype=bool)
+    border[rows[local == n]] = True
+    return (rows, local), border
+
+
+__all__ = ["ACCOUNT_ROUNDOFF", "RELEASES", "SPENT", "ContactAccount", "MasslessRelease", "release_of", "start_correction"]

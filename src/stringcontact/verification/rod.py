@@ -45,12 +45,43 @@ def string_exact(x, t: float, derivative: str = "u") -> np.ndarray:
     return rod_exact(np.abs(np.asarray(x, dtype=float) - CONTACT_POINT), t, derivative)
 
 
-def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD):
-    """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2), so the cell size is the rod's 1/nx_rod."""
-    return Scene.from_dict({
-        "name": f"getfem_rod_{nx_rod}", "length": 2.0, "T": T, "alpha": 0.0, "eps": eps, "nx": 2 * nx_rod, "dt": dt,
-        "description": "GetFEM's impacting rod mirrored into a string on (0, 2) over a point obstacle at x = 1",
-        "eta0": "0.5 - 0.5*abs(x - 1)", "v0": "0", "h": 0.0})
+def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD, variant: str = "rod"):
+    """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2), so the cell size is the rod's 1/nx_rod; round(T/Δt)
+    steps of Δt (the run ends at that multiple of Δt nearest T, as GetFEM's demo does). `variant` is one of `VARIANTS`:
+    GetFEM's rod (``"rod"``), or a scene that tests the contact's energy rules on the same string."""
+
+
+    nt = max(1, round(T / dt))
+    data = {
+        "name": f"getfem_{variant}_{nx_rod}",
+        "description": VARIANTS[variant],
+        "length": 2.0,
+        "T": nt * dt,
+        "nt": nt,
+        "alpha": 0.0,
+        "scheme": {"eps": eps},
+        "nx": 2 * nx_rod,
+        "eta0": "0.5 - 0.5*abs(x - 1)",
+        "v0": "0",
+        "h": 0.0,
+    }
+    return Scene.from_dict(data | _VARIANT_DATA[variant])
+
+
+#: The scenes `rod_scene` makes: GetFEM's rod, and three that test the contact's energy rules on the same string.
+VARIANTS = {
+    "rod": "GetFEM's impacting rod mirrored into a string on (0, 2) over a point obstacle at x = 1",
+    "gap": "the rod lifted 0.1234 above the obstacle's height: it lands at t = 1.2468, between the grid's steps",
+    "velocity": "the rod thrown at the obstacle: GetFEM's data with the initial velocity -0.3 (1 - |x - 1|)",
+    "pulse": "the string at rest at the obstacle's height, a narrow downward velocity pulse at x = 0.5 that runs into "
+             "the point and presses it",
+}
+_VARIANT_DATA = {
+    "rod": {},
+    "gap": {"h": 0.1234, "eta0": "0.1234 + 0.5 - 0.5*abs(x - 1)"},
+    "velocity": {"v0": "-0.3*(1 - abs(x - 1))"},
+    "pulse": {"eta0": "0", "v0": "-exp(-((x - 0.5)/0.05)**2)"},
+}
 
 
 #: How far below the string the obstacle is away from the point x = 1 (no node gets there).
@@ -112,5 +143,16 @@ def relative_velocity_error(x: np.ndarray, t: np.ndarray, v: np.ndarray, exact=s
     return float(np.sqrt(np.sum(p1_l2_norms(v - v_ex, h) ** 2) / np.sum(p1_l2_norms(v_ex, h) ** 2)))
 
 
-__all__ = ["CONTACT_POINT", "PERIOD", "ROD_ENERGY", "p1_l2_norms", "point_contact", "relative_error",
-           "relative_velocity_error", "rod_exact", "rod_scene", "string_exact"]
+__all__ = [
+    "CONTACT_POINT",
+    "PERIOD",
+    "ROD_ENERGY",
+    "VARIANTS",
+    "p1_l2_norms",
+    "point_contact",
+    "relative_error",
+    "relative_velocity_error",
+    "rod_exact",
+    "rod_scene",
+    "string_exact",
+]

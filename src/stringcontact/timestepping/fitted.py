@@ -1,0 +1,159 @@
+"""The ε-free scheme fitted to the Courant number: a blended mass, an implicit elastic term, contact as a complementarity
+problem.
+
+The step is `projection`'s with its lumped mass M_L replaced by an effective mass,
+
+    M_eff (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F,      M_eff = M_θ + β Δt² K,
+
+with the same contact step (A = M_eff/Δt² + C/Δt, η^{n+1} ≥ ψ, F ≥ 0, F·(η^{n+1} − ψ) = 0), restitution and release.
+Written out, β Δt² K (η^{n+1} − 2η^n + η^{n−1})/Δt² + K η^n = K (β η^{n+1} + (1 − 2β) η^n + β η^{n−1}): Newmark's
+β-average of the elastic term, here β = ¼ (the trapezoidal rule's), so the elastic term is implicit.
+
+**The blended mass.** M_θ = M_L − Σ_edges θ_ij m_ij (e_i − e_j)(e_i − e_j)ᵀ, with m_ij the consistent mass's
+off-diagonal entry: θ = 0 is the lumped mass, θ = 1 the consistent one, and every θ keeps the row sums (the total
+mass). On a uniform 1D mesh with Courant number ν = Δt/h the scheme's phase error for a wave kh is
+
+    ω_h/ω − 1 = (kh)² (θ − ½ − ν²)/12 + O((kh)⁴)      (β = ¼; the lumped leapfrog's is −(kh)² (1 − ν²)/24),
+
+so θ = ½ + ν² makes it fourth order at every Courant number. The scheme takes θ edge by edge from the edge's own
+Courant number, ν_ij² = Δt² |k_ij| / (6 m_ij) (exactly (Δt/h_e)², c²Δt²/h_e² with a density or tension, on any 1D
+mesh, uniform or not; on a triangle mesh the 1D rule edge by edge, `blended_mass`) up to the bound that keeps each
+element's M_θ positive definite (`THETA_BOUND`: θ < 3/2 on an interval, reached at ν = 1; 4/3 on a triangle), and
+beyond it θ = ½ + c²/ν² (c = the bound − ½), which falls back towards ½. On a 1D mesh at ν = 1 the effective mass is
+M_L: the lumped leapfrog, exact at Courant number 1.
+
+**Stability.** The energy identity is `projection`'s with M_eff: E^{n+1/2} = ½|v^{n+1}|²_{M_eff} + ½ η^{n+1}·K η^n
+= ½|v^{n+1}|²_{M_θ} + ½|η^{n+½}|²_K (β = ¼, η^{n+½} the mean of the two levels), positive for every Δt since M_θ is
+positive definite (semi-definite only where an edge's ν² is exactly c, as the leapfrog at its Δt_max): no Δt_max. The stiff string (its bending term in a second field, the Newton path) has no stable-Δt
+bound under this scheme (`projection` needs Δt ≤ 1.1e-4 at nx = 200 and β = 1e-3).
+
+**The start** is of second order, η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 with M_eff a0 = b − K η^0 − C v0 (0 at the nodes on
+the obstacle): the first-order start leaves an error of order Δt at a kink of the data.
+
+A nonlinear model (and a model with several fields) takes the Newton path with the quotients `FITTED`: the lumped
+mass (θ = 0) and the elastic term at the β-average, β = ¼; the blend is the linear path's only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import projection
+from .base import PETSC_OPTIONS, RESTITUTION, mass_option, petsc_vector
+from .linear import Linear, dirichlet_rows
+
+#: Newmark's β of the elastic term: ¼, the least that makes the energy positive whatever Δt.
+BETA = 0.25
+#: The blend θ at which an element's M_θ stops being positive definite, by the cell's dimension (an interval's element
+#: matrix (h/6)[[3 − θ, θ], [θ, 3 − θ]] has the eigenvalue (h/6)(3 − 2θ); a triangle's (A/12)(4 − 3θ) at the worst).
+THETA_BOUND = {1: 1.5, 2: 4.0 / 3.0}
+
+#: The Newton path's difference quotients: the elastic term at the β-average, the other fields implicit.
+FITTED = {
+    "eta": lambda u, e0, em, v0, dt: BETA * u + (1 - 2 * BETA) * e0 + BETA * em,
+    "fields": lambda u, e0, em, v0, dt: u,
+    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
+    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
+}
+
+
+def blended_mass(M: PETSc.Mat, K: PETSc.Mat, m: np.ndarray, dt: float, dim: int) -> tuple[PETSc.Mat, np.ndarray]:
+    """M_θ: the consistent mass `M` with each off-diagonal entry m_ij scaled by θ_ij = ½ + min(ν_ij², c²/ν_ij²), ν_ij² =
+    Δt² max(−k_ij, 0)/(6 m_ij) the edge's Courant number squared and c = `THETA_BOUND` − ½ (so θ reaches the bound only
+    at ν_ij² = c), and the diagonal m_i − Σ_j θ_ij m_ij, so that the row sums stay the lumped mass `m`. Returns M_θ and
+    the θ of this rank's off-diagonal entries."""
+    ia, ja, mv = M.getValuesCSR()
+    ib, jb, kv = K.getValuesCSR()
+    if not (np.array_equal(ia, ib) and np.array_equal(ja, jb)):
+        raise ValueError("scheme 'fitted' needs the mass and stiffness matrices on one sparsity pattern")
+    rows = np.repeat(np.arange(ia.size - 1), np.diff(ia)) + M.getOwnershipRange()[0]
+    off = ja != rows
+    courant2 = np.divide(dt**2 * np.maximum(-kv, 0.0), 6.0 * mv, out=np.zeros_like(mv), where=mv > 0)
+    reach = THETA_BOUND.get(dim, 1.0) - 0.5  # θ = ½ + min(ν², c²/ν²): ½ + ν² up to the bound, then back down
+    fitted = 0.5 + np.minimum(courant2, np.divide(reach**2, courant2, out=np.full_like(mv, np.inf), where=courant2 > 0))
+    theta = np.where(off & (mv > 0), fitted, 0.0)
+    values = theta * mv
+    diagonal = m - np.add.reduceat(values, ia[:-1]) if values.size else m
+    values[~off] = diagonal[rows[~off] - M.getOwnershipRange()[0]]
+    M_theta = M.duplicate(copy=True)
+    M_theta.setValuesCSR(ia, ja, values)
+    M_theta.assemble()
+    return M_theta, theta[off]
+
+
+class FittedScheme(projection.ProjectionScheme):
+    """`projection` with the effective mass M_θ + ¼Δt²K (the module docstring): its contact step, restitution and
+    release, no Δt_max, a second-order start."""
+
+    DESCRIPTION = ("blended mass fitted to the Courant number, implicit elastic term (the trapezoidal average), "
+                   "contact as a complementarity problem (no eps)")
+    OPTIONS = (mass_option("blended"), RESTITUTION, PETSC_OPTIONS)
+    QUOTIENTS = FITTED
+    remedy = "use a smaller dt"
+    second_order_start = True  # the module docstring
+
+    def _check_stability(self, nonlinear: bool) -> None:
+        self.dt_max = math.inf  # the energy is positive for every Δt (the module docstring)
+
+    def _check_fields_stiffness(self) -> None:
+        return None
+
+    def _newton_problem(self):
+        return dataclasses.replace(self.problem, mass="lumped")
+
+    def _inertia_matrix(self) -> PETSc.Mat:
+        """(M_θ + ¼Δt²K)/Δt², kept for the products (`_inertia`); the theta range for `timings`."""
+        problem = self.problem
+        ops, dt = problem.ops, problem.dt
+        M_theta, theta = blended_mass(ops.M, ops.K, ops.m, dt, problem.x.ndim)
+        M_theta.axpy(BETA * dt**2, ops.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        M_theta.scale(1.0 / dt**2)
+        self.inertia_matrix = M_theta
+        lo, hi = (float(f(theta, initial=v)) for f, v in ((np.min, np.inf), (np.max, -np.inf)))
+        lo, hi = problem.comm.allreduce(lo, op=MPI.MIN), problem.comm.allreduce(hi, op=MPI.MAX)
+        self.theta_range = (lo, hi) if math.isfinite(lo) else (0.0, 0.0)
+        n = problem.n_owned
+        self._x, self._y = np.zeros(n), np.zeros(n)
+        self._xv, self._yv = petsc_vector(self._x, problem.comm), petsc_vector(self._y, problem.comm)
+        return M_theta.copy()
+
+    def _inertia(self, x: np.ndarray, out: np.ndarray) -> np.ndarray:
+        self._x[:] = x
+        self.inertia_matrix.mult(self._xv, self._yv)
+        out[:] = self._y
+        return out
+
+    @property
+    def timings(self):
+        """projection's counters, and the range of the blend θ on the linear path."""
+        found = super().timings
+        if self.newton is None:
+            found = {**found, "blend": "theta in [{:.3g}, {:.3g}]".format(*self.theta_range)}
+        return found
+
+    def _start_correction(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
+        """(Δt²/2) a0 with M_eff a0 = b − Kη0 − Cv0 at the interior nodes, 0 where η0 is on the obstacle."""
+        problem = self.problem
+        if self.newton is not None:
+            return super()._start_correction(eta0, v0)
+        ops, comm, n = problem.ops, problem.comm, problem.n_owned
+        k_eta, c_v = np.zeros(n), np.zeros(n)
+        ops.K.mult(petsc_vector(np.array(eta0, dtype=float), comm), petsc_vector(k_eta, comm))
+        ops.C.mult(petsc_vector(np.array(v0, dtype=float), comm), petsc_vector(c_v, comm))
+        rhs = np.where(problem.interior, ops.load - k_eta - c_v, 0.0)
+        M_eff = self.inertia_matrix.copy()
+        M_eff.scale(problem.dt**2)
+        dirichlet_rows(M_eff, problem.bc)
+        a0 = np.zeros(n)
+        Linear(M_eff, comm, problem.petsc_options, problem.bc, np.zeros(problem.bc.size), problem.x.ndim).solve(
+            petsc_vector(rhs, comm), petsc_vector(a0, comm))
+        free = problem.interior & (eta0 > self.psi + self.tol)
+        return np.where(free, 0.5 * problem.dt**2 * a0, 0.0)
+
+
+__all__ = ["BETA", "FITTED", "THETA_BOUND", "FittedScheme", "blended_mass"]
