@@ -137,7 +137,7 @@ def test_the_checker_catches_an_upward_and_a_private_import():
     assert violations(cli, "from ..run.driver import simulate\n") == []
 
 
-CORE = ("scene", "fem", "timestepping", "io", "plot", "run")
+CORE = ("scene", "fem", "timestepping", "core", "io", "plot", "run")
 
 
 def _declared_words() -> dict[str, str]:
