@@ -1,5 +1,4 @@
-"""What a simulation returns: per-node arrays at the stored times, ordered by x, on rank 0 (every rank with
-``simulate(gather="all")``), and the per-time series on every rank."""
+"""What a simulation returns (`Result`): per-node arrays at the stored times and the per-time series."""
 
 from __future__ import annotations
 
@@ -10,19 +9,11 @@ from functools import cached_property
 import numpy as np
 
 
-ENERGY_KEYS = (
-    "kinetic",
-    "elastic",
-    "viscous_dissipation",
-    "contact_dissipation",
-    "numerical_dissipation",
-    "external_work",
-)
+ENERGY_KEYS = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "numerical_dissipation", "external_work")
 #: The fields stored at each node and stored time (the XDMF's attributes, in this order).
 FIELDS = ("eta", "velocity", "contact", "contact_force")
-#: The XDMF field written after `FIELDS` when the scene's obstacle moves (`Scene.obstacle_moves`): ψ at the
-#: nodes at each frame's time. An obstacle at rest is not written (view.py draws it), so such runs keep the
-#: layout of `FIELDS` alone; the gap η − ψ is one Calculator away in ParaView.
+#: The XDMF field written after `FIELDS` when the scene's obstacle moves: ψ at the nodes at each frame's time (an
+#: obstacle at rest is not written: view.py draws it).
 OBSTACLE_FIELD = "obstacle"
 #: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks. `fields`
 #: holds the model's output fields (`Model.outputs`) by name.
@@ -63,51 +54,21 @@ class RowsElsewhere(AttributeError):
 
 @dataclass(eq=False, repr=False)
 class Result:
-    """Stored rows of one run.
+    """The stored rows of one run, ordered by x (2D: by x, then y), and its per-time series.
 
-    Under MPI the per-node arrays (`PER_NODE`: x, eta, velocity, contact, contact_force, weights, cells)
-    are gathered to rank 0 only (`simulate(gather="root")`, the default): on the other ranks `has_rows` is
-    False, they are None, and reading one raises `RowsElsewhere` (an AttributeError) that says so, rather
-    than give numbers of part of the mesh. The per-time series are the same on every rank: t, steps,
-    energy, min_eta, min_gap, status, message, and `series` (computed in parallel at each stored time):
-    "contact_measure", "max_speed" (max `|v|`) and "depth" (max of obstacle − η; the obstacle is 0 unless
-    the scene gives one), which `contact_measure` and `run.checks.penetration_check` use where the rows are
-    absent. `simulate(gather="all")` gives every rank the rows.
+    Under MPI the per-node arrays (`PER_NODE`) are gathered to rank 0 only (`simulate(gather="root")`): elsewhere
+    `has_rows` is False and reading one raises `RowsElsewhere`. The per-time series are the same on every rank: t,
+    steps, energy, min_eta, min_gap, status, message, and `series` ("contact_measure", "max_speed", "depth").
 
-    `min_gap` is the least gap η − ψ to the obstacle ψ over every node and every step (not only the stored ones),
-    ψ at each step's time when the obstacle moves: below 0 the string is below the obstacle, −min_gap deep. `min_eta`
-    is the least height η itself over the same nodes and steps (at t = 0 the interior nodes only): the two are one
-    number under the paper's flat obstacle ψ = 0, and differ under a raised or moving one (a string draped over a
-    bump of top 0.2 has min_eta −0.095 where min_gap is −0.009). `stored_min_gap` gives the gap at each stored time.
-
-    `contact` is η ≤ ψ (on or below the obstacle); the penalty acts where η < ψ.
-    `contact_force` at t_n is a contact force density (per unit length or area): ≥ 0, and 0 off the contact
-    set at t_n, under every scheme. `projection`: the multiplier of the step that ends at t_n (its contact
-    step is a complementarity problem); `paper` with the explicit penalty: the paper's F(η^n, v^n), which
-    the next step applies; the semi-implicit penalties (`paper`, `newmark`): the force of the step that
-    ends at t_n, −d v^n on its active set.
-    `energy` holds (k,) arrays; the dissipations and the external work are cumulative from t=0.
-    `numerical_dissipation` (D_num) is what the scheme's own discrete energy identity holds besides the physical
-    terms, so that E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off (run/ledger.py sums the terms each
-    scheme reports). Every scheme books the contact dissipation as the work of the applied nodal contact force f with
-    the step's mean velocity, ΔD_con = −(Δt/2) f·(v^n + v^{n+1}); the rest of the force's work is D_num's. For `paper`:
-
-        ΔD_num = ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n)   per step,
-
-    the implicit Euler's two squares (≥ 0) and the force's work with the velocity's jump, which has either sign: the
-    explicit penalty's f = m_F∘F(η^n, v^n) brakes a node whose velocity then rises (v^{n+1} > v^n, f > 0), and that
-    term is negative. `newmark` and `projection` on a linear model book no D_num; the Newton paths (a nonlinear
-    model) book what the step's energy change leaves after the physical terms, of either sign. So D_num can be
-    negative (Example 1: −4.1 of E(0) = 1311): it is the scheme's time error in energy terms, O(Δt), not a
-    dissipation of a definite sign; the run's report flags it when it is a large share of the energy
-    (`run.checks.NUMERICAL_SHARE`).
-    `fields` holds the model's output fields by name (`Model.outputs`: its further unknowns and derived fields;
-    ``result.fields["reaction"]`` of a model that declares a field ``reaction``), (k, nodes) arrays like `eta`; `field_info` says how each is shown (`OutputField.metadata`: label, unit, colours, scale).
-    `parameters` holds the model's constants as the run used them (the scene's ``[parameters]`` and the
-    defaults; a `Stepper` that changed one: the values at the end). `timings` holds seconds (set-up, the time
-    steps, output, pictures), `counters` the schemes' counts (refactorisations, Newton iterations, Jacobian
-    assemblies, linear solves) and `solver` what solved the steps, in words (linear solver, nonlinear solver,
-    contact step).
+    `min_gap` is the least gap η − ψ over every node and step (ψ at each step's time when the obstacle moves; below 0
+    the string is −min_gap below it); `min_eta` the least height η over the same (at t = 0 the interior nodes):
+    one number under the flat obstacle ψ = 0. `contact` is η ≤ ψ; `contact_force` is the contact force density at
+    t_n, ≥ 0 and 0 off the contact set under every scheme. `energy` holds (k,) arrays, the dissipations and the
+    external work cumulative from t = 0: E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off, where
+    D_num is what the scheme's own discrete energy identity holds besides the physical terms, of either sign
+    (docs/explanation/reliability.md). `fields` holds the model's output fields by name, (k, nodes) like `eta`, and
+    `field_info` how each is shown; `parameters` the model's constants as used; `timings` seconds, `counters` the
+    schemes' counts, `solver` what solved the steps, in words.
     """
 
     scene: object
@@ -141,7 +102,7 @@ class Result:
     counters: dict = field(default_factory=dict)  # the schemes' counts: "refactorisations", "newton iterations", ...
     solver: dict = field(default_factory=dict)  # what solved the steps, in words: "linear solver", "contact step", ...
     petsc_options: dict = field(default_factory=dict)  # the options the solver was given: the model's, then the user's
-    min_gap: float = math.nan  # min over every node and step of η − ψ (see above); nan: not known (an old folder)
+    min_gap: float = math.nan  # min over every node and step of η − ψ (see above); nan: not known
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):
