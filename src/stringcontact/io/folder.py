@@ -29,6 +29,7 @@ from .signals import signals_held
 from .tables import ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows
 from .xdmf import XdmfTimeSeries, mesh_arrays
 
+
 def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
     """Which stored rows become XDMF frames (a mask): at most `max_frames` (at least 2); the first and the last
     always, then the rows at `keep_steps` (the scene's output times, evenly thinned if they do not fit, with a

@@ -8,7 +8,6 @@ from functools import cached_property
 
 import numpy as np
 
-
 ENERGY_KEYS = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "numerical_dissipation", "external_work")
 #: The fields stored at each node and stored time (the XDMF's attributes, in this order).
 FIELDS = ("eta", "velocity", "contact", "contact_force")
