@@ -168,7 +168,7 @@ def main(argv=None) -> int:
             code = getattr(exc, "exit_code", EXIT_INTERRUPTED)
     if own:
         process.end_together(code)
-        gc.freeze()  # the exit's collection of dolfinx's, UFL's and matplotlib's objects: 0.18 s, 0.05 s without (bench_run.py --against-src)
+        gc.freeze()  # no last collection of dolfinx's objects: 3.56, not 3.77 CPU-s a run (bench_run.py --against-src)
     return code
 
 

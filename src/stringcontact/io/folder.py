@@ -1,9 +1,7 @@
-"""A run's output folder: `OutputWriter` streams the stored rows into `solution.xdmf`/`.h5` during the run and
-writes the tables, `view.py` and the pictures at the end, in a hidden folder that `publish` locks, checks and
-renames into place. Each frame is written with the stop signals held back, so the XDMF holds whole time levels,
-and it is closed and read back before the rename. A failing device (in a picture too) removes the folder and
-raises :class:`OutputError` with one line, on every MPI rank. No physics and no pictures of its own: the run's
-checks come with the `Result`, the pictures from the function the caller passes.
+"""A run's output folder (`OutputWriter`): the stored rows streamed into `solution.xdmf`/`.h5` during the run, each
+frame with the stop signals held back (whole time levels); at the end the tables, `view.py` and the pictures (the
+function the caller passes: no picture code here), in a hidden folder that `publish` renames into place once the
+XDMF is closed and read back. A failing device removes the folder: one line (`OutputError`) on every MPI rank.
 """
 
 from __future__ import annotations
@@ -31,9 +29,8 @@ from .xdmf import XdmfTimeSeries, mesh_arrays
 
 
 def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
-    """Which stored rows become XDMF frames (a mask): at most `max_frames` (at least 2); the first and the last
-    always, then the rows at `keep_steps` (the scene's output times, evenly thinned if they do not fit, with a
-    warning), then evenly spaced rows. The Result and diagnostics.csv keep every stored row."""
+    """Which stored rows become XDMF frames (a mask), at most `max_frames` (at least 2): the first and the last, the
+    rows at `keep_steps` (the output times; evenly thinned, with a warning, if they do not fit), evenly spaced rows."""
     steps = np.asarray(steps)
     mask = np.zeros(steps.size, dtype=bool)
     if not steps.size:
@@ -60,8 +57,7 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
 
 
 def in_python_terms(message: str) -> str:
-    """An output folder's refusal as a Python caller (`run.options.Output`) says it: ``Output(..., force=True)`` for
-    ``--force``, "output folder X" for ``--out X``. The command line checks its --out itself first, in its words."""
+    """An output folder's refusal in a Python caller's (`run.options.Output`) terms, not the command line's."""
     for cli, python in (("pass --force to replace it", "pass Output(..., force=True) to replace it"),
                         ("--force replaces only", "Output(force=True) replaces only"), ("--out ", "output folder ")):
         message = message.replace(cli, python)
@@ -69,13 +65,10 @@ def in_python_terms(message: str) -> str:
 
 
 class OutputWriter:
-    """Streams the stored rows to XDMF during the run and writes the tables at the end.
-
-    The solver calls ``write(t, fields)`` at each stored time, then ``finish(result)`` or, on InstabilityError or
-    KeyboardInterrupt, ``abort(status, message[, result])``; ``discard()`` after an unexpected error. `frames`: which
-    stored rows are XDMF frames (`xdmf_frames`); `pictures`: None or a function (result, folder). `path` is where
-    the folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
-    """
+    """The solver calls ``write(t, fields)`` at each stored time, then ``finish(result)``, or ``abort(status,
+    message[, result])`` on InstabilityError or KeyboardInterrupt, ``discard()`` on an unexpected error. `frames`:
+    which stored rows are XDMF frames (`xdmf_frames`); `pictures`: None or a function (result, folder). `path`: where
+    the folder ended up (the target, or ``NAME.interrupted``, ... beside an existing result)."""
 
     def __init__(self, path, scene, V, comm, force: bool = False, pictures=None, frames=None):
         self.comm, self.scene, self.force, self.pictures = comm, scene, force, pictures
@@ -103,8 +96,8 @@ class OutputWriter:
             raise
 
     def write(self, t: float, fields: dict) -> None:
-        """One stored row: all its fields as one XDMF frame, or (interrupted) none of them. A row that is not among
-        `frames` is kept instead (copied), so that a run that stops there still ends its XDMF with it."""
+        """One stored row: all its fields as one XDMF frame, or none; a row not among `frames` is kept (copied) instead,
+        so that a run that stops there still ends its XDMF with it."""
         row, self._row = self._row, self._row + 1
         if self.frames is not None and row < self.frames.size and not self.frames[row]:
             self._kept = (t, {name: np.array(values, dtype=float) for name, values in fields.items()})
@@ -126,9 +119,8 @@ class OutputWriter:
         self.write_time += time.perf_counter() - t0
 
     def finish(self, result) -> None:
-        """Close the XDMF, write the tables, view.py, the pictures and summary.json, and rename the folder into place
-        (its status the result's: "unbalanced" is kept, never "complete"). A write that fails on the device, in a
-        picture too, removes the folder and raises OutputError on every rank."""
+        """Close the XDMF, write the tables, view.py, the pictures and summary.json (the result's status: "unbalanced"
+        is never "complete"), rename the folder into place; a failing device removes it (OutputError, every rank)."""
         try:
             self._close_xdmf()
             summary = summary_dict(result)
@@ -159,9 +151,8 @@ class OutputWriter:
             self._fail("cannot write the output files", exc)
 
     def abort(self, status: str, message: str, result=None, error=None) -> None:
-        """Keep what was written so far, marked `status` ("interrupted" or "unstable"). `result`: the rows stored so
-        far (diagnostics.csv, the energy balance); `error` (default: the exception being handled): an
-        InstabilityError's step, time and r. Never raises an I/O error: the caller is handling the run's own."""
+        """Keep what was written, marked `status` ("interrupted", "unstable"), with `result`'s rows so far and `error`'s
+        (default: the exception being handled) step, time and r; never raises: the caller handles the run's own."""
         if self.partial is None and self.xdmf is None:
             return  # already finished, failed or aborted
         error = error if error is not None else sys.exc_info()[1]
@@ -189,8 +180,7 @@ class OutputWriter:
         self._discard()
 
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
-        """Rank 0: diagnostics.csv, rows.npz (what `plot` redraws from), view.py and the pictures; a picture that
-        fails on the device raises (`disk_failure`), any other only warns: the data are kept."""
+        """Rank 0: diagnostics.csv, rows.npz, view.py and the pictures (failing on the device: raised, else a warning)."""
         write_diagnostics(self.partial / "diagnostics.csv", result)
         write_rows(self.partial / ROWS_FILE, result)
         write_view(result, self.partial, target=self.target)
@@ -217,8 +207,7 @@ class OutputWriter:
             self.xdmf = None
 
     def _publish(self, summary: dict) -> None:
-        """Check the XDMF's frames, write summary.json and rename the partial folder into place (`publish_partial`),
-        the stop signals held throughout: the folder is either still partial or fully in place."""
+        """Check the XDMF's frames, write summary.json and publish the folder, the stop signals held throughout."""
         status = summary.get("status") or "complete"
         failure = dest = None
         with signals_held():

@@ -1,9 +1,7 @@
 """`Hdf5File`: flat datasets written through the libhdf5 that dolfinx and PETSc loaded, by ctypes (sec2 driver).
-
-Hand-written, measured on bookworm (docs/explanation/visualisation.md, benchmarks/bench_xdmf.py): h5py's wheel
-brings a second libhdf5, and ``import h5py`` after dolfinx fails ("Not a datatype"); PETSc's HDF5 viewer fsyncs
-after every dataset through MPI-IO (412 fsyncs for ``run example1``, 9 with this); dolfinx's `XDMFFile` writes one
-grid per function and rewrites its XML every frame. The signatures are HDF5 1.10's and 1.14's alike.
+Hand-written (docs/explanation/visualisation.md): ``import h5py`` after dolfinx fails (its wheel's second libhdf5:
+"Not a datatype"), PETSc's HDF5 viewer fsyncs every dataset (412 fsyncs for ``run example1``, 9 with this;
+`benchmarks/bench_xdmf.py`), dolfinx's `XDMFFile` writes a grid per function and its XML anew every frame.
 """
 
 from __future__ import annotations
@@ -75,14 +73,12 @@ def _silence_exit() -> None:
 
 
 class Hdf5File:
-    """A new HDF5 file of flat datasets at `path`, in PETSc's HDF5 viewer's layout (one chunk of the whole dataset,
-    allocated at creation; tests/io/test_xdmf.py compares them). `flush` hands data and metadata to the OS without
-    an fsync: a reader sees a well-formed file after it; the folder is fsynced once, when published. Every call is
-    checked: OSError with the errno of the failed system call (ENOSPC on a full disk), else RuntimeError naming the
-    HDF5 function; HDF5 prints no error stack meanwhile (the caller reports one line)."""
+    """A new HDF5 file at `path` in PETSc's HDF5 viewer's layout (tests/io/test_xdmf.py compares them). Every call
+    checked: OSError with the failed system call's errno (ENOSPC on a full disk), else RuntimeError naming the HDF5
+    function; HDF5 prints no error stack meanwhile (the caller reports one line)."""
 
     def __init__(self, path):
-        self.path, self.lib, self.id, self.layouts, self.reserved = Path(path), hdf5_library(), None, {}, 0
+        self.path, self.lib, self.id, self.reserved = Path(path), hdf5_library(), None, 0
         if self.lib is None:
             raise RuntimeError(f"{self.path.name}: the libhdf5 that dolfinx loaded was not found")
         self._call("H5open")  # sets the globals read below
@@ -127,32 +123,30 @@ class Hdf5File:
             raise RuntimeError(f"HDF5's {name} failed on {self.path}")
         return value
 
-    def _layout(self, shape: tuple) -> tuple[int, int]:
-        """The dataspace and creation properties of a dataset of `shape`, made once."""
-        if shape not in self.layouts:
-            dims = (ctypes.c_uint64 * len(shape))(*shape)
-            self.layouts[shape] = (self._call("H5Screate_simple", len(shape), dims, None), H5P_DEFAULT)
-            dcpl = self._call("H5Pcreate", self._global("H5P_CLS_DATASET_CREATE_ID_g"))
-            self.layouts[shape] = (self.layouts[shape][0], dcpl)
-            self._call("H5Pset_chunk", dcpl, len(shape), dims)
-            self._call("H5Pset_alloc_time", dcpl, H5D_ALLOC_TIME_EARLY)
-        return self.layouts[shape]
-
     def write(self, name: str, array: np.ndarray) -> None:
-        """The dataset `/name`: `array`'s shape and values."""
-        array = np.ascontiguousarray(array)
-        space, dcpl = self._layout(array.shape)
-        dtype = self.types[array.dtype]
-        dataset = self._call("H5Dcreate2", self.id, name.encode(), dtype, space, H5P_DEFAULT, dcpl, H5P_DEFAULT)
+        """The dataset `/name`: `array`'s shape and values (one chunk of the whole, allocated at creation)."""
+        array, dtype = np.ascontiguousarray(array), self.types[np.dtype(array.dtype)]
+        dims = (ctypes.c_uint64 * array.ndim)(*array.shape)
+        space = self._call("H5Screate_simple", array.ndim, dims, None)
+        try:
+            dcpl = self._call("H5Pcreate", self._global("H5P_CLS_DATASET_CREATE_ID_g"))
+            try:
+                self._call("H5Pset_chunk", dcpl, array.ndim, dims)
+                self._call("H5Pset_alloc_time", dcpl, H5D_ALLOC_TIME_EARLY)
+                dataset = self._call("H5Dcreate2", self.id, name.encode(), dtype, space, H5P_DEFAULT, dcpl, H5P_DEFAULT)
+            finally:
+                self.lib.H5Pclose(dcpl)
+        finally:
+            self.lib.H5Sclose(space)
         try:
             self._call("H5Dwrite", dataset, dtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, array.ctypes.data)
         finally:
             self._call("H5Dclose", dataset)
 
     def _reserve(self) -> None:
-        """Allocate the file's blocks up to HDF5's end of allocation before a flush, so that a full disk fails here
-        with the file still closable: libhdf5 1.10.8 cannot flush again after a failed flush and crashed at exit
-        (SIGSEGV in H5F__close_cb) for 148 of 249 disk sizes (tests/io/test_xdmf.py, the room check off)."""
+        """Allocate the blocks up to HDF5's end of allocation before a flush, so that a full disk fails here, the file
+        still closable: libhdf5 1.10.8 cannot flush again after a failed flush, and crashed at exit (SIGSEGV) for 148
+        of 249 disk sizes (tests/io/test_xdmf.py, the room check off)."""
         eoa = ctypes.c_uint64()
         self._call("H5Fget_eoa", self.id, ctypes.byref(eoa))
         if self.reserved is not None and eoa.value > self.reserved:
@@ -166,7 +160,8 @@ class Hdf5File:
             self.reserved = eoa.value
 
     def flush(self) -> None:
-        """Everything written so far to the OS (no fsync)."""
+        """Everything written so far to the OS, no fsync (the folder is fsynced once, when published): a reader sees a
+        well-formed file."""
         self._reserve()
         self._call("H5Fflush", self.id, H5F_SCOPE_LOCAL)
 
@@ -176,7 +171,6 @@ class Hdf5File:
             self._reserve()
             self._call("H5Fclose", self.id)
             self.id = None
-        self._release_layouts()
 
     def discard(self) -> None:
         """Close a file about to be removed, whatever room is left: its descriptor is pointed at a file in memory
@@ -189,11 +183,3 @@ class Hdf5File:
             with contextlib.suppress(OSError, RuntimeError):
                 self._call("H5Fclose", self.id)
             self.id = None
-        self._release_layouts()
-
-    def _release_layouts(self) -> None:
-        for space, dcpl in self.layouts.values():
-            self.lib.H5Sclose(space)
-            if dcpl != H5P_DEFAULT:
-                self.lib.H5Pclose(dcpl)
-        self.layouts = {}

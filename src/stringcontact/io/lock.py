@@ -1,9 +1,7 @@
-"""The output folder's lock ``.NAME.lock`` beside it: filelock's `FileLock` (an ``flock``, tried once, no soft-lock
-fall-back), its file holding the holder's pid and command (a refusal names them), removed on release.
-
-filelock 4.2.12 opens the file with O_NOFOLLOW (a planted link: ELOOP), O_NONBLOCK (a FIFO never blocks) and
-without O_TRUNC; it does lock a FIFO, so `_write_pid` refuses anything but a regular file. Each reaches the
-caller as one line, nothing held.
+"""The output folder's lock ``.NAME.lock`` beside it: filelock's `FileLock` (an ``flock`` tried once, no soft lock),
+the file holding the holder's pid and command (a refusal names them), removed on release. filelock 4.2.12 opens it
+with O_NOFOLLOW and O_NONBLOCK (a planted link or FIFO is refused, never followed or waited on) but locks a FIFO:
+`_write_pid` refuses anything but a regular file.
 """
 
 from __future__ import annotations
@@ -30,8 +28,8 @@ def lock_path(target) -> Path:
 
 
 def _write_pid(path: Path, command: str, fd: int) -> None:
-    """filelock's `on_acquired`: refuse a lock "file" that is not a regular file, then write ``PID\\nCOMMAND\\n``;
-    if that fails (a full disk), remove the file while still held, as `release` does."""
+    """filelock's `on_acquired`: refuse a lock "file" that is not a regular file, write ``PID\\nCOMMAND\\n`` (on a full
+    disk: remove the file while still held, as `release` does)."""
     mine = os.fstat(fd)
     if not stat.S_ISREG(mine.st_mode):
         raise OSError(errno.EINVAL, "the lock file is not a regular file")

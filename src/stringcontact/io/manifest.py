@@ -58,9 +58,8 @@ def write_manifest(folder: Path, files: dict[str, int]) -> None:
 
 
 def foreign_file(folder: Path, depth: int = 3) -> str | None:
-    """Why `--force` may not replace `folder`: its first file that the manifest does not list with that size (one
-    the user added or changed); None if it may. A folder in it that a command published whole (``plot RUN --out
-    RUN/pictures``, as ``make docs`` does) counts as written by stringcontact too, `depth` levels down."""
+    """Why `--force` may not replace `folder`: its first file the manifest does not list with that size; None if it
+    may. A folder in it that a command published (``plot RUN --out RUN/pictures``) counts, `depth` levels down."""
     files = read_manifest(folder)
     if files is None:
         return f"this folder has no {MANIFEST} of a stringcontact command"
@@ -84,13 +83,9 @@ def is_run_result(folder: Path) -> bool:
 
 @contextlib.contextmanager
 def atomic_path(path, record: bool = True):
-    """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
-
-    `tmp` is a hidden sibling ``.NAME.tmp-<random>.SUFFIX`` (the suffix kept for matplotlib and pyvista) made by
-    `tempfile.mkstemp` (O_EXCL, O_NOFOLLOW: a link planted in the folder is never written through), renamed onto
-    `path` on success, removed on any exception (Ctrl-C too). With `record`, the file joins the folder's manifest
-    if it has one (``plot FOLDER`` redraws a result, which stays replaceable by `--force`).
-    """
+    """One file whole or not at all: ``with atomic_path(path) as tmp: write to tmp``, a hidden sibling with the suffix
+    (`tempfile.mkstemp`: a link planted there is never written through) renamed onto `path`, or removed on any
+    error. With `record`, the file joins the folder's manifest if it has one (``plot FOLDER`` redraws a result)."""
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
     tmp = Path(name)

@@ -32,9 +32,8 @@ _MEMBRANE_DROP = 0.01
 
 
 def symlog_unit(values, peak: float, share: float) -> np.ndarray:
-    """`values` from −peak … peak onto −1 … 1 on a symmetric-log scale (clipped beyond): matplotlib's
-    SymLogNorm (base 10, linscale 1) with linthresh = share·peak, which a field's picture uses; linear within
-    ±linthresh."""
+    """`values` from −peak … peak onto −1 … 1 (clipped beyond) on the pictures' symmetric-log scale: matplotlib's
+    SymLogNorm (base 10, linscale 1) with linthresh = share·peak."""
     c = share * peak
     linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
 
@@ -46,9 +45,8 @@ def symlog_unit(values, peak: float, share: float) -> np.ndarray:
 
 
 def field_range(values, info: dict) -> tuple[float, float]:
-    """The fixed colour range of an output field's rows `values` shown as `info` says (`OutputField.metadata`):
-    −P … P, P the largest finite |value|, for a symmetric (or ``"symlog"``) field, else its least … largest
-    finite value; a range of width 0 (a field all 0) widened to one."""
+    """An output field's fixed colour range over its rows `values`: −P … P (P its largest finite |value|) for a
+    symmetric or ``"symlog"`` field (`info`: `OutputField.metadata`), else its finite least … largest, never empty."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if info.get("symmetric") or info.get("scale") == "symlog":
@@ -60,17 +58,16 @@ def field_range(values, info: dict) -> tuple[float, float]:
 
 
 def blend(colours, unit) -> np.ndarray:
-    """The RGB rows at `unit` (−1 … 1) of the colours `colours` spread evenly from −1 to 1, blended linearly in
-    RGB (matplotlib's `LinearSegmentedColormap.from_list`)."""
+    """The RGB rows at `unit` (−1 … 1) of `colours` spread evenly over −1 … 1, blended as matplotlib's
+    `LinearSegmentedColormap.from_list`."""
     stops = np.linspace(-1.0, 1.0, len(colours))
     rgb = np.asarray(colours, dtype=float)
     return np.column_stack([np.interp(np.asarray(unit, dtype=float), stops, rgb[:, k]) for k in range(3)])
 
 
 def field_points(low: float, high: float, info: dict) -> list:
-    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high`: a linear field's
-    colours at evenly spaced values; a ``"symlog"`` one's at −1, 0 and 1 of `symlog_unit` and between, at 0,
-    ±linthresh and `POINTS_PER_DECADE` values per decade up to ±high."""
+    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high`: evenly spaced, or
+    for a ``"symlog"`` one at 0, ±linthresh and `POINTS_PER_DECADE` values per decade up to ±high."""
     colours = info["colours"]
     if info.get("scale") != "symlog":
         values = np.linspace(low, high, len(colours))
@@ -84,9 +81,8 @@ def field_points(low: float, high: float, info: dict) -> list:
 
 
 def symlog_view(high: float, info: dict) -> list:
-    """A symmetric-log field's scale in view.py, `[linthresh, colours, ticks]`: its colours (r, g, b) evenly spread
-    on the unit scale −1 … 1 of `symlog_unit` as ``[unit, r, g, b]``, and its colour bar's ticks ``[unit, label]``
-    at 0, ±linthresh and a decade apart up to ±`high` (the label the field's value, 3 digits)."""
+    """A symmetric-log field's scale in view.py, ``[linthresh, [[unit, r, g, b], ...], [[unit, label], ...]]``: its
+    colours evenly on −1 … 1 of `symlog_unit`, its colour bar's ticks at 0, ±linthresh, a decade apart up to ±high."""
     share = float(info.get("linear_share", 1e-3))
     colours = info["colours"]
     units = np.linspace(-1.0, 1.0, len(colours))
@@ -100,9 +96,8 @@ def symlog_view(high: float, info: dict) -> list:
 
 
 def view_numbers(result) -> dict:
-    """What view.py needs from the stored rows: the kind, the warp's normal, the velocity's symmetric range, the
-    obstacle (points and quadrilaterals, or none when it moves), the box the camera frames over all times (x0, x1,
-    y0, y1, z0, z1), the title, and each output field's range and colour points (and symmetric-log scale)."""
+    """view.py's numbers, by the names of its lines, from the stored rows: the colour ranges, the obstacle (none
+    when it moves), the box the camera frames over all times (x0, x1, y0, y1, z0, z1), the title."""
     x, eta = np.asarray(result.x, dtype=float), np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
     lo, hi = (float(np.nanmin(eta)), float(np.nanmax(eta))) if eta.size else (0.0, 0.0)
@@ -133,8 +128,7 @@ def view_numbers(result) -> dict:
 
 
 def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
-    """ψ at `points` (x, or rows of x and y) at the time t; where the expression gives no finite value (outside its
-    domain), ψ's lowest finite value (a reader warps by it: no NaN)."""
+    """ψ at `points` (x, or rows of x, y) at the time t; ψ's lowest finite value where it has none (no NaN)."""
     points = np.asarray(points, dtype=float)
     psi = np.asarray(scene.obstacle_values(points, t), dtype=float).reshape(-1)
     psi = np.broadcast_to(psi, points.shape[:1]) if psi.size == 1 else psi
@@ -143,8 +137,7 @@ def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
 
 
 def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
-    """The height range (lo, hi) widened to ψ's values at `times` where the view draws a moving obstacle: a
-    string's sample grid, a membrane's nodes (at most OBSTACLE_SAMPLES² / 16 of them, evenly picked)."""
+    """The height range (lo, hi) widened to a moving ψ at `times` (a string's samples, some of a membrane's nodes)."""
     if x.ndim == 1 or x.shape[1] == 1:
         xs = x.reshape(-1)
         grid = np.linspace(xs.min(), xs.max(), min(OBSTACLE_SAMPLES, len(xs)))
@@ -157,8 +150,8 @@ def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
 
 
 def _string_obstacle(scene, xs, lo, hi):
-    """The grey region below y = ψ(x) down to a floor under everything, as a strip of quadrilaterals at z
-    slightly behind the string (drawn under it); and the shape's (and obstacle's) height range."""
+    """The region below y = ψ(x) down to a floor under everything, quadrilaterals slightly behind the string; and
+    the height range with it."""
     flat = getattr(scene, "obstacle", None) is None
     grid = np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
     psi = obstacle_at(scene, grid)
@@ -172,8 +165,7 @@ def _string_obstacle(scene, xs, lo, hi):
 
 
 def _membrane_obstacle(scene, x, lo, hi):
-    """The surface z = ψ(x, y) over the mesh's bounding box, 1 % of the height range lower (a patch in contact
-    lies on ψ and would flicker with it otherwise); and the height range with it."""
+    """The surface z = ψ(x, y) over the mesh's box, `_MEMBRANE_DROP` of the height range lower; and the range."""
     flat = getattr(scene, "obstacle", None) is None
     n = 2 if flat else min(OBSTACLE_SAMPLES // 4, int(np.sqrt(len(x))) + 1)
     gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))

@@ -1,10 +1,8 @@
-"""An output folder is absent, complete, or marked in its summary.json, never half-written: a command locks the
-target (`lock.TargetLock`), writes into a hidden folder beside it (``.NAME.partial-<pid>-<random>``, made by
-`tempfile.mkdtemp`), fsyncs it and renames it into place (`publish_partial`). With ``--force`` only a complete
-result replaces a folder of ours (`target.check_target`), swapped through ``.NAME.old-*`` so that a crash between
-the two renames leaves the old result to be restored; an interrupted, unstable or unbalanced one goes beside it
-(``NAME.interrupted``, ...). The hidden folders of killed runs are removed by the next run that takes the lock:
-exact names whose marker file says so, never one a live run holds.
+"""An output folder is absent, complete, or marked in its summary.json, never half-written: a command locks it
+(`lock.TargetLock`), writes into a hidden folder beside it (``.NAME.partial-<pid>-<random>``, `tempfile.mkdtemp`),
+fsyncs that and renames it into place (`publish_partial`). With ``--force`` a complete result replaces a folder of
+ours through ``.NAME.old-*`` (restored if a crash comes between the two renames); any other goes beside it
+(``NAME.interrupted``, ...). The next run that takes the lock removes the marked hidden folders of killed runs.
 """
 
 from __future__ import annotations
@@ -32,8 +30,8 @@ MARKER = ".stringcontact-marker"
 
 
 def _recover_stale(target: Path) -> None:
-    """Under the lock: remove the marked hidden folders of killed runs into `target` (exact names: ``.ex.old-1.partial-…``
-    belongs to a run into ``ex.old-1``), and put back a result an interrupted --force swap left aside."""
+    """Under the lock: remove the marked hidden folders of killed runs into `target` (exact names, none a live run
+    holds), and put back a result an interrupted --force swap left aside."""
     name, removed = re.escape(target.name), []
     with contextlib.suppress(OSError):
         for p in sorted(target.parent.iterdir()):
@@ -93,9 +91,8 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
 
 
 def open_partial(path, force: bool, command: str = "run") -> tuple[Path, TargetLock, Path]:
-    """Take the output folder `path`: check it, lock it, check it again, clear what killed runs left, and make the
-    hidden partial folder beside it: ``(target, lock, partial)``, target resolved. On failure nothing is held or
-    left, and OutputError is raised."""
+    """Check, lock and check again the output folder `path`, clear what killed runs left, make the hidden partial
+    folder: ``(target, lock, partial)``. On failure (OutputError) nothing is held or left."""
     target = Path(path).resolve()
     lock = partial = None
     try:
@@ -120,9 +117,8 @@ def open_partial(path, force: bool, command: str = "run") -> tuple[Path, TargetL
 
 
 def publish_partial(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
-    """Drop the marker, write the manifest (the names and sizes a later `--force` may replace), fsync every file and
-    the folder, rename it into place (`move_into_place`), fsync the parent; returns where it went. Call it with the
-    signals held."""
+    """Drop the marker, write the manifest (what a later `--force` may replace), fsync, rename into place
+    (`move_into_place`), fsync the parent; returns where it went. Call it with the signals held."""
     (partial / MARKER).unlink(missing_ok=True)
     files = [p for p in partial.iterdir() if p.is_file() and not p.is_symlink() and p.name != MANIFEST]
     write_manifest(partial, {p.name: p.stat().st_size for p in files})
@@ -137,9 +133,8 @@ def publish_partial(partial: Path, target: Path, force: bool, status: str = "com
 
 @contextlib.contextmanager
 def staged_folder(path, force: bool = False, command: str = "run"):
-    """A whole output folder or nothing: ``with staged_folder(out, force) as tmp: write files into tmp``; published at
-    the end, removed on any error (Ctrl-C too), the target left as it was. Serial. `command` (``check``, ``study``,
-    ``plot``): its `--force` never replaces a run's result (`check_target`)."""
+    """``with staged_folder(out, force) as tmp: write files into tmp``: the whole folder published, or (any error,
+    Ctrl-C too) nothing. Serial. `command` (``check``, ``study``, ``plot``): its `--force` never replaces a run."""
     target, lock, partial = open_partial(path, force, command)
     try:
         try:

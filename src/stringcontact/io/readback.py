@@ -1,10 +1,7 @@
-"""An output folder read back into a :class:`Result` (``read_output``), and `solution.xdmf`'s time series
-(``read_xdmf``: the XML only).
-
-The stored rows come from ``rows.npz`` (every row the run drew its pictures from, so that ``stringcontact plot``
-draws the same pictures), the energies from ``diagnostics.csv``, the scene, options and the model's output fields
-(their names and how each is shown) from ``summary.json``. Every file is checked before its data are read; a
-defect is a ValueError of one line naming the file (the command line's exit code 2).
+"""An output folder read back into a :class:`Result` (``read_output``): the stored rows from ``rows.npz`` (those
+the run drew its pictures from), the energies from ``diagnostics.csv``, the scene, options and output fields from
+``summary.json``, each checked before its data are read (a defect: one ValueError line naming the file, exit 2);
+and `solution.xdmf`'s time series (``read_xdmf``: the XML only).
 """
 
 from __future__ import annotations
@@ -39,8 +36,7 @@ MAX_LABEL = 200
 
 
 def read_output(folder):
-    """A :class:`Result` rebuilt from an output folder written by `stringcontact run --out`: the run's stored rows,
-    arrays ordered as in the run's Result, `contact` boolean, in 2D `cells` and `weights`."""
+    """A :class:`Result` rebuilt from an output folder written by `stringcontact run --out`: the run's own rows."""
     folder = Path(folder)
     if not folder.is_dir():
         raise ValueError(f"plot: {folder} is not a folder (give the --out folder of `stringcontact run`)")
@@ -54,19 +50,17 @@ def read_output(folder):
     column = _read_diagnostics(folder / "diagnostics.csv")
     x, fields, mesh = _read_rows(folder / ROWS_FILE, column, scene.dim, info)
     outputs = {name: fields.pop(name) for name in info}
+    given = {key: summary.get(key, default) for key, default in (
+        ("penalty", "explicit"), ("mass", "lumped"), ("model", DEFAULT_MODEL), ("scheme", DEFAULT_SCHEME),
+        ("penetration_bound", None), ("energy_label", None), ("status", "complete"), ("message", ""),
+        ("timings", {}), ("counters", {}), ("solver", {}), ("petsc_options", {}))}
     return Result(
         scene=scene, x=x, t=column["t"], steps=column["step"].astype(np.int64), eta=fields["eta"],
-        velocity=fields["velocity"], contact=np.asarray(fields["contact"], dtype=float) > 0.5, contact_force=fields["contact_force"],
-        energy={key: column[key] for key in ENERGY_KEYS}, min_eta=float(summary.get("min_eta", np.min(fields["eta"]))),
-        min_gap=float(summary.get("min_gap", "nan")), penalty=summary.get("penalty", "explicit"),
-        mass=summary.get("mass", "lumped"), model=summary.get("model", DEFAULT_MODEL),
-        model_origin=summary.get("model_origin") or {}, penetration_bound=summary.get("penetration_bound"),
-        energy_label=summary.get("energy_label"), status=summary.get("status", "complete"),
-        timings=summary.get("timings", {}), counters=summary.get("counters", {}), solver=summary.get("solver", {}),
-        petsc_options=summary.get("petsc_options", {}), message=summary.get("message", ""),
-        scheme=summary.get("scheme", DEFAULT_SCHEME), fields=outputs, field_info=info,
-        parameters=_parameters(folder / "summary.json", summary), **mesh,
-    )
+        velocity=fields["velocity"], contact=np.asarray(fields["contact"], dtype=float) > 0.5,
+        contact_force=fields["contact_force"], energy={key: column[key] for key in ENERGY_KEYS},
+        min_eta=float(summary.get("min_eta", np.min(fields["eta"]))), min_gap=float(summary.get("min_gap", "nan")),
+        model_origin=summary.get("model_origin") or {}, fields=outputs, field_info=info,
+        parameters=_parameters(folder / "summary.json", summary), **given, **mesh)
 
 
 def _load_json(path: Path) -> dict:
@@ -152,10 +146,9 @@ def _parameters(path: Path, summary: dict) -> dict[str, float]:
 
 
 def read_xdmf(path) -> tuple[str | None, dict[str, list[tuple[float, str]]]]:
-    """The mesh and the time series of `solution.xdmf`: ``(geometry, series)``, `geometry` the HDF5 reference of the
-    first grid's points (None without a grid), `series` {field: [(t, "solution.h5:/eta_0"), ...]} in file order.
-    OutputError naming the file (the parser's error its ``__cause__``) if it is not well-formed XML (a truncated
-    write), has no temporal collection, or holds a time that is not a number."""
+    """``(geometry, series)`` of `solution.xdmf`: the first grid's points' HDF5 reference (None without a grid) and
+    {field: [(t, "solution.h5:/eta_0"), ...]} in file order; OutputError naming the file (the parser's error its
+    ``__cause__``) if it is not well-formed (a truncated write), has no temporal collection or a time no number."""
     try:
         collection = ET.parse(path).getroot().find("Domain/Grid[@CollectionType='Temporal']")
         if collection is None:
@@ -196,8 +189,7 @@ def _unreadable(path: Path, exc: BaseException) -> ValueError:
 
 
 def _read_rows(path: Path, column: dict, dim: int, info: dict):
-    """x, the fields (`FIELDS` and the output fields of `info`) and (2D) {"cells", "weights"} from `ROWS_FILE`,
-    checked against diagnostics.csv's rows."""
+    """x, the fields and (2D) {"cells", "weights"} from `ROWS_FILE`, checked against diagnostics.csv's rows."""
     members = field_members(info)
     names = ("t", "steps", "x", *FIELDS) + (("cells", "weights") if dim == 2 else ()) + tuple(members.values())
     _check_row_headers(path, names, len(column["t"]))
@@ -232,9 +224,8 @@ def _read_rows(path: Path, column: dict, dim: int, info: dict):
 
 
 def _check_row_headers(path: Path, names: tuple, k: int) -> None:
-    """Each member's .npy header read, not its data: real or integer dtypes (bool for contact), at most
-    `MAX_MEMBRANE_NODES` nodes and k rows, and in all no more than the run's own stored-row budget. A zip bomb
-    (1.9 MB declaring 1.9 GB) or a string, complex or structured member is refused before it is decompressed."""
+    """Each member's .npy header, not its data: real or integer dtypes (bool for contact), at most k rows of
+    `MAX_MEMBRANE_NODES` nodes, in all the run's own stored-row budget: a zip bomb is refused undecompressed."""
     total = 0
     try:
         with zipfile.ZipFile(path) as archive:

@@ -26,9 +26,8 @@ def _record(into: list) -> dict:
 
 @contextlib.contextmanager
 def signals_held():
-    """Hold the stop signals back for a short critical section (a frame written, a folder renamed into place); they
-    take effect right after it. Handlers are swapped, not the signals blocked: one that arrived just before would
-    still run its Python handler at the next bytecode, inside the section."""
+    """Hold the stop signals back for a short critical section; they take effect right after it. (Handlers swapped,
+    not signals blocked: one that arrived just before would run its Python handler inside the section.)"""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -47,10 +46,8 @@ def signals_held():
 
 
 class StopTogether:
-    """Under MPI: a stop signal that reaches some ranks stops every rank at the same step. While open, the signals are
-    recorded; `poll`, called by every rank at the same steps, shares them (one allreduce) and raises `Interrupted`
-    on every rank if any received one (a rank stopping alone would leave the others waiting in the next collective
-    call). With one process nothing changes: the signals raise at once."""
+    """Under MPI a stop signal that reaches some ranks stops every rank at the same step: recorded while open, shared
+    by `poll` (one allreduce, every rank at the same steps), `Interrupted` raised on all. One process: unchanged."""
 
     def __init__(self, comm):
         self.comm = comm if comm is not None and comm.size > 1 else None

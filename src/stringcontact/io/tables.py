@@ -1,9 +1,6 @@
-"""The tables of an output folder: `diagnostics.csv` (one row per stored time), `summary.json`, and `rows.npz`
-(the stored rows themselves, what the pictures are drawn from).
-
-A model's output fields (`Result.fields`) are written by name: each an array of rows.npz, the columns ``min_NAME``
-and ``max_NAME`` of diagnostics.csv, and how it is shown under summary.json's ``"fields"``. A name that is one of
-the file's own (a field ``x`` in rows.npz, ``eta`` beside ``min_eta``) is written as ``field_NAME`` (`field_key`).
+"""An output folder's tables: `diagnostics.csv` (a row per stored time), `summary.json` and `rows.npz` (the stored
+rows). A model's output fields go in by name (an array, ``min_NAME``/``max_NAME`` columns, their description under
+``"fields"``); a name the file uses itself (``x``, ``eta`` beside ``min_eta``) as ``field_NAME`` (`field_key`).
 """
 
 from __future__ import annotations
@@ -111,13 +108,9 @@ def summary_dict(result) -> dict:
 
 
 def write_rows(path: Path, result) -> None:
-    """`ROWS_FILE`: t, steps, x, `FIELDS` (contact as bool), in 2D cells and weights, then the model's output fields
-    (`field_members`): every stored row, so that `stringcontact plot` draws the run's own pictures.
-
-    Member by member, because np.savez compresses all or none: eta and velocity (float64 noise; the picture process
-    maps them, `plot.handover`) stored, contact and contact_force deflated at `ZLIB_LEVEL`: Example 1's rows.npz in
-    41 ms against 70 at level 6, 30.56 against 30.50 MB (`benchmarks/bench_rows.py --against-numpy 10 --fresh`).
-    """
+    """`ROWS_FILE`: t, steps, x, `FIELDS`, in 2D cells and weights, the output fields (`field_members`). Member by
+    member (np.savez compresses all or none): eta and velocity stored (the picture process maps them), the rest at
+    `ZLIB_LEVEL`: Example 1's in 41 ms against 70 at level 6 (`benchmarks/bench_rows.py --against-numpy 10 --fresh`)."""
     arrays = {"t": result.t, "steps": result.steps, "x": result.x, **{name: getattr(result, name) for name in FIELDS}}
     if result.dim == 2:
         arrays.update(cells=result.cells, weights=result.weights)

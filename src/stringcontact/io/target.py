@@ -17,14 +17,10 @@ CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
 
 
 def check_target(path, force: bool, *, locked: bool = False, parents: bool = False, command: str = "run") -> Path:
-    """Refuse, in one line (`OutputError`), an --out that cannot or must not take a result.
-
-    Refused: the root folder, the current folder or one containing it, a mount point, a file, a parent that cannot
-    be written, a missing parent outside the current folder (unless `parents`: the Python API makes them), a
-    non-empty folder (unless `force`, and then only one holding nothing but what its manifest lists and, for a
-    `command` other than ``run``, not a run's result), and a folder another command holds (`TargetLock.busy`,
-    unless `locked`: the caller holds it).
-    """
+    """Refuse, in one line (`OutputError`), an --out that cannot or must not take a result: the root or current
+    folder (or one containing it), a mount point, a file, an unwritable parent, a missing parent outside the current
+    folder (unless `parents`), a non-empty folder (unless `force`, and then only one holding just what its manifest
+    lists, not a run's result for a `command` other than ``run``), a folder another command holds (unless `locked`)."""
     target = Path(path)
     resolved = target.resolve()
     if not resolved.name:

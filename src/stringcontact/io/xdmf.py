@@ -1,13 +1,9 @@
-"""`solution.xdmf`/`.h5`: the mesh once, and one grid per stored time that carries every field.
-
-    Domain / Grid "solution" (Collection, Temporal) / Grid "t=..." (Uniform): Topology and Geometry (the same
-    solution.h5:/topology, /geometry in every grid), Time, one node Attribute per field (solution.h5:/eta_0, ...)
-
-so that ParaView's readers give one grid per time and meshio's `TimeSeriesReader` reads it (docs/explanation/
-visualisation.md). Rank 0 gathers each frame and writes both files alone (`hdf5.Hdf5File`); the HDF5 file is
-flushed before the grid naming its data is appended, and the XML's closing tags are rewritten after each grid,
-so a reader sees a well-formed series after every frame and writing costs O(frames). Points are the P1 degrees
-of freedom in their global numbering; the mesh may be 1D (Polyline) or 2D/3D.
+"""`solution.xdmf`/`.h5`: a temporal collection of grids, one per stored time, each with the mesh (written once,
+solution.h5:/topology and /geometry), its Time and every field as a node Attribute (solution.h5:/eta_0, ...): what
+ParaView's readers and meshio's `TimeSeriesReader` read (docs/explanation/visualisation.md). The HDF5 data are
+flushed before the grid naming them is appended and the XML's closing tags rewritten after each grid: a reader
+sees a well-formed series after every frame, and writing costs O(frames). Points are the P1 dofs in their global
+numbering; the mesh may be 1D (Polyline) or 2D/3D.
 """
 
 from __future__ import annotations
@@ -72,11 +68,9 @@ def mesh_arrays(V, comm) -> MeshArrays:
 
 
 class XdmfTimeSeries:
-    """Writes the layout above: ``XdmfTimeSeries(folder, mesh, comm)``, ``.write(t, fields)``, ``.close()``.
-
-    Collective: every rank passes its owned values; rank 0 writes alone (a file written by all ranks hangs the run
-    when the disk fills on one rank only). An error on rank 0 (OSError, or RuntimeError) is raised on every rank.
-    """
+    """``XdmfTimeSeries(folder, mesh, comm)``, ``.write(t, fields)``, ``.close()``, all collective: rank 0 gathers
+    and writes alone (files written by all ranks hang the run when the disk fills on one rank only); its error
+    (OSError or RuntimeError) is raised on every rank."""
 
     def __init__(self, folder, mesh: MeshArrays, comm, stem: str = "solution"):
         self.comm, self.mesh, self.frames = comm, mesh, 0

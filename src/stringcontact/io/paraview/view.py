@@ -104,18 +104,13 @@ def colour_by(view, display, field):
             pv.HideScalarBarIfNotNeeded(pv.GetColorTransferFunction(other), view)
     display.SetScalarBarVisibility(view, True)
     bar = pv.GetScalarBar(lut, view)
-    bar.Title = field
-    bar.ComponentTitle = ""
+    bar.Title, bar.ComponentTitle, bar.RangeLabelFormat = field, "", "%-#6.3g"
     bar.TitleColor = bar.LabelColor = [0.0, 0.0, 0.0]
     bar.TitleFontSize = bar.LabelFontSize = 18
-    bar.RangeLabelFormat = "%-#6.3g"
     if field in SYMLOG:  # the unit scale's numbers mean nothing to a reader: the field's values at the ticks
         lut.Annotations = [str(text) for tick in SYMLOG[field][2] for text in tick]
-        bar.DrawTickLabels = 0
-        bar.DrawTickMarks = 0
-        bar.AddRangeLabels = 0
+        bar.DrawTickLabels = bar.DrawTickMarks = bar.AddRangeLabels = bar.DrawNanAnnotation = 0
         bar.DrawAnnotations = 1
-        bar.DrawNanAnnotation = 0
 
 
 OBSTACLE_SCRIPT = (
