@@ -96,8 +96,7 @@ def _run(args, painter=None) -> int:
 
 @contextlib.contextmanager
 def _current_folder_importable(spec):
-    """--model package.module:name finds a module in the current folder, as under `python -m stringcontact`: the
-    folder is first on sys.path while the model is loaded."""
+    """--model package.module:name finds a module in the current folder (first on sys.path while it loads)."""
     folder = os.getcwd()
     added = bool(spec) and ":" in spec and folder not in sys.path and "" not in sys.path
     if added:
@@ -132,8 +131,7 @@ def _option_value(text: str):
 
 
 def _check_scheme_options(args, scene) -> None:
-    """--eps or --penalty with a scheme that has no penalty, a restitution e > 0 with a scheme other than
-    projection: refused before anything runs."""
+    """Refuse --eps or --penalty with a scheme that has no penalty, a restitution e > 0 but with projection."""
     from ..timestepping import check_restitution, scheme_class
 
     name = args.scheme or scene.scheme or DEFAULT_SCHEME
@@ -144,7 +142,7 @@ def _check_scheme_options(args, scene) -> None:
 
 
 def _partial_report(exc) -> None:
-    """After an interrupted or unstable run: the closing lines for the rows stored so far, if the solver gave them."""
+    """After an interrupted or unstable run: the closing lines of the rows stored so far, if any."""
     res = getattr(exc, "result", None)
     if res is not None and len(getattr(res, "t", ())) and res.has_rows:
         from .report import report

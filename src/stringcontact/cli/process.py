@@ -20,9 +20,8 @@ from ..errors import one_line
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 #: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it aborts
-#: the whole job (MPI_Abort with its exit code): ranks that fail alike (a bad input) end within moments of each
-#: other, and a rank left alone would wait in a collective call for ever.
+#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it aborts the
+#: job (MPI_Abort with its exit code): a rank left alone would wait in a collective call for ever.
 END_GRACE = 10.0
 _exit = {"comm": None, "timer": None}
 
@@ -58,9 +57,8 @@ def one_line_warnings():
 
 @contextlib.contextmanager
 def signals_interrupt(petsc: bool = True):
-    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` (a KeyboardInterrupt): the run stops and keeps its output.
-    With `petsc`, PETSc is imported first (it installs C handlers that abort MPI with a page of text), and ours go
-    over its own. SIGPIPE gets its default back: `stringcontact list | head` ends quietly, as Unix tools do."""
+    """The stop signals raise `Interrupted` (`stop_signals`), over PETSc's own C handlers (with `petsc`, PETSc is
+    imported first); SIGPIPE gets its default back: `stringcontact list | head` ends quietly, as Unix tools do."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -85,8 +83,7 @@ def signals_interrupt(petsc: bool = True):
 
 @contextlib.contextmanager
 def stop_signals():
-    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` from here on (under MPI, `_abort_later` too); the previous
-    handlers come back after."""
+    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` (the run stops, its output kept) until the block ends."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -149,9 +146,8 @@ def argv_as_text():
 
 
 def standard_streams() -> None:
-    """A process started with stdin, stdout or stderr closed (``run ... >&-``): /dev/null takes its place, so that
-    the next file opened does not get descriptor 1 or 2, where PETSc, HDF5 and MPI write. The run works, its folder
-    is whole, the exit code tells how it went."""
+    """A standard stream closed at start (``run ... >&-``) reopened on /dev/null, so that the next file opened does
+    not get descriptor 1 or 2, where PETSc, HDF5 and MPI write: the run works, the exit code tells how it went."""
     for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
         try:
             os.fstat(fd)
