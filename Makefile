@@ -6,7 +6,7 @@ export OMPI_ALLOW_RUN_AS_ROOT ?= 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM ?= 1
 export PYTHONDONTWRITEBYTECODE ?= 1
 
-.PHONY: setup demo test test-fast docs figures clean
+.PHONY: setup demo test test-fast docs reference figures clean
 
 setup:
 	@scripts/setup $(SETUP_FLAGS) $(VENV)
@@ -36,9 +36,14 @@ docs: setup
 	$(PY) -m sphinx -E -W --keep-going -n -q -b html docs docs/_build/html
 	@echo "the site: docs/_build/html/index.html"
 
+# the generated parts of the committed reference pages (docs/reference/*.md) from the code; tests/docs/test_reference.py
+# fails while a page is stale
+reference: setup
+	$(PY) docs/_ext/reference_pages.py
+
 # the pictures in docs/ (README and the site), from full-resolution runs
 figures: setup
 	scripts/docs-figures
 
 clean:
-	rm -rf out .pytest_cache docs/_build docs/_generated docs/tutorial/demos/demo_*.md docs/tutorial/demos/_pictures
+	rm -rf out .pytest_cache docs/_build docs/tutorial/demos/demo_*.md docs/tutorial/demos/_pictures

@@ -6,6 +6,7 @@ check uses; and the same residual with every ledger term summed by math.fsum (co
 summation is not where the round-off comes from.
 
     .venv/bin/python benchmarks/bench_balance_roundoff.py [--nx 50] [--nt 20000 100000 200000]
+    .venv/bin/python benchmarks/bench_balance_roundoff.py --nx 5000 20000 50000 100000 --nt 1500   # the Courant number
 """
 
 from __future__ import annotations
@@ -14,10 +15,11 @@ import argparse
 import math
 
 import stringcontact as sc
-from stringcontact.run import checks, stepper
+from stringcontact.core import ledger, stepper
+from stringcontact.run import checks
 
 
-class _FsumLedger(stepper._Ledger):
+class _FsumLedger(ledger.EnergyLedger):
     """The ledger with each cumulative term an exact sum (math.fsum over every step's term)."""
 
     def __init__(self, start, conservative, **kwargs):
@@ -36,22 +38,22 @@ class _FsumLedger(stepper._Ledger):
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--nx", type=int, default=50)
+    parser.add_argument("--nx", type=int, nargs="+", default=[50])
     parser.add_argument("--nt", type=int, nargs="+", default=[20000, 100000, 200000])
     args = parser.parse_args()
     print("nx,nt,relative_residual,relative_residual_fsum,estimate,ratio,tolerance")
-    plain = stepper._Ledger
-    for nt in args.nt:
-        scene = sc.load_scene("example1").replace(nx=args.nx, nt=nt)
+    plain = stepper.EnergyLedger
+    for nx, nt in ((nx, nt) for nx in args.nx for nt in args.nt):
+        scene = sc.load_scene("example1").replace(nx=nx, nt=nt)
         res = sc.simulate(scene, progress=False)
-        stepper._Ledger = _FsumLedger
+        stepper.EnergyLedger = _FsumLedger
         try:
             exact = sc.simulate(scene, progress=False)
         finally:
-            stepper._Ledger = plain
+            stepper.EnergyLedger = plain
         b = checks.energy_balance(res)
         estimate = checks.roundoff_growth(res) * 1e-8 / checks.ROUNDOFF_FACTOR
-        print(f"{args.nx},{nt},{b['relative_residual']:.3g},{checks.energy_balance(exact)['relative_residual']:.3g},"
+        print(f"{nx},{nt},{b['relative_residual']:.3g},{checks.energy_balance(exact)['relative_residual']:.3g},"
               f"{estimate:.3g},{b['relative_residual'] / estimate:.3g},{b['tolerance']:.3g}")
 
 

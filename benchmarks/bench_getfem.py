@@ -409,7 +409,7 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
     """One stringcontact run of the mirrored rod; `status` says why a run gave no numbers."""
     import stringcontact as sc
     from stringcontact import InstabilityError
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
     from stringcontact.model.variants import elastic
 
     h = 1.0 / nx

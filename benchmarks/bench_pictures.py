@@ -13,8 +13,8 @@ that span (from /proc before `send`, and from `getrusage` once they are gone).
 
     VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow LP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_pictures.py
 
-With `--title`, only the space-time picture, `--repeats` times each way, alternating: its title drawn by
-`mesh_pictures._title` and by pyvista's add_text(position="upper_edge") (a vtkCornerAnnotation), CPU medians.
+With `--paper`, each picture of Example 1 `--repeats` times in the screen style as a PNG, and in the paper style
+(`plot.style.Look(style="paper")`) as a PNG (300 dots per inch), a PDF and an SVG: CPU and wall medians.
 
 With `--gc`, the painter's two costs with Python's cyclic collector on and off (the painter runs without it):
 the warm-ups (charts and pyvista) in `--repeats` fresh processes each way, alternating, and Example 1's
@@ -81,31 +81,21 @@ def painted(res, out: Path, settle: float) -> tuple[float, float]:
     return cpu, wall
 
 
-def title_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
-    """(title, CPU, wall) medians of the space-time picture with each way of drawing its title, alternating."""
+def paper_costs(res, out: Path, repeats: int) -> list[tuple[str, float, float]]:
+    """(picture and look, CPU, wall) medians of each picture in the screen style (PNG) and the paper style (PNG, PDF,
+    SVG: the figure drawn once, saved three times)."""
     from stringcontact.plot import charts, mesh_pictures
-
-    ours = mesh_pictures._title
-
-    def annotation(p, text):
-        p.add_text(text, position="upper_edge", font_size=9, color="black", font_file=mesh_pictures._font_file())
+    from stringcontact.plot import run_pictures as viz
+    from stringcontact.plot.style import Look
 
     charts.warm_up()
     mesh_pictures.warm_up()
-    runs = {"mesh_pictures._title": [], "add_text(position='upper_edge')": []}
-    for _ in range(repeats):
-        for (name, times), title in zip(runs.items(), (ours, annotation)):
-            mesh_pictures._title = title
-            times.append(timed(lambda: mesh_pictures.space_time_picture(res, out / "space_time.png")))
-    mesh_pictures._title = ours
-    return [
-        (
-            f"space_time.png, title by {name}",
-            statistics.median(r[0] for r in times),
-            statistics.median(r[1] for r in times),
-        )
-        for name, times in runs.items()
-    ]
+    rows = []
+    for name in viz.PICTURES:
+        for label, look in (("screen, png", Look()), ("paper, png + pdf + svg", Look(("png", "pdf", "svg"), "paper"))):
+            runs = [timed(lambda name=name, look=look: viz.draw(name, res, out, look=look)) for _ in range(repeats)]
+            rows.append((f"{name} ({label})", statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)))
+    return rows
 
 
 WARM_UP = """
@@ -218,7 +208,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--settle", type=float, default=5.0, help="seconds the painter has to warm up before `send`")
-    ap.add_argument("--title", action="store_true", help="only the space-time picture's title, two ways")
+    ap.add_argument("--paper", action="store_true", help="only the pictures, in the screen and the paper style")
     ap.add_argument("--gc", action="store_true", help="only the warm-ups and the pictures, collector on and off")
     ap.add_argument("--vtk-search", action="store_true", help="only pyvista's warm-up, VTK's module search two ways")
     ap.add_argument(
@@ -240,8 +230,8 @@ def main(argv=None) -> int:
     from stringcontact.plot import run_pictures as viz
 
     out = Path(tempfile.mkdtemp(prefix="bench_pictures_"))
-    if args.title:
-        return _table(res, title_costs(res, out, args.repeats), args.repeats)
+    if args.paper:
+        return _table(res, paper_costs(res, out, args.repeats), args.repeats)
     if args.gc:
         return _table(res, gc_costs(res, out, args.repeats), args.repeats, third="RSS growth [MB]")
     rows = [

@@ -195,7 +195,7 @@ def _module_of(src: str, name: str):
 
 
 class _Still:
-    """A scheme that does nothing: `Stepper._advance` alone, the driver's per-step Python."""
+    """A scheme that does nothing: `Stepper._advance` alone, the core's and the observers' per-step Python."""
 
     PENALTIES, situation, remedy, energy_slack = (), "", "", 0.0
     terms = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -203,7 +203,8 @@ class _Still:
     def __init__(self):
         import numpy as np
 
-        self.eta = np.zeros(5001)
+        self.eta = self.velocity = np.zeros(5001)
+        self.fields = {}
 
     def step(self):
         return self.terms
@@ -215,14 +216,13 @@ def _still_stepper(scene):
     import numpy as np
     from mpi4py import MPI
 
-    from stringcontact.run import ledger, rows
+    from stringcontact.core.ledger import EnergyLedger
     from stringcontact.run.stepper import Stepper
 
     st = Stepper(scene, comm=MPI.COMM_SELF)
-    st.scheme = _Still()
-    st.ledger = ledger._Ledger(_Still.terms, conservative=False)
-    st.rows = rows.StoredRows(np.array([scene.nt + 1]), rows._Gather(MPI.COMM_SELF, st.problem.x))
-    st.rows.min_eta = 0.0
+    st.core.scheme = _Still()
+    st.core.ledger = EnergyLedger(_Still.terms, conservative=False)
+    st.rows.steps = np.array([scene.nt + 1])  # no row is stored: the observer's per-step work alone
     return st
 
 

@@ -20,7 +20,7 @@
 # $$\int_\Omega \eta_{tt}\,w + \alpha \int_\Omega \nabla\eta_t\cdot\nabla w
 #   + \int_\Omega \nabla\eta\cdot\nabla w = \int_\Omega f\,w + \int_\Omega F_\mathrm{con}\,w .$$
 #
-# That is the string's weak form read in two dimensions: `stringcontact.model.paper.momentum_form` is written
+# That is the string's weak form read in two dimensions: `stringcontact.model.inelastic.momentum_form` is written
 # with `grad` and `inner` and never asks for the dimension. Nothing below changes the model, the contact
 # law or the time schemes; the scene only gives the membrane a domain.
 

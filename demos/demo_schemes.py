@@ -1,6 +1,6 @@
 # # Three time schemes for one model
 #
-# The model is one UFL form, written in the unknown's time derivatives (`stringcontact.model.paper`):
+# The model is one UFL form, written in the unknown's time derivatives (`stringcontact.model.inelastic`):
 #
 # $$ \int \eta_{tt} w + \alpha \int \eta_{tx} w_x + \int \eta_x w_x = \int F w, \qquad
 #    F = \tfrac{1}{\varepsilon}\chi\{\eta<0\}(\eta_t)^-. $$

@@ -298,7 +298,7 @@ def run_problem(scene, scheme=None, penalty=None, mass=None, model=None):
 
     from stringcontact.run.stepper import Stepper
 
-    problem = Stepper(scene, scheme, penalty, mass, model=model, comm=MPI.COMM_SELF).problem
+    problem = Stepper(scene, scheme, penalty, mass, model=model, comm=MPI.COMM_SELF).discrete
     eta0 = np.asarray(scene.initial_displacement(problem.x), dtype=float).copy()
     eta0[problem.bc] = problem.g
     return problem, eta0, np.asarray(scene.initial_velocity(problem.x), dtype=float) * problem.interior

@@ -12,7 +12,7 @@ import pytest
 
 import stringcontact
 
-LAYERS = ("scene", "model", "fem", "timestepping", "io", "plot", "run", "verification", "analysis", "cli")
+LAYERS = ("scene", "model", "fem", "timestepping", "core", "io", "plot", "run", "verification", "analysis", "cli")
 BASE = ("errors", "jitlog", "lazy", "stack")
 ROOT = Path(stringcontact.__file__).parent
 FACADE_USERS = ("analysis", "cli")

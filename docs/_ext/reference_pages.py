@@ -1,6 +1,10 @@
-"""The generated parts of the reference, written as MyST markdown into docs/_generated/ when the site is built.
+"""The generated parts of the reference pages, docs/reference/*.md: MyST markdown made from the code, committed so
+that the pages read in the repository as on the site.
 
-Each table is made from the definitions the program itself uses, so a page cannot drift from the code:
+Each part sits between its markers in its page (``<!-- generated: NAME ... -->`` and ``<!-- end of the generated
+part -->``); `write_all` makes them again (`make reference`, and the site's build), and tests/docs/test_reference.py
+fails when a committed page differs from what the code makes. Each table is made from the definitions the program
+itself uses, so a page cannot drift from the code:
 
 * `scene_keys`: `scene.limits` (FILE_KEYS, KEY_DOCS, DOMAIN_KEYS) and `scene.checks.allowed`, the text of the
   error messages;
@@ -11,7 +15,8 @@ Each table is made from the definitions the program itself uses, so a page canno
 * `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
 * `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.picture_names`'s pictures,
   and what a run writes of its model's output fields (`MODEL_FIELD_FILES`);
-* `api`: autodoc directives for `stringcontact.__all__` and the public modules' `__all__`.
+* `api`: every name of `stringcontact.__all__` and of the public modules (`PUBLIC_MODULES`) with its signature (the
+  defaults as the source writes them) and its docstring, in markdown.
 
 A name the code adds without a description here (a scene key, a CSV column, a field) is an error, which fails
 the build: `tests/docs/test_reference.py` checks the same.
@@ -20,20 +25,30 @@ the build: `tests/docs/test_reference.py` checks the same.
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
 import importlib
+import inspect
 import re
+import textwrap
 from pathlib import Path
 
 #: The modules a user touches besides the top-level namespace, what the API reference documents: module ->
 #: (title, the public names; None: its `__all__`).
 PUBLIC_MODULES = {
-    "stringcontact.model.paper": ("The model in UFL, what a model variant reuses or replaces", None),
+    "stringcontact.core.problem": ("The core: a model on your own mesh and Functions", ("ContactProblem",)),
+    "stringcontact.core.stepper": ("The core: the time stepper you loop over", ("TimeStepper",)),
+    "stringcontact.core.ledger": ("The energy ledger", ("EnergyLedger",)),
+    "stringcontact.core.observers": ("What watches the steps", ("Observer",)),
+    "stringcontact.run.rows": ("The stored rows, an observer", ("RowObserver",)),
+    "stringcontact.model.interface": ("The model contract: what a model is and declares", None),
+    "stringcontact.model.inelastic": ("The paper's model in UFL, what a model variant reuses or replaces", None),
     "stringcontact.model.variants": ("The model variants shipped with the package", None),
     "stringcontact.run.options": ("The options of simulate", None),
     "stringcontact.timestepping.implicit": ("A time scheme from its difference quotients", ("ImplicitScheme",)),
     "stringcontact.timestepping.base": ("The time-scheme contract",
-                                        ("Scheme", "StepEnergy", "DiscreteProblem", "NodalLaws", "MovingObstacle")),
+                                        ("Scheme", "SchemeOption", "StepEnergy", "DiscreteProblem", "NodalLaws",
+                                         "MovingObstacle")),
     "stringcontact.fem.operators": ("The operators a scheme steps with", ("Operators", "NonlinearForm")),
     "stringcontact.io.result": ("A run's result", ("Result",)),
     "stringcontact.scene": ("Scenes", None),
@@ -214,12 +229,20 @@ def _walk(parser: argparse.ArgumentParser, prog: str, help_text: str, level: int
     return out
 
 
+#: the width the usage lines are wrapped at (argparse's is the terminal's: the committed page must not depend on it)
+USAGE_WIDTH = 100
+
+
 def cli() -> str:
     """Every subcommand of `stringcontact`: usage and arguments, from the parsers the command line builds."""
+    import os
+    from unittest import mock
+
     from stringcontact.cli.parser import SUBCOMMANDS, build_parser
 
     parser = build_parser(["run", "list", "show", *SUBCOMMANDS])  # every subcommand with its arguments
-    return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
+    with mock.patch.dict(os.environ, {"COLUMNS": str(USAGE_WIDTH)}):  # argparse wraps the usage at the terminal's
+        return "\n".join(_walk(parser, "stringcontact", parser.description, 1)[5:])  # the page has its own title
 
 
 def exit_codes() -> str:
@@ -271,20 +294,151 @@ def public_names(module_name: str) -> list[str]:
     return list(names if names is not None else importlib.import_module(module_name).__all__)
 
 
-def _directive(qualified: str, obj) -> str:
-    """The autodoc directive for `obj` (autodoc writes reStructuredText, so in MyST it sits in eval-rst)."""
-    if isinstance(obj, type):
-        rst = f".. autoclass:: {qualified}\n   :members:\n"
-        if dataclasses.is_dataclass(obj):  # its fields are in its docstring; a Model's would read as methods
-            rst += f"   :exclude-members: {', '.join(f.name for f in dataclasses.fields(obj))}\n"
-    elif callable(obj) and not hasattr(obj, "momentum_form"):  # a Model instance is data, not a function
-        rst = f".. autofunction:: {qualified}\n"
-    else:  # data: its `#:` comment where it is defined (autodoc would look only in the module it is read from)
-        doc = data_doc(qualified.rsplit(".", 1)[1], obj)
-        if doc is None:
-            raise RuntimeError(f"{qualified}: no #: comment where it is defined")
-        rst = f".. py:data:: {qualified}\n\n" + "".join(f"   {line}\n" for line in doc)
-    return f"```{{eval-rst}}\n{rst}```\n"
+def _source_defaults(obj) -> dict[str, str]:
+    """The default values of `obj`'s parameters as its source writes them (``comm=MPI.COMM_WORLD``, not the object's
+    repr with its address, which would change the page at every run): a function's, or a dataclass's fields'."""
+    try:
+        node = ast.parse(textwrap.dedent(inspect.getsource(obj))).body[0]
+    except (OSError, TypeError, SyntaxError, IndexError):
+        return {}
+    if isinstance(node, ast.ClassDef):
+        return {n.target.id: ast.unparse(n.value) for n in node.body
+                if isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name) and n.value is not None}
+    if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+        return {}
+    args = node.args
+    positional = args.posonlyargs + args.args
+    found = {a.arg: ast.unparse(d) for a, d in zip(positional[len(positional) - len(args.defaults):], args.defaults)}
+    return found | {a.arg: ast.unparse(d) for a, d in zip(args.kwonlyargs, args.kw_defaults) if d is not None}
+
+
+def signature(name: str, obj) -> str:
+    """``name(parameters) -> return``: the signature of the function or class `obj` with the annotations and defaults
+    as the source writes them, one parameter a line when it is longer than `SIGNATURE_WIDTH`."""
+    callee = obj.__init__ if isinstance(obj, type) and not dataclasses.is_dataclass(obj) else obj
+    if isinstance(obj, type) and next(k for k in obj.__mro__ if "__init__" in vars(k)).__module__ == "builtins":
+        return f"class {name}({', '.join(base.__name__ for base in obj.__bases__)})"  # an exception or a warning
+    try:
+        sig = inspect.signature(obj)
+    except (TypeError, ValueError):
+        return f"{name}(...)"
+    defaults = _source_defaults(obj if dataclasses.is_dataclass(obj) else callee)
+    parts, star = [], False
+    for param in sig.parameters.values():
+        if param.name in ("self", "cls") and not parts:
+            continue
+        if param.kind is param.KEYWORD_ONLY and not star:
+            parts.append("*")
+            star = True
+        text = {param.VAR_POSITIONAL: "*", param.VAR_KEYWORD: "**"}.get(param.kind, "") + param.name
+        star = star or param.kind is param.VAR_POSITIONAL
+        if param.annotation is not param.empty:
+            text += f": {_annotation(param.annotation)}"
+        if param.default is not param.empty:
+            default = defaults.get(param.name, repr(param.default))
+            text += (" = " if param.annotation is not param.empty else "=") + default
+        parts.append(text)
+        if param.kind is param.POSITIONAL_ONLY and _last_positional(sig, param):
+            parts.append("/")
+    returns = "" if sig.return_annotation is sig.empty or isinstance(obj, type) else f" -> {_annotation(sig.return_annotation)}"
+    line = f"{name}({', '.join(parts)}){returns}"
+    if len(line) <= SIGNATURE_WIDTH:
+        return line
+    return f"{name}(\n" + "".join(f"    {part},\n" for part in parts) + f"){returns}"
+
+
+def _annotation(annotation) -> str:
+    """An annotation as the source writes it (they are strings: ``from __future__ import annotations``)."""
+    return annotation if isinstance(annotation, str) else inspect.formatannotation(annotation)
+
+
+def _last_positional(sig, param) -> bool:
+    kinds = [p.kind for p in sig.parameters.values()]
+    index = list(sig.parameters).index(param.name)
+    return param.kind is param.POSITIONAL_ONLY and (index + 1 == len(kinds) or kinds[index + 1] is not param.POSITIONAL_ONLY)
+
+
+#: the widest signature on one line; a longer one is written a parameter a line
+SIGNATURE_WIDTH = 100
+_ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
+
+
+def markdown(doc: str | None) -> str:
+    """A docstring as markdown: its reStructuredText roles and double backquotes as code, its literal blocks
+    (``Usage::`` and the indented lines after it) fenced, as Python where they parse as Python, else as text."""
+    lines = inspect.cleandoc(doc or "").replace("``", "`").splitlines()
+    out, block = [], None
+    for line in [*lines, "."]:  # a last line that ends a block
+        line = _ROLE.sub(lambda m: f"`{m.group(1)}`", line)
+        if block is not None:
+            if not line.strip() or line.startswith(" "):
+                block.append(line[4:] if line.strip() else "")
+                continue
+            out += _fenced(block)
+            block = None
+        if line.rstrip().endswith("::"):
+            out.append(line.rstrip()[:-1] if line.strip() != "::" else "")
+            block = []
+            continue
+        out.append(line)
+    out.pop()  # the "." that ended the last block
+    while out and not out[-1].strip():
+        out.pop()
+    return "\n".join(out) + "\n"
+
+
+def _fenced(block: list[str]) -> list[str]:
+    """The lines of a literal block fenced: as Python if they parse as Python, else as text; a blank line after."""
+    while block and not block[0].strip():
+        block.pop(0)
+    while block and not block[-1].strip():
+        block.pop()
+    try:
+        ast.parse("\n".join(block))
+        language = "python"
+    except SyntaxError:
+        language = "text"
+    return ["", f"```{language}", *block, "```", ""]
+
+
+def _members(cls) -> list[tuple[str, object]]:
+    """The public methods and properties `cls` defines itself, in source order; a dataclass's fields are in its
+    docstring."""
+    fields = {f.name for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else set()
+    return [(attr, member) for attr, member in vars(cls).items() if not attr.startswith("_") and attr not in fields
+            and (inspect.isfunction(member) or isinstance(member, (property, classmethod, staticmethod)))]
+
+
+def entry(qualified: str, obj, level: int = 3) -> str:
+    """The API page's entry of `obj`: a heading with its name, its signature (a function or class) or value (data),
+    and its docstring; a class's public methods and properties after it, one level down."""
+    name = qualified.rsplit(".", 1)[1]
+    heading = "#" * level + f" `{name}`\n"
+    if isinstance(obj, type) or (callable(obj) and not hasattr(obj, "momentum_form")):
+        kind = "class" if isinstance(obj, type) else "function"
+        doc = obj.__dict__.get("__doc__") if isinstance(obj, type) else obj.__doc__
+        out = [heading, f"{kind} `{qualified}`\n", f"```python\n{signature(name, obj)}\n```\n", markdown(doc)]
+        if isinstance(obj, type):
+            for attr, member in _members(obj):
+                function = member.__func__ if isinstance(member, (classmethod, staticmethod)) else member
+                what = "property" if isinstance(member, property) else "classmethod" if isinstance(member, classmethod) \
+                    else "method"
+                out.append("#" * (level + 1) + f" `{name}.{attr}`\n")
+                if isinstance(member, property):
+                    out.append(f"{what}\n")
+                    function = member.fget
+                else:
+                    out.append(f"{what}\n\n```python\n{signature(attr, function)}\n```\n")
+                out.append(markdown(function.__doc__))
+        return "\n".join(out)
+    doc = data_doc(name, obj)
+    if doc is None:
+        raise RuntimeError(f"{qualified}: no #: comment where it is defined")
+    value = repr(obj)
+    plain = isinstance(obj, (int, float, str, tuple)) and (not isinstance(obj, tuple) or all(  # the value, not a
+        isinstance(v, (int, float, str)) for v in obj))  # repr that depends on what is installed (SCHEMES)
+    shown = f"{name} = {value}" if plain and len(value) <= SIGNATURE_WIDTH else f"{name}: {type(obj).__name__}"
+    return "\n".join([heading, f"data `{qualified}`\n", f"```python\n{shown}\n```\n", markdown("\n".join(doc))])
 
 
 def data_doc(attr: str, obj) -> list[str] | None:
@@ -304,35 +458,59 @@ def data_doc(attr: str, obj) -> list[str] | None:
 
 
 def api() -> str:
-    """autodoc directives: `stringcontact.__all__` first, then each public module's other public names."""
+    """Every public name with its signature and docstring: `stringcontact.__all__` first, then each public module's
+    other public names (its docstring first)."""
     import stringcontact
 
     out = ["## `stringcontact`\n"]
     top = {id(getattr(stringcontact, name)) for name in stringcontact.__all__}
-    for name in stringcontact.__all__:
-        out.append(_directive(f"stringcontact.{name}", getattr(stringcontact, name)))
+    out += [entry(f"stringcontact.{name}", getattr(stringcontact, name)) for name in stringcontact.__all__]
     for module_name, (title, _) in PUBLIC_MODULES.items():
         module = importlib.import_module(module_name)
         rest = [n for n in public_names(module_name) if id(getattr(module, n)) not in top]
         if not rest:
             continue
-        out.append(f"## {title}: `{module_name}`\n")
-        out.append(f"```{{eval-rst}}\n.. automodule:: {module_name}\n   :no-index:\n```\n")  # its docstring
-        out += [_directive(f"{module_name}.{n}", getattr(module, n)) for n in rest]
+        out += [f"## {title}: `{module_name}`\n", markdown(module.__doc__)]
+        out += [entry(f"{module_name}.{n}", getattr(module, n)) for n in rest]
     return "\n".join(out)
 
 
-PAGES = {"scene_keys": scene_keys, "models": models, "cli": cli, "exit_codes": exit_codes, "output_files": output_files, "api": api}
+PARTS = {"scene_keys": scene_keys, "models": models, "cli": cli, "exit_codes": exit_codes, "output_files": output_files,
+         "api": api}
+#: the committed reference pages (docs/reference/NAME.md) and the generated parts each holds, in order
+PAGES = {"api": ("api",), "cli": ("cli",), "scene_keys": ("scene_keys", "models"), "output": ("output_files",),
+         "exit_codes": ("exit_codes",)}
+_PART = re.compile(r"(<!-- generated: (\w+) [^\n]*-->\n)(.*?)(<!-- end of the generated part -->)", re.DOTALL)
+
+
+def page_text(text: str) -> str:
+    """A reference page's `text` with each generated part (between its markers) made again from the code."""
+    return _PART.sub(lambda m: m.group(1) + "\n" + PARTS[m.group(2)]().rstrip("\n") + "\n\n" + m.group(4), text)
+
+
+def stale(folder: Path) -> list[str]:
+    """The pages in `folder` (docs/reference) whose generated parts differ from what the code makes now."""
+    return [name for name in PAGES if (folder / f"{name}.md").read_text() != page_text((folder / f"{name}.md").read_text())]
 
 
 def write_all(folder: Path) -> list[Path]:
-    """Write every generated page into `folder` (only when its text changed, so Sphinx rereads only those)."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """Make the generated parts of the reference pages in `folder` (docs/reference) again, writing a page only
+    when its text changed (so Sphinx rereads only those). `make reference` runs it; so does the site's build."""
     written = []
-    for name, make in PAGES.items():
+    for name, parts in PAGES.items():
         path = folder / f"{name}.md"
-        text = make()
-        if not path.exists() or path.read_text() != text:
-            path.write_text(text)
+        text = path.read_text()
+        found = [m.group(2) for m in _PART.finditer(text)]
+        if found != list(parts):
+            raise RuntimeError(f"{path}: generated parts {found}, expected {list(parts)} (their markers: "
+                               "<!-- generated: NAME ... --> and <!-- end of the generated part -->)")
+        new = page_text(text)
+        if new != text:
+            path.write_text(new)
         written.append(path)
     return written
+
+
+if __name__ == "__main__":  # `make reference`: docs/reference's generated parts from the code
+    for path in write_all(Path(__file__).resolve().parents[1] / "reference"):
+        print(f"reference: {path}")

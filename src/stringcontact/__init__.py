@@ -6,9 +6,11 @@
 """
 
 from . import jitlog as _jitlog
+from . import stack as _stack
 from .errors import InstabilityError, InstabilityWarning, SceneError
 from .lazy import lazy_names as _lazy_names
 
+_stack.load_mpi_first()  # the dolfinx wheel's MPI before anything imports dolfinx (nothing elsewhere)
 _jitlog.quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 
 __version__ = "0.1.0"
@@ -16,13 +18,12 @@ __version__ = "0.1.0"
 # Imported on first use (PEP 562), so that `import stringcontact.plot.run_pictures` in the picture process and the CLI's
 # argument checks do not load dolfinx, PETSc and UFL (0.6 s).
 _LAZY = {
-    "Model": "model.paper",
+    "Model": "model.interface",
     "ModelConstant": "model.interface",
     "OutputField": "model.interface",
     "SolverHints": "model.interface",
-    "DeprecatedKeyWarning": "scene",
-    "Parameters": "model.paper",
-    "inelastic": "model.paper",
+    "Parameters": "model.interface",
+    "inelastic": "model.interface",
     "Result": "io.result",
     "Scene": "scene",
     "SceneWarning": "scene",
@@ -32,6 +33,12 @@ _LAZY = {
     "SCHEMES": "timestepping",
     "simulate": "run.driver",
     "Stepper": "run.stepper",
+    "ContactProblem": "core.problem",
+    "TimeStepper": "core.stepper",
+    "EnergyLedger": "core.ledger",
+    "Observer": "core.observers",
+    "RowObserver": "run.rows",
+    "SchemeOption": "timestepping.base",
     "Storage": "run.options",
     "Output": "run.options",
 }
@@ -40,7 +47,12 @@ __getattr__, _ = _lazy_names(__name__, _LAZY, globals())
 
 __all__ = [
     "SCHEMES",
-    "DeprecatedKeyWarning",
+    "ContactProblem",
+    "EnergyLedger",
+    "Observer",
+    "RowObserver",
+    "SchemeOption",
+    "TimeStepper",
     "InstabilityError",
     "InstabilityWarning",
     "Model",

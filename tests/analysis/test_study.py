@@ -10,7 +10,7 @@ from conftest import mpirun
 from mpi4py import MPI
 
 import stringcontact as sc
-import stringcontact.run.setup
+import stringcontact.run.adapter
 from stringcontact.analysis import study, tolerance
 from stringcontact.cli import study as study_cli
 
@@ -28,7 +28,7 @@ def test_explicit_penalty_at_r4_is_caught_before_and_during_the_run(monkeypatch)
     assert before.value.step == 0 and before.value.r == pytest.approx(4.0)
     # Without the pre-run refusal, the running energy guard stops it at the first contact step.
     # The bound belongs to the contact law: the same law without it.
-    monkeypatch.setattr(stringcontact.run.setup, "inelastic", dataclasses.replace(sc.inelastic, stability=None))
+    monkeypatch.setattr(stringcontact.run.adapter, "inelastic", dataclasses.replace(sc.inelastic, stability=None))
     with pytest.raises(sc.InstabilityError) as during:
         sc.simulate(scene, penalty="explicit", comm=MPI.COMM_SELF)
     t_star = study.FLAT_H / study.FLAT_V

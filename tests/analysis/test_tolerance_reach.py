@@ -56,7 +56,7 @@ def test_tol_tries_only_the_schemes_the_model_runs_with(monkeypatch):
     import dataclasses
 
     from stringcontact.model.film import film
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
 
     tried = []
 

@@ -99,6 +99,62 @@ def test_film_landing_flags_its_numerical_dissipation(capfd):
     note = re.search(rf"note: the scheme's own numerical dissipation {NUMBER} is {NUMBER} % of the energy", out)
     assert note, out
     assert float(note[2]) == pytest.approx(34, abs=2)
-    assert "a smaller dt" in out and "scheme newmark" in out and ": closes" in out
+    assert "a smaller dt" in out and ": closes" in out
+    assert "scheme newmark" not in out  # newmark refuses the film (no velocity damping): not advised
     assert main(["run", "example1", "--nx", "200", "--nt", "40", "--eps", "0.01", *QUIET]) == 0
     assert "numerical dissipation" not in capfd.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def example1():
+    """A coarse Example 1: the string lands at t ≈ 0.015 and breaks into several contact components later."""
+    return sc.simulate(sc.load_scene("example1").replace(nx=80, nt=600), max_rows=600)
+
+
+def test_the_components_note_says_when_contact_began_and_when_the_most_components_first_occurred(example1, capsys):
+    """"first contact at" is the first stored time with any contact, "first at" the first with the most components:
+    a string that touches in one interval at row 100 and in three at row 300 is told both times."""
+    import dataclasses
+
+    from stringcontact.cli.report import report
+
+    contact = np.zeros_like(example1.contact)
+    contact[100:, 30:50] = True  # one interval from row 100 on
+    contact[300:310, 10:15] = contact[300:310, 60:70] = True  # three from row 300 to 309
+    res = dataclasses.replace(example1, contact=contact)
+    report(res)
+    out = capsys.readouterr().out
+    match = re.search(rf"first contact at t = {NUMBER}; at most (\d+) contact components at once \(first at t = {NUMBER}\)", out)
+    assert match, out
+    began, most, first = float(match[1]), int(match[2]), float(match[3])
+    assert began == pytest.approx(res.t[100], rel=1e-3) and most == 3 and first == pytest.approx(res.t[300], rel=1e-3)
+
+
+@pytest.mark.parametrize("model, advised", [("inelastic", True), ("soft_ground", False), ("film", False)])
+def test_the_numerical_dissipation_note_advises_newmark_only_for_a_model_newmark_runs(example1, monkeypatch, model, advised):
+    """The note names scheme newmark only where newmark takes the model (`timestepping.check_model`): not for the
+    film or a plugin without a velocity damping (soft_ground), which newmark refuses."""
+    import dataclasses
+
+    from stringcontact.cli import report as closing
+    from stringcontact.model.registry import load_model, registered
+    from stringcontact.run import checks
+    from stringcontact.timestepping import check_model
+
+    if model not in registered():
+        pytest.skip(f"{model} is not installed (scripts/setup installs examples/soft_ground)")
+    monkeypatch.setattr(checks, "NUMERICAL_SHARE", -1.0)  # every run gets the note
+    res = dataclasses.replace(example1, model=model, model_origin={"name": model, "source": "built-in"})
+    note = closing._fmt_numerical_line(res)
+    assert note is not None and "a smaller dt" in note
+    assert ("scheme newmark" in note) is advised
+    if not advised:
+        with pytest.raises(ValueError, match="newmark"):
+            check_model("newmark", load_model(model))
+
+
+def test_show_names_the_models_constants_without_a_stray_quote(capsys):
+    assert main(["show", "film_landing"]) == 0
+    out = capsys.readouterr().out
+    assert "[parameters]  # the constants of model film (`stringcontact models`)" in out
+    assert "''s" not in out and "'s constants" not in out

@@ -80,7 +80,8 @@ def test_the_site_builds_without_a_warning(site):
         f'<code class="docutils literal notranslate"><span class="pre">{k}</span></code>' in keys
         for k in limits.FILE_KEYS
     )
-    assert 'id="stringcontact.simulate"' in (html / "reference" / "api.html").read_text()
+    api = (html / "reference" / "api.html").read_text()
+    assert 'id="simulate"' in api and "comm=MPI.COMM_WORLD" in re.sub(r"<[^>]+>", "", api)  # its signature, highlighted
     assert "stringcontact show" in (html / "reference" / "cli.html").read_text()
     demos = sorted((ROOT / "demos").glob("demo_*.py"))
     for demo in demos:  # every demo is a page, and the paper's examples show their pictures
@@ -160,10 +161,8 @@ def test_wide_tables_long_signatures_and_code_stay_in_the_page(site):
     for name in ("reference/scene_keys.html", "reference/api.html", *MATH_PAGES):
         assert any('href="' in line and "custom.css" in line for line in (html / name).read_text().splitlines()), name
     api = (html / "reference" / "api.html").read_text()
-    heading = api.split('id="stringcontact.Model"', 1)[1].split("</dt>", 1)[0]
-    assert "sig-param" not in heading, "Model's parameters in its heading"
-    init = api.split('id="stringcontact.Model.__init__"', 1)[1].split("</dt>", 1)[0]
-    assert init.count('<dd><em class="sig-param">') > 5, "Model's parameters not one a line"
+    model = api.split('id="model"', 1)[1].split("</pre>", 1)[0]  # Model's signature: its code block
+    assert "sig-param" not in model and model.count("\n") > 5, "Model's parameters not one a line"
 
 
 @pytest.mark.slow

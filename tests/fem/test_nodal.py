@@ -7,7 +7,7 @@ from mpi4py import MPI
 
 import stringcontact as sc
 from stringcontact.fem import compat, nodal
-from stringcontact.model.paper import Parameters
+from stringcontact.model.interface import Parameters
 
 
 def test_nodal_evaluation_matches_dolfinx_interpolation():

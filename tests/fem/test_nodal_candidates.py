@@ -9,7 +9,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from stringcontact.fem import compat, nodal
-from stringcontact.model import paper
+from stringcontact.model import inelastic as paper, interface
 from stringcontact.model.variants import elastic
 
 N = 400
@@ -19,7 +19,7 @@ N = 400
 def space():
     msh = mesh.create_interval(MPI.COMM_SELF, N, [0.0, 1.0])
     V = compat.function_space(msh, "Lagrange", 1)
-    params = paper.Parameters(alpha=fem.Constant(msh, PETSc.ScalarType(0.1)),
+    params = interface.Parameters(alpha=fem.Constant(msh, PETSc.ScalarType(0.1)),
                               eps=fem.Constant(msh, PETSc.ScalarType(5e-4)), x=ufl.SpatialCoordinate(msh), length=1.0)
     eta, eta_old = fem.Function(V), fem.Function(V)
     v = (eta - eta_old) / fem.Constant(msh, PETSc.ScalarType(2e-4))

@@ -5,7 +5,7 @@ import ufl
 
 import stringcontact as sc
 from stringcontact.fem.operators import ModelError
-from stringcontact.model.paper import Model
+from stringcontact.model.interface import Model
 
 
 def test_a_momentum_form_nonlinear_in_eta_tt_is_refused():

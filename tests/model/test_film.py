@@ -19,7 +19,7 @@ import stringcontact as sc
 from stringcontact.errors import SceneError
 from stringcontact.fem import compat
 from stringcontact.model import film as film_model
-from stringcontact.model.paper import Parameters
+from stringcontact.model.interface import Parameters
 
 H, DELTA, ALPHA = 0.5, 5e-4, 0.01
 
@@ -226,12 +226,12 @@ def test_a_top_level_film_key_still_works_with_a_one_line_warning(tmp_path):
             | {"model": "film", "mu": 0.002, "h_min": 0.01})
     path = tmp_path / "old.toml"
     path.write_text(tomli_w.dumps({k: v for k, v in text.items() if k != "notes"}))
-    with pytest.warns(sc.DeprecatedKeyWarning, match=r"mu, h_min at the top level .* \[parameters\] table") as seen:
+    with pytest.warns(sc.SceneWarning, match=r"mu, h_min at the top level .* \[parameters\] table") as seen:
         old = sc.load_scene(path)
     assert len(seen) == 1 and "\n" not in str(seen[0].message)
     assert dict(old.parameters) == {"mu": 0.002, "h_min": 0.01}
     assert old == sc.load_scene("film_landing").replace(parameters={"mu": 0.002, "h_min": 0.01}, notes="")
-    with pytest.warns(sc.DeprecatedKeyWarning):
+    with pytest.warns(sc.SceneWarning):
         assert dict(sc.load_scene("film_landing").replace(mu=0.5).parameters) == {"mu": 0.5}
 
 
@@ -246,9 +246,8 @@ def test_the_film_refuses_a_scheme_that_is_not_l_stable():
 def test_cli_missing_mu_exits_2_in_one_line(tmp_path):
     scene = sc.load_scene("film_landing").as_dict() | {"nx": 20}
     scene.pop("parameters")
-    lines = [f"{k} = {json.dumps(v)}" for k, v in scene.items() if k not in ("notes", "output_times")]
     path = tmp_path / "nomu.toml"
-    path.write_text("\n".join(lines) + "\n")
+    path.write_text(tomli_w.dumps({k: v for k, v in scene.items() if k not in ("notes", "output_times")}))
     proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", str(path), "--out", str(tmp_path / "out")],
                           check=False, capture_output=True, text=True)
     assert proc.returncode == 2 and "mu:" in proc.stderr and proc.stderr.strip().count("\n") == 0

@@ -17,7 +17,7 @@ from stringcontact.errors import SceneError
 from stringcontact.model import registry
 from stringcontact.scene import load_scene
 
-SCENE = 'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\neps = 0.002\nh = 0\neta0 = "0.3*sin(pi*x)"\nv0 = 0\n'
+SCENE = 'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\nscheme = { eps = 0.002 }\nh = 0\neta0 = "0.3*sin(pi*x)"\nv0 = 0\n'
 
 SENTINEL = """
 from pathlib import Path
@@ -206,10 +206,10 @@ def test_a_plugins_constant_from_the_scene_reaches_its_form(tmp_path, soft_groun
 
 
 def test_a_top_level_constant_still_works_with_a_warning(tmp_path, soft_ground):
-    from stringcontact.scene import DeprecatedKeyWarning
+    from stringcontact.scene import SceneWarning
 
     (tmp_path / "old.toml").write_text(GROUND + "k = 1e4\n")
-    with pytest.warns(DeprecatedKeyWarning, match=r"k at the top level .* \[parameters\] table"):
+    with pytest.warns(SceneWarning, match=r"k at the top level .* \[parameters\] table"):
         scene = load_scene(tmp_path / "old.toml")
     assert scene.parameters == (("k", 1e4),)
 
@@ -218,7 +218,7 @@ def test_a_top_level_constant_still_works_with_a_warning(tmp_path, soft_ground):
     ("kk", 1.0, r"kk: model 'soft_ground' has no constant 'kk' \(its constants: k, c\); remove it from \[parameters\]"),
     ("k", -1.0, r"k: -1 is out of range; allowed: a number in \(0, 1000000000000\]"),
     ("c", -1.0, r"c: -1 is out of range; allowed: a number in \[0, 1000000000000\]"),
-    ("k", "stiff", r"k: expected a number, got str"),
+    ("k", "stiff", r"k: expected a number, got str 'stiff'; allowed: a number in \(0, 1000000000000\]$"),  # its own range
 ])
 def test_an_unknown_or_out_of_range_constant_is_refused_naming_it(tmp_path, capsys, soft_ground, name, value, message):
     """In a scene file, in Scene.replace and on the command line: a one-line SceneError naming the constant."""

@@ -260,7 +260,7 @@ def test_unused_fields_finds_what_a_model_ignores():
     from mpi4py import MPI
 
     from stringcontact.fem import compat
-    from stringcontact.model.paper import Parameters, unused_fields
+    from stringcontact.model.interface import Parameters, unused_fields
 
     msh = mesh.create_interval(MPI.COMM_SELF, 4, [0.0, 1.0])
     V = compat.function_space(msh, "Lagrange", 1)
@@ -275,7 +275,7 @@ def test_unused_fields_finds_what_a_model_ignores():
 
 def test_a_field_the_model_ignores_is_refused():
     scene = sc.load_scene("example1").replace(nx=20, nt=750, load="-10")
-    with pytest.raises(ValueError, match="scene field.*load.*not used by model 'inelastic'"):
+    with pytest.raises(ValueError, match="field.*load.*not used by model 'inelastic'"):
         sc.simulate(scene)
 
 
@@ -286,7 +286,7 @@ def test_cli_uses_the_scenes_model_and_refuses_a_bad_one(tmp_path, capsys):
     scene = tmp_path / "draped.toml"
     scene.write_text(
         'model = "loaded_obstacle"\n'
-        'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\neps = 0.002\nh = 0\n'
+        'T = 0.1\nnt = 50\nnx = 20\nalpha = 0.2\nscheme = { eps = 0.002 }\nh = 0\n'
         'eta0 = "0.3*sin(pi*x)"\nv0 = 0\nload = "-10"\nobstacle = "0.2 - 4*(x - 0.5)**2"\n'
     )
     out = tmp_path / "o"

@@ -6,7 +6,6 @@ names no model: the pressure's colours and scale come from its `OutputField` (`R
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import warnings
 
 import numpy as np
@@ -74,17 +73,23 @@ def _yellow(img):
     return (img[..., 0] > 200) & (img[..., 1] > 150) & (img[..., 2] < 90)
 
 
-def _rows_of(img, nrows: int):
-    """membrane.png of a film: the title row (weight 0.25), `nrows` panel rows (1 each), the bar's row (BAR_ROW)."""
-    weights = np.array([0.25] + [1.0] * nrows + [mesh_pictures.BAR_ROW])
-    edges = np.round(np.concatenate([[0], np.cumsum(weights)]) / weights.sum() * img.shape[0]).astype(int)
-    return [img[a:b] for a, b in itertools.pairwise(edges)]
+def _layout(result):
+    """The pixel boxes (rows, columns: slices) of membrane.png's panels and of its colour bar with its labels, as the
+    picture lays them out (the screen style)."""
+    from stringcontact.plot.style import SCREEN
 
+    with SCREEN.drawn():
+        fig, axs = mesh_pictures.membrane_figure(result)
+        fig.canvas.draw()
+    height = fig.bbox.height
 
-def _panels(img, nrows: int, ncols: int):
-    rows = _rows_of(img, nrows)
-    width = img.shape[1] / ncols
-    return [row[:, int(c * width) : int((c + 1) * width)] for row in rows[1:-1] for c in range(ncols)]
+    def box(b):
+        return slice(round(height - b.y1), round(height - b.y0)), slice(round(b.x0), round(b.x1))
+
+    panels = [box(ax.get_window_extent()) for ax in axs.flat if ax.get_visible()]
+    (bar,) = [box(ax.get_tightbbox(fig.canvas.get_renderer())) for ax in fig.axes if hasattr(ax, "_colorbar")]
+    charts.pyplot().close(fig)
+    return panels, bar
 
 
 # --- the scale ---------------------------------------------------------------------------------------
@@ -180,7 +185,7 @@ def test_a_membrane_without_a_surface_field_is_coloured_by_contact_as_before(run
         assert _surface_actor(p, surface).mapper.array_name == "contact"
     finally:
         p.close()
-    assert "red: in contact" in membrane.membrane_title(bare, view, "x")
+    assert "red: in contact" in membrane.membrane_colours(bare, view)
     assert membrane.membrane_legend(bare, view)[0] == "colour: contact"
 
 
@@ -192,11 +197,12 @@ def test_membrane_png_colours_the_film_by_its_pressure_with_its_bar_and_contact_
     rows = charts.snapshot_rows(res)
     img = _image(folder / "membrane.png")
     assert img.shape == (viz.WINDOW_SIZE[1], viz.WINDOW_SIZE[0], 3)
-    bar = _rows_of(img, 2)[-1]
+    boxes, bar_box = _layout(res)
+    bar = img[bar_box]
     for end in (PRESSURE_COLOURS[0], PRESSURE_COLOURS[-1]):  # the bar's ends, unlit: the map's own colours
         assert _near(bar, end, 6).sum() > 20, end
     assert (bar.max(axis=-1) < 80).sum() > 100  # its labels and frame in black
-    panels = _panels(img, 2, 2)
+    panels = [img[box] for box in boxes]
     peak = np.abs(res.fields["pressure"][rows]).max(axis=1)
     red, blue, yellow = ([int(f(p).sum()) for p in panels] for f in (_reddish, _bluish, _yellow))
     assert peak[0] == 0 and red[0] == blue[0] == yellow[0] == 0  # t = 0: p = p_a everywhere, a grey membrane

@@ -12,9 +12,10 @@ from conftest import plot_refusal, xdmf_frames
 import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback
-from stringcontact.plot import animation, charts
+from stringcontact.plot import animation, charts, mesh_pictures
 from stringcontact.plot import run_pictures as viz
 from stringcontact.plot.picture_process import PictureProcess
+from stringcontact.plot.style import Look
 from stringcontact.scene import scene_to_toml
 
 #: a coarse drum (about 100 nodes) that lands at t = 0.12 and is in contact until T; its rim starts at 0.3
@@ -90,34 +91,38 @@ def test_frames_are_every_kth_row_and_the_last():
     assert len(animation.frame_rows(res, max_frames=300)) == 201
 
 
-def _panels(img, nrows: int, ncols: int):
-    """The panels of membrane.png: below a title row of weight 0.25, `nrows` x `ncols` equal panels."""
-    height, width = img.shape[:2]
-    top = height * 0.25 / (0.25 + nrows)
-    h, w = (height - top) / nrows, width / ncols
-    return [img[int(top + r * h) : int(top + (r + 1) * h), int(c * w) : int((c + 1) * w)] for r in range(nrows) for c in range(ncols)]
+def panel_boxes(result, figure_of=None):
+    """The pixel boxes (rows, columns: slices) of membrane.png's panels as the picture lays them out (the screen
+    style), and the rows under them (the colour key)."""
+    from stringcontact.plot.style import SCREEN
+
+    with SCREEN.drawn():
+        fig, axs = (figure_of or mesh_pictures.membrane_figure)(result)
+        fig.canvas.draw()
+    height = fig.bbox.height
+    boxes = [ax.get_window_extent() for ax in axs.flat if ax.get_visible()]
+    charts.pyplot().close(fig)
+    below = round(height - min(b.y0 for b in boxes))
+    return [(slice(round(height - b.y1), round(height - b.y0)), slice(round(b.x0), round(b.x1))) for b in boxes], below
 
 
-def _without_key(panel):
-    """A panel without the colour key (the first panel's upper right: its "■ in contact" line is red)."""
-    panel = panel.copy()
-    h, w = panel.shape[:2]
-    panel[: int(0.4 * h), int(0.6 * w) :] = 255
-    return panel
+def _panels(img, result):
+    """The panels of membrane.png `img` of `result`."""
+    return [img[box] for box in panel_boxes(result)[0]]
 
 
 def test_the_membrane_panels_are_red_only_where_there_is_contact(run, tmp_path):
     folder, res = run
     rows = charts.snapshot_rows(res)
     assert res.t[rows] == pytest.approx(SMALL_DRUM["output_times"])
-    panels = _panels(_image(folder / "membrane.png"), 2, 2)
-    red = [int(_red(_without_key(panel)).sum()) for panel in panels]
+    panels = _panels(_image(folder / "membrane.png"), res)
+    red = [int(_red(panel).sum()) for panel in panels]
     assert red[0] == 0 and red[1] == 0  # t = 0 and 0.1: not landed yet
     assert red[2] > 2000 and red[3] > 2000
-    title_row = _image(folder / "membrane.png")[: round(0.25 / 2.25 * viz.WINDOW_SIZE[1])]  # weights 0.25, 1, 1
-    assert int(_red(title_row).sum()) > 30  # the key's red square and words, once, beside the title
+    key = _image(folder / "membrane.png")[panel_boxes(res)[1]:]
+    assert int(_red(key).sum()) > 30  # the key's red square, once, under the panels
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
-    assert sum(_red(_without_key(p)).sum() for p in _panels(_image(viz.draw("membrane.png", free, tmp_path)), 2, 2)) == 0
+    assert sum(_red(p).sum() for p in _panels(_image(viz.draw("membrane.png", free, tmp_path)), free)) == 0
     img = _image(folder / "membrane.png")
     grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the grey obstacle
     assert grey.sum() > 5000
@@ -135,7 +140,7 @@ def test_the_contact_area_chart_draws_the_results_numbers(run):
         [patches] = patch_axes.get_lines()
         np.testing.assert_array_equal(patches.get_ydata(), res.contact_patches())
         assert res.contact_patches().max() == 1
-        assert "Contact area and patches: drum" in area_axes.get_title()
+        assert fig._suptitle.get_text() == "Contact area and contact patches over time"
         assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
     finally:
         charts.pyplot().close(fig)
@@ -145,7 +150,12 @@ def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeyp
     _, res = run
     labels = []
     plt = charts.pyplot()
-    monkeypatch.setattr(charts, "savefig", lambda fig, path: labels.extend(t.get_text() for t in fig.legends[0].get_texts()) or plt.close(fig))
+    def keep_labels(fig, path, look):
+        labels.extend(t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts())
+        plt.close(fig)
+        return [path]
+
+    monkeypatch.setattr(charts, "savefig", keep_labels)
     charts.energy_picture(res, tmp_path / "e.png")
     assert any(r"|\nabla\eta|^2" in label for label in labels) and not any("eta_x" in label for label in labels)
 
@@ -269,16 +279,12 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     times = np.round(np.linspace(0.0, 0.4, 41), 10).tolist()
     res = sc.simulate(small_drum().replace(output_times=times), progress=False)
     assert len(charts.stored_rows_at(res, times)) == 41
-    shapes = []
-
-    def keep_shape(p, path):
-        shapes.append(p.shape)
-        p.close()
-
-    monkeypatch.setattr(mesh_pictures, "_screenshot", keep_shape)
-    mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", window_size=(400, 300))
-    (rows, cols), = shapes
-    assert (rows - 1) * cols < 12 + cols  # a title row, then at most 12 panels (3 columns)
+    drawn = []
+    monkeypatch.setattr(charts, "savefig", lambda fig, path, look: drawn.append(fig) or [path])
+    mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", Look(size=(4, 3)))
+    panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
+    assert len(panels) == 12 == charts.MAX_PANELS  # one for each of 12 of the 41 output times (3 columns)
+    charts.pyplot().close(drawn[0])
 
 
 @pytest.mark.slow
@@ -353,9 +359,9 @@ def test_the_membrane_pictures_tick_labels_are_at_least_12_pixels_high(run, tmp_
     sizes = []
     draw = membrane.add_axis
 
-    def spy(p, axis, font_size=11, most=5):
-        sizes.append(font_size)
-        return draw(p, axis, font_size, most)
+    def spy(p, axis, font_size=11, most=5, zoom=1.0):
+        sizes.append(round(font_size * zoom))
+        return draw(p, axis, font_size, most, zoom)
 
     monkeypatch.setattr(membrane, "add_axis", spy)  # the axes of membrane.png and membrane.gif alike
     mesh_pictures.membrane_picture(res, tmp_path / "membrane.png")

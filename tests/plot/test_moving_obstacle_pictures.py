@@ -80,19 +80,26 @@ def test_an_obstacle_at_rest_is_still_a_band_over_t(drawn, tmp_path):
     assert np.unique(np.round(np.asarray(obstacle.points)[:, 1], 12)).size == 2  # t = 0 and T only
 
 
-def test_each_membrane_panel_draws_the_obstacle_at_its_time(dome, drawn, tmp_path):
+def test_each_membrane_panel_draws_the_obstacle_at_its_time(dome, monkeypatch, tmp_path):
+    """Each panel is rendered after `show_row` moved the membrane and the obstacle to its row: ψ at its time."""
     assert dome.scene.obstacle_moves
+    shown, show_row = [], mesh_pictures.show_row
+
+    def recording(surface, result, row, view):
+        show_row(surface, result, row, view)
+        shown.append((row, np.asarray(view.obstacle.points)[:, 2].copy()))
+
+    monkeypatch.setattr(mesh_pictures, "show_row", recording)
     mesh_pictures.membrane_picture(dome, tmp_path / "membrane.png")
-    obstacles = _in_colour(drawn, colours.MEMBRANE_OBSTACLE_COLOUR)
     rows = charts.snapshot_rows(dome)
-    assert len(obstacles) == len(rows)
+    assert [row for row, _ in shown] == rows
     view = membrane.membrane_view(dome)
     lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
     tops = []
-    for mesh, row in zip(obstacles, rows):
+    for row, heights in shown:
         psi = dome.scene.obstacle_values(dome.x, float(dome.t[row]))
         expected = psi * view.scale - membrane._below(lo, hi, view.scale)
-        np.testing.assert_allclose(np.asarray(mesh.points)[:, 2], expected, atol=1e-12, err_msg=f"t = {dome.t[row]}")
+        np.testing.assert_allclose(heights, expected, atol=1e-12, err_msg=f"t = {dome.t[row]}")
         tops.append(float(np.max(expected)))
     assert tops[0] < tops[-1] - 0.2 * view.scale, tops  # the dome rose between the first and the last panel
     assert view.bounds[5] >= 0.25 * view.scale * 0.9  # the box holds the risen dome

@@ -20,7 +20,7 @@ from stringcontact.cli.main import main
 from stringcontact.io import readback, tables
 from stringcontact.io.paraview_view import field_points, field_range
 from stringcontact.model.interface import OutputField
-from stringcontact.model.paper import inelastic
+from stringcontact.model.interface import inelastic
 from stringcontact.plot import picture_names as catalogue
 from stringcontact.plot import run_pictures as viz
 from stringcontact.plot.fields import FieldScale, info_of

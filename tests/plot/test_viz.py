@@ -14,8 +14,10 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback
 from stringcontact.io.result import ENERGY_KEYS
+from stringcontact.plot import charts
 from stringcontact.plot import run_pictures as viz
 from stringcontact.plot.picture_process import PictureProcess
+from stringcontact.plot.style import SCREEN
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +105,9 @@ def test_contact_set_picture_shows_the_contact_fraction(run):
     fraction = np.sum(res.contact * dt[:, None] * dx[None, :]) / (dx.sum() * dt.sum())
     assert 0.05 < fraction < 0.5
     img = _image(run[0] / "contact_set.png")
-    fig, axes = viz.contact_set_figure(res)  # where the whole (x, t) rectangle is: the upper panel
+    with SCREEN.drawn():  # where the whole (x, t) rectangle is: the upper panel, as the run's picture lays it out
+        fig, axes = viz.contact_set_figure(res)
+        fig.canvas.draw()
     box = axes["set"].get_window_extent()
     top, bottom = fig.bbox.height - box.y1, fig.bbox.height - box.y0  # pixel rows count from the top
     inside = _near(img[round(top) + 2 : round(bottom) - 1, round(box.x0) + 2 : round(box.x1) - 1], viz.CONTACT_COLOUR)
@@ -349,6 +353,18 @@ def test_simulate_calls_a_given_picture_function_before_the_folder_is_published(
     assert sorted(p.name for p in (tmp_path / "out").glob("*.png")) == ["mine.png"]
 
 
+def _drawn_at(figure_of, result):
+    """(the figure's first axes' pixels: rows and columns as slices, the rows below it) of `figure_of(result)` laid
+    out as the picture is (the screen style)."""
+    with SCREEN.drawn():
+        fig, ax = figure_of(result)
+        fig.canvas.draw()
+    box, height = ax.get_window_extent(), fig.bbox.height
+    charts.pyplot().close(fig)
+    return (slice(round(height - box.y1), round(height - box.y0)), slice(round(box.x0), round(box.x1))), \
+        slice(round(height - box.y0), None)
+
+
 def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run):
     from stringcontact.plot import mesh_pictures
 
@@ -356,11 +372,12 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
     mesh_pictures.space_time_picture(free, tmp_path / "free.png")
     mesh_pictures.space_time_picture(res, tmp_path / "contact.png")
-    # the surface, without the colour key at the upper right (its "■ in contact" line is red in both)
-    red = [_near(_image(tmp_path / n)[250:], viz.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
+    render, below = _drawn_at(mesh_pictures.space_time_figure, res)
+    # the render, without the colour key under it (its red square is in both)
+    red = [_near(_image(tmp_path / n)[render], viz.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
     assert red[0] < 50 and red[1] > 2000
-    key = [_near(_image(tmp_path / n)[:250, 700:], viz.CONTACT_COLOUR, tol=10).sum() for n in ("free.png", "contact.png")]
-    assert min(key) > 30  # the key's red square and words
+    key = [_near(_image(tmp_path / n)[below], viz.CONTACT_COLOUR, tol=10).sum() for n in ("free.png", "contact.png")]
+    assert min(key) > 30  # the key's red square
     img = _image(tmp_path / "free.png")
     grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the translucent obstacle
     assert grey.sum() > 5000
@@ -409,20 +426,20 @@ def _recorded_axes(monkeypatch):
     from stringcontact.plot import membrane, mesh_pictures
 
     drawn = {"axes": [], "labels": [], "keys": []}
-    add_axis, add_key = mesh_pictures.add_axis, mesh_pictures.add_colour_legend
+    add_axis, add_key = mesh_pictures.add_axis, mesh_pictures._key
 
     def axis(p, a, *args, **kwargs):
         drawn["axes"].append(a)
         drawn["labels"].append(add_axis(p, a, *args, **kwargs))
         return drawn["labels"][-1]
 
-    def key(p, quantity, entries, **kwargs):
-        drawn["keys"].append((quantity, [label for label, _ in entries]))
-        return add_key(p, quantity, entries, **kwargs)
+    def key(ax, entries):
+        drawn["keys"].append([label for label, _ in entries])
+        return add_key(ax, entries)
 
     monkeypatch.setattr(mesh_pictures, "add_axis", axis)  # the space-time surface's
     monkeypatch.setattr(membrane, "add_axis", axis)  # a membrane's
-    monkeypatch.setattr(mesh_pictures, "add_colour_legend", key)
+    monkeypatch.setattr(mesh_pictures, "_key", key)
     return drawn
 
 
@@ -441,8 +458,8 @@ def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_col
     assert len(eta_labels) >= 2
     x_axis, t_axis, _ = drawn["axes"]
     assert x_axis.start[2] < 0 and t_axis.start[2] < 0  # on a floor below the obstacle ψ = 0, not on its plane
-    (quantity, entries), = drawn["keys"]
-    assert "contact" in quantity and any("in contact" in e for e in entries)
+    (entries,) = drawn["keys"]
+    assert any("in contact" in e for e in entries) and any("free" in e for e in entries)
     np.testing.assert_array_equal(annotations.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
 
 
@@ -453,10 +470,10 @@ def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch)
     res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.3, T=0.3, nt=60, output_times=[0.0, 0.3]))
     drawn = _recorded_axes(monkeypatch)
     mesh_pictures.membrane_picture(res, tmp_path / "m.png")
-    assert [a.title for a in drawn["axes"]] == ["x", "y", "eta"] * 2  # in each of the two panels
+    assert [a.title for a in drawn["axes"]] == ["x", "y", "eta"]  # once: the two panels are one scene's renders
     x_labels = [float(v) for v in drawn["labels"][0]]
     assert x_labels[0] < 0 < x_labels[-1] and len(x_labels) >= 3
-    assert len(drawn["keys"]) == 1 and "contact" in drawn["keys"][0][0]
+    assert len(drawn["keys"]) == 1 and any("in contact" in e for e in drawn["keys"][0])
 
 
 def test_the_membrane_animation_has_axes(tmp_path, monkeypatch):
@@ -477,13 +494,13 @@ def test_snapshots_have_at_most_max_panels_whatever_the_output_times(tmp_path, m
     res = sc.simulate(sc.load_scene("example1").replace(nx=20, T=0.5, nt=1000, output_times=times), max_rows=100)
     assert len(viz.stored_rows_at(res, times)) == 60  # every output time is a stored row
     drawn = []
-    monkeypatch.setattr(charts, "savefig", lambda fig, path, dpi=charts.DPI: drawn.append(fig))
+    monkeypatch.setattr(charts, "savefig", lambda fig, path, look=None: drawn.append(fig) or [path])
     viz.snapshots_picture(res, tmp_path / "snapshots.png")
     panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
     assert len(panels) == 12 == charts.MAX_PANELS
     titles = [ax.get_title() for ax in panels]
     assert titles[0].startswith("t = 0:") and titles[-1].startswith("t = 0.5:")  # the first and the last time
-    assert "12 of the 60 output times" in drawn[0]._suptitle.get_text()
+    assert "12 of the 60 output times" in drawn[0]._supxlabel.get_text()  # the caption says so
     charts.pyplot().close(drawn[0])
 
 
@@ -580,9 +597,10 @@ def test_the_energy_legend_covers_no_panel(run):
     from stringcontact.plot import charts
 
     _, res = run
-    fig, axes = charts.energy_figure(res)
-    fig.canvas.draw()
-    legends = [*fig.legends, *(ax.get_legend() for ax in axes.values() if ax.get_legend() is not None)]
+    with SCREEN.drawn():
+        fig, axes = charts.energy_figure(res)
+        fig.canvas.draw()
+    legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_legend() is not None)]
     curve_legends = [legend for legend in legends if any("kinetic" in text.get_text() for text in legend.get_texts())]
     assert len(curve_legends) == 1
     box = curve_legends[0].get_window_extent()
@@ -623,8 +641,8 @@ def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
     charts.pyplot().close(fig)
 
 
-def test_the_space_time_title_gives_a_heights_round_off_as_0(tmp_path, monkeypatch):
-    """A string held at η ≥ 1 above a narrow bump whose foot is 1e-110: the title gives η's own range (from 1, not
+def test_the_space_time_caption_gives_a_heights_round_off_as_0(tmp_path, monkeypatch):
+    """A string held at η ≥ 1 above a narrow bump whose foot is 1e-110: the caption gives η's own range (from 1, not
     from the drawn box's bottom, which read 'height η from 1.32e-112' and then 'from 0') and the bump's, whose
     round-off foot reads 0."""
     from stringcontact.plot import mesh_pictures
@@ -633,9 +651,7 @@ def test_the_space_time_title_gives_a_heights_round_off_as_0(tmp_path, monkeypat
                                               obstacle="0.05*exp(-1000*(x - 0.5)**2)", model="loaded_obstacle")
     res = sc.simulate(scene)
     assert 0 < res.scene.obstacle_values(res.x).min() < 1e-100 and res.eta.min() >= 1.0
-    titles = []
-    monkeypatch.setattr(mesh_pictures, "_title", lambda p, text, **kw: titles.append(text))
-    mesh_pictures.space_time_picture(res, tmp_path / "st.png")
-    (line,) = [line for line in titles[0].splitlines() if line.startswith("η from")]
+    fig, _ = mesh_pictures.space_time_figure(res)
+    (line,) = [line for line in fig._supxlabel.get_text().splitlines() if line.startswith("η from")]  # the caption
     assert line == f"η from {res.eta.min():.3g} to {res.eta.max():.3g} over x and t, ψ from 0 to 0.05", line
     assert mesh_pictures._height_text(-0.0123, 1.0) == "-0.0123" and mesh_pictures._height_text(2e-6, 1.0) == "2e-06"

@@ -13,7 +13,7 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.cli.report import _fmt_penetration_line
 from stringcontact.io.readback import read_output
-from stringcontact.model.paper import penetration_bound_of
+from stringcontact.model.interface import penetration_bound_of
 from stringcontact.model.variants import elastic, loaded_obstacle
 from stringcontact.run import checks
 from stringcontact.run.checks import penetration_check
@@ -96,10 +96,10 @@ def test_a_users_energy_label_is_the_legend_of_energy_png(tmp_path):
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["energy_label"] == label
     for result in (res, read_output(tmp_path / "out")):
         fig, _ = charts.energy_figure(result)
-        labels = [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+        labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]  # the key under the panels
         charts.pyplot().close(fig)
         assert label in labels and not any(t.startswith("elastic") for t in labels), labels
     fig, _ = charts.energy_figure(sc.simulate(scene))  # the paper's model keeps the paper's label
-    labels = [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+    labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]  # the key under the panels
     charts.pyplot().close(fig)
     assert r"elastic $\frac{1}{2}\int \eta_x^2\,dx$" in labels

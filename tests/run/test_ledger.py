@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.run import checks, ledger
+from stringcontact.core import ledger
+from stringcontact.run import checks
 
 #: Example 1's shape with many small steps: its relative residual is 4.0e-8 (round-off, benchmarks/
 #: bench_balance_roundoff.py), above the fixed 1e-8 it used to be held to ("unbalanced", exit 3).
@@ -25,7 +26,7 @@ def test_a_fine_step_run_closes_its_balance():
 
 @pytest.mark.slow
 def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
-    add = ledger._Ledger.add
+    add = ledger.EnergyLedger.add
     calls = {"n": 0}
 
     def interrupt_after_the_impact(self, terms, slack=0.0):
@@ -34,7 +35,7 @@ def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
             raise KeyboardInterrupt
         return add(self, terms, slack)
 
-    monkeypatch.setattr(ledger._Ledger, "add", interrupt_after_the_impact)
+    monkeypatch.setattr(ledger.EnergyLedger, "add", interrupt_after_the_impact)
     with pytest.raises(KeyboardInterrupt) as info:
         sc.simulate(sc.load_scene("example1").replace(**FINE), progress=False)
     res = info.value.result
@@ -95,7 +96,7 @@ def test_the_numerical_dissipation_is_the_results_formula_and_can_be_negative():
     f = m_F∘F(η^n, v^n) the applied force; the force term is negative where the penalty brakes a node (Δv > 0), and
     it outweighs the squares over Example 1's landing (D_num < 0, as its report prints −4.1 at full size)."""
     st = sc.Stepper(sc.load_scene("example1").replace(nx=100, nt=600, output_times=[]), progress=False)
-    ops, dt = st.problem.ops, st.dt
+    ops, dt = st.discrete.ops, st.dt
     vec = ops.K.createVecRight()
     force_terms, worst = [], 0.0
     while st.step < st.nt:

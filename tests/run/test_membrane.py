@@ -142,7 +142,7 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     dt_max = projection.largest_stable_dt(ops, problem.interior, krylov=True)
     assert dt_max >= 2 / math.sqrt(lam) * (1 - 1e-8)  # α > 0: viscosity relieves the bound
     # the scene's small dt: no eigenvalue
-    assert projection.Scheme(problem).dt_max == pytest.approx(2 / math.sqrt(bound))
+    assert projection.ProjectionScheme(problem).dt_max == pytest.approx(2 / math.sqrt(bound))
     T = 0.2
     for factor, stable in ((0.98, True), (1.05, False)):  # both above Gershgorin's dt: decided by the eigenvalue
         nt = math.ceil(T / (factor * dt_max)) if stable else math.floor(T / (factor * dt_max))

@@ -15,7 +15,9 @@ import pytest
 import stringcontact as sc
 from stringcontact.io.result import PER_NODE, RowsElsewhere
 from stringcontact.run.checks import penetration_check
-from stringcontact.run.driver import ROW_BUDGET, STORED_ROWS, StorageWarning
+from stringcontact.run.options import ROW_BUDGET
+from stringcontact.run.rows import StorageWarning
+from stringcontact.scene import STORED_ROWS
 from stringcontact.run.rows import budget_steps, output_steps, stored_steps
 from stringcontact.scene import BYTES_PER_STORED_NODE
 
@@ -156,7 +158,7 @@ def test_stored_times_are_the_scheduled_times_exactly(tmp_path):
     """Issue 26: n·Δt is 0.039999999999999994 at Δt = 0.3/1500; the run stores 0.04 (an output time as given)
     and 0.0402 (n·Δt rounded), in the Result, diagnostics.csv and solution.xdmf alike."""
     from stringcontact.io.readback import read_output
-    from stringcontact.run.driver import step_times
+    from stringcontact.run.rows import step_times
 
     dt = 0.3 / 1500
     assert 200 * dt != 0.04

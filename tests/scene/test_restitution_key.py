@@ -6,10 +6,11 @@ import stringcontact as sc
 from stringcontact.cli import main as cli
 from stringcontact.scene.toml import scene_to_toml
 
-BASE = 'T = 0.1\nalpha = 0\neps = 0.001\nnx = 20\nnt = 10\neta0 = "0.1"\nv0 = -1\nscheme = "projection"\n'
+BASE = 'T = 0.1\nalpha = 0\nnx = 20\nnt = 10\neta0 = "0.1"\nv0 = -1\n[scheme]\nname = "projection"\neps = 0.001\n'
 
 
 def _file(tmp_path, extra=""):
+    """A scene with `extra` lines in its [scheme] table (restitution is a scheme option)."""
     path = tmp_path / "s.toml"
     path.write_text(BASE + extra)
     return path

@@ -23,7 +23,6 @@ VALID = """\
 description = "a small test scene"
 T = 0.3
 alpha = 0.01
-eps = 0.0005
 nx = 50
 nt = 30
 eta0 = "1 + 0.5*x"
@@ -350,7 +349,7 @@ def test_invalid_file(tmp_path, key, line, fragment):
     assert "\n" not in message
 
 
-@pytest.mark.parametrize("key", ["T", "alpha", "eps", "nx", "nt", "eta0", "v0"])
+@pytest.mark.parametrize("key", ["T", "alpha", "nx", "nt", "eta0", "v0"])
 def test_missing_required_key(tmp_path, key):
     with pytest.raises(SceneError, match=f"missing required key.*{key}"):
         load_scene(write(tmp_path, with_line(key, "")))
@@ -359,7 +358,7 @@ def test_missing_required_key(tmp_path, key):
 def test_empty_file_names_all_required_keys(tmp_path):
     with pytest.raises(SceneError) as info:
         load_scene(write(tmp_path, ""))
-    assert "missing required key(s): T, alpha, eps, nx, eta0, v0 and one of nt or dt" in str(info.value)
+    assert "missing required key(s): T, alpha, nx, eta0, v0 and one of nt or dt" in str(info.value)
 
 
 def test_binary_file(tmp_path):
@@ -376,7 +375,7 @@ def test_invalid_toml_gives_line(tmp_path):
     with pytest.raises(SceneError) as info:
         load_scene(write(tmp_path, VALID + "nx = = 3\n"))
     message = str(info.value)
-    assert "invalid TOML" in message and "line 9" in message and "\n" not in message
+    assert "invalid TOML" in message and "line 8" in message and "\n" not in message
 
 
 def test_duplicate_key_is_invalid_toml(tmp_path):
@@ -397,7 +396,7 @@ def test_bool_is_not_a_number_anywhere(tmp_path):
 
 
 def test_nan_free_values(tmp_path):
-    s = load_scene(write(tmp_path, VALID))
+    s = load_scene(write(tmp_path, VALID + "[scheme]\neps = 0.0005\n"))
     assert all(math.isfinite(v) for v in (s.length, s.T, s.alpha, s.eps, s.h_left, s.h_right, s.dt, s.dx, s.r))
 
 
@@ -462,3 +461,70 @@ def test_a_fifo_or_device_is_not_a_regular_file(tmp_path, kind):
         load_scene(path)
     expected = "a FIFO" if kind == "fifo" else "a character device"
     assert str(info.value) == f"scene {str(path)!r}: is not a regular file ({expected}); expected a .toml scene file"
+
+
+@pytest.mark.parametrize("model, value, allowed", [
+    ("film", "thick", r"a number in \(0, "),  # film's mu: its own range
+    ("stiff_string", True, r"a number in \[0, "),  # stiff_string's beta
+    (None, "thick", "a number in the range its model declares"),  # no model yet: the run checks it
+])
+def test_a_wrong_typed_constant_is_told_its_own_range(model, value, allowed):
+    """A [parameters] value that is no number names the constant and the range its model declares, never the table's
+    own bound [-1e12, 1e12]."""
+    from stringcontact.model.registry import load_model
+
+    base = load_scene("example1")
+    name = load_model(model).constants[0].name if model else "mu"
+    with pytest.raises(SceneError, match=f"{name}: expected a number, got .*; allowed: {allowed}") as error:
+        base.replace(model=model, parameters={name: value})
+    assert "-1000000000000" not in str(error.value) and "1e12" not in str(error.value)
+    if model:
+        assert f"allowed: {load_model(model).constants[0].allowed}" in str(error.value)
+
+
+# --- the [scheme] table ---------------------------------------------------------------------------
+
+
+def test_the_scheme_table_gives_the_name_and_the_options(tmp_path):
+    text = VALID + '[scheme]\nname = "paper"\neps = 0.0005\npenalty = "semi-implicit"\nmass = "consistent"\n'
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s = load_scene(write(tmp_path, text))
+    assert s.scheme == "paper" and s.eps == 0.0005
+    assert s.scheme_options == {"eps": 0.0005, "penalty": "semi-implicit", "mass": "consistent"}
+    assert load_scene(write(tmp_path, scene_to_toml(s), "again.toml")) == s  # `show` writes the table back
+
+
+def test_eps_at_the_top_level_works_with_one_warning(tmp_path):
+    with pytest.warns(SceneWarning, match=r"eps at the top level: the scheme's option; write it in the \[scheme\] "
+                                          r"table") as record:
+        s = load_scene(write(tmp_path, VALID + "eps = 0.0005\n"))
+    assert len(record) == 1 and s.eps == 0.0005 and s.scheme_options == {"eps": 0.0005}
+
+
+def test_an_option_in_both_places_is_refused_in_one_line(tmp_path):
+    with pytest.raises(SceneError, match=r"eps: given twice, at the top level and in \[scheme\]"):
+        load_scene(write(tmp_path, VALID + "eps = 0.001\n[scheme]\neps = 0.0005\n"))
+
+
+def test_the_scene_loads_no_scheme_and_no_dolfinx():
+    """Validating a scene, with a scheme and its options, imports no time scheme, dolfinx or PETSc."""
+    import subprocess
+    import sys
+
+    code = ("import sys, stringcontact as sc\n"
+            "s = sc.load_scene('example1').replace(scheme={'name': 'projection', 'mass': 'lumped'}, eps=None)\n"
+            "print(sorted(m for m in ('dolfinx', 'petsc4py', 'stringcontact.timestepping') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_a_scheme_option_the_scheme_does_not_take_is_refused_when_the_run_is_set_up(tmp_path):
+    import stringcontact as sc
+
+    s = load_scene(write(tmp_path, VALID + '[scheme]\nname = "projection"\nwobble = 3\n'))
+    with pytest.raises(SceneError, match=r"scheme.wobble: scheme 'projection' takes no option 'wobble'; allowed: "
+                                         r"mass, petsc_options, restitution"):
+        sc.simulate(s)
+    with pytest.raises(ValueError, match=r"scheme 'projection' accepts mass lumped, not 'consistent'"):
+        sc.simulate(s.replace(scheme={"name": "projection", "mass": "consistent"}))

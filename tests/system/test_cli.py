@@ -97,7 +97,7 @@ def test_show_prints_every_key_the_run_uses(capsys, tmp_path):
     assert main(["show", "example1"]) == 0
     text = capsys.readouterr().out
     data = tomllib.loads(text)
-    assert (data["scheme"], data["model"]) == ("paper", "inelastic")
+    assert (data["scheme"]["name"], data["scheme"]["eps"], data["model"]) == ("paper", 0.0005, "inelastic")
     assert "load" not in data and "obstacle" not in data
     assert "# load: not given" in text and "# obstacle: not given" in text
     assert load_scene("example1").replace(scheme="paper", model="inelastic") == Scene.from_dict(data)
@@ -109,7 +109,8 @@ def test_show_prints_every_key_the_run_uses(capsys, tmp_path):
     assert main(["show", str(path)]) == 0
     text = capsys.readouterr().out
     data = tomllib.loads(text)
-    assert (data["load"], data["obstacle"], data["model"], data["scheme"]) == ("-1", "0.5*x", "loaded_obstacle", "projection")
+    assert (data["load"], data["obstacle"], data["model"], data["scheme"]) == (
+        "-1", "0.5*x", "loaded_obstacle", {"name": "projection", "eps": 0.01})
     assert data["petsc_options"] == {"ksp_type": "cg"}
     assert not [key for key in ("load", "obstacle", "petsc_options") if f"# {key}: not given" in text]
     assert Scene.from_dict(data) == load_scene(path)

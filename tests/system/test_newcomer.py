@@ -104,9 +104,9 @@ def test_summary_says_where_a_registered_model_came_from(tmp_path, capsys, model
     assert origin["version"] == importlib.metadata.version(package)
 
 
-def test_a_model_object_from_python_is_named_in_titles_and_summary(tmp_path):
+def test_a_model_object_from_python_is_named_in_captions_and_summary(tmp_path):
     from stringcontact.io.readback import read_output
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
     from stringcontact.plot import charts, mesh_pictures
 
     winkler = dataclasses.replace(inelastic, name="winkler")
@@ -117,8 +117,8 @@ def test_a_model_object_from_python_is_named_in_titles_and_summary(tmp_path):
     assert summary["model"] == "winkler" and summary["model_origin"] == {"name": "winkler", "source": "object"}
     back = read_output(tmp_path / "w")
     assert back.model_origin == summary["model_origin"]
-    assert "model winkler" in charts.parameter_line(back)  # `stringcontact plot` redraws the same titles
-    assert mesh_pictures.parameter_line is charts.parameter_line  # the pyvista titles use the same line
+    assert "model winkler" in charts.parameter_line(back)  # `stringcontact plot` redraws the same captions
+    assert mesh_pictures.caption is charts.caption  # the pyvista pictures caption the same line
 
 
 def test_list_aligns_its_columns_for_every_built_in_scene(capsys):
@@ -135,9 +135,6 @@ def test_list_aligns_its_columns_for_every_built_in_scene(capsys):
 
 
 def test_show_names_r_only_for_a_scheme_with_eps(capsys):
-    from stringcontact.scene.names import SCHEMES, eps_free, scheme_class
-
-    assert {name for name in SCHEMES if eps_free(name)} == {name for name in SCHEMES if not scheme_class(name).PENALTIES}
     assert main(["show", "drum"]) == 0  # scheme projection: no eps
     first = capsys.readouterr().out.splitlines()[0]
     assert "r = dt/eps" not in first and first.startswith("# scene 'drum': dt = 0.005"), first
@@ -241,7 +238,7 @@ def test_the_readmes_quick_start_runs_as_written_after_make_demo(tmp_path):
     quick = _shell_block(readme, "## Quick start")
     assert any(line.startswith("paraview") for line in quick)
     commands = [demo.replace("$(VENV)/bin/", ".venv/bin/")] + [line for line in quick if "stringcontact" in line]
-    assert len(commands) == 5, commands
+    assert len(commands) == 6, commands
     short = ["--nx", "200", "--nt", "600", "--no-progress", "--no-pictures"]
     for line in commands:
         words = shlex.split(line)
@@ -269,3 +266,4 @@ def test_the_readmes_quick_start_runs_as_written_after_make_demo(tmp_path):
         if stdout is not None:
             stdout.write_text(proc.stdout)
     assert (tmp_path / "out" / "example1" / "view.py").is_file() and (tmp_path / "out" / "mine").is_dir()
+    assert (tmp_path / "out" / "paper" / "contact_set.pdf").read_bytes().startswith(b"%PDF")  # the vector figures

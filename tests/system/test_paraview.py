@@ -411,7 +411,7 @@ def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_c
     import dataclasses
 
     from stringcontact.model.interface import OutputField
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
 
     command = pvpython()
     field = OutputField("reaction", expression=lambda U, p: U[0] ** 2, label="reaction", colours=((0, 0, 0), (1, 0, 0)))

@@ -16,7 +16,7 @@ from petsc4py import PETSc
 
 import stringcontact as sc
 from stringcontact.fem import compat
-from stringcontact.model.paper import Model, Parameters
+from stringcontact.model.interface import Model, Parameters
 
 
 def forms_loop(scene, penalty="explicit", mass="lumped", model=sc.inelastic):

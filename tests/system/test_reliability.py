@@ -333,9 +333,9 @@ def test_unstable_run_keeps_partial_output(tmp_path, capfd, monkeypatch):
     # r = dt/eps = 4 is refused before the start; let it through to see the guard stop it mid-run.
     import dataclasses
 
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
 
-    monkeypatch.setattr("stringcontact.run.setup.inelastic", dataclasses.replace(inelastic, stability=None))
+    monkeypatch.setattr("stringcontact.run.adapter.inelastic", dataclasses.replace(inelastic, stability=None))
     out = tmp_path / "out"
     assert main(["run", "example1", "--nx", "100", "--nt", "150", *QUICK, "--out", str(out)]) == 3
     assert_one_line_error(capfd.readouterr().err, "unstable at step", "r = dt/eps = 4")

@@ -106,7 +106,8 @@ def test_study_and_check_refuse_a_folder_they_cannot_make_before_computing(capsy
 FORMS = '''
 import dataclasses
 import ufl
-from stringcontact.model.paper import inelastic, momentum_form
+from stringcontact.model.interface import inelastic
+from stringcontact.model.inelastic import momentum_form
 from stringcontact.model.stiff_string import stiff_string
 
 def model(name, form):
@@ -158,7 +159,7 @@ def test_a_form_that_is_no_residual_is_refused_before_it_is_compiled(tmp_path, n
 
 PLUGIN = '''
 import dataclasses, sys
-from stringcontact.model.paper import inelastic
+from stringcontact.model.interface import inelastic
 
 def _exits(*args):
     sys.exit(0)
@@ -358,7 +359,8 @@ def test_a_form_that_is_not_finite_is_named_not_the_step_size(tmp_path, name, va
 SINGULAR = '''
 import dataclasses
 import ufl
-from stringcontact.model.paper import inelastic, momentum_form
+from stringcontact.model.interface import inelastic
+from stringcontact.model.inelastic import momentum_form
 
 def _repelled(eta, eta_t, eta_tt, force, w, p):
     return momentum_form(eta, eta_t, eta_tt, force, w, p) - 0.01 / eta * w * ufl.dx
@@ -417,8 +419,8 @@ def test_a_form_singular_at_zero_runs_on_a_string_that_stays_above_it(tmp_path, 
     result = stepper.result()
     assert result.eta.min() > 0.7
     assert np.abs(result.balance_residual).max() < 1e-10 * result.total_energy[0]
-    assert stepper.problem.ops.linearised_at == "the state"
-    assert np.abs(stepper.problem.ops.load).max() < 1e-15
+    assert stepper.discrete.ops.linearised_at == "the state"
+    assert np.abs(stepper.discrete.ops.load).max() < 1e-15
 
 
 @pytest.mark.slow
@@ -469,7 +471,7 @@ def test_run_force_is_refused_while_plot_redraws_the_folder(a_run_folder, capsys
 
     folder, seen = a_run_folder, []
 
-    def drawing(result, into, window_size):
+    def drawing(result, into, look=None):
         (into / ".energy.png.tmp-92mjtdy1.png").write_bytes(b"")  # what atomic_path has there while it draws
         seen.append(main(["run", "example1", *SMALL, *QUICK, "--out", str(folder), "--force"]))
         seen.append(capsys.readouterr().err)

@@ -421,7 +421,7 @@ def test_a_rank_failing_alone_ends_the_whole_mpi_job_with_its_code(tmp_path):
 def test_a_scene_name_with_dollars_is_drawn_as_written(tmp_path):
     """A scene named `$x^{$` broke matplotlib's titles (mathtext), without naming the key."""
     scene = tmp_path / "s.toml"
-    scene.write_text('name = "$x^{$"\nT = 0.3\nnt = 40\nnx = 50\nalpha = 0.01\neps = 0.01\n'
+    scene.write_text('name = "$x^{$"\nT = 0.3\nnt = 40\nnx = 50\nalpha = 0.01\nscheme = { eps = 0.01 }\n'
                      'eta0 = "1 + 0.5*sin(10*pi*x)**2"\nv0 = -5\n')
     proc = stringcontact("run", scene, "--no-progress", "--out", tmp_path / "o")
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -454,13 +454,13 @@ def test_sigterm_during_rank_0s_pictures_marks_the_folder_interrupted_on_every_r
 ONE_RANK_FAILS = r"""
 import os, signal, sys
 from mpi4py import MPI
-import stringcontact.run.setup as setup
+import stringcontact.run.adapter as adapter
 from stringcontact.timestepping import scheme_class
 rank = MPI.COMM_WORLD.rank
 if sys.argv[1] == "memory" and rank == 0:
     def no_memory(*args, **kwargs):
         raise MemoryError()
-    setup.discretise = no_memory
+    adapter.scene_problem = no_memory
 if sys.argv[1] == "sigterm" and rank == 1:
     Paper = scheme_class("paper")
     set_up = Paper.__init__
@@ -491,14 +491,14 @@ def test_one_rank_failing_or_signalled_ends_the_job(tmp_path, how, code, fragmen
 SIGTERM_TO_RANK_1_MID_RUN = r"""
 import os, signal, sys
 from mpi4py import MPI
-from stringcontact.run.stepper import Stepper
+from stringcontact.run.rows import RowObserver
 if MPI.COMM_WORLD.rank == 1:
-    store = Stepper._store
-    def store_then_signal(self, n):
-        store(self, n)
+    store = RowObserver._store
+    def store_then_signal(self, stepper, n):
+        store(self, stepper, n)
         if n > 0:
             os.kill(os.getpid(), signal.SIGTERM)
-    Stepper._store = store_then_signal
+    RowObserver._store = store_then_signal
 from stringcontact.cli.main import main
 sys.argv = ["stringcontact", *sys.argv[1:]]
 sys.exit(main())

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.model.paper import inelastic
+from stringcontact.model.interface import inelastic
 from stringcontact.verification import rod
 
 CSV = Path(__file__).resolve().parents[2] / "docs" / "getfem_comparison.csv"

@@ -29,7 +29,7 @@ def _march(scene, restitution):
     """η, the centred velocity, the contact force and the energy terms of every step of projection on `scene`,
     from the scheme's own object (as the driver makes it) with `DiscreteProblem.restitution` = `restitution`."""
     problem, eta0, v0 = run_problem(scene, "projection", mass="lumped")
-    stepper = projection.Scheme(dataclasses.replace(problem, restitution=restitution))
+    stepper = projection.ProjectionScheme(dataclasses.replace(problem, restitution=restitution))
     terms = [stepper.start(eta0, v0)]
     rows = []
     for _ in range(scene.nt):

@@ -156,10 +156,10 @@ class _nothing:
 
 
 def _operators(scene):
-    from stringcontact.model.paper import inelastic
-    from stringcontact.run.driver import discretise
+    from stringcontact.model.interface import inelastic
+    from stringcontact.run.adapter import scene_problem
 
-    return discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    return scene_problem(scene, inelastic, MPI.COMM_SELF).operators()
 
 
 def _interior(ops):

@@ -79,7 +79,7 @@ def test_p1_norm_is_exact_for_linear_functions():
 
 def _run(nx, penalty, eps_over_dt, T=1.5):
     import stringcontact as sc
-    from stringcontact.model.paper import inelastic
+    from stringcontact.model.interface import inelastic
 
     h = 1.0 / nx
     dt = 0.04 * h

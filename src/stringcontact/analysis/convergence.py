@@ -1,6 +1,6 @@
-r"""The convergence study: observed orders under :math:`\Delta t = \Delta x \to 0` and under
-:math:`\varepsilon \to 0` (penetration and error) on the flat landing; `reference_study`: a scheme and a
-model (nonlinear ones too) refined against its own fine run (docs/howto/nonlinear_models.md)."""
+"""The accuracy studies: work-precision (error against wall-clock time per `Method`, on the exact flat landing and
+on Example 1 against a fine-grid reference), convergence (observed orders in Δt = Δx → 0 and in ε → 0 on the flat
+landing) and `reference_study` (a scheme and model, nonlinear ones too, against its own fine run)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,12 @@ import math
 import numpy as np
 
 from .norms import errors_against_exact, errors_against_reference
-from .problems import METHODS, Method, flat_landing_exact, flat_landing_scene
-from .runs import run_method, warm_up
+from .problems import (METHODS, REFERENCE, Method, Run, flat_landing_exact, flat_landing_scene, problems, run_method,
+                       warm_up)
 from .schedule import distribute
-from .work_precision import WORK_PRECISION_COLUMNS, study_row
 
+WORK_PRECISION_COLUMNS = ("problem", "method", "penalty", "mass", "nx", "nt", "dt", "eps", "r", "status", "wall_s",
+                          "err_eta", "err_vel", "err_contact", "min_eta")
 CONVERGENCE_COLUMNS = ("sweep", *WORK_PRECISION_COLUMNS, "order_eta")
 ORDER_COLUMNS = ("sweep", "problem", "method", "quantity", "order", "from", "to")
 
@@ -34,19 +35,52 @@ def fitted_order(h, err) -> float:
     return float(np.polyfit(np.log(h[ok]), np.log(err[ok]), 1)[0])
 
 
-def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dict | None:
-    """Observed orders on the flat landing: in Δt = Δx (three methods) and in ε at a fixed grid (two penalties).
+def study_row(run: Run, errs: dict | None) -> dict:
+    """The row of `WORK_PRECISION_COLUMNS` of `run` and its errors (NaN if None)."""
+    errs = errs or dict.fromkeys(("err_eta", "err_vel", "err_contact"), math.nan)
+    return {"problem": run.problem, "method": run.method, "penalty": run.penalty, "mass": run.mass, "nx": run.nx,
+            "nt": run.nt, "dt": run.dt, "eps": run.eps, "r": run.r, "status": run.status, "wall_s": run.wall_s, **errs,
+            "min_eta": run.min_eta}
 
-    Returns {"runs": rows of CONVERGENCE_COLUMNS, "orders": rows of ORDER_COLUMNS} on rank 0.
-    """
+
+def work_precision(quick: bool = False, problem_names=("flat-landing", "example1"), methods=tuple(METHODS),
+                   repeat: int = 1, comm=None, busy: list | None = None) -> list[dict] | None:
+    """Rows of `WORK_PRECISION_COLUMNS`: every method at every size of every problem (None on ranks > 0)."""
+    probs = problems(quick)
+    if unknown := set(problem_names) - set(probs):
+        raise ValueError(f"problem must be among {sorted(probs)}, not {sorted(unknown)}")
+    cases = [(p, m, n) for p in problem_names for m in methods for n in probs[p].sizes]
+    cases += [(p, REFERENCE.name, probs[p].reference_n) for p in problem_names if probs[p].reference_n]
+
+    def one(case):
+        p, m, n = case
+        method = REFERENCE if m == REFERENCE.name else METHODS[m]
+        return run_method(probs[p].scene(n), method, rows=probs[p].rows, repeat=1 if m == REFERENCE.name else repeat)
+
+    warm_up()
+    runs = distribute(one, cases, comm, cost=lambda c: probs[c[0]].T * c[2] ** 2, busy=busy)
+    if runs is None:
+        return None
+    refs = {run.problem: run for run in runs if run.method == REFERENCE.name}
+    rows = []
+    for run in (r for r in runs if r.method != REFERENCE.name):
+        errs = None if run.status != "complete" else (
+            errors_against_exact(run, flat_landing_exact) if run.problem == "flat-landing"
+            else errors_against_reference(run, refs[run.problem]))
+        rows.append(study_row(run, errs))
+    return rows + [study_row(ref, None) for ref in refs.values()]  # the references: their cost, no error
+
+
+def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dict | None:
+    """Observed orders on the flat landing, in Δt = Δx per method and in ε at a fixed grid per penalty:
+    {"runs": rows of CONVERGENCE_COLUMNS, "orders": rows of ORDER_COLUMNS} on rank 0."""
     sizes = (125, 250, 500) if quick else (125, 250, 500, 1000, 2000, 4000, 8000)
     n_eps = 400 if quick else 4000
     eps_values = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-8)
     rows_per_run = round(0.6 * min(sizes))
     cases = [("dt", m, n, None) for m in ("explicit-r1", "semi-implicit", "consistent", "projection", "newmark")
              for n in sizes]
-    dt_fixed = 1.0 / n_eps
-    cases += [("eps", "explicit", n_eps, e) for e in eps_values if dt_fixed / e <= 1.0]
+    cases += [("eps", "explicit", n_eps, e) for e in eps_values if (1.0 / n_eps) / e <= 1.0]
     cases += [("eps", "semi-implicit", n_eps, e) for e in eps_values]
 
     def one(case):
@@ -67,15 +101,12 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
     orders = []
     for sweep, key, variable in (("dt", "method", "dt"), ("eps", "penalty", "eps")):
         for name in dict.fromkeys(r[key] for r in rows if r["sweep"] == sweep):
-            sel = [r for r in rows if r["sweep"] == sweep and r[key] == name and r["status"] == "complete"]
-            sel.sort(key=lambda r: -r[variable])
-            h = [r[variable] for r in sel]
-            for r, p in zip(sel[1:], observed_orders(h, [r["err_eta"] for r in sel])):
+            sel = sorted((r for r in rows if r["sweep"] == sweep and r[key] == name and r["status"] == "complete"),
+                         key=lambda r: -r[variable])
+            for r, p in zip(sel[1:], observed_orders([r[variable] for r in sel], [r["err_eta"] for r in sel])):
                 r["order_eta"] = p
-            quantities = ("err_eta", "err_vel", "err_contact") if sweep == "dt" else ("err_eta", "penetration")
-            for quantity in quantities:
-                # In ε, only ε ≥ 10 Δt measures the ε-error; below it the Δt-error is left.
-                fit = [r for r in sel if sweep == "dt" or r["eps"] >= 10 * r["dt"]]
+            fit = [r for r in sel if sweep == "dt" or r["eps"] >= 10 * r["dt"]]  # below 10 Δt the Δt-error is left
+            for quantity in ("err_eta", "err_vel", "err_contact") if sweep == "dt" else ("err_eta", "penetration"):
                 values = [(-r["min_eta"] if quantity == "penetration" else r[quantity]) for r in fit]
                 orders.append({"sweep": sweep, "problem": "flat-landing", "method": name, "quantity": quantity,
                                "order": fitted_order([r[variable] for r in fit], values),
@@ -83,23 +114,18 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
     return {"runs": rows, "orders": orders}
 
 
-#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalty schemes
-#: converge to the penalised model; `paper` with its explicit penalty, `newmark` with its semi-implicit one).
+#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalised model).
 SCHEME_METHODS = {
     "paper": Method("paper", "paper: explicit penalty, lumped, the scene's ε", "explicit", "lumped", "fixed"),
     "projection": METHODS["projection"],
     "newmark": Method("newmark", "newmark: semi-implicit penalty, lumped, the scene's ε", "semi-implicit", "lumped",
-                      "fixed", scheme="newmark"),
-}
+                      "fixed", scheme="newmark")}
 
 
 def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
-    """Errors of `scheme` (with `model`) on ``scene_at(n)`` for each n in `sizes` against the same scheme and
-    model on ``scene_at(reference_n)``: ``err_eta``, the L∞(0, T; L²) error at the coarsest run's stored times
-    (every one of its steps; the finer runs' step counts must be multiples of it), the reference interpolated.
-
-    Returns {"sizes", "errors", "orders" (pairwise, in Δx), "reference" (its `Run`), "runs"}.
-    """
+    """``err_eta`` of `scheme` and `model` on ``scene_at(n)`` for each n in `sizes` against ``scene_at(reference_n)``,
+    at every step of the coarsest run (the finer step counts multiples of it): {"sizes", "errors", "orders"
+    (pairwise, in Δx), "reference" (its `Run`), "runs"}."""
     method = SCHEME_METHODS[scheme]
     rows = scene_at(min(sizes)).nt
     reference = run_method(scene_at(reference_n), method, rows=rows, model=model)

@@ -1,21 +1,7 @@
-"""`stringcontact study film`: does a viscous film reproduce the inelastic landing, and in which limit?
-
-The film (model "film", docs/explanation/film.md) is swept over its viscosity μ on two throws, with and without
-cavitation (p ≥ p_cav = p_a, half-Sommerfeld), against two references without a film: the inelastic model
-(`projection`) and the paper's penalty in the limit ε → 0 (`paper`, semi-implicit, ε = `EPS_LIMIT`). The film's
-own backstop is that penalty at ε = `FILM_EPS`, so the runs differ by the film (and ε) alone. Each run gives:
-
-* ``min_gap``: the thinnest film, min over the interior nodes and the stored times of η;
-* ``energy_lost``: E(0) − E(t_lift), the energy lost in the first impact, t_lift the inelastic reference's first
-  lift-off (the first stored time after its first contact with no interior node in contact);
-* ``rebound``: at the inelastic reference's first-contact point x*, the largest upward velocity between the
-  fastest approach and t_lift, over that approach speed (0: it stays down; 1: an elastic bounce);
-* ``t_up``: when η(x*) has risen by 5 % of its initial height after its lowest point (`rise_time`): the
-  lift-off of a run that never touches, measured alike for the references;
-* ``dist_before``, ``dist_after``: ‖η_μ − η_inelastic‖ in L∞(0, T; L²) over the stored times up to t_lift and
-  after it.
-
-`fit_rates` fits power laws in μ (least squares of the logarithms) to min_gap and the distances.
+"""`stringcontact study film`: does a viscous film reproduce the inelastic landing, and in which limit? The film
+(model "film") swept over its viscosity μ on two throws, with and without cavitation, against the runs without a
+film: the inelastic model (`projection`) and the penalty at ε → 0; the measures are defined in
+docs/explanation/film.md. `fit_rates` fits power laws in μ to min_gap and the distances.
 """
 
 from __future__ import annotations
@@ -24,7 +10,10 @@ import warnings
 
 import numpy as np
 
+import stringcontact as sc
+
 from ..errors import InstabilityError, SolverError
+from .norms import l2_norm
 from .problems import EPS_LIMIT
 
 #: The viscosities swept per problem (string units): four decades each, from where the backstop still acts to
@@ -46,19 +35,14 @@ RATE_COLUMNS = ("problem", "p_cav", "quantity", "rate", "mus")
 def problem_scenes(quick: bool = False) -> dict:
     """The two throws (no film yet): Example 1's (the scene film_landing without its film) and the flat landing
     (η0 = h = 0.2, v0 = −1), both with α = 0.01 on (0, 1)."""
-    import stringcontact as sc
-
-    nx = 100 if quick else 200
-    example = sc.load_scene("film_landing").replace(nx=nx, dt=0.00025, T=0.15 if quick else 0.3, output_times=[],
-                                                    model=None, parameters=None, scheme=None,
+    example = sc.load_scene("film_landing").replace(nx=100 if quick else 200, dt=0.00025, T=0.15 if quick else 0.3,
+                                                    output_times=[], model=None, parameters=None, scheme=None,
                                                     name="film-example1")
     flat = example.replace(name="film-flat", eta0="0.2", v0="-1", h=0.2, T=0.4 if quick else 0.8, dt=0.0005)
     return {"example1": example, "flat": flat}
 
 
 def _run(scene, **kwargs):
-    import stringcontact as sc
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -74,10 +58,10 @@ def references(scene) -> dict:
 
 
 def film_run(scene, mu: float, p_cav):
-    """The film at viscosity `mu` (cavitation at p_cav, or none), the semi-implicit penalty at ε = `FILM_EPS` as
-    its backstop."""
+    """The film at viscosity `mu` (cavitation at `p_cav`, or none), backed by the penalty at ε = `FILM_EPS`."""
     constants = {"mu": mu} | ({"p_cav": p_cav} if p_cav is not None else {})
-    return _run(scene.replace(model="film", parameters=constants, eps=FILM_EPS), scheme="paper", penalty="semi-implicit")
+    return _run(scene.replace(model="film", parameters=constants, eps=FILM_EPS), scheme="paper",
+                penalty="semi-implicit")
 
 
 def landing_times(reference) -> tuple[float, float, int]:
@@ -90,16 +74,9 @@ def landing_times(reference) -> tuple[float, float, int]:
     first = touching[0]
     free = np.flatnonzero(~interior[first:].any(axis=1))
     lift = first + free[0] if free.size else len(reference.t) - 1
-    nodes = np.flatnonzero(reference.contact[first])
-    nodes = nodes[(nodes > 0) & (nodes < len(reference.x) - 1)]
+    nodes = np.flatnonzero(interior[first]) + 1
     star = nodes[np.argmin(np.abs(reference.x[nodes] - 0.5 * (reference.x[0] + reference.x[-1])))]
     return float(reference.t[first]), float(reference.t[lift]), int(star)
-
-
-def _l2(x, a) -> np.ndarray:
-    from ..fem.compat import trapezoid
-
-    return np.sqrt(trapezoid(a**2, x, axis=1))
 
 
 def measures(r, reference, t_lift: float, star: int) -> dict:
@@ -112,10 +89,9 @@ def measures(r, reference, t_lift: float, star: int) -> dict:
     v = r.velocity[: lift + 1, star]
     fastest = int(np.argmin(v))
     rebound = max(float(np.max(v[fastest:])), 0.0) / abs(float(v[fastest])) if v[fastest] < 0 else np.nan
-    d = _l2(r.x, r.eta - reference.eta)
+    d = l2_norm(r.x, r.eta - reference.eta)
     return {"min_gap": float(np.min(r.eta[:, 1:-1])), "energy_lost": float(E[0] - E[lift]), "rebound": rebound,
-            "t_up": rise_time(r, star),
-            "dist_before": float(np.max(d[: lift + 1])),
+            "t_up": rise_time(r, star), "dist_before": float(np.max(d[: lift + 1])),
             "dist_after": float(np.max(d[lift + 1:])) if lift + 1 < len(d) else np.nan, "status": r.status}
 
 
@@ -149,19 +125,13 @@ def film_study(quick: bool = False, mus=None) -> list[dict]:
 
 def fit_rates(rows: list[dict]) -> list[dict]:
     """Power laws in μ, q ≈ C μ^rate, fitted to the film's rows per problem and cavitation (finite, positive q)."""
-    out = []
-    films = [r for r in rows if r["method"] == "film"]
-    for problem in dict.fromkeys(r["problem"] for r in films):
-        for p_cav in dict.fromkeys(r["p_cav"] for r in films if r["problem"] == problem):
-            sel = [r for r in films if r["problem"] == problem and (r["p_cav"] == p_cav or
-                                                                      (np.isnan(r["p_cav"]) and np.isnan(p_cav)))]
-            for q in ("min_gap", "dist_before", "dist_after"):
-                pts = [(r["mu"], r[q]) for r in sel if np.isfinite(r[q]) and r[q] > 0]
-                rate = np.polyfit(np.log([m for m, _ in pts]), np.log([v for _, v in pts]), 1)[0] if len(pts) > 1 else np.nan
-                out.append({"problem": problem, "p_cav": p_cav, "quantity": q, "rate": float(rate),
-                            "mus": " ".join(f"{m:g}" for m, _ in pts)})
+    out, films = [], [r for r in rows if r["method"] == "film"]
+    for group in dict.fromkeys((r["problem"], repr(r["p_cav"])) for r in films):  # repr: nan equals nan
+        sel = [r for r in films if (r["problem"], repr(r["p_cav"])) == group]
+        for q in ("min_gap", "dist_before", "dist_after"):
+            pts = [(r["mu"], r[q]) for r in sel if np.isfinite(r[q]) and r[q] > 0]
+            rate = np.polyfit(*np.log(pts).T, 1)[0] if len(pts) > 1 else np.nan
+            out.append({"problem": group[0], "p_cav": sel[0]["p_cav"], "quantity": q, "rate": float(rate),
+                        "mus": " ".join(f"{m:g}" for m, _ in pts)})
     return out
 
-
-__all__ = ["CAVITATION", "FILM_COLUMNS", "FILM_EPS", "MUS", "QUICK_MUS", "RATE_COLUMNS", "RISE", "film_run",
-           "film_study", "fit_rates", "landing_times", "measures", "problem_scenes", "references", "rise_time"]

@@ -1,28 +1,24 @@
-r"""The paper's theorems, measured: the discrete fields of a computed solution and plain numbers from them.
+"""The discrete fields of a computed solution and the numbers the theorem checks (`theorems`) give verdicts on.
 
-Every function takes a :class:`~stringcontact.io.result.Result` that stores **every** time step
-(``simulate(scene, max_rows=scene.nt)``) and reads it in the scheme's own discrete terms (`momentum_terms`;
-the module docstring of `stringcontact.analysis.theorems` states the discrete momentum equation). The
-verdicts on these numbers are in `theorems`.
+Every function takes a `Result` that stores every time step (``simulate(scene, max_rows=scene.nt)``) and reads
+it in the scheme's own discrete terms (`momentum_terms`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
 import numpy as np
-
-# --- the discrete fields --------------------------------------------------------------------------------
+from scipy import ndimage
 
 
 def require_every_step(result) -> None:
     """A ValueError unless `result` stores every time step from step 0 on."""
     steps = np.asarray(result.steps)
     if steps.size < 2 or np.any(np.diff(steps) != 1) or steps[0] != 0:
-        raise ValueError(
-            "the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)"
-        )
+        raise ValueError("the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)")
 
 
 def nodal_weights(result) -> np.ndarray:
@@ -40,37 +36,21 @@ def impulse(result) -> np.ndarray:
 
 
 def interior(result) -> np.ndarray:
+    """True at every node but the two ends."""
     mask = np.ones(result.x.size, dtype=bool)
     mask[[0, -1]] = False
     return mask
 
 
-def free_boundary(contact: np.ndarray) -> np.ndarray:
-    """The discrete free boundary ∂{η ≤ 0} on the (step, node) grid.
-
-    A grid point belongs to it when its contact flag differs from one of its four neighbours (both
-    sides of the interface are marked, so the boundary is two points thick and symmetric).
-    """
+def free_boundary(contact: np.ndarray, neighbours=ndimage.generate_binary_structure(2, 1)) -> np.ndarray:
+    """The discrete free boundary ∂{η ≤ 0} on the (step, node) grid: the points whose contact flag differs from one
+    of their `neighbours` (default: the four; both sides of the interface, so two points thick and symmetric)."""
     c = np.asarray(contact, dtype=bool)
-    b = np.zeros_like(c)
-    for axis in (0, 1):
-        diff = np.diff(c, axis=axis)
-        lo = [slice(None)] * 2
-        hi = [slice(None)] * 2
-        lo[axis] = slice(None, -1)
-        hi[axis] = slice(1, None)
-        b[tuple(lo)] |= diff
-        b[tuple(hi)] |= diff
-    return b
+    return np.where(c, ~ndimage.binary_erosion(c, neighbours, border_value=1), ndimage.binary_dilation(c, neighbours))
 
 
 def distance_to_free_boundary(contact: np.ndarray) -> np.ndarray:
-    """Chessboard distance (in cells or steps, whichever is larger) of each grid point to ∂{η ≤ 0}.
-
-    Points with no free boundary at all get a large distance.
-    """
-    from scipy import ndimage
-
+    """Chessboard distance (cells or steps) of each grid point to ∂{η ≤ 0} (a large one without a free boundary)."""
     b = free_boundary(contact)
     if not b.any():
         return np.full(b.shape, np.iinfo(np.int32).max, dtype=np.int64)
@@ -84,10 +64,13 @@ def _previous(rows: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Momentum:
-    """A scheme's discrete momentum equation at each row n (see the module docstring), arrays over (rows,
-    nodes): q, the velocity whose change is the inertia; S = (η_S)_x + α (q_S)_x, the stress; w, the velocity
-    the scheme's ledger books the contact work with (−Δt F·w per step); F, the force density applied in the
-    step t_{n−1} → t_n (row 0: none)."""
+    """A scheme's step read as the discrete momentum equation of node j at each row n, arrays over (rows, nodes),
+
+        m_j F^n_j = m_j (q^n_j − q^{n−1}_j)/Δt − (S^n_{j+1/2} − S^n_{j−1/2}),   S = (η_S)_x + α (q_S)_x:
+
+    q, the velocity whose change is the inertia; η_S, q_S, the levels of the stress (`paper`: t_n; `projection`:
+    η at t_{n−1}; `newmark`: the mean of t_{n−1} and t_n); w, the velocity the ledger books the contact work
+    with (−Δt F·w per step); F, the force applied in the step t_{n−1} → t_n (the explicit penalty's row n − 1)."""
 
     q: np.ndarray
     eta_s: np.ndarray
@@ -128,18 +111,15 @@ def obstacle_rows(result) -> np.ndarray | None:
     dt = scene.dt
     times = np.concatenate([[result.t[0] - dt], result.t, [result.t[-1] + dt]])
     rows = np.array([scene.obstacle_values(result.x, float(t)) for t in times], dtype=float)
-    try:
-        result._obstacle_rows = rows  # every check reads them: evaluated once per result
-    except AttributeError:  # a frozen or slotted result: evaluated again
-        pass
+    with contextlib.suppress(AttributeError):  # a frozen or slotted result: evaluated again
+        result._obstacle_rows = rows  # read by every check (67 ms a time on the piston's 251 rows): once a result
     return rows
 
 
 def obstacle_velocity(result) -> np.ndarray | float:
-    """The moving obstacle's rate ψ_t paired with the stored velocity (0 for an obstacle at rest): the backward
-    quotient (ψ^n − ψ^{n−1})/Δt for `paper` (whose v^n is one), the centred (ψ^{n+1} − ψ^{n−1})/(2Δt) for
-    `projection` (whose stored velocity is the centred quotient) and `newmark` (whose penalty brakes v − ψ_t
-    with it), shape (rows, nodes). The string's velocity relative to the obstacle is v − ψ_t."""
+    """The moving obstacle's rate ψ_t paired with the stored velocity (0 for an obstacle at rest), shape (rows,
+    nodes): the backward quotient (ψ^n − ψ^{n−1})/Δt for `paper` (whose v^n is one), the centred (ψ^{n+1} −
+    ψ^{n−1})/(2Δt) for `projection` (whose stored velocity is centred) and `newmark` (whose penalty brakes v − ψ_t)."""
     psi = obstacle_rows(result)
     if psi is None:
         return 0.0
@@ -149,17 +129,8 @@ def obstacle_velocity(result) -> np.ndarray | float:
 
 
 def relative_velocity(result) -> np.ndarray:
-    """v − ψ_t at every stored row and node (`obstacle_velocity`): the string's velocity relative to the obstacle,
-    v itself for an obstacle at rest."""
+    """v − ψ_t at every stored row and node: the string's velocity relative to the obstacle (v, one at rest)."""
     return result.velocity - obstacle_velocity(result)
-
-
-def cell_stress(result) -> np.ndarray:
-    """S = η_x + α η_tx on the cells at every row (one-sided difference quotients, at the scheme's time
-    levels: `momentum_terms`), shape (rows, cells)."""
-    dx = np.diff(result.x)[None, :]
-    terms = momentum_terms(result)
-    return np.diff(terms.eta_s, axis=1) / dx + result.scene.alpha * np.diff(terms.q_s, axis=1) / dx
 
 
 def first_contact_rows(result) -> np.ndarray:
@@ -181,67 +152,36 @@ def band_width(result, delta: float) -> int:
     return max(1, int(round(delta / float(np.diff(result.x).mean()))))
 
 
-def _dilate_1d(mask: np.ndarray, w: int) -> np.ndarray:
-    """Nodes within w of a True node (along the last axis)."""
-    if w <= 0:
-        return mask.copy()
-    from scipy import ndimage
-
-    structure = np.zeros((1, 2 * w + 1) if mask.ndim == 2 else (2 * w + 1,), dtype=bool)
-    structure[..., :] = True
-    return ndimage.binary_dilation(mask, structure=structure)
-
-
-
-# --- measurements: plain numbers from one result ------------------------------------------------------
-
-
 def force_sign(result) -> dict:
-    """min F / max F, and the share of the energy-carrying contact dissipation −F^n (w^n − ψ_t) that is negative (w
-    the velocity the scheme books the contact work with, ψ_t a moving obstacle's rate paired with it: the force's
-    work on the gap; `momentum_terms`)."""
+    """min F, max F, min F (η_t − ψ_t)⁻, and the negative share of the dissipation −F^n (w^n − ψ_t), the force's
+    work on the gap as the ledger books it (`Momentum`)."""
     terms = momentum_terms(result)
     F = result.contact_force
     D = -terms.force[1:] * (terms.w - terms.obstacle_w)[1:]
     positive = D[D > 0].sum()
-    return {
-        "min_force": float(F.min()),
-        "max_force": float(F.max()),
-        "paper_dissipation_min": float((F * np.maximum(-relative_velocity(result), 0.0)).min()),
-        "negative_dissipation_share": float(abs(D[D < 0].sum()) / positive) if positive > 0 else 0.0,  # never -0
-    }
+    return {"min_force": float(F.min()), "max_force": float(F.max()),
+            "paper_dissipation_min": float((F * np.maximum(-relative_velocity(result), 0.0)).min()),
+            "negative_dissipation_share": float(abs(D[D < 0].sum()) / positive) if positive > 0 else 0.0}  # never -0
 
 
 def support_concentration(result, ks=(1, 2, 4), lengths=()) -> dict:
-    """Share of the total impulse within k cells/steps of ∂{η ≤ 0}, for each k and each physical length.
-
-    `lengths` are distances in the units of x and t (converted to whole cells/steps on this grid): the
-    share within a *fixed physical* distance must tend to 1 if F concentrates on a null set.
-    """
+    """Share of the total impulse within k cells/steps of ∂{η ≤ 0}, for each k and each physical length in
+    `lengths` (whole cells/steps on this grid: that share must tend to 1 if F concentrates on a null set)."""
     I = impulse(result)
     total = I.sum()
     d = distance_to_free_boundary(result.contact)
     step = max(float(np.diff(result.x).max()), result.scene.dt)
+    cells = {f"within_{k}": k for k in ks}
+    cells |= {f"within_length_{L:g}": max(0, int(math.floor(L / step + 1e-9))) for L in lengths}  # in cells/steps
     out = {"support_measure": float((I > 0).sum() * result.scene.dt * float(np.diff(result.x).mean()))}
-    for k in ks:
-        out[f"within_{k}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
-    for L in lengths:
-        k = max(0, int(math.floor(L / step + 1e-9)))
-        out[f"within_length_{L:g}"] = float(I[d <= k].sum() / total) if total > 0 else math.nan
-    return out
+    return out | {name: float(I[d <= k].sum() / total) if total > 0 else math.nan for name, k in cells.items()}
 
 
 def upward_impulse(result) -> dict:
-    """Share of the impulse applied where the string moves up.
-
-    pointwise: in the same step, v^n_j ≥ 0. neighbourhood: v ≥ 0 on all of rows n−1..n+1, nodes j−1..j+1
-    (a discrete int{η_t ≥ 0}, the set of (A3)). A moving obstacle: where the string moves up *off* it in the
-    step the force acts in, q − ψ_t > 0 (q the velocity of `momentum_terms`, ψ_t paired with it; beyond the
-    round-off of the quotients, 1e-9 of the largest |q|, |ψ_t|): on the contact set's interior q − ψ_t = 0 and
-    the force that carries the string with the obstacle acts there.
-    """
-    from scipy import ndimage
-
+    """Share of the impulse applied where the string moves up: pointwise, v^n_j ≥ 0 in the same step, and on a
+    neighbourhood, v ≥ 0 on rows n−1..n+1 and nodes j−1..j+1 (a discrete int{η_t ≥ 0}, the set of (A3)). A moving
+    obstacle: where it moves up off it in the step the force acts in, q − ψ_t > 0 (`Momentum`) beyond the quotients'
+    round-off, 1e-9 of the largest |q|, |ψ_t| (the force that carries the string acts where q − ψ_t = 0)."""
     I = impulse(result)
     total = I.sum()
     if obstacle_rows(result) is None:
@@ -256,13 +196,9 @@ def upward_impulse(result) -> dict:
 
 
 def velocity_after_contact(result, delay: float) -> dict:
-    """|v| a time `delay` after each node's first contact, against its impact speed |v| at contact (a moving
-    obstacle: the velocity relative to it, |v − ψ_t|, both times).
-
-    Only nodes that touch down after t = 0, stay in contact until t_0 + delay and have the delay inside
-    the run count. Gives the aggregate ratio Σ|v(t_0+delay)| / Σ|v(t_0)| and the 95th percentile of the
-    node ratios (nodes with at least 1% of the largest impact speed).
-    """
+    """Σ|v(t_0 + delay)| / Σ|v(t_0)| over the nodes that touch down after t = 0 at t_0 and stay in contact until
+    t_0 + `delay` (|v − ψ_t| on a moving obstacle), and the 95th percentile of the node ratios (nodes with at least
+    1 % of the largest impact speed)."""
     require_every_step(result)
     first = first_contact_rows(result)
     lag = max(1, int(round(delay / result.scene.dt)))
@@ -277,42 +213,28 @@ def velocity_after_contact(result, delay: float) -> dict:
     after = np.abs(v[first[kept] + lag, kept])
     big = impact >= 0.01 * impact.max()
     ratios = after[big] / impact[big]
-    return {
-        "ratio": float(after.sum() / impact.sum()),
-        "p95": float(np.percentile(ratios, 95)) if ratios.size else math.nan,
-        "nodes": int(kept.size),
-        "left_early": int(nodes.size - kept.size),
-    }
+    return {"ratio": float(after.sum() / impact.sum()), "p95": float(np.percentile(ratios, 95)) if ratios.size
+            else math.nan, "nodes": int(kept.size), "left_early": int(nodes.size - kept.size)}
 
 
 def stress_jump_balance(result, width: int = 4) -> dict:
-    """Theorem 2.3(1) in the scheme's terms: impulse in a band around the fronts vs −[S] across it.
-
-    At each row the band is every node within `width` cells of a spatial front of {η ≤ 0}. On each band
-    interval [a, b] (away from the ends) the discrete momentum equation gives exactly
+    """Theorem 2.3(1) in the scheme's terms: on each interval [a, b] of the band (the nodes within `width` cells of
+    a spatial front of {η ≤ 0}, away from the ends) the discrete momentum equation (`Momentum`) gives exactly
 
         Σ_j m_j F^n_j Δt = −(S_{b+½} − S_{a−½}) Δt + Σ_j m_j (v^n_j − v^{n−1}_j),
 
-    impulse = stress-jump impulse + inertia; (2.10) says the inertia vanishes in the limit. Returns the
-    three totals, the relative mismatch |impulse − stress jump| / impulse, the closure of the identity, the
-    share of all impulse that lies in the bands, and per-row series (for the figure).
-    """
-    require_every_step(result)
+    impulse = stress-jump impulse + inertia, and (2.10) says the inertia vanishes in the limit. Returns the three
+    totals, the mismatch |impulse − stress jump| / impulse, the identity's closure, the bands' share of all impulse
+    and the per-row series of Figure 1."""
     dt = result.scene.dt
     m = nodal_weights(result)
-    c = np.asarray(result.contact, dtype=bool)
-    S = cell_stress(result)
-    front = np.zeros_like(c)
-    d = np.diff(c, axis=1)
-    front[:, :-1] |= d
-    front[:, 1:] |= d
+    terms, h = momentum_terms(result), np.diff(result.x)[None, :]
+    S = np.diff(terms.eta_s, axis=1) / h + result.scene.alpha * np.diff(terms.q_s, axis=1) / h  # η_x + α η_tx, cells
+    front = free_boundary(result.contact, np.ones((1, 3), dtype=bool))  # the fronts in space at each row
     front[:, [0, -1]] = False
-    band = _dilate_1d(front, width)
-    N = result.x.size
-    rows = result.t.size
+    band = ndimage.binary_dilation(front, structure=np.ones((1, 2 * width + 1), dtype=bool))
+    N, rows, F, v = result.x.size, result.t.size, terms.force, terms.q
     I_row, J_row, K_row = np.zeros(rows), np.zeros(rows), np.zeros(rows)
-    terms = momentum_terms(result)
-    F, v = terms.force, terms.q
     for n in range(1, rows):
         for a, b in _runs(band[n]):
             if a < 1 or b > N - 2:
@@ -322,28 +244,19 @@ def stress_jump_balance(result, width: int = 4) -> dict:
             K_row[n] += np.dot(m[a:b + 1], v[n, a:b + 1] - v[n - 1, a:b + 1])
     I_tot, J_tot, K_tot = I_row.sum(), J_row.sum(), K_row.sum()
     total = impulse(result).sum()
-    return {
-        "band_impulse": float(I_tot),
-        "stress_jump_impulse": float(J_tot),
-        "inertia": float(K_tot),
-        "mismatch": float(abs(I_tot - J_tot) / I_tot) if I_tot > 0 else math.nan,
-        "identity_closure": float(abs(I_tot - J_tot - K_tot) / max(I_tot, 1e-300)),
-        "band_share": float(I_tot / total) if total > 0 else math.nan,
-        "impulse_rate": I_row / dt,
-        "stress_jump_rate": J_row / dt,
-    }
+    return {"band_impulse": float(I_tot), "stress_jump_impulse": float(J_tot), "inertia": float(K_tot),
+            "mismatch": float(abs(I_tot - J_tot) / I_tot) if I_tot > 0 else math.nan,
+            "identity_closure": float(abs(I_tot - J_tot - K_tot) / max(I_tot, 1e-300)),
+            "band_share": float(I_tot / total) if total > 0 else math.nan,
+            "impulse_rate": I_row / dt, "stress_jump_rate": J_row / dt}
 
 
 def landing_segments(result, min_nodes: int = 10) -> list[tuple[int, int, int]]:
-    """Segments that land at once: maximal runs of ≥ `min_nodes` interior nodes whose first contact
-    (after t = 0) falls within one step, as (row, first node, last node)."""
+    """(row, first node, last node) of the maximal runs of ≥ `min_nodes` interior nodes landing within one step."""
     first = first_contact_rows(result)
     ok = interior(result) & (first >= 1)
-    found = []
-    for n in np.unique(first[ok]):
-        mask = ok & ((first == n) | (first == n + 1))
-        found += [(int(n), a, b) for a, b in _runs(mask, min_nodes)]
-    found.sort(key=lambda s: s[2] - s[1], reverse=True)
+    found = sorted(((int(n), a, b) for n in np.unique(first[ok])
+                    for a, b in _runs(ok & ((first == n) | (first == n + 1)), min_nodes)), key=lambda s: s[1] - s[2])
     kept = []
     for n, a, b in found:  # drop runs inside an already kept one
         if not any(a >= a2 and b <= b2 for _, a2, b2 in kept):
@@ -352,19 +265,13 @@ def landing_segments(result, min_nodes: int = 10) -> list[tuple[int, int, int]]:
 
 
 def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
-    """Theorem 2.3(2): impulse per unit length of each segment landing at once vs its velocity jump.
-
-    For each node of a segment (less `margin` nodes at each side) the impulse density Σ Δt F^n over the
-    landing window [n₀, n₀ + q] (q steps ≈ `decay_eps`·ε, over which the penalty stops the node) is compared
-    with the jump v(after) − v(before) of (2.12), and with the share of the node's whole impulse that falls
-    in the window. For the exact α = 0 case the jump is V.
-    """
-    require_every_step(result)
+    """Theorem 2.3(2): for each node of a segment landing at once (less `margin` nodes at each side), the impulse
+    density Σ Δt F^n over the landing window [n₀, n₀ + q] (q steps ≈ `decay_eps`·ε, in which the penalty stops the
+    node) against the jump v(after) − v(before) of (2.12), and the window's share of the node's whole impulse."""
     dt = result.scene.dt
     q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt))) if penalised(result) else 2
-    terms = momentum_terms(result)
+    terms, rows = momentum_terms(result), result.t.size
     F, v = terms.force, terms.q
-    rows = result.t.size
     density, jump, share, times = [], [], [], []
     for n0, a, b in landing_segments(result):
         a, b = a + margin, b - margin
@@ -380,14 +287,8 @@ def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
     if not density:
         return {"segments": 0}
     f, jmp = np.concatenate(density), np.concatenate(jump)
-    return {
-        "segments": len(density),
-        "times": times,
-        "mean_density": float(f.mean()),
-        "mean_jump": float(jmp.mean()),
-        "window_share": float(np.nanmin(share)),
-        "window_steps": q + 1,
-    }
+    return {"segments": len(density), "times": times, "mean_density": float(f.mean()), "mean_jump": float(jmp.mean()),
+            "window_share": float(np.nanmin(share)), "window_steps": q + 1}
 
 
 def penalised(result) -> bool:

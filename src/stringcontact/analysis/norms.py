@@ -1,20 +1,15 @@
-r"""The studies' error norms (all on the coarse run's nodes and stored times, the reference interpolated to them):
-
-* ``err_eta``: :math:`\max_k \|\eta_h(t_k) - \eta(t_k)\|_{L^2(0,l)}`, the :math:`L^\infty(0,T;L^2)` error;
-* ``err_vel``: :math:`\|\eta_{h,t}(T) - \eta_t(T)\|_{L^2(0,l)}`;
-* ``err_contact``: the space-time measure of the symmetric difference of the contact sets
-  :math:`\{\eta \le 0\}` (trapezoidal in x and t).
-"""
+"""The studies' errors ``err_eta`` (L∞(0,T;L²) of η), ``err_vel`` (L² of η_t at T) and ``err_contact`` (the
+space-time measure of the contact sets' symmetric difference), on the coarse run's nodes and stored times, the
+reference interpolated to them (docs/explanation/study.md)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .runs import Run
+from .problems import Run
 
-#: Contact sets in the errors are {η ≤ δ}, δ = CONTACT_HEIGHT · Δx · max|η|/l, the height a grid of size Δx
-#: resolves. With δ = 0 the measure is noise: a string resting on the obstacle sits at ±round-off (landing
-#: exactly at a step) or is lifted by 1e-6-sized tails of the implicit elastic solve, ahead of the real wave.
+#: Contact sets in the errors are {η ≤ δ}, δ = CONTACT_HEIGHT · Δx · max|η|/l, the height a grid resolves: with
+#: δ = 0 a string resting on the obstacle at ±round-off or 1e-6-sized tails of the implicit solve is noise.
 CONTACT_HEIGHT = 1.0
 
 
@@ -42,40 +37,23 @@ def common_rows(t_run: np.ndarray, t_ref: np.ndarray) -> np.ndarray:
 
 def errors_against_exact(run: Run, exact) -> dict:
     """The three errors of `run` against `exact(t, x) -> (eta, velocity)`."""
-    eta, _ = exact(run.t, run.x)
-    _, vel_T = exact(run.t[-1], run.x)
-    return _errors(run, eta, vel_T)
+    return _errors(run, exact(run.t, run.x)[0], exact(run.t[-1], run.x)[1])
 
 
 def errors_against_reference(run: Run, ref: Run) -> dict:
     """The three errors of `run` against a finer run `ref` (interpolated to the run's nodes and times)."""
-    rows = common_rows(run.t, ref.t)
-    eta = to_nodes(ref.x, ref.eta[rows], run.x)
-    vel_T = to_nodes(ref.x, ref.velocity_T, run.x)[0]
-    return _errors(run, eta, vel_T)
-
-
-def contact_set(eta: np.ndarray, delta: float) -> np.ndarray:
-    """{η ≤ δ} at every node and stored time."""
-    return eta <= delta
-
-
-def contact_height(run: Run) -> float:
-    """δ = CONTACT_HEIGHT · Δx · max|η|/l for the run's grid."""
-    length = run.x[-1] - run.x[0]
-    return CONTACT_HEIGHT * (length / run.nx) * float(np.max(np.abs(run.eta[0]))) / length
+    eta = to_nodes(ref.x, ref.eta[common_rows(run.t, ref.t)], run.x)
+    return _errors(run, eta, to_nodes(ref.x, ref.velocity_T, run.x)[0])
 
 
 def _errors(run: Run, eta: np.ndarray, vel_T: np.ndarray) -> dict:
     from ..fem import compat
 
-    delta = contact_height(run)
-    sym_diff = (contact_set(run.eta, delta) != contact_set(eta, delta)).astype(float)
+    length = run.x[-1] - run.x[0]
+    delta = CONTACT_HEIGHT * (length / run.nx) * float(np.max(np.abs(run.eta[0]))) / length
+    sym_diff = ((run.eta <= delta) != (eta <= delta)).astype(float)
     measure = compat.trapezoid(sym_diff, run.x, axis=1)
     return {
         "err_eta": float(np.max(l2_norm(run.x, run.eta - eta))),
         "err_vel": float(l2_norm(run.x, run.velocity_T - vel_T)),
-        "err_contact": float(compat.trapezoid(measure, run.t)) if run.t.size > 1 else float(measure[0]),
-    }
-
-
+        "err_contact": float(compat.trapezoid(measure, run.t)) if run.t.size > 1 else float(measure[0])}

@@ -1,12 +1,18 @@
-"""The studies' problem catalogue: the methods compared, the test problems and the scene factories.
-
-`flat_landing_scene` is the one factory of the exact α = 0 flat landing (`verification.exact.flat_landing`),
-for the studies and for the theorem checks alike; `example1_scene` is the paper's Example 1 on a chosen grid.
-"""
+"""The studies' methods, test problems and scene factories (the flat landing's for the theorem checks too), and one
+study run: `run_method` simulates a scene with a `Method` on this rank alone (`Run`)."""
 
 from __future__ import annotations
 
+import math
+import time
+import warnings
 from dataclasses import dataclass
+
+import numpy as np
+
+import stringcontact as sc
+
+from ..verification.exact import flat_landing
 
 #: ε standing for the limit ε → 0 (the semi-implicit penalty is unconditionally stable, so any tiny ε works).
 EPS_LIMIT = 1e-9
@@ -18,8 +24,7 @@ FLAT_H, FLAT_V = 0.2, 1.0
 
 @dataclass(frozen=True)
 class Method:
-    """A scheme, a penalty treatment, a mass matrix and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt),
-    "limit" (ε → 0) or "none" (the scheme uses no ε)."""
+    """A scheme, a penalty, a mass and a rule for ε: "fixed" (the scene's), "dt" (ε = Δt), "limit" (ε → 0), "none"."""
 
     name: str
     label: str
@@ -29,76 +34,46 @@ class Method:
     scheme: str = "paper"
 
     def eps(self, scene_eps: float, dt: float) -> float:
+        """The run's ε by the rule, from the scene's ε and the run's Δt."""
         return {"fixed": scene_eps, "dt": dt, "limit": EPS_LIMIT, "none": scene_eps}[self.eps_rule]
 
 
-METHODS = {
-    m.name: m
-    for m in (
-        Method("paper", "paper: explicit, lumped, ε = 5e-4", "explicit", "lumped", "fixed"),
-        Method("explicit-r1", "explicit, lumped, ε = Δt (r = 1)", "explicit", "lumped", "dt"),
-        Method("semi-implicit", "semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit"),
-        Method("consistent", "semi-implicit, consistent mass, ε → 0", "semi-implicit", "consistent", "limit"),
-        Method("projection", "projection (no ε), lumped", None, "lumped", "none", scheme="projection"),
-        Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"),
-    )
-}
-#: The reference for problems with no exact solution: the most accurate scheme (docs/explanation/study.md), at reference_n.
+METHODS = {m.name: m for m in (
+    Method("paper", "paper: explicit, lumped, ε = 5e-4", "explicit", "lumped", "fixed"),
+    Method("explicit-r1", "explicit, lumped, ε = Δt (r = 1)", "explicit", "lumped", "dt"),
+    Method("semi-implicit", "semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit"),
+    Method("consistent", "semi-implicit, consistent mass, ε → 0", "semi-implicit", "consistent", "limit"),
+    Method("projection", "projection (no ε), lumped", None, "lumped", "none", scheme="projection"),
+    Method("newmark", "newmark, semi-implicit, lumped, ε → 0", "semi-implicit", "lumped", "limit", scheme="newmark"))}
+#: The reference of the problems without an exact solution, at reference_n: the most accurate scheme (study.md).
 REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped", "none", scheme="projection")
 
 
 def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = None, r: float | None = None,
                        T: float = 0.6, alpha: float = 0.0):
-    """The exact case: l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n unless `nt` is given.
-
-    ε is `eps` (default the paper's 5e-4), or Δt/`r` if `r` is given: the studies fix ε (or their method
-    sets it), the theorem checks fix r = Δt/ε so that ε falls with Δx and Δt (`stringcontact check
-    flat-landing` uses r = 0.4).
-    """
-    import stringcontact as sc
-
+    """The exact case (`verification.exact.flat_landing`): l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n
+    unless `nt` is given; ε is `eps` (default 5e-4), or Δt/`r` (the theorem checks fix r, `check` uses 0.4)."""
     if eps is not None and r is not None:
         raise ValueError("flat_landing_scene: give eps or r = dt/eps, not both")
     nt = nt if nt is not None else max(1, round(T * n))
-    if r is not None:
-        eps = T / nt / r
-    elif eps is None:
-        eps = EPS_PAPER
+    eps = T / nt / r if r is not None else EPS_PAPER if eps is None else eps
     return sc.load_scene("example1").replace(
-        name="flat-landing",
-        description="flat string landing on the obstacle (exact alpha = 0 solution)",
-        notes="",
-        eta0=str(FLAT_H),
-        v0=str(-FLAT_V),
-        alpha=alpha,
-        eps=eps,
-        T=T,
-        nx=n,
-        nt=nt,
-        output_times=[],
-    )
+        name="flat-landing", description="flat string landing on the obstacle (exact alpha = 0 solution)", notes="",
+        eta0=str(FLAT_H), v0=str(-FLAT_V), alpha=alpha, eps=eps, T=T, nx=n, nt=nt, output_times=[])
 
 
 def example1_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.3):
     """The paper's Example 1 with Δt = Δx = 1/n (n = 5000 is the paper's resolution)."""
-    import stringcontact as sc
-
     return sc.load_scene("example1").replace(T=T, eps=eps, nx=n, nt=max(1, round(T * n)), output_times=[])
 
 
-#: The nonlinear models' refinement study (`convergence.reference_study`): final time, the penalty's ε (fixed
-#: under refinement: the penalty schemes converge to the penalised model) and Δt/Δx.
+#: The nonlinear models' refinement study (`convergence.reference_study`): T, the penalty's ε (fixed) and Δt/Δx.
 STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
 
 
 def string_scene(n: int, *, contact: bool, T: float = STRING_T, eps: float = STRING_EPS, dt_dx: float = STRING_DT_DX):
-    """Example 1's string (α = 0.01, l = 1) on smooth data at Δx = 1/n, Δt = `dt_dx` Δx, no stored output times.
-
-    ``contact=True``: η0 = ½ + ½ sin(πx) thrown down at v0 = −8 sin(πx); the middle lands on ψ = 0 at t ≈ 0.1 and
-    the contact set spreads. ``contact=False``: η0 = 1 + ½ sin(πx) from rest; it swings above the obstacle.
-    """
-    import stringcontact as sc
-
+    """Example 1's string (α = 0.01, l = 1) at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from
+    η0 = ½ + ½ sin(πx) at v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
     data = {"eta0": "0.5 + 0.5*sin(pi*x)", "v0": "-8*sin(pi*x)"} if contact else {"eta0": "1 + 0.5*sin(pi*x)", "v0": "0"}
     return sc.load_scene("example1").replace(
         name="string-contact" if contact else "string-free", notes="", T=T, eps=eps, nx=n,
@@ -115,9 +90,8 @@ class Problem:
     reference_n: int | None = None  # None: exact solution
 
     def scene(self, n: int, eps: float = EPS_PAPER):
-        if self.name == "flat-landing":
-            return flat_landing_scene(n, eps=eps, T=self.T)
-        return example1_scene(n, eps=eps, T=self.T)
+        """The problem's scene at Δt = Δx = 1/n."""
+        return (flat_landing_scene if self.name == "flat-landing" else example1_scene)(n, eps=eps, T=self.T)
 
     @property
     def rows(self) -> int:
@@ -128,17 +102,71 @@ class Problem:
 def problems(quick: bool = False) -> dict[str, Problem]:
     """The two work-precision problems; `quick` shrinks them for tests and fast demos."""
     if quick:
-        return {
-            "flat-landing": Problem("flat-landing", 0.6, (125, 250, 500)),
-            "example1": Problem("example1", 0.06, (250, 500), reference_n=2000),
-        }
-    return {
-        "flat-landing": Problem("flat-landing", 0.6, (125, 250, 500, 1000, 2000, 4000)),
-        "example1": Problem("example1", 0.3, (250, 500, 1000, 2000, 4000), reference_n=16000),
-    }
+        return {"flat-landing": Problem("flat-landing", 0.6, (125, 250, 500)),
+                "example1": Problem("example1", 0.06, (250, 500), reference_n=2000)}
+    return {"flat-landing": Problem("flat-landing", 0.6, (125, 250, 500, 1000, 2000, 4000)),
+            "example1": Problem("example1", 0.3, (250, 500, 1000, 2000, 4000), reference_n=16000)}
 
 
 def flat_landing_exact(t, x):
-    from ..verification.exact import flat_landing
-
+    """(η, η_t) of the exact flat landing at times t and points x (`verification.exact.flat_landing`)."""
     return flat_landing(t, x, h=FLAT_H, V=FLAT_V, length=1.0)
+
+
+@dataclass
+class Run:
+    """One simulation of a study: its settings, outcome, cost and the stored arrays needed for the errors."""
+
+    problem: str
+    method: str
+    penalty: str
+    mass: str
+    nx: int
+    nt: int
+    dt: float
+    eps: float
+    status: str  # "complete", "unstable" (the running guard fired) or "refused" (r >= 2, explicit)
+    wall_s: float
+    min_eta: float = math.nan
+    t: np.ndarray | None = None
+    x: np.ndarray | None = None
+    eta: np.ndarray | None = None
+    velocity_T: np.ndarray | None = None
+
+    @property
+    def r(self) -> float:
+        """r = Δt/ε."""
+        return self.dt / self.eps
+
+
+def simulate_self(scene, **kwargs):
+    """`simulate(scene, **kwargs)` on COMM_SELF without instability warnings (an `InstabilityError` still raises)."""
+    from mpi4py import MPI
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sc.InstabilityWarning)
+        return sc.simulate(scene, comm=MPI.COMM_SELF, **kwargs)
+
+
+def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model=None) -> Run:
+    """Simulate `scene` with `method` on COMM_SELF; the wall time is the best of `repeat` calls of `simulate`."""
+    scene = scene.replace(eps=method.eps(scene.eps, scene.dt))
+    common = dict(problem=scene.name, method=method.name, penalty=method.penalty or "none", mass=method.mass,
+                  nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps if method.penalty else math.inf)
+    best, res = math.inf, None
+    for _ in range(repeat):
+        try:
+            t0 = time.perf_counter()
+            res = simulate_self(scene, scheme=method.scheme, penalty=method.penalty, mass=method.mass, model=model,
+                                 max_rows=rows)
+            best = min(best, time.perf_counter() - t0)
+        except sc.InstabilityError as exc:
+            return Run(**common, status="refused" if exc.step == 0 else "unstable", wall_s=math.nan)
+    return Run(**common, status="complete", wall_s=best, min_eta=res.min_eta, t=res.t, x=res.x, eta=res.eta,
+               velocity_T=res.velocity[-1])
+
+
+def warm_up():
+    """Compile the forms once per process, so the first timed run does not pay for it (one run warms every
+    method: the forms depend on neither the mass nor the penalty)."""
+    run_method(flat_landing_scene(8, nt=4), METHODS["semi-implicit"], rows=4)

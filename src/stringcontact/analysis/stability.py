@@ -1,31 +1,31 @@
-r"""The stability studies: the outcome (inelastic, spurious rebound, energy growth) of a flat landing over
-:math:`r = \Delta t/\varepsilon` and :math:`\Delta t` per penalty (:func:`stability_map`), over
-:math:`\Delta t/\Delta x` for the schemes without ε (:func:`step_size_map`), the measured restitution, and the
-sweep :math:`\alpha \to 0` (:func:`alpha_sweep`)."""
+"""The stability studies on the flat landing: the outcome (inelastic, spurious rebound, energy growth) over
+r = Δt/ε and Δt per penalty (`stability_map`), over Δt/Δx for the schemes without ε (`step_size_map`), the
+measured restitution, and the sweep α → 0 (`alpha_sweep`)."""
 
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
-from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene
-from .runs import simulate_self
+import stringcontact as sc
+
+from ..verification.exact import flat_landing_time
+from ..verification.reference import fd_projection, fd_solve
+from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene, simulate_self
 from .schedule import distribute
 
-STABILITY_COLUMNS = (
-    "penalty", "mass", "dt", "eps", "r", "outcome", "restitution", "restitution_theory",
-    "energy_max_ratio", "growth_step", "min_eta",
-)
-ALPHA_COLUMNS = (
-    "method", "alpha", "dt", "eps", "r", "restitution", "contact_dissipation", "numerical_dissipation",
-    "viscous_dissipation", "final_energy",
-)
-
-
+STABILITY_COLUMNS = ("penalty", "mass", "dt", "eps", "r", "outcome", "restitution", "restitution_theory",
+                     "energy_max_ratio", "growth_step", "min_eta")
+ALPHA_COLUMNS = ("method", "alpha", "dt", "eps", "r", "restitution", "contact_dissipation", "numerical_dissipation",
+                 "viscous_dissipation", "final_energy")
+STEP_COLUMNS = ("scheme", "alpha", "dt_over_dx", "dt_max_over_dx", "outcome", "restitution", "energy_max_ratio",
+                "min_eta")
 STABILITY_R = (0.1, 0.3, 0.5, 0.8, 1.0, 1.2, 1.5, 1.8, 2.0, 2.5, 4.0, 10.0, 30.0, 100.0)
 STABILITY_DT = (1 / 100, 1 / 200, 1 / 400)
+STEP_RATIOS = (0.5, 0.9, 1.0, 1.05, 1.2, 1.5, 2.0, 4.0, 10.0)
+#: Δt²/ε of the explicit spring (the elastic variant) at Δt = Δx = 1/200: r = Δt/ε = 200 q.
+SPRING_Q = (0.005, 0.05, 0.5, 2.0, 4.0, 6.0, 8.0, 16.0, 64.0)
 #: A post-impact upward velocity above this fraction of the impact speed is a (spurious) rebound.
 REBOUND_THRESHOLD = 0.02
 #: Energy above E(0)(1 + this) at any step is growth.
@@ -34,22 +34,15 @@ GROWTH_TOLERANCE = 1e-9
 
 def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float = FLAT_H, V: float = FLAT_V,
                 window: float = 0.1) -> float:
-    """Post-impact upward velocity over the impact speed V at the middle node of a flat landing.
-
-    The flat middle lands at t* = h/V and, exactly, rests until the waves from the ends reach the middle at
-    t* + (l/2 − t*); the largest upward velocity in (t*, t* + window] is the rebound.
-    """
-    from ..verification.exact import flat_landing_time
-
+    """The largest upward velocity of the flat landing's middle node in (t*, t* + window], t* = h/V, over the
+    impact speed V (exactly, the middle rests until the waves from the ends reach it)."""
     mid = int(np.argmin(np.abs(x - 0.5 * (x[0] + x[-1]))))
     t_star = flat_landing_time(h, V)
     sel = (t > t_star) & (t <= t_star + window)
     if not sel.any():
         raise ValueError(f"no stored time in the restitution window ({t_star}, {t_star + window}]")
     v = velocity[sel, mid]
-    if not np.all(np.isfinite(v)):
-        return math.inf
-    return max(0.0, float(np.max(v))) / V
+    return max(0.0, float(np.max(v))) / V if np.all(np.isfinite(v)) else math.inf
 
 
 def restitution_theory(r: float, penalty: str) -> float:
@@ -63,62 +56,51 @@ def classify(restitution_value: float, energy: np.ndarray) -> tuple[str, int]:
     bad = ~np.isfinite(energy) | (energy > E0 * (1.0 + GROWTH_TOLERANCE))
     if bad.any():
         return "growth", int(np.argmax(bad))
-    if restitution_value > REBOUND_THRESHOLD:
-        return "rebound", -1
-    return "inelastic", -1
+    return ("rebound" if restitution_value > REBOUND_THRESHOLD else "inelastic"), -1
 
 
-def fd_energy(eta: np.ndarray, velocity: np.ndarray, dx: float) -> np.ndarray:
-    """Discrete energy ½|v|²_M + ½ ηᵀKη of the lumped scheme, per stored row (the solver's `total_energy`)."""
-    kinetic = 0.5 * dx * np.sum(velocity[:, 1:-1] ** 2, axis=1)
-    elastic = 0.5 * np.sum(np.diff(eta, axis=1) ** 2, axis=1) / dx
-    return kinetic + elastic
+def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[float, np.ndarray, dict]:
+    """(restitution, energy per row, the row's energy_max_ratio and min_eta) of `scene` run by a NumPy reference
+    `solve` (`verification.reference`), which has no pre-run refusal, so an unstable run is measured too."""
+    x = scene.x()
+    with np.errstate(all="ignore"):
+        t, eta, vel = solve(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=scene.T,
+                            nt=scene.nt, alpha=scene.alpha, h_left=scene.h_left, h_right=scene.h_right, **options)
+        dx = scene.dx  # the lumped scheme's ½|v|²_M + ½ ηᵀKη per row, as the solver's `total_energy`
+        energy = 0.5 * dx * np.sum(vel[:, 1:-1] ** 2, axis=1) + 0.5 * np.sum(np.diff(eta, axis=1) ** 2, axis=1) / dx
+        e = restitution(t, x, vel, window=window)
+    finite = np.all(np.isfinite(energy))
+    return e, energy, {"energy_max_ratio": float(np.max(energy) / energy[0]) if finite else math.inf,
+                       "min_eta": float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan)))}
+
+
+def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
+    """(the row's outcome, restitution, growth_step, energy_max_ratio and min_eta; the Result or None) of `scene`
+    run by `simulate`, whose guards refuse a run before its start ("refused") or stop it when its energy rises."""
+    try:
+        res = simulate_self(scene, max_rows=scene.nt, **options)
+    except sc.InstabilityError as exc:
+        return {"outcome": "refused" if exc.step == 0 else "growth", "restitution": math.nan, "growth_step": exc.step,
+                "energy_max_ratio": math.nan, "min_eta": math.nan}, None
+    e = restitution(res.t, res.x, res.velocity, window=window)
+    outcome, step = classify(e, res.total_energy)
+    return {"outcome": outcome, "restitution": e, "growth_step": step, "min_eta": res.min_eta,
+            "energy_max_ratio": float(np.max(res.total_energy) / res.total_energy[0])}, res
 
 
 def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: float = 0.45) -> dict:
-    """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r.
-
-    Lumped mass runs through :func:`stringcontact.verification.reference.fd_solve` -- the same scheme as `simulate`
-    (tests/run/test_solver.py checks this to 1e-10) without the pre-run refusal of r ≥ 2, so that the map shows
-    what the explicit penalty actually does there. Consistent mass runs through `simulate`, whose guards
-    refuse r ≥ 2 before the start ("refused") and stop a run whose energy rises ("growth").
-    """
-    from ..verification.reference import fd_solve
-
-    n = round(1.0 / dt)
-    nt = round(T / dt)
+    """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r. Lumped mass runs through
+    `verification.reference.fd_solve` (`simulate`'s scheme to 1e-10, tests/run/test_solver.py, without its
+    refusal of r ≥ 2), consistent mass through `simulate`."""
     eps = dt / r
-    scene = flat_landing_scene(n, eps=eps, T=T, nt=nt)
+    scene = flat_landing_scene(round(1.0 / dt), eps=eps, T=T, nt=round(T / dt))
     row = {"penalty": penalty, "mass": mass, "dt": dt, "eps": eps, "r": r,
            "restitution_theory": restitution_theory(r, penalty) if mass == "lumped" else math.nan}
-    if mass == "lumped":
-        x = scene.x()
-        with np.errstate(all="ignore"):
-            t, eta, vel = fd_solve(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=T, nt=nt,
-                                   alpha=0.0, eps=eps, h_left=scene.h_left, h_right=scene.h_right, penalty=penalty)
-            energy = fd_energy(eta, vel, 1.0 / n)
-            e = restitution(t, x, vel)
-        outcome, step = classify(e, energy)
-        finite = np.isfinite(energy)
-        row.update(outcome=outcome, restitution=e, growth_step=step,
-                   energy_max_ratio=float(np.max(energy) / energy[0]) if finite.all() else math.inf,
-                   min_eta=float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan))))
-        return row
-    import stringcontact as sc
-
-    try:
-        res = simulate_self(scene, penalty=penalty, mass=mass, max_rows=nt)
-    except sc.InstabilityError as exc:
-        outcome = "refused" if exc.step == 0 else "growth"
-        row.update(outcome=outcome, restitution=math.nan, growth_step=exc.step, energy_max_ratio=math.nan,
-                   min_eta=math.nan)
-        return row
-    e = restitution(res.t, res.x, res.velocity)
-    energy = res.total_energy
+    if mass != "lumped":
+        return row | _simulated(scene, penalty=penalty, mass=mass)[0]
+    e, energy, measured = _finite_difference(fd_solve, scene, eps=eps, penalty=penalty)
     outcome, step = classify(e, energy)
-    row.update(outcome=outcome, restitution=e, growth_step=step, energy_max_ratio=float(np.max(energy) / energy[0]),
-               min_eta=res.min_eta)
-    return row
+    return row | measured | {"outcome": outcome, "restitution": e, "growth_step": step}
 
 
 def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
@@ -135,55 +117,32 @@ def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> l
     return distribute(one, cases, comm, cost=lambda c: 1 / c[2] ** 2, busy=busy)
 
 
-STEP_RATIOS = (0.5, 0.9, 1.0, 1.05, 1.2, 1.5, 2.0, 4.0, 10.0)
-STEP_COLUMNS = ("scheme", "alpha", "dt_over_dx", "dt_max_over_dx", "outcome", "restitution", "energy_max_ratio",
-                "min_eta")
-#: Δt²/ε of the explicit spring (the elastic variant) at Δt = Δx = 1/200: r = Δt/ε = 200 q.
-SPRING_Q = (0.005, 0.05, 0.5, 2.0, 4.0, 6.0, 8.0, 16.0, 64.0)
-
-
 def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: float = 0.45) -> dict:
-    """The flat landing with Δt = ratio·Δx: where the schemes without ε stop being stable.
-
-    `projection` runs through its NumPy reference (`reference.fd_projection`, equal to `simulate` to 1e-10),
-    which has no pre-run refusal, so the map shows what happens beyond Δt_max; "refused" is added where
-    `simulate` would refuse. `newmark` runs through `simulate` with ε → 0.
-    """
+    """The flat landing with Δt = ratio·Δx: where the schemes without ε stop being stable. `projection` runs
+    through `verification.reference.fd_projection` (equal to `simulate` to 1e-10, with no pre-run refusal; its
+    cells beyond `simulate`'s Δt_max read "refused"), `newmark` through `simulate` with ε → 0."""
     from mpi4py import MPI
 
-    from ..model.paper import inelastic
-    from ..run.driver import discretise
+    from ..model.interface import inelastic
+    from ..run.adapter import scene_problem
     from ..timestepping.projection import largest_stable_dt
-    from ..verification.reference import fd_projection
 
-    nt = max(1, round(T * n / ratio))
-    scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=nt, alpha=alpha)
-    ops = discretise(scene, inelastic, MPI.COMM_SELF)[2]
+    scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=max(1, round(T * n / ratio)), alpha=alpha)
+    ops = scene_problem(scene, inelastic, MPI.COMM_SELF).operators()
     interior = np.ones(ops.m.size, dtype=bool)
     interior[np.argsort(ops.m)[:2]] = False  # the ends: the two nodes with half a cell of mass
     dt_max = largest_stable_dt(ops, interior)
     row = {"scheme": scheme, "alpha": alpha, "dt_over_dx": scene.dt / scene.dx, "dt_max_over_dx": dt_max / scene.dx}
-    if scheme == "projection":
-        x = scene.x()
-        with np.errstate(all="ignore"):
-            t, eta, vel = fd_projection(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=T,
-                                        nt=nt, alpha=alpha, h_left=scene.h_left, h_right=scene.h_right)
-        energy = fd_energy(eta, vel, scene.dx)  # ½|v|² + ½|η|²_K: bounded by the modified energy when stable
-        e = restitution(t, x, vel, window=max(0.1, 2 * scene.dt))
-        finite = np.all(np.isfinite(energy))
-        growth = not finite or np.max(energy) > 2 * energy[0]
-        outcome = "growth" if growth else ("rebound" if e > REBOUND_THRESHOLD else "inelastic")
-        if scene.dt > dt_max and not growth:
-            outcome = "refused"  # stable here, but simulate refuses it (dt_max is a sufficient bound)
-        row.update(outcome=outcome, restitution=e, energy_max_ratio=float(np.max(energy) / energy[0]) if finite
-                   else math.inf, min_eta=float(np.nanmin(np.where(np.isfinite(eta), eta, np.nan))))
-        return row
-    res = simulate_self(scene, scheme=scheme, max_rows=nt)
-    e = restitution(res.t, res.x, res.velocity, window=max(0.1, 2 * scene.dt))
-    outcome, _ = classify(e, res.total_energy)
-    row.update(outcome=outcome, restitution=e, energy_max_ratio=float(np.max(res.total_energy) / res.total_energy[0]),
-               min_eta=res.min_eta)
-    return row
+    window = max(0.1, 2 * scene.dt)
+    if scheme != "projection":
+        return row | _simulated(scene, window, scheme=scheme)[0]
+    # ½|v|² + ½|η|²_K is bounded by the scheme's modified energy when it is stable
+    e, energy, measured = _finite_difference(fd_projection, scene, window)
+    growth = not np.all(np.isfinite(energy)) or np.max(energy) > 2 * energy[0]
+    outcome = "growth" if growth else ("rebound" if e > REBOUND_THRESHOLD else "inelastic")
+    if scene.dt > dt_max and not growth:
+        outcome = "refused"  # stable here, but simulate refuses it (dt_max is a sufficient bound)
+    return row | measured | {"outcome": outcome, "restitution": e}
 
 
 def step_size_map(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
@@ -195,28 +154,15 @@ def step_size_map(quick: bool = False, comm=None, busy: list | None = None) -> l
 
 
 def spring_case(r: float, n: int = 200, T: float = 0.45) -> dict:
-    """The elastic (spring) law, explicit, at Δt = Δx with ε = Δt/r: its own stability (the law only warns)."""
+    """The elastic (spring) law, explicit, at Δt = Δx with ε = Δt/r: its own stability (the law only warns). A
+    spring bounces by design, after ~π√ε: growth is its only failure."""
     from ..model import variants
 
     scene = flat_landing_scene(n, eps=1.0 / n / r, T=T)
+    measured, res = _simulated(scene, model=variants.elastic)
     row = {"penalty": "explicit spring", "mass": "lumped", "dt": scene.dt, "eps": scene.eps, "r": r,
            "restitution_theory": math.nan}
-    import stringcontact as sc
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", sc.InstabilityWarning)
-            res = simulate_self(scene, model=variants.elastic, max_rows=scene.nt)
-    except sc.InstabilityError as exc:
-        row.update(outcome="growth", restitution=math.nan, growth_step=exc.step, energy_max_ratio=math.nan,
-                   min_eta=math.nan)
-        return row
-    e = restitution(res.t, res.x, res.velocity)
-    # a spring bounces by design, after ~π√ε: growth is its only failure
-    outcome = "stable"
-    row.update(outcome=outcome, restitution=e, growth_step=-1,
-               energy_max_ratio=float(np.max(res.total_energy) / res.total_energy[0]), min_eta=res.min_eta)
-    return row
+    return row | measured | ({"outcome": "growth"} if res is None else {"outcome": "stable", "growth_step": -1})
 
 
 def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> list[dict] | None:
@@ -235,12 +181,9 @@ def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> lis
         scene = flat_landing_scene(n, eps=eps, alpha=alpha)
         res = simulate_self(scene, penalty=penalty, max_rows=scene.nt)
         E0 = res.total_energy[0]
-        e = res.energy
-        return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps,
-                "restitution": restitution(res.t, res.x, res.velocity),
-                "contact_dissipation": e["contact_dissipation"][-1] / E0,
-                "numerical_dissipation": e["numerical_dissipation"][-1] / E0,
-                "viscous_dissipation": e["viscous_dissipation"][-1] / E0,
-                "final_energy": res.total_energy[-1] / E0}
+        return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps, "final_energy":
+                res.total_energy[-1] / E0, "restitution": restitution(res.t, res.x, res.velocity),
+                **{k: res.energy[k][-1] / E0 for k in ("contact_dissipation", "numerical_dissipation",
+                                                        "viscous_dissipation")}}
 
     return distribute(one, cases, comm, busy=busy)

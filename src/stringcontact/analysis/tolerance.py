@@ -1,71 +1,52 @@
 """``run SCENE --tol X``: the cheapest method and resolution whose estimated error of η is below X
-(:func:`choose_for_tolerance`), and how well the estimate tracks the true error (:func:`tolerance_tracking`)."""
+(`choose_for_tolerance`), and how well the estimate tracks the true error (`tolerance_tracking`)."""
 
 from __future__ import annotations
 
 import math
 import time
 
-import numpy as np
+from .norms import errors_against_exact, errors_against_reference
+from .problems import METHODS, Run, flat_landing_exact, flat_landing_scene, run_method
 
-from .norms import common_rows, errors_against_exact, l2_norm, to_nodes
-from .problems import METHODS, flat_landing_exact, flat_landing_scene
-from .runs import Run, run_method
-
-#: What the studies taught `run --tol` (docs/explanation/study.md): the observed L∞(L²) order of η under Δt = Δx → 0
-#: on the flat landing, for the methods that converge to the inelastic limit, cheapest first. The explicit
-#: penalty is left out: at a single-point contact it cannot hold the string up (docs/explanation/getfem.md).
+#: The methods that converge to the inelastic limit, cheapest first, and their observed L∞(L²) orders of η on the
+#: flat landing (docs/explanation/study.md); not the explicit penalty, which a point contact sinks (getfem.md).
 TOL_METHODS = ("projection", "semi-implicit", "newmark")
 TOL_ORDER = {"projection": 1.0, "semi-implicit": 0.5, "newmark": 0.5}
-#: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots are not yet in
-#: the asymptotic range (example1, semi-implicit: estimates 1.3, 1.2, 0.46, 0.39, 0.12, 0.083 at nx 100 to 3200,
-#: `benchmarks/bench_tolerance_reach.py`), so their floor can be a few times too pessimistic.
+#: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots are before the
+#: asymptotic range, their floor a few times too pessimistic (benchmarks/bench_tolerance_reach.py).
 REACH_MARGIN = 100.0
-#: The finest pilot: the size limit of `run --tol` (scene nx is at most 1e5; this is the last doubling of 50 below it).
+#: The finest pilot: the last doubling of 50 below the scene's limit nx <= 1e5.
 NX_MAX = 64000
 TOLERANCE_COLUMNS = ("tol", "method", "nx", "nt", "estimate", "true_error", "ratio", "pilot_wall_s")
 
 
 def _scaled(scene, nx: int):
     """The scene at `nx` cells, keeping its ratio Δt/Δx."""
-    nt = max(1, round(scene.nt * nx / scene.nx))
-    return scene.replace(nx=nx, nt=nt)
+    return scene.replace(nx=nx, nt=max(1, round(scene.nt * nx / scene.nx)))
 
 
 def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
     """Error of `fine` in L∞(0,T;L²) of η: ‖η_fine − η_coarse‖ / (2^p − 1), p the method's observed order."""
-    rows = common_rows(coarse.t, fine.t)
-    diff = coarse.eta - to_nodes(fine.x, fine.eta[rows], coarse.x)
-    return float(np.max(l2_norm(coarse.x, diff))) / (2.0**order - 1.0)
+    return errors_against_reference(coarse, fine)["err_eta"] / (2.0**order - 1.0)
 
 
 def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: int = 50, nx_max: int = NX_MAX,
                            model=None) -> list[dict]:
-    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`.
-
-    Returns one dict per method: method, nx, nt (of the finer run), estimate, fine_wall_s (the finer run's
-    wall time), ok (whether `tol` was reached below `nx_max`), floor (the estimate that refining to `nx_max`
-    would reach, extrapolated with the method's order from the last two runs), why (the reason it stopped
-    short: "out of reach" or "dearer") and run (the finer :class:`Run` itself).
-
-    The work is bounded: a method stops as soon as its floor is above REACH_MARGIN·`tol` (refining cannot reach it within
-    the size limit: `--tol 1e-300` stops after the first two pilots, nx 50 and 100, instead of running them up
-    to nx = 64000 for many minutes), or once it costs more than the cheapest success so far.
-    """
+    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`: one
+    dict per method, method, nx, nt (of the finer run), estimate, fine_wall_s, ok (`tol` reached below `nx_max`),
+    floor (the estimate extrapolated to `nx_max` with the method's order), why ("out of reach": the floor is above
+    REACH_MARGIN·`tol`; "dearer": it costs more than the cheapest success) and run (the finer `Run`)."""
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
     found = []
     budget = math.inf  # a method that costs more than the cheapest success so far cannot win: stop refining it
     for name in methods:
         method = METHODS[name]
-        if method.penalty == "semi-implicit" and model is not None and model.penalty_damping is None:
-            continue
-        if model is not None and not _runs(method.scheme, model):  # a scheme the model refuses is no candidate
-            continue
-        if method.scheme == "projection" and model is not None and model.gap is None:
-            continue
-        nx = max(2, min(nx_start, scene.nx))
-        coarse_scene = _scaled(scene, nx)
+        if model is not None and ((method.penalty == "semi-implicit" and model.penalty_damping is None) or not _runs(
+                method.scheme, model) or (method.scheme == "projection" and model.gap is None)):
+            continue  # a scheme the model refuses, or a law it needs that the model lacks, is no candidate
+        coarse_scene = _scaled(scene, max(2, min(nx_start, scene.nx)))
         rows = coarse_scene.nt  # every coarse step; the finer run stores every second step, at the same times
         coarse = run_method(coarse_scene, method, rows=rows, model=model)
         while True:
@@ -84,7 +65,7 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
                 if ok:
                     budget = min(budget, fine.wall_s)
                 break
-            nx, coarse = 2 * nx, fine
+            coarse = fine
     return found
 
 
@@ -100,15 +81,9 @@ def _runs(scheme: str, model) -> bool:
 
 
 def choose_for_tolerance(scene, tol: float, *, model=None):
-    """`run SCENE --tol X`: the cheapest method and resolution whose estimated error of η is below X.
-
-    The candidates are the methods that converge to the inelastic limit ε → 0 (docs/explanation/study.md: the fixed-ε
-    paper scheme stops at its ε-error, which no resolution removes). Each is refined by doubling Δx and Δt
-    together (keeping the scene's ratio) until the Richardson estimate from the last two resolutions,
-    with the study's observed order, is below X; the cheaper of the finer runs wins. The pilot runs use
-    `model` (default: the scene's, else the paper's), so pass the model the run itself will use. Under MPI,
-    rank 0 decides and tells the others. Returns (scene, options for `simulate`, report).
-    """
+    """`run SCENE --tol X`: the cheapest of `TOL_METHODS` and resolution (Δx and Δt doubled together) whose
+    Richardson estimate is below X, the pilots run with `model` (default: the scene's). Under MPI rank 0 decides
+    and tells the others. Returns (scene, options for `simulate`, report)."""
     if scene.dim != 1:  # its pilots refine nx and its error estimates are the string's
         raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
                          "give its scheme (--scheme) and mesh (cells, mesh_size) instead")
@@ -135,27 +110,20 @@ _STOPPED = {"dearer": ", stopped: above tol and already dearer", "out of reach":
 
 
 def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
-    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank.
-
-    Every rank must call it. The other ranks get the estimates without the pilot runs' arrays ("run").
-    """
+    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank
+    (without the pilot runs' arrays, "run"); every rank must call it."""
     from mpi4py import MPI
 
-    comm = MPI.COMM_WORLD
-    choice = None
+    comm, choice = MPI.COMM_WORLD, None
     if comm.rank == 0:
         try:
             choice = estimate_for_tolerance(scene, tol, model=model)
         except ValueError as exc:
             choice = exc
-    if comm.size > 1:  # the other ranks need the estimates, not the pilot runs' arrays
-        light = None
-        if comm.rank == 0:
-            light = choice if isinstance(choice, Exception) else [{k: v for k, v in c.items() if k != "run"}
-                                                                  for c in choice]
-        light = comm.bcast(light, root=0)
-        if comm.rank != 0:
-            choice = light
+    if comm.size > 1:  # the root's list is broadcast, the others' is ignored
+        light = comm.bcast(choice if isinstance(choice, Exception) else [
+            {k: v for k, v in c.items() if k != "run"} for c in choice or ()], root=0)
+        choice = choice if comm.rank == 0 else light
     if isinstance(choice, Exception):
         raise choice
     return choice
@@ -177,16 +145,11 @@ def _pick(scene, tol: float, choice: list[dict]):
     best = min(reached, key=lambda c: c["fine_wall_s"])
     method = METHODS[best["method"]]
     chosen = scene.replace(nx=best["nx"], nt=best["nt"])
-    chosen = chosen.replace(eps=method.eps(chosen.eps, chosen.dt))
-    return chosen, method, best
+    return chosen.replace(eps=method.eps(chosen.eps, chosen.dt)), method, best
 
 
 def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
-    """On the flat landing: the chosen run's estimate against its true error (exact solution), per tolerance.
-
-    Serial (no MPI collective: under `mpirun` only rank 0 calls it). The true error is that of the chosen run
-    itself, the finer pilot run of the estimate (every coarse step stored); pilot_wall_s is the time the choice took.
-    """
+    """On the flat landing, per tolerance: the chosen run's estimate against its true error (serial: rank 0 only)."""
     base = flat_landing_scene(100, T=T)
     rows = []
     for tol in tols:
@@ -194,7 +157,6 @@ def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
         best = _pick(base, tol, estimate_for_tolerance(base, tol))[2]
         pilot = time.perf_counter() - t0
         true = errors_against_exact(best["run"], flat_landing_exact)["err_eta"]
-        rows.append({"tol": tol, "method": best["method"], "nx": best["nx"], "nt": best["nt"],
-                     "estimate": best["estimate"], "true_error": true, "ratio": best["estimate"] / true,
-                     "pilot_wall_s": pilot})
+        rows.append({"tol": tol, "method": best["method"], "nx": best["nx"], "nt": best["nt"], "estimate":
+                     best["estimate"], "true_error": true, "ratio": best["estimate"] / true, "pilot_wall_s": pilot})
     return rows

@@ -8,34 +8,65 @@ import json
 import os
 from pathlib import Path
 
-from ..plot.picture_names import MEMBRANE_PICTURES, PICTURES, WINDOW_SIZE
+from ..plot.picture_names import MEMBRANE_PICTURES, PICTURES
 from ..plot.run_pictures import write_pictures
+from ..plot.style import FORMATS, LARGEST, SMALLEST, STYLES, Look
 
 
 def add_arguments(parser) -> None:
-    """`stringcontact plot`'s arguments: the folder, --out, --force and --size."""
+    """`stringcontact plot`'s arguments: the folder, --out, --force, --format, --style and --size."""
     parser.description = (
         f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}; "
-        "and NAME.png of each output field NAME of the run's model) from its saved files alone: the stored rows the "
-        "run drew them from (rows.npz), diagnostics.csv and summary.json: the same pictures as the run's."
+        "and NAME.png of each output field NAME of the run's model) "
+        "from its saved files alone: the stored rows the run drew them from (rows.npz), diagnostics.csv and "
+        "summary.json: the same pictures as the run's; "
+        "as PDF or SVG for a paper (--format pdf --style paper)."
     )
     parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
     parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR (a new folder)")
     parser.add_argument("--force", action="store_true", help="replace an --out folder of earlier pictures")
-    parser.add_argument("--size", metavar="WxH", default=f"{WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}",
-                        help=f"pixel size of the space-time and 3-D pictures (default {WINDOW_SIZE[0]}x{WINDOW_SIZE[1]}; "
-                             "membrane.gif: 0.6 of it)")
+    parser.add_argument("--format", metavar="FORMATS", default="png",
+                        help=f"the files each picture is written as: {', '.join(FORMATS)}, or several joined by commas "
+                             "(png,pdf); membrane.gif only with png (default png)")
+    parser.add_argument("--style", choices=tuple(STYLES), default="screen",
+                        help="the pictures' style sheet: screen (the run's pictures), or paper (8-point text for a "
+                             "figure 7 inches wide, PNG at 300 dots per inch; no caption line)")
+    parser.add_argument("--size", metavar="WxH",
+                        help="the size of the space-time and 3-D pictures, and the width of the others: pixels at the "
+                             "style's resolution (1100x900 on a screen, the default), or inches (3.4x2.8in) or "
+                             "centimetres (17x12cm); membrane.gif: 0.6 of it on a screen")
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    """'WxH' -> (W, H), each in 200..4000."""
+def parse_formats(text: str) -> tuple[str, ...]:
+    """'png,pdf' -> ("png", "pdf"): each one of `style.FORMATS`."""
+    formats = tuple(f.strip().lower() for f in text.split(","))
+    if not all(f in FORMATS for f in formats):
+        raise ValueError(f"--format: expected {', '.join(FORMATS)} or several joined by commas, got {text!r}")
+    return formats
+
+
+def parse_size(text: str, dpi: float = 100.0) -> tuple[float, float]:
+    """'WxH' (pixels at `dpi` per inch, each in 200..4000), 'WxHin' (inches) or 'WxHcm' -> (width, height) in inches,
+    each in the range `style.Look` takes."""
+    unit = next((u for u in ("in", "cm") if text.lower().endswith(u)), "")
     try:
-        w, h = (int(v) for v in text.lower().split("x"))
+        w, h = (float(v) if unit else int(v) for v in text.lower().removesuffix(unit).split("x"))
     except ValueError:
-        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 1100x900, got {text!r}") from None
-    if not (200 <= w <= 4000 and 200 <= h <= 4000):
+        raise ValueError(f"--size: expected WIDTHxHEIGHT such as 1100x900 (pixels), 3.4x2.8in or 17x12cm, got {text!r}") from None
+    if not unit and not (200 <= w <= 4000 and 200 <= h <= 4000):
         raise ValueError(f"--size: width and height must be in 200..4000 pixels, got {text!r}")
-    return w, h
+    inches = (w / dpi, h / dpi) if not unit else (w, h) if unit == "in" else (w / 2.54, h / 2.54)
+    if not all(SMALLEST <= v <= LARGEST for v in inches):
+        raise ValueError(f"--size: width and height must be in {SMALLEST:g}..{LARGEST:g} inches, got {text!r}")
+    return inches
+
+
+def look_of(args) -> Look | None:
+    """The `style.Look` of `stringcontact plot`'s --format, --style and --size; None for the run's own pictures."""
+    if args.format == "png" and args.style == "screen" and args.size is None:
+        return None
+    look = Look(parse_formats(args.format), args.style)
+    return look if args.size is None else Look(look.formats, look.style, parse_size(args.size, look.dpi))
 
 
 def command(args) -> int:
@@ -48,7 +79,7 @@ def command(args) -> int:
     from ..io.readback import read_output
     from ..io.target import check_target
 
-    size, folder = parse_size(args.size), Path(args.folder)
+    look, folder = look_of(args), Path(args.folder)
     launched = (os.environ.get(v, "").strip() for v in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"))
     if any(rank.isdigit() and int(rank) > 0 for rank in launched):  # `mpirun -n 2 stringcontact plot`: one draws
         return 0
@@ -61,7 +92,7 @@ def command(args) -> int:
                 raise OutputError(f"{folder}: cannot take its lock to draw in it: "
                                   f"{describe_os_error(exc, folder.resolve().parent)}") from None
         try:
-            for path in write_pictures(read_output(folder), folder, window_size=size):
+            for path in write_pictures(read_output(folder), folder, look=look):
                 print(f"wrote {path}")
         finally:
             if lock is not None:
@@ -74,7 +105,7 @@ def command(args) -> int:
     check_target(out, args.force, command="plot")  # the rules of `run --out`: not /, not ., never a run's result
     result = read_output(folder)
     with staged_folder(out, args.force, command="plot") as partial:
-        names = [p.name for p in write_pictures(result, partial, window_size=size)]
+        names = [p.name for p in write_pictures(result, partial, look=look)]
         (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
     print("".join(f"wrote {out / name}\n" for name in names), end="")
     return 0

@@ -27,17 +27,24 @@ def show_scene(scene) -> str:
 
     from ..model.registry import load_model
     from ..scene.toml import scene_to_toml
+    from ..timestepping import scheme_class
 
     data = scene.as_dict()
     options = data.pop("petsc_options", None)
     data.pop("parameters", None)
     data.setdefault("model", DEFAULT_MODEL)
-    data.setdefault("scheme", DEFAULT_SCHEME)
-    lines = [scene_to_toml(scene).split("\n", 1)[0] + "\n", tomli_w.dumps(data, multiline_strings=True)]  # dt, dx, r
+    name = scene.scheme or DEFAULT_SCHEME
+    if isinstance(data.get("scheme"), dict):  # the [scheme] table, its name first, after the keys
+        table = {"scheme": {"name": name} | {k: v for k, v in data.pop("scheme").items() if k != "name"}}
+    else:
+        data["scheme"], table = name, None
+    header = scene_to_toml(scene, penalty=bool(scheme_class(name).PENALTIES)).split("\n", 1)[0] + "\n"  # dt, dx, r
+    lines = [header, tomli_w.dumps(data, multiline_strings=True)]
     lines += [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
+    lines += [tomli_w.dumps(table)] if table is not None else []
     given, constants = dict(scene.parameters), load_model(data["model"]).constants
     if constants:
-        lines.append(f"\n[parameters]  # model {data['model']!r}'s constants (`stringcontact models`)\n")
+        lines.append(f"\n[parameters]  # the constants of model {data['model']} (`stringcontact models`)\n")
     for c in constants:  # each with its value (the scene's, else its default), unit, range and meaning
         value = given.get(c.name, c.default)
         about = "; ".join(part for part in (c.description, f"unit {c.unit}" if c.unit else "", f"allowed: {c.allowed}",
@@ -47,25 +54,49 @@ def show_scene(scene) -> str:
     return "".join(lines) + (tomli_w.dumps({"petsc_options": options}) if options else "")
 
 
-def _energy_lines(res) -> list[str]:
-    """The energy balance, and a note when the scheme's own dissipation D_num is over `NUMERICAL_SHARE` of it."""
-    from ..run.checks import NUMERICAL_SHARE, checks_of
+def _fmt_energy_line(res) -> str:
+    from ..run.checks import checks_of
 
     b = checks_of(res)["energy_balance"]
     external = f" - external work {b['external_work']:.6g}" if b["external_work"] else ""
     verdict = "closes" if b["closes"] else f"DOES NOT CLOSE (tolerance {b['tolerance']:.0e})"
-    lines = [(f"energy balance: E(0) = {b['initial']:.6g} = E(t={res.t[-1]:.4g}) {b['final']:.6g} + viscous "
-              f"{b['viscous_dissipation']:.6g} + contact {b['contact_dissipation']:.6g} + numerical "
-              f"{b['numerical_dissipation']:.6g}{external}; residual {b['max_abs_residual']:.2e} "
-              f"({b['relative_residual']:.1e} relative): {verdict}")]
+    return (f"energy balance: E(0) = {b['initial']:.6g} = E(t={res.t[-1]:.4g}) {b['final']:.6g} + viscous "
+            f"{b['viscous_dissipation']:.6g} + contact {b['contact_dissipation']:.6g} + numerical "
+            f"{b['numerical_dissipation']:.6g}{external}; residual {b['max_abs_residual']:.2e} "
+            f"({b['relative_residual']:.1e} relative): {verdict}")
+
+
+def _fmt_numerical_line(res) -> str | None:
+    """A note when the scheme's own dissipation D_num is over `NUMERICAL_SHARE` of the energy, with what to change."""
+    from ..run.checks import NUMERICAL_SHARE, checks_of
+
+    b = checks_of(res)["energy_balance"]
     share = b.get("numerical_share", 0.0)
-    if share > NUMERICAL_SHARE:
-        advice = ("a smaller dt (D_num falls like dt: --nt 4x, about a quarter of it), or scheme newmark (trapezoidal: "
-                  "no dissipation of its own on a linear model)" if res.scheme == "paper" else "a smaller dt (D_num falls with dt)")
-        lines.append(f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % "
-                     f"of the energy {b['energy_scale']:.6g} (over {100 * NUMERICAL_SHARE:.0f} %): the balance closes, but "
-                     f"the dissipations are that far from the equation's; for numbers to trust use {advice}")
-    return lines
+    if not share > NUMERICAL_SHARE:
+        return None
+    advice = ("a smaller dt (D_num falls like dt: --nt 4x, about a quarter of it)" if res.scheme == "paper"
+              else "a smaller dt (D_num falls with dt)")
+    if res.scheme == "paper" and _runs_with(res, "newmark"):
+        advice += ", or scheme newmark (trapezoidal: no dissipation of its own on a linear model)"
+    return (f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % of "
+            f"the energy {b['energy_scale']:.6g} (over {100 * NUMERICAL_SHARE:.0f} %): the balance closes, but the "
+            f"dissipations are that far from the equation's; for numbers to trust use {advice}")
+
+
+def _runs_with(res, scheme: str) -> bool:
+    """Whether scheme `scheme` runs the run's model (`timestepping.check_model`): the closing lines advise only a
+    scheme that does. False when the model cannot be loaded again by its name (a `Model` handed to `simulate`)."""
+    from ..model.registry import load_model
+    from ..timestepping import check_model
+
+    origin = getattr(res, "model_origin", None) or {}
+    if origin.get("source") == "object":
+        return False
+    try:
+        check_model(scheme, load_model(origin.get("spec") or res.model))
+    except Exception:  # noqa: BLE001 - no advice rather than a failed report
+        return False
+    return True
 
 
 def _fmt_penetration_line(res) -> tuple[str, bool]:
@@ -74,10 +105,11 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
 
     p = checks_of(res)["penetration"]
     if p.get("bound_kind") == "pressed":  # a sustained press: the depth is the penalty's creep, no impact bound
+        projection = ", or scheme projection," if _runs_with(res, "projection") else ""
         return (f"penetration: max depth {p['depth']:.4g}: the string is pressed on the obstacle (a contact force "
                 f"{p['press_force']:.4g} at a node, held for {p['press_time']:.4g}, over {PRESS_SPAN:g} eps), where a "
                 f"velocity penalty lets it creep in at eps x the force: eps x the force's integral over time = "
-                f"{p['creep']:.4g}; this is O(eps) (a smaller eps, or scheme projection, holds the string out), and "
+                f"{p['creep']:.4g}; this is O(eps) (a smaller eps{projection} holds the string out), and "
                 f"the impact bound {PENETRATION_FACTOR:g}(eps + dt) max|v| does not apply"), True
     if p["bound"] is None:  # the model's contact law has no known bound: the depth alone, no verdict
         return f"penetration: max depth {p['depth']:.4g} ({p['law']})", True
@@ -97,6 +129,8 @@ def report(res) -> None:
 
     scene = res.scene
     penalty = f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none" else "no penalty"
+    if res.penalty != "none" and not getattr(res, "law_reads_eps", True):  # a law of the model's own constants
+        penalty = f"penalty={res.penalty} (its contact law reads no eps)"
     grid = f"nx={scene.nx}" if res.dim == 1 else f"{scene.domain} with {len(res.x)} nodes"
     restitution = f" restitution={scene.restitution:g}" if scene.restitution else ""
     print(f"scene {scene.name}: scheme {res.scheme}, {grid} nt={scene.nt} dt={scene.dt:.4g} {penalty} "
@@ -108,13 +142,16 @@ def report(res) -> None:
     else:
         minima = f"min gap eta - psi = {getattr(res, 'min_gap', float('nan')) + 0.0:.6g} (min eta = {res.min_eta + 0.0:.6g})"
     if res.dim == 1:
-        most = most_components(res).get("contact_components")
-        several = f"; at most {most['most']} contact components (first at t = {most['first_at']:.4g})" if most and most["most"] >= 2 else ""
+        most, several = most_components(res).get("contact_components"), ""
+        if most and most["most"] >= 2:  # when contact began, the most components at once and when (Example 2's point)
+            began = next(float(t) for t, k in zip(res.t, res.contact_components) if k > 0)
+            several = (f"; first contact at t = {began:.4g}; at most {most['most']} contact components at once "
+                       f"(first at t = {most['first_at']:.4g})")
         print(f"{minima}; final contact length = {res.contact_length[-1]:.4g}{several}")
     else:
         print(f"{minima}; final contact area = {res.contact_measure[-1]:.4g} in {res.contact_components[-1]} patch(es)")
     line, ok = _fmt_penetration_line(res)
-    print("\n".join([*_energy_lines(res), line]))
+    print("\n".join(text for text in (_fmt_energy_line(res), _fmt_numerical_line(res), line) if text))
     if not ok:
         warnings.warn("the string went further below the obstacle than its contact law allows, with no press to explain "
                       "it; a force the penalty cannot stop holds it down (a model variant, r > 1); see "

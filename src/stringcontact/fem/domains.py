@@ -22,7 +22,7 @@ from ..errors import SceneError
 from . import compat, meshfile
 from .agree import one_outcome
 
-__all__ = ["create", "boundary_dofs", "nodal_areas"]
+__all__ = ["boundary_dofs", "create", "nodal_areas"]
 
 
 def create(scene, comm):

@@ -59,8 +59,8 @@ def read_output(folder):
         velocity=fields["velocity"], contact=np.asarray(fields["contact"], dtype=float) > 0.5,
         contact_force=fields["contact_force"], energy={key: column[key] for key in ENERGY_KEYS},
         min_eta=float(summary.get("min_eta", np.min(fields["eta"]))), min_gap=float(summary.get("min_gap", "nan")),
-        model_origin=summary.get("model_origin") or {}, fields=outputs, field_info=info,
-        parameters=_parameters(folder / "summary.json", summary), **given, **mesh)
+        model_origin=summary.get("model_origin") or {}, law_reads_eps=bool(summary.get("law_reads_eps", True)),
+        fields=outputs, field_info=info, parameters=_parameters(folder / "summary.json", summary), **given, **mesh)
 
 
 def _load_json(path: Path) -> dict:

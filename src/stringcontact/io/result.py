@@ -97,7 +97,8 @@ class Result:
     has_rows: bool = True
     checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of
     model_origin: dict = field(default_factory=dict)  # model.registry.model_origin
-    penetration_bound: str | None = "velocity"  # the contact law's bound: model.paper.penetration_bound_of
+    penetration_bound: str | None = "velocity"  # the contact law's bound: model.interface.penetration_bound_of
+    law_reads_eps: bool = True  # whether the contact law reads ε (model.interface.reads_eps)
     energy_label: str | None = None  # the legend of the model's stored energy (None: the paper's ½∫|∇η|²)
     fields: dict = field(default_factory=dict)
     field_info: dict = field(default_factory=dict)

@@ -94,6 +94,7 @@ def summary_dict(result) -> dict:
         "penalty": result.penalty, "mass": result.mass, "model": result.model,
         "model_origin": getattr(result, "model_origin", None) or {"name": result.model},
         "penetration_bound": getattr(result, "penetration_bound", "velocity"),
+        "law_reads_eps": bool(getattr(result, "law_reads_eps", True)),
         "energy_label": getattr(result, "energy_label", None), "parameters": dict(getattr(result, "parameters", None) or {}),
         "fields": field_info(result), "r": result.scene.r, "dolfinx": dolfinx.__version__, "timings": result.timings,
         "counters": getattr(result, "counters", {}), "solver": getattr(result, "solver", {}),

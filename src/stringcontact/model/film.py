@@ -37,8 +37,7 @@ import dataclasses
 import ufl
 
 from ..errors import SceneError
-from .interface import DIVERGING, ModelConstant, OutputField, SolverHints
-from .paper import Parameters, inelastic
+from .interface import DIVERGING, ModelConstant, OutputField, Parameters, SolverHints, inelastic
 
 #: The film's default thickness floor in the mobility max(η, h_min)³/(12 μ): it keeps the pressure's equation
 #: nonsingular where the string touches (η ≤ 0 under the penalty); docs/explanation/film.md measures its effect.

@@ -26,8 +26,8 @@ import dataclasses
 
 import ufl
 
-from .paper import Parameters, inelastic
-from .paper import momentum_form as _paper_momentum_form
+from .inelastic import momentum_form as _paper_momentum_form
+from .interface import Parameters, inelastic
 
 #: cubic_foundation's linear and cubic foundation stiffness (per unit length; the paper's tension is 1).
 FOUNDATION_K = 1.0

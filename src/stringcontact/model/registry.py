@@ -33,7 +33,7 @@ def load_model(spec):
     Raises `SceneError` with a one-line message naming ``model``. A ``module:name`` is imported (the user
     named it), but the object is never called: it must be a `Model`.
     """
-    from .paper import Model
+    from .interface import Model
 
     if isinstance(spec, Model):
         return spec

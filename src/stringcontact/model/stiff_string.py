@@ -48,8 +48,7 @@ import math
 
 import ufl
 
-from .interface import DIVERGING, ModelConstant, OutputField, SolverHints
-from .paper import Parameters, inelastic
+from .interface import DIVERGING, ModelConstant, OutputField, Parameters, SolverHints, inelastic
 
 #: The largest bending stiffness a scene may give (in string units, β = EI/(T l²): the length scale's square); a
 #: piano string's inharmonicity B = π²β is 1e-4 to 1e-2 (β ≈ 1e-5 to 1e-3).

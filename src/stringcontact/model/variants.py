@@ -28,11 +28,11 @@ import dataclasses
 
 import ufl
 
-from .paper import Model, Parameters, inelastic
-from .paper import contact_set as _paper_contact_set
-from .paper import momentum_form as _paper_momentum_form
-from .paper import penalty as _paper_penalty
-from .paper import penalty_damping as _paper_penalty_damping
+from .inelastic import contact_set as _paper_contact_set
+from .inelastic import momentum_form as _paper_momentum_form
+from .inelastic import penalty as _paper_penalty
+from .inelastic import penalty_damping as _paper_penalty_damping
+from .interface import Model, Parameters, inelastic
 from .registry import load_model
 
 __all__ = ["elastic", "load_model", "loaded_obstacle"]

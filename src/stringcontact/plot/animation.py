@@ -23,6 +23,7 @@ from .membrane import (
     add_membrane,
     add_membrane_axes,
     contact_edge,
+    membrane_colours,
     membrane_label,
     membrane_title,
     membrane_view,
@@ -78,7 +79,8 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
         add_membrane_axes(p, view)  # x, y and η with ticks, as in membrane.png (static: drawn once per frame's render)
         # the title below, the frame's time, contact area and patches above, each CAPTION_FONT high (15 px);
         # text actors of a fixed size: a corner annotation fits its font to the viewport anew at every render (3x the render time)
-        p.add_text(membrane_title(result, view, "The membrane", sep="\n"), position=(0.02, 0.02), viewport=True,
+        words = f"{membrane_title(result, view, 'The membrane')}\n{membrane_colours(result, view, sep=chr(10))}"
+        p.add_text(words, position=(0.02, 0.02), viewport=True,
                    font_size=TITLE_FONT, color="black", font_file=_font_file())
         text = p.add_text("", position=(0.02, 0.98), viewport=True, font_size=CAPTION_FONT, color="black", font_file=_font_file())
         text.prop.SetVerticalJustificationToTop()

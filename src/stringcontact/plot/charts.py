@@ -5,8 +5,12 @@
 * ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4);
 * ``contact_area.png`` of a membrane (2D): its contact area and number of contact patches over time.
 
+Each is drawn in the style sheet of its `style.Look` (its size and fonts), laid out by matplotlib's constrained
+layout and saved by `savefig` in each of the look's formats (PNG, PDF, SVG). A title says what the picture shows in
+one line; the run's details go to a caption line under it (`caption`, the screen style's).
+
 Also the small readings of a Result they share with `mesh_pictures`, the demos and `theorems`: the
-contact intervals of a row, the rows at given times, the velocity colour range, the title line.
+contact intervals of a row, the rows at given times, the velocity colour range, the run's details.
 """
 
 from __future__ import annotations
@@ -19,11 +23,10 @@ import numpy as np
 
 from ..io.manifest import atomic_path
 from .colours import CONTACT_COLOUR
-from .picture_names import WINDOW_SIZE
+from .style import SCREEN, Look
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0
-DPI = 100
 #: at most this many panels in snapshots.png and membrane.png, whatever the number of output times: a panel
 #: costs a fixed time (Example 1's 200 output times took 50 s), so more output times are thinned evenly
 #: (first and last kept); every output time is still a stored row (diagnostics.csv, rows.npz)
@@ -87,26 +90,37 @@ def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
     return c if c > 0 else max(float(np.max(np.abs(result.velocity))), 1.0)
 
 
-# --- titles -----------------------------------------------------------------------------------------
+# --- the run's details ------------------------------------------------------------------------------
 
 
 def literal(text: str) -> str:
-    """`text` shown as written in a matplotlib title: its ``$`` escaped, so a scene named ``$x^{$`` is not parsed
+    """`text` shown as written in a matplotlib text: its ``$`` escaped, so a scene named ``$x^{$`` is not parsed
     as (broken) mathtext."""
     return str(text).replace("$", r"\$")
 
 
 def parameter_line(result, sep: str = ", ") -> str:
-    """The title's line of parameters: the mesh, Δt, α (and ε), the model, the scheme, its penalty and mass."""
+    """The run's details: the scene, its mesh, Δt, α (and ε where the contact law reads it), then after `sep` the
+    model, the scheme, its penalty (Δt/ε where the law reads ε) and mass."""
     s = result.scene
     scheme = f"model {getattr(result, 'model', None) or 'inelastic'}, scheme {getattr(result, 'scheme', 'paper')}"
     mesh = f"nx = {s.nx}" if np.ndim(result.x) == 1 else f"{len(result.x)} nodes, {len(result.cells)} triangles"
+    grid = f"{literal(s.name)}: {mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}"
     if result.penalty in (None, "none"):  # a scheme without ε (projection)
-        return f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}{sep}{scheme}, no penalty (no ε), {result.mass} mass"
-    return (
-        f"{mesh}, Δt = {s.dt:.3g}, α = {s.alpha:g}, ε = {s.eps:g}{sep}"
-        f"{scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
-    )
+        return f"{grid}{sep}{scheme}, no penalty (no ε), {result.mass} mass"
+    if not getattr(result, "law_reads_eps", True):  # a contact law of the model's own constants (a spring)
+        return f"{grid}{sep}{scheme}, penalty {result.penalty} (its contact law reads no ε), {result.mass} mass"
+    return f"{grid}, ε = {s.eps:g}{sep}{scheme}, penalty {result.penalty} (Δt/ε = {s.dt / s.eps:.3g}), {result.mass} mass"
+
+
+def contact_times(t: np.ndarray, counts: np.ndarray) -> str:
+    """'first contact at t = A; at most K contact components at once (first at t = B)' from the number of contact
+    components at each stored time (patches of a membrane); '' when there are never two."""
+    if not counts.size or counts.max() < 2:
+        return ""
+    began, most = float(t[int(np.argmax(counts > 0))]), int(np.argmax(counts))
+    return (f"first contact at t = {began:.3g}; at most {int(counts[most])} contact components at once "
+            f"(first at t = {float(t[most]):.3g})")
 
 
 def obstacle_name(result) -> str:
@@ -163,13 +177,75 @@ def pyplot():
     return plt
 
 
-def savefig(fig, path: Path, dpi: int = DPI) -> None:
+def figure(inches):
+    """A figure `inches` (width, height) large, laid out by matplotlib's constrained layout: titles, legends
+    outside the axes, colour bars and the caption get their room, none cut off at any size."""
+    return pyplot().figure(figsize=inches, layout="constrained")
+
+
+def with_key(fig, rows: int = 1, columns: int = 1, key: float = 0.06, **grid):
+    """A grid of `rows` × `columns` panels over a row for the key (`key`: its share of the height), and that row's
+    axes, without a frame: `add_key` puts the legend in it. Constrained layout makes room for a legend that its row
+    cannot hold, which it does not for a figure's legend (`Figure.legend`) in matplotlib 3.6, Debian bookworm's."""
+    heights = grid.pop("height_ratios", None) or (1,) * rows
+    spec = fig.add_gridspec(2, 1, height_ratios=(sum(heights) * (1 - key), sum(heights) * key))
+    panels = spec[0].subgridspec(rows, columns, height_ratios=heights, **grid)
+    below = fig.add_subplot(spec[1])
+    below.set_axis_off()
+    return panels, below
+
+
+def add_key(ax, handles, labels=None) -> None:
+    """The legend of `handles` centred in the axes `ax` (`with_key`'s key row), in as many columns (three at most)
+    as the figure's width holds, measured: a legend wider than the figure makes constrained layout give up."""
+    fig = ax.figure
+    labels = labels if labels is not None else [h.get_label() for h in handles]
+    for columns in range(min(3, len(handles)), 0, -1):
+        legend = ax.legend(handles, labels, loc="center", ncol=columns, frameon=False)
+        if legend.get_window_extent(fig.canvas.get_renderer()).width <= 0.95 * fig.bbox.width:
+            return
+
+
+def savefig(fig, path: Path, look: Look = SCREEN) -> list[Path]:
+    """`fig` written as `path` in each format of `look` (``NAME.png`` -> ``NAME.pdf``, ...), each file whole or
+    not at all; the figure is closed. Returns the paths written."""
+    written = []
     try:
-        with atomic_path(path) as tmp:  # a picture is either complete or absent
-            options = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if path.suffix == ".png" else {}
-            fig.savefig(tmp, dpi=dpi, **options)
+        for target in look.paths(path):
+            with atomic_path(target) as tmp:  # a picture is either complete or absent
+                options = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if target.suffix == ".png" else {}
+                fig.savefig(tmp, dpi=look.dpi, format=target.suffix[1:], **options)
+            written.append(target)
     finally:
         pyplot().close(fig)
+    return written
+
+
+def caption(fig, result, look: Look, *notes: str) -> None:
+    """The run's details (`parameter_line`) and `notes` as a caption under the figure, when `look` has one."""
+    if look.caption:
+        fig.supxlabel("\n".join(filter(None, (parameter_line(result, sep="\n"), *notes))), fontsize="small",
+                      color="0.25")
+
+
+def drawn(draw):
+    """A picture function ``(result, path, look=SCREEN, ...) -> Path`` from a figure function ``(result, look, ...)
+    -> figure`` (or (figure, axes)): the figure drawn in the look's style sheet and saved in its formats; the first
+    path written is returned."""
+
+    def picture(result, path, look: Look = SCREEN, **options) -> Path:
+        with look.drawn():
+            made = draw(result, look, **options)
+            return savefig(made[0] if isinstance(made, tuple) else made, Path(path), look)[0]
+
+    picture.__doc__ = f"The picture of `{draw.__name__}` written to `path` in each format of `look`."
+    return picture
+
+
+def panel_columns(panels: int, width: float) -> int:
+    """The columns of a picture of `panels` panels `width` inches wide: three from five panels on, two in a narrower
+    figure than 6 inches (a journal's column), whose panels' titles would not fit three abreast."""
+    return 3 if panels > 4 and width >= 6.0 else min(panels, 2)
 
 
 def _cell_edges(v: np.ndarray) -> np.ndarray:
@@ -179,32 +255,7 @@ def _cell_edges(v: np.ndarray) -> np.ndarray:
     return np.concatenate([[v[0]], 0.5 * (v[1:] + v[:-1]), [v[-1]]])
 
 
-def _space_time_image(result, values, title: str, window_size, note: str = "", **style):
-    """A figure with `values` (one per stored sample) over the (x, t) plane, and its image.
-
-    `pcolorfast` with the cell edges draws each pixel in the colour of the sample under it (nearest, no
-    smoothing), keeps the irregular stored times as they are, and costs the same for 400 or 2 million samples.
-    """
-    plt = pyplot()
-    fig = plt.figure(figsize=(window_size[0] / DPI, window_size[1] / DPI), dpi=DPI)
-    # fixed margins in inches: room for the title above and the legend or colour bar on the right
-    w, h = window_size[0] / DPI, window_size[1] / DPI
-    ax = fig.add_axes((0.9 / w, 0.75 / h, 1 - 2.6 / w, 1 - 2.0 / h))
-    image = ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), values, **style)
-    ax.set_xlabel("x (position along the string)")
-    ax.set_ylabel("t (time)")
-    fig.suptitle("\n".join(filter(None, (title, parameter_line(result), note))), fontsize=12, y=1 - 0.15 / h, va="top")
-    return fig, ax, image
-
-
-def contact_set_picture(result, path, window_size=WINDOW_SIZE) -> Path:
-    """``contact_set.png``: `contact_set_figure`, written whole or not at all."""
-    path = Path(path)
-    savefig(contact_set_figure(result, window_size)[0], path)
-    return path
-
-
-def contact_set_figure(result, window_size=WINDOW_SIZE):
+def contact_set_figure(result, look: Look = SCREEN):
     """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free; beside
     it the number of its components over time (`Result.contact_components`); below it, when the most
     components last a short while (Example 2's three before t = 0.02, Example 1's nine at its landing), the
@@ -213,44 +264,41 @@ def contact_set_figure(result, window_size=WINDOW_SIZE):
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    plt, psi = pyplot(), obstacle_name(result)
-    counts = result.contact_components
+    psi, counts = obstacle_name(result), result.contact_components
     zoom = zoom_window(result.t, counts)
-    fig = plt.figure(figsize=(window_size[0] / DPI, window_size[1] / DPI), dpi=DPI)
-    boxes = _contact_set_boxes(window_size, zoom is not None)
+    fig = figure(look.inches)
+    grid = fig.add_gridspec(1 + (zoom is not None), 2, width_ratios=(5, 1), height_ratios=(0.56, 0.44) if zoom else None)
     colours = ListedColormap(["white", CONTACT_COLOUR])
     axes = {}
-    for key in ("set", "zoom")[: len(boxes)]:
-        ax = axes[key] = fig.add_axes(boxes[key][0])
+    for row, key in enumerate(("set", "zoom")[: 1 + (zoom is not None)]):
+        ax = axes[key] = fig.add_subplot(grid[row, 0])
         ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), result.contact.astype(np.uint8), cmap=colours, vmin=0, vmax=1)
-        ax.set_ylabel("t (time)")
-        strip = axes[f"{key}_count".replace("set_", "")] = fig.add_axes(boxes[key][1], sharey=ax)
+        ax.set_ylabel("time t")
+        strip = axes[f"{key}_count".replace("set_", "")] = fig.add_subplot(grid[row, 1], sharey=ax)
         strip.stairs(counts, _cell_edges(result.t), orientation="horizontal", color="#2166ac", lw=1.5, baseline=None)
         strip.set_xlim(-0.3, max(2, int(counts.max())) + 0.5)
         strip.xaxis.get_major_locator().set_params(integer=True)
         strip.tick_params(labelleft=False)
         strip.grid(alpha=0.3)
+        strip.set_xlabel("contact\ncomponents")
     if result.t[-1] > result.t[0]:
         axes["set"].set_ylim(result.t[0], result.t[-1])
-    axes["count"].set_xlabel("contact\ncomponents")
-    bottom = axes.get("zoom", axes["set"])
-    bottom.set_xlabel("x (position along the string)")
+    axes.get("zoom", axes["set"]).set_xlabel("position x")
     if zoom is not None:
-        lo, hi, most, first, last = zoom
+        lo, hi = zoom[:2]
         axes["zoom"].set_ylim(lo, hi)
-        axes["zoom_count"].set_xlabel("contact\ncomponents")
         for t in (lo, hi):
             axes["set"].axhline(t, color="black", ls="--", lw=1.0)
-        axes["zoom"].set_title(f"zoom: t = {lo:.3g} … {hi:.3g} (the dashed lines above); {most} components at "
-                               f"t = {first:.3g} … {last:.3g}", fontsize=10, loc="left")
-    patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact\n(η ≤ {psi})"),
-               Patch(facecolor="white", edgecolor="black", label=f"free\n(η > {psi})")]
-    axes["count"].legend(handles=patches, loc="upper left", bbox_to_anchor=(1.1, 1.0), frameon=False, labelspacing=1.2)
-    title = f"Contact set {{η ≤ {psi}}} in space-time: {literal(result.scene.name)}"
-    most = f"at most {int(counts.max())} contact components (first at t = {result.t[int(np.argmax(counts))]:.3g})" if counts.max() > 1 else ""
-    h = window_size[1] / DPI
-    fig.suptitle("\n".join(filter(None, (title, parameter_line(result), most))), fontsize=12, y=1 - 0.15 / h, va="top")
+        axes["zoom"].set_title(f"zoom: t = {lo:.3g} … {hi:.3g} (dashed above)", loc="left")
+    patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact (η ≤ {psi})"),
+               Patch(facecolor="white", edgecolor="black", label=f"free (η > {psi})")]
+    axes["count"].legend(handles=patches, loc="upper left", bbox_to_anchor=(1.15, 1.0), frameon=False)
+    fig.suptitle(f"Contact set {{η ≤ {psi}}} over (x, t)")
+    caption(fig, result, look, contact_times(result.t, counts))
     return fig, axes
+
+
+contact_set_picture = drawn(contact_set_figure)
 
 
 def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
@@ -269,48 +317,36 @@ def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
     return None if hi - lo > share * whole else (lo, hi, most, float(t[a]), float(t[b]))
 
 
-def _contact_set_boxes(window_size, zoomed: bool) -> dict:
-    """Figure boxes {"set": (image, strip)[, "zoom": (image, strip)]} at fixed margins in inches: the title
-    above, the count strip right of each image, the legend right of the strips."""
-    w, h = window_size[0] / DPI, window_size[1] / DPI
-    left, strip, gap, right = 0.9, 0.75, 0.3, 1.55  # inches
-    image = w - left - gap - strip - right
-    bottom, top = 0.75, 1.2
-    tall = h - bottom - top
-    heights = [tall] if not zoomed else [0.56 * (tall - 0.8), 0.44 * (tall - 0.8)]
-    boxes, y = {}, h - top
-    for key, height in zip(("set", "zoom"), heights):
-        y -= height
-        boxes[key] = ((left / w, y / h, image / w, height / h), ((left + image + gap) / w, y / h, strip / w, height / h))
-        y -= 0.8
-    return boxes
-
-
-def velocity_picture(result, path, window_size=WINDOW_SIZE, percentile: float = VELOCITY_PERCENTILE) -> Path:
+def velocity_figure(result, look: Look = SCREEN, percentile: float = VELOCITY_PERCENTILE):
     """The space-time velocity v(t, x), diverging colours centred on 0, range clipped at a percentile of |v|."""
-    path = Path(path)
     c = velocity_clip(result, percentile)
     speed = float(np.max(np.abs(result.velocity)))
-    title = f"Velocity field v(t, x) = η_t: {literal(result.scene.name)}"
-    note = f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})"
-    fig, ax, image = _space_time_image(result, result.velocity, title, window_size, note, cmap="RdBu_r", vmin=-c, vmax=c)
-    box = ax.get_position()
-    bar_axes = fig.add_axes((box.x1 + 0.03 * box.width, box.y0 + 0.1 * box.height, 0.03 * box.width, 0.8 * box.height))
-    fig.colorbar(image, cax=bar_axes, extend="both" if speed > c else "neither").set_label("v (velocity)")
-    savefig(fig, path)
-    return path
+    fig = figure(look.inches)
+    ax = fig.add_subplot()
+    image = ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), result.velocity, cmap="RdBu_r", vmin=-c, vmax=c)
+    ax.set_xlabel("position x")
+    ax.set_ylabel("time t")
+    fig.colorbar(image, ax=ax, extend="both" if speed > c else "neither", shrink=0.8).set_label("v (velocity)")
+    fig.suptitle("Velocity v = η_t over (x, t)")
+    caption(fig, result, look, f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
+    return fig, ax
 
 
-def snapshots_picture(result, path) -> Path:
+velocity_picture = drawn(velocity_figure)
+
+
+def snapshots_figure(result, look: Look = SCREEN):
     """η(x) at the scene's output times, the obstacle (y = 0 or the scene's ψ), and the parts in contact."""
-    plt = pyplot()
-    path = Path(path)
+    from matplotlib.patches import Patch
+
     rows = snapshot_rows(result)
-    ncols = 3 if len(rows) > 4 else min(len(rows), 2)
+    ncols = panel_columns(len(rows), look.width)
     nrows = int(np.ceil(len(rows) / ncols))
-    fig, axs = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.2 * nrows + 0.8), sharex=True, sharey=True, squeeze=False)
-    x = result.x
-    name = obstacle_name(result)
+    height = nrows * 0.76 * look.width / ncols + 1.0  # panels 0.76 as high as wide, and the key
+    fig = figure((look.width, height))
+    panels, below = with_key(fig, nrows, ncols, key=0.3 / height)
+    axs = panels.subplots(sharex=True, sharey=True, squeeze=False)
+    x, name = result.x, obstacle_name(result)
     psis = {i: obstacle_profile(result, float(result.t[i])) for i in rows}  # a moving obstacle where it is at t
     lo = min(float(result.eta[rows].min()), min(float(p.min()) for p in psis.values()))
     hi = max(float(result.eta[rows].max()), max(float(p.max()) for p in psis.values()))
@@ -320,12 +356,12 @@ def snapshots_picture(result, path) -> Path:
         psi = psis[i]
         ax.fill_between(x, lo - pad, psi, color="0.85", lw=0, zorder=0)
         ax.plot(x, psi, color="0.3", lw=1.0, zorder=1)
-        ax.plot(x, result.eta[i], color="#2166ac", lw=1.2, label="η(t, x)", zorder=2)
-        on = np.where(result.contact[i], result.eta[i], np.nan)
-        ax.plot(x, on, color=CONTACT_COLOUR, lw=3.0, label=f"in contact (η ≤ {name})", zorder=3)
-        parts = contact_components(x, result.contact[i])
+        ax.plot(x, result.eta[i], color="#2166ac", label="η(t, x)", zorder=2)
+        ax.plot(x, np.where(result.contact[i], result.eta[i], np.nan), color=CONTACT_COLOUR, lw=3.0,
+                label=f"in contact (η ≤ {name})", zorder=3)
+        parts = len(contact_components(x, result.contact[i]))
         frac = float(contact_length[i]) / float(x[-1] - x[0])
-        ax.set_title(f"t = {result.t[i]:.3g}: contact {100 * frac:.0f}% of l, {len(parts)} part{'s' * (len(parts) != 1)}", fontsize=10)
+        ax.set_title(f"t = {result.t[i]:.3g}: {100 * frac:.0f}% in contact, {parts} part{'s' * (parts != 1)}", fontsize="small")
         ax.set_ylim(lo - pad, hi + pad)
         ax.grid(alpha=0.3)
     for ax in axs.flat[len(rows):]:
@@ -334,24 +370,15 @@ def snapshots_picture(result, path) -> Path:
         ax.set_xlabel("x")
     for ax in axs[:, 0]:
         ax.set_ylabel("η (displacement)")
-    axs.flat[0].text(0.02, 0.04, "obstacle (y ≤ 0)" if name == "0" else "obstacle (y ≤ ψ(x))", transform=axs.flat[0].transAxes, fontsize=8, color="0.3")
     handles, labels = axs.flat[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=2, frameon=False)
-    title = "\n".join(filter(None, (f"Snapshots of the string: {literal(result.scene.name)}", parameter_line(result), panels_note(result, rows))))
-    fig.suptitle(title, fontsize=11)
-    # fixed margins in inches: tight_layout would lay out every tick label once more (half the picture's time)
-    w, h = fig.get_size_inches()
-    top = 1 - (0.85 + 0.3 * (title.count("\n") - 1)) / h  # 0.85 in for the two usual lines, 0.3 in per more
-    fig.subplots_adjust(left=0.75 / w, right=1 - 0.15 / w, bottom=0.95 / h, top=top, wspace=0.08, hspace=0.32 * 3.2 / (h / nrows))
-    savefig(fig, path)
-    return path
+    handles.append(Patch(color="0.85", label=f"obstacle (y ≤ {name})"))
+    add_key(below, handles, [*labels, handles[-1].get_label()])
+    fig.suptitle("The string at the output times")
+    caption(fig, result, look, panels_note(result, rows))
+    return fig, axs
 
 
-def energy_picture(result, path) -> Path:
-    """``energy.png``: `energy_figure`, written whole or not at all."""
-    path = Path(path)
-    savefig(energy_figure(result)[0], path)
-    return path
+snapshots_picture = drawn(snapshots_figure)
 
 
 def stored_energy_label(result) -> str:
@@ -361,13 +388,12 @@ def stored_energy_label(result) -> str:
     return getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"
 
 
-def energy_figure(result):
+def energy_figure(result, look: Look = SCREEN):
     """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0);
     beside it, when the energies settle early (`settle_time`: Example 2 within its first 5 %), the same
     curves zoomed onto the first times; below, |balance residual| on a log scale (`residual_panel`). The
     legend is under the panels, where it covers no curve. Returns the figure and its axes {"energy",
     "residual", and with a zoom "zoom", "zoom_residual"}."""
-    plt = pyplot()
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
@@ -376,16 +402,15 @@ def energy_figure(result):
               (e["elastic"], {"label": stored_energy_label(result)}),
               (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
               (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
-              (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation of the scheme (cumulative)"})]
+              (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation (cumulative)"})]
     if np.any(e["external_work"]):
         moving = getattr(result.scene, "obstacle_moves", False)  # the moving obstacle's work is booked there too
         what = "the moving obstacle and external loads" if moving else "external loads"
         curves.append((e["external_work"], {"ls": "-.", "label": f"work of {what} (cumulative)"}))
     curves.append((E + spent - e["external_work"], {"color": "black", "lw": 2.2, "alpha": 0.6, "label": "sum: E(t) + dissipations − work"}))
     settled = settle_time(t, [values for values, _ in curves])
-    fig = plt.figure(figsize=(11, 8.5))
-    grid = fig.add_gridspec(2, 2 if settled else 1, height_ratios=(3, 1), width_ratios=(3, 2) if settled else None,
-                            left=0.08, right=0.98, bottom=0.17, top=0.9, hspace=0.08, wspace=0.06)
+    fig = figure((look.width, 0.78 * look.width if look.width >= 6.0 else 1.35 * look.width))  # a column: the legend's rows
+    grid, legend_row = with_key(fig, 2, 2 if settled else 1, key=0.12, height_ratios=(3, 1), width_ratios=(3, 2) if settled else None)
     axes = {}
     for column, key in enumerate(("energy", "zoom")[: 1 + bool(settled)]):
         ax = axes[key] = fig.add_subplot(grid[0, column], sharey=axes.get("energy"))
@@ -401,12 +426,15 @@ def energy_figure(result):
         axes["zoom"].set_xlim(t[0], settled)
         axes["zoom"].tick_params(labelleft=False)
         axes["zoom_residual"].set_ylabel("")
-        axes["zoom"].set_title(f"zoom: t = {t[0]:.3g} … {settled:.3g} (shaded on the left)", fontsize=10)
+        axes["zoom"].set_title(f"zoom: t = {t[0]:.3g} … {settled:.3g} (shaded left)")
         axes["energy"].axvspan(t[0], settled, color="0.5", alpha=0.12, lw=0)
-    handles, labels = axes["energy"].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False, bbox_to_anchor=(0.5, 0.0))
-    fig.suptitle(f"Energy balance: {literal(result.scene.name)}\n{parameter_line(result)}", fontsize=11)
+    add_key(legend_row, *axes["energy"].get_legend_handles_labels())
+    fig.suptitle("Energy balance (1.4)")
+    caption(fig, result, look)
     return fig, axes
+
+
+energy_picture = drawn(energy_figure)
 
 
 def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0.02):
@@ -434,25 +462,25 @@ def residual_panel(ax, t: np.ndarray, residual: np.ndarray, legend: bool = True)
         ax.plot(t[zero], np.full(int(zero.sum()), floor), "v", color="#b2182b", ms=5, clip_on=False,
                 label=f"exactly 0 ({int(zero.sum())} of {t.size} rows; drawn at the floor)")
         if legend:
-            ax.legend(fontsize=8, loc="lower right", framealpha=0.9)
+            ax.legend(fontsize="x-small", loc="lower right", framealpha=0.9)
     top = float(res.max()) if res.max() > 0 else 1e-15
     ax.set_ylim(floor, top * 10)
-    ax.set_ylabel("|balance residual|\nE(0) + W − [E(t) + D]", fontsize=9)
+    ax.set_ylabel("|residual|", fontsize="small")
     ax.set_xlabel("t")
     ax.grid(alpha=0.3)
 
 
-def contact_area_figure(result):
+def contact_area_figure(result, look: Look = SCREEN):
     """The figure of ``contact_area.png`` (2D): the contact area |{η ≤ ψ}|(t) above, the number of patches below.
 
     The area is `Result.contact_measure` (the lumped nodal areas of the nodes in contact), drawn against the
     domain's area; a patch is a connected set of contact nodes (`Result.contact_patches`). Dots mark the
     rows of the panels of ``membrane.png``.
     """
-    plt = pyplot()
     t, area, patches = result.t, result.contact_measure, result.contact_patches()
     domain, psi = float(np.sum(result.weights)), obstacle_name(result)
-    fig, (ax, axp) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, gridspec_kw={"height_ratios": (2, 1)})
+    fig = figure((look.width, 0.72 * look.width))
+    ax, axp = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (2, 1)})
     ax.axhline(domain, color="black", ls=":", lw=1.5, label=f"area of the domain = {domain:.4g}")
     ax.plot(t, area, color=CONTACT_COLOUR, lw=2.0, label=f"contact area |{{η ≤ {psi}}}|")
     rows = snapshot_rows(result)
@@ -460,26 +488,22 @@ def contact_area_figure(result):
     ax.set_ylim(0, 1.08 * domain)
     ax.set_ylabel("contact area")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=9, loc="lower right")
+    ax.legend(loc="lower right")
     first = np.flatnonzero(area > 0)
     landed = f"first contact at t = {t[first[0]]:.3g}, largest area {area.max():.3g}" if first.size else "no contact"
-    ax.set_title(f"Contact area and patches: {literal(result.scene.name)}\n{parameter_line(result)}\n{landed}", fontsize=11)
     axp.step(t, patches, where="mid", color="#2166ac", lw=1.5, label="contact patches (connected along mesh edges)")
     axp.set_ylim(-0.3, max(2, int(patches.max())) + 0.5)
     axp.yaxis.get_major_locator().set_params(integer=True)
     axp.set_ylabel("number of\npatches")
     axp.set_xlabel("t")
     axp.grid(alpha=0.3)
-    axp.legend(fontsize=9, loc="upper right")
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.08, top=0.86, hspace=0.08)  # fixed: see snapshots_picture
+    axp.legend(loc="upper right")
+    fig.suptitle("Contact area and contact patches over time")
+    caption(fig, result, look, landed)
     return fig
 
 
-def contact_area_picture(result, path) -> Path:
-    """``contact_area.png`` of a 2D run: `contact_area_figure`, written whole or not at all."""
-    path = Path(path)
-    savefig(contact_area_figure(result), path)
-    return path
+contact_area_picture = drawn(contact_area_figure)
 
 
 def warm_up() -> None:
@@ -487,7 +511,7 @@ def warm_up() -> None:
     import io
 
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(1, 1))
+    fig, ax = plt.subplots(figsize=(1, 1), layout="constrained")
     fig.colorbar(ax.pcolorfast(np.array([0.0, 1.0, 3.0]), np.array([0.0, 1.0]), np.ones((1, 2)), cmap="RdBu_r"), ax=ax)
     ax.set_title("η ≤ ψ")
     fig.savefig(io.BytesIO(), format="png", dpi=20)

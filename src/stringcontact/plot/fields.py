@@ -18,8 +18,9 @@ import numpy as np
 from ..io.paraview_view import field_range, symlog_unit
 from ..io.tables import field_info
 from .charts import literal, savefig
+from .style import SCREEN, Look
 
-__all__ = ["TICK_GAP", "FieldScale", "field_picture", "info_of", "surface_field"]
+__all__ = ["TICK_GAP", "FieldScale", "field_figure", "field_picture", "info_of", "surface_field"]
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
 TICK_GAP = 0.16
@@ -101,21 +102,29 @@ class FieldScale:
         return ("−" if v < 0 else "") + text
 
 
-def field_picture(result, name: str, path) -> Path:
-    """``NAME.png``: the output field `name` of `result` on its scale (`FieldScale`): a string's over the (x, t)
-    plane with the contact set outlined, a membrane's at the stored time of its largest |value|; beside it its
-    least and largest value over the nodes at each stored time."""
-    from .charts import pyplot
+def field_figure(result, name: str, look: Look = SCREEN):
+    """The output field `name` of `result` on its scale (`FieldScale`): a string's over the (x, t) plane with the
+    contact set outlined, a membrane's at the stored time of its largest |value|; beside it its least and largest
+    value over the nodes at each stored time. Returns the figure and its two axes."""
+    from .charts import caption, figure
 
     values = np.asarray(result.fields[name], dtype=float)
     scale = FieldScale.of(values, info_of(result, name))
-    fig, (ax, bx) = pyplot().subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.4, 1]}, layout="constrained")
+    narrow = look.width < 6.0  # a journal's column: the two panels one above the other
+    fig = figure((look.width, 1.3 * look.width) if narrow else (look.width, 0.42 * look.width))
+    ax, bx = fig.subplots(2, 1) if narrow else fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.4, 1]})
     mesh = _string_panel(ax, result, values, scale) if result.dim == 1 else _membrane_panel(ax, result, values, scale)
     fig.colorbar(mesh, ax=ax, label=literal(scale.title))
     _extremes_panel(bx, result.t, values, scale)
-    fig.suptitle(f"{literal(scale.label)}: {literal(result.scene.name)}", fontsize=11)
-    savefig(fig, Path(path))
-    return Path(path)
+    fig.suptitle(literal(scale.label[:1].upper() + scale.label[1:]))
+    caption(fig, result, look)
+    return fig, (ax, bx)
+
+
+def field_picture(result, name: str, path, look: Look = SCREEN) -> Path:
+    """``NAME.png``: `field_figure` written to `path` in each format of `look`; the first path written."""
+    with look.drawn():
+        return savefig(field_figure(result, name, look)[0], Path(path), look)[0]
 
 
 def _string_panel(ax, result, values, scale: FieldScale):
@@ -124,7 +133,7 @@ def _string_panel(ax, result, values, scale: FieldScale):
         ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
     ax.set_xlabel("x")
     ax.set_ylabel("t")
-    ax.set_title("over (x, t), the contact set outlined")
+    ax.set_title("over (x, t); contact set outlined")
     return mesh
 
 
@@ -143,6 +152,6 @@ def _extremes_panel(bx, t, values, scale: FieldScale) -> None:
     if scale.scale == "symlog":
         bx.set_yscale("symlog", linthresh=scale.linear_share * scale.high)
     bx.set_xlabel("t")
-    bx.set_title("its least and largest value over the nodes")
+    bx.set_title("least and largest value")
     bx.legend()
     bx.grid(True, alpha=0.3)

@@ -12,11 +12,20 @@ import numpy as np
 
 
 def draw(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta: float = 0.02,
-         title: str | None = None):
+         title: str | None = None, look=None):
     """Left: the contact set {η ≤ 0} of `result` in the (x, t) plane with its free boundary and the contact force
     density F on it (log colour). Right, per stored time: the force on the fronts per unit time
     (`front_force_rate`) against the stress jump −[η_x + α η_tx] across them (`stress_jump_rate`), measured in a
-    band of half-width `delta` (Theorem 2.3(1)), and all the force (`all_force_rate`)."""
+    band of half-width `delta` (Theorem 2.3(1)), and all the force (`all_force_rate`). Written in each format of
+    `look` (`style.Look`; default: PNG on a screen), in its style sheet."""
+    from .style import SCREEN
+
+    look = look or SCREEN
+    with look.drawn():
+        return _drawn(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta, title, look)
+
+
+def _drawn(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta, title, look):
     from matplotlib.colors import ListedColormap, LogNorm
 
     from .charts import pyplot, savefig
@@ -24,7 +33,8 @@ def draw(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta
     plt = pyplot()
     x, t = result.x, result.t
     F = np.ma.masked_less_equal(result.contact_force, 0.0)
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1.2, 1]})
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(look.width, 0.42 * look.width), gridspec_kw={"width_ratios": [1.2, 1]},
+                                 layout="constrained")
     extent = (x[0], x[-1], t[0], t[-1])
     ax.imshow(result.contact, origin="lower", aspect="auto", extent=extent,
               cmap=ListedColormap(["white", "0.85"]), interpolation="nearest")
@@ -38,7 +48,7 @@ def draw(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta
     ax.fill_between([], [], color="0.85", label=r"contact set $\{\eta\leq 0\}$")
     ax.set_xlabel("x")
     ax.set_ylabel("t")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="upper right", fontsize="small")
     from .charts import literal
 
     ax.set_title(title or f"{literal(result.scene.name)}: contact set and force\n"
@@ -52,7 +62,6 @@ def draw(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta
     bx.set_xlabel("t")
     bx.set_ylabel("force per unit time")
     bx.set_title(f"Theorem 2.3(1): band +-{delta:g} around the fronts")
-    bx.legend(fontsize=8)
-    fig.tight_layout()
-    savefig(fig, Path(path), dpi=110)
+    bx.legend(fontsize="small")
+    savefig(fig, Path(path), look)
     return path

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .annotations import Axis, add_axis
-from .charts import obstacle_moves, obstacle_name, obstacle_profile, obstacle_range, parameter_line
+from .charts import obstacle_moves, obstacle_name, obstacle_profile, obstacle_range
 from .colours import (
     CONTACT_COLOUR,
     CONTACT_EDGE_COLOUR,
@@ -151,33 +151,38 @@ def _set_field(surface, result, row: int, scale: FieldScale) -> None:
 TICK_FONT = 16
 
 
-def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT) -> None:
+def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT, zoom: float = 1.0) -> None:
     """x and y along the front and right edges of the floor under the obstacle, and the height η (in its own
-    units: the ticks undo the drawing's `scale`) up the front left corner."""
+    units: the ticks undo the drawing's `scale`) up the front left corner; fonts as `annotations.add_axis`'."""
     x0, x1, y0, y1, z0, z1 = view.bounds
     unit = 0.05 * max(x1 - x0, y1 - y0)
-    add_axis(p, Axis((x0, y0, z0), (x1, y0, z0), x0, x1, (0, -unit, 0), "x"), font_size, most=4)
-    add_axis(p, Axis((x1, y0, z0), (x1, y1, z0), y0, y1, (unit, 0, 0), "y"), font_size, most=4)
-    add_axis(p, Axis((x0, y0, z0), (x0, y0, z1), z0 / view.scale, z1 / view.scale, (-unit, 0, 0), "eta"), font_size, most=3)
+    add_axis(p, Axis((x0, y0, z0), (x1, y0, z0), x0, x1, (0, -unit, 0), "x"), font_size, 4, zoom)
+    add_axis(p, Axis((x1, y0, z0), (x1, y1, z0), y0, y1, (unit, 0, 0), "y"), font_size, 4, zoom)
+    add_axis(p, Axis((x0, y0, z0), (x0, y0, z1), z0 / view.scale, z1 / view.scale, (-unit, 0, 0), "eta"), font_size, 3, zoom)
     margin = 5 * unit  # the ticks' labels and the axes' names
     p.reset_camera(bounds=(x0 - margin, x1 + margin, y0 - margin, y1, z0, z1))
     p.camera.zoom(1.15)
 
 
 def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
-    """'t = 0.2: contact area 2.17 (69%), 1 patch': the share is of the domain's area (patches left out if None)."""
+    """'t = 0.2: contact 2.17 (69%), 1 patch': the contact area and its share of the domain's (patches left out if
+    None)."""
     share = 100 * area / float(np.sum(result.weights))
-    text = f"t = {result.t[row]:.3g}: contact area {area:.3g} ({share:.0f}%)"
+    text = f"t = {result.t[row]:.3g}: contact {area:.3g} ({share:.0f}%)"
     return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
 
 
-def membrane_title(result, view: MembraneView, what: str, sep: str = ", ") -> str:
-    """The title's lines; `sep` joins the two halves of the parameter line (a newline for a narrow picture)."""
-    stretched = f"heights ×{view.scale:.2g}; " if view.scale > 1 else ""
+def membrane_title(result, view: MembraneView, what: str) -> str:
+    """The title: `what`, and how much the heights are stretched when they are."""
+    return f"{what} (heights ×{view.scale:.2g})" if view.scale > 1 else what
+
+
+def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:
+    """What the colours mean, in words (the GIF's key): contact, or the surface field and the edge of contact."""
     psi = obstacle_name(result)
     colours = (f"red: in contact (η ≤ {psi}), blue: free" if view.field is None else
                f"colour: {view.field.label} (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
-    return f"{what}: {result.scene.name}\n{parameter_line(result, sep)}\n{stretched}{colours}, grey: the obstacle {psi}"
+    return f"{colours}, grey: the obstacle {psi}"
 
 
 def membrane_legend(result, view: MembraneView) -> tuple[str, list]:

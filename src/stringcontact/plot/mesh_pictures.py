@@ -1,4 +1,4 @@
-"""Pictures of meshes in space, drawn with pyvista off-screen (EGL when there is no display).
+"""Pictures of meshes in space: a pyvista render (off-screen, EGL when there is no display) in a matplotlib figure.
 
 ``space_time.png``: a 1-D run as the surface η(x, t) over the (x, t) plane, coloured by contact, above
 the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
@@ -6,58 +6,64 @@ panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). A movin
 each panel's and frame's time, and as the surface ψ(x, t) in ``space_time.png``. The animation
 ``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
 A membrane whose model has a surface field (an output field whose description says ``surface``) is coloured by
-that field instead (`fields.FieldScale`: one fixed scale over all stored rows, in the field's own colours, its bar
-drawn by `add_field_bar`), the edge of its contact set drawn on it as a line (`contact_edge`).
+that field instead (`fields.FieldScale`: one fixed scale over all stored rows, in the field's own colours, its
+colour bar matplotlib's), the edge of its contact set drawn on it as a line (`contact_edge`).
 
-The axes (`annotations.add_axis`: x, t or y, and the height η, on the floor below the obstacle, along the edges
-nearest the viewer), the colour key and the titles are `annotations`' (drawn without VTK's scalar bar, whose
-`std::regex` aborts a process that has loaded dolfinx); the membrane's drawing is `membrane`'s, VTK's start-up
-`vtk_start`'s.
+pyvista draws the surfaces and their axes (`annotations.add_axis`: x, t or y, and the height η, on the floor below
+the obstacle, along the edges nearest the viewer); matplotlib lays the renders out with the title, the colour
+key, the panels' labels and the caption (constrained layout: nothing cut off or overlapping), and writes them in
+each format of the picture's `style.Look`: the words are vector text in a PDF or SVG, the renders a raster at the
+style's resolution (`style` says why not VTK's own vector export).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 
-from ..io.manifest import atomic_path
-from .annotations import Axis, _title, add_axis, add_colour_legend
+from .annotations import Axis, add_axis
 from .charts import (
-    PNG_COMPRESSION,
+    add_key,
+    caption,
+    drawn,
+    figure,
     obstacle_history,
     obstacle_moves,
     obstacle_name,
     obstacle_profile,
+    panel_columns,
     panels_note,
-    parameter_line,
     snapshot_rows,
+    with_key,
 )
-from .colour_bar import add_field_bar
-from .colours import CONTACT_COLOUR, FREE_COLOUR, MEMBRANE_OBSTACLE_COLOUR, OBSTACLE_COLOUR
+from .colours import CONTACT_COLOUR, CONTACT_EDGE_COLOUR, FREE_COLOUR, MEMBRANE_OBSTACLE_COLOUR, OBSTACLE_COLOUR
 from .membrane import (
+    TICK_FONT,
     add_contact_edge,
     add_membrane,
     add_membrane_axes,
+    contact_edge,
     membrane_label,
     membrane_legend,
     membrane_title,
     membrane_view,
+    show_row,
 )
-from .picture_names import WINDOW_SIZE
-from .vtk_start import _font_file, _plotter, _pyvista
+from .style import SCREEN, Look
+from .vtk_start import _plotter, _pyvista
+
+#: the room (inches) a pyvista picture keeps for its title and colour key, and for the caption when it has one
+KEY_ROOM, CAPTION_ROOM = 0.9, 0.5
+#: the widths (pixels) of the renders the axes' font (`membrane.TICK_FONT`) was chosen for: the screen's space-time
+#: picture and a membrane's panel three abreast; and the least size of their labels, in points
+SCREEN_RENDER, SCREEN_PANEL, LEAST_POINTS = 1100, 367, 6.0
 
 
-def _screenshot(p, path: Path) -> None:
-    from PIL import Image
-
-    try:
-        image = p.screenshot(None, return_img=True)  # the pixels pyvista would write; Pillow writes them at our level
-    finally:
-        p.close()
-    with atomic_path(path) as tmp:  # a picture is either complete or absent
-        Image.fromarray(image).save(tmp, format="PNG", compress_level=PNG_COMPRESSION)
+def _font_zoom(look: Look, width: int, screen: int) -> float:
+    """The factor of the axes' font in a render `width` pixels wide: as large against the render as on the screen
+    (`screen` pixels wide), at most the look's own (`Look.zoom`), at least `LEAST_POINTS` points."""
+    return min(look.zoom, max(width / screen, LEAST_POINTS / 72 * look.dpi / TICK_FONT))
 
 
 def _height_text(value: float, span: float) -> str:
@@ -70,11 +76,53 @@ def _every_kth(n: int, most: int) -> np.ndarray:
     return np.union1d(np.arange(0, n, max(1, int(np.ceil(n / most)))), [n - 1])
 
 
-def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int = 300, max_rows: int = 200) -> Path:
+def _shown(ax, image) -> None:
+    """The render `image` in the axes `ax`, without the axes' frame and ticks."""
+    ax.imshow(image)
+    ax.set_axis_off()
+
+
+def _key(ax, entries) -> None:
+    """The colour key in the axes `ax` (under the picture): a filled square per (label, colour) of `entries`."""
+    from matplotlib.patches import Patch
+
+    add_key(ax, [Patch(facecolor=colour, edgecolor="0.3", label=label) for label, colour in entries])
+
+
+def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_rows: int = 200):
     """η(x, t) as a surface over the (x, t) plane, red where in contact, above the obstacle ψ (grey): the
-    surface ψ(x, t) when the obstacle moves."""
+    surface ψ(x, t) when the obstacle moves. Returns the figure and the axes of the render."""
+    width, height = look.inches
+    pixels = look.pixels((width, height - KEY_ROOM - CAPTION_ROOM * look.caption))
+    image = space_time_render(result, pixels, _font_zoom(look, pixels[0], SCREEN_RENDER), max_columns, max_rows)
+    fig = figure(look.inches)
+    panels, below = with_key(fig, key=0.4 / height)
+    ax = fig.add_subplot(panels[0])
+    _shown(ax, image)
+    psi = obstacle_name(result)
+    _key(below, [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)])
+    fig.suptitle("Surface η(x, t) over the (x, t) plane")
+    caption(fig, result, look, _height_range(result))
+    return fig, ax
+
+
+space_time_picture = drawn(space_time_figure)
+
+
+def _height_range(result) -> str:
+    """'η from A to B over x and t' (and ψ's range, for a profiled obstacle): η's own, not the drawn box's."""
+    psi = obstacle_history(result, range(len(result.t))) if obstacle_moves(result) else obstacle_profile(result)
+    span = max(float(result.eta.max()), float(psi.max())) - min(float(result.eta.min()), float(psi.min()))
+    text = f"η from {_height_text(result.eta.min(), span)} to {_height_text(result.eta.max(), span)} over x and t"
+    if obstacle_name(result) == "ψ":
+        text += f", ψ from {_height_text(psi.min(), span)} to {_height_text(psi.max(), span)}"
+    return text
+
+
+def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300, max_rows: int = 200) -> np.ndarray:
+    """The surface η(x, t) with its x, t and η axes, rendered by pyvista `pixels` (width, height) large, its fonts
+    `zoom` times their size on a screen: an RGB array."""
     pv = _pyvista()
-    path = Path(path)
     # the surface spans ~800 pixels across and ~400 deep: finer meshes cost llvmpipe time, not detail
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
     x, t, eta = result.x[cols], result.t[rows], result.eta[np.ix_(rows, cols)]
@@ -93,71 +141,87 @@ def space_time_picture(result, path, window_size=WINDOW_SIZE, max_columns: int =
     else:  # ψ(x) at every t: a band between t = 0 and T
         obstacle = pv.StructuredGrid(*np.meshgrid(x, t[[0, -1]] * depth), np.tile(psi * height - below, (2, 1)))
 
-    p = _plotter(window_size)
-    p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
-               show_scalar_bar=False, ambient=0.3)
-    p.add_mesh(obstacle, color=OBSTACLE_COLOUR, opacity=0.4)
-    psi_name = obstacle_name(result)
-    floor = psi.min() * height - 3 * below  # the axes lie on a floor under the obstacle, never over the surface
-    front, back, unit = float(t[-1]) * depth, float(t[0]) * depth, 0.035 * length
-    add_axis(p, Axis((x[0], front, floor), (x[-1], front, floor), float(x[0]), float(x[-1]), (0, -unit, -0.3 * unit), "x"))
-    add_axis(p, Axis((x[-1], back, floor), (x[-1], front, floor), float(t[0]), float(t[-1]), (unit, 0, 0), "t"))
-    add_axis(p, Axis((x[0], front, lo * height), (x[0], front, hi * height), lo, hi, (-unit, 0, 0), "eta"))  # VTK's label font has no Greek
-    add_colour_legend(p, "colour: contact", [(f"in contact, η ≤ {psi_name}", CONTACT_COLOUR),
-                                             (f"free, η > {psi_name}", FREE_COLOUR), (f"obstacle {psi_name}", OBSTACLE_COLOUR)],
-                      top=0.82)  # under the title's five lines
-    # one short line each: at the window's width a longer title line ran off both edges
-    _title(p, f"Space-time surface η(x, t): {result.scene.name}\n{parameter_line(result, sep=chr(10))}\n"
-              f"η from {_height_text(result.eta.min(), hi - lo)} to {_height_text(result.eta.max(), hi - lo)} over x and t"
-              + (f", {psi_name} from {_height_text(psi.min(), hi - lo)} to {_height_text(psi.max(), hi - lo)}\n"
-                 if psi_name == "ψ" else "\n") +
-              f"red: in contact (η ≤ {psi_name}), blue: free, grey: the obstacle")
-    centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
-    p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact
-    p.reset_camera()
-    _screenshot(p, path)
-    return path
+    p = _plotter(pixels)
+    try:
+        p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
+                   show_scalar_bar=False, ambient=0.3)
+        p.add_mesh(obstacle, color=OBSTACLE_COLOUR, opacity=0.4)
+        floor = psi.min() * height - 3 * below  # the axes lie on a floor under the obstacle, never over the surface
+        front, back, unit = float(t[-1]) * depth, float(t[0]) * depth, 0.035 * length
+        for axis in (Axis((x[0], front, floor), (x[-1], front, floor), float(x[0]), float(x[-1]), (0, -unit, -0.3 * unit), "x"),
+                     Axis((x[-1], back, floor), (x[-1], front, floor), float(t[0]), float(t[-1]), (unit, 0, 0), "t"),
+                     Axis((x[0], front, lo * height), (x[0], front, hi * height), lo, hi, (-unit, 0, 0), "eta")):  # VTK's label font has no Greek
+            add_axis(p, axis, TICK_FONT, zoom=zoom)
+        centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
+        p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact
+        p.reset_camera()
+        return p.screenshot(None, return_img=True)
+    finally:
+        p.close()
 
 
-
-#: the height of the colour bar's row in membrane.png of a membrane coloured by a field, against a panel's 1 and the title's 0.25
-BAR_ROW = 0.16
-
-
-def membrane_picture(result, path, window_size=WINDOW_SIZE) -> Path:
+def membrane_figure(result, look: Look = SCREEN):
     """The membrane z = η(x, y, t) at the scene's output times (one panel each; the stored row nearest to
     each), red where in contact, above the obstacle (grey). Each panel names its time, contact area and
     number of contact patches. A membrane with a surface field is coloured by it instead, on one scale for
-    all panels (its bar in a row under them), the edge of its contact set drawn in yellow."""
-    path = Path(path)
+    all panels (its colour bar under them), the edge of its contact set drawn in yellow. Returns the figure and
+    its panels' axes (rows × columns)."""
     rows = snapshot_rows(result)
-    ncols = 3 if len(rows) > 4 else min(len(rows), 2)
+    ncols = panel_columns(len(rows), look.width)
     nrows = int(np.ceil(len(rows) / ncols))
     view = membrane_view(result)
+    bar = view.field is not None
+    width, height = look.inches
+    panel = (width / ncols, (height - KEY_ROOM * (1 + bar) - CAPTION_ROOM * look.caption) / nrows)
+    fig = figure(look.inches)
+    panels, below = with_key(fig, nrows, ncols, key=0.4 / height)
+    axs = panels.subplots(squeeze=False)
     area = result.contact_measure
     patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
-    # a title row across the top, then the panels (and the surface field's colour bar across the bottom)
-    bar = view.field is not None
-    p = _plotter(window_size, shape=(nrows + 1 + bar, ncols), groups=[(0, np.s_[:])] + [(nrows + 1, np.s_[:])] * bar,
-                 row_weights=[0.25] + [1] * nrows + [BAR_ROW] * bar)
-    p.subplot(0, 0)
-    note = panels_note(result, rows)
-    _title(p, membrane_title(result, view, "The membrane at the output times") + (f"; {note}" if note else ""))
-    # the colour key in the title row's right corner: in a panel, the next panel cut its lines off
-    add_colour_legend(p, *membrane_legend(result, view), top=0.72, font_size=7, left=0.86, step=0.2)
-    for k, i in enumerate(rows):
-        p.subplot(1 + k // ncols, k % ncols)
-        surface = add_membrane(p, result, i, view)
-        if bar:
-            add_contact_edge(p, surface, view)
-        add_membrane_axes(p, view)
-        p.add_text(membrane_label(result, i, area[i], int(patches[k])).replace(": ", "\n", 1), position=(0.03, 0.85),
-                   viewport=True, font_size=7, color="black", font_file=_font_file())
+    pixels = look.pixels(panel)
+    for k, image in enumerate(membrane_renders(result, rows, view, pixels, _font_zoom(look, pixels[0], SCREEN_PANEL))):
+        ax = axs.flat[k]
+        _shown(ax, image)
+        label = membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
+        ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # two lines in a column
+    for ax in axs.flat[len(rows):]:
+        ax.set_visible(False)
+    key = membrane_legend(result, view)[1]
     if bar:
-        p.subplot(nrows + 1, 0)
-        add_field_bar(p, view.field, (0.3, 0.55, 0.7, 0.9), font_size=8)
-    _screenshot(p, path)
-    return path
+        from matplotlib.cm import ScalarMappable
+
+        scale = view.field
+        colours = fig.colorbar(ScalarMappable(scale.norm(), scale.colour_map()), ax=axs, location="bottom", shrink=0.6,
+                               aspect=40, label=scale.title)
+        colours.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
+        key = [("edge of contact", CONTACT_EDGE_COLOUR), *key[1:]]
+    _key(below, key)
+    fig.suptitle(membrane_title(result, view, "The membrane at the output times"))
+    caption(fig, result, look, panels_note(result, rows))
+    return fig, axs
+
+
+membrane_picture = drawn(membrane_figure)
+
+
+def membrane_renders(result, rows, view, pixels, zoom: float = 1.0):
+    """The membrane at each of the stored `rows` as pyvista renders it, `pixels` (width, height) large, its axes'
+    fonts `zoom` times their size on a screen: one plotter, the heights and colours changed in place row by row
+    (`show_row`), as ``membrane.gif`` draws its frames. Yields RGB arrays."""
+    p = _plotter(pixels)
+    try:
+        surface = add_membrane(p, result, rows[0], view)
+        edge = None if view.field is None else add_contact_edge(p, surface, view)
+        add_membrane_axes(p, view, zoom=zoom)
+        p.screenshot(None, return_img=True)  # pyvista's first render sets the window up; later ones only draw
+        for row in rows:
+            show_row(surface, result, row, view)
+            if edge is not None:
+                contact_edge(surface, view, into=edge)
+            p.render()
+            yield np.array(p.image)
+    finally:
+        p.close()
 
 
 def warm_up() -> None:
@@ -169,6 +233,9 @@ def warm_up() -> None:
     p.add_mesh(grid, color=OBSTACLE_COLOUR, opacity=0.4)
     p.add_mesh(grid, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)  # a membrane's obstacle
     p.add_point_labels([[0.0, 0.0, 0.0]], ["t"], shape=None, show_points=False, always_visible=True)
-    _title(p, "η")
     p.screenshot(None, return_img=True)
     p.close()
+
+
+__all__ = ["membrane_figure", "membrane_picture", "membrane_renders", "space_time_figure", "space_time_picture",
+           "space_time_render", "warm_up"]

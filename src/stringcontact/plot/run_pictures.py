@@ -49,54 +49,72 @@ from .picture_names import (  # noqa: F401 - the names are used as run_pictures.
     painted,
     pictures_of,
 )
+from .style import SCREEN_DPI, Look
 
 # --- all pictures of a run ------------------------------------------------------------------------
 
 
-def draw(name: str, result, folder, window_size=WINDOW_SIZE) -> Path:
+def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> Path:
     """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES, or an output field's of `result`:
-    `field_picture_names`) of `result` into `folder`."""
+    `field_picture_names`) of `result` into `folder`, in each format of `look` (default: a PNG `window_size`
+    pixels large on a screen); returns the first file written."""
+    look = look or Look.of_pixels(window_size)
     path = Path(folder) / name
     field = field_picture_names(result).get(name)
     if field is not None:
         from .fields import field_picture
 
-        return field_picture(result, field, path)
+        return field_picture(result, field, path, look)
     if name == "membrane.gif" or name in MESH_PICTURES:
         # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load
         # vtkCommonMath"): a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
         with signals_held():
-            return _draw_with_vtk(name, result, path, window_size)
-    if name == "contact_area.png":
-        return contact_area_picture(result, path)
-    if name == "contact_set.png":
-        return contact_set_picture(result, path, window_size)
-    if name == "velocity_field.png":
-        return velocity_picture(result, path, window_size)
-    return snapshots_picture(result, path) if name == "snapshots.png" else energy_picture(result, path)
+            return _draw_with_vtk(name, result, path, look)
+    charts = {"contact_area.png": contact_area_picture, "contact_set.png": contact_set_picture,
+              "velocity_field.png": velocity_picture, "snapshots.png": snapshots_picture}
+    return charts.get(name, energy_picture)(result, path, look)
 
 
-def _draw_with_vtk(name: str, result, path: Path, window_size) -> Path:
+def _draw_with_vtk(name: str, result, path: Path, look: Look) -> Path:
     if name == "membrane.gif":
         from . import animation  # pyvista and Pillow
 
-        return animation.membrane_animation(result, path, window_size)
+        return animation.membrane_animation(result, path, tuple(round(v * SCREEN_DPI) for v in look.inches))  # on a screen
     from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
 
     draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
-    return draw_mesh(result, path, window_size)
+    return draw_mesh(result, path, look)
 
 
-def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> list[Path]:
-    """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`; the function
-    `simulate(..., pictures=True)` calls.
+def written(names, look: Look) -> list[str]:
+    """The files the pictures `names` are written as in `look`'s formats (``membrane.gif`` with a raster one only)."""
+    files = []
+    for name in names:
+        if name.endswith(".png"):
+            files += [Path(name).with_suffix(f".{f}").name for f in look.formats]
+        elif "png" in look.formats:
+            files.append(name)
+    return files
+
+
+def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None, look: Look | None = None) -> list[Path]:
+    """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`, in each format of `look` (default:
+    PNGs `window_size` pixels large on a screen); the function `simulate(..., pictures=True)` calls.
 
     With a started `picture_process.PictureProcess`, its pictures are drawn there while this process draws the
     others (none, for `stringcontact run`'s painter); whatever it fails to draw is then drawn here. The
-    painter is stopped however this ends, so nothing writes into `folder` after it returns.
+    painter draws the default look only: with another, this process draws every picture. The painter is stopped
+    however this ends, so nothing writes into `folder` after it returns.
     """
     folder = Path(folder)
     names = pictures_of(result)
+    if look is not None and look.formats == ("png",) and look.style == "screen" and look.size is None:
+        look = None  # the default look: the painter's
+    if look is not None:
+        names = tuple(n for n in names if n != "membrane.gif" or "png" in look.formats)
+        if painter is not None:
+            painter.cancel()
+            painter = None
     folder.mkdir(parents=True, exist_ok=True)
     handed_out, drawn = set(), set()
     try:
@@ -104,7 +122,7 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
             handed_out = set(painter.names)  # `send` chose them: those of its names that the result has
         for name in names:
             if name not in handed_out:
-                draw(name, result, folder, window_size)
+                draw(name, result, folder, window_size, look)
         if handed_out:
             painter.wait()
             drawn = set(painter.drawn)  # all of them, unless a painting process failed
@@ -116,7 +134,7 @@ def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None) -> lis
                     stray.unlink(missing_ok=True)
     for name in handed_out - drawn:
         draw(name, result, folder, window_size)
-    return [folder / name for name in names]
+    return [folder / name for name in written(names, look or Look.of_pixels(window_size))]
 
 
 # --- reading an output folder back ---------------------------------------------------------------

@@ -1,12 +1,6 @@
-"""The time loop of `simulate`: a `Stepper` advanced from 0 to T, with a progress bar and signals that stop every
-rank together. It knows no scheme and no model.
-
-`Stepper` (run/stepper.py) builds the model's operators on the mesh (`fem.operators.semi_discrete_operators`),
-hands them to the chosen scheme (`timestepping/`), and then only calls ``step()``, sums the energy terms the
-scheme reports into the ledger (run/ledger.py), guards against energy growth, and stores about `max_rows` rows
-(run/rows.py, `options.Storage`): on rank 0 (`gather="all"`: every rank), within `ROW_BUDGET` bytes; every rank
-keeps the per-time series. What it writes is `options.Output`'s. Its set-up is run/setup.py's.
-"""
+"""The time loop of `simulate`: a `Stepper` (the scene's problem, its `TimeStepper` and the standard observers)
+advanced from 0 to T, with a progress bar and signals that stop every rank together. It knows no scheme and no
+model."""
 
 from __future__ import annotations
 
@@ -15,16 +9,12 @@ from mpi4py import MPI
 
 from ..io.result import Result
 from ..io.signals import StopTogether
-from ..model.paper import Model
-from ..scene import STORED_ROWS
+from ..model.interface import Model
 from .blas import one_thread
-from .options import ROW_BUDGET, Output, Storage
-from .rows import StorageWarning, step_times  # noqa: F401 - importable from here as before
-from .setup import discretise, model_constants  # noqa: F401 - importable from here as before
+from .options import Output, Storage
 from .stepper import Stepper
 
-#: `ROW_BUDGET`, `STORED_ROWS`: the storage defaults (`options.Storage`), importable from here as before.
-__all__ = ["ROW_BUDGET", "STORED_ROWS", "Output", "Stepper", "Storage", "StorageWarning", "simulate"]
+__all__ = ["simulate"]
 
 
 def _march(st: Stepper, progress: bool, comm=None) -> None:

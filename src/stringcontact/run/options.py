@@ -55,7 +55,11 @@ class Output:
     `pictures`: True draws the default pictures (`plot.picture_names`), False or None none. A function
     ``fn(result, folder)`` draws a picture of your own into the folder *besides* the default ones:
     ``Output("out/run", pictures=my_picture)``. To draw only your own, say so with ``default_pictures=False``:
-    ``Output("out/run", pictures=my_picture, default_pictures=False)``."""
+    ``Output("out/run", pictures=my_picture, default_pictures=False)``.
+
+    How the default pictures are written (`plot.style.Look`): `formats` (``("png",)``; ``("png", "pdf")`` writes
+    ``energy.pdf`` beside ``energy.png``, ``"svg"`` too), `style` (``"screen"``, or ``"paper"``: 8-point text for a
+    figure 7 inches wide, PNG at 300 dots per inch) and `size` ((width, height) in inches; None: the style's)."""
 
     dir: str | os.PathLike | None = None
     max_frames: int = 100
@@ -63,8 +67,14 @@ class Output:
     pictures: bool | Callable | None = True
     progress: bool = False
     default_pictures: bool = True
+    formats: tuple = ("png",)
+    style: str = "screen"
+    size: tuple | None = None
 
     def __post_init__(self) -> None:
+        from ..plot.style import Look
+
+        object.__setattr__(self, "formats", Look(self.formats, self.style, self.size).formats)  # checked: ValueError
         frames = self.max_frames
         if not (self.pictures in (True, False, None) or callable(self.pictures)):
             raise ValueError(f"pictures: expected True, False or a function (result, folder), got {self.pictures!r}")
@@ -119,8 +129,9 @@ def picture_function(output: Output):
 
     def draw(result, folder):
         from ..plot.run_pictures import write_pictures  # matplotlib and pyvista load when a picture is drawn
+        from ..plot.style import Look
 
-        written = write_pictures(result, folder)
+        written = write_pictures(result, folder, look=Look(output.formats, output.style, output.size))
         if own is not None:
             own(result, folder)
         return written

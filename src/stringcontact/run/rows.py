@@ -15,11 +15,9 @@ from ..io.result import ENERGY_KEYS, canonical_cells, node_sort_key
 from ..scene import BYTES_PER_STORED_NODE
 
 if TYPE_CHECKING:
-    from ..fem.outputs import OutputValues
-    from ..timestepping.base import DiscreteProblem
     from .options import Storage
 
-__all__ = ["SERIES_KEYS", "StorageWarning", "budget_steps", "output_steps", "step_times", "stored_steps"]
+__all__ = ["SERIES_KEYS", "RowObserver", "StorageWarning", "budget_steps", "output_steps", "step_times", "stored_steps"]
 
 
 def output_steps(nt: int, dt: float, output_times) -> set[int]:
@@ -198,20 +196,61 @@ def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
     return {"weights": weights, "cells": canonical_cells(position[np.concatenate(parts)])}
 
 
-def _storage(scene, problem: DiscreteProblem, V, storage: Storage, outputs: OutputValues):
-    """The stored rows (steps within the budget, gathered to rank 0 or every rank), the mesh rows, and the
-    function that sums a stored time's series over the ranks. Collective."""
-    gather = _Gather(problem.comm, problem.x, to_all=storage.gather == "all")
-    steps, note = budget_steps(scene.nt, scene.dt, scene.output_times, storage.max_rows, gather.nodes, storage.row_budget)
-    if note is not None and problem.comm.rank == 0:
-        warnings.warn(note, StorageWarning, stacklevel=3)
-    n_owned = problem.x.shape[0]
-    weights = domains.nodal_areas(V)[:n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the lumped areas in 2D
-    obstacle = np.asarray(scene.obstacle_values(problem.x), dtype=float)
-    geometry = _mesh_rows(V, gather, weights)  # the same owned weights, gathered
-    extra = tuple(f.name for f in outputs.fields)
-    if problem.obstacle is not None:  # a moving obstacle: the depth below ψ at the row's time
-        return (StoredRows(steps, gather, extra), geometry,
-                lambda fields, t: _row_series(problem.comm, fields, weights, problem.obstacle.owned(t)))
-    return (StoredRows(steps, gather, extra), geometry,
-            lambda fields, t: _row_series(problem.comm, fields, weights, obstacle))
+class RowObserver(StoredRows):
+    """An observer of a `TimeStepper` (`core.observers.Observer`) that keeps the rows of a run of `nt` steps of `dt`:
+    about ``storage.max_rows`` of them within ``storage.row_budget`` bytes, always with 0, the last step and the
+    `output_times` (`budget_steps`), gathered in x order on rank 0 (every rank with ``storage.gather == "all"``); on
+    every rank the per-time series and the lowest η and gap. `sink(t, fields)`, if set, gets each stored row too
+    (the output folder's XDMF frames). `geometry`: a membrane's nodal areas and triangles, gathered. Collective."""
+
+    def __init__(self, stepper, nt: int, dt: float, output_times, storage: Storage):
+        p = stepper.problem
+        self.problem, self.comm, self.dt, self.output_times = p, stepper.comm, dt, tuple(output_times)
+        gather = _Gather(self.comm, p.x, to_all=storage.gather == "all")
+        steps, note = budget_steps(nt, dt, output_times, storage.max_rows, gather.nodes, storage.row_budget)
+        if note is not None and self.comm.rank == 0:
+            warnings.warn(note, StorageWarning, stacklevel=3)
+        super().__init__(steps, gather, tuple(f.name for f in p.outputs.fields))
+        self.weights = domains.nodal_areas(p.V)[: p.n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the areas in 2D
+        self.geometry = _mesh_rows(p.V, gather, self.weights)  # the same owned weights, gathered
+        self.has_obstacle = p.obstacle is not None or "obstacle" in p.params.extra
+        self.psi = None if p.obstacle is not None else p.obstacle_values(0.0)[: p.n_owned]
+        self.min_eta = self.min_gap = math.inf
+        self.sink = None
+
+    def _gap(self, stepper, eta: np.ndarray, n: int) -> float:
+        """min (η − ψ) over this rank's nodes at step n (inf without nodes); a moving ψ as the scheme set it."""
+        if not eta.size:
+            return math.inf
+        if not self.has_obstacle:
+            return float(eta.min())
+        psi = self.psi if self.psi is not None else stepper.discrete.obstacle.owned(n * self.dt)
+        return float(np.min(eta - psi))
+
+    def started(self, stepper) -> None:
+        """The initial state: the lowest η over the free nodes, the gap, the row at t = 0."""
+        eta, interior = stepper.scheme.eta, self.problem.interior
+        self.min_eta = float(np.min(eta[interior])) if interior.any() else math.inf
+        self.min_gap = self._gap(stepper, eta, 0)
+        if self.next_step == 0:
+            self._store(stepper, 0)
+
+    def stepped(self, stepper) -> None:
+        """After a step: the lowest η and gap so far, and the row if this step is a stored one."""
+        eta = stepper.scheme.eta
+        if eta.size:
+            self.min_eta = min(self.min_eta, float(eta.min()))
+            self.min_gap = min(self.min_gap, self._gap(stepper, eta, stepper.step))
+        if stepper.step == self.next_step:
+            self._store(stepper, stepper.step)
+
+    def _store(self, stepper, n: int) -> None:
+        scheme, p = stepper.scheme, self.problem
+        fields = {"eta": scheme.eta, "velocity": scheme.velocity, "contact": scheme.contact(),
+                  "contact_force": scheme.contact_force}
+        fields.update(p.outputs(scheme.eta, scheme.fields))
+        t = float(step_times([n], self.dt, self.output_times)[0])
+        psi = stepper.discrete.obstacle.owned(t) if p.obstacle is not None else self.psi
+        self.store(fields, stepper.ledger.cumulative, _row_series(self.comm, fields, self.weights, psi))
+        if self.sink is not None:
+            self.sink(t, {k: np.asarray(a, dtype=float) for k, a in fields.items()})

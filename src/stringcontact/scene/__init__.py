@@ -20,7 +20,6 @@ _LAZY = {
                      "MAX_STORED_BYTES", "REQUIRED_KEYS", "STORED_ROWS", "stored_bytes"), "limits"),
     "Scene": "scene",
     "SceneWarning": "scene",
-    "DeprecatedKeyWarning": "scene",
     "ModelConstant": "parameters",
     **dict.fromkeys(("list_scenes", "load_scene", "scene_to_toml"), "toml"),
 }
@@ -36,7 +35,6 @@ __all__ = [
     "MAX_STORED_BYTES",
     "REQUIRED_KEYS",
     "STORED_ROWS",
-    "DeprecatedKeyWarning",
     "ModelConstant",
     "Scene",
     "SceneWarning",

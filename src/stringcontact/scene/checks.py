@@ -337,11 +337,10 @@ def check_parameters(scene, put) -> None:
     """The ``[parameters]`` table: its form always (`parameters.check_table`); against the constants of the model the
     scene names when that model declares some (loading it: `names.declared`). A table under a model without
     constants waits for the run, which checks it against the model it runs (a ``--model`` may bring them)."""
-    put("parameters", parameters.check_table(scene.parameters))
-    if scene.model is not None:
-        constants, rule = names.declared(scene.model)
-        if constants:
-            parameters.resolve_parameters(scene.model, constants, dict(scene.parameters), rule)
+    constants, rule = names.declared(scene.model) if scene.model is not None else ((), None)
+    put("parameters", parameters.check_table(scene.parameters, declared=constants))
+    if constants:
+        parameters.resolve_parameters(scene.model, constants, dict(scene.parameters), rule)
 
 
 def check_scheme(value) -> str:
@@ -349,6 +348,24 @@ def check_scheme(value) -> str:
     if value not in SCHEMES:
         raise SceneError(f"scheme: invalid value {describe(value)}; allowed: {', '.join(SCHEMES)}")
     return value
+
+
+def check_scheme_options(value) -> tuple:
+    """The (name, value) pairs of a ``[scheme]`` table's options (its name and eps, restitution apart): each a name
+    and a word, a number or true/false. What a scheme takes is its own to check, when the run is set up."""
+    from .limits import SCHEME_OPTIONS_MAX
+
+    pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
+    if len(pairs) > SCHEME_OPTIONS_MAX:
+        raise SceneError(f"scheme: {len(pairs)} options; allowed: at most {SCHEME_OPTIONS_MAX}")
+    for name, v in pairs:
+        if not (isinstance(name, str) and name.isidentifier()):
+            raise SceneError(f"scheme: option name {describe(name)}; allowed: a name (letters, digits, _)")
+        if isinstance(v, str):
+            text(f"scheme.{name}", v)
+        elif not isinstance(v, bool) and not (is_number(v) and math.isfinite(float(v))):
+            raise SceneError(f"scheme.{name}: {describe(v)}; allowed: a word, a finite number or true/false")
+    return pairs
 
 
 def check_petsc_options(value, key: str = "petsc_options") -> tuple:

@@ -48,9 +48,14 @@ DOMAIN_KEYS = {
 }
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
-#: Required keys; besides these, exactly one of nt or dt. `eps` is not required under a scheme without a penalty
-#: (`names.eps_free`: projection), which does not read it.
-REQUIRED_KEYS = ("T", "alpha", "eps", "nx", "eta0", "v0")
+#: Required keys; besides these, exactly one of nt or dt. A scheme's own options (the penalty's eps) are the scheme's to
+#: require (`timestepping.base.SchemeOption`), checked when the run is set up.
+REQUIRED_KEYS = ("T", "alpha", "nx", "eta0", "v0")
+#: The options of the time scheme a ``[scheme]`` table may give besides its ``name`` (the scheme declares which it
+#: takes: `timestepping.base.SchemeOption`); these two also work at the top level of a file, with a warning.
+SCHEME_KEYS_AT_TOP = ("eps", "restitution")
+#: The most options a ``[scheme]`` table may hold.
+SCHEME_OPTIONS_MAX = 32
 #: The largest scene file read, in bytes.
 MAX_FILE_BYTES = 1_000_000
 DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
@@ -123,9 +128,9 @@ KEY_DOCS = {
     "length": ("number", "x", "1", "the string's length l: the interval (0, l)"),
     "T": ("number", "t", "required", "the final time"),
     "alpha": ("number", "t", "required", "viscosity α (the damping term α η_txx)"),
-    "eps": ("number", "t", "required, except with scheme = \"projection\"",
-            ("penalty ε: the contact force is (1/ε) χ{η < ψ} (η_t)⁻; scheme projection (no penalty) does not read "
-             "it, and a scene with that scheme may omit it")),
+    "eps": ("number", "t", "required by the penalty schemes (paper, newmark)",
+            ("[scheme] table: the penalty ε, the contact force (1/ε) χ{η < ψ} (η_t)⁻; scheme projection (no penalty) "
+             "does not read it (at the top level of a file too, with a warning)")),
     "nx": ("integer", "", "required (1D)", "number of cells of the interval"),
     "nt": ("integer", "", "one of nt, dt", "number of time steps"),
     "dt": ("number", "t", "one of nt, dt", "time step; T/dt must be an integer (stored as nt)"),
@@ -141,7 +146,9 @@ KEY_DOCS = {
                  "obstacle profile ψ(x) (2D: ψ(x, y)), for a model that reads it; with t in it the obstacle moves"),
     "output_times": ("list of numbers", "t", "[]", "times stored exactly (snapshots, XDMF frames)"),
     "model": ("string", "", '"inelastic"', "a registered model (`stringcontact models`), never a module path"),
-    "scheme": ("string", "", '"paper"', "the time scheme (`stringcontact.SCHEMES`)"),
+    "scheme": ("string or table", "", '"paper"',
+               ("the time scheme (`stringcontact.SCHEMES`): its name, or a [scheme] table of its `name` and its "
+                "options (eps, penalty, mass, restitution, ...: `stringcontact.SCHEMES`' own declarations)")),
     "domain": ("string", "", '"interval" ("file" with mesh)', "the domain: interval (string), rectangle, disk, file"),
     "size": ("list of 2 numbers", "x", "[1, 1]", "the rectangle [0, Lx] × [0, Ly]"),
     "cells": ("list of 2 integers", "", "required (rectangle)", "the rectangle's cells per direction [nx, ny]"),
@@ -149,7 +156,9 @@ KEY_DOCS = {
     "mesh_size": ("number", "x", "required (disk)", "gmsh's largest element size on the disk"),
     "mesh": ("string", "", "required (file)", "the path of an XDMF triangle mesh (the domain 'file')"),
     "petsc_options": ("table", "", "not given: the scheme's solver", "PETSc options for the linear solver"),
-    "restitution": ("number", "", "0 (inelastic)", "scheme projection's restitution coefficient e (Paoli-Schatzman)"),
+    "restitution": ("number", "", "0 (inelastic)",
+                    ("[scheme] table: scheme projection's restitution coefficient e (Paoli-Schatzman); at the top "
+                     "level of a file too, with a warning")),
     "parameters": ("table", "", "the model's defaults",
                    "the model's constants, name = number (each model's in the table below; `stringcontact show`)"),
 }

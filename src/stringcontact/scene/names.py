@@ -98,11 +98,6 @@ def _load(kind: str, name: str, ep):
                              f"{type(exc).__name__}: {one_line(exc)}") from None
 
 
-def eps_free(name: str) -> bool:
-    """Whether registered scheme `name` uses no penalty, hence no ε (its class has no ``PENALTIES``)."""
-    return not scheme_class(name).PENALTIES
-
-
 #: The entry-point group a package registers its models under (``[project.entry-points."stringcontact.models"]``).
 GROUP = "stringcontact.models"
 

@@ -90,8 +90,10 @@ class ModelConstant:
         return "required" if self.required else "none"
 
 
-def check_table(value, key: str = "parameters") -> tuple:
+def check_table(value, key: str = "parameters", declared=()) -> tuple:
     """A ``[parameters]`` table's form: identifier names and finite numbers, as sorted-by-entry (name, value) pairs.
+    A value of a constant in `declared` (the model's `ModelConstant`s, when the scene's model is known) is checked
+    against that constant, so that its message gives the constant's own range; any other must be a number.
     Whether the model has these constants is `resolve_parameters`' question."""
     if isinstance(value, tuple):
         value = dict(value)
@@ -99,12 +101,25 @@ def check_table(value, key: str = "parameters") -> tuple:
         raise SceneError(f"{key}: expected a table of model constants (name = number), got {type(value).__name__}")
     if len(value) > PARAMETERS_MAX:
         raise SceneError(f"{key}: {len(value)} constants; allowed: at most {PARAMETERS_MAX}")
+    by_name = {c.name: c for c in declared}
     pairs = []
     for name, v in value.items():
         if not isinstance(name, str) or not name.isidentifier():
             raise SceneError(f"{key}: {name!r:.40} is not a constant's name; allowed: an identifier such as k or gamma_0")
-        pairs.append((name, ModelConstant(name).check(v)))
+        pairs.append((name, by_name[name].check(v) if name in by_name else _number(name, v)))
     return tuple(pairs)
+
+
+def _number(name: str, value) -> float:
+    """`value` of a constant whose model is not known yet: a number (its range is checked when the run has the model,
+    `resolve_parameters`)."""
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        raise SceneError(f"{name}: expected a number, got {type(value).__name__} {value!r:.40}; allowed: a number in "
+                         "the range its model declares (`stringcontact models`)")
+    if not math.isfinite(float(value)):
+        raise SceneError(f"{name}: {value!r} is not finite; allowed: a number in the range its model declares "
+                         "(`stringcontact models`)")
+    return float(value)
 
 
 def resolve_parameters(model: str, declared, given: dict, rule: Callable | None = None) -> dict[str, float]:

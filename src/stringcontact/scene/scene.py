@@ -5,7 +5,6 @@ A scene file looks like::
     description = "A string dropped on the obstacle"
     T = 0.3           # final time
     alpha = 0.01      # viscoelasticity
-    eps = 0.0005      # penalisation
     nx = 5000         # cells
     dt = 0.0002       # or nt = 1500; dt must divide T
     eta0 = "1 + 0.5*sin(10*pi*x)**2"
@@ -13,8 +12,12 @@ A scene file looks like::
     load = "-10"      # optional: external load f(x), for a model that reads it
     obstacle = "0"    # optional: obstacle profile psi(x), for a model that reads it
     model = "loaded_obstacle"  # optional: a registered model's name (`stringcontact models`)
-    restitution = 0.5  # optional, scheme "projection" only: restitution coefficient e in [0, 1] (default 0)
     petsc_options = { ksp_type = "cg", pc_type = "hypre", ksp_rtol = 1e-12 }  # optional: the linear solver
+
+    [scheme]          # optional: the time scheme (default "paper") and its options (what it declares)
+    name = "paper"
+    eps = 0.0005      # the penalty's ε (the penalty schemes need it)
+    penalty = "semi-implicit"
 
 Usage::
 
@@ -49,19 +52,13 @@ import numpy as np
 
 from ..errors import SceneError
 from . import checks, expressions, names
-from .limits import DOMAIN_KEYS, FIELD_KEYS, FILE_KEYS, REQUIRED_KEYS
-from .names import SCHEMES, eps_free
+from .limits import DOMAIN_KEYS, FIELD_KEYS, FILE_KEYS, REQUIRED_KEYS, SCHEME_KEYS_AT_TOP
 
 __all__ = ["DeprecatedKeyWarning", "Scene", "SceneWarning"]
 
 
 class SceneWarning(UserWarning):
     """Legal but doubtful scene data (reproduced as given, with a warning)."""
-
-
-class DeprecatedKeyWarning(SceneWarning, FutureWarning):
-    """A scene key in a form that still works but will not in a later release (a model's constant at the top level
-    of the file instead of in its ``[parameters]`` table)."""
 
 
 @dataclass(frozen=True)
@@ -105,6 +102,7 @@ class Scene:
     petsc_options: tuple = ()  # (name, value) pairs for the linear solver (`check_petsc_options`)
     restitution: float | None = None  # scheme 'projection's restitution coefficient e in [0, 1] (None: 0)
     parameters: tuple = ()  # (name, value) pairs: the model's constants the scene gives ([parameters])
+    options: tuple = ()  # (name, value) pairs: the [scheme] table's other options (penalty, mass, a scheme's own)
 
     @property
     def dim(self) -> int:
@@ -118,9 +116,6 @@ class Scene:
 
         put("name", checks.check_name(self.name))
         checks.check_domain(self, put)
-        if self.eps is None and not eps_free(self.scheme or names.DEFAULT_SCHEME):
-            raise SceneError(f"eps: required (the penalty's ε) unless scheme = \"projection\", which does not read it; "
-                             f"the scene's scheme is {self.scheme or names.DEFAULT_SCHEME!r}")
         numbers = ("T", "alpha") + (("eps",) if self.eps is not None else ())
         for key in numbers + (("length", "h_left", "h_right") if self.dim == 1 else ()):
             put(key, checks.number(key, getattr(self, key)))
@@ -145,6 +140,7 @@ class Scene:
             put("scheme", checks.check_scheme(self.scheme))
         if self.restitution is not None:
             put("restitution", checks.number("restitution", self.restitution))
+        put("options", checks.check_scheme_options(self.options))
         checks.check_parameters(self, put)
         put("output_times", checks.check_output_times(self.output_times, self.T))
         options = self.petsc_options
@@ -288,6 +284,13 @@ class Scene:
         return self.field_values("obstacle", x, t) if self.obstacle is not None else np.zeros(x.shape[:1])
 
     @property
+    def scheme_options(self) -> dict:
+        """The scheme's options the scene gives (its ``[scheme]`` table but the name), by name: what the run checks
+        against the scheme's own declaration (`timestepping.base.SchemeOption`)."""
+        given = {k: v for k, v in (("eps", self.eps), ("restitution", self.restitution)) if v is not None}
+        return given | dict(self.options)
+
+    @property
     def obstacle_moves(self) -> bool:
         """Whether the obstacle is an expression in t (a moving obstacle ψ(x, t))."""
         return self.obstacle is not None and expressions.uses_name(self.obstacle, "t")
@@ -317,7 +320,6 @@ class Scene:
             "length": self.length,
             "T": self.T,
             "alpha": self.alpha,
-            **({"eps": self.eps} if self.eps is not None else {}),
             "nx": self.nx,
             "nt": self.nt,
             "eta0": list(self.eta0) if isinstance(self.eta0, tuple) else self.eta0,
@@ -332,27 +334,27 @@ class Scene:
         d["output_times"] = list(self.output_times)
         if self.model is not None:
             d["model"] = self.model
-        if self.scheme is not None:
-            d["scheme"] = self.scheme
-        if self.restitution is not None:
-            d["restitution"] = self.restitution
         d.update(self._tables())
         return d
 
     def _tables(self) -> dict:
-        """The TOML tables (last: a table ends the file's plain keys): parameters, petsc_options, where given."""
-        return {key: dict(getattr(self, key)) for key in ("parameters", "petsc_options") if getattr(self, key)}
+        """The scheme (a name, or a [scheme] table with its options) and the TOML tables, last (a table ends the
+        file's plain keys): scheme, parameters, petsc_options, where given."""
+        options = self.scheme_options
+        scheme = ({"scheme": self.scheme} if self.scheme is not None and not options else
+                  {"scheme": ({"name": self.scheme} if self.scheme is not None else {}) | options} if options else {})
+        return scheme | {key: dict(getattr(self, key)) for key in ("parameters", "petsc_options") if getattr(self, key)}
 
     def _as_dict_2d(self) -> dict:
         d = {"name": self.name, "description": self.description, "notes": self.notes, "domain": self.domain}
         d.update({key: list(v) if isinstance(v := getattr(self, key), tuple) else v for key in DOMAIN_KEYS[self.domain]})
-        d.update({"T": self.T, "alpha": self.alpha, **({"eps": self.eps} if self.eps is not None else {}), "nt": self.nt,
-                  "eta0": self.eta0, "v0": self.v0})
+        d.update({"T": self.T, "alpha": self.alpha, "nt": self.nt, "eta0": self.eta0, "v0": self.v0})
         if self.h is not None:
             d["h"] = self.h
         d.update(self.fields)
         d["output_times"] = list(self.output_times)
-        d.update({key: getattr(self, key) for key in ("model", "scheme", "restitution") if getattr(self, key) is not None})
+        if self.model is not None:
+            d["model"] = self.model
         d.update(self._tables())
         return d
 
@@ -362,13 +364,22 @@ class Scene:
 
         ``source`` (a file or scene name) prefixes error and warning messages.
         """
+        return cls._from_dict(data, source, default_name, warn=True)
+
+    @classmethod
+    def _from_dict(cls, data: dict, source, default_name, warn: bool) -> Scene:
         label = source if source is not None else str(data.get("name", default_name or "scene"))
         try:
             data = _top_level_constants(dict(data), data.get("model"), label)
-            scene = _build(data, default_name=default_name)
+            data, options, top = _scheme_table(data)
+            scene = _build(data, default_name=default_name, options=options)
             x, values = _grid_values(scene)
             checks.check_magnitudes(values)
             _warn_doubtful(scene, label, x, values)
+            if top and warn:  # once the scene is valid: a refused one says one line only
+                warnings.warn(f"scene {label!r}: {', '.join(top)} at the top level: the scheme's option"
+                              f"{'s' if len(top) > 1 else ''}; write {'them' if len(top) > 1 else 'it'} in the [scheme] "
+                              "table", SceneWarning, stacklevel=3)
         except SceneError as exc:
             raise SceneError(f"scene {label!r}: {exc}") from None
         return scene
@@ -384,7 +395,9 @@ class Scene:
         * when ``eta0`` or ``length`` changes and no boundary height is given, an end
           height that equalled eta0's old end value follows the new eta0;
         * a value of ``None`` removes the key (e.g. ``h=None``, ``model=None``);
-        * ``parameters`` (the model's constants, a dict) replaces the whole table.
+        * ``parameters`` (the model's constants, a dict) replaces the whole table;
+        * ``scheme`` a name keeps the scheme's options, a table (``{"name": ..., "mass": ...}``) replaces them;
+          ``eps`` and ``restitution`` set the one option each.
         """
         changes = _top_level_constants(changes, changes.get("model", self.model), self.name, self.parameters)
         checks.check_keys(changes)
@@ -408,12 +421,24 @@ class Scene:
             for key, end in (("h_left", ends[0]), ("h_right", ends[1])):
                 if checks.close(getattr(self, key), end):
                     data.pop(key)  # it followed eta0 before, so it follows the new one
+        table = data.pop("scheme", None)
+        table = dict(table) if isinstance(table, dict) else ({"name": table} if table is not None else {})
+        if "scheme" in changes:
+            new = changes.pop("scheme")
+            table = dict(new) if isinstance(new, dict) else ({k: v for k, v in table.items() if k != "name"}
+                                                             | ({"name": new} if new is not None else {}))
+        for key in SCHEME_KEYS_AT_TOP:  # the Python shorthand: scene.replace(eps=...) sets the [scheme] table's eps
+            if key in changes:
+                value = changes.pop(key)
+                table.pop(key, None) if value is None else table.__setitem__(key, value)
+        if table:
+            data["scheme"] = table
         for key, value in changes.items():
             if value is None:
                 data.pop(key, None)
             else:
                 data[key] = value
-        return Scene.from_dict(data, source=self.name)
+        return Scene._from_dict(data, self.name, None, warn=False)
 
 
 # --- building and validating ------------------------------------------------------------------
@@ -421,7 +446,7 @@ class Scene:
 
 def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
     """`data` with the top-level keys that the named `model` declares as constants moved into its ``parameters``
-    table (on top of `table`), each with a one-line `DeprecatedKeyWarning`. The model is loaded only when `data`
+    table (on top of `table`), with a one-line `SceneWarning`. The model is loaded only when `data`
     has keys a scene does not know."""
     unknown = [k for k in data if k not in FILE_KEYS]
     if not unknown or not isinstance(model, str) or model not in names.registered():
@@ -439,11 +464,34 @@ def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
     data["parameters"] = merged
     warnings.warn(f"scene {label!r}: {', '.join(moved)} at the top level of a scene is deprecated; put "
                   f"{'it' if len(moved) == 1 else 'them'} in the [parameters] table (model {model!r})",
-                  DeprecatedKeyWarning, stacklevel=4)
+                  SceneWarning, stacklevel=4)
     return data
 
 
-def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
+def _scheme_table(data: dict) -> tuple[dict, tuple, list]:
+    """`data` with a ``[scheme]`` table taken apart: its name as ``scheme``, its eps and restitution as those keys, its
+    other options as (name, value) pairs; and the keys given at the top level of the file (they still work, with one
+    warning saying where they go; in both places at once they are refused)."""
+    top = [k for k in SCHEME_KEYS_AT_TOP if k in data]
+    table = data.get("scheme")
+    if not isinstance(table, dict):
+        return data, (), top
+    data = dict(data)
+    table = dict(table)
+    name = table.pop("name", None)
+    for key in SCHEME_KEYS_AT_TOP:
+        if key in table:
+            if key in data:
+                raise SceneError(f"{key}: given twice, at the top level and in [scheme]; keep the one in [scheme]")
+            data[key] = table.pop(key)
+    if name is None:
+        data.pop("scheme")
+    else:
+        data["scheme"] = name
+    return data, tuple(table.items()), top
+
+
+def _build_2d(data: dict, domain: str, name: str, T: float, nt: int, options: tuple) -> Scene:
     """A membrane scene: the geometry keys of `domain` (checked in Scene), no ends."""
     geometry = {key: data[key] for key in DOMAIN_KEYS[domain] if key in data}
     if domain == "rectangle":
@@ -458,24 +506,21 @@ def _build_2d(data: dict, domain: str, name: str, T: float, nt: int) -> Scene:
         description=data.get("description", ""), notes=data.get("notes", ""), model=data.get("model"),
         scheme=data.get("scheme"), restitution=data.get("restitution"), domain=domain, **geometry, **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
-        parameters=data.get("parameters", ()),
+        parameters=data.get("parameters", ()), options=options,
     )
 
 
-def _build(data: dict, *, default_name: str | None) -> Scene:
+def _build(data: dict, *, default_name: str | None, options: tuple = ()) -> Scene:
     checks.check_keys(data)
     domain = checks.domain_of(data)
     checks.check_domain_keys(data, domain)
     required = REQUIRED_KEYS if domain == "interval" else tuple(k for k in REQUIRED_KEYS if k != "nx")
-    if data.get("scheme") in SCHEMES and eps_free(data["scheme"]):  # projection does not read eps
-        required = tuple(k for k in required if k != "eps")
     missing = [k for k in required if k not in data]
     if missing or ("nt" not in data and "dt" not in data):
         parts = ", ".join(missing)
         if "nt" not in data and "dt" not in data:
             parts = f"{parts} and one of nt or dt" if parts else "one of nt or dt"
-        why = " (eps may be left out with scheme = \"projection\" only, which does not read it)" if "eps" in missing else ""
-        raise SceneError(f"missing required key(s): {parts}{why}")
+        raise SceneError(f"missing required key(s): {parts}")
     if "nt" in data and "dt" in data:
         raise SceneError("nt, dt: give exactly one of nt or dt, not both")
     if "h" in data and ("h_left" in data or "h_right" in data):
@@ -485,7 +530,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
     T = checks.number("T", data["T"])
     nt = checks.nt_from_dt(data["dt"], T) if "dt" in data else checks.integer("nt", data["nt"])
     if domain != "interval":
-        return _build_2d(data, domain, name, T, nt)
+        return _build_2d(data, domain, name, T, nt, options)
     length = checks.number("length", data.get("length", 1.0))
     h = checks.number("h", data["h"]) if "h" in data else None
     eta0 = checks.initial_data("eta0", data["eta0"])
@@ -529,6 +574,7 @@ def _build(data: dict, *, default_name: str | None) -> Scene:
         **{key: data[key] for key in FIELD_KEYS if key in data},
         petsc_options=checks.check_petsc_options(data.get("petsc_options", {})),
         parameters=data.get("parameters", ()),
+        options=options,
     )
 
 

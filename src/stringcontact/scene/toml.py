@@ -12,7 +12,6 @@ import tomli_w
 
 from ..errors import SceneError, one_line
 from .limits import MAX_FILE_BYTES
-from .names import DEFAULT_SCHEME, eps_free
 from .scene import Scene
 
 __all__ = ["list_scenes", "load_scene", "scene_to_toml"]
@@ -123,12 +122,13 @@ def list_scenes() -> list[tuple[str, str]]:
 # --- writing ----------------------------------------------------------------------------------
 
 
-def scene_to_toml(scene: Scene) -> str:
+def scene_to_toml(scene: Scene, penalty: bool = True) -> str:
     """The scene as a TOML scene file (loadable by :func:`~stringcontact.load_scene`), with derived values in a comment.
 
     Written by tomli-w: strings with line breaks (notes) as multi-line strings, ``petsc_options`` as a table
-    at the end (it is the last key of `Scene.as_dict`, so the keys keep their order).
+    at the end (it is the last key of `Scene.as_dict`, so the keys keep their order). The comment gives r = Δt/ε
+    where the scene gives ε and `penalty` says its scheme reads it.
     """
-    penalty = "" if eps_free(scene.scheme or DEFAULT_SCHEME) else f", r = dt/eps = {scene.r:.6g}"  # a scheme without eps: no r
-    comment = f"# scene {scene.name!r}: dt = {scene.dt:.6g}, dx = {scene.dx:.6g}{penalty}\n"
+    r = f", r = dt/eps = {scene.r:.6g}" if penalty and scene.eps is not None else ""  # `penalty`: the scheme has one
+    comment = f"# scene {scene.name!r}: dt = {scene.dt:.6g}, dx = {scene.dx:.6g}{r}\n"
     return comment + tomli_w.dumps(scene.as_dict(), multiline_strings=True)

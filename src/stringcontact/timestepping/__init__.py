@@ -55,3 +55,39 @@ def check_restitution(name: str, restitution: float, Scheme: type | None = None)
 
 
 __all__ = ["SCHEMES", "check_model", "check_restitution", "resolve_scheme", "scheme_class"]
+
+
+#: The options every scheme is given a value of (None or its default when it does not declare them): what
+#: `DiscreteProblem` holds.
+COMMON_OPTIONS = ("penalty", "mass", "eps", "restitution", "petsc_options")
+
+
+def resolve_options(name: str, Scheme: type, given: dict) -> dict:
+    """The scheme's options (`Scheme.OPTIONS`) from `given` (None: not given), defaults filled in, each checked: a
+    one-line ValueError/SceneError naming the option and what the scheme takes. An ``eps`` given to a scheme without
+    a penalty is left unread (a scene written for both kinds of scheme); a restitution of 0 likewise."""
+    from ..errors import SceneError
+
+    given = {k: v for k, v in given.items() if v is not None}
+    declared = {o.name: o for o in Scheme.OPTIONS}
+    check_restitution(name, given.get("restitution") or 0.0, Scheme)
+    penalty, mass = Scheme.check_options(name, given.get("penalty"), given.get("mass"))
+    values = {o.name: o.default for o in Scheme.OPTIONS} | {"penalty": penalty, "mass": mass}
+    for key, value in given.items():
+        if key in ("penalty", "mass"):
+            continue
+        if key in declared:
+            values[key] = declared[key].check(name, value)
+        elif key not in ("eps", "restitution"):
+            raise SceneError(f"scheme.{key}: scheme {name!r} takes no option {key!r}; allowed: "
+                             f"{', '.join(sorted(declared))}")
+    if Scheme.PENALTIES and values.get("eps") is None:
+        raise SceneError(f"eps: scheme {name!r} needs the penalty's eps, and the scene gives none (a scheme without a "
+                         "penalty, such as projection, does not read it); add eps to the scene's [scheme] table")
+    values.setdefault("eps", None)
+    values.setdefault("restitution", 0.0)
+    values["petsc_options"] = dict(values.get("petsc_options") or {})
+    return values
+
+
+__all__ += ["COMMON_OPTIONS", "resolve_options"]

@@ -12,7 +12,7 @@ about 0 for a node held at rest on the obstacle; what a scheme's identity puts e
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
@@ -21,7 +21,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import InstabilityError, InstabilityWarning
+from ..errors import InstabilityError, InstabilityWarning, SceneError
 from ..fem import nodal
 from ..fem.operators import Operators
 
@@ -134,7 +134,8 @@ class DiscreteProblem:
       (x, y) rows);
     * ``petsc_options``: PETSc options on top of the size rule's, validated with the scene (or None);
     * ``restitution``: the restitution coefficient e, for a scheme with ``RESTITUTION`` (checked with the scene);
-    * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest.
+    * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest;
+    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them.
     """
 
     ops: Operators
@@ -151,6 +152,7 @@ class DiscreteProblem:
     petsc_options: dict | None = None
     restitution: float = 0.0
     obstacle: MovingObstacle | None = None
+    options: dict = field(default_factory=dict)
 
     @property
     def n_owned(self) -> int:
@@ -179,27 +181,92 @@ class DiscreteProblem:
         return mask
 
 
-class Scheme:
-    """The contract. A scheme module defines ``class Scheme(base.Scheme)`` with:
+@dataclass(frozen=True)
+class SchemeOption:
+    """One option a scheme declares, as a model declares a constant: a scene sets it in its ``[scheme]`` table, Python
+    as a keyword of `TimeStepper`, `Stepper` or `simulate`.
 
-    * ``PENALTIES``: the penalties it accepts, its default first; ``()`` when it uses no penalty (and no ε);
-    * ``RESTITUTION``: True if it takes a restitution coefficient e > 0 (`DiscreteProblem.restitution`); the others
-      are refused one;
-    * ``MASSES``: the mass matrices it accepts, its default first;
+    A word option lists its `choices` (its default first); a number option its closed range [`low`, `high`]; a
+    `required` one has no default (a penalty's ε). `unit` and `description` (one line) are shown by the scene-key
+    reference and ``stringcontact show``."""
+
+    name: str
+    default: object = None
+    choices: tuple = ()
+    low: float | None = None
+    high: float | None = None
+    unit: str = ""
+    description: str = ""
+    required: bool = False
+
+    @property
+    def allowed(self) -> str:
+        """The allowed values in words, as the messages give them."""
+        if self.choices:
+            return " or ".join(repr(c) for c in self.choices)
+        if self.low is not None:
+            return f"a number in [{self.low:g}, {self.high:g}]"
+        return "a table of PETSc options" if isinstance(self.default, dict) else "any value"
+
+    def check(self, scheme: str, value):
+        """`value` if this option takes it, else a one-line SceneError naming ``scheme.NAME`` and what is allowed."""
+        where = f"scheme.{self.name}"
+        if self.choices:
+            if value not in self.choices:
+                raise SceneError(f"{where}: scheme {scheme!r} takes {self.allowed}, not {value!r}")
+            return value
+        if self.low is not None:
+            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+            if not ok or not self.low <= float(value) <= self.high:
+                raise SceneError(f"{where}: {value!r} is out of range; allowed: {self.allowed}")
+            return float(value)
+        return value
+
+
+#: The options several schemes share.
+PETSC_OPTIONS = SchemeOption("petsc_options", {}, description="PETSc options for the step's linear and Newton solvers")
+EPS = SchemeOption("eps", None, low=1e-12, high=1e6, unit="t", required=True,
+                   description="the penalty's ε: the contact law's time scale")
+RESTITUTION = SchemeOption("restitution", 0.0, low=0.0, high=1.0,
+                           description="restitution coefficient e (Paoli-Schatzman): 0 inelastic, 1 elastic")
+
+
+def penalty_option(*choices: str) -> SchemeOption:
+    """The `penalty` option over `choices` (the first is the default)."""
+    return SchemeOption("penalty", choices[0], choices,
+                        description="the contact law from the previous step (explicit) or as a damping of the new "
+                                    "velocity (semi-implicit)")
+
+
+def mass_option(*choices: str) -> SchemeOption:
+    """The `mass` option over `choices` (the first is the default)."""
+    return SchemeOption("mass", choices[0], choices, description="the mass matrix: lumped (row sums) or consistent")
+
+
+class Scheme:
+    """The contract. A scheme module defines one class named after its scheme (``class MyScheme(base.Scheme)``) with:
+
+    * ``OPTIONS``: the `SchemeOption`s it takes (``penalty``, ``mass``, ``eps``, ``restitution``, ``petsc_options``,
+      or its own), checked by `resolve_options`; a scheme without a ``penalty`` option uses no penalty and no ε;
     * ``DESCRIPTION``: one line for `stringcontact.SCHEMES`;
     * ``LINEAR_PATH``: True if it steps a linear model with the constant operators M, C, K alone; False if every
       model reaches it with its residual (`Operators.nonlinear`, as a nonlinear one always does:
       `implicit.ImplicitScheme`);
-    * ``__init__(problem)``: assemble and factorise (set-up time); ``problem`` is the `DiscreteProblem`;
-    * ``start(eta0, v0) -> StepEnergy``: the initial state (ends already at their heights, v0 = 0 there);
+    * ``requires(model)``: why it cannot run a model (one clause), or None;
+    * ``__init__(problem)``: assemble and factorise (set-up time); ``problem`` is the `DiscreteProblem`, its
+      options resolved (``problem.mass``, ``problem.penalty``, ``problem.eps``, ``problem.options``);
+    * ``start(eta0, v0) -> StepEnergy``: the initial state (this rank's nodal arrays: ends already at their heights,
+      v0 = 0 there); a scheme of second order takes its first level from it as it needs;
     * ``step() -> StepEnergy``: one step;
-    * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force
-      density applied in the last step), read by the driver when it stores a row;
+    * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force density
+      applied in the last step); ``fields``: the model's further unknowns by name (empty for one field);
     * ``timings``: extra counters for the summary (e.g. refactorisations).
+
+    ``PENALTIES``, ``MASSES`` and ``RESTITUTION`` are read off ``OPTIONS`` (the choices of ``penalty`` and ``mass``,
+    whether it takes ``restitution``).
     """
 
-    PENALTIES: tuple = ()
-    MASSES: tuple = ("lumped", "consistent")
+    OPTIONS: tuple = (mass_option("lumped", "consistent"), PETSC_OPTIONS)
     DESCRIPTION = ""
     LINEAR_PATH = True
     #: A non-negative part of the scheme's energy that the ledger does not show, at the state last reported; the
@@ -208,9 +275,18 @@ class Scheme:
     #: Whether the scheme's energy may rise for a while without an instability (a rebound giving energy back, a
     #: nonlinear force in a non-dissipative step): the guard then allows what it allows a contact spring.
     energy_may_rise = False
-    RESTITUTION = False  # whether it takes a restitution coefficient e > 0 (`DiscreteProblem.restitution`)
     situation = ""  # for the instability message: e.g. "r = dt/eps = 4, penalty explicit"
     remedy = "use a smaller dt"
+    PENALTIES: tuple = ()
+    MASSES: tuple = ("lumped", "consistent")
+    RESTITUTION = False
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        by_name = {o.name: o for o in cls.OPTIONS}
+        cls.PENALTIES = by_name["penalty"].choices if "penalty" in by_name else ()
+        cls.MASSES = by_name["mass"].choices if "mass" in by_name else ("lumped",)
+        cls.RESTITUTION = "restitution" in by_name
 
     def __init__(self, problem: DiscreteProblem):
         self.problem = problem
@@ -224,6 +300,34 @@ class Scheme:
     def requires(model) -> str | None:
         """Why this scheme cannot run `model` (one clause), or None."""
         return None
+
+    def start(self, eta0: np.ndarray, v0: np.ndarray) -> StepEnergy:
+        """The initial state; returns its energy terms."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define start(eta0, v0)")
+
+    def step(self) -> StepEnergy:
+        """One step; returns its energy terms."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define step()")
+
+    @property
+    def eta(self) -> np.ndarray:
+        """η at this rank's nodes."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define eta")
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The velocity at this rank's nodes."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define velocity")
+
+    @property
+    def contact_force(self) -> np.ndarray:
+        """The contact force density of the last step at this rank's nodes."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define contact_force")
+
+    @property
+    def fields(self) -> dict:
+        """The model's further unknowns at this rank's nodes, by name (none for a model of one field)."""
+        return {}
 
     @classmethod
     def check_options(cls, name: str, penalty, mass) -> tuple:

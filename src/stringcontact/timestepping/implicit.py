@@ -31,7 +31,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import SolverError
-from .base import Ranks, StepEnergy, check_law_stability, petsc_vector
+from .base import EPS, PETSC_OPTIONS, Ranks, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
 from .newton import NewtonStep, _NewtonScheme
 
 
@@ -50,8 +50,7 @@ class ImplicitScheme(_NewtonScheme):
     consistent. Energy and moving obstacles: the module docstring."""
 
     DESCRIPTION = "a scheme given by its difference quotients, each step by Newton"
-    PENALTIES = ("explicit", "semi-implicit")
-    MASSES = ("lumped", "consistent")
+    OPTIONS = (penalty_option("explicit", "semi-implicit"), mass_option("lumped", "consistent"), EPS, PETSC_OPTIONS)
     LINEAR_PATH = False  # every model by Newton: a linear one's step is one back-substitution (`affine.LinearPath`)
     #: The difference quotients: placeholder name -> f(u, η^n, η^{n−1}, v^n, Δt) (UFL in u, arrays otherwise).
     QUOTIENTS: ClassVar[dict] = {}

@@ -34,7 +34,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..fem.operators import diagonal_matrix, stacked
-from .base import Ranks, StepEnergy, check_law_stability, petsc_vector
+from .base import EPS, PETSC_OPTIONS, Ranks, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
 from .implicit import kinetic_energy
 from .linear import DampedLU, dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme
@@ -49,14 +49,13 @@ NEWMARK = {
 }
 
 
-class Scheme(_NewtonScheme):
+class NewmarkScheme(_NewtonScheme):
     """The trapezoidal rule: the linear path (the module docstring's matrix, refactorised when the active set
     changes) for a linear model, the Newton path for a nonlinear one, with one damping law, one release of held
     nodes and one bookkeeping of a moving obstacle's work for both."""
 
     DESCRIPTION = "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set"
-    PENALTIES = ("semi-implicit",)
-    MASSES = ("lumped", "consistent")
+    OPTIONS = (penalty_option("semi-implicit"), mass_option("lumped", "consistent"), EPS, PETSC_OPTIONS)
     remedy = "use a smaller dt"
 
     @staticmethod
@@ -278,4 +277,4 @@ class Scheme(_NewtonScheme):
         return StepEnergy(kin, el, visc, con, num, ext, 0.0)
 
 
-__all__ = ["NEWMARK", "Scheme"]
+__all__ = ["NEWMARK", "NewmarkScheme"]

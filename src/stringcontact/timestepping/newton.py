@@ -1,7 +1,7 @@
 """A nonlinear model's step, solved by Newton's method with line search (PETSc SNES): the machinery every scheme's
 Newton path shares (`NewtonStep`, `_NewtonScheme`); each scheme's own step is in its module.
 
-The model writes its residual R(η, η_t, η_tt, F; w) once (`model.paper`); a nonlinear one reaches the schemes
+The model writes its residual R(η, η_t, η_tt, F; w) once (`model.interface`); a nonlinear one reaches the schemes
 as `Operators.nonlinear` (`fem.operators.NonlinearForm`). Each scheme writes the placeholders as its difference
 quotients in the unknown u = η^{n+1} and the known levels η^n, η^{n−1} (and a nodal velocity v^n), and the
 step is the root of

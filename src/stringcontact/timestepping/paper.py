@@ -39,7 +39,7 @@ PAPER = {
 }
 
 
-class Scheme(ImplicitScheme):
+class PaperScheme(ImplicitScheme):
     """The paper's scheme. A nonlinear model takes the Newton path (`ImplicitScheme` with the quotients `PAPER`); a
     linear one the same step with its constant operators: A factorised once, each step one back-substitution and a
     few NumPy operations (the module docstring)."""
@@ -306,4 +306,4 @@ class Scheme(ImplicitScheme):
         self.step_index += 1
 
 
-__all__ = ["PAPER", "Scheme"]
+__all__ = ["PAPER", "PaperScheme"]

@@ -80,7 +80,7 @@ from petsc4py import PETSc
 from ..errors import InstabilityError
 from ..fem.operators import diagonal_matrix, stacked
 from ..scene import SceneWarning
-from .base import Ranks, StepEnergy, petsc_vector
+from .base import PETSC_OPTIONS, RESTITUTION, Ranks, StepEnergy, mass_option, petsc_vector
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
@@ -107,15 +107,13 @@ PROJECTION = {
 }
 
 
-class Scheme(_NewtonScheme):
+class ProjectionScheme(_NewtonScheme):
     """The ε-free scheme: the linear path (A = M/Δt² + C/Δt factorised once, each step `complementarity.ActiveSet`)
     for a linear model, the Newton path (SNES VI) for a nonlinear one; one obstacle, one stability check, one
     bookkeeping of the levels for both (the module docstring)."""
 
     DESCRIPTION = "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)"
-    PENALTIES = ()
-    MASSES = ("lumped",)
-    RESTITUTION = True
+    OPTIONS = (mass_option("lumped"), RESTITUTION, PETSC_OPTIONS)
     remedy = "use a smaller dt (nt >= T / dt_max) or scheme 'newmark'"
 
     @staticmethod
@@ -470,4 +468,4 @@ class _Level:
         self.eta_vec, self.kc_vec = petsc_vector(self.eta, comm), petsc_vector(self.kc, comm)
 
 
-__all__ = ["CONTACT_TOL", "PROJECTION", "Scheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]
+__all__ = ["CONTACT_TOL", "PROJECTION", "ProjectionScheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]

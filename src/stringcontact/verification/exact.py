@@ -1,8 +1,5 @@
-r"""Exact solutions used as test oracles.
-
-Both functions return ``(eta, velocity)``. For an array ``t`` the shape is ``(len(t), len(x))``
-(``t`` along the rows); for a scalar ``t`` it is ``(len(x),)``.
-"""
+"""Exact solutions used as test oracles: `sine_mode` and `flat_landing` return ``(eta, velocity)``, of shape
+``(len(t), len(x))`` for an array ``t``, ``(len(x),)`` for a scalar one."""
 
 import numpy as np
 
@@ -16,23 +13,16 @@ def _on_grid(t, x):
 
 
 def _finish(eta, velocity, scalar):
+    """The rows for an array t, the one row for a scalar t."""
     return (eta[0], velocity[0]) if scalar else (eta, velocity)
 
 
 def damped_oscillator(t, *, a0, a1, damping, stiffness):
-    r"""Solution of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1`.
-
-    Here ``damping`` is :math:`2\beta \ge 0` and ``stiffness`` is :math:`\kappa^2 > 0`. With
-    :math:`C = e^{-\beta t}\cos\omega t`, :math:`S = e^{-\beta t}\sin(\omega t)/\omega`,
-    :math:`\omega^2 = \kappa^2 - \beta^2` (cos/sin become cosh/sinh when :math:`\omega^2 < 0`, and
-    :math:`C = e^{-\beta t}`, :math:`S = t e^{-\beta t}` when :math:`\omega = 0`),
-
-    .. math:: a = a_0 C + (a_1 + \beta a_0) S, \qquad a' = a_1 C - (\kappa^2 a_0 + \beta a_1) S,
-
-    one formula for the under-, critically- and over-damped cases.
-
-    Returns ``(a, a')`` with the shape of ``t``.
-    """
+    r"""``(a, a')`` of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1` (``damping``
+    :math:`2\beta \ge 0`, ``stiffness`` :math:`\kappa^2 > 0`): :math:`a = a_0 C + (a_1 + \beta a_0) S`,
+    :math:`a' = a_1 C - (\kappa^2 a_0 + \beta a_1) S`, :math:`C = e^{-\beta t}\cos\omega t`,
+    :math:`S = e^{-\beta t}\sin(\omega t)/\omega`, :math:`\omega^2 = \kappa^2 - \beta^2` (cosh/sinh when
+    :math:`\omega^2 < 0`, :math:`C = e^{-\beta t}`, :math:`S = t e^{-\beta t}` when :math:`\omega = 0`)."""
     t = np.asarray(t, dtype=float)
     beta = 0.5 * damping
     omega2 = stiffness - beta**2
@@ -52,25 +42,17 @@ def damped_oscillator(t, *, a0, a1, damping, stiffness):
         slow = np.exp(-stiffness / (beta + gamma) * t)
         fast = np.exp(-2.0 * gamma * t)
         C = 0.5 * slow * (1.0 + fast)
-        S = slow * t * _one_minus_exp_over(2.0 * gamma * t)
+        z = 2.0 * gamma * t  # S = slow t (1 − e^{−z})/z, that quotient 1 at z = 0
+        S = slow * t * np.where(z == 0.0, 1.0, -np.expm1(-z) / np.where(z == 0.0, 1.0, z))
     a = a0 * C + (a1 + beta * a0) * S
     da = a1 * C - (stiffness * a0 + beta * a1) * S
     return a, da
 
 
-def _one_minus_exp_over(z):
-    r""":math:`(1 - e^{-z})/z`, equal to 1 at :math:`z = 0`."""
-    z = np.asarray(z, dtype=float)
-    safe = np.where(z == 0.0, 1.0, z)
-    return np.where(z == 0.0, 1.0, -np.expm1(-safe) / safe)
-
-
 def sine_mode(t, x, *, k, a0, a1, alpha, length, h):
-    r"""No-contact mode :math:`\eta = h + a(t)\sin(k\pi x/l)` of :math:`\eta_{tt} - \alpha\eta_{txx} - \eta_{xx} = 0`.
-
-    With :math:`\kappa = k\pi/l`, :math:`a'' + \alpha\kappa^2 a' + \kappa^2 a = 0`,
-    :math:`a(0) = a_0`, :math:`a'(0) = a_1`; the velocity is :math:`a'(t)\sin(\kappa x)`.
-    """
+    r"""No-contact mode :math:`\eta = h + a(t)\sin(\kappa x)`, :math:`\kappa = k\pi/l`, of :math:`\eta_{tt} -
+    \alpha\eta_{txx} - \eta_{xx} = 0`: :math:`a'' + \alpha\kappa^2 a' + \kappa^2 a = 0`, :math:`a(0) = a_0`,
+    :math:`a'(0) = a_1`."""
     if alpha < 0:
         raise ValueError(f"alpha must be >= 0, got {alpha}")
     kappa = k * np.pi / length
@@ -91,10 +73,8 @@ def flat_landing_energy_loss(h, V, length):
 
 
 def _landed_profile(s, *, h, V, length):
-    r"""Odd, :math:`2l`-periodic extension :math:`W` of :math:`w = \max(h - V\min(x, l-x), 0) - h` and :math:`W'`.
-
-    :math:`W'` at the two kinks of :math:`w` is the mean of the one-sided slopes.
-    """
+    r"""The odd, :math:`2l`-periodic extension :math:`W` of :math:`w = \max(h - V\min(x, l-x), 0) - h` and
+    :math:`W'` (at the kinks of :math:`w` the mean of the one-sided slopes)."""
     t_star = flat_landing_time(h, V)
     r = np.mod(s, 2.0 * length)
     upper = r > length
@@ -124,34 +104,19 @@ def _rebound_potential(s, *, h, V, length):
 
 
 def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
-    r"""Exact inelastic solution for :math:`\alpha = 0`, ends at :math:`h`, :math:`\eta_0 = h`, :math:`v_0 = -V`.
+    r"""Exact inelastic solution for :math:`\alpha = 0`, ends at :math:`h`, :math:`\eta_0 = h`, :math:`v_0 = -V`
+    (:math:`h < Vl/2`). For :math:`t \le t^* = h/V` (d'Alembert), :math:`\eta = h - V\min(x, l - x, t)`, velocity
+    :math:`-V` where :math:`t < x < l - t`, else 0 (at :math:`t^*` the left limit); then the flat middle
+    :math:`[t^*, l - t^*]` stops on :math:`y = 0` and, with :math:`\tau = t - t^*` and `_landed_profile`'s :math:`W`,
 
-    For :math:`t \le t^* = h/V` (d'Alembert with the odd extension of :math:`v_0`):
-    :math:`\eta = h - V\min(x, l - x, t)`, velocity :math:`-V` where :math:`t < x < l - t`, else 0.
-    At :math:`t^*` the flat middle :math:`[t^*, l - t^*]` lands on :math:`y = 0` and stops. After it, with
-    :math:`\tau = t - t^*` and :math:`W` the odd :math:`2l`-periodic extension of
-    :math:`w = \max(h - V\min(x, l - x), 0) - h`,
+    .. math:: \eta = h + \tfrac12[W(x - \tau) + W(x + \tau)], \qquad \eta_t = \tfrac12[-W'(x - \tau) + W'(x + \tau)]
 
-    .. math:: \eta = h + \tfrac12[W(x - \tau) + W(x + \tau)], \qquad
-              \eta_t = \tfrac12[-W'(x - \tau) + W'(x + \tau)].
-
-    Since :math:`|W| \le h` the string never penetrates again. Requires :math:`h < Vl/2`.
-    At :math:`t = t^*` the velocity is the pre-landing (left) limit.
-
-    With a restitution :math:`e = ` ``restitution`` :math:`\in (0, 1]` the middle rebounds with velocity
-    :math:`+eV` (Newton's law) and the string moves freely from that state: with :math:`U` the odd
-    :math:`2l`-periodic extension of :math:`V 1_{(t^*, l - t^*)}` and :math:`\Phi(s) = \int_0^s U`,
-    d'Alembert adds
-
-    .. math:: \tfrac{e}{2}[\Phi(x + \tau) - \Phi(x - \tau)] \text{ to } \eta, \qquad
-              \tfrac{e}{2}[U(x + \tau) + U(x - \tau)] \text{ to } \eta_t.
-
-    It is the solution while that free motion stays above the obstacle: the solution is
-    :math:`\eta_e = (1 - e)\eta_0 + e\eta_1`, :math:`\eta_0 \ge 0` always, and :math:`\eta_1` (e = 1) is
-    the landing run backwards for :math:`\tau \le t^*` (up to :math:`\eta = h`, :math:`\eta_t = +V`), then
-    :math:`h` plus a free motion that is :math:`\ge 0` for a time :math:`l` and comes back to :math:`h` with
-    velocity :math:`-V`, so it lands again at :math:`\tau = l + 2t^*` and not before: the window is
-    :math:`t \le l + 3t^*` (:func:`flat_landing_rebound_end`); later times are refused.
+    (:math:`|W| \le h`: it never penetrates again). A ``restitution`` :math:`e \in (0, 1]` rebounds the middle at
+    :math:`+eV` and adds :math:`\tfrac{e}{2}[\Phi(x + \tau) - \Phi(x - \tau)]` to η and
+    :math:`\tfrac{e}{2}[U(x + \tau) + U(x - \tau)]` to :math:`\eta_t` (`_rebound_potential`). That is
+    :math:`(1 - e)\eta_0 + e\eta_1`, where :math:`\eta_1` (e = 1) runs the landing backwards and then moves freely
+    above the obstacle until it lands again at :math:`\tau = l + 2t^*`: times after :math:`l + 3t^*`
+    (`flat_landing_rebound_end`) are refused.
     """
     if not (h > 0 and V > 0 and length > 0):
         raise ValueError(f"need h > 0, V > 0, length > 0, got h={h}, V={V}, length={length}")

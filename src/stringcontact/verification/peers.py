@@ -1,17 +1,11 @@
-"""The schemes as a researcher would write them for Example 1's string: NumPy/SciPy peers and a compiled C loop.
+"""The schemes as a researcher would write them for Example 1's string, what the benchmarks time `simulate` against
+(benchmarks/bench_step.py, bench_solver.py; tests/verification/test_peers.py checks they step as it does).
 
-Each NumPy peer is one scheme on a uniform string, ψ = 0 and no load (the paper's model), in finite differences
-(= the lumped FEM): the interior unknowns, the step matrix factorised once with `splu` (and again whenever the
-scheme's matrix changes: a new active set), a vectorised right-hand side, the scheme's own contact step, and η, v
-stored at the rows `simulate` stores (`stored_steps`). They compute no energies. Scaled by Δt²/Δx (paper) or
-Δt²/(4Δx) (newmark), with T = tridiag(−1, 2, −1): M = Δx I, K = T/Δx, C = αK, m_F = Δx.
-
-`compiled_peer` is the paper's scheme as a plain C loop (``compiled_peer.c``, built by `build_compiled` with the
-system's C compiler): the solve alone, or with the terms of the discrete energy identity every step.
-
-The benchmarks time `simulate` against them (benchmarks/bench_step.py, bench_solver.py); the tests check that
-they step as `simulate` does (tests/verification/test_peers.py). `reference.fd_solve` is the independent oracle of
-the same scheme (LAPACK's banded solver, input checks, any stored rows).
+Each NumPy peer is one scheme on a uniform string, ψ = 0 and no load, in finite differences (the lumped FEM; with
+T = tridiag(−1, 2, −1): M = Δx I, K = T/Δx, C = αK): the step matrix factorised with `splu` once and again when
+the scheme's matrix changes, a vectorised right-hand side, η and v stored at the rows `simulate` stores, no
+energies. `compiled_peer` is the paper's scheme as a plain C loop (``compiled_peer.c``, `build_compiled`), with
+or without the terms of the discrete energy identity.
 """
 
 from __future__ import annotations
@@ -60,24 +54,14 @@ def step_conditioning(scene) -> float:
 def paper_peer(scene, stored_steps):
     """`paper`, explicit penalty, lumped mass: (I + rT) η¹ = 2η − η⁰ − aTη + Δt² F, F = ε⁻¹ χ{η < 0} (−v)⁺,
     v = (η − η⁰)/Δt, a = αΔt/Δx², r = a + Δt²/Δx²; the matrix never changes (one `splu`)."""
-    N, nt, dt = scene.nx, scene.nt, scene.dt
-    dx = scene.length / N
-    x = np.linspace(0.0, scene.length, N + 1)
-    r = step_conditioning(scene)
+    dt, dx, eta, v0, _ = string_start(scene)
+    N, r = scene.nx, step_conditioning(scene)
     lu = splu(sp.diags([-r, 1 + 2 * r, -r], [-1, 0, 1], shape=(N - 1, N - 1), format="csc"))
-    eta = np.asarray(scene.initial_displacement(x), dtype=float).copy()
-    eta[0], eta[-1] = scene.h_left, scene.h_right
-    v0 = np.asarray(scene.initial_velocity(x), dtype=float).copy()
-    v0[[0, -1]] = 0.0
     eta_old = eta - dt * v0
-    rows_eta = np.empty((len(stored_steps), N + 1))
-    rows_v = np.empty((len(stored_steps), N + 1))
-    row = 0
-    if stored_steps[0] == 0:
-        rows_eta[0], rows_v[0] = eta, v0
-        row = 1
+    store = _Stored(stored_steps, N + 1)
+    store(0, eta, v0)
     a_dt, inv_eps, dt2 = scene.alpha * dt / dx**2, 1.0 / scene.eps, dt**2
-    for n in range(nt):
+    for n in range(scene.nt):
         e = eta[1:-1]
         v = (e - eta_old[1:-1]) / dt
         rhs = 2 * e - eta_old[1:-1] - a_dt * (eta[2:] - 2 * e + eta[:-2])
@@ -88,11 +72,9 @@ def paper_peer(scene, stored_steps):
         eta_new[0], eta_new[-1] = scene.h_left, scene.h_right
         eta_new[1:-1] = lu.solve(rhs)
         eta_old, eta = eta, eta_new
-        if row < len(stored_steps) and stored_steps[row] == n + 1:
-            rows_eta[row] = eta
-            rows_v[row] = (eta - eta_old) / dt
-            row += 1
-    return rows_eta, rows_v
+        if store.row < len(stored_steps) and stored_steps[store.row] == n + 1:  # v only where it is stored
+            store(n + 1, eta, (eta - eta_old) / dt)
+    return store.eta, store.v
 
 
 def _factor(A, refactor: str):
@@ -124,10 +106,9 @@ class _Stored:
 
 
 def projection_peer(scene, stored_steps, refactor: str = "splu"):
-    """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F' with η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
-    r₀ = Δt²/Δx². The contact step as the scheme does it: the free step; if a node is below 0, the primal–dual
-    active set from {η̃ < 0}: the active rows replaced by identity rows (refactorised when the set differs from
-    the last one factorised), F' = (A η − b) on it, until the set stays. The stored v is the centred one."""
+    """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F', η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
+    r₀ = Δt²/Δx², as the scheme solves it: the free step, then the primal–dual active set from {η̃ < 0} (its rows
+    identity rows, refactorised when the set changes, F' = Aη − b on it) until the set stays; v centred."""
     dt, dx, eta, v0, T = string_start(scene)
     a, r0 = scene.alpha * dt / dx**2, dt**2 / dx**2
     n = eta.size - 2
@@ -201,10 +182,7 @@ def _damped_peer(scene, stored_steps, newmark: bool, refactor: str):
             if not sticky.any():
                 break
             chi = chi & ~sticky
-        if newmark:
-            v = v_new
-        else:
-            v = (new - eta) / dt
+        v = v_new if newmark else (new - eta) / dt
         eta_old, eta = eta, new
         store(step, eta, v)
     return store.eta, store.v
@@ -232,12 +210,8 @@ def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
     folder = Path(tempfile.mkdtemp(prefix="compiled-peer-"))
     library = folder / "compiled_peer.so"
     try:
-        subprocess.run(
-            [compiler, *cflags, "-shared", "-fPIC", "-o", str(library), str(C_SOURCE)],
-            check=True,
-            capture_output=True,
-            text=True,
-        )
+        subprocess.run([compiler, *cflags, "-shared", "-fPIC", "-o", str(library), str(C_SOURCE)], check=True,
+                       capture_output=True, text=True)
         lib = ctypes.CDLL(str(library))
     except subprocess.CalledProcessError as exc:
         raise RuntimeError(f"compiled_peer: {compiler} failed:\n{exc.stderr}") from None
@@ -246,22 +220,10 @@ def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
     doubles = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
     longs = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
     real = ctypes.c_double
-    lib.march.restype = ctypes.c_int
-    integer = ctypes.c_int
+    lib.march.restype = integer = ctypes.c_int
     # march(N, nt, dt, dx, alpha, eps, h_left, h_right, eta, eta_old, n_stored, stored, rows_eta, rows_v, energies, ledger)
-    lib.march.argtypes = [
-        integer,
-        integer,
-        *[real] * 6,
-        doubles,
-        doubles,
-        integer,
-        longs,
-        doubles,
-        doubles,
-        integer,
-        doubles,
-    ]
+    lib.march.argtypes = [integer, integer, *[real] * 6, doubles, doubles, integer, longs, doubles, doubles, integer,
+                          doubles]
     return lib
 
 
@@ -287,9 +249,8 @@ def compiled_peer(lib, scene, stored_steps, energies: bool = False):
     ledger = np.zeros(len(LEDGER))
     t0 = time.perf_counter()
     constants = (scene.alpha, scene.eps, scene.h_left, scene.h_right)
-    failed = lib.march(
-        N, scene.nt, dt, dx, *constants, eta, eta_old, len(steps), steps, rows_eta, rows_v, int(energies), ledger
-    )
+    failed = lib.march(N, scene.nt, dt, dx, *constants, eta, eta_old, len(steps), steps, rows_eta, rows_v,
+                       int(energies), ledger)
     seconds = time.perf_counter() - t0
     if failed:
         raise MemoryError("compiled_peer: out of memory")

@@ -1,16 +1,8 @@
-"""GetFEM's impacting rod, and the same problem as a string over a point obstacle.
-
-The rod is the problem of GetFEM's ``demo_dynamic_contact_1D.py`` (Y. Renard, F. Chouly, LGPL 2.1):
-an elastic rod on (0, 1), fixed at x = 1, with unilateral contact u(0, t) ≥ 0 at x = 0,
-
-    u_tt − u_xx = 0,   u(1, t) = 0,   u(0, t) ≥ 0,  u_x(0, t) ≤ 0,  u(0, t) u_x(0, t) = 0,
-    u(x, 0) = (1 − x)/2,   u_t(x, 0) = 0.
-
-Its exact solution (`rod_exact`, the demo's closed form, vectorised) has period 3 and energy 1/8.
-
-Mirrored about the contact point, it is a string on (0, 2) with fixed ends at height 0 and a point
-obstacle at x = 1: η(x, t) = u(|x − 1|, t), with energy 2 · 1/8 (`string_exact`, `rod_scene`,
-`point_contact`). Errors are relative, so they are the same on the rod and on the string.
+"""GetFEM's impacting rod (``demo_dynamic_contact_1D.py``, Y. Renard, F. Chouly, LGPL 2.1; docs/explanation/getfem.md):
+u_tt − u_xx = 0 on (0, 1), u(1, t) = 0, Signorini contact u(0, t) ≥ 0, u_x(0, t) ≤ 0, u u_x = 0 at x = 0, from
+u(x, 0) = (1 − x)/2 at rest; its exact solution (`rod_exact`) has period 3 and energy 1/8. Mirrored about the
+contact point it is a string on (0, 2) over a point obstacle at x = 1, η(x, t) = u(|x − 1|, t) (`string_exact`,
+`rod_scene`, `point_contact`), whose relative errors are the rod's.
 """
 
 from __future__ import annotations
@@ -20,6 +12,8 @@ import dataclasses
 import numpy as np
 import ufl
 
+from ..scene import Scene
+
 PERIOD = 3.0
 ROD_ENERGY = 1.0 / 8.0
 CONTACT_POINT = 1.0  # of the string on (0, 2)
@@ -27,13 +21,10 @@ CONTACT_POINT = 1.0  # of the string on (0, 2)
 # u = a + b x + c τ in each (phase, zone) of one period, τ = time since the phase began (GetFEM's table).
 # Zones follow the characteristics through (0, 0) and (1, 0): 1 = τ < x, τ ≤ 1 − x; 2 = τ ≥ x, τ ≤ 1 − x;
 # 3 = τ < x, τ > 1 − x; 4 = τ ≥ x, τ > 1 − x.
-_COEFFICIENTS = np.array(
-    [
-        [[0.5, -0.5, 0.0], [0.5, 0.0, -0.5], [0.5, -0.5, 0.0], [0.5, 0.0, -0.5]],  # falling to the obstacle
-        [[0.0, 0.0, -0.5], [0.0, -0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]],  # in contact
-        [[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.5, -0.5, 0.0], [0.5, -0.5, 0.0]],  # lifting off
-    ]
-)
+_COEFFICIENTS = np.array([
+    [[0.5, -0.5, 0.0], [0.5, 0.0, -0.5], [0.5, -0.5, 0.0], [0.5, 0.0, -0.5]],  # falling to the obstacle
+    [[0.0, 0.0, -0.5], [0.0, -0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]],  # in contact
+    [[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.5, -0.5, 0.0], [0.5, -0.5, 0.0]]])  # lifting off
 
 
 def rod_exact(x, t: float, derivative: str = "u") -> np.ndarray:
@@ -56,23 +47,10 @@ def string_exact(x, t: float, derivative: str = "u") -> np.ndarray:
 
 def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD):
     """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2), so the cell size is the rod's 1/nx_rod."""
-    from ..scene import Scene
-
-    return Scene.from_dict(
-        {
-            "name": f"getfem_rod_{nx_rod}",
-            "description": "GetFEM's impacting rod mirrored into a string on (0, 2) over a point obstacle at x = 1",
-            "length": 2.0,
-            "T": T,
-            "alpha": 0.0,
-            "eps": eps,
-            "nx": 2 * nx_rod,
-            "dt": dt,
-            "eta0": "0.5 - 0.5*abs(x - 1)",
-            "v0": "0",
-            "h": 0.0,
-        }
-    )
+    return Scene.from_dict({
+        "name": f"getfem_rod_{nx_rod}", "length": 2.0, "T": T, "alpha": 0.0, "eps": eps, "nx": 2 * nx_rod, "dt": dt,
+        "description": "GetFEM's impacting rod mirrored into a string on (0, 2) over a point obstacle at x = 1",
+        "eta0": "0.5 - 0.5*abs(x - 1)", "v0": "0", "h": 0.0})
 
 
 #: How far below the string the obstacle is away from the point x = 1 (no node gets there).
@@ -80,12 +58,9 @@ FAR = 1e6
 
 
 def point_contact(model, h: float, name: str | None = None):
-    """`model` with its contact law acting only at the node x = 1 (cells of size h).
-
-    The law is the model's own density, switched on where |x − 1| < h/2, that is at the one node. The
-    solver lumps it with the node's weight h, so the point force is h·F: for the paper's law a damper
-    of strength h/ε on a node of mass h, so r = Δt/ε keeps its meaning (explicit restitution r − 1).
-    """
+    """`model` with its contact law acting only at the node x = 1 (cells of size h, |x − 1| < h/2): lumped with
+    the node's weight h, the paper's law is a damper of strength h/ε on a node of mass h, so r = Δt/ε keeps its
+    meaning (explicit restitution r − 1)."""
 
     def at_point(p):
         return ufl.lt(abs(p.x[0] - CONTACT_POINT), h / 2)
@@ -109,15 +84,10 @@ def point_contact(model, h: float, name: str | None = None):
         return ufl.And(at_point(p), model.contact_set(eta, p))
 
     return dataclasses.replace(
-        model,
-        name=name or f"{model.name}_at_x1",
-        penalty=only_at_point(model.penalty),
-        penalty_damping=only_at_point(model.penalty_damping),
-        contact_set=point_contact_set,
-        gap=None if model.gap is None else point_gap,
-        contact_energy=only_at_point(model.contact_energy),
-        description=f"{model.description}; only at the point x = 1",
-    )
+        model, name=name or f"{model.name}_at_x1", penalty=only_at_point(model.penalty),
+        penalty_damping=only_at_point(model.penalty_damping), contact_set=point_contact_set,
+        gap=None if model.gap is None else point_gap, contact_energy=only_at_point(model.contact_energy),
+        description=f"{model.description}; only at the point x = 1")
 
 
 def p1_l2_norms(values: np.ndarray, h: float) -> np.ndarray:
@@ -127,35 +97,20 @@ def p1_l2_norms(values: np.ndarray, h: float) -> np.ndarray:
 
 
 def relative_error(x: np.ndarray, t: np.ndarray, u: np.ndarray, exact=string_exact) -> float:
-    """max_t ‖u − I_h u_ex‖_{L²} / max_t ‖I_h u_ex‖_{L²}: GetFEM's demo's relative L∞(0,T;L²) error of u.
-
-    `u` has one row per time in `t`, at the uniform nodes `x`; I_h is P1 interpolation at the nodes.
-    """
+    """max_t ‖u − I_h u_ex‖_{L²} / max_t ‖I_h u_ex‖_{L²}, GetFEM's demo's relative L∞(0,T;L²) error of u (a row
+    per time in `t`, at the uniform nodes `x`; I_h the P1 interpolation)."""
     u_ex = np.array([exact(x, tk) for tk in t])
     h = x[1] - x[0]
     return float(np.max(p1_l2_norms(u - u_ex, h)) / np.max(p1_l2_norms(u_ex, h)))
 
 
 def relative_velocity_error(x: np.ndarray, t: np.ndarray, v: np.ndarray, exact=string_exact) -> float:
-    """(Σ_t ‖v − I_h v_ex‖²_{L²} / Σ_t ‖I_h v_ex‖²_{L²})^½: GetFEM's demo's relative L²(0,T;L²) error of v.
-
-    `v` has one row per time in `t` (uniform steps, so the demo's factor Δt cancels), at the uniform nodes `x`;
-    `exact` is called with ``derivative="t"``.
-    """
+    """(Σ_t ‖v − I_h v_ex‖²_{L²} / Σ_t ‖I_h v_ex‖²_{L²})^½, GetFEM's demo's relative L²(0,T;L²) error of v (a row
+    per time in `t`, uniform steps: the demo's factor Δt cancels; `exact` called with ``derivative="t"``)."""
     v_ex = np.array([exact(x, tk, "t") for tk in t])
     h = x[1] - x[0]
     return float(np.sqrt(np.sum(p1_l2_norms(v - v_ex, h) ** 2) / np.sum(p1_l2_norms(v_ex, h) ** 2)))
 
 
-__all__ = [
-    "CONTACT_POINT",
-    "PERIOD",
-    "ROD_ENERGY",
-    "p1_l2_norms",
-    "point_contact",
-    "relative_error",
-    "relative_velocity_error",
-    "rod_exact",
-    "rod_scene",
-    "string_exact",
-]
+__all__ = ["CONTACT_POINT", "PERIOD", "ROD_ENERGY", "p1_l2_norms", "point_contact", "relative_error",
+           "relative_velocity_error", "rod_exact", "rod_scene", "string_exact"]

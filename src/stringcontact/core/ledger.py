@@ -9,10 +9,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-__all__ = ["energy_roundoff"]
+__all__ = ["EnergyLedger", "energy_roundoff"]
 
 
-class _Ledger:
+class EnergyLedger:
     """E(0) + W_ext = E(t) + D_visc + D_con + D_num, summed from the scheme's terms; and the energy guard.
 
     A dissipative law may not raise the energy at all (1e-9 E(0) per step for round-off). A conservative
@@ -20,6 +20,8 @@ class _Ledger:
     impact, which can be most of E(0) at large Δt/ε; an instability grows exponentially, so there the
     energy may not exceed 2 E(0). So for a scheme that declares `energy_may_rise` (a restitution e > 0, whose
     impact gives back in its later steps what its first steps took; a nonlinear force in a leapfrog step).
+
+    The stepper books every step's terms (`add`); `cumulative` and `residual` are the balance now.
     """
 
     def __init__(self, start, conservative: bool, floor: float = 0.0, slack: float = 0.0):
@@ -28,6 +30,7 @@ class _Ledger:
         self.visc = self.con = self.num = self.ext = 0.0
         self.conservative = conservative
         self.E_prev = self.E_ref = kin + el + stored + slack
+        self.E_start = kin + el
         self.tol = max((1.0 if conservative else 1e-9) * abs(self.E_prev), floor, 1e-300)
 
     def add(self, terms, slack: float = 0.0) -> str | None:
@@ -65,7 +68,13 @@ class _Ledger:
 
     @property
     def cumulative(self) -> tuple:
+        """(kinetic, elastic, viscous, contact, numerical, external) now: the energies and the dissipations so far."""
         return self.kin, self.el, self.visc, self.con, self.num, self.ext
+
+    @property
+    def residual(self) -> float:
+        """E(0) + W_ext − (E(t) + D_visc + D_con + D_num): round-off when the scheme's identity closes."""
+        return self.E_start + self.ext - (self.kin + self.el + self.visc + self.con + self.num)
 
 
 def energy_roundoff(K, eta: np.ndarray, comm) -> float:

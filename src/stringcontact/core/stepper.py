@@ -1,0 +1,350 @@
+"""`TimeStepper`: a `ContactProblem` advanced by a time scheme, one step per call, the state written into the
+caller's Functions, every step's energy booked in its `EnergyLedger`, its observers told."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import MutableMapping
+
+import numpy as np
+import ufl
+from dolfinx import fem
+
+from ..errors import InstabilityError, SceneError, SolverError, plugin_code
+from ..model.forms import check_declarations
+from ..model.interface import penetration_bound_of
+from ..scene.parameters import resolve_parameters
+from ..timestepping import check_model, resolve_options, resolve_scheme
+from ..timestepping.base import DiscreteProblem, MovingObstacle, NodalLaws, StepEnergy, check_law_stability
+from ..timestepping.linear import check_option_values
+from ..timestepping.newton_options import check_snes_options
+from .ledger import EnergyLedger, energy_roundoff
+from .problem import RATE, ContactProblem
+
+__all__ = ["MAX_HALVINGS", "TimeStepper"]
+
+#: A Newton step that fails is retried as 2, 4, … 2^MAX_HALVINGS sub-steps before the stepper gives up.
+MAX_HALVINGS = 4
+
+
+class TimeStepper:
+    """`problem` advanced by the time scheme `scheme` (a registered name or a `Scheme` subclass) with the time step
+    `dt`; `options` are the scheme's (`Scheme.OPTIONS`: ``penalty``, ``mass``, ``eps``, ``restitution``,
+    ``petsc_options``, ...), checked in one line each. `nt`: the number of steps the caller means to take (the
+    scheme's messages and a moving obstacle's reach), if known.
+
+    ``advance()`` takes one step: the scheme's state goes into the problem's Functions (``eta``, ``v``, the
+    model's ``unknowns``), its energy terms into the `ledger` (whose guard raises `InstabilityError`), and every
+    attached observer's ``stepped(stepper)`` is called. `t`, `step`, `energies` (the last step's `StepEnergy`) and
+    `contact_force` (the problem's Function, filled when read) describe the state; a new `dt` takes effect at the
+    next step (the scheme's step matrices made again; mesh, forms and operators kept); `parameters` changes a model
+    constant between steps. A step whose Newton solve fails is retried in 2, 4, … 16 sub-steps from the state
+    before it. After an error inside a step (an instability, Ctrl-C) the stepper refuses to go on, in one line.
+    """
+
+    def __init__(self, problem: ContactProblem, dt: float, scheme="paper", *, nt: int | None = None, **options):
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise SceneError(f"dt: {dt!r} is not a time step; allowed: a finite number > 0")
+        self.problem, self.model, self.comm = problem, problem.model, problem.comm
+        self.name, self.Scheme = resolve_scheme(scheme)
+        model = self.model
+        self.options = resolve_options(self.name, self.Scheme, options)
+        self.penalty, self.mass = self.options["penalty"], self.options["mass"]
+        check_model(self.name, model, self.Scheme)
+        penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
+        check_declarations(model)  # the fields it holds or books as dissipative are its own
+        given = self.options["petsc_options"]
+        check_option_values(given, ranks=self.comm.size)
+        check_snes_options(given)  # tolerances that would make Newton's stopping test pass without solving
+        if self.Scheme.PENALTIES:
+            check_law_stability(model, dt, self.options["eps"], self.penalty)
+        problem.params.eps.value = self.options["eps"] if self.options["eps"] is not None else np.nan
+        self.nt, self._dt, self.step, self._t0, self._step0 = nt, float(dt), 0, 0.0, 0
+        self.observers: list = []
+        self.counters, self.past_timings, self.energies = {}, [], None
+        self._broken = None  # why the stepper may not go on (an error inside a step)
+        self._restart = None  # the start terms of a scheme restarted after sub-steps
+        self.parameters = _Constants(self)
+        with plugin_code(f"model '{model.name}'"):
+            ops = problem.operators(not self.Scheme.LINEAR_PATH)
+            self._check_moving_obstacle()
+            self.newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
+            self.discrete = self._discrete(ops, self._dt)
+            self.scheme = self.Scheme(self.discrete)
+        self._start()
+
+    # --- set-up -----------------------------------------------------------------------------------------------
+
+    def _discrete(self, ops, dt: float) -> DiscreteProblem:
+        """The discrete problem the scheme steps at the time step `dt` (`DiscreteProblem`)."""
+        p = self.problem
+        fields = {f: f.x.array[: p.n_owned] for f in p.params.extra.values()}
+        laws = NodalLaws(self.model, p.V, p.params, dt, fields, p.x)
+        given = self.options["petsc_options"]
+        options = _model_options(self.model, ops, p.params, p.dim, self.comm.size, given) | given
+        obstacle = None
+        if p.obstacle is not None:
+            obstacle = MovingObstacle(p.obstacle_values, p.params.extra["obstacle"], p.params.extra[RATE], dt,
+                                      p.n_owned)
+        return DiscreteProblem(ops=ops, dt=dt, mass=self.mass, penalty=self.penalty, bc=p.bc, g=p.g, laws=laws,
+                               comm=self.comm, eps=self.options["eps"], x=p.x, nt=self.nt or 0, petsc_options=options,
+                               restitution=self.options["restitution"] or 0.0, obstacle=obstacle,
+                               options=self.options)
+
+    def _check_moving_obstacle(self) -> None:
+        """A moving obstacle runs with a scheme without penalty (restitution 0), and with a penalty scheme when the
+        model's law reads the obstacle's rate (the gap rate v − ψ_t); the rest is refused in one line."""
+        p = self.problem
+        if p.obstacle is None:
+            return
+        if not self.Scheme.PENALTIES:
+            if self.options["restitution"]:
+                raise SceneError("restitution: a moving obstacle (obstacle in t) runs with restitution 0 only")
+            return
+        law = self.model.penalty if self.penalty == "explicit" else self.model.penalty_damping
+        what = "penalty" if self.penalty == "explicit" else "penalty_damping"
+        if law is None:  # no such law: the scheme refuses the model itself
+            return
+        eta, v = fem.Function(p.V), fem.Function(p.V)
+        if p.params.extra[RATE] not in ufl.algorithms.extract_coefficients(law(eta, v, p.params)):
+            raise SceneError(f"obstacle: model '{self.model.name}''s {what} does not read the obstacle's rate "
+                             f"p.extra['{RATE}'] (its gap rate v - psi_t), which a moving obstacle needs; use scheme "
+                             "'projection' or a law in the gap rate (model 'loaded_obstacle')")
+
+    def _start(self) -> None:
+        """The initial state opens the ledger; the state goes into the Functions; the observers are told."""
+        p = self.problem
+        if p.obstacle is not None:  # ψ_t for the penalty's gap rate at t = 0
+            rate = p.params.extra[RATE]
+            rate.x.array[:] = (p.obstacle_values(0.0) - p.obstacle_values(-self._dt)) / self._dt
+        from ..fem.agree import one_outcome
+
+        eta0, v0 = one_outcome(self.comm, p.initial_state)
+        with plugin_code(f"model '{self.model.name}'"):
+            start = self.scheme.start(eta0, v0)
+        self.ledger = EnergyLedger(start, conservative=self.model.contact_energy is not None
+                                   or self.scheme.energy_may_rise,
+                                   floor=energy_roundoff(self.discrete.ops.K, self.scheme.eta, self.comm),
+                                   slack=self.scheme.energy_slack)
+        self.energies = start
+        self._write_state()
+
+    # --- the state ------------------------------------------------------------------------------------------
+
+    @property
+    def dt(self) -> float:
+        """The time step; a new value takes effect at the next step (the scheme's matrices made again from the
+        state, the difference in its energy booked as numerical dissipation)."""
+        return self._dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ValueError(f"dt: {value!r} is not a time step; allowed: a finite number > 0")
+        if value == self._dt:
+            return
+        if self.problem.obstacle is not None:
+            raise ValueError("dt: a moving obstacle's scheme starts its obstacle at t = 0; its time step cannot change "
+                             "during a run")
+        self._t0, self._step0 = self.t, self.step
+        self._dt = float(value)
+        self.scheme = self._restarted(self._dt)
+        self.ledger.rebase(self._restart_terms, numerical=True)
+
+    @property
+    def t(self) -> float:
+        """The time of the state."""
+        return self._t0 + (self.step - self._step0) * self._dt
+
+    @property
+    def contact_force(self):
+        """The contact force density of the last step, as the problem's Function ``contact_force`` (filled now)."""
+        f = self.problem.contact_force
+        f.x.array[: self.problem.n_owned] = self.scheme.contact_force
+        f.x.scatter_forward()
+        return f
+
+    def attach(self, observer):
+        """Attach `observer` (`core.observers.Observer`): it is told of the initial state now and of every step after."""
+        self.observers.append(observer)
+        started = getattr(observer, "started", None)
+        if started is not None:
+            started(self)
+        return observer
+
+    def finish(self) -> None:
+        """Tell the observers the caller has finished (``finished(stepper)``)."""
+        for observer in self.observers:
+            finished = getattr(observer, "finished", None)
+            if finished is not None:
+                finished(self)
+
+    def _write_state(self) -> None:
+        """The scheme's state into the problem's Functions (owned values, then the ghosts)."""
+        p, scheme, n = self.problem, self.scheme, self.problem.n_owned
+        pairs = [(p.eta, scheme.eta), (p.v, scheme.velocity)]
+        pairs += [(p.unknowns[name], values) for name, values in scheme.fields.items()]
+        for f, values in pairs:
+            f.x.array[:n] = values
+            if self.comm.size > 1:
+                f.x.scatter_forward()
+
+    # --- stepping -------------------------------------------------------------------------------------------
+
+    def advance(self) -> StepEnergy:
+        """One time step from `t` to `t` + `dt`; returns its energy terms. `InstabilityError` if the energy rose."""
+        if self._broken is not None:
+            raise RuntimeError(f"the stepper cannot go on: {self._broken}; make a new one from its last state")
+        self._broken = f"step {self.step + 1} did not finish"  # cleared below: Ctrl-C within a step leaves it
+        if self.parameters.changed:
+            self._rebuild()
+        terms = self._step() if self.newton else self.scheme.step()
+        why = self.ledger.add(terms, self.scheme.energy_slack)
+        if self._restart is not None:  # a sub-stepped step left a scheme at Δt started afresh from its end
+            self.ledger.rebase(self._restart, numerical=True)
+            self._restart = None
+        self.step += 1
+        self.energies = terms
+        if why is not None:
+            self._broken = f"it became unstable at step {self.step}"
+            raise self._unstable(why)
+        self._write_state()
+        self._broken = None
+        for observer in self.observers:
+            stepped = getattr(observer, "stepped", None)
+            if stepped is not None:
+                stepped(self)
+        return terms
+
+    def _step(self) -> StepEnergy:
+        """A Newton path's step, retried as 2, 4, … 2^MAX_HALVINGS sub-steps from the same state when Newton fails;
+        a SolverError naming the time, the step and what to change only when the finest fails."""
+        scheme = self.scheme
+        eta, v = scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy()
+        where = f"step {self.step + 1}, t = {self.t + self._dt:.6g}"
+        try:
+            return scheme.step()
+        except SolverError as exc:
+            if getattr(exc, "not_finite", False):  # the model's form, not the step size: sub-steps cannot help
+                raise SolverError(f"{where}: {exc}") from None
+            if self.problem.obstacle is not None:
+                raise SolverError(f"{where}: {exc} (a moving obstacle's step is not sub-stepped: use a smaller dt)") from None
+            for halvings in range(1, MAX_HALVINGS + 1):
+                try:
+                    begin, step, restart = self._substeps(eta, v, 2**halvings)
+                except SolverError:
+                    continue
+                self.ledger.rebase(begin, numerical=True)  # the state before the step, as the sub-steps count it
+                self._restart = restart  # booked after the step: the ledger holds the step's end first
+                return step
+            raise SolverError(f"{where}: {exc}, and again in {2**MAX_HALVINGS} sub-steps of dt/{2**MAX_HALVINGS}; "
+                              f"use a smaller dt (nt >= {(self.nt or 1) * 2**MAX_HALVINGS}) or scheme 'paper'") from None
+
+    def _restarted(self, dt: float, state=None):
+        """A new scheme at `dt` on the same operators, started from `state` (the current one by default); its start
+        terms are kept in `_restart_terms`."""
+        scheme = self.scheme
+        eta, v = state or (scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy())
+        self.past_timings.append(scheme.timings)
+        self.discrete = self._discrete(self.discrete.ops, dt)
+        fresh = self.Scheme(self.discrete)
+        self._restart_terms = fresh.start(eta, v)
+        return fresh
+
+    def _substeps(self, eta, v, m: int):
+        """One step as `m` sub-steps of Δt/m by a scheme started afresh from (η, v), their energy terms summed; then a
+        scheme at Δt started from their end. Returns the fine scheme's start terms, the step's terms and the
+        restarted scheme's start terms."""
+        coarse = self.discrete
+        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m), nt=(self.nt or 0) * m))
+        begin = fine.start(eta, v)
+        increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the state's energies: the last
+        for _ in range(m):
+            terms = fine.step()
+            increments += terms[2:6]
+        self.counters["sub-stepped steps"] = self.counters.get("sub-stepped steps", 0) + 1
+        self.counters["sub-steps"] = self.counters.get("sub-steps", 0) + m
+        self.past_timings.append(fine.timings)
+        end = (fine.eta.copy(), np.asarray(fine.velocity, dtype=float).copy())
+        self.discrete = coarse
+        self.scheme = self._restarted(self._dt, end)
+        step = StepEnergy(terms.kinetic, terms.elastic, *increments.tolist(), terms.stored)
+        return begin, step, self._restart_terms
+
+    def _rebuild(self) -> None:
+        """A model constant changed: its operators again, a new scheme from the state (η, v), the jump of the state's
+        energy booked as external work."""
+        old = self.scheme
+        state = (old.eta.copy(), np.asarray(old.velocity, dtype=float).copy())
+        ops = self.problem.reassemble(not self.Scheme.LINEAR_PATH, lambda: state)
+        self.past_timings.append(old.timings)
+        self.discrete = self._discrete(ops, self._dt)
+        self.scheme = self.Scheme(self.discrete)
+        self.ledger.rebase(self.scheme.start(*state))
+        self.parameters.changed = False
+
+    def _unstable(self, why: str) -> InstabilityError:
+        n, scheme = self.step, self.scheme
+        situation = f"scheme {self.name}" + (f", {scheme.situation}" if scheme.situation else "")
+        eps = self.options["eps"]
+        return InstabilityError(f"unstable at step {n}, t = {self.t:.6g}: {why} ({situation}); {scheme.remedy}",
+                                step=n, time=self.t, r=self._dt / eps if self.Scheme.PENALTIES and eps else None)
+
+    def timings(self) -> dict:
+        """The schemes' counters one after the other (a restart makes a new scheme): numbers summed, descriptions
+        the last one's."""
+        out = {}
+        for t in [*self.past_timings, self.scheme.timings]:
+            for key, value in t.items():
+                both = isinstance(value, (int, float)) and isinstance(out.get(key), (int, float))
+                out[key] = out[key] + value if both else value
+        return out
+
+
+def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:
+    """A nonlinear model's own solver defaults (`Model.solver`): below the user's options (`given`), above the size
+    rule's choice. A user who names ksp_type or pc_type chooses the linear solver: the model's linear options go."""
+    if ops.nonlinear is None:
+        return {}
+    hints = model.solver
+    if "ksp_type" in given or "pc_type" in given:
+        return dict(hints.newton_options)
+    return hints.options(dim, ranks, {name: float(c.value) for name, c in params.constants.items()})
+
+
+class _Constants(MutableMapping):
+    """`TimeStepper.parameters`: the model's constants by name, as floats; setting one checks it (`ModelConstant.check`
+    and the model's rule) and sets the dolfinx Constant the forms read, for the next step to take up."""
+
+    def __init__(self, stepper: TimeStepper):
+        self._stepper, self.changed = stepper, False
+
+    def _constants(self) -> dict:
+        return self._stepper.problem.constants
+
+    def __getitem__(self, name: str) -> float:
+        return float(self._constants()[name].value)
+
+    def __setitem__(self, name: str, value) -> None:
+        st = self._stepper
+        if st.problem.obstacle is not None:
+            raise ValueError(f"{name}: a constant cannot change during a run with a moving obstacle (its scheme would "
+                             "start its obstacle again at t = 0); restart from the state with the new value")
+        values = resolve_parameters(st.model.name, st.model.constants, dict(self) | {name: value},
+                                    st.model.check_constants)
+        self._constants()[name].value = values[name]
+        self.changed = True
+
+    def __delitem__(self, name: str) -> None:
+        raise TypeError(f"{name}: a model's constant cannot be removed during a run; set its value")
+
+    def __iter__(self):
+        return iter(self._constants())
+
+    def __len__(self) -> int:
+        return len(self._constants())
+
+    def __repr__(self) -> str:
+        return f"parameters({dict(self)})"
+

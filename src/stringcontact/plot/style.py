@@ -1,0 +1,122 @@
+"""How a run's pictures are written (`Look`): their file formats (PNG, and PDF or SVG for a paper), their size, and
+the matplotlib style sheet they are drawn in (``styles/NAME.mplstyle``, package data: `STYLES`).
+
+The charts are matplotlib's figures saved by `Figure.savefig` in each format, laid out by matplotlib's constrained
+layout, so that no title, legend or caption is cut off at any size. The pyvista pictures are a pyvista render
+placed in such a figure: their words (title, colour key, panel labels, caption) are matplotlib's vector text, the
+3-D surface a raster at the style's resolution. VTK's own vector export (``Plotter.save_graphic``, GL2PS) was
+measured here (VTK 9.7.2, EGL) and not used: it too embeds the 3-D scene as a raster at the window's size, and it
+writes its text in the PDF base font Helvetica without its encoding, so that "η" reads "Œ∑" in the PDF.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+#: the files a picture may be written as (`Look.formats`): matplotlib's `savefig` formats
+FORMATS = ("png", "pdf", "svg")
+#: the style sheets (``styles/NAME.mplstyle``): name -> (default size in inches (width, height), whether a caption
+#: line under the picture gives the run's details (a paper's own caption says what it needs), the size of the
+#: pyvista pictures' tick labels against the screen's: the sheet's tick labels' against matplotlib's 10 points)
+STYLES = {"screen": ((11.0, 9.0), True, 1.0), "paper": ((7.0, 5.6), False, 0.7)}
+#: the pixels per inch the pyvista pictures' font sizes are chosen for (a picture at the style's resolution scales them)
+SCREEN_DPI = 100
+#: the sizes (inches) a picture may take
+SMALLEST, LARGEST = 2.0, 40.0
+
+
+@dataclass(frozen=True)
+class Look:
+    """How the pictures are written: each picture as every format of `formats` (``"png"``, ``"pdf"``, ``"svg"``:
+    ``contact_set.pdf`` beside ``contact_set.png``), in the style sheet `style` (``"screen"``, the default, or
+    ``"paper"``: 8-point text for a figure 7 inches wide, PNG at 300 dots per inch), at `size` (width, height) in
+    inches: the size of the space-time pictures and the 3-D ones, the width of the others (their height follows
+    their panels); None: the style's. ``membrane.gif`` is written with a raster format only. Checked when made: a
+    ValueError names the option and what it allows."""
+
+    formats: tuple = ("png",)
+    style: str = "screen"
+    size: tuple | None = None
+
+    def __post_init__(self) -> None:
+        formats = (self.formats,) if isinstance(self.formats, str) else tuple(self.formats)
+        if not formats or any(f not in FORMATS for f in formats):
+            raise ValueError(f"formats: expected some of {', '.join(FORMATS)}, got {self.formats!r}")
+        object.__setattr__(self, "formats", tuple(dict.fromkeys(formats)))
+        if self.style not in STYLES:
+            raise ValueError(f"style: expected one of {', '.join(STYLES)}, got {self.style!r}")
+        if self.size is not None:
+            try:
+                width, height = (float(v) for v in self.size)
+            except (TypeError, ValueError):
+                raise ValueError(f"size: expected (width, height) in inches, got {self.size!r}") from None
+            if not (SMALLEST <= width <= LARGEST and SMALLEST <= height <= LARGEST):
+                raise ValueError(f"size: width and height must be in {SMALLEST:g}..{LARGEST:g} inches, got {self.size!r}")
+            object.__setattr__(self, "size", (width, height))
+
+    @classmethod
+    def of_pixels(cls, window_size, **kwargs) -> Look:
+        """The look of a picture `window_size` pixels large on a screen (100 pixels an inch)."""
+        return cls(size=(window_size[0] / SCREEN_DPI, window_size[1] / SCREEN_DPI), **kwargs)
+
+    @property
+    def inches(self) -> tuple[float, float]:
+        """(width, height) of a space-time or 3-D picture."""
+        return self.size or STYLES[self.style][0]
+
+    @property
+    def width(self) -> float:
+        """The width of every picture, in inches."""
+        return self.inches[0]
+
+    @property
+    def caption(self) -> bool:
+        """Whether the pictures carry a caption line with the run's details (the screen style's do)."""
+        return STYLES[self.style][1]
+
+    @property
+    def sheet(self) -> Path:
+        """The matplotlib style sheet."""
+        return Path(__file__).with_name("styles") / f"{self.style}.mplstyle"
+
+    @property
+    def dpi(self) -> float:
+        """The PNG's dots per inch (the style sheet's ``savefig.dpi``)."""
+        return _dpi(self.sheet)
+
+    def pixels(self, inches) -> tuple[int, int]:
+        """The pixels of a raster `inches` (width, height) large at the style's resolution (a pyvista render)."""
+        return tuple(max(16, round(v * self.dpi)) for v in inches)
+
+    @property
+    def zoom(self) -> float:
+        """How much larger a pyvista render's fonts are than on a screen (100 pixels an inch, `STYLES`' sizes): its
+        pixels an inch against the screen's, times the style's tick labels against the screen's."""
+        return self.dpi / SCREEN_DPI * STYLES[self.style][2]
+
+    def paths(self, path) -> list[Path]:
+        """`path` (a picture's name, ``.png``) in each format."""
+        path = Path(path)
+        return [path.with_suffix(f".{f}") for f in self.formats]
+
+    @contextlib.contextmanager
+    def drawn(self):
+        """Draw within: the style sheet's settings (matplotlib's `style.context`)."""
+        import matplotlib.style
+
+        with matplotlib.style.context(self.sheet):
+            yield
+
+
+@functools.cache
+def _dpi(sheet: Path) -> float:
+    from matplotlib import rc_params_from_file
+
+    return float(rc_params_from_file(sheet, use_default_template=False)["savefig.dpi"])
+
+
+#: the look of the pictures a run writes by default
+SCREEN = Look()

@@ -1,0 +1,179 @@
+"""The scene as an adapter: a `Scene` turned into the core's objects in one place.
+
+`check_scene_run` checks what needs no mesh (the scheme and its options, the model and its constants, the PETSc
+options, the size), before the mesh is built (seconds to minutes on a large one); `scene_problem` builds the mesh,
+the P1 space, the initial Functions, the boundary conditions, the fields and the moving obstacle, and returns the
+`ContactProblem`; `scene_stepper` makes its `TimeStepper`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import fem
+
+from ..core.problem import ContactProblem
+from ..core.stepper import TimeStepper
+from ..errors import SceneError
+from ..fem import compat, domains
+from ..fem.agree import one_outcome
+from ..fem.operators import bc_dofs, node_coordinates
+from ..model.forms import check_declarations
+from ..model.interface import Model, inelastic, penetration_bound_of
+from ..scene import check_petsc_options
+from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
+from ..scene.names import DEFAULT_SCHEME
+from ..scene.parameters import resolve_parameters
+from ..timestepping import check_model, resolve_options, resolve_scheme
+from ..timestepping.base import check_law_stability
+from ..timestepping.linear import check_option_values
+from ..timestepping.newton_options import check_snes_options
+
+__all__ = ["RunPlan", "check_scene_run", "model_constants", "resolve_model", "scene_problem", "scene_stepper"]
+
+#: The least wall time one node's time step takes (a string on the linear path, measured on the 2-core VM: Example 1
+#: at nx = 2e4 took 2.5e-7 s; 2.3e-8 s in the fastest runs): the estimate below which a long run is told it is long.
+SECONDS_PER_NODE_STEP = 2.5e-8
+#: A run predicted to take longer than this is told so at its start, with its estimate.
+LONG_RUN_SECONDS = 3600.0
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a scene's run is, resolved before the mesh: the scheme's name and class, its options (`Scheme.OPTIONS`,
+    defaults filled in), the model and its constants."""
+
+    name: str
+    Scheme: type
+    options: dict
+    model: Model
+    constants: dict
+
+
+def resolve_model(model, scene) -> Model:
+    """`model` (a Model, a registered name or "package.module:name"), else the scene's, else the paper's."""
+    if model is None and not getattr(scene, "model", None):
+        return inelastic
+    from ..model.registry import load_model
+
+    return load_model(model if model is not None else scene.model)
+
+
+def model_constants(scene, model: Model) -> dict[str, float]:
+    """The model's constants for a run: the scene's ``[parameters]`` checked against `Model.constants` (the model
+    actually run), defaults filled in."""
+    return resolve_parameters(model.name, model.constants, dict(scene.parameters), model.check_constants)
+
+
+def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> RunPlan:
+    """The scheme (`scheme`, else the scene's, else "paper") and its options (the scene's ``[scheme]`` table with
+    `options` on top), the model and its constants, the PETSc options, the size and the contact law's bound, checked
+    before the mesh; the same on every rank, so that a refusal ends every rank alike."""
+    name, Scheme = resolve_scheme(scheme or scene.scheme or DEFAULT_SCHEME)
+    given = dict(scene.scheme_options) | {k: v for k, v in options.items() if v is not None}
+    if "petsc_options" in options and options["petsc_options"] is not None:  # the argument's win, option by option
+        given["petsc_options"] = dict(scene.petsc_options) | dict(check_petsc_options(options["petsc_options"]))
+    else:
+        given["petsc_options"] = dict(scene.petsc_options)
+    resolved = resolve_options(name, Scheme, given)
+    model = resolve_model(model, scene)
+    check_model(name, model, Scheme)
+    penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
+    check_declarations(model)  # the fields it holds or books as dissipative are its own
+    from ..errors import plugin_code
+
+    with plugin_code(f"model '{model.name}'"):  # its functions' sys.exit: one line, not exit 0
+        constants = model_constants(scene, model)
+    check_option_values(resolved["petsc_options"], ranks=comm.size if comm is not None else 1)
+    check_snes_options(resolved["petsc_options"])
+    _check_size(scene, model)
+    if Scheme.PENALTIES:
+        with warnings.catch_warnings():  # the scheme warns once, when it is made
+            warnings.simplefilter("ignore")
+            check_law_stability(model, scene.dt, resolved["eps"], resolved["penalty"])
+    return RunPlan(name, Scheme, resolved, model, constants)
+
+
+def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> ContactProblem:
+    """The scene's `ContactProblem`: its mesh (`fem.domains`), the P1 space, η and v from its initial state, its
+    ends or boundary held at their heights, its fields (a load, an obstacle) and a moving obstacle ψ(x, t), each
+    checked where it is evaluated (finite, within ±MAX_MAGNITUDE)."""
+    msh = domains.create(scene, comm)
+    V = compat.function_space(msh, "Lagrange", 1)
+    dof_x = node_coordinates(V)  # owned dofs, then ghosts
+    values = one_outcome(comm, lambda: {name: _checked_values(scene, name, dof_x) for name in scene.fields})
+    fields = {}
+    for name in scene.fields:
+        f = fem.Function(V, name=name)
+        f.x.array[:] = values[name]
+        fields[name] = f
+    eta, v = fem.Function(V, name="eta"), fem.Function(V, name="velocity")
+    n_owned = V.dofmap.index_map.size_local
+    eta.x.array[:n_owned], v.x.array[:n_owned] = one_outcome(
+        comm, lambda: (scene.initial_displacement(dof_x[:n_owned]), scene.initial_velocity(dof_x[:n_owned])))
+    eta.x.scatter_forward()
+    v.x.scatter_forward()
+    held = one_outcome(comm, _held, scene, V, dof_x)  # one outcome on every rank
+    obstacle = None
+    if scene.obstacle_moves:  # not collective: a rank may evaluate it alone; one that fails ends the whole job
+        def obstacle(x, t):
+            return _checked_values(scene, "obstacle", x, t)
+    return ContactProblem(model, eta, v, bcs=[held], alpha=scene.alpha,
+                          constants=model_constants(scene, model) if constants is None else constants,
+                          fields=fields, obstacle=obstacle)
+
+
+def scene_stepper(scene, plan: RunPlan, problem: ContactProblem) -> TimeStepper:
+    """The `TimeStepper` of a scene's run (`plan` from `check_scene_run`)."""
+    return TimeStepper(problem, scene.dt, plan.Scheme, nt=scene.nt, **plan.options)
+
+
+def _held(scene, V, dof_x: np.ndarray):
+    """The DirichletBC of the scene: a string's ends at h_left, h_right; a membrane's boundary at h(x, y)."""
+    g = fem.Function(V)
+    if scene.dim == 2:
+        dofs = domains.boundary_dofs(V)
+        g.x.array[dofs] = scene.boundary_height(dof_x[dofs])
+    else:
+        left, right = bc_dofs(V, scene.length)
+        g.x.array[left], g.x.array[right] = scene.h_left, scene.h_right
+        dofs = np.concatenate([left, right]).astype(np.int32)
+    return fem.dirichletbc(g, dofs)
+
+
+def _checked_values(scene, name: str, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """The scene's field `name` at the nodes `x` and the time `t`, finite and within ±MAX_MAGNITUDE at every node,
+    else SceneError naming the field, the time, the value and where."""
+    try:
+        values = np.asarray(scene.field_values(name, x, t), dtype=float)
+    except SceneError as exc:
+        raise SceneError(f"{name} at t = {t:.6g}: {str(exc).removeprefix(f'{name}: ')}") from None
+    bad = np.flatnonzero(~(np.abs(values) <= MAX_MAGNITUDE))
+    if bad.size:
+        i = bad[np.argmax(np.nan_to_num(np.abs(values[bad]), nan=np.inf))]
+        where = ", ".join(f"{c:.4g}" for c in np.atleast_1d(x[i]))
+        raise SceneError(f"{name}: at t = {t:.6g} it is {values[i]:.4g} at x = ({where}); allowed: finite values in "
+                         f"[-{MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}] at every node and time step")
+    return values
+
+
+def _check_size(scene, model: Model) -> None:
+    """A membrane's set-up memory with the model's own cost per node within the scene's budget, else SceneError; a
+    run predicted to take over an hour (`SECONDS_PER_NODE_STEP`) says so in a warning, with its estimate."""
+    nodes = scene.node_estimate
+    per_node = getattr(model.solver, "setup_bytes_per_node", None) or SETUP_BYTES_PER_NODE
+    budget = MAX_MEMBRANE_NODES * SETUP_BYTES_PER_NODE
+    if scene.dim == 2 and nodes * per_node > budget:
+        key = {"rectangle": "cells", "disk": "mesh_size"}.get(scene.domain, "mesh")
+        value = getattr(scene, key, None)
+        raise SceneError(f"{key}: {list(value) if isinstance(value, tuple) else value} gives "
+                         f"{'about ' if key == 'mesh_size' else ''}{nodes} nodes, about {nodes * per_node / 1e9:.3g} GB "
+                         f"to set up with model '{model.name}' ({per_node / 1e3:g} KB per node, measured); allowed: at "
+                         f"most {int(budget // per_node)} nodes with this model ({budget / 1e9:.2g} GB)")
+    seconds = nodes * scene.nt * SECONDS_PER_NODE_STEP
+    if seconds > LONG_RUN_SECONDS:
+        warnings.warn(f"nt = {scene.nt} steps of {nodes} nodes: this run will take about {seconds / 3600:.3g} hours or "
+                      f"more (at least {SECONDS_PER_NODE_STEP:g} s per node and step); reduce nt or the mesh for a "
+                      "shorter one", UserWarning, stacklevel=3)
