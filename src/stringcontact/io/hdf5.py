@@ -98,7 +98,7 @@ class Hdf5File:
         try:
             self._call("H5Fget_vfd_handle", self.id, H5P_DEFAULT, ctypes.byref(handle))
         except (OSError, RuntimeError):
-            self.discard()
+            self.lib.H5Fclose(self.id)
             raise
         self.fd = ctypes.cast(handle, ctypes.POINTER(ctypes.c_int)).contents.value
 

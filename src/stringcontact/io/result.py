@@ -61,17 +61,21 @@ class Result:
     `min_gap` is the least gap η − ψ over every node and step (ψ at each step's time when the obstacle moves; below 0
     the string is −min_gap below it); `min_eta` the least height η over the same (at t = 0 the interior nodes):
     one number under the flat obstacle ψ = 0. `contact` is η ≤ ψ; `contact_force` is the contact force density at
-    t_n, ≥ 0 and 0 off the contact set under every scheme. `energy` holds (k,) arrays, the dissipations and the
-    external work cumulative from t = 0: E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off, where
-    D_num is what the scheme's own discrete energy identity holds besides the physical terms; for `paper`, per step,
+    t_n, ≥ 0 and 0 off the contact set under every scheme (which step's force: docs/explanation/schemes.md).
+
+    `energy` holds (k,) arrays, the dissipations and the external work cumulative from t = 0, so that
+    E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off; every scheme books D_con as the applied force's
+    work with the step's mean velocity, and D_num is what its own discrete energy identity holds besides the
+    physical terms (docs/explanation/reliability.md). For `paper`, per step,
 
         ΔD_num = ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n),
 
     whose force term is negative where the explicit penalty brakes a node, so D_num can be negative (Example 1:
-    −4.1 of E(0) = 1311): the scheme's time error in energy terms, O(Δt) (docs/explanation/reliability.md). `fields` holds the model's output fields by name, (k, nodes) like `eta`, and
-    `field_info` how each is shown (`OutputField.metadata`); `parameters` the model's constants as used; `timings`
-    seconds ("setup", "solve", "output", "pictures"), `counters` the schemes' counts, `solver` what solved the steps,
-    in words.
+    −4.1 of E(0) = 1311): the scheme's time error in energy terms, O(Δt).
+
+    `fields` holds the model's output fields by name, (k, nodes) like `eta`, and `field_info` how each is shown
+    (`OutputField.metadata`); `parameters` the model's constants as used; `timings` seconds ("setup", "solve",
+    "output", "pictures"), `counters` the schemes' counts, `solver` what solved the steps, in words.
     """
 
     scene: object
