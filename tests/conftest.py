@@ -1,6 +1,6 @@
 """Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
-`plot_refusal` for damaged folders, `meshio_read` for the XDMF files, `run_problem` for a scheme driven directly;
-the hypothesis profile of every property test."""
+`plot_refusal` for damaged folders, `meshio_read` and `xdmf_frames` for the XDMF files, `run_problem` for a scheme
+driven directly; the hypothesis profile of every property test."""
 
 from __future__ import annotations
 
@@ -180,6 +180,51 @@ def meshio_read(path) -> dict:
     proc = subprocess.run([sys.executable, "-c", MESHIO, str(path)], capture_output=True, text=True, check=False)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads(proc.stdout)
+
+
+def xdmf_frames(folder):
+    """The XDMF frames of a run's folder as a `Result`: the fields read from solution.xdmf/.h5 themselves (with pyfive,
+    in this process: h5py's libhdf5 must not meet dolfinx's), the nodes in the run's order, in 2D the triangles and
+    lumped nodal areas from the file's topology; the scene, options and the energies at those times from the
+    folder's own Result (`read_output`)."""
+    import dataclasses
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+    import pyfive
+
+    from stringcontact.io.readback import read_output, read_xdmf
+    from stringcontact.io.result import FIELDS, canonical_cells, node_sort_key
+
+    folder = Path(folder)
+    run = read_output(folder)
+    geometry, series = read_xdmf(folder / "solution.xdmf")
+    times = np.array([t for t, _ in series["eta"]])
+    rows = np.searchsorted(run.t, times)
+    assert np.array_equal(run.t[rows], times), "the XDMF's times are not stored rows"
+    with pyfive.File(str(folder / "solution.h5")) as h5:
+        def data(ref):
+            return np.asarray(h5[ref.split(":", 1)[1]][:])
+
+        points = data(geometry)
+        x = points[:, 0] if run.dim == 1 else points[:, :2]
+        width = float(np.max(np.ptp(x, axis=0))) or 1.0  # the file's points may differ from the mesh's by an ulp
+        order = np.argsort(x if run.dim == 1 else node_sort_key(np.round(x / width, 12)), kind="stable")
+        fields = {name: np.stack([data(ref).reshape(-1)[order] for _, ref in frames]) for name, frames in series.items()}
+        mesh = {}
+        if run.dim == 2:
+            topology = ET.parse(folder / "solution.xdmf").getroot().find("Domain/Grid/Grid/Topology/DataItem").text
+            rank = np.empty_like(order)
+            rank[order] = np.arange(order.size)
+            cells = canonical_cells(rank[data(topology.strip()).reshape(-1, 3)])
+            a, b, c = (x[order][cells[:, k]] for k in range(3))
+            area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+            mesh = {"cells": cells, "weights": np.bincount(cells.ravel(), np.repeat(area / 3, 3), minlength=len(x))}
+    return dataclasses.replace(
+        run, x=x[order], t=times, steps=run.steps[rows], eta=fields["eta"], velocity=fields["velocity"],
+        contact=fields["contact"] > 0.5, contact_force=fields["contact_force"],
+        energy={key: values[rows] for key, values in run.energy.items()},
+        fields={name: fields[name] for name in run.fields if name in fields and name not in FIELDS}, **mesh)
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ import pytest
 import stringcontact
 
 LAYERS = ("scene", "model", "fem", "timestepping", "core", "io", "plot", "run", "verification", "analysis", "cli")
-BASE = ("errors", "fenics_versions", "jitlog", "lazy", "stack")
+BASE = ("errors", "jitlog", "lazy", "stack")
 ROOT = Path(stringcontact.__file__).parent
 FACADE_USERS = ("analysis", "cli")
 

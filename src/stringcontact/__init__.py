@@ -5,15 +5,13 @@
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 
-from . import fenics_versions as _fenics_versions
-from . import stack as _stack
 from . import jitlog as _jitlog
+from . import stack as _stack
 from .errors import InstabilityError, InstabilityWarning, SceneError
 from .lazy import lazy_names as _lazy_names
 
 _stack.load_mpi_first()  # the dolfinx wheel's MPI before anything imports dolfinx (nothing elsewhere)
 _jitlog.quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
-_fenics_versions.read_without_pkg_resources()  # before UFL is imported: 55-60 ms of start-up on bookworm
 
 __version__ = "0.1.0"
 
@@ -79,6 +77,5 @@ __all__ = [
 
 def __dir__():
     """What a user should touch (tab completion): `__all__` and `__version__`. The submodules and the start-up
-    helpers (`jitlog.quiet_compiler`, `fenics_versions.read_without_pkg_resources`) stay importable from their
-    modules."""
+    helpers (`jitlog.quiet_compiler`, `lazy.lazy_names`) stay importable from their modules."""
     return sorted([*__all__, "__version__"])

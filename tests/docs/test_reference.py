@@ -193,13 +193,12 @@ def test_the_api_page_lists_every_public_name_with_its_signature():
 def test_the_namespace_shows_only_public_names():
     shown = dir(stringcontact)
     assert shown == sorted([*stringcontact.__all__, "__version__"])
-    for helper in ("jitlog", "lazy_names", "quiet_compiler", "read_without_pkg_resources"):
+    for helper in ("jitlog", "lazy_names", "quiet_compiler"):
         assert helper not in shown
-    from stringcontact.fenics_versions import read_without_pkg_resources  # still importable from their modules
-    from stringcontact.jitlog import quiet_compiler
+    from stringcontact.jitlog import quiet_compiler  # still importable from their modules
     from stringcontact.lazy import lazy_names
 
-    assert callable(read_without_pkg_resources) and callable(quiet_compiler) and callable(lazy_names)
+    assert callable(quiet_compiler) and callable(lazy_names)
 
 
 def _site_pages() -> list[Path]:

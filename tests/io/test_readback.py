@@ -52,14 +52,6 @@ def _no_energy_column(p):
     p.write_text(header.replace("kinetic", "kinetik") + "\n" + rest)
 
 
-def _a_missing_dataset(p):
-    p.write_text(p.read_text().replace("solution.h5:/eta_3<", "solution.h5:/no_such_data<"))
-
-
-def _a_time_that_is_not_a_number(p):
-    p.write_text(p.read_text().replace('<Time Value="0.0"/>', '<Time Value="soon"/>', 1))
-
-
 def _rows_without(name):
     def damage(p):
         with np.load(p) as npz:
@@ -94,19 +86,13 @@ def _field(**given):
     return {"reaction": {"label": "reaction", "colours": [[0, 0, 0], [1, 0, 0]], "scale": "linear"} | given}
 
 
-#: the XDMF's damage matters to `plot` when the folder has no rows.npz (written before it existed)
-XDMF_FILES = ("solution.h5", "solution.xdmf")
-
 CASES = {
     "random rows": ("rows.npz", _random, "is not a readable .npz file"),
     "truncated rows": ("rows.npz", _truncate, "is not a readable .npz file"),
     "rows without eta": ("rows.npz", _rows_without("eta"), "has no array 'eta'"),
     "rows one short": ("rows.npz", _rows_with("velocity", lambda v: v[:-1]), "does not hold the 31 rows of diagnostics.csv"),
     "rows at other times": ("rows.npz", _rows_with("t", lambda t: t * 2), "its times are not those of diagnostics.csv"),
-    "emptied h5": ("solution.h5", _empty, "not a readable HDF5 file"),
-    "truncated h5": ("solution.h5", _truncate, "not a readable HDF5 file"),
-    "random h5": ("solution.h5", _random, "not a readable HDF5 file"),
-    "h5 without a dataset": ("solution.xdmf", _a_missing_dataset, "solution.h5 has no dataset /no_such_data"),
+    "emptied rows": ("rows.npz", _empty, "is not a readable .npz file"),
     "summary is a list": ("summary.json", _json("[]"), "holds a JSON list"),
     "summary without scene": ("summary.json", _without_scene, "has no 'scene'"),
     "summary not JSON": ("summary.json", _json("{\"status\": "), "is not valid JSON"),
@@ -114,7 +100,6 @@ CASES = {
     "random summary": ("summary.json", _random, "is not valid JSON"),
     "diagnostics without a column": ("diagnostics.csv", _no_energy_column, "has no column 'kinetic'"),
     "random diagnostics": ("diagnostics.csv", _random, "diagnostics.csv"),
-    "xdmf time not a number": ("solution.xdmf", _a_time_that_is_not_a_number, "solution.xdmf cannot be read"),
     "a field named as a path": ("summary.json", _summary_with("fields", {"../x": {}}), "output field '../x' is not valid"),
     "a field's colour beyond 1": ("summary.json", _summary_with("fields", _field(colours=[[0, 0, 0], [2, 0, 0]])),
                                   "output field 'reaction' is not valid"),
@@ -128,14 +113,15 @@ CASES = {
 @pytest.mark.parametrize("case", CASES)
 def test_plot_on_a_damaged_folder_exits_2_naming_the_file(tmp_path, folder, capsys, case):
     name, damage, words = CASES[case]
-    def damage_copy(copy):
-        if name in XDMF_FILES:
-            (copy / "rows.npz").unlink()
-        damage(copy / name)
+    copy, err = plot_refusal(folder, lambda copy: damage(copy / name), tmp_path, capsys)
+    assert str(copy / name) in err and words in err, err
 
-    copy, err = plot_refusal(folder, damage_copy, tmp_path, capsys)
-    named = str(copy / name) if case != "h5 without a dataset" else str(copy / "solution.h5")
-    assert named in err and words in err, err
+
+@pytest.mark.parametrize("name", ["rows.npz", "diagnostics.csv", "summary.json"])
+def test_plot_on_a_folder_without_a_file_it_reads_exits_2_naming_it(tmp_path, folder, capsys, name):
+    """`plot` reads rows.npz, diagnostics.csv and summary.json (never solution.h5): a folder without one is refused."""
+    copy, err = plot_refusal(folder, lambda copy: (copy / name).unlink(), tmp_path, capsys)
+    assert f"{copy} is not a stringcontact output folder (missing {name})" in err, err
 
 
 def test_read_output_reads_what_the_writer_wrote(folder):
@@ -167,28 +153,6 @@ def test_read_output_gives_the_output_fields_summary_json_names(folder, tmp_path
     assert res.field_info["steps"]["scale"] == "linear" and res.field_info["steps"]["surface"] is False  # defaults
     assert res.parameters == {"stiffness": 2.0}
     assert res.steps.ndim == 1 and np.all(np.diff(res.steps) > 0)  # rows.npz's own steps, not the field
-
-
-def test_a_folder_without_field_descriptions_gives_its_further_rows_as_plain_fields(folder, tmp_path):
-    """A folder written before summary.json described its fields: rows.npz's further arrays of the rows' shape
-    come back as fields, shown as a plain `OutputField` of their name."""
-    import shutil
-
-    from stringcontact.model.interface import OutputField
-
-    copy = tmp_path / "copy"
-    shutil.copytree(folder, copy)
-    with np.load(copy / "rows.npz") as npz:
-        arrays = {key: npz[key] for key in npz.files}
-    arrays["reaction"] = arrays["eta"] ** 2
-    with open(copy / "rows.npz", "wb") as f:
-        np.savez(f, **arrays)
-    summary = json.loads((copy / "summary.json").read_text())
-    summary.pop("fields", None)
-    (copy / "summary.json").write_text(json.dumps(summary))
-    res = readback.read_output(copy)
-    np.testing.assert_array_equal(res.fields["reaction"], res.eta**2)
-    assert res.field_info == {"reaction": OutputField("reaction").metadata()}
 
 
 def test_plot_refuses_a_field_that_summary_json_names_and_rows_npz_lacks(tmp_path, folder, capsys):

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import plot_refusal
+from conftest import plot_refusal, xdmf_frames
 
 import stringcontact as sc
 from stringcontact.cli.main import main
@@ -177,7 +177,7 @@ def test_read_output_of_a_membrane_gives_the_in_memory_rows(written):
     stored = readback.read_output(folder)  # rows.npz: every stored row, as the run held it
     for name in ("t", "x", "cells", "weights", "eta", "velocity", "contact", "contact_force"):
         np.testing.assert_array_equal(getattr(stored, name), getattr(res, name), err_msg=name)
-    back = readback.read_output(folder, from_xdmf=True)
+    back = xdmf_frames(folder)
     rows = [int(np.argmin(np.abs(res.t - t))) for t in back.t]
     np.testing.assert_array_equal(res.t[rows], back.t)
     assert 10 <= len(rows) < len(res.t)  # the XDMF frames: a subset of the stored rows
@@ -203,12 +203,14 @@ def test_plot_of_a_membrane_folder_writes_the_membrane_pictures(run, tmp_path, c
     assert all(f"wrote {out / name}" in printed for name in viz.MEMBRANE_PICTURES)
 
 
-def _no_topology(p):
-    p.write_text(p.read_text().replace("solution.h5:/topology<", "solution.h5:/no_such_cells<"))
+def _cells(change):
+    def damage(p):
+        with np.load(p) as npz:
+            arrays = {key: npz[key] for key in npz.files}
+        arrays["cells"] = change(arrays["cells"])
+        np.savez(p, **arrays)
 
-
-def _quadrilaterals(p):
-    p.write_text(p.read_text().replace('TopologyType="Triangle"', 'TopologyType="Quadrilateral"'))
+    return damage
 
 
 def _random(p):
@@ -216,23 +218,19 @@ def _random(p):
 
 
 DAMAGED = {
-    "no topology dataset": ("solution.xdmf", _no_topology, "solution.h5", "has no dataset /no_such_cells"),
-    "not triangles": ("solution.xdmf", _quadrilaterals, "solution.xdmf", "must be Triangle"),
-    "random h5": ("solution.h5", _random, "solution.h5", "not a readable HDF5 file"),
+    "a node index past the nodes": (_cells(lambda c: np.where(c == c.max(), 10**6, c)), "its cells are not triangles"),
+    "quadrilaterals": (_cells(lambda c: np.column_stack([c, c[:, :1]])), "its cells are not triangles"),
+    "no cells": (_cells(lambda c: c[:0]), "its cells are not triangles"),
+    "random rows": (_random, "is not a readable .npz file"),
 }
 
 
 @pytest.mark.parametrize("case", DAMAGED)
 def test_plot_of_a_damaged_membrane_folder_exits_2_naming_the_file(run, tmp_path, capsys, case):
     folder, _ = run
-    name, damage, named, words = DAMAGED[case]
-    copy, err = plot_refusal(folder, lambda copy: _as_written_before_rows_npz(copy) or damage(copy / name), tmp_path, capsys)
-    assert str(copy / named) in err and words in err, err
-
-
-def _as_written_before_rows_npz(copy):
-    """A folder without rows.npz (written before it existed): `plot` reads the XDMF frames."""
-    (copy / "rows.npz").unlink()
+    damage, words = DAMAGED[case]
+    copy, err = plot_refusal(folder, lambda copy: damage(copy / "rows.npz"), tmp_path, capsys)
+    assert str(copy / "rows.npz") in err and words in err, err
 
 
 # --- the painter process ----------------------------------------------------------------------------

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import xdmf_frames
 
 import stringcontact as sc
 from stringcontact.cli.main import main
@@ -77,7 +78,7 @@ def test_the_field_is_read_back_as_the_run_held_it(run):
     back = readback.read_output(folder)
     assert set(back.fields) == {"reaction"} and back.field_info == res.field_info
     np.testing.assert_array_equal(back.fields["reaction"], res.fields["reaction"])
-    frames = readback.read_output(folder, from_xdmf=True)  # solution.xdmf's attribute of the same name
+    frames = xdmf_frames(folder)  # solution.xdmf's attribute of the same name
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in frames.t]
     assert 'Attribute Name="reaction"' in (folder / "solution.xdmf").read_text()
     np.testing.assert_array_equal(frames.fields["reaction"], res.fields["reaction"][rows])

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import xdmf_frames
 
 import stringcontact as sc
 from stringcontact.cli.main import main
@@ -152,7 +153,7 @@ def test_plot_command_redraws_from_files(tmp_path, run, capsys):
     "argv, words",
     [
         (["plot", "/nonexistent/folder"], "is not a folder"),
-        (["plot", "{empty}"], "missing solution.xdmf"),
+        (["plot", "{empty}"], "missing summary.json, diagnostics.csv, rows.npz"),
         (["plot", "{run}", "--size", "10x10"], "--size"),
         (["plot", "{run}", "--size", "big"], "--size"),
     ],
@@ -175,16 +176,14 @@ def test_read_output_refuses_an_incomplete_folder(tmp_path, run):
         readback.read_output(copy)
 
 
-def test_read_output_refuses_a_truncated_xdmf(tmp_path, run):
-    folder, _ = run
-    import shutil
+def test_a_truncated_xdmf_is_refused_in_one_line(tmp_path, run):
+    from stringcontact.errors import OutputError
 
-    copy = tmp_path / "copy"
-    shutil.copytree(folder, copy)
-    text = (copy / "solution.xdmf").read_text()
-    (copy / "solution.xdmf").write_text(text[: len(text) // 2])
-    with pytest.raises(ValueError, match=r"solution.xdmf cannot be read \(") as info:
-        readback.read_output(copy, from_xdmf=True)
+    folder, _ = run
+    text = (folder / "solution.xdmf").read_text()
+    (tmp_path / "solution.xdmf").write_text(text[: len(text) // 2])
+    with pytest.raises(OutputError, match=r"solution.xdmf is not a readable XDMF file \(") as info:
+        readback.read_xdmf(tmp_path / "solution.xdmf")
     assert "\n" not in str(info.value)
 
 
@@ -241,7 +240,7 @@ def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
     """The XDMF is thinned (its writer costs O(frames²)); read back, each frame is exactly its stored row."""
     scene = sc.load_scene("example1").replace(nx=40)
     res = sc.simulate(scene, output_dir=tmp_path / "out", max_rows=60, max_frames=10, pictures=False)
-    back = readback.read_output(tmp_path / "out", from_xdmf=True)
+    back = xdmf_frames(tmp_path / "out")
     assert 10 <= len(back.t) < len(res.t) == 61
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
     assert rows[0] == 0 and rows[-1] == len(res.t) - 1

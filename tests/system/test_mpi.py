@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import leftovers, mpirun
+from conftest import leftovers, mpirun, xdmf_frames
 
 pytestmark = pytest.mark.mpi
 
@@ -136,15 +136,13 @@ def test_mpi_gather_all_gives_every_rank_the_serial_rows(parity_run, serial_resu
 
 @pytest.mark.parametrize("penalty,mass", [c[:2] for c in CASES])
 def test_mpi_xdmf_is_one_collective_file_equal_to_serial(parity_run, serial_results, penalty, mass):
-    from stringcontact.io import readback
-
     serial, serial_dir = serial_results[(penalty, mass)]
     folder = parity_run / f"{penalty}-{mass}"
     assert sorted(p.name for p in folder.iterdir() if p.suffix in (".xdmf", ".h5")) == ["solution.h5", "solution.xdmf"]
-    mpi, ser = (readback.read_output(f, from_xdmf=True) for f in (folder, serial_dir))  # the XDMF frames, ordered by x
+    mpi, ser = (xdmf_frames(f) for f in (folder, serial_dir))  # the XDMF frames, ordered by x
     np.testing.assert_allclose(mpi.x, serial.x, atol=1e-14)
     np.testing.assert_allclose(ser.x, serial.x, atol=1e-14)
-    np.testing.assert_array_equal(mpi.t, ser.t)  # the same XDMF frames (read_output checks them against the CSV)
+    np.testing.assert_array_equal(mpi.t, ser.t)  # the same XDMF frames (xdmf_frames checks them against the rows)
     assert set(ser.t) <= set(serial.t) and ser.t[0] == serial.t[0] and ser.t[-1] == serial.t[-1]
     for name in (*FIELDS, "contact"):
         a, b = getattr(mpi, name), getattr(ser, name)

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import xdmf_frames
 
 import stringcontact as sc
-from stringcontact.io.readback import read_output
 from stringcontact.io.result import FIELDS
 
 SCRIPT = Path(__file__).with_name("paraview_readme.py")
@@ -58,7 +58,7 @@ def test_the_readme_recipe_colours_the_warped_string_by_contact(tmp_path, run):
 
     command = pvpython()
     out, res = run
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     k = int(np.argmax([0.3 < c.mean() < 1 for c in back.contact]))  # a frame with contact on part of the string
     t = float(back.t[k])
     row = int(np.flatnonzero(res.t == t)[0])
@@ -99,7 +99,7 @@ def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
     command = pvpython()
     out = tmp_path / "drum"
     res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     k = int(np.argmax(back.contact_measure))  # the frame with the largest patch
     t = float(back.t[k])
     row = int(np.flatnonzero(res.t == t)[0])
@@ -190,7 +190,7 @@ def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run)
     code = "\n".join(line for line in text.splitlines() if not line.startswith("FOLDER = "))
     assert "stringcontact" not in code.replace("stringcontact run", "")
     speed = float(np.abs(res.velocity).max())
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     k = int(np.argmax([0.3 < c.mean() < 1 for c in back.contact]))  # a frame with contact on part of the string
     times = [0.0, float(back.t[k]), float(back.t[-1])]
     shots = [(t, tmp_path / f"{field}_{t:g}.png", field) for t in times for field in ("contact", "velocity")]
@@ -218,7 +218,7 @@ def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
     res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
     text = (out / "view.py").read_text()
     assert "NORMAL = [0.0, 0.0, 1.0]" in text and "KIND = 'membrane'" in text
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     k = int(np.argmax(back.contact_measure))
     t_k = float(back.t[k])
     shots = [
@@ -315,7 +315,7 @@ def test_a_string_at_rest_is_seen_when_coloured_by_velocity(tmp_path, run):
     dark middle, which stands out on the white background and on the grey obstacle."""
     command = pvpython()
     out, res = run
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     resting = back.contact & (np.abs(back.velocity) < 0.02 * np.abs(res.velocity).max())
     k = int(np.argmax(resting.sum(axis=1)))  # the frame with the most nodes lying at rest on the obstacle
     nodes = np.flatnonzero(resting[k])
@@ -350,7 +350,7 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
         pictures=False,
     )
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     pressure = res.fields["pressure"]
     k = int(np.argmax([np.abs(pressure[np.flatnonzero(res.t == t)[0]]).max() for t in back.t]))
     t_k = float(back.t[k])
@@ -424,7 +424,7 @@ def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_c
         model=dataclasses.replace(inelastic, name="reacting", outputs=(field,)),
     )
     assert 'Attribute Name="reaction"' in (out / "solution.xdmf").read_text()
-    back = read_output(out, from_xdmf=True)  # the frames ParaView reads
+    back = xdmf_frames(out)  # the frames ParaView reads
     t = float(back.t[0])
     proc = subprocess.run(
         [*command, str(SCRIPT), str(out / "solution.xdmf"), repr(t), str(tmp_path / "readme.png")],

@@ -4,134 +4,107 @@ and figure1.png."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+from ..analysis import theorems
 from ..analysis.problems import FLAT_V, flat_landing_scene
-from ..analysis.theorems import (
-    FLAT_LANDING,
-    STRESS_JUMP,
-    draw_figure1,
-    format_table,
-    format_trends,
-    penalised,
-    run_checks,
-)
+from ..analysis.theorems import FLAT_LANDING, STRESS_JUMP, penalised, run_checks
 from .staged import staged_output
 
 
 def add_arguments(parser):
-    parser.add_argument("scene", help=f"built-in scene, a .toml file, or '{FLAT_LANDING}' (the exact alpha=0 case)")
-    parser.add_argument("--nx", type=int, help="cells of the finest level")
-    parser.add_argument("--nt", type=int, help="time steps of the finest level")
-    parser.add_argument("--eps", type=float, help="penalty parameter of the finest level")
-    parser.add_argument("--alpha", type=float, help="viscosity alpha >= 0")
-    parser.add_argument("--restitution", type=float, metavar="E",
-                        help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0); "
-                             "(A4) is the paper's e = 0")
+    """`stringcontact check`'s arguments."""
     from ..scene.names import SCHEMES
 
-    parser.add_argument("--scheme", choices=tuple(SCHEMES),
-                        help="time scheme (default: the scene's, else paper); projection refines nx and nt only (no eps)")
-    parser.add_argument("--penalty", choices=("explicit", "semi-implicit"),
-                        help="the penalty of the paper's scheme (default: the scheme's own, explicit for paper)")
-    parser.add_argument("--levels", type=int, default=3,
-                        help="refinement levels for the trends (nx, nt, 1/eps halved per level; default 3)")
-    parser.add_argument("--delay", type=float,
-                        help="(A4) delay after first contact (default 8 eps; 2 dt for an eps-free scheme)")
-    parser.add_argument("--delta", type=float, default=0.02, help="Thm 2.3(1) band half-width around fronts")
-    parser.add_argument("--out", metavar="DIR", help="write checks.json, checks.txt and figure1.png here")
-    parser.add_argument("--force", action="store_true", help="replace a non-empty output folder")
+    add = parser.add_argument
+    add("scene", help=f"built-in scene, a .toml file, or '{FLAT_LANDING}' (the exact alpha=0 case)")
+    add("--nx", type=int, help="cells of the finest level")
+    add("--nt", type=int, help="time steps of the finest level")
+    add("--eps", type=float, help="penalty parameter of the finest level")
+    add("--alpha", type=float, help="viscosity alpha >= 0")
+    add("--restitution", type=float, metavar="E", help="restitution coefficient e in [0, 1] of scheme projection "
+        "(default: the scene's, else 0); (A4) is the paper's e = 0")
+    add("--scheme", choices=tuple(SCHEMES),
+        help="time scheme (default: the scene's, else paper); projection refines nx and nt only (no eps)")
+    add("--penalty", choices=("explicit", "semi-implicit"),
+        help="the penalty of the paper's scheme (default: the scheme's own, explicit for paper)")
+    add("--levels", type=int, default=3, help="refinement levels for the trends (nx, nt, 1/eps halved per level; default 3)")
+    add("--delay", type=float, help="(A4) delay after first contact (default 8 eps; 2 dt for an eps-free scheme)")
+    add("--delta", type=float, default=0.02, help="Thm 2.3(1) band half-width around fronts")
+    add("--out", metavar="DIR", help="write checks.json, checks.txt and figure1.png here")
+    add("--force", action="store_true", help="replace a non-empty output folder")
 
 
-def _check_grid_flags(args) -> None:
-    """--nx and --nt in the scene's ranges, named as flags (0 is refused, not replaced by the default)."""
+def _scene_from_args(args):
+    """The finest level's scene: --nx and --nt checked as flags (0 is refused, not replaced by the default); a 1D
+    scene only; --eps or --penalty refused with a scheme that has no penalty, as `run` refuses them."""
+    from ..errors import SceneError
+    from ..scene import load_scene
     from ..scene.limits import INT_BOUNDS
+    from ..scene.names import DEFAULT_SCHEME
+    from ..timestepping import scheme_class
 
     for key in ("nx", "nt"):
         value, (low, high) = getattr(args, key), INT_BOUNDS[key]
         if value is not None and not low <= value <= high:
             raise ValueError(f"--{key}: {value} is out of range; allowed: an integer in [{low}, {high}]")
-
-
-def _check_scheme_flags(args, scene) -> None:
-    """--eps or --penalty with a scheme that has no penalty: refused, as `run` refuses them."""
-    from ..scene.names import DEFAULT_SCHEME
-    from ..timestepping import scheme_class
-
+    keys = ("eps", "alpha", "restitution")
+    if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
+        scene = flat_landing_scene(args.nx if args.nx is not None else 1000, args.nt if args.nt is not None else 1200, r=0.4)
+    else:
+        scene, keys = load_scene(args.scene), ("nx", "nt", *keys)
+        if scene.dim != 1:
+            raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
+                             "paper's theorems are about the string); allowed: a scene with domain 'interval'")
+    changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
+    scene = scene.replace(**changes) if changes else scene
     name = args.scheme or scene.scheme or DEFAULT_SCHEME
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
         given = "--eps" if args.eps is not None else "--penalty"
         raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it refines nx and nt only")
-
-
-def _scene_from_args(args):
-    from ..scene import load_scene
-
-    _check_grid_flags(args)
-    if args.scene == FLAT_LANDING:  # keep r = dt/eps = 0.4 when only the grid is changed
-        scene = flat_landing_scene(args.nx if args.nx is not None else 1000, args.nt if args.nt is not None else 1200,
-                                   r=0.4)
-        changes = {k: getattr(args, k) for k in ("eps", "alpha", "restitution") if getattr(args, k) is not None}
-    else:
-        scene = load_scene(args.scene)
-        if scene.dim != 1:
-            from ..errors import SceneError
-
-            raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
-                             "paper's theorems are about the string); allowed: a scene with domain 'interval'")
-        changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
-    return scene.replace(**changes) if changes else scene
+    return scene
 
 
 def _compute(args, scene):
     """The levels' runs and their checks, the table and the trends printed: ``(finest, results, checks)``."""
     import warnings
 
-    V = FLAT_V if scene.name == FLAT_LANDING else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", category=UserWarning)  # scene warnings were shown by `show`/`run`
-        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta, V,
-                                             scheme=args.scheme)
-    if penalised(finest):
-        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt} eps={r.scene.eps:.3g}" for r in results)
-        levels += f" (r = dt/eps = {scene.r:.3g})"
-    else:
-        levels = ", ".join(f"nx={r.scene.nx} nt={r.scene.nt}" for r in results) + " (no eps)"
-    print(f"scene {scene.name}, scheme {finest.scheme}, restitution e = {scene.restitution or 0:g}: levels {levels}")
-    print(format_table(checks))
-    print()
-    print(format_trends(checks))
+        checks, finest, results = run_checks(scene, args.levels, args.penalty, args.delay, args.delta,
+                                             FLAT_V if scene.name == FLAT_LANDING else None, scheme=args.scheme)
+    levels = [f"nx={r.scene.nx} nt={r.scene.nt}" + (f" eps={r.scene.eps:.3g}" if penalised(finest) else "") for r in results]
+    rule = f" (r = dt/eps = {scene.r:.3g})" if penalised(finest) else " (no eps)"
+    print(f"scene {scene.name}, scheme {finest.scheme}, restitution e = {scene.restitution or 0:g}: levels "
+          f"{', '.join(levels)}{rule}\n{theorems.format_table(checks)}\n\n{theorems.format_trends(checks)}")
     return finest, results, checks
 
 
 def command(args) -> int:
-    import json
+    """Check the flags, take the --out folder (before the levels are computed: a second check into it, or a folder
+    that cannot be made, is refused first), compute, print and write."""
+    from mpi4py import MPI
 
     if not 1 <= args.levels <= 6:
         raise ValueError(f"--levels must be between 1 and 6, got {args.levels}")
     if args.delay is not None and not args.delay > 0:
         raise ValueError(f"--delay must be > 0, got {args.delay}")
     scene = _scene_from_args(args)
-    _check_scheme_flags(args, scene)
     if not 0 < args.delta <= scene.length:  # a band half-width in x: 1e308 overflowed (and nan is refused)
         raise ValueError(f"--delta: {args.delta:g} is out of range; allowed: a number in (0, length = {scene.length:g}] "
                          "(the half-width of the band around the fronts)")
     if args.delay is not None and args.delay >= scene.T:
         raise ValueError(f"--delay must be below T = {scene.T:g}, got {args.delay}")
-    from mpi4py import MPI
-
-    # the folder is locked and its partial folder made (by rank 0, which writes) before the levels are computed: a
-    # second check into it, or a folder that cannot be made, is refused before the computing, not after it
     with staged_output(args.out, args.force, "check", MPI.COMM_WORLD) as partial:
         finest, results, checks = _compute(args, scene)
         if partial is not None:
             (partial / "checks.json").write_text(json.dumps(
                 {"scene": scene.name, "levels": [r.scene.as_dict() for r in results],
                  "checks": [c.as_dict() for c in checks]}, indent=1, default=float))
-            (partial / "checks.txt").write_text(format_table(checks) + "\n\n" + format_trends(checks) + "\n")
+            (partial / "checks.txt").write_text(theorems.format_table(checks) + "\n\n" + theorems.format_trends(checks) + "\n")
             balance = next(c.data for c in checks if c.name == STRESS_JUMP)  # computed by run_checks
-            draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
+            theorems.draw_figure1(finest, partial / "figure1.png", args.delta, balance=balance)
     if args.out is not None and MPI.COMM_WORLD.rank == 0:
-        target = Path(args.out)
-        print(f"wrote {target}")
+        print(f"wrote {Path(args.out)}")
     return 0

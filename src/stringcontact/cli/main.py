@@ -23,24 +23,10 @@ import os
 import sys
 
 from ..scene.names import DEFAULT_SCHEME
+from . import process
 from .mpi_start import quick_singleton
 from .parser import SUBCOMMANDS, build_parser
-from .process import (
-    EXIT_INPUT,
-    EXIT_INTERNAL,
-    EXIT_INTERRUPTED,
-    EXIT_OK,
-    EXIT_UNSTABLE,
-    _end_together,
-    _environment_problem,
-    _error,
-    _one_line_warnings,
-    _signals_interrupt,
-    _single_process,
-    _standard_streams,
-    _stop_signals,
-    _utf8_text,
-)
+from .process import EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE, error
 
 
 def _run(args, painter=None) -> int:
@@ -53,7 +39,6 @@ def _run(args, painter=None) -> int:
     if args.profile:  # dolfinx, UFL and the solver, timed as a section (else loaded when first needed)
         importlib.import_module("stringcontact.run.driver")
     imports = time.perf_counter() - started
-
     scene = sc.load_scene(args.scene)
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
     if args.petsc_option:  # into the scene, so that summary.json records the options the run used
@@ -69,7 +54,7 @@ def _run(args, painter=None) -> int:
         spec = args.model or scene.model
         with _current_folder_importable(args.model):
             model = load_model(spec)
-    from ..run.options import MAX_FRAMES
+    from ..run.options import MAX_FRAMES, Output
 
     if not 1 <= args.frames <= MAX_FRAMES:  # named as the flag, not as the API's max_frames
         raise ValueError(f"--frames: {args.frames} is out of range; allowed: a whole number in [1, {MAX_FRAMES}] (XDMF frames)")
@@ -82,19 +67,20 @@ def _run(args, painter=None) -> int:
 
         scene, options, text = choose_for_tolerance(scene, args.tol, model=model)  # the pilots use the run's model
         print(text)
-    from ..run.options import Output
+    pictures = not args.no_pictures
+    if painter is not None:  # the pictures drawn by the started painter
+        from ..plot.run_pictures import write_pictures
 
-    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=_pictures(args, painter),
+        pictures = functools.partial(write_pictures, painter=painter)
+    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=pictures,
                     progress=not args.no_progress, default_pictures=painter is None)  # the painter's are the defaults
     res = sc.simulate(scene, **options, model=spec, output=output)  # the name: summary.json says where it came from
     if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
         from .report import report
 
         report(res)
-        if args.out is not None:
-            print(f"wrote {args.out}")
-        else:
-            print("nothing written (no --out): add --out DIR to write XDMF, CSV, JSON and pictures")
+        print(f"wrote {args.out}" if args.out is not None else
+              "nothing written (no --out): add --out DIR to write XDMF, CSV, JSON and pictures")
         if args.profile:
             from ..run import profile
 
@@ -103,15 +89,14 @@ def _run(args, painter=None) -> int:
 
     unbalanced = unbalanced_message(res)
     if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
-        _error(unbalanced)
+        error(unbalanced)
         return EXIT_UNSTABLE
     return EXIT_OK
 
 
 @contextlib.contextmanager
 def _current_folder_importable(spec):
-    """--model package.module:name finds a module in the current folder, as under `python -m stringcontact`
-    (whose sys.path starts with it): the folder is first on sys.path while the model is loaded."""
+    """--model package.module:name finds a module in the current folder (first on sys.path while it loads)."""
     folder = os.getcwd()
     added = bool(spec) and ":" in spec and folder not in sys.path and "" not in sys.path
     if added:
@@ -124,7 +109,7 @@ def _current_folder_importable(spec):
 
 
 def _petsc_options(items: list[str]) -> dict:
-    """--petsc-option NAME=VALUE, ...: a dict with TOML's value types (true/false, numbers, words), checked."""
+    """--petsc-option NAME=VALUE, ...: a dict with TOML's value types (true/false, numbers, else a word), checked."""
     from ..scene import check_petsc_options
 
     options = {}
@@ -140,16 +125,13 @@ def _option_value(text: str):
     if text in ("true", "false"):
         return text == "true"
     for kind in (int, float):
-        try:
+        with contextlib.suppress(ValueError):
             return kind(text)
-        except ValueError:
-            pass
     return text
 
 
 def _check_scheme_options(args, scene) -> None:
-    """--eps or --penalty with a scheme that has no penalty, a restitution e > 0 with a scheme other than
-    projection: refused before anything runs."""
+    """Refuse --eps or --penalty with a scheme that has no penalty, a restitution e > 0 but with projection."""
     from ..timestepping import check_restitution, scheme_class
 
     name = args.scheme or scene.scheme or DEFAULT_SCHEME
@@ -159,17 +141,8 @@ def _check_scheme_options(args, scene) -> None:
         raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")
 
 
-def _pictures(args, painter):
-    """`simulate`'s `pictures`: the picture function, with the started painter, or whether to draw them."""
-    if painter is None:
-        return not args.no_pictures
-    from ..plot.run_pictures import write_pictures
-
-    return functools.partial(write_pictures, painter=painter)
-
-
 def _partial_report(exc) -> None:
-    """After an interrupted or unstable run: the closing lines for the rows stored so far, if the solver gave them."""
+    """After an interrupted or unstable run: the closing lines of the rows stored so far, if any."""
     res = getattr(exc, "result", None)
     if res is not None and len(getattr(res, "t", ())) and res.has_rows:
         from .report import report
@@ -179,36 +152,35 @@ def _partial_report(exc) -> None:
 
 
 def main(argv=None) -> int:
-    own = argv is None  # the process's own command line (the console script), not a call from Python
+    """The command line (`argv`, default: the process's own; only then are Open MPI's singleton settings made and
+    the last garbage collection skipped). Returns the exit code."""
+    own = argv is None
     if own and "mpi4py.MPI" not in sys.modules:  # before MPI starts
         quick_singleton(os.environ)
-    _standard_streams()
-    with _stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
+    process.standard_streams()
+    with process.stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
         try:
             code = _main(argv)
         except KeyboardInterrupt as exc:
-            _error(str(exc) or "interrupted")
-            code = exc.exit_code if hasattr(exc, "exit_code") else EXIT_INTERRUPTED
+            error(str(exc) or "interrupted")
+            code = getattr(exc, "exit_code", EXIT_INTERRUPTED)
     if own:
-        _end_together(code)
-        # The process ends now, its files closed and its folder published. Python's last garbage collection
-        # would visit every object of dolfinx, UFL and matplotlib: 0.15-0.2 s of the exit (docs/explanation/performance.md).
-        gc.freeze()
+        process.end_together(code)
+        gc.freeze()  # no last collection of dolfinx's objects: 3.56, not 3.77 CPU-s a run (bench_run.py --against-src)
     return code
 
 
 def _main(argv) -> int:
     args = build_parser(argv).parse_args(argv)
-    sys.argv = [_utf8_text(a) for a in sys.argv]  # after parsing: the args keep the bytes the user gave
     if getattr(args, "_unavailable", None):
-        _error(f"the '{args.command}' command is unavailable ({args._unavailable})")
+        error(f"the '{args.command}' command is unavailable ({args._unavailable})")
         return EXIT_INTERNAL
-    problem = _environment_problem(os.environ)
+    problem = process.environment_problem(os.environ)
     if problem is not None:  # before PETSc and MPI start: each would print a page of its own and exit 1
-        _error(problem)
+        error(problem)
         return EXIT_INPUT
     painter = None
-    if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
+    if args.command == "run" and args.out is not None and not args.no_pictures and process.single_process():
         from ..plot.picture_process import PictureProcess
 
         painter = PictureProcess.start()  # first: its start-up then overlaps the whole run, imports included
@@ -227,11 +199,12 @@ def _command(args, painter) -> int:
         from ..stack import load
 
         try:
-            load()  # the FEniCS stack before PETSc installs its signal handlers: one line if it is not supported
+            with process.argv_as_text():
+                load()  # the FEniCS stack before PETSc installs its signal handlers: one line if it is not supported
         except StackError as exc:
-            _error(exc)
+            error(exc)
             return EXIT_INPUT
-    with _one_line_warnings(), _signals_interrupt(petsc=petsc):
+    with process.one_line_warnings(), process.signals_interrupt(petsc=petsc):
         try:
             if args.command == "run":
                 return _run(args, painter)
@@ -240,48 +213,44 @@ def _command(args, painter) -> int:
             if args.command == "list":
                 listed = scenes.list_scenes()
                 width = max((len(name) for name, _ in listed), default=0)
-                for name, description in listed:
-                    print(f"{name:{width}s}  {description}")
-                return EXIT_OK
-            if args.command == "show":
+                print("".join(f"{name:{width}s}  {description}\n" for name, description in listed), end="")
+            elif args.command == "show":
                 from .report import show_scene
 
                 print(show_scene(scenes.load_scene(args.scene)), end="")
-                return EXIT_OK
-            if args.command in SUBCOMMANDS:
+            else:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
+            return EXIT_OK
         except SolverError as exc:  # a numerical failure after the input was accepted (docs/explanation/reliability.md)
             _partial_report(exc)
-            _error(exc)
+            error(exc)
             return EXIT_INTERNAL
         except (SceneError, OutputError, ValueError) as exc:
-            _error(exc)
+            error(exc)
             return EXIT_INPUT
         except InstabilityError as exc:
             _partial_report(exc)
-            _error(exc)
+            error(exc)
             return EXIT_INPUT if exc.step == 0 else EXIT_UNSTABLE
         except KeyboardInterrupt as exc:
             _partial_report(exc)
-            _error(str(exc) or "interrupted")
+            error(str(exc) or "interrupted")
             return exc.exit_code if isinstance(exc, Interrupted) else EXIT_INTERRUPTED
         except OSError as exc:  # a file a subcommand reads or writes
-            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-            _error(f"{exc.strerror or exc}{where}")
+            error(f"{exc.strerror or exc}" + (f" ({exc.filename})" if getattr(exc, "filename", None) else ""))
             return EXIT_INPUT
         except RecursionError:  # crafted input nested too deeply (JSON, a .npy header): not a size problem
-            _error("RecursionError: an input file is nested too deeply to read; allowed: the files stringcontact writes")
+            error("RecursionError: an input file is nested too deeply to read; allowed: the files stringcontact writes")
             return EXIT_INPUT
         except MemoryError:
-            _error("MemoryError: out of memory: the problem, or an input file, is too large for this machine; "
-                   "reduce nx or nt, or check the files read")
+            error("MemoryError: out of memory: the problem, or an input file, is too large for this machine; "
+                  "reduce nx or nt, or check the files read")
             return EXIT_INPUT
         except Exception as exc:  # noqa: BLE001 - a bug: one line, and the traceback on request
             if os.environ.get("STRINGCONTACT_TRACEBACK"):
                 raise
-            _error(f"internal error {type(exc).__name__}: {exc} (set STRINGCONTACT_TRACEBACK=1 to see the traceback)")
+            error(f"internal error {type(exc).__name__}: {exc} (set STRINGCONTACT_TRACEBACK=1 to see the traceback)")
             return EXIT_INTERNAL
-    return EXIT_INPUT
 
 
 if __name__ == "__main__":

@@ -1,18 +1,7 @@
-"""Open MPI's start-up for a command run without `mpirun` (a singleton), set before MPI is loaded.
-
-`from petsc4py import PETSc` initialises MPI. Run as a singleton, Open MPI 4.1 then starts an `orted`
-daemon for the process and probes the UCX network layer, although one process talks to nobody:
-`python3 -c "from mpi4py import MPI"` takes 0.34-0.37 s on this project's machine, 0.04-0.05 s with the
-two settings below (`benchmarks/bench_mpi_start.py`; docs/explanation/performance.md). They are Open MPI's own MCA
-parameters, read from the environment when MPI starts:
-
-- ``ess_singleton_isolated=1``: no daemon for a singleton (it then cannot spawn processes; nothing here does);
-- ``pml=ob1``: the point-to-point layer that needs no UCX probe (a singleton only talks to itself).
-
-A value the user set is kept, and under `mpirun` (which sets ``OMPI_COMM_WORLD_SIZE``, or PMIx's
-``PMIX_RANK``) nothing is changed: a parallel run's transport stays the user's and Open MPI's choice.
-Other MPI implementations ignore the ``OMPI_MCA_`` names.
-"""
+"""Open MPI's settings for a command run without `mpirun` (a singleton), made before MPI loads: no ``orted``
+daemon (``ess_singleton_isolated``) and no UCX probe (``pml=ob1``) for a process that talks to nobody:
+`from petsc4py import PETSc` 0.216 s with them, 0.548 s without (`benchmarks/bench_mpi_start.py`). A value the
+user set is kept; under a launcher nothing changes; other MPI implementations ignore the names."""
 
 from __future__ import annotations
 
@@ -23,15 +12,14 @@ LAUNCHED = ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK")
 
 
 def singleton_settings(environ) -> dict[str, str]:
-    """The settings of `SINGLETON` to add to `environ` (a mapping, e.g. ``os.environ``): none under a launcher,
-    none the user set already."""
+    """The settings of `SINGLETON` to add to `environ`: none under a launcher, none the user set already."""
     if any(name in environ for name in LAUNCHED):
         return {}
     return {name: value for name, value in SINGLETON.items() if name not in environ}
 
 
 def quick_singleton(environ) -> dict[str, str]:
-    """Add `singleton_settings(environ)` to `environ`; call before MPI is imported. Returns what was added."""
+    """Add `singleton_settings(environ)` to `environ` (``os.environ`` before MPI is imported); returns them."""
     added = singleton_settings(environ)
     environ.update(added)
     return added

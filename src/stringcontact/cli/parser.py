@@ -11,8 +11,7 @@ from ..errors import one_line
 from ..scene.names import SCHEMES
 from .process import EXIT_INPUT, EXIT_OK
 
-# Subcommands that live with their concern; each module has add_arguments(parser) and command(args) -> int,
-# and keeps heavy imports (dolfinx, pyvista) inside its functions so that `--help` stays fast.
+#: Subcommands that live with their concern: each module has add_arguments(parser) and command(args) -> int.
 SUBCOMMANDS = {
     "plot": ("stringcontact.cli.plot", "redraw the pictures of an output folder from its saved files"),
     "study": ("stringcontact.cli.study", "work-precision, convergence and stability studies"),

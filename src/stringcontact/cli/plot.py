@@ -1,13 +1,9 @@
 """`stringcontact plot DIR`: every picture of a run drawn again from its output folder alone
-(`plot.run_pictures.write_pictures` on `io.readback.read_output`), into DIR or a new `--out` folder.
-
-Into DIR, it holds DIR's lock (`io.lock.TargetLock`, the one a run writing there holds) while it reads and draws:
-a `run --out DIR --force` meanwhile is refused naming `plot` and its pid, and `plot` refuses a folder a run is
-writing."""
+(`plot.run_pictures.write_pictures` on `io.readback.read_output`), into DIR under DIR's lock (the one a run writing
+there holds: each refuses the other, naming it), or into a new `--out` folder."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 from pathlib import Path
@@ -22,8 +18,8 @@ def add_arguments(parser) -> None:
     parser.description = (
         f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}; "
         "and NAME.png of each output field NAME of the run's model) "
-        "from its saved files alone: the stored rows the run drew them from (rows.npz; of an older folder the "
-        "frames of solution.xdmf/.h5), diagnostics.csv and summary.json: the same pictures as the run's; "
+        "from its saved files alone: the stored rows the run drew them from (rows.npz), diagnostics.csv and "
+        "summary.json: the same pictures as the run's; "
         "as PDF or SVG for a paper (--format pdf --style paper)."
     )
     parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
@@ -73,69 +69,43 @@ def look_of(args) -> Look | None:
     return look if args.size is None else Look(look.formats, look.style, parse_size(args.size, look.dpi))
 
 
-def _check_not_the_data(folder: Path, out: Path) -> None:
-    """Refuse an --out that is the folder being plotted or contains it: replacing it would delete the data."""
-    data, target = folder.resolve(), out.resolve()
-    if target.name and (target == data or target in data.parents):  # the root folder: check_target's refusal
-        raise ValueError(f"--out {out}: is the folder being plotted ({folder}) or contains it, whose data replacing it "
-                         "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
-
-
-@contextlib.contextmanager
-def _redrawing(folder: Path):
-    """Hold the lock of the run folder `folder` while its pictures are drawn in place (nothing to hold if it is no
-    folder: `read_output` then says what it is)."""
-    if not folder.is_dir():
-        yield
-        return
+def command(args) -> int:
+    """`stringcontact plot DIR`: the pictures drawn into DIR (each replaced whole, `atomic_path`) or a new --out
+    folder (the whole folder or nothing, by the rules of `run --out`); 0 when done."""
     from ..errors import OutputError
     from ..io.disk import describe_os_error
     from ..io.lock import TargetLock
-
-    try:
-        lock = TargetLock(folder, "plot", label=str(folder))
-    except OSError as exc:
-        raise OutputError(f"{folder}: cannot take its lock to draw in it: "
-                          f"{describe_os_error(exc, folder.resolve().parent)}") from None
-    try:
-        yield
-    finally:
-        lock.release()
-
-
-def _launched_rank() -> int:
-    """This process's rank when a launcher (mpirun) started several; 0 otherwise. Read from the launcher's
-    environment: `plot` needs no MPI, and a picture process must not wait for it."""
-    for name in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"):
-        value = os.environ.get(name, "").strip()
-        if value.isdigit():
-            return int(value)
-    return 0
-
-
-def command(args) -> int:
-    """`stringcontact plot DIR`: every picture of the run in DIR (its output fields' too) drawn again from its
-    files, into DIR or a new --out folder; 0 when done."""
-    from ..io.readback import read_output
-
-    look = look_of(args)
-    if _launched_rank() > 0:  # `mpirun -n 2 stringcontact plot`: one process draws, the others would race it
-        return 0
-    if args.out is None:  # into the run's own folder, under its lock, each picture replaced whole (atomic_path)
-        with _redrawing(Path(args.folder)):
-            for path in write_pictures(read_output(args.folder), Path(args.folder), look=look):
-                print(f"wrote {path}")
-        return 0
     from ..io.publish import staged_folder
+    from ..io.readback import read_output
     from ..io.target import check_target
 
+    look, folder = look_of(args), Path(args.folder)
+    launched = (os.environ.get(v, "").strip() for v in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"))
+    if any(rank.isdigit() and int(rank) > 0 for rank in launched):  # `mpirun -n 2 stringcontact plot`: one draws
+        return 0
+    if args.out is None:
+        lock = None
+        if folder.is_dir():  # (not a folder: read_output says what it is)
+            try:
+                lock = TargetLock(folder, "plot", label=str(folder))
+            except OSError as exc:
+                raise OutputError(f"{folder}: cannot take its lock to draw in it: "
+                                  f"{describe_os_error(exc, folder.resolve().parent)}") from None
+        try:
+            for path in write_pictures(read_output(folder), folder, look=look):
+                print(f"wrote {path}")
+        finally:
+            if lock is not None:
+                lock.release()
+        return 0
     out = Path(args.out)
-    _check_not_the_data(Path(args.folder), out)
+    if out.resolve().name and (out.resolve() == folder.resolve() or out.resolve() in folder.resolve().parents):
+        raise ValueError(f"--out {out}: is the folder being plotted ({folder}) or contains it, whose data replacing it "
+                         "would delete; choose another folder (or leave out --out to redraw the pictures in place)")
     check_target(out, args.force, command="plot")  # the rules of `run --out`: not /, not ., never a run's result
-    result = read_output(args.folder)
-    with staged_folder(out, args.force, command="plot") as partial:  # the whole folder or nothing
+    result = read_output(folder)
+    with staged_folder(out, args.force, command="plot") as partial:
         names = [p.name for p in write_pictures(result, partial, look=look)]
         (partial / "pictures.json").write_text(json.dumps({"pictures": names, "of": str(args.folder)}, indent=1) + "\n")
-    for name in names:
-        print(f"wrote {out / name}")
+    print("".join(f"wrote {out / name}\n" for name in names), end="")
     return 0

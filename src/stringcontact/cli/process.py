@@ -1,7 +1,7 @@
-"""The process around a command: how it ends (the exit codes; under MPI every rank together, `_end_together`,
-or the job aborted), the stop signals (SIGINT, SIGTERM, SIGHUP raise `Interrupted`; PETSc's own handlers
-replaced), its standard streams (closed ones reopened on /dev/null, every message and warning one line on
-stderr), and what in the environment would stop PETSc or MPI at start-up (`_environment_problem`)."""
+"""The process around a command: the exit codes, the stop signals (SIGINT, SIGTERM, SIGHUP raise `Interrupted`;
+PETSc's own handlers replaced), the MPI ranks ending together (`end_together`), the standard streams (closed ones
+reopened on /dev/null; every message and warning one line on stderr), and what in the environment would stop
+PETSc or MPI at start-up (`environment_problem`)."""
 
 from __future__ import annotations
 
@@ -18,34 +18,34 @@ from ..errors import one_line
 
 #: The exit codes (what each means: the command line's docstring, `cli.main`; a signal's: 128 + its number).
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it aborts the
+#: job (MPI_Abort with its exit code): a rank left alone would wait in a collective call for ever.
+END_GRACE = 10.0
+_exit = {"comm": None, "timer": None}
 
 
-class _OneLineWarningHandler(logging.Handler):
-    """Warnings that reach the logger "py.warnings" (once ffcx has called ``logging.captureWarnings``)."""
+def error(message) -> None:
+    """``stringcontact: error: MESSAGE`` on stderr, one line."""
+    _stderr_line(f"stringcontact: error: {one_line(message)}")
 
-    def emit(self, record):
-        _stderr_line(f"stringcontact: warning: {one_line(record.getMessage())}")
+
+def _stderr_line(text: str) -> None:
+    sys.stderr.write(text + "\n")  # one write: print() writes text and newline apart, and two ranks' lines interleave
+    sys.stderr.flush()
 
 
 @contextlib.contextmanager
-def _one_line_warnings():
-    """Every warning as one line ``stringcontact: warning: MESSAGE``, however Python shows it.
-
-    ffcx calls ``logging.captureWarnings(True)`` when it is imported (mid-run): from then on warnings go, through
-    ``warnings.formatwarning``, to the logger "py.warnings" as ``WARNING:py.warnings:FILE:LINE: ...`` plus a
-    source line. So the format and that logger are set too, not only ``warnings.showwarning``.
-    """
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        _stderr_line(f"stringcontact: warning: {one_line(message)}")
-
-    def format_warning(message, category, filename, lineno, line=None):
-        return one_line(message)
-
+def one_line_warnings():
+    """Every warning as one line ``stringcontact: warning: MESSAGE``: through `warnings.showwarning`, and once ffcx
+    has called ``logging.captureWarnings(True)`` (mid-run) through the logger "py.warnings" and its format."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("stringcontact: warning: %(message)s"))
     logger = logging.getLogger("py.warnings")
-    handler = _OneLineWarningHandler()
     saved = warnings.showwarning, warnings.formatwarning, logger.propagate
-    warnings.showwarning, warnings.formatwarning = show, format_warning
+    warnings.showwarning = lambda message, *args, **kwargs: _stderr_line(f"stringcontact: warning: {one_line(message)}")
+    warnings.formatwarning = lambda message, *args, **kwargs: one_line(message)
     logger.addHandler(handler)
     logger.propagate = False
     try:
@@ -55,19 +55,10 @@ def _one_line_warnings():
         warnings.showwarning, warnings.formatwarning, logger.propagate = saved
 
 
-#: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
 @contextlib.contextmanager
-def _signals_interrupt(petsc: bool = True):
-    """SIGINT, SIGTERM and SIGHUP raise `Interrupted`, a KeyboardInterrupt: the run stops and keeps its output.
-
-    PETSc installs C handlers for SIGHUP, SIGTERM and SIGPIPE that abort MPI with a page of text when it is
-    first imported; with `petsc` it is imported here, and the Python handlers are installed again over its
-    own while the command runs. SIGPIPE gets its default back (`stringcontact list | head` ends quietly, as
-    Unix tools do).
-    """
+def signals_interrupt(petsc: bool = True):
+    """The stop signals raise `Interrupted` (`stop_signals`), over PETSc's own C handlers (with `petsc`, PETSc is
+    imported first); SIGPIPE gets its default back: `stringcontact list | head` ends quietly, as Unix tools do."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -75,12 +66,14 @@ def _signals_interrupt(petsc: bool = True):
         from ..stack import load
 
         load()  # the wheel's MPI before PETSc's (`stack.load`)
+        from mpi4py import MPI
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
 
-        _mpi_exit_comm()
+        if MPI.COMM_WORLD.size > 1 and _exit["comm"] is None:  # collective, on every rank: `end_together`'s own
+            _exit["comm"] = MPI.COMM_WORLD.Dup()
     saved_pipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
-        with _stop_signals():
+        with stop_signals():
             yield
     finally:
         with contextlib.suppress(OSError, ValueError):
@@ -88,73 +81,32 @@ def _signals_interrupt(petsc: bool = True):
         signal.signal(signal.SIGPIPE, saved_pipe if saved_pipe is not None else signal.SIG_DFL)
 
 
-def _single_process() -> bool:
-    """Not one rank of an MPI job (checked without importing mpi4py, which the picture process must not wait for)."""
-    sizes = (os.environ.get(v, "1").strip() for v in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"))
-    return all(not size.isdigit() or int(size) <= 1 for size in sizes)
+@contextlib.contextmanager
+def stop_signals():
+    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` (the run stops, its output kept) until the block ends."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    from ..errors import Interrupted
+
+    def handler(signum, frame):
+        if _exit["comm"] is not None and _exit["timer"] is None:  # if this rank cannot end with the others, it ends them all
+            _exit["timer"] = threading.Timer(END_GRACE, _abort, args=(128 + signum,))
+            _exit["timer"].daemon = True
+            _exit["timer"].start()
+        raise Interrupted(signum)
+
+    saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
-def _error(message) -> None:
-    _stderr_line(f"stringcontact: error: {one_line(message)}")
-
-
-def _stderr_line(text: str) -> None:
-    # One write for text and newline: stderr is unbuffered, and print() writes them apart, so the lines of
-    # two MPI ranks could interleave into "msg1msg2\n\n".
-    sys.stderr.write(text + "\n")
-    sys.stderr.flush()
-
-
-def _utf8_text(arg: str) -> str:
-    """`arg` as text that encodes to UTF-8: bytes that are not UTF-8 (a file name such as ``o9/\\xff\\xfe``, held
-    by Python as surrogate escapes) shown as U+FFFD.
-
-    dolfinx passes ``sys.argv`` to its C++ ``init_logging(List[str])`` when it is imported, and pybind11
-    cannot encode a surrogate escape (TypeError). The parsed arguments keep the real bytes; only this copy,
-    which dolfinx reads, is changed.
-    """
-    return os.fsencode(arg).decode("utf-8", "replace") if isinstance(arg, str) else arg
-
-
-def _standard_streams() -> None:
-    """Started with stdin, stdout or stderr closed (``stringcontact run ... >&-``): /dev/null takes its place.
-
-    Python then has ``sys.stdout = None`` (print() drops the text, ``.flush()`` fails), and the next file the
-    run opens would get descriptor 1 or 2, where PETSc, HDF5 and MPI write their messages. With /dev/null
-    there, the run works, its output folder is whole, and the exit code tells how it went; the messages of a
-    closed stream are lost, as with any Unix tool.
-    """
-    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
-        try:
-            os.fstat(fd)
-        except OSError:
-            null = os.open(os.devnull, os.O_RDWR)  # the lowest free descriptor: `fd` itself, as 0..fd-1 are open
-            if null != fd:
-                os.dup2(null, fd)
-                os.close(null)
-        if getattr(sys, name) is None:
-            setattr(sys, name, open(fd, mode, closefd=False, errors="backslashreplace"))
-
-
-#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it
-#: aborts the whole job (MPI_Abort, with its exit code). Ranks that fail alike (a bad input: every rank checks
-#: it) end within moments of each other; a rank left alone would wait in a collective call for ever.
-END_GRACE = 10.0
-_exit = {"comm": None, "timer": None}
-
-
-def _mpi_exit_comm() -> None:
-    """Under MPI, a communicator of its own for the ranks' last handshake (`_end_together`): collective, so
-    called on every rank at the same point, right after MPI starts; nothing else uses it."""
-    from mpi4py import MPI
-
-    if MPI.COMM_WORLD.size > 1 and _exit["comm"] is None:
-        _exit["comm"] = MPI.COMM_WORLD.Dup()
-
-
-def _end_together(code: int) -> None:
-    """The ranks of an MPI job end together: each waits at a non-blocking barrier; a rank that failed (`code`
-    not 0) waits at most END_GRACE seconds, then aborts the job with its code. Without MPI, nothing."""
+def end_together(code: int) -> None:
+    """Under MPI the ranks end together: each waits at a non-blocking barrier; a rank that failed (`code` not 0)
+    waits at most END_GRACE seconds, then aborts the job with its code."""
     comm = _exit["comm"]
     if comm is None:
         return
@@ -166,9 +118,8 @@ def _end_together(code: int) -> None:
         if code != 0 and time.monotonic() > deadline:
             _abort(code)
         time.sleep(0.01)
-    timer = _exit["timer"]
-    if timer is not None:
-        timer.cancel()
+    if _exit["timer"] is not None:
+        _exit["timer"].cancel()
 
 
 def _abort(code: int) -> None:
@@ -176,40 +127,43 @@ def _abort(code: int) -> None:
     _exit["comm"].Abort(code)
 
 
-def _abort_later(code: int) -> None:
-    """After a stop signal under MPI: abort the job with `code` unless this rank has ended by END_GRACE seconds
-    (a thread: the main one may be waiting in a collective call for a rank that will never join it)."""
-    if _exit["comm"] is None or _exit["timer"] is not None:
-        return
-    _exit["timer"] = threading.Timer(END_GRACE, _abort, args=(code,))
-    _exit["timer"].daemon = True
-    _exit["timer"].start()
+def single_process() -> bool:
+    """Not one rank of an MPI job (from the launcher's environment: mpi4py is not imported for it)."""
+    sizes = (os.environ.get(v, "1").strip() for v in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"))
+    return all(not size.isdigit() or int(size) <= 1 for size in sizes)
 
 
 @contextlib.contextmanager
-def _stop_signals():
-    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` from here on; the previous handlers come back after."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    from ..errors import Interrupted
-
-    def handler(signum, frame):
-        _abort_later(128 + signum)  # under MPI: if this rank cannot end with the others, it ends them all
-        raise Interrupted(signum)
-
-    saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
+def argv_as_text():
+    """``sys.argv`` as text that encodes to UTF-8 while dolfinx loads: it hands the list to its C++ logging, which
+    cannot encode a non-UTF-8 file name's surrogate escapes (TypeError). The parsed arguments keep the real bytes."""
+    saved = sys.argv
+    sys.argv = [os.fsencode(a).decode("utf-8", "replace") if isinstance(a, str) else a for a in saved]
     try:
         yield
     finally:
-        for s, h in saved.items():
-            signal.signal(s, h if h is not None else signal.SIG_DFL)
+        sys.argv = saved
 
 
-def _environment_problem(environ) -> str | None:
+def standard_streams() -> None:
+    """A standard stream closed at start (``run ... >&-``) reopened on /dev/null, so that the next file opened does
+    not get descriptor 1 or 2, where PETSc, HDF5 and MPI write: the run works, the exit code tells how it went."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)  # the lowest free descriptor: `fd` itself, as 0..fd-1 are open
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(fd, mode, closefd=False, errors="backslashreplace"))  # noqa: SIM115
+
+
+def environment_problem(environ) -> str | None:
     """What in the environment would stop PETSc or MPI at start-up with a page of text: an options file in
-    ``PETSC_OPTIONS`` that is not a readable regular file (a FIFO would block), a ``TMPDIR`` folder where no
-    folder can be made (Open MPI's session folder; ``/proc``). None if nothing."""
+    ``PETSC_OPTIONS`` that is not a readable regular file (a FIFO would block), a ``TMPDIR`` where no folder can be
+    made (Open MPI's session folder; ``/proc``). None if nothing."""
     import shlex
     import stat
     import tempfile
@@ -234,4 +188,3 @@ def _environment_problem(environ) -> str | None:
             return (f"TMPDIR={folder}: cannot make a folder there ({exc.strerror}), where MPI keeps its session; "
                     "allowed: a writable folder (or leave TMPDIR unset)")
     return None
-

@@ -9,7 +9,6 @@ from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 
 __all__ = ["report", "show_scene"]
 
-
 #: `show`'s line for an optional key the scene does not give.
 _NOT_GIVEN = {
     "eps": "scheme projection does not read it; a penalty scheme (--scheme paper, newmark) needs it",
@@ -21,53 +20,38 @@ _NOT_GIVEN = {
 
 
 def show_scene(scene) -> str:
-    """`stringcontact show`: the scene as a TOML scene file with every key it sets, the scheme and model it runs
-    with written out (the defaults `paper` and `inelastic` when it names none), and a comment for each optional key
-    it does not give (`load`, `obstacle`, `petsc_options`): a load = "0" key would be refused by a model that reads
-    no load, so those stay comments and the output loads again as the same run."""
+    """`stringcontact show`: the scene as a TOML file with every key it sets, its scheme and model written out (the
+    defaults when it names none), the model's ``[parameters]``, and a comment for each optional key it does not give
+    (a ``load = "0"`` would be refused by a model that reads no load): the output loads again as the same run."""
     import tomli_w
 
+    from ..model.registry import load_model
     from ..scene.toml import scene_to_toml
+    from ..timestepping import scheme_class
 
     data = scene.as_dict()
     options = data.pop("petsc_options", None)
     data.pop("parameters", None)
-    from ..timestepping import scheme_class
-
     data.setdefault("model", DEFAULT_MODEL)
     name = scene.scheme or DEFAULT_SCHEME
-    if isinstance(data.get("scheme"), dict):  # the [scheme] table, its name first
-        data["scheme"] = {"name": name} | {k: v for k, v in data["scheme"].items() if k != "name"}
+    if isinstance(data.get("scheme"), dict):  # the [scheme] table, its name first, after the keys
+        table = {"scheme": {"name": name} | {k: v for k, v in data.pop("scheme").items() if k != "name"}}
     else:
-        data["scheme"] = name
-    missing = [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
+        data["scheme"], table = name, None
     header = scene_to_toml(scene, penalty=bool(scheme_class(name).PENALTIES)).split("\n", 1)[0] + "\n"  # dt, dx, r
-    table = tomli_w.dumps({"petsc_options": options}) if options else ""
-    scheme = tomli_w.dumps({"scheme": data.pop("scheme")}) if isinstance(data.get("scheme"), dict) else ""
-    return (header + tomli_w.dumps(data, multiline_strings=True) + "".join(missing) + scheme
-            + _parameters_table(data["model"], dict(scene.parameters)) + table)
-
-
-def _parameters_table(model_name: str, given: dict) -> str:
-    """The model's constants as a ``[parameters]`` table: each with its value (the scene's, else its default), its
-    unit, range and meaning in a comment; an optional constant without a value as a comment line."""
-    import tomli_w
-
-    from ..model.registry import load_model
-
-    constants = load_model(model_name).constants
-    if not constants:
-        return ""
-    lines = [f"\n[parameters]  # the constants of model {model_name} (`stringcontact models`)\n"]
-    for c in constants:
+    lines = [header, tomli_w.dumps(data, multiline_strings=True)]
+    lines += [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
+    lines += [tomli_w.dumps(table)] if table is not None else []
+    given, constants = dict(scene.parameters), load_model(data["model"]).constants
+    if constants:
+        lines.append(f"\n[parameters]  # the constants of model {data['model']} (`stringcontact models`)\n")
+    for c in constants:  # each with its value (the scene's, else its default), unit, range and meaning
         value = given.get(c.name, c.default)
         about = "; ".join(part for part in (c.description, f"unit {c.unit}" if c.unit else "", f"allowed: {c.allowed}",
                                             "" if c.name in given else f"default {c.default_text}") if part)
-        if value is None:
-            lines.append(f"# {c.name}: not given ({about})\n")
-        else:
-            lines.append(f"{tomli_w.dumps({c.name: value}).strip():24s}# {about}\n")
-    return "".join(lines)
+        lines.append(f"# {c.name}: not given ({about})\n" if value is None else
+                     f"{tomli_w.dumps({c.name: value}).strip():24s}# {about}\n")
+    return "".join(lines) + (tomli_w.dumps({"petsc_options": options}) if options else "")
 
 
 def _fmt_energy_line(res) -> str:
@@ -76,28 +60,26 @@ def _fmt_energy_line(res) -> str:
     b = checks_of(res)["energy_balance"]
     external = f" - external work {b['external_work']:.6g}" if b["external_work"] else ""
     verdict = "closes" if b["closes"] else f"DOES NOT CLOSE (tolerance {b['tolerance']:.0e})"
-    return (
-        f"energy balance: E(0) = {b['initial']:.6g} = E(t={res.t[-1]:.4g}) {b['final']:.6g} + viscous {b['viscous_dissipation']:.6g} "
-        f"+ contact {b['contact_dissipation']:.6g} + numerical {b['numerical_dissipation']:.6g}{external}; "
-        f"residual {b['max_abs_residual']:.2e} ({b['relative_residual']:.1e} relative): {verdict}"
-    )
+    return (f"energy balance: E(0) = {b['initial']:.6g} = E(t={res.t[-1]:.4g}) {b['final']:.6g} + viscous "
+            f"{b['viscous_dissipation']:.6g} + contact {b['contact_dissipation']:.6g} + numerical "
+            f"{b['numerical_dissipation']:.6g}{external}; residual {b['max_abs_residual']:.2e} "
+            f"({b['relative_residual']:.1e} relative): {verdict}")
 
 
 def _fmt_numerical_line(res) -> str | None:
-    """A line when the scheme's own dissipation D_num is a large share of the energy (`run.checks.NUMERICAL_SHARE`):
-    what it is and what to change; None otherwise."""
+    """A note when the scheme's own dissipation D_num is over `NUMERICAL_SHARE` of the energy, with what to change."""
     from ..run.checks import NUMERICAL_SHARE, checks_of
 
     b = checks_of(res)["energy_balance"]
     share = b.get("numerical_share", 0.0)
     if not share > NUMERICAL_SHARE:
         return None
-    advice = ("a smaller dt (D_num falls like dt: --nt 4x, about a quarter of it)"
-              if res.scheme == "paper" else "a smaller dt (D_num falls with dt)")
+    advice = ("a smaller dt (D_num falls like dt: --nt 4x, about a quarter of it)" if res.scheme == "paper"
+              else "a smaller dt (D_num falls with dt)")
     if res.scheme == "paper" and _runs_with(res, "newmark"):
         advice += ", or scheme newmark (trapezoidal: no dissipation of its own on a linear model)"
-    return (f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % of the "
-            f"energy {b['energy_scale']:.6g} (over {100 * NUMERICAL_SHARE:.0f} %): the balance closes, but the "
+    return (f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % of "
+            f"the energy {b['energy_scale']:.6g} (over {100 * NUMERICAL_SHARE:.0f} %): the balance closes, but the "
             f"dissipations are that far from the equation's; for numbers to trust use {advice}")
 
 
@@ -118,6 +100,7 @@ def _runs_with(res, scheme: str) -> bool:
 
 
 def _fmt_penetration_line(res) -> tuple[str, bool]:
+    """The penetration line and whether the depth is within its bound (or explained, or has no bound)."""
     from ..run.checks import PENETRATION_FACTOR, PRESS_SPAN, checks_of
 
     p = checks_of(res)["penetration"]
@@ -131,25 +114,21 @@ def _fmt_penetration_line(res) -> tuple[str, bool]:
     if p["bound"] is None:  # the model's contact law has no known bound: the depth alone, no verdict
         return f"penetration: max depth {p['depth']:.4g} ({p['law']})", True
     start = f"{p['initial_depth']:.4g} (start) + " if p["initial_depth"] > 0 else ""
-    verdict = "within" if p["within_bound"] else "EXCEEDS"
+    line = f"penetration: max depth {p['depth']:.4g} {'within' if p['within_bound'] else 'EXCEEDS'} the bound {start}"
     if p.get("eps_free"):  # a contact step (scheme projection): no eps in the bound
-        line = f"penetration: max depth {p['depth']:.4g} {verdict} the bound {start}{PENETRATION_FACTOR:g} dt max|v| = {p['bound']:.4g}"
-        return line, p["within_bound"]
-    line = (
-        f"penetration: max depth {p['depth']:.4g} {verdict} the bound {start}{PENETRATION_FACTOR:g}(eps + dt) max|v| "
-        f"= {p['bound']:.4g} (eps max|v| = {p['eps_times_speed']:.4g})"
-    )
-    return line, p["within_bound"]
+        return f"{line}{PENETRATION_FACTOR:g} dt max|v| = {p['bound']:.4g}", p["within_bound"]
+    return (f"{line}{PENETRATION_FACTOR:g}(eps + dt) max|v| = {p['bound']:.4g} (eps max|v| = {p['eps_times_speed']:.4g})",
+            p["within_bound"])
 
 
 def report(res) -> None:
-    """The run's closing lines on stdout: parameters, the least gap η − ψ and height η, the energy balance (with a
-    note when the scheme's own dissipation is a large share of it) and the penetration check."""
+    """The run's closing lines on stdout: parameters, the least gap η − ψ and height η, the contact set, the energy
+    balance and the penetration check; then timings, counts and solvers."""
     from ..errors import PenetrationWarning
+    from ..io.tables import most_components
 
     scene = res.scene
-    penalty = (f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none"
-               else "no penalty")
+    penalty = f"eps={scene.eps:.4g} r={scene.dt / scene.eps:.3g} penalty={res.penalty}" if res.penalty != "none" else "no penalty"
     if res.penalty != "none" and not getattr(res, "law_reads_eps", True):  # a law of the model's own constants
         penalty = f"penalty={res.penalty} (its contact law reads no eps)"
     grid = f"nx={scene.nx}" if res.dim == 1 else f"{scene.domain} with {len(res.x)} nodes"
@@ -158,48 +137,28 @@ def report(res) -> None:
           f"mass={res.mass}{restitution}" + (f" ({res.status} at t = {res.t[-1]:.6g})" if res.status != "complete" else ""))
     if len(res.t) == 0:
         return
-    if res.dim == 1:
-        print(f"{_fmt_minima(res)}; final contact length = {res.contact_length[-1]:.4g}" + _components_note(res))
+    if scene.obstacle is None:  # + 0.0: no "-0"
+        minima = f"min gap eta - psi = min eta = {res.min_eta + 0.0:.6g} (the obstacle psi = 0)"
     else:
-        print(f"{_fmt_minima(res)}; final contact area = {res.contact_measure[-1]:.4g} "
-              f"in {res.contact_components[-1]} patch(es)")
-    print(_fmt_energy_line(res))
-    numerical = _fmt_numerical_line(res)
-    if numerical is not None:
-        print(numerical)
+        minima = f"min gap eta - psi = {getattr(res, 'min_gap', float('nan')) + 0.0:.6g} (min eta = {res.min_eta + 0.0:.6g})"
+    if res.dim == 1:
+        most, several = most_components(res).get("contact_components"), ""
+        if most and most["most"] >= 2:  # when contact began, the most components at once and when (Example 2's point)
+            began = next(float(t) for t, k in zip(res.t, res.contact_components) if k > 0)
+            several = (f"; first contact at t = {began:.4g}; at most {most['most']} contact components at once "
+                       f"(first at t = {most['first_at']:.4g})")
+        print(f"{minima}; final contact length = {res.contact_length[-1]:.4g}{several}")
+    else:
+        print(f"{minima}; final contact area = {res.contact_measure[-1]:.4g} in {res.contact_components[-1]} patch(es)")
     line, ok = _fmt_penetration_line(res)
-    print(line)
+    print("\n".join(text for text in (_fmt_energy_line(res), _fmt_numerical_line(res), line) if text))
     if not ok:
-        warnings.warn(
-            "the string went further below the obstacle than its contact law allows, with no press to explain it; "
-            "a force the penalty cannot stop holds it down (a model variant, r > 1); see docs/explanation/reliability.md",
-            PenetrationWarning,
-        )
+        warnings.warn("the string went further below the obstacle than its contact law allows, with no press to explain "
+                      "it; a force the penalty cannot stop holds it down (a model variant, r > 1); see "
+                      "docs/explanation/reliability.md", PenetrationWarning)
     if res.timings:
         print("time: " + ", ".join(f"{k} {v:.3g} s" for k, v in res.timings.items()))
     if res.counters:
         print("counts: " + ", ".join(f"{k} {v}" for k, v in res.counters.items()))
     for what, description in res.solver.items():
         print(f"{what}: {description}")
-
-
-def _fmt_minima(res) -> str:
-    """"min gap eta - psi = G (min eta = E)": the least gap to the obstacle (below 0: below it) and the least height,
-    over every node and step; one number under the flat obstacle psi = 0."""
-    gap = getattr(res, "min_gap", float("nan"))
-    if res.scene.obstacle is None:
-        return f"min gap eta - psi = min eta = {res.min_eta + 0.0:.6g} (the obstacle psi = 0)"  # + 0.0: no "-0"
-    return f"min gap eta - psi = {gap + 0.0:.6g} (min eta = {res.min_eta + 0.0:.6g})"
-
-
-def _components_note(res) -> str:
-    """"; first contact at t = A; at most K contact components at once (first at t = B)": when contact began, and
-    the largest number of components and when it first occurred (Example 2's point is a contact set of several)."""
-    from ..io.tables import most_components
-
-    most = most_components(res).get("contact_components")
-    if most is None or most["most"] < 2:
-        return ""
-    began = next(float(t) for t, k in zip(res.t, res.contact_components) if k > 0)
-    return (f"; first contact at t = {began:.4g}; at most {most['most']} contact components at once "
-            f"(first at t = {most['first_at']:.4g})")

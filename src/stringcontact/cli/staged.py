@@ -4,20 +4,15 @@ from __future__ import annotations
 
 import contextlib
 
-__all__ = ["staged_output"]
-
 
 @contextlib.contextmanager
 def staged_output(out, force: bool, command: str, comm, root: int = 0):
-    """``with staged_output(out, force, command, comm) as partial:`` compute, then write into `partial`.
+    """``with staged_output(out, force, command, comm) as partial:`` compute, then write into `partial` (None on
+    the other ranks and without `out`); published when the body ends without an error, removed otherwise.
 
-    The folder is taken (`io.target.check_target`, then `io.publish.staged_folder`: locked, a hidden partial
-    folder beside it) before the body runs, by rank `root` alone (another rank probing it would find it locked),
-    with one outcome on every rank (`fem.agree.one_outcome`): a folder another study writes to, or one that cannot be
-    made, is refused before minutes of computing, not after them. Yields
-    the partial folder on `root`, None on the other ranks and when `out` is None; it is published when the body
-    ends without an error, removed otherwise.
-    """
+    The folder is taken (`io.target.check_target`, then `io.publish.staged_folder`) by rank `root` alone, with one
+    outcome on every rank (`fem.agree.one_outcome`), before the body runs: a folder another study writes to, or one
+    that cannot be made, is refused before minutes of computing, not after them."""
     from ..fem.agree import one_outcome
     from ..io.publish import staged_folder
     from ..io.target import check_target
@@ -27,5 +22,4 @@ def staged_output(out, force: bool, command: str, comm, root: int = 0):
         return stack.enter_context(staged_folder(out, force, command=command))
 
     with contextlib.ExitStack() as stack:
-        partial = None if out is None else one_outcome(comm, take, stack, root=root)
-        yield partial
+        yield None if out is None else one_outcome(comm, take, stack, root=root)

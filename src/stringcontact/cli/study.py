@@ -1,7 +1,5 @@
-"""`stringcontact study work-precision|convergence|stability`: run a study, write its CSV and PNG files.
-
-Under ``mpirun -n K`` the cases are dealt over the ranks (`analysis.schedule.distribute`); rank 0 writes.
-"""
+"""`stringcontact study work-precision|convergence|stability|film`: run a study, write its CSV and PNG files.
+Under ``mpirun -n K`` the cases are dealt over the ranks (`analysis.schedule.distribute`); rank 0 writes."""
 
 from __future__ import annotations
 
@@ -11,30 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.study import (
-    ALPHA_COLUMNS,
-    CONVERGENCE_COLUMNS,
-    ORDER_COLUMNS,
-    STABILITY_COLUMNS,
-    STEP_COLUMNS,
-    TOLERANCE_COLUMNS,
-    WORK_PRECISION_COLUMNS,
-    alpha_sweep,
-    convergence,
-    plot_convergence,
-    plot_stability,
-    plot_step_size,
-    plot_work_precision,
-    stability_map,
-    step_size_map,
-    tolerance_tracking,
-    work_precision,
-    write_csv,
-)
+from ..analysis import study as studies
 from .staged import staged_output
+
+#: The most times one run is timed (`--repeat`): the best of 100 is as good as a timing gets.
+MAX_REPEAT = 100
 
 
 def add_arguments(parser):
+    """`stringcontact study`'s subcommands and their arguments."""
     sub = parser.add_subparsers(dest="study", required=True, metavar="{work-precision,convergence,stability,film}")
     specs = {
         "work-precision": "error against wall-clock time per method (flat landing and Example 1)",
@@ -52,32 +35,23 @@ def add_arguments(parser):
             p.add_argument("--repeat", type=int, default=1, help="time each run this many times, keep the best")
 
 
-#: The most times one run is timed (`--repeat`): the best of 100 is as good as a timing gets.
-MAX_REPEAT = 100
-
-
 def command(args) -> int:
+    """Run the study, its folder taken before the sweep (a second study into it, or a folder that cannot be made, is
+    refused before the computing), and print its times and the files written."""
     from mpi4py import MPI
 
-    comm = MPI.COMM_WORLD
-    out = Path(args.out)
+    comm, out, busy = MPI.COMM_WORLD, Path(args.out), []
     if args.study == "work-precision" and not 1 <= args.repeat <= MAX_REPEAT:
         raise ValueError(f"--repeat: {args.repeat} is out of range; allowed: an integer in [1, {MAX_REPEAT}] (each run "
                          "is timed that many times)")
     t0 = time.perf_counter()
-    busy = []
-    # the folder is checked (the rules of `run --out`; never a run's result), locked and its partial folder made
-    # before the sweep: a second study into it, or a folder that cannot be made, is refused before the computing
     with staged_output(out, args.force, "study", comm) as partial:
         sweep, written = _sweep_and_write(args, comm, partial, busy)
-    written = [out / p.name for p in written]
     if comm.rank == 0:
-        elapsed = time.perf_counter() - t0
         per_rank = np.sum(np.reshape(busy, (-1, comm.size)), axis=0) if busy else []
-        print(f"study {args.study}: {comm.size} rank(s), {elapsed:.2f} s wall-clock, of which the sweep "
-              f"{sweep:.2f} s; " + _cpu_text(per_rank))
-        for path in written:
-            print(f"wrote {path}")
+        print(f"study {args.study}: {comm.size} rank(s), {time.perf_counter() - t0:.2f} s wall-clock, of which the "
+              f"sweep {sweep:.2f} s; " + _cpu_text(per_rank))
+        print("".join(f"wrote {out / p.name}\n" for p in written), end="")
     return 0
 
 
@@ -90,55 +64,53 @@ def _cpu_text(per_rank) -> str:
 
 
 def _sweep_and_write(args, comm, partial: Path | None, busy: list) -> tuple[float, list[Path]]:
-    """The study's sweep (its time in seconds), then its files written into `partial` on the rank that has the
-    results (rank 0; the others have None and write nothing)."""
-    t_sweep = time.perf_counter()
+    """The study's sweep (its time in seconds), then its files written into `partial` on rank 0 (the others have
+    no results and write nothing)."""
+    t_sweep, quick = time.perf_counter(), args.quick
     if args.study == "work-precision":
         names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)
-        result = work_precision(quick=args.quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
+        result = studies.work_precision(quick=quick, problem_names=names, repeat=args.repeat, comm=comm, busy=busy)
     elif args.study == "convergence":
-        result = convergence(quick=args.quick, comm=comm, busy=busy)
+        result = studies.convergence(quick=quick, comm=comm, busy=busy)
     elif args.study == "film":  # serial: rank 0 runs the sweep
         from ..analysis.film import film_study
 
-        result = film_study(quick=args.quick) if comm.rank == 0 else None
+        result = film_study(quick=quick) if comm.rank == 0 else None
     else:
-        result = stability_map(quick=args.quick, comm=comm, busy=busy)
-        alpha_rows = alpha_sweep(quick=args.quick, comm=comm, busy=busy)
-        step_rows = step_size_map(quick=args.quick, comm=comm, busy=busy)
+        result = (studies.stability_map(quick=quick, comm=comm, busy=busy), studies.alpha_sweep(quick=quick, comm=comm, busy=busy),
+                  studies.step_size_map(quick=quick, comm=comm, busy=busy))
     sweep = time.perf_counter() - t_sweep
-    if result is None or partial is None:  # None on ranks > 0: rank 0 has the results
+    if result is None or partial is None:  # ranks > 0: rank 0 has the results
         return sweep, []
-    written = _write(args, partial, result, *((alpha_rows, step_rows) if args.study == "stability" else ()))
-    (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": args.quick,
+    written = _write(args, partial, result)
+    (partial / "study.json").write_text(json.dumps({"study": args.study, "quick": quick,
                                                     "files": [p.name for p in written]}, indent=1) + "\n")
     return sweep, written
 
 
-def _write(args, out: Path, result, alpha_rows=None, step_rows=None) -> list[Path]:
+def _write(args, out: Path, result) -> list[Path]:
     """The study's CSV files and charts, written into `out` (the hidden staged folder)."""
+    csv = studies.write_csv
     if args.study == "work-precision":
-        written = [write_csv(out / "study_work_precision.csv", result, WORK_PRECISION_COLUMNS),
-                   plot_work_precision(result, out / "study_work_precision.png")]
-    elif args.study == "film":
-        written = _write_film(out, result)
-    elif args.study == "convergence":
-        tracking = tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
-        written = [write_csv(out / "study_convergence.csv", result["runs"], CONVERGENCE_COLUMNS),
-                   write_csv(out / "study_orders.csv", result["orders"], ORDER_COLUMNS),
-                   write_csv(out / "study_tolerance.csv", tracking, TOLERANCE_COLUMNS),
-                   plot_convergence(result, out / "study_convergence.png")]
+        return [csv(out / "study_work_precision.csv", result, studies.WORK_PRECISION_COLUMNS),
+                studies.plot_work_precision(result, out / "study_work_precision.png")]
+    if args.study == "film":
+        return _write_film(out, result)
+    if args.study == "convergence":
+        tracking = studies.tolerance_tracking((3e-2, 1e-2) if args.quick else (3e-2, 1e-2, 5e-3))
         _print_orders(result["orders"], args.quick)
         for t in tracking:
-            print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} "
-                  f"true {t['true_error']:.3g}")
-    else:
-        written = [write_csv(out / "study_stability.csv", result, STABILITY_COLUMNS),
-                   write_csv(out / "study_alpha.csv", alpha_rows, ALPHA_COLUMNS),
-                   write_csv(out / "study_step_size.csv", step_rows, STEP_COLUMNS),
-                   plot_stability(result, alpha_rows, out / "study_stability.png"),
-                   plot_step_size(step_rows, out / "study_step_size.png")]
-    return written
+            print(f"tol {t['tol']:g}: {t['method']} nx={t['nx']} estimate {t['estimate']:.3g} true {t['true_error']:.3g}")
+        return [csv(out / "study_convergence.csv", result["runs"], studies.CONVERGENCE_COLUMNS),
+                csv(out / "study_orders.csv", result["orders"], studies.ORDER_COLUMNS),
+                csv(out / "study_tolerance.csv", tracking, studies.TOLERANCE_COLUMNS),
+                studies.plot_convergence(result, out / "study_convergence.png")]
+    stability, alpha_rows, step_rows = result
+    return [csv(out / "study_stability.csv", stability, studies.STABILITY_COLUMNS),
+            csv(out / "study_alpha.csv", alpha_rows, studies.ALPHA_COLUMNS),
+            csv(out / "study_step_size.csv", step_rows, studies.STEP_COLUMNS),
+            studies.plot_stability(stability, alpha_rows, out / "study_stability.png"),
+            studies.plot_step_size(step_rows, out / "study_step_size.png")]
 
 
 def _print_orders(orders, quick: bool) -> None:
@@ -160,6 +132,6 @@ def _write_film(out: Path, rows: list[dict]) -> list[Path]:
     for r in rates:
         cavitation = "no cavitation" if np.isnan(r["p_cav"]) else f"p_cav = {r['p_cav']:g}"
         print(f"film {r['problem']:8s} {cavitation:14s} {r['quantity']:12s} ~ mu^{r['rate']:.3f} (mu = {r['mus']})")
-    return [write_csv(out / "study_film.csv", rows, FILM_COLUMNS),
-            write_csv(out / "study_film_rates.csv", rates, RATE_COLUMNS),
+    return [studies.write_csv(out / "study_film.csv", rows, FILM_COLUMNS),
+            studies.write_csv(out / "study_film_rates.csv", rates, RATE_COLUMNS),
             plot_film_study(rows, out / "study_film.png", H_MIN)]

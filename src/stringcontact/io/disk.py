@@ -1,6 +1,5 @@
-"""The device under an output folder: the files written to it (fsync, and `sync_soon` to start that early), and
-what a failed write means, in one line (`describe_os_error`: a full disk, a read-only file system, no
-permission) or as a failing device that no output can be kept on (`disk_failure`).
+"""The device under an output folder: fsync (`sync_soon` starts it early), and a failed write in one line
+(`describe_os_error`: a full disk, a read-only file system, no permission) or as a failing device (`disk_failure`).
 """
 
 from __future__ import annotations
@@ -15,6 +14,8 @@ from ..errors import one_line
 
 #: below this many free bytes a failed write is reported as a full disk.
 NEARLY_FULL_BYTES = 1 << 20
+#: errno values that mean the device failed, not the data: the output folder cannot be kept.
+DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
 
 
 def _umask() -> int:
@@ -23,85 +24,54 @@ def _umask() -> int:
     return mask
 
 
-def _fsync_tree(folder: Path) -> None:
-    for p in folder.iterdir():
-        if p.is_file():
-            _fsync_file(p)
-    _fsync_dir(folder)
-
-
-def _fsync_file(path) -> None:
-    fd = os.open(path, os.O_RDONLY)
+def fsync(path, folder: bool = False) -> None:
+    """fsync the file `path` (a failure raised), or the folder `path` (some file systems cannot: left)."""
     try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if folder else 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        if not folder:
+            raise
 
 
 def sync_soon(paths) -> threading.Thread:
-    """Start writing the files `paths` to the device now, in a thread (returned), while the caller goes on.
-
-    A run's data (solution.h5, rows.npz, diagnostics.csv: Example 1's 48 MB) then reach the disk while the
-    pictures are drawn, and publishing, whose fsync of every file is what guarantees them, finds them written:
-    Example 1's publishing fsyncs took 0.003 s against 0.030-0.035 s (six runs each; docs/explanation/performance.md). A
-    failure here is left to that later fsync to report."""
+    """Start writing the files `paths` to the device now, in a thread (returned), while the pictures are drawn:
+    publishing's own fsync then takes 0.003 s for Example 1, not 0.030-0.035 s (docs/explanation/performance.md)."""
 
     def sync():
         for path in paths:
             with contextlib.suppress(OSError):
-                _fsync_file(path)
+                fsync(path)
 
     thread = threading.Thread(target=sync, name="sync_soon", daemon=True)
     thread.start()
     return thread
 
 
-def _fsync_dir(folder: Path) -> None:
-    with contextlib.suppress(OSError):  # some file systems cannot fsync a directory
-        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-
 def describe_os_error(exc: BaseException, folder, probe=None) -> str:
     """One line for an I/O failure in `folder`: disk full, read-only, permission denied, or the error itself.
-
-    `probe` is the path whose device is examined when the error has no errno (default: `folder`).
-    """
+    Without an errno (dolfinx's and HDF5's RuntimeError), the device of `probe` (default `folder`) is examined."""
     err = getattr(exc, "errno", None)
-    if err == errno.ENOSPC:
-        return f"the disk is full (no space left on the device of {folder})"
-    if err == errno.EDQUOT:
-        return f"the disk quota is exceeded on {folder}"
-    if err == errno.EROFS:
-        return f"{folder} is on a read-only file system"
-    if err in (errno.EACCES, errno.EPERM):
-        return f"permission denied in {folder}"
+    reasons = {errno.ENOSPC: f"the disk is full (no space left on the device of {folder})",
+               errno.EDQUOT: f"the disk quota is exceeded on {folder}", errno.EROFS: f"{folder} is on a read-only file system",
+               errno.EACCES: f"permission denied in {folder}", errno.EPERM: f"permission denied in {folder}"}
     if err is not None:
-        return f"{getattr(exc, 'strerror', None) or exc} ({folder})"
-    # dolfinx/HDF5 raise RuntimeError without an errno: look at the device.
+        return reasons.get(err) or f"{getattr(exc, 'strerror', None) or exc} ({folder})"
     probe = Path(probe if probe is not None else folder)
     while not probe.exists() and probe != probe.parent:
         probe = probe.parent
-    try:
+    with contextlib.suppress(OSError):
         st = os.statvfs(probe)
-    except OSError:
-        return f"{one_line(exc, 300)} ({folder})"
-    free = st.f_bavail * st.f_frsize
-    if free < NEARLY_FULL_BYTES:
-        return f"the disk is full ({free // 1024} KiB left on the device of {folder})"
-    if st.f_flag & os.ST_RDONLY:
-        return f"{folder} is on a read-only file system"
-    if not os.access(probe, os.W_OK):
-        return f"permission denied in {folder}"
+        if st.f_bavail * st.f_frsize < NEARLY_FULL_BYTES:
+            return f"the disk is full ({st.f_bavail * st.f_frsize // 1024} KiB left on the device of {folder})"
+        if st.f_flag & os.ST_RDONLY:
+            return reasons[errno.EROFS]
+        if not os.access(probe, os.W_OK):
+            return reasons[errno.EACCES]
     return f"{one_line(exc, 300)} ({folder})"
-
-
-#: errno values that mean the device failed, not the data: the output folder cannot be kept.
-DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
 
 
 def disk_failure(exc: BaseException) -> OSError | None:

@@ -1,14 +1,7 @@
-"""Results on disk: a run's output folder, `solution.xdmf`/`.h5`, `diagnostics.csv` and `summary.json`.
-
-`OutputWriter` streams the stored rows into the XDMF (`xdmf`) during the run and writes the tables
-(`tables`) at the end, in a hidden folder that `publish` locks, checks and renames into place; each stored
-time is written with SIGINT/SIGTERM held back (`signals`), so the XDMF holds whole time levels, and the XDMF
-is closed (and read back) before the rename. A disk-full or permission error (in a picture too) removes the
-partial folder and raises :class:`OutputError` with one line, on every MPI rank.
-
-The run's numbers checks (energy balance, penetration) come with the `Result` (`result.checks`, made by
-`run.checks`); this module writes them into summary.json and knows no physics. The pictures are drawn by
-the function the caller passes (`pictures`); this module never imports the picture code.
+"""A run's output folder (`OutputWriter`): the stored rows streamed into `solution.xdmf`/`.h5` during the run, each
+frame with the stop signals held back (whole time levels); at the end the tables, `view.py` and the pictures (the
+function the caller passes: no picture code here), in a hidden folder that `publish` renames into place once the
+XDMF is closed and read back. A failing device removes the folder: one line (`OutputError`) on every MPI rank.
 """
 
 from __future__ import annotations
@@ -17,49 +10,27 @@ import contextlib
 import json
 import shutil
 import signal
+import sys
 import time
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import (
-    Interrupted,
-    OutputError,  # noqa: F401 - re-exported: `from stringcontact.io.folder import OutputError`
-    one_line,
-)
+from ..errors import Interrupted, OutputError, one_line
 from .disk import describe_os_error, disk_failure, sync_soon
-from .hdf5 import Hdf5Quiet
-from .paraview_view import write_view
+from .paraview_view import obstacle_at, write_view
 from .publish import open_partial, publish_partial
 from .readback import xdmf_series
-from .result import FIELDS, OBSTACLE_FIELD  # the XDMF's attributes (also read as output.FIELDS)
+from .result import FIELDS, OBSTACLE_FIELD
 from .signals import signals_held
 from .tables import ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows
 from .xdmf import XdmfTimeSeries, mesh_arrays
 
 
-def obstacle_at(scene, points, t: float) -> np.ndarray:
-    """ψ(·, t) at the mesh `points` ((N, 3), as written to the XDMF); where the expression gives no finite
-    value, its lowest finite value (a reader warps by it: no NaN)."""
-    points = np.asarray(points, dtype=float)
-    psi = np.asarray(scene.obstacle_values(points[:, 0] if scene.dim == 1 else points[:, :2], t), dtype=float).reshape(-1)
-    psi = np.broadcast_to(psi, points.shape[:1]) if psi.size == 1 else psi
-    finite = np.isfinite(psi)
-    return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
-
-# --- the writer ------------------------------------------------------------------------------------------
-
-
 def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
-    """Which stored rows become XDMF frames: at most `max_frames` (at least 2) of them. The first and the last
-    always; then the rows at `keep_steps` (the scene's output times), evenly thinned if they do not fit;
-    then evenly spaced rows up to `max_frames`.
-
-    dolfinx 0.5's XDMFFile rewrites its whole XML on every write, so writing costs O(frames²): 376 rows of
-    Example 1 take 3.5 s, 100 take 0.4 s; 3000 output times took over 600 s. The bound is therefore on
-    every frame, output times included. The Result and diagnostics.csv keep every stored row.
-    """
+    """Which stored rows become XDMF frames (a mask), at most `max_frames` (at least 2): the first and the last, the
+    rows at `keep_steps` (the output times; evenly thinned, with a warning, if they do not fit), evenly spaced rows."""
     steps = np.asarray(steps)
     mask = np.zeros(steps.size, dtype=bool)
     if not steps.size:
@@ -69,11 +40,9 @@ def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
     keep = np.flatnonzero(np.isin(steps, np.asarray(sorted(keep_steps), dtype=steps.dtype)) & ~mask)
     _add_evenly(mask, keep, budget)
     if keep.size and not mask[keep].all():
-        warnings.warn(
-            f"the scene's {keep.size} output times do not fit in {budget} XDMF frames (--frames): solution.xdmf "
-            f"holds {int(mask[keep].sum())} of them; all are stored rows (diagnostics.csv, the pictures)",
-            stacklevel=2,
-        )
+        warnings.warn(f"the scene's {keep.size} output times do not fit in {budget} XDMF frames (--frames): solution.xdmf "
+                      f"holds {int(mask[keep].sum())} of them; all are stored rows (diagnostics.csv, the pictures)",
+                      stacklevel=2)
     _add_evenly(mask, np.flatnonzero(~mask), budget)
     return mask
 
@@ -81,70 +50,44 @@ def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
 def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
     """Set up to ``budget - mask.sum()`` of the rows `candidates` (sorted, unset) in `mask`, evenly spaced."""
     room = budget - int(mask.sum())
-    if room <= 0 or not candidates.size:
-        return
-    if candidates.size > room:
-        candidates = candidates[((np.arange(room) + 0.5) * (candidates.size / room)).astype(int)]  # centred picks
-    mask[candidates] = True
-
-
-#: The command line's words in the output folder's messages (`publish.check_target`) and a Python caller's, who
-#: gave the folder and the flag as `run.options.Output(dir, force=True)`.
-_PYTHON_TERMS = (
-    ("pass --force to replace it", "pass Output(..., force=True) to replace it"),
-    ("--force replaces only", "Output(force=True) replaces only"),
-    ("--out ", "output folder "),
-)
+    if room > 0 and candidates.size:
+        if candidates.size > room:
+            candidates = candidates[((np.arange(room) + 0.5) * (candidates.size / room)).astype(int)]  # centred picks
+        mask[candidates] = True
 
 
 def in_python_terms(message: str) -> str:
-    """An output folder's refusal as a Python caller says it: ``Output(..., force=True)`` for ``--force``, "output
-    folder X" for ``--out X``. The command line checks its --out itself first (`publish.check_target`), in its own
-    words; what reaches `OutputWriter` comes from `simulate`/`Stepper`'s `Output`."""
-    for cli, python in _PYTHON_TERMS:
+    """An output folder's refusal in a Python caller's (`run.options.Output`) terms, not the command line's."""
+    for cli, python in (("pass --force to replace it", "pass Output(..., force=True) to replace it"),
+                        ("--force replaces only", "Output(force=True) replaces only"), ("--out ", "output folder ")):
         message = message.replace(cli, python)
     return message
 
 
 class OutputWriter:
-    """Streams the stored rows to XDMF during the run and writes the tables at the end.
-
-    The solver calls ``write(t, fields)`` at each stored time, then ``finish(result)`` or, on
-    InstabilityError or KeyboardInterrupt, ``abort(status, message[, result])``. `path` is where the
-    folder ended up (the target, or ``NAME.interrupted``/``NAME.unstable`` beside an existing result).
-    """
+    """The solver calls ``write(t, fields)`` at each stored time, then ``finish(result)``, or ``abort(status,
+    message[, result])`` on InstabilityError or KeyboardInterrupt, ``discard()`` on an unexpected error. `frames`:
+    which stored rows are XDMF frames (`xdmf_frames`); `pictures`: None or a function (result, folder). `path`: where
+    the folder ended up (the target, or ``NAME.interrupted``, ... beside an existing result)."""
 
     def __init__(self, path, scene, V, comm, force: bool = False, pictures=None, frames=None):
-        self.comm = comm
-        self.frames = None if frames is None else np.asarray(frames, dtype=bool)  # which stored rows go to XDMF
-        self._row = 0
-        self._skipped = None  # the time of the last stored row not written to XDMF, if the latest row was one
-        self._kept = None  # that row's fields: flushed if the run stops there
-        self._spare = None  # the buffers the next skipped row is copied into before it replaces the kept one
-        self.pictures = pictures  # None/False (no pictures) or a function (result, folder)
-        self.scene = scene
-        self.force = force
-        self.write_time = 0.0
-        self.times: list[float] = []
-        self.lock = None
-        self.partial = None
-        self.xdmf = None
-        self.path = None
-        self._quiet = Hdf5Quiet()
-        # Only rank 0 looks at the folder: another rank would find rank 0's own lock and refuse.
+        self.comm, self.scene, self.force, self.pictures = comm, scene, force, pictures
+        self.frames = None if frames is None else np.asarray(frames, dtype=bool)
+        self._row, self._kept = 0, None  # the last stored row if it is not a frame: (t, fields), written if the run stops
+        self.write_time, self.times = 0.0, []
+        self.lock = self.partial = self.xdmf = self.path = None
         self.target = Path(path).resolve()
         failure = None
-        if comm.rank == 0:
+        if comm.rank == 0:  # only rank 0 looks at the folder: another rank would find rank 0's own lock
             try:
                 self.target, self.lock, self.partial = open_partial(path, force)
             except OutputError as exc:
                 failure = in_python_terms(str(exc))
-        failure, partial = comm.bcast((failure, self.partial), root=0) if comm.size > 1 else (failure, self.partial)
+        if comm.size > 1:
+            failure, self.partial = comm.bcast((failure, self.partial), root=0)
         if failure is not None:
             raise OutputError(failure)
-        self.partial = partial
         try:
-            self._quiet.__enter__()
             self.xdmf = XdmfTimeSeries(self.partial, mesh_arrays(V, comm), comm)
         except (RuntimeError, OSError) as exc:  # petsc4py's Error is a RuntimeError
             self._fail("cannot write solution.xdmf", exc)
@@ -152,30 +95,21 @@ class OutputWriter:
             self._discard()
             raise
 
-    # -- during the run
-
     def write(self, t: float, fields: dict) -> None:
-        """One stored row: all four fields as one XDMF frame, or (interrupted) none of them.
-
-        Rows that are not among `frames` are not written; the latest of them is kept, so that a run that
-        stops there still ends its XDMF with its last stored row.
-        """
+        """One stored row: all its fields as one XDMF frame, or none; a row not among `frames` is kept (copied) instead,
+        so that a run that stops there still ends its XDMF with it."""
         row, self._row = self._row, self._row + 1
         if self.frames is not None and row < self.frames.size and not self.frames[row]:
-            if self._spare is None:
-                self._spare = {name: np.empty(np.shape(values)) for name, values in fields.items()}
-            for name, values in fields.items():  # into the spare buffers: a Ctrl-C here leaves the kept row whole
-                np.copyto(self._spare[name], values)
-            self._kept, self._spare = self._spare, self._kept
-            self._skipped = t
+            self._kept = (t, {name: np.array(values, dtype=float) for name, values in fields.items()})
             return
-        self._skipped = None
+        self._kept = None
         self._write_frame(t, fields)
 
     def _write_frame(self, t: float, fields: dict) -> None:
         t0 = time.perf_counter()
         if getattr(self.scene, "obstacle_moves", False):  # ψ where it is at t: ParaView's view warps by it
-            fields = {**fields, OBSTACLE_FIELD: obstacle_at(self.scene, self.xdmf.mesh.points, t)}
+            points = self.xdmf.mesh.points[:, 0] if self.scene.dim == 1 else self.xdmf.mesh.points[:, :2]
+            fields = {**fields, OBSTACLE_FIELD: obstacle_at(self.scene, points, t)}
         try:
             with signals_held():
                 self.xdmf.write(t, fields)
@@ -184,15 +118,9 @@ class OutputWriter:
             self._fail(f"cannot write solution.h5 at t = {t:.6g}", exc)
         self.write_time += time.perf_counter() - t0
 
-    # -- the end of a run
-
     def finish(self, result) -> None:
-        """Close the XDMF, write diagnostics, pictures and summary, and rename the folder into place.
-
-        The status is the result's (the driver marks a run whose energy balance does not close
-        "unbalanced"; such a run is kept, never "complete"). A write that fails on the device (disk full, I/O error), pictures included, removes the
-        folder and raises OutputError on every rank.
-        """
+        """Close the XDMF, write the tables, view.py, the pictures and summary.json (the result's status: "unbalanced"
+        is never "complete"), rename the folder into place; a failing device removes it (OutputError, every rank)."""
         try:
             self._close_xdmf()
             summary = summary_dict(result)
@@ -214,9 +142,7 @@ class OutputWriter:
                 self._discard()
                 raise OutputError(f"--out {self.target}: cannot write the output files: {failure}; nothing was written there")
             self._publish(summary)
-        except KeyboardInterrupt as exc:
-            # Ctrl-C while drawing: the data are whole, and the folder says it was interrupted. If it came
-            # after the folder was published (held back until then), the folder is complete and stays so.
+        except KeyboardInterrupt as exc:  # the data are whole: the folder says it was interrupted (or, published, stays complete)
             self.abort("interrupted", f"{str(exc) or 'interrupted'} while writing the output files", result=result)
             raise
         except OutputError:
@@ -225,96 +151,65 @@ class OutputWriter:
             self._fail("cannot write the output files", exc)
 
     def abort(self, status: str, message: str, result=None, error=None) -> None:
-        """Keep what was written so far, marked `status` ("interrupted" or "unstable").
-
-        `result` (optional) holds the rows stored so far, for diagnostics.csv and the energy balance.
-        `error` (default: the exception being handled) gives the step, time and r of an InstabilityError.
-        Never raises an I/O error: the caller is already handling the run's own exception.
-        """
+        """Keep what was written, marked `status` ("interrupted", "unstable"), with `result`'s rows so far and `error`'s
+        (default: the exception being handled) step, time and r; never raises: the caller handles the run's own."""
         if self.partial is None and self.xdmf is None:
             return  # already finished, failed or aborted
-        if error is None:
-            import sys
-
-            error = sys.exc_info()[1]
+        error = error if error is not None else sys.exc_info()[1]
         try:
             with signals_held():
-                if self._skipped is not None and self.xdmf is not None:  # end the XDMF with the last stored row
-                    self._write_frame(self._skipped, self._kept)
-                    self._skipped = None
+                if self._kept is not None and self.xdmf is not None:  # end the XDMF with the last stored row
+                    self._write_frame(*self._kept)
                 self._close_xdmf()
-                summary = summary_dict(result) if result is not None and len(result.t) else self._bare_summary()
-                summary["status"] = status
-                summary["message"] = message or str(error or "") or status
-                if error is not None and getattr(error, "step", None) is not None:
+                rows = result is not None and len(result.t)
+                summary = summary_dict(result) if rows else self._bare_summary()
+                summary.update(status=status, message=message or str(error or "") or status)
+                if getattr(error, "step", None) is not None:
                     summary["instability"] = {"message": str(error), "step": error.step, "time": error.time, "r": error.r}
-                if self.comm.rank == 0 and result is not None and len(result.t):
+                if self.comm.rank == 0 and rows:
                     write_diagnostics(self.partial / "diagnostics.csv", result)
                     write_view(result, self.partial)
                 self._publish(summary)
         except Exception as exc:  # noqa: BLE001 - never hide the run's own exception behind ours
             self._discard()
-            warnings.warn(f"--out {self.target}: the partial output could not be kept: {describe_os_error(exc, self.target)}", stacklevel=2)
+            warnings.warn(f"--out {self.target}: the partial output could not be kept: {describe_os_error(exc, self.target)}",
+                          stacklevel=2)
 
     def discard(self) -> None:
         """Remove everything this run wrote (for a caller that stops on an unexpected error)."""
         self._discard()
 
-    # -- internals
-
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
-        """Rank 0: diagnostics.csv, view.py (the ParaView view) and the pictures. A picture that fails on the device raises (`disk_failure`)."""
+        """Rank 0: diagnostics.csv, rows.npz, view.py and the pictures (failing on the device: raised, else a warning)."""
         write_diagnostics(self.partial / "diagnostics.csv", result)
-        write_rows(self.partial / ROWS_FILE, result)  # what the pictures are drawn from, for `plot` (readback)
+        write_rows(self.partial / ROWS_FILE, result)
         write_view(result, self.partial, target=self.target)
         sync_soon([self.partial / name for name in ("solution.h5", ROWS_FILE, "diagnostics.csv")])  # while drawing
         if self.pictures:
             t0 = time.perf_counter()
-            self._pictures(result)
+            try:
+                self.pictures(result, self.partial)
+            except Exception as exc:  # noqa: BLE001 - pictures are optional, unless the device fails
+                if disk_failure(exc) is not None:
+                    raise
+                warnings.warn(f"pictures not written ({type(exc).__name__}: {one_line(exc, 300)})", stacklevel=3)
             summary.setdefault("timings", {})["pictures"] = time.perf_counter() - t0
-
-    def _pictures(self, result) -> None:
-        try:  # on rank 0 only
-            self.pictures(result, self.partial)
-        except KeyboardInterrupt:
-            raise
-        except Exception as exc:  # noqa: BLE001 - pictures are optional; the data must still be kept
-            if disk_failure(exc) is not None:  # ...but not on a device that fails: then nothing is kept (finish)
-                raise
-            warnings.warn(f"pictures not written ({type(exc).__name__}: {one_line(exc, 300)})", stacklevel=3)
 
     def _bare_summary(self) -> dict:
         import dolfinx
 
-        scene = self.scene
-        return {
-            "status": None,
-            "message": "",
-            "scene": scene.as_dict(),
-            "r": scene.r,  # nan without eps (scheme projection)
-            "dolfinx": dolfinx.__version__,
-            "stored_rows": self._row,
-            "xdmf_frames": len(self.times),
-        }
+        return {"status": None, "message": "", "scene": self.scene.as_dict(), "r": self.scene.r,
+                "dolfinx": dolfinx.__version__, "stored_rows": self._row, "xdmf_frames": len(self.times)}
 
     def _close_xdmf(self, discard: bool = False) -> None:
         if self.xdmf is not None:
-            xdmf, self.xdmf = self.xdmf, None
-            try:
-                xdmf.close(discard=discard)
-            except BaseException:
-                self.xdmf = xdmf  # still open: a discard closes it (XdmfTimeSeries.close)
-                raise
-            finally:
-                self._quiet.__exit__()
+            self.xdmf.close(discard=discard)  # kept if that fails: a discard closes it
+            self.xdmf = None
 
     def _publish(self, summary: dict) -> None:
-        """Check the XDMF, write summary.json, fsync, and rename the partial folder into place.
-
-        SIGINT/SIGTERM are held back throughout, so the folder is either still partial or fully in place.
-        """
+        """Check the XDMF's frames, write summary.json and publish the folder, the stop signals held throughout."""
         status = summary.get("status") or "complete"
-        failure, dest = None, None
+        failure = dest = None
         with signals_held():
             if self.comm.rank == 0:
                 try:
@@ -322,10 +217,8 @@ class OutputWriter:
                     counts = {name: len(series.get(name, ())) for name in FIELDS}
                     if any(c != len(self.times) for c in counts.values()):
                         raise OutputError(f"solution.xdmf holds {counts} time levels, expected {len(self.times)}")
-                    summary["xdmf_frames"] = len(self.times)
-                    summary["last_time"] = self.times[-1] if self.times else None
-                    with open(self.partial / "summary.json", "w") as f:
-                        f.write(json.dumps(clean_json(summary), indent=2, allow_nan=False))
+                    summary.update(xdmf_frames=len(self.times), last_time=self.times[-1] if self.times else None)
+                    (self.partial / "summary.json").write_text(json.dumps(clean_json(summary), indent=2, allow_nan=False))
                     dest = publish_partial(self.partial, self.target, self.force, status)
                 except (OSError, OutputError) as exc:
                     failure = describe_os_error(exc, self.target) if isinstance(exc, OSError) else str(exc)
@@ -348,7 +241,6 @@ class OutputWriter:
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
                 self._close_xdmf(discard=True)
-        self._quiet.__exit__()
         if self.comm.rank == 0 and self.partial is not None:
             shutil.rmtree(self.partial, ignore_errors=True)
         self.partial = None
@@ -363,5 +255,3 @@ class OutputWriter:
         with contextlib.suppress(Exception):
             if self.partial is not None:
                 self._discard()
-
-

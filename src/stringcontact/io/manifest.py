@@ -1,6 +1,5 @@
-"""The files a stringcontact command writes: each one whole or not at all (`atomic_path`), and the folder's
-manifest that lists them with their sizes (`read_manifest`, `write_manifest`), which is all that `--force` may
-replace (`foreign_file`, `is_run_result`).
+"""The files a stringcontact command writes: each whole or not at all (`atomic_path`), and the folder's
+``manifest.json`` listing them with their sizes, which is all that `--force` may replace (`foreign_file`).
 """
 
 from __future__ import annotations
@@ -16,34 +15,15 @@ from .disk import _umask
 
 #: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
 MANIFEST = "manifest.json"
-
-
 #: The largest manifest read: a folder's few dozen names and sizes take a few kB.
 MAX_MANIFEST_BYTES = 1 << 20
 
 
-def read_manifest(folder: Path) -> dict[str, int] | None:
-    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote.
-
-    Only a regular file of at most MAX_MANIFEST_BYTES counts: it is opened with O_NONBLOCK and O_NOFOLLOW, so a
-    FIFO or a link to /dev/zero planted there is neither waited on nor read without end."""
-    text = small_regular_file(Path(folder) / MANIFEST, MAX_MANIFEST_BYTES)
-    try:
-        data = json.loads(text) if text is not None else None
-    except (ValueError, RecursionError, MemoryError):
-        return None
-    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "stringcontact" else None
-    if not isinstance(files, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in files.values()):
-        return None
-    return files
-
-
 def small_regular_file(path: Path, limit: int) -> bytes | None:
-    """The bytes of `path` if it is a regular file (not a link to one) of at most `limit` bytes, else None.
-
-    Opened with O_NONBLOCK and O_NOFOLLOW: a FIFO is never waited on, a link to a device never followed."""
+    """The bytes of `path` if it is a regular file (not a link) of at most `limit` bytes, else None. Opened with
+    O_NONBLOCK and O_NOFOLLOW: a planted FIFO is never waited on, a link to /dev/zero never followed."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:
         return None
     try:
@@ -58,23 +38,31 @@ def small_regular_file(path: Path, limit: int) -> bytes | None:
         os.close(fd)
 
 
+def read_manifest(folder: Path) -> dict[str, int] | None:
+    """{file name: size} from the folder's manifest, or None if it has none that a stringcontact command wrote."""
+    text = small_regular_file(Path(folder) / MANIFEST, MAX_MANIFEST_BYTES)
+    try:
+        data = json.loads(text) if text is not None else None
+    except (ValueError, RecursionError, MemoryError):
+        return None
+    files = data.get("files") if isinstance(data, dict) and data.get("written_by") == "stringcontact" else None
+    if not isinstance(files, dict) or not all(isinstance(v, int) and not isinstance(v, bool) for v in files.values()):
+        return None
+    return files
+
+
 def write_manifest(folder: Path, files: dict[str, int]) -> None:
-    """Write `folder`'s manifest, whole (`atomic_path`): {name: size} of the files a command wrote there."""
+    """Write `folder`'s manifest whole: {name: size} of the files a command wrote there."""
     with atomic_path(Path(folder) / MANIFEST, record=False) as tmp:
         tmp.write_text(json.dumps({"written_by": "stringcontact", "files": dict(sorted(files.items()))}, indent=1) + "\n")
 
 
 def foreign_file(folder: Path, depth: int = 3) -> str | None:
-    """Why `--force` may not replace `folder`: the first file in it that its manifest does not list as written,
-    with that size, by a stringcontact command (a file the user added or changed); None if it may.
-
-    A folder inside it that a command published there, whole (``plot RUN --out RUN/pictures``, as
-    ``make docs`` does), counts as written by stringcontact too (`depth` levels down).
-    """
+    """Why `--force` may not replace `folder`: its first file the manifest does not list with that size; None if it
+    may. A folder in it that a command published (``plot RUN --out RUN/pictures``) counts, `depth` levels down."""
     files = read_manifest(folder)
     if files is None:
-        return (f"this folder has no {MANIFEST} of a stringcontact command (results written before "
-                "stringcontact kept one have none: delete such a folder yourself once)")
+        return f"this folder has no {MANIFEST} of a stringcontact command"
     for p in sorted(Path(folder).iterdir()):
         if p.name == MANIFEST:
             continue
@@ -87,31 +75,17 @@ def foreign_file(folder: Path, depth: int = 3) -> str | None:
     return None
 
 
-def _record(path: Path) -> None:
-    """Add `path` (just written whole) to its folder's manifest, if the folder has one: ``plot FOLDER``
-    redraws the pictures of a result, which stays replaceable by `--force`."""
-    files = read_manifest(path.parent)
-    if files is not None and path.name != MANIFEST:
-        write_manifest(path.parent, files | {path.name: path.stat().st_size})
-
-
 def is_run_result(folder: Path) -> bool:
     """`folder` holds the result of `stringcontact run` (its manifest lists summary.json and solution.xdmf)."""
     files = read_manifest(folder) or {}
     return "summary.json" in files and "solution.xdmf" in files
 
 
-
 @contextlib.contextmanager
 def atomic_path(path, record: bool = True):
-    """Write one file whole or not at all: ``with atomic_path(path) as tmp: write the file to tmp``.
-
-    `tmp` is a hidden sibling ``.NAME.tmp-<random>.SUFFIX`` (the suffix kept, so matplotlib and pyvista pick
-    the format from it), made by `tempfile.mkstemp` (O_CREAT|O_EXCL|O_NOFOLLOW, an unpredictable name: a
-    symbolic link planted in the folder is never written through); on success it is renamed onto `path`
-    (``os.replace``), on any exception, Ctrl-C included, it is removed and the exception goes on. With
-    `record`, the file is added to the folder's manifest if it has one (a published result: ``plot FOLDER``).
-    """
+    """One file whole or not at all: ``with atomic_path(path) as tmp: write to tmp``, a hidden sibling with the suffix
+    (`tempfile.mkstemp`: a link planted there is never written through) renamed onto `path`, or removed on any
+    error. With `record`, the file joins the folder's manifest if it has one (``plot FOLDER`` redraws a result)."""
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
     tmp = Path(name)
@@ -122,8 +96,9 @@ def atomic_path(path, record: bool = True):
     try:
         yield tmp
         os.replace(tmp, path)
-        if record:
-            _record(path)
+        files = read_manifest(path.parent) if record else None
+        if files is not None and path.name != MANIFEST:
+            write_manifest(path.parent, files | {path.name: path.stat().st_size})
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

@@ -1,43 +1,10 @@
-"""`view.py`: a ready ParaView view of an output folder, opened with one command.
+"""`view.py`: a ready ParaView view of an output folder (``pvpython view.py`` or ``paraview --script=view.py``).
 
-The program is `paraview/view.py` beside this module, a Python file of the package (linted as the others,
-shipped as package data); the run writes it into the output folder with its numbers filled in (`view_script`).
-
-    pvpython view.py                         # a window (or, with arguments, a screenshot, see below)
-    paraview --script=view.py                # the same view in ParaView's GUI
-
-The file is data, not code of this package: it imports only `paraview.simple` (and the standard library's
-`json`, `math`, `os` and `sys`), and every number it needs (the colour ranges, the box the camera frames, the
-obstacle) is written into it as a literal by the run, computed over all stored rows:
-
-- `solution.xdmf` opened with Xdmf3ReaderT, Warp By Scalar on `eta` along (0, 1, 0) for a string and
-  (0, 0, 1) for a membrane;
-- coloured by `contact` on the fixed range 0 … 1 (Cool to Warm: blue free, red in contact), whatever the time;
-- `velocity` on the symmetric range −V … V, V = max |velocity| over every stored row, in a diverging map
-  whose middle (v = 0) is a dark grey: a string at rest stands out on the white background (pick it in the
-  colouring menu, or name it on the command line: its range is fixed too);
-- each output field of the model (`Result.fields`) on its own fixed range over every stored row and in its own
-  colours (`Result.field_info`, `field_range` and `field_points`): −P … P, P its largest |value|, for a
-  symmetric field, on a symmetric-log scale for a ``"symlog"`` one (`symlog_unit`, as the pictures: a peak
-  1e3 times the rest would leave every other time in the middle colour), else its least … largest value;
-  picked like the velocity;
-- the obstacle ψ of the scene (the plane 0 unless the scene gives a profile), in grey: for a string the
-  region below ψ(x), for a membrane the surface z = ψ(x, y) just below the membrane's contact patch; an
-  obstacle at rest from literal points, a moving one (ψ(x, t)) as `solution.xdmf` warped by its `obstacle`
-  field, so that it is drawn where it is at the time shown;
-- a symmetric-log field, when shown, coloured by its values on that scale (a PythonCalculator), its colour
-  bar's ticks at 0, ±linthresh and a decade apart up to ±P, named by the field's values (`symlog_view`);
-- a title (scene, model, scheme), the time t in the upper left corner and axes named x and eta (x, y and
-  eta for a membrane), with ticks;
-- a string's heights stretched (the displays' scale, the axes still labelled with the heights) so that its
-  box over all times fills the picture's width and height, as a plot's axes do, whatever its height range;
-- one camera for all times: it frames the box of the warped shape and of the obstacle over all stored rows,
-  and `paraview.simple`'s reset of the camera on the first render is switched off, so that frames at
-  different times line up (an animation does not jump).
-
-`pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead of opening a window
-and prints one JSON line: the time, the field, its colour range, the camera, the axes' titles and the box of the
-obstacle drawn at that time; several TIME PNG [FIELD] groups save several screenshots in one ParaView session.
+The program is `paraview/view.py` beside this module, a Python file of the package; the run writes it into the
+folder with its numbers filled in as literals (`view_script`), computed over all stored rows: the colour ranges
+(contact 0 … 1, velocity ±max |v|, each output field its own fixed range and colours, a ``"symlog"`` one on the
+pictures' symmetric-log scale), the obstacle (literal points at rest; moving: `solution.xdmf`'s ``obstacle`` field),
+the title, and the box one camera frames at every time. What it draws: docs/howto/view_in_paraview.md.
 """
 
 from __future__ import annotations
@@ -50,14 +17,13 @@ import numpy as np
 from .manifest import atomic_path
 from .tables import field_info
 
-VIEW_NAME = "view.py"
 CONTACT_RANGE = (0.0, 1.0)
 #: velocity's colours at −V, 0 and V (RGB in 0 … 1): blue, a dark grey, red. The middle is dark so that a
 #: string at rest (v = 0) is seen on the white background (Cool to Warm's light grey middle vanishes there).
 VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
 #: control points of a symmetric-log field's colours per decade of its |value| (ParaView interpolates between them)
 POINTS_PER_DECADE = 4
-#: the obstacle's grey, and the white background
+#: the obstacle's grey
 OBSTACLE_GREY = (0.80, 0.80, 0.80)
 #: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
 OBSTACLE_SAMPLES = 200
@@ -66,9 +32,8 @@ _MEMBRANE_DROP = 0.01
 
 
 def symlog_unit(values, peak: float, share: float) -> np.ndarray:
-    """`values` from −peak … peak onto −1 … 1 on a symmetric-log scale (clipped beyond): matplotlib's
-    SymLogNorm (base 10, linscale 1) with linthresh = share·peak, which a field's picture uses; linear within
-    ±linthresh."""
+    """`values` from −peak … peak onto −1 … 1 (clipped beyond) on the pictures' symmetric-log scale: matplotlib's
+    SymLogNorm (base 10, linscale 1) with linthresh = share·peak."""
     c = share * peak
     linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
 
@@ -80,9 +45,8 @@ def symlog_unit(values, peak: float, share: float) -> np.ndarray:
 
 
 def field_range(values, info: dict) -> tuple[float, float]:
-    """The fixed colour range of an output field's rows `values` shown as `info` says (`OutputField.metadata`):
-    −P … P, P the largest finite |value|, for a symmetric (or ``"symlog"``) field, else its least … largest
-    finite value; a range of width 0 (a field all 0) widened to one."""
+    """An output field's fixed colour range over its rows `values`: −P … P (P its largest finite |value|) for a
+    symmetric or ``"symlog"`` field (`info`: `OutputField.metadata`), else its finite least … largest, never empty."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if info.get("symmetric") or info.get("scale") == "symlog":
@@ -94,17 +58,16 @@ def field_range(values, info: dict) -> tuple[float, float]:
 
 
 def blend(colours, unit) -> np.ndarray:
-    """The RGB rows at `unit` (−1 … 1) of the colours `colours` spread evenly from −1 to 1, blended linearly in
-    RGB (matplotlib's `LinearSegmentedColormap.from_list`)."""
+    """The RGB rows at `unit` (−1 … 1) of `colours` spread evenly over −1 … 1, blended as matplotlib's
+    `LinearSegmentedColormap.from_list`."""
     stops = np.linspace(-1.0, 1.0, len(colours))
     rgb = np.asarray(colours, dtype=float)
     return np.column_stack([np.interp(np.asarray(unit, dtype=float), stops, rgb[:, k]) for k in range(3)])
 
 
 def field_points(low: float, high: float, info: dict) -> list:
-    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high`: a linear field's
-    colours at evenly spaced values; a ``"symlog"`` one's at −1, 0 and 1 of `symlog_unit` and between, at 0,
-    ±linthresh and `POINTS_PER_DECADE` values per decade up to ±high."""
+    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high`: evenly spaced, or
+    for a ``"symlog"`` one at 0, ±linthresh and `POINTS_PER_DECADE` values per decade up to ±high."""
     colours = info["colours"]
     if info.get("scale") != "symlog":
         values = np.linspace(low, high, len(colours))
@@ -118,9 +81,8 @@ def field_points(low: float, high: float, info: dict) -> list:
 
 
 def symlog_view(high: float, info: dict) -> list:
-    """A symmetric-log field's scale in view.py, `[linthresh, colours, ticks]`: its colours (r, g, b) evenly spread
-    on the unit scale −1 … 1 of `symlog_unit` as ``[unit, r, g, b]``, and its colour bar's ticks ``[unit, label]``
-    at 0, ±linthresh and a decade apart up to ±`high` (the label the field's value, 3 digits)."""
+    """A symmetric-log field's scale in view.py, ``[linthresh, [[unit, r, g, b], ...], [[unit, label], ...]]``: its
+    colours evenly on −1 … 1 of `symlog_unit`, its colour bar's ticks at 0, ±linthresh, a decade apart up to ±high."""
     share = float(info.get("linear_share", 1e-3))
     colours = info["colours"]
     units = np.linspace(-1.0, 1.0, len(colours))
@@ -133,32 +95,18 @@ def symlog_view(high: float, info: dict) -> list:
     return [share * high, points, ticks]
 
 
-def field_maps(result) -> dict:
-    """Each output field of `result` -> ``[[low, high], points]``: its fixed range (`field_range`) and colour
-    points (`field_points`) in view.py."""
-    fields = getattr(result, "fields", None) or {}
-    maps = {}
-    for name, info in field_info(result).items():
-        low, high = field_range(fields[name], info)
-        maps[name] = [[low, high], field_points(low, high, info)]
-    return maps
-
-
 def view_numbers(result) -> dict:
-    """What view.py needs, from the stored rows: the kind, the warp's normal, the velocity's symmetric range,
-    the obstacle (points and quadrilaterals) and the box the camera frames over all times (x0, x1, y0, y1, z0,
-    z1: the warped shape and the obstacle), the title, and each output field's range and colour points."""
-    x = np.asarray(result.x, dtype=float)
-    eta = np.asarray(result.eta, dtype=float)
+    """view.py's numbers, by the names of its lines, from the stored rows: the colour ranges, the obstacle (none
+    when it moves), the box the camera frames over all times (x0, x1, y0, y1, z0, z1), the title."""
+    x, eta = np.asarray(result.x, dtype=float), np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
     lo, hi = (float(np.nanmin(eta)), float(np.nanmax(eta))) if eta.size else (0.0, 0.0)
     moves = bool(getattr(result.scene, "obstacle_moves", False))
     if moves:  # the box holds the obstacle at every stored time, not only at t = 0
         lo, hi = _moving_range(result.scene, x, result.t, lo, hi)
     if x.ndim == 1 or x.shape[1] == 1:
-        kind, normal = "string", (0.0, 1.0, 0.0)
-        points, quads, (lo, hi) = _string_obstacle(result.scene, x.reshape(-1), lo, hi)
-        xs = x.reshape(-1)
+        kind, normal, xs = "string", (0.0, 1.0, 0.0), x.reshape(-1)
+        points, quads, (lo, hi) = _string_obstacle(result.scene, xs, lo, hi)
         bounds = (float(xs.min()), float(xs.max()), lo, hi, 0.0, 0.0)
         shift = (0.0, 0.0, points[0][2])  # behind the string, as the obstacle at rest
     else:
@@ -166,65 +114,47 @@ def view_numbers(result) -> dict:
         points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
         bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
         shift = (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
-    return {
-        "kind": kind,
-        "normal": normal,
-        "velocity_range": (-(speed or 1.0), speed or 1.0),
-        "bounds": bounds,
-        "times": [float(t) for t in result.t],
-        # a moving obstacle is drawn from solution.xdmf's `obstacle` field: no literal points then
-        "obstacle_points": [] if moves else points,
-        "obstacle_quads": [] if moves else quads,
-        "obstacle_moves": moves,
-        "obstacle_shift": shift,
-        "title": view_title(result),
-        "fields": field_maps(result),
-        "symlog": symlog_views(result),
-    }
-
-
-def symlog_views(result) -> dict:
-    """Each output field of `result` on a symmetric-log scale -> its `symlog_view` on its fixed range."""
-    fields = getattr(result, "fields", None) or {}
-    views = {}
+    maps, symlog = {}, {}
     for name, info in field_info(result).items():
+        low, high = field_range(result.fields[name], info)
+        maps[name] = [[low, high], field_points(low, high, info)]
         if info.get("scale") == "symlog":
-            views[name] = symlog_view(field_range(fields[name], info)[1], info)
-    return views
+            symlog[name] = symlog_view(high, info)
+    return {"KIND": kind, "NORMAL": normal, "VELOCITY_RANGE": (-(speed or 1.0), speed or 1.0), "BOUNDS": bounds,
+            "OBSTACLE_POINTS": [] if moves else points, "OBSTACLE_QUADS": [] if moves else quads,
+            "OBSTACLE_MOVES": moves, "OBSTACLE_SHIFT": shift, "FIELD_MAPS": maps, "SYMLOG": symlog,
+            "TITLE": f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}",
+            "CONTACT_RANGE": CONTACT_RANGE, "VELOCITY_COLOURS": VELOCITY_COLOURS, "OBSTACLE_GREY": OBSTACLE_GREY}
 
 
-def view_title(result) -> str:
-    """The view's title: the scene, the model and the scheme."""
-    return f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}"
-
-
-def _psi(scene, points, t: float = 0.0) -> np.ndarray:
-    """ψ at `points` at the time t; a value the expression does not give there (outside its domain) is ψ's lowest value."""
+def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
+    """ψ at `points` (x, or rows of x, y) at the time t; ψ's lowest finite value where it has none (no NaN)."""
+    points = np.asarray(points, dtype=float)
     psi = np.asarray(scene.obstacle_values(points, t), dtype=float).reshape(-1)
+    psi = np.broadcast_to(psi, points.shape[:1]) if psi.size == 1 else psi
     finite = np.isfinite(psi)
     return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
 
 
 def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
-    """The height range (lo, hi) widened to ψ's values at `times` where the view draws a moving obstacle: a
-    string's sample grid, a membrane's nodes (at most OBSTACLE_SAMPLES² / 16 of them, evenly picked)."""
+    """The height range (lo, hi) widened to a moving ψ at `times` (a string's samples, some of a membrane's nodes)."""
     if x.ndim == 1 or x.shape[1] == 1:
         xs = x.reshape(-1)
         grid = np.linspace(xs.min(), xs.max(), min(OBSTACLE_SAMPLES, len(xs)))
     else:
         grid = x[:: max(1, len(x) * 16 // OBSTACLE_SAMPLES**2), :2]
     for t in np.unique(np.asarray(times, dtype=float)):
-        psi = _psi(scene, grid, float(t))
+        psi = obstacle_at(scene, grid, float(t))
         lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
     return lo, hi
 
 
 def _string_obstacle(scene, xs, lo, hi):
-    """The grey region below y = ψ(x) down to a floor under everything, as a strip of quadrilaterals at z
-    slightly behind the string (drawn under it); and the shape's (and obstacle's) height range."""
+    """The region below y = ψ(x) down to a floor under everything, quadrilaterals slightly behind the string; and
+    the height range with it."""
     flat = getattr(scene, "obstacle", None) is None
     grid = np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
-    psi = _psi(scene, grid)
+    psi = obstacle_at(scene, grid)
     lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
     floor = lo - 0.08 * max(hi - lo, 1e-12)
     z = -1e-3 * max(xs.max() - xs.min(), 1e-12)
@@ -235,12 +165,11 @@ def _string_obstacle(scene, xs, lo, hi):
 
 
 def _membrane_obstacle(scene, x, lo, hi):
-    """The surface z = ψ(x, y) over the mesh's bounding box, 1 % of the height range lower (a patch in contact
-    lies on ψ and would flicker with it otherwise); and the height range with it."""
+    """The surface z = ψ(x, y) over the mesh's box, `_MEMBRANE_DROP` of the height range lower; and the range."""
     flat = getattr(scene, "obstacle", None) is None
     n = 2 if flat else min(OBSTACLE_SAMPLES // 4, int(np.sqrt(len(x))) + 1)
     gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))
-    psi = _psi(scene, np.column_stack([gx.ravel(), gy.ravel()]))
+    psi = obstacle_at(scene, np.column_stack([gx.ravel(), gy.ravel()]))
     lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
     psi = psi - _MEMBRANE_DROP * max(hi - lo, 1e-12)
     points = [(float(a), float(b), float(c)) for a, b, c in zip(gx.ravel(), gy.ravel(), psi)]
@@ -258,47 +187,16 @@ def _literal(value) -> str:
         return "[" + ", ".join(_literal(v) for v in value) + "]"
     if isinstance(value, (str, bool)):
         return repr(value)
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    return repr(float(value))
-
-
-#: the program of view.py, a Python file of this package (linted as its other files), the run's numbers written
-#: into it between these two lines
-PROGRAM = ("paraview", "view.py")
-_NUMBERS_START = "# --- the run's numbers"
-_NUMBERS_END = "# --- end of the run's numbers ---"
-
-
-def view_program() -> str:
-    """The text of the package's view.py (its numbers placeholders)."""
-    return resources.files(__package__).joinpath(*PROGRAM).read_text(encoding="utf-8")
+    return str(int(value)) if isinstance(value, (int, np.integer)) else repr(float(value))
 
 
 def view_script(numbers: dict) -> str:
-    """The text of view.py for `numbers` (`view_numbers`): the package's program, each of its numbers' lines
-    (``NAME = value  # comment``) given the run's value."""
-    program = view_program()
-    start = program.index("\n", program.index(_NUMBERS_START)) + 1
-    end = program.index(_NUMBERS_END)
-    values = {
-        "KIND": numbers["kind"],
-        "TITLE": numbers.get("title") or "",
-        "NORMAL": numbers["normal"],
-        "CONTACT_RANGE": CONTACT_RANGE,
-        "VELOCITY_RANGE": numbers["velocity_range"],
-        "VELOCITY_COLOURS": VELOCITY_COLOURS,
-        "BOUNDS": numbers["bounds"],
-        "OBSTACLE_GREY": OBSTACLE_GREY,
-        "OBSTACLE_POINTS": numbers.get("obstacle_points") or [],
-        "OBSTACLE_QUADS": numbers.get("obstacle_quads") or [],
-        "OBSTACLE_MOVES": bool(numbers.get("obstacle_moves")),
-        "OBSTACLE_SHIFT": numbers.get("obstacle_shift") or (0.0, 0.0, 0.0),
-        "FOLDER": numbers.get("folder") or "",
-        "FIELD_MAPS": numbers.get("fields") or {},
-        "SYMLOG": numbers.get("symlog") or {},
-    }
-    lines = []
+    """The package's view.py with each line ``NAME = value  # comment`` between its numbers' markers given the value
+    `numbers[NAME]` (`view_numbers`, and ``FOLDER``)."""
+    program = resources.files(__package__).joinpath("paraview", "view.py").read_text(encoding="utf-8")
+    start = program.index("\n", program.index("# --- the run's numbers")) + 1
+    end = program.index("# --- end of the run's numbers ---")
+    values, lines = dict(numbers), []
     for line in program[start:end].splitlines():
         name, equals, rest = line.partition(" = ")
         if equals and name in values:
@@ -306,16 +204,15 @@ def view_script(numbers: dict) -> str:
             line = f"{name} = {_literal(values.pop(name))}" + (f"  #{comment}" if comment else "")
         lines.append(line)
     if values:  # the program and this module out of step: a packaging error, not the user's
-        raise RuntimeError(f"{'/'.join(PROGRAM)} has no line for {sorted(values)}")
+        raise RuntimeError(f"paraview/view.py has no line for {sorted(values)}")
     return program[:start] + "\n".join(lines) + "\n" + program[end:]
 
 
 def write_view(result, folder, target=None) -> Path:
-    """Write `folder`/view.py for `result` (rank 0's rows); returns its path. `target`: where the folder will
-    be once published (view.py falls back to it when ParaView's GUI does not say where the script is)."""
-    path = Path(folder) / VIEW_NAME
-    numbers = view_numbers(result)
-    numbers["folder"] = str(Path(target).resolve()) if target is not None else ""
+    """Write `folder`/view.py for `result` (rank 0's rows); returns its path. `target`: where the folder will be once
+    published (view.py falls back to it when ParaView's GUI does not say where the script is)."""
+    path = Path(folder) / "view.py"
+    numbers = view_numbers(result) | {"FOLDER": str(Path(target).resolve()) if target is not None else ""}
     with atomic_path(path) as tmp:
         Path(tmp).write_text(view_script(numbers), encoding="utf-8")
     return path

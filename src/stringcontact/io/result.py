@@ -1,5 +1,4 @@
-"""What a simulation returns: per-node arrays at the stored times, ordered by x, on rank 0 (every rank with
-``simulate(gather="all")``), and the per-time series on every rank."""
+"""What a simulation returns (`Result`): per-node arrays at the stored times and the per-time series."""
 
 from __future__ import annotations
 
@@ -9,30 +8,22 @@ from functools import cached_property
 
 import numpy as np
 
-ENERGY_KEYS = (
-    "kinetic",
-    "elastic",
-    "viscous_dissipation",
-    "contact_dissipation",
-    "numerical_dissipation",
-    "external_work",
-)
+#: The energy terms of `Result.energy` (the dissipations and the external work cumulative from t = 0).
+ENERGY_KEYS = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "numerical_dissipation",
+               "external_work")
 #: The fields stored at each node and stored time (the XDMF's attributes, in this order).
 FIELDS = ("eta", "velocity", "contact", "contact_force")
-#: The XDMF field written after `FIELDS` when the scene's obstacle moves (`Scene.obstacle_moves`): ψ at the
-#: nodes at each frame's time. An obstacle at rest is not written (view.py draws it), so such runs keep the
-#: layout of `FIELDS` alone; the gap η − ψ is one Calculator away in ParaView.
+#: The XDMF field written after `FIELDS` when the scene's obstacle moves: ψ at the nodes at each frame's time (an
+#: obstacle at rest is not written: view.py draws it).
 OBSTACLE_FIELD = "obstacle"
-#: The per-node arrays: held where the rows were gathered (rank 0 by default); absent on the other ranks. `fields`
-#: holds the model's output fields (`Model.outputs`) by name.
+#: The per-node arrays: held where the rows were gathered (rank 0 by default), absent on the other ranks.
 PER_NODE = ("x", *FIELDS, "fields", "weights", "cells")
 CHUNK_VALUES = 2**24  # contact_measure converts at most this many contact values to float at once (128 MB)
 
 
 def contact_runs(contact: np.ndarray) -> np.ndarray:
-    """The runs of at least two contact nodes in each row of a 1D contact array: an isolated node is a
-    component of zero length (Example 2's left end, pinned at η = 0, is always "in contact" at one node;
-    `plot.charts.contact_components` gives the intervals themselves)."""
+    """The runs of at least two contact nodes in each row of a 1D contact array (an isolated node is a component of
+    zero length: Example 2's left end, pinned at η = 0)."""
     contact = np.asarray(contact, dtype=bool)
     counts = np.zeros(len(contact), dtype=np.int64)
     chunk = max(1, CHUNK_VALUES // max(1, contact.shape[1]))  # a few rows' temporaries at a time, not all rows'
@@ -43,14 +34,13 @@ def contact_runs(contact: np.ndarray) -> np.ndarray:
 
 
 def node_sort_key(x: np.ndarray) -> np.ndarray:
-    """The key of the nodes' order: x in 1D; x + iy in 2D, whose sort order is by x, then y (NumPy orders complex
-    numbers so). The same for any number of ranks."""
+    """The key of the nodes' order, the same for any number of ranks: x in 1D; x + iy in 2D (by x, then y)."""
     return x if x.ndim == 1 else x[:, 0] + 1j * x[:, 1]
 
 
 def canonical_cells(cells: np.ndarray) -> np.ndarray:
-    """Triangles (indices into the sorted nodes) in a fixed order, whatever the ranks or the file: each one
-    starting at its smallest node (orientation kept), then sorted."""
+    """Triangles (indices into the sorted nodes) in a fixed order whatever the ranks: each starting at its smallest
+    node (orientation kept), then sorted."""
     turn = (np.argmin(cells, axis=1)[:, None] + np.arange(3)) % 3
     cells = np.take_along_axis(cells, turn, axis=1)
     return cells[np.lexsort(cells.T[::-1])]
@@ -62,51 +52,30 @@ class RowsElsewhere(AttributeError):
 
 @dataclass(eq=False, repr=False)
 class Result:
-    """Stored rows of one run.
+    """The stored rows of one run, ordered by x (2D: by x, then y), and its per-time series.
 
-    Under MPI the per-node arrays (`PER_NODE`: x, eta, velocity, contact, contact_force, weights, cells)
-    are gathered to rank 0 only (`simulate(gather="root")`, the default): on the other ranks `has_rows` is
-    False, they are None, and reading one raises `RowsElsewhere` (an AttributeError) that says so, rather
-    than give numbers of part of the mesh. The per-time series are the same on every rank: t, steps,
-    energy, min_eta, min_gap, status, message, and `series` (computed in parallel at each stored time):
-    "contact_measure", "max_speed" (max `|v|`) and "depth" (max of obstacle − η; the obstacle is 0 unless
-    the scene gives one), which `contact_measure` and `run.checks.penetration_check` use where the rows are
-    absent. `simulate(gather="all")` gives every rank the rows.
+    Under MPI the per-node arrays (`PER_NODE`) are gathered to rank 0 only (`simulate(gather="root")`): elsewhere
+    `has_rows` is False and reading one raises `RowsElsewhere`. The per-time series are the same on every rank: t,
+    steps, energy, min_eta, min_gap, status, message, and `series` ("contact_measure", "max_speed", "depth").
 
-    `min_gap` is the least gap η − ψ to the obstacle ψ over every node and every step (not only the stored ones),
-    ψ at each step's time when the obstacle moves: below 0 the string is below the obstacle, −min_gap deep. `min_eta`
-    is the least height η itself over the same nodes and steps (at t = 0 the interior nodes only): the two are one
-    number under the paper's flat obstacle ψ = 0, and differ under a raised or moving one (a string draped over a
-    bump of top 0.2 has min_eta −0.095 where min_gap is −0.009). `stored_min_gap` gives the gap at each stored time.
+    `min_gap` is the least gap η − ψ over every node and step (ψ at each step's time when the obstacle moves; below 0
+    the string is −min_gap below it); `min_eta` the least height η over the same (at t = 0 the interior nodes):
+    one number under the flat obstacle ψ = 0. `contact` is η ≤ ψ; `contact_force` is the contact force density at
+    t_n, ≥ 0 and 0 off the contact set under every scheme (which step's force: docs/explanation/schemes.md).
 
-    `contact` is η ≤ ψ (on or below the obstacle); the penalty acts where η < ψ.
-    `contact_force` at t_n is a contact force density (per unit length or area): ≥ 0, and 0 off the contact
-    set at t_n, under every scheme. `projection`: the multiplier of the step that ends at t_n (its contact
-    step is a complementarity problem); `paper` with the explicit penalty: the paper's F(η^n, v^n), which
-    the next step applies; the semi-implicit penalties (`paper`, `newmark`): the force of the step that
-    ends at t_n, −d v^n on its active set.
-    `energy` holds (k,) arrays; the dissipations and the external work are cumulative from t=0.
-    `numerical_dissipation` (D_num) is what the scheme's own discrete energy identity holds besides the physical
-    terms, so that E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off (run/ledger.py sums the terms each
-    scheme reports). Every scheme books the contact dissipation as the work of the applied nodal contact force f with
-    the step's mean velocity, ΔD_con = −(Δt/2) f·(v^n + v^{n+1}); the rest of the force's work is D_num's. For `paper`:
+    `energy` holds (k,) arrays, the dissipations and the external work cumulative from t = 0, so that
+    E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off; every scheme books D_con as the applied force's
+    work with the step's mean velocity, and D_num is what its own discrete energy identity holds besides the
+    physical terms (docs/explanation/reliability.md). For `paper`, per step,
 
-        ΔD_num = ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n)   per step,
+        ΔD_num = ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n),
 
-    the implicit Euler's two squares (≥ 0) and the force's work with the velocity's jump, which has either sign: the
-    explicit penalty's f = m_F∘F(η^n, v^n) brakes a node whose velocity then rises (v^{n+1} > v^n, f > 0), and that
-    term is negative. `newmark` and `projection` on a linear model book no D_num; the Newton paths (a nonlinear
-    model) book what the step's energy change leaves after the physical terms, of either sign. So D_num can be
-    negative (Example 1: −4.1 of E(0) = 1311): it is the scheme's time error in energy terms, O(Δt), not a
-    dissipation of a definite sign; the run's report flags it when it is a large share of the energy
-    (`run.checks.NUMERICAL_SHARE`).
-    `fields` holds the model's output fields by name (`Model.outputs`: its further unknowns and derived fields;
-    ``result.fields["reaction"]`` of a model that declares a field ``reaction``), (k, nodes) arrays like `eta`; `field_info` says how each is shown (`OutputField.metadata`: label, unit, colours, scale).
-    `parameters` holds the model's constants as the run used them (the scene's ``[parameters]`` and the
-    defaults; a `Stepper` that changed one: the values at the end). `timings` holds seconds (set-up, the time
-    steps, output, pictures), `counters` the schemes' counts (refactorisations, Newton iterations, Jacobian
-    assemblies, linear solves) and `solver` what solved the steps, in words (linear solver, nonlinear solver,
-    contact step).
+    whose force term is negative where the explicit penalty brakes a node, so D_num can be negative (Example 1:
+    −4.1 of E(0) = 1311): the scheme's time error in energy terms, O(Δt).
+
+    `fields` holds the model's output fields by name, (k, nodes) like `eta`, and `field_info` how each is shown
+    (`OutputField.metadata`); `parameters` the model's constants as used; `timings` seconds ("setup", "solve",
+    "output", "pictures"), `counters` the schemes' counts, `solver` what solved the steps, in words.
     """
 
     scene: object
@@ -123,25 +92,25 @@ class Result:
     mass: str
     model: str
     status: str = "complete"
-    timings: dict = field(default_factory=dict)  # seconds: "setup", "solve", "output", "pictures"
+    timings: dict = field(default_factory=dict)
     message: str = ""
     scheme: str = "paper"
-    weights: np.ndarray | None = None  # 2D: the nodal areas ∫φ_i dx (lumped), in the order of x
+    weights: np.ndarray | None = None  # 2D: the lumped nodal areas ∫φ_i dx, in the order of x
     cells: np.ndarray | None = None  # 2D: the triangles, (k, 3) indices into x
-    series: dict = field(default_factory=dict)  # per stored time, on every rank (see above)
-    has_rows: bool = True  # False on a rank without the per-node arrays
-    checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of, once per run
-    model_origin: dict = field(default_factory=dict)  # where the model came from: model.registry.model_origin
-    penetration_bound: str | None = "velocity"  # the model's contact law's bound: model.interface.penetration_bound_of
-    law_reads_eps: bool = True  # whether the contact law reads ε (model.interface.reads_eps): the pictures name ε only then
+    series: dict = field(default_factory=dict)
+    has_rows: bool = True
+    checks: dict = field(default_factory=dict)  # "energy_balance", "penetration": run.checks.checks_of
+    model_origin: dict = field(default_factory=dict)  # model.registry.model_origin
+    penetration_bound: str | None = "velocity"  # the contact law's bound: model.interface.penetration_bound_of
+    law_reads_eps: bool = True  # whether the contact law reads ε (model.interface.reads_eps)
     energy_label: str | None = None  # the legend of the model's stored energy (None: the paper's ½∫|∇η|²)
-    fields: dict = field(default_factory=dict)  # the model's output fields: name -> (k, nodes), like eta
-    field_info: dict = field(default_factory=dict)  # name -> OutputField.metadata(): how each field is shown
-    parameters: dict = field(default_factory=dict)  # the model's constants as the run used them
-    counters: dict = field(default_factory=dict)  # the schemes' counts: "refactorisations", "newton iterations", ...
-    solver: dict = field(default_factory=dict)  # what solved the steps, in words: "linear solver", "contact step", ...
+    fields: dict = field(default_factory=dict)
+    field_info: dict = field(default_factory=dict)
+    parameters: dict = field(default_factory=dict)
+    counters: dict = field(default_factory=dict)
+    solver: dict = field(default_factory=dict)
     petsc_options: dict = field(default_factory=dict)  # the options the solver was given: the model's, then the user's
-    min_gap: float = math.nan  # min over every node and step of η − ψ (see above); nan: not known (an old folder)
+    min_gap: float = math.nan  # nan: not known
 
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):
@@ -168,9 +137,8 @@ class Result:
 
     @cached_property
     def stored_min_gap(self) -> np.ndarray:
-        """min over the nodes of η − ψ at each stored time (ψ at that time when the obstacle moves; ψ = 0 when the
-        scene gives none): diagnostics.csv's ``min_gap``. The series the run summed over the ranks where it has one
-        (−``series["depth"]``), else from the rows."""
+        """min over the nodes of η − ψ at each stored time (diagnostics.csv's ``min_gap``): −``series["depth"]``
+        where the run summed it over the ranks, else from the rows."""
         depth = (self.series or {}).get("depth")
         if depth is not None and len(depth) == len(self.t):
             return -np.asarray(depth, dtype=float)
@@ -185,17 +153,13 @@ class Result:
     @property
     def dim(self) -> int:
         """1 for a string (the interval), 2 for a membrane."""
-        if not self.has_rows:
-            return self.scene.dim
-        return 1 if np.ndim(self.x) == 1 else 2
+        return (1 if np.ndim(self.x) == 1 else 2) if self.has_rows else self.scene.dim
 
     @cached_property
     def contact_measure(self) -> np.ndarray:
-        """Measure of the contact set at each stored time: its length in 1D (trapezoidal in x), its area
-        in 2D (the lumped nodal areas of the nodes in contact). Where the rows are absent: the series the
-        solver summed over the ranks (the lumped weights of the contact nodes, in 1D the same trapezoid).
-        Computed once: diagnostics.csv, the run's report and the snapshots picture all read it (0.04 s each
-        for Example 1's 376 rows)."""
+        """Measure of the contact set at each stored time: its length in 1D (trapezoidal in x), its area in 2D (the
+        lumped nodal areas of the nodes in contact); where the rows are absent, the series the solver summed over
+        the ranks. Computed once: the tables, the report and the pictures read it."""
         if not self.has_rows:
             return self.series["contact_measure"]
         from scipy.integrate import trapezoid  # here: NumPy names it trapz before 2.0 and trapezoid after
@@ -213,15 +177,13 @@ class Result:
 
     @property
     def contact_length(self) -> np.ndarray:
-        """The contact measure (a length in 1D, an area in 2D): `contact_measure`. diagnostics.csv names the
-        column ``contact_length`` for a string and ``contact_area`` for a membrane."""
+        """`contact_measure` (diagnostics.csv's ``contact_length`` of a string, ``contact_area`` of a membrane)."""
         return self.contact_measure
 
     @cached_property
     def contact_components(self) -> np.ndarray:
-        """The number of components of the contact set at each stored row: in 1D its runs of at least two
-        contact nodes (`contact_runs`), in 2D its patches (`contact_patches`). Computed once: the diagnostics,
-        the summary and the run's report all read it (a membrane's patches cost a graph search per row)."""
+        """The number of components of the contact set at each stored row (`contact_runs` in 1D,
+        `contact_patches` in 2D), computed once."""
         return contact_runs(self.contact) if self.dim == 1 else self.contact_patches()
 
     def contact_patches(self) -> np.ndarray:

@@ -1,10 +1,4 @@
-"""Whether an output folder (`--out`) may take a result, checked before any work is done: `check_target`.
-
-Refused with one line each (an :class:`OutputError`): the root or current folder, a mount point, a file, a
-parent that cannot be written (`permission_fix` names the way out), a missing parent outside the current folder,
-a non-empty folder without `--force`, one holding files its manifest does not list (`manifest.foreign_file`),
-and one another run writes to (its lock, `lock.TargetLock`).
-"""
+"""Whether an output folder (`--out`) may take a result, checked before any work is done: `check_target`."""
 
 from __future__ import annotations
 
@@ -18,17 +12,15 @@ from .disk import describe_os_error
 from .lock import TargetLock
 from .manifest import MANIFEST, foreign_file, is_run_result
 
+#: Files that Docker (/.dockerenv) and podman (/run/.containerenv) put in every container.
+CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
+
 
 def check_target(path, force: bool, *, locked: bool = False, parents: bool = False, command: str = "run") -> Path:
-    """Refuse an --out that cannot or must not take a result, before any work is done.
-
-    Refused: the root folder, the current folder or one containing it, a mount point, a file, a parent that
-    cannot be written, a missing parent outside the current folder (unless `parents`: the Python API's
-    ``output_dir`` makes them, as asked), a non-empty folder (unless `force`, and then only a folder holding
-    nothing but what its manifest lists and, for a `command` other than ``run``, not a run's result), and a
-    folder another command writes to (`TargetLock.busy`: checked before the files of a folder `force` would
-    replace, which a `plot` drawing there holds as temporary pictures). `locked`: the caller holds the folder's lock itself (so the lock is not probed).
-    """
+    """Refuse, in one line (`OutputError`), an --out that cannot or must not take a result: the root or current
+    folder (or one containing it), a mount point, a file, an unwritable parent, a missing parent outside the current
+    folder (unless `parents`), a non-empty folder (unless `force`, and then only one holding just what its manifest
+    lists, not a run's result for a `command` other than ``run``), a folder another command holds (unless `locked`)."""
     target = Path(path)
     resolved = target.resolve()
     if not resolved.name:
@@ -45,10 +37,10 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
         if not parents:
             _check_parents(target, resolved.parent)
         _check_writable(target, resolved.parent)
+    busy = None if locked else TargetLock.busy(target)  # before the files: a holder's own temporary ones
     if target.is_dir() and any(target.iterdir()):
         if not force:
             raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
-        busy = None if locked else TargetLock.busy(target)  # before its files: a holder's own temporary ones
         if busy is not None:
             raise OutputError(busy)
         blocker = foreign_file(target)
@@ -58,16 +50,14 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
         if command != "run" and is_run_result(target):
             raise OutputError(f"--out {target}: holds the result of a run (summary.json, solution.xdmf), which "
                               f"`{command} --force` does not replace; choose another folder")
-    busy = None if locked else TargetLock.busy(target)
     if busy is not None:
         raise OutputError(busy)
     return target
 
 
-
 def _check_parents(target: Path, parent: Path) -> None:
-    """Refuse missing parent folders outside the current folder: ``--out /nonexistent/x`` is more likely a typo
-    than a wish for a new top-level folder. Below the current folder they are made (``--out out/ex1``)."""
+    """Missing parents are made below the current folder (``--out out/ex1``); elsewhere (``--out /nonexistent/x``)
+    they are more likely a typo: refused."""
     missing = parent
     while not missing.parent.exists() and missing != missing.parent:
         missing = missing.parent
@@ -81,8 +71,7 @@ def _check_parents(target: Path, parent: Path) -> None:
 
 
 def _check_writable(target: Path, parent: Path) -> None:
-    """Refuse a target whose nearest existing parent folder cannot be written (read-only or no permission), or
-    whose nearest existing parent is not a folder (``--out afile/x``)."""
+    """Refuse a target whose nearest existing parent is a file, or cannot be written (read-only, no permission)."""
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if parent.exists() and not parent.is_dir():
@@ -96,12 +85,8 @@ def _check_writable(target: Path, parent: Path) -> None:
         reason = errno.EACCES
     if reason is not None:
         why = describe_os_error(OSError(reason, os.strerror(reason)), parent)
-        fix = permission_fix(parent) if reason == errno.EACCES else ""
-        raise OutputError(f"--out {target}: cannot create the output folder: {why}{fix}")
-
-
-# Files that Docker (/.dockerenv) and podman (/run/.containerenv) put in every container.
-CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
+        raise OutputError(f"--out {target}: cannot create the output folder: {why}"
+                          + (permission_fix(parent) if reason == errno.EACCES else ""))
 
 
 def permission_fix(folder: Path) -> str:

@@ -1,10 +1,8 @@
 """ParaView view of this folder, written by the run: `pvpython view.py` or `paraview --script=view.py`.
 
-`pvpython view.py TIME PNG [contact|velocity|FIELD]` saves a screenshot at time TIME instead (FIELD: one of
-FIELD_MAPS, the model's output fields) and prints one JSON line: the time, the field, its colour range, the
-camera, the scale of the heights, the axes' titles and the box of the obstacle drawn at that time. Several
-TIME PNG [FIELD] groups save several screenshots in one ParaView session, one JSON line each.
-The numbers below were computed by the run over all its stored rows.
+`pvpython view.py TIME PNG [contact|velocity|FIELD] [TIME PNG [FIELD] ...]` saves screenshots instead, printing one
+JSON line each: the time, the field, its colour range, the camera, the heights' scale, the axes' titles and the box
+of the obstacle drawn. The numbers below were computed by the run over all its stored rows.
 """
 
 import json
@@ -12,26 +10,7 @@ import math
 import os
 import sys
 
-import paraview.simple
-from paraview.simple import (
-    AnnotateTime,
-    ColorBy,
-    GetActiveViewOrCreate,
-    GetAnimationScene,
-    GetColorTransferFunction,
-    GetOpacityTransferFunction,
-    GetScalarBar,
-    HideScalarBarIfNotNeeded,
-    Interact,
-    ProgrammableSource,
-    PythonCalculator,
-    Render,
-    SaveScreenshot,
-    Show,
-    Text,
-    WarpByScalar,
-    Xdmf3ReaderT,
-)
+import paraview.simple as pv
 
 # --- the run's numbers (the run writes its own here; the package's copy of this file holds placeholders) ---
 KIND = "string"
@@ -54,8 +33,7 @@ FIELD_MAPS = {}
 SYMLOG = {}
 # --- end of the run's numbers ---
 
-#: the share of the picture's width and height kept free around a string's box: the heights' labels (left), the
-#: colour bar (right), the title (top) and the x labels (bottom)
+#: the share of the picture kept free around a string's box: labels (left, bottom), colour bar (right), title (top)
 MARGINS = {"left": 0.12, "right": 0.17, "top": 0.1, "bottom": 0.14}
 SYMLOG_SUFFIX = " (symmetric log)"
 
@@ -72,7 +50,7 @@ def folder():
 
 def fixed_map(name, low, high, preset=None, colours=None):
     """The colour map of array `name` on [low, high], never rescaled when the time changes."""
-    lut = GetColorTransferFunction(name)
+    lut = pv.GetColorTransferFunction(name)
     if colours and len(colours[0]) == 4:  # (value, r, g, b): each colour at its value
         lut.RGBPoints = [v for point in colours for v in point]
         lut.ColorSpace = "RGB"
@@ -88,7 +66,7 @@ def fixed_map(name, low, high, preset=None, colours=None):
     lut.AutomaticRescaleRangeMode = "Never"
     lut.ScalarRangeInitialized = 1  # so that colouring by it keeps this range instead of the data's at this time
     lut.RescaleTransferFunction(low, high)
-    GetOpacityTransferFunction(name).RescaleTransferFunction(low, high)
+    pv.GetOpacityTransferFunction(name).RescaleTransferFunction(low, high)
     return lut
 
 
@@ -101,8 +79,7 @@ MAPS = {
 
 def symlog_expression(name):
     """PythonCalculator's expression of array `name` on its symmetric-log scale, -1 ... 1 (matplotlib's SymLogNorm,
-    base 10, linscale 1, linthresh from SYMLOG; as the run's pictures): linear within +-linthresh, a decade
-    a step beyond it, clipped at +-peak."""
+    base 10, linscale 1, linthresh from SYMLOG, as the run's pictures), clipped at +-peak."""
     threshold = SYMLOG[name][0]
     peak = FIELD_MAPS[name][0][1]
     linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
@@ -113,10 +90,10 @@ def symlog_expression(name):
 
 
 def colour_by(view, display, field):
-    """Colour by `field` on its fixed range, with its colour bar (and no other); a symmetric-log field by its
-    values on that scale, its colour bar's ticks a decade apart and named by the field's values."""
+    """Colour by `field` on its fixed range, with its colour bar alone; a symmetric-log field on that scale, its
+    colour bar's ticks named by the field's values."""
     array = field + SYMLOG_SUFFIX if field in SYMLOG else field
-    ColorBy(display, ("POINTS", array))
+    pv.ColorBy(display, ("POINTS", array))
     (low, high), preset, colours = MAPS[field]
     if field in SYMLOG:
         lut = fixed_map(array, -1.0, 1.0, None, SYMLOG[field][1])
@@ -124,21 +101,16 @@ def colour_by(view, display, field):
         lut = fixed_map(field, low, high, preset, colours)  # again: ColorBy rescales to the data at this time
     for other in [*MAPS, *(name + SYMLOG_SUFFIX for name in SYMLOG)]:
         if other != array:
-            HideScalarBarIfNotNeeded(GetColorTransferFunction(other), view)
+            pv.HideScalarBarIfNotNeeded(pv.GetColorTransferFunction(other), view)
     display.SetScalarBarVisibility(view, True)
-    bar = GetScalarBar(lut, view)
-    bar.Title = field
-    bar.ComponentTitle = ""
+    bar = pv.GetScalarBar(lut, view)
+    bar.Title, bar.ComponentTitle, bar.RangeLabelFormat = field, "", "%-#6.3g"
     bar.TitleColor = bar.LabelColor = [0.0, 0.0, 0.0]
     bar.TitleFontSize = bar.LabelFontSize = 18
-    bar.RangeLabelFormat = "%-#6.3g"
     if field in SYMLOG:  # the unit scale's numbers mean nothing to a reader: the field's values at the ticks
         lut.Annotations = [str(text) for tick in SYMLOG[field][2] for text in tick]
-        bar.DrawTickLabels = 0
-        bar.DrawTickMarks = 0
-        bar.AddRangeLabels = 0
+        bar.DrawTickLabels = bar.DrawTickMarks = bar.AddRangeLabels = bar.DrawNanAnnotation = 0
         bar.DrawAnnotations = 1
-        bar.DrawNanAnnotation = 0
 
 
 OBSTACLE_SCRIPT = (
@@ -152,24 +124,21 @@ OBSTACLE_SCRIPT = (
 
 
 def moving_obstacle(reader):
-    """ψ(x, t) from solution.xdmf's `obstacle` field, where it is at the time shown: the mesh warped by it, for a
-    string extruded downwards and cut at the box's floor (the region below ψ, as an obstacle at rest), moved
-    by OBSTACLE_SHIFT."""
-    from paraview.simple import Clip, ExtractSurface, LinearExtrusion, Transform
-
-    source = WarpByScalar(registrationName="warped by obstacle", Input=reader, Scalars=["POINTS", "obstacle"])
+    """ψ(x, t) from solution.xdmf's `obstacle` field at the time shown: the mesh warped by it (a string's extruded
+    down to the box's floor), moved by OBSTACLE_SHIFT."""
+    source = pv.WarpByScalar(registrationName="warped by obstacle", Input=reader, Scalars=["POINTS", "obstacle"])
     source.Normal = NORMAL
     source.ScaleFactor = 1.0
     if KIND == "string":
-        source = LinearExtrusion(registrationName="below the obstacle", Input=ExtractSurface(Input=source))
+        source = pv.LinearExtrusion(registrationName="below the obstacle", Input=pv.ExtractSurface(Input=source))
         source.Vector = [0.0, -1.0, 0.0]
         source.ScaleFactor = 2.0 * (BOUNDS[3] - BOUNDS[2]) + (BOUNDS[1] - BOUNDS[0])
         source.Capping = 0
-        source = Clip(registrationName="above the floor", Input=source, ClipType="Plane")
+        source = pv.Clip(registrationName="above the floor", Input=source, ClipType="Plane")
         source.ClipType.Origin = [0.0, BOUNDS[2], 0.0]
         source.ClipType.Normal = [0.0, 1.0, 0.0]
         source.Invert = 0  # keep y > the floor
-    moved = Transform(registrationName="obstacle", Input=source)
+    moved = pv.Transform(registrationName="obstacle", Input=source)
     moved.Transform.Translate = list(OBSTACLE_SHIFT)
     return moved
 
@@ -179,23 +148,23 @@ def obstacle(view, reader):
     if OBSTACLE_MOVES:
         source = moving_obstacle(reader)
     else:
-        source = ProgrammableSource(registrationName="obstacle")
+        source = pv.ProgrammableSource(registrationName="obstacle")
         source.OutputDataSetType = "vtkPolyData"
         source.Script = f"POINTS = {OBSTACLE_POINTS!r}\nQUADS = {OBSTACLE_QUADS!r}\n" + OBSTACLE_SCRIPT
-    display = Show(source, view)
+    display = pv.Show(source, view)
     if OBSTACLE_MOVES:
-        ColorBy(display, None)  # one grey, not the fields' colours
+        pv.ColorBy(display, None)  # one grey, not the fields' colours
     display.AmbientColor = display.DiffuseColor = list(OBSTACLE_GREY)
     display.Ambient, display.Diffuse, display.Specular = 1.0, 0.0, 0.0  # unlit: the same grey everywhere
     return display
 
 
 def labels(view, scale):
-    """The title (scene, model, scheme) at the top, the time in the upper left corner, the axes named and
-    labelled with the data's values (`scale`: the displays' stretch of the heights)."""
-    title = Show(Text(registrationName="title", Text=TITLE), view)
+    """The title, the time (upper left), the axes named and labelled with the data's values (`scale`: the displays'
+    stretch of the heights)."""
+    title = pv.Show(pv.Text(registrationName="title", Text=TITLE), view)
     title.WindowLocation, title.FontSize, title.Color = "Upper Center", 20, [0.0, 0.0, 0.0]
-    clock = Show(AnnotateTime(registrationName="time", Format="t = {time:.4g}"), view)
+    clock = pv.Show(pv.AnnotateTime(registrationName="time", Format="t = {time:.4g}"), view)
     clock.WindowLocation, clock.FontSize, clock.Color = "Upper Left Corner", 20, [0.0, 0.0, 0.0]
     grid = view.AxesGrid
     grid.Visibility = 1
@@ -212,8 +181,8 @@ def labels(view, scale):
 
 
 def height_scale(size):
-    """A string's stretch of the heights (1, s, 1): its box fills the picture within MARGINS, as a plot's axes
-    do, whatever the ratio of its height range to its length (a membrane: 1)."""
+    """A string's stretch of the heights (1, s, 1): its box fills the picture within MARGINS, as a plot's axes do
+    (a membrane: 1)."""
     if KIND != "string":
         return [1.0, 1.0, 1.0]
     width = (BOUNDS[1] - BOUNDS[0]) or 1.0
@@ -225,21 +194,21 @@ def height_scale(size):
 
 
 def build(size=(1000, 600)):
-    disable = getattr(paraview.simple, "_DisableFirstRenderCameraReset", None)
+    disable = getattr(pv, "_DisableFirstRenderCameraReset", None)
     if disable is not None:  # else the first Render resets the camera to this time's shape
         disable()
-    reader = Xdmf3ReaderT(registrationName="solution.xdmf", FileName=[os.path.join(folder(), "solution.xdmf")])
-    animation = GetAnimationScene()
+    reader = pv.Xdmf3ReaderT(registrationName="solution.xdmf", FileName=[os.path.join(folder(), "solution.xdmf")])
+    animation = pv.GetAnimationScene()
     animation.UpdateAnimationUsingDataTimeSteps()
-    warp = WarpByScalar(registrationName="warped by eta", Input=reader, Scalars=["POINTS", "eta"])
+    warp = pv.WarpByScalar(registrationName="warped by eta", Input=reader, Scalars=["POINTS", "eta"])
     warp.Normal = NORMAL
     warp.ScaleFactor = 1.0
     shown = warp
     for name in SYMLOG:  # each symmetric-log field also on its scale, for its colour bar
-        shown = PythonCalculator(registrationName=name + SYMLOG_SUFFIX, Input=shown)
+        shown = pv.PythonCalculator(registrationName=name + SYMLOG_SUFFIX, Input=shown)
         shown.Expression = symlog_expression(name)
         shown.ArrayName = name + SYMLOG_SUFFIX
-    view = GetActiveViewOrCreate("RenderView")
+    view = pv.GetActiveViewOrCreate("RenderView")
     view.ViewSize = list(size)
     view.Background = [1.0, 1.0, 1.0]
     try:
@@ -249,7 +218,7 @@ def build(size=(1000, 600)):
     view.OrientationAxesVisibility = 0  # the named axes below say which way is which
     scale = height_scale(size)
     obstacle(view, reader).Scale = scale
-    display = Show(shown, view)
+    display = pv.Show(shown, view)
     display.Scale = scale
     if KIND == "string":
         display.LineWidth = 4.0
@@ -262,10 +231,8 @@ def build(size=(1000, 600)):
 
 
 def frame(view, scale):
-    """The camera on the box of all times: a string from the front, its (stretched) box within MARGINS; a
-    membrane from above its front edge."""
-    # no max() here: ParaView runs the obstacle's script in this module's namespace, after
-    # `from vtkmodules.numpy_interface.algorithms import *`, whose max and min take arrays
+    """The camera on the box of all times: a string from the front, within MARGINS; a membrane from above its front
+    edge. (No max() here: ParaView runs the obstacle's script in this namespace, after vtk's `algorithms import *`.)"""
     low, high = [BOUNDS[2 * k] * scale[k] for k in range(3)], [BOUNDS[2 * k + 1] * scale[k] for k in range(3)]
     centre = [0.5 * (a + b) for a, b in zip(low, high)]
     width = sorted([b - a for a, b in zip(low, high)] + [1e-12])[-1]  # noqa: FURB192
@@ -296,31 +263,12 @@ def show_at(animation, view, display, t, field="contact"):
     animation.AnimationTime = t
     view.ViewTime = t
     colour_by(view, display, field)
-    Render(view)
-
-
-def camera(view):
-    """The camera VTK renders with (not the proxy's copy): position, focal point, parallel scale, view angle."""
-    cam = view.GetActiveCamera()
-    return {
-        "position": list(cam.GetPosition()),
-        "focal_point": list(cam.GetFocalPoint()),
-        "parallel_scale": cam.GetParallelScale(),
-        "view_angle": cam.GetViewAngle(),
-    }
-
-
-def axes(view):
-    """The titles of the axes shown (none when they are hidden)."""
-    grid = view.AxesGrid
-    return [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else []
+    pv.Render(view)
 
 
 def obstacle_bounds(t):
     """The box of the obstacle drawn at the time t: x0, x1, y0, y1, z0, z1."""
-    from paraview.simple import FindSource
-
-    source = FindSource("obstacle")
+    source = pv.FindSource("obstacle")
     source.UpdatePipeline(t)  # its data information is of the last update's time
     return list(source.GetDataInformation().GetBounds())
 
@@ -348,16 +296,13 @@ def _is_number(text):
 def screenshot(animation, view, display, t, png, field):
     """Save the view at the time t coloured by `field` to `png`; the JSON report of what was drawn."""
     show_at(animation, view, display, t, field)
-    SaveScreenshot(png, view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
-    report = {
-        "time": view.ViewTime,
-        "field": field,
-        "range": list(MAPS[field][0]),
-        "camera": camera(view),
-        "scale": list(display.Scale),
-        "axes": axes(view),
-        "obstacle": obstacle_bounds(view.ViewTime),
-    }
+    pv.SaveScreenshot(png, view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
+    cam, grid = view.GetActiveCamera(), view.AxesGrid  # the camera VTK renders with, not the proxy's copy
+    report = {"time": view.ViewTime, "field": field, "range": list(MAPS[field][0]), "scale": list(display.Scale),
+              "camera": {"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
+                         "parallel_scale": cam.GetParallelScale(), "view_angle": cam.GetViewAngle()},
+              "axes": [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else [],
+              "obstacle": obstacle_bounds(view.ViewTime)}
     if field in SYMLOG:
         report["ticks"] = [label for _, label in SYMLOG[field][2]]
     return report
@@ -373,9 +318,9 @@ def main(argv):
         print(json.dumps(screenshot(animation, view, display, t, png, field)), flush=True)
     if wanted:
         return
-    Render(view)
+    pv.Render(view)
     if argv[0]:  # pvpython view.py: a window of its own (ParaView's GUI runs the script with sys.argv == [""])
-        Interact(view)
+        pv.Interact(view)
 
 
 main(list(getattr(sys, "argv", None) or [""]))
