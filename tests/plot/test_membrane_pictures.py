@@ -1,5 +1,5 @@
 """The pictures of a 2D run (issue 15): membrane.png, contact_area.png, energy.png and membrane.gif, drawn
-by a run (here and in the painter process), and by `stringcontact plot` from a membrane's output folder."""
+by a run (`simulate` and the command line), and by `stringcontact plot` from a membrane's output folder."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from stringcontact.cli.main import main
 from stringcontact.io import readback
 from stringcontact.plot import animation, charts, mesh_pictures
 from stringcontact.plot import run_pictures as viz
-from stringcontact.plot.picture_process import PictureProcess
 from stringcontact.plot.style import Look
 from stringcontact.scene import scene_to_toml
 
@@ -235,32 +234,9 @@ def _as_written_before_rows_npz(copy):
     (copy / "rows.npz").unlink()
 
 
-# --- the painter process ----------------------------------------------------------------------------
-
-
 @pytest.mark.slow
-def test_the_painter_draws_the_membranes_pyvista_pictures(run, tmp_path):
-    _, res = run
-    process = PictureProcess.start()  # as the CLI starts it: before the scene is known
-    assert set(viz.MESH_PICTURES) <= set(process.names)
-    assert process.send(res, tmp_path) and process.wait()
-    assert sorted(process.names) == sorted(viz.MEMBRANE_PICTURES)  # the charts too, drawn by its helper or itself
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(viz.MEMBRANE_PICTURES)
-    for name in ("membrane.png", "contact_area.png", "energy.png"):
-        np.testing.assert_array_equal(_image(tmp_path / name), _image(run[0] / name), err_msg=name)
-
-
-def test_a_painter_with_no_picture_of_a_membrane_is_not_sent_one(run, tmp_path):
-    _, res = run
-    process = PictureProcess.start(("space_time.png",))
-    assert not process.send(res, tmp_path)
-    assert process.folder is None and process.proc.poll() is not None and not list(tmp_path.iterdir())
-
-
-@pytest.mark.slow
-def test_stringcontact_run_of_a_membrane_leaves_its_pictures_to_the_painter(tmp_path, monkeypatch, capsys):
-    """The real CLI: the painter (started before the scene is read) and its helper draw all the pictures, this
-    process none (it would import matplotlib after the solve)."""
+def test_stringcontact_run_of_a_membrane_draws_its_pictures_after_the_run(tmp_path, monkeypatch, capsys):
+    """The real CLI: the run draws every picture of a membrane itself, after its solve, one after the other."""
     drawn_here = []
     draw = viz.draw
     monkeypatch.setattr(viz, "draw", lambda name, *args, **kw: drawn_here.append(name) or draw(name, *args, **kw))
@@ -268,7 +244,7 @@ def test_stringcontact_run_of_a_membrane_leaves_its_pictures_to_the_painter(tmp_
     path.write_text(scene_to_toml(small_drum()))
     out = tmp_path / "out"
     assert main(["run", str(path), "--out", str(out), "--no-progress"]) == 0
-    assert drawn_here == []
+    assert drawn_here == list(viz.MEMBRANE_PICTURES)
     assert {p.name for p in out.iterdir()} >= set(viz.MEMBRANE_PICTURES)
     assert _red(_gif_frames(out / "membrane.gif")[-1]).sum() > 2000
 

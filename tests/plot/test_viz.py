@@ -15,7 +15,6 @@ from stringcontact.io import readback
 from stringcontact.io.result import ENERGY_KEYS
 from stringcontact.plot import charts
 from stringcontact.plot import run_pictures as viz
-from stringcontact.plot.picture_process import PictureProcess
 from stringcontact.plot.style import SCREEN
 
 
@@ -279,50 +278,6 @@ def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
 
 
-@pytest.mark.slow
-def test_the_picture_process_draws_what_this_process_draws(tmp_path, run):
-    """The painter and its helper (which share the pictures out) draw each picture as this process does."""
-    _, res = run
-    here, there = tmp_path / "here", tmp_path / "there"
-    viz.write_pictures(res, here)
-    there.mkdir()
-    process = PictureProcess.start(viz.PICTURES)
-    private = Path(process.folder)
-    assert process.send(res, there) and process.wait()
-    assert process.proc.poll() is not None and not private.exists()  # no process and no payload left
-    assert sorted(process.drawn) == sorted(viz.PICTURES)
-    assert sorted(p.name for p in there.iterdir()) == sorted(viz.PICTURES)
-    for name in process.names:
-        np.testing.assert_array_equal(_image(there / name), _image(here / name), err_msg=name)
-
-
-@pytest.mark.slow
-def test_pictures_are_drawn_here_when_the_picture_process_dies(tmp_path, run):
-    _, res = run
-    process = PictureProcess.start()
-    process.proc.kill()
-    process.proc.wait()
-    paths = viz.write_pictures(res, tmp_path, painter=process)
-    assert [p.name for p in paths] == list(viz.PICTURES)
-    assert all(p.stat().st_size > 10_000 for p in paths)
-    assert process.folder is None and not list(tmp_path.glob(".*"))
-
-
-def test_a_string_is_sent_to_the_picture_process_for_all_its_pictures(run):
-    """`stringcontact run` starts the process for PAINTED, before it knows the scene; it gets all a string's pictures."""
-    _, res = run
-    assert viz.painted(res) == viz.PICTURES == viz.pictures_of(res) and set(viz.painted(res)) < set(viz.PAINTED)
-
-
-@pytest.mark.slow
-def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
-    _, res = run
-    process = PictureProcess.start()
-    assert process.send(res, tmp_path / "no such folder")
-    assert process.wait() is False
-    assert "No such file or directory" in process.error and process.folder is None
-
-
 def test_the_output_module_does_not_import_the_picture_code():
     """The output folder is given the picture function by the driver; plot imports io, not the reverse."""
     import ast
@@ -334,7 +289,7 @@ def test_the_output_module_does_not_import_the_picture_code():
     tree = ast.parse(Path(output.__file__).read_text())
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert not {m for m in imported if m.split(".")[-1] in ("run_pictures", "charts", "picture_process", "mesh_pictures")}
+    assert not {m for m in imported if m.split(".")[-1] in ("run_pictures", "charts", "mesh_pictures")}
     assert not hasattr(output, "registered_pictures")  # no entry point of its own: no circle to hide
     code = "import sys, stringcontact.plot.run_pictures; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"

@@ -16,7 +16,6 @@ Every error is one line on stderr; no traceback.
 from __future__ import annotations
 
 import contextlib
-import functools
 import gc
 import importlib
 import os
@@ -36,15 +35,14 @@ from .process import (
     _error,
     _one_line_warnings,
     _signals_interrupt,
-    _single_process,
     _standard_streams,
     _stop_signals,
     _utf8_text,
 )
 
 
-def _run(args, painter=None) -> int:
-    """`run`; `painter` (a `picture_process.PictureProcess`) was started by `main` before PETSc and dolfinx were imported."""
+def _run(args) -> int:
+    """`run`: the scene simulated, its output and pictures written (pictures after the run, in this process)."""
     import time
 
     import stringcontact as sc
@@ -84,8 +82,8 @@ def _run(args, painter=None) -> int:
         print(text)
     from ..run.options import Output
 
-    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=_pictures(args, painter),
-                    progress=not args.no_progress, default_pictures=painter is None)  # the painter's are the defaults
+    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=not args.no_pictures,
+                    progress=not args.no_progress)
     res = sc.simulate(scene, **options, model=spec, output=output)  # the name: summary.json says where it came from
     if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
         from .report import report
@@ -159,15 +157,6 @@ def _check_scheme_options(args, scene) -> None:
         raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")
 
 
-def _pictures(args, painter):
-    """`simulate`'s `pictures`: the picture function, with the started painter, or whether to draw them."""
-    if painter is None:
-        return not args.no_pictures
-    from ..plot.run_pictures import write_pictures
-
-    return functools.partial(write_pictures, painter=painter)
-
-
 def _partial_report(exc) -> None:
     """After an interrupted or unstable run: the closing lines for the rows stored so far, if the solver gave them."""
     res = getattr(exc, "result", None)
@@ -207,19 +196,10 @@ def _main(argv) -> int:
     if problem is not None:  # before PETSc and MPI start: each would print a page of its own and exit 1
         _error(problem)
         return EXIT_INPUT
-    painter = None
-    if args.command == "run" and args.out is not None and not args.no_pictures and _single_process():
-        from ..plot.picture_process import PictureProcess
-
-        painter = PictureProcess.start()  # first: its start-up then overlaps the whole run, imports included
-    try:
-        return _command(args, painter)
-    finally:
-        if painter is not None:
-            painter.cancel()  # already finished after a complete run; stops it after an error
+    return _command(args)
 
 
-def _command(args, painter) -> int:
+def _command(args) -> int:
     from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError, StackError
 
     petsc = args.command not in ("list", "show", "plot", "models")
@@ -234,7 +214,7 @@ def _command(args, painter) -> int:
     with _one_line_warnings(), _signals_interrupt(petsc=petsc):
         try:
             if args.command == "run":
-                return _run(args, painter)
+                return _run(args)
             from ..scene import toml as scenes
 
             if args.command == "list":

@@ -11,12 +11,10 @@ output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the ani
 picture, ``NAME.png`` (:func:`stringcontact.plot.fields.field_picture`; ``field_NAME.png`` where ``NAME.png`` is
 one of the pictures above). `pictures_of(result)` says which.
 
-:func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.picture_process.PictureProcess`,
-the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
-run. ``stringcontact plot DIR`` redraws them from an output folder alone, from the same stored rows
+:func:`write_pictures` draws them all, one after the other, in the calling process (a run's, after its solve).
+``stringcontact plot DIR`` redraws them from an output folder alone, from the same stored rows
 (``rows.npz``, :func:`stringcontact.io.readback.read_output`): the same pictures, pixel for pixel.
 """
-
 from __future__ import annotations
 
 import json
@@ -42,11 +40,9 @@ from .picture_names import (  # noqa: F401 - the names are used as run_pictures.
     CHART_PICTURES,
     MEMBRANE_PICTURES,
     MESH_PICTURES,
-    PAINTED,
     PICTURES,
     WINDOW_SIZE,
     field_picture_names,
-    painted,
     pictures_of,
 )
 from .style import SCREEN_DPI, Look
@@ -97,44 +93,17 @@ def written(names, look: Look) -> list[str]:
     return files
 
 
-def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None, look: Look | None = None) -> list[Path]:
+def write_pictures(result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> list[Path]:
     """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`, in each format of `look` (default:
-    PNGs `window_size` pixels large on a screen); the function `simulate(..., pictures=True)` calls.
-
-    With a started `picture_process.PictureProcess`, its pictures are drawn there while this process draws the
-    others (none, for `stringcontact run`'s painter); whatever it fails to draw is then drawn here. The
-    painter draws the default look only: with another, this process draws every picture. The painter is stopped
-    however this ends, so nothing writes into `folder` after it returns.
-    """
+    PNGs `window_size` pixels large on a screen), one after the other; the function `simulate(..., pictures=True)`
+    calls. Returns the files written."""
     folder = Path(folder)
-    names = pictures_of(result)
-    if look is not None and look.formats == ("png",) and look.style == "screen" and look.size is None:
-        look = None  # the default look: the painter's
-    if look is not None:
-        names = tuple(n for n in names if n != "membrane.gif" or "png" in look.formats)
-        if painter is not None:
-            painter.cancel()
-            painter = None
+    look = look or Look.of_pixels(window_size)
+    names = tuple(n for n in pictures_of(result) if n != "membrane.gif" or "png" in look.formats)
     folder.mkdir(parents=True, exist_ok=True)
-    handed_out, drawn = set(), set()
-    try:
-        if painter is not None and painter.send(result, folder, window_size):
-            handed_out = set(painter.names)  # `send` chose them: those of its names that the result has
-        for name in names:
-            if name not in handed_out:
-                draw(name, result, folder, window_size, look)
-        if handed_out:
-            painter.wait()
-            drawn = set(painter.drawn)  # all of them, unless a painting process failed
-    finally:
-        if painter is not None:
-            painter.cancel()
-            for name in handed_out - drawn:  # a picture the process was killed while writing
-                for stray in folder.glob(f".{name}.tmp-*"):
-                    stray.unlink(missing_ok=True)
-    for name in handed_out - drawn:
-        draw(name, result, folder, window_size)
-    return [folder / name for name in written(names, look or Look.of_pixels(window_size))]
+    for name in names:
+        draw(name, result, folder, window_size, look)
+    return [folder / name for name in written(names, look)]
 
 
 # --- reading an output folder back ---------------------------------------------------------------
