@@ -80,12 +80,12 @@ def per_picture(scene: str, repeats: int, folder: Path) -> None:
 
 def pyvista_gif(res, path: Path) -> None:
     """The same frames written by pyvista's own GIF writer (imageio, a median-cut palette per frame)."""
-    from stringcontact.plot import animation, mesh_pictures
+    from stringcontact.plot import animation, membrane, vtk_start
     from stringcontact.plot import run_pictures as viz
 
-    view = mesh_pictures.membrane_view(res)
-    p = mesh_pictures._plotter(animation.gif_size(viz.WINDOW_SIZE))
-    surface = mesh_pictures.add_membrane(p, res, 0, view)
+    view = membrane.membrane_view(res)
+    p = vtk_start._plotter(animation.gif_size(viz.WINDOW_SIZE))
+    surface = membrane.add_membrane(p, res, 0, view)
     text = p.add_text("", position=(0.02, 0.98), viewport=True, font_size=6, color="black")
     p.open_gif(str(path), fps=animation.FPS, palettesize=animation.PALETTE)
     for i in animation.frame_rows(res):

@@ -88,7 +88,6 @@ def _layout(result):
 
     panels = [box(ax.get_window_extent()) for ax in axs.flat if ax.get_visible()]
     (bar,) = [box(ax.get_tightbbox(fig.canvas.get_renderer())) for ax in fig.axes if hasattr(ax, "_colorbar")]
-    charts.pyplot().close(fig)
     return panels, bar
 
 

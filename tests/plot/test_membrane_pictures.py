@@ -100,7 +100,6 @@ def panel_boxes(result, figure_of=None):
         fig.canvas.draw()
     height = fig.bbox.height
     boxes = [ax.get_window_extent() for ax in axs.flat if ax.get_visible()]
-    charts.pyplot().close(fig)
     below = round(height - min(b.y0 for b in boxes))
     return [(slice(round(height - b.y1), round(height - b.y0)), slice(round(b.x0), round(b.x1))) for b in boxes], below
 
@@ -130,28 +129,23 @@ def test_the_membrane_panels_are_red_only_where_there_is_contact(run, tmp_path):
 def test_the_contact_area_chart_draws_the_results_numbers(run):
     _, res = run
     fig = charts.contact_area_figure(res)
-    try:
-        area_axes, patch_axes = fig.axes
-        lines = {line.get_label(): line for line in area_axes.get_lines()}
-        np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_ydata(), res.contact_measure)
-        np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_xdata(), res.t)
-        assert lines[f"area of the domain = {res.weights.sum():.4g}"].get_ydata()[0] == pytest.approx(np.pi, rel=0.05)
-        [patches] = patch_axes.get_lines()
-        np.testing.assert_array_equal(patches.get_ydata(), res.contact_patches())
-        assert res.contact_patches().max() == 1
-        assert fig._suptitle.get_text() == "Contact area and contact patches over time"
-        assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
-    finally:
-        charts.pyplot().close(fig)
+    area_axes, patch_axes = fig.axes
+    lines = {line.get_label(): line for line in area_axes.get_lines()}
+    np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_ydata(), res.contact_measure)
+    np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_xdata(), res.t)
+    assert lines[f"area of the domain = {res.weights.sum():.4g}"].get_ydata()[0] == pytest.approx(np.pi, rel=0.05)
+    [patches] = patch_axes.get_lines()
+    np.testing.assert_array_equal(patches.get_ydata(), res.contact_patches())
+    assert res.contact_patches().max() == 1
+    assert fig._suptitle.get_text() == "Contact area and contact patches over time"
+    assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
 
 
 def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeypatch):
     _, res = run
     labels = []
-    plt = charts.pyplot()
     def keep_labels(fig, path, look):
         labels.extend(t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts())
-        plt.close(fig)
         return [path]
 
     monkeypatch.setattr(charts, "savefig", keep_labels)
@@ -262,7 +256,6 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", Look(size=(4, 3)))
     panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
     assert len(panels) == 12 == charts.MAX_PANELS  # one for each of 12 of the 41 output times (3 columns)
-    charts.pyplot().close(drawn[0])
 
 
 @pytest.mark.slow

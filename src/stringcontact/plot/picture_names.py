@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 WINDOW_SIZE = (1100, 900)  # pixels of the space-time pictures
-CHART_PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png")  # matplotlib
-PICTURES = CHART_PICTURES + ("space_time.png",)  # of a 1-D run
-#: of a 2-D run (a membrane): contact_area.png and energy.png by matplotlib, the others by pyvista
+#: of a 1-D run (a string)
+PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png", "space_time.png")
+#: of a 2-D run (a membrane)
 MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
-MESH_PICTURES = ("space_time.png", "membrane.png", "membrane.gif")  # pyvista
-#: every picture a run draws whatever its model; an output field's picture takes another name (`field_picture_names`)
-CORE_PICTURES = tuple(dict.fromkeys(PICTURES + MEMBRANE_PICTURES))
 
 
 def field_picture_names(result) -> dict[str, str]:
@@ -18,7 +15,7 @@ def field_picture_names(result) -> dict[str, str]:
     names = {}
     for name in getattr(result, "fields", None) or {}:
         picture = f"{name}.png"
-        while picture in CORE_PICTURES:
+        while picture in PICTURES + MEMBRANE_PICTURES:
             picture = f"field_{picture}"
         names[picture] = name
     return names
