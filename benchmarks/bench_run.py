@@ -7,8 +7,7 @@
 2. The same work in a fresh process, timed by phase: import (stringcontact, dolfinx, petsc4py),
    setup (mesh, the forms' JIT-cache load and assembly, LU factorisation), solve (the time loop),
    XDMF + tables (the XDMF frames streamed to solution.xdmf/h5, diagnostics.csv, summary.json) and
-   pictures. "overlapped" is what the CLI does: the pyvista picture is drawn by a `picture_process.PictureProcess`
-   started before the import; "in-process" draws all pictures after the run.
+   pictures (drawn by the run after its solve, in its own process, as the CLI draws them).
 3. The XDMF cost against the number of frames (`simulate(..., max_frames=...)`): dolfinx 0.5's
    XDMFFile rewrites its whole XML on every write, so the cost grows like frames².
 
@@ -16,8 +15,9 @@
     git archive <commit> src | tar -x -C /tmp/before        # another checkout's source, run by this venv:
     .venv/bin/python benchmarks/bench_run.py --no-phases --repeats 20 --against-src /tmp/before
 
-With --against-src DIR the other command is this executable with DIR/src first on PYTHONPATH; the CPU seconds
-of each command (its processes' user + system, the picture processes included) are printed as well.
+With --against-src DIR the other command is this executable with DIR/src first on PYTHONPATH (a checkout that draws
+its pictures in a process of its own, say). The CPU seconds of each command (user + system of it and every process
+it starts) are printed as well.
 """
 
 from __future__ import annotations
@@ -52,40 +52,24 @@ def run_cli(out: Path, *extra: str, exe: Path = EXE, env: dict | None = None, cp
     return wall
 
 
-def phases(out: str, max_frames: int, mode: str) -> dict:
-    """Run in a fresh interpreter: time the import, then simulate with output, then (in-process) the pictures."""
+def phases(out: str, max_frames: int) -> dict:
+    """Run in a fresh interpreter: time the import, then simulate with output and pictures."""
     t0 = time.perf_counter()
-    pictures = False
-    if mode == "overlapped":
-        import functools
-
-        from stringcontact.plot.picture_process import PictureProcess
-        from stringcontact.plot.run_pictures import write_pictures
-
-        pictures = functools.partial(write_pictures, painter=PictureProcess.start())
     import dolfinx  # noqa: F401
     import petsc4py  # noqa: F401
 
     import stringcontact as sc
 
     t_import = time.perf_counter() - t0
-    res = sc.simulate(sc.load_scene("example1"), output_dir=out, force=True, max_frames=max_frames,
-                      pictures=pictures)
+    res = sc.simulate(sc.load_scene("example1"), output_dir=out, force=True, max_frames=max_frames, pictures=True)
     summary = json.loads((Path(out) / "summary.json").read_text())
     tm = summary.get("timings", {})
-    pictures = tm.get("pictures", 0.0)
-    if mode == "in-process":
-        from stringcontact.plot import run_pictures as viz
-
-        t1 = time.perf_counter()
-        viz.write_pictures(res, out)
-        pictures = time.perf_counter() - t1
     return {
         "import": t_import,
         "setup": tm.get("setup", 0.0),
         "solve": tm.get("solve", 0.0),
         "xdmf+tables": res.timings.get("output", 0.0) - tm.get("pictures", 0.0),
-        "pictures": pictures,
+        "pictures": tm.get("pictures", 0.0),
         "frames": summary["xdmf_frames"],
         "rows": len(res.t),
     }
@@ -102,7 +86,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.child:
         spec = json.loads(args.child)
-        print(json.dumps(phases(spec["out"], spec["max_frames"], spec["mode"])))
+        print(json.dumps(phases(spec["out"], spec["max_frames"])))
         return 0
 
     env = dict(os.environ)
@@ -116,49 +100,49 @@ def main(argv=None) -> int:
         run_cli(tmp / "warm", env=env)  # warms the JIT cache
         if against:
             run_cli(tmp / "warm-other", exe=against, env=other_env)
-        walls, bare, other, cpu, other_cpu = [], [], [], [], []
+        walls, bare, other, cpu, other_cpu, bare_cpu = [], [], [], [], [], []
         commands = {"run": (walls, cpu, EXE, env), "other": (other, other_cpu, against, other_env)}
         order = ["run", "other"] if against else ["run"]
         for i in range(args.repeats):
             for key in order if i % 2 == 0 else order[::-1]:  # each pair in turn order: neither always first
                 times, cpus, exe, command_env = commands[key]
                 times.append(run_cli(tmp / f"{key}{i}", exe=exe, env=command_env, cpu=cpus))
-            bare.append(run_cli(tmp / f"bare{i}", "--no-pictures", env=env))
+            bare.append(run_cli(tmp / f"bare{i}", "--no-pictures", env=env, cpu=bare_cpu))
 
-        def line(name, values):
-            return (f"| {name} | {statistics.median(values):.2f} | {min(values):.2f} | {max(values):.2f} |")
+        def line(name, values, cpus):
+            return (f"| {name} | {statistics.median(values):.2f} | {min(values):.2f} | {max(values):.2f} | "
+                    f"{statistics.median(cpus):.2f} |")
 
         print(f"`stringcontact run example1 --out DIR` (N = 5000, 1500 steps), wall clock [s], warm JIT cache, "
               f"{args.repeats} alternating runs each:\n")
-        print("| command | median | min | max |\n|---|---:|---:|---:|")
-        print(line("`run example1 --out DIR`", walls))
-        print(line("`run example1 --out DIR --no-pictures`", bare))
+        print("| command | median | min | max | CPU [s], median |\n|---|---:|---:|---:|---:|")
+        print(line("`run example1 --out DIR`", walls, cpu))
+        print(line("`run example1 --out DIR --no-pictures`", bare, bare_cpu))
         if against:
             name = f"`run example1 --out DIR` of {args.against_src or against}"
-            print(line(name, other))
+            print(line(name, other, other_cpu))
             ratios = sorted(a / b for a, b in zip(walls, other))  # each pair ran back to back
             print(f"\npaired ratio this/other: median {statistics.median(ratios):.3f} "
-                  f"(range {ratios[0]:.2f}-{ratios[-1]:.2f}); CPU seconds, median: this {statistics.median(cpu):.2f}, "
-                  f"other {statistics.median(other_cpu):.2f}; load average {os.getloadavg()[0]:.2f} at the end")
+                  f"(range {ratios[0]:.2f}-{ratios[-1]:.2f})")
+        print(f"load average {os.getloadavg()[0]:.2f} at the end")
         if args.no_phases:
             return 0
         print()
 
-        def child(max_frames, mode):
-            out = tmp / f"phase-{mode}-{max_frames}"
-            spec = json.dumps({"out": str(out), "max_frames": max_frames, "mode": mode})
+        def child(max_frames):
+            out = tmp / f"phase-{max_frames}"
+            spec = json.dumps({"out": str(out), "max_frames": max_frames})
             proc = subprocess.run([sys.executable, __file__, "--child", spec], capture_output=True, text=True, env=env,
                                   check=True)
             return json.loads(proc.stdout.strip().splitlines()[-1])
 
         print("Phases, each in a fresh process (medians):\n")
-        print("| pictures | max_frames | XDMF frames | " + " | ".join(f"{k} [s]" for k in KEYS) + " | sum [s] |")
-        print("|---|---:|---:|" + "---:|" * (len(KEYS) + 1))
-        sweep = () if args.no_sweep else (("overlapped", 400), ("overlapped", 200), ("overlapped", 50))
-        for mode, max_frames in (("overlapped", 100), ("in-process", 100), *sweep):
-            runs = [child(max_frames, mode) for _ in range(args.repeats)]
+        print("| max_frames | XDMF frames | " + " | ".join(f"{k} [s]" for k in KEYS) + " | sum [s] |")
+        print("|---:|---:|" + "---:|" * (len(KEYS) + 1))
+        for max_frames in (100,) if args.no_sweep else (100, 400, 200, 50):
+            runs = [child(max_frames) for _ in range(args.repeats)]
             med = {k: statistics.median(r[k] for r in runs) for k in KEYS}
-            print(f"| {mode} | {max_frames} | {runs[0]['frames']} | " + " | ".join(f"{med[k]:.2f}" for k in KEYS)
+            print(f"| {max_frames} | {runs[0]['frames']} | " + " | ".join(f"{med[k]:.2f}" for k in KEYS)
                   + f" | {sum(med.values()):.2f} |", flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

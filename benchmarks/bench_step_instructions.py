@@ -28,6 +28,8 @@ for _ in range(int(sys.argv[2])):
 
 
 def instructions(python: str, folder: str, scheme: str, steps: int) -> int:
+    # once without valgrind first: a form missing from the JIT cache would be compiled in the counted run
+    subprocess.run([python, "-c", STEPS, scheme, "1"], capture_output=True, cwd=folder, check=True)
     out = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", python, "-c", STEPS,
                           scheme, str(steps)], capture_output=True, text=True, cwd=folder, check=True).stderr
     return int(re.search(r"Collected : (\d+)", out).group(1))

@@ -30,12 +30,10 @@ import os
 import warnings
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 import stringcontact as sc
-from stringcontact.plot.charts import pyplot  # pyplot without the "Unable to import Axes3D" warning
-
-plt = pyplot()
 
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_membrane"))
 OUT.mkdir(parents=True, exist_ok=True)

@@ -27,15 +27,14 @@ import stringcontact as sc  # isort: skip
 import os
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import ufl
 from dolfinx import fem, io, mesh
 from mpi4py import MPI
 
 from stringcontact.fem import compat
-from stringcontact.plot.charts import pyplot
 
-plt = pyplot()
 OUT = Path(os.environ.get("STRINGCONTACT_DEMO_OUT", "out/demo_own_mesh"))
 OUT.mkdir(parents=True, exist_ok=True)
 FAST = os.environ.get("STRINGCONTACT_DEMO_FAST") == "1"  # reduced resolution for the test suite

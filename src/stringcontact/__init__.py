@@ -15,7 +15,7 @@ _jitlog.quiet_compiler()  # before any form is compiled: the JIT's compiler log 
 
 __version__ = "0.1.0"
 
-# Imported on first use (PEP 562), so that `import stringcontact.plot.run_pictures` in the picture process and the CLI's
+# Imported on first use (PEP 562), so that `import stringcontact.plot.run_pictures` (`stringcontact plot`) and the CLI's
 # argument checks do not load dolfinx, PETSc and UFL (0.6 s).
 _LAZY = {
     "Model": "model.interface",

@@ -1,7 +1,6 @@
 """What `main()` does only as the process's own command (the console script, `argv` None): Open MPI's
-settings for a singleton (`cli.mpi_start`), what is set, when, and that Open MPI then starts no daemon; and
-the objects left out of the exit's last garbage collection (`gc.freeze`); and how little `run --out` has loaded
-when it starts its picture process."""
+settings for a singleton (`cli.mpi_start`), what is set, when, and that Open MPI then starts no daemon; and the
+objects left out of the exit's last garbage collection (`gc.freeze`)."""
 
 from __future__ import annotations
 
@@ -92,32 +91,3 @@ def test_open_mpi_starts_no_daemon_with_them():
     size, children = out.stdout.split()
     assert size == "1"
     assert children == "-", f"MPI_Init started {children} for a singleton"
-
-
-# Which modules are loaded when `stringcontact run --out` launches its picture process: Popen is replaced by a
-# stand-in that prints them and stops the command (no run follows).
-AT_PICTURE_START = textwrap.dedent(
-    """
-    import subprocess, sys
-    class Launched(Exception):
-        pass
-    def popen(*args, **kwargs):
-        print("LOADED", " ".join(sorted(m for m in ("numpy", "matplotlib", "petsc4py", "dolfinx") if m in sys.modules)))
-        raise Launched
-    subprocess.Popen = popen
-    from stringcontact.cli.main import main
-    try:
-        main(["run", "example1", "--out", sys.argv[1]])
-    except Launched:
-        pass
-    """
-)
-
-
-def test_the_picture_process_starts_before_numpy_is_imported(tmp_path):
-    """The command parses its arguments without the other subcommands' modules and the scene package's NumPy,
-    so that its picture process starts 0.08 s sooner (docs/explanation/performance.md)."""
-    out = subprocess.run([sys.executable, "-c", AT_PICTURE_START, str(tmp_path / "out")], capture_output=True, text=True,
-                         timeout=300, env=_clean_env())
-    assert "LOADED \n" in out.stdout, out.stdout + out.stderr
-    assert not (tmp_path / "out").exists()

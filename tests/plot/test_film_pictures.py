@@ -88,7 +88,6 @@ def _layout(result):
 
     panels = [box(ax.get_window_extent()) for ax in axs.flat if ax.get_visible()]
     (bar,) = [box(ax.get_tightbbox(fig.canvas.get_renderer())) for ax in fig.axes if hasattr(ax, "_colorbar")]
-    charts.pyplot().close(fig)
     return panels, bar
 
 
@@ -238,9 +237,8 @@ def test_membrane_gif_colours_each_frame_by_its_pressure_with_the_edge_of_its_co
 
 
 @pytest.mark.slow
-def test_stringcontact_run_draws_the_film_membranes_pictures_in_its_painter(run, tmp_path):
-    """The CLI: the painter process (the Result handed over as a payload, the pressure with it) draws the same
-    membrane.png as this process did."""
+def test_stringcontact_run_draws_the_film_membranes_pictures(run, tmp_path):
+    """The CLI draws the same membrane.png (coloured by the pressure) as `simulate` did."""
     folder, _ = run
     path = tmp_path / "small_film_drum.toml"
     path.write_text(scene_to_toml(small_film_drum()))

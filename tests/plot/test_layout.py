@@ -92,10 +92,7 @@ def _check(figure_of, result, look, *args):
     with look.drawn():
         made = figure_of(result, *args, look) if args else figure_of(result, look)
         fig = made[0] if isinstance(made, tuple) else made
-        try:
-            assert layout_problems(fig) == []
-        finally:
-            charts.pyplot().close(fig)
+        assert layout_problems(fig) == []
 
 
 ONE_D = {"contact_set": charts.contact_set_figure, "velocity_field": charts.velocity_figure,
@@ -135,7 +132,6 @@ def test_the_checker_finds_a_cut_title_and_a_legend_over_a_title():
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, 1.15))
     fig.text(0.9, 0.5, "this text runs past the right edge of the figure")
     problems = layout_problems(fig)
-    charts.pyplot().close(fig)
     assert any(p.startswith("outside the figure: 'this text runs past") for p in problems), problems
     assert any(p.startswith("overlap:") and "a title under the legend" in p for p in problems), problems
     assert any(p.startswith("the title is not one line") for p in problems), problems
@@ -178,7 +174,6 @@ def test_a_contact_law_without_eps_is_shown_without_eps(tmp_path, capsys):
     assert "ε = 0.0005" in charts.parameter_line(paper)
     fig, _ = charts.contact_set_figure(ground)
     assert "ε =" not in fig._supxlabel.get_text() and "ε" not in fig._suptitle.get_text()
-    charts.pyplot().close(fig)
     from stringcontact.cli.report import report
 
     report(ground)

@@ -1,5 +1,5 @@
 """The pictures of a 2D run (issue 15): membrane.png, contact_area.png, energy.png and membrane.gif, drawn
-by a run (here and in the painter process), and by `stringcontact plot` from a membrane's output folder."""
+by a run (`simulate` and the command line), and by `stringcontact plot` from a membrane's output folder."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from stringcontact.cli.main import main
 from stringcontact.io import readback
 from stringcontact.plot import animation, charts, mesh_pictures
 from stringcontact.plot import run_pictures as viz
-from stringcontact.plot.picture_process import PictureProcess
 from stringcontact.plot.style import Look
 from stringcontact.scene import scene_to_toml
 
@@ -101,7 +100,6 @@ def panel_boxes(result, figure_of=None):
         fig.canvas.draw()
     height = fig.bbox.height
     boxes = [ax.get_window_extent() for ax in axs.flat if ax.get_visible()]
-    charts.pyplot().close(fig)
     below = round(height - min(b.y0 for b in boxes))
     return [(slice(round(height - b.y1), round(height - b.y0)), slice(round(b.x0), round(b.x1))) for b in boxes], below
 
@@ -131,28 +129,23 @@ def test_the_membrane_panels_are_red_only_where_there_is_contact(run, tmp_path):
 def test_the_contact_area_chart_draws_the_results_numbers(run):
     _, res = run
     fig = charts.contact_area_figure(res)
-    try:
-        area_axes, patch_axes = fig.axes
-        lines = {line.get_label(): line for line in area_axes.get_lines()}
-        np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_ydata(), res.contact_measure)
-        np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_xdata(), res.t)
-        assert lines[f"area of the domain = {res.weights.sum():.4g}"].get_ydata()[0] == pytest.approx(np.pi, rel=0.05)
-        [patches] = patch_axes.get_lines()
-        np.testing.assert_array_equal(patches.get_ydata(), res.contact_patches())
-        assert res.contact_patches().max() == 1
-        assert fig._suptitle.get_text() == "Contact area and contact patches over time"
-        assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
-    finally:
-        charts.pyplot().close(fig)
+    area_axes, patch_axes = fig.axes
+    lines = {line.get_label(): line for line in area_axes.get_lines()}
+    np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_ydata(), res.contact_measure)
+    np.testing.assert_array_equal(lines["contact area |{η ≤ 0}|"].get_xdata(), res.t)
+    assert lines[f"area of the domain = {res.weights.sum():.4g}"].get_ydata()[0] == pytest.approx(np.pi, rel=0.05)
+    [patches] = patch_axes.get_lines()
+    np.testing.assert_array_equal(patches.get_ydata(), res.contact_patches())
+    assert res.contact_patches().max() == 1
+    assert fig._suptitle.get_text() == "Contact area and contact patches over time"
+    assert patch_axes.get_legend() is not None and area_axes.get_legend() is not None
 
 
 def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeypatch):
     _, res = run
     labels = []
-    plt = charts.pyplot()
     def keep_labels(fig, path, look):
         labels.extend(t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts())
-        plt.close(fig)
         return [path]
 
     monkeypatch.setattr(charts, "savefig", keep_labels)
@@ -233,32 +226,9 @@ def test_plot_of_a_damaged_membrane_folder_exits_2_naming_the_file(run, tmp_path
     assert str(copy / "rows.npz") in err and words in err, err
 
 
-# --- the painter process ----------------------------------------------------------------------------
-
-
 @pytest.mark.slow
-def test_the_painter_draws_the_membranes_pyvista_pictures(run, tmp_path):
-    _, res = run
-    process = PictureProcess.start()  # as the CLI starts it: before the scene is known
-    assert set(viz.MESH_PICTURES) <= set(process.names)
-    assert process.send(res, tmp_path) and process.wait()
-    assert sorted(process.names) == sorted(viz.MEMBRANE_PICTURES)  # the charts too, drawn by its helper or itself
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(viz.MEMBRANE_PICTURES)
-    for name in ("membrane.png", "contact_area.png", "energy.png"):
-        np.testing.assert_array_equal(_image(tmp_path / name), _image(run[0] / name), err_msg=name)
-
-
-def test_a_painter_with_no_picture_of_a_membrane_is_not_sent_one(run, tmp_path):
-    _, res = run
-    process = PictureProcess.start(("space_time.png",))
-    assert not process.send(res, tmp_path)
-    assert process.folder is None and process.proc.poll() is not None and not list(tmp_path.iterdir())
-
-
-@pytest.mark.slow
-def test_stringcontact_run_of_a_membrane_leaves_its_pictures_to_the_painter(tmp_path, monkeypatch, capsys):
-    """The real CLI: the painter (started before the scene is read) and its helper draw all the pictures, this
-    process none (it would import matplotlib after the solve)."""
+def test_stringcontact_run_of_a_membrane_draws_its_pictures_after_the_run(tmp_path, monkeypatch, capsys):
+    """The real CLI: the run draws every picture of a membrane itself, after its solve, one after the other."""
     drawn_here = []
     draw = viz.draw
     monkeypatch.setattr(viz, "draw", lambda name, *args, **kw: drawn_here.append(name) or draw(name, *args, **kw))
@@ -266,7 +236,7 @@ def test_stringcontact_run_of_a_membrane_leaves_its_pictures_to_the_painter(tmp_
     path.write_text(scene_to_toml(small_drum()))
     out = tmp_path / "out"
     assert main(["run", str(path), "--out", str(out), "--no-progress"]) == 0
-    assert drawn_here == []
+    assert drawn_here == list(viz.MEMBRANE_PICTURES)
     assert {p.name for p in out.iterdir()} >= set(viz.MEMBRANE_PICTURES)
     assert _red(_gif_frames(out / "membrane.gif")[-1]).sum() > 2000
 
@@ -284,7 +254,6 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", Look(size=(4, 3)))
     panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
     assert len(panels) == 12 == charts.MAX_PANELS  # one for each of 12 of the 41 output times (3 columns)
-    charts.pyplot().close(drawn[0])
 
 
 @pytest.mark.slow

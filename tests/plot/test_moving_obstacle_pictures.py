@@ -83,13 +83,13 @@ def test_an_obstacle_at_rest_is_still_a_band_over_t(drawn, tmp_path):
 def test_each_membrane_panel_draws_the_obstacle_at_its_time(dome, monkeypatch, tmp_path):
     """Each panel is rendered after `show_row` moved the membrane and the obstacle to its row: ψ at its time."""
     assert dome.scene.obstacle_moves
-    shown, show_row = [], mesh_pictures.show_row
+    shown, show_row = [], membrane.show_row
 
     def recording(surface, result, row, view):
         show_row(surface, result, row, view)
         shown.append((row, np.asarray(view.obstacle.points)[:, 2].copy()))
 
-    monkeypatch.setattr(mesh_pictures, "show_row", recording)
+    monkeypatch.setattr(membrane, "show_row", recording)  # the panels and the GIF's frames alike
     mesh_pictures.membrane_picture(dome, tmp_path / "membrane.png")
     rows = charts.snapshot_rows(dome)
     assert [row for row, _ in shown] == rows

@@ -113,7 +113,6 @@ def test_a_fields_picture_never_takes_a_core_pictures_name():
     names = catalogue.field_picture_names(result)
     assert names == {"field_energy.png": "energy", "reaction.png": "reaction", "field_membrane.png": "membrane"}
     assert catalogue.pictures_of(result) == viz.PICTURES + tuple(names)
-    assert catalogue.painted(result) == viz.PICTURES  # the run draws the fields' pictures itself
 
 
 def test_a_fields_name_taken_by_the_files_own_is_prefixed():

@@ -16,7 +16,6 @@ def test_a_run_above_the_obstacle_has_its_own_height_range_in_the_caption(tmp_pa
     assert res.eta.min() > 0.5
     fig, _ = mesh_pictures.space_time_figure(res)
     text = fig._supxlabel.get_text()
-    charts.pyplot().close(fig)
     low, high = (float(v) for v in re.search(r"η from (\S+) to (\S+) over x and t", text).groups())
     assert low == float(f"{res.eta.min():.3g}") and high == float(f"{res.eta.max():.3g}"), text
     assert "ψ from" not in text  # the paper's flat obstacle: no range of its own

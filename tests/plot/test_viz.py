@@ -16,7 +16,6 @@ from stringcontact.io import readback
 from stringcontact.io.result import ENERGY_KEYS
 from stringcontact.plot import charts
 from stringcontact.plot import run_pictures as viz
-from stringcontact.plot.picture_process import PictureProcess
 from stringcontact.plot.style import SCREEN
 
 
@@ -76,8 +75,8 @@ def test_run_writes_legible_pictures(run):
         img = _image(folder / name)
         assert img.shape[0] >= 600 and img.shape[1] >= 800, name
         assert (img < 100).all(axis=-1).sum() > 500, f"{name}: no dark text or lines"
-    assert _near(_image(folder / "contact_set.png"), viz.CONTACT_COLOUR).sum() > 5000
-    assert _near(_image(folder / "space_time.png"), viz.CONTACT_COLOUR, tol=60).sum() > 2000  # lit, so less exact
+    assert _near(_image(folder / "contact_set.png"), charts.CONTACT_COLOUR).sum() > 5000
+    assert _near(_image(folder / "space_time.png"), charts.CONTACT_COLOUR, tol=60).sum() > 2000  # lit, so less exact
 
 
 def _zlib_level_class(path: Path) -> int:
@@ -106,11 +105,11 @@ def test_contact_set_picture_shows_the_contact_fraction(run):
     assert 0.05 < fraction < 0.5
     img = _image(run[0] / "contact_set.png")
     with SCREEN.drawn():  # where the whole (x, t) rectangle is: the upper panel, as the run's picture lays it out
-        fig, axes = viz.contact_set_figure(res)
+        fig, axes = charts.contact_set_figure(res)
         fig.canvas.draw()
     box = axes["set"].get_window_extent()
     top, bottom = fig.bbox.height - box.y1, fig.bbox.height - box.y0  # pixel rows count from the top
-    inside = _near(img[round(top) + 2 : round(bottom) - 1, round(box.x0) + 2 : round(box.x1) - 1], viz.CONTACT_COLOUR)
+    inside = _near(img[round(top) + 2 : round(bottom) - 1, round(box.x0) + 2 : round(box.x1) - 1], charts.CONTACT_COLOUR)
     assert inside.mean() == pytest.approx(fraction, abs=0.02)
     assert (img[round(top) + 1 : round(bottom) - 1, round(box.x0)] < 60).all()  # the box is the panel's frame
 
@@ -123,18 +122,18 @@ def test_velocity_picture_is_centred_on_zero(run):
     assert blue > 5000 and red > 500  # downward impact and upward rebound both visible
     speed = np.abs(res.velocity)
     # the colours clip the few fastest samples (v0 = -50 at t = 0) but not the bulk of the motion
-    assert np.median(speed) < viz.velocity_clip(res) < speed.max()
+    assert np.median(speed) < charts.velocity_clip(res) < speed.max()
     # a string at rest still gets a colour range, not ±0
-    assert viz.velocity_clip(dataclasses.replace(res, velocity=np.zeros_like(res.velocity))) == 1.0
+    assert charts.velocity_clip(dataclasses.replace(res, velocity=np.zeros_like(res.velocity))) == 1.0
 
 
 def test_contact_set_picture_is_blank_without_contact(tmp_path, run):
     folder, _ = run
     free = readback.read_output(folder)
     free.contact[:] = False
-    viz.contact_set_picture(free, tmp_path / "c.png")
+    charts.contact_set_picture(free, tmp_path / "c.png")
     # only the small legend patch keeps the contact colour
-    assert _near(_image(tmp_path / "c.png"), viz.CONTACT_COLOUR).sum() < 2000
+    assert _near(_image(tmp_path / "c.png"), charts.CONTACT_COLOUR).sum() < 2000
 
 
 @pytest.mark.slow
@@ -224,12 +223,12 @@ def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
     scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
     res = sc.simulate(scene, model=load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
     back = readback.read_output(tmp_path / "run")
-    assert viz.obstacle_name(back) == "ψ" and viz.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
+    assert charts.obstacle_name(back) == "ψ" and charts.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
     grey = "#d9d9d9"  # the shaded obstacle region
-    viz.snapshots_picture(back, tmp_path / "bump.png")
+    charts.snapshots_picture(back, tmp_path / "bump.png")
     flat = readback.read_output(tmp_path / "run")
     flat.scene = flat.scene.replace(obstacle=None)
-    viz.snapshots_picture(flat, tmp_path / "flat.png")
+    charts.snapshots_picture(flat, tmp_path / "flat.png")
     bump, level = _near(_image(tmp_path / "bump.png"), grey, 3).sum(), _near(_image(tmp_path / "flat.png"), grey, 3).sum()
     # the bump (down to ψ = -0.8 at the ends) is shaded, not the half-plane y <= 0: a different area
     assert bump > 0 and level > 0 and abs(bump - level) > 0.2 * level
@@ -278,50 +277,6 @@ def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
 
 
-@pytest.mark.slow
-def test_the_picture_process_draws_what_this_process_draws(tmp_path, run):
-    """The painter and its helper (which share the pictures out) draw each picture as this process does."""
-    _, res = run
-    here, there = tmp_path / "here", tmp_path / "there"
-    viz.write_pictures(res, here)
-    there.mkdir()
-    process = PictureProcess.start(viz.PICTURES)
-    private = Path(process.folder)
-    assert process.send(res, there) and process.wait()
-    assert process.proc.poll() is not None and not private.exists()  # no process and no payload left
-    assert sorted(process.drawn) == sorted(viz.PICTURES)
-    assert sorted(p.name for p in there.iterdir()) == sorted(viz.PICTURES)
-    for name in process.names:
-        np.testing.assert_array_equal(_image(there / name), _image(here / name), err_msg=name)
-
-
-@pytest.mark.slow
-def test_pictures_are_drawn_here_when_the_picture_process_dies(tmp_path, run):
-    _, res = run
-    process = PictureProcess.start()
-    process.proc.kill()
-    process.proc.wait()
-    paths = viz.write_pictures(res, tmp_path, painter=process)
-    assert [p.name for p in paths] == list(viz.PICTURES)
-    assert all(p.stat().st_size > 10_000 for p in paths)
-    assert process.folder is None and not list(tmp_path.glob(".*"))
-
-
-def test_a_string_is_sent_to_the_picture_process_for_all_its_pictures(run):
-    """`stringcontact run` starts the process for PAINTED, before it knows the scene; it gets all a string's pictures."""
-    _, res = run
-    assert viz.painted(res) == viz.PICTURES == viz.pictures_of(res) and set(viz.painted(res)) < set(viz.PAINTED)
-
-
-@pytest.mark.slow
-def test_a_picture_process_that_cannot_draw_says_why(tmp_path, run):
-    _, res = run
-    process = PictureProcess.start()
-    assert process.send(res, tmp_path / "no such folder")
-    assert process.wait() is False
-    assert "No such file or directory" in process.error and process.folder is None
-
-
 def test_the_output_module_does_not_import_the_picture_code():
     """The output folder is given the picture function by the driver; plot imports io, not the reverse."""
     import ast
@@ -333,7 +288,7 @@ def test_the_output_module_does_not_import_the_picture_code():
     tree = ast.parse(Path(output.__file__).read_text())
     imported = {node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
-    assert not {m for m in imported if m.split(".")[-1] in ("run_pictures", "charts", "picture_process", "mesh_pictures")}
+    assert not {m for m in imported if m.split(".")[-1] in ("run_pictures", "charts", "mesh_pictures")}
     assert not hasattr(output, "registered_pictures")  # no entry point of its own: no circle to hide
     code = "import sys, stringcontact.plot.run_pictures; print(sorted(m for m in sys.modules if m.startswith(('pyvista', 'vtk'))))"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "[]"
@@ -360,7 +315,6 @@ def _drawn_at(figure_of, result):
         fig, ax = figure_of(result)
         fig.canvas.draw()
     box, height = ax.get_window_extent(), fig.bbox.height
-    charts.pyplot().close(fig)
     return (slice(round(height - box.y1), round(height - box.y0)), slice(round(box.x0), round(box.x1))), \
         slice(round(height - box.y0), None)
 
@@ -374,9 +328,9 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
     mesh_pictures.space_time_picture(res, tmp_path / "contact.png")
     render, below = _drawn_at(mesh_pictures.space_time_figure, res)
     # the render, without the colour key under it (its red square is in both)
-    red = [_near(_image(tmp_path / n)[render], viz.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
+    red = [_near(_image(tmp_path / n)[render], charts.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
     assert red[0] < 50 and red[1] > 2000
-    key = [_near(_image(tmp_path / n)[below], viz.CONTACT_COLOUR, tol=10).sum() for n in ("free.png", "contact.png")]
+    key = [_near(_image(tmp_path / n)[below], charts.CONTACT_COLOUR, tol=10).sum() for n in ("free.png", "contact.png")]
     assert min(key) > 30  # the key's red square
     img = _image(tmp_path / "free.png")
     grey = (np.ptp(img, axis=-1) < 8) & (img[..., 0] > 100) & (img[..., 0] < 230)  # the translucent obstacle
@@ -408,17 +362,27 @@ def test_a_stop_while_a_skipped_row_is_copied_keeps_the_previous_row_whole(tmp_p
             np.testing.assert_array_equal(last, 1.0, err_msg=name)  # row 0.1, not a mix with row 0.2
 
 
-def test_no_axes3d_warning_once_a_picture_module_is_loaded():
-    """pip's matplotlib beside Debian's mpl_toolkits warns "Unable to import Axes3D" (issue 26); matplotlib 3.6 here
-    does not, so the warning is raised as matplotlib raises it, after the picture modules and the study charts load."""
+def test_no_axes3d_warning_and_no_global_filter_where_mplot3d_warns(tmp_path):
+    """pip's matplotlib beside Debian's mpl_toolkits warns "Unable to import Axes3D" when its projections load
+    (issue 26): the pictures import them without the warning, and leave the process's warning filters as they were.
+    Here an mplot3d that warns as matplotlib does stands first in `mpl_toolkits`."""
     import subprocess
     import sys
 
-    code = ("import warnings; import stringcontact.plot.study_charts, stringcontact.plot.charts\n"
-            "warnings.warn('Unable to import Axes3D. This may be due to multiple versions of Matplotlib', UserWarning)\n"
-            "print('done')")
-    proc = subprocess.run([sys.executable, "-W", "default", "-c", code], capture_output=True, text=True, check=True)
-    assert proc.stdout.strip() == "done" and "Axes3D" not in proc.stderr, proc.stderr
+    fake = tmp_path / "mplot3d"
+    fake.mkdir()
+    (fake / "__init__.py").write_text(
+        "import warnings\nfrom matplotlib.axes import Axes\n"
+        "warnings.warn('Unable to import Axes3D. This may be due to multiple versions of Matplotlib', UserWarning)\n"
+        "class Axes3D(Axes):\n    name = '3d'\n")
+    code = ("import sys, warnings, numpy, mpl_toolkits\nmpl_toolkits.__path__.insert(0, sys.argv[1])\n"
+            "filters = list(warnings.filters)\nfrom stringcontact.plot import charts, vtk_start\n"
+            "charts.figure((2, 2)).savefig(sys.argv[2])\nvtk_start._pyvista()\n"
+            "import mpl_toolkits.mplot3d as m\nassert m.__file__.startswith(sys.argv[1]), m.__file__\n"
+            "print('done', warnings.filters == filters)")
+    proc = subprocess.run([sys.executable, "-W", "default", "-c", code, str(tmp_path), str(tmp_path / "f.png")],
+                          capture_output=True, text=True, check=True)
+    assert proc.stdout.strip() == "done True" and "Axes3D" not in proc.stderr, proc.stdout + proc.stderr
 
 
 def _recorded_axes(monkeypatch):
@@ -492,16 +456,15 @@ def test_snapshots_have_at_most_max_panels_whatever_the_output_times(tmp_path, m
 
     times = np.round(np.linspace(0.0, 0.5, 60), 10).tolist()
     res = sc.simulate(sc.load_scene("example1").replace(nx=20, T=0.5, nt=1000, output_times=times), max_rows=100)
-    assert len(viz.stored_rows_at(res, times)) == 60  # every output time is a stored row
+    assert len(charts.stored_rows_at(res, times)) == 60  # every output time is a stored row
     drawn = []
     monkeypatch.setattr(charts, "savefig", lambda fig, path, look=None: drawn.append(fig) or [path])
-    viz.snapshots_picture(res, tmp_path / "snapshots.png")
+    charts.snapshots_picture(res, tmp_path / "snapshots.png")
     panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
     assert len(panels) == 12 == charts.MAX_PANELS
     titles = [ax.get_title() for ax in panels]
     assert titles[0].startswith("t = 0:") and titles[-1].startswith("t = 0.5:")  # the first and the last time
     assert "12 of the 60 output times" in drawn[0]._supxlabel.get_text()  # the caption says so
-    charts.pyplot().close(drawn[0])
 
 
 def test_evenly_keeps_the_ends_and_at_most_most():
@@ -578,14 +541,13 @@ def test_the_contact_set_picture_zooms_onto_example2s_early_components(example2)
     from stringcontact.plot import charts
 
     _, res = example2
-    fig, axes = viz.contact_set_figure(res)
+    fig, axes = charts.contact_set_figure(res)
     lo, hi = axes["zoom"].get_ylim()
     assert lo == 0 and hi < 0.1 * res.t[-1]  # the first 10 % of the run, over the zoomed panel's full height
     steps = axes["zoom_count"].patches[0].get_data().values  # the count strip draws the run's counts
     assert max(steps) == 3
     pixels_per_time = axes["zoom"].get_window_extent().height / (hi - lo)
     assert 0.0168 * pixels_per_time > 100  # the three components' time is over 100 pixels tall
-    charts.pyplot().close(fig)
 
 
 def _boxes_overlap(a, b) -> bool:
@@ -605,7 +567,6 @@ def test_the_energy_legend_covers_no_panel(run):
     assert len(curve_legends) == 1
     box = curve_legends[0].get_window_extent()
     assert not any(_boxes_overlap(box, ax.get_window_extent()) for ax in axes.values())
-    charts.pyplot().close(fig)
 
 
 def test_example2s_energies_get_a_panel_zoomed_onto_their_first_times(example2):
@@ -618,10 +579,8 @@ def test_example2s_energies_get_a_panel_zoomed_onto_their_first_times(example2):
     assert lo == 0 and hi < 0.15 * res.t[-1]  # at this coarse nx its energies settle by t = 0.036 of 0.5
     kinetic = res.energy["kinetic"]
     assert kinetic[res.t > hi].max() < 0.05 * kinetic.max()  # the motion is over within the zoom
-    charts.pyplot().close(fig)
     fig, axes = charts.energy_figure(sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), max_rows=60))
     assert "zoom" not in axes  # Example 1 moves all the time: one panel
-    charts.pyplot().close(fig)
 
 
 def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
@@ -630,7 +589,7 @@ def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
 
     t = np.linspace(0.0, 1.0, 11)
     residual = np.array([0, 1e-14, 2e-14, 0, 0, 3e-14, -1e-15, 0, 2e-14, 1e-14, 1e-14])
-    fig, ax = charts.pyplot().subplots()
+    ax = charts.figure((6.4, 4.8)).subplots()
     charts.residual_panel(ax, t, residual)
     line, marks = ax.get_lines()
     assert np.array_equal(np.isnan(line.get_ydata()), residual == 0)  # no point where it is 0...
@@ -638,7 +597,6 @@ def test_a_residual_of_exactly_zero_is_marked_not_drawn_as_a_plunge():
     floor = ax.get_ylim()[0]
     assert np.all(marks.get_ydata() == floor) and 0 < floor < 1e-15 and ax.get_yscale() == "log"
     assert "exactly 0 (4 of 11 rows" in ax.get_legend().get_texts()[1].get_text()
-    charts.pyplot().close(fig)
 
 
 def test_the_space_time_caption_gives_a_heights_round_off_as_0(tmp_path, monkeypatch):

@@ -97,9 +97,7 @@ def test_a_users_energy_label_is_the_legend_of_energy_png(tmp_path):
     for result in (res, read_output(tmp_path / "out")):
         fig, _ = charts.energy_figure(result)
         labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]  # the key under the panels
-        charts.pyplot().close(fig)
         assert label in labels and not any(t.startswith("elastic") for t in labels), labels
     fig, _ = charts.energy_figure(sc.simulate(scene))  # the paper's model keeps the paper's label
     labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]  # the key under the panels
-    charts.pyplot().close(fig)
     assert r"elastic $\frac{1}{2}\int \eta_x^2\,dx$" in labels

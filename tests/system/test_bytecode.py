@@ -33,7 +33,7 @@ RUN = textwrap.dedent(
     except SystemExit as stop:
         assert not stop.code, stop.code
     import slepc4py  # the membranes' dt_max on 2-D meshes
-    from stringcontact.plot import charts, mesh_pictures, picture_process, run_pictures  # what the picture process imports
+    from stringcontact.plot import animation, charts, mesh_pictures, run_pictures  # what a run's pictures import
     print("MODULES", *(m.__file__ for m in list(sys.modules.values()) if getattr(m, "__file__", None)), sep="\\n")
     print("COMPILED", *compiled, sep="\\n")
     """

@@ -236,7 +236,6 @@ def test_a_shipped_nonlinear_variant_runs_from_the_command_line(tmp_path, name):
     labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]  # the key under the panels
     assert sc.load_model(name).energy_label in labels and summary["energy_label"] == sc.load_model(name).energy_label
     assert any("model " + name in t.get_text() for t in fig.texts)  # the caption names the model
-    charts.pyplot().close(fig)
 
 
 # --- several fields -------------------------------------------------------------------------------------------

@@ -16,7 +16,6 @@ Every error is one line on stderr; no traceback.
 from __future__ import annotations
 
 import contextlib
-import functools
 import gc
 import importlib
 import os
@@ -29,8 +28,8 @@ from .parser import SUBCOMMANDS, build_parser
 from .process import EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE, error
 
 
-def _run(args, painter=None) -> int:
-    """`run`; `painter` (a `picture_process.PictureProcess`) was started by `main` before PETSc and dolfinx were imported."""
+def _run(args) -> int:
+    """`run`: the scene simulated, its output and pictures written (pictures after the run, in this process)."""
     import time
 
     import stringcontact as sc
@@ -67,13 +66,8 @@ def _run(args, painter=None) -> int:
 
         scene, options, text = choose_for_tolerance(scene, args.tol, model=model)  # the pilots use the run's model
         print(text)
-    pictures = not args.no_pictures
-    if painter is not None:  # the pictures drawn by the started painter
-        from ..plot.run_pictures import write_pictures
-
-        pictures = functools.partial(write_pictures, painter=painter)
-    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=pictures,
-                    progress=not args.no_progress, default_pictures=painter is None)  # the painter's are the defaults
+    output = Output(args.out, max_frames=args.frames, force=args.force, pictures=not args.no_pictures,
+                    progress=not args.no_progress)
     res = sc.simulate(scene, **options, model=spec, output=output)  # the name: summary.json says where it came from
     if res.has_rows:  # rank 0 under MPI (the other ranks hold the series, not the rows): one report
         from .report import report
@@ -179,19 +173,10 @@ def _main(argv) -> int:
     if problem is not None:  # before PETSc and MPI start: each would print a page of its own and exit 1
         error(problem)
         return EXIT_INPUT
-    painter = None
-    if args.command == "run" and args.out is not None and not args.no_pictures and process.single_process():
-        from ..plot.picture_process import PictureProcess
-
-        painter = PictureProcess.start()  # first: its start-up then overlaps the whole run, imports included
-    try:
-        return _command(args, painter)
-    finally:
-        if painter is not None:
-            painter.cancel()  # already finished after a complete run; stops it after an error
+    return _command(args)
 
 
-def _command(args, painter) -> int:
+def _command(args) -> int:
     from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError, StackError
 
     petsc = args.command not in ("list", "show", "plot", "models")
@@ -207,7 +192,7 @@ def _command(args, painter) -> int:
     with process.one_line_warnings(), process.signals_interrupt(petsc=petsc):
         try:
             if args.command == "run":
-                return _run(args, painter)
+                return _run(args)
             from ..scene import toml as scenes
 
             if args.command == "list":

@@ -19,8 +19,8 @@ if TYPE_CHECKING:
 # `np.trapz` is deprecated in favour of `np.trapezoid` (new in 2.0).
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
-# dolfinx is imported inside the helpers, not here: `Result` uses `trapezoid`, and the picture process
-# (`picture_process.PictureProcess`) unpickles Results without loading dolfinx (0.6 s).
+# dolfinx is imported inside the helpers, not here: `Result` uses `trapezoid`, and `stringcontact plot` reads
+# Results back without loading dolfinx (0.6 s).
 
 
 def dolfinx_version() -> tuple[int, int]:

@@ -1,10 +1,6 @@
-"""The axes of the pyvista pictures (`add_axis`), drawn without pyvista's `show_bounds`.
-
-`show_bounds` (and VTK's scalar bar) format their labels with `std::regex`, which aborts the process
-(`std::bad_alloc`) once dolfinx's C++ module is loaded (a run's pictures drawn in its own process,
-`simulate(..., pictures=True)`). Here an axis is lines with ticks and point labels, which need no regex. The titles,
-colour keys and captions are matplotlib's (`mesh_pictures`).
-"""
+"""The pyvista pictures' axes (`add_axis`): lines, ticks and point labels, because pyvista's `show_bounds` and VTK's
+scalar bar format their labels with `std::regex`, which aborts a process that has loaded dolfinx (std::bad_alloc at
+the first render after `import dolfinx`, VTK 9.7.2), as a run has when it draws its pictures."""
 
 from __future__ import annotations
 
@@ -25,11 +21,6 @@ def nice_ticks(low: float, high: float, most: int = 5) -> np.ndarray:
     span = high - low
     ticks = np.array([float(f"{v:.12g}") for v in ticks if low - 1e-9 * span <= v <= high + 1e-9 * span])
     return ticks if ticks.size >= 2 else np.array([low, high])
-
-
-
-def _tick_label(v: float) -> str:
-    return f"{0.0 if abs(v) < 1e-12 else v:g}"
 
 
 @dataclass
@@ -55,7 +46,7 @@ def add_axis(p, axis: Axis, font_size: int = 11, most: int = 5, zoom: float = 1.
     where = start + np.outer((ticks - axis.low) / ((axis.high - axis.low) or 1.0), end - start)
     for point in where:
         p.add_mesh(pv.Line(point, point + out), color="black", line_width=2 * zoom, lighting=False)
-    labels = [_tick_label(v) for v in ticks]
+    labels = [f"{0.0 if abs(v) < 1e-12 else v:g}" for v in ticks]
     p.add_point_labels(where + 2.2 * out, labels, font_size=round(zoom * font_size), text_color="black", shape=None,
                        show_points=False, always_visible=True, font_family="arial", justification_horizontal="center")
     beyond = 4.5 + 0.3 * max(font_size - 11, 0)  # the axis' name clear of its tick labels, however large

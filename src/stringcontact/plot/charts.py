@@ -1,16 +1,9 @@
-"""The matplotlib pictures of a run: the (x, t) plane as an image, and line charts.
+"""The matplotlib pictures of a run: ``contact_set.png`` and ``velocity_field.png`` (the (x, t) plane as an image,
+one cell per stored sample), ``snapshots.png``, ``energy.png`` (the balance (1.4)) and a membrane's
+``contact_area.png``; and the readings of a Result they share with `mesh_pictures`, the demos and `theorems`.
 
-* ``contact_set.png`` and ``velocity_field.png``: `pcolorfast` with one cell per stored sample (irregular
-  stored times included), with a legend or a colour bar;
-* ``snapshots.png`` and ``energy.png``: η(x) at the output times, and the energy balance (1.4);
-* ``contact_area.png`` of a membrane (2D): its contact area and number of contact patches over time.
-
-Each is drawn in the style sheet of its `style.Look` (its size and fonts), laid out by matplotlib's constrained
-layout and saved by `savefig` in each of the look's formats (PNG, PDF, SVG). A title says what the picture shows in
-one line; the run's details go to a caption line under it (`caption`, the screen style's).
-
-Also the small readings of a Result they share with `mesh_pictures`, the demos and `theorems`: the
-contact intervals of a row, the rows at given times, the velocity colour range, the run's details.
+Each figure is drawn in its `style.Look`'s style sheet, in constrained layout (nothing cut off at any size), saved in
+each of the look's formats; its title says what it shows in one line, a caption the run's details (`caption`).
 """
 
 from __future__ import annotations
@@ -27,39 +20,26 @@ from .style import SCREEN, Look
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0
-#: at most this many panels in snapshots.png and membrane.png, whatever the number of output times: a panel
-#: costs a fixed time (Example 1's 200 output times took 50 s), so more output times are thinned evenly
-#: (first and last kept); every output time is still a stored row (diagnostics.csv, rows.npz)
+#: at most this many panels in snapshots.png and membrane.png: a panel costs a fixed time (Example 1's 200 output
+#: times took 50 s), so more output times are thinned evenly; every one is still a stored row (rows.npz)
 MAX_PANELS = 12
-#: zlib level of the PNGs (Pillow's default is 6): the same pixels, 8-20 ms less a picture for 6-24 % more
-#: bytes (Example 1's five pictures: 180 against 122 CPU-ms to encode; benchmarks/bench_png.py)
+#: zlib level of the PNGs (Pillow's default is 6): the same pixels, Example 1's five encoded in 122 against 180
+#: CPU-ms for 6-24 % more bytes (benchmarks/bench_png.py)
 PNG_COMPRESSION = 3
 
 
-# --- reading the contact set ------------------------------------------------------------------------
-
-
 def contact_components(x: np.ndarray, contact_row: np.ndarray, min_nodes: int = 2) -> list[tuple[float, float]]:
-    """The intervals [a, b] of one contact row: maximal runs of at least `min_nodes` contact nodes.
-
-    The default drops isolated nodes, i.e. components of zero length (Example 2's left end is pinned at
-    η = 0 and so is always "in contact" at one node).
-    """
-    c = np.asarray(contact_row, dtype=bool).astype(np.int8)
-    edges = np.diff(np.concatenate([[0], c, [0]]))
+    """The intervals [a, b] of one contact row: maximal runs of at least `min_nodes` contact nodes (the default drops
+    single nodes, components of zero length: Example 2's left end, pinned at η = 0)."""
+    edges = np.diff(np.concatenate([[0], np.asarray(contact_row, dtype=bool).astype(np.int8), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # runs [start, stop)
     return [(float(x[a]), float(x[b - 1])) for a, b in zip(starts, stops) if b - a >= min_nodes]
 
 
 def stored_rows_at(result, times) -> list[int]:
     """Indices of the stored rows at `times` (nearest stored time within half a step; others skipped)."""
-    half_step = 0.5 * result.scene.dt
-    rows = []
-    for t in times:
-        i = int(np.argmin(np.abs(result.t - t)))
-        if abs(result.t[i] - t) <= half_step:
-            rows.append(i)
-    return rows
+    nearest = [int(np.argmin(np.abs(result.t - t))) for t in times]
+    return [i for i, t in zip(nearest, times) if abs(result.t[i] - t) <= 0.5 * result.scene.dt]
 
 
 def snapshot_rows(result, most: int = MAX_PANELS) -> list[int]:
@@ -90,12 +70,8 @@ def velocity_clip(result, percentile: float = VELOCITY_PERCENTILE) -> float:
     return c if c > 0 else max(float(np.max(np.abs(result.velocity))), 1.0)
 
 
-# --- the run's details ------------------------------------------------------------------------------
-
-
 def literal(text: str) -> str:
-    """`text` shown as written in a matplotlib text: its ``$`` escaped, so a scene named ``$x^{$`` is not parsed
-    as (broken) mathtext."""
+    """`text` as written in a matplotlib text: its ``$`` escaped, so a scene named ``$x^{$`` is not mathtext."""
     return str(text).replace("$", r"\$")
 
 
@@ -114,8 +90,8 @@ def parameter_line(result, sep: str = ", ") -> str:
 
 
 def contact_times(t: np.ndarray, counts: np.ndarray) -> str:
-    """'first contact at t = A; at most K contact components at once (first at t = B)' from the number of contact
-    components at each stored time (patches of a membrane); '' when there are never two."""
+    """'first contact at t = A; at most K contact components at once (first at t = B)' from their number at each
+    stored time; '' when there are never two."""
     if not counts.size or counts.max() < 2:
         return ""
     began, most = float(t[int(np.argmax(counts > 0))]), int(np.argmax(counts))
@@ -148,11 +124,9 @@ def obstacle_history(result, rows, nodes=slice(None)) -> np.ndarray:
 
 def obstacle_range(result) -> tuple[float, float]:
     """The least and the largest ψ at the nodes over every stored time (at t = 0 when it does not move)."""
-    low, high = np.inf, -np.inf
-    for t in result.t if obstacle_moves(result) else [0.0]:  # one time at a time: rows × nodes may not fit
-        psi = obstacle_profile(result, float(t))
-        low, high = min(low, float(np.min(psi))), max(high, float(np.max(psi)))
-    return low, high
+    psi = (obstacle_profile(result, float(t)) for t in (result.t if obstacle_moves(result) else [0.0]))  # one at a time
+    lows, highs = zip(*((float(np.min(p)), float(np.max(p))) for p in psi))
+    return min(lows), max(highs)
 
 
 # --- matplotlib ---------------------------------------------------------------------------------------
@@ -160,33 +134,28 @@ def obstacle_range(result) -> tuple[float, float]:
 
 @contextlib.contextmanager
 def without_axes3d_warning():
-    """Importing matplotlib's projections (pyplot, pyvista's colour maps) without the Axes3D warning: Debian's
-    mpl_toolkits (python3-matplotlib) beside pip's matplotlib; no 3-D axes are drawn, so nothing is lost."""
+    """Importing matplotlib's projections (its Figure, pyvista's colour maps) without the "Unable to import Axes3D"
+    warning of a pip matplotlib beside Debian's mpl_toolkits: no picture draws 3-D axes."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Unable to import Axes3D")
         yield
 
 
-def pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
+def figure(inches, **options):
+    """A figure `inches` (width, height) large in constrained layout (titles, legends, colour bars and the caption get
+    their room), drawn on its own Agg canvas: no pyplot, whose state and backend are the caller's."""
     with without_axes3d_warning():
-        import matplotlib.pyplot as plt
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
 
-    return plt
-
-
-def figure(inches):
-    """A figure `inches` (width, height) large, laid out by matplotlib's constrained layout: titles, legends
-    outside the axes, colour bars and the caption get their room, none cut off at any size."""
-    return pyplot().figure(figsize=inches, layout="constrained")
+    fig = Figure(figsize=inches, **{"layout": "constrained", **options})
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def with_key(fig, rows: int = 1, columns: int = 1, key: float = 0.06, **grid):
     """A grid of `rows` × `columns` panels over a row for the key (`key`: its share of the height), and that row's
-    axes, without a frame: `add_key` puts the legend in it. Constrained layout makes room for a legend that its row
-    cannot hold, which it does not for a figure's legend (`Figure.legend`) in matplotlib 3.6, Debian bookworm's."""
+    frameless axes for `add_key`: constrained layout makes room for its legend, not for a `Figure.legend` (3.6)."""
     heights = grid.pop("height_ratios", None) or (1,) * rows
     spec = fig.add_gridspec(2, 1, height_ratios=(sum(heights) * (1 - key), sum(heights) * key))
     panels = spec[0].subgridspec(rows, columns, height_ratios=heights, **grid)
@@ -208,16 +177,13 @@ def add_key(ax, handles, labels=None) -> None:
 
 def savefig(fig, path: Path, look: Look = SCREEN) -> list[Path]:
     """`fig` written as `path` in each format of `look` (``NAME.png`` -> ``NAME.pdf``, ...), each file whole or
-    not at all; the figure is closed. Returns the paths written."""
+    not at all. Returns the paths written."""
     written = []
-    try:
-        for target in look.paths(path):
-            with atomic_path(target) as tmp:  # a picture is either complete or absent
-                options = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if target.suffix == ".png" else {}
-                fig.savefig(tmp, dpi=look.dpi, format=target.suffix[1:], **options)
-            written.append(target)
-    finally:
-        pyplot().close(fig)
+    for target in look.paths(path):
+        with atomic_path(target) as tmp:  # a picture is either complete or absent
+            options = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if target.suffix == ".png" else {}
+            fig.savefig(tmp, dpi=look.dpi, format=target.suffix[1:], **options)
+        written.append(target)
     return written
 
 
@@ -229,9 +195,8 @@ def caption(fig, result, look: Look, *notes: str) -> None:
 
 
 def drawn(draw):
-    """A picture function ``(result, path, look=SCREEN, ...) -> Path`` from a figure function ``(result, look, ...)
-    -> figure`` (or (figure, axes)): the figure drawn in the look's style sheet and saved in its formats; the first
-    path written is returned."""
+    """A picture function ``(result, path, look=SCREEN, ...) -> first path written`` from a figure function
+    ``(result, look, ...) -> figure`` (or (figure, axes)): drawn in the look's style sheet, saved in its formats."""
 
     def picture(result, path, look: Look = SCREEN, **options) -> Path:
         with look.drawn():
@@ -256,11 +221,9 @@ def _cell_edges(v: np.ndarray) -> np.ndarray:
 
 
 def contact_set_figure(result, look: Look = SCREEN):
-    """The space-time contact set {η ≤ ψ} (ψ = 0 by default): filled where in contact, blank where free; beside
-    it the number of its components over time (`Result.contact_components`); below it, when the most
-    components last a short while (Example 2's three before t = 0.02, Example 1's nine at its landing), the
-    same picture zoomed in time onto them (`zoom_window`). Returns the figure and its axes {"set", "count",
-    "zoom", "zoom_count"} (the last two absent without a zoom)."""
+    """The space-time contact set {η ≤ ψ}, filled where in contact; beside it its number of components over time;
+    below it, when the most components last a short while (Example 1's nine at its landing), the same zoomed in time
+    (`zoom_window`). Returns the figure and its axes {"set", "count", and with a zoom "zoom", "zoom_count"}."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
@@ -276,11 +239,10 @@ def contact_set_figure(result, look: Look = SCREEN):
         ax.set_ylabel("time t")
         strip = axes[f"{key}_count".replace("set_", "")] = fig.add_subplot(grid[row, 1], sharey=ax)
         strip.stairs(counts, _cell_edges(result.t), orientation="horizontal", color="#2166ac", lw=1.5, baseline=None)
-        strip.set_xlim(-0.3, max(2, int(counts.max())) + 0.5)
+        strip.set(xlim=(-0.3, max(2, int(counts.max())) + 0.5), xlabel="contact\ncomponents")
         strip.xaxis.get_major_locator().set_params(integer=True)
         strip.tick_params(labelleft=False)
         strip.grid(alpha=0.3)
-        strip.set_xlabel("contact\ncomponents")
     if result.t[-1] > result.t[0]:
         axes["set"].set_ylim(result.t[0], result.t[-1])
     axes.get("zoom", axes["set"]).set_xlabel("position x")
@@ -302,9 +264,9 @@ contact_set_picture = drawn(contact_set_figure)
 
 
 def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
-    """(lo, hi, most, first, last): a time window around the first rows with the most contact components
-    (from `first` to `last`), half as wide again on each side and at least 5 % of the run; None when there
-    are never two components, or the window would span more than `share` of the run (no zoom needed)."""
+    """(lo, hi, most, first, last): a time window around the first rows with the most contact components (`first` to
+    `last`), half as wide again each side, at least 5 % of the run; None without two components or when it would
+    span more than `share` of the run."""
     most = int(counts.max()) if counts.size else 0
     if most < 2:
         return None
@@ -324,8 +286,7 @@ def velocity_figure(result, look: Look = SCREEN, percentile: float = VELOCITY_PE
     fig = figure(look.inches)
     ax = fig.add_subplot()
     image = ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), result.velocity, cmap="RdBu_r", vmin=-c, vmax=c)
-    ax.set_xlabel("position x")
-    ax.set_ylabel("time t")
+    ax.set(xlabel="position x", ylabel="time t")
     fig.colorbar(image, ax=ax, extend="both" if speed > c else "neither", shrink=0.8).set_label("v (velocity)")
     fig.suptitle("Velocity v = η_t over (x, t)")
     caption(fig, result, look, f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
@@ -389,11 +350,10 @@ def stored_energy_label(result) -> str:
 
 
 def energy_figure(result, look: Look = SCREEN):
-    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0);
-    beside it, when the energies settle early (`settle_time`: Example 2 within its first 5 %), the same
-    curves zoomed onto the first times; below, |balance residual| on a log scale (`residual_panel`). The
-    legend is under the panels, where it covers no curve. Returns the figure and its axes {"energy",
-    "residual", and with a zoom "zoom", "zoom_residual"}."""
+    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0); beside
+    it, when the energies settle early (`settle_time`), the same zoomed onto the first times; below, |balance residual|
+    (`residual_panel`); the legend under the panels. Returns the figure and its axes {"energy", "residual", and with
+    a zoom "zoom", "zoom_residual"}."""
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
@@ -423,10 +383,9 @@ def energy_figure(result, look: Look = SCREEN):
         residual_panel(below, t, result.balance_residual, legend=column == 0)
     axes["energy"].set_ylabel("energy")
     if settled:
-        axes["zoom"].set_xlim(t[0], settled)
+        axes["zoom"].set(xlim=(t[0], settled), title=f"zoom: t = {t[0]:.3g} … {settled:.3g} (shaded left)")
         axes["zoom"].tick_params(labelleft=False)
         axes["zoom_residual"].set_ylabel("")
-        axes["zoom"].set_title(f"zoom: t = {t[0]:.3g} … {settled:.3g} (shaded left)")
         axes["energy"].axvspan(t[0], settled, color="0.5", alpha=0.12, lw=0)
     add_key(legend_row, *axes["energy"].get_legend_handles_labels())
     fig.suptitle("Energy balance (1.4)")
@@ -438,9 +397,8 @@ energy_picture = drawn(energy_figure)
 
 
 def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0.02):
-    """The end of a zoomed panel onto the first times, or None: 1.5 times the time after which every curve
-    stays within `tolerance` of the curves' largest range of its final value, when that is under `share`
-    of the run (Example 2: its energy has moved to the dissipations by t ≈ 0.02 of 0.5)."""
+    """The end of a zoomed panel onto the first times, or None: 1.5 times the time after which every curve stays
+    within `tolerance` of the curves' largest range of its final value, when that is under `share` of the run."""
     scale = max(float(np.ptp(values)) for values in curves) or 1.0
     moving = np.zeros(t.size, dtype=bool)
     for values in curves:
@@ -452,8 +410,8 @@ def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0
 
 
 def residual_panel(ax, t: np.ndarray, residual: np.ndarray, legend: bool = True) -> None:
-    """|residual| on a log scale, honestly: the rows where it is exactly 0 (no point on a log scale) are left
-    out of the line and marked by triangles at the panel's floor, named in the legend."""
+    """|residual| on a log scale; the rows where it is exactly 0 (no point on a log scale) marked by triangles at
+    the panel's floor, named in the legend."""
     res = np.abs(residual)
     zero = res == 0
     floor = float(res[~zero].min()) / 10 if (~zero).any() else 1e-16
@@ -464,19 +422,14 @@ def residual_panel(ax, t: np.ndarray, residual: np.ndarray, legend: bool = True)
         if legend:
             ax.legend(fontsize="x-small", loc="lower right", framealpha=0.9)
     top = float(res.max()) if res.max() > 0 else 1e-15
-    ax.set_ylim(floor, top * 10)
+    ax.set(ylim=(floor, top * 10), xlabel="t")
     ax.set_ylabel("|residual|", fontsize="small")
-    ax.set_xlabel("t")
     ax.grid(alpha=0.3)
 
 
 def contact_area_figure(result, look: Look = SCREEN):
-    """The figure of ``contact_area.png`` (2D): the contact area |{η ≤ ψ}|(t) above, the number of patches below.
-
-    The area is `Result.contact_measure` (the lumped nodal areas of the nodes in contact), drawn against the
-    domain's area; a patch is a connected set of contact nodes (`Result.contact_patches`). Dots mark the
-    rows of the panels of ``membrane.png``.
-    """
+    """``contact_area.png`` (2D): the contact area (`Result.contact_measure`) against the domain's, dots at the rows of
+    ``membrane.png``'s panels; below, the number of contact patches (`Result.contact_patches`)."""
     t, area, patches = result.t, result.contact_measure, result.contact_patches()
     domain, psi = float(np.sum(result.weights)), obstacle_name(result)
     fig = figure((look.width, 0.72 * look.width))
@@ -485,17 +438,14 @@ def contact_area_figure(result, look: Look = SCREEN):
     ax.plot(t, area, color=CONTACT_COLOUR, lw=2.0, label=f"contact area |{{η ≤ {psi}}}|")
     rows = snapshot_rows(result)
     ax.plot(t[rows], area[rows], "o", color="black", ms=5, label="the panels of membrane.png")
-    ax.set_ylim(0, 1.08 * domain)
-    ax.set_ylabel("contact area")
+    ax.set(ylim=(0, 1.08 * domain), ylabel="contact area")
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right")
     first = np.flatnonzero(area > 0)
     landed = f"first contact at t = {t[first[0]]:.3g}, largest area {area.max():.3g}" if first.size else "no contact"
     axp.step(t, patches, where="mid", color="#2166ac", lw=1.5, label="contact patches (connected along mesh edges)")
-    axp.set_ylim(-0.3, max(2, int(patches.max())) + 0.5)
+    axp.set(ylim=(-0.3, max(2, int(patches.max())) + 0.5), ylabel="number of\npatches", xlabel="t")
     axp.yaxis.get_major_locator().set_params(integer=True)
-    axp.set_ylabel("number of\npatches")
-    axp.set_xlabel("t")
     axp.grid(alpha=0.3)
     axp.legend(loc="upper right")
     fig.suptitle("Contact area and contact patches over time")
@@ -504,15 +454,3 @@ def contact_area_figure(result, look: Look = SCREEN):
 
 
 contact_area_picture = drawn(contact_area_figure)
-
-
-def warm_up() -> None:
-    """A tiny picture with the elements the space-time pictures use: pyplot, fonts, an image, a colour bar."""
-    import io
-
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(1, 1), layout="constrained")
-    fig.colorbar(ax.pcolorfast(np.array([0.0, 1.0, 3.0]), np.array([0.0, 1.0]), np.ones((1, 2)), cmap="RdBu_r"), ax=ax)
-    ax.set_title("η ≤ ψ")
-    fig.savefig(io.BytesIO(), format="png", dpi=20)
-    plt.close(fig)

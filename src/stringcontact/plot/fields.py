@@ -1,11 +1,6 @@
-"""A model's output fields in the pictures, whatever the model: how each is shown comes from its description
-(`Result.field_info`, `OutputField.metadata`: label, unit, colours, scale), never from its name.
-
-`FieldScale` is one field's fixed colour scale over all stored rows (the range of `io.paraview_view.field_range`,
-ParaView's view has the same): linear, or symmetric-log about 0 (`io.paraview_view.symlog_unit`, matplotlib's
-SymLogNorm); the membrane pictures colour a membrane by it (`mesh_pictures`). `field_picture` draws ``NAME.png``:
-a string's field over the (x, t) plane with the contact set outlined, a membrane's at the stored time of its
-largest |value|, and beside it the field's least and largest value over the nodes against t.
+"""A model's output fields in the pictures, shown as their description says (`Result.field_info`, `OutputField.metadata`:
+label, unit, colours, scale), never by their name: `FieldScale`, one field's fixed colour scale over all stored rows
+(the range and symmetric-log scale of `io.paraview_view`, as ParaView's view), and ``NAME.png`` (`field_picture`).
 """
 
 from __future__ import annotations
@@ -17,10 +12,8 @@ import numpy as np
 
 from ..io.paraview_view import field_range, symlog_unit
 from ..io.tables import field_info
-from .charts import literal, savefig
+from .charts import caption, figure, literal, savefig
 from .style import SCREEN, Look
-
-__all__ = ["TICK_GAP", "FieldScale", "field_figure", "field_picture", "info_of", "surface_field"]
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
 TICK_GAP = 0.16
@@ -40,9 +33,8 @@ def surface_field(result) -> str | None:
 @dataclass(frozen=True)
 class FieldScale:
     """An output field on one colour scale for every row and panel: `low` … `high` onto −1 … 1 (`unit`), in its
-    `colours` spread evenly over that (`colour_map`); linear, or for `scale` ``"symlog"`` symmetric-log with
-    the linear part within ±`linear_share`·`high` (a landing's peak 1e3–1e4 times the rest would leave the rest
-    in the middle colour). `title` names it on its colour bar, `label` in a sentence."""
+    `colours` (`colour_map`); linear, or for `scale` ``"symlog"`` symmetric-log, linear within ±`linear_share`·`high`
+    (a landing's peak 1e3–1e4 times the rest). `title` names it on its colour bar, `label` in a sentence."""
 
     name: str
     low: float
@@ -106,16 +98,29 @@ def field_figure(result, name: str, look: Look = SCREEN):
     """The output field `name` of `result` on its scale (`FieldScale`): a string's over the (x, t) plane with the
     contact set outlined, a membrane's at the stored time of its largest |value|; beside it its least and largest
     value over the nodes at each stored time. Returns the figure and its two axes."""
-    from .charts import caption, figure
-
     values = np.asarray(result.fields[name], dtype=float)
     scale = FieldScale.of(values, info_of(result, name))
     narrow = look.width < 6.0  # a journal's column: the two panels one above the other
     fig = figure((look.width, 1.3 * look.width) if narrow else (look.width, 0.42 * look.width))
     ax, bx = fig.subplots(2, 1) if narrow else fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.4, 1]})
-    mesh = _string_panel(ax, result, values, scale) if result.dim == 1 else _membrane_panel(ax, result, values, scale)
+    colours = {"cmap": scale.colour_map(), "norm": scale.norm()}
+    if result.dim == 1:
+        mesh = ax.pcolormesh(result.x, result.t, values, shading="auto", **colours)
+        if result.contact.any():
+            ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
+        ax.set(xlabel="x", ylabel="t", title="over (x, t); contact set outlined")
+    else:
+        k = int(np.argmax(np.fmax.reduce(np.abs(values), axis=1)))
+        mesh = ax.tripcolor(result.x[:, 0], result.x[:, 1], result.cells, values[k], shading="gouraud", **colours)
+        ax.set(aspect="equal", title=f"at t = {result.t[k]:.4g} (its largest |value|)")
     fig.colorbar(mesh, ax=ax, label=literal(scale.title))
-    _extremes_panel(bx, result.t, values, scale)
+    bx.plot(result.t, np.fmax.reduce(values, axis=1), label="largest")
+    bx.plot(result.t, np.fmin.reduce(values, axis=1), label="least")
+    if scale.scale == "symlog":
+        bx.set_yscale("symlog", linthresh=scale.linear_share * scale.high)
+    bx.set(xlabel="t", title="least and largest value")
+    bx.legend()
+    bx.grid(True, alpha=0.3)
     fig.suptitle(literal(scale.label[:1].upper() + scale.label[1:]))
     caption(fig, result, look)
     return fig, (ax, bx)
@@ -125,33 +130,3 @@ def field_picture(result, name: str, path, look: Look = SCREEN) -> Path:
     """``NAME.png``: `field_figure` written to `path` in each format of `look`; the first path written."""
     with look.drawn():
         return savefig(field_figure(result, name, look)[0], Path(path), look)[0]
-
-
-def _string_panel(ax, result, values, scale: FieldScale):
-    mesh = ax.pcolormesh(result.x, result.t, values, cmap=scale.colour_map(), norm=scale.norm(), shading="auto")
-    if result.contact.any():
-        ax.contour(result.x, result.t, result.contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
-    ax.set_xlabel("x")
-    ax.set_ylabel("t")
-    ax.set_title("over (x, t); contact set outlined")
-    return mesh
-
-
-def _membrane_panel(ax, result, values, scale: FieldScale):
-    k = int(np.argmax(np.fmax.reduce(np.abs(values), axis=1)))
-    mesh = ax.tripcolor(result.x[:, 0], result.x[:, 1], result.cells, values[k], cmap=scale.colour_map(),
-                        norm=scale.norm(), shading="gouraud")
-    ax.set_aspect("equal")
-    ax.set_title(f"at t = {result.t[k]:.4g} (its largest |value|)")
-    return mesh
-
-
-def _extremes_panel(bx, t, values, scale: FieldScale) -> None:
-    bx.plot(t, np.fmax.reduce(values, axis=1), label="largest")
-    bx.plot(t, np.fmin.reduce(values, axis=1), label="least")
-    if scale.scale == "symlog":
-        bx.set_yscale("symlog", linthresh=scale.linear_share * scale.high)
-    bx.set_xlabel("t")
-    bx.set_title("least and largest value")
-    bx.legend()
-    bx.grid(True, alpha=0.3)

@@ -1,8 +1,7 @@
-"""A membrane (a 2-D run) drawn in a pyvista plotter, what ``membrane.png`` (`mesh_pictures.membrane_picture`) and
-``membrane.gif`` (`animation`) share: its view (`membrane_view`: height scale, box, camera), the membrane and the
-obstacle at a stored row (`add_membrane`), moved to another row in place (`show_row`), the axes, the labels, the
-title, the colour key, and the edge of the contact set (`add_contact_edge`) where a surface field
-(`fields.FieldScale`) colours the membrane.
+"""A membrane (a 2-D run) in a pyvista plotter, what ``membrane.png`` (`mesh_pictures`) and ``membrane.gif``
+(`animation`) share: its view (`membrane_view`), the membrane and the obstacle at a stored row (`add_membrane`) moved
+to other rows in place (`show_row`, `rendered_rows`), its axes, words and colour key, and the edge of its contact set
+where a surface field (`fields.FieldScale`) colours it.
 """
 
 from __future__ import annotations
@@ -11,16 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import colours
 from .annotations import Axis, add_axis
 from .charts import obstacle_moves, obstacle_name, obstacle_profile, obstacle_range
-from .colours import (
-    CONTACT_COLOUR,
-    CONTACT_EDGE_COLOUR,
-    CONTACT_EDGE_TEXT,
-    FREE_COLOUR,
-    MEMBRANE_OBSTACLE_COLOUR,
-    OBSTACLE_COLOUR,
-)
 from .fields import FieldScale, info_of, surface_field
 from .vtk_start import _pyvista
 
@@ -39,10 +31,8 @@ class MembraneView:
 
     def shade(self, contact: np.ndarray) -> np.ndarray:
         """What the colour is drawn from: 0.6 × the nodal contact indicator + 0.4 × its mean over the node's
-        neighbours. Its 0.5 iso-line (where the two colours meet, interpolated across the triangles) lies where
-        that of the bare indicator lies on average, without the zigzag of the bare indicator, whose iso-line
-        alternates between a triangle's corner and its edge midpoints (the staircase at the default mesh).
-        A node is red if and only if it is in contact (≥ 0.6 against ≤ 0.4)."""
+        neighbours, so that its 0.5 iso-line has no staircase along the triangles' edges; a node is red if and only
+        if it is in contact (≥ 0.6 against ≤ 0.4)."""
         c = np.asarray(contact, dtype=float)
         return c if self.neighbours is None else 0.6 * c + 0.4 * (self.neighbours @ c)
 
@@ -67,16 +57,13 @@ def membrane_view(result) -> MembraneView:
     lo, hi = min(float(result.eta.min()), psi_lo), max(float(result.eta.max()), psi_hi)
     width = float(max(np.ptp(x[:, 0]), np.ptp(x[:, 1])))
     scale = max(1.0, 0.3 * width / (hi - lo or 1.0))
-    bounds = (*_span(x[:, 0]), *_span(x[:, 1]), lo * scale - _below(lo, hi, scale), hi * scale)
-    centre = np.array([0.5 * (bounds[0] + bounds[1]), 0.5 * (bounds[2] + bounds[3]), 0.5 * (bounds[4] + bounds[5])])
+    bounds = (*(float(f(x[:, k])) for k in (0, 1) for f in (np.min, np.max)), lo * scale - _below(lo, hi, scale),
+              hi * scale)
+    centre = np.asarray(bounds).reshape(3, 2).mean(axis=1)
     eye = centre + width * np.array([-0.4, -1.1, 1.5])
     field = surface_field(result)
     return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)),
                         None if field is None else FieldScale.of(result.fields[field], info_of(result, field)))
-
-
-def _span(v) -> tuple[float, float]:
-    return float(v.min()), float(v.max())
 
 
 def _below(lo: float, hi: float, scale: float) -> float:
@@ -92,59 +79,73 @@ def triangles(result, z):
 
 
 def add_membrane(p, result, row: int, view: MembraneView):
-    """The membrane at `row` and the obstacle (grey) in the plotter `p`: coloured by contact, or by the surface
-    field on `view.field`'s scale (then `add_contact_edge` draws its contact set's edge). Returns the
-    membrane's PolyData, whose heights and colours `show_row` changes in place afterwards. A moving obstacle
-    is drawn at the row's time (kept in `view.obstacle` for `show_row`)."""
+    """The membrane at `row` in the plotter `p`, coloured by contact or by the surface field on `view.field`'s scale,
+    and the obstacle (grey; a moving one at the row's time, kept in `view.obstacle`). Returns the membrane's
+    PolyData, which `show_row` changes in place."""
     moves = obstacle_moves(result)
-    psi = obstacle_profile(result, float(result.t[row]) if moves else 0.0)
-    lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
-    # smooth (Gouraud) shading: the flat shading showed every triangle as a facet
+    drawn = {"show_scalar_bar": False, "ambient": 0.3, "smooth_shading": True}  # Gouraud: flat showed every facet
     if view.field is None:
-        p.add_mesh(surface, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], clim=(0, 1), n_colors=2,
-                   show_scalar_bar=False, ambient=0.3, smooth_shading=True)
+        p.add_mesh(surface, scalars="contact", cmap=[colours.FREE_COLOUR, colours.CONTACT_COLOUR], clim=(0, 1),
+                   n_colors=2, **drawn)
     else:
         _set_field(surface, result, row, view.field)
-        p.add_mesh(surface, scalars=f"{view.field.name}_colour", cmap=view.field.colour_map(), clim=(-1, 1),
-                   show_scalar_bar=False, ambient=0.3, smooth_shading=True)
+        p.add_mesh(surface, scalars=f"{view.field.name}_colour", cmap=view.field.colour_map(), clim=(-1, 1), **drawn)
     # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
     # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
-    obstacle = triangles(result, psi * view.scale - _below(lo, hi, view.scale))
-    p.add_mesh(obstacle, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)
-    if moves:
-        view.obstacle = obstacle
+    obstacle = triangles(result, _obstacle_heights(result, float(result.t[row]) if moves else 0.0, view))
+    p.add_mesh(obstacle, color=colours.MEMBRANE_OBSTACLE_COLOUR, lighting=False)
+    view.obstacle = obstacle if moves else None
     p.camera_position = view.camera
     p.reset_camera(bounds=view.bounds)
     p.camera.zoom(1.1)  # reset_camera fits the box's bounding sphere: room to spare
     return surface
 
 
+def _obstacle_heights(result, t: float, view: MembraneView) -> np.ndarray:
+    lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
+    return obstacle_profile(result, t) * view.scale - _below(lo, hi, view.scale)
+
+
 def show_row(surface, result, row: int, view: MembraneView) -> None:
-    """The membrane `surface` of `add_membrane` moved to `row` in place: its heights and the arrays it is coloured
-    by, and a moving obstacle's heights."""
-    surface.points[:, 2] = result.eta[row] * view.scale  # in place: the scene stays, the heights change
+    """The membrane `surface` of `add_membrane` (and a moving obstacle) moved to `row` in place."""
+    surface.points[:, 2] = result.eta[row] * view.scale
     surface.point_data["contact"][:] = view.shade(result.contact[row])
     if view.field is not None:
         _set_field(surface, result, row, view.field)
     surface.Modified()
     if view.obstacle is not None:  # a moving obstacle: where it is at this row's time
-        lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
-        view.obstacle.points[:, 2] = obstacle_profile(result, float(result.t[row])) * view.scale - _below(lo, hi, view.scale)
+        view.obstacle.points[:, 2] = _obstacle_heights(result, float(result.t[row]), view)
         view.obstacle.Modified()
 
 
 def _set_field(surface, result, row: int, scale: FieldScale) -> None:
     """NAME: the field `scale.name` at the nodes; NAME_colour: where it lies on `scale` (−1 … 1), the array drawn."""
-    name, colour = scale.name, f"{scale.name}_colour"
-    values = np.array(result.fields[name][row], dtype=float)  # a copy: pyvista shares the array it is given, and
-    if name in surface.point_data:  # the next row written into it would overwrite the Result's row
-        surface.point_data[name][:] = values
-        surface.point_data[colour][:] = scale.unit(values)
-    else:
-        surface.point_data[name] = values
-        surface.point_data[colour] = scale.unit(values)
+    values = np.array(result.fields[scale.name][row], dtype=float)  # a copy: pyvista shares the array it is given
+    for name, array in ((scale.name, values), (f"{scale.name}_colour", scale.unit(values))):
+        if name in surface.point_data:
+            surface.point_data[name][:] = array
+        else:
+            surface.point_data[name] = array
+
+
+def rendered_rows(p, result, rows, view: MembraneView, zoom: float = 1.0, before_render=None):
+    """The membrane at each of the stored `rows` rendered in the plotter `p`, its axes' fonts `zoom` times their size
+    on a screen: the scene made once, its heights and colours changed in place row by row (`show_row`);
+    `before_render(k, row)` is called before the k-th render. Yields RGB arrays."""
+    surface = add_membrane(p, result, rows[0], view)
+    edge = None if view.field is None else add_contact_edge(p, surface, view)
+    add_membrane_axes(p, view, zoom=zoom)
+    p.screenshot(None, return_img=True)  # pyvista's first render sets the window up; later ones only draw
+    for k, row in enumerate(rows):
+        show_row(surface, result, row, view)
+        if edge is not None:
+            contact_edge(surface, view, into=edge)
+        if before_render is not None:
+            before_render(k, row)
+        p.render()
+        yield np.array(p.image)
 
 
 #: the membrane axes' font size (VTK points): digits 12 px high (7 gave 6 px, too small to read)
@@ -158,15 +159,15 @@ def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT, zoom: f
     unit = 0.05 * max(x1 - x0, y1 - y0)
     add_axis(p, Axis((x0, y0, z0), (x1, y0, z0), x0, x1, (0, -unit, 0), "x"), font_size, 4, zoom)
     add_axis(p, Axis((x1, y0, z0), (x1, y1, z0), y0, y1, (unit, 0, 0), "y"), font_size, 4, zoom)
-    add_axis(p, Axis((x0, y0, z0), (x0, y0, z1), z0 / view.scale, z1 / view.scale, (-unit, 0, 0), "eta"), font_size, 3, zoom)
+    add_axis(p, Axis((x0, y0, z0), (x0, y0, z1), z0 / view.scale, z1 / view.scale, (-unit, 0, 0), "eta"), font_size, 3,
+             zoom)
     margin = 5 * unit  # the ticks' labels and the axes' names
     p.reset_camera(bounds=(x0 - margin, x1 + margin, y0 - margin, y1, z0, z1))
     p.camera.zoom(1.15)
 
 
 def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
-    """'t = 0.2: contact 2.17 (69%), 1 patch': the contact area and its share of the domain's (patches left out if
-    None)."""
+    """'t = 0.2: contact 2.17 (69%), 1 patch': the contact area, its share of the domain's, and the patches."""
     share = 100 * area / float(np.sum(result.weights))
     text = f"t = {result.t[row]:.3g}: contact {area:.3g} ({share:.0f}%)"
     return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
@@ -180,18 +181,19 @@ def membrane_title(result, view: MembraneView, what: str) -> str:
 def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:
     """What the colours mean, in words (the GIF's key): contact, or the surface field and the edge of contact."""
     psi = obstacle_name(result)
-    colours = (f"red: in contact (η ≤ {psi}), blue: free" if view.field is None else
-               f"colour: {view.field.label} (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
-    return f"{colours}, grey: the obstacle {psi}"
+    words = (f"red: in contact (η ≤ {psi}), blue: free" if view.field is None else
+             f"colour: {view.field.label} (its bar){sep}yellow line: the edge of contact (η ≤ {psi})")
+    return f"{words}, grey: the obstacle {psi}"
 
 
 def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
     """The colour key's quantity and its (label, colour) entries: contact, or the surface field."""
     psi = obstacle_name(result)
+    obstacle = (f"obstacle {psi}", colours.OBSTACLE_COLOUR)
     if view.field is None:
-        return "colour: contact", [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR),
-                                   (f"obstacle {psi}", OBSTACLE_COLOUR)]
-    return f"colour:\n{view.field.label}", [("edge of contact", CONTACT_EDGE_TEXT), (f"obstacle {psi}", OBSTACLE_COLOUR)]
+        return "colour: contact", [(f"in contact, η ≤ {psi}", colours.CONTACT_COLOUR),
+                                   (f"free, η > {psi}", colours.FREE_COLOUR), obstacle]
+    return f"colour:\n{view.field.label}", [("edge of contact", colours.CONTACT_EDGE_TEXT), obstacle]
 
 
 def contact_edge(surface, view: MembraneView, into=None):
@@ -209,20 +211,8 @@ def contact_edge(surface, view: MembraneView, into=None):
 
 def add_contact_edge(p, surface, view: MembraneView):
     """The contact set's edge (`contact_edge`) on `surface` as a yellow line; returns its PolyData, which
-    `contact_edge(surface, view, into=...)` updates in place. Drawn through VTK's own mapper: pyvista refuses
-    an empty mesh, the edge of a membrane not in contact."""
-    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
-
+    `contact_edge(surface, view, into=...)` updates in place (empty while nothing is in contact)."""
     edge = contact_edge(surface, view)
-    mapper = vtkPolyDataMapper()
-    mapper.SetInputData(edge)
-    mapper.ScalarVisibilityOff()
-    actor = vtkActor()
-    actor.SetMapper(mapper)
-    prop = actor.GetProperty()
-    prop.SetColor(*(int(CONTACT_EDGE_COLOUR[i : i + 2], 16) / 255 for i in (1, 3, 5)))
-    prop.SetLineWidth(3.0)
-    prop.LightingOff()
-    p.add_actor(actor, reset_camera=False, pickable=False)
+    p.add_mesh(edge, color=colours.CONTACT_EDGE_COLOUR, line_width=3.0, lighting=False, reset_camera=False,
+               pickable=False)
     return edge
-

@@ -1,19 +1,8 @@
-"""Pictures of meshes in space: a pyvista render (off-screen, EGL when there is no display) in a matplotlib figure.
-
-``space_time.png``: a 1-D run as the surface η(x, t) over the (x, t) plane, coloured by contact, above
-the obstacle ψ. ``membrane.png``: a 2-D run, the membrane z = η(x, y, t) at the scene's output times, one
-panel each, coloured by contact, above the obstacle z = ψ(x, y) (grey). A moving obstacle ψ(x, t) is drawn at
-each panel's and frame's time, and as the surface ψ(x, t) in ``space_time.png``. The animation
-``membrane.gif`` (:mod:`stringcontact.plot.animation`) draws the same scene (`add_membrane`) at every few rows.
-A membrane whose model has a surface field (an output field whose description says ``surface``) is coloured by
-that field instead (`fields.FieldScale`: one fixed scale over all stored rows, in the field's own colours, its
-colour bar matplotlib's), the edge of its contact set drawn on it as a line (`contact_edge`).
-
-pyvista draws the surfaces and their axes (`annotations.add_axis`: x, t or y, and the height η, on the floor below
-the obstacle, along the edges nearest the viewer); matplotlib lays the renders out with the title, the colour
-key, the panels' labels and the caption (constrained layout: nothing cut off or overlapping), and writes them in
-each format of the picture's `style.Look`: the words are vector text in a PDF or SVG, the renders a raster at the
-style's resolution (`style` says why not VTK's own vector export).
+"""Pictures of meshes in space: a pyvista render (off-screen) laid out in a matplotlib figure with its title, colour
+key, panels' labels and caption (constrained layout; vector text in a PDF or SVG, the render a raster at the
+style's resolution). ``space_time.png``: a string's η(x, t) as a surface over the (x, t) plane, coloured by contact,
+above the obstacle ψ (the surface ψ(x, t) when it moves). ``membrane.png``: a membrane at the scene's output times,
+one panel each (`membrane`: what it shares with ``membrane.gif``), coloured by contact or by its surface field.
 """
 
 from __future__ import annotations
@@ -22,34 +11,10 @@ import dataclasses
 
 import numpy as np
 
+from . import charts, membrane
 from .annotations import Axis, add_axis
-from .charts import (
-    add_key,
-    caption,
-    drawn,
-    figure,
-    obstacle_history,
-    obstacle_moves,
-    obstacle_name,
-    obstacle_profile,
-    panel_columns,
-    panels_note,
-    snapshot_rows,
-    with_key,
-)
-from .colours import CONTACT_COLOUR, CONTACT_EDGE_COLOUR, FREE_COLOUR, MEMBRANE_OBSTACLE_COLOUR, OBSTACLE_COLOUR
-from .membrane import (
-    TICK_FONT,
-    add_contact_edge,
-    add_membrane,
-    add_membrane_axes,
-    contact_edge,
-    membrane_label,
-    membrane_legend,
-    membrane_title,
-    membrane_view,
-    show_row,
-)
+from .charts import caption, drawn
+from .colours import CONTACT_COLOUR, CONTACT_EDGE_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
 from .style import SCREEN, Look
 from .vtk_start import _plotter, _pyvista
 
@@ -63,7 +28,7 @@ SCREEN_RENDER, SCREEN_PANEL, LEAST_POINTS = 1100, 367, 6.0
 def _font_zoom(look: Look, width: int, screen: int) -> float:
     """The factor of the axes' font in a render `width` pixels wide: as large against the render as on the screen
     (`screen` pixels wide), at most the look's own (`Look.zoom`), at least `LEAST_POINTS` points."""
-    return min(look.zoom, max(width / screen, LEAST_POINTS / 72 * look.dpi / TICK_FONT))
+    return min(look.zoom, max(width / screen, LEAST_POINTS / 72 * look.dpi / membrane.TICK_FONT))
 
 
 def _height_text(value: float, span: float) -> str:
@@ -86,7 +51,7 @@ def _key(ax, entries) -> None:
     """The colour key in the axes `ax` (under the picture): a filled square per (label, colour) of `entries`."""
     from matplotlib.patches import Patch
 
-    add_key(ax, [Patch(facecolor=colour, edgecolor="0.3", label=label) for label, colour in entries])
+    charts.add_key(ax, [Patch(facecolor=colour, edgecolor="0.3", label=label) for label, colour in entries])
 
 
 def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_rows: int = 200):
@@ -95,11 +60,11 @@ def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_r
     width, height = look.inches
     pixels = look.pixels((width, height - KEY_ROOM - CAPTION_ROOM * look.caption))
     image = space_time_render(result, pixels, _font_zoom(look, pixels[0], SCREEN_RENDER), max_columns, max_rows)
-    fig = figure(look.inches)
-    panels, below = with_key(fig, key=0.4 / height)
+    fig = charts.figure(look.inches)
+    panels, below = charts.with_key(fig, key=0.4 / height)
     ax = fig.add_subplot(panels[0])
     _shown(ax, image)
-    psi = obstacle_name(result)
+    psi = charts.obstacle_name(result)
     _key(below, [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)])
     fig.suptitle("Surface η(x, t) over the (x, t) plane")
     caption(fig, result, look, _height_range(result))
@@ -111,10 +76,11 @@ space_time_picture = drawn(space_time_figure)
 
 def _height_range(result) -> str:
     """'η from A to B over x and t' (and ψ's range, for a profiled obstacle): η's own, not the drawn box's."""
-    psi = obstacle_history(result, range(len(result.t))) if obstacle_moves(result) else obstacle_profile(result)
+    moves = charts.obstacle_moves(result)
+    psi = charts.obstacle_history(result, range(len(result.t))) if moves else charts.obstacle_profile(result)
     span = max(float(result.eta.max()), float(psi.max())) - min(float(result.eta.min()), float(psi.min()))
     text = f"η from {_height_text(result.eta.min(), span)} to {_height_text(result.eta.max(), span)} over x and t"
-    if obstacle_name(result) == "ψ":
+    if charts.obstacle_name(result) == "ψ":
         text += f", ψ from {_height_text(psi.min(), span)} to {_height_text(psi.max(), span)}"
     return text
 
@@ -126,8 +92,8 @@ def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300,
     # the surface spans ~800 pixels across and ~400 deep: finer meshes cost llvmpipe time, not detail
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
     x, t, eta = result.x[cols], result.t[rows], result.eta[np.ix_(rows, cols)]
-    moves = obstacle_moves(result)
-    psi = obstacle_history(result, rows, cols) if moves else obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
+    moves = charts.obstacle_moves(result)
+    psi = charts.obstacle_history(result, rows, cols) if moves else charts.obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
     lo, hi = min(eta.min(), psi.min()), max(eta.max(), psi.max())
     length = float(x[-1] - x[0])
     depth = -0.8 * length / (float(t[-1] - t[0]) or 1.0)  # t runs out of the picture over 0.8 l: t = 0 at the back
@@ -151,7 +117,7 @@ def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300,
         for axis in (Axis((x[0], front, floor), (x[-1], front, floor), float(x[0]), float(x[-1]), (0, -unit, -0.3 * unit), "x"),
                      Axis((x[-1], back, floor), (x[-1], front, floor), float(t[0]), float(t[-1]), (unit, 0, 0), "t"),
                      Axis((x[0], front, lo * height), (x[0], front, hi * height), lo, hi, (-unit, 0, 0), "eta")):  # VTK's label font has no Greek
-            add_axis(p, axis, TICK_FONT, zoom=zoom)
+            add_axis(p, axis, membrane.TICK_FONT, zoom=zoom)
         centre = (0.5 * length, 0.5 * float(t[-1]) * depth, 0.0)  # seen from above the late times, so that the
         p.camera_position = [(-0.2 * length, -2.2 * length, 1.9 * length), centre, (0, 0, 1)]  # high t = 0 hides no contact
         p.reset_camera()
@@ -161,20 +127,18 @@ def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300,
 
 
 def membrane_figure(result, look: Look = SCREEN):
-    """The membrane z = η(x, y, t) at the scene's output times (one panel each; the stored row nearest to
-    each), red where in contact, above the obstacle (grey). Each panel names its time, contact area and
-    number of contact patches. A membrane with a surface field is coloured by it instead, on one scale for
-    all panels (its colour bar under them), the edge of its contact set drawn in yellow. Returns the figure and
-    its panels' axes (rows × columns)."""
-    rows = snapshot_rows(result)
-    ncols = panel_columns(len(rows), look.width)
+    """The membrane z = η(x, y, t) at the scene's output times, a panel each naming its time, contact area and
+    patches: red where in contact, or coloured by its surface field on one scale (its colour bar under the panels, the
+    edge of contact in yellow), above the obstacle (grey). Returns the figure and its panels' axes."""
+    rows = charts.snapshot_rows(result)
+    ncols = charts.panel_columns(len(rows), look.width)
     nrows = int(np.ceil(len(rows) / ncols))
-    view = membrane_view(result)
+    view = membrane.membrane_view(result)
     bar = view.field is not None
     width, height = look.inches
     panel = (width / ncols, (height - KEY_ROOM * (1 + bar) - CAPTION_ROOM * look.caption) / nrows)
-    fig = figure(look.inches)
-    panels, below = with_key(fig, nrows, ncols, key=0.4 / height)
+    fig = charts.figure(look.inches)
+    panels, below = charts.with_key(fig, nrows, ncols, key=0.4 / height)
     axs = panels.subplots(squeeze=False)
     area = result.contact_measure
     patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
@@ -182,11 +146,11 @@ def membrane_figure(result, look: Look = SCREEN):
     for k, image in enumerate(membrane_renders(result, rows, view, pixels, _font_zoom(look, pixels[0], SCREEN_PANEL))):
         ax = axs.flat[k]
         _shown(ax, image)
-        label = membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
+        label = membrane.membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
         ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # two lines in a column
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    key = membrane_legend(result, view)[1]
+    key = membrane.membrane_legend(result, view)[1]
     if bar:
         from matplotlib.cm import ScalarMappable
 
@@ -196,8 +160,8 @@ def membrane_figure(result, look: Look = SCREEN):
         colours.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
         key = [("edge of contact", CONTACT_EDGE_COLOUR), *key[1:]]
     _key(below, key)
-    fig.suptitle(membrane_title(result, view, "The membrane at the output times"))
-    caption(fig, result, look, panels_note(result, rows))
+    fig.suptitle(membrane.membrane_title(result, view, "The membrane at the output times"))
+    caption(fig, result, look, charts.panels_note(result, rows))
     return fig, axs
 
 
@@ -206,36 +170,9 @@ membrane_picture = drawn(membrane_figure)
 
 def membrane_renders(result, rows, view, pixels, zoom: float = 1.0):
     """The membrane at each of the stored `rows` as pyvista renders it, `pixels` (width, height) large, its axes'
-    fonts `zoom` times their size on a screen: one plotter, the heights and colours changed in place row by row
-    (`show_row`), as ``membrane.gif`` draws its frames. Yields RGB arrays."""
+    fonts `zoom` times their size on a screen (`membrane.rendered_rows`). Yields RGB arrays."""
     p = _plotter(pixels)
     try:
-        surface = add_membrane(p, result, rows[0], view)
-        edge = None if view.field is None else add_contact_edge(p, surface, view)
-        add_membrane_axes(p, view, zoom=zoom)
-        p.screenshot(None, return_img=True)  # pyvista's first render sets the window up; later ones only draw
-        for row in rows:
-            show_row(surface, result, row, view)
-            if edge is not None:
-                contact_edge(surface, view, into=edge)
-            p.render()
-            yield np.array(p.image)
+        yield from membrane.rendered_rows(p, result, rows, view, zoom)
     finally:
         p.close()
-
-
-def warm_up() -> None:
-    """A tiny picture with every kind of element the real one uses, so that llvmpipe compiles its shaders."""
-    p = _plotter((64, 48))
-    grid = _pyvista().StructuredGrid(*np.meshgrid([0.0, 1.0], [0.0, 1.0]), np.zeros((2, 2)))
-    grid.point_data["contact"] = np.array([0.0, 1.0, 0.0, 1.0])
-    p.add_mesh(grid, scalars="contact", cmap=[FREE_COLOUR, CONTACT_COLOUR], n_colors=2, show_scalar_bar=False)
-    p.add_mesh(grid, color=OBSTACLE_COLOUR, opacity=0.4)
-    p.add_mesh(grid, color=MEMBRANE_OBSTACLE_COLOUR, lighting=False)  # a membrane's obstacle
-    p.add_point_labels([[0.0, 0.0, 0.0]], ["t"], shape=None, show_points=False, always_visible=True)
-    p.screenshot(None, return_img=True)
-    p.close()
-
-
-__all__ = ["membrane_figure", "membrane_picture", "membrane_renders", "space_time_figure", "space_time_picture",
-           "space_time_render", "warm_up"]

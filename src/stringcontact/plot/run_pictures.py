@@ -1,20 +1,8 @@
-"""Pictures of a run, and reading an output folder back.
-
-Each picture is drawn by the library made for it: matplotlib (:mod:`stringcontact.plot.charts`) for
-``contact_set.png`` and ``velocity_field.png`` (the (x, t) plane as an image) and the line charts
-``snapshots.png`` and ``energy.png``; pyvista (:mod:`stringcontact.plot.mesh_pictures`, imported only for it)
-for ``space_time.png``, the surface η(x, t) in 3-D coloured by contact.
-
-A 2-D run (a membrane) has its own `MEMBRANE_PICTURES`: ``membrane.png`` (pyvista: the membrane at the
-output times), ``contact_area.png`` and ``energy.png`` (matplotlib), and the animation ``membrane.gif``
-(:mod:`stringcontact.plot.animation`). Each output field of the run's model (`Result.fields`) has its own
-picture, ``NAME.png`` (:func:`stringcontact.plot.fields.field_picture`; ``field_NAME.png`` where ``NAME.png`` is
-one of the pictures above). `pictures_of(result)` says which.
-
-:func:`write_pictures` draws them all; given a started :class:`~stringcontact.plot.picture_process.PictureProcess`,
-the pictures of `PAINTED` that the run has are drawn there, so that the libraries' start-up overlaps the
-run. ``stringcontact plot DIR`` redraws them from an output folder alone, from the same stored rows
-(``rows.npz``, :func:`stringcontact.io.readback.read_output`): the same pictures, pixel for pixel.
+"""A run's pictures (`pictures_of`), drawn by the library made for each: matplotlib (`charts`) for the (x, t) images
+and the line charts, pyvista (`mesh_pictures`, imported only for them) for ``space_time.png`` and a membrane's
+``membrane.png``, Pillow for ``membrane.gif`` (`animation`), and ``NAME.png`` for each output field of the run's
+model (`fields`). `write_pictures` draws them in the calling process, a run's after its solve; ``stringcontact plot
+DIR`` draws the same ones again from the stored rows (``rows.npz``, `io.readback.read_output`).
 """
 
 from __future__ import annotations
@@ -23,35 +11,14 @@ import json
 from pathlib import Path
 
 from ..io.signals import signals_held
-from .charts import (  # noqa: F401 - the pictures and readings are used as run_pictures.* by the demos and tests
-    CONTACT_COLOUR,
-    contact_area_picture,
-    contact_components,
-    contact_set_figure,
-    contact_set_picture,
-    energy_picture,
-    obstacle_name,
-    parameter_line,
-    snapshot_rows,
-    snapshots_picture,
-    stored_rows_at,
-    velocity_clip,
-    velocity_picture,
-)
-from .picture_names import (  # noqa: F401 - the names are used as run_pictures.* by the demos and tests
-    CHART_PICTURES,
-    MEMBRANE_PICTURES,
-    MESH_PICTURES,
-    PAINTED,
-    PICTURES,
-    WINDOW_SIZE,
-    field_picture_names,
-    painted,
-    pictures_of,
-)
+from . import charts
+from .charts import contact_components, snapshot_rows  # noqa: F401 - the demos' readings, as run_pictures.*
+from .picture_names import MEMBRANE_PICTURES, PICTURES, WINDOW_SIZE, field_picture_names, pictures_of
 from .style import SCREEN_DPI, Look
 
-# --- all pictures of a run ------------------------------------------------------------------------
+#: the matplotlib pictures' functions (`charts`), by name
+CHARTS = {"contact_area.png": "contact_area_picture", "contact_set.png": "contact_set_picture",
+          "velocity_field.png": "velocity_picture", "snapshots.png": "snapshots_picture", "energy.png": "energy_picture"}
 
 
 def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> Path:
@@ -65,25 +32,19 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
         from .fields import field_picture
 
         return field_picture(result, field, path, look)
-    if name == "membrane.gif" or name in MESH_PICTURES:
-        # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load
-        # vtkCommonMath"): a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
-        with signals_held():
-            return _draw_with_vtk(name, result, path, look)
-    charts = {"contact_area.png": contact_area_picture, "contact_set.png": contact_set_picture,
-              "velocity_field.png": velocity_picture, "snapshots.png": snapshots_picture}
-    return charts.get(name, energy_picture)(result, path, look)
+    if name in CHARTS:
+        return getattr(charts, CHARTS[name])(result, path, look)
+    # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load vtkCommonMath"):
+    # a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
+    with signals_held():
+        if name == "membrane.gif":
+            from . import animation  # pyvista and Pillow
 
+            return animation.membrane_animation(result, path, tuple(round(v * SCREEN_DPI) for v in look.inches))
+        from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
 
-def _draw_with_vtk(name: str, result, path: Path, look: Look) -> Path:
-    if name == "membrane.gif":
-        from . import animation  # pyvista and Pillow
-
-        return animation.membrane_animation(result, path, tuple(round(v * SCREEN_DPI) for v in look.inches))  # on a screen
-    from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
-
-    draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
-    return draw_mesh(result, path, look)
+        draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
+        return draw_mesh(result, path, look)
 
 
 def written(names, look: Look) -> list[str]:
@@ -97,47 +58,17 @@ def written(names, look: Look) -> list[str]:
     return files
 
 
-def write_pictures(result, folder, window_size=WINDOW_SIZE, painter=None, look: Look | None = None) -> list[Path]:
+def write_pictures(result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> list[Path]:
     """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`, in each format of `look` (default:
-    PNGs `window_size` pixels large on a screen); the function `simulate(..., pictures=True)` calls.
-
-    With a started `picture_process.PictureProcess`, its pictures are drawn there while this process draws the
-    others (none, for `stringcontact run`'s painter); whatever it fails to draw is then drawn here. The
-    painter draws the default look only: with another, this process draws every picture. The painter is stopped
-    however this ends, so nothing writes into `folder` after it returns.
-    """
+    PNGs `window_size` pixels large on a screen), one after the other; the function `simulate(..., pictures=True)`
+    calls. Returns the files written."""
     folder = Path(folder)
-    names = pictures_of(result)
-    if look is not None and look.formats == ("png",) and look.style == "screen" and look.size is None:
-        look = None  # the default look: the painter's
-    if look is not None:
-        names = tuple(n for n in names if n != "membrane.gif" or "png" in look.formats)
-        if painter is not None:
-            painter.cancel()
-            painter = None
+    look = look or Look.of_pixels(window_size)
+    names = tuple(n for n in pictures_of(result) if n != "membrane.gif" or "png" in look.formats)
     folder.mkdir(parents=True, exist_ok=True)
-    handed_out, drawn = set(), set()
-    try:
-        if painter is not None and painter.send(result, folder, window_size):
-            handed_out = set(painter.names)  # `send` chose them: those of its names that the result has
-        for name in names:
-            if name not in handed_out:
-                draw(name, result, folder, window_size, look)
-        if handed_out:
-            painter.wait()
-            drawn = set(painter.drawn)  # all of them, unless a painting process failed
-    finally:
-        if painter is not None:
-            painter.cancel()
-            for name in handed_out - drawn:  # a picture the process was killed while writing
-                for stray in folder.glob(f".{name}.tmp-*"):
-                    stray.unlink(missing_ok=True)
-    for name in handed_out - drawn:
-        draw(name, result, folder, window_size)
-    return [folder / name for name in written(names, look or Look.of_pixels(window_size))]
-
-
-# --- reading an output folder back ---------------------------------------------------------------
+    for name in names:
+        draw(name, result, folder, window_size, look)
+    return [folder / name for name in written(names, look)]
 
 
 def show_pictures(folder) -> list[Path]:
@@ -166,4 +97,5 @@ def _named_fields(folder: Path):
         fields = json.loads((folder / "summary.json").read_text()).get("fields")
     except (OSError, ValueError, AttributeError):
         fields = None
-    return SimpleNamespace(fields=dict.fromkeys(n for n in fields if str(n).isidentifier()) if isinstance(fields, dict) else {})
+    named = dict.fromkeys(n for n in fields if str(n).isidentifier()) if isinstance(fields, dict) else {}
+    return SimpleNamespace(fields=named)

@@ -1,8 +1,6 @@
-"""The studies' charts (matplotlib): work-precision, convergence, the stability map and the step-size map.
-
-The rows come from `stringcontact.analysis` (its CSV columns); what the charts need beyond the rows (the
-methods' legend labels, the impact speed) is passed in, so this module imports nothing above `plot`.
-"""
+"""The studies' charts (matplotlib): work-precision, convergence, the stability map and the step-size map. The rows
+come from `stringcontact.analysis` (its CSV columns); what else a chart needs (the methods' legend labels, the impact
+speed) is passed in, so this module imports nothing above `plot`."""
 
 from __future__ import annotations
 
@@ -11,32 +9,27 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.manifest import atomic_path
+from .charts import figure
+
 
 @contextlib.contextmanager
-def study_figure(path, *args, **kwargs):
-    """A study's figure: ``with study_figure(path, rows, cols, **subplots) as (fig, axes):`` draws into
+def study_figure(path, *args, figsize, layout=None, **kwargs):
+    """A study's figure: ``with study_figure(path, rows, cols, figsize=..., **subplots) as (_fig, axes):`` draws into
     matplotlib's subplots, written to `path` (whole or not at all) when the block ends without an error."""
-    from ..io.manifest import atomic_path
-    from .charts import pyplot
-
-    plt = pyplot()
-
-    fig, axes = plt.subplots(*args, **kwargs)
-    try:
-        yield fig, axes
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    fig = figure(figsize, layout=layout)
+    yield fig, fig.subplots(*args, **kwargs)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
 
 
 STYLE = {
-    "paper": dict(color="#d62728", marker="s"),
-    "explicit-r1": dict(color="#ff7f0e", marker="^"),
-    "semi-implicit": dict(color="#1f77b4", marker="o"),
-    "consistent": dict(color="#2ca02c", marker="D"),
-    "projection": dict(color="#9467bd", marker="P"),
-    "newmark": dict(color="#8c564b", marker="X"),
+    "paper": {"color": "#d62728", "marker": "s"},
+    "explicit-r1": {"color": "#ff7f0e", "marker": "^"},
+    "semi-implicit": {"color": "#1f77b4", "marker": "o"},
+    "consistent": {"color": "#2ca02c", "marker": "D"},
+    "projection": {"color": "#9467bd", "marker": "P"},
+    "newmark": {"color": "#8c564b", "marker": "X"},
 }
 ERROR_LABELS = {
     "err_eta": r"error of $\eta$ in $L^\infty(0,T;L^2)$",
@@ -53,26 +46,22 @@ def plot_work_precision(rows: list[dict], path, labels: dict) -> Path:
         for i, p in enumerate(probs):
             for j, key in enumerate(ERROR_LABELS):
                 ax = axes[i, j]
-                for m in labels:
-                    sel = [r for r in rows if r["problem"] == p and r["method"] == m and r["status"] == "complete"
-                           and np.isfinite(r[key]) and r[key] > 0]
-                    if not sel:
-                        continue
-                    sel.sort(key=lambda r: r["nx"])
+                for m, label in labels.items():
+                    sel = sorted((r for r in rows if r["problem"] == p and r["method"] == m and r["status"] == "complete"
+                                  and np.isfinite(r[key]) and r[key] > 0), key=lambda r: r["nx"])
                     style = STYLE[m]
-                    ax.loglog([r["wall_s"] for r in sel], [r[key] for r in sel], "-", color=style["color"],
-                              label=labels[m])
+                    if sel:
+                        ax.loglog([r["wall_s"] for r in sel], [r[key] for r in sel], "-", color=style["color"], label=label)
                     for r in sel:  # hollow markers: 1 < r < 2, a (spurious) rebound
                         hollow = r["r"] > 1 + 1e-9 and r["penalty"] == "explicit"
                         ax.loglog(r["wall_s"], r[key], style["marker"], color=style["color"],
                                   mfc="white" if hollow else style["color"])
                         ax.annotate(f"{int(r['nx'])}", (r["wall_s"], r[key]), fontsize=6, alpha=0.6,
                                     xytext=(3, 3), textcoords="offset points")
-                ax.set_xlabel("wall-clock time of one run [s]")
-                ax.set_ylabel(ERROR_LABELS[key])
+                ax.set(xlabel="wall-clock time of one run [s]", ylabel=ERROR_LABELS[key])
                 ax.grid(True, which="both", alpha=0.3)
                 title = "flat landing (exact, α = 0)" if p == "flat-landing" else "Example 1 (vs fine reference)"
-                ax.set_title(f"{title}", fontsize=10)
+                ax.set_title(title, fontsize=10)
             axes[i, 0].legend(fontsize=7, loc="lower left")
         fig.suptitle("Work-precision: lower left is better; numbers are nx (Δt = Δx = 1/nx); "
                      "hollow = 1 < Δt/ε < 2 (rebounds); missing = refused (Δt/ε ≥ 2)", fontsize=10)
@@ -83,7 +72,7 @@ def plot_convergence(result: dict, path, labels: dict, impact_speed: float) -> P
     """Left: errors against Δt = Δx with reference slopes. Right: penetration and error against ε, with the
     penetration ε·V of a landing at `impact_speed` V. `labels`: method name -> legend label."""
     rows = result["runs"]
-    with study_figure(path, 1, 3, figsize=(15, 4.4)) as (fig, axes):
+    with study_figure(path, 1, 3, figsize=(15, 4.4)) as (_fig, axes):
         ax = axes[0]
         for m in ("explicit-r1", "semi-implicit", "consistent"):
             sel = sorted((r for r in rows if r["sweep"] == "dt" and r["method"] == m and r["status"] == "complete"),
@@ -99,8 +88,7 @@ def plot_convergence(result: dict, path, labels: dict, impact_speed: float) -> P
             e0 = 0.6 * min(r["err_eta"] for r in dt_rows)
             for p, ls in ((0.5, "--"), (1.0, "-.")):
                 ax.loglog(dts, e0 * (dts / dts[0]) ** p, "k" + ls, lw=0.8, label=f"slope {p}")
-        ax.set_xlabel("Δt = Δx")
-        ax.set_ylabel("error (flat landing, exact)")
+        ax.set(xlabel="Δt = Δx", ylabel="error (flat landing, exact)")
         ax.legend(fontsize=6)
         ax.grid(True, which="both", alpha=0.3)
         ax.set_title("refinement in Δt = Δx", fontsize=10)
@@ -117,8 +105,7 @@ def plot_convergence(result: dict, path, labels: dict, impact_speed: float) -> P
                 if key == "penetration":
                     e = np.array(sorted({r["eps"] for r in eps_rows}))
                     ax.loglog(e, impact_speed * e, "k--", lw=0.8, label="ε·V")
-            ax.set_xlabel("ε")
-            ax.set_ylabel(label)
+            ax.set(xlabel="ε", ylabel=label)
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=7)
             ax.set_title(f"ε → 0 at Δt = Δx = {eps_rows[0]['dt']:.3g}" if eps_rows else "ε → 0", fontsize=10)
@@ -129,11 +116,18 @@ OUTCOME_COLOURS = {"inelastic": "#4daf4a", "rebound": "#ffb000", "growth": "#e41
                    "stable": "#377eb8"}
 
 
+def _outcome_key(ax, below: float) -> None:
+    """The outcomes' colours as a legend under the axes `ax` (`below`: its top, in axes coordinates)."""
+    for outcome, colour in OUTCOME_COLOURS.items():
+        ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, below), ncol=4)
+
+
 def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Path:
     """The map (outcome over r and Δt per treatment), restitution against r with the theory, the α sweep."""
     treatments = list(dict.fromkeys((r["penalty"], r["mass"]) for r in rows))
     ncols = 2 + (1 if alpha_rows else 0)
-    with study_figure(path, 1, ncols, figsize=(5.2 * ncols, 4.6)) as (fig, axes):
+    with study_figure(path, 1, ncols, figsize=(5.2 * ncols, 4.6)) as (_fig, axes):
         ax = axes[0]
         labels = []
         dts = sorted({r["dt"] for r in rows}, reverse=True)
@@ -152,9 +146,7 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
         ax.set_yticks([y for y, _ in labels], [s for _, s in labels], fontsize=7)
         for x0 in (1.0, 2.0):
             ax.axvline(x0, color="k", ls=":", lw=0.8)
-        for outcome, colour in OUTCOME_COLOURS.items():
-            ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=4)
+        _outcome_key(ax, -0.13)
         ax.set_xlabel("r = Δt/ε   (dotted: r = 1, r = 2)")
         ax.set_title("outcome of a flat landing (α = 0)", fontsize=10)
 
@@ -166,10 +158,7 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
                    and r["restitution"] <= 3]
             ax.plot([r["r"] for r in sel], [r["restitution"] for r in sel], marker, ls="none", mfc="none",
                     label=f"measured: {pen}, {mass}")
-        ax.set_xscale("log")
-        ax.set_xlabel("r = Δt/ε")
-        ax.set_ylabel("restitution (upward / downward velocity)")
-        ax.set_ylim(-0.05, 3.05)
+        ax.set(xscale="log", xlabel="r = Δt/ε", ylabel="restitution (upward / downward velocity)", ylim=(-0.05, 3.05))
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
         ax.set_title("restitution at the middle node", fontsize=10)
@@ -184,8 +173,7 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
                 ax.semilogx(a, [r["contact_dissipation"] for r in sel], "--s", color=colour, mfc="white",
                             label=f"{name}: contact")
                 ax.semilogx(a, [r["restitution"] for r in sel], ":^", color=colour, label=f"{name}: restitution")
-            ax.set_xlabel("α (α = 0 drawn at 1e-4)")
-            ax.set_ylabel("fraction of E(0) dissipated by T / restitution")
+            ax.set(xlabel="α (α = 0 drawn at 1e-4)", ylabel="fraction of E(0) dissipated by T / restitution")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=6)
             ax.set_title("α → 0: what is left is the scheme's own dissipation", fontsize=10)
@@ -195,7 +183,7 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
 def plot_step_size(rows: list[dict], path) -> Path:
     """Outcome over Δt/Δx for the schemes without ε, with each one's Δt_max from the operators."""
     keys = list(dict.fromkeys((r["scheme"], r["alpha"]) for r in rows))
-    with study_figure(path, 1, 1, figsize=(7.5, 3.2)) as (fig, ax):
+    with study_figure(path, 1, 1, figsize=(7.5, 3.2)) as (_fig, ax):
         for y, (scheme, alpha) in enumerate(keys):
             sel = [r for r in rows if (r["scheme"], r["alpha"]) == (scheme, alpha)]
             ax.scatter([r["dt_over_dx"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k",
@@ -205,9 +193,7 @@ def plot_step_size(rows: list[dict], path) -> Path:
         ax.set_xscale("log")
         ax.set_yticks(range(len(keys)), [f"{s}, α = {a:g}" for s, a in keys], fontsize=8)
         ax.set_ylim(-0.7, len(keys) - 0.3)
-        for outcome, colour in OUTCOME_COLOURS.items():
-            ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=4)
+        _outcome_key(ax, -0.22)
         ax.set_xlabel("Δt/Δx   (bar: projection's Δt_max from the operators)")
         ax.set_title("flat landing: where the ε-free schemes fail", fontsize=10)
     return Path(path)

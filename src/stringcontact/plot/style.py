@@ -1,26 +1,19 @@
-"""How a run's pictures are written (`Look`): their file formats (PNG, and PDF or SVG for a paper), their size, and
-the matplotlib style sheet they are drawn in (``styles/NAME.mplstyle``, package data: `STYLES`).
-
-The charts are matplotlib's figures saved by `Figure.savefig` in each format, laid out by matplotlib's constrained
-layout, so that no title, legend or caption is cut off at any size. The pyvista pictures are a pyvista render
-placed in such a figure: their words (title, colour key, panel labels, caption) are matplotlib's vector text, the
-3-D surface a raster at the style's resolution. VTK's own vector export (``Plotter.save_graphic``, GL2PS) was
-measured here (VTK 9.7.2, EGL) and not used: it too embeds the 3-D scene as a raster at the window's size, and it
-writes its text in the PDF base font Helvetica without its encoding, so that "η" reads "Œ∑" in the PDF.
+"""How a run's pictures are written (`Look`): their formats (PNG, and PDF or SVG for a paper), their size, and the
+matplotlib style sheet they are drawn in (``styles/NAME.mplstyle``, package data: `STYLES`). The pyvista pictures are
+a render in a matplotlib figure, so that their words are vector text: VTK's own vector export
+(``Plotter.save_graphic``, GL2PS, VTK 9.7.2) embeds the 3-D scene as a raster too, and writes "η" as "Œ∑".
 """
 
 from __future__ import annotations
 
-import contextlib
 import functools
 from dataclasses import dataclass
 from pathlib import Path
 
 #: the files a picture may be written as (`Look.formats`): matplotlib's `savefig` formats
 FORMATS = ("png", "pdf", "svg")
-#: the style sheets (``styles/NAME.mplstyle``): name -> (default size in inches (width, height), whether a caption
-#: line under the picture gives the run's details (a paper's own caption says what it needs), the size of the
-#: pyvista pictures' tick labels against the screen's: the sheet's tick labels' against matplotlib's 10 points)
+#: the style sheets (``styles/NAME.mplstyle``): name -> (default size (width, height) in inches, whether a caption line
+#: gives the run's details, the size of the pyvista pictures' tick labels against the screen's)
 STYLES = {"screen": ((11.0, 9.0), True, 1.0), "paper": ((7.0, 5.6), False, 0.7)}
 #: the pixels per inch the pyvista pictures' font sizes are chosen for (a picture at the style's resolution scales them)
 SCREEN_DPI = 100
@@ -30,12 +23,10 @@ SMALLEST, LARGEST = 2.0, 40.0
 
 @dataclass(frozen=True)
 class Look:
-    """How the pictures are written: each picture as every format of `formats` (``"png"``, ``"pdf"``, ``"svg"``:
-    ``contact_set.pdf`` beside ``contact_set.png``), in the style sheet `style` (``"screen"``, the default, or
-    ``"paper"``: 8-point text for a figure 7 inches wide, PNG at 300 dots per inch), at `size` (width, height) in
-    inches: the size of the space-time pictures and the 3-D ones, the width of the others (their height follows
-    their panels); None: the style's. ``membrane.gif`` is written with a raster format only. Checked when made: a
-    ValueError names the option and what it allows."""
+    """How the pictures are written: in every format of `formats` (``"png"``, ``"pdf"``, ``"svg"``), in the style sheet
+    `style` (``"screen"``, or ``"paper"``: 8-point text for a figure 7 inches wide, PNG at 300 dots per inch), at
+    `size` (width, height) in inches (the space-time and 3-D pictures'; the others' width), None: the style's.
+    ``membrane.gif`` only with a raster format. Checked when made: a ValueError names the option and its range."""
 
     formats: tuple = ("png",)
     style: str = "screen"
@@ -93,22 +84,19 @@ class Look:
 
     @property
     def zoom(self) -> float:
-        """How much larger a pyvista render's fonts are than on a screen (100 pixels an inch, `STYLES`' sizes): its
-        pixels an inch against the screen's, times the style's tick labels against the screen's."""
+        """How much larger a pyvista render's fonts are than on a screen: its pixels an inch against the screen's,
+        times the style's tick labels against the screen's."""
         return self.dpi / SCREEN_DPI * STYLES[self.style][2]
 
     def paths(self, path) -> list[Path]:
         """`path` (a picture's name, ``.png``) in each format."""
-        path = Path(path)
-        return [path.with_suffix(f".{f}") for f in self.formats]
+        return [Path(path).with_suffix(f".{f}") for f in self.formats]
 
-    @contextlib.contextmanager
     def drawn(self):
-        """Draw within: the style sheet's settings (matplotlib's `style.context`)."""
+        """Draw within (``with look.drawn():``): the style sheet's settings (matplotlib's `style.context`)."""
         import matplotlib.style
 
-        with matplotlib.style.context(self.sheet):
-            yield
+        return matplotlib.style.context(self.sheet)
 
 
 @functools.cache
