@@ -69,7 +69,7 @@ def coordinate_domain(cell: str, gdim: int):
 
 
 def create_mesh(comm, cells: np.ndarray, x: np.ndarray, domain):
-    """`mesh.create_mesh` of `cells` on the points `x`: (comm, cells, x, domain) up to 0.9, (.., domain, x) from 0.10."""
+    """`mesh.create_mesh` of `cells` on the points `x`: (comm, cells, x, domain) to 0.9, (…, domain, x) from 0.10."""
     from dolfinx import mesh
 
     return mesh.create_mesh(comm, cells, *((domain, x) if dolfinx_version() >= (0, 10) else (x, domain)))
@@ -94,7 +94,7 @@ def geometry_nodes(msh) -> np.ndarray:
 
 
 def cell_dofs(V) -> np.ndarray:
-    """The local dofs of every cell, (cells, dofs per cell): `V.dofmap.list` is an AdjacencyList in 0.5, that from 0.8."""
+    """The local dofs of every cell, (cells, dofs per cell): `V.dofmap.list`, an AdjacencyList in 0.5, is it from 0.8."""
     dofs = V.dofmap.list
     flat = dofs.array if hasattr(dofs, "array") else dofs
     return np.asarray(flat).reshape(-1, V.dofmap.dof_layout.num_dofs)

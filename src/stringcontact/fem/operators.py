@@ -100,9 +100,8 @@ def _assemble_row_sums(a, V) -> np.ndarray:
 
 
 def _row_sums(A: PETSc.Mat) -> np.ndarray:
-    ones = A.createVecRight()
+    ones, rs = A.createVecRight(), A.createVecLeft()
     ones.set(1.0)
-    rs = A.createVecLeft()
     A.mult(ones, rs)
     return rs.array.copy()
 
@@ -163,8 +162,9 @@ def semi_discrete_operators(model, V, params, residual: bool = False, state=None
             return zero * u * w * ufl.dx
         used = set(ufl.algorithms.extract_coefficients(a)) & set(placeholders)
         if used and f in (eta_tt, force):
-            raise ModelError(f"model '{model.name}': momentum_form must be affine in eta_tt and in force with constant "
-                             "coefficients (a constant mass and nodal force weights); it may be nonlinear in eta and eta_t")
+            raise ModelError(f"model '{model.name}': momentum_form must be affine in eta_tt and in force with "
+                             "constant coefficients (a constant mass and nodal force weights); it may be nonlinear in "
+                             "eta and eta_t")
         if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
             tangents[f] = a
             a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at)))
