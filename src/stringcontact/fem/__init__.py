@@ -1,8 +1,5 @@
-"""Space discretisation: domains and meshes, the semi-discrete operators, nodal laws, dolfinx compat.
-
-Importing it loads the FEniCS stack in the order it needs (`stack.load`: the wheel's ``dolfinx_solver``
-first) and checks dolfinx's version. Layer: imports `model` and `scene` only.
-"""
+"""Space discretisation: domains and meshes, the semi-discrete operators, nodal laws, dolfinx compat. Importing it
+loads the FEniCS stack in its order (`stack.load`) and checks dolfinx's version. Layer: imports `model`, `scene`."""
 
 from ..stack import load as _load_stack
 

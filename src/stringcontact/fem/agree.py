@@ -1,11 +1,7 @@
-"""One outcome on every rank for work that runs on each rank alone, or on one rank only.
-
-Under MPI a check that fails on one rank only (a scene expression that is not finite at that rank's nodes,
-gmsh on rank 0, a mesh file read on rank 0) must not leave the other ranks waiting in the next collective
-call forever (`mpirun -n 2` would hang). `one_outcome` runs the work, then the ranks exchange their
-outcome (one allgather); if it failed anywhere, every rank raises the first failing rank's error, so every
-rank ends with the same one line and exit code.
-"""
+"""One outcome on every rank for work that runs on each rank alone, or on one rank only: a check that fails on one
+rank (an expression not finite at its nodes, gmsh or a mesh file on rank 0) must not leave the others waiting in
+the next collective call forever. The ranks exchange their outcomes (one allgather) and every rank raises the first
+failing rank's error: one line and one exit code."""
 
 from __future__ import annotations
 

@@ -1,10 +1,5 @@
-"""Every dolfinx API difference between 0.5 (Debian bookworm), 0.9 (Debian trixie) and 0.11 (the PyPI wheel) lives here.
-
-The rest of the package calls these helpers and never branches on the dolfinx version itself.
-DEVELOPERS.md lists each difference and which helper absorbs it. The whole test suite runs on 0.5.2 (`make
-test`), on Debian trixie's 0.9.0 and on the wheel's 0.11.0 (the image targets `test` and `wheel-test`,
-`scripts/image test` and `scripts/image wheel`, in CI after the main suite).
-"""
+"""Every dolfinx API difference between 0.5 (Debian bookworm), 0.9 (Debian trixie) and 0.11 (the PyPI wheel) lives
+here: the rest of the package never branches on the dolfinx version (DEVELOPERS.md lists each difference)."""
 
 from __future__ import annotations
 
@@ -15,15 +10,13 @@ import numpy as np
 if TYPE_CHECKING:
     from dolfinx import fem
 
-# NumPy comes with dolfinx from Debian: 1.24 on bookworm (dolfinx 0.5), 2.2 on trixie (dolfinx 0.9), where
-# `np.trapz` is deprecated in favour of `np.trapezoid` (new in 2.0).
+# NumPy 2 (trixie) deprecates `np.trapz` (1.24, bookworm) for `np.trapezoid`. dolfinx is imported inside the helpers:
+# `Result` uses `trapezoid`, and the picture process unpickles Results without loading dolfinx (0.6 s).
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
-
-# dolfinx is imported inside the helpers, not here: `Result` uses `trapezoid`, and `stringcontact plot` reads
-# Results back without loading dolfinx (0.6 s).
 
 
 def dolfinx_version() -> tuple[int, int]:
+    """dolfinx's (major, minor) version."""
     import dolfinx
 
     return tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
@@ -33,9 +26,7 @@ def function_space(msh, family: str = "Lagrange", degree: int = 1):
     """`fem.functionspace` (0.7+) replaces `fem.FunctionSpace` (0.5)."""
     from dolfinx import fem
 
-    if hasattr(fem, "functionspace"):
-        return fem.functionspace(msh, (family, degree))
-    return fem.FunctionSpace(msh, (family, degree))
+    return (fem.functionspace if hasattr(fem, "functionspace") else fem.FunctionSpace)(msh, (family, degree))
 
 
 def petsc_vec(u: fem.Function):
@@ -50,36 +41,23 @@ def interpolation_points(V) -> np.ndarray:
     return pts() if callable(pts) else pts
 
 
-def vtk_mesh(V):
-    """`plot.vtk_mesh` (0.7+) replaces `plot.create_vtk_mesh` (0.5)."""
-    from dolfinx import plot
-
-    if hasattr(plot, "vtk_mesh"):
-        return plot.vtk_mesh(V)
-    return plot.create_vtk_mesh(V)
-
-
 def create_vector(form):
     """In 0.10 `create_vector` takes function spaces; before, it took the compiled form."""
     import dolfinx.fem.petsc  # 0.9 no longer imports the PETSc layer with dolfinx.fem
 
-    if dolfinx_version() >= (0, 10):
-        return dolfinx.fem.petsc.create_vector(form.function_spaces[0])
-    return dolfinx.fem.petsc.create_vector(form)
+    return dolfinx.fem.petsc.create_vector(form.function_spaces[0] if dolfinx_version() >= (0, 10) else form)
 
 
 def pack_coefficients(form) -> dict:
-    """dolfinx's packed coefficients of a compiled form, {(integral type, id): (entities, values) array}: the C++
-    packer takes the C++ form, which is the compiled form itself in 0.5 and its `_cpp_object` from 0.7 on (0.9's
-    `fem.assemble.pack_coefficients` hands it the Python form and fails)."""
+    """dolfinx's packed coefficients of a compiled form, {(integral type, id): array}: the C++ packer on the C++ form,
+    the compiled form itself in 0.5, its `_cpp_object` from 0.7 on (0.9's Python wrapper hands it the Python form)."""
     from dolfinx.cpp.fem import pack_coefficients as pack
 
     return pack(getattr(form, "_cpp_object", form))
 
 
 def coordinate_domain(cell: str, gdim: int):
-    """The `ufl.Mesh` of a P1 coordinate element for `mesh.create_mesh`: `ufl.VectorElement` (0.5) or
-    `basix.ufl.element(..., shape=(gdim,))` (0.7+)."""
+    """The `ufl.Mesh` of a P1 coordinate element: `ufl.VectorElement` (0.5) or `basix.ufl.element` (0.7+)."""
     import ufl
 
     try:
@@ -91,13 +69,10 @@ def coordinate_domain(cell: str, gdim: int):
 
 
 def create_mesh(comm, cells: np.ndarray, x: np.ndarray, domain):
-    """`mesh.create_mesh` of `cells` on the points `x` with the coordinate element `domain`: its arguments are
-    (comm, cells, x, domain) up to 0.9 and (comm, cells, domain, x) from 0.10 on."""
+    """`mesh.create_mesh` of `cells` on the points `x`: (comm, cells, x, domain) to 0.9, (…, domain, x) from 0.10."""
     from dolfinx import mesh
 
-    if dolfinx_version() >= (0, 10):
-        return mesh.create_mesh(comm, cells, domain, x)
-    return mesh.create_mesh(comm, cells, x, domain)
+    return mesh.create_mesh(comm, cells, *((domain, x) if dolfinx_version() >= (0, 10) else (x, domain)))
 
 
 def snes_diverged_nan():
@@ -110,31 +85,24 @@ def snes_diverged_nan():
 
 
 def geometry_nodes(msh) -> np.ndarray:
-    """The geometry nodes of every local cell as a (cells, nodes per cell) array: `msh.geometry.dofmap` is
-    an AdjacencyList in 0.5 (its flat `.array`), that 2-D array from 0.8 on, and `msh.geometry.dofmaps[0]` in
-    0.11 (where `dofmap` is deprecated; a method `dofmaps(0)` in 0.9)."""
+    """The geometry nodes of every local cell, (cells, nodes per cell): `geometry.dofmap` is an AdjacencyList in 0.5,
+    that 2-D array from 0.8 on, `dofmaps(0)` in 0.9 and `dofmaps[0]` in 0.11 (where `dofmap` is deprecated)."""
     dofmaps = getattr(msh.geometry, "dofmaps", None)
-    if dofmaps is None:
-        nodes = msh.geometry.dofmap
-    else:
-        nodes = dofmaps(0) if callable(dofmaps) else dofmaps[0]
+    nodes = msh.geometry.dofmap if dofmaps is None else dofmaps(0) if callable(dofmaps) else dofmaps[0]
     flat = nodes.array if hasattr(nodes, "array") else nodes
     return np.asarray(flat).reshape(-1, msh.topology.dim + 1)  # P1 simplices: one node per vertex
 
 
 def cell_dofs(V) -> np.ndarray:
-    """The local dofs of every cell as a (cells, dofs per cell) array: `V.dofmap.list` is an
-    AdjacencyList in 0.5 (its flat `.array`) and already that 2-D array from 0.8 on."""
+    """The local dofs of every cell, (cells, dofs per cell): `V.dofmap.list`, an AdjacencyList in 0.5, is it from 0.8."""
     dofs = V.dofmap.list
     flat = dofs.array if hasattr(dofs, "array") else dofs
     return np.asarray(flat).reshape(-1, V.dofmap.dof_layout.num_dofs)
 
 
 def mixed_space(msh, fields: int):
-    """P1^fields on `msh` as one blocked space (a vector P1 element: `ufl.VectorElement` on 0.5,
-    `basix.ufl.element(..., shape=(fields,))` on 0.7+). Its dofs are interleaved node by node and its matrices
-    carry the block size `fields`, so PETSc's PCFIELDSPLIT splits the fields by that block size, with no index
-    sets; `ufl.split` gives the fields as its components."""
+    """P1^fields on `msh` as one blocked space (`ufl.VectorElement` on 0.5, `basix.ufl.element` on 0.7+): its matrices
+    carry the block size, so PCFIELDSPLIT splits the fields without index sets; `ufl.split` gives the fields."""
     from dolfinx import fem
 
     try:
@@ -150,8 +118,7 @@ def mixed_space(msh, fields: int):
 
 
 def sub_dofs(V, Z, i: int) -> np.ndarray:
-    """For each local dof of the P1 space V, the local dof of component `i` of the mixed space Z at the same
-    node (both on one mesh: matched cell by cell through their dofmaps)."""
+    """For each local dof of the P1 space V, the local dof of component `i` of the mixed space Z at its node."""
     index = np.empty(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, dtype=np.int64)
     index[cell_dofs(V).ravel()] = cell_dofs(Z.sub(i)).ravel()
     return index

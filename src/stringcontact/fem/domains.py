@@ -1,10 +1,6 @@
-"""The mesh of a scene's domain and its boundary: the string's interval or a membrane's 2D domain.
-
-``interval`` is today's `mesh.create_interval` (the 1D numbers do not change); ``rectangle`` is
-`mesh.create_rectangle` with [0, Lx] x [0, Ly]; ``disk`` is meshed by gmsh on rank 0 and handed to
-`mesh.create_mesh`, which distributes it; ``file`` reads an XDMF triangle mesh (`meshfile.read`, handed to `mesh.create_mesh` as arrays). A mesh that is not a
-mesh, that is 3D, or that has no area is refused with a one-line `SceneError` naming ``mesh``.
-"""
+"""The mesh of a scene's domain and its boundary: `mesh.create_interval`, `mesh.create_rectangle` on [0, Lx] x [0, Ly],
+gmsh's disk (made on rank 0, distributed by `mesh.create_mesh`) or an XDMF triangle mesh (`meshfile.read`, handed to
+`mesh.create_mesh` as arrays). A mesh that is 3D or has no area is refused in one line naming ``mesh``."""
 
 from __future__ import annotations
 
@@ -14,6 +10,7 @@ import threading
 
 import dolfinx.fem.petsc  # noqa: F401 - dolfinx 0.9 no longer imports the PETSc layer with dolfinx.fem
 import numpy as np
+import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -21,6 +18,7 @@ from petsc4py import PETSc
 from ..errors import SceneError
 from . import compat, meshfile
 from .agree import one_outcome
+from .operators import assemble_vector
 
 __all__ = ["boundary_dofs", "create", "nodal_areas"]
 
@@ -31,18 +29,13 @@ def create(scene, comm):
         return mesh.create_interval(comm, scene.nx, [0.0, scene.length])
     if scene.domain == "rectangle":
         msh = mesh.create_rectangle(comm, [np.zeros(2), np.array(scene.size)], list(scene.cells), mesh.CellType.triangle)
-    elif scene.domain == "disk":
-        msh = _disk(comm, scene.radius, scene.mesh_size)
-    else:
-        msh = _read(comm, scene.mesh)
+    else:  # made on rank 0 and distributed; dolfinx's XDMF reader is never given a file (it may read another one)
+        disk = scene.domain == "disk"
+        args = (_gmsh_disk, scene.radius, scene.mesh_size) if disk else (meshfile.read, scene.mesh)
+        cells, x = one_outcome(comm, *args, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
+        msh = compat.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
     _check_areas(msh, comm, scene.mesh or scene.domain)
     return msh
-
-
-def _disk(comm, radius: float, size: float):
-    """gmsh's triangulation of the disk of `radius` centred at 0, made on rank 0 and distributed."""
-    cells, x = one_outcome(comm, _gmsh_disk, radius, size, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
-    return compat.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
 
 
 def _gmsh_disk(radius: float, size: float) -> tuple[np.ndarray, np.ndarray]:
@@ -74,18 +67,9 @@ def _gmsh_disk(radius: float, size: float) -> tuple[np.ndarray, np.ndarray]:
     return index[triangles], np.ascontiguousarray(points)
 
 
-def _read(comm, path: str):
-    """An XDMF triangle mesh, read and checked on rank 0 (`meshfile.read`) and handed to `mesh.create_mesh` as
-    arrays, which distributes it: dolfinx's own XDMF reader is never given the file (it may read another file
-    than the one checked, and hangs or crashes on a bad one)."""
-    cells, x = one_outcome(comm, meshfile.read, path, root=0) or (np.zeros((0, 3), dtype=np.int64), np.zeros((0, 2)))
-    return compat.create_mesh(comm, cells, x, compat.coordinate_domain("triangle", 2))
-
-
 def _check_areas(msh, comm, label: str) -> None:
     """Refuse a mesh with a cell of zero area (a degenerate triangle; a domain of zero area has only such)."""
-    W = compat.function_space(msh, "DG", 0)
-    areas = _assemble(W, msh)
+    areas = nodal_areas(compat.function_space(msh, "DG", 0))
     n = msh.topology.index_map(msh.topology.dim).size_local
     smallest, total = comm.allreduce(float(np.min(areas[:n], initial=math.inf)), op=MPI.MIN), comm.allreduce(float(areas[:n].sum()))
     if not total > 0.0:
@@ -95,26 +79,14 @@ def _check_areas(msh, comm, label: str) -> None:
                          "allowed: a triangle mesh without degenerate cells")
 
 
-def _assemble(V, msh) -> np.ndarray:
-    """∫ φ_i dx for the basis functions of V, on the owned dofs (ghost contributions added to their owners)."""
-    import ufl
-
-    vec = fem.petsc.assemble_vector(fem.form(ufl.TestFunction(V) * ufl.dx(domain=msh)))
-    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    return vec.array.copy()
-
-
 def nodal_areas(V) -> np.ndarray:
-    """The lumped weights ∫ φ_i dx of the owned P1 dofs: the area a node stands for (contact area)."""
-    return _assemble(V, V.mesh)
+    """The lumped weights ∫ φ_i dx of the owned dofs of V (P1: the area a node stands for, the contact area)."""
+    return assemble_vector(ufl.TestFunction(V) * ufl.dx(domain=V.mesh))
 
 
 def boundary_dofs(V) -> np.ndarray:
-    """Owned dofs on the exterior facets of a 2D mesh.
-
-    A rank may own a boundary node without holding a facet of the boundary next to it; the marks are
-    therefore added to their owners (a reverse scatter) before the owned ones are read.
-    """
+    """Owned dofs on the exterior facets of a 2D mesh (the marks added to their owners first: a rank may own a
+    boundary node without holding a boundary facet next to it)."""
     msh = V.mesh
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)

@@ -1,22 +1,17 @@
-"""A mesh file read here, checked, and handed to dolfinx as arrays.
+"""A mesh file read here, checked, and handed to dolfinx as arrays: what was checked is what dolfinx meshes.
 
-dolfinx's `create_mesh` trusts its input: a cell index out of range (10**6 on 81 nodes, or -5) leaves it
-spinning in C++, deaf to Ctrl-C and SIGTERM, and duplicate cells corrupt its heap (a segfault or
-``malloc(): unsorted double linked list corrupted``). dolfinx's own XDMF reader is not used either: dolfinx 0.5
-reads ``<xdmf stem>.h5`` whatever file the DataItem names and finds its grid by an XPath built from the grid's
-name, so a check of the file the XDMF names could pass while dolfinx read another. So the XDMF file's first
-grid with a topology is read here, with pyfive (pure Python: h5py's wheel clashes with the libhdf5 dolfinx
-loads), and refused, in one line naming ``mesh``, unless it is a plain triangle mesh: data in an HDF5 file
-(a regular file: never a FIFO, a device or a directory, opened without blocking), the shapes the XML states,
-integer cell indices in [0, nodes), numeric coordinates, three distinct nodes per cell, no cell twice, no
-edge in more than two cells, every node in a cell, finite coordinates of at most `MAX_COORDINATE` in
-absolute value, z = 0, and at most `MAX_NODES` nodes and `MAX_CELLS` cells. The arrays that pass are the
-ones `domains` gives to `mesh.create_mesh`: what was checked is what dolfinx meshes.
+Hand-written because dolfinx trusts its input: a cell index out of range left `create_mesh` spinning in C++, deaf to
+Ctrl-C and SIGTERM, duplicate cells corrupted its heap (a segfault), and dolfinx 0.5's XDMF reader reads
+``<xdmf stem>.h5`` whatever file the DataItem names (tests/system/test_reliability_meshfiles.py). So the XDMF file's
+first grid with a topology is read with pyfive (pure Python: h5py's wheel clashes with dolfinx's libhdf5) and refused
+in one line naming ``mesh`` unless it is a plain triangle mesh: its data in a regular HDF5 file (opened without
+blocking) of the shapes the XML states, integer cell indices in [0, nodes), three distinct nodes per cell, no cell
+twice, no edge in more than two cells, every node in a cell, finite coordinates within `MAX_COORDINATE`, z = 0, at
+most `MAX_NODES` nodes and `MAX_CELLS` cells.
 """
 
 from __future__ import annotations
 
-import errno
 import io
 import os
 import stat
@@ -25,12 +20,12 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from ..errors import SceneError
+from ..scene.checks import file_kind, os_reason
 from ..scene.limits import MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 
-__all__ = ["MAX_CELLS", "MAX_COORDINATE", "MAX_NODES", "MAX_XDMF_BYTES", "check", "file_kind", "read", "regular_file"]
+__all__ = ["MAX_CELLS", "MAX_COORDINATE", "MAX_NODES", "MAX_XDMF_BYTES", "read", "regular_file"]
 
-#: The largest mesh file: as many nodes as the largest membrane (the set-up's memory, scene.limits), and twice
-#: as many cells (a triangulation has about two cells per node).
+#: The largest mesh file: as many nodes as the largest membrane (scene.limits), twice as many cells.
 MAX_NODES = MAX_MEMBRANE_NODES
 MAX_CELLS = 2 * MAX_MEMBRANE_NODES
 #: The largest |coordinate|: a domain's size is bounded like a scene's `length` and `radius` (1e4), with room for
@@ -46,7 +41,7 @@ def regular_file(path: str, what: str = "mesh") -> int:
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
-        raise SceneError(f"{what}: {path!r} {_os_reason(exc)}; allowed: a readable regular file") from None
+        raise SceneError(f"{what}: {path!r} {os_reason(exc)}; allowed: a readable regular file") from None
     mode = os.fstat(fd).st_mode
     if not stat.S_ISREG(mode):
         os.close(fd)
@@ -54,30 +49,10 @@ def regular_file(path: str, what: str = "mesh") -> int:
     return fd
 
 
-def file_kind(mode: int) -> str:
-    """'a FIFO', 'a directory', ... for a `stat` mode that is not a regular file's."""
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return name
-    return "not a regular file"
-
-
-def _os_reason(exc: OSError) -> str:
-    if exc.errno == errno.ENOENT:
-        return "does not exist"
-    if exc.errno == errno.ELOOP:
-        return "is a loop of symbolic links"
-    if exc.errno == errno.EISDIR:
-        return "is a directory"
-    return f"cannot be opened ({exc.strerror or exc})"
-
-
 def read(path: str) -> tuple[np.ndarray, np.ndarray]:
     """(cells, points) of the XDMF triangle mesh at `path`: int64 (cells, 3) and float64 (nodes, 2), checked;
     SceneError (one line naming ``mesh``) if it is not a valid 2D triangle mesh."""
     grid = _grid(path)
-    _check_cell_type(path, grid)
     cells = _data(path, grid.find("Topology"), "topology", MAX_CELLS)
     points = _data(path, grid.find("Geometry"), "geometry", MAX_NODES)
     _check_shapes(path, cells, points)
@@ -85,11 +60,6 @@ def read(path: str) -> tuple[np.ndarray, np.ndarray]:
     if points.shape[1] == 3 and np.any(points[:, 2] != 0.0):
         raise SceneError(f"mesh: {path!r} is a surface in 3D (z is not 0); allowed: a flat 2D triangle mesh")
     return cells.astype(np.int64), np.ascontiguousarray(points[:, :2], dtype=np.float64)
-
-
-def check(path: str) -> None:
-    """Refuse (SceneError, one line) a mesh file that is not a valid 2D triangle mesh (`read` without its arrays)."""
-    read(path)
 
 
 def _grid(path: str):
@@ -104,19 +74,15 @@ def _grid(path: str):
     except (ET.ParseError, ValueError, RecursionError) as exc:
         raise SceneError(f"mesh: {path!r} is not an XDMF mesh file ({type(exc).__name__}: "
                          f"{str(exc)[:120]}); allowed: an XDMF triangle mesh") from None
-    for grid in root.iter("Grid"):
-        if grid.find("Topology") is not None:
-            return grid
-    raise SceneError(f"mesh: {path!r} holds no grid with a topology; allowed: an XDMF triangle mesh")
-
-
-def _check_cell_type(path: str, grid) -> None:
-    topology = grid.find("Topology")
-    cell = topology.get("TopologyType") or topology.get("Type") or "?"
+    grid = next((grid for grid in root.iter("Grid") if grid.find("Topology") is not None), None)
+    if grid is None:
+        raise SceneError(f"mesh: {path!r} holds no grid with a topology; allowed: an XDMF triangle mesh")
+    cell = grid.find("Topology").get("TopologyType") or grid.find("Topology").get("Type") or "?"
     if cell.lower() in ("tetrahedron", "hexahedron", "wedge", "pyramid"):
         raise SceneError(f"mesh: {path!r} is a 3D mesh ({cell} cells); allowed: a 2D triangle mesh")
     if cell.lower() != "triangle":
         raise SceneError(f"mesh: {path!r} has {cell} cells; allowed: a 2D triangle mesh (Triangle cells)")
+    return grid
 
 
 def _data(path: str, element, what: str, limit: int) -> np.ndarray:

@@ -1,10 +1,7 @@
-"""Evaluate a pointwise UFL expression at the P1 nodes, vectorised with NumPy.
-
-This is P1 interpolation of the expression (what `Function.interpolate(fem.Expression(...))`
-computes), but without a compiled kernel call per cell: in 1D that call costs ~0.6 ms per step
-at N=5000, more than the whole time step. The UFL expression stays the single definition of the
-contact law; this module only walks its graph.
-"""
+"""Evaluate a pointwise UFL expression at the P1 nodes, vectorised with NumPy: P1 interpolation of the expression
+without `fem.Expression`'s compiled kernel call per cell, which costs ~0.6 ms per step at N = 5000 in 1D, more than
+the whole step (DEVELOPERS.md; tests/fem/test_nodal.py checks it against `fem.Expression`). The UFL expression stays
+the one definition of the contact law; this module only walks its graph."""
 
 from __future__ import annotations
 
@@ -13,30 +10,11 @@ import ufl
 from ufl.corealg.map_dag import map_expr_dag
 from ufl.corealg.multifunction import MultiFunction
 
-_UNARY = {
-    "abs": np.abs,
-    "sqrt": np.sqrt,
-    "exp": np.exp,
-    "ln": np.log,
-    "sin": np.sin,
-    "cos": np.cos,
-    "tanh": np.tanh,
-    "not_condition": np.logical_not,
-}
-_BINARY = {
-    "division": np.divide,
-    "power": np.power,
-    "max_value": np.maximum,
-    "min_value": np.minimum,
-    "lt": np.less,
-    "le": np.less_equal,
-    "gt": np.greater,
-    "ge": np.greater_equal,
-    "eq": np.equal,
-    "ne": np.not_equal,
-    "and_condition": np.logical_and,
-    "or_condition": np.logical_or,
-}
+_UNARY = {"abs": np.abs, "sqrt": np.sqrt, "exp": np.exp, "ln": np.log, "sin": np.sin, "cos": np.cos, "tanh": np.tanh,
+          "not_condition": np.logical_not}
+_BINARY = {"division": np.divide, "power": np.power, "max_value": np.maximum, "min_value": np.minimum, "lt": np.less,
+           "le": np.less_equal, "gt": np.greater, "ge": np.greater_equal, "eq": np.equal, "ne": np.not_equal,
+           "and_condition": np.logical_and, "or_condition": np.logical_or}
 
 
 def _is_minus_one(o) -> bool:
@@ -114,10 +92,8 @@ class _Compiler(MultiFunction):
         if name in _BINARY:
             f, (a, b) = _BINARY[name], ops
             return lambda env: f(a(env), b(env))
-        raise ValueError(
-            f"nodal evaluation: UFL operator {type(o).__name__} is not supported in a pointwise "
-            "law; use arithmetic, conditional, max_value/min_value, abs, sqrt, exp, ln, sin, cos, tanh"
-        )
+        raise ValueError(f"nodal evaluation: UFL operator {type(o).__name__} is not supported in a pointwise law; use "
+                         "arithmetic, conditional, max_value/min_value, abs, sqrt, exp, ln, sin, cos, tanh")
 
     def terminal(self, o):
         raise ValueError(f"nodal evaluation: UFL terminal {type(o).__name__} is not supported in a pointwise law")
@@ -147,19 +123,16 @@ class _Subset(dict):
         self.parent, self.idx = parent, idx
 
     def __missing__(self, key):
-        value = self.parent[key][self.idx]
-        self[key] = value
-        return value
+        self[key] = self.parent[key][self.idx]
+        return self[key]
 
 
 class NodalExpression:
     """A UFL expression compiled once into NumPy calls; call it with the nodal arrays.
 
-    A law of the form conditional(c1 ∧ c2 ∧ ..., a, 0) (the penalty: χ{η<0}·(η_t)⁻/ε) is evaluated only where
-    it can act: c1 on every node, the rest of the conditions and `a` on the nodes where c1 holds, scattered into
-    zeros. NumPy's ufuncs work element by element, so each value is the one the full evaluation computes, bit
-    for bit. Measured on Example 1 (benchmarks/bench_step.py --law): the penalty over its stored states costs
-    24-26 µs on every node, 18-22 µs this way on average; 17 against 6 µs where no node is in contact.
+    A law conditional(c1 ∧ c2 ∧ ..., a, 0) (the penalty χ{η<0}·(η_t)⁻/ε) is evaluated only where it can act: c1 on
+    every node, the rest on the nodes where c1 holds, bit for bit the full evaluation's values (24-26 µs against
+    18-22 µs on Example 1's states: benchmarks/bench_step.py --law).
     """
 
     def __init__(self, expr):
@@ -173,15 +146,13 @@ class NodalExpression:
             self._rest = _compile(ufl.conditional(_and(rest), value, 0) if rest else value)
 
     def __call__(self, coefficients: dict, x: np.ndarray) -> np.ndarray:
+        """Its values at the nodes `x`; `coefficients` maps each P1 Function in it to its nodal array."""
         with np.errstate(all="ignore"):
             return self.evaluate_env(environment(coefficients, x))
 
     def evaluate_env(self, env: dict) -> np.ndarray:
-        """The hot-loop form: `env` is made by `environment`; the caller owns np.errstate.
-
-        A time loop keeps one `env` and only swaps its arrays (`env[id(f)] = array`), so no dict and
-        no error-state context is built per step.
-        """
+        """The hot-loop form: `env` is made by `environment` (a time loop keeps one and swaps its arrays,
+        ``env[id(f)] = array``); the caller owns np.errstate."""
         shape = env["x"].shape[:1]  # one value per node, in 1D and 2D
         if self._candidates is not None:
             return self._on_candidates(env, shape)
@@ -189,14 +160,11 @@ class NodalExpression:
         return value if value.shape == shape else np.broadcast_to(value, shape)
 
     def _on_candidates(self, env: dict, shape: tuple) -> np.ndarray:
-        """conditional(c1 ∧ rest, a, 0): c1 everywhere, then `rest` and `a` only where c1 can hold.
-
-        The candidates are taken as the span from the first node where c1 holds to the last (views, no copy: a
-        1-D contact region is an interval); where they are sparse in that span (a 2-D mesh's node order) as
-        their indices (copies of the arrays the law reads)."""
+        """conditional(c1 ∧ rest, a, 0): c1 everywhere, then `rest` and `a` only on the span from the first node where
+        c1 holds to the last (views: a 1-D contact region is an interval), or on its indices where they are sparse
+        in that span (a 2-D mesh's node order)."""
         c1 = np.asarray(self._candidates(env))
-        if c1.shape != shape:
-            c1 = np.broadcast_to(c1, shape)
+        c1 = c1 if c1.shape == shape else np.broadcast_to(c1, shape)
         out = np.zeros(shape)
         first, last = _span(c1)
         if first < 0:
@@ -213,8 +181,7 @@ class NodalExpression:
 
 def _span(c1: np.ndarray) -> tuple[int, int]:
     """(first, last + 1) of the True entries of the bool array `c1`, or (-1, 0) if none: the bytes' find and rfind
-    (memchr), 1.0 µs at 5001 nodes against 3.2 µs for argmax on c1 and on its reversed view (a negative stride has
-    no fast path); measured with timeit on Example 1's contact span."""
+    (memchr), 1.0 µs at 5001 nodes against argmax's 3.2 µs (timeit on Example 1's contact span)."""
     raw = c1.view(np.uint8).tobytes()
     return raw.find(1), raw.rfind(1) + 1
 
@@ -230,9 +197,7 @@ def _and(conditions: list):
 
 def environment(coefficients: dict, x: np.ndarray) -> dict:
     """The evaluation environment: nodal arrays keyed by `id` of each coefficient, and "x"."""
-    env = {id(f): a for f, a in coefficients.items()}
-    env["x"] = x
-    return env
+    return {id(f): a for f, a in coefficients.items()} | {"x": x}
 
 
 def evaluate(expr, coefficients: dict, x: np.ndarray) -> np.ndarray:

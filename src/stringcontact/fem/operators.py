@@ -1,24 +1,11 @@
-"""The time discretisation: from the model's semi-discrete UFL form to constant operators.
+"""From the model's semi-discrete UFL form to constant operators, each assembled once.
 
-The model writes M η_tt + C η_t + K η = B F + b in UFL (see `model.momentum_form`). Here the
-scheme takes it apart with `ufl.derivative` along each placeholder, so that every constant
-operator is assembled once:
-
-    M = ∂R/∂η_tt,  C = ∂R/∂η_t,  K = ∂R/∂η,  B = -∂R/∂F,  b = -R(0, 0, 0, 0).
-
-The paper's Section 6 scheme then reads, with v^n = (η^n − η^{n−1})/Δt,
-
-    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^{n+1} = B F(η^n, v^n) + b,
-
-with the force F from the previous step and lumped onto the nodes (the row sums of B). As a linear
-system, A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n + b with A = M/Δt² + C/Δt + K.
-
-A form nonlinear in η or η_t (or a model with several fields) keeps the same operators, linearised at 0
-(the stability estimates and round-off floors read them), and hands the residual itself to the schemes
-(`NonlinearForm`), which solve each step by Newton (`timestepping.newton`). A form that is not finite at 0 (a
-term k/η or √η: singular where the string touches a flat obstacle, never reached by a run that stays above it)
-is linearised at the run's state instead (its initial state), and its load is what its declared stored energy
-leaves of its static force there, b = δΠ(η⁰) − R(η⁰, 0, 0, 0).
+The model writes M η_tt + C η_t + K η = B F + b in UFL (`model.interface`); `ufl.derivative` along each placeholder
+takes it apart: M = ∂R/∂η_tt, C = ∂R/∂η_t, K = ∂R/∂η, B = −∂R/∂F, b = −R(0, 0, 0, 0). A form nonlinear in η or η_t
+(or with several fields) keeps the same operators, linearised at 0 (the stability estimates and round-off floors
+read them), and hands its residual to the schemes (`NonlinearForm`), which solve each step by Newton
+(`timestepping.newton`). A form not finite at 0 (k/η, √η) is linearised at the run's initial state instead, and its
+load is what its declared stored energy leaves of its static force there, b = δΠ(η⁰) − R(η⁰, 0, 0, 0).
 """
 
 from __future__ import annotations
@@ -41,17 +28,11 @@ from . import compat
 
 @dataclass
 class Operators:
-    """The assembled constant operators of one model on one mesh (PETSc objects, no BCs applied).
-
-    Its fields:
-
-    * ``M``, ``C``, ``K``: the mass, viscous and stiffness matrices (∂R/∂η_tt, ∂R/∂η_t, ∂R/∂η);
-    * ``m``: the row sums of M on the owned dofs, the lumped mass; ``m_force``: the row sums of B, the lumped force
-      weights; ``load``: b on the owned dofs (zero for the paper's model);
-    * ``V``: the function space (kept alive with its matrices: dolfinx 0.9 crashes otherwise);
-    * ``nonlinear``: a nonlinear model's residual (`NonlinearForm`; M, C, K are then its tangent), else None;
-    * ``linearised_at``: where C and K are the tangent: ``"eta = 0"``, or ``"the state"`` for a form that is not
-      finite at 0.
+    """The assembled constant operators of one model on one mesh (PETSc objects, no BCs applied): ``M``, ``C``, ``K``
+    (∂R/∂η_tt, ∂R/∂η_t, ∂R/∂η); ``m``, the row sums of M on the owned dofs (the lumped mass); ``m_force``, the row
+    sums of B (the lumped force weights); ``load``, b on the owned dofs; ``V``, the space (kept alive with its
+    matrices: dolfinx 0.9 crashes otherwise); ``nonlinear``, a nonlinear model's residual (`NonlinearForm`; M, C, K
+    are then its tangent) or None; ``linearised_at``, ``"eta = 0"`` or ``"the state"`` (a form not finite at 0).
     """
 
     M: PETSc.Mat
@@ -67,23 +48,16 @@ class Operators:
 
 @dataclass
 class NonlinearForm:
-    """A model whose momentum form is nonlinear in η or η_t: the residual R and its placeholders, for a
-    scheme that solves each step with Newton (`timestepping.newton`).
+    """A model whose momentum form is nonlinear in η or η_t, for a scheme that solves each step by Newton
+    (`timestepping.newton`). R is affine in η_tt and the force with constant coefficients (the `Operators`' M and
+    m_force), so a scheme keeps its mass lumping and its nodal force.
 
-    R is affine in η_tt and in the force with constant coefficients (M = ∂R/∂η_tt and B = −∂R/∂F are the
-    `Operators`' M and m_force), so a scheme keeps its mass lumping and its nodal force; `stored_energy` is
-    the model's stored energy density as UFL in `eta` (assembled by the scheme for its ledger).
-
-    Its fields:
-
-    * ``residual``: the UFL form R(eta, eta_t, eta_tt, force; w);
-    * ``eta``, ``eta_t``, ``eta_tt``: the placeholders, Functions on ``space``; ``force``: a Function on ``V``;
-    * ``V``: η's P1 space (the schemes' nodal arrays); ``params``: the model's constants;
-    * ``stored_energy``: the UFL form ∫Π(energy_eta) dx; ``energy_eta``: the Function on V that it reads;
-      ``energy_derived``: True when it is the form's potential (`potential_energy`), not declared;
-    * ``viscous_linear``: ∂R/∂η_t is constant, so the viscous force is C η_t (a mat-vec, no assembly);
-    * ``space``: the unknowns' space, V or the mixed space of ``(η, *fields)``; ``eta_dofs``: the mixed space's local
-      dof of each local dof of V (None when the space is V).
+    Its fields: ``residual``, the UFL form R(eta, eta_t, eta_tt, force; w); ``eta``, ``eta_t``, ``eta_tt``, the
+    placeholders (Functions on ``space``), ``force`` a Function on ``V``, η's P1 space; ``params``, the model's
+    constants; ``stored_energy``, the UFL form ∫Π(energy_eta) dx of the ledger, ``energy_eta`` the Function it reads,
+    ``energy_derived`` True when it is the form's potential (`potential_energy`), not declared; ``viscous_linear``,
+    ∂R/∂η_t constant (the viscous force is C η_t, a mat-vec); ``space``, V or the mixed space of ``(η, *fields)``,
+    ``eta_dofs`` the mixed space's local dof of each local dof of V (None when the space is V).
     """
 
     residual: object
@@ -102,8 +76,7 @@ class NonlinearForm:
 
 
 def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
-    """Assemble `a`; with `pattern`, into a copy of its sparsity (P1 forms on one mesh share it), which
-    saves building the sparsity pattern again."""
+    """Assemble `a`; with `pattern`, into a copy of its sparsity (P1 forms on one mesh share it)."""
     if pattern is None:
         A = fem.petsc.assemble_matrix(fem.form(a))
     else:
@@ -113,7 +86,7 @@ def _assemble_matrix(a, pattern: PETSc.Mat | None = None) -> PETSc.Mat:
     return A
 
 
-def _assemble_vector(L) -> np.ndarray:
+def assemble_vector(L) -> np.ndarray:
     """The linear form `L` assembled on the owned dofs (ghost contributions added to their owners)."""
     vec = fem.petsc.assemble_vector(fem.form(L))
     vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
@@ -123,20 +96,14 @@ def _assemble_vector(L) -> np.ndarray:
 def _assemble_row_sums(a, V) -> np.ndarray:
     """Row sums of the bilinear form `a` on owned dofs, as the vector a(1, w): no matrix is built."""
     one = fem.Constant(V.mesh, PETSc.ScalarType(1.0))
-    return _assemble_vector(ufl.replace(a, {ufl.algorithms.extract_arguments(a)[1]: one}))
+    return assemble_vector(ufl.replace(a, {ufl.algorithms.extract_arguments(a)[1]: one}))
 
 
 def _row_sums(A: PETSc.Mat) -> np.ndarray:
-    ones = A.createVecRight()
+    ones, rs = A.createVecRight(), A.createVecLeft()
     ones.set(1.0)
-    rs = A.createVecLeft()
     A.mult(ones, rs)
     return rs.array.copy()
-
-
-def default_stored_energy(eta, p):
-    """The paper's stored energy density ½|∇η|² (a model without `stored_energy` stores this)."""
-    return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta))
 
 
 #: Gauss–Legendre on [0, 1], 3 points: the potential's s-integral exact for a static force of degree ≤ 5 in η
@@ -145,14 +112,10 @@ _GAUSS_S = ((0.5 - 0.5 * math.sqrt(0.6), 5 / 18), (0.5, 8 / 18), (0.5 + 0.5 * ma
 
 
 def potential_energy(R, placeholders, w, V):
-    """The stored energy of a momentum form R(η, η_t, η_tt, F; w) that declares none: the potential of its static
-    force G(η; w) = R(η, 0, 0, 0; w) − R(0, 0, 0, 0; w) (the load apart, which the ledger books as external work),
-
-        Π(η) = ∫₀¹ G(sη; η) ds,
-
-    by Gauss–Legendre in s (`_GAUSS_S`). For a conservative form (G the derivative of an energy, as every
-    elastic or foundation term is) this is that energy, zero at η = 0: ½∫η_x² for the paper's form,
-    ½∫η_x² + k3/4∫η⁴ with a cubic foundation. Returns the UFL functional and the Function on V it reads."""
+    """The stored energy of a momentum form R(η, η_t, η_tt, F; w) that declares none: the potential Π(η) = ∫₀¹ G(sη; η)
+    ds of its static force G(η; w) = R(η, 0, 0, 0; w) − R(0, 0, 0, 0; w) (the load is external work), by
+    Gauss–Legendre in s: for a conservative form its energy, zero at η = 0 (½∫η_x² for the paper's form). Returns the
+    UFL functional and the Function on V it reads."""
     eta, eta_t, eta_tt, force = placeholders
     e = fem.Function(V)
     zero = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
@@ -166,14 +129,10 @@ def potential_energy(R, placeholders, w, V):
 def semi_discrete_operators(model, V, params, residual: bool = False, state=None) -> Operators:
     """Assemble M, C, K, the lumped force weights and the load of `model.momentum_form` on V.
 
-    A form that is linear in its placeholders gives the constant operators. A form nonlinear in η or η_t (or a
-    model with ``newton=True``, or any model when `residual` is set: a scheme that steps every model by Newton)
-    gives the same operators linearised at 0 plus `Operators.nonlinear`, the residual for the Newton step;
-    ModelError if it is nonlinear in η_tt or the force, or if they multiply η.
-
-    `state` (a callable giving η and η_t on V's owned dofs, the run's initial state) is where a nonlinear form is
-    linearised when its tangent at 0 is not finite (a term singular at η = 0), and where its load is taken, with
-    its declared stored energy, when R(0) is not finite; ModelError naming the cause if that cannot be done.
+    A form nonlinear in η or η_t (or a model with ``newton=True``, or any model when `residual` is set) gives the
+    same operators linearised at 0 plus `Operators.nonlinear`; ModelError if it is nonlinear in η_tt or the force.
+    `state` (a callable giving η and η_t on V's owned dofs, the run's initial state) is where a form singular at
+    η = 0 is linearised and its load taken; ModelError naming the cause if that cannot be done.
     """
     eta, eta_t, eta_tt, force = (fem.Function(V) for _ in range(4))
     w = ufl.TestFunction(V)
@@ -203,10 +162,9 @@ def semi_discrete_operators(model, V, params, residual: bool = False, state=None
             return zero * u * w * ufl.dx
         used = set(ufl.algorithms.extract_coefficients(a)) & set(placeholders)
         if used and f in (eta_tt, force):
-            raise ModelError(
-                f"model '{model.name}': momentum_form must be affine in eta_tt and in force with constant "
-                "coefficients (a constant mass and nodal force weights); it may be nonlinear in eta and eta_t"
-            )
+            raise ModelError(f"model '{model.name}': momentum_form must be affine in eta_tt and in force with "
+                             "constant coefficients (a constant mass and nodal force weights); it may be nonlinear in "
+                             "eta and eta_t")
         if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
             tangents[f] = a
             a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at)))
@@ -224,12 +182,11 @@ def semi_discrete_operators(model, V, params, residual: bool = False, state=None
         if _finite(K_at) and _finite(C_at):  # else not finite at the state either: the first step names the form
             K, C, linearised_at = K_at, C_at, "the state"
     m_force = -_assemble_row_sums(part(force), V)  # B = −∂R/∂F is only needed lumped
-    b_form = -ufl.replace(R, {f: zero for f in placeholders})
-    b_form = ufl.algorithms.expand_derivatives(b_form)
+    b_form = ufl.algorithms.expand_derivatives(-ufl.replace(R, at_zero))
     m = _row_sums(M)
     if not mass_known:  # a mass density the nodes cannot give (a field's gradient in it): its lumped rows
         _refuse_mass(model.name, what, m, node_coordinates(V)[: m.size], V.mesh.comm, "lumped mass")
-    load = np.zeros_like(m) if b_form.empty() else _assemble_vector(b_form)
+    load = np.zeros_like(m) if b_form.empty() else assemble_vector(b_form)
     declared = getattr(model, "stored_energy", None)
     if nonlinear_in and mixed is None and not _all_ranks(V, np.isfinite(load).all()):  # R(0) singular
         load = _load_at_state(model.name, what, R, placeholders, w, V, params, state, zero, declared, load)
@@ -267,8 +224,8 @@ def _all_ranks(V, flag) -> bool:
 
 
 def _state(name: str, V, state, placeholders, zero, why: str) -> dict:
-    """The placeholders at the run's state: η and η_t as Functions on V holding `state()`'s owned values (η_tt and
-    the force at 0); ModelError naming `why` when there is no state to take (an operator built without a run)."""
+    """The placeholders at the run's state (`state()`'s η and η_t, η_tt and the force at 0); ModelError naming `why`
+    without a state (an operator built without a run)."""
     if state is None:
         raise ModelError(f"model '{name}': momentum_form is evaluated at eta = 0 for its operators, and {why}; "
                          "allowed: a form finite at eta = 0, or a run from an initial state where it is")
@@ -284,15 +241,14 @@ def _state(name: str, V, state, placeholders, zero, why: str) -> dict:
 
 
 def _load_at_state(name: str, what: str, R, placeholders, w, V, params, state, zero, declared, load) -> np.ndarray:
-    """The load b of a form that is not finite at η = 0 (`load`, −R(0)): what the declared stored energy Π leaves of
-    the static force at the run's state η⁰, b = δΠ(η⁰) − R(η⁰, 0, 0, 0) (for a form G = δΠ − b, the same at every
-    state). ModelError naming the cause without a declared energy (the form's own potential starts at η = 0) if the
-    form is finite at η⁰; `load` as it is if it is not (the first step names the form)."""
+    """The load of a form not finite at η = 0: what the declared stored energy Π leaves of the static force at the
+    run's state η⁰, b = δΠ(η⁰) − R(η⁰, 0, 0, 0); ModelError without a declared energy if the form is finite at η⁰;
+    `load` (−R(0)) as it is if it is not (the first step names the form)."""
     why = "its load -R(0) is not finite (a term singular at eta = 0)"
     at = _state(name, V, state, placeholders, zero, why)
     at[placeholders[1]] = zero  # the static force: at rest
     static = ufl.algorithms.expand_derivatives(ufl.replace(R, at))
-    if not _all_ranks(V, np.isfinite(_assemble_vector(static)).all()):
+    if not _all_ranks(V, np.isfinite(assemble_vector(static)).all()):
         return load
     if declared is None:
         raise ModelError(f"model '{name}': {what} is evaluated at eta = 0 for its load and the zero of its potential "
@@ -300,14 +256,13 @@ def _load_at_state(name: str, what: str, R, placeholders, w, V, params, state, z
                          "stored_energy(eta, p), its energy density (the load is then taken at the initial state)")
     state_eta = at[placeholders[0]]
     energy = ufl.derivative(declared(state_eta, params) * ufl.dx, state_eta, w)
-    b = _assemble_vector(ufl.algorithms.expand_derivatives(energy - ufl.replace(R, at)))
+    b = assemble_vector(ufl.algorithms.expand_derivatives(energy - ufl.replace(R, at)))
     return b if _all_ranks(V, np.isfinite(b).all()) else load
 
 
 def _check_mass(name: str, what: str, density, V, params) -> bool:
-    """FormError unless the mass density (`model.forms.mass_density`) is positive and finite at every node: a
-    negative or zero mass ran to 1e30 and more, marked complete. False if the density is no pointwise expression
-    of the nodes (the caller then checks the assembled mass)."""
+    """FormError unless the mass density (`model.forms.mass_density`) is positive and finite at every node (a zero or
+    negative mass ran to 1e30, marked complete); False if it is no pointwise expression (the caller checks the rows)."""
     from .nodal import evaluate
 
     x = node_coordinates(V)
@@ -358,18 +313,11 @@ def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
 
 
 def step_matrices(ops: Operators, dt: float, mass: str):
-    """The constant matrices of one time step: (A, M_scheme, C/Δt).
-
-    A = M/Δt² + C/Δt + K, with M_scheme = M (consistent) or diag(m) (lumped). The right-hand side
-    (M/Δt²)(2η^n − η^{n−1}) + (C/Δt)η^n + m_F∘F^n + b is built by the time loop, which reuses the
-    previous step's (C/Δt)η from its energy diagnostics instead of a matrix P for it.
-    """
-    if mass == "lumped":
-        Ms = diagonal_matrix(ops.M, ops.m)
-    elif mass == "consistent":
-        Ms = ops.M
-    else:
+    """The constant matrices of one time step: (A, M_scheme, C/Δt), A = M/Δt² + C/Δt + K with M_scheme = M
+    (consistent) or diag(m) (lumped); the time loop builds the right-hand side."""
+    if mass not in ("lumped", "consistent"):
         raise ValueError(f"mass must be 'lumped' or 'consistent', not {mass!r}")
+    Ms = diagonal_matrix(ops.M, ops.m) if mass == "lumped" else ops.M
     same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN  # M, C, K share one sparsity (see semi_discrete_operators)
     A = ops.K.copy()
     A.axpy(1.0 / dt, ops.C, structure=same)
@@ -380,18 +328,14 @@ def step_matrices(ops: Operators, dt: float, mass: str):
 
 
 def stacked(top: PETSc.Mat, bottom: PETSc.Mat) -> PETSc.Mat:
-    """[top; bottom], each rank's rows of `top` followed by its rows of `bottom`: one mat-vec, both products.
-
-    The time loop needs K η and (C/Δt) η of the same η every step; one PETSc call instead of two.
-    """
+    """[top; bottom], each rank's rows of `top` followed by its rows of `bottom`: one mat-vec gives both products
+    (the time loop needs K η and (C/Δt) η of the same η every step)."""
     ia1, ja1, a1 = top.getValuesCSR()  # this rank's rows, global column indices
     ia2, ja2, a2 = bottom.getValuesCSR()
     rows, cols = top.getLocalSize()
-    S = PETSc.Mat().createAIJ(
-        size=((2 * rows, PETSc.DECIDE), (cols, PETSc.DECIDE)),
-        csr=(np.concatenate([ia1, ia2[1:] + ia1[-1]]), np.concatenate([ja1, ja2]), np.concatenate([a1, a2])),
-        comm=top.getComm(),
-    )
+    S = PETSc.Mat().createAIJ(size=((2 * rows, PETSc.DECIDE), (cols, PETSc.DECIDE)), comm=top.getComm(),
+                              csr=(np.concatenate([ia1, ia2[1:] + ia1[-1]]), np.concatenate([ja1, ja2]),
+                                   np.concatenate([a1, a2])))
     S.assemble()
     return S
 
@@ -410,22 +354,10 @@ def node_coordinates(V) -> np.ndarray:
         return V.tabulate_dof_coordinates()[:, 0].copy()
     # 2D: the mesh's own node coordinates (P1 dofs sit on them), not tabulate_dof_coordinates: that maps the
     # reference vertices through a cell, exact only to an ulp that depends on the cell, hence on the ranks
-    from . import compat
-
     x = np.empty((V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, 2))
     x[compat.cell_dofs(V)] = V.mesh.geometry.x[compat.geometry_nodes(V.mesh), :2]
     return x
 
 
-__all__ = [
-    "ModelError",
-    "NonlinearForm",
-    "Operators",
-    "bc_dofs",
-    "default_stored_energy",
-    "node_coordinates",
-    "potential_energy",
-    "semi_discrete_operators",
-    "stacked",
-    "step_matrices",
-]
+__all__ = ["ModelError", "NonlinearForm", "Operators", "bc_dofs", "node_coordinates", "potential_energy",
+           "semi_discrete_operators", "stacked", "step_matrices"]

@@ -13,12 +13,9 @@ __all__ = ["OutputValues"]
 
 
 class OutputValues:
-    """The model's output fields (`model.interface.output_fields`) at this rank's owned nodes.
-
-    ``values(eta, fields)`` takes η and the scheme's further unknowns (owned arrays, by name) and returns every
-    output field by name. A derived field is a `fem.Expression` interpolated into P1: compiled once here, evaluated
-    only at the stored times (a kernel call per cell: too slow for every step, cheap for a few hundred rows).
-    """
+    """The model's output fields (`model.interface.output_fields`) at this rank's owned nodes, from η and the scheme's
+    further unknowns; a derived field is a `fem.Expression` compiled once and interpolated into P1 at the stored times
+    only (a kernel call per cell: too slow for every step, cheap for a few hundred rows)."""
 
     def __init__(self, model, V, params):
         self.fields = output_fields(model)

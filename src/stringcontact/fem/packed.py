@@ -1,16 +1,10 @@
 """A compiled form whose packed coefficients are refreshed in place, by a gather, instead of packed again.
 
-dolfinx packs a form's coefficients (their values cell by cell) at every assembly unless it is handed them.
-On a 1D P1 mesh that packing costs about as much as the assembly's kernels: at nx = 5000 the cubic foundation's
-Newton residual assembles in 0.24 ms with its two coefficients packed by dolfinx and in 0.13 ms with them handed
-over (`benchmarks/bench_nonlinear.py`, its last column), while refreshing one coefficient's slots by a NumPy
-gather costs about 0.02 ms (timeit). A Newton step assembles its residual at least twice and its stored energy
-once, so `PackedForm` keeps the packed arrays and gathers into them only what changed.
-
-The slots are found by dolfinx itself (`_probe`): each coefficient is packed once with the values 1, 2, …, N, so
-every slot that changes names its dof. The gather is then checked against dolfinx's packing with random values;
-where the two differ (an element whose packing transforms its values) the form packs through dolfinx at every
-assembly, as without this class.
+dolfinx packs a form's coefficients at every assembly unless handed them: at nx = 5000 the cubic foundation's Newton
+residual assembles in 0.24 ms packed by dolfinx, 0.13 ms handed over, a gather costing 0.02 ms
+(`benchmarks/bench_nonlinear.py`, its last column). The slots are found by dolfinx itself (`_probe`: each coefficient
+packed with the values 1, 2, …, N) and the gather checked against dolfinx's packing with random values; where they
+differ (an element that transforms its values) the form packs through dolfinx at every assembly.
 """
 
 from __future__ import annotations
@@ -25,11 +19,9 @@ __all__ = ["PackedForm"]
 
 
 class PackedForm:
-    """`ufl_form` compiled, with its coefficients packed once and refreshed by `refresh`.
-
-    `refresh(f, …)` gathers the slots of the given coefficients (all of them by default) from their current
-    values; `assemble_vector` and `assemble_scalar` then assemble without packing. A caller refreshes every
-    coefficient whose values it changed since the last assembly. `fast` is False where the gather did not
+    """`ufl_form` compiled, with its coefficients packed once: `refresh(f, …)` gathers the slots of the given
+    coefficients (default: all) from their values, which a caller does for every coefficient it changed;
+    `assemble_vector` and `assemble_scalar` then assemble without packing. `fast` is False where the gather did not
     reproduce dolfinx's packing: then every assembly packs afresh and `refresh` does nothing.
     """
 

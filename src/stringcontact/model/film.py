@@ -1,33 +1,18 @@
 """The fluid film: a Reynolds lubrication layer between the string (or membrane) and the obstacle y = 0.
 
-In string units (density, tension, length and height scales 1) the string is pushed by the film's pressure
-above ambient, and the film's thickness is the gap η (docs/explanation/film.md):
+In string units (docs/explanation/film.md) the string is pushed by the film's pressure above ambient, and the film's
+thickness is the gap η:
 
-    η_tt − α η_txx − η_xx = p − p_a + F          on (0, l), ends held at h,
-    η_t = (m(η) p_x)_x,  m(η) = max(η, h_min)³/(12 μ),   p = p_a at the ends (the film is open there),
+    η_tt − α η_txx − η_xx = p − p_a + F,   η_t = (m(η) p_x)_x,   m(η) = max(η, h_min)³/(12 μ),   p = p_a at the ends,
 
-on a membrane ∇·(m(η)∇p) and p = p_a on the boundary. F is the contact law's force (the paper's penalty):
-the constraint η ≥ 0 stays as a backstop. The unknowns are η and the gauge pressure q = p − p_a on the
-mixed P1 space, with one residual (tested with w for η and r for q)
+on a membrane ∇·(m(η)∇p). F is the paper's penalty, a backstop for η ≥ 0. The unknowns are η and the gauge pressure
+q = p − p_a on the mixed P1 space, with one residual (tests w, r): ∫ η_tt w + α η_tx·w_x + η_x·w_x − q w − F w +
+∫ η_t r + m(η) q_x·r_x, q held at 0 on the boundary. Testing with r = q, the pressure's work on the string is the
+film's viscous dissipation −∫ m(η)|q_x|² (the ledger books it with the viscous one).
 
-    ∫ η_tt w + α η_tx·w_x + η_x·w_x − q w − F w  +  ∫ η_t r + m(η) q_x·r_x,
-
-q held at 0 on the boundary. Testing the film's row with r = q shows where the energy goes: the pressure's
-work on the string, ∫ q η_t, is −∫ m(η)|q_x|², the film's viscous dissipation, so
-dE/dt = −α‖η_tx‖² − ∫ m(η)|q_x|² (the ledger books it with the viscous dissipation).
-
-Its constants (`CONSTANTS`, the scene's ``[parameters]`` table): `mu` > 0 (required), `p_ambient` (p_a, default 0),
-`p_cav` (cavitation: the pressure p ≥ p_cav, half-Sommerfeld, as a lower bound q ≥ p_cav − p_a of the variational
-inequality; default none), `h_min` (the mobility's floor, default `H_MIN`). Its output field `pressure` is
-q = p − p_a, drawn on a symmetric-log scale and colouring a membrane (`PRESSURE`).
-
-The pressure has no time derivative: the scheme must damp its stiff modes (L-stable). The paper's scheme is
-backward Euler in η and η_t with q at the new level; `newmark`'s midpoint rule is not L-stable and
-`projection`'s elastic term is explicit and its fields one step ahead of its report: both are refused.
-
-Newton's line search is ``l2`` (`Model.solver`): with PETSc's default ``bt`` 3 of the 20 runs of
-`stringcontact study film` stalled (Example 1 at μ = 1, with and without cavitation; the flat landing at
-μ = 1e-4 with cavitation), with ``l2`` none did, at the same iteration counts elsewhere.
+The pressure has no time derivative: the scheme must be L-stable (the paper's backward Euler; `newmark` and
+`projection` are refused). Newton's line search is ``l2``: with PETSc's ``bt`` 3 of the 20 runs of
+`stringcontact study film` stalled, with ``l2`` none did.
 """
 
 from __future__ import annotations
@@ -37,7 +22,7 @@ import dataclasses
 import ufl
 
 from ..errors import SceneError
-from .interface import DIVERGING, ModelConstant, OutputField, Parameters, SolverHints, inelastic
+from .interface import DIVERGING, ModelConstant, OutputField, Parameters, SolverHints, direct_options, inelastic
 
 #: The film's default thickness floor in the mobility max(η, h_min)³/(12 μ): it keeps the pressure's equation
 #: nonsingular where the string touches (η ≤ 0 under the penalty); docs/explanation/film.md measures its effect.
@@ -97,10 +82,6 @@ def _lower(values: dict) -> dict:
     return {"pressure": values["p_cav"] - values.get("p_ambient", 0.0)}
 
 
-#: A cavitating membrane's Newton step factorises its Jacobian by MUMPS' LU, in serial and on several ranks: the
-#: size rule's CG (above 1e3 nodes on several ranks) does not fit the film's nonsymmetric Jacobian, and PETSc's own
-#: LU of the mixed system is slower at 1e5 nodes (docs/explanation/film.md, "Cost").
-MEMBRANE_LU = (("ksp_type", "preonly"), ("pc_type", "lu"), ("pc_factor_mat_solver_type", "mumps"))
 #: A membrane that does not cavitate: GMRES preconditioned by the Schur complement on the pressure (PCFIELDSPLIT
 #: over the blocked space's two fields, "selfp" for the Schur block, BoomerAMG on both): 7-13 iterations through
 #: contact, 3.7 s per step at 1e5 nodes against MUMPS' 8.5 s; AMG on the whole system stalls once the membrane lands
@@ -113,17 +94,11 @@ MEMBRANE_FIELDSPLIT = (
     ("pc_fieldsplit_schur_precondition", "selfp"),
     ("fieldsplit_0_ksp_type", "preonly"), ("fieldsplit_0_pc_type", "hypre"),
     ("fieldsplit_1_ksp_type", "preonly"), ("fieldsplit_1_pc_type", "hypre"))
-#: The string's on several ranks: each rank factorises the whole (banded) Jacobian by PETSc's own LU
-#: (PCREDUNDANT); MUMPS' analysis and communication per factorisation cost more at these sizes.
-STRING_PARALLEL = (("ksp_type", "preonly"), ("pc_type", "redundant"))
-
-
 def linear_options(dim: int, ranks: int, constants: dict) -> tuple:
-    """The film's linear solver (`SolverHints.linear_options`): on a membrane the Schur fieldsplit, or MUMPS' LU when
-    the film cavitates (``p_cav`` given); on a string the redundant LU on several ranks, else the size rule's (LU)."""
-    if dim == 2:
-        return MEMBRANE_LU if _lower(constants) else MEMBRANE_FIELDSPLIT
-    return STRING_PARALLEL if ranks > 1 else ()
+    """The film's linear solver (`SolverHints.linear_options`): on a membrane the Schur fieldsplit, or when the film
+    cavitates (``p_cav`` given) MUMPS' LU (PETSc's own LU of the mixed system is slower at 1e5 nodes); on a string the
+    `direct_options`."""
+    return MEMBRANE_FIELDSPLIT if dim == 2 and not _lower(constants) else direct_options(dim, ranks)
 
 
 film = dataclasses.replace(
@@ -148,5 +123,5 @@ film = dataclasses.replace(
                 "penalty as a backstop; each step by Newton",
 )
 
-__all__ = ["CONSTANTS", "H_MIN", "MEMBRANE_FIELDSPLIT", "MEMBRANE_LU", "PRESSURE", "STRING_PARALLEL", "check_cavitation",
-           "film", "film_residual", "linear_options", "mobility", "pressure_lower", "string_energy"]
+__all__ = ["CONSTANTS", "H_MIN", "MEMBRANE_FIELDSPLIT", "PRESSURE", "check_cavitation", "film", "film_residual",
+           "linear_options", "mobility", "pressure_lower", "string_energy"]

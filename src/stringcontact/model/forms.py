@@ -1,11 +1,8 @@
 """What a model's form must be, checked in UFL before anything is compiled: a `Form` with a ``dx`` term, linear in
-the test function (rank 1), and a mass (the coefficient of η_tt) that is constant in the unknowns.
-
-A bilinear form (a ``TrialFunction`` in it) aborted the process inside the assembler, a form without ``dx`` or a
-functional (rank 0) ended in an internal error, and a negative or zero mass ran to values of 1e30 and more that
-the ledger and the penetration check could not tell from a result. `check_form` refuses the first in one line
-naming the model and the function; `mass_density` gives the mass per length (per area) as a pointwise UFL
-expression, which the caller evaluates at the nodes (it must be positive: `fem.operators`).
+the test function (rank 1), with a mass (the coefficient of η_tt) constant in the unknowns. A bilinear form aborted the
+process inside the assembler, a form without ``dx`` or a functional ended in an internal error, and a negative or
+zero mass ran to 1e30 unnoticed: `check_form` refuses them in one line; `mass_density` gives the mass as a pointwise
+UFL expression, which `fem.operators` checks is positive at the nodes.
 """
 
 from __future__ import annotations

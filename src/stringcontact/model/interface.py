@@ -1,127 +1,76 @@
 """The model contract: what a model is (`Model`, `Parameters`) and what it declares besides its UFL (its constants,
-output fields and solver hints). These are data; the core never names a particular model.
-
-A model is a `Model`: a few plain functions that return UFL, and data. Its defaults are the paper's model
-(`model.inelastic`, registered as ``inelastic``); a variant replaces one function (see `docs/howto/models.md` and
-`demos/demo_model_variant.py`). The time loop (`timestepping`) never looks inside these functions; it only asks them
-for UFL.
+output fields and solver hints). These are data; the core never names a particular model. docs/howto/models.md has
+the table of the fields; a variant replaces one function of the paper's model (`model.inelastic`,
+``dataclasses.replace(inelastic, name="mine", penalty=my_penalty)``; demos/demo_model_variant.py).
 
 ``momentum_form(eta, eta_t, eta_tt, force, w, p)``
-    The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the
-    unknowns' time derivatives, as in Irksome: `eta`, `eta_t`, `eta_tt` are placeholders that the
-    time scheme (`timestepping`) replaces by its difference quotients, and `force` is a placeholder for
-    the contact force density. R linear in the four placeholders gives constant operators, assembled once;
-    R nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``) makes every step a Newton solve
-    (`timestepping.newton`); R must be affine in `eta_tt` and `force` with constant coefficients (the
-    scheme checks). Terms in none of them (an external load ``- f*w*dx``) are the constant load
-    b = -R(0, 0, 0, 0). `w` is the test function.
+    The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the placeholders that
+    the scheme replaces by its difference quotients (as in Irksome) and `force`, the contact force density. Linear
+    in them: constant operators, assembled once; nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``): every step a
+    Newton solve (`timestepping.newton`). It must be affine in `eta_tt` and `force` with constant coefficients;
+    terms in none of them (a load ``- f*w*dx``) are the constant load b = -R(0, 0, 0, 0).
 
 ``penalty(eta, v, p)``
-    The contact force density F as a *pointwise* UFL expression in the previous step's η^n and
-    v^n = (η^n − η^{n−1})/Δt (P1 functions) and the P1 scene fields in ``p.extra``. It may be
-    nonlinear: it is evaluated at the nodes (`fem/nodal.py`: arithmetic, conditional, max/min, abs,
-    sqrt, exp, ln, sin, cos, tanh) and lumped onto them with the row sums of ∂R/∂force, so it is
-    explicit: the matrices never change.
+    The contact force density F, a *pointwise* UFL expression in η^n and v^n = (η^n − η^{n−1})/Δt and the fields
+    in ``p.extra``: evaluated at the nodes (`fem/nodal.py`: arithmetic, conditional, max/min, abs, sqrt, exp, ln,
+    sin, cos, tanh), lumped with the row sums of ∂R/∂force, explicit: the matrices never change.
 
 ``penalty_damping(eta, v, p)`` (optional)
-    The same law as a damping coefficient d ≥ 0 with F = −d v^{n+1} (`penalty="semi-implicit"`):
-    only the diagonal of the step matrix changes, and only when d changes (for the paper's law, when the
-    active set changes). ``None`` when the law is not a velocity damping (then only the explicit
-    penalty is available).
+    The same law as a damping coefficient d ≥ 0, F = −d v^{n+1} (`penalty="semi-implicit"`): only the step
+    matrix's diagonal changes, when d does. ``None``: not a velocity damping (only the explicit penalty).
 
-``contact_set(eta, p)``
-    The contact indicator written to the results (a UFL condition, evaluated at the nodes).
+``contact_set(eta, p)``; ``gap(eta, p)`` (optional)
+    The contact indicator written to the results (a UFL condition); the signed distance to the obstacle η − ψ
+    (affine in η, slope 1), whose admissible set gap ≥ 0 ``projection`` enforces (``None``: a law meant to let
+    the string through, a spring).
 
-``gap(eta, p)`` (optional)
-    The signed distance to the obstacle, η − ψ (a UFL expression, affine in η with slope 1): the
-    admissible set is gap ≥ 0. Schemes that enforce the constraint itself (``projection``) need it;
-    ``None`` for a law that is meant to let the string through (a spring that bounces).
-
-``stability(dt, eps, penalty)`` (optional)
-    The bound this contact law puts on Δt and ε when a scheme evaluates it (``penalty`` is "explicit" or
-    "semi-implicit"): returns ``None`` (fine), ``("warn", why)`` or ``("refuse", why)``. It belongs to the
-    law, not to the solver: the velocity penalty's restitution is r − 1 with r = Δt/ε; a spring's bound is on
-    Δt²/ε (`variants.spring_bound`).
-
-``contact_energy(eta, p)`` (optional)
-    For a *conservative* law (F = −∂Φ/∂η, a spring): the stored energy density Φ(η), so that the
-    solver's energy guard counts the energy held in the spring instead of calling its release
-    an instability. ``None`` for a dissipative law such as the paper's.
+``stability(dt, eps, penalty)``, ``contact_energy(eta, p)`` (optional)
+    The law's own bound on Δt and ε (``penalty`` "explicit" or "semi-implicit"): ``None``, ``("warn", why)`` or
+    ``("refuse", why)`` (the velocity penalty's restitution is r − 1, r = Δt/ε; a spring's bound is on Δt²/ε). A
+    conservative law's stored energy density Φ (F = −∂Φ/∂η), which the energy guard counts.
 
 ``stored_energy(eta, p)`` (optional)
-    The energy density Π(η) the momentum form stores (UFL), for a model whose form is nonlinear: the
-    Newton path's ledger books ∫Π(η) as the elastic energy. ``None``: the potential of the form's static force,
-    ∫₀¹ G(sη; η) ds (`fem.operators.potential_energy`; ½|∇η|² for the paper's form), which starts at η = 0: a
-    form not finite there (k/η) must declare its energy (its load is then taken at the initial state). A model
-    with ``fields`` must declare it, as ``stored_energy(U, p)`` in all its unknowns ``U = (η, *fields)`` (a field that stores no
-    energy, such as a film's pressure, simply does not appear in it).
+    The energy density Π(η) the form stores (UFL), booked by the Newton path's ledger. ``None``: the potential
+    of the form's static force (`fem.operators.potential_energy`), which starts at η = 0: a form not finite there
+    (k/η) must declare it. A model with ``fields`` declares ``stored_energy(U, p)`` in ``U = (η, *fields)``.
 
-``penetration_bound`` (default ``"auto"``)
-    The penetration bound the contact law has (`run.checks.penetration_check`): ``"velocity"`` (the paper's
-    velocity penalty (1/ε)(v)⁻ stops a node falling at V within (ε + Δt)·V), ``"spring"`` (a spring of stiffness
-    1/ε: √ε·V), or ``None`` (no known bound: the run reports the depth alone). ``"auto"``: the bound the
-    ``penalty`` function declares as its attribute ``penetration_bound`` (the paper's ``"velocity"``), else
-    ``None``; so ``replace(inelastic, penalty=mine)`` is never judged by the paper's bound.
+``penetration_bound`` (default ``"auto"``), ``energy_label``, ``newton``
+    The run's penetration check (`run.checks`): ``"velocity"`` (within (ε + Δt)·V), ``"spring"`` (√ε·V) or
+    ``None`` (the depth alone); ``"auto"``: the ``penalty`` function's attribute ``penetration_bound``, else
+    ``None``, so a law of one's own is never judged by the paper's bound. The legend of the stored energy in
+    ``energy.png`` (``None``: "elastic ½∫η_x²"). ``newton``: every step by Newton even for a linear form.
 
-``energy_label`` (optional)
-    The legend of the stored energy in ``energy.png`` (matplotlib mathtext allowed), recorded in
-    summary.json; ``None``: the paper's "elastic ½∫η_x²".
+``fields`` and ``residual(U, U_t, U_tt, force, W, p)``, with ``held_fields``, ``field_lower(p)``,
+``dissipative_fields``, ``schemes`` and ``scheme_note`` (optional)
+    More P1 unknowns on the same mesh: the residual over tuples ``U = (η, *fields)``, ``W = (w, *tests)`` replaces
+    `momentum_form`, every step a Newton solve on the mixed space; the fields enter through their values and first
+    time derivatives; η is the first (held at the ends, in contact), the others free unless held or bounded. The
+    fields held at 0 on the boundary; a lower bound per field (a variational inequality);
+    the fields whose work on η is booked as viscous dissipation; the schemes that may run the model (empty: all)
+    and why the others may not.
 
-``newton`` (a flag, default False)
-    Solve every step by Newton (`timestepping.newton`) even when the form is linear: a form nonlinear in
-    η or η_t always is; a linear one otherwise keeps the constant operators (a comparison or a test).
-
-``fields`` and ``residual(U, U_t, U_tt, force, W, p)`` (optional, together)
-    More unknowns on the same mesh (P1 each), named in ``fields`` (e.g. ``("pressure",)``): the model then
-    writes its residual over tuples, ``U = (η, *fields)`` and their derivatives, ``W = (w, *test_functions)``
-    (the fields' test functions), instead of `momentum_form`, and every step is a Newton solve on the mixed space. The first
-    component is η (ends held, contact on it); the others have no boundary condition and no bound unless
-    the model gives them (below). They
-    may enter through their values and first time derivatives (their second derivatives are not lumped).
-
-``held_fields``, ``field_lower(p)``, ``dissipative_fields`` and ``schemes`` (optional, with ``fields``)
-    The fields held at 0 on the boundary (η's fixed ends or boundary nodes); a lower bound per field name
-    (a dict of floats: the step is then a variational inequality on those fields); the fields whose terms
-    in η's equation dissipate (their work on η over a step is booked with the viscous dissipation); and the
-    schemes that may run the model (empty: all), with ``scheme_note`` saying why the others may not.
-
-``constants`` (optional)
-    The model's own constants, a tuple of `ModelConstant` (name, default, allowed range, unit, one line): a
-    scene sets them in its ``[parameters]`` table, Python through ``Scene.replace(parameters={...})``; the forms
-    read each as a dolfinx ``Constant`` ``p.constants[name]``, so a value can change between steps without
-    recompiling. ``check_constants(values)`` (optional) refuses combinations (a `SceneError` naming one).
-
-``outputs`` (optional)
-    The fields the model writes besides η, v, the contact set and force (`OutputField`: an unknown of
-    ``fields`` by name, or a derived UFL expression of the unknowns, with how it is shown). Every unknown of
-    ``fields`` is written whether named here or not.
-
-``release`` (default ``"inelastic"``)
-    How schemes `projection` and `fitted` let a node that rests on the obstacle leave it: ``"inelastic"``, the
-    paper's (A4), with the free step's velocity; ``"signorini"``, Signorini contact without (A4), as at the massless
-    contact point of an elastic rod: a node at rest on the obstacle has no mass, leaves at its neighbours'
-    equilibrium, and gives back at most what its landings took (`timestepping.release`); the scheme starts at second
-    order. The other schemes have no release rule of their own (their penalty law decides).
-
-``solver`` (optional)
-    `SolverHints`: the model's defaults for its Newton step (``newton_options``) and its linear solver
-    (``linear_options(dim, ranks, constants)``): above the schemes' defaults, below the user's options.
-
-The paper's model (Definition 2.1) is the default: `inelastic`, every field at its default.
+``constants``, ``check_constants(values)``, ``outputs``, ``solver``, ``release`` (optional)
+    The model's own constants (`ModelConstant`: a scene's ``[parameters]``, read by the forms as dolfinx
+    Constants ``p.constants[name]``) and its rule between them (a `SceneError` naming one); the fields it writes
+    besides η, v, the contact set and force (`OutputField`; every unknown is written); its solver defaults
+    (`SolverHints`); how ``projection`` and ``fitted`` let a resting node leave the obstacle: ``"inelastic"`` (the paper's
+    (A4)) or ``"signorini"`` (a resting node has no mass, leaves at its neighbours' equilibrium and gives back at most
+    what its landings took, `timestepping.release`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import ufl
 
 from ..scene.parameters import ModelConstant
 from .inelastic import contact_set, gap, momentum_form, penalty, penalty_damping, restitution_bound
 
-__all__ = ["DIVERGING", "PENETRATION_BOUNDS", "SEQUENTIAL", "Model", "ModelConstant", "OutputField", "Parameters",
-           "SolverHints", "inelastic", "output_fields", "penetration_bound_of", "reads_eps", "unused_fields"]
+__all__ = ["DIVERGING", "MUMPS_LU", "PENETRATION_BOUNDS", "REDUNDANT_LU", "SEQUENTIAL", "Model", "ModelConstant",
+           "OutputField", "Parameters", "SolverHints", "direct_options", "inelastic", "output_fields",
+           "penetration_bound_of", "reads_eps", "unused_fields"]
 
 #: A diverging field's colours at −P, 0 and P (RGB in 0 … 1): blue, a middle grey, red. The grey middle stays seen on
 #: a white background and on the light grey obstacle, and black labels on it are read.
@@ -137,17 +86,15 @@ RESERVED = ("eta", "velocity", "contact", "contact_force", "obstacle", "x", "t")
 
 @dataclass(frozen=True)
 class OutputField:
-    """A field a model writes at every stored time: to `Result.fields[name]`, ``rows.npz``, ``solution.xdmf``, the
-    pictures (``NAME.png``) and ParaView's view.
+    """A field a model writes at every stored time: `Result.fields[name]`, ``rows.npz``, ``solution.xdmf``,
+    ``NAME.png`` and ParaView's view.
 
-    `expression` is ``(U, p) -> UFL``, a scalar expression of the unknowns ``U = (η, *fields)`` and the
-    `Parameters` `p`, interpolated into P1 at each stored time (a reaction, a flux); ``None``: the model's unknown
-    of this `name` itself. How it is shown is metadata here, not code in the pictures: its `label` and `unit`;
-    its `colours` (RGB triples in 0 … 1 from the least value through the middle to the largest); its `scale`,
-    ``"linear"`` or ``"symlog"`` (symmetric about 0, linear within ``linear_share`` of its largest absolute value,
-    logarithmic beyond: a landing's pressure peak is 1e3-1e4 times the pressure around it); `symmetric`, a range
-    −P … P about 0 (a diverging field; ``"symlog"`` always is); `surface`, that it colours a membrane in the
-    pictures and ParaView's view instead of the contact set (one field of a model at most).
+    `expression`, ``(U, p) -> UFL``: a scalar expression of the unknowns ``U = (η, *fields)``, interpolated into P1
+    at each stored time (``None``: the unknown `name` itself). How it is shown is metadata, not code: `label`,
+    `unit`; `colours`, RGB triples in 0 … 1 from the least value to the largest; `scale`, ``"linear"`` or
+    ``"symlog"`` (linear within ``linear_share`` of its largest absolute value, logarithmic beyond: a landing's
+    pressure peak is 1e3-1e4 times the pressure around it); `symmetric`, a range −P … P (``"symlog"`` always is);
+    `surface`, that it colours a membrane instead of the contact set (one field of a model at most).
     """
 
     name: str
@@ -187,15 +134,13 @@ class OutputField:
 
 @dataclass(frozen=True)
 class SolverHints:
-    """How a model's Newton step is best solved: defaults, never physics; the user's PETSc options win.
+    """How a model's Newton step is best solved: defaults above the schemes', below the user's PETSc options.
 
-    `newton_options`: (name, value) pairs of the PETSc options a scene may give (``(("snes_linesearch_type",
-    "l2"),)``), above the schemes' defaults. `linear_options`: ``(dim, ranks, constants) -> pairs`` for the Newton
-    step's linear solver on a mesh of dimension `dim` on `ranks` ranks with the model's constants (a dict of
-    floats); naming ``ksp_type`` or ``pc_type`` replaces the size rule's choice
-    (`timestepping.linear.solver_options`). `setup_bytes_per_node`: the memory a membrane's set-up takes per node
-    with this model (mesh, operators, the Newton step's factor), measured; None: the core's estimate for one unknown
-    per node (`scene.limits.SETUP_BYTES_PER_NODE`). A run's size is checked against it before the mesh is built.
+    `newton_options`: (name, value) pairs of PETSc options (``(("snes_linesearch_type", "l2"),)``). `linear_options`:
+    ``(dim, ranks, constants) -> pairs`` for the step's linear solver on a mesh of dimension `dim` on `ranks` ranks;
+    naming ``ksp_type`` or ``pc_type`` replaces the size rule's choice (`timestepping.linear.solver_options`).
+    `setup_bytes_per_node`: a membrane's measured set-up memory per node with this model, against which a run's
+    size is checked before the mesh is built (None: `scene.limits.SETUP_BYTES_PER_NODE`).
     """
 
     newton_options: tuple = ()
@@ -208,6 +153,19 @@ class SolverHints:
         if self.linear_options is not None:
             options |= dict(self.linear_options(dim, ranks, constants))
         return options
+
+
+#: A direct solver for a membrane's nonsymmetric mixed system, which the size rule's CG does not fit: MUMPS' LU.
+MUMPS_LU = (("ksp_type", "preonly"), ("pc_type", "lu"), ("pc_factor_mat_solver_type", "mumps"))
+#: A string's on several ranks: each rank factorises the whole banded system (MUMPS' analysis and communication per
+#: factorisation cost more at these sizes; docs/explanation/film.md, "Cost").
+REDUNDANT_LU = (("ksp_type", "preonly"), ("pc_type", "redundant"))
+
+
+def direct_options(dim: int, ranks: int, constants: dict | None = None) -> tuple:
+    """A direct linear solver whatever the size (`SolverHints.linear_options`): `MUMPS_LU` on a membrane,
+    `REDUNDANT_LU` on a string on several ranks, in serial the size rule's (LU)."""
+    return MUMPS_LU if dim == 2 else REDUNDANT_LU if ranks > 1 else ()
 
 
 def output_fields(model) -> tuple[OutputField, ...]:

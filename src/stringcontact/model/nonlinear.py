@@ -1,23 +1,11 @@
-"""Nonlinear model variants, registered by name in pyproject.toml (`stringcontact models`).
+"""Nonlinear model variants, registered by name in pyproject.toml: their forms are nonlinear in η, so every scheme
+solves each step by Newton; each declares its stored energy (the ledger, ``energy.png``) and keeps the paper's law.
 
-Their momentum forms are nonlinear in η, so every scheme solves each of their steps by Newton's method
-(`timestepping.nonlinear`); each declares its stored energy, which the energy ledger and ``energy.png`` use.
-Both keep the paper's contact law (the velocity penalty, or the projection's η ≥ 0).
+``cubic_foundation``: the string on a Winkler–Duffing foundation, ∫ η_tt w + α ∫ η_tx w_x + ∫ η_x w_x +
+∫ (k η + k3 η³) w = ∫ F w, stored energy ∫ ½ η_x² + ½ k η² + ¼ k3 η⁴.
 
-``cubic_foundation``
-    The string on a nonlinear elastic (Winkler–Duffing) foundation of stiffness k and cubic stiffness k3:
-
-        ∫ η_tt w + α ∫ η_tx w_x + ∫ η_x w_x + ∫ (k η + k3 η³) w = ∫ F w,
-        stored energy ∫ ½ η_x² + ½ k η² + ¼ k3 η⁴.
-
-``large_deflection``
-    The geometrically exact string under unit tension: its restoring force is the tension along the string,
-    whose vertical part is η_x/√(1 + η_x²) (on a membrane ∇η/√(1 + |∇η|²), the minimal-surface operator):
-
-        ∫ η_tt w + α ∫ η_tx w_x + ∫ η_x/√(1 + η_x²) w_x = ∫ F w,
-        stored energy ∫ (√(1 + η_x²) − 1)  (the tension times the stretch).
-
-    For small slopes it is the paper's model; for large ones the string is softer.
+``large_deflection``: the geometrically exact string under unit tension, its restoring force η_x/√(1 + η_x²) (on a
+membrane the minimal-surface operator), stored energy ∫ (√(1 + η_x²) − 1); the paper's for small slopes.
 """
 
 from __future__ import annotations
@@ -76,13 +64,5 @@ large_deflection = dataclasses.replace(
                 "each step by Newton",
 )
 
-__all__ = [
-    "FOUNDATION_K",
-    "FOUNDATION_K3",
-    "cubic_foundation",
-    "foundation_energy",
-    "foundation_form",
-    "large_deflection",
-    "large_deflection_energy",
-    "large_deflection_form",
-]
+__all__ = ["FOUNDATION_K", "FOUNDATION_K3", "cubic_foundation", "foundation_energy", "foundation_form",
+           "large_deflection", "large_deflection_energy", "large_deflection_form"]

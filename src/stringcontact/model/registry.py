@@ -1,16 +1,10 @@
 """Which models a scene may name, and `load_model` (`stringcontact models` lists them: `cli.models`).
 
-A scene file is data: its ``model`` key is a *name* that an installed package registers under the
-entry-point group ``stringcontact.models`` (this package registers ``inelastic``, ``elastic`` and
-``loaded_obstacle``; docs/howto/models.md shows how a package of your own registers more). Checking a scene's
-name reads the installed packages' metadata only and imports nothing; a run then loads the one entry point
-it names, which imports that installed package's module: the trust boundary is the user's ``pip install``.
-
-``"package.module:name"`` is accepted only where the user types it: ``--model`` on the command line and
-`load_model` in Python. Even there the named object must already be a `Model`: nothing is called.
-
-Heavy imports (UFL, through `paper`) stay inside the functions. The names themselves (`registered`, `check_name`)
-are read in `scene.names`, which a scene's validation uses without importing this package.
+A scene's ``model`` is a *name* an installed package registers under the entry-point group ``stringcontact.models``
+(docs/howto/models.md): checking it reads metadata only (`scene.names`); a run loads the one entry point it names,
+which imports that package's module: the trust boundary is the user's ``pip install``. ``"package.module:name"`` is
+accepted only where the user types it (``--model``, `load_model`), and the object must already be a `Model`: nothing
+is called.
 """
 
 from __future__ import annotations

@@ -1,25 +1,17 @@
-"""Model variants shipped with stringcontact, registered by name in pyproject.toml (`stringcontact models`).
-
-Each variant changes one or two of the paper's UFL functions (`paper.py`) and keeps the rest:
+"""Model variants shipped with stringcontact, registered by name in pyproject.toml (``model = "elastic"``,
+``--model elastic``, ``sc.simulate(scene, model=elastic)``); each changes one or two of the paper's functions.
 
 ``elastic``
-    Elastic (bouncing) contact: the classic Signorini displacement penalty F = (1/ε) η⁻ in place
-    of the paper's velocity penalty. A spring of stiffness 1/ε below the obstacle: an impact gives
-    the energy back (up to O(ε)) instead of destroying it. Explicit only (no damping form).
+    Elastic (bouncing) contact: the Signorini displacement penalty F = (1/ε) η⁻, a spring of stiffness 1/ε below
+    the obstacle, in place of the paper's velocity penalty: an impact gives the energy back (up to O(ε)).
+    Explicit only (no damping form).
 
 ``loaded_obstacle``
-    The paper's model with an external load f(x) and an obstacle ψ(x), read from the scene keys
-    ``load`` and ``obstacle`` (each defaults to 0 when the scene does not give it):
+    The paper's model with the scene's ``load`` f(x) and ``obstacle`` ψ(x) (each 0 when not given): ∫ η_tt w +
+    α ∫ η_tx w_x + ∫ η_x w_x = ∫ f w + ∫ F w, F = (1/ε) χ{η<ψ} (η_t)⁻, the contact set {η ≤ ψ}. A moving obstacle
+    ψ(x, t) brakes the gap rate, (1/ε) χ{η<ψ} (η_t − ψ_t)⁻, with ψ_t from ``p.extra["obstacle_rate"]``.
 
-        ∫ η_tt w + α ∫ η_tx w_x + ∫ η_x w_x = ∫ f w + ∫ F w,    F = (1/ε) χ{η<ψ} (η_t)⁻,
-
-    so the constraint is η ≥ ψ and the contact set is {η ≤ ψ}. The obstacle may move (ψ(x, t), the scene's
-    ``obstacle`` in t): the penalty then brakes the gap rate, (1/ε) χ{η<ψ} (η_t − ψ_t)⁻, with ψ_t from
-    ``p.extra["obstacle_rate"]``.
-
-Both are registered under the entry-point group ``stringcontact.models`` (pyproject.toml), so a scene
-selects them by name: ``model = "elastic"``; the command line too: ``--model elastic``; Python:
-``sc.simulate(scene, model=elastic)``. `load_model` lives in `registry` (re-exported here).
+`load_model` lives in `registry` (re-exported here).
 """
 
 from __future__ import annotations
@@ -50,12 +42,8 @@ _displacement_penalty.penetration_bound = "spring"  # a spring of stiffness 1/ε
 
 
 def spring_bound(dt: float, eps: float, penalty: str):
-    """A spring of stiffness 1/ε held explicitly: warn when Δt²/ε > 2.
-
-    A lone node is stable for Δt²/ε ≤ 4, but its energy swings more than the guard allows (2 E(0)) from
-    about 3 on (measured on the flat landing, `study stability`); a point contact, stiffened by the
-    implicit elastic term, runs far beyond (docs/explanation/getfem.md). So this warns and the energy guard decides.
-    """
+    """A spring of stiffness 1/ε held explicitly: warn when Δt²/ε > 2 (a lone node is stable up to 4, but its energy
+    swings beyond the guard's 2 E(0) from about 3 on: `study stability`); the energy guard decides."""
     q = dt * dt / eps
     if penalty != "explicit" or q <= 2:
         return None

@@ -1,13 +1,6 @@
-"""Input data, never imports dolfinx: the `Scene`, its validation, TOML in and out, safe expressions.
-
-The bottom layer: it imports only `stringcontact.errors` (and NumPy, simpleeval, tomli-w). The names a scene may
-use that are registered elsewhere (models, time schemes) are checked through `names`, which imports nothing.
-
-Modules: `scene` (the `Scene` dataclass: building, derived values, conversions, warnings), `checks` (the
-validation of each value, one-line `SceneError`s), `limits` (the keys and the limits on their values, the
-stored rows' memory), `parameters` (a model's constants in the `[parameters]` table), `toml` (scene files in
-and out), `expressions`, `names`.
-"""
+"""Input data, the bottom layer: the `Scene`, its checks, TOML in and out, safe expressions; it imports only
+`stringcontact.errors` (and NumPy, simpleeval, tomli-w), never dolfinx. The names registered elsewhere (models, time
+schemes) are checked through `names`, which imports nothing."""
 
 from ..lazy import lazy_names
 
@@ -25,22 +18,6 @@ _LAZY = {
 }
 __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
-
-__all__ = [
-    "BYTES_PER_STORED_NODE",
-    "FIELD_KEYS",
-    "FILE_KEYS",
-    "MAX_FILE_BYTES",
-    "MAX_OUTPUT_TIMES",
-    "MAX_STORED_BYTES",
-    "REQUIRED_KEYS",
-    "STORED_ROWS",
-    "ModelConstant",
-    "Scene",
-    "SceneWarning",
-    "check_petsc_options",
-    "list_scenes",
-    "load_scene",
-    "scene_to_toml",
-    "stored_bytes",
-]
+__all__ = ["BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",
+           "MAX_STORED_BYTES", "REQUIRED_KEYS", "STORED_ROWS", "ModelConstant", "Scene", "SceneWarning",
+           "check_petsc_options", "list_scenes", "load_scene", "scene_to_toml", "stored_bytes"]

@@ -1,28 +1,14 @@
-"""Safe, vectorised evaluation of user expressions in ``x`` (initial data of a scene).
+"""Safe, vectorised evaluation of user expressions in ``x`` (a scene's initial data and fields).
 
-The text of a scene file is untrusted, so it is never given to ``eval``/``exec``.
-It is parsed with :mod:`ast`, checked against a whitelist, and evaluated by a
-restricted :class:`simpleeval.SimpleEval` whose operators are numpy ufuncs.
+The text of a scene file is untrusted, so it is never given to ``eval``/``exec``: it is parsed with :mod:`ast`,
+checked against a whitelist and evaluated by a restricted :class:`simpleeval.SimpleEval` whose operators are NumPy
+ufuncs. Allowed: the names ``x``, ``y`` (2D only, so that a 1D scene cannot silently read ``y = 0``), ``l`` (the
+string's length), ``h`` (only when the scene gives a single boundary height), ``t`` (a moving obstacle) and ``pi``;
+numbers (an int of at most 30 digits); ``+ - * / **``, unary ``-``/``+``, comparisons ``< <= > >= == !=`` (chains
+such as ``0.2 <= x < 0.8`` act elementwise); the functions ``sin cos exp sqrt abs``, ``min max`` (two or more
+arguments), ``where(cond, a, b)`` and ``piecewise(c1, v1, c2, v2, ..., default)`` (the first true condition wins).
+Anything else is refused with a one-line :class:`SceneError` naming the field and what is allowed.
 
-Allowed:
-
-* names ``x`` (node coordinates), ``l`` (string length), ``pi``, and ``h``
-  (the boundary height, only when the scene gives a single ``h``); on a 2D domain also ``y``
-  (in 1D ``y`` is an unknown name, so that a 1D scene cannot silently read ``y = 0``);
-* numbers (int or float literals; an int may have at most 30 digits);
-* ``+ - * / **``, unary ``-`` and ``+``, comparisons ``< <= > >= == !=``
-  (chained comparisons such as ``0.2 <= x < 0.8`` act elementwise);
-* functions ``sin cos exp sqrt abs`` (one argument), ``min max`` (elementwise,
-  two or more arguments), ``where(cond, a, b)`` and
-  ``piecewise(c1, v1, c2, v2, ..., default)`` (the first true condition wins).
-
-Everything else (attributes, subscripts, strings, lambdas, comprehensions,
-keyword arguments, ...) is refused with a :class:`SceneError` whose one-line
-message names the field and what is allowed.
-
-Example
--------
->>> import numpy as np
 >>> evaluate("where(x < 0.6, -50, -0.5)", np.array([0.0, 1.0]), field="v0", names={"l": 1.0})
 array([-50. ,  -0.5])
 """
@@ -30,6 +16,7 @@ array([-50. ,  -0.5])
 from __future__ import annotations
 
 import ast
+import functools
 import math
 import re
 import warnings
@@ -42,21 +29,22 @@ from ..errors import SceneError, one_line
 __all__ = ["ALLOWED_FUNCTIONS", "ALLOWED_NAMES", "MAX_DEPTH", "MAX_LENGTH", "check", "evaluate", "uses_name"]
 
 MAX_LENGTH = 500  # characters in one expression
-MAX_DEPTH = 50  # nesting of operators/calls; also keeps the recursive evaluator far from Python's recursion limit
+MAX_DEPTH = 50  # nesting of operators and calls; also keeps the recursive evaluator far from Python's limit
 MAX_EXPONENT = 100.0  # |b| in a**b; beyond this the result is inf/0 for any sensible base
 MAX_INT_DIGITS = 30  # integer literals; longer ones are almost surely a mistake (or an attack)
-PROBE_POINTS = 101  # grid used by check()
+PROBE_POINTS = 101  # the grid of `check`
 
 ALLOWED_NAMES = ("x", "y", "l", "h", "t", "pi")
 ALLOWED_FUNCTIONS = ("sin", "cos", "exp", "sqrt", "abs", "min", "max", "where", "piecewise")
 
 _OPERATORS_TEXT = "+ - * / **, unary -, comparisons < <= > >= == !="
 _FUNCTIONS_TEXT = ", ".join(ALLOWED_FUNCTIONS)
-_NAMES_TEXT = ", ".join(ALLOWED_NAMES)
-_ALLOWED_TEXT = f"allowed are numbers, names {_NAMES_TEXT}, operators {_OPERATORS_TEXT} and functions {_FUNCTIONS_TEXT}"
+_ALLOWED_TEXT = (f"allowed are numbers, names {', '.join(ALLOWED_NAMES)}, operators {_OPERATORS_TEXT} and functions "
+                 f"{_FUNCTIONS_TEXT}")
 
 
-# --- numpy operators -------------------------------------------------------------------
+class _Refused(Exception):
+    """Raised inside evaluation with a user-facing reason; turned into SceneError with the field."""
 
 
 def _num(a):
@@ -66,17 +54,12 @@ def _num(a):
 
 
 def _arith(ufunc):
-    def op(*args):
-        return ufunc(*(_num(a) for a in args))
-
-    op.__name__ = ufunc.__name__
-    return op
+    return lambda *args: ufunc(*(_num(a) for a in args))
 
 
 def _power(base, exponent):
     exponent = _num(exponent)
-    # Check before np.power: a huge exponent is the classic way to make an evaluator hang or overflow.
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore"):  # checked before np.power: a huge exponent makes an evaluator hang
         too_big = np.abs(exponent) > MAX_EXPONENT
     if np.any(too_big):
         bad = float(np.asarray(exponent)[too_big].flat[0]) if np.ndim(exponent) else float(exponent)
@@ -84,104 +67,47 @@ def _power(base, exponent):
     return np.power(_num(base), exponent)
 
 
-_BINARY = {
-    ast.Add: _arith(np.add),
-    ast.Sub: _arith(np.subtract),
-    ast.Mult: _arith(np.multiply),
-    ast.Div: _arith(np.true_divide),
-    ast.Pow: _power,
-}
-_UNARY = {ast.USub: _arith(np.negative), ast.UAdd: _arith(np.positive)}
-# Comparisons act on floats; the results stay boolean so they can feed where/piecewise.
-_COMPARE = {
-    ast.Lt: _arith(np.less),
-    ast.LtE: _arith(np.less_equal),
-    ast.Gt: _arith(np.greater),
-    ast.GtE: _arith(np.greater_equal),
-    ast.Eq: _arith(np.equal),
-    ast.NotEq: _arith(np.not_equal),
-}
-
-
-# --- whitelisted functions, with their arity ---------------------------------------------
-
-
-def _minimum(*args):
-    return _reduce(np.minimum, args)
-
-
-def _maximum(*args):
-    return _reduce(np.maximum, args)
-
-
-def _reduce(ufunc, args):
-    result = _num(args[0])
-    for a in args[1:]:
-        result = ufunc(result, _num(a))
-    return result
-
-
-def _where(cond, a, b):
-    return np.where(_num(cond) != 0, _num(a), _num(b))
-
-
 def _piecewise(*args):
-    # Build from the last pair backwards so that the FIRST true condition wins.
-    result = _num(args[-1])
+    result = _num(args[-1])  # from the last pair backwards, so that the FIRST true condition wins
     for i in range(len(args) - 3, -1, -2):
         result = np.where(_num(args[i]) != 0, _num(args[i + 1]), result)
     return result
 
 
-# name -> (function, minimum number of args, maximum (None: unbounded), usage)
+_BINARY = {ast.Add: _arith(np.add), ast.Sub: _arith(np.subtract), ast.Mult: _arith(np.multiply),
+           ast.Div: _arith(np.true_divide), ast.Pow: _power}
+_UNARY = {ast.USub: _arith(np.negative), ast.UAdd: _arith(np.positive)}
+_COMPARE = {op: _arith(f) for op, f in ((ast.Lt, np.less), (ast.LtE, np.less_equal), (ast.Gt, np.greater),
+                                        (ast.GtE, np.greater_equal), (ast.Eq, np.equal), (ast.NotEq, np.not_equal))}
+# name -> (function, least number of arguments, most (None: unbounded), usage)
 _FUNCTIONS = {
-    "sin": (_arith(np.sin), 1, 1, "sin(a)"),
-    "cos": (_arith(np.cos), 1, 1, "cos(a)"),
-    "exp": (_arith(np.exp), 1, 1, "exp(a)"),
-    "sqrt": (_arith(np.sqrt), 1, 1, "sqrt(a)"),
-    "abs": (_arith(np.abs), 1, 1, "abs(a)"),
-    "min": (_minimum, 2, None, "min(a, b, ...)"),
-    "max": (_maximum, 2, None, "max(a, b, ...)"),
-    "where": (_where, 3, 3, "where(cond, a, b)"),
+    **{name: (_arith(f), 1, 1, f"{name}(a)") for name, f in (("sin", np.sin), ("cos", np.cos), ("exp", np.exp),
+                                                             ("sqrt", np.sqrt), ("abs", np.abs))},
+    "min": (lambda *a: functools.reduce(np.minimum, map(_num, a)), 2, None, "min(a, b, ...)"),
+    "max": (lambda *a: functools.reduce(np.maximum, map(_num, a)), 2, None, "max(a, b, ...)"),
+    "where": (lambda c, a, b: np.where(_num(c) != 0, _num(a), _num(b)), 3, 3, "where(cond, a, b)"),
     "piecewise": (_piecewise, 3, None, "piecewise(c1, v1, c2, v2, ..., default)"),
 }
-
-
-# --- whitelist check on the syntax tree ------------------------------------------------------
-
-
-class _Refused(Exception):
-    """Raised inside evaluation with a user-facing reason; turned into SceneError with the field."""
-
-
 _NODE_REASONS = {
-    ast.Attribute: "attribute access (a.b) is not allowed",
-    ast.Subscript: "subscripts/indexing (a[i]) are not allowed",
-    ast.Lambda: "lambda is not allowed",
-    ast.ListComp: "comprehensions are not allowed",
-    ast.SetComp: "comprehensions are not allowed",
-    ast.DictComp: "comprehensions are not allowed",
-    ast.GeneratorExp: "comprehensions are not allowed",
-    ast.List: "lists are not allowed",
-    ast.Tuple: "tuples are not allowed",
-    ast.Set: "sets are not allowed",
-    ast.Dict: "dicts are not allowed",
-    ast.JoinedStr: "f-strings are not allowed",
-    ast.FormattedValue: "f-strings are not allowed",
-    ast.IfExp: "'a if c else b' is not allowed; use where(c, a, b)",
+    ast.Attribute: "attribute access (a.b) is not allowed", ast.Subscript: "subscripts/indexing (a[i]) are not allowed",
+    ast.Lambda: "lambda is not allowed", ast.IfExp: "'a if c else b' is not allowed; use where(c, a, b)",
     ast.BoolOp: "'and'/'or' are not allowed; use where/piecewise or chained comparisons",
-    ast.NamedExpr: "assignment (:=) is not allowed",
-    ast.Starred: "* unpacking is not allowed",
-    ast.Await: "await is not allowed",
-    ast.Yield: "yield is not allowed",
-    ast.YieldFrom: "yield is not allowed",
-    ast.Slice: "slices are not allowed",
+    ast.NamedExpr: "assignment (:=) is not allowed", ast.Starred: "* unpacking is not allowed",
+    ast.Slice: "slices are not allowed", ast.JoinedStr: "f-strings are not allowed",
+    ast.FormattedValue: "f-strings are not allowed", ast.Await: "await is not allowed",
+    **dict.fromkeys((ast.Yield, ast.YieldFrom), "yield is not allowed"),
+    **dict.fromkeys((ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp), "comprehensions are not allowed"),
+    **{kind: f"{kind.__name__.lower()}s are not allowed" for kind in (ast.List, ast.Tuple, ast.Set, ast.Dict)},
 }
+_SYMBOLS = {ast.Mod: "%", ast.FloorDiv: "//", ast.MatMult: "@", ast.LShift: "<<", ast.RShift: ">>", ast.BitAnd: "&",
+            ast.BitOr: "|", ast.BitXor: "^", ast.Invert: "~", ast.Not: "not", ast.Is: "is", ast.IsNot: "is not",
+            ast.In: "in", ast.NotIn: "not in"}
 
 
 def _validate_tree(tree: ast.Expression, names: dict) -> None:
-    """Refuse every node outside the whitelist, with a reason a user can act on."""
-    stack = [(tree.body, 1)]  # iterative: the tree may be deep and we check depth ourselves
+    """Refuse every node outside the whitelist, with a reason a user can act on (iterative: a deep tree's depth is
+    checked here, not by a RecursionError)."""
+    stack = [(tree.body, 1)]
     while stack:
         node, depth = stack.pop()
         if depth > MAX_DEPTH:
@@ -191,19 +117,14 @@ def _validate_tree(tree: ast.Expression, names: dict) -> None:
             _check_constant(node.value)
         elif isinstance(node, ast.Name):
             _check_name(node.id, names)
-        elif isinstance(node, ast.UnaryOp):
-            if type(node.op) not in _UNARY:
-                raise _Refused(f"operator {_op_text(node.op)} is not allowed; allowed operators are {_OPERATORS_TEXT}")
-            children = [node.operand]
-        elif isinstance(node, ast.BinOp):
-            if type(node.op) not in _BINARY:
-                raise _Refused(f"operator {_op_text(node.op)} is not allowed; allowed operators are {_OPERATORS_TEXT}")
-            children = [node.left, node.right]
-        elif isinstance(node, ast.Compare):
-            for op in node.ops:
-                if type(op) not in _COMPARE:
-                    raise _Refused(f"operator {_op_text(op)} is not allowed; allowed operators are {_OPERATORS_TEXT}")
-            children = [node.left, *node.comparators]
+        elif isinstance(node, (ast.UnaryOp, ast.BinOp, ast.Compare)):
+            ops, table = ((node.ops, _COMPARE) if isinstance(node, ast.Compare) else
+                          ([node.op], _UNARY if isinstance(node, ast.UnaryOp) else _BINARY))
+            for op in ops:
+                if type(op) not in table:
+                    shown = repr(_SYMBOLS.get(type(op), type(op).__name__))
+                    raise _Refused(f"operator {shown} is not allowed; allowed operators are {_OPERATORS_TEXT}")
+            children = [child for child in ast.iter_child_nodes(node) if isinstance(child, ast.expr)]
         elif isinstance(node, ast.Call):
             _check_call(node)
             children = list(node.args)
@@ -213,15 +134,6 @@ def _validate_tree(tree: ast.Expression, names: dict) -> None:
         stack.extend((child, depth + 1) for child in children)
 
 
-def _op_text(op) -> str:
-    symbols = {
-        ast.Mod: "%", ast.FloorDiv: "//", ast.MatMult: "@", ast.LShift: "<<", ast.RShift: ">>",
-        ast.BitAnd: "&", ast.BitOr: "|", ast.BitXor: "^", ast.Invert: "~", ast.Not: "not",
-        ast.Is: "is", ast.IsNot: "is not", ast.In: "in", ast.NotIn: "not in",
-    }
-    return repr(symbols.get(type(op), type(op).__name__))
-
-
 def _check_constant(value) -> None:
     if isinstance(value, bool) or value is None or value is Ellipsis:
         raise _Refused(f"literal {value!r} is not allowed; only numbers are")
@@ -229,36 +141,25 @@ def _check_constant(value) -> None:
         raise _Refused("strings are not allowed; only numbers, names and functions are")
     if isinstance(value, complex):
         raise _Refused("complex numbers are not allowed")
-    if isinstance(value, int):
-        # bit_length first: str() of a huge int is slow (and limited to 4300 digits since 3.11).
-        if value.bit_length() > 4 * MAX_INT_DIGITS or len(str(abs(value))) > MAX_INT_DIGITS:
-            raise _Refused(f"integer literal has more than {MAX_INT_DIGITS} digits")
-    elif isinstance(value, float):
-        if not math.isfinite(value):
-            raise _Refused("number literal is too large (it overflows to inf)")
-    else:  # pragma: no cover - ast produces no other constants today
-        raise _Refused(f"literal of type {type(value).__name__} is not allowed")
+    # bit_length first: str() of a huge int is slow (and limited to 4300 digits since 3.11)
+    if isinstance(value, int) and (value.bit_length() > 4 * MAX_INT_DIGITS or len(str(abs(value))) > MAX_INT_DIGITS):
+        raise _Refused(f"integer literal has more than {MAX_INT_DIGITS} digits")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise _Refused("number literal is too large (it overflows to inf)")
 
 
 def _check_name(name: str, names: dict) -> None:
+    allowed = ", ".join(n for n in ALLOWED_NAMES if n in names or n == "h")
     if name.startswith("__") or name.endswith("__"):
-        raise _Refused(
-            f"double-underscore name {name!r} is not allowed; allowed names are {_allowed_names_text(names)}"
-        )
+        raise _Refused(f"double-underscore name {name!r} is not allowed; allowed names are {allowed}")
     if name in names:
         return
     if name == "h":
-        raise _Refused(
-            "name 'h' is only available when the scene gives a single boundary height h "
-            "(not h_left/h_right); allowed names are " + _allowed_names_text(names)
-        )
+        raise _Refused("name 'h' is only available when the scene gives a single boundary height h "
+                       f"(not h_left/h_right); allowed names are {allowed}")
     if name in _FUNCTIONS:
         raise _Refused(f"{name!r} is a function; call it as {_FUNCTIONS[name][3]}")
-    raise _Refused(f"unknown name {name!r}; allowed names are {_allowed_names_text(names)}")
-
-
-def _allowed_names_text(names: dict) -> str:
-    return ", ".join(n for n in ALLOWED_NAMES if n in names or n == "h")
+    raise _Refused(f"unknown name {name!r}; allowed names are {allowed}")
 
 
 def _check_call(node: ast.Call) -> None:
@@ -281,50 +182,25 @@ def _check_call(node: ast.Call) -> None:
         raise _Refused(f"{name} got {n} argument(s); use {usage}")
 
 
-# --- the evaluator ------------------------------------------------------------------------
-
-
 class _ArrayEval(SimpleEval):
-    """SimpleEval restricted to the whitelist, with numpy semantics.
-
-    simpleeval's default operators guard against huge Python ints/strings with checks
-    that do not work on arrays (``abs(a) > MAX_POWER`` is ambiguous for an array), so
-    the operators are replaced by ufuncs and the guards are done in _validate_tree and
-    _power instead.  Unsupported node types are dropped from the dispatch table, so
-    even a tree that slipped past _validate_tree could not reach attributes or subscripts.
-    """
+    """SimpleEval on a tree `_validate_tree` passed, with NumPy semantics: its operators are ufuncs (its guards on
+    huge Python ints do not work on arrays: `_power` guards instead), and only the whitelisted nodes are dispatched."""
 
     def __init__(self, names: dict):
-        operators = {**_BINARY, **_UNARY, **_COMPARE}
         functions = {name: spec[0] for name, spec in _FUNCTIONS.items()}
-        super().__init__(operators=operators, functions=functions, names=names)
-        self.nodes = {
-            ast.Expression: lambda node: self._eval(node.body),
-            ast.Constant: self._eval_constant,
-            ast.Name: self._eval_name,
-            ast.UnaryOp: self._eval_unaryop,
-            ast.BinOp: self._eval_binop,
-            ast.Compare: self._eval_compare,
-            ast.Call: self._eval_call,
-        }
+        super().__init__(operators={**_BINARY, **_UNARY, **_COMPARE}, functions=functions, names=names)
+        self.nodes = {ast.Expression: lambda node: self._eval(node.body), ast.Constant: self._eval_constant,
+                      ast.Name: self._eval_name, ast.UnaryOp: self._eval_unaryop, ast.BinOp: self._eval_binop,
+                      ast.Compare: self._eval_compare, ast.Call: self._eval_call}
 
     @staticmethod
     def _eval_constant(node):
         _check_constant(node.value)
-        # Floats throughout: numpy int arithmetic would wrap around silently, and 2**-1 would fail.
-        return np.float64(node.value)
-
-    def _eval_name(self, node):
-        try:
-            return self.names[node.id]
-        except KeyError:
-            raise _Refused(f"unknown name {node.id!r}") from None
+        return np.float64(node.value)  # floats: NumPy's ints wrap around silently, and 2**-1 would fail
 
     def _eval_compare(self, node):
-        # Elementwise chain: a < b < c means (a < b) & (b < c), each operand evaluated once;
-        # no short-circuit, since "false" differs from point to point.
-        left = self._eval(node.left)
-        result = None
+        # a < b < c is (a < b) & (b < c), each operand evaluated once; no short-circuit: "false" varies by point
+        left, result = self._eval(node.left), None
         for op, comparator in zip(node.ops, node.comparators):
             right = self._eval(comparator)
             value = self.operators[type(op)](left, right)
@@ -332,22 +208,11 @@ class _ArrayEval(SimpleEval):
             left = right
         return result
 
-    def _eval_call(self, node):
-        _check_call(node)
-        func = self.functions[node.func.id]
-        return func(*[self._eval(a) for a in node.args])
-
-
-# --- public API ------------------------------------------------------------------------
-
 
 def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float], y: np.ndarray | None = None) -> np.ndarray:
-    """Evaluate ``expr`` at the points ``x`` (and ``y`` on a 2D domain); returns a float64 array of ``x``'s shape.
-
-    ``names`` gives the scalar variables besides ``x`` and ``pi``: ``l``, ``t`` (the time, for a moving
-    obstacle only) and, if the scene has a single boundary height, ``h``. Any problem with the
-    expression raises :class:`SceneError` with a one-line message naming ``field``.
-    """
+    """``expr`` at the points ``x`` (and ``y`` on a 2D domain), a float64 array of ``x``'s shape; ``names`` gives the
+    scalars ``l``, ``t`` (a moving obstacle) and ``h`` (a single boundary height). Any problem with the expression
+    raises :class:`SceneError` with a one-line message naming ``field``."""
     unknown = set(names) - {"l", "h", "t"}
     if unknown:  # a programming error, not a user error
         raise ValueError(f"evaluate: names may only contain 'l', 'h' and 't', got {sorted(unknown)}")
@@ -358,61 +223,41 @@ def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float], y
         raise SceneError(f"{field}: expression is {len(expr)} characters long; at most {MAX_LENGTH} are allowed")
     if not expr.strip():
         raise SceneError(f"{field}: expression is empty; give a number or an expression in x")
-
-    variables = {"x": x, "pi": np.float64(np.pi)}
-    if y is not None:
-        variables["y"] = np.asarray(y, dtype=np.float64)
-    variables.update({k: np.float64(v) for k, v in names.items() if v is not None})
+    variables = {"x": x, "pi": np.float64(np.pi)} | ({"y": np.asarray(y, dtype=np.float64)} if y is not None else {})
+    variables |= {k: np.float64(v) for k, v in names.items() if v is not None}
+    short = repr(expr if len(expr) <= 60 else expr[:60] + "...")
     try:
-        with np.errstate(all="ignore"):  # non-finite results are reported below, not warned about
-            with warnings.catch_warnings():
-                # The parser warns about things like "9if"; the user gets an error or a result instead.
-                warnings.simplefilter("ignore", SyntaxWarning)
-                tree = ast.parse(expr.strip(), mode="eval")
+        with np.errstate(all="ignore"), warnings.catch_warnings():  # non-finite results are reported below
+            warnings.simplefilter("ignore", SyntaxWarning)  # "9if": the user gets an error or a result instead
+            tree = ast.parse(expr.strip(), mode="eval")
             _validate_tree(tree, variables)
-            value = _ArrayEval(variables).eval(expr, previously_parsed=tree)
-            value = np.asarray(_num(value), dtype=np.float64)
+            value = np.asarray(_num(_ArrayEval(variables).eval(expr, previously_parsed=tree)), dtype=np.float64)
             value = np.array(np.broadcast_to(value, x.shape), dtype=np.float64)
-    except SceneError:
-        raise
     except _Refused as exc:
         raise SceneError(f"{field}: {exc}") from None
     except SyntaxError as exc:
         if re.match(r"\s*(import|from)\b", expr):
             raise SceneError(f"{field}: imports are not allowed; give an expression in x") from None
         where = f" at column {exc.offset}" if exc.offset else ""
-        raise SceneError(
-            f"{field}: invalid syntax{where} ({one_line(exc.msg)}) in {_short(expr)}; {_ALLOWED_TEXT}"
-        ) from None
+        raise SceneError(f"{field}: invalid syntax{where} ({one_line(exc.msg)}) in {short}; {_ALLOWED_TEXT}") from None
     except RecursionError:
         raise SceneError(f"{field}: expression is nested too deeply; at most {MAX_DEPTH} levels are allowed") from None
     except Exception as exc:  # noqa: BLE001 - untrusted input: every failure must become a SceneError
         reason = f"{type(exc).__name__}: {one_line(exc)}"[:200]
-        raise SceneError(f"{field}: cannot evaluate {_short(expr)}: {reason}") from None
-
+        raise SceneError(f"{field}: cannot evaluate {short}: {reason}") from None
     bad = ~np.isfinite(value)
     if bad.any():
         first = np.flatnonzero(bad.ravel())[0]
-        raise SceneError(
-            f"{field}: {_short(expr)} is not finite (nan or inf) at {int(bad.sum())} of {bad.size} points, "
-            f"first at x={x.ravel()[first]:.6g}; check divisions, sqrt/powers of negatives and overflow"
-        )
+        raise SceneError(f"{field}: {short} is not finite (nan or inf) at {int(bad.sum())} of {bad.size} points, "
+                         f"first at x={x.ravel()[first]:.6g}; check divisions, sqrt/powers of negatives and overflow")
     return value
 
 
 def check(expr: str, *, field: str, names: dict[str, float]) -> None:
-    """Validate ``expr`` by evaluating it on a small grid over [0, l]; raises SceneError if invalid.
-
-    (A 2D scene evaluates its expressions at its own probe points: `Scene.probe_points`.)"""
-    length = float(names.get("l", 1.0))
-    evaluate(expr, np.linspace(0.0, length, PROBE_POINTS), field=field, names=names)
+    """Validate ``expr`` by evaluating it on a grid of PROBE_POINTS over [0, l]; raises SceneError if invalid."""
+    evaluate(expr, np.linspace(0.0, float(names.get("l", 1.0)), PROBE_POINTS), field=field, names=names)
 
 
 def uses_name(expr: str, name: str) -> bool:
     """Whether the (valid) expression ``expr`` reads the variable ``name`` (``t``: a moving obstacle)."""
     return any(isinstance(node, ast.Name) and node.id == name for node in ast.walk(ast.parse(expr.strip(), mode="eval")))
-
-
-def _short(expr: str, limit: int = 60) -> str:
-    text = expr if len(expr) <= limit else expr[:limit] + "..."
-    return repr(text)

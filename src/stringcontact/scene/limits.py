@@ -1,44 +1,8 @@
-"""The keys a scene file may hold and the limits on their values: ranges, sizes, the stored rows' memory.
-
-Constants only (and `stored_bytes`, the memory bound they imply); `checks` enforces them. The solver reads the
-storage constants (`STORED_ROWS`, `MAX_STORED_BYTES`, `BYTES_PER_STORED_NODE`) from here as well.
-"""
+"""The keys a scene file may hold and the limits on their values (ranges, sizes, the stored rows' memory), which
+`checks` enforces; the solver reads the storage constants from here as well."""
 
 from __future__ import annotations
 
-__all__ = [
-    "BOUNDS",
-    "BYTES_PER_STORED_NODE",
-    "DOMAIN_KEYS",
-    "DT_RELATIVE_TOLERANCE",
-    "FIELD_KEYS",
-    "FILE_KEYS",
-    "INT_BOUNDS",
-    "KEY_DOCS",
-    "MAX_CELLS",
-    "MAX_DISK_RATIO",
-    "MAX_FILE_BYTES",
-    "MAX_MAGNITUDE",
-    "MAX_MEMBRANE_NODES",
-    "MAX_OUTPUT_TIMES",
-    "MAX_STORED_BYTES",
-    "NAME_MAX",
-    "PETSC_MAX_OPTIONS",
-    "PETSC_PREFIXES",
-    "PETSC_REFUSED_NAMES",
-    "PETSC_REFUSED_WORDS",
-    "REQUIRED_KEYS",
-    "SETUP_BYTES_PER_NODE",
-    "STORED_ROWS",
-    "stored_bytes",
-]
-
-#: Keys a scene file (or Scene.replace) accepts, in the order they are written.
-FILE_KEYS = (
-    "name", "description", "notes", "length", "T", "alpha", "eps", "nx", "nt", "dt",
-    "eta0", "v0", "h", "h_left", "h_right", "load", "obstacle", "output_times", "model", "scheme",
-    "domain", "size", "cells", "radius", "mesh_size", "mesh", "restitution", "parameters", "petsc_options",
-)
 #: The domains and the geometry keys each one takes (docs/howto/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
     "interval": ("length", "nx", "h_left", "h_right"),
@@ -60,25 +24,14 @@ SCHEME_OPTIONS_MAX = 32
 MAX_FILE_BYTES = 1_000_000
 DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
 
-# Bounds: (low, high, low_open, high_open). Wide enough for any sensible run, tight enough
-# to catch typos (a missing minus, a forgotten decimal point) before a solver sees them.
-BOUNDS = {
-    # length, radius and T at least 1e-6: 1e-300 made dolfinx's interval of zero length and T/nt divide by 0;
-    # float64 keeps 1e-6/1e5 cells and 1e-6/1e8 steps well inside its range (docs/explanation/reliability.md).
-    "length": (1e-6, 1e4, False, False),
-    "radius": (1e-6, 1e4, False, False),
-    "T": (1e-6, 1e4, False, False),
-    "alpha": (0.0, 1e4, False, False),
-    "eps": (1e-12, 1e6, False, False),  # below 1e-12: see docs/explanation/reliability.md, "Size and precision limits"
-    "h": (-1e6, 1e6, False, False),
-    "h_left": (-1e6, 1e6, False, False),
-    "h_right": (-1e6, 1e6, False, False),
-    # scheme 'projection's restitution coefficient e (Paoli-Schatzman): 0 inelastic (the paper's (A4)), 1 elastic
-    "restitution": (0.0, 1.0, False, False),
-}
+#: The range [low, high] of each number: wide enough for any sensible run, tight enough to catch typos (a missing
+#: minus, a forgotten decimal point). length, radius and T at least 1e-6: 1e-300 made dolfinx's interval of zero
+#: length and T/nt divide by 0; eps below 1e-12: docs/explanation/reliability.md, "Size and precision limits".
+BOUNDS = {"length": (1e-6, 1e4), "radius": (1e-6, 1e4), "T": (1e-6, 1e4), "alpha": (0.0, 1e4), "eps": (1e-12, 1e6),
+          "h": (-1e6, 1e6), "h_left": (-1e6, 1e6), "h_right": (-1e6, 1e6), "restitution": (0.0, 1.0)}
 # nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
 # (benchmarks/bench_mesh_size.py).
-INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000)}
+INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000), "cells": (1, 2000)}
 #: At most this many output times: each is a stored row (and an XDMF frame, within --frames).
 MAX_OUTPUT_TIMES = 1000
 #: The stored rows (eta, velocity, contact force as float64, contact as bool) may take at most this many bytes.
@@ -100,7 +53,7 @@ PETSC_REFUSED_WORDS = ("view", "monitor", "draw", "debugger", "log", "print", "p
 PETSC_REFUSED_NAMES = tuple(f"mat_mumps_icntl_{i}" for i in (1, 2, 3, 4, 22))
 PETSC_MAX_OPTIONS = 32
 #: A rectangle's cells per direction and a disk's radius / mesh_size (gmsh takes minutes beyond).
-MAX_CELLS = 2000
+MAX_CELLS = INT_BOUNDS["cells"][1]
 MAX_DISK_RATIO = 1000
 #: A membrane's nodes (rectangle, disk, mesh file): the largest size measured, 1001 x 1001. Its serial set-up
 #: (mesh, operators, the LU factor, 2 stored rows) peaked at 3096 MB RSS, 3.1 KB per node (docs/explanation/memory.md,
@@ -117,48 +70,49 @@ def stored_bytes(nx: int, nt: int, n_output_times: int, max_rows: int = STORED_R
     return rows * (nx + 1) * BYTES_PER_STORED_NODE
 
 
-#: What each key of FILE_KEYS is: key -> (type, unit, default, meaning). The scene-keys reference
-#: (docs/reference/scene_keys.md) is generated from this, FILE_KEYS, DOMAIN_KEYS and `checks.allowed` (the same
-#: text the error messages give). Units: the model is dimensionless, wave speed 1, so x and t share a unit; η is
-#: a height.
+#: The keys a scene file (or `Scene.replace`) accepts, in the order they are written, and what each is: key ->
+#: (type, unit, default, meaning). The scene-keys reference (docs/reference/scene_keys.md) is generated from this,
+#: DOMAIN_KEYS and `checks.allowed` (the text the error messages give). Units: the model is dimensionless, wave speed
+#: 1, so x and t share a unit; η is a height.
 KEY_DOCS = {
     "name": ("string", "", "the file's name without .toml", "the scene's name (titles, output file names)"),
     "description": ("string", "", '""', "one line shown by `stringcontact list`"),
     "notes": ("string", "", '""', "how the source data were read (free text)"),
-    "length": ("number", "x", "1", "the string's length l: the interval (0, l)"),
-    "T": ("number", "t", "required", "the final time"),
-    "alpha": ("number", "t", "required", "viscosity α (the damping term α η_txx)"),
-    "eps": ("number", "t", "required by the penalty schemes (paper, newmark)",
-            ("[scheme] table: the penalty ε, the contact force (1/ε) χ{η < ψ} (η_t)⁻; scheme projection (no penalty) "
-             "does not read it (at the top level of a file too, with a warning)")),
-    "nx": ("integer", "", "required (1D)", "number of cells of the interval"),
-    "nt": ("integer", "", "one of nt, dt", "number of time steps"),
-    "dt": ("number", "t", "one of nt, dt", "time step; T/dt must be an integer (stored as nt)"),
-    "eta0": ("expression or number", "η", "required", "initial displacement η(0, x), an expression in x (2D: x, y)"),
-    "v0": ("expression or number", "η/t", "required", "initial velocity η_t(0, x)"),
-    "h": ("number (2D: or expression)", "η", "eta0 at the ends (2D: on the boundary)",
-          "the height at which both ends (2D: the boundary) are held"),
-    "h_left": ("number", "η", "eta0(0)", "the height of the left end"),
-    "h_right": ("number", "η", "eta0(l)", "the height of the right end"),
-    "load": ("expression or number", "η/t²", "not given: no load",
-             "external force density f(x), for a model that reads it (`loaded_obstacle`)"),
-    "obstacle": ("expression or number", "η", "not given: ψ = 0",
-                 "obstacle profile ψ(x) (2D: ψ(x, y)), for a model that reads it; with t in it the obstacle moves"),
-    "output_times": ("list of numbers", "t", "[]", "times stored exactly (snapshots, XDMF frames)"),
-    "model": ("string", "", '"inelastic"', "a registered model (`stringcontact models`), never a module path"),
-    "scheme": ("string or table", "", '"paper"',
-               ("the time scheme (`stringcontact.SCHEMES`): its name, or a [scheme] table of its `name` and its "
-                "options (eps, penalty, mass, restitution, ...: `stringcontact.SCHEMES`' own declarations)")),
     "domain": ("string", "", '"interval" ("file" with mesh)', "the domain: interval (string), rectangle, disk, file"),
+    "length": ("number", "x", "1", "the string's length l: the interval (0, l)"),
     "size": ("list of 2 numbers", "x", "[1, 1]", "the rectangle [0, Lx] × [0, Ly]"),
     "cells": ("list of 2 integers", "", "required (rectangle)", "the rectangle's cells per direction [nx, ny]"),
     "radius": ("number", "x", "1", "the disk's radius (centre 0)"),
     "mesh_size": ("number", "x", "required (disk)", "gmsh's largest element size on the disk"),
     "mesh": ("string", "", "required (file)", "the path of an XDMF triangle mesh (the domain 'file')"),
+    "T": ("number", "t", "required", "the final time"),
+    "alpha": ("number", "t", "required", "viscosity α (the damping term α η_txx)"),
+    "nx": ("integer", "", "required (1D)", "number of cells of the interval"),
+    "nt": ("integer", "", "one of nt, dt", "number of time steps"),
+    "dt": ("number", "t", "one of nt, dt", "time step; T/dt must be an integer (stored as nt)"),
+    "eta0": ("expression or number", "η", "required", "initial displacement η(0, x), an expression in x (2D: x, y)"),
+    "v0": ("expression or number", "η/t", "required", "initial velocity η_t(0, x)"),
+    "h": ("number (2D: or expression)", "η", "eta0 at the ends (2D: on the boundary)", ("the height at which both ends "
+           "(2D: the boundary) are held")),
+    "h_left": ("number", "η", "eta0(0)", "the height of the left end"),
+    "h_right": ("number", "η", "eta0(l)", "the height of the right end"),
+    "load": ("expression or number", "η/t²", "not given: no load", ("external force density f(x), for a model that "
+              "reads it (`loaded_obstacle`)")),
+    "obstacle": ("expression or number", "η", "not given: ψ = 0", ("obstacle profile ψ(x) (2D: ψ(x, y)), for a model "
+                  "that reads it; with t in it the obstacle moves")),
+    "output_times": ("list of numbers", "t", "[]", "times stored exactly (snapshots, XDMF frames)"),
+    "model": ("string", "", '"inelastic"', "a registered model (`stringcontact models`), never a module path"),
+    "scheme": ("string or table", "", '"paper"', ("the time scheme (`stringcontact.SCHEMES`): its name, or a [scheme] "
+                "table of its `name` and its options (eps, penalty, mass, restitution, ...: `stringcontact.SCHEMES`' "
+                "own declarations)")),
+    "eps": ("number", "t", "required by the penalty schemes (paper, newmark)", ("[scheme] table: the penalty ε, the "
+             "contact force (1/ε) χ{η < ψ} (η_t)⁻; scheme projection (no penalty) does not read it (at the top level "
+             "of a file too, with a warning)")),
+    "restitution": ("number", "", "0 (inelastic)", ("[scheme] table: scheme projection's restitution coefficient e "
+                     "(Paoli-Schatzman); at the top level of a file too, with a warning")),
+    "parameters": ("table", "", "the model's defaults", ("the model's constants, name = number (each model's in the "
+                    "table below; `stringcontact show`)")),
     "petsc_options": ("table", "", "not given: the scheme's solver", "PETSc options for the linear solver"),
-    "restitution": ("number", "", "0 (inelastic)",
-                    ("[scheme] table: scheme projection's restitution coefficient e (Paoli-Schatzman); at the top "
-                     "level of a file too, with a warning")),
-    "parameters": ("table", "", "the model's defaults",
-                   "the model's constants, name = number (each model's in the table below; `stringcontact show`)"),
 }
+#: The keys a scene file (or `Scene.replace`) accepts, in the order they are written.
+FILE_KEYS = tuple(KEY_DOCS)

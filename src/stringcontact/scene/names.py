@@ -1,11 +1,7 @@
-"""The names a scene may use that installed packages register: models and time schemes (entry points).
-
-Checking a name imports nothing: a name is checked against the installed packages' metadata, models under the
-entry-point group `GROUP`, time schemes under `SCHEME_GROUP`. What a name stands for is read from the registered
-object itself, which loads its entry point (the user's ``pip install`` is the trust boundary): a model's declared
-constants (`declared`), a scheme's class (`scheme_class`: its description, whether it takes an ε). Adding a scheme
-is its module plus one entry point, as adding a model is.
-"""
+"""The names a scene may use that installed packages register: models (entry-point group `GROUP`) and time schemes
+(`SCHEME_GROUP`). Checking a name reads the packages' metadata and imports nothing; what it stands for (a model's
+constants, `declared`; a scheme's class, `scheme_class`) loads its entry point: the user's ``pip install`` is the
+trust boundary."""
 
 from __future__ import annotations
 
@@ -18,14 +14,13 @@ from ..errors import SceneError, one_line, plugin_code
 #: The scheme and the model of a scene that names none (`stringcontact show` writes them out).
 DEFAULT_SCHEME, DEFAULT_MODEL = "paper", "inelastic"
 
-#: The entry-point group a package registers its time schemes under (``[project.entry-points."stringcontact.schemes"]``):
-#: name = "package.module:Class", a subclass of `stringcontact.timestepping.base.Scheme`.
+#: The entry-point group of the time schemes: name = "package.module:Class", a `timestepping.base.Scheme` subclass.
 SCHEME_GROUP = "stringcontact.schemes"
 
 
 def _entry_points(group: str) -> dict[str, list[importlib.metadata.EntryPoint]]:
     """name -> the entry points registered under `group` (one per distinct target; two mean a conflict)."""
-    found: dict[str, list[importlib.metadata.EntryPoint]] = {}
+    found = {}
     for ep in importlib.metadata.entry_points(group=group):
         targets = found.setdefault(ep.name, [])
         if all(other.value != ep.value for other in targets):  # the same package seen twice is one entry
@@ -34,12 +29,9 @@ def _entry_points(group: str) -> dict[str, list[importlib.metadata.EntryPoint]]:
 
 
 class SchemeNames(Mapping):
-    """The registered time schemes (`stringcontact.SCHEMES`): name -> its one-line description.
-
-    The names come from the installed packages' metadata (`SCHEME_GROUP`), the default scheme first, the rest in
-    alphabetical order; iterating and ``in`` import nothing. A description is the class's ``DESCRIPTION``, read when
-    it is asked for (the scheme's module is imported then).
-    """
+    """The registered time schemes (`stringcontact.SCHEMES`): name -> its one-line description. The names come from
+    the packages' metadata (`SCHEME_GROUP`), the default first, the rest in alphabetical order: iterating and ``in``
+    import nothing; a description is the class's ``DESCRIPTION`` (the scheme's module imported then)."""
 
     def _names(self) -> list[str]:
         found = _entry_points(SCHEME_GROUP)
@@ -107,15 +99,12 @@ def registered() -> dict[str, list[importlib.metadata.EntryPoint]]:
     return dict(sorted(_entry_points(GROUP).items()))
 
 
-def _allowed(names) -> str:
-    return (f"allowed: {', '.join(names) or 'none (is stringcontact installed? run scripts/setup)'} "
-            f"(the names installed packages register under the entry-point group {GROUP}; see `stringcontact models`)")
-
-
 def check_name(value) -> str:
     """`value` if it is a registered model name, else a one-line `SceneError` naming ``model``. Imports nothing."""
     models = registered()
-    _one_entry_point("model", value, models, _allowed(models))
+    names = ", ".join(models) or "none (is stringcontact installed? run scripts/setup)"
+    _one_entry_point("model", value, models, f"allowed: {names} (the names installed packages register under the "
+                     f"entry-point group {GROUP}; see `stringcontact models`)")
     return value
 
 

@@ -1,17 +1,7 @@
-"""A model's constants: what a model declares (`ModelConstant`) and how a scene's ``[parameters]`` table is
-checked against it (`resolve_parameters`). Data only: no UFL, no dolfinx.
-
-A scene gives a model's constants in one table::
-
-    model = "my_model"
-    [parameters]
-    k = 2000
-
-The scene layer checks the table's form (`check_table`: names, finite numbers); the values are checked against the
-constants the model declares (`resolve_parameters`: unknown names, ranges, required constants, the model's own
-rules between them) when the scene names a registered model, and again against the model a run actually uses
-(``--model module:name``, a `Model` handed to `simulate`), before anything is written.
-"""
+"""A model's constants: what a model declares (`ModelConstant`) and a scene's ``[parameters]`` table (``k = 2000``)
+checked against it: its form by `check_table` (names, finite numbers), its values by `resolve_parameters` (names,
+ranges, required constants, the model's own rules) when the scene names a registered model, and again against the
+model a run uses (``--model module:name``, a `Model` handed to `simulate`) before anything is written."""
 
 from __future__ import annotations
 
@@ -19,6 +9,8 @@ import math
 import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
+
+import numpy as np
 
 from ..errors import SceneError
 
@@ -28,10 +20,36 @@ __all__ = ["PARAMETERS_MAX", "ModelConstant", "check_table", "resolve_parameters
 PARAMETERS_MAX = 64
 #: The widest range a constant may declare (a scene's numbers are bounded like its other keys').
 MAGNITUDE = 1e12
+#: A constant's range before its model is known (the run checks it against the model's).
+_UNKNOWN_RANGE = "a number in the range its model declares (`stringcontact models`)"
 
 
-def _fmt(v: float) -> str:
-    return str(int(v)) if float(v).is_integer() and abs(v) < 1e16 else repr(float(v))
+def fmt(v) -> str:
+    """A number as a scene writes it: 3 for 3.0, repr otherwise."""
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e16 else repr(v)
+
+
+def describe(value) -> str:
+    """A value's type and its repr (at most 40 characters): what a message says it got."""
+    text = repr(value)
+    return f"{type(value).__name__} {text[:40] + '...' if len(text) > 40 else text}"
+
+
+def check_number(name: str, value, allowed: str, inside=lambda v: True) -> float:
+    """`value` as a float if it is a finite number (not a bool) for which `inside` holds, else a one-line `SceneError`
+    naming `name` and what is `allowed`."""
+    if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+        raise SceneError(f"{name}: expected a number, got {describe(value)}; allowed: {allowed}")
+    try:
+        v = float(value)
+    except OverflowError:  # an int beyond float's range
+        v = math.inf
+    if not math.isfinite(v):
+        raise SceneError(f"{name}: {value!r} is not finite; allowed: {allowed}")
+    if not inside(v):
+        raise SceneError(f"{name}: {fmt(v)} is out of range; allowed: {allowed}")
+    return v
 
 
 @dataclass(frozen=True)
@@ -67,34 +85,26 @@ class ModelConstant:
     @property
     def allowed(self) -> str:
         """The allowed range in words, as the error messages give it: ``a number in (0, 1e+06]``."""
-        return (f"a number in {'(' if self.low_open else '['}{_fmt(self.low)}, "
-                f"{_fmt(self.high)}{')' if self.high_open else ']'}")
+        return (f"a number in {'(' if self.low_open else '['}{fmt(self.low)}, "
+                f"{fmt(self.high)}{')' if self.high_open else ']'}")
 
     def check(self, value) -> float:
         """`value` as a float if it is a finite number in range, else a one-line `SceneError` naming the constant."""
-        if not isinstance(value, numbers.Real) or isinstance(value, bool):
-            raise SceneError(f"{self.name}: expected a number, got {type(value).__name__} {value!r:.40}; "
-                             f"allowed: {self.allowed}")
-        v = float(value)
-        if not math.isfinite(v):
-            raise SceneError(f"{self.name}: {value!r} is not finite; allowed: {self.allowed}")
-        if v < self.low or v > self.high or (self.low_open and v == self.low) or (self.high_open and v == self.high):
-            raise SceneError(f"{self.name}: {_fmt(v)} is out of range; allowed: {self.allowed}")
-        return v
+        lo, hi = self.low, self.high
+        return check_number(self.name, value, self.allowed, lambda v: (lo < v if self.low_open else lo <= v)
+                            and (v < hi if self.high_open else v <= hi))
 
     @property
     def default_text(self) -> str:
         """The default in words (the reference page, ``stringcontact show``)."""
         if self.default is not None:
-            return _fmt(self.default)
+            return fmt(self.default)
         return "required" if self.required else "none"
 
 
 def check_table(value, key: str = "parameters", declared=()) -> tuple:
-    """A ``[parameters]`` table's form: identifier names and finite numbers, as sorted-by-entry (name, value) pairs.
-    A value of a constant in `declared` (the model's `ModelConstant`s, when the scene's model is known) is checked
-    against that constant, so that its message gives the constant's own range; any other must be a number.
-    Whether the model has these constants is `resolve_parameters`' question."""
+    """A ``[parameters]`` table's form: identifier names and finite numbers, as (name, value) pairs; a constant in
+    `declared` (the model's, when known) is checked against its own range. `resolve_parameters` checks the names."""
     if isinstance(value, tuple):
         value = dict(value)
     if not isinstance(value, dict):
@@ -106,29 +116,14 @@ def check_table(value, key: str = "parameters", declared=()) -> tuple:
     for name, v in value.items():
         if not isinstance(name, str) or not name.isidentifier():
             raise SceneError(f"{key}: {name!r:.40} is not a constant's name; allowed: an identifier such as k or gamma_0")
-        pairs.append((name, by_name[name].check(v) if name in by_name else _number(name, v)))
+        pairs.append((name, by_name[name].check(v) if name in by_name else check_number(name, v, _UNKNOWN_RANGE)))
     return tuple(pairs)
 
 
-def _number(name: str, value) -> float:
-    """`value` of a constant whose model is not known yet: a number (its range is checked when the run has the model,
-    `resolve_parameters`)."""
-    if not isinstance(value, numbers.Real) or isinstance(value, bool):
-        raise SceneError(f"{name}: expected a number, got {type(value).__name__} {value!r:.40}; allowed: a number in "
-                         "the range its model declares (`stringcontact models`)")
-    if not math.isfinite(float(value)):
-        raise SceneError(f"{name}: {value!r} is not finite; allowed: a number in the range its model declares "
-                         "(`stringcontact models`)")
-    return float(value)
-
-
 def resolve_parameters(model: str, declared, given: dict, rule: Callable | None = None) -> dict[str, float]:
-    """The model's constants for a run: `given` (name -> number) checked against `declared` (`ModelConstant`s),
-    defaults filled in, then the model's own `rule` (values -> None, or a `SceneError` naming a constant).
-
-    Refused in one line, naming the constant and what is allowed: a name the model does not declare, a value out
-    of range, a required constant not given.
-    """
+    """The model's constants for a run: `given` (name -> number) checked against `declared` (`ModelConstant`s: a
+    name it does not declare, a value out of range, a required one missing are refused in one line), defaults filled
+    in, then the model's own `rule` (values -> None, or a `SceneError` naming a constant)."""
     by_name = {c.name: c for c in declared}
     for name in given:
         if name not in by_name:

@@ -4,27 +4,20 @@ from __future__ import annotations
 
 import importlib.resources
 import os
-import stat
 import tomllib
 from pathlib import Path
 
 import tomli_w
 
 from ..errors import SceneError, one_line
+from .checks import file_kind
 from .limits import MAX_FILE_BYTES
 from .scene import Scene
 
 __all__ = ["list_scenes", "load_scene", "scene_to_toml"]
 
-_BUILTIN_PACKAGE = "stringcontact"
-_BUILTIN_FOLDER = "scenes"
-
-
-# --- files ---------------------------------------------------------------------------------
-
-
 def _builtin_dir():
-    return importlib.resources.files(_BUILTIN_PACKAGE).joinpath(_BUILTIN_FOLDER)
+    return importlib.resources.files("stringcontact").joinpath("scenes")
 
 
 def _builtin_names() -> list[str]:
@@ -44,10 +37,8 @@ def _parse_toml(raw: bytes, label: str) -> dict:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
-        raise SceneError(
-            f"scene file {label!r}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at line {line}); "
-            "expected a UTF-8 TOML file"
-        ) from None
+        raise SceneError(f"scene file {label!r}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at line {line}); "
+                         "expected a UTF-8 TOML file") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -62,11 +53,9 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
     A plain name without ``/`` or ``.toml`` is looked up among the built-in scenes first.
     """
     try:
-        text = os.fspath(name_or_path)
+        text = os.fsdecode(name_or_path)
     except TypeError:
         raise SceneError(f"scene: expected a scene name or a path, got {type(name_or_path).__name__}") from None
-    if isinstance(text, bytes):
-        text = os.fsdecode(text)
     builtins = _builtin_names()
     # a name (str or bytes) is a built-in scene first; a Path only when no such file exists
     if text in builtins and (isinstance(name_or_path, (str, bytes)) or not Path(text).exists()):
@@ -78,31 +67,19 @@ def load_scene(name_or_path: str | os.PathLike) -> Scene:
         if path.is_dir():
             raise SceneError(f"scene {text!r}: is a directory; expected a .toml scene file")
         if path.exists():  # a FIFO, a device, a socket: stat only, never open (a FIFO would block)
-            raise SceneError(f"scene {text!r}: is not a regular file ({_file_kind(path)}); expected a .toml scene file")
-        raise SceneError(
-            f"scene {text!r}: no built-in scene of that name and no such file "
-            f"(built-in scenes: {', '.join(builtins) or 'none'})"
-        )
+            kind = file_kind(path.stat().st_mode)
+            raise SceneError(f"scene {text!r}: is not a regular file ({kind}); expected a .toml scene file")
+        raise SceneError(f"scene {text!r}: no built-in scene of that name and no such file "
+                         f"(built-in scenes: {', '.join(builtins) or 'none'})")
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise SceneError(
-                f"scene file {text!r}: larger than {MAX_FILE_BYTES} bytes; scene files are small text files"
-            )
         with open(path, "rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)  # bounded even if the file grows meanwhile
+            raw = f.read(MAX_FILE_BYTES + 1)  # bounded: a larger file is refused by its size
     except OSError as exc:
         raise SceneError(f"scene file {text!r}: cannot read it ({exc.strerror or exc})") from None
     data = _parse_toml(raw, text)
     if isinstance(data.get("mesh"), str) and not Path(data["mesh"]).is_absolute():
         data["mesh"] = os.path.abspath(path.parent / data["mesh"])  # next to its scene file, wherever it is shown
     return Scene.from_dict(data, source=text, default_name=path.stem)
-
-
-def _file_kind(path: Path) -> str:
-    mode = path.stat().st_mode
-    kinds = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-             (stat.S_ISSOCK, "a socket"))
-    return next((kind for test, kind in kinds if test(mode)), "not a file")
 
 
 def list_scenes() -> list[tuple[str, str]]:
@@ -114,21 +91,13 @@ def list_scenes() -> list[tuple[str, str]]:
             description = str(data.get("description", ""))
         except SceneError:
             description = "(unreadable)"
-        first = description.strip().splitlines()[0] if description.strip() else ""
-        result.append((name, first))
+        result.append((name, (description.strip().splitlines() or [""])[0]))
     return result
 
 
-# --- writing ----------------------------------------------------------------------------------
-
-
 def scene_to_toml(scene: Scene, penalty: bool = True) -> str:
-    """The scene as a TOML scene file (loadable by :func:`~stringcontact.load_scene`), with derived values in a comment.
-
-    Written by tomli-w: strings with line breaks (notes) as multi-line strings, ``petsc_options`` as a table
-    at the end (it is the last key of `Scene.as_dict`, so the keys keep their order). The comment gives r = Δt/ε
-    where the scene gives ε and `penalty` says its scheme reads it.
-    """
-    r = f", r = dt/eps = {scene.r:.6g}" if penalty and scene.eps is not None else ""  # `penalty`: the scheme has one
+    """The scene as a TOML scene file (loadable by :func:`~stringcontact.load_scene`, written by tomli-w), with dt,
+    dx and, where the scene gives ε and `penalty` says its scheme reads it, r = Δt/ε in a comment."""
+    r = f", r = dt/eps = {scene.r:.6g}" if penalty and scene.eps is not None else ""
     comment = f"# scene {scene.name!r}: dt = {scene.dt:.6g}, dx = {scene.dx:.6g}{r}\n"
     return comment + tomli_w.dumps(scene.as_dict(), multiline_strings=True)
