@@ -11,6 +11,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from ..fem.compat import set_bc
 from ..fem.operators import Operators, node_coordinates, semi_discrete_operators
 from ..fem.outputs import OutputValues
 from ..model.interface import Model, Parameters, unused_fields
@@ -128,7 +129,7 @@ def _held_dofs(V, bcs: list, n_owned: int) -> tuple[np.ndarray, np.ndarray]:
     """The owned dofs the boundary conditions hold and their values (a NaN array that `set_bc` fills)."""
     values = np.full(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, np.nan)
     if bcs:
-        fem.set_bc(values, bcs)
+        set_bc(values, bcs)
     held = np.flatnonzero(~np.isnan(values[:n_owned])).astype(np.int32)
     return held, values[held].copy()
 

@@ -122,3 +122,15 @@ def sub_dofs(V, Z, i: int) -> np.ndarray:
     index = np.empty(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, dtype=np.int64)
     index[cell_dofs(V).ravel()] = cell_dofs(Z.sub(i)).ravel()
     return index
+
+
+def set_bc(values: np.ndarray, bcs: list) -> None:
+    """Write the boundary conditions' values into an array: `DirichletBC.set` (0.9+) replaces `fem.set_bc` (0.5),
+    deprecated in 0.9."""
+    from dolfinx import fem
+
+    if hasattr(bcs[0], "set"):
+        for bc in bcs:
+            bc.set(values)
+    else:
+        fem.set_bc(values, bcs)
