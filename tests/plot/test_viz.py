@@ -375,7 +375,7 @@ def test_no_axes3d_warning_and_no_global_filter_where_mplot3d_warns(tmp_path):
         "import warnings\nfrom matplotlib.axes import Axes\n"
         "warnings.warn('Unable to import Axes3D. This may be due to multiple versions of Matplotlib', UserWarning)\n"
         "class Axes3D(Axes):\n    name = '3d'\n")
-    code = ("import sys, warnings, numpy, mpl_toolkits\nmpl_toolkits.__path__.insert(0, sys.argv[1])\n"
+    code = ("import sys, warnings, numpy, mpl_toolkits\nmpl_toolkits.__path__ = [sys.argv[1], *mpl_toolkits.__path__]\n"
             "filters = list(warnings.filters)\nfrom stringcontact.plot import charts, vtk_start\n"
             "charts.figure((2, 2)).savefig(sys.argv[2])\nvtk_start._pyvista()\n"
             "import mpl_toolkits.mplot3d as m\nassert m.__file__.startswith(sys.argv[1]), m.__file__\n"

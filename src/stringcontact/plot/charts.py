@@ -313,6 +313,7 @@ def snapshots_figure(result, look: Look = SCREEN):
     hi = max(float(result.eta[rows].max()), max(float(p.max()) for p in psis.values()))
     pad = 0.08 * (hi - lo or 1.0)
     contact_length = result.contact_length  # a property over all rows: once, not per panel
+    sep = "\n" if look.width / ncols < 2.5 else " "  # a title of 33 characters is wider than a panel 1.7 in wide
     for ax, i in zip(axs.flat, rows):
         psi = psis[i]
         ax.fill_between(x, lo - pad, psi, color="0.85", lw=0, zorder=0)
@@ -322,7 +323,8 @@ def snapshots_figure(result, look: Look = SCREEN):
                 label=f"in contact (η ≤ {name})", zorder=3)
         parts = len(contact_components(x, result.contact[i]))
         frac = float(contact_length[i]) / float(x[-1] - x[0])
-        ax.set_title(f"t = {result.t[i]:.3g}: {100 * frac:.0f}% in contact, {parts} part{'s' * (parts != 1)}", fontsize="small")
+        ax.set_title(f"t = {result.t[i]:.3g}:{sep}{100 * frac:.0f}% in contact, {parts} part{'s' * (parts != 1)}",
+                     fontsize="small")
         ax.set_ylim(lo - pad, hi + pad)
         ax.grid(alpha=0.3)
     for ax in axs.flat[len(rows):]:
