@@ -59,9 +59,11 @@ def _fmt_energy_line(res) -> str:
 
     b = checks_of(res)["energy_balance"]
     external = f" - external work {b['external_work']:.6g}" if b["external_work"] else ""
+    internal = b.get("internal_dissipation", 0.0)
+    internal = f" + internal variables {internal:.6g}" if internal else ""
     verdict = "closes" if b["closes"] else f"DOES NOT CLOSE (tolerance {b['tolerance']:.0e})"
     return (f"energy balance: E(0) = {b['initial']:.6g} = E(t={res.t[-1]:.4g}) {b['final']:.6g} + viscous "
-            f"{b['viscous_dissipation']:.6g} + contact {b['contact_dissipation']:.6g} + numerical "
+            f"{b['viscous_dissipation']:.6g}{internal} + contact {b['contact_dissipation']:.6g} + numerical "
             f"{b['numerical_dissipation']:.6g}{external}; residual {b['max_abs_residual']:.2e} "
             f"({b['relative_residual']:.1e} relative): {verdict}")
 

@@ -175,7 +175,9 @@ def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
             rows = list(csv.DictReader(f))
         if not rows:
             raise ValueError("it has no rows")
-        return {key: np.array([float(r[key]) for r in rows]) for key in ("step", "t", *ENERGY_KEYS)}
+        older = {"internal_dissipation": 0.0}  # a column a table written before it was booked does not have
+        return {key: np.array([float(r[key] if key in r else older[key]) for r in rows])
+                for key in ("step", "t", *ENERGY_KEYS)}
     except KeyError as exc:
         raise ValueError(f"plot: {path} has no column {exc}") from None
     except (UnicodeDecodeError, ValueError, TypeError, csv.Error) as exc:

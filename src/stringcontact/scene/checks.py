@@ -248,6 +248,21 @@ def initial_data(key: str, value):
     return tuple(values.tolist())
 
 
+def initial_fields(value, nx: int | None) -> tuple:
+    """The ``fields0`` table as (name, value) pairs, each value as `initial_data`'s (checked against the model's
+    fields when the run is set up)."""
+    pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
+    out = []
+    for name, v in pairs:
+        if not (isinstance(name, str) and name.isidentifier()):
+            raise SceneError(f"fields0: field name {describe(name)}; allowed: a name of the model's fields")
+        v = initial_data(f"fields0.{name}", v)
+        if isinstance(v, tuple):
+            check_nodal_values(f"fields0.{name}", v, nx)
+        out.append((name, v))
+    return tuple(out)
+
+
 def check_nodal_values(key: str, values: tuple, nx: int | None) -> None:
     """An array of nodal values fits a string of `nx` cells: nx + 1 of them (a membrane takes none)."""
     if nx is None:

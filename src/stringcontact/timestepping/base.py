@@ -135,7 +135,9 @@ class DiscreteProblem:
     * ``petsc_options``: PETSc options on top of the size rule's, validated with the scene (or None);
     * ``restitution``: the restitution coefficient e, for a scheme with ``RESTITUTION`` (checked with the scene);
     * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest;
-    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them.
+    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them;
+    * ``fields0``: the initial values of the model's further unknowns given by name (owned arrays); a field not in it
+      starts as `newton.NewtonStep.start_fields` starts it.
     """
 
     ops: Operators
@@ -153,6 +155,7 @@ class DiscreteProblem:
     restitution: float = 0.0
     obstacle: MovingObstacle | None = None
     options: dict = field(default_factory=dict)
+    fields0: dict = field(default_factory=dict)
 
     @property
     def n_owned(self) -> int:
