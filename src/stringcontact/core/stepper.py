@@ -13,7 +13,7 @@ from dolfinx import fem
 
 from ..errors import InstabilityError, SceneError, SolverError, plugin_code
 from ..fem.dissipation import InternalDissipation, internal_variables
-from ..model.forms import check_declarations
+from ..model.forms import FormError, check_declarations
 from ..model.interface import penetration_bound_of
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme
@@ -139,6 +139,10 @@ class TimeStepper:
                                    slack=self.scheme.energy_slack)
         self.energies = start
         names = internal_variables(self.model, p.V, p.params)
+        if set(names) & set(self.model.dissipative_fields):  # booked twice, and the spring's work as viscous
+            raise FormError(f"model '{self.model.name}': dissipative_fields names {', '.join(names)}, whose own rate "
+                            "enters the residual: its dissipation is booked from its rate terms; allowed: fields "
+                            "without a rate (an algebraic field's work on eta)")
         self._internal = InternalDissipation(self.model, p.V, p.params, names) if names else None
         if self._internal is not None:
             self._internal.set([self.scheme.eta, *self.scheme.fields.values()])
@@ -280,7 +284,8 @@ class TimeStepper:
         scheme at Δt started from their end. Returns the fine scheme's start terms, the step's terms and the
         restarted scheme's start terms."""
         coarse = self.discrete
-        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields), nt=(self.nt or 0) * m))
+        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields),
+                                               nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)
         increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the state's energies: the last
         for _ in range(m):
@@ -332,7 +337,8 @@ def _state(scheme) -> tuple:
 
 
 def _set_initial(problem: ContactProblem, initial: dict) -> None:
-    """`TimeStepper`'s `initial` into the problem's Functions: arrays of the owned values or functions of `problem.x`."""
+    """`TimeStepper`'s `initial` into the problem's Functions: arrays of the owned values, or functions of the
+    owned dofs' coordinates `problem.x`."""
     targets = {"eta": problem.eta, "v": problem.v, **problem.unknowns}
     for name, value in initial.items():
         if name not in targets:

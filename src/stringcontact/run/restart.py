@@ -4,9 +4,12 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
+
+from ..scene import SceneWarning
 
 __all__ = ["continued"]
 
@@ -27,14 +30,17 @@ def continued(scene, source, t: float | None = None):
         times = np.asarray(source.t, dtype=float)
         k = len(times) - 1 if t is None else int(np.argmin(np.abs(times - t)))
         if t is not None and abs(times[k] - t) > 1e-9 * max(scene.T, 1.0):
-            stored = ", ".join(f"{s:.6g}" for s in times)
+            shown = ", ".join(f"{s:.6g}" for s in (times if len(times) <= 8 else [*times[:4], times[-1]]))
+            stored = shown if len(times) <= 8 else f"{shown.rsplit(', ', 1)[0]}, ..., {times[-1]:.6g}"
             raise ValueError(f"t: {t:g} is not a stored time of the run; allowed: {stored}")
         info = getattr(source, "field_info", {}) or {}
         fields = {name: rows[k] for name, rows in source.fields.items() if not info.get(name, {}).get("derived")}
         eta, v, at, step = source.eta[k], source.velocity[k], float(times[k]), int(source.steps[k])
     left = [s - at for s in scene.output_times if s > at + 1e-12 * scene.T]
-    return scene.replace(eta0=np.asarray(eta), v0=np.asarray(v), fields0={n: np.asarray(f) for n, f in fields.items()},
-                         T=scene.T - at, nt=scene.nt - step, output_times=left)
+    with warnings.catch_warnings():  # a state in contact is below the obstacle by the law's depth, as it ran
+        warnings.simplefilter("ignore", SceneWarning)
+        return scene.replace(eta0=np.asarray(eta), v0=np.asarray(v), T=scene.T - at, nt=scene.nt - step,
+                             fields0={name: np.asarray(f) for name, f in fields.items()}, output_times=left)
 
 
 def _stepper_state(st) -> tuple:

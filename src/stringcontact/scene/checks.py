@@ -44,6 +44,8 @@ _ALLOWED = {
                       f"{', '.join(limits.PETSC_REFUSED_NAMES)}: MUMPS' output units and out-of-core files; no "
                       "viewers, monitors, files or debuggers), each a number, a boolean or a word (letters, digits, "
                       "_ + -)"),
+    "fields0": f"a table of the model's fields, name = an expression in x (2D: x, y), a number or (1D) nx + 1 nodal "
+               f"values; {_VALUES}",
     "parameters": (f"a table of at most {parameters.PARAMETERS_MAX} constants the model declares, name = number, "
                    "each in its range (the models' constants below)"),
 }
