@@ -1,7 +1,7 @@
 """The dissipation of a model's internal variables, derived from its residual: a further unknown whose own rate
 enters the residual (a Maxwell foundation's dashpot, c q_t s) dissipates the work of its row's rate-dependent part
 over its increment, [R(U, U_t) − R(U, 0)]_q · Δq (c|Δq|²/Δt for the dashpot), as η's row dissipates the viscous
-work. A field without a rate (an algebraic one: a reaction, the film's pressure) has none of its own."""
+work. A field without a rate (an algebraic one: a reaction, a Lagrange multiplier) has none of its own."""
 
 from __future__ import annotations
 
