@@ -76,8 +76,6 @@ def _fmt_numerical_line(res) -> str | None:
     share = b.get("numerical_share", 0.0)
     if not share > NUMERICAL_SHARE:
         return None
-    # one run cannot tell a time error from a dissipation the model's declarations leave unbooked: no "refine dt"
-    # unless measured (`stringcontact check` runs several dt and reports D_num's trend)
     advice = ("; scheme newmark has no dissipation of its own on a linear model" if res.scheme == "paper"
               and _runs_with(res, "newmark") else "")
     return (f"note: the scheme's own numerical dissipation {b['numerical_dissipation']:.4g} is {100 * share:.0f} % of "

@@ -15,8 +15,7 @@ __all__ = ["EnergyLedger", "energy_roundoff"]
 class EnergyLedger:
     """E(0) + W_ext = E(t) + D_visc + D_int + D_con + D_num, summed from the scheme's terms; and the energy guard.
 
-    D_int is the dissipation of the model's internal variables (`fem.dissipation`), by name in `internal`: physics
-    the scheme's identity left in its numerical term, which then keeps only what the scheme loses.
+    D_int, the model's internal variables' dissipation (`fem.dissipation`, by name in `internal`), is taken from D_num.
 
     A dissipative law may not raise the energy at all (1e-9 E(0) per step for round-off). A conservative
     law (a contact spring, `Model.contact_energy`) held explicitly makes it wobble by O(Δt/√ε) during an

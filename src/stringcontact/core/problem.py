@@ -79,12 +79,8 @@ class ContactProblem:
         if unused:  # a load the model ignores would give a plausible but wrong answer
             raise ValueError(f"field(s) {', '.join(unused)}: not used by model '{model.name}'; choose a model that "
                              "reads them (e.g. model 'loaded_obstacle') or leave them out")
-        stray = [name for name in (unknowns or {}) if name not in model.fields]
-        if stray:
-            raise ValueError(f"unknowns: {', '.join(stray)} not a field of model '{model.name}' (its fields: "
-                             f"{', '.join(model.fields) or 'none'})")
         self.unknowns = {name: (unknowns or {}).get(name) or fem.Function(V, name=name) for name in model.fields}
-        self.given = set(unknowns or {})  # the fields whose start the caller gave
+        self.given = set(unknowns or {}) & set(model.fields)  # the fields whose start the caller gave
         self.contact_force = fem.Function(V, name="contact_force")
         self.outputs = OutputValues(model, V, self.params)
         self._operators: dict[bool, Operators] = {}

@@ -143,11 +143,10 @@ class TimeStepper:
             raise FormError(f"model '{self.model.name}': dissipative_fields names {', '.join(names)}, whose own rate "
                             "enters the residual: its dissipation is booked from its rate terms; allowed: fields "
                             "without a rate (an algebraic field's work on eta)")
-        self._internal = InternalDissipation(self.model, p.V, p.params, names) if names else None
-        if self._internal is not None:
-            self._internal.set([self.scheme.eta, *self.scheme.fields.values()])
-            for name in names:  # the energy picture names them
-                p.outputs.info[name]["internal"] = True
+        state = [self.scheme.eta, *self.scheme.fields.values()]
+        self._internal = InternalDissipation(self.model, p.V, p.params, names, state) if names else None
+        for name in names:  # the energy picture names them
+            p.outputs.info[name]["internal"] = True
         self._owned = (p.eta.x.array[: p.n_owned], p.v.x.array[: p.n_owned])  # views the state is copied into
         self._write_state()
 
@@ -226,9 +225,7 @@ class TimeStepper:
         if self.parameters.changed:
             self._rebuild()
         terms = self._step() if self.newton else self.scheme.step()
-        internal = None
-        if self._internal is not None:
-            internal = self._internal.step([self.scheme.eta, *self.scheme.fields.values()], self._dt)
+        internal = self._internal and self._internal.step([self.scheme.eta, *self.scheme.fields.values()], self._dt)
         why = self.ledger.add(terms, self.scheme.energy_slack, internal)
         if self._restart is not None:  # a sub-stepped step left a scheme at Δt started afresh from its end
             self.ledger.rebase(self._restart, numerical=True)

@@ -26,13 +26,13 @@ def internal_variables(model, V, params) -> tuple[str, ...]:
 
 
 class InternalDissipation:
-    """Each internal variable's dissipation over one step, from the unknowns before and after it (`step`), with the
-    rates the schemes write, ΔU/Δt, and the values after the step: a rate term linear in the rate is booked exactly,
-    the rest of a scheme's own quotient stays in its numerical dissipation."""
+    """Each internal variable's dissipation over one step, from the unknowns (η, *fields) at the start (`values`, this
+    rank's owned ones) and after each step (`step`), with the rates the schemes write, ΔU/Δt, and the values after
+    the step: a rate term linear in the rate is booked exactly, the rest of a scheme's quotient stays in D_num."""
 
-    def __init__(self, model, V, params, names: tuple[str, ...]):
+    def __init__(self, model, V, params, names: tuple[str, ...], values: list[np.ndarray]):
         k = 1 + len(model.fields)
-        self.names, self.comm, self.n = names, V.mesh.comm, V.dofmap.index_map.size_local
+        self.comm, self.n = V.mesh.comm, V.dofmap.index_map.size_local
         self.old, self.new = ([fem.Function(V) for _ in range(k)] for _ in range(2))
         self.dt = fem.Constant(V.mesh, PETSc.ScalarType(1.0))
         zero = fem.Function(V)  # a Function, not a Constant: a term in it keeps its integration domain
@@ -41,15 +41,12 @@ class InternalDissipation:
         for name in names:
             i = 1 + model.fields.index(name)
             W = tuple(self.new[i] - self.old[i] if j == i else zero for j in range(k))  # the row tested by Δq
+            R = [model.residual(tuple(self.new), U_t, (zero,) * k, zero, W, params) for U_t in (rates, (zero,) * k)]
+            self.forms[name] = fem.form(R[0] - R[1])
+        self._set(values)
 
-            def R(U_t, W=W):
-                return model.residual(tuple(self.new), U_t, (zero,) * k, zero, W, params)
-
-            self.forms[name] = fem.form(R(rates) - R((zero,) * k))
-
-    def set(self, values: list[np.ndarray]) -> None:
-        """The unknowns (η, *fields) at the start, this rank's owned values."""
-        for f, a in zip(self.new, values):
+    def _set(self, values: list[np.ndarray]) -> None:
+        for f, a in zip(self.new, values):  # (η, *fields) now, this rank's owned values
             f.x.array[: self.n] = a
             f.x.scatter_forward()
 
@@ -57,7 +54,7 @@ class InternalDissipation:
         """The unknowns after a step of `dt`: each internal variable's dissipation over it, summed over the ranks."""
         for a, b in zip(self.old, self.new):
             a.x.array[:] = b.x.array
-        self.set(values)
+        self._set(values)
         self.dt.value = dt
         local = np.array([fem.assemble_scalar(form) for form in self.forms.values()])
         return dict(zip(self.forms, self.comm.allreduce(local, op=MPI.SUM).tolist()))

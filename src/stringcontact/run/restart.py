@@ -30,9 +30,8 @@ def continued(scene, source, t: float | None = None):
         times = np.asarray(source.t, dtype=float)
         k = len(times) - 1 if t is None else int(np.argmin(np.abs(times - t)))
         if t is not None and abs(times[k] - t) > 1e-9 * max(scene.T, 1.0):
-            shown = ", ".join(f"{s:.6g}" for s in (times if len(times) <= 8 else [*times[:4], times[-1]]))
-            stored = shown if len(times) <= 8 else f"{shown.rsplit(', ', 1)[0]}, ..., {times[-1]:.6g}"
-            raise ValueError(f"t: {t:g} is not a stored time of the run; allowed: {stored}")
+            raise ValueError(f"t: {t:g} is not a stored time of the run; allowed: one of its {len(times)} stored times "
+                             f"in [{times[0]:g}, {times[-1]:g}] (Result.t)")
         info = getattr(source, "field_info", {}) or {}
         fields = {name: rows[k] for name, rows in source.fields.items() if not info.get(name, {}).get("derived")}
         eta, v, at, step = source.eta[k], source.velocity[k], float(times[k]), int(source.steps[k])

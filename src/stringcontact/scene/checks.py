@@ -256,8 +256,6 @@ def initial_fields(value, nx: int | None) -> tuple:
     pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
     out = []
     for name, v in pairs:
-        if not (isinstance(name, str) and name.isidentifier()):
-            raise SceneError(f"fields0: field name {describe(name)}; allowed: a name of the model's fields")
         v = initial_data(f"fields0.{name}", v)
         if isinstance(v, tuple):
             check_nodal_values(f"fields0.{name}", v, nx)

@@ -430,24 +430,21 @@ class LinearPath:
         from them. The Newton path starts them at 0 (their first values are then Newton's first guess, and the first
         stored row's)."""
         if self.linear is not None and self._held_rows() is not None:
-            self._solve_fields(eta0, v0)
+            rate = np.zeros(self.N)
+            rate[self.at] = v0
+            b = self.held_b.array
+            np.negative(self.linear.apply({"eta_t": rate}, self.work), out=b)
+            b[self.held_rows] = 0.0
+            b[self.at] = eta0
+            self.held.solve(self.held_b, self.x)
+            for level in self.levels:
+                level[:] = self.x.array
         form, given = self.problem.ops.nonlinear, self.problem.fields0
         for i, name in enumerate(self.problem.laws.model.fields if given else ()):
             if name in given:
                 dofs = compat.sub_dofs(form.V, form.space, i + 1)[: self.n]
                 for level, value in zip(self.levels, (given[name], given[name], 0.0, given[name])):
                     level[dofs] = value
-
-    def _solve_fields(self, eta0: np.ndarray, v0: np.ndarray) -> None:
-        rate = np.zeros(self.N)
-        rate[self.at] = v0
-        b = self.held_b.array
-        np.negative(self.linear.apply({"eta_t": rate}, self.work), out=b)
-        b[self.held_rows] = 0.0
-        b[self.at] = eta0
-        self.held.solve(self.held_b, self.x)
-        for level in self.levels:
-            level[:] = self.x.array
 
     def eta_stiffness(self) -> PETSc.Mat | None:
         """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of
