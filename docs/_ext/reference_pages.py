@@ -65,6 +65,8 @@ COLUMNS = {
     "contact_dissipation": "energy taken by the contact force up to t (cumulative)",
     "numerical_dissipation": "energy taken by the scheme itself up to t (cumulative)",
     "external_work": "work of an external load up to t (cumulative; 0 without a load)",
+    "internal_dissipation": ("energy taken by the model's internal variables (a field whose rate enters the "
+                             "residual: a dashpot) up to t (cumulative; 0 without them)"),
     "balance_residual": "E(0) − [E(t) + dissipations − external work]: closes to round-off",
     "min_eta": "min over the nodes of the height η at the row (η itself, whatever the obstacle; summary.json's `min_eta`: over every step)",
     "min_gap": "min over the nodes of the gap η − ψ at the row, ψ at the row's time (below 0: below the obstacle, that deep; ψ = 0 without an obstacle, where it is `min_eta`; summary.json's `min_gap`: over every step)",

@@ -1,5 +1,5 @@
-"""The energy ledger of a run: E(0) + W_ext = E(t) + D_visc + D_con + D_num summed from the scheme's terms, and the
-guard that stops a run whose energy rises."""
+"""The energy ledger of a run: E(0) + W_ext = E(t) + D_visc + D_int + D_con + D_num summed from the scheme's terms,
+and the guard that stops a run whose energy rises."""
 
 from __future__ import annotations
 
@@ -13,7 +13,9 @@ __all__ = ["EnergyLedger", "energy_roundoff"]
 
 
 class EnergyLedger:
-    """E(0) + W_ext = E(t) + D_visc + D_con + D_num, summed from the scheme's terms; and the energy guard.
+    """E(0) + W_ext = E(t) + D_visc + D_int + D_con + D_num, summed from the scheme's terms; and the energy guard.
+
+    D_int, the model's internal variables' dissipation (`fem.dissipation`, by name in `internal`), is taken from D_num.
 
     A dissipative law may not raise the energy at all (1e-9 E(0) per step for round-off). A conservative
     law (a contact spring, `Model.contact_energy`) held explicitly makes it wobble by O(Δt/√ε) during an
@@ -28,16 +30,20 @@ class EnergyLedger:
         kin, el, _, _, _, _, stored = start
         self.kin, self.el, self.stored = kin, el, stored
         self.visc = self.con = self.num = self.ext = 0.0
+        self.internal: dict[str, float] = {}
         self.conservative = conservative
         self.E_prev = self.E_ref = kin + el + stored + slack
         self.E_start = kin + el
         self.tol = max((1.0 if conservative else 1e-9) * abs(self.E_prev), floor, 1e-300)
 
-    def add(self, terms, slack: float = 0.0) -> str | None:
-        """Book one step's terms; the reason if the energy (with the scheme's `energy_slack`) rose or is not finite,
-        else None."""
+    def add(self, terms, slack: float = 0.0, internal: dict | None = None) -> str | None:
+        """Book one step's terms and its internal variables' dissipation (taken from the scheme's numerical term); the
+        reason if the energy (with the scheme's `energy_slack`) rose or is not finite, else None."""
         self.kin, self.el, visc, con, num, ext, stored = terms
         self.stored = stored
+        for name, value in (internal or {}).items():
+            self.internal[name] = self.internal.get(name, 0.0) + value
+            num -= value
         self.num += num
         self.visc += visc
         self.con += con
@@ -68,13 +74,15 @@ class EnergyLedger:
 
     @property
     def cumulative(self) -> tuple:
-        """(kinetic, elastic, viscous, contact, numerical, external) now: the energies and the dissipations so far."""
-        return self.kin, self.el, self.visc, self.con, self.num, self.ext
+        """(kinetic, elastic, viscous, contact, numerical, external, internal) now: the energies and the dissipations
+        so far (`io.result.ENERGY_KEYS`)."""
+        return self.kin, self.el, self.visc, self.con, self.num, self.ext, sum(self.internal.values())
 
     @property
     def residual(self) -> float:
-        """E(0) + W_ext − (E(t) + D_visc + D_con + D_num): round-off when the scheme's identity closes."""
-        return self.E_start + self.ext - (self.kin + self.el + self.visc + self.con + self.num)
+        """E(0) + W_ext − (E(t) + D_visc + D_int + D_con + D_num): round-off when the scheme's identity closes."""
+        spent = self.visc + sum(self.internal.values()) + self.con + self.num
+        return self.E_start + self.ext - (self.kin + self.el + spent)
 
 
 def energy_roundoff(K, eta: np.ndarray, comm) -> float:

@@ -38,7 +38,8 @@ class ContactProblem:
     * `obstacle`: ``psi(x, t) -> values`` for an obstacle that moves: at the dof coordinates `x` (as
       `node_coordinates`: a string's x, shape (n,); a membrane's (x, y), shape (n, 2)) and the time t; it fills
       ``fields["obstacle"]`` and its rate ``fields["obstacle_rate"]`` every step. None: the obstacle is at rest.
-    * `unknowns`: Functions for the model's further unknowns (`Model.fields`), made on the space when not given.
+    * `unknowns`: Functions for the model's further unknowns (`Model.fields`), made on the space when not given; a
+      given one's values when the stepper is made are that field's initial value (`initial_fields`).
 
     `contact_force` is a Function the stepper fills with the contact force density (`TimeStepper.contact_force`).
     """
@@ -79,6 +80,7 @@ class ContactProblem:
             raise ValueError(f"field(s) {', '.join(unused)}: not used by model '{model.name}'; choose a model that "
                              "reads them (e.g. model 'loaded_obstacle') or leave them out")
         self.unknowns = {name: (unknowns or {}).get(name) or fem.Function(V, name=name) for name in model.fields}
+        self.given = set(unknowns or {}) & set(model.fields)  # the fields whose start the caller gave
         self.contact_force = fem.Function(V, name="contact_force")
         self.outputs = OutputValues(model, V, self.params)
         self._operators: dict[bool, Operators] = {}
@@ -100,6 +102,11 @@ class ContactProblem:
         eta0 = np.array(self.eta.x.array[: self.n_owned], dtype=float)
         eta0[self.bc] = self.g
         return eta0, np.array(self.v.x.array[: self.n_owned], dtype=float) * self.interior
+
+    def initial_fields(self) -> dict[str, np.ndarray]:
+        """The given unknowns' values at the owned dofs (their start); a field not given starts as the scheme starts it:
+        on an affine residual solved from its rows at (η⁰, v⁰) with its own rate 0, else at 0."""
+        return {name: np.array(self.unknowns[name].x.array[: self.n_owned]) for name in sorted(self.given)}
 
     def operators(self, residual: bool = False, state=None) -> Operators:
         """The model's semi-discrete operators on the space (`fem.operators.semi_discrete_operators`), assembled once

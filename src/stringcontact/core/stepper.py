@@ -12,7 +12,8 @@ import ufl
 from dolfinx import fem
 
 from ..errors import InstabilityError, SceneError, SolverError, plugin_code
-from ..model.forms import check_declarations
+from ..fem.dissipation import InternalDissipation, internal_variables
+from ..model.forms import FormError, check_declarations
 from ..model.interface import penetration_bound_of
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme
@@ -41,11 +42,18 @@ class TimeStepper:
     next step (the scheme's step matrices made again; mesh, forms and operators kept); `parameters` changes a model
     constant between steps. A step whose Newton solve fails is retried in 2, 4, … 16 sub-steps from the state
     before it. After an error inside a step (an instability, Ctrl-C) the stepper refuses to go on, in one line.
+
+    `initial` sets the start of any unknown by name, ``"eta"``, ``"v"`` or one of the model's fields: an array of this
+    rank's owned values (in the order of the problem's dofs) or a function of their coordinates `problem.x`; a field
+    given so (or as a given Function, `ContactProblem`) starts there, the others as the scheme starts them. Every
+    restart inside the run (a new Δt, a constant changed, a sub-stepped step) carries the whole state, fields too.
     """
 
-    def __init__(self, problem: ContactProblem, dt: float, scheme="paper", *, nt: int | None = None, **options):
+    def __init__(self, problem: ContactProblem, dt: float, scheme="paper", *, nt: int | None = None,
+                 initial: dict | None = None, **options):
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise SceneError(f"dt: {dt!r} is not a time step; allowed: a finite number > 0")
+        _set_initial(problem, initial or {})
         self.problem, self.model, self.comm = problem, problem.model, problem.comm
         self.name, self.Scheme = resolve_scheme(scheme)
         model = self.model
@@ -77,8 +85,9 @@ class TimeStepper:
 
     # --- set-up -----------------------------------------------------------------------------------------------
 
-    def _discrete(self, ops, dt: float) -> DiscreteProblem:
-        """The discrete problem the scheme steps at the time step `dt` (`DiscreteProblem`)."""
+    def _discrete(self, ops, dt: float, fields0: dict | None = None) -> DiscreteProblem:
+        """The discrete problem the scheme steps at the time step `dt` (`DiscreteProblem`), its further unknowns
+        starting at `fields0` (default: the problem's given ones)."""
         p = self.problem
         fields = {f: f.x.array[: p.n_owned] for f in p.params.extra.values()}
         laws = NodalLaws(self.model, p.V, p.params, dt, fields, p.x)
@@ -91,7 +100,7 @@ class TimeStepper:
         return DiscreteProblem(ops=ops, dt=dt, mass=self.mass, penalty=self.penalty, bc=p.bc, g=p.g, laws=laws,
                                comm=self.comm, eps=self.options["eps"], x=p.x, nt=self.nt or 0, petsc_options=options,
                                restitution=self.options["restitution"] or 0.0, obstacle=obstacle,
-                               options=self.options)
+                               options=self.options, fields0=p.initial_fields() if fields0 is None else fields0)
 
     def _check_moving_obstacle(self) -> None:
         """A moving obstacle runs with a scheme without penalty (restitution 0), and with a penalty scheme when the
@@ -129,6 +138,15 @@ class TimeStepper:
                                    floor=energy_roundoff(self.discrete.ops.K, self.scheme.eta, self.comm),
                                    slack=self.scheme.energy_slack)
         self.energies = start
+        names = internal_variables(self.model, p.V, p.params)
+        if set(names) & set(self.model.dissipative_fields):  # booked twice, and the spring's work as viscous
+            raise FormError(f"model '{self.model.name}': dissipative_fields names {', '.join(names)}, whose own rate "
+                            "enters the residual: its dissipation is booked from its rate terms; allowed: fields "
+                            "without a rate (an algebraic field's work on eta)")
+        state = [self.scheme.eta, *self.scheme.fields.values()]
+        self._internal = InternalDissipation(self.model, p.V, p.params, names, state) if names else None
+        for name in names:  # the energy picture names them
+            p.outputs.info[name]["internal"] = True
         self._owned = (p.eta.x.array[: p.n_owned], p.v.x.array[: p.n_owned])  # views the state is copied into
         self._write_state()
 
@@ -207,7 +225,8 @@ class TimeStepper:
         if self.parameters.changed:
             self._rebuild()
         terms = self._step() if self.newton else self.scheme.step()
-        why = self.ledger.add(terms, self.scheme.energy_slack)
+        internal = self._internal and self._internal.step([self.scheme.eta, *self.scheme.fields.values()], self._dt)
+        why = self.ledger.add(terms, self.scheme.energy_slack, internal)
         if self._restart is not None:  # a sub-stepped step left a scheme at Δt started afresh from its end
             self.ledger.rebase(self._restart, numerical=True)
             self._restart = None
@@ -226,7 +245,7 @@ class TimeStepper:
         """A Newton path's step, retried as 2, 4, … 2^MAX_HALVINGS sub-steps from the same state when Newton fails;
         a SolverError naming the time, the step and what to change only when the finest fails."""
         scheme = self.scheme
-        eta, v = scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy()
+        eta, v, fields = _state(scheme)
         where = f"step {self.step + 1}, t = {self.t + self._dt:.6g}"
         try:
             return scheme.step()
@@ -237,7 +256,7 @@ class TimeStepper:
                 raise SolverError(f"{where}: {exc} (a moving obstacle's step is not sub-stepped: use a smaller dt)") from None
             for halvings in range(1, MAX_HALVINGS + 1):
                 try:
-                    begin, step, restart = self._substeps(eta, v, 2**halvings)
+                    begin, step, restart = self._substeps(eta, v, fields, 2**halvings)
                 except SolverError:
                     continue
                 self.ledger.rebase(begin, numerical=True)  # the state before the step, as the sub-steps count it
@@ -250,19 +269,20 @@ class TimeStepper:
         """A new scheme at `dt` on the same operators, started from `state` (the current one by default); its start
         terms are kept in `_restart_terms`."""
         scheme = self.scheme
-        eta, v = state or (scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy())
+        eta, v, fields = state or _state(scheme)
         self.past_timings.append(scheme.timings)
-        self.discrete = self._discrete(self.discrete.ops, dt)
+        self.discrete = self._discrete(self.discrete.ops, dt, fields)
         fresh = self.Scheme(self.discrete)
         self._restart_terms = fresh.start(eta, v)
         return fresh
 
-    def _substeps(self, eta, v, m: int):
+    def _substeps(self, eta, v, fields, m: int):
         """One step as `m` sub-steps of Δt/m by a scheme started afresh from (η, v), their energy terms summed; then a
         scheme at Δt started from their end. Returns the fine scheme's start terms, the step's terms and the
         restarted scheme's start terms."""
         coarse = self.discrete
-        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m), nt=(self.nt or 0) * m))
+        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields),
+                                               nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)
         increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the state's energies: the last
         for _ in range(m):
@@ -271,7 +291,7 @@ class TimeStepper:
         self.counters["sub-stepped steps"] = self.counters.get("sub-stepped steps", 0) + 1
         self.counters["sub-steps"] = self.counters.get("sub-steps", 0) + m
         self.past_timings.append(fine.timings)
-        end = (fine.eta.copy(), np.asarray(fine.velocity, dtype=float).copy())
+        end = _state(fine)
         self.discrete = coarse
         self.scheme = self._restarted(self._dt, end)
         step = StepEnergy(terms.kinetic, terms.elastic, *increments.tolist(), terms.stored)
@@ -281,12 +301,12 @@ class TimeStepper:
         """A model constant changed: its operators again, a new scheme from the state (η, v), the jump of the state's
         energy booked as external work."""
         old = self.scheme
-        state = (old.eta.copy(), np.asarray(old.velocity, dtype=float).copy())
-        ops = self.problem.reassemble(not self.Scheme.LINEAR_PATH, lambda: state)
+        eta, v, fields = _state(old)
+        ops = self.problem.reassemble(not self.Scheme.LINEAR_PATH, lambda: (eta, v))
         self.past_timings.append(old.timings)
-        self.discrete = self._discrete(ops, self._dt)
+        self.discrete = self._discrete(ops, self._dt, fields)
         self.scheme = self.Scheme(self.discrete)
-        self.ledger.rebase(self.scheme.start(*state))
+        self.ledger.rebase(self.scheme.start(eta, v))
         self.parameters.changed = False
 
     def _unstable(self, why: str) -> InstabilityError:
@@ -305,6 +325,29 @@ class TimeStepper:
                 both = isinstance(value, (int, float)) and isinstance(out.get(key), (int, float))
                 out[key] = out[key] + value if both else value
         return out
+
+
+def _state(scheme) -> tuple:
+    """A scheme's whole state, copied: η, v and the model's further unknowns by name."""
+    fields = {name: np.array(values) for name, values in scheme.fields.items()}
+    return scheme.eta.copy(), np.asarray(scheme.velocity, dtype=float).copy(), fields
+
+
+def _set_initial(problem: ContactProblem, initial: dict) -> None:
+    """`TimeStepper`'s `initial` into the problem's Functions: arrays of the owned values, or functions of the
+    owned dofs' coordinates `problem.x`."""
+    targets = {"eta": problem.eta, "v": problem.v, **problem.unknowns}
+    for name, value in initial.items():
+        if name not in targets:
+            raise ValueError(f"initial: {name!r} is not an unknown of model '{problem.model.name}'; allowed: "
+                             f"{', '.join(targets)}")
+        values = np.asarray(value(problem.x) if callable(value) else value, dtype=float)
+        if values.shape != (problem.n_owned,) or not np.all(np.isfinite(values)):
+            raise ValueError(f"initial: {name!r} needs {problem.n_owned} finite values (this rank's owned dofs)")
+        targets[name].x.array[: problem.n_owned] = values
+        targets[name].x.scatter_forward()
+        if name in problem.unknowns:
+            problem.given.add(name)
 
 
 def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:

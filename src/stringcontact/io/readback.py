@@ -30,7 +30,7 @@ MAX_JSON_BYTES = 10_000_000
 MAX_OUTPUT_FIELDS = 64
 #: The keys of an output field's description in summary.json, and the types each must have.
 FIELD_KEYS = {"label": str, "unit": str, "colours": list, "scale": str, "linear_share": float, "symmetric": bool,
-              "surface": bool, "derived": bool}
+              "surface": bool, "derived": bool, "internal": bool}
 #: The longest label or unit read (a title's line).
 MAX_LABEL = 200
 
@@ -117,10 +117,11 @@ def _field_info(path: Path, summary: dict) -> dict:
             if not isinstance(entry, dict):
                 raise TypeError(f"a JSON {type(entry).__name__}, not an object")
             given = {key: _typed(key, entry[key]) for key in FIELD_KEYS if key in entry}
-            derived = given.pop("derived", False)
+            derived, internal = given.pop("derived", False), given.pop("internal", False)  # the run's, not the field's
             if "colours" in given:
                 given["colours"] = tuple(tuple(c) if isinstance(c, list) else c for c in given["colours"])
             info[name] = OutputField(name, **given).metadata() | {"derived": derived}
+            info[name] |= {"internal": True} if internal else {}
         except (TypeError, ValueError) as exc:
             raise ValueError(f"plot: {path}: its output field {name!r} is not valid ({one_line(exc, 200)})") from None
     return info
@@ -175,7 +176,9 @@ def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
             rows = list(csv.DictReader(f))
         if not rows:
             raise ValueError("it has no rows")
-        return {key: np.array([float(r[key]) for r in rows]) for key in ("step", "t", *ENERGY_KEYS)}
+        older = {"internal_dissipation": 0.0}  # a column a table written before it was booked does not have
+        return {key: np.array([float(r[key] if key in r else older[key]) for r in rows])
+                for key in ("step", "t", *ENERGY_KEYS)}
     except KeyError as exc:
         raise ValueError(f"plot: {path} has no column {exc}") from None
     except (UnicodeDecodeError, ValueError, TypeError, csv.Error) as exc:

@@ -10,7 +10,7 @@ import numpy as np
 
 #: The energy terms of `Result.energy` (the dissipations and the external work cumulative from t = 0).
 ENERGY_KEYS = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "numerical_dissipation",
-               "external_work")
+               "external_work", "internal_dissipation")
 #: The fields stored at each node and stored time (the XDMF's attributes, in this order).
 FIELDS = ("eta", "velocity", "contact", "contact_force")
 #: The XDMF field written after `FIELDS` when the scene's obstacle moves: ψ at the nodes at each frame's time (an
@@ -130,9 +130,10 @@ class Result:
 
     @property
     def balance_residual(self) -> np.ndarray:
-        """E(0) + W_ext − [E(t) + D_visc + D_con + D_num] at each stored time; round-off for this scheme."""
+        """E(0) + W_ext − [E(t) + D_visc + D_int + D_con + D_num] at each stored time; round-off for this scheme."""
         e = self.energy
         spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
+        spent = spent + e.get("internal_dissipation", 0.0)
         return self.total_energy[0] + e["external_work"] - (self.total_energy + spent)
 
     @cached_property

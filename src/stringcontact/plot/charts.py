@@ -359,12 +359,17 @@ def energy_figure(result, look: Look = SCREEN):
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
+    internal = e.get("internal_dissipation", np.zeros_like(t))
     grad_t = r"\eta_{tx}^2" if np.ndim(result.x) == 1 else r"|\nabla\eta_t|^2"
     curves = [(e["kinetic"], {"label": r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$"}),
               (e["elastic"], {"label": stored_energy_label(result)}),
               (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
               (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
               (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation (cumulative)"})]
+    if np.any(internal):  # a dashpot's: the model's internal variables, by name (`fem.dissipation`)
+        names = ", ".join(n for n, info in (getattr(result, "field_info", None) or {}).items() if info.get("internal"))
+        curves.insert(3, (internal, {"label": f"dissipation of the internal variables {names}".rstrip()}))
+        spent = spent + internal
     if np.any(e["external_work"]):
         moving = getattr(result.scene, "obstacle_moves", False)  # the moving obstacle's work is booked there too
         what = "the moving obstacle and external loads" if moving else "external loads"

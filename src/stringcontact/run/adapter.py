@@ -97,7 +97,8 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
 
 
 def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> ContactProblem:
-    """The scene's `ContactProblem`: its mesh (`fem.domains`), the P1 space, η and v from its initial state, its
+    """The scene's `ContactProblem`: its mesh (`fem.domains`), the P1 space, η, v and the fields in ``fields0`` from
+    its initial state, its
     ends or boundary held at their heights, its fields (a load, an obstacle) and a moving obstacle ψ(x, t), each
     checked where it is evaluated (finite, within ±MAX_MAGNITUDE)."""
     msh = domains.create(scene, comm)
@@ -115,6 +116,14 @@ def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> C
         comm, lambda: (scene.initial_displacement(dof_x[:n_owned]), scene.initial_velocity(dof_x[:n_owned])))
     eta.x.scatter_forward()
     v.x.scatter_forward()
+    unknowns = {}
+    for name, _ in scene.fields0:  # the further unknowns the scene starts
+        if name not in model.fields:
+            raise SceneError(f"fields0.{name}: not a field of model '{model.name}'; allowed: "
+                             f"{', '.join(model.fields) or 'none (the model has no fields)'}")
+        unknowns[name] = fem.Function(V, name=name)
+        unknowns[name].x.array[:n_owned] = one_outcome(comm, scene.initial_field, name, dof_x[:n_owned])
+        unknowns[name].x.scatter_forward()
     held = one_outcome(comm, _held, scene, V, dof_x)  # one outcome on every rank
     obstacle = None
     if scene.obstacle_moves:  # not collective: a rank may evaluate it alone; one that fails ends the whole job
@@ -122,7 +131,7 @@ def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> C
             return _checked_values(scene, "obstacle", x, t)
     return ContactProblem(model, eta, v, bcs=[held], alpha=scene.alpha,
                           constants=model_constants(scene, model) if constants is None else constants,
-                          fields=fields, obstacle=obstacle)
+                          fields=fields, obstacle=obstacle, unknowns=unknowns)
 
 
 def scene_stepper(scene, plan: RunPlan, problem: ContactProblem) -> TimeStepper:

@@ -40,7 +40,7 @@ def checks_of(result) -> dict:
 def energy_balance(result) -> dict:
     """The discrete energy balance at the last stored time, with a verdict.
 
-    E(0) + W_ext = E(t) + D_visc + D_con + D_num, where D_num is the scheme's own consistency term
+    E(0) + W_ext = E(t) + D_visc + D_int + D_con + D_num, where D_num is the scheme's own consistency term
     (see `Result`). The residual is the largest |E(0) + W_ext − [E(t) + D]| over the stored times,
     relative to the largest term; the balance "closes" when it is below BALANCE_RTOL. "numerical_share" is |D_num|
     over the energy E(0) + max(W_ext, 0) ("energy_scale"): a balance that closes may still carry a large D_num,
@@ -57,6 +57,7 @@ def energy_balance(result) -> dict:
         "contact_dissipation": float(e["contact_dissipation"][-1]),
         "numerical_dissipation": float(e["numerical_dissipation"][-1]),
         "external_work": float(e["external_work"][-1]),
+        "internal_dissipation": float(e.get("internal_dissipation", [0.0])[-1]),
     }
     scale = max([abs(v) for v in terms.values()] + [np.finfo(float).tiny])
     worst = float(np.max(np.abs(residual))) if residual.size else 0.0

@@ -44,8 +44,9 @@ class Stepper:
     ``st.parameters["k"] = 2000.0`` between steps changes one; the next `advance()` assembles the operators again
     and books the jump of the state's energy as external work, so the balance still closes.
 
-    A restart from a state: ``scene.replace(eta0=st.gather(st.eta), v0=st.gather(st.velocity), T=..., nt=...)``
-    continues the run under schemes whose state is (η, v).
+    `fields0` starts the model's further unknowns (the scene key ``fields0``: expressions or nodal values). A restart
+    from the whole state, ``sc.continued(scene, st)`` (`run.restart`), continues the run under schemes whose state is
+    (η, v) and the fields.
 
     A run that becomes unstable raises `InstabilityError` from `advance()` with the partial Result on it
     (``exc.result``), as `simulate` does, and marks its output folder so; the stepper then refuses to go on.
@@ -53,8 +54,10 @@ class Stepper:
 
     def __init__(self, scene, scheme: str | type | None = None, penalty: str | None = None, mass: str | None = None, *,
                  model=None, storage=None, output=None, comm=MPI.COMM_WORLD, petsc_options: dict | None = None,
-                 restitution: float | None = None, **keywords):
+                 restitution: float | None = None, fields0: dict | None = None, **keywords):
         storage, self.output = grouped(storage, output, keywords)
+        if fields0:  # into the scene, as its key `fields0`: the further unknowns' start
+            scene = scene.replace(fields0=dict(scene.fields0) | dict(fields0))
         if restitution is not None:  # into the scene, as the command line's: summary.json records what ran
             scene = scene.replace(restitution=restitution)
         if petsc_options:

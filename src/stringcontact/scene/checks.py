@@ -44,6 +44,8 @@ _ALLOWED = {
                       f"{', '.join(limits.PETSC_REFUSED_NAMES)}: MUMPS' output units and out-of-core files; no "
                       "viewers, monitors, files or debuggers), each a number, a boolean or a word (letters, digits, "
                       "_ + -)"),
+    "fields0": f"a table of the model's fields, name = an expression in x (2D: x, y), a number or (1D) nx + 1 nodal "
+               f"values; {_VALUES}",
     "parameters": (f"a table of at most {parameters.PARAMETERS_MAX} constants the model declares, name = number, "
                    "each in its range (the models' constants below)"),
 }
@@ -246,6 +248,19 @@ def initial_data(key: str, value):
         raise SceneError(f"{key}: value {float(values[bad[0]])!r} at node {int(bad[0])} is not finite or too large; "
                          f"allowed: nodal {_VALUES}")
     return tuple(values.tolist())
+
+
+def initial_fields(value, nx: int | None) -> tuple:
+    """The ``fields0`` table as (name, value) pairs, each value as `initial_data`'s (checked against the model's
+    fields when the run is set up)."""
+    pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
+    out = []
+    for name, v in pairs:
+        v = initial_data(f"fields0.{name}", v)
+        if isinstance(v, tuple):
+            check_nodal_values(f"fields0.{name}", v, nx)
+        out.append((name, v))
+    return tuple(out)
 
 
 def check_nodal_values(key: str, values: tuple, nx: int | None) -> None:

@@ -75,6 +75,7 @@ class Scene:
     restitution: float | None = None  # scheme 'projection's restitution coefficient e in [0, 1] (None: 0)
     parameters: tuple = ()  # (name, value) pairs: the model's constants the scene gives ([parameters])
     options: tuple = ()  # (name, value) pairs: the [scheme] table's other options (penalty, mass, a scheme's own)
+    fields0: tuple = ()  # (name, value) pairs: the initial values of the model's further unknowns, as eta0's
 
     @property
     def dim(self) -> int:
@@ -104,6 +105,10 @@ class Scene:
             put(key, checks.initial_data(key, getattr(self, key)))
             if isinstance(getattr(self, key), tuple):
                 checks.check_nodal_values(key, getattr(self, key), self.nx if self.dim == 1 else None)
+        put("fields0", checks.initial_fields(self.fields0, self.nx if self.dim == 1 else None))
+        for name, value in self.fields0:
+            if isinstance(value, str):
+                self._evaluate(f"fields0.{name}", value, self.probe_points())
         for key in ("eta0", "v0", *FIELD_KEYS, "h"):
             value = getattr(self, key)
             if isinstance(value, str) or (key in FIELD_KEYS and value is not None):
@@ -191,6 +196,10 @@ class Scene:
         """eta0 at the points x, (N,) in 1D or (N, 2) in 2D (as given: the boundary values are not replaced)."""
         return self._evaluate("eta0", self.eta0, x)
 
+    def initial_field(self, name: str, x) -> np.ndarray:
+        """The further unknown `name`'s initial value (``fields0``) at the points x."""
+        return self._evaluate(f"fields0.{name}", dict(self.fields0)[name], x)
+
     def initial_velocity(self, x) -> np.ndarray:
         """v0 at the points x (as given: the solver holds the boundary, so its velocity is ignored)."""
         return self._evaluate("v0", self.v0, x)
@@ -233,8 +242,8 @@ class Scene:
         d = {}
         for key in FILE_KEYS:
             value = None if key in omit else getattr(self, key)
-            if key in ("parameters", "petsc_options"):
-                value = dict(value) or None
+            if key in ("parameters", "petsc_options", "fields0"):
+                value = {k: list(v) if isinstance(v, tuple) else v for k, v in value} or None
             elif key == "scheme":
                 options = self.scheme_options
                 value = ({"name": value} if value is not None else {}) | options if options else value

@@ -424,21 +424,27 @@ class LinearPath:
         return self.held
 
     def start_fields(self, eta0: np.ndarray, v0: np.ndarray) -> None:
-        """A model's other fields at t = 0, on the linear path: the root of their rows with η = η0, η_t = v0 and their
-        own rates 0, as every level the scheme starts from, so that E(0) and the first stored row hold them and
-        `newmark`'s midpoint starts from them. The Newton path starts them at 0 (their first values are then
-        Newton's first guess, and the first stored row's)."""
-        if self.linear is None or self._held_rows() is None:
-            return
-        rate = np.zeros(self.N)
-        rate[self.at] = v0
-        b = self.held_b.array
-        np.negative(self.linear.apply({"eta_t": rate}, self.work), out=b)
-        b[self.held_rows] = 0.0
-        b[self.at] = eta0
-        self.held.solve(self.held_b, self.x)
-        for level in self.levels:
-            level[:] = self.x.array
+        """A model's other fields at t = 0: a field given a start (`DiscreteProblem.fields0`) starts at it, at rest;
+        on the linear path the others are the root of their rows with η = η0, η_t = v0 and their own rates 0, as every
+        level the scheme starts from, so that E(0) and the first stored row hold them and `newmark`'s midpoint starts
+        from them. The Newton path starts them at 0 (their first values are then Newton's first guess, and the first
+        stored row's)."""
+        if self.linear is not None and self._held_rows() is not None:
+            rate = np.zeros(self.N)
+            rate[self.at] = v0
+            b = self.held_b.array
+            np.negative(self.linear.apply({"eta_t": rate}, self.work), out=b)
+            b[self.held_rows] = 0.0
+            b[self.at] = eta0
+            self.held.solve(self.held_b, self.x)
+            for level in self.levels:
+                level[:] = self.x.array
+        form, given = self.problem.ops.nonlinear, self.problem.fields0
+        for i, name in enumerate(self.problem.laws.model.fields if given else ()):
+            if name in given:
+                dofs = compat.sub_dofs(form.V, form.space, i + 1)[: self.n]
+                for level, value in zip(self.levels, (given[name], given[name], 0.0, given[name])):
+                    level[dofs] = value
 
     def eta_stiffness(self) -> PETSc.Mat | None:
         """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of

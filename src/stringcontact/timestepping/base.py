@@ -135,7 +135,9 @@ class DiscreteProblem:
     * ``petsc_options``: PETSc options on top of the size rule's, validated with the scene (or None);
     * ``restitution``: the restitution coefficient e, for a scheme with ``RESTITUTION`` (checked with the scene);
     * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest;
-    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them.
+    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them;
+    * ``fields0``: the initial values of the model's further unknowns given by name (owned arrays); a field not in it
+      starts as `newton.NewtonStep.start_fields` starts it.
     """
 
     ops: Operators
@@ -153,6 +155,7 @@ class DiscreteProblem:
     restitution: float = 0.0
     obstacle: MovingObstacle | None = None
     options: dict = field(default_factory=dict)
+    fields0: dict = field(default_factory=dict)
 
     @property
     def n_owned(self) -> int:
@@ -255,8 +258,14 @@ class Scheme:
     * ``requires(model)``: why it cannot run a model (one clause), or None;
     * ``__init__(problem)``: assemble and factorise (set-up time); ``problem`` is the `DiscreteProblem`, its
       options resolved (``problem.mass``, ``problem.penalty``, ``problem.eps``, ``problem.options``);
-    * ``start(eta0, v0) -> StepEnergy``: the initial state (this rank's nodal arrays: ends already at their heights,
-      v0 = 0 there); a scheme of second order takes its first level from it as it needs;
+    * ``start(eta0, v0) -> StepEnergy``: the initial state (this rank's nodal float64 arrays: ends already at their
+      heights, v0 = 0 there), called once before the first step and again from the state whenever the stepper starts
+      a scheme afresh (a new Δt, a constant changed, sub-steps); the scheme sets every level it steps from, so its
+      order is its own: ``implicit.ImplicitScheme`` takes η^{−1} = η0 − Δt v0 (first order, `level_before`), a
+      scheme of second order adds ½Δt² a0 with ``implicit.acceleration``, from ``problem.ops`` (`Operators`:
+      ``M``, ``C``, ``K`` PETSc matrices on the owned dofs, ``m`` and ``m_force`` the lumped row sums and ``load``
+      the constant load b, NumPy arrays, ``nonlinear`` the residual's `NonlinearForm` or None); the model's further
+      unknowns start at ``problem.fields0`` where given;
     * ``step() -> StepEnergy``: one step;
     * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force density
       applied in the last step); ``fields``: the model's further unknowns by name (empty for one field);

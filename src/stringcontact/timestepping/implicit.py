@@ -44,6 +44,19 @@ def kinetic_energy(problem, v: np.ndarray) -> float:
     return 0.5 * float(np.dot(v, out.array))
 
 
+def acceleration(problem, eta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """M_L⁻¹(b − Kη − Cv) on this rank's nodes, 0 at the held ones: a linear model's acceleration at (η, v) without
+    contact, from ``problem.ops`` (`fem.operators.Operators`: K, C PETSc matrices on the owned dofs, m the lumped mass
+    and load b NumPy arrays)."""
+    ops = problem.ops
+    force = np.array(ops.load, dtype=float)
+    for A, x in ((ops.K, eta), (ops.C, v)):
+        out = A.createVecLeft()
+        A.mult(petsc_vector(np.array(x, dtype=float), problem.comm), out)
+        force -= out.array
+    return force / ops.m * problem.interior
+
+
 class ImplicitScheme(_NewtonScheme):
     """A scheme given by its difference quotients (``QUOTIENTS``), stepped by Newton for every model; the penalty
     explicit (the law at (η^n, η^{n−1})) or semi-implicit (a damping d v^{n+1} on the diagonal), the mass lumped or
@@ -100,17 +113,27 @@ class ImplicitScheme(_NewtonScheme):
         return self.force_density
 
     def start(self, eta0, v0):
-        """The initial state (η^0, v^0), η^{−1} = η^0 − Δt v^0; the initial energy."""
+        """The initial state (η^0, v^0) and the level before it (`level_before`); the initial energy."""
         problem = self.problem
         if self.moving:  # ψ^{−1}, ψ^0; the law's fields at t = 0
             self.psi_levels = [problem.obstacle.owned(-problem.dt).copy(), problem.obstacle.set(0.0).copy()]
         self.eta_[:], self.v[:] = eta0, v0
-        self.old[:] = eta0 - problem.dt * self.v
+        self.old[:] = self.level_before(eta0, self.v)
         self.newton.start_fields(eta0, v0)
         kin, el = self.allsum(kinetic_energy(problem, self.v), self._stored(self.eta_))
         self.E = kin + el
         self._force()
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def level_before(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
+        """η^{−1}, the level the first step's quotients read: η^0 − Δt v^0, first order; a scheme of second order
+        returns η^0 − Δt v^0 + ½Δt² a^0 (`acceleration`)."""
+        return eta0 - self.problem.dt * v0
+
+    def known_rate(self) -> np.ndarray | None:
+        """What the quotients receive as their fourth argument, a nodal array known before the step (a multistep
+        scheme's past velocities), or None: unused (0)."""
+        return None
 
     def _force(self) -> None:
         """The law at (η^n, η^{n−1}): the explicit force density (0 where no force acts), or the damping weights."""
@@ -140,7 +163,7 @@ class ImplicitScheme(_NewtonScheme):
         """One step n → n+1 by Newton; its terms of the energy identity (`StepEnergy`)."""
         problem, dt, newton = self.problem, self.problem.dt, self.newton
         e0, em = self.eta_, self.old
-        newton.set_known(e0, em)
+        newton.set_known(e0, em, self.known_rate())
         # a moving obstacle: the semi-implicit damping brakes the step's gap rate, v^{n+1} − (ψ^{n+1} − ψ^n)/Δt
         dpsi = problem.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
         if problem.penalty == "explicit":
@@ -192,4 +215,4 @@ class ImplicitScheme(_NewtonScheme):
         return work
 
 
-__all__ = ["ImplicitScheme", "kinetic_energy"]
+__all__ = ["ImplicitScheme", "acceleration", "kinetic_energy"]
