@@ -103,3 +103,15 @@ def test_show_writes_a_constants_description_on_one_comment_line(monkeypatch):
     monkeypatch.setattr(registry, "load_model", lambda spec: model)
     shown = tomllib.loads(show_scene(sc.load_scene("example1")))
     assert shown["parameters"] == {"k": 1.0}
+
+
+def test_an_unknown_release_is_refused_under_every_scheme():
+    with pytest.raises(FormError, match="release: model 'declares' declares release 'elastic'"):
+        run(dataclasses.replace(sc.inelastic, name="declares", release="elastic"), scheme="paper")
+
+
+def test_the_errors_the_exit_codes_page_names_are_importable():
+    from stringcontact import errors
+
+    assert (sc.SolverError, sc.OutputError, sc.Interrupted) == (errors.SolverError, errors.OutputError,
+                                                                 errors.Interrupted)

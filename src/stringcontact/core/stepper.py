@@ -128,7 +128,9 @@ class TimeStepper:
         eta0, v0 = one_outcome(self.comm, p.initial_state)
         with plugin_code(self._plugins):
             start = _energy_terms(self.scheme.start(eta0, v0), f"{self._plugins}: start()")
-        if not all(math.isfinite(term) for term in start):  # no step can fix an initial energy that is not finite
+        # a declared energy not finite at t = 0: no step can fix it (a form's own potential: the step names the form)
+        declared = self.model.stored_energy is not None or self.model.contact_energy is not None
+        if declared and not all(math.isfinite(term) for term in start):
             raise SceneError(f"{self._plugins}: the initial state's energy is not finite ({start}); allowed: finite "
                              "energies at t = 0 (the model's stored_energy, contact_energy at eta0)")
         self.ledger = EnergyLedger(start, conservative=self.model.contact_energy is not None

@@ -96,7 +96,7 @@ def check_declarations(model) -> None:
                             + ("twice" if twice else "a name the run's files use themselves (rows.npz, diagnostics.csv, "
                                f"the pictures); allowed: another name, not {', '.join(TAKEN)} or field_..."))
     if getattr(model, "release", "inelastic") not in ("inelastic", "signorini"):  # read by some schemes only
-        raise FormError(f"{where}: release {model.release!r:.40}; allowed: 'inelastic', 'signorini'")
+        raise FormError(f"release: {where} declares release {model.release!r:.40}; allowed: inelastic, signorini")
     fields = tuple(getattr(model, "fields", ()))
     for what in ("held_fields", "dissipative_fields"):
         named = getattr(model, what, ())

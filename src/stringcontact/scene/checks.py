@@ -236,7 +236,8 @@ def initial_data(key: str, value):
                          f"{describe(value)}")
     kind = np.asarray(value).dtype.kind if not np.ma.isMaskedArray(value) else "masked"
     if kind not in "biuf" or len(value) == 0:  # complex parts and masks would be dropped silently
-        raise SceneError(f"{key}: expected real numbers in its array, got {describe(value)}; allowed: nodal {_VALUES}")
+        raise SceneError(f"{key}: expected numbers in its array (real, none masked), got {describe(value)}; allowed: "
+                         f"nodal {_VALUES}")
     values = np.asarray(value, dtype=float)
     if values.ndim != 1:
         raise SceneError(f"{key}: an array of nodal values must be a flat list of nx + 1 numbers; got shape "
