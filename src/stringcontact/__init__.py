@@ -7,7 +7,7 @@
 
 from . import jitlog as _jitlog
 from . import stack as _stack
-from .errors import InstabilityError, InstabilityWarning, SceneError
+from .errors import InstabilityError, InstabilityWarning, Interrupted, OutputError, SceneError, SolverError
 from .lazy import lazy_names as _lazy_names
 
 _stack.load_mpi_first()  # the dolfinx wheel's MPI before anything imports dolfinx (nothing elsewhere)
@@ -56,15 +56,18 @@ __all__ = [
     "TimeStepper",
     "InstabilityError",
     "InstabilityWarning",
+    "Interrupted",
     "Model",
     "ModelConstant",
     "Output",
+    "OutputError",
     "OutputField",
     "Parameters",
     "Result",
     "Scene",
     "SceneError",
     "SceneWarning",
+    "SolverError",
     "SolverHints",
     "Stepper",
     "Storage",

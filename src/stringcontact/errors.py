@@ -75,22 +75,35 @@ def one_line(text, limit: int | None = None) -> str:
     return line if limit is None else line[:limit]
 
 
+#: What a plugin's own code raises when it breaks its contract (a wrong type returned, a key it does not have): one
+#: line naming the plugin (exit 2), not an internal error.
+PLUGIN_FAULTS = (TypeError, KeyError, AttributeError, IndexError, NotImplementedError, ZeroDivisionError)
+
+
+def plugin_failure(what: str, exc: BaseException) -> BaseException:
+    """The one-line `SceneError` naming `what` (a model, a scheme) for an exception its code raised: ``sys.exit``, a
+    `KeyboardInterrupt` it raised itself, a `PLUGIN_FAULTS` error; any other exception (a signal's `Interrupted`, an
+    error of this package) is returned as it is."""
+    if isinstance(exc, Interrupted) or not isinstance(exc, (SystemExit, KeyboardInterrupt, *PLUGIN_FAULTS)):
+        return exc
+    if isinstance(exc, SystemExit):
+        why = f"called sys.exit({exc.code!r}); a plugin's code must return its value or raise an exception, never end the process"
+    elif isinstance(exc, KeyboardInterrupt):
+        why = "raised KeyboardInterrupt itself (no Ctrl-C was pressed); a plugin's code must return its value or raise an exception"
+    else:
+        why = f"failed with {type(exc).__name__}: {one_line(exc, 200)}; see its declaration and docs/howto/models.md or schemes.md"
+    return SceneError(f"{what} {why}")
+
+
 @contextlib.contextmanager
 def plugin_code(what: str):
-    """Run a model's own code (its module's import, its functions): a `SystemExit` (``sys.exit(0)``) or a
-    `KeyboardInterrupt` it raises itself becomes a one-line `SceneError` naming `what`, instead of ending the
-    process with exit 0 and nothing said. A signal (`Interrupted`, raised by the run's own handlers) passes."""
+    """Run a plugin's own code (a model's or a scheme's module, its functions): what `plugin_failure` names becomes a
+    one-line `SceneError` naming `what`, instead of ending the process with exit 0 and nothing said, or an internal
+    error. A signal (`Interrupted`, raised by the run's own handlers) and this package's own errors pass."""
     try:
         yield
-    except Interrupted:
-        raise
-    except SystemExit as exc:
-        raise SceneError(
-            f"{what} called sys.exit({exc.code!r}); a model's code must return its value or raise an "
-            "exception, never end the process"
-        ) from None
-    except KeyboardInterrupt:
-        raise SceneError(
-            f"{what} raised KeyboardInterrupt itself (no Ctrl-C was pressed); a model's code must "
-            "return its value or raise an exception"
-        ) from None
+    except BaseException as exc:
+        failure = plugin_failure(what, exc)
+        if failure is exc:
+            raise
+        raise failure from None

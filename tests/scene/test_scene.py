@@ -528,3 +528,9 @@ def test_a_scheme_option_the_scheme_does_not_take_is_refused_when_the_run_is_set
         sc.simulate(s)
     with pytest.raises(ValueError, match=r"scheme 'projection' accepts mass lumped, not 'consistent'"):
         sc.simulate(s.replace(scheme={"name": "projection", "mass": "consistent"}))
+
+
+@pytest.mark.parametrize("values", [[], np.ones(41) + 0j, np.ma.masked_array(np.ones(41), mask=[True] + [False] * 40)])
+def test_an_array_of_nodal_values_is_real_numbers_or_one_line(values):
+    with pytest.raises(SceneError, match=r"eta0: expected numbers in its array \(real, none masked\)"):
+        load_scene("example1").replace(nx=40, eta0=values)

@@ -128,3 +128,59 @@ def test_a_linear_model_through_newton_is_the_linear_path():
 def test_a_class_that_is_no_scheme_is_refused():
     with pytest.raises(TypeError, match="is not a subclass of stringcontact.timestepping.base.Scheme"):
         sc.simulate(SCENE, scheme=dict)
+
+
+@pytest.fixture
+def registered_as(tmp_path, monkeypatch):
+    """Register `name = target` (a module `plugin_schemes` with `source`) as an installed scheme."""
+
+    def register(entries: dict, source: str = "def function():\n    pass\n"):
+        (tmp_path / "plugin_schemes.py").write_text(source)
+        info = tmp_path / "plugin_schemes-0.1.dist-info"
+        info.mkdir(exist_ok=True)
+        (info / "METADATA").write_text("Metadata-Version: 2.1\nName: plugin-schemes\nVersion: 0.1\n")
+        lines = "".join(f"{name} = {target}\n" for name, target in entries.items())
+        (info / "entry_points.txt").write_text(f"[{names.SCHEME_GROUP}]\n{lines}")
+        monkeypatch.syspath_prepend(str(tmp_path))
+        names.scheme_class.cache_clear()
+
+    yield register
+    sys.modules.pop("plugin_schemes", None)
+    names.scheme_class.cache_clear()
+
+
+def test_a_stale_scheme_entry_point_breaks_no_scheme_class_handed_over_and_no_other_message(registered_as):
+    registered_as({"stale": "gone_module:Scheme"})
+    r = _run(SCENE.replace(nt=4, T=0.01), scheme=_Unregistered)
+    assert r.status == "complete" and r.scheme.endswith(":_Unregistered")
+    with pytest.raises(ValueError, match=r"restitution: scheme 'paper' takes no restitution .* only scheme 'fitted' or 'projection' does"):
+        _run(SCENE, scheme="paper", restitution=0.5)
+    with pytest.raises(sc.SceneError, match="scheme: cannot load 'stale'"):
+        _run(SCENE, scheme="stale")
+
+
+@pytest.mark.parametrize(("target", "source", "fragment"), [
+    ("plugin_schemes:function", "def function():\n    pass\n", "is registered as a function, not a subclass"),
+    ("plugin_schemes:NoMass", "from stringcontact.timestepping.paper import PaperScheme\n"
+                              "from stringcontact.timestepping.base import SchemeOption\n"
+                              "class NoMass(PaperScheme):\n    OPTIONS = (SchemeOption('mass', None, ()),)\n",
+     "its penalty and mass options must list their choices"),
+    ("plugin_schemes:BadOptions", "from stringcontact.timestepping.paper import PaperScheme\n"
+                                  "class BadOptions(PaperScheme):\n    pass\nBadOptions.OPTIONS = ['mass']\n",
+     "OPTIONS must be a tuple of SchemeOptions"),
+])
+def test_a_scheme_entry_point_that_is_no_scheme_is_one_line_naming_it(registered_as, target, source, fragment):
+    registered_as({"odd": target}, source)
+    with pytest.raises(sc.SceneError, match=f"scheme.*'odd'.*{fragment}"):
+        _run(SCENE, scheme="odd")
+
+
+def test_a_schemes_linear_solver_failure_names_the_step_and_time(monkeypatch):
+    from stringcontact.timestepping.paper import PaperScheme
+
+    def failing(self):
+        raise sc.SolverError("the CG did not converge (DIVERGED_ITS)")
+
+    monkeypatch.setattr(PaperScheme, "step", failing)  # the linear path of a linear model
+    with pytest.raises(sc.SolverError, match=r"step 1, t = 0.0025: the CG did not converge"):
+        _run(SCENE, scheme="paper")

@@ -5,7 +5,8 @@ Exit codes:
 * 0 success;
 * 1 an internal error (a bug: one line; STRINGCONTACT_TRACEBACK=1 shows the traceback);
 * 2 bad input: scene, options, output folder (not empty, locked by another run, read-only, disk full),
-  a scheme that would be unstable before it starts;
+  a scheme that would be unstable before it starts, a model or scheme plugin that breaks its contract or calls
+  sys.exit (named), MPI ranks given different input;
 * 3 a run that became unstable (its partial output is kept, marked "unstable"), or whose energy balance does
   not close (its output is kept, marked "unbalanced");
 * 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (partial output kept, marked "interrupted").

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import warnings
 
+from ..errors import one_line
 from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 
 __all__ = ["report", "show_scene"]
@@ -43,14 +44,17 @@ def show_scene(scene) -> str:
     lines += [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
     lines += [tomli_w.dumps(table)] if table is not None else []
     given, constants = dict(scene.parameters), load_model(data["model"]).constants
-    if constants:
+    if constants or given:
         lines.append(f"\n[parameters]  # the constants of model {data['model']} (`stringcontact models`)\n")
     for c in constants:  # each with its value (the scene's, else its default), unit, range and meaning
-        value = given.get(c.name, c.default)
+        value = given.pop(c.name, c.default)
         about = "; ".join(part for part in (c.description, f"unit {c.unit}" if c.unit else "", f"allowed: {c.allowed}",
-                                            "" if c.name in given else f"default {c.default_text}") if part)
-        lines.append(f"# {c.name}: not given ({about})\n" if value is None else
-                     f"{tomli_w.dumps({c.name: value}).strip():24s}# {about}\n")
+                                            "" if c.name in scene.parameters else f"default {c.default_text}") if part)
+        lines.append(f"# {c.name}: not given ({one_line(about)})\n" if value is None else
+                     f"{tomli_w.dumps({c.name: value}).strip():24s}# {one_line(about)}\n")
+    for name, value in given.items():  # kept for the model a run names itself (--model package.module:name)
+        lines.append(f"{tomli_w.dumps({name: value}).strip():24s}# not a constant of model {data['model']}: for the "
+                     "model given with --model\n")
     return "".join(lines) + (tomli_w.dumps({"petsc_options": options}) if options else "")
 
 

@@ -64,7 +64,9 @@ class EnergyLedger:
         done on the string by changing it) or, with `numerical`, as numerical dissipation (a sub-stepped step: the
         schemes at Δt/m and Δt count the kinetic energy of the same state differently); returns it."""
         kin, el, _, _, _, _, stored = start
-        work = kin + el - self.kin - self.el + ((stored - self.stored) if self.conservative else 0.0)
+        spring = (stored - self.stored) if self.conservative else 0.0
+        self.con += spring  # a contact spring's energy is D_con's: its jump (k changed while pressed) is held there
+        work = kin + el - self.kin - self.el + spring
         if numerical:
             self.num -= work
         else:

@@ -14,6 +14,7 @@ from petsc4py import PETSc
 from ..fem.compat import set_bc
 from ..fem.operators import Operators, node_coordinates, semi_discrete_operators
 from ..fem.outputs import OutputValues
+from ..model.forms import check_declarations
 from ..model.interface import Model, Parameters, unused_fields
 from ..scene.parameters import resolve_parameters
 
@@ -46,6 +47,7 @@ class ContactProblem:
 
     def __init__(self, model: Model, eta, v=None, *, bcs=(), alpha: float = 0.0, constants: dict | None = None,
                  fields: dict | None = None, obstacle: Callable | None = None, unknowns: dict | None = None):
+        check_declarations(model)  # what it declares is of its kind, before any of it is read
         V = eta.function_space
         if V.num_sub_spaces or V.dofmap.index_map_bs != 1:
             raise ValueError("eta: expected a Function on a scalar P1 space (dolfinx functionspace(mesh, ('Lagrange', 1)))")

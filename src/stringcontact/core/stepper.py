@@ -10,8 +10,10 @@ from collections.abc import MutableMapping
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
-from ..errors import InstabilityError, SceneError, SolverError, plugin_code
+from ..errors import PLUGIN_FAULTS, InstabilityError, SceneError, SolverError, plugin_code, plugin_failure
+from ..fem.agree import same_on_every_rank
 from ..fem.dissipation import InternalDissipation, internal_variables
 from ..model.forms import FormError, check_declarations
 from ..model.interface import penetration_bound_of
@@ -61,7 +63,6 @@ class TimeStepper:
         self.penalty, self.mass = self.options["penalty"], self.options["mass"]
         check_model(self.name, model, self.Scheme)
         penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
-        check_declarations(model)  # the fields it holds or books as dissipative are its own
         given = self.options["petsc_options"]
         check_option_values(given, ranks=self.comm.size)
         check_snes_options(given)  # tolerances that would make Newton's stopping test pass without solving
@@ -75,11 +76,15 @@ class TimeStepper:
         self._broken = None  # why the stepper may not go on (an error inside a step)
         self._restart = None  # the start terms of a scheme restarted after sub-steps
         self.parameters = _Constants(self)
+        self._plugins = f"model '{model.name}' with scheme '{self.name}'"  # whose code runs in a step
+        same_on_every_rank(self.comm, "the time step, scheme, options and constants",
+                           [self._dt, self.name, nt, self.options, dict(self.parameters)])
         with plugin_code(f"model '{model.name}'"):
             ops = problem.operators(not self.Scheme.LINEAR_PATH)
             self._check_moving_obstacle()
             self.newton = ops.nonlinear is not None  # a Newton path, whose step may fail and be sub-stepped
             self.discrete = self._discrete(ops, self._dt)
+        with plugin_code(self._plugins):
             self.scheme = self.Scheme(self.discrete)
         self._start()
 
@@ -131,8 +136,13 @@ class TimeStepper:
         from ..fem.agree import one_outcome
 
         eta0, v0 = one_outcome(self.comm, p.initial_state)
-        with plugin_code(f"model '{self.model.name}'"):
-            start = self.scheme.start(eta0, v0)
+        with plugin_code(self._plugins):
+            start = _energy_terms(self.scheme.start(eta0, v0), f"{self._plugins}: start()")
+        # a declared energy not finite at t = 0: no step can fix it (a form's own potential: the step names the form)
+        declared = self.model.stored_energy is not None or self.model.contact_energy is not None
+        if declared and not all(math.isfinite(term) for term in start):
+            raise SceneError(f"{self._plugins}: the initial state's energy is not finite ({start}); allowed: finite "
+                             "energies at t = 0 (the model's stored_energy, contact_energy at eta0)")
         self.ledger = EnergyLedger(start, conservative=self.model.contact_energy is not None
                                    or self.scheme.energy_may_rise,
                                    floor=energy_roundoff(self.discrete.ops.K, self.scheme.eta, self.comm),
@@ -219,12 +229,22 @@ class TimeStepper:
     def advance(self) -> StepEnergy:
         """One time step from `t` to `t` + `dt`; returns its energy terms. `InstabilityError` if the energy rose."""
         if self._broken is not None:
-            why = self._broken or f"step {self.step + 1} did not finish"
-            raise RuntimeError(f"the stepper cannot go on: {why}; make a new one from its last state")
-        self._broken = ""  # cleared below: an error within the step (Ctrl-C) leaves it set
-        if self.parameters.changed:
+            why = self._broken or f"step {self.step + 1} did not finish (interrupted, or an error inside it)"
+            raise ValueError(f"advance: the stepper cannot go on: {why}; make a new one from its last state")
+        changed = self.parameters.changed
+        if self.comm.size > 1:  # a constant set on one rank only: every rank refuses, none waits in the rebuild
+            changed = self.comm.allreduce(changed, op=MPI.LOR)
+            if changed:
+                same_on_every_rank(self.comm, "parameters", dict(self.parameters))
+        self._broken = ""  # cleared below: an error within the step or an observer (Ctrl-C) leaves it set
+        if changed:
             self._rebuild()
-        terms = self._step() if self.newton else self.scheme.step()
+        try:
+            terms = self._step()
+        except (SystemExit, *PLUGIN_FAULTS) as exc:  # a plugin's sys.exit or broken contract: one line naming it
+            raise plugin_failure(f"{self._plugins} at step {self.step + 1}", exc) from None
+        if type(terms) is not StepEnergy:
+            terms = _energy_terms(terms, f"{self._plugins}: step()")
         internal = self._internal and self._internal.step([self.scheme.eta, *self.scheme.fields.values()], self._dt)
         why = self.ledger.add(terms, self.scheme.energy_slack, internal)
         if self._restart is not None:  # a sub-stepped step left a scheme at Δt started afresh from its end
@@ -236,21 +256,22 @@ class TimeStepper:
             self._broken = f"it became unstable at step {self.step}"
             raise self._unstable(why)
         self._write_state()
-        self._broken = None
         for stepped in self._stepped:
             stepped(self)
+        self._broken = None
         return terms
 
     def _step(self) -> StepEnergy:
-        """A Newton path's step, retried as 2, 4, … 2^MAX_HALVINGS sub-steps from the same state when Newton fails;
-        a SolverError naming the time, the step and what to change only when the finest fails."""
+        """The scheme's step; a Newton path's is retried as 2, 4, … 2^MAX_HALVINGS sub-steps from the same state when
+        Newton fails; a SolverError names the time, the step and what to change."""
         scheme = self.scheme
-        eta, v, fields = _state(scheme)
-        where = f"step {self.step + 1}, t = {self.t + self._dt:.6g}"
+        if self.newton:
+            eta, v, fields = _state(scheme)
         try:
             return scheme.step()
         except SolverError as exc:
-            if getattr(exc, "not_finite", False):  # the model's form, not the step size: sub-steps cannot help
+            where = f"step {self.step + 1}, t = {self.t + self._dt:.6g}"
+            if not self.newton or getattr(exc, "not_finite", False):  # sub-steps cannot help: the form, a linear solve
                 raise SolverError(f"{where}: {exc}") from None
             if self.problem.obstacle is not None:
                 raise SolverError(f"{where}: {exc} (a moving obstacle's step is not sub-stepped: use a smaller dt)") from None
@@ -263,7 +284,8 @@ class TimeStepper:
                 self._restart = restart  # booked after the step: the ledger holds the step's end first
                 return step
             raise SolverError(f"{where}: {exc}, and again in {2**MAX_HALVINGS} sub-steps of dt/{2**MAX_HALVINGS}; "
-                              f"use a smaller dt (nt >= {(self.nt or 1) * 2**MAX_HALVINGS}) or scheme 'paper'") from None
+                              f"use a smaller dt (nt >= {(self.nt or 1) * 2**MAX_HALVINGS})"
+                              + ("" if self.name == "paper" else " or scheme 'paper'")) from None
 
     def _restarted(self, dt: float, state=None):
         """A new scheme at `dt` on the same operators, started from `state` (the current one by default); its start
@@ -327,6 +349,8 @@ class TimeStepper:
         return out
 
 
+
+
 def _state(scheme) -> tuple:
     """A scheme's whole state, copied: η, v and the model's further unknowns by name."""
     fields = {name: np.array(values) for name, values in scheme.fields.items()}
@@ -348,6 +372,15 @@ def _set_initial(problem: ContactProblem, initial: dict) -> None:
         targets[name].x.scatter_forward()
         if name in problem.unknowns:
             problem.given.add(name)
+
+
+def _energy_terms(terms, what: str) -> StepEnergy:
+    """`terms` as a `StepEnergy` (seven numbers), else a one-line SceneError naming `what` (the plugin's method)."""
+    try:
+        return StepEnergy(*(float(v) for v in terms))
+    except (TypeError, ValueError):
+        raise SceneError(f"{what} returned {type(terms).__name__} {terms!r:.80}; allowed: a StepEnergy (seven "
+                         "numbers: kinetic, elastic, viscous, contact, numerical, external, stored)") from None
 
 
 def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:
@@ -381,6 +414,10 @@ class _Constants(MutableMapping):
                              "start its obstacle again at t = 0); restart from the state with the new value")
         values = resolve_parameters(st.model.name, st.model.constants, dict(self) | {name: value},
                                     st.model.check_constants)
+        if name not in self._constants():  # the forms were compiled without it
+            raise SceneError(f"{name}: model {st.model.name!r}'s optional constant was not given when the run started, "
+                             "and its forms do not read it; allowed: the constants the run started with "
+                             f"({', '.join(self) or 'none'}); start a run with {name} in [parameters]")
         self._constants()[name].value = values[name]
         self.changed = True
 

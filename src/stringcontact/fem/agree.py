@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pickle
 
-__all__ = ["one_outcome"]
+__all__ = ["one_outcome", "same_on_every_rank"]
 
 
 def one_outcome(comm, work, *args, root: int | None = None):
@@ -41,3 +41,25 @@ def _portable(error: Exception | None):
         return error
     except Exception:  # noqa: BLE001 - an exception with unpicklable state
         return RuntimeError(f"{type(error).__name__}: {error}")
+
+
+def same_on_every_rank(comm, what: str, value) -> None:
+    """A one-line `SceneError` on every rank unless `value` (plain data: numbers, words, dicts, lists) is the same on
+    every rank: one allgather of its digest. Collective; free in serial. Ranks given different input would run a
+    mixture of runs, or wait forever in a collective call the others do not make."""
+    if comm.size == 1:
+        return
+    import hashlib
+    import json
+
+    def plain(o):  # an array (a restart's eta0) by its bytes; anything else by its repr
+        return hashlib.sha256(o.tobytes()).hexdigest() if hasattr(o, "tobytes") else repr(o)
+
+    digest = hashlib.sha256(json.dumps(value, sort_keys=True, default=plain).encode()).hexdigest()[:16]
+    digests = comm.allgather(digest)
+    if len(set(digests)) > 1:
+        from ..errors import SceneError
+
+        differ = [rank for rank, d in enumerate(digests) if d != digests[0]]
+        raise SceneError(f"{what}: rank {differ[0]} was given other values than rank 0 ({value!r:.120} on rank "
+                         f"{comm.rank}); allowed: the same {what} on every rank of the MPI job")

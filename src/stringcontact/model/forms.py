@@ -74,8 +74,29 @@ def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> objec
 
 
 def check_declarations(model) -> None:
-    """FormError (one line) if a model names a field it does not have: each of its ``held_fields`` and
-    ``dissipative_fields`` must be one of its ``fields`` (``held_fields=("zz",)`` ended in an internal KeyError)."""
+    """FormError (one line) unless what a model declares is of its kind: ``fields``, ``constants`` and ``outputs``
+    tuples of identifiers, `ModelConstant`s and `OutputField`s, no name twice, no output field under a name a run's
+    files use themselves (`interface.TAKEN`, ``field_...``); ``stored_energy`` and the other laws functions or None;
+    each of its ``held_fields`` and ``dissipative_fields`` one of its ``fields``."""
+    from .interface import TAKEN, ModelConstant, OutputField, output_fields
+
+    where = f"model '{model.name}'"
+    for what, kind in (("fields", str), ("constants", ModelConstant), ("outputs", OutputField)):
+        named = getattr(model, what, ())
+        if not isinstance(named, (tuple, list)) or not all(isinstance(item, kind) for item in named):
+            raise FormError(f"{where}: {what} must be a tuple of {kind.__name__}s, not {named!r:.80}")
+    for what in ("stored_energy", "contact_energy", "gap", "penalty_damping", "stability", "check_constants"):
+        if getattr(model, what, None) is not None and not callable(getattr(model, what)):
+            raise FormError(f"{where}: {what} must be a function or None, not {getattr(model, what)!r:.80}")
+    for what, names in (("constants", [c.name for c in model.constants]), ("outputs", [f.name for f in output_fields(model)])):
+        twice = sorted({name for name in names if names.count(name) > 1})
+        taken = [name for name in names if what == "outputs" and (name in TAKEN or name.startswith("field_"))]
+        if twice or taken:
+            raise FormError(f"{where}: {what} name {', '.join(map(repr, twice or taken))} "
+                            + ("twice" if twice else "a name the run's files use themselves (rows.npz, diagnostics.csv, "
+                               f"the pictures); allowed: another name, not {', '.join(TAKEN)} or field_..."))
+    if getattr(model, "release", "inelastic") not in ("inelastic", "signorini"):  # read by some schemes only
+        raise FormError(f"release: {where} declares release {model.release!r:.40}; allowed: inelastic, signorini")
     fields = tuple(getattr(model, "fields", ()))
     for what in ("held_fields", "dissipative_fields"):
         named = getattr(model, what, ())

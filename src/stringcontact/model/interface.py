@@ -82,6 +82,12 @@ SCALES = ("linear", "symlog")
 #: Names an output field may not take: the fields every run stores beside it (`io.result.FIELDS`, the coordinates,
 #: a moving obstacle) share its row, and one of these names would overwrite them.
 RESERVED = ("eta", "velocity", "contact", "contact_force", "obstacle", "x", "t")
+#: Names a model's output field may not take besides those: the names a run's files give their own members, columns
+#: and pictures (rows.npz's ``steps``, diagnostics.csv's ``min_gap``, ``energy.png``, ...), and their prefix ``field_``.
+TAKEN = ("steps", "cells", "weights", "gap", "contact_set", "contact_area", "velocity_field", "snapshots", "energy",
+         "space_time", "membrane")
+#: The longest name (its picture's file name stays within the file systems' 255 bytes) and label or unit.
+MAX_NAME, MAX_LABEL = 60, 200
 
 
 @dataclass(frozen=True)
@@ -108,8 +114,9 @@ class OutputField:
     surface: bool = False
 
     def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name.isidentifier():
-            raise ValueError(f"OutputField: name must be an identifier, not {self.name!r}")
+        if not isinstance(self.name, str) or not self.name.isidentifier() or len(self.name) > MAX_NAME:
+            raise ValueError(f"OutputField: name must be an identifier of at most {MAX_NAME} characters, not "
+                             f"{self.name!r:.80}")
         if self.name in RESERVED:
             raise ValueError(f"OutputField {self.name!r}: a name every run stores already; choose another")
         if self.scale not in SCALES:
@@ -118,6 +125,12 @@ class OutputField:
             raise ValueError(f"OutputField {self.name!r}: colours must be two or more RGB triples in 0 ... 1")
         if not 0 < self.linear_share < 1:
             raise ValueError(f"OutputField {self.name!r}: linear_share must be in (0, 1)")
+        for key in ("label", "unit"):  # what `plot` reads back from summary.json
+            if not isinstance(getattr(self, key), str) or len(getattr(self, key)) > MAX_LABEL:
+                raise ValueError(f"OutputField {self.name!r}: {key} must be text of at most {MAX_LABEL} characters, "
+                                 f"not {getattr(self, key)!r:.80}")
+        if not all(isinstance(getattr(self, key), bool) for key in ("symmetric", "surface")):
+            raise ValueError(f"OutputField {self.name!r}: symmetric and surface must be True or False")
 
     @property
     def title(self) -> str:
@@ -172,7 +185,7 @@ def output_fields(model) -> tuple[OutputField, ...]:
     """The fields a model writes: its declared `outputs`, and for each of its unknowns (`Model.fields`) that none
     of them names, a plain `OutputField` of that name."""
     declared = tuple(getattr(model, "outputs", ()))
-    named = {f.name for f in declared}
+    named = {getattr(f, "name", None) for f in declared}
     plain = tuple(OutputField(name) for name in getattr(model, "fields", ()) if name not in named)
     return plain + declared
 

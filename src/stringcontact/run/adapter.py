@@ -18,7 +18,7 @@ from ..core.problem import ContactProblem
 from ..core.stepper import TimeStepper
 from ..errors import SceneError
 from ..fem import compat, domains
-from ..fem.agree import one_outcome
+from ..fem.agree import one_outcome, same_on_every_rank
 from ..fem.operators import bc_dofs, node_coordinates
 from ..model.forms import check_declarations
 from ..model.interface import Model, inelastic, penetration_bound_of
@@ -79,13 +79,16 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
         given["petsc_options"] = dict(scene.petsc_options)
     resolved = resolve_options(name, Scheme, given)
     model = resolve_model(model, scene)
+    check_declarations(model)  # what it declares is of its kind
     check_model(name, model, Scheme)
     penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
-    check_declarations(model)  # the fields it holds or books as dissipative are its own
     from ..errors import plugin_code
 
     with plugin_code(f"model '{model.name}'"):  # its functions' sys.exit: one line, not exit 0
         constants = model_constants(scene, model)
+    if comm is not None:  # ranks given different input would run a mixture, or wait forever for each other
+        same_on_every_rank(comm, "the scene, scheme, options and model", [scene.as_dict(), name, resolved, model.name,
+                                                                          constants])
     check_option_values(resolved["petsc_options"], ranks=comm.size if comm is not None else 1)
     check_snes_options(resolved["petsc_options"])
     _check_size(scene, model)

@@ -9,7 +9,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InstabilityError, SceneError, SolverError, plugin_code
+from ..errors import InstabilityError, ModelError, SceneError, SolverError, one_line, plugin_code
 from ..io.result import FIELDS, Result, node_sort_key
 from ..model.interface import penetration_bound_of, reads_eps
 from ..scene.names import DEFAULT_MODEL
@@ -83,7 +83,7 @@ class Stepper:
         self.law_reads_eps = reads_eps(self.model, self.problem.V, self.problem.params)
         self.dt, self.nt = scene.dt, scene.nt
         self._order = np.argsort(node_sort_key(self.problem.x), kind="stable")  # this rank's nodes in x order
-        self._loop_time, self._done = 0.0, None
+        self._loop_time, self._done, self._stopped = 0.0, None, None  # _stopped: the error that stopped the run
         self.rows = RowObserver(self.core, scene.nt, scene.dt, scene.output_times, storage)
         self.writer = self._writer()
         self.rows.sink = self.writer.write if self.writer is not None else None
@@ -167,6 +167,7 @@ class Stepper:
         """One time step from `t` to `t` + Δt: the scheme's step, the energy ledger and its guard, and the row stored
         (and written) if this step is one of the stored ones. Raises `InstabilityError` (with ``exc.result``) if the
         energy rose, ValueError past T."""
+        self._refuse_if_stopped("advance")
         if self.step >= self.nt:
             raise ValueError(f"advance: the run is at T = {self.scene.T:g} (step {self.nt}); take its result()")
         # NaN, overflow: the energy guard names the step; BLAS on one thread for long vectors (`blas.one_thread`)
@@ -186,19 +187,30 @@ class Stepper:
         try:
             yield
         except (InstabilityError, KeyboardInterrupt) as exc:
+            self._stopped = exc  # its folder is marked: the run cannot go on
             status = "unstable" if isinstance(exc, InstabilityError) else "interrupted"
             exc.result = self._result(status, str(exc) or status)  # the rows so far: partial output, the report
             if self.writer is not None:
                 self.writer.abort(status, exc.result.message, result=exc.result, error=exc)
             raise
         except BaseException as exc:
+            self._stopped = exc
             if self.writer is not None:
                 self.writer.discard()  # an unexpected error: no half-written folder, no stale lock
-            if isinstance(exc, SceneError):  # a scene's field checked where it is evaluated (an obstacle in t)
-                raise
+            if isinstance(exc, (SceneError, ModelError)):  # a scene's field checked where it is evaluated (an obstacle
+                raise  # in t), a model's output field that is not finite
             if isinstance(exc, ValueError):  # the input was checked before the march: no input error
                 raise SolverError(f"step failed: {exc}") from exc
             raise
+
+    def _refuse_if_stopped(self, what: str) -> None:
+        """A run stopped by an error (an instability, Ctrl-C, a plugin's failure) cannot go on: one line."""
+        if self._stopped is not None:
+            result = getattr(self._stopped, "result", None)
+            why = f"{result.status}: {result.message}" if result is not None else f"failed: {self._stopped}"
+            raise ValueError(f"{what}: the run stopped at step {self.step} ({one_line(why, 300)}); "
+                             "it cannot go on; result() gives what it stored (if it stopped unstable or interrupted), or start a new "
+                             "Stepper from its state")
 
     # --- the result ---------------------------------------------------------------------------------------------
 
@@ -207,6 +219,9 @@ class Stepper:
         its output folder written; the same object on a second call."""
         if self._done is not None:
             return self._done
+        if getattr(self._stopped, "result", None) is not None:  # unstable or interrupted: that partial Result
+            return self._stopped.result
+        self._refuse_if_stopped("result")
         if self.step < self.nt:
             raise ValueError(f"result: the run is at step {self.step} of {self.nt} (t = {self.t:g}); advance() to T")
         writer = self.writer

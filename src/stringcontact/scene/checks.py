@@ -236,10 +236,11 @@ def initial_data(key: str, value):
     if not isinstance(value, (list, tuple, np.ndarray)):
         raise SceneError(f"{key}: expected an expression string, a number or an array of nodal values, got "
                          f"{describe(value)}")
-    try:
-        values = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SceneError(f"{key}: expected numbers in its array, got {describe(value)}") from None
+    kind = np.asarray(value).dtype.kind if not np.ma.isMaskedArray(value) else "masked"
+    if kind not in "biuf" or len(value) == 0:  # complex parts and masks would be dropped silently
+        raise SceneError(f"{key}: expected numbers in its array (real, none masked), got {describe(value)}; allowed: "
+                         f"nodal {_VALUES}")
+    values = np.asarray(value, dtype=float)
     if values.ndim != 1:
         raise SceneError(f"{key}: an array of nodal values must be a flat list of nx + 1 numbers; got shape "
                          f"{values.shape}")

@@ -79,6 +79,8 @@ class ModelConstant:
             raise ValueError(f"ModelConstant: name must be an identifier, not {self.name!r}")
         if not -MAGNITUDE <= self.low <= self.high <= MAGNITUDE:
             raise ValueError(f"ModelConstant {self.name!r}: need -1e12 <= low <= high <= 1e12")
+        if self.low == self.high and (self.low_open or self.high_open):
+            raise ValueError(f"ModelConstant {self.name!r}: {self.allowed} holds no number")
         if self.default is not None:
             self.check(self.default)
 

@@ -9,6 +9,9 @@ its module plus one line in its package's ``pyproject.toml``; in Python a `Schem
 
 from __future__ import annotations
 
+import contextlib
+
+from ..errors import SceneError
 from ..scene.names import SCHEMES, scheme_class
 from ..stack import load as _load_stack
 
@@ -18,14 +21,35 @@ _load_stack()  # the wheel's dolfinx_solver before a scheme module imports dolfi
 def resolve_scheme(scheme) -> tuple[str, type]:
     """(its name, the class) of `scheme`: a registered name, or a `Scheme` class handed over in Python (named
     ``module:Class``, the form of an entry point, unless it is the class registered under a name)."""
-    if isinstance(scheme, type):
-        from .base import Scheme
+    from .base import Scheme, SchemeOption
 
+    if isinstance(scheme, type):
         if not issubclass(scheme, Scheme):
             raise TypeError(f"scheme: {scheme.__qualname__} is not a subclass of stringcontact.timestepping.base.Scheme")
-        registered = [name for name in SCHEMES if scheme_class(name) is scheme]
-        return (registered[0] if registered else f"{scheme.__module__}:{scheme.__qualname__}"), scheme
-    return scheme, scheme_class(scheme)
+        registered = [name for name, cls in _loadable().items() if cls is scheme]
+        name = registered[0] if registered else f"{scheme.__module__}:{scheme.__qualname__}"
+    else:
+        name, scheme = scheme, scheme_class(scheme)
+    if not (isinstance(scheme, type) and issubclass(scheme, Scheme)):
+        raise SceneError(f"scheme: {name!r} is registered as a {type(scheme).__name__}, not a subclass of "
+                         "stringcontact.timestepping.base.Scheme")
+    options = getattr(scheme, "OPTIONS", None)
+    if not isinstance(options, tuple) or not all(isinstance(o, SchemeOption) for o in options):
+        raise SceneError(f"scheme {name!r}: OPTIONS must be a tuple of SchemeOptions, not {options!r:.80}")
+    if not scheme.MASSES or any(not o.choices for o in options if o.name in ("penalty", "mass")):
+        raise SceneError(f"scheme {name!r}: its penalty and mass options must list their choices (MASSES = "
+                         f"{scheme.MASSES!r}); allowed: at least one, the default first")
+    return name, scheme
+
+
+def _loadable() -> dict[str, type]:
+    """The registered schemes that load, by name: a stale entry point (its package gone) is refused where it is
+    named, and breaks neither a Scheme class handed over nor the messages that list the others."""
+    classes = {}
+    for name in SCHEMES:
+        with contextlib.suppress(SceneError):
+            classes[name] = scheme_class(name)
+    return classes
 
 
 def _why_not(name: str, Scheme: type, model) -> str | None:
@@ -41,7 +65,7 @@ def check_model(name: str, model, Scheme: type | None = None) -> None:
     `model`, naming the registered schemes that can."""
     why = _why_not(name, Scheme or scheme_class(name), model)
     if why is not None:
-        usable = [other for other in SCHEMES if _why_not(other, scheme_class(other), model) is None]
+        usable = [other for other, cls in _loadable().items() if _why_not(other, cls, model) is None]
         raise ValueError(f"scheme {name!r}: {why}; this model runs with scheme {' or '.join(usable) or 'none'}")
 
 
@@ -49,7 +73,7 @@ def check_restitution(name: str, restitution: float, Scheme: type | None = None)
     """ValueError (one line, naming the schemes that take one) if scheme `name` is given a restitution e > 0 it
     does not take (its class's ``RESTITUTION``)."""
     if restitution and not (Scheme or scheme_class(name)).RESTITUTION:
-        takers = [other for other in SCHEMES if scheme_class(other).RESTITUTION]
+        takers = [other for other, cls in _loadable().items() if getattr(cls, "RESTITUTION", False)]
         raise ValueError(f"restitution: scheme {name!r} takes no restitution coefficient (e = {restitution:g} given); "
                          f"only scheme {' or '.join(repr(t) for t in takers)} does")
 
@@ -66,8 +90,6 @@ def resolve_options(name: str, Scheme: type, given: dict) -> dict:
     """The scheme's options (`Scheme.OPTIONS`) from `given` (None: not given), defaults filled in, each checked: a
     one-line ValueError/SceneError naming the option and what the scheme takes. An ``eps`` given to a scheme without
     a penalty is left unread (a scene written for both kinds of scheme); a restitution of 0 likewise."""
-    from ..errors import SceneError
-
     given = {k: v for k, v in given.items() if v is not None}
     declared = {o.name: o for o in Scheme.OPTIONS}
     check_restitution(name, given.get("restitution") or 0.0, Scheme)
