@@ -1,12 +1,7 @@
 """The schemes as a researcher would write them for Example 1's string, what the benchmarks time `simulate` against
-(benchmarks/bench_step.py, bench_solver.py; tests/verification/test_peers.py checks they step as it does).
-
-Each NumPy peer is one scheme on a uniform string, ψ = 0 and no load, in finite differences (the lumped FEM; with
-T = tridiag(−1, 2, −1): M = Δx I, K = T/Δx, C = αK): the step matrix factorised with `splu` once and again when
-the scheme's matrix changes, a vectorised right-hand side, η and v stored at the rows `simulate` stores, no
-energies. `compiled_peer` is the paper's scheme as a plain C loop (``compiled_peer.c``, `build_compiled`), with
-or without the terms of the discrete energy identity.
-"""
+(tests/verification/test_peers.py checks they step as it does): each NumPy peer one scheme on a uniform string, ψ = 0,
+in finite differences (the lumped FEM, T = tridiag(−1, 2, −1)), its step matrix factorised with `splu` when it
+changes, η and v stored at `simulate`'s rows; `compiled_peer`, the paper's scheme as a plain C loop."""
 
 from __future__ import annotations
 
@@ -33,8 +28,7 @@ LEDGER = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "n
 
 
 def string_start(scene):
-    """(Δt, Δx, η⁰, v⁰, T) of `scene`'s uniform string: the nodal start with its ends at h_left/h_right and v = 0
-    there, and T = tridiag(−1, 2, −1) on the interior nodes (CSC)."""
+    """(Δt, Δx, η⁰, v⁰, T) of `scene`'s uniform string, the ends at h_left/h_right at rest, T on the interior (CSC)."""
     N, dt = scene.nx, scene.dt
     dx = scene.length / N
     x = np.linspace(0.0, scene.length, N + 1)
@@ -78,8 +72,7 @@ def paper_peer(scene, stored_steps):
 
 
 def _factor(A, refactor: str):
-    """The solve of a step matrix that changed: `splu` (the sparse LU, 2.1 ms for Example 1's string), or with
-    `refactor` "lapack" LAPACK's tridiagonal solver dgtsv, which factorises and solves in one call (115 µs)."""
+    """The solve of a changed step matrix: `splu` (2.1 ms for Example 1's string), or "lapack" dgtsv (115 µs)."""
     if refactor == "splu":
         return splu(A.tocsc()).solve
     from scipy.linalg.lapack import dgtsv
@@ -202,8 +195,7 @@ def semi_implicit_peer(scene, stored_steps, refactor: str = "splu"):
 
 
 def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
-    """``compiled_peer.c`` compiled with the system's C compiler into a temporary folder and loaded; RuntimeError
-    naming the compiler if there is none or it fails."""
+    """``compiled_peer.c`` compiled with the system's C compiler and loaded; RuntimeError naming a failing compiler."""
     compiler = _compiler()
     if compiler is None:
         raise RuntimeError("compiled_peer: no C compiler ($CC, Python's own CC, cc or gcc)")
@@ -236,9 +228,8 @@ def _compiler() -> str | None:
 
 
 def compiled_peer(lib, scene, stored_steps, energies: bool = False):
-    """(rows of η, rows of v, ledger {LEDGER name: value at T; zeros without `energies`}, seconds in the loop) of
-    the C loop `lib` (`build_compiled`) on `scene`: a uniform string, the paper's explicit penalty, lumped mass,
-    ψ = 0, no load (Example 1). `stored_steps` must increase within 0 … nt, as `simulate`'s do."""
+    """(rows of η, rows of v, ledger {LEDGER name: value at T, zeros without `energies`}, seconds in the loop) of the
+    C loop `lib` on `scene`'s uniform string (Example 1), `stored_steps` increasing within 0 … nt."""
     N, dt = scene.nx, scene.dt
     steps = np.ascontiguousarray(stored_steps, dtype=np.int64)
     if N < 2 or np.any(np.diff(steps) <= 0) or (steps.size and (steps[0] < 0 or steps[-1] > scene.nt)):

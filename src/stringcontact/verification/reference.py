@@ -1,20 +1,15 @@
 r"""Plain-NumPy finite differences for the string, written independently of the package: the paper's Section 6
-scheme (`fd_solve`) and the ``projection`` scheme (`fd_projection`).
-
-On the grid :math:`x_j = j\,\Delta x`, :math:`j = 0..N`, with :math:`(D^2\eta)_j = (\eta_{j+1} - 2\eta_j +
-\eta_{j-1})/\Delta x^2`, fixed ends :math:`\eta_0 = h_\mathrm{left}`, :math:`\eta_N = h_\mathrm{right}` and
-:math:`v^n = (\eta^n - \eta^{n-1})/\Delta t`, the Section 6 scheme at the interior nodes is
+scheme (`fd_solve`) and the ``projection`` scheme (`fd_projection`). With :math:`(D^2\eta)_j = (\eta_{j+1} - 2\eta_j
++ \eta_{j-1})/\Delta x^2`, fixed ends and :math:`v^n = (\eta^n - \eta^{n-1})/\Delta t`, the Section 6 scheme is
 
 .. math::
 
     \frac{\eta_j^{n+1} - 2\eta_j^n + \eta_j^{n-1}}{\Delta t^2}
     - \frac{\alpha}{\Delta t}\bigl(D^2\eta^{n+1} - D^2\eta^n\bigr)_j - (D^2\eta^{n+1})_j = F_j^n,
 
-with ``penalty="explicit"`` (the paper's) :math:`F_j^n = \varepsilon^{-1}\chi\{\eta_j^n < 0\}\,(v_j^n)^-`, or
-``"semi-implicit"`` :math:`F_j^n = -\varepsilon^{-1}\chi_j^n (\eta_j^{n+1} - \eta_j^n)/\Delta t` on
-:math:`\chi_j^n = \chi\{\eta_j^n < 0,\ v_j^n < 0\}`; ``eps=numpy.inf`` switches contact off. The start:
-:math:`\eta^0` is ``eta0`` with its ends overwritten, :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside and
-:math:`\eta^0` at the ends, so the stored velocity at step 0 is ``v0`` inside and 0 at the ends.
+with ``penalty="explicit"`` :math:`F_j^n = \varepsilon^{-1}\chi\{\eta_j^n < 0\}\,(v_j^n)^-`, or ``"semi-implicit"``
+:math:`F_j^n = -\varepsilon^{-1}\chi_j^n (\eta_j^{n+1} - \eta_j^n)/\Delta t` on :math:`\chi_j^n = \chi\{\eta_j^n < 0,
+\ v_j^n < 0\}` (``eps=numpy.inf``: no contact), from :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside.
 """
 
 import numpy as np
@@ -35,7 +30,7 @@ def _stored_steps(nt: int, store_every: int) -> list[int]:
 
 
 def _start(eta0, v0, dt, h_left, h_right, psi=None):
-    """(η⁰, η⁻¹): ``eta0`` with its ends at h_left/h_right (raised onto ψ inside if given), η⁰ − Δt v0 inside."""
+    """(η⁰, η⁻¹): ``eta0`` with its ends at h_left/h_right (inside raised onto ψ, if given), η⁰ − Δt v0 inside."""
     eta = np.asarray(eta0, dtype=float).copy()
     eta[0], eta[-1] = h_left, h_right
     if psi is not None:
