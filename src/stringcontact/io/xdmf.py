@@ -46,23 +46,25 @@ class MeshArrays:
     n_cells: int
 
 
-def mesh_arrays(V, comm) -> MeshArrays:
-    """The owned points and cells of a scalar P1 space, numbered by its global dofs."""
+def global_cells(V) -> np.ndarray:
+    """This rank's owned cells as the global dof numbers of their nodes (a scalar space `V`)."""
     from ..fem import compat
 
-    msh = V.mesh
-    name = msh.topology.cell_type.name
+    local = compat.cell_dofs(V)[:V.mesh.topology.index_map(V.mesh.topology.dim).size_local]
+    return np.asarray(V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32))).reshape(local.shape)
+
+
+def mesh_arrays(V, comm) -> MeshArrays:
+    """The owned points and cells of a scalar P1 space, numbered by its global dofs."""
+    name = V.mesh.topology.cell_type.name
     if name not in TOPOLOGY_TYPES or V.dofmap.index_map_bs != 1:
         raise OutputError(f"solution.xdmf: cannot write a {name} mesh with block size {V.dofmap.index_map_bs}")
     topology_type, per_cell = TOPOLOGY_TYPES[name]
-    index_map = V.dofmap.index_map
-    owned_cells = msh.topology.index_map(msh.topology.dim).size_local
-    local = compat.cell_dofs(V)[:owned_cells]
-    if local.shape[1] != per_cell:
-        raise OutputError(f"solution.xdmf: expected a P1 space ({per_cell} dofs per {name}), got {local.shape[1]}")
-    cells = np.asarray(index_map.local_to_global(local.ravel().astype(np.int32))).reshape(local.shape)
+    cells, index_map = global_cells(V), V.dofmap.index_map
+    if cells.shape[1] != per_cell:
+        raise OutputError(f"solution.xdmf: expected a P1 space ({per_cell} dofs per {name}), got {cells.shape[1]}")
     points = np.ascontiguousarray(V.tabulate_dof_coordinates()[:index_map.size_local], dtype=np.float64)
-    return MeshArrays(points, cells, topology_type, index_map.size_global, comm.allreduce(owned_cells))
+    return MeshArrays(points, cells, topology_type, index_map.size_global, comm.allreduce(len(cells)))
 
 
 class XdmfTimeSeries:

@@ -9,8 +9,7 @@ import numpy as np
 
 from ..fem import compat
 
-#: max |balance residual| / energy scale above which the energy balance is reported as not closing, for a run
-#: whose round-off estimate (`roundoff_growth`) is below it; above, the tolerance grows with the estimate.
+#: The relative residual above which the balance does not close (raised by `roundoff_growth`'s estimate).
 BALANCE_RTOL = 1e-8
 #: The round-off estimate's safety factor: measured residual / (u n η/(|v| Δt)) was 0.013 at 2e4 steps, 0.06 at 1e5
 #: and 0.09 at 2e5 (example1, nx = 50; docs/explanation/reliability.md), growing slowly with n.
@@ -18,7 +17,7 @@ ROUNDOFF_FACTOR = 10.0
 #: |D_num| / the energy above which the report flags the scheme's own dissipation: at 10 % the reported dissipations
 #: are off in their first digit (the shipped scenes: film_landing 34 %, the others at most 8.6 %).
 NUMERICAL_SHARE = 0.10
-#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/explanation/reliability.md).
+#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value.
 PENETRATION_FACTOR = 2.0
 
 
@@ -66,13 +65,9 @@ def roundoff_growth(result) -> float:
     if steps == 0 or not speed > 0.0 or not math.isfinite(speed):
         return 1.0
     estimate = ROUNDOFF_FACTOR * np.finfo(float).eps * steps * _eta_scale(result) / (speed * result.scene.dt)
-    return max(1.0, estimate * _courant(result) / 1e-8)
-
-
-def _courant(result) -> float:
-    """max(1, Δt/h) with the scene's mesh size h (1 where it has none: a mesh file)."""
-    h = float(result.scene.dx)
-    return max(1.0, result.scene.dt / h) if math.isfinite(h) and h > 0 else 1.0
+    h = float(result.scene.dx)  # the scene's mesh size (a mesh file gives none)
+    courant = max(1.0, result.scene.dt / h) if math.isfinite(h) and h > 0 else 1.0
+    return max(1.0, estimate * courant / 1e-8)
 
 
 def _eta_scale(result) -> float:
@@ -114,8 +109,9 @@ def penetration_check(result) -> dict:
     kind = "contact step" if eps_free else getattr(result, "penetration_bound", "velocity")
     if not eps_free and getattr(scene, "obstacle_moves", False):
         kind = "moving obstacle"  # a penalty brakes the gap rate but never restores the gap: no bound
-    elif kind == "velocity" and press is not None and depth > _impact_bound(scene, start_depth, v_max) * (1 + 1e-12):
-        kind = "pressed"  # deeper than an impact goes, under a press: the penalty's creep, to which no bound applies
+    elif kind == "velocity" and press is not None:  # deeper than an impact goes under a press: the penalty's creep
+        impact = start_depth + PENETRATION_FACTOR * (scene.eps + scene.dt) * v_max
+        kind = "pressed" if depth > impact * (1 + 1e-12) else kind
     braking, law = _BRAKING[kind]
     check = {"depth": depth, "initial_depth": start_depth, "max_speed": v_max, "law": law, "eps_free": eps_free,
              "bound_kind": kind}
@@ -124,14 +120,9 @@ def penetration_check(result) -> dict:
     if braking is None:  # a law with no known bound: the depth alone
         return {**check, "bound": None, "eps_times_speed": None, "within_bound": None}
     braking = braking(scene.eps)
-    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max  # `_impact_bound` for the velocity law
+    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
     return {**check, "bound": bound, "eps_times_speed": braking * v_max,
             "within_bound": bool(depth <= bound * (1 + 1e-12))}
-
-
-def _impact_bound(scene, start_depth: float, v_max: float) -> float:
-    """The velocity penalty's impact bound: start + PENETRATION_FACTOR·(ε + Δt)·max|v|."""
-    return start_depth + PENETRATION_FACTOR * (scene.eps + scene.dt) * v_max
 
 
 #: A contact force lasting PRESS_SPAN·ε or longer at a node is a press, not an impact: the velocity penalty stops a

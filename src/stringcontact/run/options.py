@@ -21,10 +21,9 @@ MAX_FRAMES = 100_000
 
 @dataclass(frozen=True)
 class Storage:
-    """The rows a run keeps (Result, diagnostics.csv, pictures): about `max_rows` time levels, always with 0, T
-    and the output times; on rank 0 (`gather` "root") or on every rank ("all"); at most `row_budget` bytes on a
-    rank that holds them (above it fewer are kept, with a StorageWarning). Checked when made: a ValueError
-    names the option and its allowed values."""
+    """The rows a run keeps (Result, diagnostics.csv, pictures): about `max_rows` time levels, always with 0, T and
+    the output times, on rank 0 (`gather` "root") or every rank ("all"), at most `row_budget` bytes on a rank (else
+    fewer, with a StorageWarning). A bad value: ValueError naming the option and its allowed values."""
 
     max_rows: int = STORED_ROWS
     gather: str = "root"

@@ -28,13 +28,10 @@ def sections(timings: dict, imports: float, started: float) -> list[tuple[str, f
     now = time.perf_counter()
     age = process_age()
     pictures = float(timings.get("pictures", 0.0))
-    known = {
-        "imports (dolfinx, UFL, the solver)": imports,
-        "set-up (mesh, forms, assembly, factorisation)": float(timings.get("setup", 0.0)),
-        "solve (time steps, stored rows)": float(timings.get("solve", 0.0)),
-        "output (XDMF, CSV, JSON)": float(timings.get("output", 0.0)) - pictures,
-        "pictures": pictures,
-    }
+    known = {"imports (dolfinx, UFL, the solver)": imports,
+             "set-up (mesh, forms, assembly, factorisation)": float(timings.get("setup", 0.0)),
+             "solve (time steps, stored rows)": float(timings.get("solve", 0.0)),
+             "output (XDMF, CSV, JSON)": float(timings.get("output", 0.0)) - pictures, "pictures": pictures}
     command = now - started
     rows = [("start-up (Python, the command line, PETSc)", age - command)] if age is not None else []
     rows += list(known.items()) + [("other (scene, checks, report)", command - sum(known.values()))]

@@ -10,8 +10,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from mpi4py import MPI
 
-from ..fem import compat, domains
+from ..fem import domains
 from ..io.result import ENERGY_KEYS, canonical_cells, node_sort_key
+from ..io.xdmf import global_cells
 from ..scene import BYTES_PER_STORED_NODE
 
 if TYPE_CHECKING:
@@ -85,8 +86,7 @@ class _Gather:
         self.holds = to_all or comm.rank == 0
         xs = _collect(comm, x_owned, to_all)
         self.order = self.x = None
-        self.identity = False
-        self._buffers = {}
+        self.identity, self._buffers = False, {}
         if self.holds:
             x = np.concatenate(xs)
             self.order = np.argsort(node_sort_key(x), kind="stable")
@@ -114,7 +114,7 @@ class _Gather:
         return np.take(buf.view(a.dtype), self.order, out=out)
 
     def _buffer(self, dtype) -> np.ndarray:
-        if dtype not in self._buffers:
+        if dtype not in self._buffers:  # made once: a stored row's gather reuses it
             self._buffers[dtype] = np.empty(self.nodes, dtype=dtype)
         return self._buffers[dtype]
 
@@ -146,10 +146,7 @@ def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
     the rows are; 1D: none. Collective."""
     if V.mesh.topology.dim == 1:
         return {}
-    n_cells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local
-    local = compat.cell_dofs(V)[:n_cells]
-    cells = V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32)).reshape(local.shape)
-    parts = _collect(gather.comm, cells, gather.to_all)
+    parts = _collect(gather.comm, global_cells(V), gather.to_all)
     weights = gather(weights)
     if not gather.holds:
         return {}

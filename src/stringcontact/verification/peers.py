@@ -19,6 +19,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from .reference import StoredRows
+
 #: the C loop's source, shipped beside this module
 C_SOURCE = Path(__file__).resolve().parent / "compiled_peer.c"
 #: the compiled limit on this machine: the compiler's best for this CPU
@@ -52,7 +54,7 @@ def paper_peer(scene, stored_steps):
     N, r = scene.nx, step_conditioning(scene)
     lu = splu(sp.diags([-r, 1 + 2 * r, -r], [-1, 0, 1], shape=(N - 1, N - 1), format="csc"))
     eta_old = eta - dt * v0
-    store = _Stored(stored_steps, N + 1)
+    store = StoredRows(stored_steps, N + 1)
     store(0, eta, v0)
     a_dt, inv_eps, dt2 = scene.alpha * dt / dx**2, 1.0 / scene.eps, dt**2
     for n in range(scene.nt):
@@ -87,17 +89,6 @@ def _laplacian(e: np.ndarray) -> np.ndarray:
     return 2.0 * e[1:-1] - e[:-2] - e[2:]
 
 
-class _Stored:
-    def __init__(self, steps, n):
-        self.steps, self.row = steps, 0
-        self.eta, self.v = np.empty((len(steps), n)), np.empty((len(steps), n))
-
-    def __call__(self, step, eta, v):
-        if self.row < len(self.steps) and self.steps[self.row] == step:
-            self.eta[self.row], self.v[self.row] = eta, v
-            self.row += 1
-
-
 def projection_peer(scene, stored_steps, refactor: str = "splu"):
     """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F', η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
     r₀ = Δt²/Δx², as the scheme solves it: the free step, then the primal–dual active set from {η̃ < 0} (its rows
@@ -109,7 +100,7 @@ def projection_peer(scene, stored_steps, refactor: str = "splu"):
     free_lu = splu(A)
     held, held_solve = None, None
     tol = -1e-14 * max(np.max(np.abs(eta)), 1.0) * (1 + 2 * a)  # the scheme's allowance for round-off in F
-    store = _Stored(stored_steps, eta.size)
+    store = StoredRows(stored_steps, eta.size)
     eta_old = eta - dt * v0
     levels = [eta_old, eta]  # η^{n−1}, η^n
     store(0, eta, v0)
@@ -147,7 +138,7 @@ def _damped_peer(scene, stored_steps, newmark: bool, refactor: str):
     A0 = (sp.identity(n, format="csc") + lhs * T).tocsc()
     undamped = splu(A0).solve
     solve, damped = undamped, np.zeros(n, dtype=bool)
-    store = _Stored(stored_steps, eta.size)
+    store = StoredRows(stored_steps, eta.size)
     store(0, eta, v)
     eta_old = eta - dt * v
     for step in range(1, scene.nt + 1):

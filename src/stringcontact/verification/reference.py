@@ -29,6 +29,19 @@ def _stored_steps(nt: int, store_every: int) -> list[int]:
     return steps if steps[-1] == nt else [*steps, nt]
 
 
+class StoredRows:
+    """The rows of η and v at `steps` of a string of `n` nodes: ``rows(step, eta, v)`` at every step keeps those."""
+
+    def __init__(self, steps, n: int):
+        self.steps, self.row = steps, 0
+        self.eta, self.v = np.empty((len(steps), n)), np.empty((len(steps), n))
+
+    def __call__(self, step: int, eta, v) -> None:
+        if self.row < len(self.steps) and self.steps[self.row] == step:
+            self.eta[self.row], self.v[self.row] = eta, v
+            self.row += 1
+
+
 def _start(eta0, v0, dt, h_left, h_right, psi=None):
     """(η⁰, η⁻¹): ``eta0`` with its ends at h_left/h_right (inside raised onto ψ, if given), η⁰ − Δt v0 inside."""
     eta = np.asarray(eta0, dtype=float).copy()
@@ -68,10 +81,8 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
     bands = np.empty((3, N - 1))  # solve_banded's rows: super-, main and sub-diagonal
     bands[0, :] = bands[2, :] = -r
     main = np.full(N - 1, 1.0 + 2.0 * r)
-    steps = _stored_steps(nt, int(store_every))
-    eta_out, vel_out = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
-    eta_out[0], vel_out[0] = eta, (eta - eta_prev) / dt
-    k = 1
+    rows = StoredRows(_stored_steps(nt, int(store_every)), N + 1)
+    rows(0, eta, (eta - eta_prev) / dt)
     for n in range(nt):
         v = (eta[1:-1] - eta_prev[1:-1]) / dt
         rhs = 2.0 * eta[1:-1] - eta_prev[1:-1] - alpha * dt * second_difference(eta, dx)
@@ -88,10 +99,8 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
         eta_next[0], eta_next[-1] = h_left, h_right
         eta_next[1:-1] = solve_banded((1, 1), bands, rhs, overwrite_ab=False, check_finite=False)
         eta_prev, eta = eta, eta_next
-        if k < len(steps) and steps[k] == n + 1:
-            eta_out[k], vel_out[k] = eta, (eta - eta_prev) / dt
-            k += 1
-    return dt * np.asarray(steps, dtype=float), eta_out, vel_out
+        rows(n + 1, eta, (eta - eta_prev) / dt)
+    return dt * np.asarray(rows.steps, dtype=float), rows.eta, rows.v
 
 
 def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=None, store_every=1, nodal=False):
@@ -115,10 +124,8 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
     bands = np.empty((3, N - 1))
     bands[0, :], bands[1, :], bands[2, :] = -s, 1.0 + 2.0 * s, -s
     eta, eta_prev = _start(eta0, v0, dt, h_left, h_right, psi)
-    steps = _stored_steps(int(nt), store_every)
-    eta_out, vel_out = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
-    eta_out[0], vel_out[0] = eta, (eta - eta_prev) / dt
-    k = 1
+    rows = StoredRows(_stored_steps(int(nt), store_every), N + 1)
+    rows(0, eta, (eta - eta_prev) / dt)
     for n in range(int(nt) + 1):  # computes η^{n+1}; the last one only for the velocity at T
         d2 = second_difference(eta, dx)
         rhs = 2.0 * eta[1:-1] - eta_prev[1:-1] + dt**2 * d2 - s * dx**2 * d2
@@ -130,13 +137,9 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
         new[1:-1] = np.maximum(new[1:-1], psi[1:-1])
         if alpha > 0 and not nodal:
             _projected_gauss_seidel(new, rhs, s, psi)
-        if k < len(steps) and steps[k] == n:
-            vel_out[k] = (new - eta_prev) / (2.0 * dt)
-            k += 1
+        rows(n, eta, (new - eta_prev) / (2.0 * dt))  # η^n with the centred velocity
         eta_prev, eta = eta, new
-        if k < len(steps) and steps[k] == n + 1:
-            eta_out[k] = eta
-    return dt * np.asarray(steps, dtype=float), eta_out, vel_out
+    return dt * np.asarray(rows.steps, dtype=float), rows.eta, rows.v
 
 
 def _projected_gauss_seidel(eta, rhs, s, psi, rtol=1e-15, max_sweeps=100_000):
