@@ -102,10 +102,12 @@ def obstacle_rows(result) -> np.ndarray | None:
     scene = result.scene
     if not getattr(scene, "obstacle_moves", False):
         return None
-    if result not in _OBSTACLE_ROWS:
+    rows = _OBSTACLE_ROWS.get(result)
+    if rows is None or rows.shape != (result.t.size + 2, result.x.shape[0]):
         times = np.concatenate([[result.t[0] - scene.dt], result.t, [result.t[-1] + scene.dt]])
-        _OBSTACLE_ROWS[result] = np.array([scene.obstacle_values(result.x, float(t)) for t in times], dtype=float)
-    return _OBSTACLE_ROWS[result]
+        rows = np.array([scene.obstacle_values(result.x, float(t)) for t in times], dtype=float)
+        _OBSTACLE_ROWS[result] = rows
+    return rows
 
 
 def obstacle_velocity(result) -> np.ndarray | float:

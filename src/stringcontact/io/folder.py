@@ -89,7 +89,7 @@ class OutputWriter:
         except (RuntimeError, OSError) as exc:  # petsc4py's Error is a RuntimeError
             self._fail("cannot write solution.xdmf", exc)
         except BaseException:  # Ctrl-C while opening: leave nothing behind
-            self._discard()
+            self.discard()
             raise
 
     def write(self, t: float, fields: dict) -> None:
@@ -135,7 +135,7 @@ class OutputWriter:
             if stopped is not None:
                 raise Interrupted(stopped)
             if failure is not None:
-                self._discard()
+                self.discard()
                 raise OutputError(f"--out {self.target}: cannot write the output files: {failure}; nothing was written there")
             self._publish(summary)
         except KeyboardInterrupt as exc:  # the data are whole: the folder says it was interrupted (or, published, stays complete)
@@ -167,13 +167,9 @@ class OutputWriter:
                     write_view(result, self.partial)
                 self._publish(summary)
         except Exception as exc:  # noqa: BLE001 - never hide the run's own exception behind ours
-            self._discard()
+            self.discard()
             warnings.warn(f"--out {self.target}: the partial output could not be kept: {describe_os_error(exc, self.target)}",
                           stacklevel=2)
-
-    def discard(self) -> None:
-        """Remove everything this run wrote (for a caller that stops on an unexpected error)."""
-        self._discard()
 
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
         """Rank 0: diagnostics.csv, rows.npz, view.py and the pictures (a failing picture warns)."""
@@ -221,7 +217,7 @@ class OutputWriter:
             if self.comm.size > 1:
                 failure, dest = self.comm.bcast((failure, dest), root=0)
             if failure is not None:
-                self._discard()
+                self.discard()
                 raise OutputError(f"--out {self.target}: {failure}; nothing was written there")
             self.path, self.partial = dest, None
             self._release()
@@ -230,10 +226,11 @@ class OutputWriter:
 
     def _fail(self, what: str, exc: BaseException):
         reason = describe_os_error(exc, self.target.parent, probe=self.partial)  # before the partial folder frees the disk
-        self._discard()
+        self.discard()
         raise OutputError(f"--out {self.target}: {what}: {reason}; nothing was written there") from None
 
-    def _discard(self) -> None:
+    def discard(self) -> None:
+        """Remove everything this run wrote (for a caller that stops on an unexpected error)."""
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
                 self._close_xdmf(discard=True)
@@ -250,4 +247,4 @@ class OutputWriter:
     def __del__(self):  # an unexpected error in the solver: no half-written folder, no stale lock
         with contextlib.suppress(Exception):
             if self.partial is not None:
-                self._discard()
+                self.discard()

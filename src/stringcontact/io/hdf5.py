@@ -1,6 +1,7 @@
 """`Hdf5File`: flat datasets written by ctypes through the libhdf5 dolfinx loaded. Hand-written
-(docs/explanation/visualisation.md): h5py after dolfinx fails ("Not a datatype"), PETSc's viewer fsyncs every dataset
-(412 fsyncs for ``run example1``, 9 with this: `bench_xdmf.py`), dolfinx's `XDMFFile` rewrites its XML every frame."""
+(docs/explanation/visualisation.md): h5py's wheel brings a second libhdf5 ("Not a datatype" after dolfinx), PETSc's
+viewer fsyncs every dataset (412 fsyncs for ``run example1``, 9 with this: `bench_xdmf.py`), dolfinx's `XDMFFile`
+writes a grid per function and its XML anew every frame."""
 
 from __future__ import annotations
 

@@ -48,8 +48,8 @@ class StorageWarning(UserWarning):
 
 
 def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, budget: int):
-    """(`stored_steps` thinned to every k-th step, the smallest k whose rows fit `budget` bytes, always with 0, T
-    and the output times (ValueError if they alone do not fit), a line saying so or None)."""
+    """`stored_steps` thinned to every k-th step, the smallest k whose rows fit `budget` bytes, always with 0, T and
+    the output times (ValueError if they alone do not fit): (steps, a line saying so, or None)."""
     steps = stored_steps(nt, dt, output_times, max_rows)
     row = max(1, nodes) * BYTES_PER_STORED_NODE
     allowed = budget // row
@@ -114,7 +114,7 @@ class _Gather:
         return np.take(buf.view(a.dtype), self.order, out=out)
 
     def _buffer(self, dtype) -> np.ndarray:
-        if dtype not in self._buffers:  # made once: a stored row's gather reuses it
+        if dtype not in self._buffers:
             self._buffers[dtype] = np.empty(self.nodes, dtype=dtype)
         return self._buffers[dtype]
 
