@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import struct
 import zipfile
 import zlib
 from types import SimpleNamespace
@@ -42,9 +43,13 @@ def _rows(nodes=400, rows=60):
 
 
 def _raw(path, info: zipfile.ZipInfo) -> bytes:
-    """A member's bytes as stored in the file (compressed)."""
+    """A member's bytes as stored in the file (compressed): past its local header (APPNOTE 4.3.7: 30 bytes, then the
+    name and extra fields)."""
     with open(path, "rb") as f:
-        f.seek(tables.member_offset(f, info))
+        f.seek(info.header_offset)
+        local = f.read(30)
+        assert local[:4] == b"PK\x03\x04"
+        f.seek(info.header_offset + 30 + sum(struct.unpack("<HH", local[26:30])))
         return f.read(info.compress_size)
 
 

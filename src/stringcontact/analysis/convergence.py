@@ -1,6 +1,5 @@
-"""The accuracy studies: work-precision (error against wall-clock time per `Method`, on the exact flat landing and
-on Example 1 against a fine-grid reference), convergence (observed orders in Δt = Δx → 0 and in ε → 0 on the flat
-landing) and `reference_study` (a scheme and model, nonlinear ones too, against its own fine run)."""
+"""The accuracy studies: work-precision (error against wall-clock time per `Method`), convergence (observed orders in
+Δt = Δx → 0 and in ε → 0 on the flat landing) and `reference_study` (a scheme and model against its own fine run)."""
 
 from __future__ import annotations
 
@@ -123,9 +122,8 @@ SCHEME_METHODS = {
 
 
 def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
-    """``err_eta`` of `scheme` and `model` on ``scene_at(n)`` for each n in `sizes` against ``scene_at(reference_n)``,
-    at every step of the coarsest run (the finer step counts multiples of it): {"sizes", "errors", "orders"
-    (pairwise, in Δx), "reference" (its `Run`), "runs"}."""
+    """``err_eta`` of `scheme` and `model` on ``scene_at(n)`` for each n in `sizes` against ``scene_at(reference_n)``
+    at every step of the coarsest run: {"sizes", "errors", "orders" (pairwise, in Δx), "reference", "runs"}."""
     method = SCHEME_METHODS[scheme]
     rows = scene_at(min(sizes)).nt
     reference = run_method(scene_at(reference_n), method, rows=rows, model=model)

@@ -1,8 +1,6 @@
-"""`stringcontact study film`: does a viscous film reproduce the inelastic landing, and in which limit? The film
-(model "film") swept over its viscosity μ on two throws, with and without cavitation, against the runs without a
-film: the inelastic model (`projection`) and the penalty at ε → 0; the measures are defined in
-docs/explanation/film.md. `fit_rates` fits power laws in μ to min_gap and the distances.
-"""
+"""`stringcontact study film`: the film (model "film") swept over its viscosity μ on two throws, with and without
+cavitation, against the inelastic landing and the penalty at ε → 0 (docs/explanation/film.md); `fit_rates` fits
+power laws in μ."""
 
 from __future__ import annotations
 
@@ -16,14 +14,12 @@ from ..errors import InstabilityError, SolverError
 from .norms import l2_norm
 from .problems import EPS_LIMIT
 
-#: The viscosities swept per problem (string units): four decades each, from where the backstop still acts to
-#: where the film holds the string well above the obstacle.
+#: The viscosities swept per problem: from where the backstop still acts to where the film holds the string well up.
 MUS = {"example1": (0.1, 1.0, 10.0, 100.0, 1000.0), "flat": (1e-4, 1e-3, 1e-2, 1e-1, 1.0)}
 QUICK_MUS = {"example1": (1.0, 100.0), "flat": (1e-3, 1e-1)}
 #: `t_up`: the first time after η(x*) is least at which it has risen by this fraction of its initial height.
 RISE = 0.05
-#: The film runs' backstop: the semi-implicit penalty at this ε (at 1e-9 its diagonal, 1e9 × the mass, put
-#: Newton's residual's round-off above its tolerance and the line search failed on Example 1 at μ = 1e-5).
+#: The film runs' backstop, the semi-implicit penalty's ε (at 1e-9 Newton's line search failed on Example 1, μ = 1e-5).
 FILM_EPS = 1e-6
 #: Cavitation: none, or half-Sommerfeld p >= p_a.
 CAVITATION = (None, 0.0)
@@ -33,8 +29,7 @@ RATE_COLUMNS = ("problem", "p_cav", "quantity", "rate", "mus")
 
 
 def problem_scenes(quick: bool = False) -> dict:
-    """The two throws (no film yet): Example 1's (the scene film_landing without its film) and the flat landing
-    (η0 = h = 0.2, v0 = −1), both with α = 0.01 on (0, 1)."""
+    """The two throws without a film: film_landing's (Example 1's) and the flat landing (η0 = h = 0.2, v0 = −1)."""
     example = sc.load_scene("film_landing").replace(nx=100 if quick else 200, dt=0.00025, T=0.15 if quick else 0.3,
                                                     output_times=[], model=None, parameters=None, scheme=None,
                                                     name="film-example1")
@@ -65,8 +60,7 @@ def film_run(scene, mu: float, p_cav):
 
 
 def landing_times(reference) -> tuple[float, float, int]:
-    """(first contact time, first lift-off time, the first-contact node x*) of a reference run: x* the contact
-    node nearest the middle at the first contact; t_lift = T if it never lifts off."""
+    """(first contact, first lift-off (T if none), x* the contact node nearest the middle at first contact)."""
     interior = reference.contact[:, 1:-1]
     touching = np.flatnonzero(interior.any(axis=1))
     if touching.size == 0:
@@ -96,8 +90,8 @@ def measures(r, reference, t_lift: float, star: int) -> dict:
 
 
 def rise_time(r, star: int) -> float:
-    """The first time after η(x*) is least at which it has risen by `RISE` η(x*, 0) (nan if it never does):
-    the same measure of lift-off for the film, which never touches, and for the references."""
+    """The first time after η(x*) is least at which it has risen by `RISE` η(x*, 0) (nan if never): lift-off for the
+    film, which never touches, and the references alike."""
     eta = r.eta[:, star]
     low = int(np.argmin(eta))
     up = np.flatnonzero(eta[low:] >= eta[low] + RISE * abs(eta[0]))

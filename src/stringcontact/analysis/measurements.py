@@ -1,13 +1,10 @@
-"""The discrete fields of a computed solution and the numbers the theorem checks (`theorems`) give verdicts on.
-
-Every function takes a `Result` that stores every time step (``simulate(scene, max_rows=scene.nt)``) and reads
-it in the scheme's own discrete terms (`momentum_terms`).
-"""
+"""The numbers the theorem checks (`theorems`) give verdicts on, from a `Result` that stores every time step
+(``simulate(scene, max_rows=scene.nt)``), read in the scheme's own discrete terms (`momentum_terms`)."""
 
 from __future__ import annotations
 
-import contextlib
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,11 +20,8 @@ def require_every_step(result) -> None:
 
 def nodal_weights(result) -> np.ndarray:
     """Lumped P1 mass m_j of the nodes (Δx/2 at the ends) on the result's grid."""
-    dx = np.diff(result.x)
-    m = np.zeros_like(result.x)
-    m[:-1] += 0.5 * dx
-    m[1:] += 0.5 * dx
-    return m
+    dx = np.diff(result.x, prepend=result.x[0], append=result.x[-1])
+    return 0.5 * (dx[:-1] + dx[1:])
 
 
 def impulse(result) -> np.ndarray:
@@ -43,8 +37,8 @@ def interior(result) -> np.ndarray:
 
 
 def free_boundary(contact: np.ndarray, neighbours=ndimage.generate_binary_structure(2, 1)) -> np.ndarray:
-    """The discrete free boundary ∂{η ≤ 0} on the (step, node) grid: the points whose contact flag differs from one
-    of their `neighbours` (default: the four; both sides of the interface, so two points thick and symmetric)."""
+    """∂{η ≤ 0} on the (step, node) grid: the points whose contact flag differs from one of their `neighbours`
+    (default: the four), on both sides of the interface."""
     c = np.asarray(contact, dtype=bool)
     return np.where(c, ~ndimage.binary_erosion(c, neighbours, border_value=1), ndimage.binary_dilation(c, neighbours))
 
@@ -99,27 +93,26 @@ def momentum_terms(result) -> Momentum:
     return Momentum(v, eta, v, v, F, backward, backward)
 
 
+#: `obstacle_rows` of each result, computed once: every check reads it (67 ms a time on the piston's 251 rows).
+_OBSTACLE_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def obstacle_rows(result) -> np.ndarray | None:
-    """A moving obstacle ψ(x, t) (the scene's ``obstacle`` in t) at the stored rows' times with one time before
-    and one after, shape (rows + 2, nodes): t_0 − Δt, t_0, ..., t_N, t_N + Δt; None for an obstacle at rest."""
+    """A moving obstacle ψ(x, t) at t_0 − Δt, the stored times and t_N + Δt, shape (rows + 2, nodes); None at rest."""
     scene = result.scene
     if not getattr(scene, "obstacle_moves", False):
         return None
-    cached = getattr(result, "_obstacle_rows", None)
-    if cached is not None and cached.shape == (result.t.size + 2, result.x.shape[0]):
-        return cached
-    dt = scene.dt
-    times = np.concatenate([[result.t[0] - dt], result.t, [result.t[-1] + dt]])
-    rows = np.array([scene.obstacle_values(result.x, float(t)) for t in times], dtype=float)
-    with contextlib.suppress(AttributeError):  # a frozen or slotted result: evaluated again
-        result._obstacle_rows = rows  # read by every check (67 ms a time on the piston's 251 rows): once a result
+    rows = _OBSTACLE_ROWS.get(result)
+    if rows is None or rows.shape != (result.t.size + 2, result.x.shape[0]):
+        times = np.concatenate([[result.t[0] - scene.dt], result.t, [result.t[-1] + scene.dt]])
+        rows = np.array([scene.obstacle_values(result.x, float(t)) for t in times], dtype=float)
+        _OBSTACLE_ROWS[result] = rows
     return rows
 
 
 def obstacle_velocity(result) -> np.ndarray | float:
-    """The moving obstacle's rate ψ_t paired with the stored velocity (0 for an obstacle at rest), shape (rows,
-    nodes): the backward quotient (ψ^n − ψ^{n−1})/Δt for `paper` (whose v^n is one), the centred (ψ^{n+1} −
-    ψ^{n−1})/(2Δt) for `projection` (whose stored velocity is centred) and `newmark` (whose penalty brakes v − ψ_t)."""
+    """ψ_t paired with the stored velocity (0 at rest): backward (ψ^n − ψ^{n−1})/Δt for `paper`, centred
+    (ψ^{n+1} − ψ^{n−1})/(2Δt) for `projection` and `newmark`, as their stored velocities are."""
     psi = obstacle_rows(result)
     if psi is None:
         return 0.0
@@ -129,7 +122,7 @@ def obstacle_velocity(result) -> np.ndarray | float:
 
 
 def relative_velocity(result) -> np.ndarray:
-    """v − ψ_t at every stored row and node: the string's velocity relative to the obstacle (v, one at rest)."""
+    """v − ψ_t at every stored row and node: the string's velocity relative to the obstacle."""
     return result.velocity - obstacle_velocity(result)
 
 

@@ -1,6 +1,5 @@
-"""The studies' errors ``err_eta`` (L∞(0,T;L²) of η), ``err_vel`` (L² of η_t at T) and ``err_contact`` (the
-space-time measure of the contact sets' symmetric difference), on the coarse run's nodes and stored times, the
-reference interpolated to them (docs/explanation/study.md)."""
+"""The studies' errors ``err_eta`` (L∞(0,T;L²) of η), ``err_vel`` (L² of η_t at T) and ``err_contact`` (the contact
+sets' symmetric difference in space-time), at the run's nodes and times (docs/explanation/study.md)."""
 
 from __future__ import annotations
 
@@ -8,8 +7,8 @@ import numpy as np
 
 from .problems import Run
 
-#: Contact sets in the errors are {η ≤ δ}, δ = CONTACT_HEIGHT · Δx · max|η|/l, the height a grid resolves: with
-#: δ = 0 a string resting on the obstacle at ±round-off or 1e-6-sized tails of the implicit solve is noise.
+#: Contact sets in the errors are {η ≤ δ}, δ = CONTACT_HEIGHT · Δx · max|η|/l, the height a grid resolves (with δ = 0
+#: a string resting on the obstacle at ±round-off is noise).
 CONTACT_HEIGHT = 1.0
 
 

@@ -1,5 +1,4 @@
-"""The studies' methods, test problems and scene factories (the flat landing's for the theorem checks too), and one
-study run: `run_method` simulates a scene with a `Method` on this rank alone (`Run`)."""
+"""The studies' methods, test problems and scene factories, and one study run (`run_method`: a `Run` on this rank)."""
 
 from __future__ import annotations
 
@@ -52,7 +51,7 @@ REFERENCE = Method("reference", "reference: projection, lumped", None, "lumped",
 def flat_landing_scene(n: int, nt: int | None = None, *, eps: float | None = None, r: float | None = None,
                        T: float = 0.6, alpha: float = 0.0):
     """The exact case (`verification.exact.flat_landing`): l = 1, ends at h = 0.2, η0 = 0.2, v0 = −1, Δt = Δx = 1/n
-    unless `nt` is given; ε is `eps` (default 5e-4), or Δt/`r` (the theorem checks fix r, `check` uses 0.4)."""
+    unless `nt` is given; ε is `eps` (default 5e-4), or Δt/`r`."""
     if eps is not None and r is not None:
         raise ValueError("flat_landing_scene: give eps or r = dt/eps, not both")
     nt = nt if nt is not None else max(1, round(T * n))
@@ -72,8 +71,8 @@ STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
 
 
 def string_scene(n: int, *, contact: bool, T: float = STRING_T, eps: float = STRING_EPS, dt_dx: float = STRING_DT_DX):
-    """Example 1's string (α = 0.01, l = 1) at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from
-    η0 = ½ + ½ sin(πx) at v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
+    """Example 1's string at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from η0 = ½ + ½ sin(πx) at
+    v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
     data = {"eta0": "0.5 + 0.5*sin(pi*x)", "v0": "-8*sin(pi*x)"} if contact else {"eta0": "1 + 0.5*sin(pi*x)", "v0": "0"}
     return sc.load_scene("example1").replace(
         name="string-contact" if contact else "string-free", notes="", T=T, eps=eps, nx=n,
@@ -151,8 +150,8 @@ def simulate_self(scene, **kwargs):
 def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model=None) -> Run:
     """Simulate `scene` with `method` on COMM_SELF; the wall time is the best of `repeat` calls of `simulate`."""
     scene = scene.replace(eps=method.eps(scene.eps, scene.dt))
-    common = dict(problem=scene.name, method=method.name, penalty=method.penalty or "none", mass=method.mass,
-                  nx=scene.nx, nt=scene.nt, dt=scene.dt, eps=scene.eps if method.penalty else math.inf)
+    common = {"problem": scene.name, "method": method.name, "penalty": method.penalty or "none", "mass": method.mass,
+              "nx": scene.nx, "nt": scene.nt, "dt": scene.dt, "eps": scene.eps if method.penalty else math.inf}
     best, res = math.inf, None
     for _ in range(repeat):
         try:
@@ -167,6 +166,5 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
 
 
 def warm_up():
-    """Compile the forms once per process, so the first timed run does not pay for it (one run warms every
-    method: the forms depend on neither the mass nor the penalty)."""
+    """Compile the forms once per process, so that the first timed run does not pay for it."""
     run_method(flat_landing_scene(8, nt=4), METHODS["semi-implicit"], rows=4)

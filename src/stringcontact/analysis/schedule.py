@@ -8,9 +8,8 @@ import numpy as np
 
 
 def distribute(function, cases: list, comm=None, cost=None, busy: list | None = None) -> list | None:
-    """`[function(c) for c in cases]`, the cases dealt over `comm`'s ranks (each runs its own on COMM_SELF); the
-    list on rank 0, None elsewhere. Largest `cost` first, each to the least loaded rank, so the ranks finish
-    together. Rank 0 appends each rank's CPU seconds for its cases to the list `busy`, if given."""
+    """`[function(c) for c in cases]` dealt over `comm`'s ranks, largest `cost` first to the least loaded rank: the
+    list on rank 0, None elsewhere; each rank's CPU seconds appended to `busy` on rank 0, if given."""
     t0 = time.process_time()
     if comm is None or comm.size == 1:
         out = [function(c) for c in cases]

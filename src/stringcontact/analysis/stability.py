@@ -1,6 +1,5 @@
-"""The stability studies on the flat landing: the outcome (inelastic, spurious rebound, energy growth) over
-r = Δt/ε and Δt per penalty (`stability_map`), over Δt/Δx for the schemes without ε (`step_size_map`), the
-measured restitution, and the sweep α → 0 (`alpha_sweep`)."""
+"""The stability studies on the flat landing: the outcome (inelastic, rebound, growth) over r = Δt/ε and Δt per
+penalty (`stability_map`), over Δt/Δx without ε (`step_size_map`), and the sweep α → 0 (`alpha_sweep`)."""
 
 from __future__ import annotations
 
@@ -34,8 +33,7 @@ GROWTH_TOLERANCE = 1e-9
 
 def restitution(t: np.ndarray, x: np.ndarray, velocity: np.ndarray, *, h: float = FLAT_H, V: float = FLAT_V,
                 window: float = 0.1) -> float:
-    """The largest upward velocity of the flat landing's middle node in (t*, t* + window], t* = h/V, over the
-    impact speed V (exactly, the middle rests until the waves from the ends reach it)."""
+    """The largest upward velocity of the flat landing's middle node in (t*, t* + window] over the impact speed V."""
     mid = int(np.argmin(np.abs(x - 0.5 * (x[0] + x[-1]))))
     t_star = flat_landing_time(h, V)
     sel = (t > t_star) & (t <= t_star + window)
@@ -60,8 +58,8 @@ def classify(restitution_value: float, energy: np.ndarray) -> tuple[str, int]:
 
 
 def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[float, np.ndarray, dict]:
-    """(restitution, energy per row, the row's energy_max_ratio and min_eta) of `scene` run by a NumPy reference
-    `solve` (`verification.reference`), which has no pre-run refusal, so an unstable run is measured too."""
+    """(restitution, energy per row, {energy_max_ratio, min_eta}) of `scene` run by a NumPy reference `solve`, which
+    refuses nothing before the run: an unstable one is measured too."""
     x = scene.x()
     with np.errstate(all="ignore"):
         t, eta, vel = solve(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=scene.T,
@@ -75,8 +73,8 @@ def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[fl
 
 
 def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
-    """(the row's outcome, restitution, growth_step, energy_max_ratio and min_eta; the Result or None) of `scene`
-    run by `simulate`, whose guards refuse a run before its start ("refused") or stop it when its energy rises."""
+    """(the row's outcome, restitution, growth_step, energy_max_ratio, min_eta; the Result or None) of `scene` run
+    by `simulate`, whose guards refuse a run ("refused") or stop it when its energy rises."""
     try:
         res = simulate_self(scene, max_rows=scene.nt, **options)
     except sc.InstabilityError as exc:
@@ -89,9 +87,8 @@ def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
 
 
 def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: float = 0.45) -> dict:
-    """One cell of the stability map: the flat landing (α = 0, Δx = Δt) with ε = Δt/r. Lumped mass runs through
-    `verification.reference.fd_solve` (`simulate`'s scheme to 1e-10, tests/run/test_solver.py, without its
-    refusal of r ≥ 2), consistent mass through `simulate`."""
+    """One cell of the stability map: the flat landing (α = 0, Δx = Δt) at ε = Δt/r, lumped mass by `fd_solve`
+    (`simulate`'s scheme to 1e-10, without its refusal of r ≥ 2), consistent mass by `simulate`."""
     eps = dt / r
     scene = flat_landing_scene(round(1.0 / dt), eps=eps, T=T, nt=round(T / dt))
     row = {"penalty": penalty, "mass": mass, "dt": dt, "eps": eps, "r": r,
@@ -118,9 +115,8 @@ def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> l
 
 
 def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: float = 0.45) -> dict:
-    """The flat landing with Δt = ratio·Δx: where the schemes without ε stop being stable. `projection` runs
-    through `verification.reference.fd_projection` (equal to `simulate` to 1e-10, with no pre-run refusal; its
-    cells beyond `simulate`'s Δt_max read "refused"), `newmark` through `simulate` with ε → 0."""
+    """The flat landing at Δt = ratio·Δx: where the schemes without ε stop being stable (`projection` by
+    `fd_projection`, "refused" beyond `simulate`'s Δt_max; `newmark` by `simulate` with ε → 0)."""
     from mpi4py import MPI
 
     from ..model.interface import inelastic
@@ -154,8 +150,7 @@ def step_size_map(quick: bool = False, comm=None, busy: list | None = None) -> l
 
 
 def spring_case(r: float, n: int = 200, T: float = 0.45) -> dict:
-    """The elastic (spring) law, explicit, at Δt = Δx with ε = Δt/r: its own stability (the law only warns). A
-    spring bounces by design, after ~π√ε: growth is its only failure."""
+    """The elastic (spring) law, explicit, at Δt = Δx, ε = Δt/r: growth is its only failure (it bounces by design)."""
     from ..model import variants
 
     scene = flat_landing_scene(n, eps=1.0 / n / r, T=T)

@@ -1,5 +1,4 @@
-"""The studies' public names in one place, for `stringcontact study`, the demos and the benchmarks: each study a
-function returning rows of numbers (dicts), its CSV files and charts (the modules: DEVELOPERS.md)."""
+"""The studies' public names in one place: each study a function returning rows (dicts), its CSV files and charts."""
 
 from __future__ import annotations
 

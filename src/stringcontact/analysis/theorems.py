@@ -1,11 +1,10 @@
-"""The paper's (A1)–(A4), Theorems 2.2/2.3 and (1.4) measured on computed solutions (docs/explanation/theorems.md):
-each ``check_*`` turns a statement into a number, the limit the theorem predicts for it and a verdict, from the
-results `refine` gives (Δt/Δx and r = Δt/ε fixed, so that ε, h and Δt fall together) read in each scheme's own
-discrete terms (`measurements`); `run_checks` runs them all.
-"""
+"""The paper's (A1)–(A4), Theorems 2.2/2.3 and (1.4) on computed solutions (docs/explanation/theorems.md): each
+``check_*`` gives a number, the limit the theorem predicts and a verdict over the levels `refine` computes (Δt/Δx and
+r = Δt/ε fixed); `run_checks` runs them all."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field, fields
 
@@ -69,7 +68,7 @@ def refine_time(scene, levels: int = 3, penalty: str | None = "explicit", model=
 
 def _falls(values) -> bool:
     v = [x for x in values if not math.isnan(x)]
-    return len(v) >= 2 and all(b < a for a, b in zip(v, v[1:]))
+    return len(v) >= 2 and all(b < a for a, b in itertools.pairwise(v))
 
 
 def _verdict(values, exact: bool, steep: bool = True) -> str:
@@ -112,8 +111,8 @@ def check_force_sign(results) -> Check:
 
 
 def check_dissipation_sign(results) -> Check:
-    """(A1) for the energy the scheme actually removes, −F^n v^n (−F^n (v^n − ψ_t^n) with a moving obstacle, whose
-    own work is external work): its negative share must vanish."""
+    """(A1) for the energy the scheme removes, −F^n v^n (−F^n (v^n − ψ_t^n) with a moving obstacle): its negative
+    share must vanish."""
     results = _as_list(results)
     vals = [force_sign(r)["negative_dissipation_share"] for r in results]
     moving = moving_obstacle(results[-1])
@@ -149,8 +148,7 @@ def check_support(results, ks=(1, 2, 4)) -> Check:
 
 
 def check_upward(results) -> list[Check]:
-    """(A3): no impulse where the string moves up, on a neighbourhood (the theorem's set) and pointwise; with a
-    moving obstacle, where it moves up off the obstacle, v − ψ_t > 0 (`measurements.upward_impulse`)."""
+    """(A3): no impulse where the string moves up (off a moving obstacle), on a neighbourhood and pointwise."""
     results = _as_list(results)
     up = "v - psi_t > 0" if moving_obstacle(results[-1]) else "v >= 0"
     m = [upward_impulse(r) for r in results]
@@ -169,13 +167,12 @@ def check_upward(results) -> list[Check]:
 
 
 def restitution_of(result) -> float:
-    """The restitution coefficient e the result was computed with (its scene's; 0 for the paper's inelastic contact)."""
+    """The restitution coefficient e the result was computed with (0: the paper's inelastic contact)."""
     return float(getattr(result.scene, "restitution", None) or 0.0)
 
 
 def check_velocity_after_contact(results, delay: float | None = None) -> Check:
-    """(A4)/Theorem 2.2: |v| (|v − ψ_t| on a moving obstacle) a fixed delay after first contact, over the impact
-    speed, → 0; n/a with a restitution e > 0 (a node rebounds: (A4) is the paper's e = 0)."""
+    """(A4)/Theorem 2.2: |v − ψ_t| a fixed delay after first contact over the impact speed → 0 (n/a at e > 0)."""
     results = _as_list(results)
     e = restitution_of(results[-1])
     if delay is None:  # the penalty needs a few ε to stop a node; an ε-free scheme stops it within a step
@@ -259,9 +256,8 @@ def check_energy(result, time_refined=()) -> list[Check]:
 def run_checks(scene, levels: int = 3, penalty: str | None = "explicit", delay: float | None = None,
                delta: float = 0.02, V: float | None = None, time_levels: int = 3, model=None,
                scheme: str | None = None):
-    """Every check on `scene` with `levels` fixed-r refinements (the finest is `scene` itself), run with `model`
-    (default: the scene's, else the paper's) and `scheme` (default: the scene's, else "paper") with its `penalty`
-    (None: the scheme's own). Returns (checks, finest result, all fixed-r results)."""
+    """Every check on `scene` with `levels` fixed-r refinements (the finest is `scene`) of `model` and `scheme`
+    (default: the scene's) with its `penalty` (None: the scheme's own): (checks, finest result, all results)."""
     if model is None and scene.model:
         from ..model.registry import load_model
 
@@ -279,7 +275,7 @@ def format_table(checks) -> str:
     head = ("check", "measured", "expectation", "verdict")
     rows = [(c.name, f"{c.measured:.3g}", c.expectation, c.verdict) for c in checks]
     widths = [max(len(r[i]) for r in [head, *rows]) for i in range(4)]
-    line = "  ".join("{:%d}" % w for w in widths)
+    line = "  ".join(f"{{:{w}}}" for w in widths)
     return "\n".join([line.format(*head), line.format(*("-" * w for w in widths)), *(line.format(*r) for r in rows)])
 
 
@@ -295,9 +291,8 @@ def format_trends(checks) -> str:
 
 
 def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, balance: dict | None = None):
-    """The paper's Figure 1 on a computed solution (`plot.figure1.draw`): the contact set and its free boundary,
-    F on it, and the force on the fronts against the stress jump across them; `balance`: `stress_jump_balance` of
-    `result` at this `delta` if already computed (`check_stress_jump`'s ``data``)."""
+    """The paper's Figure 1 on `result` (`plot.figure1.draw`); `balance`: its `stress_jump_balance` at `delta`, if
+    computed already (`check_stress_jump`'s ``data``)."""
     from ..plot import figure1
 
     sj = balance if balance is not None else stress_jump_balance(result, band_width(result, delta))

@@ -1,5 +1,5 @@
-"""``run SCENE --tol X``: the cheapest method and resolution whose estimated error of η is below X
-(`choose_for_tolerance`), and how well the estimate tracks the true error (`tolerance_tracking`)."""
+"""``run SCENE --tol X``: the cheapest method and resolution whose estimated error of η is below X, and how well the
+estimate tracks the true error (`tolerance_tracking`)."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from .norms import errors_against_exact, errors_against_reference
 from .problems import METHODS, Run, flat_landing_exact, flat_landing_scene, run_method
 
 #: The methods that converge to the inelastic limit, cheapest first, and their observed L∞(L²) orders of η on the
-#: flat landing (docs/explanation/study.md); not the explicit penalty, which a point contact sinks (getfem.md).
+#: flat landing (docs/explanation/study.md; not the explicit penalty, which a point contact sinks: getfem.md).
 TOL_METHODS = ("projection", "semi-implicit", "newmark")
 TOL_ORDER = {"projection": 1.0, "semi-implicit": 0.5, "newmark": 0.5}
-#: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots are before the
-#: asymptotic range, their floor a few times too pessimistic (benchmarks/bench_tolerance_reach.py).
+#: A method stops refining when its extrapolated floor is above REACH_MARGIN * tol: coarse pilots' floors are a few
+#: times too pessimistic (benchmarks/bench_tolerance_reach.py).
 REACH_MARGIN = 100.0
 #: The finest pilot: the last doubling of 50 below the scene's limit nx <= 1e5.
 NX_MAX = 64000
@@ -33,10 +33,9 @@ def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
 
 def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: int = 50, nx_max: int = NX_MAX,
                            model=None) -> list[dict]:
-    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`: one
-    dict per method, method, nx, nt (of the finer run), estimate, fine_wall_s, ok (`tol` reached below `nx_max`),
-    floor (the estimate extrapolated to `nx_max` with the method's order), why ("out of reach": the floor is above
-    REACH_MARGIN·`tol`; "dearer": it costs more than the cheapest success) and run (the finer `Run`)."""
+    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`: a dict
+    of method, nx, nt, estimate, fine_wall_s (of the finer run), ok, floor (extrapolated to `nx_max`), why ("out of
+    reach": floor above REACH_MARGIN·`tol`; "dearer" than the cheapest success) and run (the finer `Run`)."""
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
     found = []
@@ -81,9 +80,12 @@ def _runs(scheme: str, model) -> bool:
 
 
 def choose_for_tolerance(scene, tol: float, *, model=None):
-    """`run SCENE --tol X`: the cheapest of `TOL_METHODS` and resolution (Δx and Δt doubled together) whose
-    Richardson estimate is below X, the pilots run with `model` (default: the scene's). Under MPI rank 0 decides
-    and tells the others. Returns (scene, options for `simulate`, report)."""
+    """`run SCENE --tol X`: the cheapest of `TOL_METHODS` and resolution whose Richardson estimate is below X, the
+    pilots run with `model` (default: the scene's) on rank 0: (scene, options for `simulate`, report)."""
+    from mpi4py import MPI
+
+    from ..fem.agree import one_outcome
+
     if scene.dim != 1:  # its pilots refine nx and its error estimates are the string's
         raise ValueError(f"--tol: 1D-only (it refines the string's nx); scene {scene.name!r} has domain {scene.domain!r}: "
                          "give its scheme (--scheme) and mesh (cells, mesh_size) instead")
@@ -95,7 +97,11 @@ def choose_for_tolerance(scene, tol: float, *, model=None):
         schemes = sorted({METHODS[name].scheme for name in TOL_METHODS})
         raise ValueError(f"--tol: model '{model.name}' runs with none of the schemes --tol chooses among "
                          f"({', '.join(schemes)}); give nx and nt (--nx, --nt) instead")
-    choice = _estimate_on_rank_0(scene, tol, model=model)
+    comm = MPI.COMM_WORLD
+    choice = one_outcome(comm, lambda: estimate_for_tolerance(scene, tol, model=model), root=0)
+    if comm.size > 1:  # without the pilot runs' arrays
+        light = comm.bcast([{k: v for k, v in c.items() if k != "run"} for c in choice or ()], root=0)
+        choice = choice if comm.rank == 0 else light
     chosen, method, best = _pick(scene, tol, choice)
     others = "; ".join(f"{c['method']}: nx={c['nx']} est {c['estimate']:.3g} ({c['fine_wall_s']:.2g} s"
                        f"{'' if c['ok'] else _STOPPED[c.get('why')]})" for c in choice)
@@ -109,29 +115,8 @@ _STOPPED = {"dearer": ", stopped: above tol and already dearer", "out of reach":
             None: ", stopped"}
 
 
-def _estimate_on_rank_0(scene, tol: float, *, model=None) -> list[dict]:
-    """`estimate_for_tolerance` on rank 0 of COMM_WORLD, its result (or its ValueError) broadcast to every rank
-    (without the pilot runs' arrays, "run"); every rank must call it."""
-    from mpi4py import MPI
-
-    comm, choice = MPI.COMM_WORLD, None
-    if comm.rank == 0:
-        try:
-            choice = estimate_for_tolerance(scene, tol, model=model)
-        except ValueError as exc:
-            choice = exc
-    if comm.size > 1:  # the root's list is broadcast, the others' is ignored
-        light = comm.bcast(choice if isinstance(choice, Exception) else [
-            {k: v for k, v in c.items() if k != "run"} for c in choice or ()], root=0)
-        choice = choice if comm.rank == 0 else light
-    if isinstance(choice, Exception):
-        raise choice
-    return choice
-
-
 def _pick(scene, tol: float, choice: list[dict]):
-    """From `estimate_for_tolerance`'s estimates: (the chosen scene, its Method, its estimate), the cheapest
-    finer run among those that reached `tol`; a ValueError if none did."""
+    """(scene, Method, estimate) of the cheapest run that reached `tol`; a ValueError if none did."""
     reached = [c for c in choice if c["ok"]]
     if not reached:
         best = min(choice, key=lambda c: c.get("floor", c["estimate"]), default=None)
@@ -149,7 +134,7 @@ def _pick(scene, tol: float, choice: list[dict]):
 
 
 def tolerance_tracking(tols=(3e-2, 1e-2, 3e-3), T: float = 0.6) -> list[dict]:
-    """On the flat landing, per tolerance: the chosen run's estimate against its true error (serial: rank 0 only)."""
+    """On the flat landing, per tolerance: the chosen run's estimate against its true error (serial)."""
     base = flat_landing_scene(100, T=T)
     rows = []
     for tol in tols:

@@ -37,8 +37,7 @@ def add_arguments(parser):
 
 
 def _scene_from_args(args):
-    """The finest level's scene: --nx and --nt checked as flags (0 is refused, not replaced by the default); a 1D
-    scene only; --eps or --penalty refused with a scheme that has no penalty, as `run` refuses them."""
+    """The finest level's scene (1D only): --nx and --nt checked as flags; --eps and --penalty refused as by `run`."""
     from ..errors import SceneError
     from ..scene import load_scene
     from ..scene.limits import INT_BOUNDS
@@ -82,8 +81,7 @@ def _compute(args, scene):
 
 
 def command(args) -> int:
-    """Check the flags, take the --out folder (before the levels are computed: a second check into it, or a folder
-    that cannot be made, is refused first), compute, print and write."""
+    """Check the flags, take the --out folder (a refusal costs no computing), compute, print and write."""
     from mpi4py import MPI
 
     if not 1 <= args.levels <= 6:

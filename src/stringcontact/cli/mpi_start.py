@@ -1,7 +1,5 @@
-"""Open MPI's settings for a command run without `mpirun` (a singleton), made before MPI loads: no ``orted``
-daemon (``ess_singleton_isolated``) and no UCX probe (``pml=ob1``) for a process that talks to nobody:
-`from petsc4py import PETSc` 0.216 s with them, 0.548 s without (`benchmarks/bench_mpi_start.py`). A value the
-user set is kept; under a launcher nothing changes; other MPI implementations ignore the names."""
+"""Open MPI's settings for a command run without `mpirun`, made before MPI loads: no ``orted`` daemon and no UCX
+probe, `from petsc4py import PETSc` 0.216 s with them, 0.548 s without (`benchmarks/bench_mpi_start.py`)."""
 
 from __future__ import annotations
 

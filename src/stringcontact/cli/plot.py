@@ -1,6 +1,5 @@
-"""`stringcontact plot DIR`: every picture of a run drawn again from its output folder alone
-(`plot.run_pictures.write_pictures` on `io.readback.read_output`), into DIR under DIR's lock (the one a run writing
-there holds: each refuses the other, naming it), or into a new `--out` folder."""
+"""`stringcontact plot DIR`: a run's pictures drawn again from its output folder alone, into DIR under its lock (a
+run writing there and this refuse each other) or into a new `--out` folder."""
 
 from __future__ import annotations
 
@@ -17,11 +16,9 @@ def add_arguments(parser) -> None:
     """`stringcontact plot`'s arguments: the folder, --out, --force, --format, --style and --size."""
     parser.description = (
         f"Redraw the pictures of an output folder ({', '.join(PICTURES)}; of a membrane {', '.join(MEMBRANE_PICTURES)}; "
-        "and NAME.png of each output field NAME of the run's model) "
-        "from its saved files alone: the stored rows the run drew them from (rows.npz), diagnostics.csv and "
-        "summary.json: the same pictures as the run's; "
-        "as PDF or SVG for a paper (--format pdf --style paper)."
-    )
+        "and NAME.png of each output field NAME of the run's model) from its saved files alone: the stored rows the "
+        "run drew them from (rows.npz), diagnostics.csv and summary.json: the same pictures as the run's; as PDF or "
+        "SVG for a paper (--format pdf --style paper).")
     parser.add_argument("folder", metavar="DIR", help="an output folder written by `stringcontact run --out DIR`")
     parser.add_argument("--out", metavar="DIR", help="write the pictures here instead of into DIR (a new folder)")
     parser.add_argument("--force", action="store_true", help="replace an --out folder of earlier pictures")
@@ -70,8 +67,8 @@ def look_of(args) -> Look | None:
 
 
 def command(args) -> int:
-    """`stringcontact plot DIR`: the pictures drawn into DIR (each replaced whole, `atomic_path`) or a new --out
-    folder (the whole folder or nothing, by the rules of `run --out`); 0 when done."""
+    """`stringcontact plot DIR`: the pictures drawn into DIR (each replaced whole) or a new --out folder (whole or
+    nothing, by the rules of `run --out`); 0 when done."""
     from ..errors import OutputError
     from ..io.disk import describe_os_error
     from ..io.lock import TargetLock

@@ -1,7 +1,5 @@
-"""The process around a command: the exit codes, the stop signals (SIGINT, SIGTERM, SIGHUP raise `Interrupted`;
-PETSc's own handlers replaced), the MPI ranks ending together (`end_together`), the standard streams (closed ones
-reopened on /dev/null; every message and warning one line on stderr), and what in the environment would stop
-PETSc or MPI at start-up (`environment_problem`)."""
+"""The process around a command: exit codes, stop signals raising `Interrupted`, MPI ranks ending together, the
+standard streams (every message and warning one line on stderr), and the environment PETSc and MPI start in."""
 
 from __future__ import annotations
 
@@ -16,12 +14,12 @@ import warnings
 
 from ..errors import one_line
 
-#: The exit codes (what each means: the command line's docstring, `cli.main`; a signal's: 128 + its number).
+#: The exit codes (`cli.main`'s docstring says what each means; a signal's: 128 + its number).
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 #: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-#: How long a rank of an MPI job that fails or is signalled waits for the others to end with it before it aborts the
-#: job (MPI_Abort with its exit code): a rank left alone would wait in a collective call for ever.
+#: Seconds a failed or signalled MPI rank waits for the others to end with it before it aborts the job (MPI_Abort):
+#: a rank left alone would wait in a collective call for ever.
 END_GRACE = 10.0
 _exit = {"comm": None, "timer": None}
 
@@ -38,8 +36,8 @@ def _stderr_line(text: str) -> None:
 
 @contextlib.contextmanager
 def one_line_warnings():
-    """Every warning as one line ``stringcontact: warning: MESSAGE``: through `warnings.showwarning`, and once ffcx
-    has called ``logging.captureWarnings(True)`` (mid-run) through the logger "py.warnings" and its format."""
+    """Every warning as one line ``stringcontact: warning: MESSAGE``, also through the logger "py.warnings" once ffcx
+    has called ``logging.captureWarnings(True)``."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("stringcontact: warning: %(message)s"))
     logger = logging.getLogger("py.warnings")
@@ -57,8 +55,8 @@ def one_line_warnings():
 
 @contextlib.contextmanager
 def signals_interrupt(petsc: bool = True):
-    """The stop signals raise `Interrupted` (`stop_signals`), over PETSc's own C handlers (with `petsc`, PETSc is
-    imported first); SIGPIPE gets its default back: `stringcontact list | head` ends quietly, as Unix tools do."""
+    """The stop signals raise `Interrupted` (`stop_signals`), over PETSc's own handlers (imported first with `petsc`);
+    SIGPIPE gets its default back: `stringcontact list | head` ends quietly."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -127,16 +125,10 @@ def _abort(code: int) -> None:
     _exit["comm"].Abort(code)
 
 
-def single_process() -> bool:
-    """Not one rank of an MPI job (from the launcher's environment: mpi4py is not imported for it)."""
-    sizes = (os.environ.get(v, "1").strip() for v in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"))
-    return all(not size.isdigit() or int(size) <= 1 for size in sizes)
-
-
 @contextlib.contextmanager
 def argv_as_text():
-    """``sys.argv`` as text that encodes to UTF-8 while dolfinx loads: it hands the list to its C++ logging, which
-    cannot encode a non-UTF-8 file name's surrogate escapes (TypeError). The parsed arguments keep the real bytes."""
+    """``sys.argv`` encodable as UTF-8 while dolfinx loads (its C++ logging fails on a non-UTF-8 file name's surrogate
+    escapes); the parsed arguments keep the real bytes."""
     saved = sys.argv
     sys.argv = [os.fsencode(a).decode("utf-8", "replace") if isinstance(a, str) else a for a in saved]
     try:
@@ -146,8 +138,8 @@ def argv_as_text():
 
 
 def standard_streams() -> None:
-    """A standard stream closed at start (``run ... >&-``) reopened on /dev/null, so that the next file opened does
-    not get descriptor 1 or 2, where PETSc, HDF5 and MPI write: the run works, the exit code tells how it went."""
+    """A standard stream closed at start (``run ... >&-``) reopened on /dev/null, so that no file opened later gets
+    descriptor 1 or 2, where PETSc, HDF5 and MPI write."""
     for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
         try:
             os.fstat(fd)
@@ -161,9 +153,8 @@ def standard_streams() -> None:
 
 
 def environment_problem(environ) -> str | None:
-    """What in the environment would stop PETSc or MPI at start-up with a page of text: an options file in
-    ``PETSC_OPTIONS`` that is not a readable regular file (a FIFO would block), a ``TMPDIR`` where no folder can be
-    made (Open MPI's session folder; ``/proc``). None if nothing."""
+    """What in the environment would stop PETSc or MPI at start-up with a page of text (an options file in
+    ``PETSC_OPTIONS`` that is not a readable regular file, a ``TMPDIR`` where no folder can be made), or None."""
     import shlex
     import stat
     import tempfile

@@ -1,5 +1,5 @@
 """What the command line prints: `stringcontact show`'s scene file (`show_scene`) and a run's closing lines
-(`report`). Imported when a command needs it, so that `stringcontact run` starts its picture process first."""
+(`report`)."""
 
 from __future__ import annotations
 
@@ -90,8 +90,8 @@ def _fmt_numerical_line(res) -> str | None:
 
 
 def _runs_with(res, scheme: str) -> bool:
-    """Whether scheme `scheme` runs the run's model (`timestepping.check_model`): the closing lines advise only a
-    scheme that does. False when the model cannot be loaded again by its name (a `Model` handed to `simulate`)."""
+    """Whether `scheme` runs the run's model (`timestepping.check_model`), which the closing lines advise only then;
+    False when the model cannot be loaded again by its name."""
     from ..model.registry import load_model
     from ..timestepping import check_model
 

@@ -7,12 +7,9 @@ import contextlib
 
 @contextlib.contextmanager
 def staged_output(out, force: bool, command: str, comm, root: int = 0):
-    """``with staged_output(out, force, command, comm) as partial:`` compute, then write into `partial` (None on
-    the other ranks and without `out`); published when the body ends without an error, removed otherwise.
-
-    The folder is taken (`io.target.check_target`, then `io.publish.staged_folder`) by rank `root` alone, with one
-    outcome on every rank (`fem.agree.one_outcome`), before the body runs: a folder another study writes to, or one
-    that cannot be made, is refused before minutes of computing, not after them."""
+    """``with staged_output(out, force, command, comm) as partial:`` compute, then write into `partial` (None on the
+    other ranks and without `out`): published if the body ends without an error, else removed. Rank `root` takes the
+    folder before the body runs, one outcome on every rank: a refusal comes before minutes of computing."""
     from ..fem.agree import one_outcome
     from ..io.publish import staged_folder
     from ..io.target import check_target

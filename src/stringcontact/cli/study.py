@@ -36,8 +36,7 @@ def add_arguments(parser):
 
 
 def command(args) -> int:
-    """Run the study, its folder taken before the sweep (a second study into it, or a folder that cannot be made, is
-    refused before the computing), and print its times and the files written."""
+    """Run the study (its folder taken first: a refusal costs no computing), print its times and the files written."""
     from mpi4py import MPI
 
     comm, out, busy = MPI.COMM_WORLD, Path(args.out), []
@@ -56,16 +55,14 @@ def command(args) -> int:
 
 
 def _cpu_text(per_rank) -> str:
-    """The report's CPU-time clause: the cases' time on each rank, or, for a study whose cases are not timed per
-    rank (`study film` runs its sweep on rank 0), where they ran."""
+    """The report's CPU-time clause: the cases' time on each rank, or where they ran (`study film`: rank 0)."""
     if len(per_rank) == 0:
         return "the cases ran one after another on rank 0"
     return "CPU time of the cases per rank: " + ", ".join(f"{b:.2f} s" for b in per_rank)
 
 
 def _sweep_and_write(args, comm, partial: Path | None, busy: list) -> tuple[float, list[Path]]:
-    """The study's sweep (its time in seconds), then its files written into `partial` on rank 0 (the others have
-    no results and write nothing)."""
+    """The study's sweep (its seconds), then its files written into `partial` on rank 0."""
     t_sweep, quick = time.perf_counter(), args.quick
     if args.study == "work-precision":
         names = ("flat-landing", "example1") if args.problem == "all" else (args.problem,)

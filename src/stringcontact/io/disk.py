@@ -1,6 +1,5 @@
-"""The device under an output folder: fsync (`sync_soon` starts it early), and a failed write in one line
-(`describe_os_error`: a full disk, a read-only file system, no permission) or as a failing device (`disk_failure`).
-"""
+"""The device under an output folder: fsync (`sync_soon` starts it early), a failed write in one line
+(`describe_os_error`), a failing device (`disk_failure`)."""
 
 from __future__ import annotations
 
@@ -38,8 +37,8 @@ def fsync(path, folder: bool = False) -> None:
 
 
 def sync_soon(paths) -> threading.Thread:
-    """Start writing the files `paths` to the device now, in a thread (returned), while the pictures are drawn:
-    publishing's own fsync then takes 0.003 s for Example 1, not 0.030-0.035 s (docs/explanation/performance.md)."""
+    """fsync the files `paths` in a thread (returned) while the pictures are drawn: publishing's fsync then takes
+    0.003 s for Example 1, not 0.030-0.035 s (docs/explanation/performance.md)."""
 
     def sync():
         for path in paths:
@@ -52,8 +51,7 @@ def sync_soon(paths) -> threading.Thread:
 
 
 def describe_os_error(exc: BaseException, folder, probe=None) -> str:
-    """One line for an I/O failure in `folder`: disk full, read-only, permission denied, or the error itself.
-    Without an errno (dolfinx's and HDF5's RuntimeError), the device of `probe` (default `folder`) is examined."""
+    """One line for an I/O failure in `folder`; without an errno (a RuntimeError) the device of `probe` is examined."""
     err = getattr(exc, "errno", None)
     reasons = {errno.ENOSPC: f"the disk is full (no space left on the device of {folder})",
                errno.EDQUOT: f"the disk quota is exceeded on {folder}", errno.EROFS: f"{folder} is on a read-only file system",

@@ -1,8 +1,6 @@
-"""A run's output folder (`OutputWriter`): the stored rows streamed into `solution.xdmf`/`.h5` during the run, each
-frame with the stop signals held back (whole time levels); at the end the tables, `view.py` and the pictures (the
-function the caller passes: no picture code here), in a hidden folder that `publish` renames into place once the
-XDMF is closed and read back. A failing device removes the folder: one line (`OutputError`) on every MPI rank.
-"""
+"""A run's output folder (`OutputWriter`): the stored rows streamed into `solution.xdmf` as whole time levels, then
+the tables, `view.py` and the pictures (the caller's function), in a hidden folder renamed into place once the XDMF
+is read back. A failing device removes the folder: one line (`OutputError`) on every MPI rank."""
 
 from __future__ import annotations
 
@@ -30,7 +28,7 @@ from .xdmf import XdmfTimeSeries, mesh_arrays
 
 def xdmf_frames(steps, keep_steps, max_frames: int) -> np.ndarray:
     """Which stored rows become XDMF frames (a mask), at most `max_frames` (at least 2): the first and the last, the
-    rows at `keep_steps` (the output times; evenly thinned, with a warning, if they do not fit), evenly spaced rows."""
+    rows at `keep_steps` (evenly thinned, with a warning, if they do not fit), then evenly spaced rows."""
     steps = np.asarray(steps)
     mask = np.zeros(steps.size, dtype=bool)
     if not steps.size:
@@ -57,7 +55,7 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
 
 
 def in_python_terms(message: str) -> str:
-    """An output folder's refusal in a Python caller's (`run.options.Output`) terms, not the command line's."""
+    """An output folder's refusal in `run.options.Output`'s terms, not the command line's."""
     for cli, python in (("pass --force to replace it", "pass Output(..., force=True) to replace it"),
                         ("--force replaces only", "Output(force=True) replaces only"), ("--out ", "output folder ")):
         message = message.replace(cli, python)
@@ -65,10 +63,9 @@ def in_python_terms(message: str) -> str:
 
 
 class OutputWriter:
-    """The solver calls ``write(t, fields)`` at each stored time, then ``finish(result)``, or ``abort(status,
-    message[, result])`` on InstabilityError or KeyboardInterrupt, ``discard()`` on an unexpected error. `frames`:
-    which stored rows are XDMF frames (`xdmf_frames`); `pictures`: None or a function (result, folder). `path`: where
-    the folder ended up (the target, or ``NAME.interrupted``, ... beside an existing result)."""
+    """``write(t, fields)`` at each stored time, then ``finish(result)``, or ``abort(status, message[, result])`` on
+    InstabilityError or KeyboardInterrupt, ``discard()`` on an unexpected error. `frames`: which stored rows are XDMF
+    frames; `pictures`: None or a function (result, folder). `path`: where the folder ended up."""
 
     def __init__(self, path, scene, V, comm, force: bool = False, pictures=None, frames=None):
         self.comm, self.scene, self.force, self.pictures = comm, scene, force, pictures
@@ -92,12 +89,11 @@ class OutputWriter:
         except (RuntimeError, OSError) as exc:  # petsc4py's Error is a RuntimeError
             self._fail("cannot write solution.xdmf", exc)
         except BaseException:  # Ctrl-C while opening: leave nothing behind
-            self._discard()
+            self.discard()
             raise
 
     def write(self, t: float, fields: dict) -> None:
-        """One stored row: all its fields as one XDMF frame, or none; a row not among `frames` is kept (copied) instead,
-        so that a run that stops there still ends its XDMF with it."""
+        """One stored row as an XDMF frame, or, not among `frames`, kept: a run stopping there ends its XDMF with it."""
         row, self._row = self._row, self._row + 1
         if self.frames is not None and row < self.frames.size and not self.frames[row]:
             self._kept = (t, {name: np.array(values, dtype=float) for name, values in fields.items()})
@@ -119,8 +115,8 @@ class OutputWriter:
         self.write_time += time.perf_counter() - t0
 
     def finish(self, result) -> None:
-        """Close the XDMF, write the tables, view.py, the pictures and summary.json (the result's status: "unbalanced"
-        is never "complete"), rename the folder into place; a failing device removes it (OutputError, every rank)."""
+        """Close the XDMF, write the tables, view.py, the pictures and summary.json, rename the folder into place; a
+        failing device removes it (OutputError, every rank)."""
         try:
             self._close_xdmf()
             summary = summary_dict(result)
@@ -139,7 +135,7 @@ class OutputWriter:
             if stopped is not None:
                 raise Interrupted(stopped)
             if failure is not None:
-                self._discard()
+                self.discard()
                 raise OutputError(f"--out {self.target}: cannot write the output files: {failure}; nothing was written there")
             self._publish(summary)
         except KeyboardInterrupt as exc:  # the data are whole: the folder says it was interrupted (or, published, stays complete)
@@ -151,8 +147,8 @@ class OutputWriter:
             self._fail("cannot write the output files", exc)
 
     def abort(self, status: str, message: str, result=None, error=None) -> None:
-        """Keep what was written, marked `status` ("interrupted", "unstable"), with `result`'s rows so far and `error`'s
-        (default: the exception being handled) step, time and r; never raises: the caller handles the run's own."""
+        """Keep what was written, marked `status`, with `result`'s rows so far and `error`'s (default: the exception
+        being handled) step, time and r; never raises."""
         if self.partial is None and self.xdmf is None:
             return  # already finished, failed or aborted
         error = error if error is not None else sys.exc_info()[1]
@@ -171,16 +167,12 @@ class OutputWriter:
                     write_view(result, self.partial)
                 self._publish(summary)
         except Exception as exc:  # noqa: BLE001 - never hide the run's own exception behind ours
-            self._discard()
+            self.discard()
             warnings.warn(f"--out {self.target}: the partial output could not be kept: {describe_os_error(exc, self.target)}",
                           stacklevel=2)
 
-    def discard(self) -> None:
-        """Remove everything this run wrote (for a caller that stops on an unexpected error)."""
-        self._discard()
-
     def _write_tables_and_pictures(self, result, summary: dict) -> None:
-        """Rank 0: diagnostics.csv, rows.npz, view.py and the pictures (failing on the device: raised, else a warning)."""
+        """Rank 0: diagnostics.csv, rows.npz, view.py and the pictures (a failing picture warns)."""
         write_diagnostics(self.partial / "diagnostics.csv", result)
         write_rows(self.partial / ROWS_FILE, result)
         write_view(result, self.partial, target=self.target)
@@ -207,7 +199,7 @@ class OutputWriter:
             self.xdmf = None
 
     def _publish(self, summary: dict) -> None:
-        """Check the XDMF's frames, write summary.json and publish the folder, the stop signals held throughout."""
+        """Check the XDMF's frames, write summary.json and publish the folder, the stop signals held."""
         status = summary.get("status") or "complete"
         failure = dest = None
         with signals_held():
@@ -225,7 +217,7 @@ class OutputWriter:
             if self.comm.size > 1:
                 failure, dest = self.comm.bcast((failure, dest), root=0)
             if failure is not None:
-                self._discard()
+                self.discard()
                 raise OutputError(f"--out {self.target}: {failure}; nothing was written there")
             self.path, self.partial = dest, None
             self._release()
@@ -234,10 +226,11 @@ class OutputWriter:
 
     def _fail(self, what: str, exc: BaseException):
         reason = describe_os_error(exc, self.target.parent, probe=self.partial)  # before the partial folder frees the disk
-        self._discard()
+        self.discard()
         raise OutputError(f"--out {self.target}: {what}: {reason}; nothing was written there") from None
 
-    def _discard(self) -> None:
+    def discard(self) -> None:
+        """Remove everything this run wrote (for a caller that stops on an unexpected error)."""
         if self.xdmf is not None:
             with contextlib.suppress(Exception):
                 self._close_xdmf(discard=True)
@@ -254,4 +247,4 @@ class OutputWriter:
     def __del__(self):  # an unexpected error in the solver: no half-written folder, no stale lock
         with contextlib.suppress(Exception):
             if self.partial is not None:
-                self._discard()
+                self.discard()

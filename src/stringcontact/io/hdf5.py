@@ -1,8 +1,7 @@
-"""`Hdf5File`: flat datasets written through the libhdf5 that dolfinx and PETSc loaded, by ctypes (sec2 driver).
-Hand-written (docs/explanation/visualisation.md): ``import h5py`` after dolfinx fails (its wheel's second libhdf5:
-"Not a datatype"), PETSc's HDF5 viewer fsyncs every dataset (412 fsyncs for ``run example1``, 9 with this;
-`benchmarks/bench_xdmf.py`), dolfinx's `XDMFFile` writes a grid per function and its XML anew every frame.
-"""
+"""`Hdf5File`: flat datasets written by ctypes through the libhdf5 dolfinx loaded. Hand-written
+(docs/explanation/visualisation.md): h5py's wheel brings a second libhdf5 ("Not a datatype" after dolfinx), PETSc's
+viewer fsyncs every dataset (412 fsyncs for ``run example1``, 9 with this: `bench_xdmf.py`), dolfinx's `XDMFFile`
+writes a grid per function and its XML anew every frame."""
 
 from __future__ import annotations
 
@@ -41,8 +40,7 @@ def _signatures() -> dict:
 
 @functools.cache
 def hdf5_library():
-    """The libhdf5 that dolfinx and PETSc loaded (from /proc/self/maps: not h5py's copy) through ctypes, errno kept
-    per call; None if there is none."""
+    """The libhdf5 dolfinx and PETSc loaded (/proc/self/maps) through ctypes, errno kept per call; None if none."""
     try:
         with open("/proc/self/maps") as f:
             found = re.findall(r"(/\S*/libhdf5(?:_[a-z]+)?\.so[.\d]*)$", f.read(), re.MULTILINE)
@@ -59,9 +57,8 @@ def hdf5_library():
 
 @functools.cache
 def _silence_exit() -> None:
-    """After a failed H5Fcreate, point stderr at /dev/null when the process ends: libhdf5 1.10.8 leaks the half-made
-    file and prints "HDF5: infinite loop closing library" and a line at exit (measured with 8-11 KiB free,
-    tests/system/test_reliability_output.py with the room check off), after the command's own one line."""
+    """After a failed H5Fcreate, stderr to /dev/null at exit: libhdf5 1.10.8 then prints "HDF5: infinite loop closing
+    library" after the command's one line (8-11 KiB free, test_reliability_output.py with the room check off)."""
 
     def silence():
         with contextlib.suppress(Exception):
@@ -73,8 +70,7 @@ def _silence_exit() -> None:
 
 
 def _quiet(method):
-    """HDF5's automatic error printing off while `method` runs (once per method: a switch per call cost 13 % of
-    400 datasets' writing); a failed call is raised, and the caller reports one line."""
+    """HDF5's error printing off while `method` runs (once per method: per call cost 13 % of 400 datasets' writing)."""
 
     @functools.wraps(method)
     def quietly(self, *args):
@@ -92,9 +88,8 @@ def _quiet(method):
 
 
 class Hdf5File:
-    """A new HDF5 file at `path` in PETSc's HDF5 viewer's layout (tests/io/test_xdmf.py compares them). Every call
-    checked: OSError with the failed system call's errno (ENOSPC on a full disk), else RuntimeError naming the HDF5
-    function; HDF5 prints no error stack meanwhile (the caller reports one line)."""
+    """A new HDF5 file at `path` in PETSc's HDF5 viewer's layout. A failed call raises OSError with the system call's
+    errno (ENOSPC on a full disk), else RuntimeError naming the HDF5 function."""
 
     @_quiet
     def __init__(self, path):
@@ -137,7 +132,7 @@ class Hdf5File:
         return value
 
     def _layout(self, shape: tuple) -> tuple[int, int]:
-        """The dataspace and creation properties (one chunk of the whole, allocated at creation) of a shape, made once."""
+        """The dataspace and creation properties (one chunk, allocated at creation) of a shape, made once."""
         if shape not in self.layouts:
             dims = (ctypes.c_uint64 * len(shape))(*shape)
             self.layouts[shape] = (self._call("H5Screate_simple", len(shape), dims, None), H5P_DEFAULT)
@@ -159,9 +154,8 @@ class Hdf5File:
             self._call("H5Dclose", dataset)
 
     def _reserve(self) -> None:
-        """Allocate the blocks up to HDF5's end of allocation before a flush, so that a full disk fails here, the file
-        still closable: libhdf5 1.10.8 cannot flush again after a failed flush, and crashed at exit (SIGSEGV) for 148
-        of 249 disk sizes (tests/io/test_xdmf.py, the room check off)."""
+        """Allocate up to HDF5's end of allocation before a flush, so that a full disk fails here, the file still
+        closable: after a failed flush libhdf5 1.10.8 crashed at exit for 148 of 249 disk sizes (test_xdmf.py)."""
         eoa = ctypes.c_uint64()
         self._call("H5Fget_eoa", self.id, ctypes.byref(eoa))
         if self.reserved is not None and eoa.value > self.reserved:
@@ -176,8 +170,7 @@ class Hdf5File:
 
     @_quiet
     def flush(self) -> None:
-        """Everything written so far to the OS, no fsync (the folder is fsynced once, when published): a reader sees a
-        well-formed file."""
+        """Everything written so far to the OS (no fsync: the folder is fsynced when published)."""
         self._reserve()
         self._call("H5Fflush", self.id, H5F_SCOPE_LOCAL)
 
@@ -192,8 +185,7 @@ class Hdf5File:
 
     @_quiet
     def discard(self) -> None:
-        """Close a file about to be removed, whatever room is left: its descriptor is pointed at a file in memory
-        first, which takes the closing flush. Never raises."""
+        """Close a file about to be removed, whatever room is left (its descriptor pointed at a memory file first)."""
         if self.id is not None:
             with contextlib.suppress(OSError):
                 scratch = os.memfd_create("discarded.h5")

@@ -1,8 +1,6 @@
-"""The output folder's lock ``.NAME.lock`` beside it: filelock's `FileLock` (an ``flock`` tried once, no soft lock),
-the file holding the holder's pid and command (a refusal names them), removed on release. filelock 4.2.12 opens it
-with O_NOFOLLOW and O_NONBLOCK (a planted link or FIFO is refused, never followed or waited on) but locks a FIFO:
-`_write_pid` refuses anything but a regular file.
-"""
+"""The output folder's lock ``.NAME.lock`` beside it: filelock's `FileLock` tried once, the file holding the holder's
+pid and command (a refusal names them), removed on release; anything but a regular file is refused (filelock locks a
+FIFO)."""
 
 from __future__ import annotations
 
@@ -28,8 +26,7 @@ def lock_path(target) -> Path:
 
 
 def _write_pid(path: Path, command: str, fd: int) -> None:
-    """filelock's `on_acquired`: refuse a lock "file" that is not a regular file, write ``PID\\nCOMMAND\\n`` (on a full
-    disk: remove the file while still held, as `release` does)."""
+    """filelock's `on_acquired`: refuse a lock that is no regular file, write ``PID\\nCOMMAND\\n`` (failing: unlink)."""
     mine = os.fstat(fd)
     if not stat.S_ISREG(mine.st_mode):
         raise OSError(errno.EINVAL, "the lock file is not a regular file")
@@ -44,8 +41,8 @@ def _write_pid(path: Path, command: str, fd: int) -> None:
 
 
 class TargetLock:
-    """An exclusive, non-blocking lock on `target`'s ``.NAME.lock``, for `command` (``run``, ``study``, ``check``,
-    ``plot``); `label` names the folder in messages (``--out DIR``). Held by another: `OutputError` naming it."""
+    """An exclusive, non-blocking lock on `target`'s ``.NAME.lock`` for `command`; `label` names the folder in
+    messages. Held by another: `OutputError` naming it."""
 
     def __init__(self, target, command: str = "run", label: str | None = None):
         self.path, self.target = lock_path(target), Path(target)
@@ -69,7 +66,7 @@ class TargetLock:
         raise OutputError(f"--out {self.target}: cannot take the lock {self.path}")  # pragma: no cover
 
     def release(self) -> None:
-        """Remove the lock file while still holding it (nobody can have locked this inode meanwhile), then unlock."""
+        """Remove the lock file while still holding it, then unlock."""
         if self._lock.is_locked:
             with contextlib.suppress(OSError):
                 os.unlink(self.path)
@@ -83,7 +80,7 @@ class TargetLock:
 
     @staticmethod
     def busy(target, label: str | None = None) -> str | None:
-        """The one-line refusal of a folder whose lock another command holds, naming it and its pid; else None."""
+        """The one-line refusal of a folder another command holds, naming it and its pid; else None."""
         held = _probe(target)
         if held is None:
             return None
@@ -97,8 +94,8 @@ class TargetLock:
 
 
 def _probe(target) -> tuple[int, str | None] | None:
-    """(pid, command) of the holder of `target`'s lock (0 and None where the file does not say), or None if nobody
-    holds it. Hand-written: filelock has no probe that leaves a missing lock file missing."""
+    """(pid, command) of the holder of `target`'s lock (0, None where unsaid), or None. Hand-written: filelock has no
+    probe that leaves a missing lock file missing."""
     try:
         fd = os.open(lock_path(target), os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:

@@ -1,6 +1,5 @@
-"""The files a stringcontact command writes: each whole or not at all (`atomic_path`), and the folder's
-``manifest.json`` listing them with their sizes, which is all that `--force` may replace (`foreign_file`).
-"""
+"""Files written whole or not at all (`atomic_path`), and a folder's ``manifest.json`` listing them with their sizes:
+all that `--force` may replace (`foreign_file`)."""
 
 from __future__ import annotations
 
@@ -20,8 +19,7 @@ MAX_MANIFEST_BYTES = 1 << 20
 
 
 def small_regular_file(path: Path, limit: int) -> bytes | None:
-    """The bytes of `path` if it is a regular file (not a link) of at most `limit` bytes, else None. Opened with
-    O_NONBLOCK and O_NOFOLLOW: a planted FIFO is never waited on, a link to /dev/zero never followed."""
+    """The bytes of `path` if it is a regular file (no link, FIFO or device) of at most `limit` bytes, else None."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:
@@ -58,8 +56,8 @@ def write_manifest(folder: Path, files: dict[str, int]) -> None:
 
 
 def foreign_file(folder: Path, depth: int = 3) -> str | None:
-    """Why `--force` may not replace `folder`: its first file the manifest does not list with that size; None if it
-    may. A folder in it that a command published (``plot RUN --out RUN/pictures``) counts, `depth` levels down."""
+    """Why `--force` may not replace `folder` (its first file the manifest does not list with that size), or None; a
+    folder in it that a command published counts, `depth` levels down."""
     files = read_manifest(folder)
     if files is None:
         return f"this folder has no {MANIFEST} of a stringcontact command"
@@ -83,9 +81,8 @@ def is_run_result(folder: Path) -> bool:
 
 @contextlib.contextmanager
 def atomic_path(path, record: bool = True):
-    """One file whole or not at all: ``with atomic_path(path) as tmp: write to tmp``, a hidden sibling with the suffix
-    (`tempfile.mkstemp`: a link planted there is never written through) renamed onto `path`, or removed on any
-    error. With `record`, the file joins the folder's manifest if it has one (``plot FOLDER`` redraws a result)."""
+    """One file whole or not at all: ``with atomic_path(path) as tmp: write to tmp``, a hidden sibling renamed onto
+    `path`, or removed on any error. With `record`, the file joins the folder's manifest if it has one."""
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
     tmp = Path(name)

@@ -1,11 +1,6 @@
-"""`view.py`: a ready ParaView view of an output folder (``pvpython view.py`` or ``paraview --script=view.py``).
-
-The program is `paraview/view.py` beside this module, a Python file of the package; the run writes it into the
-folder with its numbers filled in as literals (`view_script`), computed over all stored rows: the colour ranges
-(contact 0 … 1, velocity ±max |v|, each output field its own fixed range and colours, a ``"symlog"`` one on the
-pictures' symmetric-log scale), the obstacle (literal points at rest; moving: `solution.xdmf`'s ``obstacle`` field),
-the title, and the box one camera frames at every time. What it draws: docs/howto/view_in_paraview.md.
-"""
+"""`view.py`, a ready ParaView view of an output folder: the package's `paraview/view.py` with the run's numbers
+filled in as literals (`view_script`), computed over all stored rows: the fixed colour ranges, the obstacle at rest,
+the title and the box one camera frames at every time (docs/howto/view_in_paraview.md)."""
 
 from __future__ import annotations
 
@@ -18,10 +13,9 @@ from .manifest import atomic_path
 from .tables import field_info
 
 CONTACT_RANGE = (0.0, 1.0)
-#: velocity's colours at −V, 0 and V (RGB in 0 … 1): blue, a dark grey, red. The middle is dark so that a
-#: string at rest (v = 0) is seen on the white background (Cool to Warm's light grey middle vanishes there).
+#: velocity's colours at −V, 0 and V: blue, a dark grey (a string at rest is seen on white), red.
 VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
-#: control points of a symmetric-log field's colours per decade of its |value| (ParaView interpolates between them)
+#: control points of a symmetric-log field's colours per decade of its |value|
 POINTS_PER_DECADE = 4
 #: the obstacle's grey
 OBSTACLE_GREY = (0.80, 0.80, 0.80)
@@ -32,8 +26,7 @@ _MEMBRANE_DROP = 0.01
 
 
 def symlog_unit(values, peak: float, share: float) -> np.ndarray:
-    """`values` from −peak … peak onto −1 … 1 (clipped beyond) on the pictures' symmetric-log scale: matplotlib's
-    SymLogNorm (base 10, linscale 1) with linthresh = share·peak."""
+    """`values` from −peak … peak onto −1 … 1 (clipped) as matplotlib's SymLogNorm (base 10, linthresh share·peak)."""
     c = share * peak
     linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
 
@@ -45,8 +38,8 @@ def symlog_unit(values, peak: float, share: float) -> np.ndarray:
 
 
 def field_range(values, info: dict) -> tuple[float, float]:
-    """An output field's fixed colour range over its rows `values`: −P … P (P its largest finite |value|) for a
-    symmetric or ``"symlog"`` field (`info`: `OutputField.metadata`), else its finite least … largest, never empty."""
+    """An output field's fixed colour range over its rows: ±max |value| for a symmetric or ``"symlog"`` one (`info`:
+    `OutputField.metadata`), else its finite least … largest, never empty."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if info.get("symmetric") or info.get("scale") == "symlog":
@@ -58,16 +51,15 @@ def field_range(values, info: dict) -> tuple[float, float]:
 
 
 def blend(colours, unit) -> np.ndarray:
-    """The RGB rows at `unit` (−1 … 1) of `colours` spread evenly over −1 … 1, blended as matplotlib's
-    `LinearSegmentedColormap.from_list`."""
+    """The RGB rows at `unit` (−1 … 1) of `colours` spread evenly over −1 … 1, as `LinearSegmentedColormap`'s."""
     stops = np.linspace(-1.0, 1.0, len(colours))
     rgb = np.asarray(colours, dtype=float)
     return np.column_stack([np.interp(np.asarray(unit, dtype=float), stops, rgb[:, k]) for k in range(3)])
 
 
 def field_points(low: float, high: float, info: dict) -> list:
-    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high`: evenly spaced, or
-    for a ``"symlog"`` one at 0, ±linthresh and `POINTS_PER_DECADE` values per decade up to ±high."""
+    """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high` (a ``"symlog"`` one's
+    at 0, ±linthresh and `POINTS_PER_DECADE` per decade up to ±high)."""
     colours = info["colours"]
     if info.get("scale") != "symlog":
         values = np.linspace(low, high, len(colours))
@@ -81,8 +73,8 @@ def field_points(low: float, high: float, info: dict) -> list:
 
 
 def symlog_view(high: float, info: dict) -> list:
-    """A symmetric-log field's scale in view.py, ``[linthresh, [[unit, r, g, b], ...], [[unit, label], ...]]``: its
-    colours evenly on −1 … 1 of `symlog_unit`, its colour bar's ticks at 0, ±linthresh, a decade apart up to ±high."""
+    """A symmetric-log field's scale in view.py: ``[linthresh, [[unit, r, g, b], ...], [[unit, label], ...]]``, its
+    colour bar's ticks at 0, ±linthresh, a decade apart up to ±high."""
     share = float(info.get("linear_share", 1e-3))
     colours = info["colours"]
     units = np.linspace(-1.0, 1.0, len(colours))
@@ -96,8 +88,7 @@ def symlog_view(high: float, info: dict) -> list:
 
 
 def view_numbers(result) -> dict:
-    """view.py's numbers, by the names of its lines, from the stored rows: the colour ranges, the obstacle (none
-    when it moves), the box the camera frames over all times (x0, x1, y0, y1, z0, z1), the title."""
+    """view.py's numbers by the names of its lines, from the stored rows."""
     x, eta = np.asarray(result.x, dtype=float), np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
     lo, hi = (float(np.nanmin(eta)), float(np.nanmax(eta))) if eta.size else (0.0, 0.0)
@@ -137,7 +128,7 @@ def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
 
 
 def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
-    """The height range (lo, hi) widened to a moving ψ at `times` (a string's samples, some of a membrane's nodes)."""
+    """The height range (lo, hi) widened to a moving ψ at `times`."""
     if x.ndim == 1 or x.shape[1] == 1:
         xs = x.reshape(-1)
         grid = np.linspace(xs.min(), xs.max(), min(OBSTACLE_SAMPLES, len(xs)))
@@ -150,8 +141,7 @@ def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
 
 
 def _string_obstacle(scene, xs, lo, hi):
-    """The region below y = ψ(x) down to a floor under everything, quadrilaterals slightly behind the string; and
-    the height range with it."""
+    """The region below y = ψ(x) down to a floor under everything, slightly behind the string, and the range."""
     flat = getattr(scene, "obstacle", None) is None
     grid = np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
     psi = obstacle_at(scene, grid)
@@ -180,7 +170,7 @@ def _membrane_obstacle(scene, x, lo, hi):
 
 
 def _literal(value) -> str:
-    """A Python literal of floats written so that they read back exactly (repr); integers stay integers."""
+    """A Python literal of `value` whose floats read back exactly (repr)."""
     if isinstance(value, dict):
         return "{" + ", ".join(f"{_literal(k)}: {_literal(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (tuple, list)):
@@ -191,8 +181,7 @@ def _literal(value) -> str:
 
 
 def view_script(numbers: dict) -> str:
-    """The package's view.py with each line ``NAME = value  # comment`` between its numbers' markers given the value
-    `numbers[NAME]` (`view_numbers`, and ``FOLDER``)."""
+    """The package's view.py with each line ``NAME = value  # comment`` between its markers set to `numbers[NAME]`."""
     program = resources.files(__package__).joinpath("paraview", "view.py").read_text(encoding="utf-8")
     start = program.index("\n", program.index("# --- the run's numbers")) + 1
     end = program.index("# --- end of the run's numbers ---")
@@ -209,8 +198,7 @@ def view_script(numbers: dict) -> str:
 
 
 def write_view(result, folder, target=None) -> Path:
-    """Write `folder`/view.py for `result` (rank 0's rows); returns its path. `target`: where the folder will be once
-    published (view.py falls back to it when ParaView's GUI does not say where the script is)."""
+    """Write `folder`/view.py for `result`; `target`: where the folder will be once published (view.py's fallback)."""
     path = Path(folder) / "view.py"
     numbers = view_numbers(result) | {"FOLDER": str(Path(target).resolve()) if target is not None else ""}
     with atomic_path(path) as tmp:

@@ -1,9 +1,7 @@
-"""An output folder is absent, complete, or marked in its summary.json, never half-written: a command locks it
-(`lock.TargetLock`), writes into a hidden folder beside it (``.NAME.partial-<pid>-<random>``, `tempfile.mkdtemp`),
-fsyncs that and renames it into place (`publish_partial`). With ``--force`` a complete result replaces a folder of
-ours through ``.NAME.old-*`` (restored if a crash comes between the two renames); any other goes beside it
-(``NAME.interrupted``, ...). The next run that takes the lock removes the marked hidden folders of killed runs.
-"""
+"""An output folder is absent, complete, or marked in its summary.json, never half-written: a command locks it, writes
+into a hidden ``.NAME.partial-*`` beside it, fsyncs and renames that into place. With ``--force`` a complete result
+replaces one of ours through ``.NAME.old-*``; any other goes beside it (``NAME.interrupted``, ...). The next run to
+take the lock removes what killed runs left."""
 
 from __future__ import annotations
 
@@ -24,14 +22,14 @@ from .manifest import MANIFEST, foreign_file, small_regular_file, write_manifest
 from .signals import signals_held
 from .target import check_target
 
-#: The marker file of a run's hidden folders: "partial" while one is written (removed before it is renamed into
-#: place), "old" in a result that a --force swap moved aside. A later run removes only folders so marked.
+#: The marker file of a run's hidden folders ("partial" while written, "old" when moved aside by a --force swap): a
+#: later run removes only folders so marked.
 MARKER = ".stringcontact-marker"
 
 
 def _recover_stale(target: Path) -> None:
-    """Under the lock: remove the marked hidden folders of killed runs into `target` (exact names, none a live run
-    holds), and put back a result an interrupted --force swap left aside."""
+    """Under the lock: remove the marked hidden folders of killed runs into `target`, put back a result an interrupted
+    --force swap left aside."""
     name, removed = re.escape(target.name), []
     with contextlib.suppress(OSError):
         for p in sorted(target.parent.iterdir()):
@@ -62,8 +60,8 @@ def _beside(partial: Path, target: Path, label: str) -> Path:
 
 
 def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
-    """Rename the finished folder `partial` to `target` and return where it went: a complete one replaces an occupied
-    target only with `force` (swapped through ``.NAME.old-*``), else it goes beside it (``NAME.new``/``NAME.<status>``)."""
+    """Rename the finished folder `partial` to `target` (occupied: only a complete one with `force`, else beside it as
+    ``NAME.new``/``NAME.<status>``); returns where it went."""
     label = status if status != "complete" else "new"
     if target.exists() and (not target.is_dir() or any(target.iterdir())):
         # looked at again: a run into a folder inside it may have started meanwhile, or a user put a file there
@@ -91,8 +89,8 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
 
 
 def open_partial(path, force: bool, command: str = "run") -> tuple[Path, TargetLock, Path]:
-    """Check, lock and check again the output folder `path`, clear what killed runs left, make the hidden partial
-    folder: ``(target, lock, partial)``. On failure (OutputError) nothing is held or left."""
+    """Check, lock and check again `path`, clear what killed runs left, make the hidden partial folder:
+    ``(target, lock, partial)``; on failure (OutputError) nothing is held or left."""
     target = Path(path).resolve()
     lock = partial = None
     try:
@@ -117,8 +115,8 @@ def open_partial(path, force: bool, command: str = "run") -> tuple[Path, TargetL
 
 
 def publish_partial(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
-    """Drop the marker, write the manifest (what a later `--force` may replace), fsync, rename into place
-    (`move_into_place`), fsync the parent; returns where it went. Call it with the signals held."""
+    """Drop the marker, write the manifest, fsync, rename into place, fsync the parent; returns where it went (call
+    it with the signals held)."""
     (partial / MARKER).unlink(missing_ok=True)
     files = [p for p in partial.iterdir() if p.is_file() and not p.is_symlink() and p.name != MANIFEST]
     write_manifest(partial, {p.name: p.stat().st_size for p in files})
@@ -134,7 +132,7 @@ def publish_partial(partial: Path, target: Path, force: bool, status: str = "com
 @contextlib.contextmanager
 def staged_folder(path, force: bool = False, command: str = "run"):
     """``with staged_folder(out, force) as tmp: write files into tmp``: the whole folder published, or (any error,
-    Ctrl-C too) nothing. Serial. `command` (``check``, ``study``, ``plot``): its `--force` never replaces a run."""
+    Ctrl-C too) nothing; serial. `command`'s `--force` never replaces a run."""
     target, lock, partial = open_partial(path, force, command)
     try:
         try:

@@ -15,8 +15,8 @@ STOP = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def _record(into: list) -> dict:
-    """Swap the Python handlers of `STOP` for one that appends to `into`; the previous handlers (a C handler, such
-    as PETSc's, cannot be put back: left in place)."""
+    """Swap the Python handlers of `STOP` for one that appends to `into`; returns the previous ones (a C handler,
+    PETSc's, cannot be put back: left in place)."""
     saved = {s: signal.getsignal(s) for s in STOP}
     saved = {s: h for s, h in saved.items() if h is not None}
     for s in saved:
@@ -26,8 +26,8 @@ def _record(into: list) -> dict:
 
 @contextlib.contextmanager
 def signals_held():
-    """Hold the stop signals back for a short critical section; they take effect right after it. (Handlers swapped,
-    not signals blocked: one that arrived just before would run its Python handler inside the section.)"""
+    """Hold the stop signals back for a critical section; they take effect right after it (handlers swapped, not
+    signals blocked: one that arrived just before would run its handler inside the section)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -46,8 +46,8 @@ def signals_held():
 
 
 class StopTogether:
-    """Under MPI a stop signal that reaches some ranks stops every rank at the same step: recorded while open, shared
-    by `poll` (one allreduce, every rank at the same steps), `Interrupted` raised on all. One process: unchanged."""
+    """Under MPI a stop signal that reaches some ranks stops every rank at the same step: recorded, shared by `poll`
+    (one allreduce), `Interrupted` raised on all."""
 
     def __init__(self, comm):
         self.comm = comm if comm is not None and comm.size > 1 else None

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import csv
 import math
-import struct
 import zipfile
 from pathlib import Path
 
@@ -109,9 +108,9 @@ def summary_dict(result) -> dict:
 
 
 def write_rows(path: Path, result) -> None:
-    """`ROWS_FILE`: t, steps, x, `FIELDS`, in 2D cells and weights, the output fields (`field_members`). Member by
-    member (np.savez compresses all or none): eta and velocity stored (the picture process maps them), the rest at
-    `ZLIB_LEVEL`: Example 1's in 41 ms against 70 at level 6 (`benchmarks/bench_rows.py --against-numpy 10 --fresh`)."""
+    """`ROWS_FILE`: t, steps, x, `FIELDS`, in 2D cells and weights, the output fields (`field_members`); eta and
+    velocity stored, the rest deflated at `ZLIB_LEVEL` (np.savez: all or none): Example 1's in 41 ms against 70 at
+    level 6 (`benchmarks/bench_rows.py --against-numpy 10 --fresh`)."""
     arrays = {"t": result.t, "steps": result.steps, "x": result.x, **{name: getattr(result, name) for name in FIELDS}}
     if result.dim == 2:
         arrays.update(cells=result.cells, weights=result.weights)
@@ -137,17 +136,6 @@ def write_npy(f, a: np.ndarray) -> None:
     a = np.ascontiguousarray(a)
     npy.write_array_header_1_0(f, npy.header_data_from_array_1_0(a))
     f.write(memoryview(a.reshape(-1).view(np.uint8)))
-
-
-def member_offset(raw, info) -> int | None:
-    """Where the (compressed) bytes of the zip member `info` begin in the open binary file `raw`: past its local
-    header (APPNOTE 4.3.7: 30 bytes, then the name and extra fields); None if no local header is there."""
-    raw.seek(info.header_offset)
-    local = raw.read(30)
-    if local[:4] != b"PK\x03\x04":
-        return None
-    name_length, extra_length = struct.unpack("<HH", local[26:30])
-    return info.header_offset + 30 + name_length + extra_length
 
 
 def most_components(result) -> dict:

@@ -17,10 +17,10 @@ CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
 
 
 def check_target(path, force: bool, *, locked: bool = False, parents: bool = False, command: str = "run") -> Path:
-    """Refuse, in one line (`OutputError`), an --out that cannot or must not take a result: the root or current
-    folder (or one containing it), a mount point, a file, an unwritable parent, a missing parent outside the current
-    folder (unless `parents`), a non-empty folder (unless `force`, and then only one holding just what its manifest
-    lists, not a run's result for a `command` other than ``run``), a folder another command holds (unless `locked`)."""
+    """Refuse in one line (`OutputError`) an --out that cannot or must not take a result: the root or current folder
+    (or one containing it), a mount point, a file, an unwritable parent, a missing parent outside the current folder
+    (unless `parents`), a non-empty folder (with `force`: one not ours, or a run's for another `command`), a folder
+    another command holds (unless `locked`)."""
     target = Path(path)
     resolved = target.resolve()
     if not resolved.name:
@@ -56,8 +56,7 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
 
 
 def _check_parents(target: Path, parent: Path) -> None:
-    """Missing parents are made below the current folder (``--out out/ex1``); elsewhere (``--out /nonexistent/x``)
-    they are more likely a typo: refused."""
+    """Missing parents are made below the current folder; elsewhere (``--out /nonexistent/x``) a typo: refused."""
     missing = parent
     while not missing.parent.exists() and missing != missing.parent:
         missing = missing.parent
@@ -71,7 +70,7 @@ def _check_parents(target: Path, parent: Path) -> None:
 
 
 def _check_writable(target: Path, parent: Path) -> None:
-    """Refuse a target whose nearest existing parent is a file, or cannot be written (read-only, no permission)."""
+    """Refuse a target whose nearest existing parent is a file or cannot be written."""
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if parent.exists() and not parent.is_dir():

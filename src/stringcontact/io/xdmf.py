@@ -1,10 +1,7 @@
-"""`solution.xdmf`/`.h5`: a temporal collection of grids, one per stored time, each with the mesh (written once,
-solution.h5:/topology and /geometry), its Time and every field as a node Attribute (solution.h5:/eta_0, ...): what
-ParaView's readers and meshio's `TimeSeriesReader` read (docs/explanation/visualisation.md). The HDF5 data are
-flushed before the grid naming them is appended and the XML's closing tags rewritten after each grid: a reader
-sees a well-formed series after every frame, and writing costs O(frames). Points are the P1 dofs in their global
-numbering; the mesh may be 1D (Polyline) or 2D/3D.
-"""
+"""`solution.xdmf`/`.h5`: a temporal collection of grids, one per stored time, each naming the mesh (written once)
+and every field as a node Attribute, as ParaView and meshio read them (docs/explanation/visualisation.md). Each grid
+is appended after its data are flushed and the closing tags rewritten: a reader sees a well-formed series after every
+frame, and writing costs O(frames). Points are the P1 dofs in their global numbering."""
 
 from __future__ import annotations
 
@@ -15,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import OutputError, one_line
+from ..errors import OutputError
+from ..fem.agree import one_outcome
 from .hdf5 import Hdf5File
 
 #: dolfinx cell type -> (XDMF topology type, nodes per cell) for P1 meshes.
@@ -27,8 +25,8 @@ HDF5_MARGIN = 32 * 1024
 
 
 def _check_room(folder: Path, nbytes: int) -> None:
-    """ENOSPC before a write the device of `folder` has no room for, so that HDF5 never meets a full disk but in a
-    race (the dolfinx wheel's libhdf5 1.14 aborts the process there)."""
+    """ENOSPC before a write `folder`'s device has no room for: HDF5 meets a full disk only in a race (the dolfinx
+    wheel's libhdf5 1.14 aborts the process there)."""
     try:
         st = os.statvfs(folder)
     except OSError:
@@ -48,29 +46,31 @@ class MeshArrays:
     n_cells: int
 
 
-def mesh_arrays(V, comm) -> MeshArrays:
-    """The owned points and cells of a scalar P1 space, numbered by its global dofs."""
+def global_cells(V) -> np.ndarray:
+    """This rank's owned cells as the global dof numbers of their nodes (a scalar space `V`)."""
     from ..fem import compat
 
-    msh = V.mesh
-    name = msh.topology.cell_type.name
+    local = compat.cell_dofs(V)[:V.mesh.topology.index_map(V.mesh.topology.dim).size_local]
+    return np.asarray(V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32))).reshape(local.shape)
+
+
+def mesh_arrays(V, comm) -> MeshArrays:
+    """The owned points and cells of a scalar P1 space, numbered by its global dofs."""
+    name = V.mesh.topology.cell_type.name
     if name not in TOPOLOGY_TYPES or V.dofmap.index_map_bs != 1:
         raise OutputError(f"solution.xdmf: cannot write a {name} mesh with block size {V.dofmap.index_map_bs}")
     topology_type, per_cell = TOPOLOGY_TYPES[name]
-    index_map = V.dofmap.index_map
-    owned_cells = msh.topology.index_map(msh.topology.dim).size_local
-    local = compat.cell_dofs(V)[:owned_cells]
-    if local.shape[1] != per_cell:
-        raise OutputError(f"solution.xdmf: expected a P1 space ({per_cell} dofs per {name}), got {local.shape[1]}")
-    cells = np.asarray(index_map.local_to_global(local.ravel().astype(np.int32))).reshape(local.shape)
+    cells, index_map = global_cells(V), V.dofmap.index_map
+    if cells.shape[1] != per_cell:
+        raise OutputError(f"solution.xdmf: expected a P1 space ({per_cell} dofs per {name}), got {cells.shape[1]}")
     points = np.ascontiguousarray(V.tabulate_dof_coordinates()[:index_map.size_local], dtype=np.float64)
-    return MeshArrays(points, cells, topology_type, index_map.size_global, comm.allreduce(owned_cells))
+    return MeshArrays(points, cells, topology_type, index_map.size_global, comm.allreduce(len(cells)))
 
 
 class XdmfTimeSeries:
     """``XdmfTimeSeries(folder, mesh, comm)``, ``.write(t, fields)``, ``.close()``, all collective: rank 0 gathers
-    and writes alone (files written by all ranks hang the run when the disk fills on one rank only); its error
-    (OSError or RuntimeError) is raised on every rank."""
+    and writes alone (files written by all ranks hang the run when the disk fills on one rank only); its error is
+    raised on every rank."""
 
     def __init__(self, folder, mesh: MeshArrays, comm, stem: str = "solution"):
         self.comm, self.mesh, self.frames = comm, mesh, 0
@@ -79,7 +79,7 @@ class XdmfTimeSeries:
         self.h5 = self.xml = None
         points, cells = self._gather(mesh.points), self._gather(mesh.cells)
         try:
-            self._on_root(self._open, Path(folder) / f"{stem}.xdmf", points, cells)
+            one_outcome(comm, self._open, Path(folder) / f"{stem}.xdmf", points, cells, root=0)
         except BaseException:  # the HDF5 file may be open already (the mesh did not fit)
             self.close(discard=True)
             raise
@@ -87,20 +87,6 @@ class XdmfTimeSeries:
     def _gather(self, values):
         parts = self.comm.gather(np.asarray(values), root=0) if self.comm.size > 1 else [values]
         return np.concatenate(parts) if self.comm.rank == 0 else None
-
-    def _on_root(self, action, *args) -> None:
-        """`action(*args)` on rank 0; its error raised on every rank."""
-        failure = None
-        if self.comm.rank == 0:
-            try:
-                action(*args)
-            except (RuntimeError, OSError) as exc:
-                failure = exc
-        if self.comm.size > 1:
-            shared = self.comm.bcast(_portable(failure), root=0)
-            failure = failure if self.comm.rank == 0 else shared
-        if failure is not None:
-            raise failure
 
     def _open(self, xml_path: Path, points, cells) -> None:
         from petsc4py import PETSc
@@ -127,7 +113,7 @@ class XdmfTimeSeries:
     def write(self, t: float, fields: dict) -> None:
         """One grid at time `t` with every field of `fields` ({name: owned values}) as a node attribute."""
         gathered = {name: self._gather(values) for name, values in fields.items()}
-        self._on_root(self._write_frame, t, gathered)
+        one_outcome(self.comm, self._write_frame, t, gathered, root=0)
         self.frames += 1
 
     def _write_frame(self, t: float, fields: dict) -> None:
@@ -164,7 +150,7 @@ class XdmfTimeSeries:
             if self.comm.rank == 0:
                 self._close_root(discard=True)
             return
-        self._on_root(self._close_root)
+        one_outcome(self.comm, self._close_root, root=0)
 
     def _close_root(self, discard: bool = False) -> None:
         h5, self.h5 = self.h5, None
@@ -181,10 +167,3 @@ class XdmfTimeSeries:
         except (RuntimeError, OSError):
             self.h5 = h5  # still open: close(discard=True) closes it
             raise
-
-
-def _portable(exc):
-    """`exc` as an exception any rank can rebuild (petsc4py's Error does not pickle): OSError or RuntimeError."""
-    if exc is None or isinstance(exc, OSError):
-        return exc if exc is None else OSError(exc.errno, exc.strerror or str(exc))
-    return RuntimeError(one_line(exc, 300))

@@ -1,12 +1,6 @@
-"""BLAS held to one thread while a run steps.
-
-The schemes' energy terms are dot products of nodal vectors (``np.dot``). OpenBLAS (PyPI's NumPy, which the
-dolfinx wheel's stack uses) computes a dot product of more than 10,000 entries on all its threads; on a loaded
-2-core machine the stiff string's Example 1 (10,002 unknowns) stepped 5 to 14 times slower for it: 6.1-11.4 s
-against 0.81-1.16 s held to one thread (`benchmarks/bench_blas_threads.py`, dolfinx 0.11 wheel, OpenBLAS 0.3.34). A dot product of nodal vectors gains nothing from threads: so while a
-run steps a vector this long, BLAS has one thread (threadpoolctl), and the caller's setting comes back after.
-Debian's NumPy links a single-threaded BLAS, where nothing changes.
-"""
+"""BLAS held to one thread (threadpoolctl) while a run steps long nodal vectors: OpenBLAS threads a dot product of
+over 10,000 entries, and the stiff string's Example 1 stepped 5 to 14 times slower for it on a loaded 2-core machine
+(`benchmarks/bench_blas_threads.py`). The caller's setting comes back after."""
 
 from __future__ import annotations
 

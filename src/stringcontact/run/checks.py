@@ -1,9 +1,5 @@
-"""The energy ledger's verdicts on a run: the one energy balance and the one penetration check.
-
-Every run gets them once (`checks_of`, cached on the `Result`): the driver marks a run whose balance does
-not close "unbalanced", the output folder writes them into summary.json, the command line prints them,
-and the theorem checks read the energy balance's continuous residual. docs/explanation/reliability.md.
-"""
+"""A run's energy balance and penetration check, computed once (`checks_of`): they mark a run "unbalanced", go
+into summary.json and the report (docs/explanation/reliability.md, "The two checks at the end of every run")."""
 
 from __future__ import annotations
 
@@ -13,20 +9,15 @@ import numpy as np
 
 from ..fem import compat
 
-#: max |balance residual| / energy scale above which the energy balance is reported as not closing, for a run
-#: whose round-off estimate (`roundoff_growth`) is below it; above, the tolerance grows with the estimate.
+#: The relative residual above which the balance does not close (raised by `roundoff_growth`'s estimate).
 BALANCE_RTOL = 1e-8
 #: The round-off estimate's safety factor: measured residual / (u n η/(|v| Δt)) was 0.013 at 2e4 steps, 0.06 at 1e5
 #: and 0.09 at 2e5 (example1, nx = 50; docs/explanation/reliability.md), growing slowly with n.
 ROUNDOFF_FACTOR = 10.0
-#: |D_num| / the energy (E(0) + the external work put in) above which the run's report says that the scheme's own
-#: dissipation is a large share of it (`energy_balance`'s "numerical_share"). D_num is the scheme's time error in
-#: energy terms, O(Δt) (`Result`): at 10 % the dissipations the run reports (viscous, contact) are off in their first
-#: digit, which a user comparing them with the equation's must be told. The shipped scenes (`stringcontact run`):
-#: film_landing 34 % (flagged); film_drum 8.6 %, single_impact 3.7 %, example2 0.9 %, example1 0.3 %, loaded_string
-#: 0.1 %, the projection scenes 0.
+#: |D_num| / the energy above which the report flags the scheme's own dissipation: at 10 % the reported dissipations
+#: are off in their first digit (the shipped scenes: film_landing 34 %, the others at most 8.6 %).
 NUMERICAL_SHARE = 0.10
-#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value (docs/explanation/reliability.md).
+#: the penetration bound is PENETRATION_FACTOR·(ε + Δt)·max|v| below the lowest initial value.
 PENETRATION_FACTOR = 2.0
 
 
@@ -38,66 +29,35 @@ def checks_of(result) -> dict:
 
 
 def energy_balance(result) -> dict:
-    """The discrete energy balance at the last stored time, with a verdict.
-
-    E(0) + W_ext = E(t) + D_visc + D_int + D_con + D_num, where D_num is the scheme's own consistency term
-    (see `Result`). The residual is the largest |E(0) + W_ext − [E(t) + D]| over the stored times,
-    relative to the largest term; the balance "closes" when it is below BALANCE_RTOL. "numerical_share" is |D_num|
-    over the energy E(0) + max(W_ext, 0) ("energy_scale"): a balance that closes may still carry a large D_num,
-    which the report flags above NUMERICAL_SHARE. The same scale gives
-    `continuous_residual`, the identity (1.4) without D_num (the theorem checks: it falls with Δt).
-    """
-    e = result.energy
-    total = result.total_energy
+    """E(0) + W_ext = E(t) + D_visc + D_int + D_con + D_num at the stored times: the largest residual relative to the
+    largest term ("closes" below the tolerance), "numerical_share" |D_num| / (E(0) + max(W_ext, 0)), and
+    "continuous_residual", the identity (1.4) without D_num (the theorem checks: it falls with Δt)."""
+    e, total = result.energy, result.total_energy
     residual = np.asarray(result.balance_residual, dtype=float)
-    terms = {
-        "initial": float(total[0]),
-        "final": float(total[-1]),
-        "viscous_dissipation": float(e["viscous_dissipation"][-1]),
-        "contact_dissipation": float(e["contact_dissipation"][-1]),
-        "numerical_dissipation": float(e["numerical_dissipation"][-1]),
-        "external_work": float(e["external_work"][-1]),
-        "internal_dissipation": float(e.get("internal_dissipation", [0.0])[-1]),
-    }
+    terms = {"initial": float(total[0]), "final": float(total[-1])} | {key: float(e[key][-1]) for key in (
+        "viscous_dissipation", "contact_dissipation", "numerical_dissipation", "external_work")}
+    terms["internal_dissipation"] = float(e.get("internal_dissipation", [0.0])[-1])
     scale = max([abs(v) for v in terms.values()] + [np.finfo(float).tiny])
     worst = float(np.max(np.abs(residual))) if residual.size else 0.0
     relative = worst / scale if math.isfinite(worst) else math.inf
     continuous = residual + np.asarray(e["numerical_dissipation"], dtype=float)
     worst_continuous = float(np.max(np.abs(continuous))) if continuous.size else 0.0
-    contact = terms["contact_dissipation"]
+    contact, numerical = terms["contact_dissipation"], terms["numerical_dissipation"]
     energy = abs(terms["initial"]) + max(terms["external_work"], 0.0)  # what the run had to spend
     tolerance = BALANCE_RTOL * roundoff_growth(result)
-    return {
-        **terms,
-        "residual": float(residual[-1]),
-        "max_abs_residual": worst,
-        "relative_residual": relative,
-        "tolerance": tolerance,
-        "closes": bool(relative <= tolerance),
-        # (1.4) without the scheme's D_num (analysis.theorems.check_energy): -> 0 as dt -> 0
+    return terms | {
+        "residual": float(residual[-1]), "max_abs_residual": worst, "relative_residual": relative,
+        "tolerance": tolerance, "closes": bool(relative <= tolerance),
         "continuous_residual": worst_continuous / scale if math.isfinite(worst_continuous) else math.inf,
-        "numerical_over_contact": terms["numerical_dissipation"] / contact if contact > 0 else math.nan,
-        # the scheme's own dissipation as a share of the energy (the report flags it above NUMERICAL_SHARE)
-        "energy_scale": energy,
-        "numerical_share": abs(terms["numerical_dissipation"]) / energy if energy > 0 else 0.0,
-    }
+        "numerical_over_contact": numerical / contact if contact > 0 else math.nan,
+        "energy_scale": energy, "numerical_share": abs(numerical) / energy if energy > 0 else 0.0}
 
 
 def roundoff_growth(result) -> float:
-    """How far round-off alone can carry the balance beyond BALANCE_RTOL: max(1, estimate / 1e-8), the same on
-    every rank (from the scene, the step count and the series every rank holds).
-
-    The scheme's state is η; v = (η^{n+1} − η^n)/Δt inherits η's rounding, a relative error u·|η|/(|v|·Δt) per
-    step (u = 2.2e-16), and the identity's work terms carry it into the ledger at every step. So after n steps
-    the relative residual may reach ROUNDOFF_FACTOR·u·n·|η|/(|v|·Δt): it grows with n/Δt, about n² at a fixed T
-    (example1 at nx = 50: 5.6e-11 at 2e4 steps, 6.4e-9 at 1e5, 4.0e-8 at 2e5). Compensated sums of the ledger
-    do not help (math.fsum of every term gave the same 4.04e-8 at 2e5 steps): the error is in the terms.
-
-    The step's solve adds its own: η^{n+1} is rounded relative to the step matrix's condition, which grows with the
-    Courant number Δt/h (A = M/Δt² + C/Δt + K), so the estimate is multiplied by max(1, Δt/h) (example1's 1500
-    steps: 5.1e-11 at Δt/h = 1, 2.2e-9 at 4, 8.0e-9 at 10 and 8.8e-9 at 20 on dolfinx 0.5; 1.5e-8 at 10 on 0.11:
-    `benchmarks/bench_balance_roundoff.py --nx ...`).
-    """
+    """How far round-off alone carries the balance beyond BALANCE_RTOL, the same on every rank: max(1, estimate /
+    1e-8), the estimate ROUNDOFF_FACTOR·u·n·|η|/(|v|·Δt)·max(1, Δt/h) after n steps, as v = (η^{n+1} − η^n)/Δt
+    inherits η's rounding and the solve's grows with the Courant number (measured: `bench_balance_roundoff.py`;
+    math.fsum of the ledger gave the same residual: the error is in the terms)."""
     steps = int(np.max(result.steps)) if len(getattr(result, "steps", ())) else 0
     speeds = np.asarray(result.series.get("max_speed", ()) if getattr(result, "series", None) else (), dtype=float)
     if not speeds.size and getattr(result, "has_rows", True) and result.velocity is not None:
@@ -106,13 +66,9 @@ def roundoff_growth(result) -> float:
     if steps == 0 or not speed > 0.0 or not math.isfinite(speed):
         return 1.0
     estimate = ROUNDOFF_FACTOR * np.finfo(float).eps * steps * _eta_scale(result) / (speed * result.scene.dt)
-    return max(1.0, estimate * _courant(result) / 1e-8)
-
-
-def _courant(result) -> float:
-    """max(1, Δt/h) with the scene's mesh size h (1 where it has none: a mesh file)."""
-    h = float(result.scene.dx)
-    return max(1.0, result.scene.dt / h) if math.isfinite(h) and h > 0 else 1.0
+    h = float(result.scene.dx)  # the scene's mesh size (a mesh file gives none)
+    courant = max(1.0, result.scene.dt / h) if math.isfinite(h) and h > 0 else 1.0
+    return max(1.0, estimate * courant / 1e-8)
 
 
 def _eta_scale(result) -> float:
@@ -127,36 +83,12 @@ def _eta_scale(result) -> float:
 
 
 def penetration_check(result) -> dict:
-    """How far the string went below the obstacle, against the bound of its contact law, if it has one.
-
-    The bound belongs to the law (`Result.penetration_bound`, from `Model.penetration_bound`). The velocity
-    penalty F = (1/ε)(v)⁻ ("velocity") brakes a node falling at speed V within a depth ε·V (exactly, for the
-    explicit scheme: Σ Δt·V·(1 − r)^k = ε·V), plus at most one step Δt·V travelled before the force switches
-    on. The bound allows twice that, for the elastic and viscous forces acting meanwhile, below the deepest
-    initial value:
-
-        depth ≤ max(0, max(ψ − η0)) + PENETRATION_FACTOR·(ε + Δt)·V,   V = max |v| over the stored rows,
-
-    with ψ the scene's obstacle (0 unless it gives one). For a spring of stiffness 1/ε ("spring", the
-    `elastic` variant) ε·V becomes √ε·V; a contact step (scheme projection) has no ε. A law with no known
-    bound (None: a user's penalty; any penalty against a moving obstacle, which brakes the gap rate v − ψ_t but
-    never restores the gap, so an accelerating obstacle drives the string ever deeper, docs/howto/nonlinear_models.md)
-    gets the depth alone: "bound" and "within_bound" are None.
-
-    The velocity bound is an impact's: it assumes that nothing keeps pressing the string into the obstacle once it
-    has stopped. Under a sustained press λ (a static load, the tension of a string draped over a raised obstacle)
-    the penalty lets the node creep in at ε·λ for as long as the press lasts, so the depth grows with time and no
-    bound in max|v| holds; the pointwise form of the paper's estimate (its Section 3: (η − ψ)⁻ ≤ ε∫F dt) does.
-    A run deeper than the impact bound under such a press (`_press`: a contact force lasting PRESS_SPAN·ε or longer
-    in the stored rows) gets bound_kind "pressed", no bound, and what the depth is: "press_force" (the force density
-    at the end of the press), "press_time" (how long it lasted) and "creep" (ε times its ∫F dt, from the stored
-    rows: the depth the press explains). A press within the impact bound (the string's own tension pressing a node
-    for a while after it landed) keeps the bound, which holds there. A run beyond the bound otherwise holds the string down by
-    something the penalty cannot stop (a model variant, an r > 1 rebound): see docs/explanation/reliability.md.
-
-    The depth is max(0, −min_gap) (every step: `Result.min_gap`) where the run recorded it, else from the stored
-    rows; the initial depth is the first stored row's.
-    """
+    """How far the string went below the obstacle (max(0, −min_gap)) against its contact law's bound
+    (docs/explanation/reliability.md, "Penetration against ε·|v|"): the velocity penalty's
+    depth ≤ max(0, max(ψ − η0)) + PENETRATION_FACTOR·(ε + Δt)·max|v| (√ε for a spring, no ε for a contact step);
+    no bound ("bound", "within_bound" None) for a law without one or a moving obstacle, or, deeper than the impact
+    bound under a sustained press (`_press`), bound_kind "pressed" with "press_force", "press_time" and "creep"
+    (ε∫F dt over the press, the depth it explains)."""
     scene = result.scene
     press = None
     if getattr(result, "has_rows", True):
@@ -178,8 +110,9 @@ def penetration_check(result) -> dict:
     kind = "contact step" if eps_free else getattr(result, "penetration_bound", "velocity")
     if not eps_free and getattr(scene, "obstacle_moves", False):
         kind = "moving obstacle"  # a penalty brakes the gap rate but never restores the gap: no bound
-    elif kind == "velocity" and press is not None and depth > _impact_bound(scene, start_depth, v_max) * (1 + 1e-12):
-        kind = "pressed"  # deeper than an impact goes, under a press: the penalty's creep, to which no bound applies
+    elif kind == "velocity" and press is not None:  # deeper than an impact goes under a press: the penalty's creep
+        impact = start_depth + PENETRATION_FACTOR * (scene.eps + scene.dt) * v_max
+        kind = "pressed" if depth > impact * (1 + 1e-12) else kind
     braking, law = _BRAKING[kind]
     check = {"depth": depth, "initial_depth": start_depth, "max_speed": v_max, "law": law, "eps_free": eps_free,
              "bound_kind": kind}
@@ -188,32 +121,21 @@ def penetration_check(result) -> dict:
     if braking is None:  # a law with no known bound: the depth alone
         return {**check, "bound": None, "eps_times_speed": None, "within_bound": None}
     braking = braking(scene.eps)
-    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max  # `_impact_bound` for the velocity law
+    bound = start_depth + PENETRATION_FACTOR * (braking + scene.dt) * v_max
     return {**check, "bound": bound, "eps_times_speed": braking * v_max,
             "within_bound": bool(depth <= bound * (1 + 1e-12))}
 
 
-def _impact_bound(scene, start_depth: float, v_max: float) -> float:
-    """The velocity penalty's impact bound: start + PENETRATION_FACTOR·(ε + Δt)·max|v|."""
-    return start_depth + PENETRATION_FACTOR * (scene.eps + scene.dt) * v_max
-
-
-#: A contact force that lasts longer than PRESS_SPAN·ε at a node is a press, not an impact: the velocity penalty
-#: F = (1/ε)(v)⁻ stops a landing node within a time of order ε (its speed falls like (1 − r)^k per step, by e each
-#: ε), after which F is 0 unless another force keeps pushing the node down (a load, the tension of a string
-#: draped over a raised obstacle). Under such a press λ the node creeps in at the speed ε·λ for as long as it
-#: lasts, however small its speed when it landed: the impact bound 2(ε + Δt)·max|v| does not hold. 20ε: an
-#: impact's force has fallen below e⁻²⁰ ≈ 2e-9 of its peak by then.
+#: A contact force lasting PRESS_SPAN·ε or longer at a node is a press, not an impact: the velocity penalty stops a
+#: landing node within a time of order ε, so an impact's force has fallen below e⁻²⁰ ≈ 2e-9 of its peak by then.
 PRESS_SPAN = 20.0
 #: A stored contact force below this share of the run's largest one is taken as 0 (round-off after a landing).
 PRESS_FLOOR = 1e-6
 
 
 def _press(result) -> tuple[float, float, float] | None:
-    """The longest-acting press in the stored rows, or None: (the contact force density at its end, how long it
-    lasted, the time integral ∫F dt of the contact force over it, by the trapezoid over the stored rows). A node is
-    pressed over a stretch of consecutive stored rows with a contact force above PRESS_FLOOR of the run's largest,
-    lasting PRESS_SPAN·ε or longer; the press kept is the one with the largest ∫F dt."""
+    """The press with the largest ∫F dt in the stored rows (a node's consecutive rows with a force above PRESS_FLOOR of
+    the largest, lasting PRESS_SPAN·ε or longer), or None: (the force at its end, its duration, ∫F dt)."""
     force = np.asarray(result.contact_force, dtype=float)
     t = np.asarray(result.t, dtype=float)
     if force.ndim != 2 or len(t) < 2 or not np.isfinite(force).all():

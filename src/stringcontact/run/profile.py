@@ -1,8 +1,5 @@
-"""`stringcontact run --profile`: where the time of a run went, section by section, from the wall clocks the
-driver and the output folder keep anyway (`Result.timings`), so profiling costs the run nothing.
-
-For the functions inside a section, Python's own profiler: docs/explanation/performance.md ("Where the time of a run goes").
-"""
+"""`stringcontact run --profile`: where a run's time went, from the clocks it keeps anyway (`Result.timings`); inside
+a section, Python's profiler (docs/explanation/performance.md, "Where the time of a run goes")."""
 
 from __future__ import annotations
 
@@ -12,8 +9,7 @@ import time
 
 
 def process_age() -> float | None:
-    """Seconds since this process started (Linux: /proc), or None where that is not known, or where the process
-    was not started as `stringcontact run` (the command line's `main` called from Python: a test, a notebook)."""
+    """Seconds since this process started (Linux: /proc); None where unknown or not started as `stringcontact run`."""
     if sys.argv[1:2] != ["run"]:
         return None
     try:
@@ -27,19 +23,15 @@ def process_age() -> float | None:
 
 
 def sections(timings: dict, imports: float, started: float) -> list[tuple[str, float]]:
-    """(section, seconds) of a run: Python's start-up and the command line, the solver's imports, set-up, solve,
-    output (XDMF, CSV, JSON), pictures (`timings['pictures']`, inside the output's), the rest, and the total. `imports` is what loading dolfinx, PETSc and UFL
-    took (`stringcontact.run.driver`); `started` the `time.perf_counter()` when the command began."""
+    """(section, seconds) of a run from start-up to the total; `imports`: the seconds loading the solver took,
+    `started`: `time.perf_counter()` when the command began."""
     now = time.perf_counter()
     age = process_age()
     pictures = float(timings.get("pictures", 0.0))
-    known = {
-        "imports (dolfinx, UFL, the solver)": imports,
-        "set-up (mesh, forms, assembly, factorisation)": float(timings.get("setup", 0.0)),
-        "solve (time steps, stored rows)": float(timings.get("solve", 0.0)),
-        "output (XDMF, CSV, JSON)": float(timings.get("output", 0.0)) - pictures,
-        "pictures": pictures,
-    }
+    known = {"imports (dolfinx, UFL, the solver)": imports,
+             "set-up (mesh, forms, assembly, factorisation)": float(timings.get("setup", 0.0)),
+             "solve (time steps, stored rows)": float(timings.get("solve", 0.0)),
+             "output (XDMF, CSV, JSON)": float(timings.get("output", 0.0)) - pictures, "pictures": pictures}
     command = now - started
     rows = [("start-up (Python, the command line, PETSc)", age - command)] if age is not None else []
     rows += list(known.items()) + [("other (scene, checks, report)", command - sum(known.values()))]

@@ -1,5 +1,5 @@
-"""The stored rows of a run: which steps are kept (within a memory budget), gathered in x order to rank 0 (or every
-rank), and the per-time series every rank sums (contact measure, largest speed, depth below the obstacle)."""
+"""The stored rows of a run (`RowObserver`): which steps are kept within a memory budget, gathered in x order, and
+the per-time series every rank sums."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from mpi4py import MPI
 
-from ..fem import compat, domains
+from ..fem import domains
 from ..io.result import ENERGY_KEYS, canonical_cells, node_sort_key
+from ..io.xdmf import global_cells
 from ..scene import BYTES_PER_STORED_NODE
 
 if TYPE_CHECKING:
@@ -26,8 +27,7 @@ def output_steps(nt: int, dt: float, output_times) -> set[int]:
 
 
 def step_times(steps, dt: float, output_times=()) -> np.ndarray:
-    """The times of `steps`, stored exactly: n·Δt rounded to 12 significant digits (0.04, not the product
-    0.039999999999999994), and a scene's output time as given where its step is that time (to round-off)."""
+    """The times of `steps`: n·Δt to 12 significant digits (0.04, not 0.039999999999999994), an output time as given."""
     steps = np.asarray(steps, dtype=np.int64)
     times = np.array([float(f"{n * dt:.12g}") for n in steps.tolist()], dtype=float)
     for t in output_times:
@@ -48,11 +48,8 @@ class StorageWarning(UserWarning):
 
 
 def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, budget: int):
-    """`stored_steps`, thinned so that the rows (`nodes` × BYTES_PER_STORED_NODE bytes each) fit `budget` bytes.
-
-    Returns (steps, note): note is None, or one line saying what was kept. 0, T and the output times are
-    always kept (if they alone do not fit, ValueError), with every k-th step for the smallest k that fits.
-    """
+    """`stored_steps` thinned to every k-th step, the smallest k whose rows fit `budget` bytes, always with 0, T and
+    the output times (ValueError if they alone do not fit): (steps, a line saying so, or None)."""
     steps = stored_steps(nt, dt, output_times, max_rows)
     row = max(1, nodes) * BYTES_PER_STORED_NODE
     allowed = budget // row
@@ -79,11 +76,8 @@ def budget_steps(nt: int, dt: float, output_times, max_rows: int, nodes: int, bu
 
 
 class _Gather:
-    """Gathers owned dof arrays in x order (2D: by x, then y; the same for any number of ranks) to rank 0,
-    or with `to_all` to every rank. Where they are not gathered, `holds` is False and `x` is None.
-
-    The concatenation of the ranks' owned dofs is dolfinx's global dof numbering; `order` maps x order to it.
-    """
+    """Gathers owned dof arrays (concatenated: the global dof numbering) in x order (2D: by x, then y) to rank 0, or
+    with `to_all` to every rank; where they are not gathered, `holds` is False and `x` None."""
 
     def __init__(self, comm, x_owned: np.ndarray, to_all: bool = False):
         self.comm, self.to_all = comm, to_all
@@ -92,8 +86,7 @@ class _Gather:
         self.holds = to_all or comm.rank == 0
         xs = _collect(comm, x_owned, to_all)
         self.order = self.x = None
-        self.identity = False
-        self._buffers = {}
+        self.identity, self._buffers = False, {}
         if self.holds:
             x = np.concatenate(xs)
             self.order = np.argsort(node_sort_key(x), kind="stable")
@@ -133,41 +126,11 @@ def _collect(comm, a: np.ndarray, to_all: bool) -> list | None:
     return comm.allgather(a) if to_all else comm.gather(a, root=0)
 
 
-class StoredRows:
-    """The stored rows where they are gathered (rank 0, or every rank), and on every rank the cumulative
-    energy terms and the `series` the ranks sum at each stored time (Result.series)."""
-
-    def __init__(self, steps: np.ndarray, gather: _Gather, extra: tuple = ()):
-        self.steps, self.gather, self.n = steps, gather, 0
-        k = len(steps)
-        self.fields = {}
-        if gather.holds:  # `extra`: the model's output fields (`Model.outputs`)
-            self.fields = {name: np.empty((k, gather.nodes)) for name in ("eta", "velocity", "contact_force", *extra)}
-            self.fields["contact"] = np.empty((k, gather.nodes), dtype=bool)
-        self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
-        self.series = {key: np.empty(k) for key in SERIES_KEYS}
-
-    @property
-    def next_step(self) -> int:
-        return self.steps[self.n] if self.n < len(self.steps) else -1
-
-    def store(self, fields: dict, energies, series) -> None:
-        for name, arr in fields.items():
-            arr = np.asarray(arr, dtype=bool if name == "contact" else float)  # the same bytes from every rank
-            self.gather(arr, out=self.fields[name][self.n] if self.fields else None)
-        for key, value in zip(ENERGY_KEYS, energies):
-            self.energy[key][self.n] = value
-        for key, value in zip(SERIES_KEYS, series):
-            self.series[key][self.n] = value
-        self.n += 1
-
-
 SERIES_KEYS = ("contact_measure", "max_speed", "depth")
 
 
 def _row_series(comm, fields: dict, weights: np.ndarray, obstacle: np.ndarray) -> tuple[float, float, float]:
-    """One stored time's series over all ranks: Σ weights·contact (the contact length or area), max |v|,
-    max (obstacle − η). Collective: two allreduces of a few numbers."""
+    """One stored time's contact measure Σ weights·contact, max |v| and max (ψ − η) over all ranks. Collective."""
     measure = float(np.dot(weights, np.asarray(fields["contact"], dtype=float)))
     highs = np.array([np.max(np.abs(fields["velocity"]), initial=-np.inf),
                       np.max(obstacle - fields["eta"], initial=-np.inf)])
@@ -179,15 +142,11 @@ def _row_series(comm, fields: dict, weights: np.ndarray, obstacle: np.ndarray) -
 
 
 def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
-    """2D: the nodal areas (`weights`, this rank's owned ones, gathered) and the triangles, both in the gathered
-    node order, where the rows are gathered; 1D: none. Each rank sends its triangles in global dof numbers (the
-    order the ranks' owned dofs are concatenated in), so that no rank needs the others' coordinates. Collective."""
+    """2D: the owned nodal areas `weights` and the triangles (sent in global dof numbers), gathered in node order where
+    the rows are; 1D: none. Collective."""
     if V.mesh.topology.dim == 1:
         return {}
-    n_cells = V.mesh.topology.index_map(V.mesh.topology.dim).size_local
-    local = compat.cell_dofs(V)[:n_cells]
-    cells = V.dofmap.index_map.local_to_global(local.ravel().astype(np.int32)).reshape(local.shape)
-    parts = _collect(gather.comm, cells, gather.to_all)
+    parts = _collect(gather.comm, global_cells(V), gather.to_all)
     weights = gather(weights)
     if not gather.holds:
         return {}
@@ -196,21 +155,27 @@ def _mesh_rows(V, gather: _Gather, weights: np.ndarray) -> dict:
     return {"weights": weights, "cells": canonical_cells(position[np.concatenate(parts)])}
 
 
-class RowObserver(StoredRows):
+class RowObserver:
     """An observer of a `TimeStepper` (`core.observers.Observer`) that keeps the rows of a run of `nt` steps of `dt`:
     about ``storage.max_rows`` of them within ``storage.row_budget`` bytes, always with 0, the last step and the
     `output_times` (`budget_steps`), gathered in x order on rank 0 (every rank with ``storage.gather == "all"``); on
-    every rank the per-time series and the lowest η and gap. `sink(t, fields)`, if set, gets each stored row too
-    (the output folder's XDMF frames). `geometry`: a membrane's nodal areas and triangles, gathered. Collective."""
+    every rank the energies, the per-time series and the lowest η and gap. `sink(t, fields)`, if set, gets each
+    stored row too (the output folder's XDMF frames). `geometry`: a membrane's nodal areas and triangles. Collective."""
 
     def __init__(self, stepper, nt: int, dt: float, output_times, storage: Storage):
         p = stepper.problem
         self.problem, self.comm, self.dt, self.output_times = p, stepper.comm, dt, tuple(output_times)
-        gather = _Gather(self.comm, p.x, to_all=storage.gather == "all")
-        steps, note = budget_steps(nt, dt, output_times, storage.max_rows, gather.nodes, storage.row_budget)
+        self.gather = gather = _Gather(self.comm, p.x, to_all=storage.gather == "all")
+        self.steps, note = budget_steps(nt, dt, output_times, storage.max_rows, gather.nodes, storage.row_budget)
         if note is not None and self.comm.rank == 0:
             warnings.warn(note, StorageWarning, stacklevel=3)
-        super().__init__(steps, gather, tuple(f.name for f in p.outputs.fields))
+        k, self.n, self.fields = len(self.steps), 0, {}
+        if gather.holds:  # with the model's output fields (`Model.outputs`)
+            names = ("eta", "velocity", "contact_force", *(f.name for f in p.outputs.fields))
+            self.fields = {name: np.empty((k, gather.nodes)) for name in names}
+            self.fields["contact"] = np.empty((k, gather.nodes), dtype=bool)
+        self.energy = {key: np.empty(k) for key in ENERGY_KEYS}
+        self.series = {key: np.empty(k) for key in SERIES_KEYS}
         self.weights = domains.nodal_areas(p.V)[: p.n_owned]  # ∫φ_i: the trapezoid's weights in 1D, the areas in 2D
         self.geometry = _mesh_rows(p.V, gather, self.weights)  # the same owned weights, gathered
         self.has_obstacle = p.obstacle is not None or "obstacle" in p.params.extra
@@ -232,7 +197,7 @@ class RowObserver(StoredRows):
         eta, interior = stepper.scheme.eta, self.problem.interior
         self.min_eta = float(np.min(eta[interior])) if interior.any() else math.inf
         self.min_gap = self._gap(stepper, eta, 0)
-        if self.next_step == 0:
+        if self._next_step == 0:
             self._store(stepper, 0)
 
     def stepped(self, stepper) -> None:
@@ -242,8 +207,12 @@ class RowObserver(StoredRows):
             low = float(eta.min())
             self.min_eta = min(self.min_eta, low)
             self.min_gap = min(self.min_gap, self._gap(stepper, eta, stepper.step) if self.has_obstacle else low)
-        if stepper.step == self.next_step:
+        if stepper.step == self._next_step:
             self._store(stepper, stepper.step)
+
+    @property
+    def _next_step(self) -> int:
+        return self.steps[self.n] if self.n < len(self.steps) else -1
 
     def _store(self, stepper, n: int) -> None:
         scheme, p = stepper.scheme, self.problem
@@ -252,6 +221,14 @@ class RowObserver(StoredRows):
         fields.update(p.outputs(scheme.eta, scheme.fields))
         t = float(step_times([n], self.dt, self.output_times)[0])
         psi = stepper.discrete.obstacle.owned(t) if p.obstacle is not None else self.psi
-        self.store(fields, stepper.ledger.cumulative, _row_series(self.comm, fields, self.weights, psi))
+        series = _row_series(self.comm, fields, self.weights, psi)
+        for name, arr in fields.items():
+            arr = np.asarray(arr, dtype=bool if name == "contact" else float)  # the same bytes from every rank
+            self.gather(arr, out=self.fields[name][self.n] if self.fields else None)
+        for key, value in zip(ENERGY_KEYS, stepper.ledger.cumulative):
+            self.energy[key][self.n] = value
+        for key, value in zip(SERIES_KEYS, series):
+            self.series[key][self.n] = value
+        self.n += 1
         if self.sink is not None:
             self.sink(t, {k: np.asarray(a, dtype=float) for k, a in fields.items()})

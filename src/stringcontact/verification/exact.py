@@ -18,11 +18,10 @@ def _finish(eta, velocity, scalar):
 
 
 def damped_oscillator(t, *, a0, a1, damping, stiffness):
-    r"""``(a, a')`` of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1` (``damping``
-    :math:`2\beta \ge 0`, ``stiffness`` :math:`\kappa^2 > 0`): :math:`a = a_0 C + (a_1 + \beta a_0) S`,
+    r"""``(a, a')`` of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1`
+    (``damping`` :math:`2\beta`, ``stiffness`` :math:`\kappa^2`): :math:`a = a_0 C + (a_1 + \beta a_0) S`,
     :math:`a' = a_1 C - (\kappa^2 a_0 + \beta a_1) S`, :math:`C = e^{-\beta t}\cos\omega t`,
-    :math:`S = e^{-\beta t}\sin(\omega t)/\omega`, :math:`\omega^2 = \kappa^2 - \beta^2` (cosh/sinh when
-    :math:`\omega^2 < 0`, :math:`C = e^{-\beta t}`, :math:`S = t e^{-\beta t}` when :math:`\omega = 0`)."""
+    :math:`S = e^{-\beta t}\sin(\omega t)/\omega`, :math:`\omega^2 = \kappa^2 - \beta^2` (cosh, sinh below 0)."""
     t = np.asarray(t, dtype=float)
     beta = 0.5 * damping
     omega2 = stiffness - beta**2

@@ -1,12 +1,7 @@
 """The schemes as a researcher would write them for Example 1's string, what the benchmarks time `simulate` against
-(benchmarks/bench_step.py, bench_solver.py; tests/verification/test_peers.py checks they step as it does).
-
-Each NumPy peer is one scheme on a uniform string, ψ = 0 and no load, in finite differences (the lumped FEM; with
-T = tridiag(−1, 2, −1): M = Δx I, K = T/Δx, C = αK): the step matrix factorised with `splu` once and again when
-the scheme's matrix changes, a vectorised right-hand side, η and v stored at the rows `simulate` stores, no
-energies. `compiled_peer` is the paper's scheme as a plain C loop (``compiled_peer.c``, `build_compiled`), with
-or without the terms of the discrete energy identity.
-"""
+(tests/verification/test_peers.py checks they step as it does): each NumPy peer one scheme on a uniform string, ψ = 0,
+in finite differences (the lumped FEM, T = tridiag(−1, 2, −1)), its step matrix factorised with `splu` when it
+changes, η and v stored at `simulate`'s rows; `compiled_peer`, the paper's scheme as a plain C loop."""
 
 from __future__ import annotations
 
@@ -24,6 +19,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from .reference import StoredRows
+
 #: the C loop's source, shipped beside this module
 C_SOURCE = Path(__file__).resolve().parent / "compiled_peer.c"
 #: the compiled limit on this machine: the compiler's best for this CPU
@@ -33,8 +30,7 @@ LEDGER = ("kinetic", "elastic", "viscous_dissipation", "contact_dissipation", "n
 
 
 def string_start(scene):
-    """(Δt, Δx, η⁰, v⁰, T) of `scene`'s uniform string: the nodal start with its ends at h_left/h_right and v = 0
-    there, and T = tridiag(−1, 2, −1) on the interior nodes (CSC)."""
+    """(Δt, Δx, η⁰, v⁰, T) of `scene`'s uniform string, the ends at h_left/h_right at rest, T on the interior (CSC)."""
     N, dt = scene.nx, scene.dt
     dx = scene.length / N
     x = np.linspace(0.0, scene.length, N + 1)
@@ -58,7 +54,7 @@ def paper_peer(scene, stored_steps):
     N, r = scene.nx, step_conditioning(scene)
     lu = splu(sp.diags([-r, 1 + 2 * r, -r], [-1, 0, 1], shape=(N - 1, N - 1), format="csc"))
     eta_old = eta - dt * v0
-    store = _Stored(stored_steps, N + 1)
+    store = StoredRows(stored_steps, N + 1)
     store(0, eta, v0)
     a_dt, inv_eps, dt2 = scene.alpha * dt / dx**2, 1.0 / scene.eps, dt**2
     for n in range(scene.nt):
@@ -78,8 +74,7 @@ def paper_peer(scene, stored_steps):
 
 
 def _factor(A, refactor: str):
-    """The solve of a step matrix that changed: `splu` (the sparse LU, 2.1 ms for Example 1's string), or with
-    `refactor` "lapack" LAPACK's tridiagonal solver dgtsv, which factorises and solves in one call (115 µs)."""
+    """The solve of a changed step matrix: `splu` (2.1 ms for Example 1's string), or "lapack" dgtsv (115 µs)."""
     if refactor == "splu":
         return splu(A.tocsc()).solve
     from scipy.linalg.lapack import dgtsv
@@ -94,17 +89,6 @@ def _laplacian(e: np.ndarray) -> np.ndarray:
     return 2.0 * e[1:-1] - e[:-2] - e[2:]
 
 
-class _Stored:
-    def __init__(self, steps, n):
-        self.steps, self.row = steps, 0
-        self.eta, self.v = np.empty((len(steps), n)), np.empty((len(steps), n))
-
-    def __call__(self, step, eta, v):
-        if self.row < len(self.steps) and self.steps[self.row] == step:
-            self.eta[self.row], self.v[self.row] = eta, v
-            self.row += 1
-
-
 def projection_peer(scene, stored_steps, refactor: str = "splu"):
     """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F', η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
     r₀ = Δt²/Δx², as the scheme solves it: the free step, then the primal–dual active set from {η̃ < 0} (its rows
@@ -116,7 +100,7 @@ def projection_peer(scene, stored_steps, refactor: str = "splu"):
     free_lu = splu(A)
     held, held_solve = None, None
     tol = -1e-14 * max(np.max(np.abs(eta)), 1.0) * (1 + 2 * a)  # the scheme's allowance for round-off in F
-    store = _Stored(stored_steps, eta.size)
+    store = StoredRows(stored_steps, eta.size)
     eta_old = eta - dt * v0
     levels = [eta_old, eta]  # η^{n−1}, η^n
     store(0, eta, v0)
@@ -154,7 +138,7 @@ def _damped_peer(scene, stored_steps, newmark: bool, refactor: str):
     A0 = (sp.identity(n, format="csc") + lhs * T).tocsc()
     undamped = splu(A0).solve
     solve, damped = undamped, np.zeros(n, dtype=bool)
-    store = _Stored(stored_steps, eta.size)
+    store = StoredRows(stored_steps, eta.size)
     store(0, eta, v)
     eta_old = eta - dt * v
     for step in range(1, scene.nt + 1):
@@ -202,8 +186,7 @@ def semi_implicit_peer(scene, stored_steps, refactor: str = "splu"):
 
 
 def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
-    """``compiled_peer.c`` compiled with the system's C compiler into a temporary folder and loaded; RuntimeError
-    naming the compiler if there is none or it fails."""
+    """``compiled_peer.c`` compiled with the system's C compiler and loaded; RuntimeError naming a failing compiler."""
     compiler = _compiler()
     if compiler is None:
         raise RuntimeError("compiled_peer: no C compiler ($CC, Python's own CC, cc or gcc)")
@@ -236,9 +219,8 @@ def _compiler() -> str | None:
 
 
 def compiled_peer(lib, scene, stored_steps, energies: bool = False):
-    """(rows of η, rows of v, ledger {LEDGER name: value at T; zeros without `energies`}, seconds in the loop) of
-    the C loop `lib` (`build_compiled`) on `scene`: a uniform string, the paper's explicit penalty, lumped mass,
-    ψ = 0, no load (Example 1). `stored_steps` must increase within 0 … nt, as `simulate`'s do."""
+    """(rows of η, rows of v, ledger {LEDGER name: value at T, zeros without `energies`}, seconds in the loop) of the
+    C loop `lib` on `scene`'s uniform string (Example 1), `stored_steps` increasing within 0 … nt."""
     N, dt = scene.nx, scene.dt
     steps = np.ascontiguousarray(stored_steps, dtype=np.int64)
     if N < 2 or np.any(np.diff(steps) <= 0) or (steps.size and (steps[0] < 0 or steps[-1] > scene.nt)):

@@ -1,20 +1,15 @@
 r"""Plain-NumPy finite differences for the string, written independently of the package: the paper's Section 6
-scheme (`fd_solve`) and the ``projection`` scheme (`fd_projection`).
-
-On the grid :math:`x_j = j\,\Delta x`, :math:`j = 0..N`, with :math:`(D^2\eta)_j = (\eta_{j+1} - 2\eta_j +
-\eta_{j-1})/\Delta x^2`, fixed ends :math:`\eta_0 = h_\mathrm{left}`, :math:`\eta_N = h_\mathrm{right}` and
-:math:`v^n = (\eta^n - \eta^{n-1})/\Delta t`, the Section 6 scheme at the interior nodes is
+scheme (`fd_solve`) and the ``projection`` scheme (`fd_projection`). With :math:`(D^2\eta)_j = (\eta_{j+1} - 2\eta_j
++ \eta_{j-1})/\Delta x^2`, fixed ends and :math:`v^n = (\eta^n - \eta^{n-1})/\Delta t`, the Section 6 scheme is
 
 .. math::
 
     \frac{\eta_j^{n+1} - 2\eta_j^n + \eta_j^{n-1}}{\Delta t^2}
     - \frac{\alpha}{\Delta t}\bigl(D^2\eta^{n+1} - D^2\eta^n\bigr)_j - (D^2\eta^{n+1})_j = F_j^n,
 
-with ``penalty="explicit"`` (the paper's) :math:`F_j^n = \varepsilon^{-1}\chi\{\eta_j^n < 0\}\,(v_j^n)^-`, or
-``"semi-implicit"`` :math:`F_j^n = -\varepsilon^{-1}\chi_j^n (\eta_j^{n+1} - \eta_j^n)/\Delta t` on
-:math:`\chi_j^n = \chi\{\eta_j^n < 0,\ v_j^n < 0\}`; ``eps=numpy.inf`` switches contact off. The start:
-:math:`\eta^0` is ``eta0`` with its ends overwritten, :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside and
-:math:`\eta^0` at the ends, so the stored velocity at step 0 is ``v0`` inside and 0 at the ends.
+with ``penalty="explicit"`` :math:`F_j^n = \varepsilon^{-1}\chi\{\eta_j^n < 0\}\,(v_j^n)^-`, or ``"semi-implicit"``
+:math:`F_j^n = -\varepsilon^{-1}\chi_j^n (\eta_j^{n+1} - \eta_j^n)/\Delta t` on :math:`\chi_j^n = \chi\{\eta_j^n < 0,
+\ v_j^n < 0\}` (``eps=numpy.inf``: no contact), from :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside.
 """
 
 import numpy as np
@@ -34,8 +29,21 @@ def _stored_steps(nt: int, store_every: int) -> list[int]:
     return steps if steps[-1] == nt else [*steps, nt]
 
 
+class StoredRows:
+    """The rows of η and v at `steps` of a string of `n` nodes: ``rows(step, eta, v)`` at every step keeps those."""
+
+    def __init__(self, steps, n: int):
+        self.steps, self.row = steps, 0
+        self.eta, self.v = np.empty((len(steps), n)), np.empty((len(steps), n))
+
+    def __call__(self, step: int, eta, v) -> None:
+        if self.row < len(self.steps) and self.steps[self.row] == step:
+            self.eta[self.row], self.v[self.row] = eta, v
+            self.row += 1
+
+
 def _start(eta0, v0, dt, h_left, h_right, psi=None):
-    """(η⁰, η⁻¹): ``eta0`` with its ends at h_left/h_right (raised onto ψ inside if given), η⁰ − Δt v0 inside."""
+    """(η⁰, η⁻¹): ``eta0`` with its ends at h_left/h_right (inside raised onto ψ, if given), η⁰ − Δt v0 inside."""
     eta = np.asarray(eta0, dtype=float).copy()
     eta[0], eta[-1] = h_left, h_right
     if psi is not None:
@@ -73,10 +81,8 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
     bands = np.empty((3, N - 1))  # solve_banded's rows: super-, main and sub-diagonal
     bands[0, :] = bands[2, :] = -r
     main = np.full(N - 1, 1.0 + 2.0 * r)
-    steps = _stored_steps(nt, int(store_every))
-    eta_out, vel_out = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
-    eta_out[0], vel_out[0] = eta, (eta - eta_prev) / dt
-    k = 1
+    rows = StoredRows(_stored_steps(nt, int(store_every)), N + 1)
+    rows(0, eta, (eta - eta_prev) / dt)
     for n in range(nt):
         v = (eta[1:-1] - eta_prev[1:-1]) / dt
         rhs = 2.0 * eta[1:-1] - eta_prev[1:-1] - alpha * dt * second_difference(eta, dx)
@@ -93,10 +99,8 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
         eta_next[0], eta_next[-1] = h_left, h_right
         eta_next[1:-1] = solve_banded((1, 1), bands, rhs, overwrite_ab=False, check_finite=False)
         eta_prev, eta = eta, eta_next
-        if k < len(steps) and steps[k] == n + 1:
-            eta_out[k], vel_out[k] = eta, (eta - eta_prev) / dt
-            k += 1
-    return dt * np.asarray(steps, dtype=float), eta_out, vel_out
+        rows(n + 1, eta, (eta - eta_prev) / dt)
+    return dt * np.asarray(rows.steps, dtype=float), rows.eta, rows.v
 
 
 def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=None, store_every=1, nodal=False):
@@ -120,10 +124,8 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
     bands = np.empty((3, N - 1))
     bands[0, :], bands[1, :], bands[2, :] = -s, 1.0 + 2.0 * s, -s
     eta, eta_prev = _start(eta0, v0, dt, h_left, h_right, psi)
-    steps = _stored_steps(int(nt), store_every)
-    eta_out, vel_out = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
-    eta_out[0], vel_out[0] = eta, (eta - eta_prev) / dt
-    k = 1
+    rows = StoredRows(_stored_steps(int(nt), store_every), N + 1)
+    rows(0, eta, (eta - eta_prev) / dt)
     for n in range(int(nt) + 1):  # computes η^{n+1}; the last one only for the velocity at T
         d2 = second_difference(eta, dx)
         rhs = 2.0 * eta[1:-1] - eta_prev[1:-1] + dt**2 * d2 - s * dx**2 * d2
@@ -135,13 +137,9 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
         new[1:-1] = np.maximum(new[1:-1], psi[1:-1])
         if alpha > 0 and not nodal:
             _projected_gauss_seidel(new, rhs, s, psi)
-        if k < len(steps) and steps[k] == n:
-            vel_out[k] = (new - eta_prev) / (2.0 * dt)
-            k += 1
+        rows(n, eta, (new - eta_prev) / (2.0 * dt))  # η^n with the centred velocity
         eta_prev, eta = eta, new
-        if k < len(steps) and steps[k] == n + 1:
-            eta_out[k] = eta
-    return dt * np.asarray(steps, dtype=float), eta_out, vel_out
+    return dt * np.asarray(rows.steps, dtype=float), rows.eta, rows.v
 
 
 def _projected_gauss_seidel(eta, rhs, s, psi, rtol=1e-15, max_sweeps=100_000):

@@ -46,25 +46,12 @@ def string_exact(x, t: float, derivative: str = "u") -> np.ndarray:
 
 
 def rod_scene(nx_rod: int, dt: float, eps: float, T: float = PERIOD, variant: str = "rod"):
-    """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2), so the cell size is the rod's 1/nx_rod; round(T/Δt)
-    steps of Δt (the run ends at that multiple of Δt nearest T, as GetFEM's demo does). `variant` is one of `VARIANTS`:
-    GetFEM's rod (``"rod"``), or a scene that tests the contact's energy rules on the same string."""
-
-
+    """The mirrored problem as a `Scene`: 2·nx_rod cells on (0, 2) (the rod's cell size), round(T/Δt) steps of Δt (as
+    GetFEM's demo ends); `variant` is one of `VARIANTS`."""
     nt = max(1, round(T / dt))
-    data = {
-        "name": f"getfem_{variant}_{nx_rod}",
-        "description": VARIANTS[variant],
-        "length": 2.0,
-        "T": nt * dt,
-        "nt": nt,
-        "alpha": 0.0,
-        "scheme": {"eps": eps},
-        "nx": 2 * nx_rod,
-        "eta0": "0.5 - 0.5*abs(x - 1)",
-        "v0": "0",
-        "h": 0.0,
-    }
+    data = {"name": f"getfem_{variant}_{nx_rod}", "description": VARIANTS[variant], "length": 2.0, "T": nt * dt,
+            "nt": nt, "alpha": 0.0, "scheme": {"eps": eps}, "nx": 2 * nx_rod, "eta0": "0.5 - 0.5*abs(x - 1)",
+            "v0": "0", "h": 0.0}
     return Scene.from_dict(data | _VARIANT_DATA[variant])
 
 
@@ -76,12 +63,9 @@ VARIANTS = {
     "pulse": "the string at rest at the obstacle's height, a narrow downward velocity pulse at x = 0.5 that runs into "
              "the point and presses it",
 }
-_VARIANT_DATA = {
-    "rod": {},
-    "gap": {"h": 0.1234, "eta0": "0.1234 + 0.5 - 0.5*abs(x - 1)"},
-    "velocity": {"v0": "-0.3*(1 - abs(x - 1))"},
-    "pulse": {"eta0": "0", "v0": "-exp(-((x - 0.5)/0.05)**2)"},
-}
+_VARIANT_DATA = {"rod": {}, "gap": {"h": 0.1234, "eta0": "0.1234 + 0.5 - 0.5*abs(x - 1)"},
+                 "velocity": {"v0": "-0.3*(1 - abs(x - 1))"},
+                 "pulse": {"eta0": "0", "v0": "-exp(-((x - 0.5)/0.05)**2)"}}
 
 
 #: How far below the string the obstacle is away from the point x = 1 (no node gets there).
@@ -89,9 +73,8 @@ FAR = 1e6
 
 
 def point_contact(model, h: float, name: str | None = None):
-    """`model` with its contact law acting only at the node x = 1 (cells of size h, |x − 1| < h/2): lumped with
-    the node's weight h, the paper's law is a damper of strength h/ε on a node of mass h, so r = Δt/ε keeps its
-    meaning (explicit restitution r − 1)."""
+    """`model` with its contact law acting only at the node x = 1 (cells of size h, |x − 1| < h/2): a damper of
+    strength h/ε on a node of mass h, so that r = Δt/ε keeps its meaning."""
 
     def at_point(p):
         return ufl.lt(abs(p.x[0] - CONTACT_POINT), h / 2)
@@ -143,16 +126,5 @@ def relative_velocity_error(x: np.ndarray, t: np.ndarray, v: np.ndarray, exact=s
     return float(np.sqrt(np.sum(p1_l2_norms(v - v_ex, h) ** 2) / np.sum(p1_l2_norms(v_ex, h) ** 2)))
 
 
-__all__ = [
-    "CONTACT_POINT",
-    "PERIOD",
-    "ROD_ENERGY",
-    "VARIANTS",
-    "p1_l2_norms",
-    "point_contact",
-    "relative_error",
-    "relative_velocity_error",
-    "rod_exact",
-    "rod_scene",
-    "string_exact",
-]
+__all__ = ["CONTACT_POINT", "PERIOD", "ROD_ENERGY", "VARIANTS", "p1_l2_norms", "point_contact", "relative_error",
+           "relative_velocity_error", "rod_exact", "rod_scene", "string_exact"]

@@ -1,8 +1,7 @@
 """ParaView view of this folder, written by the run: `pvpython view.py` or `paraview --script=view.py`.
 
 `pvpython view.py TIME PNG [contact|velocity|FIELD] [TIME PNG [FIELD] ...]` saves screenshots instead, printing one
-JSON line each: the time, the field, its colour range, the camera, the heights' scale, the axes' titles and the box
-of the obstacle drawn. The numbers below were computed by the run over all its stored rows.
+JSON line each of what was drawn. The numbers below were computed by the run over all its stored rows.
 """
 
 import json
@@ -39,8 +38,7 @@ SYMLOG_SUFFIX = " (symmetric log)"
 
 
 def folder():
-    """This file's folder; ParaView's GUI (`paraview --script`) runs it without __file__: then the current
-    folder if it holds solution.xdmf, else the folder the run wrote."""
+    """This file's folder; without __file__ (ParaView's GUI) the current one if it holds solution.xdmf, else FOLDER."""
     here = globals().get("__file__")
     for candidate in ([os.path.dirname(os.path.abspath(here))] if here else []) + [os.getcwd(), FOLDER]:
         if candidate and os.path.isfile(os.path.join(candidate, "solution.xdmf")):
@@ -78,8 +76,7 @@ MAPS = {
 
 
 def symlog_expression(name):
-    """PythonCalculator's expression of array `name` on its symmetric-log scale, -1 ... 1 (matplotlib's SymLogNorm,
-    base 10, linscale 1, linthresh from SYMLOG, as the run's pictures), clipped at +-peak."""
+    """PythonCalculator's expression of `name` on the pictures' symmetric-log scale, -1 ... 1, clipped at +-peak."""
     threshold = SYMLOG[name][0]
     peak = FIELD_MAPS[name][0][1]
     linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
@@ -90,8 +87,7 @@ def symlog_expression(name):
 
 
 def colour_by(view, display, field):
-    """Colour by `field` on its fixed range, with its colour bar alone; a symmetric-log field on that scale, its
-    colour bar's ticks named by the field's values."""
+    """Colour by `field` on its fixed range (a symmetric-log one on that scale), with its colour bar alone."""
     array = field + SYMLOG_SUFFIX if field in SYMLOG else field
     pv.ColorBy(display, ("POINTS", array))
     (low, high), preset, colours = MAPS[field]
@@ -124,8 +120,7 @@ OBSTACLE_SCRIPT = (
 
 
 def moving_obstacle(reader):
-    """ψ(x, t) from solution.xdmf's `obstacle` field at the time shown: the mesh warped by it (a string's extruded
-    down to the box's floor), moved by OBSTACLE_SHIFT."""
+    """ψ(x, t) at the time shown: the mesh warped by solution.xdmf's `obstacle` (a string's extruded to the floor)."""
     source = pv.WarpByScalar(registrationName="warped by obstacle", Input=reader, Scalars=["POINTS", "obstacle"])
     source.Normal = NORMAL
     source.ScaleFactor = 1.0
@@ -160,8 +155,7 @@ def obstacle(view, reader):
 
 
 def labels(view, scale):
-    """The title, the time (upper left), the axes named and labelled with the data's values (`scale`: the displays'
-    stretch of the heights)."""
+    """The title, the time, the axes named and labelled with the data's values (`scale`: the heights' stretch)."""
     title = pv.Show(pv.Text(registrationName="title", Text=TITLE), view)
     title.WindowLocation, title.FontSize, title.Color = "Upper Center", 20, [0.0, 0.0, 0.0]
     clock = pv.Show(pv.AnnotateTime(registrationName="time", Format="t = {time:.4g}"), view)
@@ -181,8 +175,7 @@ def labels(view, scale):
 
 
 def height_scale(size):
-    """A string's stretch of the heights (1, s, 1): its box fills the picture within MARGINS, as a plot's axes do
-    (a membrane: 1)."""
+    """A string's stretch of the heights (1, s, 1) that fills the picture within MARGINS (a membrane: 1)."""
     if KIND != "string":
         return [1.0, 1.0, 1.0]
     width = (BOUNDS[1] - BOUNDS[0]) or 1.0
@@ -242,10 +235,8 @@ def frame(view, scale):
         tall = 1.0 - MARGINS["top"] - MARGINS["bottom"]
         half = sorted([0.5 * (high[0] - low[0]) / (wide * aspect), 0.5 * (high[1] - low[1]) / tall, 1e-12])[-1]  # noqa: FURB192
         # the box's centre sits in the middle of the free part of the picture, not of the picture
-        shift = [
-            (0.5 * (MARGINS["right"] - MARGINS["left"])) * 2.0 * half * aspect,
-            (0.5 * (MARGINS["top"] - MARGINS["bottom"])) * 2.0 * half,
-        ]
+        shift = [(0.5 * (MARGINS["right"] - MARGINS["left"])) * 2.0 * half * aspect,
+                 (0.5 * (MARGINS["top"] - MARGINS["bottom"])) * 2.0 * half]
         focal = [centre[0] + shift[0], centre[1] + shift[1], centre[2]]
         view.CameraFocalPoint = focal
         view.CameraPosition = [focal[0], focal[1], focal[2] + 3.0 * width]
