@@ -32,8 +32,8 @@ def fail_at(st, n: int, failure):
     an exception raised, or the reason the energy guard gives."""
     add = st.core.ledger.add
 
-    def booked(terms, slack=0.0):
-        why = add(terms, slack)
+    def booked(terms, *args):
+        why = add(terms, *args)
         if st.core.step + 1 == n:
             if isinstance(failure, BaseException):
                 raise failure
