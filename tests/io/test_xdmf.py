@@ -26,7 +26,8 @@ from stringcontact.io.result import FIELDS
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("xdmf") / "run"
-    res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), output_dir=out, max_rows=40, max_frames=12, pictures=False)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600),
+                      output=sc.Output(out, max_frames=12, pictures=False), storage=sc.Storage(max_rows=40))
     return out, res
 
 

@@ -550,7 +550,7 @@ def small_result(nx=8, nt=4):
     import stringcontact as sc
 
     scene = sc.load_scene("example1").replace(nx=nx, nt=nt, eps=0.1)
-    return sc.simulate(scene, output_dir=None)
+    return sc.simulate(scene, output=sc.Output(None))
 
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
