@@ -268,13 +268,13 @@ def _thinning_writer(folder):
 
 
 def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
-    from stringcontact.io.readback import xdmf_series
+    from stringcontact.io.readback import read_xdmf
 
     writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
         writer.write(0.1 * k, {name: np.full(11, float(k)) for name in FIELD_NAMES})
     writer.abort("interrupted", "stopped")
-    series = xdmf_series(writer.path / "solution.xdmf")
+    series = read_xdmf(writer.path / "solution.xdmf")[1]
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
 
 

@@ -242,8 +242,8 @@ def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
 
 # --- one camera, the obstacle, the time, the axes, a string at rest seen in velocity ---------------------------
 
-ZERO_RGB = (38, 38, 38)  # view.py's velocity map at v = 0 (paraview_view.VELOCITY_COLOURS[1])
-GREY_RGB = (204, 204, 204)  # the obstacle (paraview_view.OBSTACLE_GREY)
+ZERO_RGB = (38, 38, 38)  # view.py's velocity map at v = 0 (its VELOCITY_COLOURS[1])
+GREY_RGB = (204, 204, 204)  # the obstacle (view.py's OBSTACLE_GREY)
 
 
 def _columns(img, rgb, tol=12, least=10):

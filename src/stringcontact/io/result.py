@@ -47,7 +47,7 @@ def canonical_cells(cells: np.ndarray) -> np.ndarray:
 
 
 class RowsElsewhere(AttributeError):
-    """A per-node array read on a rank that does not hold the rows (`simulate(gather="root")`, rank > 0)."""
+    """A per-node array read on a rank that does not hold the rows (`Storage(gather="root")`, rank > 0)."""
 
 
 @dataclass(eq=False, repr=False)
