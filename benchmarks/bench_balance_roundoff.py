@@ -45,10 +45,10 @@ def main() -> None:
     plain = stepper.EnergyLedger
     for nx, nt in ((nx, nt) for nx in args.nx for nt in args.nt):
         scene = sc.load_scene("example1").replace(nx=nx, nt=nt)
-        res = sc.simulate(scene, progress=False)
+        res = sc.simulate(scene, output=sc.Output(progress=False))
         stepper.EnergyLedger = _FsumLedger
         try:
-            exact = sc.simulate(scene, progress=False)
+            exact = sc.simulate(scene, output=sc.Output(progress=False))
         finally:
             stepper.EnergyLedger = plain
         b = checks.energy_balance(res)

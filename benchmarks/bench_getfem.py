@@ -493,7 +493,7 @@ def ours(method: Method, nx: int, dt_over_h: float, T: float) -> dict:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the 1 < r < 2 rebound warning is about the velocity penalty
-            res = sc.simulate(scene, max_rows=scene.nt + 1, **kwargs)
+            res = sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt + 1), **kwargs)
     except InstabilityError as exc:
         return {**row, "status": "refused" if exc.step == 0 else "unstable"}
     except (

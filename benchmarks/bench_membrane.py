@@ -82,7 +82,8 @@ def run_stringcontact(n: int, steps: int, out: Path, solver: str = "auto", kind:
 
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    res = sc.simulate(scene(n, steps, kind, alpha), scheme="projection", max_rows=2, petsc_options=SOLVERS[solver])
+    res = sc.simulate(scene(n, steps, kind, alpha), scheme="projection", storage=sc.Storage(max_rows=2),
+                      petsc_options=SOLVERS[solver])
     total = time.perf_counter() - t0
     rss = comm.gather(peak_rss_mb())
     if comm.rank == 0:  # the rows are on rank 0 (simulate's gather="root")

@@ -53,7 +53,7 @@ def end_to_end(scene: str, repeats: int, folder: Path) -> None:
 def per_picture(scene: str, repeats: int, folder: Path) -> None:
     import stringcontact as sc
 
-    res = sc.simulate(sc.load_scene(scene), progress=False)
+    res = sc.simulate(sc.load_scene(scene), output=sc.Output(progress=False))
     from stringcontact.plot import animation
     from stringcontact.plot import run_pictures as viz
 

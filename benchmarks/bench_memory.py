@@ -53,7 +53,7 @@ def one(n: int, steps: int, max_rows: int, row_budget: int | None = None) -> dic
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
     budget = {} if row_budget is None else {"row_budget": row_budget}  # main's simulate has no row_budget
-    res = sc.simulate(scene(n, steps), max_rows=max_rows, **budget)
+    res = sc.simulate(scene(n, steps), storage=sc.Storage(max_rows=max_rows), **budget)
     total = time.perf_counter() - t0
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)  # Linux: kB
     held = comm.gather(held_bytes(res) / 2**20)

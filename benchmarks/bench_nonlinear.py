@@ -76,7 +76,7 @@ def run_once(scene, scheme: str, model: str) -> dict:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = sc.simulate(scene, scheme=scheme, model=model, comm=MPI.COMM_SELF, max_rows=10)
+            res = sc.simulate(scene, scheme=scheme, model=model, comm=MPI.COMM_SELF, storage=sc.Storage(max_rows=10))
     finally:
         nonlinear.NewtonStep.solve = original
     return {"step_ms": 1e3 * res.timings["solve"] / scene.nt, "counts": counts, "status": res.status,

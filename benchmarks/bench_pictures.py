@@ -59,7 +59,7 @@ def panel_costs(counts) -> int:
     scene = sc.load_scene("example1")
     for n in counts:
         times = np.round(np.linspace(0.0, scene.T, n), 12).tolist()
-        res = sc.simulate(scene.replace(nx=200, output_times=times), progress=False)
+        res = sc.simulate(scene.replace(nx=200, output_times=times), output=sc.Output(progress=False))
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
             charts.snapshots_picture(res, Path(tmp) / "snapshots.png")
@@ -80,7 +80,7 @@ def main(argv=None) -> int:
         return panel_costs(args.panels or [12, 100, 1000])
     import stringcontact as sc
 
-    res = sc.simulate(sc.load_scene("example1"), progress=False)
+    res = sc.simulate(sc.load_scene("example1"), output=sc.Output(progress=False))
     from stringcontact.plot import mesh_pictures
     from stringcontact.plot import run_pictures as viz
 

@@ -34,7 +34,7 @@ def _simulate(scene, e):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return sc.simulate(scene, scheme="projection", restitution=e, max_rows=scene.nt)
+        return sc.simulate(scene, scheme="projection", restitution=e, storage=sc.Storage(max_rows=scene.nt))
 
 
 def landing_table(sizes) -> None:

@@ -31,7 +31,7 @@ from stringcontact.io.tables import FIELDS, write_npy, write_rows
 def measure(name: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / name
-        res = sc.simulate(sc.load_scene(name), output_dir=out, pictures=False, progress=False)
+        res = sc.simulate(sc.load_scene(name), output=sc.Output(out, pictures=False, progress=False))
         t0 = time.perf_counter()
         write_rows(Path(tmp) / "again.npz", res)
         plain = time.perf_counter() - t0
@@ -71,7 +71,7 @@ def _ways() -> dict:
 
 def _write_once(label: str, name: str, path: Path, res=None) -> tuple[float, float]:
     """(seconds, MB) of one write of `name`'s rows by the way `label`, checked against the run's arrays."""
-    res = res if res is not None else sc.simulate(sc.load_scene(name), progress=False)
+    res = res if res is not None else sc.simulate(sc.load_scene(name), output=sc.Output(progress=False))
     t0 = time.perf_counter()
     _ways()[label](path, res)
     seconds = time.perf_counter() - t0
@@ -90,7 +90,7 @@ def against_numpy(name: str, n: int, fresh: bool) -> None:
     labels = list(_ways())
     times, sizes = {k: [] for k in labels}, {}
     with tempfile.TemporaryDirectory() as tmp:
-        res = None if fresh else sc.simulate(sc.load_scene(name), progress=False)
+        res = None if fresh else sc.simulate(sc.load_scene(name), output=sc.Output(progress=False))
         for k in range(n):
             for label in (labels if k % 2 == 0 else labels[::-1]):
                 path = Path(tmp) / f"{k}.npz"

@@ -61,7 +61,8 @@ def phases(out: str, max_frames: int) -> dict:
     import stringcontact as sc
 
     t_import = time.perf_counter() - t0
-    res = sc.simulate(sc.load_scene("example1"), output_dir=out, force=True, max_frames=max_frames, pictures=True)
+    res = sc.simulate(sc.load_scene("example1"),
+                      output=sc.Output(out, force=True, max_frames=max_frames, pictures=True))
     summary = json.loads((Path(out) / "summary.json").read_text())
     tm = summary.get("timings", {})
     return {

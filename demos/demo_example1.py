@@ -66,7 +66,7 @@ scene = sc.load_scene("example1")
 if FAST:
     scene = scene.replace(nx=400, nt=750)
 run_dir = OUT / scene.name
-res = sc.simulate(scene, output_dir=run_dir, force=True, progress=not FAST)
+res = sc.simulate(scene, output=sc.Output(run_dir, force=True, progress=not FAST))
 l = scene.length
 print(f"{scene.name}: nx = {scene.nx}, dt = {scene.dt:g}, {len(res.t)} stored rows, written to {run_dir}")
 

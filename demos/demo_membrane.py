@@ -53,7 +53,7 @@ print(inspect.getsource(sc.inelastic.momentum_form))
 
 drum = sc.load_scene("drum")
 print(drum.description)
-res = sc.simulate(drum, output_dir=OUT / "drum", force=True)
+res = sc.simulate(drum, output=sc.Output(OUT / "drum", force=True))
 print(f"{len(res.x)} nodes, {len(res.cells)} triangles, {drum.nt} steps of dt = {drum.dt}")
 
 # The energy books close as in 1D: $E(0) + W_\mathrm{load} = E(T) + D_\mathrm{visc} + D_\mathrm{con}$,

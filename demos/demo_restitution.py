@@ -93,7 +93,7 @@ for e in (0.25, 0.5, 1.0):
     errors, speed = [], None
     for size in sizes:
         landing = sc.simulate(flat_landing_scene(size, round(1.25 * size), T=1.0), scheme="projection",
-                              restitution=e, max_rows=round(1.25 * size), comm=MPI.COMM_SELF)
+                              restitution=e, storage=sc.Storage(max_rows=round(1.25 * size)), comm=MPI.COMM_SELF)
         eta, _ = exact.flat_landing(landing.t[-1], landing.x, restitution=e)
         errors.append(float(np.sqrt(np.mean((landing.eta[-1] - eta) ** 2))))
         speed = landing.velocity[int(np.argmin(np.abs(landing.t - 0.3))), landing.x.size // 2]

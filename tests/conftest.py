@@ -257,7 +257,7 @@ def piston_folder(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("piston") / "piston"
     scene = sc.load_scene("piston").replace(nx=40, T=0.3, nt=75, output_times=[0.0, 0.1, 0.15, 0.3])
-    res = sc.simulate(scene, output_dir=out, max_frames=8, pictures=False)
+    res = sc.simulate(scene, output=sc.Output(out, max_frames=8, pictures=False))
     return out, res
 
 

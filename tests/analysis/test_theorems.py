@@ -49,8 +49,8 @@ def test_free_boundary_marks_both_sides_of_the_interface():
 
 def test_checks_refuse_thinned_results():
     scene = th.flat_landing_scene(50, 60, r=0.4)
-    res = sc.simulate(scene, max_rows=10)
-    with pytest.raises(ValueError, match="max_rows=scene.nt"):
+    res = sc.simulate(scene, storage=sc.Storage(max_rows=10))
+    with pytest.raises(ValueError, match=r"Storage\(max_rows=scene.nt\)"):
         th.impulse(res)
 
 

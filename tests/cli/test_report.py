@@ -108,7 +108,7 @@ def test_film_landing_flags_its_numerical_dissipation(capfd):
 @pytest.fixture(scope="module")
 def example1():
     """A coarse Example 1: the string lands at t ≈ 0.015 and breaks into several contact components later."""
-    return sc.simulate(sc.load_scene("example1").replace(nx=80, nt=600), max_rows=600)
+    return sc.simulate(sc.load_scene("example1").replace(nx=80, nt=600), storage=sc.Storage(max_rows=600))
 
 
 def test_the_components_note_says_when_contact_began_and_when_the_most_components_first_occurred(example1, capsys):

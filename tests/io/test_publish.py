@@ -152,7 +152,7 @@ def test_a_run_starts_writing_its_data_to_disk_before_its_pictures(tmp_path, mon
         order.append(("pictures", len(synced)))
 
     scene = sc.load_scene("example1").replace(nx=20, nt=40, eps=0.01)
-    sc.simulate(scene, output_dir=tmp_path / "out", pictures=draw)
+    sc.simulate(scene, output=sc.Output(tmp_path / "out", pictures=draw))
     [files] = synced
     assert order == [("pictures", 1)]  # started before the pictures
     assert [name for name, _ in files] == ["solution.h5", "rows.npz", "diagnostics.csv"]

@@ -15,7 +15,8 @@ from stringcontact.io import readback
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory):
     out = tmp_path_factory.mktemp("readback") / "run"
-    sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), output_dir=out, max_rows=30, max_frames=8, pictures=False)
+    sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), output=sc.Output(out, max_frames=8, pictures=False),
+                storage=sc.Storage(max_rows=30))
     return out
 
 

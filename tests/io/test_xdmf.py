@@ -26,7 +26,8 @@ from stringcontact.io.result import FIELDS
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("xdmf") / "run"
-    res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), output_dir=out, max_rows=40, max_frames=12, pictures=False)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600),
+                      output=sc.Output(out, max_frames=12, pictures=False), storage=sc.Storage(max_rows=40))
     return out, res
 
 
@@ -66,7 +67,7 @@ def test_the_xdmf_is_well_formed_after_every_frame(tmp_path):
     from mpi4py import MPI
 
     from stringcontact.fem import compat
-    from stringcontact.io.readback import xdmf_series
+    from stringcontact.io.readback import read_xdmf
     from stringcontact.io.xdmf import XdmfTimeSeries, mesh_arrays
 
     V = compat.function_space(mesh.create_interval(MPI.COMM_SELF, 10, [0.0, 1.0]))
@@ -74,7 +75,7 @@ def test_the_xdmf_is_well_formed_after_every_frame(tmp_path):
     try:
         for k in range(3):  # read back while the writer still holds the file open
             series.write(0.5 * k, {"eta": np.full(11, float(k))})
-            assert [t for t, _ in xdmf_series(tmp_path / "solution.xdmf")["eta"]] == [0.5 * j for j in range(k + 1)]
+            assert [t for t, _ in read_xdmf(tmp_path / "solution.xdmf")[1]["eta"]] == [0.5 * j for j in range(k + 1)]
     finally:
         series.close()
 
@@ -258,9 +259,9 @@ def test_writing_frames_makes_no_fsync(tmp_path):
 
 
 def xdmf_series_of(folder):
-    from stringcontact.io.readback import xdmf_series
+    from stringcontact.io.readback import read_xdmf
 
-    return xdmf_series(folder / "solution.xdmf")
+    return read_xdmf(folder / "solution.xdmf")[1]
 
 
 def test_another_program_reads_every_finished_frame_while_the_file_is_open(tmp_path):

@@ -160,7 +160,7 @@ def test_an_output_folder_whose_model_is_no_longer_registered_still_plots(tmp_pa
     from stringcontact.io import readback
 
     scene = load_scene("single_impact").replace(nx=20, nt=1600, T=0.4, model="elastic", output_times=[])
-    sc.simulate(scene, model=registry.load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
+    sc.simulate(scene, model=registry.load_model(scene.model), output=sc.Output(tmp_path / "run", pictures=False))
     assert readback.read_output(tmp_path / "run").scene.model == "elastic"
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     summary["scene"]["model"] = "stringcontact.model.variants:elastic"
@@ -241,7 +241,7 @@ def test_a_model_named_on_the_command_line_checks_the_scenes_constants(tmp_path,
 
     scene = load_scene("example1").replace(nx=20, nt=100, T=0.02, output_times=[], parameters={"kk": 1.0})
     with pytest.raises(SceneError, match=r"kk: model 'soft_ground' has no constant 'kk'"):
-        sc.simulate(scene, model=soft_ground, output_dir=tmp_path / "out")
+        sc.simulate(scene, model=soft_ground, output=sc.Output(tmp_path / "out"))
     assert not (tmp_path / "out").exists()
     (tmp_path / "plain.toml").write_text(SCENE + "\n[parameters]\nk = 0.0\n")
     code = main(["run", str(tmp_path / "plain.toml"), "--model", "soft_ground:soft_ground", "--no-pictures",

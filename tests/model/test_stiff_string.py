@@ -15,7 +15,7 @@ import tomli_w
 import stringcontact as sc
 from stringcontact.errors import InstabilityError
 from stringcontact.fem.compat import trapezoid
-from stringcontact.io.readback import xdmf_series
+from stringcontact.io.readback import read_xdmf
 from stringcontact.model import stiff_string as model
 
 H, AMPLITUDE = 1.0, 1e-3
@@ -209,7 +209,7 @@ def test_the_curvature_is_written_to_the_xdmf_and_the_result(tmp_path, ex1_stiff
     out = tmp_path / "run"
     result = run(ex1_stiff.replace(T=0.02), scheme="paper", output=sc.Output(out, force=True, pictures=False))
     assert "curvature" in result.fields and result.fields["curvature"].shape == result.eta.shape
-    series = xdmf_series(out / "solution.xdmf")
+    _, series = read_xdmf(out / "solution.xdmf")
     assert "curvature" in series and len(series["curvature"]) == len(series["eta"])
 
 

@@ -41,7 +41,7 @@ def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("film_membrane") / "film_drum"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = sc.simulate(small_film_drum(), output_dir=folder, progress=False)
+        res = sc.simulate(small_film_drum(), output=sc.Output(folder, progress=False))
     return folder, res
 
 

@@ -20,7 +20,7 @@ LOOKS = {"screen": Look(), "paper": Look(style="paper"), "column": Look(style="p
 
 @pytest.fixture(scope="module")
 def example1():
-    return sc.simulate(sc.load_scene("example1").replace(nx=80, nt=600), max_rows=60)
+    return sc.simulate(sc.load_scene("example1").replace(nx=80, nt=600), storage=sc.Storage(max_rows=60))
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +32,7 @@ def drum():
 def stiff():
     """A string with an output field of its model (stiff_string's curvature)."""
     return sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600, model="stiff_string",
-                                                         parameters={"beta": 1e-4}), max_rows=60)
+                                                         parameters={"beta": 1e-4}), storage=sc.Storage(max_rows=60))
 
 
 def _texts(fig) -> list:
@@ -162,7 +162,7 @@ def test_a_contact_law_without_eps_is_shown_without_eps(tmp_path, capsys):
     if "soft_ground" not in registered():
         pytest.skip("examples/soft_ground is not installed (scripts/setup installs it)")
     scene = sc.load_scene("example1").replace(nx=40, nt=600, model="soft_ground")
-    ground = sc.simulate(scene, output_dir=tmp_path / "ground", pictures=False)
+    ground = sc.simulate(scene, output=sc.Output(tmp_path / "ground", pictures=False))
     paper = sc.simulate(scene.replace(model=None))
     assert not ground.law_reads_eps and paper.law_reads_eps
     assert json.loads((tmp_path / "ground" / "summary.json").read_text())["law_reads_eps"] is False

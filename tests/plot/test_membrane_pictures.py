@@ -29,7 +29,7 @@ def small_drum():
 def run(tmp_path_factory):
     """The coarse drum written to disk with its pictures (drawn in this process), and its in-memory result."""
     folder = tmp_path_factory.mktemp("membrane") / "drum"
-    res = sc.simulate(small_drum(), output_dir=folder, progress=False)
+    res = sc.simulate(small_drum(), output=sc.Output(folder, progress=False))
     return folder, res
 
 
@@ -161,7 +161,7 @@ def written(request, tmp_path_factory):
     """A coarse drum (gmsh's disk) or bump (a rectangle: columns of nodes with the same x) written to disk."""
     scene = small_drum() if request.param == "drum" else sc.load_scene("bump").replace(cells=[16, 16], T=0.3, nt=60, output_times=[0.2])
     folder = tmp_path_factory.mktemp("readback2d") / request.param
-    res = sc.simulate(scene, output_dir=folder, pictures=False, max_frames=20, progress=False)
+    res = sc.simulate(scene, output=sc.Output(folder, pictures=False, max_frames=20, progress=False))
     return folder, res
 
 
@@ -247,7 +247,7 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     from stringcontact.plot import mesh_pictures
 
     times = np.round(np.linspace(0.0, 0.4, 41), 10).tolist()
-    res = sc.simulate(small_drum().replace(output_times=times), progress=False)
+    res = sc.simulate(small_drum().replace(output_times=times), output=sc.Output(progress=False))
     assert len(charts.stored_rows_at(res, times)) == 41
     drawn = []
     monkeypatch.setattr(charts, "savefig", lambda fig, path, look: drawn.append(fig) or [path])
@@ -262,7 +262,7 @@ def test_plot_redraws_a_membranes_pictures_pixel_for_pixel(tmp_path, capsys):
     2.24 in `plot`'s pictures, drawn from the XDMF frames (here 10 of 81 stored rows)."""
     from test_viz import assert_same_pictures
 
-    res = sc.simulate(small_drum(), output_dir=tmp_path / "run", max_frames=10, progress=False)
+    res = sc.simulate(small_drum(), output=sc.Output(tmp_path / "run", max_frames=10, progress=False))
     assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
     assert_same_pictures(tmp_path / "run", tmp_path / "again", viz.MEMBRANE_PICTURES)
     back, area = readback.read_output(tmp_path / "run"), res.contact_measure
@@ -285,7 +285,7 @@ def test_the_contact_patch_is_drawn_without_the_meshs_staircase():
     """Issue 26, item 6: the membrane's patches had staircase edges at the default mesh (mesh_size 0.05)."""
     from stringcontact.plot import membrane
 
-    res = sc.simulate(sc.load_scene("drum").replace(T=0.3, nt=60, output_times=[0.3]), progress=False)
+    res = sc.simulate(sc.load_scene("drum").replace(T=0.3, nt=60, output_times=[0.3]), output=sc.Output(progress=False))
     row = int(np.argmax(res.contact_measure))
     view = membrane.membrane_view(res)
     shade = view.shade(res.contact[row])

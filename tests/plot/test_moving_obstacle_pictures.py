@@ -19,12 +19,12 @@ RISING_DOME = {"mesh_size": 0.2, "T": 0.4, "nt": 80, "output_times": [0.0, 0.1, 
 
 @pytest.fixture(scope="module")
 def piston():
-    return sc.simulate(sc.load_scene("piston").replace(**SMALL_PISTON), progress=False)
+    return sc.simulate(sc.load_scene("piston").replace(**SMALL_PISTON), output=sc.Output(progress=False))
 
 
 @pytest.fixture(scope="module")
 def dome():
-    return sc.simulate(sc.load_scene("drum").replace(**RISING_DOME), progress=False)
+    return sc.simulate(sc.load_scene("drum").replace(**RISING_DOME), output=sc.Output(progress=False))
 
 
 @pytest.fixture
@@ -74,7 +74,7 @@ def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston
 
 
 def test_an_obstacle_at_rest_is_still_a_band_over_t(drawn, tmp_path):
-    res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), progress=False)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), output=sc.Output(progress=False))
     mesh_pictures.space_time_picture(res, tmp_path / "space_time.png")
     (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
     assert np.unique(np.round(np.asarray(obstacle.points)[:, 1], 12)).size == 2  # t = 0 and T only

@@ -38,8 +38,9 @@ def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fields") / "reacting"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), model=REACTING, output_dir=folder,
-                          max_rows=30, max_frames=8, progress=False)
+        res = sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), model=REACTING,
+                          output=sc.Output(folder, max_frames=8, progress=False),
+                          storage=sc.Storage(max_rows=30))
     return folder, res
 
 

@@ -36,7 +36,7 @@ def folders(tmp_path_factory):
               "drum": sc.load_scene("drum").replace(mesh_size=0.25, T=0.3, nt=60, output_times=[0.0, 0.15, 0.3])}
     made = {}
     for name, scene in scenes.items():
-        sc.simulate(scene, output_dir=root / name, progress=False, pictures=False)
+        sc.simulate(scene, output=sc.Output(root / name, progress=False, pictures=False))
         assert main(["plot", str(root / name), "--out", str(root / f"{name}-paper"), "--format", "png,pdf,svg",
                      "--style", "paper"]) == 0
         made[name] = (root / name, root / f"{name}-paper")

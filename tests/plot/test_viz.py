@@ -24,7 +24,7 @@ def run(tmp_path_factory):
     """A coarse Example 1 written to disk with pictures, and its in-memory result."""
     folder = tmp_path_factory.mktemp("viz") / "ex1"
     scene = sc.load_scene("example1").replace(nx=80, nt=600)
-    res = sc.simulate(scene, output_dir=folder, max_rows=60)
+    res = sc.simulate(scene, output=sc.Output(folder), storage=sc.Storage(max_rows=60))
     return folder, res
 
 
@@ -221,7 +221,7 @@ def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
     from stringcontact.model.variants import load_model
 
     scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
-    res = sc.simulate(scene, model=load_model(scene.model), output_dir=tmp_path / "run", pictures=False)
+    res = sc.simulate(scene, model=load_model(scene.model), output=sc.Output(tmp_path / "run", pictures=False))
     back = readback.read_output(tmp_path / "run")
     assert charts.obstacle_name(back) == "ψ" and charts.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
     grey = "#d9d9d9"  # the shaded obstacle region
@@ -238,7 +238,8 @@ def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
 def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
     """The XDMF is thinned (its writer costs O(frames²)); read back, each frame is exactly its stored row."""
     scene = sc.load_scene("example1").replace(nx=40)
-    res = sc.simulate(scene, output_dir=tmp_path / "out", max_rows=60, max_frames=10, pictures=False)
+    res = sc.simulate(scene, output=sc.Output(tmp_path / "out", max_frames=10, pictures=False),
+                      storage=sc.Storage(max_rows=60))
     back = xdmf_frames(tmp_path / "out")
     assert 10 <= len(back.t) < len(res.t) == 61
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
@@ -267,13 +268,13 @@ def _thinning_writer(folder):
 
 
 def test_a_stopped_run_ends_its_xdmf_with_the_last_stored_row(tmp_path):
-    from stringcontact.io.readback import xdmf_series
+    from stringcontact.io.readback import read_xdmf
 
     writer = _thinning_writer(tmp_path / "out")
     for k in range(3):  # the run stops after the third stored row, which is not a frame
         writer.write(0.1 * k, {name: np.full(11, float(k)) for name in FIELD_NAMES})
     writer.abort("interrupted", "stopped")
-    series = xdmf_series(writer.path / "solution.xdmf")
+    series = read_xdmf(writer.path / "solution.xdmf")[1]
     assert [t for t, _ in series["eta"]] == pytest.approx([0.0, 0.2])
 
 
@@ -455,7 +456,8 @@ def test_snapshots_have_at_most_max_panels_whatever_the_output_times(tmp_path, m
     from stringcontact.plot import charts
 
     times = np.round(np.linspace(0.0, 0.5, 60), 10).tolist()
-    res = sc.simulate(sc.load_scene("example1").replace(nx=20, T=0.5, nt=1000, output_times=times), max_rows=100)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=20, T=0.5, nt=1000, output_times=times),
+                      storage=sc.Storage(max_rows=100))
     assert len(charts.stored_rows_at(res, times)) == 60  # every output time is a stored row
     drawn = []
     monkeypatch.setattr(charts, "savefig", lambda fig, path, look=None: drawn.append(fig) or [path])
@@ -492,7 +494,7 @@ def assert_same_pictures(first, second, names):
 def test_plot_redraws_the_runs_pictures_pixel_for_pixel(tmp_path, capsys):
     """Issue 26, item 2: `plot` drew from the XDMF frames (here 12 of 121 stored rows), not the rows the run drew from."""
     scene = sc.load_scene("example1").replace(nx=80, nt=1200)
-    res = sc.simulate(scene, output_dir=tmp_path / "run", max_rows=120, max_frames=12)
+    res = sc.simulate(scene, output=sc.Output(tmp_path / "run", max_frames=12), storage=sc.Storage(max_rows=120))
     assert len(res.t) > 100
     assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
     assert_same_pictures(tmp_path / "run", tmp_path / "again", viz.PICTURES)
@@ -518,7 +520,7 @@ def example2(tmp_path_factory):
     folder = tmp_path_factory.mktemp("example2") / "ex2"
     with pytest.warns(UserWarning, match="below the obstacle"):  # as the paper's Example 2 starts
         scene = sc.load_scene("example2").replace(nx=400, nt=2500)
-    res = sc.simulate(scene, output_dir=folder, progress=False, pictures=False)
+    res = sc.simulate(scene, output=sc.Output(folder, progress=False, pictures=False))
     return folder, res
 
 
@@ -579,7 +581,8 @@ def test_example2s_energies_get_a_panel_zoomed_onto_their_first_times(example2):
     assert lo == 0 and hi < 0.15 * res.t[-1]  # at this coarse nx its energies settle by t = 0.036 of 0.5
     kinetic = res.energy["kinetic"]
     assert kinetic[res.t > hi].max() < 0.05 * kinetic.max()  # the motion is over within the zoom
-    fig, axes = charts.energy_figure(sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600), max_rows=60))
+    fig, axes = charts.energy_figure(sc.simulate(sc.load_scene("example1").replace(nx=40, nt=600),
+                                                 storage=sc.Storage(max_rows=60)))
     assert "zoom" not in axes  # Example 1 moves all the time: one panel
 
 

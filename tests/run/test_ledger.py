@@ -17,7 +17,7 @@ FINE = {"nx": 50, "nt": 200_000}
 
 @pytest.mark.slow
 def test_a_fine_step_run_closes_its_balance():
-    res = sc.simulate(sc.load_scene("example1").replace(**FINE), progress=False)
+    res = sc.simulate(sc.load_scene("example1").replace(**FINE), output=sc.Output(progress=False))
     b = checks.energy_balance(res)
     assert b["tolerance"] > checks.BALANCE_RTOL  # the case: its round-off estimate raises the tolerance
     assert b["relative_residual"] <= b["tolerance"] and b["closes"] and res.status == "complete", b
@@ -37,7 +37,7 @@ def test_an_interrupted_fine_step_run_closes_its_balance(monkeypatch):
 
     monkeypatch.setattr(ledger.EnergyLedger, "add", interrupt_after_the_impact)
     with pytest.raises(KeyboardInterrupt) as info:
-        sc.simulate(sc.load_scene("example1").replace(**FINE), progress=False)
+        sc.simulate(sc.load_scene("example1").replace(**FINE), output=sc.Output(progress=False))
     res = info.value.result
     assert res.status == "interrupted"
     b = checks.energy_balance(res)
@@ -72,7 +72,7 @@ def test_the_tolerance_grows_with_the_courant_number():
 
 @pytest.mark.slow
 def test_a_leak_is_still_caught_at_many_steps():
-    res = sc.simulate(sc.load_scene("example1").replace(nx=50, nt=20_000), progress=False)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=50, nt=20_000), output=sc.Output(progress=False))
     assert checks.energy_balance(res)["closes"]
     res.checks = None
     res.energy["contact_dissipation"] = res.energy["contact_dissipation"] * 1.001  # a 0.1 % leak
@@ -85,7 +85,7 @@ def test_a_small_motion_on_a_large_height_is_not_called_unstable(scheme):
     # by 1e-20 at step 14, and the guard, with no floor, stopped it as unstable
     scene = sc.load_scene("example1").replace(nx=100, nt=100, T=0.1, eta0="1e-3", v0="-1e-8",
                                               h_left=1e-3, h_right=1e-3, output_times=[])
-    res = sc.simulate(scene, scheme=scheme, progress=False)
+    res = sc.simulate(scene, scheme=scheme, output=sc.Output(progress=False))
     assert res.status != "unstable"
     assert len(res.t) and res.t[-1] == pytest.approx(0.1)  # ran to T
 
@@ -95,7 +95,8 @@ def test_the_numerical_dissipation_is_the_results_formula_and_can_be_negative():
     """`Result`'s D_num for `paper` with the explicit penalty, step by step: ½|Δv|²_M + ½|Δη|²_K − (Δt/2) f·Δv with
     f = m_F∘F(η^n, v^n) the applied force; the force term is negative where the penalty brakes a node (Δv > 0), and
     it outweighs the squares over Example 1's landing (D_num < 0, as its report prints −4.1 at full size)."""
-    st = sc.Stepper(sc.load_scene("example1").replace(nx=100, nt=600, output_times=[]), progress=False)
+    st = sc.Stepper(sc.load_scene("example1").replace(nx=100, nt=600, output_times=[]),
+                    output=sc.Output(progress=False))
     ops, dt = st.discrete.ops, st.dt
     vec = ops.K.createVecRight()
     force_terms, worst = [], 0.0

@@ -278,7 +278,7 @@ def _worker(scheme: str, out: Path) -> None:
 
     comm = MPI.COMM_WORLD
     for gather in ("root", "all"):
-        res = sc.simulate(small_drum(), scheme=scheme, gather=gather)
+        res = sc.simulate(small_drum(), scheme=scheme, storage=sc.Storage(gather=gather))
         keep = dict(size=comm.size, has_rows=res.has_rows, t=res.t, contact_measure=res.contact_measure,
                     **{f"energy_{k}": v for k, v in res.energy.items()})
         if res.has_rows:
@@ -303,7 +303,7 @@ def test_a_membrane_run_writes_an_xdmf_meshio_reads_and_no_string_pictures(tmp_p
     from stringcontact.plot import run_pictures as viz
 
     scene = sc.load_scene("drum").replace(mesh_size=0.2, T=0.2, nt=40, output_times=[0.1])
-    res = sc.simulate(scene, output_dir=tmp_path / "drum", pictures=True)
+    res = sc.simulate(scene, output=sc.Output(tmp_path / "drum", pictures=True))
     drawn = sorted(p.name for p in (tmp_path / "drum").iterdir() if p.suffix in (".png", ".gif"))
     assert drawn == sorted(viz.MEMBRANE_PICTURES)  # the membrane's; the (x, t) pictures are of a string
     data = meshio_read(tmp_path / "drum" / "solution.xdmf")

@@ -57,7 +57,7 @@ def test_example1_contact_set_is_mirror_symmetric(ex1_small):
 
 
 def test_stored_rows_include_output_times_and_ends(ex1_small):
-    res = sc.simulate(ex1_small, max_rows=20)
+    res = sc.simulate(ex1_small, storage=sc.Storage(max_rows=20))
     for t in ex1_small.output_times:
         assert np.min(np.abs(res.t - t)) < 1e-12
     assert res.t[0] == 0 and res.t[-1] == pytest.approx(ex1_small.T)

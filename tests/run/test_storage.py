@@ -59,11 +59,11 @@ def test_the_paper_scenes_fit_the_budget(name):
 
 def test_a_run_over_its_budget_stores_fewer_rows_with_one_warning():
     scene = small_string()
-    full = sc.simulate(scene, max_rows=scene.nt)
+    full = sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt))
     budget = 40 * 101 * BYTES_PER_STORED_NODE
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        thin = sc.simulate(scene, max_rows=scene.nt, row_budget=budget)
+        thin = sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt, row_budget=budget))
     notes = [w for w in caught if issubclass(w.category, StorageWarning)]
     assert len(notes) == 1 and f"max_rows = {scene.nt}" in str(notes[0].message)
     assert 10 < len(thin.t) <= 40 < len(full.t)
@@ -85,29 +85,18 @@ def test_a_run_over_its_budget_stores_fewer_rows_with_one_warning():
 ])
 def test_bad_storage_options_are_refused_in_one_line(keys, field):
     with pytest.raises(ValueError, match=f"^{field}: ") as err:
-        sc.simulate(small_string(), **keys)
+        sc.simulate(small_string(), storage=sc.Storage(**keys))
     assert "\n" not in str(err.value)
 
 
-def test_grouped_options_give_the_old_keywords_result_and_refuse_both_in_one_line(tmp_path):
-    """`storage=Storage(...)`, `output=Output(...)` and the old flat keywords are the same run; a keyword beside
-    its group's object is a one-line ValueError naming the keyword, a misspelt one a TypeError."""
-    scene = small_string()
-    flat = sc.simulate(scene, max_rows=20, gather="all", output_dir=tmp_path / "flat", max_frames=3, pictures=False)
-    grouped = sc.simulate(scene, storage=sc.Storage(max_rows=20, gather="all"),
-                          output=sc.Output(tmp_path / "grouped", max_frames=3, pictures=False))
-    for name in ("t", *PER_NODE):
-        np.testing.assert_array_equal(getattr(grouped, name), getattr(flat, name), err_msg=name)
-    assert (tmp_path / "grouped" / "solution.xdmf").read_text() == (tmp_path / "flat" / "solution.xdmf").read_text()
-    for given, key in ((dict(storage=sc.Storage(), max_rows=20), "max_rows"),
-                       (dict(output=sc.Output(), force=True), "force")):
-        with pytest.raises(ValueError, match=f"^{key}: give it in ") as err:
-            sc.simulate(scene, **given)
-        assert "\n" not in str(err.value)
-    with pytest.raises(TypeError, match="max_row"):
-        sc.simulate(scene, max_row=20)
-    with pytest.raises(ValueError, match="^gather: "):
+def test_a_misspelt_option_is_a_type_error_and_a_bad_value_a_one_line_value_error():
+    """`simulate` takes its storage and output options only in `Storage` and `Output`: any other keyword is a
+    TypeError, as for any function; a bad value is refused in one line naming the option."""
+    with pytest.raises(TypeError, match="max_rows"):
+        sc.simulate(small_string(), max_rows=20)
+    with pytest.raises(ValueError, match="^gather: ") as err:
         sc.Storage(gather="rank0")
+    assert "\n" not in str(err.value)
 
 
 @pytest.fixture(scope="module")
@@ -164,8 +153,8 @@ def test_stored_times_are_the_scheduled_times_exactly(tmp_path):
     assert 200 * dt != 0.04
     np.testing.assert_array_equal(step_times([0, 200, 201, 1500], dt, [0.04]), [0.0, 0.04, 0.0402, 0.3])
     assert step_times([201], dt)[0] == 0.0402
-    res = sc.simulate(sc.load_scene("example1").replace(nx=40, nt=1500), output_dir=tmp_path / "out", max_frames=10,
-                      pictures=False)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=40, nt=1500),
+                      output=sc.Output(tmp_path / "out", max_frames=10, pictures=False))
     assert np.flatnonzero(res.t == 0.04).size == 1 and res.t[-1] == 0.3
     assert all(t in res.t for t in res.scene.output_times)
     back = read_output(tmp_path / "out")

@@ -61,7 +61,7 @@ def serial_results(tmp_path_factory):
     scene = parity_scene()
     return {
         (penalty, mass): (
-            sc.simulate(scene, penalty=penalty, mass=mass, output_dir=out / f"{penalty}-{mass}", pictures=False),
+            sc.simulate(scene, penalty=penalty, mass=mass, output=sc.Output(out / f"{penalty}-{mass}", pictures=False)),
             out / f"{penalty}-{mass}",
         )
         for penalty, mass, _ in CASES
@@ -274,10 +274,11 @@ def _worker_parity(out: Path) -> None:
     scene = parity_scene()
     owned = mesh.create_interval(comm, scene.nx, [0.0, scene.length]).topology.index_map(0).size_local
     for penalty, mass, pictures in CASES:
-        res = sc.simulate(scene, penalty=penalty, mass=mass, output_dir=out / f"{penalty}-{mass}", pictures=pictures)
+        res = sc.simulate(scene, penalty=penalty, mass=mass,
+                          output=sc.Output(out / f"{penalty}-{mass}", pictures=pictures))
         _save(out / f"{penalty}-{mass}.rank{comm.rank}.npz", res, comm_size=comm.size, owned_nodes=owned)
     penalty, mass, _ = CASES[0]
-    res = sc.simulate(scene, penalty=penalty, mass=mass, gather="all")
+    res = sc.simulate(scene, penalty=penalty, mass=mass, storage=sc.Storage(gather="all"))
     _save(out / f"all-{penalty}-{mass}.rank{comm.rank}.npz", res)
 
 
@@ -312,7 +313,7 @@ def _worker_errors(out: Path) -> None:
     model = sc.Model(name="pushing", penalty=pushing, penalty_damping=None)
     scene = sc.load_scene("example1").replace(nx=200, nt=600)
     try:
-        sc.simulate(scene, model=model, comm=comm, output_dir=out / "unstable", pictures=False)
+        sc.simulate(scene, model=model, comm=comm, output=sc.Output(out / "unstable", pictures=False))
         report["during_run"] = ["none", None]
     except sc.InstabilityError as exc:
         report["during_run"] = ["InstabilityError", exc.step]

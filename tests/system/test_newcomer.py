@@ -111,7 +111,7 @@ def test_a_model_object_from_python_is_named_in_captions_and_summary(tmp_path):
 
     winkler = dataclasses.replace(inelastic, name="winkler")
     scene = sc.load_scene("example1").replace(nx=100, nt=40, eps=0.01)
-    res = sc.simulate(scene, model=winkler, output_dir=tmp_path / "w", pictures=False, progress=False)
+    res = sc.simulate(scene, model=winkler, output=sc.Output(tmp_path / "w", pictures=False, progress=False))
     assert "model winkler, scheme paper" in charts.parameter_line(res)
     summary = json.loads((tmp_path / "w" / "summary.json").read_text())
     assert summary["model"] == "winkler" and summary["model_origin"] == {"name": "winkler", "source": "object"}
@@ -146,7 +146,7 @@ def test_a_membranes_diagnostics_name_the_contact_area(tmp_path):
     from stringcontact.io.readback import read_output
 
     drum = sc.load_scene("drum").replace(mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.4])
-    res = sc.simulate(drum, output_dir=tmp_path / "drum", pictures=False, progress=False)
+    res = sc.simulate(drum, output=sc.Output(tmp_path / "drum", pictures=False, progress=False))
     with open(tmp_path / "drum" / "diagnostics.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert "contact_area" in rows[0] and "contact_length" not in rows[0], list(rows[0])
@@ -156,9 +156,7 @@ def test_a_membranes_diagnostics_name_the_contact_area(tmp_path):
     assert back.contact_measure == pytest.approx(res.contact_measure)
     string = sc.simulate(
         sc.load_scene("example1").replace(nx=100, nt=40, eps=0.01),
-        output_dir=tmp_path / "s",
-        pictures=False,
-        progress=False,
+        output=sc.Output(tmp_path / "s", pictures=False, progress=False),
     )
     with open(tmp_path / "s" / "diagnostics.csv", newline="") as f:
         header = next(csv.reader(f))

@@ -44,7 +44,8 @@ XVFB_ARGS = "-screen 0 1280x1024x24 -noreset"
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("paraview") / "run"
-    res = sc.simulate(sc.load_scene("example1").replace(nx=200, nt=600), output_dir=out, max_frames=10, pictures=False)
+    res = sc.simulate(sc.load_scene("example1").replace(nx=200, nt=600),
+                      output=sc.Output(out, max_frames=10, pictures=False))
     return out, res
 
 
@@ -98,7 +99,8 @@ def test_the_readme_membrane_recipe_shows_the_drum_patch(tmp_path):
 
     command = pvpython()
     out = tmp_path / "drum"
-    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2),
+                      output=sc.Output(out, max_frames=10, pictures=False))
     back = xdmf_frames(out)  # the frames ParaView reads
     k = int(np.argmax(back.contact_measure))  # the frame with the largest patch
     t = float(back.t[k])
@@ -215,7 +217,8 @@ def test_the_folders_view_keeps_fixed_colour_ranges_at_every_time(tmp_path, run)
 def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
     command = pvpython()
     out = tmp_path / "drum"
-    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2),
+                      output=sc.Output(out, max_frames=10, pictures=False))
     text = (out / "view.py").read_text()
     assert "NORMAL = [0.0, 0.0, 1.0]" in text and "KIND = 'membrane'" in text
     back = xdmf_frames(out)  # the frames ParaView reads
@@ -239,8 +242,8 @@ def test_the_folders_view_shows_a_membranes_patch_on_the_fixed_range(tmp_path):
 
 # --- one camera, the obstacle, the time, the axes, a string at rest seen in velocity ---------------------------
 
-ZERO_RGB = (38, 38, 38)  # view.py's velocity map at v = 0 (paraview_view.VELOCITY_COLOURS[1])
-GREY_RGB = (204, 204, 204)  # the obstacle (paraview_view.OBSTACLE_GREY)
+ZERO_RGB = (38, 38, 38)  # view.py's velocity map at v = 0 (its VELOCITY_COLOURS[1])
+GREY_RGB = (204, 204, 204)  # the obstacle (view.py's OBSTACLE_GREY)
 
 
 def _columns(img, rgb, tol=12, least=10):
@@ -259,7 +262,8 @@ def _ink(img, rows, cols):
 @pytest.fixture(scope="module")
 def drum(tmp_path_factory):
     out = tmp_path_factory.mktemp("paraview") / "drum"
-    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2), output_dir=out, max_frames=10, pictures=False)
+    res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.2),
+                      output=sc.Output(out, max_frames=10, pictures=False))
     return out, res
 
 
@@ -345,9 +349,7 @@ def test_the_folders_view_colours_a_film_membrane_by_its_pressure(tmp_path):
     out = tmp_path / "film_drum"
     res = sc.simulate(
         sc.load_scene("film_drum").replace(cells=[8, 8], T=0.12, nt=48, output_times=[]),
-        output_dir=out,
-        max_frames=7,
-        pictures=False,
+        output=sc.Output(out, max_frames=7, pictures=False),
     )
     assert 'Attribute Name="pressure"' in (out / "solution.xdmf").read_text()
     back = xdmf_frames(out)  # the frames ParaView reads
@@ -418,9 +420,7 @@ def test_a_users_output_field_is_in_paraview_and_coloured_by_its_own_range_and_c
     out = tmp_path / "reacting"
     res = sc.simulate(
         sc.load_scene("example1").replace(nx=200, nt=600),
-        output_dir=out,
-        max_frames=10,
-        pictures=False,
+        output=sc.Output(out, max_frames=10, pictures=False),
         model=dataclasses.replace(inelastic, name="reacting", outputs=(field,)),
     )
     assert 'Attribute Name="reaction"' in (out / "solution.xdmf").read_text()
@@ -485,7 +485,7 @@ def test_the_folders_view_draws_a_membranes_moving_obstacle_at_the_time_shown(tm
     scene = sc.load_scene("drum").replace(
         mesh_size=0.2, T=0.4, nt=80, output_times=[0.0, 0.2, 0.4], obstacle="0.25*min(t/0.3, 1)*(1 - x**2 - y**2)"
     )
-    res = sc.simulate(scene, output_dir=out, max_frames=6, pictures=False)
+    res = sc.simulate(scene, output=sc.Output(out, max_frames=6, pictures=False))
     times = [0.0, 0.2, 0.4]
     views = _views(command, out, [(t, tmp_path / f"dome_{k}.png", "contact") for k, t in enumerate(times)])
     assert views[0][0]["camera"] == views[-1][0]["camera"]

@@ -105,7 +105,7 @@ def small():
     "penalty,mass", [("explicit", "lumped"), ("explicit", "consistent"), ("semi-implicit", "lumped")]
 )
 def test_fast_path_equals_form_assembly_every_step(small, penalty, mass):
-    res = sc.simulate(small, penalty=penalty, mass=mass, max_rows=50)
+    res = sc.simulate(small, penalty=penalty, mass=mass, storage=sc.Storage(max_rows=50))
     ref = forms_loop(small, penalty, mass)
     assert res.min_eta < -1e-3  # contact happened, so the penalty is part of the comparison
     assert np.max(np.abs(res.eta - ref[res.steps])) <= 1e-10
@@ -131,7 +131,7 @@ def test_energy_guard_still_fires_with_the_fast_diagnostics(small):
 
 
 def test_storage_does_not_grow_with_the_number_of_steps(small):
-    a = sc.simulate(small, max_rows=20)
-    b = sc.simulate(small.replace(nt=1000, T=0.4), max_rows=20)
+    a = sc.simulate(small, storage=sc.Storage(max_rows=20))
+    b = sc.simulate(small.replace(nt=1000, T=0.4), storage=sc.Storage(max_rows=20))
     assert len(b.t) <= 21 and len(a.t) <= 21
     assert b.eta.shape == a.eta.shape

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from stringcontact.cli.main import main
 from stringcontact.io.lock import TargetLock
-from stringcontact.io.readback import xdmf_series
+from stringcontact.io.readback import read_xdmf
 from stringcontact.run.checks import energy_balance, penetration_check
 
 QUICK = ["--no-progress", "--no-pictures"]
@@ -227,7 +227,7 @@ def test_output_times_are_bounded_by_frames(tmp_path, capfd):
     out = tmp_path / "out"
     assert main(["run", str(scene), *QUICK, "--frames", "10", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["xdmf_frames"] == 10 == len(xdmf_series(out / "solution.xdmf")["eta"])
+    assert summary["xdmf_frames"] == 10 == len(read_xdmf(out / "solution.xdmf")[1]["eta"])
     assert summary["stored_rows"] >= 29 + 2
     assert "the scene's 29 output times do not fit in 10 XDMF frames" in capfd.readouterr().err
 
@@ -276,7 +276,7 @@ def wait_for_rows(proc, parent: Path, name: str, rows: int) -> Path:
     while proc.poll() is None:
         for partial in parent.glob(f".{name}.partial-*"):
             try:
-                if len(xdmf_series(partial / "solution.xdmf").get("contact_force", ())) >= rows:
+                if len(read_xdmf(partial / "solution.xdmf")[1].get("contact_force", ())) >= rows:
                     return partial
             except Exception:  # noqa: BLE001 - not there yet, or being rewritten
                 pass
@@ -346,7 +346,7 @@ def test_unstable_run_keeps_partial_output(tmp_path, capfd, monkeypatch):
     assert inst["step"] > 0 and inst["r"] == pytest.approx(4.0)
     assert inst["time"] == pytest.approx(inst["step"] * 0.3 / 150)
     assert summary["message"] == inst["message"]
-    series = xdmf_series(out / "solution.xdmf")
+    series = read_xdmf(out / "solution.xdmf")[1]
     assert len(series["eta"]) == summary["xdmf_frames"] >= 1 and summary["stored_rows"] >= summary["xdmf_frames"]
     assert max(t for t, _ in series["eta"]) < inst["time"]
     assert leftovers(tmp_path) == []
@@ -550,7 +550,7 @@ def small_result(nx=8, nt=4):
     import stringcontact as sc
 
     scene = sc.load_scene("example1").replace(nx=nx, nt=nt, eps=0.1)
-    return sc.simulate(scene, output_dir=None)
+    return sc.simulate(scene, output=sc.Output(None))
 
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):

@@ -94,7 +94,7 @@ def test_the_stored_contact_force_is_a_contact_force(name, scheme):
 
 def test_projection_books_the_contact_force_s_work_and_closes():
     scene = sc.load_scene("example1").replace(nx=200, nt=300)
-    res = run(scene, scheme="projection", max_rows=scene.nt)  # every step
+    res = run(scene, scheme="projection", storage=sc.Storage(max_rows=scene.nt))  # every step
     m = reference_weights(res.x)
     # the contact dissipation of step n is −½ m F^n·(η^n − η^{n−2}) (F the density), with η^{−1} = η^0 − Δt v0
     eta = np.concatenate([[res.eta[0] - scene.dt * res.velocity[0]], res.eta])
@@ -116,7 +116,7 @@ def reference_weights(x):
 
 def test_the_stored_velocity_is_centred_and_starts_at_v0():
     scene = sc.load_scene("example1").replace(nx=100, nt=150)
-    res = run(scene, scheme="projection", max_rows=scene.nt)
+    res = run(scene, scheme="projection", storage=sc.Storage(max_rows=scene.nt))
     v0 = scene.initial_velocity(res.x)
     assert np.array_equal(res.velocity[0][1:-1], v0[1:-1])
     centred = (res.eta[2:] - res.eta[:-2]) / (2 * scene.dt)

@@ -324,7 +324,7 @@ def _piston_model(name: str):
 
 def _mpi_run(scene, scheme, model, comm):
     model = _piston_model(model) if scene.obstacle_moves else model
-    return run_on(scene, comm, scheme=scheme, model=model, max_rows=10,
+    return run_on(scene, comm, scheme=scheme, model=model, storage=sc.Storage(max_rows=10),
                   penalty="semi-implicit" if scheme == "paper" else None)
 
 

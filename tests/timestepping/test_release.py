@@ -33,7 +33,7 @@ def _run(nx: int, dt_over_h: float, scheme: str = "projection", release: str | N
         model = dataclasses.replace(model, release=release)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return sc.simulate(scene, scheme=scheme, model=model, max_rows=scene.nt + 1, **kwargs)
+        return sc.simulate(scene, scheme=scheme, model=model, storage=sc.Storage(max_rows=scene.nt + 1), **kwargs)
 
 
 def _errors(res) -> tuple[float, float]:

@@ -58,7 +58,8 @@ def test_the_weighted_step_is_paoli_schatzman_written_out():
     scene = sc.load_scene("example1").replace(nx=100, nt=60, alpha=0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = sc.simulate(scene, scheme="projection", restitution=e, max_rows=scene.nt, comm=MPI.COMM_SELF)
+        res = sc.simulate(scene, scheme="projection", restitution=e, storage=sc.Storage(max_rows=scene.nt),
+                          comm=MPI.COMM_SELF)
         problem, eta, v = run_problem(scene, "projection", mass="lumped")
     ops = problem.ops
     K = ops.K.convert("dense").getDenseArray()
@@ -83,7 +84,7 @@ def test_flat_landing_rebounds_at_e_V_and_converges_to_the_exact_solution(e):
     errors = []
     for n in (100, 200, 400):
         scene = flat_landing_scene(n, round(1.25 * n * t_check), T=t_check)
-        res = sc.simulate(scene, scheme="projection", restitution=e, max_rows=scene.nt)
+        res = sc.simulate(scene, scheme="projection", restitution=e, storage=sc.Storage(max_rows=scene.nt))
         assert res.status == "complete"
         middle = np.abs(res.x - 0.5) < 0.1
         k = np.argmin(np.abs(res.t - 0.3))  # after the landing, before the kinks' waves reach the middle
@@ -101,7 +102,7 @@ def test_flat_landing_rebounds_at_e_V_and_converges_to_the_exact_solution(e):
 
 def test_viscous_rebound_closes_the_ledger():
     scene = flat_landing_scene(200, 400, T=1.6, alpha=0.01)
-    res = sc.simulate(scene, scheme="projection", restitution=1.0, max_rows=scene.nt)
+    res = sc.simulate(scene, scheme="projection", restitution=1.0, storage=sc.Storage(max_rows=scene.nt))
     b = energy_balance(res)
     assert res.status == "complete" and b["relative_residual"] < 1e-9
     middle = np.argmin(np.abs(res.x - 0.5))

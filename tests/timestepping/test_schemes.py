@@ -173,7 +173,7 @@ def test_projection_energy_guard_allows_the_viscous_term_of_its_energy():
     """`projection`'s leapfrog energy E^{n+1/2} may rise by the change of (Δt/4)|v|²_C while E + (Δt/4)|v|²_C falls:
     Example 1 at nx = 100, Δt = Δx is stable (`run --tol`'s first pilots), and the guard must not call it unstable."""
     scene = sc.load_scene("example1").replace(nx=100, nt=30)
-    res = run(scene, scheme="projection", max_rows=scene.nt + 1)
+    res = run(scene, scheme="projection", storage=sc.Storage(max_rows=scene.nt + 1))
     assert res.status == "complete", res.message
     leapfrog = res.energy["kinetic"] + res.energy["elastic"]
     assert np.any(np.diff(leapfrog) > 1e-9 * leapfrog[0])  # the case the slack is for: E^{n+1/2} alone rose

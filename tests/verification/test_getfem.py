@@ -86,7 +86,8 @@ def _run(nx, penalty, eps_over_dt, T=1.5):
     scene = rod.rod_scene(nx, dt, eps_over_dt * dt, T=T)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = sc.simulate(scene, penalty=penalty, model=rod.point_contact(inelastic, h), max_rows=scene.nt + 1)
+        res = sc.simulate(scene, penalty=penalty, model=rod.point_contact(inelastic, h),
+                          storage=sc.Storage(max_rows=scene.nt + 1))
     at_point = np.argmin(np.abs(res.x - 1.0))
     return res, rod.relative_error(res.x, res.t, res.eta), res.eta[:, at_point].min()
 

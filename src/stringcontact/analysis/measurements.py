@@ -1,5 +1,6 @@
 """The numbers the theorem checks (`theorems`) give verdicts on, from a `Result` that stores every time step
-(``simulate(scene, max_rows=scene.nt)``), read in the scheme's own discrete terms (`momentum_terms`)."""
+(``simulate(scene, storage=Storage(max_rows=scene.nt))``), read in the scheme's own discrete terms
+(`momentum_terms`)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ def require_every_step(result) -> None:
     """A ValueError unless `result` stores every time step from step 0 on."""
     steps = np.asarray(result.steps)
     if steps.size < 2 or np.any(np.diff(steps) != 1) or steps[0] != 0:
-        raise ValueError("the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)")
+        raise ValueError("the theorem checks need every time step stored: run simulate(scene, "
+                         "storage=Storage(max_rows=scene.nt))")
 
 
 def nodal_weights(result) -> np.ndarray:

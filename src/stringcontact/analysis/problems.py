@@ -157,7 +157,7 @@ def run_method(scene, method: Method, *, rows: int = 400, repeat: int = 1, model
         try:
             t0 = time.perf_counter()
             res = simulate_self(scene, scheme=method.scheme, penalty=method.penalty, mass=method.mass, model=model,
-                                 max_rows=rows)
+                                 storage=sc.Storage(max_rows=rows))
             best = min(best, time.perf_counter() - t0)
         except sc.InstabilityError as exc:
             return Run(**common, status="refused" if exc.step == 0 else "unstable", wall_s=math.nan)

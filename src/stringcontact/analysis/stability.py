@@ -76,7 +76,7 @@ def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
     """(the row's outcome, restitution, growth_step, energy_max_ratio, min_eta; the Result or None) of `scene` run
     by `simulate`, whose guards refuse a run ("refused") or stop it when its energy rises."""
     try:
-        res = simulate_self(scene, max_rows=scene.nt, **options)
+        res = simulate_self(scene, storage=sc.Storage(max_rows=scene.nt), **options)
     except sc.InstabilityError as exc:
         return {"outcome": "refused" if exc.step == 0 else "growth", "restitution": math.nan, "growth_step": exc.step,
                 "energy_max_ratio": math.nan, "min_eta": math.nan}, None
@@ -174,7 +174,7 @@ def alpha_sweep(quick: bool = False, comm=None, busy: list | None = None) -> lis
         dt = 1.0 / n
         eps = dt / r if r else EPS_LIMIT
         scene = flat_landing_scene(n, eps=eps, alpha=alpha)
-        res = simulate_self(scene, penalty=penalty, max_rows=scene.nt)
+        res = simulate_self(scene, penalty=penalty, storage=sc.Storage(max_rows=scene.nt))
         E0 = res.total_energy[0]
         return {"method": name, "alpha": alpha, "dt": dt, "eps": eps, "r": dt / eps, "final_energy":
                 res.total_energy[-1] / E0, "restitution": restitution(res.t, res.x, res.velocity),

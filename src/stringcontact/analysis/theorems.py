@@ -51,18 +51,22 @@ def refine(scene, levels: int = 3, penalty: str | None = "explicit", model=None,
     """Results at resolutions scene/2^(levels−1), ..., scene/2, scene (coarse to fine, Δt/Δx and r = Δt/ε fixed),
     every step stored, with `scheme` (default: the scene's, else "paper") and its `penalty` (None: its own)."""
     from ..run.driver import simulate
+    from ..run.options import Storage
 
     if levels < 1:
         raise ValueError(f"levels must be >= 1, got {levels}")
     scenes = [coarsened(scene, 2**k) for k in reversed(range(levels))]  # gather="all": every rank checks the rows
-    return [simulate(s, scheme=scheme, penalty=penalty, max_rows=s.nt, model=model, gather="all") for s in scenes]
+    return [simulate(s, scheme=scheme, penalty=penalty, model=model, storage=Storage(max_rows=s.nt, gather="all"))
+            for s in scenes]
 
 
 def refine_time(scene, levels: int = 3, penalty: str | None = "explicit", model=None, scheme: str | None = None):
     """Results with Δt, Δt/2, Δt/4, ... at fixed Δx and ε (only the energies are used: rows thinned)."""
     from ..run.driver import simulate
+    from ..run.options import Storage
 
-    return [simulate(scene.replace(nt=scene.nt * 2**k), scheme=scheme, penalty=penalty, model=model, gather="all")
+    rows = Storage(gather="all")
+    return [simulate(scene.replace(nt=scene.nt * 2**k), scheme=scheme, penalty=penalty, model=model, storage=rows)
             for k in range(levels)]
 
 

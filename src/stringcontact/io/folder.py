@@ -19,7 +19,7 @@ from ..errors import Interrupted, OutputError, one_line
 from .disk import describe_os_error, disk_failure, sync_soon
 from .paraview_view import obstacle_at, write_view
 from .publish import open_partial, publish_partial
-from .readback import xdmf_series
+from .readback import read_xdmf
 from .result import FIELDS, OBSTACLE_FIELD
 from .signals import signals_held
 from .tables import ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows
@@ -205,7 +205,7 @@ class OutputWriter:
         with signals_held():
             if self.comm.rank == 0:
                 try:
-                    series = xdmf_series(self.partial / "solution.xdmf")
+                    _, series = read_xdmf(self.partial / "solution.xdmf")
                     counts = {name: len(series.get(name, ())) for name in FIELDS}
                     if any(c != len(self.times) for c in counts.values()):
                         raise OutputError(f"solution.xdmf holds {counts} time levels, expected {len(self.times)}")

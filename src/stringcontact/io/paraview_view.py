@@ -4,6 +4,7 @@ the title and the box one camera frames at every time (docs/howto/view_in_paravi
 
 from __future__ import annotations
 
+import json
 from importlib import resources
 from pathlib import Path
 
@@ -12,13 +13,8 @@ import numpy as np
 from .manifest import atomic_path
 from .tables import field_info
 
-CONTACT_RANGE = (0.0, 1.0)
-#: velocity's colours at −V, 0 and V: blue, a dark grey (a string at rest is seen on white), red.
-VELOCITY_COLOURS = ((0.085, 0.40, 0.85), (0.15, 0.15, 0.15), (0.85, 0.10, 0.08))
 #: control points of a symmetric-log field's colours per decade of its |value|
 POINTS_PER_DECADE = 4
-#: the obstacle's grey
-OBSTACLE_GREY = (0.80, 0.80, 0.80)
 #: at most this many samples of the obstacle per direction (its profile; a flat one needs 2)
 OBSTACLE_SAMPLES = 200
 #: a membrane's obstacle is drawn this share of the height range below ψ (a patch on ψ would flicker with it)
@@ -114,8 +110,7 @@ def view_numbers(result) -> dict:
     return {"KIND": kind, "NORMAL": normal, "VELOCITY_RANGE": (-(speed or 1.0), speed or 1.0), "BOUNDS": bounds,
             "OBSTACLE_POINTS": [] if moves else points, "OBSTACLE_QUADS": [] if moves else quads,
             "OBSTACLE_MOVES": moves, "OBSTACLE_SHIFT": shift, "FIELD_MAPS": maps, "SYMLOG": symlog,
-            "TITLE": f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}",
-            "CONTACT_RANGE": CONTACT_RANGE, "VELOCITY_COLOURS": VELOCITY_COLOURS, "OBSTACLE_GREY": OBSTACLE_GREY}
+            "TITLE": f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}"}
 
 
 def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
@@ -170,14 +165,8 @@ def _membrane_obstacle(scene, x, lo, hi):
 
 
 def _literal(value) -> str:
-    """A Python literal of `value` whose floats read back exactly (repr)."""
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{_literal(k)}: {_literal(v)}" for k, v in value.items()) + "}"
-    if isinstance(value, (tuple, list)):
-        return "[" + ", ".join(_literal(v) for v in value) + "]"
-    if isinstance(value, (str, bool)):
-        return repr(value)
-    return str(int(value)) if isinstance(value, (int, np.integer)) else repr(float(value))
+    """A Python literal of `value` (tuples as lists, NumPy scalars as Python's) whose floats read back exactly."""
+    return repr(json.loads(json.dumps(value, default=lambda v: v.item())))
 
 
 def view_script(numbers: dict) -> str:

@@ -165,20 +165,13 @@ def read_xdmf(path) -> tuple[str | None, dict[str, list[tuple[float, str]]]]:
     return geometry, series
 
 
-def xdmf_series(path) -> dict[str, list[tuple[float, str]]]:
-    """The time series of `solution.xdmf`, {field: [(t, "solution.h5:/eta_0"), ...]} (see `read_xdmf`)."""
-    return read_xdmf(path)[1]
-
-
 def _read_diagnostics(path: Path) -> dict[str, np.ndarray]:
     try:
         with open(path, newline="") as f:
             rows = list(csv.DictReader(f))
         if not rows:
             raise ValueError("it has no rows")
-        older = {"internal_dissipation": 0.0}  # a column a table written before it was booked does not have
-        return {key: np.array([float(r[key] if key in r else older[key]) for r in rows])
-                for key in ("step", "t", *ENERGY_KEYS)}
+        return {key: np.array([float(r[key]) for r in rows]) for key in ("step", "t", *ENERGY_KEYS)}
     except KeyError as exc:
         raise ValueError(f"plot: {path} has no column {exc}") from None
     except (UnicodeDecodeError, ValueError, TypeError, csv.Error) as exc:

@@ -47,14 +47,14 @@ def canonical_cells(cells: np.ndarray) -> np.ndarray:
 
 
 class RowsElsewhere(AttributeError):
-    """A per-node array read on a rank that does not hold the rows (`simulate(gather="root")`, rank > 0)."""
+    """A per-node array read on a rank that does not hold the rows (`Storage(gather="root")`, rank > 0)."""
 
 
 @dataclass(eq=False, repr=False)
 class Result:
     """The stored rows of one run, ordered by x (2D: by x, then y), and its per-time series.
 
-    Under MPI the per-node arrays (`PER_NODE`) are gathered to rank 0 only (`simulate(gather="root")`): elsewhere
+    Under MPI the per-node arrays (`PER_NODE`) are gathered to rank 0 only (`Storage(gather="root")`): elsewhere
     `has_rows` is False and reading one raises `RowsElsewhere`. The per-time series are the same on every rank: t,
     steps, energy, min_eta, min_gap, status, message, and `series` ("contact_measure", "max_speed", "depth").
 
@@ -115,8 +115,8 @@ class Result:
     def __getattribute__(self, name):
         if name in PER_NODE and not object.__getattribute__(self, "has_rows"):
             raise RowsElsewhere(
-                f"Result.{name}: the per-node rows are on rank 0 only (simulate(gather='root')); this rank holds the "
-                "series (t, energy, min_eta, min_gap, contact_measure); use simulate(..., gather='all') for rows on every rank")
+                f"Result.{name}: the per-node rows are on rank 0 only (Storage(gather='root')); this rank holds the "
+                "series (t, energy, min_eta, min_gap, contact_measure); use Storage(gather='all') for rows on every rank")
         return object.__getattribute__(self, name)
 
     def __repr__(self) -> str:

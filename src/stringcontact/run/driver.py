@@ -50,7 +50,6 @@ def simulate(
     comm=MPI.COMM_WORLD,
     petsc_options: dict | None = None,
     restitution: float | None = None,
-    **keywords,
 ) -> Result:
     """Run `scene` with a time scheme (`stringcontact.SCHEMES`; default: the scene's, else "paper").
 
@@ -72,9 +71,6 @@ def simulate(
     `output` (`Output`): with a folder `dir`, XDMF (about `max_frames` of the stored rows, always with 0, T and
     the scene's output times), CSV, JSON and (with `pictures`) PNGs are written there; `progress` shows a bar.
 
-    The old keywords `max_rows`, `gather`, `row_budget`, `output_dir`, `max_frames`, `force`, `pictures` and
-    `progress` are still accepted (`options.KEYWORDS`); with their object too they are refused (ValueError).
-
     The step's linear system is LU-factorised once (in serial for every membrane a scene allows, up to 1001²
     nodes; on several ranks by MUMPS up to 1e3 nodes; a string on any number of ranks) and solved by CG (Jacobi
     or AMG) otherwise (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
@@ -86,6 +82,6 @@ def simulate(
     scheme "projection"'s restitution coefficient (Paoli-Schatzman); every other scheme refuses e > 0.
     """
     st = Stepper(scene, scheme, penalty, mass, model=model, storage=storage, output=output, comm=comm,
-                 petsc_options=petsc_options, restitution=restitution, **keywords)
+                 petsc_options=petsc_options, restitution=restitution)
     _march(st, st.output.progress and comm.rank == 0, comm)
     return st.result()

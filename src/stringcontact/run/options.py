@@ -1,6 +1,5 @@
 """`simulate`'s options: which rows a run keeps (`Storage`) and what it writes (`Output`), as in
-``simulate(scene, storage=Storage(max_rows=1000), output=Output("out/ex1", force=True))``; the old flat keywords
-(`KEYWORDS`) are mapped onto them (`grouped`)."""
+``simulate(scene, storage=Storage(max_rows=1000), output=Output("out/ex1", force=True))``."""
 
 from __future__ import annotations
 
@@ -78,29 +77,6 @@ class Output:
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")  # noqa: TRY004 - exit 2
 
 
-#: The old keywords of `simulate`, each with its group and its field there.
-KEYWORDS = {"max_rows": ("storage", "max_rows"), "gather": ("storage", "gather"),
-            "row_budget": ("storage", "row_budget"), "output_dir": ("output", "dir"),
-            "max_frames": ("output", "max_frames"), "force": ("output", "force"), "pictures": ("output", "pictures"),
-            "progress": ("output", "progress")}
-
-
-def grouped(storage: Storage | None, output: Output | None, keywords: dict) -> tuple[Storage, Output]:
-    """The `Storage` and `Output` of a `simulate` call: the objects given, or the old keywords mapped onto the
-    defaults. An unknown keyword is a TypeError, as for any function; a keyword beside its object a ValueError."""
-    unknown = [k for k in keywords if k not in KEYWORDS]
-    if unknown:
-        raise TypeError(f"simulate() got an unexpected keyword argument {unknown[0]!r}")
-    given, fields = {"storage": storage, "output": output}, {"storage": {}, "output": {}}
-    for key, value in keywords.items():
-        group, field = KEYWORDS[key]
-        if given[group] is not None:
-            raise ValueError(f"{key}: give it in {group}={group.capitalize()}(...) or as a keyword, not both")
-        fields[group][field] = value
-    storage = storage if storage is not None else Storage(**fields["storage"])
-    return storage, output if output is not None else Output(**fields["output"])
-
-
 def picture_function(output: Output):
     """The function (result, folder) that draws `output`'s pictures, or None: the default ones, then the caller's."""
     own = output.pictures if callable(output.pictures) else None
@@ -120,4 +96,4 @@ def picture_function(output: Output):
     return draw
 
 
-__all__ = ["KEYWORDS", "ROW_BUDGET", "Output", "Storage", "grouped", "picture_function"]
+__all__ = ["ROW_BUDGET", "Output", "Storage", "picture_function"]

@@ -16,7 +16,7 @@ from ..scene.names import DEFAULT_MODEL
 from . import adapter
 from .blas import one_thread
 from .checks import checks_of, unbalanced_message
-from .options import grouped, picture_function
+from .options import Output, Storage, picture_function
 from .rows import RowObserver, output_steps, step_times
 
 __all__ = ["POTENTIAL_LABEL", "Stepper"]
@@ -54,8 +54,9 @@ class Stepper:
 
     def __init__(self, scene, scheme: str | type | None = None, penalty: str | None = None, mass: str | None = None, *,
                  model=None, storage=None, output=None, comm=MPI.COMM_WORLD, petsc_options: dict | None = None,
-                 restitution: float | None = None, fields0: dict | None = None, **keywords):
-        storage, self.output = grouped(storage, output, keywords)
+                 restitution: float | None = None, fields0: dict | None = None):
+        storage = storage if storage is not None else Storage()
+        self.output = output if output is not None else Output()
         if fields0:  # into the scene, as its key `fields0`: the further unknowns' start
             scene = scene.replace(fields0=dict(scene.fields0) | dict(fields0))
         if restitution is not None:  # into the scene, as the command line's: summary.json records what ran

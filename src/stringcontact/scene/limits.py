@@ -38,7 +38,7 @@ MAX_OUTPUT_TIMES = 1000
 MAX_STORED_BYTES = 2_000_000_000
 #: The bytes of one node in one stored row: eta, velocity, contact force (float64) and contact (bool).
 BYTES_PER_STORED_NODE = 3 * 8 + 1
-#: The solver's default number of stored rows (`simulate(max_rows=400)`), besides 0, T and the output times.
+#: The solver's default number of stored rows (`Storage(max_rows=400)`), besides 0, T and the output times.
 STORED_ROWS = 400
 NAME_MAX = 100
 #: petsc_options: a scene is data, so only solver settings, never an option that opens, writes or runs anything.

@@ -15,11 +15,8 @@ import paraview.simple as pv
 KIND = "string"
 TITLE = ""
 NORMAL = [0.0, 1.0, 0.0]  # Warp By Scalar's direction: y for a string, z for a membrane
-CONTACT_RANGE = [0.0, 1.0]  # fixed: 0 free (blue), 1 in contact (red), at every time
 VELOCITY_RANGE = [-1.0, 1.0]  # symmetric, max |velocity| over all stored rows
-VELOCITY_COLOURS = [[0.085, 0.4, 0.85], [0.15, 0.15, 0.15], [0.85, 0.1, 0.08]]  # at -V, 0 (dark: seen on white), V
 BOUNDS = [0.0, 1.0, 0.0, 1.0, 0.0, 0.0]  # the warped shape and the obstacle over all times: x0, x1, y0, y1, z0, z1
-OBSTACLE_GREY = [0.8, 0.8, 0.8]
 OBSTACLE_POINTS = []  # x, y, z
 OBSTACLE_QUADS = []  # four indices into OBSTACLE_POINTS each
 OBSTACLE_MOVES = False  # psi(x, t): drawn from solution.xdmf's obstacle field
@@ -32,8 +29,13 @@ FIELD_MAPS = {}
 SYMLOG = {}
 # --- end of the run's numbers ---
 
+CONTACT_RANGE = [0.0, 1.0]  # fixed: 0 free (blue), 1 in contact (red), at every time
+VELOCITY_COLOURS = [[0.085, 0.4, 0.85], [0.15, 0.15, 0.15], [0.85, 0.1, 0.08]]  # at -V, 0 (dark: seen on white), V
+OBSTACLE_GREY = [0.8, 0.8, 0.8]
+
 #: the share of the picture kept free around a string's box: labels (left, bottom), colour bar (right), title (top)
 MARGINS = {"left": 0.12, "right": 0.17, "top": 0.1, "bottom": 0.14}
+WIDE, TALL = 1.0 - MARGINS["left"] - MARGINS["right"], 1.0 - MARGINS["top"] - MARGINS["bottom"]  # the box's share
 SYMLOG_SUFFIX = " (symmetric log)"
 
 
@@ -178,11 +180,8 @@ def height_scale(size):
     """A string's stretch of the heights (1, s, 1) that fills the picture within MARGINS (a membrane: 1)."""
     if KIND != "string":
         return [1.0, 1.0, 1.0]
-    width = (BOUNDS[1] - BOUNDS[0]) or 1.0
-    height = BOUNDS[3] - BOUNDS[2]
-    wide = 1.0 - MARGINS["left"] - MARGINS["right"]
-    tall = 1.0 - MARGINS["top"] - MARGINS["bottom"]
-    stretch = (tall * size[1] / (wide * size[0])) * width / height if height > 1e-9 * width else 1.0
+    width, height = (BOUNDS[1] - BOUNDS[0]) or 1.0, BOUNDS[3] - BOUNDS[2]
+    stretch = (TALL * size[1] / (WIDE * size[0])) * width / height if height > 1e-9 * width else 1.0
     return [1.0, stretch, 1.0]
 
 
@@ -204,10 +203,7 @@ def build(size=(1000, 600)):
     view = pv.GetActiveViewOrCreate("RenderView")
     view.ViewSize = list(size)
     view.Background = [1.0, 1.0, 1.0]
-    try:
-        view.UseColorPaletteForBackground = 0
-    except AttributeError:  # ParaView before 5.10
-        pass
+    view.UseColorPaletteForBackground = 0
     view.OrientationAxesVisibility = 0  # the named axes below say which way is which
     scale = height_scale(size)
     obstacle(view, reader).Scale = scale
@@ -231,9 +227,7 @@ def frame(view, scale):
     width = sorted([b - a for a, b in zip(low, high)] + [1e-12])[-1]  # noqa: FURB192
     if KIND == "string":  # the box's length fills the width within the margins, its height the height
         aspect = view.ViewSize[0] / view.ViewSize[1]
-        wide = 1.0 - MARGINS["left"] - MARGINS["right"]
-        tall = 1.0 - MARGINS["top"] - MARGINS["bottom"]
-        half = sorted([0.5 * (high[0] - low[0]) / (wide * aspect), 0.5 * (high[1] - low[1]) / tall, 1e-12])[-1]  # noqa: FURB192
+        half = sorted([0.5 * (high[0] - low[0]) / (WIDE * aspect), 0.5 * (high[1] - low[1]) / TALL, 1e-12])[-1]  # noqa: FURB192
         # the box's centre sits in the middle of the free part of the picture, not of the picture
         shift = [(0.5 * (MARGINS["right"] - MARGINS["left"])) * 2.0 * half * aspect,
                  (0.5 * (MARGINS["top"] - MARGINS["bottom"])) * 2.0 * half]
@@ -250,13 +244,6 @@ def frame(view, scale):
     view.ResetCamera(*BOUNDS)
 
 
-def show_at(animation, view, display, t, field="contact"):
-    animation.AnimationTime = t
-    view.ViewTime = t
-    colour_by(view, display, field)
-    pv.Render(view)
-
-
 def obstacle_bounds(t):
     """The box of the obstacle drawn at the time t: x0, x1, y0, y1, z0, z1."""
     source = pv.FindSource("obstacle")
@@ -269,9 +256,7 @@ def shots(args):
     found, args = [], list(args)
     while len(args) >= 2 and args[1].lower().endswith(".png"):
         t, png, args = float(args[0]), args[1], args[2:]
-        field = "contact"
-        if args and not _is_number(args[0]):
-            field, args = args[0], args[1:]
+        field = args.pop(0) if args and not _is_number(args[0]) else "contact"
         found.append((t, png, field))
     return found if not args else []
 
@@ -286,7 +271,9 @@ def _is_number(text):
 
 def screenshot(animation, view, display, t, png, field):
     """Save the view at the time t coloured by `field` to `png`; the JSON report of what was drawn."""
-    show_at(animation, view, display, t, field)
+    animation.AnimationTime = view.ViewTime = t
+    colour_by(view, display, field)
+    pv.Render(view)
     pv.SaveScreenshot(png, view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
     cam, grid = view.GetActiveCamera(), view.AxesGrid  # the camera VTK renders with, not the proxy's copy
     report = {"time": view.ViewTime, "field": field, "range": list(MAPS[field][0]), "scale": list(display.Scale),
