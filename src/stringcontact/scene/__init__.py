@@ -1,12 +1,9 @@
-"""Input data, the bottom layer: the `Scene`, its checks, TOML in and out, safe expressions; it imports only
-`stringcontact.errors` (and NumPy, simpleeval, tomli-w), never dolfinx. The names registered elsewhere (models, time
-schemes) are checked through `names`, which imports nothing."""
+"""Input data, the bottom layer: the `Scene`, its checks, TOML in and out, safe expressions; it never imports
+dolfinx. Registered names (models, time schemes) are checked through `names`, which imports nothing."""
 
 from ..lazy import lazy_names
 
-# Each name is imported from its module on first use (PEP 562): `scene.names`, which the command line reads for
-# its choices, then loads without NumPy and the rest of this package, so that `stringcontact run` starts its
-# picture process 0.08 s sooner (docs/explanation/performance.md).
+# Imported on first use (PEP 562): the command line reads `scene.names` without NumPy (0.08 s sooner).
 _LAZY = {
     "check_petsc_options": "checks",
     **dict.fromkeys(("BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",
