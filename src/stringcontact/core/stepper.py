@@ -54,7 +54,7 @@ class TimeStepper:
         _set_initial(problem, initial or {})
         self.problem, self.model, self.comm = problem, problem.model, problem.comm
         self.name, self.Scheme = resolve_scheme(scheme)
-        model = self.model
+        model = problem.model
         self.options = resolve_options(self.name, self.Scheme, options)
         self.penalty, self.mass = self.options["penalty"], self.options["mass"]
         check_model(self.name, model, self.Scheme)
@@ -66,11 +66,10 @@ class TimeStepper:
             check_law_stability(model, dt, self.options["eps"], self.penalty)
         problem.params.eps.value = self.options["eps"] if self.options["eps"] is not None else np.nan
         self.nt, self._dt, self.step, self._t0, self._step0 = nt, float(dt), 0, 0.0, 0
-        self.observers: list = []
-        self._stepped: list = []  # the observers' `stepped` methods, called after every step
+        self.observers, self._stepped = [], []  # _stepped: the observers' `stepped` methods, called after every step
         self.counters, self.past_timings, self.energies = {}, [], None
-        self._broken = None  # why the stepper may not go on (an error inside a step)
-        self._restart = None  # the start terms of a scheme restarted after sub-steps
+        # why the stepper may not go on (an error inside a step); the start terms of a scheme restarted after sub-steps
+        self._broken = self._restart = None
         self.parameters = _Constants(self)
         self._plugins = f"model '{model.name}' with scheme '{self.name}'"  # whose code runs in a step
         same_on_every_rank(self.comm, "the time step, scheme, options and constants",
@@ -162,8 +161,7 @@ class TimeStepper:
         if self.problem.obstacle is not None:
             raise ValueError("dt: a moving obstacle's scheme starts its obstacle at t = 0; its time step cannot change "
                              "during a run")
-        self._t0, self._step0 = self.t, self.step
-        self._dt = float(value)
+        self._t0, self._step0, self._dt = self.t, self.step, float(value)
         self.scheme = self._restarted(self._dt)
         self.ledger.rebase(self._restart_terms, numerical=True)
 
@@ -281,8 +279,7 @@ class TimeStepper:
         """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the fine start's
         terms, the step's, the restart's."""
         coarse = self.discrete
-        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields),
-                                               nt=(self.nt or 0) * m))
+        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields), nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)
         increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the state's energies: the last
         for _ in range(m):

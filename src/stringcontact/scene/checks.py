@@ -247,25 +247,23 @@ def initial_data(key: str, value):
 
 
 def initial_fields(value, nx: int | None) -> tuple:
-    """The ``fields0`` table as (name, value) pairs, each value as `initial_data`'s."""
+    """The ``fields0`` table as (name, value) pairs, each value as `initial_values`'."""
     pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
-    out = []
-    for name, v in pairs:
-        v = initial_data(f"fields0.{name}", v)
-        if isinstance(v, tuple):
-            check_nodal_values(f"fields0.{name}", v, nx)
-        out.append((name, v))
-    return tuple(out)
+    return tuple((name, initial_values(f"fields0.{name}", v, nx)) for name, v in pairs)
 
 
-def check_nodal_values(key: str, values: tuple, nx: int | None) -> None:
-    """An array of nodal values fits a string of `nx` cells (a membrane takes none)."""
+def initial_values(key: str, value, nx: int | None):
+    """`initial_data`, its nodal values (if any) checked to fit a string of `nx` cells (a membrane takes none)."""
+    values = initial_data(key, value)
+    if not isinstance(values, tuple):
+        return values
     if nx is None:
         raise SceneError(f"{key}: an array of nodal values is for a string (domain interval); allowed on a membrane: "
                          "an expression in x, y or a number")
     if len(values) != nx + 1:
         raise SceneError(f"{key}: {len(values)} nodal values for nx = {nx} cells; allowed: nx + 1 = {nx + 1} values in "
                          "the order of x")
+    return values
 
 
 def text(key: str, value) -> str:

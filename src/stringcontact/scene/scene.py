@@ -100,11 +100,10 @@ class Scene:
         put("output_times", checks.check_output_times(self.output_times, self.T))
         put("petsc_options", checks.check_petsc_options(dict(o) if isinstance(o := self.petsc_options, tuple) else o))
         checks.check_storage(self)
+        nx = self.nx if self.dim == 1 else None
         for key in ("eta0", "v0"):
-            put(key, checks.initial_data(key, getattr(self, key)))
-            if isinstance(getattr(self, key), tuple):
-                checks.check_nodal_values(key, getattr(self, key), self.nx if self.dim == 1 else None)
-        put("fields0", checks.initial_fields(self.fields0, self.nx if self.dim == 1 else None))
+            put(key, checks.initial_values(key, getattr(self, key), nx))
+        put("fields0", checks.initial_fields(self.fields0, nx))
         for name, value in self.fields0:
             if isinstance(value, str):
                 self._evaluate(f"fields0.{name}", value, self.probe_points())
