@@ -26,12 +26,10 @@ class SceneWarning(UserWarning):
 
 
 #: Each plain value's check, (key, value) -> the value normalised, in order; None (not given) only where needed.
-_CHECKS = {
-    "T": checks.number, "alpha": checks.number, "eps": checks.number, "length": checks.number,
-    "h_left": checks.number, "h_right": checks.number, "nx": checks.integer, "nt": checks.integer,
-    "description": checks.text, "notes": checks.text, "model": lambda key, value: names.check_name(value),
-    "scheme": checks.check_scheme, "restitution": checks.number, "options": checks.check_scheme_options,
-}
+_CHECKS = {**dict.fromkeys(("T", "alpha", "eps", "length", "h_left", "h_right"), checks.number),
+           **dict.fromkeys(("nx", "nt"), checks.integer), **dict.fromkeys(("description", "notes"), checks.text),
+           "model": lambda key, value: names.check_name(value), "scheme": checks.check_scheme,
+           "restitution": checks.number, "options": checks.check_scheme_options}
 _NEEDED = ("T", "alpha", "nt", "description", "notes")  # and on the interval its keys
 
 
