@@ -15,7 +15,7 @@ from mpi4py import MPI
 from ..errors import PLUGIN_FAULTS, InstabilityError, SceneError, SolverError, plugin_code, plugin_failure
 from ..fem.agree import one_outcome, same_on_every_rank
 from ..fem.dissipation import InternalDissipation, internal_variables
-from ..model.forms import FormError, check_declarations
+from ..model.forms import FormError
 from ..model.interface import penetration_bound_of
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme

@@ -54,8 +54,8 @@ table of the fields; a variant replaces one function of the paper's model (`mode
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import ufl
 

@@ -83,9 +83,9 @@ KEY_DOCS = {
     "dt": ("number", "t", "one of nt, dt", "time step; T/dt must be an integer (stored as nt)"),
     "eta0": ("expression or number", "η", "required", "initial displacement η(0, x), an expression in x (2D: x, y)"),
     "v0": ("expression or number", "η/t", "required", "initial velocity η_t(0, x)"),
-    "fields0": ("table", "", "not given: each field's rule (docs/howto/nonlinear_models.md)", "the initial values of "
+    "fields0": ("table", "", "not given: each field's rule (docs/howto/nonlinear_models.md)", ("the initial values of "
                 "the model's further unknowns (`Model.fields`), name = an expression in x (2D: x, y), a number, or (1D) "
-                "nx + 1 nodal values"),
+                "nx + 1 nodal values")),
     "h": ("number (2D: or expression)", "η", "eta0 at the ends (2D: on the boundary)", ("the height at which both ends "
            "(2D: the boundary) are held")),
     "h_left": ("number", "η", "eta0(0)", "the height of the left end"),
