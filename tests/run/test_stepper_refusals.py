@@ -32,8 +32,8 @@ def fail_at(st, n: int, failure):
     an exception raised, or the reason the energy guard gives."""
     add = st.core.ledger.add
 
-    def booked(terms, slack=0.0):
-        why = add(terms, slack)
+    def booked(terms, *rest):  # the ledger's own arguments passed through
+        why = add(terms, *rest)
         if st.core.step + 1 == n:
             if isinstance(failure, BaseException):
                 raise failure
