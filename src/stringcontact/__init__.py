@@ -18,17 +18,10 @@ __version__ = "0.1.0"
 # Imported on first use (PEP 562), so that `import stringcontact.plot.run_pictures` (`stringcontact plot`) and the CLI's
 # argument checks do not load dolfinx, PETSc and UFL (0.6 s).
 _LAZY = {
-    "Model": "model.interface",
-    "ModelConstant": "model.interface",
-    "OutputField": "model.interface",
-    "SolverHints": "model.interface",
-    "Parameters": "model.interface",
-    "inelastic": "model.interface",
+    **dict.fromkeys(("Model", "ModelConstant", "OutputField", "SolverHints", "Parameters", "inelastic"),
+                    "model.interface"),
     "Result": "io.result",
-    "Scene": "scene",
-    "SceneWarning": "scene",
-    "list_scenes": "scene",
-    "load_scene": "scene",
+    **dict.fromkeys(("Scene", "SceneWarning", "list_scenes", "load_scene"), "scene"),
     "load_model": "model.registry",
     "SCHEMES": "timestepping",
     "simulate": "run.driver",
@@ -40,47 +33,16 @@ _LAZY = {
     "Observer": "core.observers",
     "RowObserver": "run.rows",
     "SchemeOption": "timestepping.base",
-    "Storage": "run.options",
-    "Output": "run.options",
+    **dict.fromkeys(("Storage", "Output"), "run.options"),
 }
 __getattr__, _ = _lazy_names(__name__, _LAZY, globals())
 
-
-__all__ = [
-    "SCHEMES",
-    "ContactProblem",
-    "EnergyLedger",
-    "Observer",
-    "RowObserver",
-    "SchemeOption",
-    "TimeStepper",
-    "InstabilityError",
-    "InstabilityWarning",
-    "Interrupted",
-    "Model",
-    "ModelConstant",
-    "Output",
-    "OutputError",
-    "OutputField",
-    "Parameters",
-    "Result",
-    "Scene",
-    "SceneError",
-    "SceneWarning",
-    "SolverError",
-    "SolverHints",
-    "Stepper",
-    "Storage",
-    "continued",
-    "inelastic",
-    "list_scenes",
-    "load_model",
-    "load_scene",
-    "simulate",
-]
+__all__ = ["SCHEMES", "ContactProblem", "EnergyLedger", "Observer", "RowObserver", "SchemeOption", "TimeStepper",
+           "InstabilityError", "InstabilityWarning", "Interrupted", "Model", "ModelConstant", "Output", "OutputError",
+           "OutputField", "Parameters", "Result", "Scene", "SceneError", "SceneWarning", "SolverError", "SolverHints",
+           "Stepper", "Storage", "continued", "inelastic", "list_scenes", "load_model", "load_scene", "simulate"]
 
 
 def __dir__():
-    """What a user should touch (tab completion): `__all__` and `__version__`. The submodules and the start-up
-    helpers (`jitlog.quiet_compiler`, `lazy.lazy_names`) stay importable from their modules."""
+    """What a user should touch (tab completion): `__all__` and `__version__`."""
     return sorted([*__all__, "__version__"])

@@ -22,9 +22,7 @@ class InstabilityError(RuntimeError):
 
     def __init__(self, message, *, step=None, time=None, r=None):
         super().__init__(message)
-        self.step = step
-        self.time = time
-        self.r = r
+        self.step, self.time, self.r = step, time, r
 
 
 class SolverError(RuntimeError):
@@ -41,11 +39,7 @@ class StackError(ImportError):
 
 
 class Interrupted(KeyboardInterrupt):
-    """SIGINT (Ctrl-C) or SIGTERM during a run.
-
-    A KeyboardInterrupt, so that everything that cleans up after Ctrl-C (the solver marks its output
-    `interrupted`) does the same for SIGTERM.
-    """
+    """SIGINT (Ctrl-C) or SIGTERM during a run: a KeyboardInterrupt, so that SIGTERM is cleaned up after as Ctrl-C."""
 
     def __init__(self, signum: int = signal.SIGINT):
         self.signum = int(signum)
@@ -67,10 +61,7 @@ class PenetrationWarning(UserWarning):
 
 
 def one_line(text, limit: int | None = None) -> str:
-    """`text` (a message or an exception) on one line: each run of whitespace, newlines included, becomes one space.
-
-    `limit`: cut the result to at most this many characters.
-    """
+    """`text` (a message or an exception) on one line, each run of whitespace one space; at most `limit` characters."""
     line = " ".join(str(text).split())
     return line if limit is None else line[:limit]
 
@@ -81,9 +72,8 @@ PLUGIN_FAULTS = (TypeError, KeyError, AttributeError, IndexError, NotImplemented
 
 
 def plugin_failure(what: str, exc: BaseException) -> BaseException:
-    """The one-line `SceneError` naming `what` (a model, a scheme) for an exception its code raised: ``sys.exit``, a
-    `KeyboardInterrupt` it raised itself, a `PLUGIN_FAULTS` error; any other exception (a signal's `Interrupted`, an
-    error of this package) is returned as it is."""
+    """The one-line `SceneError` naming `what` (a model, a scheme) for ``sys.exit``, a `KeyboardInterrupt` or a
+    `PLUGIN_FAULTS` error its code raised; any other exception is returned as it is."""
     if isinstance(exc, Interrupted) or not isinstance(exc, (SystemExit, KeyboardInterrupt, *PLUGIN_FAULTS)):
         return exc
     if isinstance(exc, SystemExit):
@@ -97,9 +87,8 @@ def plugin_failure(what: str, exc: BaseException) -> BaseException:
 
 @contextlib.contextmanager
 def plugin_code(what: str):
-    """Run a plugin's own code (a model's or a scheme's module, its functions): what `plugin_failure` names becomes a
-    one-line `SceneError` naming `what`, instead of ending the process with exit 0 and nothing said, or an internal
-    error. A signal (`Interrupted`, raised by the run's own handlers) and this package's own errors pass."""
+    """Run a plugin's own code: what `plugin_failure` names becomes a one-line `SceneError` naming `what` (not an
+    exit 0 with nothing said); a signal's `Interrupted` and this package's own errors pass."""
     try:
         yield
     except BaseException as exc:

@@ -1,10 +1,7 @@
 """The JIT compiler's log stays at WARNING: a first run on a fresh machine prints no compiler command lines.
 
-ffcx calls ``logging.basicConfig()`` when it is imported (a stderr handler on the root logger), and cffi
-raises the root logger to INFO while it compiles a form, so distutils' ``running build_ext`` and the full
-gcc command lines (logged on the root logger itself) reach the output: 4 lines per compiled form. A filter
-on the root logger drops exactly those records below WARNING; the user's own root-logger records pass, and
-compiler warnings and errors still show. Installed by ``import stringcontact``, once.
+ffcx calls ``logging.basicConfig()`` on import and cffi raises the root logger to INFO while it compiles, so the gcc
+command lines reach the output (4 lines per form). A root-logger filter drops exactly those records below WARNING.
 """
 
 from __future__ import annotations

@@ -2,8 +2,7 @@
 
     __getattr__, __dir__ = lazy_names(__name__, {"Scene": "scene", ...}, globals())
 
-A name is looked up in its module (relative to the package) when it is first read, then kept in the package's
-namespace, so the next read is a plain attribute.
+A name is looked up in its module when first read, then kept in the package's namespace.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """The FEniCS stack this package runs on: dolfinx from Debian (0.5, 0.9), from conda or from the PyPI wheel
 ``dolfinx-solver-real`` (0.11).
 
-The wheel carries its own PETSc and MPI (MPICH from PyPI) and needs ``import dolfinx_solver`` before dolfinx,
-petsc4py or mpi4py: it loads the wheel's ``libmpi.so.12`` first, without which ``import dolfinx`` fails. The
-packages that import the stack (`fem`, `timestepping`, `run`, and the command line before PETSc starts) call
-`load` first, so a user never imports ``dolfinx_solver`` for this package. `load` also checks dolfinx's
-version against `SUPPORTED` and refuses another in one line (`StackError`: exit code 2 on the command line).
+The wheel carries its own PETSc and MPI and needs ``import dolfinx_solver`` (its ``libmpi.so.12``) before dolfinx,
+petsc4py or mpi4py. The packages that import the stack call `load` first, which also refuses a dolfinx outside
+`SUPPORTED` in one line (`StackError`: exit code 2).
 """
 
 from __future__ import annotations
@@ -27,8 +25,7 @@ _state = {"checked": False}
 
 
 def load() -> None:
-    """Import the stack in the order it needs (the wheel's ``dolfinx_solver`` first, where it is installed) and
-    check dolfinx's version once per process: `StackError` naming the found and the supported versions."""
+    """Import the stack in its order (the wheel's ``dolfinx_solver`` first) and check dolfinx's version, once."""
     if _state["checked"]:
         return
     load_mpi_first()
@@ -39,8 +36,7 @@ def load() -> None:
 
 
 def load_mpi_first() -> None:
-    """Only the import-order half of `load`: the wheel's ``dolfinx_solver`` (its MPI) where it is installed, dolfinx
-    itself not imported (a program that imports dolfinx, petsc4py or mpi4py itself calls this first)."""
+    """The import-order half of `load`: the wheel's ``dolfinx_solver`` (its MPI) where installed, not dolfinx."""
     if "dolfinx_solver" not in sys.modules and importlib.util.find_spec("dolfinx_solver") is not None:
         importlib.import_module("dolfinx_solver")
 

@@ -13,9 +13,9 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from ..errors import PLUGIN_FAULTS, InstabilityError, SceneError, SolverError, plugin_code, plugin_failure
-from ..fem.agree import same_on_every_rank
+from ..fem.agree import one_outcome, same_on_every_rank
 from ..fem.dissipation import InternalDissipation, internal_variables
-from ..model.forms import FormError, check_declarations
+from ..model.forms import FormError
 from ..model.interface import penetration_bound_of
 from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme
@@ -34,21 +34,17 @@ MAX_HALVINGS = 4
 class TimeStepper:
     """`problem` advanced by the time scheme `scheme` (a registered name or a `Scheme` subclass) with the time step
     `dt`; `options` are the scheme's (`Scheme.OPTIONS`: ``penalty``, ``mass``, ``eps``, ``restitution``,
-    ``petsc_options``, ...), checked in one line each. `nt`: the number of steps the caller means to take (the
-    scheme's messages and a moving obstacle's reach), if known.
+    ``petsc_options``, ...). `nt`: the number of steps the caller means to take, if known.
 
-    ``advance()`` takes one step: the scheme's state goes into the problem's Functions (``eta``, ``v``, the
-    model's ``unknowns``), its energy terms into the `ledger` (whose guard raises `InstabilityError`), and every
-    attached observer's ``stepped(stepper)`` is called. `t`, `step`, `energies` (the last step's `StepEnergy`) and
-    `contact_force` (the problem's Function, filled when read) describe the state; a new `dt` takes effect at the
-    next step (the scheme's step matrices made again; mesh, forms and operators kept); `parameters` changes a model
-    constant between steps. A step whose Newton solve fails is retried in 2, 4, … 16 sub-steps from the state
-    before it. After an error inside a step (an instability, Ctrl-C) the stepper refuses to go on, in one line.
+    ``advance()`` takes one step: the state goes into the problem's Functions (``eta``, ``v``, the model's
+    ``unknowns``), the energy terms into the `ledger` (whose guard raises `InstabilityError`), and every observer's
+    ``stepped(stepper)`` is called. A new `dt` takes effect at the next step (mesh, forms and operators kept);
+    `parameters` changes a model constant between steps. A failed Newton step is retried in 2, 4, … 16 sub-steps.
+    After an error inside a step (an instability, Ctrl-C) the stepper refuses to go on, in one line.
 
-    `initial` sets the start of any unknown by name, ``"eta"``, ``"v"`` or one of the model's fields: an array of this
-    rank's owned values (in the order of the problem's dofs) or a function of their coordinates `problem.x`; a field
-    given so (or as a given Function, `ContactProblem`) starts there, the others as the scheme starts them. Every
-    restart inside the run (a new Δt, a constant changed, a sub-stepped step) carries the whole state, fields too.
+    `initial` sets the start of an unknown by name (``"eta"``, ``"v"``, a model field): this rank's owned values or
+    a function of their coordinates `problem.x`. Every restart (a new Δt, a constant, sub-steps) carries the whole
+    state.
     """
 
     def __init__(self, problem: ContactProblem, dt: float, scheme="paper", *, nt: int | None = None,
@@ -58,7 +54,7 @@ class TimeStepper:
         _set_initial(problem, initial or {})
         self.problem, self.model, self.comm = problem, problem.model, problem.comm
         self.name, self.Scheme = resolve_scheme(scheme)
-        model = self.model
+        model = problem.model
         self.options = resolve_options(self.name, self.Scheme, options)
         self.penalty, self.mass = self.options["penalty"], self.options["mass"]
         check_model(self.name, model, self.Scheme)
@@ -70,11 +66,10 @@ class TimeStepper:
             check_law_stability(model, dt, self.options["eps"], self.penalty)
         problem.params.eps.value = self.options["eps"] if self.options["eps"] is not None else np.nan
         self.nt, self._dt, self.step, self._t0, self._step0 = nt, float(dt), 0, 0.0, 0
-        self.observers: list = []
-        self._stepped: list = []  # the observers' `stepped` methods, called after every step
+        self.observers, self._stepped = [], []  # _stepped: the observers' `stepped` methods, called after every step
         self.counters, self.past_timings, self.energies = {}, [], None
-        self._broken = None  # why the stepper may not go on (an error inside a step)
-        self._restart = None  # the start terms of a scheme restarted after sub-steps
+        # why the stepper may not go on (an error inside a step); the start terms of a scheme restarted after sub-steps
+        self._broken = self._restart = None
         self.parameters = _Constants(self)
         self._plugins = f"model '{model.name}' with scheme '{self.name}'"  # whose code runs in a step
         same_on_every_rank(self.comm, "the time step, scheme, options and constants",
@@ -88,28 +83,22 @@ class TimeStepper:
             self.scheme = self.Scheme(self.discrete)
         self._start()
 
-    # --- set-up -----------------------------------------------------------------------------------------------
-
     def _discrete(self, ops, dt: float, fields0: dict | None = None) -> DiscreteProblem:
-        """The discrete problem the scheme steps at the time step `dt` (`DiscreteProblem`), its further unknowns
-        starting at `fields0` (default: the problem's given ones)."""
+        """The `DiscreteProblem` at the time step `dt`, its further unknowns starting at `fields0` (default: given)."""
         p = self.problem
         fields = {f: f.x.array[: p.n_owned] for f in p.params.extra.values()}
         laws = NodalLaws(self.model, p.V, p.params, dt, fields, p.x)
         given = self.options["petsc_options"]
         options = _model_options(self.model, ops, p.params, p.dim, self.comm.size, given) | given
-        obstacle = None
-        if p.obstacle is not None:
-            obstacle = MovingObstacle(p.obstacle_values, p.params.extra["obstacle"], p.params.extra[RATE], dt,
-                                      p.n_owned)
+        obstacle = None if p.obstacle is None else MovingObstacle(
+            p.obstacle_values, p.params.extra["obstacle"], p.params.extra[RATE], dt, p.n_owned)
         return DiscreteProblem(ops=ops, dt=dt, mass=self.mass, penalty=self.penalty, bc=p.bc, g=p.g, laws=laws,
                                comm=self.comm, eps=self.options["eps"], x=p.x, nt=self.nt or 0, petsc_options=options,
                                restitution=self.options["restitution"] or 0.0, obstacle=obstacle,
                                options=self.options, fields0=p.initial_fields() if fields0 is None else fields0)
 
     def _check_moving_obstacle(self) -> None:
-        """A moving obstacle runs with a scheme without penalty (restitution 0), and with a penalty scheme when the
-        model's law reads the obstacle's rate (the gap rate v − ψ_t); the rest is refused in one line."""
+        """A moving obstacle needs restitution 0 without a penalty, else a law in the gap rate v − ψ_t."""
         p = self.problem
         if p.obstacle is None:
             return
@@ -128,13 +117,11 @@ class TimeStepper:
                              "'projection' or a law in the gap rate (model 'loaded_obstacle')")
 
     def _start(self) -> None:
-        """The initial state opens the ledger; the state goes into the Functions; the observers are told."""
+        """The initial state opens the ledger and goes into the Functions."""
         p = self.problem
         if p.obstacle is not None:  # ψ_t for the penalty's gap rate at t = 0
             rate = p.params.extra[RATE]
             rate.x.array[:] = (p.obstacle_values(0.0) - p.obstacle_values(-self._dt)) / self._dt
-        from ..fem.agree import one_outcome
-
         eta0, v0 = one_outcome(self.comm, p.initial_state)
         with plugin_code(self._plugins):
             start = _energy_terms(self.scheme.start(eta0, v0), f"{self._plugins}: start()")
@@ -160,12 +147,9 @@ class TimeStepper:
         self._owned = (p.eta.x.array[: p.n_owned], p.v.x.array[: p.n_owned])  # views the state is copied into
         self._write_state()
 
-    # --- the state ------------------------------------------------------------------------------------------
-
     @property
     def dt(self) -> float:
-        """The time step; a new value takes effect at the next step (the scheme's matrices made again from the
-        state, the difference in its energy booked as numerical dissipation)."""
+        """The time step; a new value takes effect at the next step (its energy jump booked as numerical)."""
         return self._dt
 
     @dt.setter
@@ -177,8 +161,7 @@ class TimeStepper:
         if self.problem.obstacle is not None:
             raise ValueError("dt: a moving obstacle's scheme starts its obstacle at t = 0; its time step cannot change "
                              "during a run")
-        self._t0, self._step0 = self.t, self.step
-        self._dt = float(value)
+        self._t0, self._step0, self._dt = self.t, self.step, float(value)
         self.scheme = self._restarted(self._dt)
         self.ledger.rebase(self._restart_terms, numerical=True)
 
@@ -200,31 +183,27 @@ class TimeStepper:
         self.observers.append(observer)
         if getattr(observer, "stepped", None) is not None:
             self._stepped.append(observer.stepped)
-        started = getattr(observer, "started", None)
-        if started is not None:
-            started(self)
+        if getattr(observer, "started", None) is not None:
+            observer.started(self)
         return observer
 
     def finish(self) -> None:
         """Tell the observers the caller has finished (``finished(stepper)``)."""
         for observer in self.observers:
-            finished = getattr(observer, "finished", None)
-            if finished is not None:
-                finished(self)
+            if getattr(observer, "finished", None) is not None:
+                observer.finished(self)
 
     def _write_state(self) -> None:
         """The scheme's state into the problem's Functions (owned values, then the ghosts)."""
-        p, scheme = self.problem, self.scheme
-        np.copyto(self._owned[0], scheme.eta)
-        np.copyto(self._owned[1], scheme.velocity)
-        fields = scheme.fields if p.unknowns else {}
+        p = self.problem
+        np.copyto(self._owned[0], self.scheme.eta)
+        np.copyto(self._owned[1], self.scheme.velocity)
+        fields = self.scheme.fields if p.unknowns else {}
         for name, values in fields.items():
             p.unknowns[name].x.array[: p.n_owned] = values
         if self.comm.size > 1:
             for f in (p.eta, p.v, *(p.unknowns[name] for name in fields)):
                 f.x.scatter_forward()
-
-    # --- stepping -------------------------------------------------------------------------------------------
 
     def advance(self) -> StepEnergy:
         """One time step from `t` to `t` + `dt`; returns its energy terms. `InstabilityError` if the energy rose."""
@@ -262,8 +241,7 @@ class TimeStepper:
         return terms
 
     def _step(self) -> StepEnergy:
-        """The scheme's step; a Newton path's is retried as 2, 4, … 2^MAX_HALVINGS sub-steps from the same state when
-        Newton fails; a SolverError names the time, the step and what to change."""
+        """The scheme's step; a failed Newton step is retried as 2, 4, … 2^MAX_HALVINGS sub-steps from its state."""
         scheme = self.scheme
         if self.newton:
             eta, v, fields = _state(scheme)
@@ -288,8 +266,7 @@ class TimeStepper:
                               + ("" if self.name == "paper" else " or scheme 'paper'")) from None
 
     def _restarted(self, dt: float, state=None):
-        """A new scheme at `dt` on the same operators, started from `state` (the current one by default); its start
-        terms are kept in `_restart_terms`."""
+        """A new scheme at `dt` on the same operators, started from `state` (default: the current one)."""
         scheme = self.scheme
         eta, v, fields = state or _state(scheme)
         self.past_timings.append(scheme.timings)
@@ -299,12 +276,10 @@ class TimeStepper:
         return fresh
 
     def _substeps(self, eta, v, fields, m: int):
-        """One step as `m` sub-steps of Δt/m by a scheme started afresh from (η, v), their energy terms summed; then a
-        scheme at Δt started from their end. Returns the fine scheme's start terms, the step's terms and the
-        restarted scheme's start terms."""
+        """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the fine start's
+        terms, the step's, the restart's."""
         coarse = self.discrete
-        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields),
-                                               nt=(self.nt or 0) * m))
+        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields), nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)
         increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the state's energies: the last
         for _ in range(m):
@@ -320,8 +295,7 @@ class TimeStepper:
         return begin, step, self._restart_terms
 
     def _rebuild(self) -> None:
-        """A model constant changed: its operators again, a new scheme from the state (η, v), the jump of the state's
-        energy booked as external work."""
+        """A constant changed: operators and scheme again from the state, the energy jump booked as external work."""
         old = self.scheme
         eta, v, fields = _state(old)
         ops = self.problem.reassemble(not self.Scheme.LINEAR_PATH, lambda: (eta, v))
@@ -332,23 +306,19 @@ class TimeStepper:
         self.parameters.changed = False
 
     def _unstable(self, why: str) -> InstabilityError:
-        n, scheme = self.step, self.scheme
+        n, scheme, eps = self.step, self.scheme, self.options["eps"]
         situation = f"scheme {self.name}" + (f", {scheme.situation}" if scheme.situation else "")
-        eps = self.options["eps"]
         return InstabilityError(f"unstable at step {n}, t = {self.t:.6g}: {why} ({situation}); {scheme.remedy}",
                                 step=n, time=self.t, r=self._dt / eps if self.Scheme.PENALTIES and eps else None)
 
     def timings(self) -> dict:
-        """The schemes' counters one after the other (a restart makes a new scheme): numbers summed, descriptions
-        the last one's."""
+        """Every scheme's counters (a restart makes a new one): numbers summed, descriptions the last one's."""
         out = {}
         for t in [*self.past_timings, self.scheme.timings]:
             for key, value in t.items():
                 both = isinstance(value, (int, float)) and isinstance(out.get(key), (int, float))
                 out[key] = out[key] + value if both else value
         return out
-
-
 
 
 def _state(scheme) -> tuple:
@@ -358,8 +328,7 @@ def _state(scheme) -> tuple:
 
 
 def _set_initial(problem: ContactProblem, initial: dict) -> None:
-    """`TimeStepper`'s `initial` into the problem's Functions: arrays of the owned values, or functions of the
-    owned dofs' coordinates `problem.x`."""
+    """`TimeStepper`'s `initial` into the problem's Functions."""
     targets = {"eta": problem.eta, "v": problem.v, **problem.unknowns}
     for name, value in initial.items():
         if name not in targets:
@@ -384,8 +353,7 @@ def _energy_terms(terms, what: str) -> StepEnergy:
 
 
 def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dict:
-    """A nonlinear model's own solver defaults (`Model.solver`): below the user's options (`given`), above the size
-    rule's choice. A user who names ksp_type or pc_type chooses the linear solver: the model's linear options go."""
+    """A nonlinear model's solver defaults, below the user's `given` (a ksp_type or pc_type drops its linear ones)."""
     if ops.nonlinear is None:
         return {}
     hints = model.solver
@@ -395,17 +363,13 @@ def _model_options(model, ops, params, dim: int, ranks: int, given: dict) -> dic
 
 
 class _Constants(MutableMapping):
-    """`TimeStepper.parameters`: the model's constants by name, as floats; setting one checks it (`ModelConstant.check`
-    and the model's rule) and sets the dolfinx Constant the forms read, for the next step to take up."""
+    """`TimeStepper.parameters`: the model's constants as floats; setting one checks it and sets its Constant."""
 
     def __init__(self, stepper: TimeStepper):
         self._stepper, self.changed = stepper, False
 
-    def _constants(self) -> dict:
-        return self._stepper.problem.constants
-
     def __getitem__(self, name: str) -> float:
-        return float(self._constants()[name].value)
+        return float(self._stepper.problem.constants[name].value)
 
     def __setitem__(self, name: str, value) -> None:
         st = self._stepper
@@ -414,21 +378,21 @@ class _Constants(MutableMapping):
                              "start its obstacle again at t = 0); restart from the state with the new value")
         values = resolve_parameters(st.model.name, st.model.constants, dict(self) | {name: value},
                                     st.model.check_constants)
-        if name not in self._constants():  # the forms were compiled without it
+        if name not in self._stepper.problem.constants:  # the forms were compiled without it
             raise SceneError(f"{name}: model {st.model.name!r}'s optional constant was not given when the run started, "
                              "and its forms do not read it; allowed: the constants the run started with "
                              f"({', '.join(self) or 'none'}); start a run with {name} in [parameters]")
-        self._constants()[name].value = values[name]
+        self._stepper.problem.constants[name].value = values[name]
         self.changed = True
 
     def __delitem__(self, name: str) -> None:
         raise TypeError(f"{name}: a model's constant cannot be removed during a run; set its value")
 
     def __iter__(self):
-        return iter(self._constants())
+        return iter(self._stepper.problem.constants)
 
     def __len__(self) -> int:
-        return len(self._constants())
+        return len(self._stepper.problem.constants)
 
     def __repr__(self) -> str:
         return f"parameters({dict(self)})"

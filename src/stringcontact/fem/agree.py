@@ -1,7 +1,5 @@
 """One outcome on every rank for work that runs on each rank alone, or on one rank only: a check that fails on one
-rank (an expression not finite at its nodes, gmsh or a mesh file on rank 0) must not leave the others waiting in
-the next collective call forever. The ranks exchange their outcomes (one allgather) and every rank raises the first
-failing rank's error: one line and one exit code."""
+rank must not leave the others waiting in the next collective call. Every rank raises the first failing rank's error."""
 
 from __future__ import annotations
 
@@ -11,10 +9,8 @@ __all__ = ["one_outcome", "same_on_every_rank"]
 
 
 def one_outcome(comm, work, *args, root: int | None = None):
-    """`work(*args)` on every rank (on `root` only, if given; the others return None), with one outcome.
-
-    Collective: every rank must call it. The work itself must not make a collective call before it can fail.
-    """
+    """`work(*args)` on every rank (on `root` only, if given; the others return None), with one outcome. Collective;
+    the work itself must not make a collective call before it can fail."""
     value, error = None, None
     if root is None or comm.rank == root:
         try:
@@ -44,9 +40,8 @@ def _portable(error: Exception | None):
 
 
 def same_on_every_rank(comm, what: str, value) -> None:
-    """A one-line `SceneError` on every rank unless `value` (plain data: numbers, words, dicts, lists) is the same on
-    every rank: one allgather of its digest. Collective; free in serial. Ranks given different input would run a
-    mixture of runs, or wait forever in a collective call the others do not make."""
+    """A one-line `SceneError` on every rank unless `value` (plain data) is the same on every rank (one allgather of
+    its digest). Collective; free in serial."""
     if comm.size == 1:
         return
     import hashlib

@@ -10,8 +10,7 @@ import numpy as np
 if TYPE_CHECKING:
     from dolfinx import fem
 
-# NumPy 2 (trixie) deprecates `np.trapz` (1.24, bookworm) for `np.trapezoid`. dolfinx is imported inside the helpers:
-# `Result` uses `trapezoid`, and the picture process unpickles Results without loading dolfinx (0.6 s).
+# NumPy 2 deprecates `np.trapz` for `np.trapezoid`; dolfinx is imported inside the helpers (`Result` loads none).
 trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
 
@@ -49,8 +48,8 @@ def create_vector(form):
 
 
 def pack_coefficients(form) -> dict:
-    """dolfinx's packed coefficients of a compiled form, {(integral type, id): array}: the C++ packer on the C++ form,
-    the compiled form itself in 0.5, its `_cpp_object` from 0.7 on (0.9's Python wrapper hands it the Python form)."""
+    """dolfinx's packed coefficients of a compiled form, {(integral type, id): array}: the form itself in 0.5, its
+    `_cpp_object` from 0.7 on."""
     from dolfinx.cpp.fem import pack_coefficients as pack
 
     return pack(getattr(form, "_cpp_object", form))
@@ -76,8 +75,7 @@ def create_mesh(comm, cells: np.ndarray, x: np.ndarray, domain):
 
 
 def snes_diverged_nan():
-    """PETSc's SNES reason for a residual that is NaN or infinite: ``DIVERGED_FNORM_NAN`` up to PETSc 3.24,
-    ``DIVERGED_FUNCTION_NANORINF`` from 3.25 (the dolfinx 0.11 wheel's)."""
+    """PETSc's SNES reason for a NaN residual: ``DIVERGED_FNORM_NAN``, ``DIVERGED_FUNCTION_NANORINF`` from 3.25."""
     from petsc4py import PETSc
 
     reasons = PETSc.SNES.ConvergedReason
@@ -85,8 +83,8 @@ def snes_diverged_nan():
 
 
 def geometry_nodes(msh) -> np.ndarray:
-    """The geometry nodes of every local cell, (cells, nodes per cell): `geometry.dofmap` is an AdjacencyList in 0.5,
-    that 2-D array from 0.8 on, `dofmaps(0)` in 0.9 and `dofmaps[0]` in 0.11 (where `dofmap` is deprecated)."""
+    """The geometry nodes of every local cell, (cells, nodes per cell): `geometry.dofmap` (an AdjacencyList in 0.5),
+    `dofmaps(0)` in 0.9, `dofmaps[0]` in 0.11."""
     dofmaps = getattr(msh.geometry, "dofmaps", None)
     nodes = msh.geometry.dofmap if dofmaps is None else dofmaps(0) if callable(dofmaps) else dofmaps[0]
     flat = nodes.array if hasattr(nodes, "array") else nodes
@@ -101,8 +99,7 @@ def cell_dofs(V) -> np.ndarray:
 
 
 def mixed_space(msh, fields: int):
-    """P1^fields on `msh` as one blocked space (`ufl.VectorElement` on 0.5, `basix.ufl.element` on 0.7+): its matrices
-    carry the block size, so PCFIELDSPLIT splits the fields without index sets; `ufl.split` gives the fields."""
+    """P1^fields on `msh` as one blocked space (its matrices carry the block size, which PCFIELDSPLIT splits by)."""
     from dolfinx import fem
 
     try:
@@ -125,8 +122,7 @@ def sub_dofs(V, Z, i: int) -> np.ndarray:
 
 
 def set_bc(values: np.ndarray, bcs: list) -> None:
-    """Write the boundary conditions' values into an array: `DirichletBC.set` (0.9+) replaces `fem.set_bc` (0.5),
-    deprecated in 0.9."""
+    """Write the boundary conditions' values into an array: `DirichletBC.set` (0.9+) replaces `fem.set_bc` (0.5)."""
     from dolfinx import fem
 
     if hasattr(bcs[0], "set"):

@@ -1,7 +1,5 @@
 """The dissipation of a model's internal variables, derived from its residual: a further unknown whose own rate
-enters the residual (a Maxwell foundation's dashpot, c q_t s) dissipates the work of its row's rate-dependent part
-over its increment, [R(U, U_t) − R(U, 0)]_q · Δq (c|Δq|²/Δt for the dashpot), as η's row dissipates the viscous
-work. A field without a rate (an algebraic one: a reaction, a Lagrange multiplier) has none of its own."""
+enters the residual (a dashpot, c q_t s) dissipates [R(U, U_t) − R(U, 0)]_q · Δq over a step (c|Δq|²/Δt there)."""
 
 from __future__ import annotations
 
@@ -26,9 +24,8 @@ def internal_variables(model, V, params) -> tuple[str, ...]:
 
 
 class InternalDissipation:
-    """Each internal variable's dissipation over one step, from the unknowns (η, *fields) at the start (`values`, this
-    rank's owned ones) and after each step (`step`), with the rates the schemes write, ΔU/Δt, and the values after
-    the step: a rate term linear in the rate is booked exactly, the rest of a scheme's quotient stays in D_num."""
+    """Each internal variable's dissipation over one step, from the owned unknowns (η, *fields) at the start
+    (`values`) and after each step (`step`), with the rates ΔU/Δt (the rest of a scheme's quotient stays in D_num)."""
 
     def __init__(self, model, V, params, names: tuple[str, ...], values: list[np.ndarray]):
         k = 1 + len(model.fields)

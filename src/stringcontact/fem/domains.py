@@ -1,6 +1,5 @@
-"""The mesh of a scene's domain and its boundary: `mesh.create_interval`, `mesh.create_rectangle` on [0, Lx] x [0, Ly],
-gmsh's disk (made on rank 0, distributed by `mesh.create_mesh`) or an XDMF triangle mesh (`meshfile.read`, handed to
-`mesh.create_mesh` as arrays). A mesh that is 3D or has no area is refused in one line naming ``mesh``."""
+"""The mesh of a scene's domain and its boundary: dolfinx's interval and rectangle, gmsh's disk or an XDMF triangle
+mesh (`meshfile.read`), the last two made on rank 0 and distributed by `mesh.create_mesh`."""
 
 from __future__ import annotations
 
@@ -85,8 +84,8 @@ def nodal_areas(V) -> np.ndarray:
 
 
 def boundary_dofs(V) -> np.ndarray:
-    """Owned dofs on the exterior facets of a 2D mesh (the marks added to their owners first: a rank may own a
-    boundary node without holding a boundary facet next to it)."""
+    """Owned dofs on the exterior facets of a 2D mesh (marks added to their owners: a rank may own a boundary node
+    without a boundary facet)."""
     msh = V.mesh
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)

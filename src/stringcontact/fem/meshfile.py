@@ -1,13 +1,9 @@
 """A mesh file read here, checked, and handed to dolfinx as arrays: what was checked is what dolfinx meshes.
 
 Hand-written because dolfinx trusts its input: a cell index out of range left `create_mesh` spinning in C++, deaf to
-Ctrl-C and SIGTERM, duplicate cells corrupted its heap (a segfault), and dolfinx 0.5's XDMF reader reads
-``<xdmf stem>.h5`` whatever file the DataItem names (tests/system/test_reliability_meshfiles.py). So the XDMF file's
-first grid with a topology is read with pyfive (pure Python: h5py's wheel clashes with dolfinx's libhdf5) and refused
-in one line naming ``mesh`` unless it is a plain triangle mesh: its data in a regular HDF5 file (opened without
-blocking) of the shapes the XML states, integer cell indices in [0, nodes), three distinct nodes per cell, no cell
-twice, no edge in more than two cells, every node in a cell, finite coordinates within `MAX_COORDINATE`, z = 0, at
-most `MAX_NODES` nodes and `MAX_CELLS` cells.
+Ctrl-C, duplicate cells corrupted its heap, and dolfinx 0.5's XDMF reader reads ``<xdmf stem>.h5`` whatever file the
+DataItem names (tests/system/test_reliability_meshfiles.py). The data are read with pyfive (h5py's wheel clashes with
+dolfinx's libhdf5) and refused in one line naming ``mesh`` unless a plain triangle mesh of at most `MAX_NODES` nodes.
 """
 
 from __future__ import annotations
@@ -28,16 +24,14 @@ __all__ = ["MAX_CELLS", "MAX_COORDINATE", "MAX_NODES", "MAX_XDMF_BYTES", "read",
 #: The largest mesh file: as many nodes as the largest membrane (scene.limits), twice as many cells.
 MAX_NODES = MAX_MEMBRANE_NODES
 MAX_CELLS = 2 * MAX_MEMBRANE_NODES
-#: The largest |coordinate|: a domain's size is bounded like a scene's `length` and `radius` (1e4), with room for
-#: a mesh in other units; beyond about 1e154 a cell's area overflows to inf.
+#: The largest |coordinate|: a scene's `length` bound (1e4) with room for other units (area overflows near 1e154).
 MAX_COORDINATE = 1e6
 #: The largest XDMF file read: a mesh's XML is a few hundred bytes (its data are in the HDF5 file).
 MAX_XDMF_BYTES = 10_000_000
 
 
 def regular_file(path: str, what: str = "mesh") -> int:
-    """An open descriptor of `path`, a regular file (following links; O_NONBLOCK: a FIFO is never waited on);
-    else SceneError naming `what` and what the path is (missing, a FIFO, a directory, a link loop, ...)."""
+    """An open descriptor of `path`, a regular file (O_NONBLOCK: a FIFO is never waited on); else SceneError."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
@@ -50,8 +44,7 @@ def regular_file(path: str, what: str = "mesh") -> int:
 
 
 def read(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """(cells, points) of the XDMF triangle mesh at `path`: int64 (cells, 3) and float64 (nodes, 2), checked;
-    SceneError (one line naming ``mesh``) if it is not a valid 2D triangle mesh."""
+    """(cells, points) of the XDMF triangle mesh at `path`, int64 (cells, 3) and float64 (nodes, 2), checked."""
     grid = _grid(path)
     cells = _data(path, grid.find("Topology"), "topology", MAX_CELLS)
     points = _data(path, grid.find("Geometry"), "geometry", MAX_NODES)
@@ -131,8 +124,7 @@ def _data(path: str, element, what: str, limit: int) -> np.ndarray:
 
 
 class _Reader(io.BufferedReader):
-    """The open mesh .h5 for pyfive, without a `fileno`: pyfive then reads through this object, instead of
-    opening the file again by its name (which might since have become a FIFO)."""
+    """The open .h5 without a `fileno`, so that pyfive reads through it (not the name, since maybe a FIFO)."""
 
     def fileno(self):
         raise io.UnsupportedOperation("fileno")

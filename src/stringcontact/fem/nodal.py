@@ -1,7 +1,5 @@
-"""Evaluate a pointwise UFL expression at the P1 nodes, vectorised with NumPy: P1 interpolation of the expression
-without `fem.Expression`'s compiled kernel call per cell, which costs ~0.6 ms per step at N = 5000 in 1D, more than
-the whole step (DEVELOPERS.md; tests/fem/test_nodal.py checks it against `fem.Expression`). The UFL expression stays
-the one definition of the contact law; this module only walks its graph."""
+"""Evaluate a pointwise UFL expression at the P1 nodes, vectorised with NumPy: `fem.Expression`'s kernel call per cell
+costs ~0.6 ms per step at N = 5000 in 1D, more than the whole step (tests/fem/test_nodal.py checks the two agree)."""
 
 from __future__ import annotations
 
@@ -115,8 +113,7 @@ def _conjuncts(c) -> list:
 
 
 class _Subset(dict):
-    """An evaluation environment restricted to the nodes `idx` of `parent`: each array is sliced on first use,
-    so a law that reads η and v slices only those."""
+    """An evaluation environment restricted to the nodes `idx` of `parent`, each array sliced on first use."""
 
     def __init__(self, parent: dict, idx: np.ndarray):
         super().__init__()
@@ -128,12 +125,8 @@ class _Subset(dict):
 
 
 class NodalExpression:
-    """A UFL expression compiled once into NumPy calls; call it with the nodal arrays.
-
-    A law conditional(c1 ∧ c2 ∧ ..., a, 0) (the penalty χ{η<0}·(η_t)⁻/ε) is evaluated only where it can act: c1 on
-    every node, the rest on the nodes where c1 holds, bit for bit the full evaluation's values (24-26 µs against
-    18-22 µs on Example 1's states: benchmarks/bench_step.py --law).
-    """
+    """A UFL expression compiled once into NumPy calls; call it with the nodal arrays. A law conditional(c1 ∧ c2 ∧
+    ..., a, 0) is evaluated only where c1 holds, bit for bit (18-22 µs against 24-26: bench_step.py --law)."""
 
     def __init__(self, expr):
         self.expr = expr
@@ -151,8 +144,7 @@ class NodalExpression:
             return self.evaluate_env(environment(coefficients, x))
 
     def evaluate_env(self, env: dict) -> np.ndarray:
-        """The hot-loop form: `env` is made by `environment` (a time loop keeps one and swaps its arrays,
-        ``env[id(f)] = array``); the caller owns np.errstate."""
+        """The hot-loop form on `environment`'s `env` (swap its arrays: ``env[id(f)] = array``); no np.errstate."""
         shape = env["x"].shape[:1]  # one value per node, in 1D and 2D
         if self._candidates is not None:
             return self._on_candidates(env, shape)
@@ -160,9 +152,8 @@ class NodalExpression:
         return value if value.shape == shape else np.broadcast_to(value, shape)
 
     def _on_candidates(self, env: dict, shape: tuple) -> np.ndarray:
-        """conditional(c1 ∧ rest, a, 0): c1 everywhere, then `rest` and `a` only on the span from the first node where
-        c1 holds to the last (views: a 1-D contact region is an interval), or on its indices where they are sparse
-        in that span (a 2-D mesh's node order)."""
+        """conditional(c1 ∧ rest, a, 0): c1 everywhere, `rest` and `a` on the span where c1 holds (views), or on its
+        indices where they are sparse in it (a 2-D mesh's node order)."""
         c1 = np.asarray(self._candidates(env))
         c1 = c1 if c1.shape == shape else np.broadcast_to(c1, shape)
         out = np.zeros(shape)
@@ -180,14 +171,12 @@ class NodalExpression:
 
 
 def _span(c1: np.ndarray) -> tuple[int, int]:
-    """(first, last + 1) of the True entries of the bool array `c1`, or (-1, 0) if none: the bytes' find and rfind
-    (memchr), 1.0 µs at 5001 nodes against argmax's 3.2 µs (timeit on Example 1's contact span)."""
+    """(first, last + 1) of the True entries of `c1`, or (-1, 0): memchr, 1.0 µs at 5001 nodes against argmax's 3.2."""
     raw = c1.view(np.uint8).tobytes()
     return raw.find(1), raw.rfind(1) + 1
 
 
-#: The candidate-subset evaluation takes indices (copies) instead of a span (views) when fewer than 1/SPARSE of
-#: the span's nodes are candidates.
+#: Indices (copies) instead of a span (views) when fewer than 1/SPARSE of the span's nodes are candidates.
 SPARSE = 4
 
 

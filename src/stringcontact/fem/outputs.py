@@ -17,9 +17,8 @@ __all__ = ["OutputValues"]
 
 
 class OutputValues:
-    """The model's output fields (`model.interface.output_fields`) at this rank's owned nodes, from η and the scheme's
-    further unknowns; a derived field is a `fem.Expression` compiled once and interpolated into P1 at the stored times
-    only (a kernel call per cell: too slow for every step, cheap for a few hundred rows)."""
+    """The model's output fields at this rank's owned nodes, from η and the further unknowns; a derived field is a
+    `fem.Expression` interpolated at the stored times only (too slow for every step)."""
 
     def __init__(self, model, V, params):
         self.fields = output_fields(model)

@@ -1,10 +1,8 @@
 """A compiled form whose packed coefficients are refreshed in place, by a gather, instead of packed again.
 
-dolfinx packs a form's coefficients at every assembly unless handed them: at nx = 5000 the cubic foundation's Newton
-residual assembles in 0.24 ms packed by dolfinx, 0.13 ms handed over, a gather costing 0.02 ms
-(`benchmarks/bench_nonlinear.py`, its last column). The slots are found by dolfinx itself (`_probe`: each coefficient
-packed with the values 1, 2, …, N) and the gather checked against dolfinx's packing with random values; where they
-differ (an element that transforms its values) the form packs through dolfinx at every assembly.
+dolfinx packs a form's coefficients at every assembly unless handed them: at nx = 5000 the cubic foundation's residual
+assembles in 0.24 ms packed by dolfinx, 0.13 ms handed over (`benchmarks/bench_nonlinear.py`). The slots are found by
+dolfinx itself (`_probe`) and the gather checked against its packing; where they differ, dolfinx packs.
 """
 
 from __future__ import annotations
@@ -19,10 +17,9 @@ __all__ = ["PackedForm"]
 
 
 class PackedForm:
-    """`ufl_form` compiled, with its coefficients packed once: `refresh(f, …)` gathers the slots of the given
-    coefficients (default: all) from their values, which a caller does for every coefficient it changed;
-    `assemble_vector` and `assemble_scalar` then assemble without packing. `fast` is False where the gather did not
-    reproduce dolfinx's packing: then every assembly packs afresh and `refresh` does nothing.
+    """`ufl_form` compiled, its coefficients packed once: `refresh(f, …)` gathers the slots of changed coefficients
+    (default: all); `assemble_vector` and `assemble_scalar` then assemble without packing. `fast` is False where the
+    gather did not reproduce dolfinx's packing: every assembly packs afresh.
     """
 
     def __init__(self, ufl_form):
@@ -55,8 +52,7 @@ class PackedForm:
 
 
 def _probe(form, f) -> dict:
-    """For each packed array of `form`: `f`'s slots (flat indices) and the local dof each of them holds, found by
-    packing with f = 1, 2, …, N against f = 0 (the other coefficients as they are). f is restored."""
+    """For each packed array of `form`: `f`'s slots and the local dof each holds (packing f = 1, …, N against 0)."""
     saved = f.x.array.copy()
     try:
         f.x.array[:] = 0.0
@@ -73,8 +69,7 @@ def _probe(form, f) -> dict:
 
 
 def _gather_matches(packed: PackedForm) -> bool:
-    """Whether gathering every coefficient from random values gives dolfinx's packing, bit for bit (the
-    functions restored)."""
+    """Whether gathering random values gives dolfinx's packing, bit for bit (the functions restored)."""
     saved = [f.x.array.copy() for f in packed.functions]
     rng = np.random.default_rng(0)
     try:

@@ -8,7 +8,6 @@ from ufl.corealg.multifunction import MultiFunction
 
 __all__ = ["MAX_PRODUCT_POWER", "powers_as_products"]
 
-
 #: The largest integer power that `powers_as_products` writes out as a product.
 MAX_PRODUCT_POWER = 8
 
@@ -26,8 +25,6 @@ class _PowersAsProducts(MultiFunction):
 
 
 def powers_as_products(form):
-    """`form` with every integer power f**n (2 ≤ n ≤ MAX_PRODUCT_POWER) written as the product f*f*…*f: FFCx compiles
-    f**n to libm's ``pow`` (a call without -ffast-math); the cubic foundation's residual assembly at nx = 5000 took
-    0.52 ms with it, 0.35 ms with products (timeit).
-    """
+    """`form` with every integer power f**n (2 ≤ n ≤ MAX_PRODUCT_POWER) written as f*f*…*f: FFCx's libm ``pow``
+    took the cubic foundation's residual assembly at nx = 5000 to 0.52 ms, products to 0.35 ms (timeit)."""
     return map_integrand_dags(_PowersAsProducts(), form)

@@ -6,13 +6,10 @@ thickness is the gap η:
     η_tt − α η_txx − η_xx = p − p_a + F,   η_t = (m(η) p_x)_x,   m(η) = max(η, h_min)³/(12 μ),   p = p_a at the ends,
 
 on a membrane ∇·(m(η)∇p). F is the paper's penalty, a backstop for η ≥ 0. The unknowns are η and the gauge pressure
-q = p − p_a on the mixed P1 space, with one residual (tests w, r): ∫ η_tt w + α η_tx·w_x + η_x·w_x − q w − F w +
-∫ η_t r + m(η) q_x·r_x, q held at 0 on the boundary. Testing with r = q, the pressure's work on the string is the
-film's viscous dissipation −∫ m(η)|q_x|² (the ledger books it with the viscous one).
-
-The pressure has no time derivative: the scheme must be L-stable (the paper's backward Euler; `newmark` and
-`projection` are refused). Newton's line search is ``l2``: with PETSc's ``bt`` 3 of the 20 runs of
-`stringcontact study film` stalled, with ``l2`` none did.
+q = p − p_a (held at 0 on the boundary) on the mixed P1 space, one residual (tests w, r): ∫ η_tt w + α η_tx·w_x +
+η_x·w_x − q w − F w + ∫ η_t r + m(η) q_x·r_x. With r = q, the pressure's work is the film's viscous dissipation
+−∫ m(η)|q_x|². The pressure has no time derivative: the scheme must be L-stable (the paper's backward Euler).
+Newton's line search is ``l2``: with PETSc's ``bt`` 3 of the 20 runs of `stringcontact study film` stalled.
 """
 
 from __future__ import annotations
@@ -37,8 +34,7 @@ CONSTANTS = (
     ModelConstant("h_min", H_MIN, 0.0, 1e3, low_open=True, unit="η",
                   description="the film-thickness floor in the mobility, max(η, h_min)³"),
 )
-#: The film's output field: the gauge pressure q = p − p_a, symmetric-log (a landing's peak is 1e3-1e4 times the
-#: pressure before and after it), blue below ambient, grey at it, red above; it colours a membrane.
+#: The film's output field: the gauge pressure q = p − p_a, symmetric-log, blue below ambient, red above.
 PRESSURE = OutputField("pressure", label="film pressure p − p_a", unit="pressure", colours=DIVERGING, scale="symlog",
                        linear_share=1e-3, surface=True)
 
@@ -77,16 +73,11 @@ def pressure_lower(p: Parameters) -> dict:
 
 
 def _lower(values: dict) -> dict:
-    if values.get("p_cav") is None:
-        return {}
-    return {"pressure": values["p_cav"] - values.get("p_ambient", 0.0)}
+    return {} if values.get("p_cav") is None else {"pressure": values["p_cav"] - values.get("p_ambient", 0.0)}
 
 
-#: A membrane that does not cavitate: GMRES preconditioned by the Schur complement on the pressure (PCFIELDSPLIT
-#: over the blocked space's two fields, "selfp" for the Schur block, BoomerAMG on both): 7-13 iterations through
-#: contact, 3.7 s per step at 1e5 nodes against MUMPS' 8.5 s; AMG on the whole system stalls once the membrane lands
-#: (the pressure rows' diagonal is ~3e-7). A cavitating film's VI solves reduced systems without the block size,
-#: which a fieldsplit cannot split: MUMPS there.
+#: A membrane that does not cavitate: GMRES with a Schur fieldsplit on the pressure ("selfp", BoomerAMG on both):
+#: 3.7 s per step at 1e5 nodes against MUMPS' 8.5 s; AMG on the whole system stalls once the membrane lands.
 MEMBRANE_FIELDSPLIT = (
     ("ksp_type", "gmres"), ("pc_side", "right"), ("ksp_norm_type", "unpreconditioned"), ("ksp_rtol", 1e-10),
     ("ksp_atol", 0.0), ("ksp_initial_guess_nonzero", False), ("ksp_gmres_restart", 100), ("ksp_max_it", 500),
@@ -95,9 +86,8 @@ MEMBRANE_FIELDSPLIT = (
     ("fieldsplit_0_ksp_type", "preonly"), ("fieldsplit_0_pc_type", "hypre"),
     ("fieldsplit_1_ksp_type", "preonly"), ("fieldsplit_1_pc_type", "hypre"))
 def linear_options(dim: int, ranks: int, constants: dict) -> tuple:
-    """The film's linear solver (`SolverHints.linear_options`): on a membrane the Schur fieldsplit, or when the film
-    cavitates (``p_cav`` given) MUMPS' LU (PETSc's own LU of the mixed system is slower at 1e5 nodes); on a string the
-    `direct_options`."""
+    """The film's linear solver: on a membrane the Schur fieldsplit, or MUMPS' LU when it cavitates (its VI's
+    reduced systems have no block size to split); on a string the `direct_options`."""
     return MEMBRANE_FIELDSPLIT if dim == 2 and not _lower(constants) else direct_options(dim, ranks)
 
 

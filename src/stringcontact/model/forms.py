@@ -1,8 +1,6 @@
 """What a model's form must be, checked in UFL before anything is compiled: a `Form` with a ``dx`` term, linear in
-the test function (rank 1), with a mass (the coefficient of η_tt) constant in the unknowns. A bilinear form aborted the
-process inside the assembler, a form without ``dx`` or a functional ended in an internal error, and a negative or
-zero mass ran to 1e30 unnoticed: `check_form` refuses them in one line; `mass_density` gives the mass as a pointwise
-UFL expression, which `fem.operators` checks is positive at the nodes.
+the test function (rank 1), with a mass (the coefficient of η_tt) constant in the unknowns (a bilinear form aborts
+the assembler; a zero mass runs to 1e30 unnoticed). `mass_density` gives the mass as a pointwise UFL expression.
 """
 
 from __future__ import annotations
@@ -45,28 +43,20 @@ def check_form(model_name: str, what: str, R, test) -> None:
 
         check_form_arity(remove_complex_nodes(apply_derivatives(apply_algebra_lowering(R))), arguments)  # real mode
     except (ArityMismatch, NotImplementedError):  # UFL's own message about a product of w with itself fails so
-        raise FormError(
-            f"{where} is not linear in the test function w (w times w, or w in a nonlinear function); "
-            f"allowed: {_ALLOWED}"
-        ) from None
+        raise FormError(f"{where} is not linear in the test function w (w times w, or w in a nonlinear function); "
+                        f"allowed: {_ALLOWED}") from None
 
 
 def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> object:
-    """The mass per length (per area) of `R`: the coefficient ρ of η_tt in its ``dx`` terms (∂R/∂η_tt, applied to
-    1 and tested with 1), a pointwise UFL expression in x, the scene's fields and the model's constants.
-
-    FormError if ρ depends on the `unknowns` (the placeholders η, η_t, η_tt, the force): the schemes need a
-    constant mass.
-    """
+    """The mass per length (per area) of `R`: the coefficient ρ of η_tt (∂R/∂η_tt applied to 1, tested with 1), a
+    pointwise UFL expression; FormError if ρ depends on the `unknowns` (the schemes need a constant mass)."""
     direction = ufl.TrialFunction(test.ufl_function_space())
     a = apply_derivatives(ufl.derivative(apply_algebra_lowering(R), eta_tt, direction))
     if a.empty():
         return ufl.as_ufl(0.0)
     if set(ufl.algorithms.extract_coefficients(a)) & set(unknowns):
-        raise FormError(
-            f"model '{model_name}': {what} must be affine in eta_tt with a constant coefficient (a mass "
-            "that does not depend on eta, eta_t or eta_tt); it may be nonlinear in eta and eta_t"
-        )
+        raise FormError(f"model '{model_name}': {what} must be affine in eta_tt with a constant coefficient (a mass "
+                        "that does not depend on eta, eta_t or eta_tt); it may be nonlinear in eta and eta_t")
     one = ufl.as_ufl(1.0)
     tested = apply_derivatives(ufl.replace(a, {direction: one, test: one}))
     integrands = [i.integrand() for i in tested.integrals_by_type("cell")]

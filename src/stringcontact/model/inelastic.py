@@ -3,9 +3,8 @@ velocity penalty on the obstacle y = 0,
 
     ∫ η_tt w dx + α ∫ η_tx w_x dx + ∫ η_x w_x dx = ∫ F w dx,    F = (1/ε) χ{η<0} (η_t)⁻.
 
-These functions are the defaults of every `Model` (`model.interface`): a variant replaces one of them
-(``dataclasses.replace(inelastic, name="mine", penalty=my_penalty)``). What each must return is the model
-contract's (`model.interface`).
+These functions are the defaults of every `Model`; a variant replaces one of them. What each must return is the
+model contract's (`model.interface`).
 """
 
 from __future__ import annotations
@@ -16,12 +15,8 @@ import ufl
 def momentum_form(eta, eta_t, eta_tt, force, w, p):
     """The semi-discrete weak momentum equation of the viscoelastic string, as a residual."""
     dx = ufl.dx
-    return (
-        eta_tt * w * dx
-        + p.alpha * ufl.inner(ufl.grad(eta_t), ufl.grad(w)) * dx
-        + ufl.inner(ufl.grad(eta), ufl.grad(w)) * dx
-        - force * w * dx
-    )
+    return (eta_tt * w * dx + p.alpha * ufl.inner(ufl.grad(eta_t), ufl.grad(w)) * dx
+            + ufl.inner(ufl.grad(eta), ufl.grad(w)) * dx - force * w * dx)
 
 
 def penetration(eta, p):
@@ -38,10 +33,8 @@ penalty.penetration_bound = "velocity"  # the bound this law has (Model.penetrat
 
 
 def penalty_damping(eta, v, p):
-    """The same law as an implicit damping coefficient d with F = -d v^{n+1} (semi-implicit penalty).
-
-    Same active set as the explicit law, χ{η<0, v<0}; applied to the new velocity it cannot overshoot.
-    """
+    """The same law as an implicit damping coefficient d with F = -d v^{n+1} (semi-implicit penalty): the same
+    active set χ{η<0, v<0}; applied to the new velocity it cannot overshoot."""
     return ufl.conditional(ufl.And(penetration(eta, p), ufl.lt(v, 0)), 1 / p.eps, 0)
 
 
@@ -56,23 +49,17 @@ def gap(eta, p):
 
 
 def restitution_bound(dt: float, eps: float, penalty: str):
-    """The explicit velocity penalty rebounds with restitution r − 1, r = Δt/ε: refuse r ≥ 2 (growth), warn r > 1.
-
-    The semi-implicit penalty applies the damping to the new velocity and cannot overshoot: no bound.
-    """
+    """The explicit velocity penalty rebounds with restitution r − 1, r = Δt/ε: refuse r ≥ 2 (growth), warn r > 1;
+    the semi-implicit penalty cannot overshoot: no bound."""
     r = dt / eps
     if penalty != "explicit" or r <= 1:
         return None
     if r >= 2:
-        return "refuse", (
-            f"explicit velocity penalty with r = dt/eps = {r:.4g} >= 2 grows energy at every impact "
-            f"(restitution r-1 = {r - 1:.3g} >= 1); use penalty='semi-implicit' (--penalty semi-implicit), "
-            "scheme 'projection', or dt <= eps"
-        )
-    return "warn", (
-        f"explicit velocity penalty with r = dt/eps = {r:.4g} > 1 rebounds with restitution {r - 1:.3g}; "
-        "use dt <= eps, penalty='semi-implicit' or scheme 'projection' for inelastic contact"
-    )
+        return "refuse", (f"explicit velocity penalty with r = dt/eps = {r:.4g} >= 2 grows energy at every impact "
+                          f"(restitution r-1 = {r - 1:.3g} >= 1); use penalty='semi-implicit' (--penalty "
+                          "semi-implicit), scheme 'projection', or dt <= eps")
+    return "warn", (f"explicit velocity penalty with r = dt/eps = {r:.4g} > 1 rebounds with restitution {r - 1:.3g}; "
+                    "use dt <= eps, penalty='semi-implicit' or scheme 'projection' for inelastic contact")
 
 
 __all__ = ["contact_set", "gap", "momentum_form", "penalty", "penalty_damping", "penetration", "restitution_bound"]

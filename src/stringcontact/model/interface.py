@@ -1,67 +1,61 @@
-"""The model contract: what a model is (`Model`, `Parameters`) and what it declares besides its UFL (its constants,
-output fields and solver hints). These are data; the core never names a particular model. docs/howto/models.md has
-the table of the fields; a variant replaces one function of the paper's model (`model.inelastic`,
+"""The model contract: what a model is (`Model`, `Parameters`) and what it declares besides its UFL (constants,
+output fields, solver hints). These are data; the core never names a particular model. docs/howto/models.md has the
+table of the fields; a variant replaces one function of the paper's model (`model.inelastic`,
 ``dataclasses.replace(inelastic, name="mine", penalty=my_penalty)``; demos/demo_model_variant.py).
 
 ``momentum_form(eta, eta_t, eta_tt, force, w, p)``
-    The semi-discrete weak momentum equation as a residual R (a UFL `Form`), written once in the placeholders that
-    the scheme replaces by its difference quotients (as in Irksome) and `force`, the contact force density. Linear
-    in them: constant operators, assembled once; nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``): every step a
-    Newton solve (`timestepping.newton`). It must be affine in `eta_tt` and `force` with constant coefficients;
-    terms in none of them (a load ``- f*w*dx``) are the constant load b = -R(0, 0, 0, 0).
+    The semi-discrete weak momentum equation as a residual R (a UFL `Form`) in the placeholders the scheme replaces
+    by its difference quotients (as in Irksome) and `force`, the contact force density. Linear in them: operators
+    assembled once; nonlinear in `eta` or `eta_t` (``k3*eta**3*w*dx``): a Newton solve every step. Affine in
+    `eta_tt` and `force` with constant coefficients; terms in none of them (``- f*w*dx``) are the load b = -R(0).
 
 ``penalty(eta, v, p)``
-    The contact force density F, a *pointwise* UFL expression in η^n and v^n = (η^n − η^{n−1})/Δt and the fields
-    in ``p.extra``: evaluated at the nodes (`fem/nodal.py`: arithmetic, conditional, max/min, abs, sqrt, exp, ln,
-    sin, cos, tanh), lumped with the row sums of ∂R/∂force, explicit: the matrices never change.
+    The contact force density F, a *pointwise* UFL expression in η^n, v^n = (η^n − η^{n−1})/Δt and ``p.extra``,
+    evaluated at the nodes (`fem/nodal.py`: arithmetic, conditional, max/min, abs, sqrt, exp, ln, sin, cos, tanh),
+    lumped with the row sums of ∂R/∂force; explicit: the matrices never change.
 
 ``penalty_damping(eta, v, p)`` (optional)
     The same law as a damping coefficient d ≥ 0, F = −d v^{n+1} (`penalty="semi-implicit"`): only the step
-    matrix's diagonal changes, when d does. ``None``: not a velocity damping (only the explicit penalty).
+    matrix's diagonal changes. ``None``: not a velocity damping (only the explicit penalty).
 
 ``contact_set(eta, p)``; ``gap(eta, p)`` (optional)
-    The contact indicator written to the results (a UFL condition); the signed distance to the obstacle η − ψ
-    (affine in η, slope 1), whose admissible set gap ≥ 0 ``projection`` enforces (``None``: a law meant to let
-    the string through, a spring).
+    The contact indicator written to the results (a UFL condition); the signed distance η − ψ (affine in η, slope
+    1) whose gap ≥ 0 ``projection`` enforces (``None``: a law that lets the string through, a spring).
 
 ``stability(dt, eps, penalty)``, ``contact_energy(eta, p)`` (optional)
-    The law's own bound on Δt and ε (``penalty`` "explicit" or "semi-implicit"): ``None``, ``("warn", why)`` or
-    ``("refuse", why)`` (the velocity penalty's restitution is r − 1, r = Δt/ε; a spring's bound is on Δt²/ε). A
-    conservative law's stored energy density Φ (F = −∂Φ/∂η), which the energy guard counts.
+    The law's own bound on Δt and ε: ``None``, ``("warn", why)`` or ``("refuse", why)`` (the velocity penalty's
+    restitution is r − 1, r = Δt/ε; a spring's bound is on Δt²/ε). A conservative law's energy density Φ
+    (F = −∂Φ/∂η), which the energy guard counts.
 
 ``stored_energy(eta, p)`` (optional)
-    The energy density Π(η) the form stores (UFL), booked by the Newton path's ledger. ``None``: the potential
-    of the form's static force (`fem.operators.potential_energy`), which starts at η = 0: a form not finite there
-    (k/η) must declare it. A model with ``fields`` declares ``stored_energy(U, p)`` in ``U = (η, *fields)``.
+    The energy density Π(η) the form stores (UFL), booked by the Newton path's ledger. ``None``: the potential of
+    the form's static force from η = 0 (`fem.operators.potential_energy`): a form not finite there (k/η) must
+    declare it. A model with ``fields`` declares ``stored_energy(U, p)`` in ``U = (η, *fields)``.
 
 ``penetration_bound`` (default ``"auto"``), ``energy_label``, ``newton``
-    The run's penetration check (`run.checks`): ``"velocity"`` (within (ε + Δt)·V), ``"spring"`` (√ε·V) or
-    ``None`` (the depth alone); ``"auto"``: the ``penalty`` function's attribute ``penetration_bound``, else
-    ``None``, so a law of one's own is never judged by the paper's bound. The legend of the stored energy in
-    ``energy.png`` (``None``: "elastic ½∫η_x²"). ``newton``: every step by Newton even for a linear form.
+    The run's penetration check: ``"velocity"`` (within (ε + Δt)·V), ``"spring"`` (√ε·V) or ``None`` (the depth
+    alone); ``"auto"``: the ``penalty`` function's attribute ``penetration_bound``, else ``None``. The legend of the
+    stored energy in ``energy.png``. ``newton``: every step by Newton even for a linear form.
 
 ``fields`` and ``residual(U, U_t, U_tt, force, W, p)``, with ``held_fields``, ``field_lower(p)``,
 ``dissipative_fields``, ``schemes`` and ``scheme_note`` (optional)
-    More P1 unknowns on the same mesh: the residual over tuples ``U = (η, *fields)``, ``W = (w, *tests)`` replaces
-    `momentum_form`, every step a Newton solve on the mixed space; the fields enter through their values and first
-    time derivatives; η is the first (held at the ends, in contact), the others free unless held or bounded. The
-    fields held at 0 on the boundary; a lower bound per field (a variational inequality);
-    the fields whose work on η is booked as viscous dissipation; the schemes that may run the model (empty: all)
-    and why the others may not.
+    More P1 unknowns: the residual over ``U = (η, *fields)``, ``W = (w, *tests)`` replaces `momentum_form`, a
+    Newton solve on the mixed space every step; η is the first (held at the ends, in contact). The fields held at
+    0 on the boundary; a lower bound per field (a variational inequality); the fields whose work on η is booked as
+    viscous dissipation; the schemes that may run the model (empty: all) and why the others may not.
 
 ``constants``, ``check_constants(values)``, ``outputs``, ``solver``, ``release`` (optional)
-    The model's own constants (`ModelConstant`: a scene's ``[parameters]``, read by the forms as dolfinx
-    Constants ``p.constants[name]``) and its rule between them (a `SceneError` naming one); the fields it writes
-    besides η, v, the contact set and force (`OutputField`; every unknown is written); its solver defaults
-    (`SolverHints`); how ``projection`` and ``fitted`` let a resting node leave the obstacle: ``"inelastic"`` (the paper's
-    (A4)) or ``"signorini"`` (a resting node has no mass, leaves at its neighbours' equilibrium and gives back at most
-    what its landings took, `timestepping.release`).
+    The model's constants (`ModelConstant`: a scene's ``[parameters]``, the forms' ``p.constants[name]``) and its
+    rule between them (a `SceneError` naming one); the fields it writes besides η, v, the contact set and force
+    (`OutputField`); its solver defaults (`SolverHints`); how ``projection`` and ``fitted`` let a resting node leave
+    the obstacle: ``"inelastic"`` (the paper's (A4)) or ``"signorini"`` (a resting node has no mass and gives back
+    at most what its landings took, `timestepping.release`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import ufl
 
@@ -72,18 +66,15 @@ __all__ = ["DIVERGING", "MUMPS_LU", "PENETRATION_BOUNDS", "REDUNDANT_LU", "SEQUE
            "OutputField", "Parameters", "SolverHints", "direct_options", "inelastic", "output_fields",
            "penetration_bound_of", "reads_eps", "unused_fields"]
 
-#: A diverging field's colours at −P, 0 and P (RGB in 0 … 1): blue, a middle grey, red. The grey middle stays seen on
-#: a white background and on the light grey obstacle, and black labels on it are read.
+#: A diverging field's colours at −P, 0 and P (RGB in 0 … 1): blue, a grey seen on white and on the obstacle, red.
 DIVERGING = ((0.085, 0.40, 0.85), (0.55, 0.55, 0.55), (0.85, 0.10, 0.08))
 #: A one-signed field's colours from its least to its largest value: viridis' ends and middle.
 SEQUENTIAL = ((0.267, 0.005, 0.329), (0.128, 0.567, 0.551), (0.993, 0.906, 0.144))
 #: The scales a field may be drawn on.
 SCALES = ("linear", "symlog")
-#: Names an output field may not take: the fields every run stores beside it (`io.result.FIELDS`, the coordinates,
-#: a moving obstacle) share its row, and one of these names would overwrite them.
+#: Names an output field may not take: the fields every run stores beside it in its row (`io.result.FIELDS`, ...).
 RESERVED = ("eta", "velocity", "contact", "contact_force", "obstacle", "x", "t")
-#: Names a model's output field may not take besides those: the names a run's files give their own members, columns
-#: and pictures (rows.npz's ``steps``, diagnostics.csv's ``min_gap``, ``energy.png``, ...), and their prefix ``field_``.
+#: Nor these, nor the prefix ``field_``: the names a run's files give their own members, columns and pictures.
 TAKEN = ("steps", "cells", "weights", "gap", "contact_set", "contact_area", "velocity_field", "snapshots", "energy",
          "space_time", "membrane")
 #: The longest name (its picture's file name stays within the file systems' 255 bytes) and label or unit.
@@ -95,12 +86,11 @@ class OutputField:
     """A field a model writes at every stored time: `Result.fields[name]`, ``rows.npz``, ``solution.xdmf``,
     ``NAME.png`` and ParaView's view.
 
-    `expression`, ``(U, p) -> UFL``: a scalar expression of the unknowns ``U = (η, *fields)``, interpolated into P1
-    at each stored time (``None``: the unknown `name` itself). How it is shown is metadata, not code: `label`,
-    `unit`; `colours`, RGB triples in 0 … 1 from the least value to the largest; `scale`, ``"linear"`` or
-    ``"symlog"`` (linear within ``linear_share`` of its largest absolute value, logarithmic beyond: a landing's
-    pressure peak is 1e3-1e4 times the pressure around it); `symmetric`, a range −P … P (``"symlog"`` always is);
-    `surface`, that it colours a membrane instead of the contact set (one field of a model at most).
+    `expression`, ``(U, p) -> UFL``: a scalar expression of ``U = (η, *fields)``, interpolated into P1 (``None``:
+    the unknown `name` itself). How it is shown is metadata: `label`, `unit`; `colours`, RGB triples in 0 … 1
+    from the least value to the largest; `scale`, ``"linear"`` or ``"symlog"`` (linear within ``linear_share`` of
+    its largest absolute value: a landing's pressure peak is 1e3-1e4 times its surroundings); `symmetric`, a range
+    −P … P (``"symlog"`` always is); `surface`, that it colours a membrane instead of the contact set (one at most).
     """
 
     name: str
@@ -149,12 +139,9 @@ class OutputField:
 class SolverHints:
     """How a model's Newton step is best solved: defaults above the schemes', below the user's PETSc options.
 
-    `newton_options`: (name, value) pairs of PETSc options (``(("snes_linesearch_type", "l2"),)``). `linear_options`:
-    ``(dim, ranks, constants) -> pairs`` for the step's linear solver on a mesh of dimension `dim` on `ranks` ranks;
-    naming ``ksp_type`` or ``pc_type`` replaces the size rule's choice (`timestepping.linear.solver_options`).
-    `setup_bytes_per_node`: a membrane's measured set-up memory per node with this model, against which a run's
-    size is checked before the mesh is built (None: `scene.limits.SETUP_BYTES_PER_NODE`).
-    """
+    `newton_options`: (name, value) pairs of PETSc options. `linear_options`: ``(dim, ranks, constants) -> pairs``
+    for the step's linear solver (naming ``ksp_type`` or ``pc_type`` replaces the size rule's choice).
+    `setup_bytes_per_node`: a membrane's measured set-up memory per node (None: `scene.limits.SETUP_BYTES_PER_NODE`)."""
 
     newton_options: tuple = ()
     linear_options: Callable | None = None
@@ -170,8 +157,7 @@ class SolverHints:
 
 #: A direct solver for a membrane's nonsymmetric mixed system, which the size rule's CG does not fit: MUMPS' LU.
 MUMPS_LU = (("ksp_type", "preonly"), ("pc_type", "lu"), ("pc_factor_mat_solver_type", "mumps"))
-#: A string's on several ranks: each rank factorises the whole banded system (MUMPS' analysis and communication per
-#: factorisation cost more at these sizes; docs/explanation/film.md, "Cost").
+#: A string's on several ranks: each rank factorises the whole banded system (cheaper than MUMPS at these sizes).
 REDUNDANT_LU = (("ksp_type", "preonly"), ("pc_type", "redundant"))
 
 
@@ -182,8 +168,7 @@ def direct_options(dim: int, ranks: int, constants: dict | None = None) -> tuple
 
 
 def output_fields(model) -> tuple[OutputField, ...]:
-    """The fields a model writes: its declared `outputs`, and for each of its unknowns (`Model.fields`) that none
-    of them names, a plain `OutputField` of that name."""
+    """The fields a model writes: its declared `outputs`, and a plain `OutputField` for each other unknown."""
     declared = tuple(getattr(model, "outputs", ()))
     named = {getattr(f, "name", None) for f in declared}
     plain = tuple(OutputField(name) for name in getattr(model, "fields", ()) if name not in named)
@@ -192,29 +177,22 @@ def output_fields(model) -> tuple[OutputField, ...]:
 
 @dataclass(frozen=True)
 class Parameters:
-    """What a model may use, as UFL objects.
-
-    `alpha` and `eps` are `fem.Constant`s, `x` the spatial coordinate, `length` the string's length,
-    `extra` maps each scene field (``load``, ``obstacle``; see `Scene.fields`) to its P1 `Function`, and
-    `constants` each of the model's constants (`Model.constants`: the scene's ``[parameters]``, else their
-    defaults) to a `fem.Constant`.
-    """
+    """What a model may use, as UFL objects: `alpha` and `eps` (`fem.Constant`s), `x` the spatial coordinate,
+    `length` the string's length, `extra` each scene field (``load``, ``obstacle``) as a P1 `Function`, and
+    `constants` each of the model's constants (`Model.constants`) as a `fem.Constant`."""
 
     alpha: object
     eps: object
     x: object
     length: float
     extra: dict = field(default_factory=dict)
-    constants: dict = field(default_factory=dict)  # the model's constants (`Model.constants`) as fem.Constants
+    constants: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class Model:
-    """A model is a few UFL functions; replace one to make a variant.
-
-    ``dataclasses.replace(inelastic, name="mine", penalty=my_penalty)`` keeps the rest of the paper's
-    model. The signatures and what each function must return are in the module docstring.
-    """
+    """A model is a few UFL functions; replace one to make a variant (``dataclasses.replace(inelastic,
+    name="mine", penalty=my_penalty)``). The signatures and what each must return are in the module docstring."""
 
     name: str = "inelastic"
     momentum_form: Callable = momentum_form
@@ -248,8 +226,7 @@ PENETRATION_BOUNDS = ("velocity", "spring", None)
 
 
 def penetration_bound_of(model: Model) -> str | None:
-    """The penetration bound of the model's contact law: its ``penetration_bound``, or for ``"auto"`` the one
-    its ``penalty`` function declares (attribute ``penetration_bound``), else None (no known bound)."""
+    """The model's ``penetration_bound``; for ``"auto"`` its ``penalty`` function's attribute, else None."""
     bound = model.penetration_bound
     if bound == "auto":
         bound = getattr(model.penalty, "penetration_bound", None)
@@ -265,11 +242,8 @@ inelastic = Model()
 
 
 def unused_fields(model: Model, V, p: Parameters) -> list[str]:
-    """Names of the scene fields in ``p.extra`` that none of the model's functions uses.
-
-    A scene that gives a `load` to a model that ignores it is almost surely a mistake, so the
-    solver refuses it (a load silently dropped would give a plausible but wrong answer).
-    """
+    """Names of the scene fields in ``p.extra`` that none of the model's functions uses (the solver refuses a load
+    a model would silently drop)."""
     if not p.extra:
         return []
     from dolfinx import fem
@@ -293,8 +267,7 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
 
 
 def reads_eps(model: Model, V, p: Parameters) -> bool:
-    """Whether the model's contact law (its `penalty`, and `penalty_damping` if it has one) reads ε (`p.eps`): a law
-    of the model's own constants (a spring) does not, and the pictures and the report then name no ε."""
+    """Whether the model's contact law (`penalty`, `penalty_damping`) reads ε (`p.eps`); if not, no output names ε."""
     from dolfinx import fem
     from ufl.algorithms.analysis import extract_constants
 

@@ -1,10 +1,9 @@
-"""Which models a scene may name, and `load_model` (`stringcontact models` lists them: `cli.models`).
+"""Which models a scene may name, and `load_model` (`stringcontact models` lists them).
 
 A scene's ``model`` is a *name* an installed package registers under the entry-point group ``stringcontact.models``
-(docs/howto/models.md): checking it reads metadata only (`scene.names`); a run loads the one entry point it names,
-which imports that package's module: the trust boundary is the user's ``pip install``. ``"package.module:name"`` is
-accepted only where the user types it (``--model``, `load_model`), and the object must already be a `Model`: nothing
-is called.
+(docs/howto/models.md): checking it reads metadata only; a run loads the one entry point it names (the trust
+boundary is the user's ``pip install``). ``"package.module:name"`` is accepted only where the user types it
+(``--model``, `load_model`), and the object must already be a `Model`: nothing is called.
 """
 
 from __future__ import annotations
@@ -22,11 +21,8 @@ from ..scene.names import package_of as _package
 
 
 def load_model(spec):
-    """The `Model` for `spec`: a `Model` itself, a registered name, or ``"package.module:name"`` (typed by the user).
-
-    Raises `SceneError` with a one-line message naming ``model``. A ``module:name`` is imported (the user
-    named it), but the object is never called: it must be a `Model`.
-    """
+    """The `Model` for `spec`: a `Model` itself, a registered name, or ``"package.module:name"`` (typed by the user;
+    imported, never called). Raises `SceneError` with a one-line message naming ``model``."""
     from .interface import Model
 
     if isinstance(spec, Model):
@@ -65,13 +61,9 @@ def _load_path(spec: str, Model):
 
 
 def model_origin(spec, model) -> dict:
-    """Where the `model` that `spec` named came from, for summary.json: ``{"name", "source", ...}``.
-
-    ``source`` is ``"built-in"`` (registered by this package) or ``"entry point"`` (registered by another
-    installed package: ``package``, its ``version`` and the ``entry_point``), ``"module"`` (a
-    ``package.module:name`` typed by the user: the module's ``file`` and its ``sha256``), or ``"object"``
-    (a `Model` handed to `simulate` in Python that no imported entry point holds).
-    """
+    """Where the `model` that `spec` named came from, for summary.json: ``{"name", "source", ...}``. ``source`` is
+    ``"built-in"``, ``"entry point"`` (with ``package``, ``version``, ``entry_point``), ``"module"`` (a typed
+    ``package.module:name``: its ``file`` and ``sha256``) or ``"object"`` (a `Model` no imported entry point holds)."""
     name = getattr(model, "name", str(spec))
     if isinstance(spec, str) and ":" in spec and spec not in _entry_points():
         module = sys.modules.get(spec.partition(":")[0])

@@ -6,13 +6,10 @@ contact law's force. The fourth derivative is written with a second P1 unknown, 
 
     ∫ η_tt w + α η_tx w_x + η_x w_x + β κ_x w_x − F w  +  ∫ κ r − η_x r_x  = 0,      κ = 0 at the ends.
 
-κ's row does not depend on β, so the form is well posed for every β ≥ 0 (β = 0 is the paper's string, κ its
-curvature; the symmetric saddle point is singular there), and its ledger closes exactly: the bending work is the
-increment of ½β∫κ² (plus numerical dissipation ≥ 0 under backward Euler), so Π(η, κ) = ½ η_x² + ½ β κ² and κ is
-not dissipative. The form is linear: its steps take the Newton module's linear path (one factorisation). κ has no
-time derivative: `projection`'s explicit bending force makes the stable Δt shrink like Δx²/√β (`stable_dt`). On a
-membrane it is a simply supported plate, κ = −Δη. A mode sin(mπx/l) oscillates with ω² = (mπ/l)² + β (mπ/l)⁴
-(tests/model/test_stiff_string.py).
+κ's row does not depend on β, so the form is well posed for every β ≥ 0 (the symmetric saddle point is singular at
+β = 0), and its ledger closes exactly with Π(η, κ) = ½ η_x² + ½ β κ². The form is linear (one factorisation). κ has
+no time derivative: `projection`'s stable Δt shrinks like Δx²/√β (`stable_dt`). On a membrane it is a simply
+supported plate, κ = −Δη. A mode sin(mπx/l) oscillates with ω² = (mπ/l)² + β (mπ/l)⁴.
 """
 
 from __future__ import annotations
@@ -32,8 +29,7 @@ CONSTANTS = (
     ModelConstant("beta", 0.0, 0.0, BETA_MAX, unit="length²",
                   description="the bending stiffness β in η_tt − α η_txx − η_xx + β η_xxxx = F (0: the paper's string)"),
 )
-#: The stiff string's output field: the curvature κ = −η_xx on a range symmetric about 0: red where the string
-#: arches (a crest, κ > 0), blue where it sags (a trough, the edges of a contact set), grey where it is straight.
+#: The stiff string's output field: the curvature κ = −η_xx, symmetric about 0: red on a crest, blue in a trough.
 CURVATURE = OutputField("curvature", label="curvature κ = −η_xx", unit="1/length", colours=DIVERGING, symmetric=True)
 
 
@@ -56,9 +52,8 @@ def stored_energy(U, p: Parameters):
 
 def stable_dt(dx: float, beta: float, alpha: float = 0.0) -> float:
     """The explicit (`projection`) step's bound for the highest mode of a uniform P1 grid of spacing `dx`, lumped
-    mass, α = 0: Δt ≤ 2/ω_max with ω_max² = λ + β λ², λ = 12/Δx² (the consistent κ-mass's largest M₀⁻¹K eigenvalue
-    on the alternating mode is 12/Δx², the lumped η-mass's 4/Δx²: ω² = λ_K + β λ_K λ_κ). An estimate for a scene's
-    Δt; the scheme measures its own bound."""
+    mass, α = 0: Δt ≤ 2/ω_max, ω_max² = λ_K + β λ_K λ_κ (the lumped η-mass's 4/Δx², the consistent κ-mass's
+    12/Δx² on the alternating mode). An estimate; the scheme measures its own bound."""
     lam_eta, lam_kappa = 4.0 / dx**2, 12.0 / dx**2
     return 2.0 / math.sqrt(lam_eta + beta * lam_eta * lam_kappa)
 

@@ -30,9 +30,6 @@ from .registry import load_model
 __all__ = ["elastic", "load_model", "loaded_obstacle"]
 
 
-# --- elastic (bouncing) contact ------------------------------------------------------------
-
-
 def _displacement_penalty(eta, v, p: Parameters):
     """(1/ε) η⁻: a spring pushing back in proportion to the penetration, whatever the velocity."""
     return ufl.max_value(-eta, 0) / p.eps
@@ -70,9 +67,6 @@ elastic = dataclasses.replace(
 )
 
 
-# --- a loaded string over a profiled obstacle ------------------------------------------------
-
-
 def _obstacle(p: Parameters):
     return p.extra.get("obstacle", 0.0)
 
@@ -80,9 +74,7 @@ def _obstacle(p: Parameters):
 def _loaded_momentum_form(eta, eta_t, eta_tt, force, w, p: Parameters):
     """The paper's form minus ∫ f w: a term in no unknown, so the scheme assembles it once as b."""
     R = _paper_momentum_form(eta, eta_t, eta_tt, force, w, p)
-    if "load" in p.extra:
-        R = R - p.extra["load"] * w * ufl.dx
-    return R
+    return R - p.extra["load"] * w * ufl.dx if "load" in p.extra else R
 
 
 def _obstacle_rate(p: Parameters):

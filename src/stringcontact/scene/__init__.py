@@ -1,21 +1,13 @@
-"""Input data, the bottom layer: the `Scene`, its checks, TOML in and out, safe expressions; it imports only
-`stringcontact.errors` (and NumPy, simpleeval, tomli-w), never dolfinx. The names registered elsewhere (models, time
-schemes) are checked through `names`, which imports nothing."""
+"""Input data, the bottom layer: the `Scene`, its checks, TOML in and out, safe expressions; it never imports
+dolfinx. Registered names (models, time schemes) are checked through `names`, which imports nothing."""
 
 from ..lazy import lazy_names
 
-# Each name is imported from its module on first use (PEP 562): `scene.names`, which the command line reads for
-# its choices, then loads without NumPy and the rest of this package, so that `stringcontact run` starts its
-# picture process 0.08 s sooner (docs/explanation/performance.md).
-_LAZY = {
-    "check_petsc_options": "checks",
-    **dict.fromkeys(("BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",
-                     "MAX_STORED_BYTES", "REQUIRED_KEYS", "STORED_ROWS", "stored_bytes"), "limits"),
-    "Scene": "scene",
-    "SceneWarning": "scene",
-    "ModelConstant": "parameters",
-    **dict.fromkeys(("list_scenes", "load_scene", "scene_to_toml"), "toml"),
-}
+# Imported on first use (PEP 562): the command line reads `scene.names` without NumPy (0.08 s sooner).
+_LAZY = {"check_petsc_options": "checks", "Scene": "scene", "SceneWarning": "scene", "ModelConstant": "parameters",
+         **dict.fromkeys(("BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",
+                          "MAX_STORED_BYTES", "REQUIRED_KEYS", "STORED_ROWS", "stored_bytes"), "limits"),
+         **dict.fromkeys(("list_scenes", "load_scene", "scene_to_toml"), "toml")}
 __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
 __all__ = ["BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",

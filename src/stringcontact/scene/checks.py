@@ -1,6 +1,5 @@
 """Validation of scene data: each function checks one value and raises `SceneError` with one line that names
-the key and what is allowed (docs/explanation/reliability.md). Used by `scene.Scene`; `check_petsc_options` by the CLI.
-"""
+the key and what is allowed (docs/explanation/reliability.md)."""
 
 from __future__ import annotations
 
@@ -58,8 +57,7 @@ def _range_text(key: str) -> str:
 
 
 def allowed(key: str) -> str:
-    """What a scene may give for `key` (a key of `limits.FILE_KEYS`), in the words of the key's error messages; the
-    scene-keys reference (docs/reference/scene_keys.md) prints it. KeyError for a key without a text."""
+    """What a scene may give for `key` (in `limits.FILE_KEYS`), in the words of its error messages."""
     if key == "scheme":
         return ", ".join(names.SCHEMES)
     if key in _ALLOWED:
@@ -81,8 +79,7 @@ def os_reason(exc: OSError) -> str:
 
 
 def check_mesh_path(path: str) -> None:
-    """Refuse a mesh path that is not a regular file, saying what it is (missing, a directory, a FIFO, a loop of
-    symbolic links); decided from `stat`, nothing is opened (a FIFO would block)."""
+    """Refuse a mesh path that is not a regular file, saying what it is; from `stat` (opening a FIFO would block)."""
     allowed = "allowed: an XDMF triangle mesh file (*.xdmf)"
     try:
         mode = os.stat(path).st_mode
@@ -102,8 +99,7 @@ def domain_of(data: dict) -> str:
 
 
 def check_domain(scene, put) -> None:
-    """Validate the domain's geometry keys of `scene` (from Scene.__post_init__; `put` sets a normalised value):
-    no key of another domain, each of its own in range, a membrane's size within MAX_MEMBRANE_NODES."""
+    """Validate `scene`'s geometry keys (`put` sets a normalised value): none of another domain, its own in range."""
     domain = domain_of({"domain": scene.domain})
     if scene.mesh is not None and domain != "file":
         raise SceneError(f"mesh: a mesh file is its own domain; remove domain = {domain!r} or mesh")
@@ -135,7 +131,7 @@ def check_domain(scene, put) -> None:
 
 
 def check_membrane_nodes(nodes: int, key: str, value) -> None:
-    """Refuse a membrane of more than MAX_MEMBRANE_NODES nodes from its set-up's memory estimate, before any mesh."""
+    """Refuse a membrane of more than MAX_MEMBRANE_NODES nodes, before any mesh."""
     if nodes > MAX_MEMBRANE_NODES:
         raise SceneError(
             f"{key}: {value} gives {'about ' if key == 'mesh_size' else ''}{nodes} nodes, about "
@@ -155,7 +151,7 @@ def _pair(key: str, value, convert) -> tuple:
 
 
 def check_magnitude(key: str, values) -> None:
-    """Refuse values beyond ±MAX_MAGNITUDE: beyond this, energies of order |.|^2/eps overflow or lose all digits."""
+    """Refuse values beyond ±MAX_MAGNITUDE (energies of order |.|^2/eps would overflow or lose all digits)."""
     big = np.abs(np.asarray(values, dtype=float))
     if big.size and big.max() > MAX_MAGNITUDE:
         raise SceneError(f"{key}: |{key}| reaches {big.max():.3g}; allowed: {_VALUES}")
@@ -198,7 +194,7 @@ def integer(key: str, value) -> int:
 
 
 def nt_from_dt(value, T: float) -> int:
-    """The number of steps a time step `value` divides T into (T/dt an integer up to limits.DT_RELATIVE_TOLERANCE)."""
+    """The number of steps a time step `value` divides T into."""
     try:
         dt = float(value) if is_number(value) else math.nan
     except OverflowError:
@@ -229,8 +225,7 @@ def expression_text(key: str, value) -> str:
 
 
 def initial_data(key: str, value):
-    """`eta0` or `v0`: an expression (`expression_text`), or a string's nodal values (an array, a list or a tuple of
-    numbers: a restart from a state) as a tuple of finite floats within MAX_MAGNITUDE (`check_nodal_values`: count)."""
+    """`eta0` or `v0`: an expression (`expression_text`), or nodal values as a tuple of finite floats."""
     if isinstance(value, str) or is_number(value):
         return expression_text(key, value)
     if not isinstance(value, (list, tuple, np.ndarray)):
@@ -252,26 +247,23 @@ def initial_data(key: str, value):
 
 
 def initial_fields(value, nx: int | None) -> tuple:
-    """The ``fields0`` table as (name, value) pairs, each value as `initial_data`'s (checked against the model's
-    fields when the run is set up)."""
+    """The ``fields0`` table as (name, value) pairs, each value as `initial_values`'."""
     pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
-    out = []
-    for name, v in pairs:
-        v = initial_data(f"fields0.{name}", v)
-        if isinstance(v, tuple):
-            check_nodal_values(f"fields0.{name}", v, nx)
-        out.append((name, v))
-    return tuple(out)
+    return tuple((name, initial_values(f"fields0.{name}", v, nx)) for name, v in pairs)
 
 
-def check_nodal_values(key: str, values: tuple, nx: int | None) -> None:
-    """An array of nodal values fits a string of `nx` cells: nx + 1 of them (a membrane takes none)."""
+def initial_values(key: str, value, nx: int | None):
+    """`initial_data`, its nodal values (if any) checked to fit a string of `nx` cells (a membrane takes none)."""
+    values = initial_data(key, value)
+    if not isinstance(values, tuple):
+        return values
     if nx is None:
         raise SceneError(f"{key}: an array of nodal values is for a string (domain interval); allowed on a membrane: "
                          "an expression in x, y or a number")
     if len(values) != nx + 1:
         raise SceneError(f"{key}: {len(values)} nodal values for nx = {nx} cells; allowed: nx + 1 = {nx + 1} values in "
                          "the order of x")
+    return values
 
 
 def text(key: str, value) -> str:
@@ -290,8 +282,7 @@ def check_name(value) -> str:
 
 
 def check_parameters(scene, put) -> None:
-    """The ``[parameters]`` table: its form, and its values against the constants of the model the scene names if it
-    declares some (else the run checks them against the model it runs: a ``--model`` may bring them)."""
+    """The ``[parameters]`` table: its form, and its values against the named model's constants, if it has some."""
     constants, rule = names.declared(scene.model) if scene.model is not None else ((), None)
     put("parameters", parameters.check_table(scene.parameters, declared=constants))
     if constants:
@@ -306,8 +297,7 @@ def check_scheme(key: str, value) -> str:
 
 
 def check_scheme_options(key: str, value) -> tuple:
-    """The (name, value) pairs of a ``[scheme]`` table's options (its name and eps, restitution apart): each a name
-    and a word, a number or true/false. What a scheme takes is its own to check, when the run is set up."""
+    """A ``[scheme]`` table's other options as (name, value) pairs: a word, a number or true/false each."""
     pairs = tuple(value.items()) if isinstance(value, dict) else tuple(value)
     if len(pairs) > limits.SCHEME_OPTIONS_MAX:
         raise SceneError(f"scheme: {len(pairs)} options; allowed: at most {limits.SCHEME_OPTIONS_MAX}")
@@ -367,8 +357,7 @@ def check_output_times(value, T: float) -> tuple[float, ...]:
 
 
 def check_storage(scene) -> None:
-    """Refuse a scene whose stored rows would not fit, before anything is allocated: a string's (every k-th step, 0,
-    T and the output times), a membrane's (thinned to a budget: 0, T and the output times must fit)."""
+    """Refuse a scene whose stored rows would not fit (a membrane's: 0, T and the output times), before allocating."""
     n, most = len(scene.output_times), f"allowed: at most {limits.MAX_STORED_BYTES / 1e9:g} GB"
     if scene.dim == 1 and (need := limits.stored_bytes(scene.nx, scene.nt, n)) > limits.MAX_STORED_BYTES:
         raise SceneError(f"nx, nt, output_times: the stored rows need {need / 1e9:.3g} GB ((min(nt, "

@@ -1,5 +1,4 @@
-"""The keys a scene file may hold and the limits on their values (ranges, sizes, the stored rows' memory), which
-`checks` enforces; the solver reads the storage constants from here as well."""
+"""The keys a scene file may hold and the limits on their values (ranges, sizes, the stored rows' memory)."""
 
 from __future__ import annotations
 
@@ -12,11 +11,9 @@ DOMAIN_KEYS = {
 }
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")
-#: Required keys; besides these, exactly one of nt or dt. A scheme's own options (the penalty's eps) are the scheme's to
-#: require (`timestepping.base.SchemeOption`), checked when the run is set up.
+#: Required keys; besides these, exactly one of nt or dt (a scheme requires its own options, such as eps).
 REQUIRED_KEYS = ("T", "alpha", "nx", "eta0", "v0")
-#: The options of the time scheme a ``[scheme]`` table may give besides its ``name`` (the scheme declares which it
-#: takes: `timestepping.base.SchemeOption`); these two also work at the top level of a file, with a warning.
+#: The scheme's options that also work at the top level of a file, with a warning (else: the ``[scheme]`` table).
 SCHEME_KEYS_AT_TOP = ("eps", "restitution")
 #: The most options a ``[scheme]`` table may hold.
 SCHEME_OPTIONS_MAX = 32
@@ -24,17 +21,15 @@ SCHEME_OPTIONS_MAX = 32
 MAX_FILE_BYTES = 1_000_000
 DT_RELATIVE_TOLERANCE = 1e-9  # dt must divide T up to this relative error
 
-#: The range [low, high] of each number: wide enough for any sensible run, tight enough to catch typos (a missing
-#: minus, a forgotten decimal point). length, radius and T at least 1e-6: 1e-300 made dolfinx's interval of zero
-#: length and T/nt divide by 0; eps below 1e-12: docs/explanation/reliability.md, "Size and precision limits".
+#: The range [low, high] of each number: wide enough for any sensible run, tight enough to catch typos. length,
+#: radius and T at least 1e-6 (1e-300 made a zero-length interval); eps: docs/explanation/reliability.md.
 BOUNDS = {"length": (1e-6, 1e4), "radius": (1e-6, 1e4), "T": (1e-6, 1e4), "alpha": (0.0, 1e4), "eps": (1e-12, 1e6),
           "h": (-1e6, 1e6), "h_left": (-1e6, 1e6), "h_right": (-1e6, 1e6), "restitution": (0.0, 1.0)}
-# nx: dolfinx sets up the mesh in C++, deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6
-# (benchmarks/bench_mesh_size.py).
+# nx: dolfinx's mesh set-up is deaf to Ctrl-C: 0.5 s at 1e5 cells, minutes at 1e6 (benchmarks/bench_mesh_size.py).
 INT_BOUNDS = {"nx": (2, 100_000), "nt": (1, 100_000_000), "cells": (1, 2000)}
 #: At most this many output times: each is a stored row (and an XDMF frame, within --frames).
 MAX_OUTPUT_TIMES = 1000
-#: The stored rows (eta, velocity, contact force as float64, contact as bool) may take at most this many bytes.
+#: The stored rows may take at most this many bytes.
 MAX_STORED_BYTES = 2_000_000_000
 #: The bytes of one node in one stored row: eta, velocity, contact force (float64) and contact (bool).
 BYTES_PER_STORED_NODE = 3 * 8 + 1
@@ -45,9 +40,8 @@ NAME_MAX = 100
 PETSC_PREFIXES = ("ksp_", "pc_", "mat_mumps_icntl_", "mat_mumps_cntl_", "mat_superlu_dist_",
                   # a nonlinear model's Newton step (timestepping/newton.py): its tolerances and line search only
                   "snes_rtol", "snes_atol", "snes_stol", "snes_max_it", "snes_linesearch_type")
-#: Refused inside a name: viewers, monitors and reasons (they take a viewer: a file, a window), debuggers, logs,
-#: Python classes. Refused names: MUMPS' ICNTL 1-4 are Fortran output units (files fort.N), ICNTL 22 is
-#: out-of-core (temporary files).
+#: Refused inside a name: viewers, monitors, reasons (a file, a window), debuggers, logs, Python classes. Refused
+#: names: MUMPS' ICNTL 1-4 (Fortran output units, files fort.N) and 22 (out-of-core files).
 PETSC_REFUSED_WORDS = ("view", "monitor", "draw", "debugger", "log", "print", "python", "file", "dump", "save",
                        "history", "reason")
 PETSC_REFUSED_NAMES = tuple(f"mat_mumps_icntl_{i}" for i in (1, 2, 3, 4, 22))
@@ -55,9 +49,8 @@ PETSC_MAX_OPTIONS = 32
 #: A rectangle's cells per direction and a disk's radius / mesh_size (gmsh takes minutes beyond).
 MAX_CELLS = INT_BOUNDS["cells"][1]
 MAX_DISK_RATIO = 1000
-#: A membrane's nodes (rectangle, disk, mesh file): the largest size measured, 1001 x 1001. Its serial set-up
-#: (mesh, operators, the LU factor, 2 stored rows) peaked at 3096 MB RSS, 3.1 KB per node (docs/explanation/memory.md,
-#: benchmarks/bench_memory.py); cells = [2000, 2000] (4e6 nodes) took 7 GB and more before a MemoryError.
+#: A membrane's nodes: the largest measured, 1001 x 1001, whose serial set-up peaked at 3096 MB RSS, 3.1 KB per
+#: node (benchmarks/bench_memory.py); cells = [2000, 2000] took 7 GB and more before a MemoryError.
 MAX_MEMBRANE_NODES = 1001 * 1001
 SETUP_BYTES_PER_NODE = 3100
 #: The largest |eta0|, |v0|, load or obstacle value a scene may give.
@@ -70,10 +63,8 @@ def stored_bytes(nx: int, nt: int, n_output_times: int, max_rows: int = STORED_R
     return rows * (nx + 1) * BYTES_PER_STORED_NODE
 
 
-#: The keys a scene file (or `Scene.replace`) accepts, in the order they are written, and what each is: key ->
-#: (type, unit, default, meaning). The scene-keys reference (docs/reference/scene_keys.md) is generated from this,
-#: DOMAIN_KEYS and `checks.allowed` (the text the error messages give). Units: the model is dimensionless, wave speed
-#: 1, so x and t share a unit; η is a height.
+#: The keys a scene file (or `Scene.replace`) accepts, in order: key -> (type, unit, default, meaning); the
+#: scene-keys reference is generated from it. Units: wave speed 1, so x and t share a unit; η is a height.
 KEY_DOCS = {
     "name": ("string", "", "the file's name without .toml", "the scene's name (titles, output file names)"),
     "description": ("string", "", '""', "one line shown by `stringcontact list`"),

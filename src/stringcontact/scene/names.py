@@ -1,7 +1,6 @@
-"""The names a scene may use that installed packages register: models (entry-point group `GROUP`) and time schemes
-(`SCHEME_GROUP`). Checking a name reads the packages' metadata and imports nothing; what it stands for (a model's
-constants, `declared`; a scheme's class, `scheme_class`) loads its entry point: the user's ``pip install`` is the
-trust boundary."""
+"""The names installed packages register that a scene may use: models (`GROUP`) and time schemes (`SCHEME_GROUP`).
+Checking a name reads metadata only; what it stands for loads its entry point (the user's ``pip install`` is the
+trust boundary)."""
 
 from __future__ import annotations
 
@@ -29,9 +28,8 @@ def _entry_points(group: str) -> dict[str, list[importlib.metadata.EntryPoint]]:
 
 
 class SchemeNames(Mapping):
-    """The registered time schemes (`stringcontact.SCHEMES`): name -> its one-line description. The names come from
-    the packages' metadata (`SCHEME_GROUP`), the default first, the rest in alphabetical order: iterating and ``in``
-    import nothing; a description is the class's ``DESCRIPTION`` (the scheme's module imported then)."""
+    """The registered time schemes (`stringcontact.SCHEMES`): name -> one-line description, the default first, the
+    rest in alphabetical order. Iterating and ``in`` import nothing; a description imports the scheme's module."""
 
     def _names(self) -> list[str]:
         found = _entry_points(SCHEME_GROUP)
@@ -61,15 +59,13 @@ SCHEMES = SchemeNames()
 
 @functools.cache
 def scheme_class(name: str):
-    """The class registered as time scheme `name` (its module imported); a one-line `SceneError` naming
-    ``scheme`` for a name nobody registered, one registered twice, or a class that cannot be loaded."""
+    """The class registered as time scheme `name`; a one-line `SceneError` naming ``scheme`` if it cannot be."""
     ep = _one_entry_point("scheme", name, _entry_points(SCHEME_GROUP), f"allowed: {', '.join(SCHEMES)}")
     return _load("scheme", name, ep)
 
 
 def _one_entry_point(kind: str, value, found: dict, allowed: str):
-    """The one entry point registered as `value` among `found` (name -> entry points), else a one-line `SceneError`
-    naming the `kind` (``model``, ``scheme``): an unknown name (with `allowed`), or a name registered twice."""
+    """The one entry point registered as `value` in `found`, else a `SceneError` naming `kind` (unknown, or twice)."""
     if not isinstance(value, str) or value not in found:
         shown = repr(value) if isinstance(value, str) else f"{type(value).__name__} {value!r}"
         raise SceneError(f"{kind}: unknown {kind} {one_line(shown)[:80]}; {allowed}")
@@ -80,8 +76,7 @@ def _one_entry_point(kind: str, value, found: dict, allowed: str):
 
 
 def _load(kind: str, name: str, ep):
-    """The object entry point `ep` names (the installed package's module imported); a one-line `SceneError` naming
-    the `kind` if it cannot be loaded, or if the plugin's code exits (`errors.plugin_code`)."""
+    """The object entry point `ep` names; a `SceneError` naming `kind` if it cannot be loaded or its code exits."""
     with plugin_code(f"{kind}: loading {name!r} ({ep.value}, from {package_of(ep)})"):  # its sys.exit too
         try:
             return ep.load()
@@ -114,13 +109,11 @@ def package_of(ep) -> str:
 
 
 def load_registered(name: str):
-    """The object registered as model `name` (its entry point loaded: the installed package's module imported);
-    a one-line `SceneError` naming ``model`` if it cannot be loaded."""
+    """The object registered as model `name`; a one-line `SceneError` naming ``model`` if it cannot be loaded."""
     return _load("model", name, registered()[check_name(name)][0])
 
 
 def declared(name: str) -> tuple:
-    """(the constants, the rule between them) that registered model `name` declares (`Model.constants`,
-    `Model.check_constants`): what a scene's ``[parameters]`` table is checked against."""
+    """(`Model.constants`, `Model.check_constants`) of registered model `name`, for ``[parameters]``."""
     obj = load_registered(name)
     return tuple(getattr(obj, "constants", ())), getattr(obj, "check_constants", None)

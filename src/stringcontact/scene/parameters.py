@@ -1,7 +1,6 @@
 """A model's constants: what a model declares (`ModelConstant`) and a scene's ``[parameters]`` table (``k = 2000``)
-checked against it: its form by `check_table` (names, finite numbers), its values by `resolve_parameters` (names,
-ranges, required constants, the model's own rules) when the scene names a registered model, and again against the
-model a run uses (``--model module:name``, a `Model` handed to `simulate`) before anything is written."""
+checked against it: its form by `check_table`, its values by `resolve_parameters` (for the scene's model, and again
+for the model a run uses, before anything is written)."""
 
 from __future__ import annotations
 
@@ -37,8 +36,7 @@ def describe(value) -> str:
 
 
 def check_number(name: str, value, allowed: str, inside=lambda v: True) -> float:
-    """`value` as a float if it is a finite number (not a bool) for which `inside` holds, else a one-line `SceneError`
-    naming `name` and what is `allowed`."""
+    """`value` as a float if a finite number (not a bool) for which `inside` holds, else a one-line `SceneError`."""
     if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
         raise SceneError(f"{name}: expected a number, got {describe(value)}; allowed: {allowed}")
     try:
@@ -54,14 +52,12 @@ def check_number(name: str, value, allowed: str, inside=lambda v: True) -> float
 
 @dataclass(frozen=True)
 class ModelConstant:
-    """One constant a model declares: a scene sets it in its ``[parameters]`` table, the forms read it as a dolfinx
-    ``Constant`` in ``Parameters.constants[name]`` (so a value can change between steps without recompiling).
+    """One constant a model declares: a scene sets it in ``[parameters]``, the forms read it as a dolfinx
+    ``Constant`` in ``Parameters.constants[name]`` (a value can change between steps without recompiling).
 
     `default` is the value when the scene gives none; with ``required=True`` the scene must give it; with neither,
-    an absent constant is absent from ``Parameters.constants`` too (an optional feature that is off unless
-    given). The allowed range is [`low`, `high`], open at an end with `low_open`/`high_open`.
-    `unit` and `description` (one line) are shown by ``stringcontact show``, the scene-key reference and
-    ``stringcontact models``.
+    an absent constant is absent from ``Parameters.constants`` too. The allowed range is [`low`, `high`], open at
+    an end with `low_open`/`high_open`. `unit` and `description` (one line) are shown by ``stringcontact show``.
     """
 
     name: str
@@ -105,8 +101,7 @@ class ModelConstant:
 
 
 def check_table(value, key: str = "parameters", declared=()) -> tuple:
-    """A ``[parameters]`` table's form: identifier names and finite numbers, as (name, value) pairs; a constant in
-    `declared` (the model's, when known) is checked against its own range. `resolve_parameters` checks the names."""
+    """A ``[parameters]`` table's form as (name, value) pairs: identifiers, finite numbers (`declared`: in range)."""
     if isinstance(value, tuple):
         value = dict(value)
     if not isinstance(value, dict):
@@ -123,9 +118,8 @@ def check_table(value, key: str = "parameters", declared=()) -> tuple:
 
 
 def resolve_parameters(model: str, declared, given: dict, rule: Callable | None = None) -> dict[str, float]:
-    """The model's constants for a run: `given` (name -> number) checked against `declared` (`ModelConstant`s: a
-    name it does not declare, a value out of range, a required one missing are refused in one line), defaults filled
-    in, then the model's own `rule` (values -> None, or a `SceneError` naming a constant)."""
+    """The model's constants for a run: `given` (name -> number) checked against `declared` (unknown names, out of
+    range, required ones missing refused in one line), defaults filled in, then the model's own `rule`."""
     by_name = {c.name: c for c in declared}
     for name in given:
         if name not in by_name:

@@ -26,12 +26,10 @@ class SceneWarning(UserWarning):
 
 
 #: Each plain value's check, (key, value) -> the value normalised, in order; None (not given) only where needed.
-_CHECKS = {
-    "T": checks.number, "alpha": checks.number, "eps": checks.number, "length": checks.number,
-    "h_left": checks.number, "h_right": checks.number, "nx": checks.integer, "nt": checks.integer,
-    "description": checks.text, "notes": checks.text, "model": lambda key, value: names.check_name(value),
-    "scheme": checks.check_scheme, "restitution": checks.number, "options": checks.check_scheme_options,
-}
+_CHECKS = {**dict.fromkeys(("T", "alpha", "eps", "length", "h_left", "h_right"), checks.number),
+           **dict.fromkeys(("nx", "nt"), checks.integer), **dict.fromkeys(("description", "notes"), checks.text),
+           "model": lambda key, value: names.check_name(value), "scheme": checks.check_scheme,
+           "restitution": checks.number, "options": checks.check_scheme_options}
 _NEEDED = ("T", "alpha", "nt", "description", "notes")  # and on the interval its keys
 
 
@@ -40,10 +38,9 @@ class Scene:
     """One validated scene. Build it with :func:`load_scene`, :meth:`from_dict` or :meth:`replace`.
 
     ``eta0`` and ``v0`` are expressions in ``x`` (:mod:`stringcontact.scene.expressions`), or for a string its
-    nx + 1 nodal values in the order of x (a tuple of floats; a restart from a `Stepper`'s state);
-    ``h_left``/``h_right`` are the (resolved) heights at which the ends are held. ``load`` (a force density f)
-    and ``obstacle`` (a profile ψ) are optional expressions, data for a model that reads them (:attr:`fields`).
-    Direct construction validates too, but resolves no defaults and gives no warnings.
+    nx + 1 nodal values (a restart from a state); ``h_left``/``h_right`` are the (resolved) heights of the ends;
+    ``load`` and ``obstacle`` are optional expressions for a model that reads them (:attr:`fields`). Direct
+    construction validates too, but resolves no defaults and gives no warnings.
     """
 
     name: str
@@ -92,8 +89,8 @@ class Scene:
             if getattr(self, key) is not None or key in _NEEDED or self.dim == 1 and key in DOMAIN_KEYS["interval"]:
                 put(key, check(key, getattr(self, key)))
         if self.h is not None:
-            put("h", checks.expression_text("h", self.h) if isinstance(self.h, str) and self.dim == 2
-                else checks.number("h", self.h))
+            h_is_text = isinstance(self.h, str) and self.dim == 2
+            put("h", checks.expression_text("h", self.h) if h_is_text else checks.number("h", self.h))
             if self.dim == 1 and (self.h_left != self.h or self.h_right != self.h):
                 raise SceneError(f"h: h = {checks.fmt(self.h)} but h_left = {checks.fmt(self.h_left)}, h_right = "
                                  f"{checks.fmt(self.h_right)}; give either h or h_left/h_right")
@@ -101,11 +98,10 @@ class Scene:
         put("output_times", checks.check_output_times(self.output_times, self.T))
         put("petsc_options", checks.check_petsc_options(dict(o) if isinstance(o := self.petsc_options, tuple) else o))
         checks.check_storage(self)
+        nx = self.nx if self.dim == 1 else None
         for key in ("eta0", "v0"):
-            put(key, checks.initial_data(key, getattr(self, key)))
-            if isinstance(getattr(self, key), tuple):
-                checks.check_nodal_values(key, getattr(self, key), self.nx if self.dim == 1 else None)
-        put("fields0", checks.initial_fields(self.fields0, self.nx if self.dim == 1 else None))
+            put(key, checks.initial_values(key, getattr(self, key), nx))
+        put("fields0", checks.initial_fields(self.fields0, nx))
         for name, value in self.fields0:
             if isinstance(value, str):
                 self._evaluate(f"fields0.{name}", value, self.probe_points())
@@ -134,7 +130,7 @@ class Scene:
 
     @property
     def dx(self) -> float:
-        """Mesh size: length/nx; in 2D the largest cell side of the rectangle, the disk's mesh_size (nan for a file)."""
+        """Mesh size: length/nx; the rectangle's largest cell side, the disk's mesh_size (nan for a file)."""
         if self.domain == "rectangle":
             return max(L / n for L, n in zip(self.size, self.cells))
         if self.domain == "disk":
@@ -151,9 +147,8 @@ class Scene:
         return self.nx + 1 if self.dim == 1 else 1
 
     def probe_points(self) -> np.ndarray:
-        """Points at which the scene checks its expressions before a mesh exists: 101 on the interval, (k, 2) in 2D:
-        the rectangle's nodes (up to 41 x 41), a polar grid in the disk, none for a mesh file (the solver checks its
-        expressions at its nodes)."""
+        """Points at which the scene checks its expressions before a mesh exists: 101 on the interval, the rectangle's
+        nodes (up to 41 x 41), a polar grid in the disk, none for a mesh file."""
         if self.domain == "interval":
             return np.linspace(0.0, self.length, expressions.PROBE_POINTS)
         if self.domain == "rectangle":
@@ -166,8 +161,8 @@ class Scene:
         return np.zeros((0, 2))
 
     def _evaluate(self, key: str, expr, points, t: float = 0.0) -> np.ndarray:
-        """`expr` at the points, (N,) in 1D or (N, 2) in 2D, with the names l (1D), h (a single height) and t (the
-        obstacle only). Nodal values (a tuple, 1D): their piecewise-linear interpolant, exact at the nodes."""
+        """`expr` at the points, (N,) or (N, 2), with the names l (1D), h (a single height), t (the obstacle only);
+        nodal values (a tuple): their piecewise-linear interpolant."""
         p = np.asarray(points, dtype=float)
         if isinstance(expr, tuple):
             return np.interp(p.reshape(-1), self.x(), np.asarray(expr))
@@ -206,8 +201,8 @@ class Scene:
 
     @property
     def fields(self) -> dict[str, str]:
-        """The optional expression fields the scene gives (``load``, ``obstacle``), name -> expression: the solver
-        hands each to the model as a P1 function, ``Parameters.extra[name]``."""
+        """The optional expression fields the scene gives (``load``, ``obstacle``), name -> expression: the model's
+        ``Parameters.extra[name]``."""
         return {key: getattr(self, key) for key in FIELD_KEYS if getattr(self, key) is not None}
 
     def field_values(self, name: str, x, t: float = 0.0) -> np.ndarray:
@@ -224,8 +219,7 @@ class Scene:
 
     @property
     def scheme_options(self) -> dict:
-        """The scheme's options the scene gives (its ``[scheme]`` table but the name), by name: what the run checks
-        against the scheme's own declaration (`timestepping.base.SchemeOption`)."""
+        """The scheme's options the scene gives (its ``[scheme]`` table but the name), by name."""
         given = {k: v for k, v in (("eps", self.eps), ("restitution", self.restitution)) if v is not None}
         return given | dict(self.options)
 
@@ -235,8 +229,7 @@ class Scene:
         return self.obstacle is not None and expressions.uses_name(self.obstacle, "t")
 
     def as_dict(self) -> dict:
-        """The scene as file keys, in the order of `FILE_KEYS` (``Scene.from_dict(s.as_dict()) == s``): nt (not
-        dt), h if the scene has a single h, else h_left/h_right; the scheme as a name or a [scheme] table."""
+        """The scene as file keys in the order of `FILE_KEYS` (``Scene.from_dict(s.as_dict()) == s``): nt, not dt."""
         omit = {"dt", "eps", "restitution"} | ({"domain"} if self.dim == 1 else set())
         omit |= {"h_left", "h_right"} if self.h is not None else set()
         d = {}
@@ -253,8 +246,7 @@ class Scene:
 
     @classmethod
     def from_dict(cls, data: dict, *, source: str | None = None, default_name: str | None = None) -> Scene:
-        """Build a scene from file keys: checks keys, resolves defaults, validates, warns; ``source`` (a file or scene
-        name) prefixes error and warning messages."""
+        """Build a scene from file keys: checks, defaults, warnings; ``source`` prefixes the messages."""
         return cls._from_dict(data, source, default_name, warn=True)
 
     @classmethod
@@ -275,13 +267,11 @@ class Scene:
         return scene
 
     def replace(self, **changes) -> Scene:
-        """A new validated scene with some file keys changed (the same keys as a scene file). So that a change means
-        what it says: ``dt`` replaces ``nt``; changing ``T`` alone keeps ``nt``, ``length`` keeps ``nx``; ``h``
-        replaces ``h_left``/``h_right`` and vice versa; when ``eta0`` or ``length`` changes and no boundary height is
-        given, an end height that equalled eta0's old end value follows the new eta0; ``None`` removes a key
-        (``h=None``, ``model=None``); ``parameters`` (a dict) replaces the whole table; ``scheme`` a name keeps the
-        scheme's options, a table (``{"name": ..., "mass": ...}``) replaces them; ``eps`` and ``restitution`` set
-        the one option each."""
+        """A new validated scene with some file keys changed, each meaning what it says: ``dt`` replaces ``nt``;
+        ``T`` keeps ``nt``, ``length`` keeps ``nx``; ``h`` replaces ``h_left``/``h_right`` and vice versa; an end
+        height that equalled eta0's end follows a new ``eta0`` or ``length``; ``None`` removes a key; ``parameters``
+        replaces the whole table; ``scheme`` a name keeps its options, a table replaces them; ``eps`` and
+        ``restitution`` set one option each."""
         changes = _top_level_constants(changes, changes.get("model", self.model), self.name, self.parameters)
         checks.check_keys(changes)
         data = self.as_dict()
@@ -315,8 +305,8 @@ class Scene:
 
 
 def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
-    """`data` with the top-level keys that the named `model` declares as constants moved into its ``parameters`` table
-    (on top of `table`), with a `SceneWarning`; the model is loaded only when `data` has keys a scene does not know."""
+    """`data` with top-level keys the named `model` declares as constants moved into ``parameters`` (on top of
+    `table`), with a `SceneWarning`; the model is loaded only for keys a scene does not know."""
     unknown = [k for k in data if k not in FILE_KEYS]
     if not unknown or not isinstance(model, str) or model not in names.registered():
         return data
@@ -337,8 +327,8 @@ def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
 
 
 def _scheme_table(data: dict) -> tuple[dict, tuple, list]:
-    """`data` with a ``[scheme]`` table taken apart (its name as ``scheme``, eps and restitution as those keys, its other
-    options as (name, value) pairs), and the options given at the top level (they work, with a warning)."""
+    """`data` with a ``[scheme]`` table taken apart (name, eps and restitution as keys, the rest as pairs), and the
+    options given at the top level (they work, with a warning)."""
     top = [k for k in SCHEME_KEYS_AT_TOP if k in data]
     if not isinstance(data.get("scheme"), dict):
         return data, (), top
@@ -396,8 +386,8 @@ def _ends(data: dict, length: float) -> dict:
 
 
 def _warn_doubtful(scene: Scene, label: str) -> None:
-    """Refuse values beyond ±MAX_MAGNITUDE at the nodes (1D) or probe points (2D); warn (not refuse) about data that
-    is legal but probably not what was meant: eta0 below the obstacle, an end held away from eta0."""
+    """Refuse values beyond ±MAX_MAGNITUDE at the nodes or probe points; warn of eta0 below the obstacle and of an
+    end held away from eta0."""
     x = scene.x() if scene.dim == 1 else scene.probe_points()
     values = {"eta0": scene.initial_displacement(x), "v0": scene.initial_velocity(x)}
     values |= {key: scene.field_values(key, x) for key in scene.fields}

@@ -48,10 +48,7 @@ def _parse_toml(raw: bytes, label: str) -> dict:
 
 
 def load_scene(name_or_path: str | os.PathLike) -> Scene:
-    """Load a built-in scene by name (``"example1"``) or a scene file by path.
-
-    A plain name without ``/`` or ``.toml`` is looked up among the built-in scenes first.
-    """
+    """Load a built-in scene by name (``"example1"``, looked up first) or a scene file by path."""
     try:
         text = os.fsdecode(name_or_path)
     except TypeError:
@@ -96,8 +93,8 @@ def list_scenes() -> list[tuple[str, str]]:
 
 
 def scene_to_toml(scene: Scene, penalty: bool = True) -> str:
-    """The scene as a TOML scene file (loadable by :func:`~stringcontact.load_scene`, written by tomli-w), with dt,
-    dx and, where the scene gives ε and `penalty` says its scheme reads it, r = Δt/ε in a comment."""
+    """The scene as a TOML scene file (loadable by :func:`~stringcontact.load_scene`), with dt, dx and (where it
+    gives ε and `penalty`) r = Δt/ε in a comment."""
     r = f", r = dt/eps = {scene.r:.6g}" if penalty and scene.eps is not None else ""
     comment = f"# scene {scene.name!r}: dt = {scene.dt:.6g}, dx = {scene.dx:.6g}{r}\n"
     return comment + tomli_w.dumps(scene.as_dict(), multiline_strings=True)
