@@ -6,10 +6,7 @@ import numpy as np
 
 def _on_grid(t, x):
     """Broadcast ``t`` against ``x`` as (rows = times, columns = points); remember whether t was scalar."""
-    x = np.asarray(x, dtype=float)
-    scalar = np.ndim(t) == 0
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    return t[:, None], x[None, :], scalar
+    return np.atleast_1d(np.asarray(t, dtype=float))[:, None], np.asarray(x, dtype=float)[None, :], np.ndim(t) == 0
 
 
 def _finish(eta, velocity, scalar):
@@ -27,17 +24,14 @@ def damped_oscillator(t, *, a0, a1, damping, stiffness):
     omega2 = stiffness - beta**2
     if omega2 > 0.0:
         omega = np.sqrt(omega2)
-        decay = np.exp(-beta * t)
-        C = decay * np.cos(omega * t)
-        # sin(omega t)/omega via sinc stays accurate as omega -> 0 (nearly critical damping).
-        S = decay * t * np.sinc(omega * t / np.pi)
+        C = np.exp(-beta * t) * np.cos(omega * t)
+        S = np.exp(-beta * t) * t * np.sinc(omega * t / np.pi)  # sin(ωt)/ω via sinc: accurate as ω → 0
     elif omega2 == 0.0:
         C = np.exp(-beta * t)
         S = t * C
     else:
         gamma = np.sqrt(-omega2)
-        # e^{-beta t} cosh, sinh written with the slow rate gamma - beta = -kappa^2/(beta + gamma) < 0
-        # and e^{-2 gamma t} <= 1, so nothing overflows and nothing cancels for small gamma.
+        # with the slow rate γ − β = −κ²/(β + γ) and e^{−2γt} ≤ 1 nothing overflows or cancels for small γ
         slow = np.exp(-stiffness / (beta + gamma) * t)
         fast = np.exp(-2.0 * gamma * t)
         C = 0.5 * slow * (1.0 + fast)
@@ -71,14 +65,16 @@ def flat_landing_energy_loss(h, V, length):
     return 0.5 * V**2 * (length - 2.0 * flat_landing_time(h, V))
 
 
-def _landed_profile(s, *, h, V, length):
-    r"""The odd, :math:`2l`-periodic extension :math:`W` of :math:`w = \max(h - V\min(x, l-x), 0) - h` and
-    :math:`W'` (at the kinks of :math:`w` the mean of the one-sided slopes)."""
-    t_star = flat_landing_time(h, V)
+def _mirrored(s, length):
+    """(m, upper): s folded into [0, l] by the odd 2l-periodic extension, and where it was folded (f(s) = −f(2l − s))."""
     r = np.mod(s, 2.0 * length)
-    upper = r > length
-    # W(s) = -w(2l - s) on (l, 2l); W' is even, hence W'(s) = w'(2l - s) there.
-    m = np.where(upper, 2.0 * length - r, r)
+    return np.where(r > length, 2.0 * length - r, r), r > length
+
+
+def _landed_profile(s, *, h, V, length):
+    r"""The odd, 2l-periodic extension W of :math:`w = \max(h - V\min(x, l-x), 0) - h` and W' (kinks: the mean)."""
+    t_star = flat_landing_time(h, V)
+    m, upper = _mirrored(s, length)  # W' is even: W'(s) = w'(2l − s) on (l, 2l)
     w = np.maximum(h - V * np.minimum(m, length - m), 0.0) - h
     dw = -V * np.heaviside(t_star - m, 0.5) + V * np.heaviside(m - (length - t_star), 0.5)
     return np.where(upper, -w, w), dw
@@ -91,12 +87,9 @@ def flat_landing_rebound_end(h, V, length):
 
 
 def _rebound_potential(s, *, h, V, length):
-    r"""The odd, :math:`2l`-periodic extension :math:`U` of :math:`V\,1_{(t^*, l - t^*)}` and its integral
-    :math:`\Phi(s) = \int_0^s U` (even and :math:`2l`-periodic); :math:`U` at its jumps is the mean."""
+    r"""The odd, 2l-periodic extension U of :math:`V\,1_{(t^*, l - t^*)}` (jumps: the mean) and Φ = ∫_0^s U (even)."""
     t_star = flat_landing_time(h, V)
-    r = np.mod(s, 2.0 * length)
-    upper = r > length
-    m = np.where(upper, 2.0 * length - r, r)
+    m, upper = _mirrored(s, length)
     phi = V * np.clip(m - t_star, 0.0, length - 2.0 * t_star)
     u = V * (np.heaviside(m - t_star, 0.5) - np.heaviside(m - (length - t_star), 0.5))
     return np.where(upper, -u, u), phi
@@ -131,11 +124,7 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
         raise ValueError(f"with restitution {restitution} the exact solution is known for t <= l + 3 h/V = "
                          f"{flat_landing_rebound_end(h, V, length):.6g} only (the string lands again then)")
 
-    before = tt <= t_star
     distance_to_end = np.minimum(xx, length - xx)
-    eta_before = h - V * np.minimum(distance_to_end, tt)
-    vel_before = np.where(distance_to_end > tt, -V, 0.0)
-
     tau = np.maximum(tt - t_star, 0.0)
     W_minus, dW_minus = _landed_profile(xx - tau, h=h, V=V, length=length)
     W_plus, dW_plus = _landed_profile(xx + tau, h=h, V=V, length=length)
@@ -147,6 +136,6 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
         eta_after = eta_after + 0.5 * restitution * (phi_plus - phi_minus)
         vel_after = vel_after + 0.5 * restitution * (U_plus + U_minus)
 
-    eta = np.where(before, eta_before, eta_after)
-    velocity = np.where(before, vel_before, vel_after)
-    return _finish(eta, velocity, scalar)
+    before = tt <= t_star
+    eta = np.where(before, h - V * np.minimum(distance_to_end, tt), eta_after)
+    return _finish(eta, np.where(before, np.where(distance_to_end > tt, -V, 0.0), vel_after), scalar)

@@ -1,7 +1,6 @@
-"""The schemes as a researcher would write them for Example 1's string, what the benchmarks time `simulate` against
-(tests/verification/test_peers.py checks they step as it does): each NumPy peer one scheme on a uniform string, ψ = 0,
-in finite differences (the lumped FEM, T = tridiag(−1, 2, −1)), its step matrix factorised with `splu` when it
-changes, η and v stored at `simulate`'s rows; `compiled_peer`, the paper's scheme as a plain C loop."""
+"""The schemes as a researcher would write them for Example 1's string (ψ = 0, finite differences = lumped FEM,
+T = tridiag(−1, 2, −1), `splu` when the step matrix changes), what the benchmarks time `simulate` against;
+`compiled_peer`, the paper's scheme as a plain C loop."""
 
 from __future__ import annotations
 
@@ -165,7 +164,9 @@ def projection_peer(scene, stored_steps, refactor: str = "splu"):
 
 def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
     """``compiled_peer.c`` compiled with the system's C compiler and loaded; RuntimeError naming a failing compiler."""
-    compiler = _compiler()
+    # the C compiler Python's own extensions are built with (what cffi uses for dolfinx's forms), else cc or gcc
+    names = [shlex.split(n)[0] for n in (os.environ.get("CC"), sysconfig.get_config_var("CC")) if n]
+    compiler = next(filter(None, map(shutil.which, [*names, "cc", "gcc"])), None)
     if compiler is None:
         raise RuntimeError("compiled_peer: no C compiler ($CC, Python's own CC, cc or gcc)")
     folder = Path(tempfile.mkdtemp(prefix="compiled-peer-"))
@@ -180,20 +181,11 @@ def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
         shutil.rmtree(folder, ignore_errors=True)  # the loaded library stays mapped
     doubles = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
     longs = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
-    real = ctypes.c_double
     lib.march.restype = integer = ctypes.c_int
     # march(N, nt, dt, dx, alpha, eps, h_left, h_right, eta, eta_old, n_stored, stored, rows_eta, rows_v, energies, ledger)
-    lib.march.argtypes = [integer, integer, *[real] * 6, doubles, doubles, integer, longs, doubles, doubles, integer,
-                          doubles]
+    lib.march.argtypes = [integer, integer, *[ctypes.c_double] * 6, doubles, doubles, integer, longs, doubles, doubles,
+                          integer, doubles]
     return lib
-
-
-def _compiler() -> str | None:
-    """The C compiler Python's own extensions are built with (what cffi uses for dolfinx's forms), else cc or gcc."""
-    for name in (os.environ.get("CC"), sysconfig.get_config_var("CC")):
-        if name and shutil.which(shlex.split(name)[0]):
-            return shutil.which(shlex.split(name)[0])
-    return shutil.which("cc") or shutil.which("gcc")
 
 
 def compiled_peer(lib, scene, stored_steps, energies: bool = False):
@@ -208,9 +200,8 @@ def compiled_peer(lib, scene, stored_steps, energies: bool = False):
     rows_eta, rows_v = np.empty((len(steps), N + 1)), np.empty((len(steps), N + 1))
     ledger = np.zeros(len(LEDGER))
     t0 = time.perf_counter()
-    constants = (scene.alpha, scene.eps, scene.h_left, scene.h_right)
-    failed = lib.march(N, scene.nt, dt, dx, *constants, eta, eta_old, len(steps), steps, rows_eta, rows_v,
-                       int(energies), ledger)
+    failed = lib.march(N, scene.nt, dt, dx, scene.alpha, scene.eps, scene.h_left, scene.h_right, eta, eta_old,
+                       len(steps), steps, rows_eta, rows_v, int(energies), ledger)
     seconds = time.perf_counter() - t0
     if failed:
         raise MemoryError("compiled_peer: out of memory")
