@@ -96,20 +96,11 @@ def _rebound_potential(s, *, h, V, length):
 
 
 def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
-    r"""Exact inelastic solution for :math:`\alpha = 0`, ends at :math:`h`, :math:`\eta_0 = h`, :math:`v_0 = -V`
-    (:math:`h < Vl/2`). For :math:`t \le t^* = h/V` (d'Alembert), :math:`\eta = h - V\min(x, l - x, t)`, velocity
-    :math:`-V` where :math:`t < x < l - t`, else 0 (at :math:`t^*` the left limit); then the flat middle
-    :math:`[t^*, l - t^*]` stops on :math:`y = 0` and, with :math:`\tau = t - t^*` and `_landed_profile`'s :math:`W`,
-
-    .. math:: \eta = h + \tfrac12[W(x - \tau) + W(x + \tau)], \qquad \eta_t = \tfrac12[-W'(x - \tau) + W'(x + \tau)]
-
-    (:math:`|W| \le h`: it never penetrates again). A ``restitution`` :math:`e \in (0, 1]` rebounds the middle at
-    :math:`+eV` and adds :math:`\tfrac{e}{2}[\Phi(x + \tau) - \Phi(x - \tau)]` to η and
-    :math:`\tfrac{e}{2}[U(x + \tau) + U(x - \tau)]` to :math:`\eta_t` (`_rebound_potential`). That is
-    :math:`(1 - e)\eta_0 + e\eta_1`, where :math:`\eta_1` (e = 1) runs the landing backwards and then moves freely
-    above the obstacle until it lands again at :math:`\tau = l + 2t^*`: times after :math:`l + 3t^*`
-    (`flat_landing_rebound_end`) are refused.
-    """
+    r"""Exact inelastic solution for α = 0, ends at h, η₀ = h, v₀ = −V (h < Vl/2): until t* = h/V (d'Alembert)
+    η = h − V min(x, l − x, t); then the flat middle [t*, l − t*] stops on y = 0 and, τ = t − t*,
+    :math:`\eta = h + \tfrac12[W(x - \tau) + W(x + \tau)]` (`_landed_profile`; |W| ≤ h: no penetration again).
+    A ``restitution`` e ∈ (0, 1] rebounds the middle at +eV, adding :math:`\tfrac{e}{2}[\Phi(x + \tau) - \Phi(x -
+    \tau)]` (`_rebound_potential`), valid until it lands again: times after l + 3t* are refused."""
     if not (h > 0 and V > 0 and length > 0):
         raise ValueError(f"need h > 0, V > 0, length > 0, got h={h}, V={V}, length={length}")
     if not h < V * length / 2:

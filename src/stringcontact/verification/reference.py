@@ -1,16 +1,8 @@
-r"""Plain-NumPy finite differences for the string, written independently of the package: the paper's Section 6
-scheme (`fd_solve`) and the ``projection`` scheme (`fd_projection`). With :math:`(D^2\eta)_j = (\eta_{j+1} - 2\eta_j
-+ \eta_{j-1})/\Delta x^2`, fixed ends and :math:`v^n = (\eta^n - \eta^{n-1})/\Delta t`, the Section 6 scheme is
-
-.. math::
-
-    \frac{\eta_j^{n+1} - 2\eta_j^n + \eta_j^{n-1}}{\Delta t^2}
-    - \frac{\alpha}{\Delta t}\bigl(D^2\eta^{n+1} - D^2\eta^n\bigr)_j - (D^2\eta^{n+1})_j = F_j^n,
-
-with ``penalty="explicit"`` :math:`F_j^n = \varepsilon^{-1}\chi\{\eta_j^n < 0\}\,(v_j^n)^-`, or ``"semi-implicit"``
-:math:`F_j^n = -\varepsilon^{-1}\chi_j^n (\eta_j^{n+1} - \eta_j^n)/\Delta t` on :math:`\chi_j^n = \chi\{\eta_j^n < 0,
-\ v_j^n < 0\}` (``eps=numpy.inf``: no contact), from :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside.
-"""
+r"""Plain-NumPy finite differences for the string, written independently of the package: the ``projection`` scheme
+(`fd_projection`) and the paper's Section 6 scheme (`fd_solve`), with fixed ends, v^n = (η^n − η^{n−1})/Δt and
+η^{−1} = η^0 − Δt v_0 inside, :math:`(\eta_j^{n+1} - 2\eta_j^n + \eta_j^{n-1})/\Delta t^2 - \alpha(D^2\eta^{n+1} -
+D^2\eta^n)_j/\Delta t - (D^2\eta^{n+1})_j = F_j^n`: ``penalty="explicit"`` F = ε⁻¹ χ{η^n < 0} (v^n)⁻, or
+``"semi-implicit"`` F = −ε⁻¹ χ{η^n < 0, v^n < 0} (η^{n+1} − η^n)/Δt (``eps=numpy.inf``: no contact)."""
 
 import numpy as np
 from scipy.linalg import solve_banded
