@@ -1,5 +1,4 @@
-"""The numbers the theorem checks (`theorems`) give verdicts on, from a `Result` that stores every time step
-(``simulate(scene, max_rows=scene.nt)``), read in the scheme's own discrete terms (`momentum_terms`)."""
+"""The numbers the theorem checks judge, from a `Result` of every step, in the scheme's own terms (`momentum_terms`)."""
 
 from __future__ import annotations
 
