@@ -71,8 +71,7 @@ def work_precision(quick: bool = False, problem_names=("flat-landing", "example1
 
 
 def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dict | None:
-    """Observed orders on the flat landing, in Δt = Δx per method and in ε at a fixed grid per penalty:
-    {"runs": rows of CONVERGENCE_COLUMNS, "orders": rows of ORDER_COLUMNS} on rank 0."""
+    """Observed orders on the flat landing in Δt = Δx per method and in ε per penalty: {"runs", "orders"} on rank 0."""
     sizes = (125, 250, 500) if quick else (125, 250, 500, 1000, 2000, 4000, 8000)
     n_eps = 400 if quick else 4000
     eps_values = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 1e-5, 1e-6, 1e-8)
@@ -122,8 +121,8 @@ SCHEME_METHODS = {
 
 
 def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
-    """``err_eta`` of `scheme` and `model` on ``scene_at(n)`` for each n in `sizes` against ``scene_at(reference_n)``
-    at every step of the coarsest run: {"sizes", "errors", "orders" (pairwise, in Δx), "reference", "runs"}."""
+    """``err_eta`` of `scheme` on ``scene_at(n)`` per n in `sizes` against ``scene_at(reference_n)``: {"sizes",
+    "errors", "orders" (pairwise, in Δx), "reference", "runs"}."""
     method = SCHEME_METHODS[scheme]
     rows = scene_at(min(sizes)).nt
     reference = run_method(scene_at(reference_n), method, rows=rows, model=model)

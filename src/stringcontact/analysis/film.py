@@ -1,6 +1,5 @@
-"""`stringcontact study film`: the film (model "film") swept over its viscosity μ on two throws, with and without
-cavitation, against the inelastic landing and the penalty at ε → 0 (docs/explanation/film.md); `fit_rates` fits
-power laws in μ."""
+"""`stringcontact study film`: the film swept over its viscosity μ on two throws, with and without cavitation, against
+the inelastic landing and the penalty at ε → 0; `fit_rates` fits power laws in μ."""
 
 from __future__ import annotations
 
@@ -90,8 +89,7 @@ def measures(r, reference, t_lift: float, star: int) -> dict:
 
 
 def rise_time(r, star: int) -> float:
-    """The first time after η(x*) is least at which it has risen by `RISE` η(x*, 0) (nan if never): lift-off for the
-    film, which never touches, and the references alike."""
+    """The first time after η(x*) is least at which it has risen by `RISE` η(x*, 0) (nan if never): the lift-off."""
     eta = r.eta[:, star]
     low = int(np.argmin(eta))
     up = np.flatnonzero(eta[low:] >= eta[low] + RISE * abs(eta[0]))

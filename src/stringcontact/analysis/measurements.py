@@ -1,6 +1,4 @@
-"""The numbers the theorem checks (`theorems`) give verdicts on, from a `Result` that stores every time step
-(``simulate(scene, storage=Storage(max_rows=scene.nt))``), read in the scheme's own discrete terms
-(`momentum_terms`)."""
+"""The numbers the theorem checks judge, from a `Result` of every step, in the scheme's own terms (`momentum_terms`)."""
 
 from __future__ import annotations
 
@@ -16,8 +14,7 @@ def require_every_step(result) -> None:
     """A ValueError unless `result` stores every time step from step 0 on."""
     steps = np.asarray(result.steps)
     if steps.size < 2 or np.any(np.diff(steps) != 1) or steps[0] != 0:
-        raise ValueError("the theorem checks need every time step stored: run simulate(scene, "
-                         "storage=Storage(max_rows=scene.nt))")
+        raise ValueError("the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)")
 
 
 def nodal_weights(result) -> np.ndarray:
@@ -33,14 +30,11 @@ def impulse(result) -> np.ndarray:
 
 def interior(result) -> np.ndarray:
     """True at every node but the two ends."""
-    mask = np.ones(result.x.size, dtype=bool)
-    mask[[0, -1]] = False
-    return mask
+    return np.isin(np.arange(result.x.size), (0, result.x.size - 1), invert=True)
 
 
 def free_boundary(contact: np.ndarray, neighbours=ndimage.generate_binary_structure(2, 1)) -> np.ndarray:
-    """∂{η ≤ 0} on the (step, node) grid: the points whose contact flag differs from one of their `neighbours`
-    (default: the four), on both sides of the interface."""
+    """∂{η ≤ 0} on the (step, node) grid: the points whose contact flag differs from one of their `neighbours`."""
     c = np.asarray(contact, dtype=bool)
     return np.where(c, ~ndimage.binary_erosion(c, neighbours, border_value=1), ndimage.binary_dilation(c, neighbours))
 
@@ -60,13 +54,9 @@ def _previous(rows: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Momentum:
-    """A scheme's step read as the discrete momentum equation of node j at each row n, arrays over (rows, nodes),
-
-        m_j F^n_j = m_j (q^n_j − q^{n−1}_j)/Δt − (S^n_{j+1/2} − S^n_{j−1/2}),   S = (η_S)_x + α (q_S)_x:
-
-    q, the velocity whose change is the inertia; η_S, q_S, the levels of the stress (`paper`: t_n; `projection`:
-    η at t_{n−1}; `newmark`: the mean of t_{n−1} and t_n); w, the velocity the ledger books the contact work
-    with (−Δt F·w per step); F, the force applied in the step t_{n−1} → t_n (the explicit penalty's row n − 1)."""
+    """A step as the momentum equation m_j F^n_j = m_j (q^n_j − q^{n−1}_j)/Δt − (S^n_{j+½} − S^n_{j−½}),
+    S = (η_S)_x + α (q_S)_x, over (rows, nodes): η_S at t_n (`paper`), t_{n−1} (`projection`), their mean (`newmark`);
+    w, the velocity the ledger books the contact work with; F, the force of the step t_{n−1} → t_n."""
 
     q: np.ndarray
     eta_s: np.ndarray
@@ -113,8 +103,7 @@ def obstacle_rows(result) -> np.ndarray | None:
 
 
 def obstacle_velocity(result) -> np.ndarray | float:
-    """ψ_t paired with the stored velocity (0 at rest): backward (ψ^n − ψ^{n−1})/Δt for `paper`, centred
-    (ψ^{n+1} − ψ^{n−1})/(2Δt) for `projection` and `newmark`, as their stored velocities are."""
+    """ψ_t paired with the stored velocity (0 at rest): backward for `paper`, centred for `projection`, `newmark`."""
     psi = obstacle_rows(result)
     if psi is None:
         return 0.0
@@ -148,8 +137,7 @@ def band_width(result, delta: float) -> int:
 
 
 def force_sign(result) -> dict:
-    """min F, max F, min F (η_t − ψ_t)⁻, and the negative share of the dissipation −F^n (w^n − ψ_t), the force's
-    work on the gap as the ledger books it (`Momentum`)."""
+    """min F, max F, min F (η_t − ψ_t)⁻, and the negative share of the ledger's dissipation −F^n (w^n − ψ_t)."""
     terms = momentum_terms(result)
     F = result.contact_force
     D = -terms.force[1:] * (terms.w - terms.obstacle_w)[1:]
@@ -160,8 +148,7 @@ def force_sign(result) -> dict:
 
 
 def support_concentration(result, ks=(1, 2, 4), lengths=()) -> dict:
-    """Share of the total impulse within k cells/steps of ∂{η ≤ 0}, for each k and each physical length in
-    `lengths` (whole cells/steps on this grid: that share must tend to 1 if F concentrates on a null set)."""
+    """Share of the total impulse within k cells/steps of ∂{η ≤ 0}, for each k and each physical length in `lengths`."""
     I = impulse(result)
     total = I.sum()
     d = distance_to_free_boundary(result.contact)
@@ -173,15 +160,13 @@ def support_concentration(result, ks=(1, 2, 4), lengths=()) -> dict:
 
 
 def upward_impulse(result) -> dict:
-    """Share of the impulse applied where the string moves up: pointwise, v^n_j ≥ 0 in the same step, and on a
-    neighbourhood, v ≥ 0 on rows n−1..n+1 and nodes j−1..j+1 (a discrete int{η_t ≥ 0}, the set of (A3)). A moving
-    obstacle: where it moves up off it in the step the force acts in, q − ψ_t > 0 (`Momentum`) beyond the quotients'
-    round-off, 1e-9 of the largest |q|, |ψ_t| (the force that carries the string acts where q − ψ_t = 0)."""
+    """Share of the impulse where the string moves up (off a moving obstacle): pointwise, and on the 3×3
+    neighbourhood of rows and nodes (a discrete int{η_t ≥ 0}, the set of (A3))."""
     I = impulse(result)
     total = I.sum()
     if obstacle_rows(result) is None:
         up = result.velocity >= 0  # row 0 is v0, which sets the force of the first step
-    else:
+    else:  # q − ψ_t > 0 beyond the quotients' round-off: the force that carries the string acts where it is 0
         terms = momentum_terms(result)
         tol = 1e-9 * max(float(np.max(np.abs(terms.q))), float(np.max(np.abs(terms.obstacle_q))))
         up = terms.q - terms.obstacle_q > tol
@@ -191,9 +176,8 @@ def upward_impulse(result) -> dict:
 
 
 def velocity_after_contact(result, delay: float) -> dict:
-    """Σ|v(t_0 + delay)| / Σ|v(t_0)| over the nodes that touch down after t = 0 at t_0 and stay in contact until
-    t_0 + `delay` (|v − ψ_t| on a moving obstacle), and the 95th percentile of the node ratios (nodes with at least
-    1 % of the largest impact speed)."""
+    """Σ|v(t_0 + delay)| / Σ|v(t_0)| (v − ψ_t) over the nodes touching down at t_0 > 0 and in contact until then,
+    and the 95th percentile of the nodes' ratios (those with 1 % of the largest impact speed)."""
     require_every_step(result)
     first = first_contact_rows(result)
     lag = max(1, int(round(delay / result.scene.dt)))
@@ -213,14 +197,9 @@ def velocity_after_contact(result, delay: float) -> dict:
 
 
 def stress_jump_balance(result, width: int = 4) -> dict:
-    """Theorem 2.3(1) in the scheme's terms: on each interval [a, b] of the band (the nodes within `width` cells of
-    a spatial front of {η ≤ 0}, away from the ends) the discrete momentum equation (`Momentum`) gives exactly
-
-        Σ_j m_j F^n_j Δt = −(S_{b+½} − S_{a−½}) Δt + Σ_j m_j (v^n_j − v^{n−1}_j),
-
-    impulse = stress-jump impulse + inertia, and (2.10) says the inertia vanishes in the limit. Returns the three
-    totals, the mismatch |impulse − stress jump| / impulse, the identity's closure, the bands' share of all impulse
-    and the per-row series of Figure 1."""
+    """Theorem 2.3(1): on each interval of the band (`width` cells about a front) the momentum equation gives
+    impulse = stress-jump impulse + inertia exactly, and (2.10) says the inertia vanishes in the limit: the totals,
+    the mismatch |impulse − stress jump| / impulse, the closure, the bands' share and Figure 1's per-row series."""
     dt = result.scene.dt
     m = nodal_weights(result)
     terms, h = momentum_terms(result), np.diff(result.x)[None, :]
@@ -229,7 +208,7 @@ def stress_jump_balance(result, width: int = 4) -> dict:
     front[:, [0, -1]] = False
     band = ndimage.binary_dilation(front, structure=np.ones((1, 2 * width + 1), dtype=bool))
     N, rows, F, v = result.x.size, result.t.size, terms.force, terms.q
-    I_row, J_row, K_row = np.zeros(rows), np.zeros(rows), np.zeros(rows)
+    I_row, J_row, K_row = np.zeros((3, rows))
     for n in range(1, rows):
         for a, b in _runs(band[n]):
             if a < 1 or b > N - 2:
@@ -260,9 +239,8 @@ def landing_segments(result, min_nodes: int = 10) -> list[tuple[int, int, int]]:
 
 
 def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
-    """Theorem 2.3(2): for each node of a segment landing at once (less `margin` nodes at each side), the impulse
-    density Σ Δt F^n over the landing window [n₀, n₀ + q] (q steps ≈ `decay_eps`·ε, in which the penalty stops the
-    node) against the jump v(after) − v(before) of (2.12), and the window's share of the node's whole impulse."""
+    """Theorem 2.3(2): on a segment landing at once (less `margin` nodes a side) the impulse density over the window
+    [n₀, n₀ + q] (q ≈ `decay_eps`·ε/Δt) against the jump of v (2.12), and the window's share of the impulse."""
     dt = result.scene.dt
     q = max(2, int(math.ceil(decay_eps * result.scene.eps / dt))) if penalised(result) else 2
     terms, rows = momentum_terms(result), result.t.size
@@ -272,11 +250,9 @@ def landing_impulse(result, margin: int = 4, decay_eps: float = 12.0) -> dict:
         a, b = a + margin, b - margin
         if b < a or n0 + q + 1 >= rows:
             continue
-        nodes = np.arange(a, b + 1)
-        f = dt * F[n0:n0 + q + 1, nodes].sum(axis=0)
-        total = dt * F[:, nodes].sum(axis=0)
+        f, total = dt * F[n0:n0 + q + 1, a:b + 1].sum(axis=0), dt * F[:, a:b + 1].sum(axis=0)
         density.append(f)
-        jump.append(v[n0 + q + 1, nodes] - v[n0 - 1, nodes])
+        jump.append(v[n0 + q + 1, a:b + 1] - v[n0 - 1, a:b + 1])
         share.append(f.sum() / total.sum() if total.sum() > 0 else math.nan)
         times.append(result.t[n0])
     if not density:

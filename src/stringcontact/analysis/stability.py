@@ -1,5 +1,5 @@
-"""The stability studies on the flat landing: the outcome (inelastic, rebound, growth) over r = Δt/ε and Δt per
-penalty (`stability_map`), over Δt/Δx without ε (`step_size_map`), and the sweep α → 0 (`alpha_sweep`)."""
+"""The stability studies on the flat landing: the outcome over r = Δt/ε and Δt per penalty (`stability_map`), over
+Δt/Δx without ε (`step_size_map`), and the sweep α → 0 (`alpha_sweep`)."""
 
 from __future__ import annotations
 
@@ -58,8 +58,7 @@ def classify(restitution_value: float, energy: np.ndarray) -> tuple[str, int]:
 
 
 def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[float, np.ndarray, dict]:
-    """(restitution, energy per row, {energy_max_ratio, min_eta}) of `scene` run by a NumPy reference `solve`, which
-    refuses nothing before the run: an unstable one is measured too."""
+    """(restitution, energy per row, {energy_max_ratio, min_eta}) of `scene` by a NumPy reference (refusing nothing)."""
     x = scene.x()
     with np.errstate(all="ignore"):
         t, eta, vel = solve(scene.initial_displacement(x), scene.initial_velocity(x), length=1.0, T=scene.T,
@@ -73,8 +72,7 @@ def _finite_difference(solve, scene, window: float = 0.1, **options) -> tuple[fl
 
 
 def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
-    """(the row's outcome, restitution, growth_step, energy_max_ratio, min_eta; the Result or None) of `scene` run
-    by `simulate`, whose guards refuse a run ("refused") or stop it when its energy rises."""
+    """(outcome, restitution, growth_step, energy_max_ratio, min_eta; the Result or None) of `scene` by `simulate`."""
     try:
         res = simulate_self(scene, storage=sc.Storage(max_rows=scene.nt), **options)
     except sc.InstabilityError as exc:
@@ -87,8 +85,7 @@ def _simulated(scene, window: float = 0.1, **options) -> tuple[dict, object]:
 
 
 def stability_case(penalty: str, dt: float, r: float, mass: str = "lumped", T: float = 0.45) -> dict:
-    """One cell of the stability map: the flat landing (α = 0, Δx = Δt) at ε = Δt/r, lumped mass by `fd_solve`
-    (`simulate`'s scheme to 1e-10, without its refusal of r ≥ 2), consistent mass by `simulate`."""
+    """One cell of the stability map at ε = Δt/r: lumped mass by `fd_solve` (which does not refuse r ≥ 2), else `simulate`."""
     eps = dt / r
     scene = flat_landing_scene(round(1.0 / dt), eps=eps, T=T, nt=round(T / dt))
     row = {"penalty": penalty, "mass": mass, "dt": dt, "eps": eps, "r": r,
@@ -115,8 +112,7 @@ def stability_map(quick: bool = False, comm=None, busy: list | None = None) -> l
 
 
 def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: float = 0.45) -> dict:
-    """The flat landing at Δt = ratio·Δx: where the schemes without ε stop being stable (`projection` by
-    `fd_projection`, "refused" beyond `simulate`'s Δt_max; `newmark` by `simulate` with ε → 0)."""
+    """The flat landing at Δt = ratio·Δx (`projection` by `fd_projection`, `newmark` by `simulate` at ε → 0)."""
     from mpi4py import MPI
 
     from ..model.interface import inelastic

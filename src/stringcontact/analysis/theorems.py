@@ -1,6 +1,5 @@
-"""The paper's (A1)–(A4), Theorems 2.2/2.3 and (1.4) on computed solutions (docs/explanation/theorems.md): each
-``check_*`` gives a number, the limit the theorem predicts and a verdict over the levels `refine` computes (Δt/Δx and
-r = Δt/ε fixed); `run_checks` runs them all."""
+"""The paper's (A1)–(A4), Theorems 2.2/2.3 and (1.4) on computed solutions: each ``check_*`` a number, the limit the
+theorem predicts and a verdict over the levels `refine` computes (Δt/Δx and r = Δt/ε fixed); `run_checks` all."""
 
 from __future__ import annotations
 
@@ -48,8 +47,7 @@ def coarsened(scene, factor: int):
 
 
 def refine(scene, levels: int = 3, penalty: str | None = "explicit", model=None, scheme: str | None = None):
-    """Results at resolutions scene/2^(levels−1), ..., scene/2, scene (coarse to fine, Δt/Δx and r = Δt/ε fixed),
-    every step stored, with `scheme` (default: the scene's, else "paper") and its `penalty` (None: its own)."""
+    """Results at scene/2^(levels−1), ..., scene (Δt/Δx and r = Δt/ε fixed), every step stored, by `scheme`."""
     from ..run.driver import simulate
     from ..run.options import Storage
 
@@ -115,8 +113,7 @@ def check_force_sign(results) -> Check:
 
 
 def check_dissipation_sign(results) -> Check:
-    """(A1) for the energy the scheme removes, −F^n v^n (−F^n (v^n − ψ_t^n) with a moving obstacle): its negative
-    share must vanish."""
+    """(A1) for the energy the scheme removes, −F^n (v^n − ψ_t^n): its negative share must vanish."""
     results = _as_list(results)
     vals = [force_sign(r)["negative_dissipation_share"] for r in results]
     moving = moving_obstacle(results[-1])
@@ -260,8 +257,7 @@ def check_energy(result, time_refined=()) -> list[Check]:
 def run_checks(scene, levels: int = 3, penalty: str | None = "explicit", delay: float | None = None,
                delta: float = 0.02, V: float | None = None, time_levels: int = 3, model=None,
                scheme: str | None = None):
-    """Every check on `scene` with `levels` fixed-r refinements (the finest is `scene`) of `model` and `scheme`
-    (default: the scene's) with its `penalty` (None: the scheme's own): (checks, finest result, all results)."""
+    """Every check on `levels` fixed-r refinements up to `scene`: (checks, finest result, all results)."""
     if model is None and scene.model:
         from ..model.registry import load_model
 
@@ -295,8 +291,7 @@ def format_trends(checks) -> str:
 
 
 def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, balance: dict | None = None):
-    """The paper's Figure 1 on `result` (`plot.figure1.draw`); `balance`: its `stress_jump_balance` at `delta`, if
-    computed already (`check_stress_jump`'s ``data``)."""
+    """The paper's Figure 1 on `result` (`plot.figure1.draw`); `balance`: `check_stress_jump`'s ``data``, if at hand."""
     from ..plot import figure1
 
     sj = balance if balance is not None else stress_jump_balance(result, band_width(result, delta))

@@ -33,9 +33,8 @@ def richardson_estimate(coarse: Run, fine: Run, order: float) -> float:
 
 def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: int = 50, nx_max: int = NX_MAX,
                            model=None) -> list[dict]:
-    """For each method, double the resolution from `nx_start` until the two-resolution estimate is below `tol`: a dict
-    of method, nx, nt, estimate, fine_wall_s (of the finer run), ok, floor (extrapolated to `nx_max`), why ("out of
-    reach": floor above REACH_MARGIN·`tol`; "dearer" than the cheapest success) and run (the finer `Run`)."""
+    """Per method, the resolution doubled from `nx_start` until the two-resolution estimate is below `tol`: method, nx,
+    nt, estimate, fine_wall_s, ok, floor (at `nx_max`), why ("out of reach", "dearer") and run (the finer `Run`)."""
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"--tol must be a positive number (an L-infinity(0,T;L2) error of eta), got {tol}")
     found = []
@@ -80,8 +79,7 @@ def _runs(scheme: str, model) -> bool:
 
 
 def choose_for_tolerance(scene, tol: float, *, model=None):
-    """`run SCENE --tol X`: the cheapest of `TOL_METHODS` and resolution whose Richardson estimate is below X, the
-    pilots run with `model` (default: the scene's) on rank 0: (scene, options for `simulate`, report)."""
+    """`run SCENE --tol X`: the cheapest method and resolution whose estimate is below X: (scene, options, report)."""
     from mpi4py import MPI
 
     from ..fem.agree import one_outcome

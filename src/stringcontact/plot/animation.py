@@ -1,6 +1,5 @@
-"""``membrane.gif``: a 2-D run as an animation, its frames rendered by pyvista in one plotter (`membrane.rendered_rows`:
-one render a frame, not a new scene) and written by Pillow. A membrane coloured by a surface field has its colour bar
-at the right (matplotlib's, drawn once and laid over every frame)."""
+"""``membrane.gif``: a 2-D run's frames rendered by pyvista in one plotter (`membrane.rendered_rows`), written by
+Pillow; a surface field's colour bar drawn once by matplotlib and laid over every frame."""
 
 from __future__ import annotations
 
@@ -44,9 +43,8 @@ def gif_size(window_size) -> tuple[int, int]:
 
 
 def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = MAX_FRAMES, fps: float = FPS) -> Path:
-    """``membrane.gif``: the membrane z = η(x, y, t) at every few stored rows, red where in contact (or coloured
-    by its surface field, the contact set's edge in yellow), above the obstacle (grey), the time, contact
-    area and number of contact patches in the title of each frame."""
+    """``membrane.gif``: the membrane at every few stored rows, coloured as ``membrane.png``, each frame titled with
+    its time, contact area and patches."""
     rows = frame_rows(result, max_frames)
     view = membrane.membrane_view(result)
     area = result.contact_measure
@@ -77,8 +75,7 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
 
 
 def field_bar(scale, size) -> np.ndarray:
-    """The colour bar of the field's `scale` (`fields.FieldScale`) at `FIELD_BAR` in a frame `size` (width, height)
-    pixels large: matplotlib's, as membrane.png's, an RGBA image transparent around the bar and its words."""
+    """matplotlib's colour bar of `scale` at `FIELD_BAR` in a frame `size` pixels large, transparent around it (RGBA)."""
     from matplotlib.cm import ScalarMappable
 
     fig = figure((size[0] / 100, size[1] / 100), layout=None, dpi=100)

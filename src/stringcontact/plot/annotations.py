@@ -25,8 +25,7 @@ def nice_ticks(low: float, high: float, most: int = 5) -> np.ndarray:
 
 @dataclass
 class Axis:
-    """One axis: drawn from `start` to `end` (3-D points), the values `low` … `high` along it, ticks pointing
-    along `outward` (a 3-D offset: the labels sit at twice it), named `title`."""
+    """One axis from `start` to `end` (3-D), values `low` … `high`, ticks along `outward` (labels at twice it)."""
 
     start: tuple
     end: tuple
@@ -37,8 +36,7 @@ class Axis:
 
 
 def add_axis(p, axis: Axis, font_size: int = 11, most: int = 5, zoom: float = 1.0) -> list[str]:
-    """An axis with ticks and labels in the plotter `p`, its labels `font_size` points on a screen (100 pixels an
-    inch) and `zoom` times that in a render of more pixels an inch; returns the tick labels drawn."""
+    """An axis with ticks and labels in `p`, `font_size` points on a screen, `zoom` times that: the labels drawn."""
     pv = _pyvista()
     start, end, out = (np.asarray(v, dtype=float) for v in (axis.start, axis.end, axis.outward))
     p.add_mesh(pv.Line(start, end), color="black", line_width=2 * zoom, lighting=False)

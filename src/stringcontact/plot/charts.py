@@ -1,10 +1,6 @@
-"""The matplotlib pictures of a run: ``contact_set.png`` and ``velocity_field.png`` (the (x, t) plane as an image,
-one cell per stored sample), ``snapshots.png``, ``energy.png`` (the balance (1.4)) and a membrane's
-``contact_area.png``; and the readings of a Result they share with `mesh_pictures`, the demos and `theorems`.
-
-Each figure is drawn in its `style.Look`'s style sheet, in constrained layout (nothing cut off at any size), saved in
-each of the look's formats; its title says what it shows in one line, a caption the run's details (`caption`).
-"""
+"""The matplotlib pictures of a run (``contact_set.png``, ``velocity_field.png``, ``snapshots.png``, ``energy.png``,
+a membrane's ``contact_area.png``), each in its `style.Look`'s style sheet and constrained layout, a one-line title
+and a caption of the run's details; and the readings of a Result they share with `mesh_pictures` and `theorems`."""
 
 from __future__ import annotations
 
@@ -29,8 +25,8 @@ PNG_COMPRESSION = 3
 
 
 def contact_components(x: np.ndarray, contact_row: np.ndarray, min_nodes: int = 2) -> list[tuple[float, float]]:
-    """The intervals [a, b] of one contact row: maximal runs of at least `min_nodes` contact nodes (the default drops
-    single nodes, components of zero length: Example 2's left end, pinned at η = 0)."""
+    """The intervals [a, b] of one contact row's runs of at least `min_nodes` contact nodes (2: not a single node of
+    zero length, Example 2's left end pinned at η = 0)."""
     edges = np.diff(np.concatenate([[0], np.asarray(contact_row, dtype=bool).astype(np.int8), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # runs [start, stop)
     return [(float(x[a]), float(x[b - 1])) for a, b in zip(starts, stops) if b - a >= min_nodes]
@@ -43,8 +39,7 @@ def stored_rows_at(result, times) -> list[int]:
 
 
 def snapshot_rows(result, most: int = MAX_PANELS) -> list[int]:
-    """The rows at the scene's output times, or six evenly spaced rows if it has none; at most `most` of
-    them, evenly chosen, the first and the last always (`evenly`)."""
+    """The rows at the scene's output times (else six evenly spaced), at most `most` of them (`evenly`)."""
     rows = stored_rows_at(result, result.scene.output_times)
     if not rows:
         rows = sorted(set(np.linspace(0, len(result.t) - 1, 6).round().astype(int).tolist()))
@@ -76,8 +71,7 @@ def literal(text: str) -> str:
 
 
 def parameter_line(result, sep: str = ", ") -> str:
-    """The run's details: the scene, its mesh, Δt, α (and ε where the contact law reads it), then after `sep` the
-    model, the scheme, its penalty (Δt/ε where the law reads ε) and mass."""
+    """The run's details: scene, mesh, Δt, α (ε where the law reads it), `sep`, model, scheme, penalty and mass."""
     s = result.scene
     scheme = f"model {getattr(result, 'model', None) or 'inelastic'}, scheme {getattr(result, 'scheme', 'paper')}"
     mesh = f"nx = {s.nx}" if np.ndim(result.x) == 1 else f"{len(result.x)} nodes, {len(result.cells)} triangles"
@@ -90,8 +84,7 @@ def parameter_line(result, sep: str = ", ") -> str:
 
 
 def contact_times(t: np.ndarray, counts: np.ndarray) -> str:
-    """'first contact at t = A; at most K contact components at once (first at t = B)' from their number at each
-    stored time; '' when there are never two."""
+    """'first contact at t = A; at most K contact components at once (first at t = B)', or '' when never two."""
     if not counts.size or counts.max() < 2:
         return ""
     began, most = float(t[int(np.argmax(counts > 0))]), int(np.argmax(counts))
@@ -134,16 +127,14 @@ def obstacle_range(result) -> tuple[float, float]:
 
 @contextlib.contextmanager
 def without_axes3d_warning():
-    """Importing matplotlib's projections (its Figure, pyvista's colour maps) without the "Unable to import Axes3D"
-    warning of a pip matplotlib beside Debian's mpl_toolkits: no picture draws 3-D axes."""
+    """Without the "Unable to import Axes3D" warning of a pip matplotlib beside Debian's mpl_toolkits (no 3-D axes)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Unable to import Axes3D")
         yield
 
 
 def figure(inches, **options):
-    """A figure `inches` (width, height) large in constrained layout (titles, legends, colour bars and the caption get
-    their room), drawn on its own Agg canvas: no pyplot, whose state and backend are the caller's."""
+    """A figure `inches` large in constrained layout on its own Agg canvas (no pyplot: its state is the caller's)."""
     with without_axes3d_warning():
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
@@ -154,8 +145,8 @@ def figure(inches, **options):
 
 
 def with_key(fig, rows: int = 1, columns: int = 1, key: float = 0.06, **grid):
-    """A grid of `rows` × `columns` panels over a row for the key (`key`: its share of the height), and that row's
-    frameless axes for `add_key`: constrained layout makes room for its legend, not for a `Figure.legend` (3.6)."""
+    """A grid of `rows` × `columns` panels over a key row (`key` of the height) and that row's frameless axes for
+    `add_key`: constrained layout makes room for an axes' legend, not for a `Figure.legend` (3.6)."""
     heights = grid.pop("height_ratios", None) or (1,) * rows
     spec = fig.add_gridspec(2, 1, height_ratios=(sum(heights) * (1 - key), sum(heights) * key))
     panels = spec[0].subgridspec(rows, columns, height_ratios=heights, **grid)
@@ -165,8 +156,8 @@ def with_key(fig, rows: int = 1, columns: int = 1, key: float = 0.06, **grid):
 
 
 def add_key(ax, handles, labels=None) -> None:
-    """The legend of `handles` centred in the axes `ax` (`with_key`'s key row), in as many columns (three at most)
-    as the figure's width holds, measured: a legend wider than the figure makes constrained layout give up."""
+    """The legend of `handles` centred in `ax`, in as many columns (≤ 3) as the figure's width holds, measured: a
+    legend wider than the figure makes constrained layout give up."""
     fig = ax.figure
     labels = labels if labels is not None else [h.get_label() for h in handles]
     for columns in range(min(3, len(handles)), 0, -1):
@@ -176,8 +167,7 @@ def add_key(ax, handles, labels=None) -> None:
 
 
 def savefig(fig, path: Path, look: Look = SCREEN) -> list[Path]:
-    """`fig` written as `path` in each format of `look` (``NAME.png`` -> ``NAME.pdf``, ...), each file whole or
-    not at all. Returns the paths written."""
+    """`fig` written as `path` in each format of `look`, each file whole or not at all: the paths written."""
     written = []
     for target in look.paths(path):
         with atomic_path(target) as tmp:  # a picture is either complete or absent
@@ -195,8 +185,7 @@ def caption(fig, result, look: Look, *notes: str) -> None:
 
 
 def drawn(draw):
-    """A picture function ``(result, path, look=SCREEN, ...) -> first path written`` from a figure function
-    ``(result, look, ...) -> figure`` (or (figure, axes)): drawn in the look's style sheet, saved in its formats."""
+    """The picture function ``(result, path, look, ...) -> first path`` of a figure function ``(result, look, ...)``."""
 
     def picture(result, path, look: Look = SCREEN, **options) -> Path:
         with look.drawn():
@@ -207,10 +196,10 @@ def drawn(draw):
     return picture
 
 
-def panel_columns(panels: int, width: float) -> int:
-    """The columns of a picture of `panels` panels `width` inches wide: three from five panels on, two in a narrower
-    figure than 6 inches (a journal's column), whose panels' titles would not fit three abreast."""
-    return 3 if panels > 4 and width >= 6.0 else min(panels, 2)
+def panel_grid(panels: int, width: float) -> tuple[int, int]:
+    """(rows, columns) of `panels` panels `width` inches wide: three columns from five on, two below 6 inches."""
+    columns = 3 if panels > 4 and width >= 6.0 else min(panels, 2)
+    return -(-panels // columns), columns
 
 
 def _cell_edges(v: np.ndarray) -> np.ndarray:
@@ -221,9 +210,8 @@ def _cell_edges(v: np.ndarray) -> np.ndarray:
 
 
 def contact_set_figure(result, look: Look = SCREEN):
-    """The space-time contact set {η ≤ ψ}, filled where in contact; beside it its number of components over time;
-    below it, when the most components last a short while (Example 1's nine at its landing), the same zoomed in time
-    (`zoom_window`). Returns the figure and its axes {"set", "count", and with a zoom "zoom", "zoom_count"}."""
+    """The space-time contact set {η ≤ ψ} and its number of components over time, and zoomed in time when the most
+    components last a short while (`zoom_window`): the figure and its axes {"set", "count", ["zoom", "zoom_count"]}."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
@@ -264,9 +252,8 @@ contact_set_picture = drawn(contact_set_figure)
 
 
 def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
-    """(lo, hi, most, first, last): a time window around the first rows with the most contact components (`first` to
-    `last`), half as wide again each side, at least 5 % of the run; None without two components or when it would
-    span more than `share` of the run."""
+    """(lo, hi, most, first, last): a window half as wide again each side of the first rows with the most components
+    (≥ 5 % of the run); None without two components or when wider than `share` of the run."""
     most = int(counts.max()) if counts.size else 0
     if most < 2:
         return None
@@ -301,8 +288,7 @@ def snapshots_figure(result, look: Look = SCREEN):
     from matplotlib.patches import Patch
 
     rows = snapshot_rows(result)
-    ncols = panel_columns(len(rows), look.width)
-    nrows = int(np.ceil(len(rows) / ncols))
+    nrows, ncols = panel_grid(len(rows), look.width)
     height = nrows * 0.76 * look.width / ncols + 1.0  # panels 0.76 as high as wide, and the key
     fig = figure((look.width, height))
     panels, below = with_key(fig, nrows, ncols, key=0.3 / height)
@@ -345,17 +331,15 @@ snapshots_picture = drawn(snapshots_figure)
 
 
 def stored_energy_label(result) -> str:
-    """The legend of the stored energy: the model's own (`Model.energy_label`, kept in `Result.energy_label`),
-    else the paper's elastic ½∫|∇η|²."""
+    """The legend of the stored energy: the model's own (`Result.energy_label`), else the paper's elastic ½∫|∇η|²."""
     grad = r"\eta_x^2" if np.ndim(result.x) == 1 else r"|\nabla\eta|^2"
     return getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"
 
 
 def energy_figure(result, look: Look = SCREEN):
-    """The discrete energy balance (1.4): E(t) plus what viscosity, contact and the scheme took, against E(0); beside
-    it, when the energies settle early (`settle_time`), the same zoomed onto the first times; below, |balance residual|
-    (`residual_panel`); the legend under the panels. Returns the figure and its axes {"energy", "residual", and with
-    a zoom "zoom", "zoom_residual"}."""
+    """The balance (1.4): E(t) plus what viscosity, contact and the scheme took against E(0), zoomed onto the first
+    times when it settles early (`settle_time`), |residual| below: the figure and its axes {"energy", "residual",
+    ["zoom", "zoom_residual"]}."""
     e, t = result.energy, result.t
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
@@ -404,8 +388,8 @@ energy_picture = drawn(energy_figure)
 
 
 def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0.02):
-    """The end of a zoomed panel onto the first times, or None: 1.5 times the time after which every curve stays
-    within `tolerance` of the curves' largest range of its final value, when that is under `share` of the run."""
+    """1.5 times the time after which every curve stays within `tolerance` of the largest range of its final value,
+    when under `share` of the run (a zoomed panel's end), else None."""
     scale = max(float(np.ptp(values)) for values in curves) or 1.0
     moving = np.zeros(t.size, dtype=bool)
     for values in curves:
@@ -417,8 +401,7 @@ def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0
 
 
 def residual_panel(ax, t: np.ndarray, residual: np.ndarray, legend: bool = True) -> None:
-    """|residual| on a log scale; the rows where it is exactly 0 (no point on a log scale) marked by triangles at
-    the panel's floor, named in the legend."""
+    """|residual| on a log scale, rows where it is exactly 0 marked by triangles at the panel's floor."""
     res = np.abs(residual)
     zero = res == 0
     floor = float(res[~zero].min()) / 10 if (~zero).any() else 1e-16
@@ -435,8 +418,7 @@ def residual_panel(ax, t: np.ndarray, residual: np.ndarray, legend: bool = True)
 
 
 def contact_area_figure(result, look: Look = SCREEN):
-    """``contact_area.png`` (2D): the contact area (`Result.contact_measure`) against the domain's, dots at the rows of
-    ``membrane.png``'s panels; below, the number of contact patches (`Result.contact_patches`)."""
+    """``contact_area.png`` (2D): the contact area against the domain's (dots: membrane.png's panels) and patches."""
     t, area, patches = result.t, result.contact_measure, result.contact_patches()
     domain, psi = float(np.sum(result.weights)), obstacle_name(result)
     fig = figure((look.width, 0.72 * look.width))

@@ -1,7 +1,5 @@
-"""A model's output fields in the pictures, shown as their description says (`Result.field_info`, `OutputField.metadata`:
-label, unit, colours, scale), never by their name: `FieldScale`, one field's fixed colour scale over all stored rows
-(the range and symmetric-log scale of `io.paraview_view`, as ParaView's view), and ``NAME.png`` (`field_picture`).
-"""
+"""A model's output fields in the pictures, shown as their description says (label, unit, colours, scale), never by
+their name: `FieldScale`, one field's colour scale over all rows (`io.paraview_view`'s), and ``NAME.png``."""
 
 from __future__ import annotations
 
@@ -25,16 +23,14 @@ def info_of(result, name: str) -> dict:
 
 
 def surface_field(result) -> str | None:
-    """The output field that colours a membrane instead of the contact set (its description's ``surface``;
-    the first if several say so), or None."""
+    """The (first) output field whose description says ``surface``: it colours a membrane instead of contact; or None."""
     return next((name for name, info in field_info(result).items() if info.get("surface")), None)
 
 
 @dataclass(frozen=True)
 class FieldScale:
-    """An output field on one colour scale for every row and panel: `low` … `high` onto −1 … 1 (`unit`), in its
-    `colours` (`colour_map`); linear, or for `scale` ``"symlog"`` symmetric-log, linear within ±`linear_share`·`high`
-    (a landing's peak 1e3–1e4 times the rest). `title` names it on its colour bar, `label` in a sentence."""
+    """An output field on one colour scale for every row: `low` … `high` onto −1 … 1 (`unit`) in its `colours`; linear,
+    or ``"symlog"``, linear within ±`linear_share`·`high` (a landing's peak 1e3–1e4 times the rest)."""
 
     name: str
     low: float
@@ -75,8 +71,7 @@ class FieldScale:
         return Normalize(vmin=self.low, vmax=self.high)
 
     def ticks(self) -> np.ndarray:
-        """The ends, and inside them the round values (a symmetric-log scale's: 0 and ± the powers of ten from
-        `linear_share`·`high` up) that lie `TICK_GAP` or more from them."""
+        """The ends, and the round values (symlog: 0 and ± powers of ten) at least `TICK_GAP` inside them."""
         if self.scale == "symlog":
             powers = 10.0 ** np.arange(np.ceil(np.log10(self.linear_share * self.high)), np.floor(np.log10(self.high)) + 1)
             inner = np.concatenate([-powers[::-1], [0.0], powers])
@@ -95,9 +90,8 @@ class FieldScale:
 
 
 def field_figure(result, name: str, look: Look = SCREEN):
-    """The output field `name` of `result` on its scale (`FieldScale`): a string's over the (x, t) plane with the
-    contact set outlined, a membrane's at the stored time of its largest |value|; beside it its least and largest
-    value over the nodes at each stored time. Returns the figure and its two axes."""
+    """The output field `name` on its scale: a string's over (x, t), contact outlined, a membrane's at its largest
+    |value|; beside it its least and largest value at each time. Returns the figure and its two axes."""
     values = np.asarray(result.fields[name], dtype=float)
     scale = FieldScale.of(values, info_of(result, name))
     narrow = look.width < 6.0  # a journal's column: the two panels one above the other

@@ -13,11 +13,9 @@ from .style import SCREEN
 
 def draw(result, path, front_force_rate, stress_jump_rate, all_force_rate, delta: float = 0.02,
          title: str | None = None, look=None):
-    """Left: the contact set {η ≤ 0} of `result` in the (x, t) plane with its free boundary and the contact force
-    density F on it (log colour). Right, per stored time: the force on the fronts per unit time
-    (`front_force_rate`) against the stress jump −[η_x + α η_tx] across them (`stress_jump_rate`), measured in a
-    band of half-width `delta` (Theorem 2.3(1)), and all the force (`all_force_rate`). Written in each format of
-    `look` (`style.Look`; default: PNG on a screen), in its style sheet."""
+    """Left: the contact set over (x, t), its free boundary and the force density F (log colour). Right: the force on
+    the fronts per unit time against the stress jump −[η_x + α η_tx] in a band ±`delta` (Theorem 2.3(1)), and all
+    the force; written in each format of `look` (default: PNG on a screen)."""
     look = look or SCREEN
     with look.drawn():
         from matplotlib.colors import ListedColormap, LogNorm

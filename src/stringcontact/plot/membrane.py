@@ -1,8 +1,5 @@
-"""A membrane (a 2-D run) in a pyvista plotter, what ``membrane.png`` (`mesh_pictures`) and ``membrane.gif``
-(`animation`) share: its view (`membrane_view`), the membrane and the obstacle at a stored row (`add_membrane`) moved
-to other rows in place (`show_row`, `rendered_rows`), its axes, words and colour key, and the edge of its contact set
-where a surface field (`fields.FieldScale`) colours it.
-"""
+"""A membrane (a 2-D run) in a pyvista plotter, what ``membrane.png`` and ``membrane.gif`` share: its view, the
+membrane and obstacle at a row moved to other rows in place, its axes, words, colour key and edge of contact."""
 
 from __future__ import annotations
 
@@ -19,8 +16,7 @@ from .vtk_start import _pyvista
 
 @dataclass
 class MembraneView:
-    """How a membrane is drawn: heights times `scale`, within the box `bounds`, seen from `camera`; the
-    contact indicator coloured through `neighbours` (`shade`)."""
+    """How a membrane is drawn: heights times `scale` in the box `bounds` seen from `camera`, contact by `shade`."""
 
     scale: float
     bounds: tuple  # (x0, x1, y0, y1, z0, z1), drawn coordinates
@@ -30,9 +26,7 @@ class MembraneView:
     obstacle: object = None  # a moving obstacle's PolyData last drawn by `add_membrane`: `show_row` moves it
 
     def shade(self, contact: np.ndarray) -> np.ndarray:
-        """What the colour is drawn from: 0.6 × the nodal contact indicator + 0.4 × its mean over the node's
-        neighbours, so that its 0.5 iso-line has no staircase along the triangles' edges; a node is red if and only
-        if it is in contact (≥ 0.6 against ≤ 0.4)."""
+        """0.6 × the contact indicator + 0.4 × its neighbours' mean: a 0.5 iso-line without staircase, red iff in contact."""
         c = np.asarray(contact, dtype=float)
         return c if self.neighbours is None else 0.6 * c + 0.4 * (self.neighbours @ c)
 
@@ -50,8 +44,7 @@ def neighbour_mean(cells: np.ndarray, nodes: int):
 
 
 def membrane_view(result) -> MembraneView:
-    """Heights exaggerated (at least ×1) so that the height range is 0.3 of the domain's width; a camera
-    above the front edge, looking down at 50° or so, that sees every row and the obstacle."""
+    """Heights stretched (≥ ×1) to 0.3 of the domain's width; a camera above the front edge, looking down at ~50°."""
     x = result.x
     psi_lo, psi_hi = obstacle_range(result)  # over all stored times: a moving obstacle stays in the box
     lo, hi = min(float(result.eta.min()), psi_lo), max(float(result.eta.max()), psi_hi)
@@ -79,9 +72,8 @@ def triangles(result, z):
 
 
 def add_membrane(p, result, row: int, view: MembraneView):
-    """The membrane at `row` in the plotter `p`, coloured by contact or by the surface field on `view.field`'s scale,
-    and the obstacle (grey; a moving one at the row's time, kept in `view.obstacle`). Returns the membrane's
-    PolyData, which `show_row` changes in place."""
+    """The membrane at `row` in `p`, coloured by contact or `view.field`, and the obstacle (grey; a moving one kept in
+    `view.obstacle`): the membrane's PolyData, which `show_row` changes in place."""
     moves = obstacle_moves(result)
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
@@ -131,9 +123,8 @@ def _set_field(surface, result, row: int, scale: FieldScale) -> None:
 
 
 def rendered_rows(p, result, rows, view: MembraneView, zoom: float = 1.0, before_render=None):
-    """The membrane at each of the stored `rows` rendered in the plotter `p`, its axes' fonts `zoom` times their size
-    on a screen: the scene made once, its heights and colours changed in place row by row (`show_row`);
-    `before_render(k, row)` is called before the k-th render. Yields RGB arrays."""
+    """RGB renders of the membrane at each of `rows` in `p`, the scene made once and changed in place (`show_row`),
+    fonts `zoom` times a screen's; `before_render(k, row)` called before the k-th."""
     surface = add_membrane(p, result, rows[0], view)
     edge = None if view.field is None else add_contact_edge(p, surface, view)
     add_membrane_axes(p, view, zoom=zoom)
@@ -153,8 +144,7 @@ TICK_FONT = 16
 
 
 def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT, zoom: float = 1.0) -> None:
-    """x and y along the front and right edges of the floor under the obstacle, and the height η (in its own
-    units: the ticks undo the drawing's `scale`) up the front left corner; fonts as `annotations.add_axis`'."""
+    """x and y along the floor's front and right edges, η (in its own units) up the front left corner."""
     x0, x1, y0, y1, z0, z1 = view.bounds
     unit = 0.05 * max(x1 - x0, y1 - y0)
     add_axis(p, Axis((x0, y0, z0), (x1, y0, z0), x0, x1, (0, -unit, 0), "x"), font_size, 4, zoom)
@@ -197,9 +187,8 @@ def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
 
 
 def contact_edge(surface, view: MembraneView, into=None):
-    """The edge of the contact set on the drawn membrane `surface`: the 0.5 iso-line of its "contact" shade
-    (`MembraneView.shade`), lifted by 0.5 % of the drawing's height so that the surface does not hide it;
-    copied into the PolyData `into` if given (a GIF's next frame). Empty when nothing is in contact."""
+    """The 0.5 iso-line of `surface`'s contact shade, lifted 0.5 % of the height to stay visible (copied `into` if
+    given; empty without contact)."""
     line = surface.contour([0.5], scalars="contact")
     if line.n_points:
         line.points[:, 2] += 0.005 * (view.bounds[5] - view.bounds[4])
@@ -210,8 +199,7 @@ def contact_edge(surface, view: MembraneView, into=None):
 
 
 def add_contact_edge(p, surface, view: MembraneView):
-    """The contact set's edge (`contact_edge`) on `surface` as a yellow line; returns its PolyData, which
-    `contact_edge(surface, view, into=...)` updates in place (empty while nothing is in contact)."""
+    """The contact set's edge (`contact_edge`) on `surface` as a yellow line: its PolyData, updated in place later."""
     edge = contact_edge(surface, view)
     p.add_mesh(edge, color=colours.CONTACT_EDGE_COLOUR, line_width=3.0, lighting=False, reset_camera=False,
                pickable=False)

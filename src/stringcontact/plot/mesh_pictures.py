@@ -1,9 +1,6 @@
-"""Pictures of meshes in space: a pyvista render (off-screen) laid out in a matplotlib figure with its title, colour
-key, panels' labels and caption (constrained layout; vector text in a PDF or SVG, the render a raster at the
-style's resolution). ``space_time.png``: a string's η(x, t) as a surface over the (x, t) plane, coloured by contact,
-above the obstacle ψ (the surface ψ(x, t) when it moves). ``membrane.png``: a membrane at the scene's output times,
-one panel each (`membrane`: what it shares with ``membrane.gif``), coloured by contact or by its surface field.
-"""
+"""Pictures of meshes in space, a pyvista render laid out in a matplotlib figure (vector words in a PDF or SVG):
+``space_time.png``, a string's η(x, t) over the (x, t) plane above ψ; ``membrane.png``, a membrane at the output
+times (`membrane`: what it shares with ``membrane.gif``); coloured by contact or by the surface field."""
 
 from __future__ import annotations
 
@@ -26,8 +23,7 @@ SCREEN_RENDER, SCREEN_PANEL, LEAST_POINTS = 1100, 367, 6.0
 
 
 def _font_zoom(look: Look, width: int, screen: int) -> float:
-    """The factor of the axes' font in a render `width` pixels wide: as large against the render as on the screen
-    (`screen` pixels wide), at most the look's own (`Look.zoom`), at least `LEAST_POINTS` points."""
+    """The axes' font factor in a render `width` pixels wide: as on the screen's `screen`, ≤ `Look.zoom`, ≥ LEAST_POINTS."""
     return min(look.zoom, max(width / screen, LEAST_POINTS / 72 * look.dpi / membrane.TICK_FONT))
 
 
@@ -41,12 +37,6 @@ def _every_kth(n: int, most: int) -> np.ndarray:
     return np.union1d(np.arange(0, n, max(1, int(np.ceil(n / most)))), [n - 1])
 
 
-def _shown(ax, image) -> None:
-    """The render `image` in the axes `ax`, without the axes' frame and ticks."""
-    ax.imshow(image)
-    ax.set_axis_off()
-
-
 def _key(ax, entries) -> None:
     """The colour key in the axes `ax` (under the picture): a filled square per (label, colour) of `entries`."""
     from matplotlib.patches import Patch
@@ -55,15 +45,15 @@ def _key(ax, entries) -> None:
 
 
 def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_rows: int = 200):
-    """η(x, t) as a surface over the (x, t) plane, red where in contact, above the obstacle ψ (grey): the
-    surface ψ(x, t) when the obstacle moves. Returns the figure and the axes of the render."""
+    """η(x, t) over the (x, t) plane, red where in contact, above the obstacle ψ(x, t) (grey): figure and axes."""
     width, height = look.inches
     pixels = look.pixels((width, height - KEY_ROOM - CAPTION_ROOM * look.caption))
     image = space_time_render(result, pixels, _font_zoom(look, pixels[0], SCREEN_RENDER), max_columns, max_rows)
     fig = charts.figure(look.inches)
     panels, below = charts.with_key(fig, key=0.4 / height)
     ax = fig.add_subplot(panels[0])
-    _shown(ax, image)
+    ax.imshow(image)
+    ax.set_axis_off()
     psi = charts.obstacle_name(result)
     _key(below, [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)])
     fig.suptitle("Surface η(x, t) over the (x, t) plane")
@@ -86,8 +76,7 @@ def _height_range(result) -> str:
 
 
 def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300, max_rows: int = 200) -> np.ndarray:
-    """The surface η(x, t) with its x, t and η axes, rendered by pyvista `pixels` (width, height) large, its fonts
-    `zoom` times their size on a screen: an RGB array."""
+    """The surface η(x, t) with its axes rendered `pixels` large, fonts `zoom` times a screen's: an RGB array."""
     pv = _pyvista()
     # the surface spans ~800 pixels across and ~400 deep: finer meshes cost llvmpipe time, not detail
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
@@ -127,12 +116,10 @@ def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300,
 
 
 def membrane_figure(result, look: Look = SCREEN):
-    """The membrane z = η(x, y, t) at the scene's output times, a panel each naming its time, contact area and
-    patches: red where in contact, or coloured by its surface field on one scale (its colour bar under the panels, the
-    edge of contact in yellow), above the obstacle (grey). Returns the figure and its panels' axes."""
+    """The membrane at the output times, a panel each (time, contact area, patches), red where in contact or coloured
+    by its surface field (bar under the panels, edge of contact yellow), above the obstacle: figure and axes."""
     rows = charts.snapshot_rows(result)
-    ncols = charts.panel_columns(len(rows), look.width)
-    nrows = int(np.ceil(len(rows) / ncols))
+    nrows, ncols = charts.panel_grid(len(rows), look.width)
     view = membrane.membrane_view(result)
     bar = view.field is not None
     width, height = look.inches
@@ -145,7 +132,8 @@ def membrane_figure(result, look: Look = SCREEN):
     pixels = look.pixels(panel)
     for k, image in enumerate(membrane_renders(result, rows, view, pixels, _font_zoom(look, pixels[0], SCREEN_PANEL))):
         ax = axs.flat[k]
-        _shown(ax, image)
+        ax.imshow(image)
+        ax.set_axis_off()
         label = membrane.membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
         ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # two lines in a column
     for ax in axs.flat[len(rows):]:
@@ -169,8 +157,7 @@ membrane_picture = drawn(membrane_figure)
 
 
 def membrane_renders(result, rows, view, pixels, zoom: float = 1.0):
-    """The membrane at each of the stored `rows` as pyvista renders it, `pixels` (width, height) large, its axes'
-    fonts `zoom` times their size on a screen (`membrane.rendered_rows`). Yields RGB arrays."""
+    """RGB renders `pixels` large of the membrane at each of `rows` (`membrane.rendered_rows`)."""
     p = _plotter(pixels)
     try:
         yield from membrane.rendered_rows(p, result, rows, view, zoom)

@@ -10,8 +10,7 @@ MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane
 
 
 def field_picture_names(result) -> dict[str, str]:
-    """The picture of each of the model's output fields (`Result.fields`): picture -> field, ``NAME.png``, or
-    ``field_NAME.png`` where that is a core picture's name."""
+    """Picture -> output field: ``NAME.png``, or ``field_NAME.png`` where that is a core picture's name."""
     names = {}
     for name in getattr(result, "fields", None) or {}:
         picture = f"{name}.png"
@@ -22,7 +21,6 @@ def field_picture_names(result) -> dict[str, str]:
 
 
 def pictures_of(result) -> tuple[str, ...]:
-    """The pictures of a run: `PICTURES` of a string (1D), `MEMBRANE_PICTURES` of a membrane (2D), then one per
-    output field of its model (`field_picture_names`)."""
+    """`PICTURES` of a string, `MEMBRANE_PICTURES` of a membrane, then one per output field of its model."""
     names = PICTURES if result.dim == 1 else MEMBRANE_PICTURES
     return names + tuple(field_picture_names(result))

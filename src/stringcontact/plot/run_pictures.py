@@ -1,9 +1,5 @@
-"""A run's pictures (`pictures_of`), drawn by the library made for each: matplotlib (`charts`) for the (x, t) images
-and the line charts, pyvista (`mesh_pictures`, imported only for them) for ``space_time.png`` and a membrane's
-``membrane.png``, Pillow for ``membrane.gif`` (`animation`), and ``NAME.png`` for each output field of the run's
-model (`fields`). `write_pictures` draws them in the calling process, a run's after its solve; ``stringcontact plot
-DIR`` draws the same ones again from the stored rows (``rows.npz``, `io.readback.read_output`).
-"""
+"""A run's pictures (`pictures_of`), each by the library made for it: matplotlib (`charts`, `fields`), pyvista
+(`mesh_pictures`, imported only for them), Pillow (`animation`); after a run's solve, or again from its stored rows."""
 
 from __future__ import annotations
 
@@ -22,9 +18,8 @@ CHARTS = {"contact_area.png": "contact_area_picture", "contact_set.png": "contac
 
 
 def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> Path:
-    """Draw the picture `name` (one of PICTURES or MEMBRANE_PICTURES, or an output field's of `result`:
-    `field_picture_names`) of `result` into `folder`, in each format of `look` (default: a PNG `window_size`
-    pixels large on a screen); returns the first file written."""
+    """Draw the picture `name` (`pictures_of`) of `result` into `folder` in each format of `look` (default: a PNG
+    `window_size` pixels large on a screen): the first file written."""
     look = look or Look.of_pixels(window_size)
     path = Path(folder) / name
     field = field_picture_names(result).get(name)
@@ -59,9 +54,8 @@ def written(names, look: Look) -> list[str]:
 
 
 def write_pictures(result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> list[Path]:
-    """Write the pictures of `result` (`pictures_of`: 1D or 2D) into `folder`, in each format of `look` (default:
-    PNGs `window_size` pixels large on a screen), one after the other; the function `simulate(..., pictures=True)`
-    calls. Returns the files written."""
+    """Write the pictures of `result` (`pictures_of`) into `folder` in each format of `look` (default: PNGs
+    `window_size` pixels large), what `simulate(..., pictures=True)` calls: the files written."""
     folder = Path(folder)
     look = look or Look.of_pixels(window_size)
     names = tuple(n for n in pictures_of(result) if n != "membrane.gif" or "png" in look.formats)

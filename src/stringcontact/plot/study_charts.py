@@ -1,6 +1,5 @@
-"""The studies' charts (matplotlib): work-precision, convergence, the stability map and the step-size map. The rows
-come from `stringcontact.analysis` (its CSV columns); what else a chart needs (the methods' legend labels, the impact
-speed) is passed in, so this module imports nothing above `plot`."""
+"""The studies' charts (matplotlib) from `stringcontact.analysis`'s rows: work-precision, convergence, the stability
+and step-size maps; what else they need (legend labels, the impact speed) is passed in."""
 
 from __future__ import annotations
 
@@ -15,8 +14,7 @@ from .charts import figure
 
 @contextlib.contextmanager
 def study_figure(path, *args, figsize, layout=None, **kwargs):
-    """A study's figure: ``with study_figure(path, rows, cols, figsize=..., **subplots) as (_fig, axes):`` draws into
-    matplotlib's subplots, written to `path` (whole or not at all) when the block ends without an error."""
+    """``with study_figure(path, rows, cols, figsize=...) as (fig, axes):``, written to `path` whole when it ends."""
     fig = figure(figsize, layout=layout)
     yield fig, fig.subplots(*args, **kwargs)
     with atomic_path(path) as tmp:
@@ -39,8 +37,7 @@ ERROR_LABELS = {
 
 
 def plot_work_precision(rows: list[dict], path, labels: dict) -> Path:
-    """Error against wall-clock time, log-log: a row of panels per problem, a panel per error; a line per method
-    in `labels` (method name: legend label), in its order."""
+    """Error against wall-clock time, log-log: a row per problem, a panel per error, a line per method in `labels`."""
     probs = list(dict.fromkeys(r["problem"] for r in rows))
     with study_figure(path, len(probs), 3, figsize=(15, 4.6 * len(probs)), squeeze=False, layout="constrained") as (fig, axes):
         for i, p in enumerate(probs):
@@ -69,8 +66,7 @@ def plot_work_precision(rows: list[dict], path, labels: dict) -> Path:
 
 
 def plot_convergence(result: dict, path, labels: dict, impact_speed: float) -> Path:
-    """Left: errors against Δt = Δx with reference slopes. Right: penetration and error against ε, with the
-    penetration ε·V of a landing at `impact_speed` V. `labels`: method name -> legend label."""
+    """Errors against Δt = Δx with reference slopes; penetration (against ε·`impact_speed`) and error against ε."""
     rows = result["runs"]
     with study_figure(path, 1, 3, figsize=(15, 4.4)) as (_fig, axes):
         ax = axes[0]

@@ -1,8 +1,6 @@
-"""How a run's pictures are written (`Look`): their formats (PNG, and PDF or SVG for a paper), their size, and the
-matplotlib style sheet they are drawn in (``styles/NAME.mplstyle``, package data: `STYLES`). The pyvista pictures are
-a render in a matplotlib figure, so that their words are vector text: VTK's own vector export
-(``Plotter.save_graphic``, GL2PS, VTK 9.7.2) embeds the 3-D scene as a raster too, and writes "η" as "Œ∑".
-"""
+"""How a run's pictures are written (`Look`): formats, size and matplotlib style sheet (``styles/NAME.mplstyle``).
+The pyvista pictures are a render in a matplotlib figure for vector words: VTK's own vector export (GL2PS, VTK
+9.7.2) embeds the scene as a raster too, and writes "η" as "Œ∑"."""
 
 from __future__ import annotations
 
@@ -23,10 +21,9 @@ SMALLEST, LARGEST = 2.0, 40.0
 
 @dataclass(frozen=True)
 class Look:
-    """How the pictures are written: in every format of `formats` (``"png"``, ``"pdf"``, ``"svg"``), in the style sheet
-    `style` (``"screen"``, or ``"paper"``: 8-point text for a figure 7 inches wide, PNG at 300 dots per inch), at
-    `size` (width, height) in inches (the space-time and 3-D pictures'; the others' width), None: the style's.
-    ``membrane.gif`` only with a raster format. Checked when made: a ValueError names the option and its range."""
+    """How the pictures are written: every format of `formats` (``"png"``, ``"pdf"``, ``"svg"``), style sheet `style`
+    (``"screen"``, or ``"paper"``: 8-point text 7 inches wide, 300 dpi), `size` (width, height) in inches (None: the
+    style's); ``membrane.gif`` only with a raster format. A ValueError names a wrong option and its range."""
 
     formats: tuple = ("png",)
     style: str = "screen"
@@ -84,8 +81,7 @@ class Look:
 
     @property
     def zoom(self) -> float:
-        """How much larger a pyvista render's fonts are than on a screen: its pixels an inch against the screen's,
-        times the style's tick labels against the screen's."""
+        """How much larger a pyvista render's fonts are than on a screen (pixels an inch, times the style's ticks)."""
         return self.dpi / SCREEN_DPI * STYLES[self.style][2]
 
     def paths(self, path) -> list[Path]:

@@ -22,8 +22,7 @@ def _pyvista():
 
 
 def _plotter(window_size):
-    """An off-screen plotter `window_size` (width, height) pixels large, on white, that takes empty meshes (the edge
-    of a contact set that is empty)."""
+    """An off-screen plotter `window_size` pixels large, on white, that takes empty meshes (an empty contact edge)."""
     p = _pyvista().Plotter(window_size=list(window_size), off_screen=True)
     p.theme.allow_empty_mesh = True
     p.disable_anti_aliasing()  # pyvista's 8× MSAA: the surface in 0.71, not 0.39 CPU-s of llvmpipe (bench_pictures.py)

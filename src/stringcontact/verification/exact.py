@@ -6,10 +6,7 @@ import numpy as np
 
 def _on_grid(t, x):
     """Broadcast ``t`` against ``x`` as (rows = times, columns = points); remember whether t was scalar."""
-    x = np.asarray(x, dtype=float)
-    scalar = np.ndim(t) == 0
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    return t[:, None], x[None, :], scalar
+    return np.atleast_1d(np.asarray(t, dtype=float))[:, None], np.asarray(x, dtype=float)[None, :], np.ndim(t) == 0
 
 
 def _finish(eta, velocity, scalar):
@@ -27,17 +24,14 @@ def damped_oscillator(t, *, a0, a1, damping, stiffness):
     omega2 = stiffness - beta**2
     if omega2 > 0.0:
         omega = np.sqrt(omega2)
-        decay = np.exp(-beta * t)
-        C = decay * np.cos(omega * t)
-        # sin(omega t)/omega via sinc stays accurate as omega -> 0 (nearly critical damping).
-        S = decay * t * np.sinc(omega * t / np.pi)
+        C = np.exp(-beta * t) * np.cos(omega * t)
+        S = np.exp(-beta * t) * t * np.sinc(omega * t / np.pi)  # sin(ωt)/ω via sinc: accurate as ω → 0
     elif omega2 == 0.0:
         C = np.exp(-beta * t)
         S = t * C
     else:
         gamma = np.sqrt(-omega2)
-        # e^{-beta t} cosh, sinh written with the slow rate gamma - beta = -kappa^2/(beta + gamma) < 0
-        # and e^{-2 gamma t} <= 1, so nothing overflows and nothing cancels for small gamma.
+        # with the slow rate γ − β = −κ²/(β + γ) and e^{−2γt} ≤ 1 nothing overflows or cancels for small γ
         slow = np.exp(-stiffness / (beta + gamma) * t)
         fast = np.exp(-2.0 * gamma * t)
         C = 0.5 * slow * (1.0 + fast)
@@ -71,14 +65,16 @@ def flat_landing_energy_loss(h, V, length):
     return 0.5 * V**2 * (length - 2.0 * flat_landing_time(h, V))
 
 
-def _landed_profile(s, *, h, V, length):
-    r"""The odd, :math:`2l`-periodic extension :math:`W` of :math:`w = \max(h - V\min(x, l-x), 0) - h` and
-    :math:`W'` (at the kinks of :math:`w` the mean of the one-sided slopes)."""
-    t_star = flat_landing_time(h, V)
+def _mirrored(s, length):
+    """(m, upper): s folded into [0, l] by the odd 2l-periodic extension, and where it was folded (f(s) = −f(2l − s))."""
     r = np.mod(s, 2.0 * length)
-    upper = r > length
-    # W(s) = -w(2l - s) on (l, 2l); W' is even, hence W'(s) = w'(2l - s) there.
-    m = np.where(upper, 2.0 * length - r, r)
+    return np.where(r > length, 2.0 * length - r, r), r > length
+
+
+def _landed_profile(s, *, h, V, length):
+    r"""The odd, 2l-periodic extension W of :math:`w = \max(h - V\min(x, l-x), 0) - h` and W' (kinks: the mean)."""
+    t_star = flat_landing_time(h, V)
+    m, upper = _mirrored(s, length)  # W' is even: W'(s) = w'(2l − s) on (l, 2l)
     w = np.maximum(h - V * np.minimum(m, length - m), 0.0) - h
     dw = -V * np.heaviside(t_star - m, 0.5) + V * np.heaviside(m - (length - t_star), 0.5)
     return np.where(upper, -w, w), dw
@@ -91,32 +87,20 @@ def flat_landing_rebound_end(h, V, length):
 
 
 def _rebound_potential(s, *, h, V, length):
-    r"""The odd, :math:`2l`-periodic extension :math:`U` of :math:`V\,1_{(t^*, l - t^*)}` and its integral
-    :math:`\Phi(s) = \int_0^s U` (even and :math:`2l`-periodic); :math:`U` at its jumps is the mean."""
+    r"""The odd, 2l-periodic extension U of :math:`V\,1_{(t^*, l - t^*)}` (jumps: the mean) and Φ = ∫_0^s U (even)."""
     t_star = flat_landing_time(h, V)
-    r = np.mod(s, 2.0 * length)
-    upper = r > length
-    m = np.where(upper, 2.0 * length - r, r)
+    m, upper = _mirrored(s, length)
     phi = V * np.clip(m - t_star, 0.0, length - 2.0 * t_star)
     u = V * (np.heaviside(m - t_star, 0.5) - np.heaviside(m - (length - t_star), 0.5))
     return np.where(upper, -u, u), phi
 
 
 def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
-    r"""Exact inelastic solution for :math:`\alpha = 0`, ends at :math:`h`, :math:`\eta_0 = h`, :math:`v_0 = -V`
-    (:math:`h < Vl/2`). For :math:`t \le t^* = h/V` (d'Alembert), :math:`\eta = h - V\min(x, l - x, t)`, velocity
-    :math:`-V` where :math:`t < x < l - t`, else 0 (at :math:`t^*` the left limit); then the flat middle
-    :math:`[t^*, l - t^*]` stops on :math:`y = 0` and, with :math:`\tau = t - t^*` and `_landed_profile`'s :math:`W`,
-
-    .. math:: \eta = h + \tfrac12[W(x - \tau) + W(x + \tau)], \qquad \eta_t = \tfrac12[-W'(x - \tau) + W'(x + \tau)]
-
-    (:math:`|W| \le h`: it never penetrates again). A ``restitution`` :math:`e \in (0, 1]` rebounds the middle at
-    :math:`+eV` and adds :math:`\tfrac{e}{2}[\Phi(x + \tau) - \Phi(x - \tau)]` to η and
-    :math:`\tfrac{e}{2}[U(x + \tau) + U(x - \tau)]` to :math:`\eta_t` (`_rebound_potential`). That is
-    :math:`(1 - e)\eta_0 + e\eta_1`, where :math:`\eta_1` (e = 1) runs the landing backwards and then moves freely
-    above the obstacle until it lands again at :math:`\tau = l + 2t^*`: times after :math:`l + 3t^*`
-    (`flat_landing_rebound_end`) are refused.
-    """
+    r"""Exact inelastic solution for α = 0, ends at h, η₀ = h, v₀ = −V (h < Vl/2): until t* = h/V (d'Alembert)
+    η = h − V min(x, l − x, t); then the flat middle [t*, l − t*] stops on y = 0 and, τ = t − t*,
+    :math:`\eta = h + \tfrac12[W(x - \tau) + W(x + \tau)]` (`_landed_profile`; |W| ≤ h: no penetration again).
+    A ``restitution`` e ∈ (0, 1] rebounds the middle at +eV, adding :math:`\tfrac{e}{2}[\Phi(x + \tau) - \Phi(x -
+    \tau)]` (`_rebound_potential`), valid until it lands again: times after l + 3t* are refused."""
     if not (h > 0 and V > 0 and length > 0):
         raise ValueError(f"need h > 0, V > 0, length > 0, got h={h}, V={V}, length={length}")
     if not h < V * length / 2:
@@ -131,11 +115,7 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
         raise ValueError(f"with restitution {restitution} the exact solution is known for t <= l + 3 h/V = "
                          f"{flat_landing_rebound_end(h, V, length):.6g} only (the string lands again then)")
 
-    before = tt <= t_star
     distance_to_end = np.minimum(xx, length - xx)
-    eta_before = h - V * np.minimum(distance_to_end, tt)
-    vel_before = np.where(distance_to_end > tt, -V, 0.0)
-
     tau = np.maximum(tt - t_star, 0.0)
     W_minus, dW_minus = _landed_profile(xx - tau, h=h, V=V, length=length)
     W_plus, dW_plus = _landed_profile(xx + tau, h=h, V=V, length=length)
@@ -147,6 +127,6 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
         eta_after = eta_after + 0.5 * restitution * (phi_plus - phi_minus)
         vel_after = vel_after + 0.5 * restitution * (U_plus + U_minus)
 
-    eta = np.where(before, eta_before, eta_after)
-    velocity = np.where(before, vel_before, vel_after)
-    return _finish(eta, velocity, scalar)
+    before = tt <= t_star
+    eta = np.where(before, h - V * np.minimum(distance_to_end, tt), eta_after)
+    return _finish(eta, np.where(before, np.where(distance_to_end > tt, -V, 0.0), vel_after), scalar)

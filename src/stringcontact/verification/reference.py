@@ -1,16 +1,8 @@
-r"""Plain-NumPy finite differences for the string, written independently of the package: the paper's Section 6
-scheme (`fd_solve`) and the ``projection`` scheme (`fd_projection`). With :math:`(D^2\eta)_j = (\eta_{j+1} - 2\eta_j
-+ \eta_{j-1})/\Delta x^2`, fixed ends and :math:`v^n = (\eta^n - \eta^{n-1})/\Delta t`, the Section 6 scheme is
-
-.. math::
-
-    \frac{\eta_j^{n+1} - 2\eta_j^n + \eta_j^{n-1}}{\Delta t^2}
-    - \frac{\alpha}{\Delta t}\bigl(D^2\eta^{n+1} - D^2\eta^n\bigr)_j - (D^2\eta^{n+1})_j = F_j^n,
-
-with ``penalty="explicit"`` :math:`F_j^n = \varepsilon^{-1}\chi\{\eta_j^n < 0\}\,(v_j^n)^-`, or ``"semi-implicit"``
-:math:`F_j^n = -\varepsilon^{-1}\chi_j^n (\eta_j^{n+1} - \eta_j^n)/\Delta t` on :math:`\chi_j^n = \chi\{\eta_j^n < 0,
-\ v_j^n < 0\}` (``eps=numpy.inf``: no contact), from :math:`\eta^{-1} = \eta^0 - \Delta t\,v_0` inside.
-"""
+r"""Plain-NumPy finite differences for the string, written independently of the package: the ``projection`` scheme
+(`fd_projection`) and the paper's Section 6 scheme (`fd_solve`), with fixed ends, v^n = (η^n − η^{n−1})/Δt and
+η^{−1} = η^0 − Δt v_0 inside, :math:`(\eta_j^{n+1} - 2\eta_j^n + \eta_j^{n-1})/\Delta t^2 - \alpha(D^2\eta^{n+1} -
+D^2\eta^n)_j/\Delta t - (D^2\eta^{n+1})_j = F_j^n`: ``penalty="explicit"`` F = ε⁻¹ χ{η^n < 0} (v^n)⁻, or
+``"semi-implicit"`` F = −ε⁻¹ χ{η^n < 0, v^n < 0} (η^{n+1} − η^n)/Δt (``eps=numpy.inf``: no contact)."""
 
 import numpy as np
 from scipy.linalg import solve_banded
@@ -54,14 +46,8 @@ def _start(eta0, v0, dt, h_left, h_right, psi=None):
 
 
 def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="explicit", store_every=1):
-    r"""March the Section 6 scheme from :math:`(\eta^0, v^0)` to :math:`t = T` in ``nt`` steps.
-
-    Times :math:`\Delta t^2`, with :math:`r = (\alpha\Delta t + \Delta t^2)/\Delta x^2`, each step is the tridiagonal
-    system :math:`(1 + 2r + c_j)\,\eta_j^{n+1} - r(\eta_{j-1}^{n+1} + \eta_{j+1}^{n+1}) = 2\eta_j^n - \eta_j^{n-1} -
-    \alpha\Delta t\,(D^2\eta^n)_j + b_j` (the known ends on the right), :math:`c_j = 0, b_j = \Delta t^2 F_j^n`
-    explicit, :math:`c_j = (\Delta t/\varepsilon)\chi_j^n, b_j = c_j \eta_j^n` semi-implicit, solved by LAPACK's
-    banded solver. Returns ``(t, eta, velocity)``, rows at steps 0, store_every, 2 store_every, ... and nt.
-    """
+    """March the Section 6 scheme from (η⁰, v⁰) to t = T in ``nt`` steps, each a tridiagonal system solved by LAPACK's
+    banded solver: ``(t, eta, velocity)``, rows at steps 0, store_every, 2 store_every, ... and nt."""
     eta0, v0 = np.asarray(eta0, dtype=float), np.asarray(v0, dtype=float)
     if eta0.ndim != 1 or eta0.shape != v0.shape or eta0.size < 3:
         raise ValueError(f"eta0 and v0 must be 1-D arrays of one shape with >= 3 nodes, got {eta0.shape}, {v0.shape}")
@@ -95,8 +81,7 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
             damping = (dt * inv_eps) * ((eta[1:-1] < 0.0) & (v < 0.0))
             rhs += damping * eta[1:-1]
             bands[1, :] = main + damping
-        eta_next = np.empty_like(eta)
-        eta_next[0], eta_next[-1] = h_left, h_right
+        eta_next = eta.copy()  # the ends stay at h_left, h_right
         eta_next[1:-1] = solve_banded((1, 1), bands, rhs, overwrite_ab=False, check_finite=False)
         eta_prev, eta = eta, eta_next
         rows(n + 1, eta, (eta - eta_prev) / dt)
@@ -104,19 +89,11 @@ def fd_solve(eta0, v0, *, length, T, nt, alpha, eps, h_left, h_right, penalty="e
 
 
 def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=None, store_every=1, nodal=False):
-    r"""The ``projection`` scheme in finite differences: with ψ the nodal ``obstacle`` (0 if None), each step is
-    the complementarity problem at the interior nodes
-
-    .. math::
-
-        \eta^{n+1} - \alpha\Delta t\, D^2(\eta^{n+1} - \eta^n) - 2\eta^n + \eta^{n-1} - \Delta t^2 D^2\eta^n = f
-        \ge 0, \qquad \eta^{n+1} \ge \psi, \qquad f\,(\eta^{n+1} - \psi) = 0,
-
-    solved by projected red-black Gauss-Seidel (an algorithm independent of the package's active-set solver),
-    started from the nodal maximum, which is the solution for α = 0; ``nodal=True`` takes the nodal maximum
-    :math:`\max(\tilde\eta, \psi)` of the free step for any α. η⁰ is raised onto ψ. Returns ``(t, eta,
-    velocity)`` as `fd_solve`, the velocity the centred :math:`(\eta^{n+1} - \eta^{n-1})/(2\Delta t)` after t = 0.
-    """
+    r"""The ``projection`` scheme in finite differences, with ψ the nodal ``obstacle`` (0 if None) and η⁰ raised onto
+    it: each step the complementarity problem :math:`f = \eta^{n+1} - \alpha\Delta t\, D^2(\eta^{n+1} - \eta^n) -
+    2\eta^n + \eta^{n-1} - \Delta t^2 D^2\eta^n \ge 0`, :math:`\eta^{n+1} \ge \psi`, :math:`f(\eta^{n+1} - \psi) = 0`
+    by projected red-black Gauss-Seidel (not the package's active set) from the nodal maximum, the solution at α = 0
+    (``nodal=True``: that maximum at any α). ``(t, eta, velocity)`` as `fd_solve`, the velocity centred after t = 0."""
     N = np.size(eta0) - 1
     dx, dt = length / N, T / int(nt)
     psi = np.zeros(N + 1) if obstacle is None else np.asarray(obstacle, dtype=float)
@@ -131,8 +108,7 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
         rhs = 2.0 * eta[1:-1] - eta_prev[1:-1] + dt**2 * d2 - s * dx**2 * d2
         rhs[0] += s * h_left  # the ends' part of −αΔt D²η^{n+1} is known
         rhs[-1] += s * h_right
-        new = np.empty_like(eta)
-        new[0], new[-1] = h_left, h_right
+        new = eta.copy()  # the ends stay at h_left, h_right
         new[1:-1] = solve_banded((1, 1), bands, rhs, check_finite=False) if alpha > 0 else rhs
         new[1:-1] = np.maximum(new[1:-1], psi[1:-1])
         if alpha > 0 and not nodal:
@@ -143,9 +119,8 @@ def fd_projection(eta0, v0, *, length, T, nt, alpha, h_left, h_right, obstacle=N
 
 
 def _projected_gauss_seidel(eta, rhs, s, psi, rtol=1e-15, max_sweeps=100_000):
-    """Solve (1 + 2s) η_j − s(η_{j−1} + η_{j+1}) ≥ rhs_j, η_j ≥ ψ_j, complementary, in place on the interior
-    (ends fixed): red-black sweeps η_j ← max(ψ_j, (rhs_j + s(η_{j−1} + η_{j+1}))/(1 + 2s)) until no node moves
-    by more than `rtol` of the largest |η|."""
+    """(1 + 2s) η_j − s(η_{j−1} + η_{j+1}) ≥ rhs_j, η_j ≥ ψ_j, complementary, solved in place on the interior by
+    red-black sweeps η_j ← max(ψ_j, (rhs_j + s(η_{j−1} + η_{j+1}))/(1 + 2s)) until none moves by `rtol` of max |η|."""
     scale = max(float(np.max(np.abs(eta))), 1e-300)
     if not np.isfinite(scale):  # an unstable run (the stability map's): nothing to converge to
         return
