@@ -46,6 +46,32 @@ def step_conditioning(scene) -> float:
     return (scene.alpha * scene.dt + scene.dt**2) / (scene.length / scene.nx) ** 2
 
 
+def paper_peer(scene, stored_steps):
+    """`paper`, explicit penalty, lumped mass: (I + rT) η¹ = 2η − η⁰ − aTη + Δt² F, F = ε⁻¹ χ{η < 0} (−v)⁺,
+    v = (η − η⁰)/Δt, a = αΔt/Δx², r = a + Δt²/Δx²; the matrix never changes (one `splu`)."""
+    dt, dx, eta, v0, _ = string_start(scene)
+    N, r = scene.nx, step_conditioning(scene)
+    lu = splu(sp.diags([-r, 1 + 2 * r, -r], [-1, 0, 1], shape=(N - 1, N - 1), format="csc"))
+    eta_old = eta - dt * v0
+    store = StoredRows(stored_steps, N + 1)
+    store(0, eta, v0)
+    a_dt, inv_eps, dt2 = scene.alpha * dt / dx**2, 1.0 / scene.eps, dt**2
+    for n in range(scene.nt):
+        e = eta[1:-1]
+        v = (e - eta_old[1:-1]) / dt
+        rhs = 2 * e - eta_old[1:-1] - a_dt * (eta[2:] - 2 * e + eta[:-2])
+        rhs += dt2 * inv_eps * np.where(e < 0, np.maximum(-v, 0.0), 0.0)
+        rhs[0] += r * scene.h_left
+        rhs[-1] += r * scene.h_right
+        eta_new = np.empty_like(eta)
+        eta_new[0], eta_new[-1] = scene.h_left, scene.h_right
+        eta_new[1:-1] = lu.solve(rhs)
+        eta_old, eta = eta, eta_new
+        if store.row < len(stored_steps) and stored_steps[store.row] == n + 1:  # v only where it is stored
+            store(n + 1, eta, (eta - eta_old) / dt)
+    return store.eta, store.v
+
+
 def _factor(A, refactor: str):
     """The solve of a changed step matrix: `splu` (2.1 ms for Example 1's string), or "lapack" dgtsv (115 µs)."""
     if refactor == "splu":
@@ -62,28 +88,66 @@ def _laplacian(e: np.ndarray) -> np.ndarray:
     return 2.0 * e[1:-1] - e[:-2] - e[2:]
 
 
-def _penalty_peer(scene, stored_steps, scheme: str, refactor: str):
-    """The loop of the penalty peers, `scheme` "paper" (explicit), "semi-implicit" or "newmark" (see each peer)."""
+def projection_peer(scene, stored_steps, refactor: str = "splu"):
+    """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F', η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
+    r₀ = Δt²/Δx², as the scheme solves it: the free step, then the primal–dual active set from {η̃ < 0} (its rows
+    identity rows, refactorised when the set changes, F' = Aη − b on it) until the set stays; v centred."""
+    dt, dx, eta, v0, T = string_start(scene)
+    a, r0 = scene.alpha * dt / dx**2, dt**2 / dx**2
+    n = eta.size - 2
+    A = (sp.identity(n, format="csc") + a * T).tocsc()
+    free_lu = splu(A)
+    held, held_solve = None, None
+    tol = -1e-14 * max(np.max(np.abs(eta)), 1.0) * (1 + 2 * a)  # the scheme's allowance for round-off in F
+    store = StoredRows(stored_steps, eta.size)
+    eta_old = eta - dt * v0
+    levels = [eta_old, eta]  # η^{n−1}, η^n
+    store(0, eta, v0)
+    for step in range(scene.nt + 1):  # one step ahead: the row at n needs η^{n+1}
+        e_old, e = levels
+        b = 2.0 * e[1:-1] - e_old[1:-1] + (a - r0) * _laplacian(e)
+        b[0] += a * e[0]
+        b[-1] += a * e[-1]
+        new = e.copy()
+        inner = free_lu.solve(b)
+        active = inner < 0.0
+        while active.any():
+            if held is None or not np.array_equal(active, held):
+                held = active
+                keep = sp.diags((~active).astype(float))
+                held_solve = _factor(keep @ A + sp.diags(active.astype(float)), refactor)
+            inner = held_solve(np.where(active, 0.0, b))
+            R = A @ inner - b
+            new_active = np.where(active, R > tol, inner < 0.0)
+            if np.array_equal(new_active, active):
+                break
+            active = new_active
+        new[1:-1] = inner
+        if step >= 1:
+            store(step, e, (new - e_old) / (2 * dt))
+        levels = [e, new]
+    return store.eta, store.v
+
+
+def _damped_peer(scene, stored_steps, newmark: bool, refactor: str):
     dt, dx, eta, v, T = string_start(scene)
     a, r0, k = scene.alpha * dt / dx**2, dt**2 / dx**2, dt / scene.eps
-    newmark, explicit = scheme == "newmark", scheme == "paper"
+    n = eta.size - 2
     lhs = (a / 2 + r0 / 4) if newmark else (a + r0)
-    A0 = (sp.identity(eta.size - 2, format="csc") + lhs * T).tocsc()
+    A0 = (sp.identity(n, format="csc") + lhs * T).tocsc()
     undamped = splu(A0).solve
-    solve, damped = undamped, np.zeros(eta.size - 2, dtype=bool)
+    solve, damped = undamped, np.zeros(n, dtype=bool)
     store = StoredRows(stored_steps, eta.size)
     store(0, eta, v)
     eta_old = eta - dt * v
     for step in range(1, scene.nt + 1):
         e = eta[1:-1]
         vi = v[1:-1] if newmark else (e - eta_old[1:-1]) / dt
-        chi = damped if explicit else (e < 0.0) & (vi < 0.0)  # the explicit penalty leaves the matrix alone
+        chi = (e < 0.0) & (vi < 0.0)
         if newmark:
             base = e + dt * vi + (a / 2 - r0 / 4) * _laplacian(eta)
         else:
             base = 2.0 * e - eta_old[1:-1] + a * _laplacian(eta)
-        if explicit:
-            base += dt * k * np.where(e < 0, np.maximum(-vi, 0.0), 0.0)
         while True:
             if not np.array_equal(chi, damped):  # the damping on the diagonal changed: refactorise
                 damped = chi
@@ -107,59 +171,17 @@ def _penalty_peer(scene, stored_steps, scheme: str, refactor: str):
     return store.eta, store.v
 
 
-def paper_peer(scene, stored_steps, refactor: str = "splu"):
-    """`paper`, explicit penalty, lumped mass: (I + rT) η¹ = 2η − η⁰ + aTη + Δt² F, F = ε⁻¹ χ{η < 0} (−v)⁺,
-    v = (η − η⁰)/Δt, a = αΔt/Δx², r = a + Δt²/Δx²; the matrix never changes (one `splu`)."""
-    return _penalty_peer(scene, stored_steps, "paper", refactor)
+def newmark_peer(scene, stored_steps, refactor: str = "splu"):
+    """`newmark` (lumped): (I + (a/2 + r₀/4) T + kχ) η¹ = η + Δt v + (a/2 − r₀/4) Tη + kχ η + (kΔt/2) χ v with
+    k = Δt/ε on χ = {η < 0, v < 0}, v¹ = 2(η¹ − η)/Δt − v; refactorised when χ changes; a node the damping would
+    hold down (v¹ > 0) is released and the step solved again."""
+    return _damped_peer(scene, stored_steps, True, refactor)
 
 
 def semi_implicit_peer(scene, stored_steps, refactor: str = "splu"):
     """`paper` with the semi-implicit penalty: (I + rT + kχ) η¹ = 2η − η⁰ + aTη + kχ η, r = a + r₀, k = Δt/ε on
     χ = {η < 0, v < 0}, v = (η − η⁰)/Δt; refactorised when χ changes."""
-    return _penalty_peer(scene, stored_steps, "semi-implicit", refactor)
-
-
-def newmark_peer(scene, stored_steps, refactor: str = "splu"):
-    """`newmark` (lumped): (I + (a/2 + r₀/4) T + kχ) η¹ = η + Δt v + (a/2 − r₀/4) Tη + kχ η + (kΔt/2) χ v with
-    k = Δt/ε on χ = {η < 0, v < 0}, v¹ = 2(η¹ − η)/Δt − v; refactorised when χ changes; a node the damping would
-    hold down (v¹ > 0) is released and the step solved again."""
-    return _penalty_peer(scene, stored_steps, "newmark", refactor)
-
-
-def projection_peer(scene, stored_steps, refactor: str = "splu"):
-    """`projection` (α > 0): (I + aT) η¹ = 2η − η⁰ + (a − r₀) Tη + F', η¹ ≥ 0, F' ≥ 0, F'·η¹ = 0, a = αΔt/Δx²,
-    r₀ = Δt²/Δx², as the scheme solves it: the free step, then the primal–dual active set from {η̃ < 0} (its rows
-    identity rows, refactorised when the set changes, F' = Aη − b on it) until the set stays; v centred."""
-    dt, dx, eta, v0, T = string_start(scene)
-    a, r0 = scene.alpha * dt / dx**2, dt**2 / dx**2
-    A = (sp.identity(eta.size - 2, format="csc") + a * T).tocsc()
-    free_lu = splu(A)
-    held, held_solve = None, None
-    tol = -1e-14 * max(np.max(np.abs(eta)), 1.0) * (1 + 2 * a)  # the scheme's allowance for round-off in F
-    store = StoredRows(stored_steps, eta.size)
-    store(0, eta, v0)
-    e_old, e = eta - dt * v0, eta  # η^{n−1}, η^n
-    for step in range(scene.nt + 1):  # one step ahead: the row at n needs η^{n+1}
-        b = 2.0 * e[1:-1] - e_old[1:-1] + (a - r0) * _laplacian(e)
-        b[0] += a * e[0]
-        b[-1] += a * e[-1]
-        inner = free_lu.solve(b)
-        active = inner < 0.0
-        while active.any():
-            if held is None or not np.array_equal(active, held):
-                held = active
-                held_solve = _factor(sp.diags((~active).astype(float)) @ A + sp.diags(active.astype(float)), refactor)
-            inner = held_solve(np.where(active, 0.0, b))
-            new_active = np.where(active, A @ inner - b > tol, inner < 0.0)
-            if np.array_equal(new_active, active):
-                break
-            active = new_active
-        new = e.copy()
-        new[1:-1] = inner
-        if step >= 1:
-            store(step, e, (new - e_old) / (2 * dt))
-        e_old, e = e, new
-    return store.eta, store.v
+    return _damped_peer(scene, stored_steps, False, refactor)
 
 
 def build_compiled(cflags=CFLAGS) -> ctypes.CDLL:
