@@ -14,7 +14,8 @@ def require_every_step(result) -> None:
     """A ValueError unless `result` stores every time step from step 0 on."""
     steps = np.asarray(result.steps)
     if steps.size < 2 or np.any(np.diff(steps) != 1) or steps[0] != 0:
-        raise ValueError("the theorem checks need every time step stored: run simulate(scene, max_rows=scene.nt)")
+        raise ValueError("the theorem checks need every time step stored: run simulate(scene, "
+                         "storage=Storage(max_rows=scene.nt))")
 
 
 def nodal_weights(result) -> np.ndarray:
