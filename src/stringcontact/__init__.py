@@ -5,13 +5,11 @@
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 
-from . import jitlog as _jitlog
 from . import stack as _stack
 from .errors import InstabilityError, InstabilityWarning, Interrupted, OutputError, SceneError, SolverError
 from .lazy import lazy_names as _lazy_names
 
 _stack.load_mpi_first()  # the dolfinx wheel's MPI before anything imports dolfinx (nothing elsewhere)
-_jitlog.quiet_compiler()  # before any form is compiled: the JIT's compiler log stays at WARNING
 
 __version__ = "0.1.0"
 

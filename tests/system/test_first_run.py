@@ -55,4 +55,11 @@ def test_quiet_compiler_drops_only_the_compilers_chatter():
     assert not quiet.filter(_record(logging.INFO, "/usr/lib/python3.11/distutils/command/build_ext.py"))
     assert quiet.filter(_record(logging.WARNING, spawn))  # a compiler warning still shows
     assert quiet.filter(_record(logging.INFO, "/home/me/analysis.py"))  # the user's own root-logger records pass
-    assert any(isinstance(f, QuietCompiler) for f in logging.getLogger().filters)  # installed by the package
+
+
+def test_importing_the_package_leaves_the_logging_alone_and_the_command_line_quiets_the_compiler():
+    code = ("import logging, stringcontact, stringcontact.jitlog as j\nbefore = list(logging.getLogger().filters)\n"
+            "from stringcontact.cli.main import main\nmain(['list'])\n"
+            "print(before == [], any(isinstance(f, j.QuietCompiler) for f in logging.getLogger().filters))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "True True"

@@ -22,6 +22,7 @@ import importlib
 import os
 import sys
 
+from ..jitlog import quiet_compiler
 from ..scene.names import DEFAULT_SCHEME
 from . import process
 from .mpi_start import quick_singleton
@@ -153,6 +154,7 @@ def main(argv=None) -> int:
     if own and "mpi4py.MPI" not in sys.modules:  # before MPI starts
         quick_singleton(os.environ)
     process.standard_streams()
+    quiet_compiler()  # before any form is compiled; a library import leaves the user's logging alone
     with process.stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
         try:
             code = _main(argv)
