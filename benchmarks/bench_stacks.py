@@ -1,12 +1,13 @@
 """How long does `stringcontact run example1` take on each FEniCS stack: Debian bookworm's dolfinx 0.5.2 against
 dolfinx 0.11 from PyPI's wheel (docs/explanation/platforms.md)?
 
-Each stack is a command prefix that runs its `stringcontact` (a venv's console script, or the same inside a trixie
-root); the commands alternate, so that a busy spell of a shared machine hits each alike. The wall clock is measured
-from outside, the setup and solve times are the command's own ("time:" line). Warm JIT caches: run each once first.
+Each stack is a command prefix that runs its `stringcontact` (a venv's console script, or the same inside an image);
+the commands alternate, so that a busy spell of a shared machine hits each alike. The wall clock is measured from
+outside, the setup and solve times are the command's own ("time:" line). Warm JIT caches: run each once first.
 
     .venv/bin/python benchmarks/bench_stacks.py --stack 0.5.2 .venv/bin/stringcontact \\
-        --stack 0.11 "chroot /srv/trixie /opt/venv/bin/stringcontact" [--repeats 5] [--nx 5000]
+        --stack 0.11 "podman --runtime runc run --rm --entrypoint /opt/stringcontact/.venv/bin/stringcontact \\
+        stringcontact-wheel-test" [--repeats 5] [--nx 5000]
 """
 
 from __future__ import annotations
