@@ -47,6 +47,16 @@ def test_on_the_wheel_dolfinx_alone_does_not_import():
     assert proc.returncode != 0 and "libmpi" in proc.stderr
 
 
+@pytest.mark.skipif(not WHEEL, reason="the import-order rule is the dolfinx wheel's")
+def test_on_the_wheel_importing_stringcontact_starts_no_mpi_and_the_users_dolfinx_then_imports():
+    """`import stringcontact` leaves MPI unloaded (the command line sets its streams, signals and MPI settings first);
+    the user's own `import dolfinx` after it brings the wheel's MPI first."""
+    code = ("import sys, stringcontact\nbefore = 'mpi4py.MPI' in sys.modules or 'dolfinx_solver' in sys.modules\n"
+            "import dolfinx.mesh\nprint(before, 'dolfinx_solver' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0 and proc.stdout.split() == ["False", "True"], proc.stderr[-2000:]
+
+
 @pytest.mark.slow
 def test_the_command_refuses_a_dolfinx_too_new_in_one_line(tmp_path):
     """A dolfinx release outside `SUPPORTED` (here a stand-in that says 0.12.0): one line naming it and the

@@ -2,8 +2,11 @@
 ``dolfinx-solver-real`` (0.11).
 
 The wheel carries its own PETSc and MPI and needs ``import dolfinx_solver`` (its ``libmpi.so.12``) before dolfinx,
-petsc4py or mpi4py. The packages that import the stack call `load` first, which also refuses a dolfinx outside
-`SUPPORTED` in one line (`StackError`: exit code 2).
+petsc4py, slepc4py or mpi4py. Where it is installed, ``import stringcontact`` puts `WheelFirst` on ``sys.meta_path``:
+the first import of one of those (the package's, or the user's own after ``import stringcontact``) brings
+``dolfinx_solver`` first. So MPI starts when the stack is first needed, not at ``import stringcontact``, and the
+command line has its standard streams, signal handlers and MPI settings in place before. The packages that import
+the stack call `load` first, which also refuses a dolfinx outside `SUPPORTED` in one line (`StackError`: exit 2).
 """
 
 from __future__ import annotations
@@ -36,9 +39,32 @@ def load() -> None:
 
 
 def load_mpi_first() -> None:
-    """The import-order half of `load`: the wheel's ``dolfinx_solver`` (its MPI) where installed, not dolfinx."""
-    if "dolfinx_solver" not in sys.modules and importlib.util.find_spec("dolfinx_solver") is not None:
-        importlib.import_module("dolfinx_solver")
+    """The import-order half of `load`: where the wheel is installed, `WheelFirst` on ``sys.meta_path`` (once), so
+    that ``dolfinx_solver`` comes before the first import of the stack. Imports nothing itself."""
+    if "dolfinx_solver" in sys.modules or any(isinstance(f, WheelFirst) for f in sys.meta_path):
+        return
+    if importlib.util.find_spec("dolfinx_solver") is not None:
+        sys.meta_path.insert(0, WheelFirst())
+
+
+#: The packages that need the wheel's MPI loaded before them.
+STACK = frozenset({"dolfinx", "petsc4py", "slepc4py", "mpi4py"})
+
+
+class WheelFirst:
+    """A meta-path finder that imports ``dolfinx_solver`` before the first module of `STACK`, then leaves
+    ``sys.meta_path``; it finds nothing itself."""
+
+    def find_spec(self, name, path=None, target=None):
+        """``dolfinx_solver`` first when `name` is in `STACK`; always None (the usual finders find `name`)."""
+        if name.partition(".")[0] in STACK and self in sys.meta_path:
+            sys.meta_path.remove(self)  # before the import: dolfinx_solver imports mpi4py and petsc4py itself
+            try:
+                importlib.import_module("dolfinx_solver")
+            except BaseException:
+                sys.meta_path.insert(0, self)  # interrupted while it loads: the next import of the stack tries again
+                raise
+        return None
 
 
 def check_version(found: str) -> None:
@@ -54,4 +80,4 @@ def check_version(found: str) -> None:
                          f"'stringcontact[dolfinx]' for the wheel {WHEEL})")
 
 
-__all__ = ["SUPPORTED", "WHEEL", "check_version", "load", "load_mpi_first"]
+__all__ = ["STACK", "SUPPORTED", "WHEEL", "WheelFirst", "check_version", "load", "load_mpi_first"]
