@@ -52,17 +52,21 @@ STACK = frozenset({"dolfinx", "petsc4py", "slepc4py", "mpi4py"})
 
 
 class WheelFirst:
-    """A meta-path finder that imports ``dolfinx_solver`` before the first module of `STACK`, then leaves
-    ``sys.meta_path``; it finds nothing itself."""
+    """A meta-path finder that imports ``dolfinx_solver`` before the first module of `STACK`, and nothing after
+    (it stays on ``sys.meta_path``: removed while the import system walks the list, it would hide the next finder
+    from that import); it finds nothing itself."""
+
+    def __init__(self):
+        self.done = False
 
     def find_spec(self, name, path=None, target=None):
         """``dolfinx_solver`` first when `name` is in `STACK`; always None (the usual finders find `name`)."""
-        if name.partition(".")[0] in STACK and self in sys.meta_path:
-            sys.meta_path.remove(self)  # before the import: dolfinx_solver imports mpi4py and petsc4py itself
+        if not self.done and name.partition(".")[0] in STACK:
+            self.done = True  # before the import: dolfinx_solver imports mpi4py and petsc4py itself
             try:
                 importlib.import_module("dolfinx_solver")
             except BaseException:
-                sys.meta_path.insert(0, self)  # interrupted while it loads: the next import of the stack tries again
+                self.done = False  # interrupted while it loads: the next import of the stack tries again
                 raise
         return None
 
