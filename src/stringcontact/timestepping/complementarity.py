@@ -1,28 +1,18 @@
-"""The contact step of the ε-free scheme: a linear complementarity problem, and its solvers.
+"""The contact step of the ε-free schemes: a linear complementarity problem, and its solvers.
 
-Given the step matrix A (symmetric positive definite: M/Δt² + C/Δt, identity rows at the fixed ends) and
-the step's right-hand side b, find η and the nodal contact force F with
+Given the step matrix A (symmetric positive definite, identity rows at the fixed ends) and the step's right-hand
+side b, find η and the nodal contact force F with
 
-    A η = b + F,   η ≥ ψ,   F ≥ 0,   F · (η − ψ) = 0        at the interior nodes.
+    A η = b + F,   η ≥ ψ,   F ≥ 0,   F · (η − ψ) = 0        at the interior nodes:
 
-This is the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ (the step of the scheme's own energy), and F is its
-Lagrange multiplier: a true contact force, ≥ 0 and zero off the contact set. With A diagonal (α = 0) the
-answer is the nodal maximum max(A⁻¹b, ψ), which `ActiveSet` then takes without any linear solver; with
-viscosity it is not, because A couples neighbours.
-
-`ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
-13, 2003) on the scheme's own linear solver (`linear.Linear`: LU, MUMPS or CG): fix the nodes of the active
-set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜 stays.
-Each step first takes the free step Ã η̃ = b with A itself (factorised once, like the nodal projection
-before): if no node is below ψ that is the answer, at the nodal projection's cost; else 𝒜 starts as
-{η̃ < ψ}. Started from the previous step's 𝒜 instead, the method lets the string lift off one node per
-front per iteration (with viscosity a front moves several nodes a step): 2.66 solves and 1.66
-refactorisations a step on Example 1 at the paper's resolution, against 1.11 and 0.14 from {η̃ < ψ}. Each
-change of 𝒜 costs a refactorisation (LU) or a new preconditioner set-up (CG) and one more solve. For an
-M-matrix A (every string, a membrane on a mesh without obtuse angles) the method converges in finitely
-many iterations; elsewhere it can cycle, so when an active set comes back within a step, or after
-`MAX_ITERATIONS`, the step falls back to PETSc's SNES VI (`VariationalInequality`). Measured against SNES
-VI alone in docs/explanation/study.md (section "The contact step").
+the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ, F its Lagrange multiplier. `ActiveSet` solves it by the primal–dual
+active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim. 13, 2003) on the scheme's own linear solver: fix
+the active set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜
+stays. Each step first takes the free step with A factorised once: no node below ψ is the answer, else 𝒜 starts
+from {η̃ < ψ} (1.11 solves and 0.14 refactorisations a step on Example 1, against 2.66 and 1.66 from the last
+step's 𝒜). For an M-matrix A the method ends in finitely many iterations; elsewhere it can cycle, and the step
+falls back to SNES VI (`VariationalInequality`). A diagonal A (α = 0) gives the nodal maximum max(A⁻¹b, ψ), no
+solver at all. Measured against SNES VI alone in docs/explanation/study.md ("The contact step").
 """
 
 from __future__ import annotations
@@ -48,13 +38,10 @@ VI_PREFIX = "stringcontact_vi_"
 class ActiveSet:
     """The contact step by the primal–dual active-set method on `linear.Linear`.
 
-    ``solve(b, x, residual)`` puts η into the vector `x` (its array is η) and returns (F, iterations), F the
-    nodal force A η − b on the active set and 0 elsewhere. `residual(x_array)` must return A η − b with 0
-    at the fixed ends (the scheme computes it from the mat-vec it needs for its energy anyway).
-
-    `force_tol` (per node, ≥ 0): a node leaves 𝒜 only when its force is below −force_tol, so that round-off
-    in F (solver and mat-vec) cannot make the set cycle; η < ψ adds a node with no tolerance, so the step
-    never leaves a node below the obstacle.
+    ``solve(b, x, residual)`` puts η into the vector `x` and returns (F, iterations), F = A η − b on the active set
+    and 0 elsewhere; `residual(x_array)` returns A η − b with 0 at the fixed ends (the scheme's, from the mat-vec
+    its energy needs anyway). A node leaves 𝒜 only when its force is below −`force_tol` (per node: round-off in F
+    cannot make the set cycle); η < ψ adds a node with no tolerance.
     """
 
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int,
@@ -142,11 +129,8 @@ class ActiveSet:
         return self._fall_back(b, x, residual)
 
     def _nodal_maximum(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
-        """A diagonal: η = max(A⁻¹b, ψ) node by node is the LCP's solution, and F = Aη − b where η = ψ.
-
-        The same numbers as the active-set method on A's LU, which takes this free step and then holds {η̃ < ψ}
-        on ψ: PETSc's LU stores the inverted pivots, so its back-substitution is b·(1/a), as here. Measured
-        (benchmarks/bench_membrane.py --alpha 0): no factorisation in the set-up and a step linear in N."""
+        """A diagonal: η = max(A⁻¹b, ψ) node by node, F = Aη − b where η = ψ: the active set's numbers on A's LU
+        (whose back-substitution is b·(1/a) too), without a factorisation (benchmarks/bench_membrane.py --alpha 0)."""
         eta = x.array
         np.multiply(b.array, self.inverse_diagonal, out=eta)
         active = self.interior & (eta < self.psi)
@@ -193,12 +177,9 @@ def inverse_diagonal(A: PETSc.Mat, comm) -> np.ndarray | None:
 
 
 class VariationalInequality:
-    """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method) with the
-    bounds ψ ≤ η at the interior nodes: about ten Newton iterations (each an LU factorisation) per step, so
-    `ActiveSet` uses it only as its fallback. Neither line search converged everywhere alone: full Newton
-    steps (`basic`) cycled on a non-M-matrix (tests/timestepping/test_contact_step.py), backtracking (`bt`) stalled on a
-    step of Example 1; so each is tried in turn from the same first guess.
-    """
+    """The contact step by PETSc's SNES VI (`vinewtonrsls`) with the bounds ψ ≤ η at the interior nodes: about ten
+    LU factorisations a step, so `ActiveSet`'s fallback only. `basic` cycled on a non-M-matrix, `bt` stalled on a step
+    of Example 1: each is tried in turn from the same first guess."""
 
     LINE_SEARCHES = ("basic", "bt")
 
