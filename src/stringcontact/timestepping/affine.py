@@ -127,12 +127,9 @@ class AffineResidual:
             self._assemble_r0()
         return self.r0
 
-    def apply(self, values: dict, out: np.ndarray, constant: bool = True) -> np.ndarray:
-        """R at `values` (owned arrays by placeholder name; a missing one counts as 0) into `out`; without r₀ if not
-        `constant` (the part linear in the unknowns)."""
-        if constant and self.moving:
-            self._assemble_r0()
-        out[:] = self.r0 if constant else 0.0
+    def apply(self, values: dict, out: np.ndarray) -> np.ndarray:
+        """R at `values` (owned arrays by placeholder name; a missing one counts as 0) into `out`."""
+        out[:] = self.constant()
         for name, A in self.matrices.items():
             if name in values:
                 x, y = self.vecs[name]
@@ -415,7 +412,8 @@ class LinearPath:
 
     def eta_stiffness(self) -> PETSc.Mat | None:
         """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of A = ∂R/∂U
-        (K + βKM⁻¹K for a curvature field), as a shell on η's dofs; None off the linear path or for a single field."""
+        (K + βKM⁻¹K for a field of η's second derivative), as a shell on η's dofs; None off the linear path or for one
+        field."""
         if self.linear is None or self._held_rows() is None:
             return None
         n = self.n

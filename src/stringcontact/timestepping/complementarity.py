@@ -1,18 +1,11 @@
-"""The contact step of the ε-free schemes: a linear complementarity problem, and its solvers.
+"""The contact step of the ε-free schemes, A η = b + F, η ≥ ψ, F ≥ 0, F·(η − ψ) = 0 at the interior nodes (the minimum
+of ½ ηᵀAη − bᵀη over η ≥ ψ), and its solvers.
 
-Given the step matrix A (symmetric positive definite, identity rows at the fixed ends) and the step's right-hand
-side b, find η and the nodal contact force F with
-
-    A η = b + F,   η ≥ ψ,   F ≥ 0,   F · (η − ψ) = 0        at the interior nodes:
-
-the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ, F its Lagrange multiplier. `ActiveSet` solves it by the primal–dual
-active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim. 13, 2003) on the scheme's own linear solver: fix
-the active set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜
-stays. Each step first takes the free step with A factorised once: no node below ψ is the answer, else 𝒜 starts
-from {η̃ < ψ} (1.11 solves and 0.14 refactorisations a step on Example 1, against 2.66 and 1.66 from the last
-step's 𝒜). For an M-matrix A the method ends in finitely many iterations; elsewhere it can cycle, and the step
-falls back to SNES VI (`VariationalInequality`). A diagonal A (α = 0) gives the nodal maximum max(A⁻¹b, ψ), no
-solver at all. Measured against SNES VI alone in docs/explanation/study.md ("The contact step").
+`ActiveSet` is the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim. 13, 2003) on the
+scheme's own linear solver: fix 𝒜 on ψ, solve, read F = Aη − b, 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until it stays.
+Started from the free step's {η̃ < ψ}: 1.11 solves and 0.14 refactorisations a step on Example 1, against 2.66 and
+1.66 from the last step's 𝒜 (docs/explanation/study.md). Where it cycles (A not an M-matrix) SNES VI takes over
+(`VariationalInequality`); a diagonal A (α = 0) is the nodal maximum max(A⁻¹b, ψ).
 """
 
 from __future__ import annotations
@@ -50,8 +43,10 @@ class ActiveSet:
         self.psi, self.interior, self.force_tol = psi, interior, force_tol
         self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
         self.anywhere, self.comm = Ranks(comm).any, comm
+        self.active, self.nodes = np.zeros(psi.size, dtype=bool), np.zeros(0, dtype=np.int32)
+        self.fallback: VariationalInequality | None = None
         self.inverse_diagonal = inverse_diagonal(A, comm)
-        if self.inverse_diagonal is not None:  # α = 0: no linear solver at all (`_nodal_maximum`)
+        if self.inverse_diagonal is not None:  # α = 0: no linear solver at all
             self.linear = self.free = None
             return
         self.work = A.duplicate(copy=True)  # A with 𝒜's rows (and, for CG, columns) fixed
@@ -59,9 +54,6 @@ class ActiveSet:
         self.linear = Linear(self.work, comm, options, bc, g, dim)
         predict = dim == 1 or A.getSize()[0] <= PREDICT_MAX_NODES
         self.free = Linear(A.duplicate(copy=True), comm, options, bc, g, dim) if predict else None
-        self.active = np.zeros(psi.size, dtype=bool)
-        self.nodes = np.zeros(0, dtype=np.int32)
-        self.fallback: VariationalInequality | None = None
 
     @property
     def iterative(self) -> bool:
@@ -94,17 +86,22 @@ class ActiveSet:
 
     def solve(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
         self.steps += 1
-        if self.inverse_diagonal is not None:
-            return self._nodal_maximum(b, x, residual)
         rhs, eta = b.array, x.array
         active = self.active
-        if self.free is not None:
-            self.free.solve(b, x)
-            self.free_solves += 1
+        if self.free is not None or self.inverse_diagonal is not None:  # the free step first
+            if self.inverse_diagonal is not None:
+                np.multiply(rhs, self.inverse_diagonal, out=eta)
+            else:
+                self.free.solve(b, x)
+                self.free_solves += 1
             active = self.interior & (eta < self.psi)
             if not self.anywhere(bool(active.any())):  # no contact: the free step is the answer
                 residual(eta)
                 return np.zeros_like(eta), 0
+            if self.inverse_diagonal is not None:  # A diagonal: η = max(A⁻¹b, ψ) node by node, the active set's answer
+                np.copyto(eta, self.psi, where=active)  # (benchmarks/bench_membrane.py --alpha 0: no factorisation)
+                self.solves += 1
+                return np.where(active, residual(eta), 0.0), 1
             if not self.anywhere(not np.array_equal(active, self.active)):  # every rank: holding is collective
                 active = self.active
         seen, key = set(), None  # the active sets of this step (their keys cost an allgather under MPI)
@@ -127,19 +124,6 @@ class ActiveSet:
                 break
             active = new
         return self._fall_back(b, x, residual)
-
-    def _nodal_maximum(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
-        """A diagonal: η = max(A⁻¹b, ψ) node by node, F = Aη − b where η = ψ: the active set's numbers on A's LU
-        (whose back-substitution is b·(1/a) too), without a factorisation (benchmarks/bench_membrane.py --alpha 0)."""
-        eta = x.array
-        np.multiply(b.array, self.inverse_diagonal, out=eta)
-        active = self.interior & (eta < self.psi)
-        if not self.anywhere(bool(active.any())):
-            residual(eta)
-            return np.zeros_like(eta), 0
-        np.copyto(eta, self.psi, where=active)
-        self.solves += 1
-        return np.where(active, residual(eta), 0.0), 1
 
     def _key(self, active: np.ndarray) -> tuple:
         """The active set over all ranks, as a hashable key (one allgather of this rank's packed bits)."""

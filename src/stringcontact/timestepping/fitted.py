@@ -1,25 +1,12 @@
-"""The ε-free scheme fitted to the Courant number: a blended mass, an implicit elastic term, contact as a complementarity
-problem (docs/explanation/schemes.md).
+"""The ε-free scheme fitted to the Courant number (docs/explanation/schemes.md): `projection` with its lumped mass
+replaced by M_eff = M_θ + β Δt² K, β = ¼ (the elastic term at Newmark's average, implicit), the same contact step,
+restitution and release.
 
-The step is `projection`'s with its lumped mass M_L replaced by an effective mass,
-
-    M_eff (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F,      M_eff = M_θ + β Δt² K,
-
-with the same contact step, restitution and release; β = ¼ makes the elastic term Newmark's average
-K(β η^{n+1} + (1 − 2β) η^n + β η^{n−1}), implicit.
-
-**The blended mass** M_θ = M_L − Σ_edges θ_ij m_ij (e_i − e_j)(e_i − e_j)ᵀ (m_ij the consistent mass's off-diagonal
-entry) keeps the row sums. On a uniform 1D mesh the phase error is (kh)² (θ − ½ − ν²)/12 + O((kh)⁴) at Courant number
-ν, so θ = ½ + ν² makes it fourth order; θ is taken edge by edge from the edge's own ν_ij² = Δt² |k_ij| / (6 m_ij), up to
-the bound that keeps each element's M_θ positive definite (`THETA_BOUND`), beyond it θ = ½ + c²/ν² (`blended_mass`).
-
-**Stability.** E^{n+1/2} = ½|v^{n+1}|²_{M_θ} + ½|η^{n+½}|²_K is positive for every Δt: no Δt_max.
-
-**The start** is of second order, η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 with M_eff a0 = b − K η^0 − C v0 (0 at the nodes on
-the obstacle): the first-order start leaves an error of order Δt at a kink of the data.
-
-A nonlinear model (and one with several fields) takes the Newton path with the quotients `FITTED`: the lumped mass
-and the elastic term at the β-average; the blend is the linear path's only.
+M_θ = M_L − Σ_edges θ_ij m_ij (e_i − e_j)(e_i − e_j)ᵀ keeps the row sums; on a uniform string the phase error is
+(kh)² (θ − ½ − ν²)/12 + O((kh)⁴) at Courant number ν, so θ = ½ + ν², taken edge by edge from the edge's own ν (up to
+`THETA_BOUND`, `blended_mass`), makes it fourth order. The energy ½|v^{n+1}|²_{M_θ} + ½|η^{n+½}|²_K is positive for
+every Δt: no Δt_max. The start is of second order (M_eff a0 = b − K η^0 − C v0). The Newton path (`FITTED`) lumps
+the mass.
 """
 
 from __future__ import annotations

@@ -1,24 +1,13 @@
 """Newmark's average-acceleration (trapezoidal) rule: energy-conserving and unconditionally stable
-(docs/explanation/schemes.md).
-
-With a nodal velocity v and η^{n+1} − η^n = (Δt/2)(v^{n+1} + v^n),
-
-    M (v^{n+1} − v^n)/Δt + C (v^{n+1} + v^n)/2 + K (η^{n+1} + η^n)/2 = −D v^{n+1} + b,
-
-D = m_F∘d the model's `penalty_damping` on the active set (the semi-implicit penalty, on the new velocity: it brakes
-and never reflects). Eliminating v^{n+1},
+(docs/explanation/schemes.md). With a nodal velocity, η^{n+1} − η^n = (Δt/2)(v^{n+1} + v^n) and
 
     (4M/Δt² + 2C/Δt + K + 4D/Δt) η^{n+1} = 4M(η^n/Δt² + v^n/Δt) + (2C/Δt − K) η^n + 4D η^n/Δt + 2D v^n + 2b,
 
-refactorised when the active set changes. Multiplying by η^{n+1} − η^n gives the energy identity exactly: the viscous
-−(Δt/4)|v^{n+1} + v^n|²_C, the contact −(Δt/2) v^{n+1}·D(v^{n+1} + v^n), the load's work, no numerical dissipation.
-
-A moving obstacle ψ(x, t) (`base.MovingObstacle`): the damping brakes the gap rate, −D(v^{n+1} − ψ_t^{n+1}), ψ_t the
-centred quotient (exact on a uniformly accelerating obstacle); the force's work on ψ's motion, f·(ψ^{n+1} − ψ^n), is
-external work, the rest contact dissipation.
-
-A nonlinear model takes the Newton path: the quotients `NEWMARK` in the model's residual, the same damping and release
-of held nodes; its numerical dissipation is the rest of the identity (the midpoint rule of a nonlinear force).
+D = m_F∘d the model's `penalty_damping` on the active set: the semi-implicit penalty on the new velocity, which brakes
+and never reflects; the matrix is refactorised when the active set changes. Its energy identity is exact: viscous
+−(Δt/4)|v^{n+1} + v^n|²_C, contact −(Δt/2) v^{n+1}·D(v^{n+1} + v^n), no numerical dissipation. A moving obstacle: D
+brakes v − ψ_t (ψ_t centred), and the force's work on ψ's motion, f·(ψ^{n+1} − ψ^n), is external work. A nonlinear
+model takes the Newton path (`NEWMARK`).
 """
 
 from __future__ import annotations
@@ -204,15 +193,10 @@ class NewmarkScheme(_NewtonScheme):
         mean, b = np.add(v_new, v, out=self.work[0]), self.work[1]
         np.subtract(KC_new[1], KC_now[1], out=b)
         visc = 0.5 * float(np.dot(mean, b))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
-        if self.moving:  # −(Δt/2) f·(v^{n+1} + v^n), f = −D(v^{n+1} − ψ_t^{n+1})
-            con = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new - self.rate_new, out=b)))
-            f = np.subtract(self.v_new, self.rate_new, out=self.work[1])
-            f *= self.D
-            np.negative(f, out=f)
-            work = self._obstacle_work(f)
-            con += work
-        else:
-            con, work = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b))), 0.0
+        np.subtract(v_new, self.rate_new, out=b)
+        b *= D  # −f, f = −D(v^{n+1} − ψ_t^{n+1}); the obstacle's share of its work is external work
+        work = self._obstacle_work(-b) if self.moving else 0.0
+        con = 0.5 * dt * float(np.dot(mean, b)) + work  # −(Δt/2) f·(v^{n+1} + v^n)
         ext = 0.5 * dt * float(np.dot(problem.ops.load, mean)) + work
         kin = 0.5 * float(np.dot(v_new, self._mass(v_new, "v_new")))
         el = 0.5 * float(np.dot(self.new, KC_new[0]))

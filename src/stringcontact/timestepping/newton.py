@@ -1,23 +1,14 @@
-"""A nonlinear model's step by Newton's method with line search (PETSc SNES): `NewtonStep`, which every scheme's
-Newton path shares (`_NewtonScheme`); each scheme's own step is in its module (docs/howto/nonlinear_models.md).
-
-The model's residual R(η, η_t, η_tt, F; w) reaches the schemes as `Operators.nonlinear`. A scheme writes its
-placeholders as difference quotients in the unknown u = η^{n+1} and the known levels η^n, η^{n−1}, v^n; the step is
-the root of
+"""A nonlinear model's step by Newton's method (PETSc SNES): `NewtonStep`, shared by every scheme's Newton path
+(`_NewtonScheme`; docs/howto/nonlinear_models.md). A scheme writes the residual's placeholders as difference quotients
+in u = η^{n+1} and the known levels; the step is the root of
 
     G(u) = R(q_η(u), q_t(u), q_tt(u), 0; w) − f + d∘(u − c),      u = g at the fixed ends,
 
-f the scheme's nodal contact force and d∘(u − c) an implicit damping on the diagonal (the semi-implicit penalty);
-with lumped mass the η_tt term is m∘q_tt(u). The Jacobian is ``ufl.derivative`` of the residual, both compiled once
-(`powers_as_products`, `fem.packed.PackedForm`), and may serve a few steps (`NewtonStep._keeps_jacobian`).
-`projection`'s step is the VI G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``), tried as a plain Newton step first; its
-force is the reaction of G on the active set. A failed SNES is tried again with the other line search
-(`RESCUE_LINE_SEARCH`). A residual affine in its unknowns takes no Newton iteration (`affine.LinearPath`).
-
-Energy: the kinetic energy of the scheme's velocity, the model's stored energy ∫Π(η) at the new level, the work of
-R's η_t-dependent part as viscous dissipation, the external work b·δ, the contact work as on the linear path, and as
-numerical dissipation the rest of the identity: the ledger closes by construction. The leapfrog and the midpoint rule
-of a nonlinear force make that term change sign, so those steps declare ``energy_may_rise``.
+f the nodal contact force, d∘(u − c) an implicit damping (the semi-implicit penalty), the η_tt term m∘q_tt(u) when
+lumped. `projection`'s step is the VI G(u) ⊥ u − ψ ≥ 0 (``vinewtonrsls``); a residual affine in its unknowns takes one
+linear solve (`affine.LinearPath`). The ledger: kinetic, stored ∫Π(η), the work of R's η_t-dependent part (viscous),
+b·δ and the contact work; numerical dissipation is the rest of the identity, which the leapfrog and the midpoint rule
+of a nonlinear force make change sign (``energy_may_rise``).
 """
 
 from __future__ import annotations
@@ -125,10 +116,6 @@ class NewtonStep(LinearPath):
         self.surplus = 0  # the kept J's iterations beyond the first of each step, since it was assembled
         self.age, self.kept_age, self.drift = 0, 0, 0.0  # J's age in steps; r₁/(r₀ × age) when a kept J was last tried
         self.d_in_J = np.zeros(n)  # the damping on J's diagonal when it was assembled
-        if lower is not None and form.eta_dofs is not None:
-            full = np.full(self.N, PETSc.NINFINITY)
-            full[self.idx] = lower
-            lower = full
         self.g = problem.g
         lower = self._held_and_bounded(lower)
         self.bounds = None
@@ -142,8 +129,8 @@ class NewtonStep(LinearPath):
             self._linear_path()
 
     def _held_and_bounded(self, lower):
-        """A model's other fields held at 0 on the boundary (`Model.held_fields`: their rows join η's ends in
-        `bc`) and bounded below (`Model.field_lower`: the step becomes the VI)."""
+        """The unknowns' lower bound (None: none) from η's `lower`, a model's other fields held at 0 on the boundary
+        (`Model.held_fields`: their rows join η's ends in `bc`) and bounded below (`Model.field_lower`)."""
         problem, form = self.problem, self.problem.ops.nonlinear
         model = problem.laws.model
         if form.eta_dofs is None:
@@ -153,11 +140,14 @@ class NewtonStep(LinearPath):
             self.bc = np.concatenate([self.bc, dofs[name][problem.bc]])
             self.g = np.concatenate([self.g, np.zeros(len(problem.bc))])
         bounds = model.field_lower(form.params) if getattr(model, "field_lower", None) is not None else {}
-        if bounds and lower is None:
-            lower = np.full(self.N, PETSc.NINFINITY)
+        if lower is None and not bounds:
+            return None
+        full = np.full(self.N, PETSc.NINFINITY)
+        if lower is not None:
+            full[self.idx] = lower
         for name, value in bounds.items():
-            lower[dofs[name]] = value
-        return lower
+            full[dofs[name]] = value
+        return full
 
     def _snes(self, lower, line_search: str | None = None):
         """A SNES for G; a VI's (``vinewtonrsls``, `VI_DEFAULTS`) with `lower` (None: plain Newton, or the bounds
@@ -242,16 +232,12 @@ class NewtonStep(LinearPath):
         """The assembled residual (`form`: the compiled G by default) at u, η's owned dofs, no force, no ends."""
         self._sync()
         self._set(self.u, self._full(u, self.levels[3]))
-        vec = self.work_vec
-        with vec.localForm() as local:
-            local.set(0.0)
         if form is None:
             self.G.refresh(self.u)
-            self.G.assemble_vector(vec)
+            _assemble(self.work_vec, self.G.assemble_vector)
         else:
-            fem.petsc.assemble_vector(vec, form)
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        r = vec.array[self.idx].copy()
+            _assemble(self.work_vec, lambda vec: fem.petsc.assemble_vector(vec, form))
+        r = self.work_vec.array[self.idx].copy()
         if self.lumped:
             r += self.problem.ops.m * self.q["eta_tt"](u, *self.arrays, self.problem.dt)
         return r
@@ -296,10 +282,7 @@ class NewtonStep(LinearPath):
         u = x.array_r
         self._set(self.u, u)
         self.G.refresh(self.u)
-        with G.localForm() as local:
-            local.set(0.0)
-        self.G.assemble_vector(G)
-        G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        _assemble(G, self.G.assemble_vector)
         g = G.array
         nodal = self.nodal_slope * u[self.idx]
         nodal -= self.nodal_known
@@ -367,12 +350,9 @@ class NewtonStep(LinearPath):
         return not self.anyrank(bool(np.any(x < self.bounds[0].array)))
 
     def solve(self, guess: np.ndarray) -> np.ndarray:
-        """The root from `guess` (η; the ends set to their heights, the other fields from their last solution);
-        η's owned values. SolverError if SNES fails.
-
-        A VI first tries the plain Newton step when the last solution touched no bound: a root within the bounds is
-        the VI's (SNES VI factorises its inactive rows again at every iteration: 2.2 of a 3.5 ms step at nx = 5000).
-        On the linear path that step is one linear solve, without SNES."""
+        """The root from `guess` (η; the ends at their heights, the other fields from their last solution): η's owned
+        values; SolverError if SNES fails. A VI first tries the plain Newton step (the linear path's solve) when the
+        last solution touched no bound (SNES VI refactorises at every iteration: 2.2 of a 3.5 ms step at nx = 5000)."""
         self.age += 1
         # G's nodal terms, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known (the linear path's
         # slope is on its J)
@@ -493,6 +473,14 @@ class NewtonStep(LinearPath):
             counts["line search rescues"] = self.rescues
         fallback = {"preconditioner": "; ".join(self.notes)} if getattr(self, "notes", None) else {}
         return counts | {"nonlinear solver": how} | fallback
+
+
+def _assemble(vec: PETSc.Vec, assemble) -> None:
+    """`assemble(vec)` into `vec` zeroed, the ghosts' contributions added to their owners."""
+    with vec.localForm() as local:
+        local.set(0.0)
+    assemble(vec)
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
 
 
 def _without_dissipative(problem, q_eta, k: int) -> dict:

@@ -1,17 +1,9 @@
 """The paper's Section 6 scheme: implicit elastic and viscous terms, the contact force from the previous step
-(docs/explanation/schemes.md).
-
-With v^n = (η^n − η^{n−1})/Δt, A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F(η^n, v^n) + b with
-A = M/Δt² + C/Δt + K, factorised once. ``penalty="semi-implicit"`` applies the law as a damping d on the new velocity,
-F = −d v^{n+1} on the active set (with a moving obstacle, on the gap rate −d (v^{n+1} − (ψ^{n+1} − ψ^n)/Δt)): only A's
-diagonal changes, when the active set does.
-
-Energy (M, K symmetric): ½|v^{n+1}|²_M + ½|η^{n+1}|²_K + Δt v^{n+1}·C v^{n+1} + ½|v^{n+1} − v^n|²_M
-+ ½|η^{n+1} − η^n|²_K = ½|v^n|²_M + ½|η^n|²_K + Δt v^{n+1}·(m_F∘F + b); the squared differences, with
-(Δt/2) f·(v^n − v^{n+1}) since D_con is booked as every scheme's, are the numerical dissipation.
-
-A step is one mat-vec with the stacked [K; C/Δt], one back-substitution and a few NumPy ufuncs into arrays allocated
-once: pairs of rows hold a quantity at the new and the previous step and swap roles, so K η, C η and M v are reused.
+(docs/explanation/schemes.md). A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F(η^n, v^n) + b with
+A = M/Δt² + C/Δt + K factorised once; ``penalty="semi-implicit"`` puts the law as a damping d on A's diagonal,
+F = −d v^{n+1} (−d (v^{n+1} − Δψ/Δt) with a moving obstacle). The numerical dissipation is ½|v^{n+1} − v^n|²_M +
+½|η^{n+1} − η^n|²_K + (Δt/2) f·(v^n − v^{n+1}). A step is one mat-vec with the stacked [K; C/Δt], one back-substitution
+and a few ufuncs into arrays allocated once, whose rows swap roles each step (K η, C η and M v are reused).
 """
 
 from __future__ import annotations

@@ -1,30 +1,14 @@
 """Inelastic contact with no ε: central differences, implicit viscosity, and the step as a complementarity problem
-(docs/explanation/schemes.md).
+(docs/explanation/schemes.md, restitution.md). With lumped mass M and A = M/Δt² + C/Δt, at the interior nodes
 
-With lumped mass M, find η^{n+1} and the nodal contact force F^{n+1} with
+    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F,   η^{n+1} ≥ ψ,  F ≥ 0,  F·(η^{n+1} − ψ) = 0
 
-    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F^{n+1},
-    gap(η^{n+1}) ≥ 0,   F^{n+1} ≥ 0,   F^{n+1} · gap(η^{n+1}) = 0        (interior nodes):
-
-the minimum of ½ηᵀAη − bᵀη over gap ≥ 0, A = M/Δt² + C/Δt (`complementarity.ActiveSet`). A node that lands stops on
-ψ: restitution 0, the paper's (A4); F is a true contact force (≥ 0, 0 off the contact set). The model must declare
-``gap`` (η − ψ).
-
-Energy: the leapfrog's E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n changes by the viscous −(Δt/2) v^{n+1}·C(v^{n+1} + v^n)
-and the contact ½ F·(η^{n+1} − η^{n−1}): no numerical dissipation. E^{n+1/2} + (Δt/4)|v^{n+1}|²_C never rises; the
-ledger shows E^{n+1/2}, the energy guard adds the rest (`energy_slack`). The stored velocity is the centred
-(η^{n+1} − η^{n−1})/(2Δt) (the one-sided quotient aliases where a landing front crosses the grid), so the scheme runs
-one step ahead of what it reports.
-
-Restitution e (Paoli and Schatzman, docs/explanation/restitution.md): the same complementarity problem for the
-weighted position z = (η^{n+1} + e η^{n−1})/(1 + e) (`_weighted_step`); each node's contact account keeps the contact's
-dissipation ≥ 0 (`release.ContactAccount`). Signorini's release (``Model.release = "signorini"``, `release.py`): a
-second-order start and massless contact points.
-
-A nonlinear model takes the Newton path: η explicit, η_t and the other fields implicit, the VI G(u) ⊥ u − ψ ≥ 0 by
-SNES (`newton.NewtonStep` with bounds, on the weighted position with e > 0), its force the reaction on the active set.
-
-Stability: Δt < μ + √(μ² + 4/λ) along the top eigenvector of M⁻¹K (eigenvalue λ, μ = φ·Cφ/φ·Kφ; `spectrum.py`).
+(`complementarity.ActiveSet`; ψ from the model's ``gap`` = η − ψ): a landing node stops on ψ, F is a true contact force.
+The leapfrog's energy E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n has no numerical dissipation; E^{n+1/2} + (Δt/4)|v|²_C
+never rises (`energy_slack`). The stored velocity is the centred (η^{n+1} − η^{n−1})/(2Δt), so the scheme runs one step
+ahead of what it reports. Restitution e constrains the weighted position (η^{n+1} + e η^{n−1})/(1 + e) (Paoli and
+Schatzman, `_weighted_step`); `release.py` adds Signorini's release. A nonlinear model takes the Newton path (η
+explicit, the other fields and η_t implicit: the VI by SNES). Stability: Δt ≤ μ + √(μ² + 4/λ) (`spectrum.py`).
 """
 
 from __future__ import annotations

@@ -1,18 +1,9 @@
-"""Contact that gives energy back only out of what it took: each node's contact account, Signorini's release at a
-massless contact point, and the second-order start (schemes `projection` and `fitted`; docs/explanation/schemes.md).
-
-**The account** (`ContactAccount`): a node's contact dissipation so far, −½ F_i (η_i^{n+1} − η_i^{n−1}) summed. A
-landing fills it; a rule that gives energy back (a rebound, a release) may spend it, never below 0, so D_con ≥ 0 at
-every step and no scene gains energy through its contact.
-
-**Signorini's release** (``Model.release = "signorini"``, `MasslessRelease`): a node at rest on the obstacle
-(η^n = η^{n−1} = ψ) whose neighbours are not is massless (the singular mass method of Khenous, Laborde and Renard):
-its row of the step is the elastic equilibrium K η^{n+1} + (C/Δt)(η^{n+1} − η^n) = b + F with the Signorini
-conditions, so it leaves at its neighbours' equilibrium. It stays massless in flight while its account pays its
-momentum residual R_i (booked as contact dissipation −½ R_i (η_i^{n+1} − η_i^{n−1})); landings stay inelastic.
-
-**The second-order start** (`start_correction`): η^{−1} = η0 − Δt v0 + (Δt²/2) a0, a0 = m⁻¹(b − Kη0 − Cv0), 0 at a
-node that starts on the obstacle (the leapfrog's first cell is [0, Δt/2]).
+"""Contact that gives energy back only out of what it took (schemes `projection` and `fitted`;
+docs/explanation/schemes.md): each node's contact account (`ContactAccount`: a landing fills it, a rebound or a release
+may spend it, never below 0, so D_con ≥ 0 at every step); Signorini's release at a massless contact point
+(``Model.release = "signorini"``, `MasslessRelease`: a node at rest on ψ whose neighbours are not takes the elastic
+equilibrium as its row, and stays massless in flight while its account pays its momentum residual); and the
+second-order start (`start_correction`).
 """
 
 from __future__ import annotations
