@@ -112,13 +112,15 @@ class MovingObstacle:
 @dataclass
 class DiscreteProblem:
     """The discrete problem a scheme steps, what the driver hands ``Scheme.__init__`` (kept as ``self.problem``):
-    ``ops`` the model's assembled operators (`Operators`); ``dt``, ``nt`` the time step and the number of steps;
-    ``eps`` the penalty's ε (unused by an ε-free scheme); ``mass``, ``penalty`` the mass matrix and penalty chosen
-    (penalty None for an ε-free scheme); ``bc``, ``g`` the owned dof indices of the fixed ends and their heights;
-    ``laws`` the model's pointwise laws (`NodalLaws`); ``comm`` the run's MPI communicator; ``x`` the coordinates of
-    the owned dofs (a string's x, a membrane's (x, y) rows); ``petsc_options`` PETSc options on top of the size
-    rule's (or None); ``restitution`` the restitution coefficient e; ``obstacle`` a moving obstacle
-    (`MovingObstacle`) or None; ``options`` every option the scheme was given (`Scheme.OPTIONS`, defaults filled in).
+
+    * ``ops``: the model's assembled operators (`Operators`); ``dt``, ``nt``: the time step and the number of steps;
+    * ``mass``, ``penalty``, ``eps``: the mass matrix, the penalty (None for an ε-free scheme) and its ε;
+    * ``bc``, ``g``: the owned dof indices of the fixed ends (a membrane's boundary) and their heights;
+    * ``laws``: the model's pointwise laws at the nodes (`NodalLaws`); ``comm``: the run's MPI communicator;
+    * ``x``: the coordinates of the owned dofs (a string's x, a membrane's (x, y) rows);
+    * ``petsc_options``: PETSc options on top of the size rule's (or None); ``restitution``: the coefficient e;
+    * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest;
+    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in).
     """
 
     ops: Operators

@@ -3,11 +3,14 @@ from the previous step (the paper's explicit penalty) or a damping on the new ve
 
 A scheme writes the momentum form's placeholders η, η_t, η_tt as functions of the unknown u = η^{n+1}, the known
 levels η^n, η^{n−1}, the nodal velocity v^n and Δt (``QUOTIENTS``; ``"fields"`` for a model's other unknowns, u by
-default), and the step solves R(q_η(u), q_t(u), q_tt(u), 0; w) = m_F∘F(η^n, v^n) + b with the ends held (the
-semi-implicit penalty: F = −d (v^{n+1} − Δψ/Δt), d on the diagonal). A linear model's step is one back-substitution
-(`affine.LinearPath`); a scheme with a faster path of its own (``LINEAR_PATH = True``: `paper`) is given the constant
-operators only. Energy: `newton`'s, over δ = η^{n+1} − η^n. A moving obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the
-force's work is external work; a damping that would hold a node down is released (`_release`).
+default). The step solves, with the ends held,
+
+    R(q_η(u), q_t(u), q_tt(u), 0; w) = m_F∘F(η^n, v^n) + b          (explicit penalty)
+
+or puts the damping m_F d on the diagonal, F = −d (v^{n+1} − Δψ/Δt) (semi-implicit). A linear model's step is one
+back-substitution (`affine.LinearPath`); a scheme with a faster path of its own (``LINEAR_PATH = True``: `paper`) is
+given the constant operators only. Energy: `newton`'s, over δ = η^{n+1} − η^n. A moving obstacle's share
+½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work; a damping that would hold a node down is released.
 
 A scheme of one's own: a module with ``class Scheme(ImplicitScheme)`` that sets ``DESCRIPTION`` and ``QUOTIENTS``,
 registered under the entry-point group ``stringcontact.schemes`` (or handed to `simulate` as a class).
