@@ -18,6 +18,7 @@ from ufl.classes import FixedIndex, ListTensor
 from ufl.corealg.multifunction import MultiFunction
 
 from ..fem import compat
+from ..fem.operators import stacked
 from .linear import DampedLU, Linear, dirichlet_rows
 
 
@@ -139,21 +140,6 @@ class AffineResidual:
         return out
 
 
-def _stack(mats: list) -> PETSc.Mat:
-    """[A₁; A₂; …]: each rank's rows of A₁, then its rows of A₂, …: one mat-vec gives every product (as
-    `fem.operators.stacked` for two)."""
-    ia, ja, a = zip(*(A.getValuesCSR() for A in mats))
-    offsets = np.cumsum([0] + [i[-1] for i in ia[:-1]])
-    # PETSc's own index type (int32 on trixie's PETSc): the offsets' sums are int64
-    starts = np.concatenate([ia[0][:1]] + [i[1:] + o for i, o in zip(ia, offsets)]).astype(PETSc.IntType)
-    rows, cols = sum(A.getLocalSize()[0] for A in mats), mats[0].getLocalSize()[1]
-    S = PETSc.Mat().createAIJ(size=((rows, PETSc.DECIDE), (cols, PETSc.DECIDE)),
-                              csr=(starts, np.concatenate(ja).astype(PETSc.IntType), np.concatenate(a)),
-                              comm=mats[0].getComm())
-    S.assemble()
-    return S
-
-
 def _component_columns(A: PETSc.Mat, component: int, k: int) -> PETSc.Mat | None:
     """A's columns of one component of a blocked space of block size k (column j is component j mod k), as an AIJ
     matrix of A's shape; None if it has none."""
@@ -193,7 +179,7 @@ class LevelTerms:
                 viscous = name == "eta_t" or (name == "eta" and c in dissipative)
                 (self.terms if a[1] or a[2] or viscous else self.others).append((M, a, viscous))
         stack = [M for M, _, _ in self.terms] + ([energy.H] if energy is not None else [])
-        self.S = _stack(stack) if stack else None
+        self.S = stacked(*stack) if stack else None
         if self.S is not None:
             self.X, self.Y = self.S.createVecs()
         self.N = residual.r0.size

@@ -108,11 +108,11 @@ class NewmarkScheme(_NewtonScheme):
         self.KC.mult(petsc_vector(self.eta_, self.problem.comm), self.KC_now[0])
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
         el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
-        self.kin, self.el = self.allsum(kin, el)
-        return StepEnergy(self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0)
+        kin, el = self.allsum(kin, el)
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def _active_damping(self) -> np.ndarray:
-        """m_F d at η^n, v^n on the interior nodes."""
+        """The model's damping d at η^n, v^n."""
         problem = self.problem
         problem.laws.set(eta=self.eta_, v=self.v_)
         return np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float)
