@@ -19,7 +19,7 @@ from ufl.corealg.multifunction import MultiFunction
 
 from ..fem import compat
 from ..fem.operators import stacked
-from .linear import DampedLU, Linear, dirichlet_rows
+from .linear import Linear, dirichlet_rows
 
 
 class _LiteralComponents(MultiFunction):
@@ -294,7 +294,7 @@ class LinearPath:
         if J.getBlockSize() > 1 and problem.comm.size == 1 and self.ksp_options.get("pc_type") == "lu":
             # the blocked matrix's LU: back-substitution by 2 × 2 blocks (10⁴ unknowns: 53 µs against 142 as AIJ)
             J = J.convert("baij")
-        self.step_solver = DampedLU(J, problem.comm, self.ksp_options, self.bc, self.g, problem.x.ndim)
+        self.step_solver = Linear(J, problem.comm, self.ksp_options, self.bc, self.g, problem.x.ndim)
         self.rhs, self.work = J.createVecLeft(), np.zeros(self.N)
         self.extra, self.d_lin = np.zeros(self.N), np.zeros(self.n)  # the damping on J's diagonal: all rows, η's
         self.quadratic = QuadraticEnergy.of(form.stored_energy, self.energy_eta)

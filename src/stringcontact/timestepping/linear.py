@@ -1,9 +1,8 @@
 """The step's linear solve (docs/explanation/linear_solvers.md): LU or CG chosen by the system's size, PETSc options.
 
 `solver_options` is the size rule with a scene's or the command line's options on top; `configured_ksp` builds a
-KSP from them under its own prefix; `Linear` solves A x = b for a matrix that stays (or changes now and then),
-`DampedLU` for a constant matrix plus a diagonal on the active set; `dirichlet_rows` puts identity rows at the
-fixed ends.
+KSP from them under its own prefix; `Linear` solves A x = b for a matrix that stays, or changes now and then (a
+damping on its diagonal); `dirichlet_rows` puts identity rows at the fixed ends.
 """
 
 from __future__ import annotations
@@ -288,7 +287,8 @@ def _petsc_reason(exc: Exception) -> str:
 
 
 class Linear:
-    """A x = b for a matrix that stays (or changes now and then, `reset`): LU or CG by size and options.
+    """A x = b for a matrix that stays, or changes now and then (`reset`) or on its diagonal (`update`): LU or CG by
+    size and options.
 
     A has identity rows at the fixed dofs `bc` and every b their heights `g`. ``solve(b, x)``: LU is the factor's
     back-substitution, without KSPSolve's bookkeeping; CG zeroes A's fixed columns too (symmetric) and moves their
@@ -297,6 +297,8 @@ class Linear:
 
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
         self.A, self.bc, self.notes = A, bc, []
+        self.base = A.getDiagonal().array.copy()  # A's own diagonal, below `update`'s
+        self.extra, self.refactorisations, self.anywhere = np.zeros_like(self.base), 0, Ranks(comm).any
         self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim, notes=self.notes)
         kind = self.options["ksp_type"], self.options.get("pc_type")
         self.iterative = not (kind[0] == "preonly" and kind[1] in ("lu", "cholesky"))
@@ -330,6 +332,17 @@ class Linear:
         self.ksp.setUp()
         self._bind()
 
+    def update(self, extra: np.ndarray) -> None:
+        """`extra` on top of A's own diagonal (a damping on the active set): refactorised (LU keeps the symbolic
+        factorisation) or CG's preconditioner set up again only if it changed on any rank."""
+        if self.anywhere(not np.array_equal(extra, self.extra)):
+            diagonal = self.A.createVecLeft()
+            np.add(self.base, extra, out=diagonal.array)
+            self.A.setDiagonal(diagonal)
+            self.reset()
+            self.extra[:] = extra
+            self.refactorisations += 1
+
     def describe(self, *others: Linear) -> str:
         """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve", the mean over
         this solver's solves and those of `others` (the contact step's free-step solver, with the same options)."""
@@ -341,31 +354,6 @@ class Linear:
         mean = (self.iterations + sum(o.iterations for o in others)) / solves if solves else 0.0
         return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve" + "".join(
             f" ({note})" for note in self.notes)
-
-
-class DampedLU:
-    """A constant matrix plus a diagonal that changes now and then (a damping on the active set): ``update(extra)``
-    puts `extra` on top of the constant diagonal and, only if it changed on any rank, refactorises (LU keeps the
-    symbolic factorisation) or sets CG's preconditioner up again. ``solve`` and ``iterative`` are the `Linear`'s."""
-
-    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
-        self.A, self.comm = A, comm
-        self.base = A.getDiagonal().array.copy()
-        self.diag = A.createVecLeft()
-        self.current = np.zeros_like(self.base)  # what is on top of the constant diagonal now
-        self.linear = Linear(A, comm, options, bc, g, dim)
-        self.solve, self.iterative = self.linear.solve, self.linear.iterative
-        self.refactorisations = 0
-        self.anywhere = Ranks(comm).any
-
-    def update(self, extra: np.ndarray) -> None:
-        if self.anywhere(not np.array_equal(extra, self.current)):
-            np.add(self.base, extra, out=self.diag.array)
-            self.A.setDiagonal(self.diag)
-            self.linear.reset()
-            self.solve = self.linear.solve
-            self.current[:] = extra
-            self.refactorisations += 1
 
 
 def dirichlet_rows(A: PETSc.Mat, bc: np.ndarray) -> None:

@@ -17,7 +17,7 @@ from petsc4py import PETSc
 
 from ..fem.operators import diagonal_matrix, stacked
 from .base import EPS, PETSC_OPTIONS, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
-from .linear import DampedLU, dirichlet_rows
+from .linear import Linear, dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme
 
 #: The Newton path's difference quotients: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
@@ -65,7 +65,7 @@ class NewmarkScheme(_NewtonScheme):
         self.A.axpy(2.0 / dt, ops.C, structure=same)
         self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
         dirichlet_rows(self.A, problem.bc)
-        self.lu = DampedLU(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
+        self.lu = Linear(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
         self.KC_now, self.KC_new = ((petsc_vector(a, comm), a) for a in np.zeros((2, 2, n)))  # η^n's, η^{n+1}'s
         self.rhs, self.new, self.Mu, self.v_new = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
@@ -88,7 +88,7 @@ class NewmarkScheme(_NewtonScheme):
         return self.force_density
 
     def _linear_timings(self):
-        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.linear.describe()}
+        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.describe()}
 
     def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""
