@@ -49,13 +49,12 @@ class PaperScheme(ImplicitScheme):
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
         # the semi-implicit penalty's damping goes on its diagonal
         self.lu = Linear(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
-        self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
-        self.vels = np.zeros((2, n))  # v^{n+1}, v^n in rotating rows
         # Dotted with v^{n+1}: C v^{n+1}, the applied force m_F∘F, M v^{n+1} and M v^n (rows 2, 3 alternate).
         self.by_v = np.zeros((4, n))
         self.KC_etas = np.zeros((2, 2, n))  # [K η, (C/Δt) η] of η^{n+1} and of η^n
-        self.eta_new, self.eta_now, self.eta_old = ((petsc_vector(r, comm), r) for r in self.etas)
-        self.v_new, self.v_now = ((petsc_vector(r, comm), r) for r in self.vels)
+        # η^{n+1}, η^n, η^{n−1} and v^{n+1}, v^n in rows of one array each, whose roles rotate
+        self.eta_new, self.eta_now, self.eta_old = ((petsc_vector(r, comm), r) for r in np.zeros((3, n)))
+        self.v_new, self.v_now = ((petsc_vector(r, comm), r) for r in np.zeros((2, n)))
         self.M_v_new, self.M_v = ((petsc_vector(r, comm), r) for r in self.by_v[2:])
         self.KC_new, self.KC_old = ((petsc_vector(p, comm), p) for p in self.KC_etas)
         # b; with the consistent mass 2η^n − η^{n−1}
