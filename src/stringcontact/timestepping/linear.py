@@ -297,7 +297,7 @@ class Linear:
 
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
         self.A, self.bc, self.notes = A, bc, []
-        self.base = A.getDiagonal().array.copy()  # A's own diagonal, below `update`'s
+        self.base, self.diagonal = A.getDiagonal().array.copy(), A.createVecLeft()  # A's own diagonal, `update`'s
         self.extra, self.refactorisations, self.anywhere = np.zeros_like(self.base), 0, Ranks(comm).any
         self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim, notes=self.notes)
         kind = self.options["ksp_type"], self.options.get("pc_type")
@@ -336,9 +336,8 @@ class Linear:
         """`extra` on top of A's own diagonal (a damping on the active set): refactorised (LU keeps the symbolic
         factorisation) or CG's preconditioner set up again only if it changed on any rank."""
         if self.anywhere(not np.array_equal(extra, self.extra)):
-            diagonal = self.A.createVecLeft()
-            np.add(self.base, extra, out=diagonal.array)
-            self.A.setDiagonal(diagonal)
+            np.add(self.base, extra, out=self.diagonal.array)
+            self.A.setDiagonal(self.diagonal)
             self.reset()
             self.extra[:] = extra
             self.refactorisations += 1

@@ -193,9 +193,8 @@ class NewmarkScheme(_NewtonScheme):
         mean, b = np.add(v_new, v, out=self.work[0]), self.work[1]
         np.subtract(KC_new[1], KC_now[1], out=b)
         visc = 0.5 * float(np.dot(mean, b))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
-        np.subtract(v_new, self.rate_new, out=b)
-        b *= D  # −f, f = −D(v^{n+1} − ψ_t^{n+1}); the obstacle's share of its work is external work
-        work = self._obstacle_work(-b) if self.moving else 0.0
+        np.multiply(D, v_new - self.rate_new if self.moving else v_new, out=b)  # −f, f = −D(v^{n+1} − ψ_t^{n+1})
+        work = self._obstacle_work(-b) if self.moving else 0.0  # the obstacle's share of f's work: external work
         con = 0.5 * dt * float(np.dot(mean, b)) + work  # −(Δt/2) f·(v^{n+1} + v^n)
         ext = 0.5 * dt * float(np.dot(problem.ops.load, mean)) + work
         kin = 0.5 * float(np.dot(v_new, self._mass(v_new, "v_new")))
