@@ -327,15 +327,16 @@ def step_matrices(ops: Operators, dt: float, mass: str):
     return A, Ms, C_dt
 
 
-def stacked(top: PETSc.Mat, bottom: PETSc.Mat) -> PETSc.Mat:
-    """[top; bottom], each rank's rows of `top` followed by its rows of `bottom`: one mat-vec gives both products
-    (the time loop needs K η and (C/Δt) η of the same η every step)."""
-    ia1, ja1, a1 = top.getValuesCSR()  # this rank's rows, global column indices
-    ia2, ja2, a2 = bottom.getValuesCSR()
-    rows, cols = top.getLocalSize()
-    S = PETSc.Mat().createAIJ(size=((2 * rows, PETSc.DECIDE), (cols, PETSc.DECIDE)), comm=top.getComm(),
-                              csr=(np.concatenate([ia1, ia2[1:] + ia1[-1]]), np.concatenate([ja1, ja2]),
-                                   np.concatenate([a1, a2])))
+def stacked(*mats: PETSc.Mat) -> PETSc.Mat:
+    """[A₁; A₂; …], each rank's rows of A₁, then its rows of A₂, …: one mat-vec gives every product (the time loop
+    needs K η and (C/Δt) η of the same η every step)."""
+    ia, ja, a = zip(*(A.getValuesCSR() for A in mats))  # this rank's rows, global column indices
+    offsets = np.cumsum([0] + [i[-1] for i in ia[:-1]])
+    # PETSc's own index type (int32 on trixie's PETSc): the offsets' sums are int64
+    starts = np.concatenate([ia[0][:1]] + [i[1:] + o for i, o in zip(ia, offsets)]).astype(PETSc.IntType)
+    rows, cols = sum(A.getLocalSize()[0] for A in mats), mats[0].getLocalSize()[1]
+    S = PETSc.Mat().createAIJ(size=((rows, PETSc.DECIDE), (cols, PETSc.DECIDE)), comm=mats[0].getComm(),
+                              csr=(starts, np.concatenate(ja).astype(PETSc.IntType), np.concatenate(a)))
     S.assemble()
     return S
 

@@ -81,11 +81,6 @@ def check_restitution(name: str, restitution: float, Scheme: type | None = None)
 __all__ = ["SCHEMES", "check_model", "check_restitution", "resolve_scheme", "scheme_class"]
 
 
-#: The options every scheme is given a value of (None or its default when it does not declare them): what
-#: `DiscreteProblem` holds.
-COMMON_OPTIONS = ("penalty", "mass", "eps", "restitution", "petsc_options")
-
-
 def resolve_options(name: str, Scheme: type, given: dict) -> dict:
     """The scheme's options (`Scheme.OPTIONS`) from `given` (None: not given), defaults filled in, each checked: a
     one-line ValueError/SceneError naming the option and what the scheme takes. An ``eps`` given to a scheme without
@@ -112,4 +107,4 @@ def resolve_options(name: str, Scheme: type, given: dict) -> dict:
     return values
 
 
-__all__ += ["COMMON_OPTIONS", "resolve_options"]
+__all__ += ["resolve_options"]

@@ -1,9 +1,7 @@
 """The linear path of a residual affine in its unknowns: its constant matrices assembled once, a step by mat-vecs
-and one back-substitution (`NewtonStep` takes it when `affine_in` holds and the model does not ask for Newton).
-
-A linear model with several fields (η's second derivative beside η, a reaction) then costs about 2.3 times the
-paper's linear step at nx = 5000, against 12-20 times through SNES (`benchmarks/bench_stiff_string.py`,
-docs/explanation/performance.md).
+and one back-substitution (`NewtonStep` takes it when `affine_in` holds and the model does not ask for Newton). A
+linear two-field model's step then costs about 2.3 times the paper's linear step at nx = 5000, against 12-20 times
+through SNES (`benchmarks/bench_stiff_string.py`, docs/explanation/performance.md).
 """
 
 from __future__ import annotations
@@ -20,7 +18,8 @@ from ufl.classes import FixedIndex, ListTensor
 from ufl.corealg.multifunction import MultiFunction
 
 from ..fem import compat
-from .linear import DampedLU, Linear, dirichlet_rows
+from ..fem.operators import stacked
+from .linear import Linear, dirichlet_rows
 
 
 class _LiteralComponents(MultiFunction):
@@ -33,9 +32,8 @@ class _LiteralComponents(MultiFunction):
 
 
 def literal_components(form):
-    """`form` with each fixed component of a literal vector, ``as_vector([0, u[1]])[0]``, replaced by that component:
-    UFL keeps the indexing, so a term it zeroes would still reach the compiler (a kernel of zeros, and a C
-    compiler's warning about its unused quadrature weights); replaced, it is dropped."""
+    """`form` with each fixed component of a literal vector, ``as_vector([0, u[1]])[0]``, replaced by that component,
+    so that a term it zeroes is dropped (UFL keeps the indexing: a kernel of zeros and a C compiler's warning)."""
     return map_integrand_dags(_LiteralComponents(), form)
 
 
@@ -50,15 +48,13 @@ def _functions(form) -> set:
 
 
 def affine_in(form, unknowns) -> bool:
-    """Whether `form` is affine in the Functions `unknowns` with constant coefficients: its derivative along each of
-    them reads no Function at all (an unknown left in a derivative, by a power, a product of two unknowns or a
-    conditional, makes it nonlinear; a scene field in it, a coefficient that may move with time)."""
+    """Whether `form` is affine in the Functions `unknowns` with constant coefficients: its derivative along each
+    reads no Function (neither an unknown nor a scene field that may move with time)."""
     return all(_derivative(form, f).empty() or not _functions(_derivative(form, f)) for f in unknowns)
 
 
 def _assembled(a) -> PETSc.Mat | None:
-    """The bilinear form `a` assembled, or None if it is empty or assembles to 0 (UFL does not simplify a component
-    of a literal vector, ``as_vector([0, u[1]])[0]``, so a term that vanishes may still reach the compiler)."""
+    """The bilinear form `a` assembled, or None if it is empty or assembles to 0."""
     if a.empty():
         return None
     A = fem.petsc.assemble_matrix(fem.form(a))
@@ -66,12 +62,12 @@ def _assembled(a) -> PETSc.Mat | None:
     return compact(A) if A.norm(PETSc.NormType.INFINITY) > 0 else None
 
 
-def compact(A: PETSc.Mat) -> PETSc.Mat:
-    """A without its stored zeros, as a plain AIJ matrix: a mixed space's matrix stores every block of a node pair
-    (2 × 2 for two fields), and a term in one field's row and column leaves the other three zero. Its mat-vec
-    then reads only its nonzeros (a two-field ∂R/∂U_t with η's block alone, nx = 5000: 13.5 µs against 87, timeit)."""
+def compact(A: PETSc.Mat, keep: np.ndarray | None = None) -> PETSc.Mat:
+    """A without its stored zeros (or with the entries `keep` of its CSR values only), as a plain AIJ matrix: a mixed
+    space's matrix stores every block of a node pair, and its mat-vec then reads only its nonzeros (a two-field
+    ∂R/∂U_t with η's block alone, nx = 5000: 13.5 µs against 87, timeit)."""
     ia, ja, a = A.getValuesCSR()  # this rank's rows, global columns
-    keep = a != 0
+    keep = a != 0 if keep is None else keep
     rows = np.repeat(np.arange(ia.size - 1), np.diff(ia))
     starts = np.concatenate([[0], np.cumsum(np.bincount(rows[keep], minlength=ia.size - 1))]).astype(ia.dtype)
     B = PETSc.Mat().createAIJ(size=A.getSizes(), csr=(starts, ja[keep], a[keep]), comm=A.getComm())
@@ -92,13 +88,9 @@ def _as_slice(idx):
 
 class AffineResidual:
     """A residual affine in its unknowns, R(U, U_t, U_tt, 0; W) = A U + B U_t + M U_tt + r₀, by its constant
-    matrices (``∂R/∂U``, ``∂R/∂U_t``, ``∂R/∂U_tt``, assembled once) and its constant part r₀ = R(0, 0, 0, 0).
-
-    `apply(values, out)` evaluates it at the arrays `values` (``"eta"``, ``"eta_t"``, ``"eta_tt"``: U, U_t, U_tt on
-    the unknowns' owned dofs) by mat-vecs, without assembling. With `lumped` η's own U_tt column is left out (the
-    schemes lump η's inertia on the nodes); r₀ is assembled again at each `apply` only when it reads a scene field
-    (a load, an obstacle that moves), which `affine_in` allows there and nowhere else.
-    """
+    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0); `apply` evaluates it by
+    mat-vecs. With `lumped` η's own U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again
+    only when it reads a scene field (a load, an obstacle that moves)."""
 
     def __init__(self, form, lumped: bool):
         zero = ufl.zero()
@@ -136,12 +128,9 @@ class AffineResidual:
             self._assemble_r0()
         return self.r0
 
-    def apply(self, values: dict, out: np.ndarray, constant: bool = True) -> np.ndarray:
-        """R at `values` (owned arrays by placeholder name; a missing one counts as 0) into `out`; without r₀ if not
-        `constant` (the part linear in the unknowns)."""
-        if constant and self.moving:
-            self._assemble_r0()
-        out[:] = self.r0 if constant else 0.0
+    def apply(self, values: dict, out: np.ndarray) -> np.ndarray:
+        """R at `values` (owned arrays by placeholder name; a missing one counts as 0) into `out`."""
+        out[:] = self.constant()
         for name, A in self.matrices.items():
             if name in values:
                 x, y = self.vecs[name]
@@ -151,35 +140,15 @@ class AffineResidual:
         return out
 
 
-def _stack(mats: list) -> PETSc.Mat:
-    """[A₁; A₂; …]: each rank's rows of A₁, then its rows of A₂, …: one mat-vec gives every product (as
-    `fem.operators.stacked` for two)."""
-    ia, ja, a = zip(*(A.getValuesCSR() for A in mats))
-    offsets = np.cumsum([0] + [i[-1] for i in ia[:-1]])
-    # PETSc's own index type (int32 on trixie's PETSc): the offsets' sums are int64
-    starts = np.concatenate([ia[0][:1]] + [i[1:] + o for i, o in zip(ia, offsets)]).astype(PETSc.IntType)
-    rows, cols = sum(A.getLocalSize()[0] for A in mats), mats[0].getLocalSize()[1]
-    S = PETSc.Mat().createAIJ(size=((rows, PETSc.DECIDE), (cols, PETSc.DECIDE)),
-                              csr=(starts, np.concatenate(ja).astype(PETSc.IntType), np.concatenate(a)),
-                              comm=mats[0].getComm())
-    S.assemble()
-    return S
-
-
 def _component_columns(A: PETSc.Mat, component: int, k: int) -> PETSc.Mat | None:
-    """A's columns of one component of a blocked space of block size k (global column j is component j mod k), as
-    an AIJ matrix of A's shape; None if it has none."""
+    """A's columns of one component of a blocked space of block size k (column j is component j mod k), as an AIJ
+    matrix of A's shape; None if it has none."""
     if k == 1:
         return A
-    ia, ja, a = A.getValuesCSR()
-    keep = ja % k == component
+    keep = A.getValuesCSR()[1] % k == component
     if not A.getComm().tompi4py().allreduce(bool(keep.any()), op=MPI.LOR):
         return None
-    rows = np.repeat(np.arange(ia.size - 1), np.diff(ia))
-    starts = np.concatenate([[0], np.cumsum(np.bincount(rows[keep], minlength=ia.size - 1))]).astype(ia.dtype)
-    B = PETSc.Mat().createAIJ(size=A.getSizes(), csr=(starts, ja[keep], a[keep]), comm=A.getComm())
-    B.assemble()
-    return B
+    return compact(A, keep)
 
 
 #: The unit values of (u, η^n, η^{n−1}, v^n) at which a scheme's (linear) quotient gives its coefficient of each.
@@ -187,17 +156,14 @@ UNITS = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0), (0.0,
 
 
 class LevelTerms:
-    """An affine residual at one scheme's quotients, by products with the unknowns' levels: without its nodal
-    terms G(u) = Σ_j M_j (a_u u + a_0 e0 + a_m em + a_v v0) + r₀, each matrix of `AffineResidual` split by the
-    component of its columns (η, each field: a scheme's quotient may differ between them, `projection`'s), with
-    the scheme's coefficients (its quotients are linear: read off at unit values, `UNITS`).
+    """An affine residual at one scheme's quotients, by products with the unknowns' levels: without its nodal terms
+    G(u) = Σ_j M_j (a_u u + a_0 e0 + a_m em + a_v v0) + r₀, each matrix split by the component of its columns (a
+    scheme's quotient may differ between η and the fields), the coefficients read off the quotients at `UNITS`.
 
-    A step needs the matrices' products with its earlier solutions (e0, em) and the stored energy's with the new
-    one. So the matrices that a later step applies again (a_0 or a_m ≠ 0) or that the ledger's viscous work reads
-    (∂R/∂U_t, and ∂R/∂U on the dissipative fields' columns) are stacked with the energy's H in one matrix S: its
-    product with each new solution (`products`) serves that step's ledger and the next two steps' known part (the
-    caller keeps them, `NewtonStep._products_of`), so a step costs one mat-vec besides its solve. The methods take
-    each level's values with its products, or None for products to be computed here.
+    The matrices a later step applies again (a_0 or a_m ≠ 0) or the ledger's viscous work reads are stacked with the
+    energy's H in one matrix S: its product with each new solution (`products`, kept by `NewtonStep._products_of`)
+    serves that step's ledger and the next two steps' known part, one mat-vec a step besides the solve. The methods
+    take each level's values with its products, or None for products to be computed here.
     """
 
     def __init__(self, residual: AffineResidual, quotients: dict, dt: float, k: int, dissipative: tuple,
@@ -213,7 +179,7 @@ class LevelTerms:
                 viscous = name == "eta_t" or (name == "eta" and c in dissipative)
                 (self.terms if a[1] or a[2] or viscous else self.others).append((M, a, viscous))
         stack = [M for M, _, _ in self.terms] + ([energy.H] if energy is not None else [])
-        self.S = _stack(stack) if stack else None
+        self.S = stacked(*stack) if stack else None
         if self.S is not None:
             self.X, self.Y = self.S.createVecs()
         self.N = residual.r0.size
@@ -277,9 +243,8 @@ class LevelTerms:
 
 
 class QuadraticEnergy:
-    """A stored energy ∫Π(f) quadratic in its Function f: Π₀ + g·f + ½ f·H f, H and g assembled once, so that the
-    ledger's energy costs a mat-vec (`LevelTerms.stored`) instead of an assembly. `of(f)` returns None when the
-    energy is not quadratic with constant coefficients (then it is assembled as before)."""
+    """A stored energy ∫Π(f) quadratic in its Function f, Π₀ + g·f + ½ f·H f with H and g assembled once: the ledger's
+    energy by a mat-vec (`LevelTerms.stored`) instead of an assembly."""
 
     def __init__(self, H: PETSc.Mat, g: np.ndarray, base: float):
         self.H, self.base = H, base
@@ -315,11 +280,9 @@ class LinearPath:
     fields started from η0 (`start_fields`), η's stiffness with the fields eliminated (`eta_stiffness`)."""
 
     def _linear_path(self) -> None:
-        """A residual affine in the unknowns: G(u) = J u + G(0) with a constant J, so the step is one linear solve
-        (`_solve_linear`): J assembled and factorised once (again only when the damping on its diagonal changes),
-        G(0) from the residual's constant matrices (`AffineResidual`) by mat-vecs, no assembly and no SNES; the
-        ledger's viscous work and a quadratic stored energy (`QuadraticEnergy`) by mat-vecs too. A VI tries this
-        step first, as its plain Newton step, and keeps SNES for the steps that touch a bound."""
+        """G(u) = J u + G(0) with a constant J: the step is one linear solve (`_solve_linear`), J factorised once (again
+        when the damping on its diagonal changes), G(0), the viscous work and a quadratic stored energy by mat-vecs.
+        A VI tries this step first and keeps SNES for the steps that touch a bound."""
         problem, form = self.problem, self.problem.ops.nonlinear
         self.linear = AffineResidual(form, self.lumped)
         J = fem.petsc.assemble_matrix(self.J_form)
@@ -329,10 +292,9 @@ class LinearPath:
         J.setDiagonal(self.diag, addv=PETSc.InsertMode.ADD_VALUES)
         dirichlet_rows(J, self.bc)
         if J.getBlockSize() > 1 and problem.comm.size == 1 and self.ksp_options.get("pc_type") == "lu":
-            # PETSc's own LU of the blocked matrix: its back-substitution by 2 × 2 blocks (two fields, 10⁴
-            # unknowns: 53 µs against 142 as AIJ, timeit)
+            # the blocked matrix's LU: back-substitution by 2 × 2 blocks (10⁴ unknowns: 53 µs against 142 as AIJ)
             J = J.convert("baij")
-        self.step_solver = DampedLU(J, problem.comm, self.ksp_options, self.bc, self.g, problem.x.ndim)
+        self.step_solver = Linear(J, problem.comm, self.ksp_options, self.bc, self.g, problem.x.ndim)
         self.rhs, self.work = J.createVecLeft(), np.zeros(self.N)
         self.extra, self.d_lin = np.zeros(self.N), np.zeros(self.n)  # the damping on J's diagonal: all rows, η's
         self.quadratic = QuadraticEnergy.of(form.stored_energy, self.energy_eta)
@@ -351,11 +313,6 @@ class LinearPath:
         """Whether `solve` reads no guess: the linear path's direct solve, with no VI to fall back to."""
         return self.linear is not None and self.free is None and not self.step_solver.iterative
 
-    def _levels(self, u=None) -> _Levels:
-        """The levels u (or None), e0, em, v0 as the forms read them (the unknowns' owned values), each built when
-        first read."""
-        return _Levels(self, u)
-
     def _level(self, i: int) -> np.ndarray:
         """Known level i (1: e0, 2: em, 3: v0) as `set_known` last gave it, with the other fields' values."""
         return self._full(self.arrays[i - 1], self.levels[i - 1])
@@ -367,7 +324,7 @@ class LinearPath:
             values, products = self.solutions[0]
         else:
             values, products = self._full(u, self.levels[3]), None
-        return self._levels(values), [products, *self.level_products]
+        return _Levels(self, values), [products, *self.level_products]
 
     def _products_of(self, eta: np.ndarray | None, back: int) -> np.ndarray | None:
         """S's products of a known level whose η (owned) is one of the last solutions' (`back` steps back, likely),
@@ -385,7 +342,7 @@ class LinearPath:
         """The step's root into `x` by one solve: J u = −(G(0) without its nodal terms) + their known part, the ends
         at their heights."""
         rhs = self.rhs.array
-        np.negative(self.terms.known(self._levels(), [None, *self.level_products], self.work), out=rhs)
+        np.negative(self.terms.known(_Levels(self, None), [None, *self.level_products], self.work), out=rhs)
         rhs[self.at] += self.nodal_known
         rhs[self.bc] = self.g
         if self.anyrank(not np.array_equal(self.d, self.d_lin)):  # J's diagonal changes with the damping
@@ -426,9 +383,7 @@ class LinearPath:
     def start_fields(self, eta0: np.ndarray, v0: np.ndarray) -> None:
         """A model's other fields at t = 0: a field given a start (`DiscreteProblem.fields0`) starts at it, at rest;
         on the linear path the others are the root of their rows with η = η0, η_t = v0 and their own rates 0, as every
-        level the scheme starts from, so that E(0) and the first stored row hold them and `newmark`'s midpoint starts
-        from them. The Newton path starts them at 0 (their first values are then Newton's first guess, and the first
-        stored row's)."""
+        level the scheme starts from (E(0) and the first row hold them). The Newton path starts them at 0."""
         if self.linear is not None and self._held_rows() is not None:
             rate = np.zeros(self.N)
             rate[self.at] = v0
@@ -447,9 +402,9 @@ class LinearPath:
                     level[dofs] = value
 
     def eta_stiffness(self) -> PETSc.Mat | None:
-        """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of
-        A = ∂R/∂U (K + βKM⁻¹K for a field κ with Mκ = Kη and a term βKκ in η's row), as a shell matrix on η's P1 dofs: what an explicit elastic step
-        sees. None off the linear path or for a single field (η's own K)."""
+        """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of A = ∂R/∂U
+        (K + βKM⁻¹K for a field of η's second derivative), as a shell on η's dofs; None off the linear path or for one
+        field."""
         if self.linear is None or self._held_rows() is None:
             return None
         n = self.n
@@ -460,7 +415,7 @@ class LinearPath:
 
 
 class _Levels:
-    """The levels u, e0, em, v0 of `NewtonStep._levels`, each built when first read (`NewtonStep._level`)."""
+    """The levels u, e0, em, v0 as the forms read them (the unknowns' owned values), each built when first read."""
 
     def __init__(self, step: LinearPath, u):
         self.step, self.values = step, [u, None, None, None]

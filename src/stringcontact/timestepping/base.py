@@ -41,12 +41,9 @@ class StepEnergy(NamedTuple):
 
 
 class NodalLaws:
-    """The model's pointwise laws compiled to NumPy at the nodes, in placeholders η, η_old and v.
-
-    ``quotient`` is the paper's v^n = (η^n − η^{n−1})/Δt as UFL; a scheme with a nodal velocity passes
-    ``v`` instead. ``set(...)`` points the placeholders at arrays (no copy); ``compile(expr)`` returns a
-    `nodal.NodalExpression` whose ``evaluate_env(self.env)`` reads them.
-    """
+    """The model's pointwise laws compiled to NumPy at the nodes, in placeholders η, η_old and v: ``quotient`` is
+    v^n = (η^n − η^{n−1})/Δt as UFL (a scheme with a nodal velocity passes ``v``), ``set`` points the placeholders at
+    arrays (no copy), ``compile`` makes a `nodal.NodalExpression` whose ``evaluate_env(self.env)`` reads them."""
 
     def __init__(self, model, V, params, dt: float, fields: dict, x: np.ndarray):
         self.model, self.params = model, params
@@ -71,13 +68,9 @@ class NodalLaws:
 
 
 class MovingObstacle:
-    """A moving obstacle ψ(x, t): the model's P1 ``obstacle`` field (whose nodal array the laws read) and its rate
-    ``obstacle_rate`` (the backward quotient (ψ(t) − ψ(t − Δt))/Δt, the rate the penalty's gap rate v − ψ_t needs:
-    the exact rate of the discrete gap η^n − ψ^n), set in place to a time by `set`.
-
-    `values(t)` gives ψ at every dof of the field (owned and ghosts); the last few times are kept (a scheme that
-    reports one step behind sets two times per step).
-    """
+    """A moving obstacle ψ(x, t): the model's P1 ``obstacle`` field and its rate ``obstacle_rate`` (the backward
+    quotient (ψ(t) − ψ(t − Δt))/Δt, the exact rate of the discrete gap η^n − ψ^n), set in place to a time by `set`.
+    `values(t)` gives ψ at every dof of the field (owned and ghosts); the last few times are kept."""
 
     def __init__(self, values, psi_field, rate_field, dt: float, n_owned: int):
         self.values, self.psi_field, self.rate_field, self.dt, self.n = values, psi_field, rate_field, dt, n_owned
@@ -119,23 +112,15 @@ class MovingObstacle:
 @dataclass
 class DiscreteProblem:
     """The discrete problem a scheme steps, what the driver hands ``Scheme.__init__`` (kept as ``self.problem``):
-    the model's operators on one mesh, Δt, the options, the fixed ends and the nodal laws.
 
-    Its fields:
-
-    * ``ops``: the model's assembled operators (`Operators`: M, C, K, the lumped mass and force weights, the load,
-      the residual of a nonlinear model);
-    * ``dt``, ``nt``: the time step and the number of steps; ``eps``: the penalty's ε (unused by an ε-free scheme);
-    * ``mass``, ``penalty``: the mass matrix and the penalty chosen (`Scheme.check_options`; penalty None for an
-      ε-free scheme);
+    * ``ops``: the model's assembled operators (`Operators`); ``dt``, ``nt``: the time step and the number of steps;
+    * ``mass``, ``penalty``, ``eps``: the mass matrix, the penalty (None for an ε-free scheme) and its ε;
     * ``bc``, ``g``: the owned dof indices of the fixed ends (a membrane's boundary) and their heights;
-    * ``laws``: the model's pointwise laws at the nodes (`NodalLaws`);
-    * ``comm``: the run's MPI communicator; ``x``: the coordinates of the owned dofs (a string's x, a membrane's
-      (x, y) rows);
-    * ``petsc_options``: PETSc options on top of the size rule's, validated with the scene (or None);
-    * ``restitution``: the restitution coefficient e, for a scheme with ``RESTITUTION`` (checked with the scene);
+    * ``laws``: the model's pointwise laws at the nodes (`NodalLaws`); ``comm``: the run's MPI communicator;
+    * ``x``: the coordinates of the owned dofs (a string's x, a membrane's (x, y) rows);
+    * ``petsc_options``: PETSc options on top of the size rule's (or None); ``restitution``: the coefficient e;
     * ``obstacle``: a moving obstacle ψ(x, t) (`MovingObstacle`), or None for an obstacle at rest;
-    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in), its own among them;
+    * ``options``: every option the scheme was given (`Scheme.OPTIONS`, defaults filled in);
     * ``fields0``: the initial values of the model's further unknowns given by name (owned arrays); a field not in it
       starts as `newton.NewtonStep.start_fields` starts it.
     """

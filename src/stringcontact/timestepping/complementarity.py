@@ -1,28 +1,11 @@
-"""The contact step of the ε-free scheme: a linear complementarity problem, and its solvers.
+"""The contact step of the ε-free schemes, A η = b + F, η ≥ ψ, F ≥ 0, F·(η − ψ) = 0 at the interior nodes (the minimum
+of ½ ηᵀAη − bᵀη over η ≥ ψ), and its solvers.
 
-Given the step matrix A (symmetric positive definite: M/Δt² + C/Δt, identity rows at the fixed ends) and
-the step's right-hand side b, find η and the nodal contact force F with
-
-    A η = b + F,   η ≥ ψ,   F ≥ 0,   F · (η − ψ) = 0        at the interior nodes.
-
-This is the minimum of ½ ηᵀAη − bᵀη over η ≥ ψ (the step of the scheme's own energy), and F is its
-Lagrange multiplier: a true contact force, ≥ 0 and zero off the contact set. With A diagonal (α = 0) the
-answer is the nodal maximum max(A⁻¹b, ψ), which `ActiveSet` then takes without any linear solver; with
-viscosity it is not, because A couples neighbours.
-
-`ActiveSet` solves it by the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim.
-13, 2003) on the scheme's own linear solver (`linear.Linear`: LU, MUMPS or CG): fix the nodes of the active
-set 𝒜 on ψ, solve for the rest, read F = Aη − b on 𝒜, then 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until 𝒜 stays.
-Each step first takes the free step Ã η̃ = b with A itself (factorised once, like the nodal projection
-before): if no node is below ψ that is the answer, at the nodal projection's cost; else 𝒜 starts as
-{η̃ < ψ}. Started from the previous step's 𝒜 instead, the method lets the string lift off one node per
-front per iteration (with viscosity a front moves several nodes a step): 2.66 solves and 1.66
-refactorisations a step on Example 1 at the paper's resolution, against 1.11 and 0.14 from {η̃ < ψ}. Each
-change of 𝒜 costs a refactorisation (LU) or a new preconditioner set-up (CG) and one more solve. For an
-M-matrix A (every string, a membrane on a mesh without obtuse angles) the method converges in finitely
-many iterations; elsewhere it can cycle, so when an active set comes back within a step, or after
-`MAX_ITERATIONS`, the step falls back to PETSc's SNES VI (`VariationalInequality`). Measured against SNES
-VI alone in docs/explanation/study.md (section "The contact step").
+`ActiveSet` is the primal–dual active-set method (Hintermüller, Ito and Kunisch, SIAM J. Optim. 13, 2003) on the
+scheme's own linear solver: fix 𝒜 on ψ, solve, read F = Aη − b, 𝒜 ← {F > 0 on 𝒜} ∪ {η < ψ off 𝒜} until it stays.
+Started from the free step's {η̃ < ψ}: 1.11 solves and 0.14 refactorisations a step on Example 1, against 2.66 and
+1.66 from the last step's 𝒜 (docs/explanation/study.md). Where it cycles (A not an M-matrix) SNES VI takes over
+(`VariationalInequality`); a diagonal A (α = 0) is the nodal maximum max(A⁻¹b, ψ).
 """
 
 from __future__ import annotations
@@ -48,13 +31,10 @@ VI_PREFIX = "stringcontact_vi_"
 class ActiveSet:
     """The contact step by the primal–dual active-set method on `linear.Linear`.
 
-    ``solve(b, x, residual)`` puts η into the vector `x` (its array is η) and returns (F, iterations), F the
-    nodal force A η − b on the active set and 0 elsewhere. `residual(x_array)` must return A η − b with 0
-    at the fixed ends (the scheme computes it from the mat-vec it needs for its energy anyway).
-
-    `force_tol` (per node, ≥ 0): a node leaves 𝒜 only when its force is below −force_tol, so that round-off
-    in F (solver and mat-vec) cannot make the set cycle; η < ψ adds a node with no tolerance, so the step
-    never leaves a node below the obstacle.
+    ``solve(b, x, residual)`` puts η into the vector `x` and returns (F, iterations), F = A η − b on the active set
+    and 0 elsewhere; `residual(x_array)` returns A η − b with 0 at the fixed ends (the scheme's, from the mat-vec
+    its energy needs anyway). A node leaves 𝒜 only when its force is below −`force_tol` (per node: round-off in F
+    cannot make the set cycle); η < ψ adds a node with no tolerance.
     """
 
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int,
@@ -63,8 +43,10 @@ class ActiveSet:
         self.psi, self.interior, self.force_tol = psi, interior, force_tol
         self.steps = self.refactorisations = self.solves = self.free_solves = self.fallbacks = 0
         self.anywhere, self.comm = Ranks(comm).any, comm
+        self.active, self.nodes = np.zeros(psi.size, dtype=bool), np.zeros(0, dtype=np.int32)
+        self.fallback: VariationalInequality | None = None
         self.inverse_diagonal = inverse_diagonal(A, comm)
-        if self.inverse_diagonal is not None:  # α = 0: no linear solver at all (`_nodal_maximum`)
+        if self.inverse_diagonal is not None:  # α = 0: no linear solver at all
             self.linear = self.free = None
             return
         self.work = A.duplicate(copy=True)  # A with 𝒜's rows (and, for CG, columns) fixed
@@ -72,9 +54,6 @@ class ActiveSet:
         self.linear = Linear(self.work, comm, options, bc, g, dim)
         predict = dim == 1 or A.getSize()[0] <= PREDICT_MAX_NODES
         self.free = Linear(A.duplicate(copy=True), comm, options, bc, g, dim) if predict else None
-        self.active = np.zeros(psi.size, dtype=bool)
-        self.nodes = np.zeros(0, dtype=np.int32)
-        self.fallback: VariationalInequality | None = None
 
     @property
     def iterative(self) -> bool:
@@ -107,17 +86,22 @@ class ActiveSet:
 
     def solve(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
         self.steps += 1
-        if self.inverse_diagonal is not None:
-            return self._nodal_maximum(b, x, residual)
         rhs, eta = b.array, x.array
         active = self.active
-        if self.free is not None:
-            self.free.solve(b, x)
-            self.free_solves += 1
+        if self.free is not None or self.inverse_diagonal is not None:  # the free step first
+            if self.inverse_diagonal is not None:
+                np.multiply(rhs, self.inverse_diagonal, out=eta)
+            else:
+                self.free.solve(b, x)
+                self.free_solves += 1
             active = self.interior & (eta < self.psi)
             if not self.anywhere(bool(active.any())):  # no contact: the free step is the answer
                 residual(eta)
                 return np.zeros_like(eta), 0
+            if self.inverse_diagonal is not None:  # A diagonal: η = max(A⁻¹b, ψ) node by node, the active set's answer
+                np.copyto(eta, self.psi, where=active)  # (benchmarks/bench_membrane.py --alpha 0: no factorisation)
+                self.solves += 1
+                return np.where(active, residual(eta), 0.0), 1
             if not self.anywhere(not np.array_equal(active, self.active)):  # every rank: holding is collective
                 active = self.active
         seen, key = set(), None  # the active sets of this step (their keys cost an allgather under MPI)
@@ -140,22 +124,6 @@ class ActiveSet:
                 break
             active = new
         return self._fall_back(b, x, residual)
-
-    def _nodal_maximum(self, b: PETSc.Vec, x: PETSc.Vec, residual) -> tuple[np.ndarray, int]:
-        """A diagonal: η = max(A⁻¹b, ψ) node by node is the LCP's solution, and F = Aη − b where η = ψ.
-
-        The same numbers as the active-set method on A's LU, which takes this free step and then holds {η̃ < ψ}
-        on ψ: PETSc's LU stores the inverted pivots, so its back-substitution is b·(1/a), as here. Measured
-        (benchmarks/bench_membrane.py --alpha 0): no factorisation in the set-up and a step linear in N."""
-        eta = x.array
-        np.multiply(b.array, self.inverse_diagonal, out=eta)
-        active = self.interior & (eta < self.psi)
-        if not self.anywhere(bool(active.any())):
-            residual(eta)
-            return np.zeros_like(eta), 0
-        np.copyto(eta, self.psi, where=active)
-        self.solves += 1
-        return np.where(active, residual(eta), 0.0), 1
 
     def _key(self, active: np.ndarray) -> tuple:
         """The active set over all ranks, as a hashable key (one allgather of this rank's packed bits)."""
@@ -193,12 +161,9 @@ def inverse_diagonal(A: PETSc.Mat, comm) -> np.ndarray | None:
 
 
 class VariationalInequality:
-    """The contact step by PETSc's SNES VI (`vinewtonrsls`: a reduced-space active-set Newton method) with the
-    bounds ψ ≤ η at the interior nodes: about ten Newton iterations (each an LU factorisation) per step, so
-    `ActiveSet` uses it only as its fallback. Neither line search converged everywhere alone: full Newton
-    steps (`basic`) cycled on a non-M-matrix (tests/timestepping/test_contact_step.py), backtracking (`bt`) stalled on a
-    step of Example 1; so each is tried in turn from the same first guess.
-    """
+    """The contact step by PETSc's SNES VI (`vinewtonrsls`) with the bounds ψ ≤ η at the interior nodes: about ten
+    LU factorisations a step, so `ActiveSet`'s fallback only. `basic` cycled on a non-M-matrix, `bt` stalled on a step
+    of Example 1: each is tried in turn from the same first guess."""
 
     LINE_SEARCHES = ("basic", "bt")
 

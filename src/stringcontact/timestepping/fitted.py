@@ -1,42 +1,16 @@
-"""The ε-free scheme fitted to the Courant number: a blended mass, an implicit elastic term, contact as a complementarity
-problem.
+"""The ε-free scheme fitted to the Courant number (docs/explanation/schemes.md): `projection` with its lumped mass
+replaced by M_eff = M_θ + β Δt² K, β = ¼ (the elastic term at Newmark's average, implicit), the same contact step,
+restitution and release.
 
-The step is `projection`'s with its lumped mass M_L replaced by an effective mass,
-
-    M_eff (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F,      M_eff = M_θ + β Δt² K,
-
-with the same contact step (A = M_eff/Δt² + C/Δt, η^{n+1} ≥ ψ, F ≥ 0, F·(η^{n+1} − ψ) = 0), restitution and release.
-Written out, β Δt² K (η^{n+1} − 2η^n + η^{n−1})/Δt² + K η^n = K (β η^{n+1} + (1 − 2β) η^n + β η^{n−1}): Newmark's
-β-average of the elastic term, here β = ¼ (the trapezoidal rule's), so the elastic term is implicit.
-
-**The blended mass.** M_θ = M_L − Σ_edges θ_ij m_ij (e_i − e_j)(e_i − e_j)ᵀ, with m_ij the consistent mass's
-off-diagonal entry: θ = 0 is the lumped mass, θ = 1 the consistent one, and every θ keeps the row sums (the total
-mass). On a uniform 1D mesh with Courant number ν = Δt/h the scheme's phase error for a wave kh is
-
-    ω_h/ω − 1 = (kh)² (θ − ½ − ν²)/12 + O((kh)⁴)      (β = ¼; the lumped leapfrog's is −(kh)² (1 − ν²)/24),
-
-so θ = ½ + ν² makes it fourth order at every Courant number. The scheme takes θ edge by edge from the edge's own
-Courant number, ν_ij² = Δt² |k_ij| / (6 m_ij) (exactly (Δt/h_e)², c²Δt²/h_e² with a density or tension, on any 1D
-mesh, uniform or not; on a triangle mesh the 1D rule edge by edge, `blended_mass`) up to the bound that keeps each
-element's M_θ positive definite (`THETA_BOUND`: θ < 3/2 on an interval, reached at ν = 1; 4/3 on a triangle), and
-beyond it θ = ½ + c²/ν² (c = the bound − ½), which falls back towards ½. On a 1D mesh at ν = 1 the effective mass is
-M_L: the lumped leapfrog, exact at Courant number 1.
-
-**Stability.** The energy identity is `projection`'s with M_eff: E^{n+1/2} = ½|v^{n+1}|²_{M_eff} + ½ η^{n+1}·K η^n
-= ½|v^{n+1}|²_{M_θ} + ½|η^{n+½}|²_K (β = ¼, η^{n+½} the mean of the two levels), positive for every Δt since M_θ is
-positive definite (semi-definite only where an edge's ν² is exactly c, as the leapfrog at its Δt_max): no Δt_max. The stiff string (its bending term in a second field, the Newton path) has no stable-Δt
-bound under this scheme (`projection` needs Δt ≤ 1.1e-4 at nx = 200 and β = 1e-3).
-
-**The start** is of second order, η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 with M_eff a0 = b − K η^0 − C v0 (0 at the nodes on
-the obstacle): the first-order start leaves an error of order Δt at a kink of the data.
-
-A nonlinear model (and a model with several fields) takes the Newton path with the quotients `FITTED`: the lumped
-mass (θ = 0) and the elastic term at the β-average, β = ¼; the blend is the linear path's only.
+M_θ = M_L − Σ_edges θ_ij m_ij (e_i − e_j)(e_i − e_j)ᵀ keeps the row sums; on a uniform string the phase error is
+(kh)² (θ − ½ − ν²)/12 + O((kh)⁴) at Courant number ν, so θ = ½ + ν², taken edge by edge from the edge's own ν (up to
+`THETA_BOUND`, `blended_mass`), makes it fourth order. The energy ½|v^{n+1}|²_{M_θ} + ½|η^{n+½}|²_K is positive for
+every Δt: no Δt_max. The start is of second order (M_eff a0 = b − K η^0 − C v0). The Newton path (`FITTED`) lumps
+the mass.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -46,6 +20,7 @@ from petsc4py import PETSc
 from . import projection
 from .base import PETSC_OPTIONS, RESTITUTION, mass_option, petsc_vector
 from .linear import Linear, dirichlet_rows
+from .release import start_correction
 
 #: Newmark's β of the elastic term: ¼, the least that makes the energy positive whatever Δt.
 BETA = 0.25
@@ -94,7 +69,6 @@ class FittedScheme(projection.ProjectionScheme):
                    "contact as a complementarity problem (no eps)")
     OPTIONS = (mass_option("blended"), RESTITUTION, PETSC_OPTIONS)
     QUOTIENTS = FITTED
-    remedy = "use a smaller dt"
     second_order_start = True  # the module docstring
 
     def _check_stability(self, nonlinear: bool) -> None:
@@ -102,9 +76,6 @@ class FittedScheme(projection.ProjectionScheme):
 
     def _check_fields_stiffness(self) -> None:
         return None
-
-    def _newton_problem(self):
-        return dataclasses.replace(self.problem, mass="lumped")
 
     def _inertia_matrix(self) -> PETSc.Mat:
         """(M_θ + ¼Δt²K)/Δt², kept for the products (`_inertia`); the theta range for `timings`."""
@@ -128,32 +99,26 @@ class FittedScheme(projection.ProjectionScheme):
         out[:] = self._y
         return out
 
-    @property
-    def timings(self):
-        """projection's counters, and the range of the blend θ on the linear path."""
-        found = super().timings
-        if self.newton is None:
-            found = {**found, "blend": "theta in [{:.3g}, {:.3g}]".format(*self.theta_range)}
-        return found
+    def _linear_timings(self):
+        """projection's counters, and the range of the blend θ."""
+        return super()._linear_timings() | {"blend": "theta in [{:.3g}, {:.3g}]".format(*self.theta_range)}
 
     def _start_correction(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
         """(Δt²/2) a0 with M_eff a0 = b − Kη0 − Cv0 at the interior nodes, 0 where η0 is on the obstacle."""
-        problem = self.problem
         if self.newton is not None:
             return super()._start_correction(eta0, v0)
-        ops, comm, n = problem.ops, problem.comm, problem.n_owned
-        k_eta, c_v = np.zeros(n), np.zeros(n)
-        ops.K.mult(petsc_vector(np.array(eta0, dtype=float), comm), petsc_vector(k_eta, comm))
-        ops.C.mult(petsc_vector(np.array(v0, dtype=float), comm), petsc_vector(c_v, comm))
-        rhs = np.where(problem.interior, ops.load - k_eta - c_v, 0.0)
-        M_eff = self.inertia_matrix.copy()
-        M_eff.scale(problem.dt**2)
-        dirichlet_rows(M_eff, problem.bc)
-        a0 = np.zeros(n)
-        Linear(M_eff, comm, problem.petsc_options, problem.bc, np.zeros(problem.bc.size), problem.x.ndim).solve(
-            petsc_vector(rhs, comm), petsc_vector(a0, comm))
-        free = problem.interior & (eta0 > self.psi + self.tol)
-        return np.where(free, 0.5 * problem.dt**2 * a0, 0.0)
+        problem, comm = self.problem, self.problem.comm
+
+        def solve(force):
+            M_eff = self.inertia_matrix.copy()
+            M_eff.scale(problem.dt**2)
+            dirichlet_rows(M_eff, problem.bc)
+            a0 = np.zeros(problem.n_owned)
+            Linear(M_eff, comm, problem.petsc_options, problem.bc, np.zeros(problem.bc.size), problem.x.ndim).solve(
+                petsc_vector(np.where(problem.interior, force, 0.0), comm), petsc_vector(a0, comm))
+            return a0
+
+        return start_correction(problem, eta0, v0, self.psi, self.tol, solve)
 
 
 __all__ = ["BETA", "FITTED", "THETA_BOUND", "FittedScheme", "blended_mass"]

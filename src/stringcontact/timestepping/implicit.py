@@ -2,23 +2,15 @@
 from the previous step (the paper's explicit penalty) or a damping on the new velocity (semi-implicit).
 
 A scheme writes the momentum form's placeholders η, η_t, η_tt as functions of the unknown u = η^{n+1}, the known
-levels η^n, η^{n−1}, the nodal velocity v^n and Δt (``QUOTIENTS``; ``"fields"`` for a model's other unknowns,
-u by default). The step solves
+levels η^n, η^{n−1}, the nodal velocity v^n and Δt (``QUOTIENTS``; ``"fields"`` for a model's other unknowns, u by
+default). The step solves, with the ends held,
 
     R(q_η(u), q_t(u), q_tt(u), 0; w) = m_F∘F(η^n, v^n) + b          (explicit penalty)
 
-with the ends held; the semi-implicit penalty puts the damping m_F d on the diagonal, F = −d (v^{n+1} − Δψ/Δt).
-Every model takes this path, linear ones too: their residual is affine, so Newton's step is one back-substitution
-of a matrix factorised once (`affine.LinearPath`). A scheme with a faster path of its own for linear models
-(``LINEAR_PATH = True``: `paper`) is given the model's constant operators only.
-
-Energy: kinetic ½|v^{n+1}|²_M with v^{n+1} = (η^{n+1} − η^n)/Δt, the model's stored energy at η^{n+1}, the viscous
-work of R's η_t-dependent part over δ = η^{n+1} − η^n, the contact work −(Δt/2) f·(v^n + v^{n+1}), the external
-work b·δ, and as numerical dissipation the rest of the identity (`newton`'s module docstring): the ledger closes by
-construction and the numerical term says how far the quotients are from conserving the model's energy. A moving
-obstacle ψ(x, t): the law's fields at t^n; the semi-implicit damping brakes the step's gap rate, centre
-c = η^n + ψ^{n+1} − ψ^n, and a node it would hold down is released (`_release`); the obstacle's share
-½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work.
+or puts the damping m_F d on the diagonal, F = −d (v^{n+1} − Δψ/Δt) (semi-implicit). A linear model's step is one
+back-substitution (`affine.LinearPath`); a scheme with a faster path of its own (``LINEAR_PATH = True``: `paper`) is
+given the constant operators only. Energy: `newton`'s, over δ = η^{n+1} − η^n. A moving obstacle's share
+½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work is external work; a damping that would hold a node down is released.
 
 A scheme of one's own: a module with ``class Scheme(ImplicitScheme)`` that sets ``DESCRIPTION`` and ``QUOTIENTS``,
 registered under the entry-point group ``stringcontact.schemes`` (or handed to `simulate` as a class).
@@ -31,17 +23,8 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import SolverError
-from .base import EPS, PETSC_OPTIONS, Ranks, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
-from .newton import NewtonStep, _NewtonScheme
-
-
-def kinetic_energy(problem, v: np.ndarray) -> float:
-    """½ v·M v on this rank's nodes, with the problem's mass (lumped: the row sums m; consistent: M)."""
-    if problem.mass == "lumped":
-        return 0.5 * float(np.dot(v, problem.ops.m * v))
-    out = problem.ops.M.createVecLeft()
-    problem.ops.M.mult(petsc_vector(v, problem.comm), out)
-    return 0.5 * float(np.dot(v, out.array))
+from .base import EPS, PETSC_OPTIONS, check_law_stability, mass_option, penalty_option
+from .newton import NewtonStep, _NewtonScheme, kinetic_energy
 
 
 def acceleration(problem, eta: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -73,13 +56,9 @@ class ImplicitScheme(_NewtonScheme):
         super().__init__(problem)
         self.force_law = self._penalty_law(problem)
         self.newton = NewtonStep(problem, self.QUOTIENTS)
-        self.allsum, self.anysum = Ranks(problem.comm).sum, Ranks(problem.comm).any
         n = problem.n_owned
         self.eta_, self.old, self.v = np.zeros(n), np.zeros(n), np.zeros(n)
         self.older = None
-        self.moving, self.k = problem.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
-        self.inv_mF = np.divide(1.0, problem.ops.m_force, out=np.zeros(n), where=problem.ops.m_force > 0)
-        self.force_density = np.zeros(n)
 
     def _penalty_law(self, problem):
         """The model's contact law for the scene's penalty, compiled; refused if the model has none, warned (or
@@ -120,10 +99,9 @@ class ImplicitScheme(_NewtonScheme):
         self.eta_[:], self.v[:] = eta0, v0
         self.old[:] = self.level_before(eta0, self.v)
         self.newton.start_fields(eta0, v0)
-        kin, el = self.allsum(kinetic_energy(problem, self.v), self._stored(self.eta_))
-        self.E = kin + el
+        terms = self._start_energy(self.eta_, self.v)
         self._force()
-        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return terms
 
     def level_before(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
         """η^{−1}, the level the first step's quotients read: η^0 − Δt v^0, first order; a scheme of second order
@@ -145,9 +123,8 @@ class ImplicitScheme(_NewtonScheme):
             np.multiply(self.law, self.inv_mF > 0, out=self.force_density)
 
     def _solve(self, e0, em):
-        """η^{n+1} by Newton from η extrapolated quadratically (a smaller first residual, so that a kept Jacobian
-        serves more steps); past a sudden stop that guess overshoots and Newton may diverge from it (a landing through
-        a lubricating layer at nx = 200 lands in one step): then from the linear one."""
+        """η^{n+1} by Newton from η extrapolated quadratically (a kept Jacobian then serves more steps); past a sudden
+        stop that guess overshoots and Newton may diverge from it: then from the linear one."""
         newton = self.newton
         if newton.guessless:  # the linear path's one direct solve
             return newton.solve(None)
@@ -166,37 +143,29 @@ class ImplicitScheme(_NewtonScheme):
         newton.set_known(e0, em, self.known_rate())
         # a moving obstacle: the semi-implicit damping brakes the step's gap rate, v^{n+1} − (ψ^{n+1} − ψ^n)/Δt
         dpsi = problem.obstacle.owned((self.k + 1) * dt) - self.psi_levels[1] if self.moving else 0.0
-        if problem.penalty == "explicit":
+        explicit = problem.penalty == "explicit"
+        if explicit:
             newton.f[:] = problem.ops.m_force * self.law
         else:  # F = −d (v^{n+1} − Δψ/Δt): (m_F d/Δt)(u − η^n − Δψ) on the diagonal
             newton.d[:] = problem.ops.m_force * self.law / dt
             newton.c[:] = e0 + dpsi
         u = self._solve(e0, em)
-        if self.moving and problem.penalty != "explicit":
+        if self.moving and not explicit:
             u = self._release(u)
         self.older = em.copy()
         v1 = (u - e0) / dt
-        f = newton.f if problem.penalty == "explicit" else newton.d * (newton.c - u)
-        delta = u - e0
-        visc_vec = newton.viscous_force(u)
-        work = self._obstacle_work(f)  # (and the law's fields to t^{n+1})
-        kin, el, visc, con, ext, work = self.allsum(
-            kinetic_energy(problem, v1), self._stored(u), float(np.dot(visc_vec * problem.interior, delta)),
-            -0.5 * dt * float(np.dot(f, self.v + v1)), float(np.dot(problem.ops.load, delta)), work)
-        num = self.E - (kin + el) - visc - con + ext
-        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
-        self.E = kin + el
-        if problem.penalty != "explicit":
+        f = newton.f if explicit else newton.d * (newton.c - u)
+        terms = self._step_energy(u, e0, self.v, v1, f, self._obstacle_work)  # (and the law's fields to t^{n+1})
+        if not explicit:
             self.force_density[:] = f * self.inv_mF
         self.old[:], self.eta_[:], self.v[:] = e0, u, v1
         self._force()
-        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
+        return terms
 
     def _release(self, u: np.ndarray) -> np.ndarray:
         """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (u above the
-        centre η^n + Δψ, F < 0: an obstacle that stops under a string it lifted) is released and the step solved
-        again from u. The kept Jacobian takes the change of d on its diagonal (`NewtonStep._update_damping`); the
-        centre c enters only the residual."""
+        centre η^n + Δψ: an obstacle that stops under a string it lifted) is released and the step solved again from
+        u (a kept Jacobian takes the change of d on its diagonal)."""
         newton = self.newton
         while self.anysum(bool(np.any(sticky := (newton.d > 0) & (u > newton.c)))):
             newton.d[sticky] = 0.0

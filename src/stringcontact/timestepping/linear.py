@@ -1,10 +1,8 @@
 """The step's linear solve (docs/explanation/linear_solvers.md): LU or CG chosen by the system's size, PETSc options.
 
-`solver_options` is the size rule (LU_MAX_NODES, LU_MAX_NODES_PARALLEL, CG_RTOL, JACOBI_MAX_CONDITION) with a
-scene's or the command line's options on top; `configured_ksp` builds a KSP from them under its own prefix;
-`Linear` solves A x = b for a matrix that stays (or changes now and then), `DampedLU` for a constant matrix plus
-a diagonal on the active set; `dirichlet_rows` puts identity rows at the fixed ends. The schemes (`base.Scheme`)
-and the contact step (`complementarity`) solve through these.
+`solver_options` is the size rule with a scene's or the command line's options on top; `configured_ksp` builds a
+KSP from them under its own prefix; `Linear` solves A x = b for a matrix that stays, or changes now and then (a
+damping on its diagonal); `dirichlet_rows` puts identity rows at the fixed ends.
 """
 
 from __future__ import annotations
@@ -21,35 +19,19 @@ from ..errors import SceneError
 from ..scene.limits import MAX_MEMBRANE_NODES
 from .base import Ranks
 
-#: Global unknowns up to which the step's constant system is LU-factorised once, in serial; above, CG. It is
-#: every membrane a scene allows (`scene.limits.MAX_MEMBRANE_NODES`, 1001²). Measured (docs/explanation/linear_solvers.md,
-#: `projection`, α = 0.01, square membranes of 1e3 to 1e6 nodes): the back-substitution was the
-#: cheapest serial step in flight at every size (1e6 nodes: LU 154-158 ms, CG + Jacobi 752-889, CG + AMG
-#: 748-793) and its step grew about like N (1e4 → 1e6: 73-96× in flight, 144× landed, for 100× the nodes).
-#: CG + Jacobi wins once landed (88 against 222 ms at 1e6), but in flight its iterations grow like √κ ∝ N^(1/4)
-#: (15 → 47). Faster than N grow only the LU's set-up (0.2 → 48-56 s) and memory (3.2 GB at 1e6), which the
-#: scene's cap bounds. (The limit was 1e6, so the cap's own 1001² mesh took CG, 5× slower per step in flight.)
+#: Global unknowns up to which the step's constant system is LU-factorised once in serial, else CG: every membrane
+#: a scene allows (1001²). Measured (docs/explanation/linear_solvers.md): the LU's step was the cheapest in flight up
+#: to 1e6 nodes (154-158 ms against CG's 748-889) and grew like N; only its set-up and memory grow faster.
 LU_MAX_NODES = MAX_MEMBRANE_NODES
-#: The same on several ranks (MUMPS). On 2 ranks (docs/explanation/linear_solvers.md) CG + Jacobi was the
-#: cheaper step landed at every size from 1e3 to 1e6 nodes (1e4: 0.9 against 8.2 ms; 1e6: 119 against 1350)
-#: and in flight in 3 of 4 passes at 1e4 and 1e5 (1e5: 16-52 against 42-110 ms; one loaded pass had MUMPS
-#: ahead, 45 against 68), with a third of MUMPS' set-up and less memory per rank (1.3 against 1.9 GB at 1e6);
-#: in flight at 1e6 the machine's load decided (MUMPS 382-1110 ms, CG 865-967). So MUMPS keeps only meshes
-#: up to 1e3 nodes (test-sized: it gives the serial LU's numbers). A string (1D) keeps its LU on any number of
-#: ranks: a tridiagonal factor has no fill.
+#: The same on several ranks (MUMPS): on 2 ranks CG + Jacobi was the cheaper step from 1e3 to 1e6 nodes, with a third
+#: of MUMPS' set-up and less memory (docs/explanation/linear_solvers.md). A string keeps its LU (no fill) on any number.
 LU_MAX_NODES_PARALLEL = 1_000
-
-#: CG stops when the true residual is below CG_RTOL ‖b‖, from the scheme's predictor as the first guess. The
-#: ledger books the step's work with the computed η, so a residual r leaks (η^{n+1} − η^n)·r per step: at
-#: 1e-14 ‖b‖ that is the LU back-substitution's own round-off, and the 2D ledgers close to 1e-10 E(0).
+#: CG stops at a true residual of CG_RTOL ‖b‖: the ledger books the step's work with the computed η, so a residual
+#: leaks into it; at 1e-14 it is the LU's own round-off, and the 2D ledgers close to 1e-10 E(0).
 CG_RTOL = 1e-14
-
-#: CG's preconditioner: Jacobi while Gershgorin's bound of the Jacobi-scaled matrix's condition number is at
-#: most this (A nearly diagonal: projection's M/Δt² + C/Δt at its stable Δt; diagonal, one iteration, when
-#: α = 0), else BoomerAMG, whose iteration count does not grow with the mesh (3 to 7 here). Measured
-#: (docs/explanation/linear_solvers.md): on a quiet machine Jacobi won projection at 1e6 nodes (bound 41: 0.89 s against
-#: 1.08 s per step serial, 0.43 s against 0.69 s on 2 ranks) and newmark at bounds 65 and 193 (4e4 nodes);
-#: AMG won newmark at bound 640.
+#: CG's preconditioner: Jacobi while Gershgorin's bound of the Jacobi-scaled matrix's condition number is at most this,
+#: else BoomerAMG (3 to 7 iterations whatever the mesh). Measured: Jacobi won at bounds 41 to 193, AMG at 640
+#: (docs/explanation/linear_solvers.md).
 JACOBI_MAX_CONDITION = 100.0
 
 #: The options of each path; a scene's or the command line's `petsc_options` go on top, key by key.
@@ -62,16 +44,14 @@ AMG = {"pc_type": "hypre", "pc_hypre_type": "boomeramg"}
 #: Every KSP takes its options under this prefix, set just before its setFromOptions and removed just after.
 PREFIX = "stringcontact_"
 
-
 #: Options that take a number, an integer or a boolean; every name ending in "_type" takes a word.
 NUMBER_OPTIONS = ("ksp_rtol", "ksp_atol", "ksp_divtol", "mat_mumps_cntl_", "snes_rtol", "snes_atol", "snes_stol")
 INTEGER_OPTIONS = ("ksp_max_it", "ksp_gmres_restart", "mat_mumps_icntl_", "snes_max_it")
 BOOLEAN_OPTIONS = ("ksp_initial_guess_nonzero",)
 
-#: The ranges of integer options: counts and sizes that PETSc allocates or loops over without a check
-#: (pc_mg_levels = 100 and ksp_gmres_restart = 1e8 crash it, pc_hypre_boomeramg_max_iter = 2**31 - 1 runs for
-#: hours, deaf to signals). Any other integer option takes [0, INTEGER_MAX] (counts, levels, sizes, flags), but
-#: MUMPS' ICNTL, which take negative codes and sizes in MB.
+#: The ranges of integer options PETSc allocates or loops over unchecked (pc_mg_levels = 100 and ksp_gmres_restart =
+#: 1e8 crash it, pc_hypre_boomeramg_max_iter = 2**31 - 1 runs for hours); any other takes [0, INTEGER_MAX], MUMPS'
+#: ICNTL (negative codes, sizes in MB) 32 bits.
 INTEGER_RANGES = {
     "ksp_max_it": (0, 100_000),
     "ksp_gmres_restart": (1, 1000),
@@ -87,9 +67,8 @@ INTEGER_RANGES = {
 INTEGER_MAX = 1000
 MUMPS_ICNTL_RANGE = (-(2**31), 2**31 - 1)
 
-#: Preconditioners and Krylov methods that need code or data the solver does not give (a shell's apply
-#: function, fieldsplit's index sets, multigrid's interpolations, a Python object) or a matrix type it does not
-#: make (MATIS): PETSc stops at set-up with "error code N", or crashes.
+#: Preconditioners and Krylov methods that need code or data the solver does not give (a shell's function,
+#: fieldsplit's index sets, multigrid's interpolations) or a matrix type it does not make: PETSc stops or crashes.
 NEEDS_CODE = {
     "pc_type": ("shell", "python", "fieldsplit", "mg", "composite", "ksp", "redistribute", "patch", "deflation",
                 "lmvm", "bddc", "nn", "is", "telescope", "lsc", "galerkin", "cp", "hmg", "exotic", "tfs", "h2opus",
@@ -101,16 +80,13 @@ SERIAL_FACTORS = ("lu", "ilu", "icc", "cholesky")
 
 
 def check_option_values(options: dict, key: str = "petsc_options", ranks: int = 1) -> None:
-    """Refuse (SceneError, one line naming the option and what is allowed) a value PETSc would reject with an
-    error stack at set-up, or crash or loop on: a word for a ``*_type`` option, a number, integer or boolean
-    where one is read, integers in their ranges (`INTEGER_RANGES`), a KSP, PC, factor solver or ordering type
-    that this PETSc build does not know or that needs code (`NEEDS_CODE`), and PETSc's own factorisations on
-    more than one of `ranks`. The choices are PETSc's own (petsc4py's type names, each tried on a throw-away
-    object on PETSC_COMM_SELF: the packages built in). Local and cheap (milliseconds), so every rank runs it
-    before the mesh is built."""
+    """Refuse (SceneError, one line naming the option and what is allowed) a value PETSc would reject at set-up,
+    crash or loop on: a word, number, integer or boolean where one is read, integers in their ranges
+    (`INTEGER_RANGES`), a KSP, PC, factor solver or ordering type this PETSc build lacks or that needs code
+    (`NEEDS_CODE`), PETSc's own factorisations on more than one of `ranks`. Milliseconds: run before the mesh."""
     for name, value in options.items():
-        kind = _value_kind(name)
-        if kind is not None and not _is_kind(value, kind):
+        kind = _wrong_kind(name, value)
+        if kind is not None:
             raise SceneError(f"{key}: {name} = {_option_text(value)} is not {kind}; allowed: {kind}")
         _check_range(key, name, value)
         if not isinstance(value, str):
@@ -141,8 +117,7 @@ def _check_range(key: str, name: str, value) -> None:
 
 
 def _check_parallel(options: dict, key: str, ranks: int) -> None:
-    """PETSc's own LU, ILU, ICC and Cholesky on one rank only; under MPI a solver package (MUMPS) or a
-    preconditioner that runs in parallel."""
+    """PETSc's own LU, ILU, ICC and Cholesky on one rank only."""
     pc = options.get("pc_type")
     package = options.get("pc_factor_mat_solver_type", "mumps" if pc in ("lu", "cholesky") else "petsc")
     if ranks > 1 and pc in SERIAL_FACTORS and package == "petsc":  # LU and Cholesky default to MUMPS there
@@ -154,26 +129,20 @@ def _check_parallel(options: dict, key: str, ranks: int) -> None:
                          f"{ranks}; allowed: {fix}")
 
 
-def _value_kind(name: str) -> str | None:
+def _wrong_kind(name: str, value) -> str | None:
+    """The kind of value option `name` takes, in words, if `value` is not of it; else None."""
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
     if name.endswith("_type"):
-        return "a word (a PETSc type name)"
-    if name.startswith(NUMBER_OPTIONS):
-        return "a number >= 0"
-    if name.startswith(INTEGER_OPTIONS):
-        return "an integer"
-    if name in BOOLEAN_OPTIONS:
-        return "true or false"
-    return None
-
-
-def _is_kind(value, kind: str) -> bool:
-    if kind.startswith("a word"):
-        return isinstance(value, str)
-    if kind == "true or false":
-        return isinstance(value, bool)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    return value >= 0 if kind.startswith("a number") else float(value).is_integer()
+        kind, ok = "a word (a PETSc type name)", isinstance(value, str)
+    elif name.startswith(NUMBER_OPTIONS):
+        kind, ok = "a number >= 0", number and value >= 0
+    elif name.startswith(INTEGER_OPTIONS):
+        kind, ok = "an integer", number and float(value).is_integer()
+    elif name in BOOLEAN_OPTIONS:
+        kind, ok = "true or false", isinstance(value, bool)
+    else:
+        return None
+    return None if ok else kind
 
 
 def _type_choices(name: str) -> tuple[str, ...] | None:
@@ -193,8 +162,8 @@ def _names(types) -> tuple[str, ...]:
 
 @functools.cache
 def _installed(name: str) -> tuple[str, ...]:
-    """petsc4py's KSP (`name` "ksp_type") or PC types that this build can make (an unregistered one raises
-    PETSc.Error 86), each tried on a fresh object on PETSC_COMM_SELF; never "python" (a scene is data)."""
+    """petsc4py's KSP (`name` "ksp_type") or PC types this build can make, each tried on a fresh object on
+    PETSC_COMM_SELF; never "python" (a scene is data)."""
     make = PETSc.KSP if name == "ksp_type" else PETSc.PC
     ok = []
     for t in _names(make.Type):
@@ -211,14 +180,10 @@ def _installed(name: str) -> tuple[str, ...]:
 
 def solver_options(n_global: int, ranks: int, options: dict | None = None, condition: float = math.inf,
                    dim: int = 2, notes: list | None = None) -> dict:
-    """The PETSc options for `n_global` unknowns: LU up to LU_MAX_NODES (LU_MAX_NODES_PARALLEL on several
-    ranks, none for a string, `dim` 1), else CG; then `options`.
-
-    A user's ksp_type (or, without one, pc_type) picks the path whose defaults the rest goes on top of. CG's
-    preconditioner, unless the user names one: Jacobi if `condition` (`jacobi_condition_bound`) is at most
-    JACOBI_MAX_CONDITION, else AMG. Where this PETSc has no hypre, BoomerAMG becomes gamg (`without_hypre`) and a
-    line saying so goes to `notes` (the run's `Result.solver`).
-    """
+    """The PETSc options for `n_global` unknowns: LU up to LU_MAX_NODES (LU_MAX_NODES_PARALLEL on several ranks, but
+    a string's, `dim` 1), else CG; then `options`. A user's ksp_type (or pc_type) picks the path. CG's preconditioner,
+    unless named: Jacobi if `condition` (`jacobi_condition_bound`) is at most JACOBI_MAX_CONDITION, else AMG (gamg
+    without hypre, `without_hypre`, with a line in `notes`)."""
     options = dict(options or {})
     kind = options.get("ksp_type") or ({"lu": "preonly", "cholesky": "preonly"}.get(options.get("pc_type"), "cg")
                                        if "pc_type" in options else None)
@@ -237,8 +202,7 @@ def solver_options(n_global: int, ranks: int, options: dict | None = None, condi
     return chosen
 
 
-#: The preconditioner that takes BoomerAMG's place where PETSc has no hypre (the dolfinx wheel's PETSc): PETSc's own
-#: algebraic multigrid.
+#: The preconditioner that takes BoomerAMG's place where PETSc has no hypre (the dolfinx wheel's): PETSc's own AMG.
 HYPRE_STAND_IN = "gamg"
 
 
@@ -277,9 +241,8 @@ def _option_text(value) -> str:
 
 @contextlib.contextmanager
 def options_held(prefix: str, options: dict):
-    """`options` in PETSc's database under `prefix` for the block, removed after, so that nothing leaks into another
-    solver. A solver reads some options only when it is set up (MUMPS' ``mat_mumps_icntl_*``, a fieldsplit's
-    ``fieldsplit_*`` sub-solvers), which happens inside ``KSP.setUp`` or ``SNES.solve``: hold them there too."""
+    """`options` in PETSc's database under `prefix` for the block, removed after (nothing leaks into another solver);
+    some are read only at set-up (MUMPS' ICNTL, fieldsplit's sub-solvers): hold them there too."""
     db = PETSc.Options()
     try:
         for name, value in options.items():
@@ -324,17 +287,18 @@ def _petsc_reason(exc: Exception) -> str:
 
 
 class Linear:
-    """A x = b for a matrix that stays (or changes now and then, `reset`): LU or CG by size and options.
+    """A x = b for a matrix that stays, or changes now and then (`reset`) or on its diagonal (`update`): LU or CG by
+    size and options.
 
-    A has identity rows at the fixed dofs `bc` (`dirichlet_rows`) and every b holds their heights `g` there.
-    ``solve(b, x)``: LU is the factor's back-substitution, without KSPSolve's bookkeeping. CG needs a
-    symmetric matrix, so it zeroes A's fixed columns too and moves their (constant) part to b, the lift;
-    it starts from the x it is given (the scheme's predictor: ``iterative`` says whether to give one).
-    `dim` is the mesh's (`solver_options`: a string keeps its LU on any number of ranks).
+    A has identity rows at the fixed dofs `bc` and every b their heights `g`. ``solve(b, x)``: LU is the factor's
+    back-substitution, without KSPSolve's bookkeeping; CG zeroes A's fixed columns too (symmetric) and moves their
+    part to b, and starts from the x it is given (``iterative``: give a predictor). `dim`: the mesh's.
     """
 
     def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
         self.A, self.bc, self.notes = A, bc, []
+        self.base, self.diagonal = A.getDiagonal().array.copy(), A.createVecLeft()  # A's own diagonal, `update`'s
+        self.extra, self.refactorisations, self.anywhere = np.zeros_like(self.base), 0, Ranks(comm).any
         self.options = solver_options(A.getSize()[0], comm.size, options, dim=dim, notes=self.notes)
         kind = self.options["ksp_type"], self.options.get("pc_type")
         self.iterative = not (kind[0] == "preonly" and kind[1] in ("lu", "cholesky"))
@@ -368,6 +332,16 @@ class Linear:
         self.ksp.setUp()
         self._bind()
 
+    def update(self, extra: np.ndarray) -> None:
+        """`extra` on top of A's own diagonal (a damping on the active set): refactorised (LU keeps the symbolic
+        factorisation) or CG's preconditioner set up again only if it changed on any rank."""
+        if self.anywhere(not np.array_equal(extra, self.extra)):
+            np.add(self.base, extra, out=self.diagonal.array)
+            self.A.setDiagonal(self.diagonal)
+            self.reset()
+            self.extra[:] = extra
+            self.refactorisations += 1
+
     def describe(self, *others: Linear) -> str:
         """One line: e.g. "LU (mumps)" or "cg + hypre boomeramg, mean 7.2 iterations per solve", the mean over
         this solver's solves and those of `others` (the contact step's free-step solver, with the same options)."""
@@ -379,35 +353,6 @@ class Linear:
         mean = (self.iterations + sum(o.iterations for o in others)) / solves if solves else 0.0
         return f"{self.ksp.getType()} + {kind}, mean {mean:.1f} iterations per solve" + "".join(
             f" ({note})" for note in self.notes)
-
-
-class DampedLU:
-    """A constant matrix plus a diagonal that changes now and then (a damping on the active set).
-
-    ``update(extra)`` puts ``extra`` on top of the constant diagonal and, only if it changed, refactorises
-    (LU: PETSc keeps the symbolic factorisation) or sets the preconditioner up again (CG): counted in
-    ``refactorisations``. Every rank must take part, so under MPI the ranks agree first. ``solve(b, x)`` and
-    ``iterative`` are the `Linear`'s; the other arguments are passed to it.
-    """
-
-    def __init__(self, A: PETSc.Mat, comm, options: dict | None, bc: np.ndarray, g: np.ndarray, dim: int):
-        self.A, self.comm = A, comm
-        self.base = A.getDiagonal().array.copy()
-        self.diag = A.createVecLeft()
-        self.current = np.zeros_like(self.base)  # what is on top of the constant diagonal now
-        self.linear = Linear(A, comm, options, bc, g, dim)
-        self.solve, self.iterative = self.linear.solve, self.linear.iterative
-        self.refactorisations = 0
-        self.anywhere = Ranks(comm).any
-
-    def update(self, extra: np.ndarray) -> None:
-        if self.anywhere(not np.array_equal(extra, self.current)):
-            np.add(self.base, extra, out=self.diag.array)
-            self.A.setDiagonal(self.diag)
-            self.linear.reset()
-            self.solve = self.linear.solve
-            self.current[:] = extra
-            self.refactorisations += 1
 
 
 def dirichlet_rows(A: PETSc.Mat, bc: np.ndarray) -> None:

@@ -1,31 +1,13 @@
-"""Newmark's average-acceleration (trapezoidal) rule: energy-conserving and unconditionally stable.
+"""Newmark's average-acceleration (trapezoidal) rule: energy-conserving and unconditionally stable
+(docs/explanation/schemes.md). With a nodal velocity, η^{n+1} − η^n = (Δt/2)(v^{n+1} + v^n) and
 
-With a nodal velocity v and η^{n+1} − η^n = (Δt/2)(v^{n+1} + v^n),
+    (4M/Δt² + 2C/Δt + K + 4D/Δt) η^{n+1} = 4M(η^n/Δt² + v^n/Δt) + (2C/Δt − K) η^n + 4D η^n/Δt + 2D v^n + 2b,
 
-    M (v^{n+1} − v^n)/Δt + C (v^{n+1} + v^n)/2 + K (η^{n+1} + η^n)/2 = −D v^{n+1} + b,
-
-where D = m_F∘d is the model's `penalty_damping` d on the active set χ{η^n < 0, v^n < 0} (lumped): the
-semi-implicit penalty, applied to the *new* velocity so that it brakes and never reflects (with ε → 0,
-v^{n+1} → 0 on landing). Eliminating v^{n+1},
-
-    (4M/Δt² + 2C/Δt + K + 4D/Δt) η^{n+1} = 4M(η^n/Δt² + v^n/Δt) + (2C/Δt − K) η^n + 4D η^n/Δt + 2D v^n + 2b.
-
-Only the diagonal changes with the active set; the matrix is refactorised then. Multiplying by
-η^{n+1} − η^n gives the energy identity exactly: ½|v|²_M + ½|η|²_K changes by −(Δt/4)|v^{n+1} + v^n|²_C
-(viscous), −(Δt/2) v^{n+1}·D(v^{n+1} + v^n) (contact) and the load's work. There is no numerical
-dissipation: with no contact and α = 0 the energy is conserved to round-off. Any Δt, either mass matrix.
-
-A moving obstacle ψ(x, t) (`base.MovingObstacle`): the damping brakes the gap rate, −D(v^{n+1} − ψ_t^{n+1}), on
-the active set χ{η^n < ψ^n, v^n < ψ_t^n}, with ψ_t^k the centred quotient (ψ^{k+1} − ψ^{k−1})/(2Δt) (exact on a
-uniformly accelerating obstacle, which the nodal velocity then follows at the force m a) in
-``p.extra["obstacle_rate"]``; the right-hand side gains 2Dψ_t^{n+1}. The force f = −D(v^{n+1} − ψ_t^{n+1})
-does the work f·(η^{n+1} − η^n) on the string: its share f·(ψ^{n+1} − ψ^n) is the obstacle's work, booked as
-external work, and the rest, −f·(gap^{n+1} − gap^n), the contact dissipation. The identity stays exact.
-
-A nonlinear model takes the Newton path: the same step with the quotients `NEWMARK` in the model's residual, the
-semi-implicit penalty −D v^{n+1} on the diagonal, the same release of nodes it would hold down. Energy: kinetic
-½|v^{n+1}|²_M, the model's stored energy, δ = η^{n+1} − η^n, contact −(Δt/2) f·(v^n + v^{n+1}), and as numerical
-dissipation the rest of the identity (the midpoint rule of a nonlinear force does not conserve its energy).
+D = m_F∘d the model's `penalty_damping` on the active set: the semi-implicit penalty on the new velocity, which brakes
+and never reflects; the matrix is refactorised when the active set changes. Its energy identity is exact: viscous
+−(Δt/4)|v^{n+1} + v^n|²_C, contact −(Δt/2) v^{n+1}·D(v^{n+1} + v^n), no numerical dissipation. A moving obstacle: D
+brakes v − ψ_t (ψ_t centred), and the force's work on ψ's motion, f·(ψ^{n+1} − ψ^n), is external work. A nonlinear
+model takes the Newton path (`NEWMARK`).
 """
 
 from __future__ import annotations
@@ -34,14 +16,12 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..fem.operators import diagonal_matrix, stacked
-from .base import EPS, PETSC_OPTIONS, Ranks, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
-from .implicit import kinetic_energy
-from .linear import DampedLU, dirichlet_rows
+from .base import EPS, PETSC_OPTIONS, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
+from .linear import Linear, dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme
 
-#: The scheme's difference quotients on its Newton path (a nonlinear model): v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n,
-#: η_tt → (v^{n+1} − v^n)/Δt, η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the midpoint: the trapezoidal rule
-#: of a linear model).
+#: The Newton path's difference quotients: v^{n+1} = 2(η^{n+1} − η^n)/Δt − v^n, η_tt → (v^{n+1} − v^n)/Δt,
+#: η_t → (v^{n+1} + v^n)/2, η → (η^{n+1} + η^n)/2 (the trapezoidal rule of a linear model).
 NEWMARK = {
     "eta": lambda u, e0, em, v0, dt: (u + e0) / 2,
     "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
@@ -56,7 +36,6 @@ class NewmarkScheme(_NewtonScheme):
 
     DESCRIPTION = "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set"
     OPTIONS = (penalty_option("semi-implicit"), mass_option("lumped", "consistent"), EPS, PETSC_OPTIONS)
-    remedy = "use a smaller dt"
 
     @staticmethod
     def requires(model) -> str | None:
@@ -69,21 +48,16 @@ class NewmarkScheme(_NewtonScheme):
         n, laws = problem.n_owned, problem.laws
         check_law_stability(laws.model, problem.dt, problem.eps, problem.penalty)
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
-        self.allsum, self.anysum = Ranks(problem.comm).sum, Ranks(problem.comm).any
         self.eta_, self.v_ = np.zeros(n), np.zeros(n)
-        self.force_density = np.zeros(n)
-        self.moving = problem.obstacle is not None  # ψ(x, t): the damping brakes v − ψ_t (module docstring)
-        self.k = 0  # the step index: η^k is the current state
         if problem.ops.nonlinear is not None:
             self.newton = NewtonStep(problem, NEWMARK)
             self.v_old = np.zeros(n)  # v^{n−1}: the guess extrapolates v
         else:
-            self.newton = None
             self._linear_operators(problem)
             self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
 
     def _linear_operators(self, problem) -> None:
-        """The linear path's matrix, its factorisation, the stacked [K; C] and the scratch vectors."""
+        """The linear path's matrix, its factorisation (4D/Δt on its diagonal), the stacked [K; C], scratch vectors."""
         ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
         same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
         self.Ms = diagonal_matrix(ops.M, ops.m) if problem.mass == "lumped" else ops.M
@@ -91,15 +65,13 @@ class NewmarkScheme(_NewtonScheme):
         self.A.axpy(2.0 / dt, ops.C, structure=same)
         self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
         dirichlet_rows(self.A, problem.bc)
-        # 4D/Δt goes on its diagonal
-        self.lu = DampedLU(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
+        self.lu = Linear(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
-        self.KC_now, self.KC_new = ((petsc_vector(a, comm), a) for a in np.zeros((2, 2, n)))  # [K η; C η], η^n and η^{n+1}
-        self.rhs, self.new, self.Mu = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.v_new = np.zeros(n)
+        self.KC_now, self.KC_new = ((petsc_vector(a, comm), a) for a in np.zeros((2, 2, n)))  # η^n's, η^{n+1}'s
+        self.rhs, self.new, self.Mu, self.v_new = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
         self.work = np.zeros((2, n))  # scratch for the right-hand side: no temporaries per step (measured: bench_step)
         self.vec = {k: petsc_vector(a, comm) for k, a in (("rhs", self.rhs), ("new", self.new), ("Mu", self.Mu),
-                                                  ("v_new", self.v_new), ("work", self.work[0]))}  # wrapped once
+                                                          ("v_new", self.v_new), ("work", self.work[0]))}
         self.D = np.zeros(n)  # m_F d on the active interior nodes
         self.rate_new = np.zeros(n)  # ψ_t^{k+1}, the rate the step's damping brakes towards
 
@@ -115,11 +87,8 @@ class NewmarkScheme(_NewtonScheme):
     def contact_force(self):
         return self.force_density
 
-    @property
-    def timings(self):
-        if self.newton is not None:
-            return self.newton.describe()
-        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.linear.describe()}
+    def _linear_timings(self):
+        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.describe()}
 
     def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""
@@ -135,22 +104,18 @@ class NewmarkScheme(_NewtonScheme):
         if self.newton is not None:
             self.v_old[:] = v0
             self.newton.start_fields(eta0, v0)
-            kin, el = self.allsum(kinetic_energy(self.problem, self.v_), self._stored(self.eta_))
-            self.E = kin + el
-            return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+            return self._start_energy(self.eta_, self.v_)
         self.KC.mult(petsc_vector(self.eta_, self.problem.comm), self.KC_now[0])
         kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
         el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
-        self.kin, self.el = self.allsum(kin, el)
-        return StepEnergy(self.kin, self.el, 0.0, 0.0, 0.0, 0.0, 0.0)
+        kin, el = self.allsum(kin, el)
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
-    def _active_damping(self) -> None:
-        """D = m_F d at η^n, v^n."""
+    def _active_damping(self) -> np.ndarray:
+        """The model's damping d at η^n, v^n."""
         problem = self.problem
         problem.laws.set(eta=self.eta_, v=self.v_)
-        d = np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float)
-        np.multiply(d, problem.interior, out=self.work[0])  # (d·1 is d: the old `* np.ones` only broadcast a constant)
-        np.multiply(problem.ops.m_force, self.work[0], out=self.D)
+        return np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float)
 
     def _solve(self) -> np.ndarray:
         """η^{n+1} into self.new for the current D; returns v^{n+1}."""
@@ -190,12 +155,23 @@ class NewmarkScheme(_NewtonScheme):
         return v_new
 
     def _obstacle_work(self, f: np.ndarray) -> float:
-        """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's; the module docstring), which moves
-        from the contact term to the external work; 0 for an obstacle at rest."""
+        """A moving obstacle's work f·(ψ^{n+1} − ψ^n) on the string (this rank's), which moves from the contact term
+        to the external work; 0 for an obstacle at rest."""
         if not self.moving:
             return 0.0
         o, t = self.problem.obstacle, (self.k + 1) * self.problem.dt
         return float(np.dot(f, o.at(t)[: o.n] - o.at(t - o.dt)[: o.n]))
+
+    def _rate(self):
+        """ψ_t^{n+1}, the rate the step's damping brakes towards (0 for an obstacle at rest)."""
+        problem = self.problem
+        return problem.obstacle.centred_rate((self.k + 1) * problem.dt)[: problem.n_owned] if self.moving else 0.0
+
+    def _advanced(self) -> None:
+        """The step index on; a moving obstacle's fields at t^k (the stored row's contact set, the next active set)."""
+        self.k += 1
+        if self.moving:
+            self.problem.obstacle.set_centred(self.k * self.problem.dt)
 
     def step(self):
         if self.newton is not None:
@@ -203,9 +179,10 @@ class NewmarkScheme(_NewtonScheme):
         problem, dt = self.problem, self.problem.dt
         eta, v, D = self.eta_, self.v_, self.D
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
-        self._active_damping()
+        np.multiply(self._active_damping(), problem.interior, out=self.work[0])
+        np.multiply(problem.ops.m_force, self.work[0], out=D)
         if self.moving:
-            self.rate_new[:] = self.problem.obstacle.centred_rate((self.k + 1) * dt)[: self.problem.n_owned]
+            self.rate_new[:] = self._rate()
         v_new = self._solve()
         # A damping that holds a node down (F = −D v^{n+1} < 0, it wants to lift) would do work against the
         # mean velocity and raise the energy: release such nodes and solve again (a few times at most).
@@ -216,15 +193,9 @@ class NewmarkScheme(_NewtonScheme):
         mean, b = np.add(v_new, v, out=self.work[0]), self.work[1]
         np.subtract(KC_new[1], KC_now[1], out=b)
         visc = 0.5 * float(np.dot(mean, b))  # (Δt/4)|v¹+v⁰|²_C, with C(η¹ − η⁰) = (Δt/2) C(v¹+v⁰)
-        if self.moving:  # −(Δt/2) f·(v^{n+1} + v^n), f = −D(v^{n+1} − ψ_t^{n+1})
-            con = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new - self.rate_new, out=b)))
-            f = np.subtract(self.v_new, self.rate_new, out=self.work[1])  # f = −D(v^{n+1} − ψ_t^{n+1})
-            f *= self.D
-            np.negative(f, out=f)
-            work = self._obstacle_work(f)
-            con += work
-        else:
-            con, work = 0.5 * dt * float(np.dot(mean, np.multiply(D, v_new, out=b))), 0.0
+        np.multiply(D, v_new - self.rate_new if self.moving else v_new, out=b)  # −f, f = −D(v^{n+1} − ψ_t^{n+1})
+        work = self._obstacle_work(-b) if self.moving else 0.0  # the obstacle's share of f's work: external work
+        con = 0.5 * dt * float(np.dot(mean, b)) + work  # −(Δt/2) f·(v^{n+1} + v^n)
         ext = 0.5 * dt * float(np.dot(problem.ops.load, mean)) + work
         kin = 0.5 * float(np.dot(v_new, self._mass(v_new, "v_new")))
         el = 0.5 * float(np.dot(self.new, KC_new[0]))
@@ -235,9 +206,7 @@ class NewmarkScheme(_NewtonScheme):
         np.multiply(b, v_new - self.rate_new if self.moving else v_new, out=self.force_density)
         eta[:], v[:] = self.new, v_new
         self.KC_now, self.KC_new = self.KC_new, self.KC_now
-        self.k += 1
-        if self.moving:  # the law's fields at t^{k}: the stored row's contact set, the next step's active set
-            self.problem.obstacle.set_centred(self.k * dt)
+        self._advanced()
         return StepEnergy(kin, el, visc, con, 0.0, ext, 0.0)
 
     def _newton_step(self):
@@ -245,14 +214,11 @@ class NewmarkScheme(_NewtonScheme):
         problem, dt, newton = self.problem, self.problem.dt, self.newton
         e0, v = self.eta_, self.v_
         newton.set_known(e0, None, v)
-        problem.laws.set(eta=e0, v=v)
-        D = (np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float) * problem.interior
-             * problem.ops.m_force)
-        # ψ_t^{n+1}: D brakes v − ψ_t
-        rate = problem.obstacle.centred_rate((self.k + 1) * dt)[: problem.n_owned] if self.moving else 0.0
+        D = self._active_damping() * problem.interior * problem.ops.m_force
+        rate = self._rate()
         while True:  # −D (v^{n+1} − ψ_t^{n+1}) = −(2D/Δt)(u − η^n − (Δt/2)(v^n + ψ_t^{n+1}))
             newton.d[:], newton.c[:] = 2.0 * D / dt, e0 + 0.5 * dt * (v + rate)
-            u = newton.solve(None if newton.guessless else e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v^{n+1} extrapolated
+            u = newton.solve(None if newton.guessless else e0 + dt * v + 0.5 * dt * (v - self.v_old))  # v extrapolated
             v1 = 2.0 * (u - e0) / dt - v
             v1[problem.bc] = 0.0
             sticky = (D > 0) & (v1 > rate)  # a damping that would hold a node down: released (as on the linear path)
@@ -260,21 +226,12 @@ class NewmarkScheme(_NewtonScheme):
                 break
             D[sticky] = 0.0
         f = -D * (v1 - rate)
-        delta = u - e0
-        visc_vec = newton.viscous_force(u)
-        kin, el, visc, con, ext, work = self.allsum(
-            kinetic_energy(problem, v1), self._stored(u), float(np.dot(visc_vec * problem.interior, delta)),
-            -0.5 * dt * float(np.dot(f, v + v1)), float(np.dot(problem.ops.load, delta)), self._obstacle_work(f))
-        num = self.E - (kin + el) - visc - con + ext
-        con, ext = con + work, ext + work  # the obstacle's share of the force's work: external, not dissipated
-        self.E = kin + el
+        terms = self._step_energy(u, e0, v, v1, f, self._obstacle_work)
         np.divide(f, problem.ops.m_force, out=self.force_density, where=problem.ops.m_force > 0)
         self.force_density[problem.ops.m_force <= 0] = 0.0
         self.v_old[:], self.eta_[:], self.v_[:] = v, u, v1
-        self.k += 1
-        if self.moving:  # the law's fields at t^k: the stored row's contact set, the next step's active set
-            self.problem.obstacle.set_centred(self.k * dt)
-        return StepEnergy(kin, el, visc, con, num, ext, 0.0)
+        self._advanced()
+        return terms
 
 
 __all__ = ["NEWMARK", "NewmarkScheme"]

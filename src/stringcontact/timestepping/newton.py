@@ -1,49 +1,14 @@
-"""A nonlinear model's step, solved by Newton's method with line search (PETSc SNES): the machinery every scheme's
-Newton path shares (`NewtonStep`, `_NewtonScheme`); each scheme's own step is in its module.
-
-The model writes its residual R(η, η_t, η_tt, F; w) once (`model.interface`); a nonlinear one reaches the schemes
-as `Operators.nonlinear` (`fem.operators.NonlinearForm`). Each scheme writes the placeholders as its difference
-quotients in the unknown u = η^{n+1} and the known levels η^n, η^{n−1} (and a nodal velocity v^n), and the
-step is the root of
+"""A nonlinear model's step by Newton's method (PETSc SNES): `NewtonStep`, shared by every scheme's Newton path
+(`_NewtonScheme`; docs/howto/nonlinear_models.md). A scheme writes the residual's placeholders as difference quotients
+in u = η^{n+1} and the known levels; the step is the root of
 
     G(u) = R(q_η(u), q_t(u), q_tt(u), 0; w) − f + d∘(u − c),      u = g at the fixed ends,
 
-with f the scheme's nodal contact force (the penalty law, lumped as on the linear path) and d∘(u − c) an
-implicit damping on the diagonal (the semi-implicit penalty). With lumped mass the η_tt term is m∘q_tt(u),
-the row-sum mass, as on the linear path; R is affine in η_tt and in the force (`semi_discrete_operators`
-checks), so only η and η_t may enter nonlinearly. The Jacobian is ``ufl.derivative`` of the compiled
-residual (plus the lumped mass and the damping on its diagonal); both forms are compiled once, integer
-powers as products (`powers_as_products`), the residual and the stored energy with their coefficients packed once
-(`fem.packed.PackedForm`). A step may keep an earlier step's Jacobian and its LU factor for a few chord
-iterations (`NewtonStep._keeps_jacobian`); once it takes a fresh one, its later iterations do too.
-
-`projection`'s contact step is the variational inequality G(u) ⊥ u − ψ ≥ 0 (SNES ``vinewtonrsls``, bounds
-u ≥ ψ at the interior nodes), tried as a plain Newton step first while the last solution touched no bound;
-its contact force is the reaction G₀(u) of the unconstrained residual on the active set: ≥ 0, and 0 off the
-contact set. A node is on its bound only where it is exactly there (`VI_DEFAULTS`: PETSc's own zero tolerance
-froze nodes just above the obstacle and a stiff landing cycled). A step whose SNES fails is tried once more with
-the other line search (`RESCUE_LINE_SEARCH`) before the caller sub-steps it.
-
-The linear path. A model with several fields reaches this module even when its residual is linear (a
-fourth-order term written with a second unknown, η's second derivative). A residual affine in its unknowns with
-constant coefficients (`affine_in`: its derivatives read no Function), of a model that does not ask for Newton
-(`Model.newton`), takes no Newton iteration and no SNES: G(u) = J u + G(0) with a constant J, assembled and
-factorised once (again only when a damping on its diagonal changes), and the step is one back-substitution (`NewtonStep._linear_path`). G(0), the
-ledger's viscous work and a quadratic stored energy (`QuadraticEnergy`) come from the residual's constant matrices
-(`affine.AffineResidual`) by products with the solutions, one stacked mat-vec per step (`affine.LevelTerms`). A VI tries that
-solve first and keeps SNES for the steps that touch a bound. On this path the other fields start from η0 (their
-rows solved with η = η0, `NewtonStep.start_fields`; the Newton path starts them at 0), and `projection` checks
-its Δt against η's stiffness with the fields eliminated (`NewtonStep.eta_stiffness`). Measured on a linear
-two-field string model at nx = 5000, such a step costs 2.3× the paper's linear step, by SNES 12-20×.
-
-Energy (every scheme): the ledger gets the kinetic energy of its velocity, the stored energy ∫Π(η) of the model
-(`Model.stored_energy`, default ½|∇η|²) assembled at the new level, the viscous dissipation as the work of
-R's η_t-dependent part over the step, [R(q_η, q_t) − R(q_η, 0)]·δ, the external work b·δ (δ the scheme's test
-increment), the contact dissipation as on the linear path, and as numerical dissipation what is left of the
-identity: E^n − E^{n+1} − D_visc − D_con + W_ext. So the ledger closes by construction, and the numerical
-dissipation says how far the scheme is from conserving the model's energy (for the paper's implicit step
-and a convex Π it is ≥ 0; the leapfrog and the midpoint rule of a nonlinear force make it change sign, so
-these steps declare ``energy_may_rise`` and the driver's guard allows what it allows a contact spring).
+f the nodal contact force, d∘(u − c) an implicit damping (the semi-implicit penalty), the η_tt term m∘q_tt(u) when
+lumped. `projection`'s step is the VI G(u) ⊥ u − ψ ≥ 0 (``vinewtonrsls``); a residual affine in its unknowns takes one
+linear solve (`affine.LinearPath`). The ledger: kinetic, stored ∫Π(η), the work of R's η_t-dependent part (viscous),
+b·δ and the contact work; numerical dissipation is the rest of the identity, which the leapfrog and the midpoint rule
+of a nonlinear force make change sign (``energy_may_rise``).
 """
 
 from __future__ import annotations
@@ -60,35 +25,24 @@ from ..errors import SolverError
 from ..fem import compat
 from ..fem.packed import PackedForm
 from ..fem.powers import powers_as_products
-from .affine import (
-    LinearPath,
-    _as_slice,
-    affine_in,
-)
-from .base import Ranks
+from .affine import LinearPath, _as_slice, affine_in
+from .base import Ranks, StepEnergy, petsc_vector
 from .base import Scheme as Base
 from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
 from .newton_options import check_vi_linesearch
 
-#: Newton's defaults (a scene's or the command line's `petsc_options` go on top): the relative residual and the
-#: relative step (quadratic convergence makes the error after a step of 1e-9 |u| about 1e-18 |u|).
 #: The absolute residual Newton stops at, relative to the inertia term's norm: a few hundred round-offs of it.
 ROUNDOFF = 1e-13
+#: Newton's defaults, below a scene's `petsc_options` (a relative step of 1e-9 leaves an error of about 1e-18 |u|).
 SNES_DEFAULTS = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_stol": 1e-9, "snes_max_it": 50}
-#: The VI's (`vinewtonrsls`) defaults on top: an unknown counts as on its bound only where it is exactly there. PETSc's
-#: default, 1e-8, holds a node within 1e-8 above the obstacle with a positive residual in the active set, frozen off
-#: its bound: its residual never vanishes, and a stiff landing cycled (the cubic landing at nx = 500: 45 such nodes,
-#: the residual stuck at 5e-8 for 50 iterations; 1e-12 and 1e-14 still cost a step 30-40 iterations). The
-#: projection onto the bounds puts a node on its bound exactly, so 0 misses none (benchmarks/bench_vi.py).
+#: The VI's defaults on top: a node is on its bound only where it is exactly there. PETSc's 1e-8 froze nodes just above
+#: the obstacle and a stiff landing cycled for 50 iterations (benchmarks/bench_vi.py).
 VI_DEFAULTS = {"snes_vi_zero_tolerance": 0.0}
-#: When Newton fails with one line search the step is tried again with the other (a fresh J, the same first guess):
-#: `l2` accepts a rising residual and diverged on a landing's step at nt = 600 (benchmarks/bench_vi.py), `bt` stalled on others.
+#: The line search a failed step is tried again with (a fresh J, the same guess): `l2` diverged on a landing at
+#: nt = 600 (benchmarks/bench_vi.py), `bt` stalled on others.
 RESCUE_LINE_SEARCH = {"l2": "bt", "bt": "l2", "basic": "bt", "cp": "bt"}
-
-
-#: The most iterations a kept Jacobian serves in one step, and the surplus iterations (beyond one a step) it may
-#: cost before a fresh one is assembled: a chord iteration (a residual and a triangular solve) costs about 0.2 ms
-#: at nx = 5000, a fresh J with its LU factor about ten of them. See `_keeps_jacobian`.
+#: The most iterations a kept Jacobian serves in a step, and its surplus iterations before a fresh one: a chord
+#: iteration costs about a tenth of a fresh J with its LU factor at nx = 5000 (`_keeps_jacobian`).
 CHORD_ITERATIONS = 3
 CHORD_BUDGET = 10
 
@@ -96,12 +50,10 @@ CHORD_BUDGET = 10
 class NewtonStep(LinearPath):
     """G(u) = 0 (or the VI with lower bounds) for one scheme's quotients; see the module docstring.
 
-    `quotients` maps "eta", "eta_t", "eta_tt" to functions (u, e0, em, v0, dt) -> the quotient, written so
-    that they work on UFL functions and on NumPy arrays alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity);
-    "fields" (optional, default "eta"'s): the value of the other fields of a model with several.
-    ``lower``: the nodal lower bound of the VI (−inf where free), or None for a plain Newton step.
-    `reuse_jacobian` (default True): a step's iterations may keep the Jacobian and its LU factor from an
-    earlier step (chord iterations, `_keeps_jacobian`); False gives Newton's fresh Jacobian at every iteration.
+    `quotients` maps "eta", "eta_t", "eta_tt" to functions (u, e0, em, v0, dt) -> the quotient, for UFL and NumPy
+    alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity); "fields" (optional): the other fields' values. ``lower``: the
+    VI's nodal lower bound (−inf where free), or None. `reuse_jacobian` False takes a fresh Jacobian at every
+    iteration (no chord iterations).
     """
 
     reuse_jacobian = True
@@ -113,8 +65,7 @@ class NewtonStep(LinearPath):
         self.allsum, self.anyrank = Ranks(problem.comm).sum, Ranks(problem.comm).any
         self.u, self.e0, self.em, self.v0 = (fem.Function(Z) for _ in range(4))
         self.lumped = problem.mass == "lumped"
-        # Δt as a Constant, not a float in the kernels: a run of another Δt (a study, a retry's sub-steps) reuses
-        # the compiled forms (a cold JIT compiles a form in about 1 s)
+        # Δt as a Constant: a run of another Δt (a retry's sub-steps) reuses the compiled forms (1 s each, cold)
         dt = fem.Constant(Z.mesh, PETSc.ScalarType(problem.dt))
         args = (self.u, self.e0, self.em, self.v0, dt)
         q_eta, q_t, q_tt = (quotients[k](*args) for k in ("eta", "eta_t", "eta_tt"))
@@ -122,7 +73,7 @@ class NewtonStep(LinearPath):
         k = form.eta.ufl_shape[0] if form.eta_dofs is not None else 0  # the number of fields, η's among them
         if k:  # several fields: η's inertia is lumped on the nodes, the other fields keep their own η_tt
             zeros = ufl.as_vector([0.0] * k)
-            q_fields = quotients.get("fields", quotients["eta"])(*args)  # the other fields' values
+            q_fields = quotients.get("fields", quotients["eta"])(*args)
             q_eta = ufl.as_vector([q_eta[0], *(q_fields[i] for i in range(1, k))])
             q_tt = ufl.as_vector([0.0, *(q_tt[i] for i in range(1, k))]) if self.lumped else q_tt
         else:
@@ -143,10 +94,11 @@ class NewtonStep(LinearPath):
         self.work_vec = compat.create_vector(self.G.form)
         self.J = fem.petsc.create_matrix(self.J_form)
         self.x = self.G_vec.duplicate()
-        # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several
+        # η's entries in the unknowns' (owned) arrays: all of them for one field, a fancy index for several, and as a
+        # strided slice where they are one (a blocked space's)
         self.idx = slice(0, n) if form.eta_dofs is None else np.asarray(form.eta_dofs[:n])
         self.bc = problem.bc if form.eta_dofs is None else self.idx[problem.bc]
-        self.at = _as_slice(self.idx)  # the same entries, as a strided slice where they are one (a blocked space's)
+        self.at = _as_slice(self.idx)
         self.N = self.x.getLocalSize()
         self.diag = self.J.createVecLeft()  # the lumped mass and the damping, added to J's diagonal
         self.m_tt = self.a_tt * problem.ops.m if self.lumped else np.zeros(n)
@@ -164,10 +116,6 @@ class NewtonStep(LinearPath):
         self.surplus = 0  # the kept J's iterations beyond the first of each step, since it was assembled
         self.age, self.kept_age, self.drift = 0, 0, 0.0  # J's age in steps; r₁/(r₀ × age) when a kept J was last tried
         self.d_in_J = np.zeros(n)  # the damping on J's diagonal when it was assembled
-        if lower is not None and form.eta_dofs is not None:
-            full = np.full(self.N, PETSc.NINFINITY)
-            full[self.idx] = lower
-            lower = full
         self.g = problem.g
         lower = self._held_and_bounded(lower)
         self.bounds = None
@@ -175,14 +123,14 @@ class NewtonStep(LinearPath):
         self.free = self._snes(None) if lower is not None else None  # a VI's plain Newton step, tried first
         self.rescue, self.rescues = None, 0  # the other line search's SNES (made at the first failure), its solves
         self.try_free, self.free_solves = True, 0
-        self.linear = self.quadratic = None  # the linear path (`_linear_path`), the energy as a quadratic form
+        self.linear = self.quadratic = None
         if not getattr(problem.laws.model, "newton", False) and affine_in(
                 ufl.replace(form.residual, {form.force: zero}), (form.eta, form.eta_t, form.eta_tt)):
             self._linear_path()
 
     def _held_and_bounded(self, lower):
-        """A model's other fields held at 0 on the boundary (`Model.held_fields`: their rows join η's ends in
-        `bc`, their values in `g`) and bounded below (`Model.field_lower`: the step becomes the VI)."""
+        """The unknowns' lower bound (None: none) from η's `lower`, a model's other fields held at 0 on the boundary
+        (`Model.held_fields`: their rows join η's ends in `bc`) and bounded below (`Model.field_lower`)."""
         problem, form = self.problem, self.problem.ops.nonlinear
         model = problem.laws.model
         if form.eta_dofs is None:
@@ -192,11 +140,14 @@ class NewtonStep(LinearPath):
             self.bc = np.concatenate([self.bc, dofs[name][problem.bc]])
             self.g = np.concatenate([self.g, np.zeros(len(problem.bc))])
         bounds = model.field_lower(form.params) if getattr(model, "field_lower", None) is not None else {}
-        if bounds and lower is None:
-            lower = np.full(self.N, PETSc.NINFINITY)
+        if lower is None and not bounds:
+            return None
+        full = np.full(self.N, PETSc.NINFINITY)
+        if lower is not None:
+            full[self.idx] = lower
         for name, value in bounds.items():
-            lower[dofs[name]] = value
-        return lower
+            full[dofs[name]] = value
+        return full
 
     def _snes(self, lower, line_search: str | None = None):
         """A SNES for G; a VI's (``vinewtonrsls``, `VI_DEFAULTS`) with `lower` (None: plain Newton, or the bounds
@@ -209,7 +160,7 @@ class NewtonStep(LinearPath):
         options = solver_options(self.J.getSize()[0], problem.comm.size, problem.petsc_options, dim=problem.x.ndim,
                                  notes=self.notes)
         vi = lower is not None or (line_search is not None and self.bounds is not None)
-        # problem.petsc_options hold the model's defaults (`Model.solver`) below the user's, merged once by the run
+        # problem.petsc_options hold the model's defaults (`Model.solver`) below the user's
         options = (
             {"snes_type": "vinewtonrsls" if vi else "newtonls"} | SNES_DEFAULTS | (VI_DEFAULTS if vi else {}) | options
         )
@@ -281,23 +232,19 @@ class NewtonStep(LinearPath):
         """The assembled residual (`form`: the compiled G by default) at u, η's owned dofs, no force, no ends."""
         self._sync()
         self._set(self.u, self._full(u, self.levels[3]))
-        vec = self.work_vec
-        with vec.localForm() as local:
-            local.set(0.0)
         if form is None:
             self.G.refresh(self.u)
-            self.G.assemble_vector(vec)
+            _assemble(self.work_vec, self.G.assemble_vector)
         else:
-            fem.petsc.assemble_vector(vec, form)
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        r = vec.array[self.idx].copy()
+            _assemble(self.work_vec, lambda vec: fem.petsc.assemble_vector(vec, form))
+        r = self.work_vec.array[self.idx].copy()
         if self.lumped:
             r += self.problem.ops.m * self.q["eta_tt"](u, *self.arrays, self.problem.dt)
         return r
 
     def last_residual(self, u: np.ndarray) -> np.ndarray:
         """`residual_at(u)` for the u that `solve` just returned, without assembling: SNES's last residual (the linear
-        path's, by mat-vecs) with the force and the damping taken out again (the ends' rows hold u − g there, 0)."""
+        path's, by mat-vecs) with the force and the damping taken out again."""
         if self.stale:
             self._linear_residual()
         r = self.G_vec.array[self.at].copy()
@@ -329,17 +276,13 @@ class NewtonStep(LinearPath):
         self.energy.refresh()
         return self.energy.assemble_scalar()
 
-    # -- SNES callbacks
+    # -- SNES callbacks: SNES hands them x locked for reading (PETSc 3.22): read it through array_r, never array
 
-    # SNES hands the callbacks x locked for reading (PETSc 3.22, trixie): read it through array_r, never array.
     def _residual(self, snes, x, G) -> None:
         u = x.array_r
         self._set(self.u, u)
         self.G.refresh(self.u)
-        with G.localForm() as local:
-            local.set(0.0)
-        self.G.assemble_vector(G)
-        G.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        _assemble(G, self.G.assemble_vector)
         g = G.array
         nodal = self.nodal_slope * u[self.idx]
         nodal -= self.nodal_known
@@ -363,16 +306,11 @@ class NewtonStep(LinearPath):
         self.age = self.surplus = 0
 
     def _keeps_jacobian(self, snes) -> bool:
-        """Whether the last J (and its LU factor), from an earlier step, serves this iteration; the caller then
-        leaves J untouched, so PETSc keeps its factor. A kept J contracts the residual by a rate ρ per iteration
-        (a chord iteration) where a fresh one converges quadratically, but its iteration costs a residual and a
-        triangular solve, about a tenth of assembling and factorising J at nx = 5000 (CHORD_BUDGET). So it is kept while
-        it is predicted to reach what Newton stops at within CHORD_ITERATIONS iterations: at the first
-        iteration with ρ = drift × age (drift: r₁/(r₀ × age) when a kept J was last tried, halved at each step
-        that did not try one, so that one bad step, an active set that changes, does not stop the reuse for
-        good), at later ones with the rate just seen; and while the iterations it cost beyond one a step stay
-        below CHORD_BUDGET, the cost of a fresh J (the rent-or-buy rule: at most twice the better of the two).
-        Once J is fresh, it stays fresh (Newton's own iterations)."""
+        """Whether the last J and its LU factor, from an earlier step, serve this iteration (PETSc keeps the factor of
+        an untouched J): while it is predicted to reach Newton's tolerance within CHORD_ITERATIONS iterations (at
+        the first with ρ = drift × age, drift halved at each step that did not try one; later with the rate just
+        seen) and its surplus iterations stay below CHORD_BUDGET, rent or buy (docs/howto/nonlinear_models.md).
+        Once J is fresh, it stays fresh for the step."""
         it = snes.getIterationNumber()
         if it == 0:
             self.chord, self.norms = False, []
@@ -396,7 +334,7 @@ class NewtonStep(LinearPath):
 
     def _update_damping(self, J) -> None:
         """A kept J with the step's damping d on its diagonal: the change since J was assembled, added (a new
-        factor then, but no assembly); nothing when d has not changed on any rank."""
+        factor then, but no assembly)."""
         change = self.d - self.d_in_J
         if not self.anyrank(bool(np.any(change))):
             return
@@ -407,18 +345,17 @@ class NewtonStep(LinearPath):
         J.assemble()
         self.d_in_J[:] = self.d
 
+    def _above_bounds(self, x: np.ndarray) -> bool:
+        """Whether `x` is nowhere below the VI's lower bound (on every rank)."""
+        return not self.anyrank(bool(np.any(x < self.bounds[0].array)))
+
     def solve(self, guess: np.ndarray) -> np.ndarray:
-        """The root from `guess` (η; the ends set to their heights, the other fields from their last solution);
-        η's owned values. SolverError if SNES fails.
-
-        A VI first tries the plain Newton step when the last step's solution touched no bound: if that root
-        respects the bounds it is the VI's solution. (SNES VI builds and factorises its inactive rows' matrix
-        again at every iteration, ordering included: 2.2 of a 3.5 ms step at nx = 5000.)
-
-        On the linear path (an affine residual, `_linear_path`) that step is one linear solve, without SNES."""
+        """The root from `guess` (η; the ends at their heights, the other fields from their last solution): η's owned
+        values; SolverError if SNES fails. A VI first tries the plain Newton step (the linear path's solve) when the
+        last solution touched no bound (SNES VI refactorises at every iteration: 2.2 of a 3.5 ms step at nx = 5000)."""
         self.age += 1
-        # the nodal terms of G, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known (the slope is
-        # on the linear path's J already)
+        # G's nodal terms, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known (the linear path's
+        # slope is on its J)
         if self.linear is None:
             self.nodal_slope[:] = self.d + self.m_tt
         self.nodal_known[:] = self.d * self.c + self.f
@@ -427,11 +364,10 @@ class NewtonStep(LinearPath):
         x = self.x.array
         if self.linear is not None and (self.free is None or self.try_free):
             self._solve_linear(guess)
-            if self.free is None or not self.anyrank(bool(np.any(x < self.bounds[0].array))):
+            if self.free is None or self._above_bounds(x):
                 self.free_solves += self.free is not None
                 return self._accept()
-        # The residual's round-off floor: ROUNDOFF × the inertia term's norm (its largest term). An rtol below it
-        # (a good predictor) would stall at the floor (2.6e-9 against 2.4e-9 asked at nx = 5000).
+        # the round-off floor, ROUNDOFF × the inertia term's norm: an rtol below it (a good predictor) would stall
         if "snes_atol" not in (self.problem.petsc_options or {}):  # the user's wins
             inertia = self.inertia * guess
             floor = max(ROUNDOFF * math.sqrt(self.allsum(float(np.dot(inertia, inertia)))[0]), 1e-50)
@@ -443,11 +379,10 @@ class NewtonStep(LinearPath):
         if self.known:  # the known levels and any field that moved with the step (an obstacle ψ(x, t))
             self.G.refresh(*self.known)
         self.stale = False  # SNES's residual in G_vec
-        if self.free is not None and self.try_free and self.linear is None:
-            reason = self._run(self.free, guess)
-            if reason >= 0 and not self.anyrank(bool(np.any(x < self.bounds[0].array))):
-                self.free_solves += 1
-                return self._accept()
+        if (self.free is not None and self.try_free and self.linear is None and self._run(self.free, guess) >= 0
+                and self._above_bounds(x)):
+            self.free_solves += 1
+            return self._accept()
         reason = self._run(self.snes, guess)
         if reason == compat.snes_diverged_nan() and self.snes.getIterationNumber() == 0:
             raise self._not_finite(guess)
@@ -465,9 +400,8 @@ class NewtonStep(LinearPath):
         return self._accept()
 
     def _not_finite(self, guess: np.ndarray) -> SolverError:
-        """The model's form is not finite at the step's first guess (its residual there, before any
-        Newton iteration): its cause is the form, which no smaller dt or sub-step changes. The error says so
-        (``not_finite``: the run does not sub-step it)."""
+        """The model's form is not finite at the step's first guess: no smaller dt or sub-step changes that, so the
+        error says so (``not_finite``: the run does not sub-step it)."""
         model = self.problem.laws.model
         residual = self.G_vec.array
         bad = residual[~np.isfinite(residual)]
@@ -521,27 +455,32 @@ class NewtonStep(LinearPath):
 
     def describe(self) -> dict:
         """Newton's counters for the summary."""
-        fallback = {"preconditioner": "; ".join(self.notes)} if getattr(self, "notes", None) else {}
+        counts = {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians}
         if self.linear is not None:
             refactored = self.step_solver.refactorisations
+            counts["linear solves"] = self.linear_solves
             how = (f"none: the residual is affine, {self.linear_solves} linear solves for {self.solves} steps with J "
                    f"factorised once" + (f" and again {refactored} times for the damping" if refactored else ""))
             if self.free is not None:
                 how += (f"; {self.solves - self.free_solves} contact steps by SNES {self.snes.getType()}, "
                         f"{self.iterations} Newton iterations")
-            return {"newton iterations": self.iterations, "jacobian assemblies": self.jacobians,
-                    "linear solves": self.linear_solves, "nonlinear solver": how,
-                    **({"line search rescues": self.rescues} if self.rescues else {}), **fallback}
-        per_step = self.iterations / self.solves if self.solves else 0.0
-        free = f", {self.free_solves} of {self.solves} steps solved without the VI" if self.free is not None else ""
-        rescued = f", {self.rescues} steps tried again with line search {self.other}" if self.rescues else ""
-        return {
-            "newton iterations": self.iterations,
-            "jacobian assemblies": self.jacobians,
-            **({"line search rescues": self.rescues} if self.rescues else {}),
-            "nonlinear solver": f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step{free}{rescued}",
-            **fallback,
-        }
+        else:
+            per_step = self.iterations / self.solves if self.solves else 0.0
+            free = f", {self.free_solves} of {self.solves} steps solved without the VI" if self.free is not None else ""
+            rescued = f", {self.rescues} steps tried again with line search {self.other}" if self.rescues else ""
+            how = f"SNES {self.snes.getType()}, {per_step:.3g} Newton iterations per step{free}{rescued}"
+        if self.rescues:
+            counts["line search rescues"] = self.rescues
+        fallback = {"preconditioner": "; ".join(self.notes)} if getattr(self, "notes", None) else {}
+        return counts | {"nonlinear solver": how} | fallback
+
+
+def _assemble(vec: PETSc.Vec, assemble) -> None:
+    """`assemble(vec)` into `vec` zeroed, the ghosts' contributions added to their owners."""
+    with vec.localForm() as local:
+        local.set(0.0)
+    assemble(vec)
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
 
 
 def _without_dissipative(problem, q_eta, k: int) -> dict:
@@ -556,16 +495,25 @@ def _without_dissipative(problem, q_eta, k: int) -> dict:
 
 
 class _NewtonScheme(Base):
-    """What the three schemes' Newton steps share: the stored energy summed over the ranks, the counters."""
+    """What the schemes share around their Newton step: the reductions over the ranks, the force's nodal weights, the
+    moving obstacle's step index, the Newton path's energy terms and counters."""
 
     energy_may_rise = True
+    newton = None
+
+    def __init__(self, problem):
+        super().__init__(problem)
+        n, m_force = problem.n_owned, problem.ops.m_force
+        self.allsum, self.anysum = Ranks(problem.comm).sum, Ranks(problem.comm).any
+        self.inv_mF = np.divide(1.0, m_force, out=np.zeros(n), where=m_force > 0)  # 0 where no force acts (the ends)
+        self.force_density = np.zeros(n)
+        self.moving, self.k = problem.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
 
     @property
     def fields(self) -> dict:
-        """A model's other fields (`Model.fields`) by name, at η's owned nodes, from the last solve ({} for one
-        field). `paper` and `newmark` report them with the η they solved for; `projection` reports its η one step
-        behind its solve, so its fields would be a step ahead of its η (a model may refuse it: `Model.schemes`).
-        A scheme's linear path (no Newton step) has none."""
+        """A model's other fields (`Model.fields`) by name at η's owned nodes, from the last solve ({} for one field
+        and on a scheme's own linear path). `projection` solves one step ahead of the η it reports, so its fields
+        are a step ahead (a model may refuse it: `Model.schemes`)."""
         if self.newton is None:
             return {}
         return {name: self.newton.field(i + 1) for i, name in enumerate(self.problem.laws.model.fields)}
@@ -573,6 +521,36 @@ class _NewtonScheme(Base):
     def _stored(self, eta) -> float:
         return self.newton.stored_energy(eta)
 
+    def _start_energy(self, eta: np.ndarray, v: np.ndarray) -> StepEnergy:
+        """The Newton path's initial energy: ½|v|²_M and the stored energy at η."""
+        kin, el = self.allsum(kinetic_energy(self.problem, v), self._stored(eta))
+        self.E = kin + el
+        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def _step_energy(self, u, e0, v0, v1, f, work) -> StepEnergy:
+        """The Newton path's terms of a step η^n = `e0` → `u`, velocities `v0` → `v1`, force `f` (module docstring);
+        `work(f)`: the moving obstacle's share of the force's work, booked as external work (after the viscous
+        force: it may move the obstacle's fields)."""
+        problem, dt = self.problem, self.problem.dt
+        delta = u - e0
+        visc_vec = self.newton.viscous_force(u)
+        work = work(f)
+        kin, el, visc, con, ext, work = self.allsum(
+            kinetic_energy(problem, v1), self._stored(u), float(np.dot(visc_vec * problem.interior, delta)),
+            -0.5 * dt * float(np.dot(f, v0 + v1)), float(np.dot(problem.ops.load, delta)), work)
+        num = self.E - (kin + el) - visc - con + ext
+        self.E = kin + el
+        return StepEnergy(kin, el, visc, con + work, num, ext + work, 0.0)
+
     @property
     def timings(self):
-        return self.newton.describe()
+        return self.newton.describe() if self.newton is not None else self._linear_timings()
+
+
+def kinetic_energy(problem, v: np.ndarray) -> float:
+    """½ v·M v on this rank's nodes, with the problem's mass (lumped: the row sums m; consistent: M)."""
+    if problem.mass == "lumped":
+        return 0.5 * float(np.dot(v, problem.ops.m * v))
+    out = problem.ops.M.createVecLeft()
+    problem.ops.M.mult(petsc_vector(v, problem.comm), out)
+    return 0.5 * float(np.dot(v, out.array))

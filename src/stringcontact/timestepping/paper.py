@@ -1,24 +1,9 @@
-"""The paper's Section 6 scheme: implicit elastic and viscous terms, the contact force from the previous step.
-
-With v^n = (η^n − η^{n−1})/Δt,
-
-    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^{n+1} = m_F∘F(η^n, v^n) + b,
-
-so A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n + b with A = M/Δt² + C/Δt + K, factorised
-once. ``penalty="semi-implicit"`` applies the same law as a damping d on the new velocity,
-F = −d v^{n+1} on the active set; only A's diagonal changes, and only when the active set does. With a
-moving obstacle ψ(x, t) the damping brakes the gap rate of the step, F = −d (v^{n+1} − (ψ^{n+1} − ψ^n)/Δt):
-its known part gains (d/Δt)(ψ^{n+1} − ψ^n).
-
-Energy identity per step (M, K symmetric): ½|v^{n+1}|²_M + ½|η^{n+1}|²_K + Δt v^{n+1}·C v^{n+1}
-+ ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K = ½|v^n|²_M + ½|η^n|²_K + Δt v^{n+1}·(m_F∘F + b). The two
-squared differences are the implicit Euler's numerical dissipation. The contact dissipation is booked
-as −(Δt/2) f·(v^n + v^{n+1}), like every scheme's (`base.Scheme`), so the numerical one is the squared
-differences plus (Δt/2) f·(v^n − v^{n+1}).
-
-Per step: one mat-vec with the stacked [K; C/Δt], one back-substitution and a few NumPy ufuncs. Every
-vector is allocated once; pairs of rows hold a quantity at the new and the previous step, and the roles
-swap every step, so the previous step's K η, C η and M v are reused, never recomputed.
+"""The paper's Section 6 scheme: implicit elastic and viscous terms, the contact force from the previous step
+(docs/explanation/schemes.md). A η^{n+1} = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F(η^n, v^n) + b with
+A = M/Δt² + C/Δt + K factorised once; ``penalty="semi-implicit"`` puts the law as a damping d on A's diagonal,
+F = −d v^{n+1} (−d (v^{n+1} − Δψ/Δt) with a moving obstacle). The numerical dissipation is ½|v^{n+1} − v^n|²_M +
+½|η^{n+1} − η^n|²_K + (Δt/2) f·(v^n − v^{n+1}). A step is one mat-vec with the stacked [K; C/Δt], one back-substitution
+and a few ufuncs into arrays allocated once, whose rows swap roles each step (K η, C η and M v are reused).
 """
 
 from __future__ import annotations
@@ -26,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..fem.operators import stacked, step_matrices
-from .base import Ranks, StepEnergy, petsc_vector
-from .base import Scheme as Base
+from .base import StepEnergy, petsc_vector
 from .implicit import ImplicitScheme
-from .linear import DampedLU, dirichlet_rows
+from .linear import Linear, dirichlet_rows
+from .newton import _NewtonScheme
 
 #: The scheme's difference quotients (its Newton path: `implicit.ImplicitScheme`): implicit Euler in η.
 PAPER = {
@@ -52,8 +37,7 @@ class PaperScheme(ImplicitScheme):
         if problem.ops.nonlinear is not None:  # the Newton path
             super().__init__(problem)
             return
-        Base.__init__(self, problem)
-        self.newton = None
+        _NewtonScheme.__init__(self, problem)
         ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
         laws = problem.laws
         self.force_law = self._penalty_law(problem)
@@ -64,39 +48,30 @@ class PaperScheme(ImplicitScheme):
         if laws.model.contact_energy is not None:
             self.energy_law = laws.compile(laws.model.contact_energy(laws.eta, laws.params))
         # the semi-implicit penalty's damping goes on its diagonal
-        self.lu = DampedLU(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
-        self.allsum = Ranks(comm).sum
-        self.anysum = Ranks(comm).any
-
-        self.etas = np.zeros((3, n))  # η^{n+1}, η^n, η^{n−1} in rotating rows
-        self.vels = np.zeros((2, n))  # v^{n+1}, v^n in rotating rows
+        self.lu = Linear(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
         # Dotted with v^{n+1}: C v^{n+1}, the applied force m_F∘F, M v^{n+1} and M v^n (rows 2, 3 alternate).
         self.by_v = np.zeros((4, n))
         self.KC_etas = np.zeros((2, 2, n))  # [K η, (C/Δt) η] of η^{n+1} and of η^n
-        self.eta_new, self.eta_now, self.eta_old = ((petsc_vector(r, comm), r) for r in self.etas)
-        self.v_new, self.v_now = ((petsc_vector(r, comm), r) for r in self.vels)
+        # η^{n+1}, η^n, η^{n−1} and v^{n+1}, v^n in rows of one array each, whose roles rotate
+        self.eta_new, self.eta_now, self.eta_old = ((petsc_vector(r, comm), r) for r in np.zeros((3, n)))
+        self.v_new, self.v_now = ((petsc_vector(r, comm), r) for r in np.zeros((2, n)))
         self.M_v_new, self.M_v = ((petsc_vector(r, comm), r) for r in self.by_v[2:])
         self.KC_new, self.KC_old = ((petsc_vector(p, comm), p) for p in self.KC_etas)
-        self.rhs, self.two_steps = ((petsc_vector(r, comm), r) for r in np.zeros((2, n)))  # b; consistent mass: 2η^n − η^{n−1}
+        # b; with the consistent mass 2η^n − η^{n−1}
+        self.rhs, self.two_steps = ((petsc_vector(r, comm), r) for r in np.zeros((2, n)))
         self.dots_v, self.dots_K = np.zeros(4), np.zeros(2)
         self.diag_w = np.zeros(n)  # semi-implicit: the damping weights m_F d / Δt on the active set
-        m, mF = ops.m, ops.m_force
-        self.m_dt2 = m / dt**2
-        self.inv_mF = np.divide(1.0, mF, out=np.zeros(n), where=mF > 0)  # 0 where no force acts (the ends)
-        self.force_density = np.zeros(n)
+        self.m_dt2 = ops.m / dt**2
         self.has_load = bool(np.any(ops.load != 0))
         self.step_index = 0
         self.law_ahead = (-1, None)  # (step index, F) of the law evaluated by `contact_force`
-        # Read every step (see `step`): set once.
+        # Read every step: set once (see `step`).
         self.dt, self.explicit, self.lumped = dt, problem.penalty == "explicit", problem.mass == "lumped"
-        self.m, self.m_force, self.load, self.hold_ends = m, mF, ops.load, problem.hold_ends
+        self.m, self.m_force, self.load, self.hold_ends = ops.m, ops.m_force, ops.load, problem.hold_ends
         self.iterative = self.lu.iterative
         self.env, self.key_eta, self.key_eta_old = laws.env, laws.key("eta"), laws.key("eta_old")
         self.K_etas = self.KC_etas[:, 0]  # K η of η^{n+1} and of η^n: a view, taken once
-        self.moving = problem.obstacle is not None  # ψ(x, t): the law's fields follow it (`_obstacle_moved`)
         self.energy_may_rise = self.moving  # a moving obstacle gives the string energy
-
-    # -- the state the driver reads
 
     @property
     def eta(self):
@@ -113,7 +88,7 @@ class PaperScheme(ImplicitScheme):
         applied, −d v^n on its active set (which it brakes, so those nodes are still below the obstacle)."""
         if self.newton is not None:
             return self.force_density
-        if self.problem.penalty == "explicit":
+        if self.explicit:
             self.problem.laws.set(eta=self.eta_now[1], eta_old=self.eta_old[1])
             law = self.force_law.evaluate_env(self.problem.laws.env)
             self.law_ahead = (self.step_index, law)  # the next step applies this F(η^n, v^n): kept, not recomputed
@@ -122,19 +97,16 @@ class PaperScheme(ImplicitScheme):
             np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
         return self.force_density
 
-    @property
-    def timings(self):
-        if self.newton is not None:
-            return self.newton.describe()
-        counts = {"refactorisations": self.lu.refactorisations} if self.problem.penalty != "explicit" else {}
-        return counts | {"linear solver": self.lu.linear.describe()}
+    def _linear_timings(self):
+        counts = {"refactorisations": self.lu.refactorisations} if not self.explicit else {}
+        return counts | {"linear solver": self.lu.describe()}
 
     def stored_energy(self, eta) -> float:
         """Σ m_F Φ(η) on owned dofs: the energy held by a conservative (spring) law."""
         if self.energy_law is None:
             return 0.0
         self.problem.laws.set(eta=eta)
-        return float(np.dot(self.problem.ops.m_force, self.energy_law.evaluate_env(self.problem.laws.env)))
+        return float(np.dot(self.m_force, self.energy_law.evaluate_env(self.problem.laws.env)))
 
     def _apply_mass(self, u, out) -> None:
         if self.lumped:
@@ -149,7 +121,7 @@ class PaperScheme(ImplicitScheme):
             self.psi_levels = [self.problem.obstacle.owned(-self.dt).copy(), self.problem.obstacle.set(0.0).copy()]
         self.eta_now[1][:] = eta0
         self.v_now[1][:] = v0
-        self.eta_old[1][:] = eta0 - self.problem.dt * self.v_now[1]
+        self.eta_old[1][:] = eta0 - self.dt * self.v_now[1]
         self.KC.mult(self.eta_now[0], self.KC_old[0])
         self._apply_mass(self.v_now, self.M_v)
         kin, el, stored = self.allsum(
@@ -168,32 +140,27 @@ class PaperScheme(ImplicitScheme):
         return law
 
     def _damping(self, e0) -> None:
-        """Semi-implicit: the damping weights m_F d/Δt on the active set onto A's diagonal, and the damping's known
-        part (d/Δt) η^n into by_v[1], where the explicit penalty has m_F∘F^n."""
+        """Semi-implicit: the damping weights m_F d/Δt on the active set onto A's diagonal (refactorised when they
+        change), and the damping's known part (d/Δt) η^n into by_v[1], where the explicit penalty has m_F∘F^n."""
         law, f_applied, diag_w = self._law(), self.by_v[1], self.diag_w
         active = law > 0
         active &= self.problem.interior
-        np.multiply(self.problem.ops.m_force, law, out=diag_w)
-        diag_w *= 1.0 / self.problem.dt
+        np.multiply(self.m_force, law, out=diag_w)
+        diag_w *= 1.0 / self.dt
         np.multiply(diag_w, active, out=diag_w)
-        # Refactorise when the damping on the diagonal changes (the active set, or a state-dependent
-        # coefficient of a model variant).
         self.lu.update(diag_w)
         if self.moving:  # the gap rate's: (d/Δt)(η^n + ψ^{n+1} − ψ^n)
             self.dpsi = self.problem.obstacle.owned((self.step_index + 1) * self.dt) - self.psi_levels[1]
             np.multiply(diag_w, e0 + self.dpsi, out=f_applied)
             return
-        np.multiply(diag_w, e0, out=f_applied)  # the damping's known part, (d/Δt) η^n, moves to b
+        np.multiply(diag_w, e0, out=f_applied)
 
     def step(self):
         if self.newton is not None:
             return super().step()
-        # The NumPy operations of a step, in the order that fixes every bit of η and of the energy terms. The
-        # flags and arrays read every step are attributes of the scheme set once in __init__ (not
-        # problem.ops.m_force, problem.penalty == ...): 1-3.5 % of the step alone (paired ratios 0.965, 0.976 and
-        # 0.990 in three passes of benchmarks/bench_step.py --loop, docs/explanation/performance.md). Three of its
-        # four parts as methods cost 1 % (paired 1.010 and 1.011 against the step written as one function): kept, for
-        # a step that reads on one screen.
+        # The NumPy operations in the order that fixes every bit of η and of the energy terms; what a step reads is
+        # set once in __init__: 1-3.5 % of the step (three passes of benchmarks/bench_step.py --loop,
+        # docs/explanation/performance.md). Three of its four parts as methods cost 1 %: kept, to read on one screen.
         e0, em = self.eta_now[1], self.eta_old[1]
         self._right_hand_side(e0, em)
         if self.iterative:  # CG starts from the guess 2η^n − η^{n−1}
@@ -203,15 +170,15 @@ class PaperScheme(ImplicitScheme):
         if self.moving and not self.explicit:
             self._release_linear(e0)
         terms = self._energy_terms(e0)
-        if self.moving:
-            terms = self._obstacle_moved(terms)
+        if self.moving:  # the obstacle's share of the force's work: external work, not contact dissipation
+            (work,) = self.allsum(self._obstacle_work(self.by_v[1]))
+            terms = terms._replace(contact=terms.contact + work, external=terms.external + work)
         self._rotate()
         return terms
 
     def _release_linear(self, e0) -> None:
         """A moving obstacle under the semi-implicit penalty: a damping that would hold a node down (the step's gap
-        rate > 0, F < 0: an obstacle that stops under a string it lifted) is released and the step solved again (a
-        few times at most), as newmark does."""
+        rate > 0: an obstacle that stops under a string it lifted) is released and the step solved again."""
         diag_w, f_applied, b, shift = self.diag_w, self.by_v[1], self.rhs[1], e0 + self.dpsi
         while self.anysum(bool(np.any(sticky := (diag_w > 0) & (self.eta_new[1] > shift)))):
             diag_w[sticky] = 0.0
@@ -220,16 +187,6 @@ class PaperScheme(ImplicitScheme):
             np.multiply(diag_w, shift, out=f_applied)
             b += f_applied
             self.lu.solve(self.rhs[0], self.eta_new[0])
-
-    def _obstacle_moved(self, terms):
-        """A moving obstacle: the law's fields to t^{n+1} (the next step's law, the stored row's force), and the
-        obstacle's share ½ f·(ψ^{n+1} − ψ^{n−1}) of the force's work moved from the contact dissipation to the
-        external work, so that D_con = −(Δt/2) f·((v − ψ_t)^n + (v − ψ_t)^{n+1}) is the work on the gap."""
-        psi_new = self.problem.obstacle.set((self.step_index + 1) * self.dt).copy()
-        (work,) = self.allsum(0.5 * float(np.dot(self.by_v[1], psi_new - self.psi_levels[0])))
-        self.psi_levels = [self.psi_levels[1], psi_new]
-        kin, el, visc, con, num, ext, stored = terms
-        return StepEnergy(kin, el, visc, con + work, num, ext + work, stored)
 
     def _right_hand_side(self, e0, em) -> None:
         """b = (M/Δt²)(2η^n − η^{n−1}) + (C/Δt) η^n + m_F∘F^n (+ the load), the ends held; F^n is the law at
@@ -263,7 +220,7 @@ class PaperScheme(ImplicitScheme):
         np.subtract(e1, e0, out=v1)
         v1 *= 1.0 / dt
         if not self.explicit:  # the force actually applied: −m_F d v^{n+1} (d times the gap rate with ψ moving)
-            if self.moving:  # (d/Δt)(η^n + Δψ − η^{n+1}): ≥ 0 exactly on the nodes `_release` kept
+            if self.moving:  # (d/Δt)(η^n + Δψ − η^{n+1}): ≥ 0 exactly on the nodes `_release_linear` kept
                 np.subtract(e0 + self.dpsi, e1, out=f_applied)
                 f_applied *= self.diag_w
             else:
@@ -278,8 +235,7 @@ class PaperScheme(ImplicitScheme):
         n = self.step_index
         iM = 2 + (n & 1)  # the row of M v^{n+1}: rows 2 and 3 swap roles every step, as do the K rows
         iK = n & 1
-        # With M, K symmetric: ½|v¹−v⁰|²_M = ½v¹·Mv¹ + ½v⁰·Mv⁰ − v¹·Mv⁰, and likewise for K and η, so the
-        # numerical dissipation needs no difference vectors.
+        # With M, K symmetric, ½|v¹−v⁰|²_M = ½v¹·Mv¹ + ½v⁰·Mv⁰ − v¹·Mv⁰ (and likewise for K): no difference vectors.
         kin_new, el_new, visc, work, cross, ext, stored, split = self.allsum(
             0.5 * dots_v[iM],
             0.5 * dots_K[iK],
@@ -290,8 +246,8 @@ class PaperScheme(ImplicitScheme):
             self.stored_energy(e1),
             -dt * float(np.dot(f_applied, self.v_now[1])),
         )
-        # Contact dissipation is the force's work with the step's mean velocity, −(Δt/2) f·(v^n + v^{n+1}) (see
-        # base.Scheme); the rest of the identity's work term, (Δt/2) f·(v^{n+1} − v^n), is numerical.
+        # D_con is the force's work with the step's mean velocity, −(Δt/2) f·(v^n + v^{n+1}); the rest of the
+        # identity's work term, (Δt/2) f·(v^{n+1} − v^n), is numerical.
         split = 0.5 * (work + split)
         num = kin_new + self.kin + el_new + self.el - cross - (split - work)
         self.kin, self.el = kin_new, el_new

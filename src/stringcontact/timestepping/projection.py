@@ -1,72 +1,14 @@
-"""Inelastic contact with no ε: central differences, implicit viscosity, and the step as a complementarity problem.
+"""Inelastic contact with no ε: central differences, implicit viscosity, and the step as a complementarity problem
+(docs/explanation/schemes.md, restitution.md). With lumped mass M and A = M/Δt² + C/Δt, at the interior nodes
 
-With lumped mass M, the step is: find η^{n+1} and the nodal contact force F^{n+1} with
+    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F,   η^{n+1} ≥ ψ,  F ≥ 0,  F·(η^{n+1} − ψ) = 0
 
-    M (η^{n+1} − 2η^n + η^{n−1})/Δt² + C (η^{n+1} − η^n)/Δt + K η^n = b + F^{n+1},
-    gap(η^{n+1}) ≥ 0,   F^{n+1} ≥ 0,   F^{n+1} · gap(η^{n+1}) = 0        (interior nodes),
-
-the elastic term explicit, the viscous one implicit: A = M/Δt² + C/Δt is symmetric positive definite, and
-the step is the minimum of its energy ½ηᵀAη − bᵀη over gap ≥ 0 (`complementarity.ActiveSet`). A node that
-lands keeps η^{n+1} = ψ, so its velocity becomes 0: restitution 0, the paper's (A4). This is Paoli and
-Schatzman's scheme with e = 0, the constraint taken in A's metric. The model must declare ``gap`` (η − ψ).
-F is a true contact force: ≥ 0, and 0 off the contact set, the paper's (A1) and (A2). (The nodal maximum
-max(A⁻¹b, ψ) is the same step only when A is diagonal, α = 0; with viscosity its residual pulls on free
-nodes and can be negative, and it is 2 to 3 times less accurate on Example 1: docs/explanation/study.md.)
-
-Energy: tested with (η^{n+1} − η^{n−1})/2 the step gives exactly E^{n+1/2} − E^{n−1/2}
-= −(Δt/2) v^{n+1}·C(v^{n+1} + v^n) + ½(b + F)·(η^{n+1} − η^{n−1}), with v^{n+1} = (η^{n+1} − η^n)/Δt and the
-leapfrog's energy E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n. So the numerical dissipation is 0, the viscous
-one is the first term, and −½ F·(η^{n+1} − η^{n−1}) ≥ 0 is the contact dissipation: F's work (F·gap = 0
-and gap ≥ 0 make it F·(ψ − η^{n−1})/2 ≤ 0 gained, i.e. ≥ 0 lost). F is A η^{n+1} − b on the active set,
-from the mat-vec the energy needs anyway, so a step with an unchanged active set costs one solve and one
-mat-vec, as the paper's scheme does. The first term is not signed step by step (v^{n+1}·C v^n can be negative):
-it is −(Δt/4)|v^{n+1} + v^n|²_C − (Δt/4)(|v^{n+1}|²_C − |v^n|²_C), so E^{n+1/2} + (Δt/4)|v^{n+1}|²_C never rises,
-while E^{n+1/2} alone may, by the change of (Δt/4)|v|²_C (Example 1 at nx = 100, Δt = Δx: by 3e-5 of itself at
-step 5). The ledger shows E^{n+1/2}; the energy guard adds that term (`energy_slack`).
-
-The stored velocity at t^n is the centred (η^{n+1} − η^{n−1})/(2Δt), the mean of the two half-step
-velocities of the leapfrog (at t = 0 the given v0), so each stored row waits for the next step: the scheme
-runs one step ahead of what it reports. The one-sided (η^n − η^{n−1})/Δt aliases where a landing front
-crosses the grid (neighbours alternate between 0 and V where the exact value is V/2) and does not converge.
-
-Restitution e ∈ [0, 1] (Paoli and Schatzman; `DiscreteProblem.restitution`, the scene's ``restitution``): the step
-projects a weighted position. With the free predictor η̃ = A⁻¹b, the e = 0 step is η^{n+1} = argmin_{η ≥ ψ}
-½|η − η̃|²_A; with e it is z = argmin_{z ≥ ψ} ½|z − z̃|²_A for z = (η^{n+1} + e η^{n−1})/(1 + e) and
-z̃ = (η̃ + e η^{n−1})/(1 + e), that is
-
-    A z = (b + e A η^{n−1})/(1 + e) + G,   z ≥ ψ,   G ≥ 0,   G·(z − ψ) = 0,
-
-the same complementarity problem (`ActiveSet`) with another right-hand side; then η^{n+1} = (1 + e) z − e η^{n−1}
-and A η^{n+1} = b + F with F = (1 + e) G: the momentum equation above and its energy identity, whose contact term
-½(1 + e)² G·(η^{n−1} − ψ) takes either sign within an impact (a rebound gives back what the landing took, all of
-it at e = 1 in the rigid limit, (1 − e²) of ½mV² lost). e = 0 runs the lines of the e = 0 step. A node held at
-z = ψ in two steps has η^{n+1} − ψ = −e(η^{n−1} − ψ) and η^{n+2} − ψ = −e(η^n − ψ): v^{n+2} = −e v^n, Newton's
-law, whatever α (the constraint is nodal; with viscosity G also carries the free neighbours' viscous pull), and
-η dips below ψ by e·O(Δt|v|). A uniformly rebounding segment feels no viscous force (C·1 = 0 inside it), but a
-velocity jump costs α|[v]|²/Δx per unit time, so with viscosity the string's restitution falls below e, more
-on finer grids (docs/explanation/restitution.md).
-
-A nonlinear model takes the Newton path, the same step with the elastic term R(η^n) explicit, η_t implicit and the
-other fields implicit: the VI G(u) ⊥ u − ψ ≥ 0 by SNES ``vinewtonrsls`` (`newton.NewtonStep` with bounds). Its
-contact force is the reaction G(u) on the active set (≥ 0, 0 elsewhere); with a restitution e > 0 the bound is on
-the weighted position, u ≥ (1 + e)ψ − e η^{n−1}. Energy at the half step: kinetic ½|(η^{n+1} − η^n)/Δt|²_m, stored
-½(Π(η^{n+1}) + Π(η^n)), δ = (η^{n+1} − η^{n−1})/2, contact −½ F·(η^{n+1} − η^{n−1}); the numerical dissipation is
-the rest of the identity. Its stable Δt is that of the tangent at η = 0 (and of η's stiffness with a model's other
-fields eliminated, `_check_fields_stiffness`).
-
-A model that declares Signorini's release (``Model.release = "signorini"``, `release.py`; linear path, e = 0, a fixed
-obstacle) gets the second-order start η^{−1} = η^0 − Δt v0 + (Δt²/2) a0 on the free nodes, and a node at rest on ψ
-with no neighbour there is massless: its row is the elastic equilibrium with the Signorini conditions
-(`release.MasslessRelease`), and it keeps no mass after it leaves while its contact account pays what a mass would
-need. Landings are unchanged; a release gives back at most what the node's landings took, so the energy may rise
-within a run but never above E(0) plus the external work.
-
-With e > 0 the same account keeps the contact's total dissipation ≥ 0 (`_weighted_step`).
-
-Stability: the energy is positive, so the scheme stable, while M − (Δt²/4) K + (Δt/2) C > 0. Along the top
-eigenvector φ of M⁻¹K (eigenvalue λ, found by power iteration in 1D, by SLEPc on a 2D mesh) with
-μ = φ·Cφ/φ·Kφ, that is Δt < μ + √(μ² + 4/λ): Δx on a uniform mesh with α = 0, more with viscosity (exact
-when C = αK). On a 2D mesh a Δt below 2/√(Gershgorin's bound of λ) is stable without the eigenvalue.
+(`complementarity.ActiveSet`; ψ from the model's ``gap`` = η − ψ): a landing node stops on ψ, F is a true contact force.
+The leapfrog's energy E^{n+1/2} = ½|v^{n+1}|²_M + ½ η^{n+1}·K η^n has no numerical dissipation; E^{n+1/2} + (Δt/4)|v|²_C
+never rises (`energy_slack`). The stored velocity is the centred (η^{n+1} − η^{n−1})/(2Δt), so the scheme runs one step
+ahead of what it reports. Restitution e constrains the weighted position (η^{n+1} + e η^{n−1})/(1 + e) (Paoli and
+Schatzman, `_weighted_step`); `release.py` adds Signorini's release. A nonlinear model takes the Newton path (η
+explicit, the other fields and η_t implicit: the VI by SNES). Stability: Δt ≤ μ + √(μ² + 4/λ) (`spectrum.py`).
 """
 
 from __future__ import annotations
@@ -83,7 +25,7 @@ from petsc4py import PETSc
 from ..errors import InstabilityError
 from ..fem.operators import diagonal_matrix, stacked
 from ..scene import SceneWarning
-from .base import PETSC_OPTIONS, RESTITUTION, Ranks, StepEnergy, mass_option, petsc_vector
+from .base import PETSC_OPTIONS, RESTITUTION, StepEnergy, mass_option, petsc_vector
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
@@ -94,14 +36,12 @@ from .spectrum import dt_of_mode, gershgorin_bound, largest_stable_dt, top_mode,
 #: solve spreads round-off-size values (1e-64 ... 1e-14 seen on Example 1) over a region lying on it.
 CONTACT_TOL = 1e-9
 #: The round-off allowed in a contact force before the active set lets its node go: FORCE_TOL × the height scale ×
-#: A's diagonal (R = Aη − b is computed from terms of that size, so its round-off is a few 1e-16 of it). It keeps a
-#: node whose force is −1e-17 from leaving and re-entering forever; a release it delays moves η by as little.
-#: (1e-9 delayed releases enough to move Example 1 by 7e-7 against the nodal maximum at α = 0, where the two
-#: must agree; 1e-14: 6e-12.)
+#: A's diagonal, so that a node whose force is −1e-17 does not leave and re-enter forever (1e-9 moved Example 1 by
+#: 7e-7 against the nodal maximum at α = 0, where the two must agree; 1e-14: 6e-12).
 FORCE_TOL = 1e-14
 
-#: The scheme's difference quotients on its Newton path (a nonlinear model): η explicit, the other fields implicit
-#: (an algebraic one is solved, not lagged), η_t implicit.
+#: The Newton path's difference quotients: η explicit, the other fields implicit (an algebraic one is solved, not
+#: lagged), η_t implicit.
 PROJECTION = {
     "eta": lambda u, e0, em, v0, dt: e0,
     "fields": lambda u, e0, em, v0, dt: u,
@@ -134,32 +74,26 @@ class ProjectionScheme(_NewtonScheme):
         laws = problem.laws
         self.gap = laws.compile(laws.model.gap(laws.eta, laws.params))
         self.psi = self._obstacle()
-        self.allsum, self.anysum = Ranks(comm).sum, Ranks(comm).any
         # Four rotating time levels [next, ahead, now, before], each η, [K η, (C/Δt) η] and the force density
         # that produced it: `now` is what the scheme reports, `ahead` (one step on) gives its centred velocity.
         self.levels = [_Level(comm, n) for _ in range(4)]
-        self.inv_mF = np.divide(1.0, problem.ops.m_force, out=np.zeros(n), where=problem.ops.m_force > 0)
         self.v0 = None  # the given initial velocity, reported at t = 0
         self.e = problem.restitution
-        self.moving = problem.obstacle is not None  # ψ(x, t): ψ^{n+1} in each step's bound, its work booked (`_move`)
-        self.k = 0  # the level `ahead` holds: η^k at t = kΔt
-        self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's)
-        # the model's release (`Model.release`): "signorini" adds the half-cell impulses of `release.py`
+        self.psi_levels = [self.psi.copy(), self.psi.copy()]  # ψ^{k−1}, ψ^k (a moving obstacle's; k: `ahead`'s level)
         self.signorini = release_of(laws.model) == "signorini"
         if self.signorini and (self.e or self.moving or nonlinear):
             raise ValueError(f"release: model '{laws.model.name}' declares release 'signorini', which schemes "
                              "'projection' and 'fitted' take on their linear path with restitution 0 and a fixed "
                              "obstacle only")
         self.account = ContactAccount(n)  # each node's contact dissipation: a rebound spends at most that (`release`)
-        if nonlinear:
-            self.newton = NewtonStep(self._newton_problem(), self.QUOTIENTS, lower=self._lower(self.psi))
+        if nonlinear:  # its inertia lumped (`fitted`'s blend is its linear path's only)
+            lumped = dataclasses.replace(problem, mass="lumped")
+            self.newton = NewtonStep(lumped, self.QUOTIENTS, lower=self._lower(self.psi))
             self._check_fields_stiffness()
-            self.energy_may_rise = True  # a nonlinear force in a non-dissipative step
         else:
-            self.newton = None
             self._linear_operators(problem)
-            # a rebound gives back in its later steps what its first steps took; a moving obstacle gives energy
-            self.energy_may_rise = bool(self.e) or self.moving or self.signorini  # a release gives a landing's back
+            # a rebound or a release gives back in later steps what a landing took; a moving obstacle gives energy
+            self.energy_may_rise = bool(self.e) or self.moving or self.signorini
 
     def _linear_operators(self, problem) -> None:
         """The linear path's constant operators, its contact step and its scratch vectors."""
@@ -192,10 +126,6 @@ class ProjectionScheme(_NewtonScheme):
         self._check_dt(f"(its explicit elastic term, linearised at {problem.ops.linearised_at})" if nonlinear else
                        "(its explicit elastic term; dt_max from the operators)")
 
-    def _newton_problem(self):
-        """The `DiscreteProblem` the Newton path is built on (its mass decides the inertia's lumping)."""
-        return self.problem
-
     @property
     def second_order_start(self) -> bool:
         """Whether η^{−1} gets the second-order term (Δt²/2) a0 (`_start_correction`): under Signorini's release."""
@@ -223,10 +153,9 @@ class ProjectionScheme(_NewtonScheme):
                 "'newmark' or 'paper' for larger steps", step=0, time=0.0)
 
     def _check_fields_stiffness(self) -> None:
-        """A model whose other fields add to η's stiffness (a fourth-order term through η's second derivative:
-        K + βKM⁻¹K) has them explicit here too (their rows read η^n): its stable Δt is that of η's stiffness with the
-        fields eliminated (`NewtonStep.eta_stiffness`, on the linear path), a smaller one than the fields-at-0
-        tangent's checked above."""
+        """A model whose other fields add to η's stiffness (K + βKM⁻¹K through η's second derivative) has them
+        explicit too: its stable Δt is that of η's stiffness with the fields eliminated (`NewtonStep.eta_stiffness`),
+        below the fields-at-0 tangent's."""
         problem = self.problem
         S = self.newton.eta_stiffness()
         if S is None:
@@ -238,12 +167,16 @@ class ProjectionScheme(_NewtonScheme):
             self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(problem.ops, K=S), problem.interior))
         self._check_dt(f"(its explicit elastic term with the model's fields {', '.join(problem.laws.model.fields)})")
 
+    def _gap_at(self, eta) -> np.ndarray:
+        """gap(η) at the nodes, the environment's other arrays as they are."""
+        laws, n = self.problem.laws, self.problem.n_owned
+        return np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): eta}), dtype=float) * np.ones(n)
+
     def _obstacle(self) -> np.ndarray:
         """ψ at the nodes, from gap(η) = η − ψ; ValueError unless gap has slope 1 in η and gap ≤ 0 is the contact set."""
         laws, n = self.problem.laws, self.problem.n_owned
         model = laws.model
-        g = [np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): np.full(n, c)}), dtype=float) * np.ones(n)
-             for c in (0.0, 1.0)]
+        g = [self._gap_at(np.full(n, c)) for c in (0.0, 1.0)]
         if not np.allclose(g[1] - g[0], 1.0, rtol=0, atol=1e-12):
             raise ValueError(f"model '{model.name}': scheme 'projection' needs gap = eta - psi (slope 1 in eta)")
         contact = laws.compile(model.contact_set(laws.eta, laws.params))
@@ -273,10 +206,7 @@ class ProjectionScheme(_NewtonScheme):
     def contact_force(self):
         return self.levels[2].force
 
-    @property
-    def timings(self):
-        if self.newton is not None:
-            return self.newton.describe()
+    def _linear_timings(self):
         return {"linear solver": self.contact_step.describe_solver(), "contact step": self.contact_step.describe()}
 
     def contact(self) -> np.ndarray:
@@ -291,16 +221,12 @@ class ProjectionScheme(_NewtonScheme):
 
     def _obstacle_at(self, t: float) -> np.ndarray:
         """A moving obstacle's ψ(·, t) on the owned nodes, from the model's gap: −gap(0) with the fields at t."""
-        problem, laws = self.problem, self.problem.laws
-        problem.obstacle.set(t)
-        zeros = np.zeros(problem.n_owned)
-        return (-np.asarray(self.gap.evaluate_env(laws.env | {id(laws.eta): zeros}), dtype=float)
-                * np.ones(problem.n_owned))
+        self.problem.obstacle.set(t)
+        return -self._gap_at(np.zeros(self.problem.n_owned))
 
-    def _move(self) -> float:
+    def _move(self):
         """ψ^{k+1} into the contact step's bound; returns the obstacle's work ½ F·(ψ^{k+1} − ψ^{k−1}) to book (the
-        force's work on the string ½ F·(η^{k+1} − η^{k−1}) splits into it and the contact dissipation
-        −½ F·(gap^{k+1} − gap^{k−1}) ≥ 0), as a function of F."""
+        force's work on the string splits into it and the contact dissipation), as a function of F."""
         self.k += 1
         before, now = self.psi_levels
         new = self._obstacle_at(self.k * self.problem.dt)
@@ -340,29 +266,23 @@ class ProjectionScheme(_NewtonScheme):
             now.eta += self._start_correction(ahead.eta, v0)
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
-        terms = self._start_linear(ahead, now) if self.newton is None else self._start_newton(ahead, now, v0)
+        if self.newton is None:
+            self.contact_step.force_tol = FORCE_TOL * self.scale * self.A_diagonal
+            for level in (ahead, now):
+                self.KC.mult(level.eta_vec, level.kc_vec)
+            d = ahead.eta - now.eta
+            kin, el, self.energy_slack = self.allsum(0.5 * float(np.dot(d, self._inertia(d, np.empty_like(d)))),
+                                                     0.5 * float(np.dot(ahead.eta, now.kc[0])),
+                                                     0.25 * float(np.dot(d, ahead.kc[1] - now.kc[1])))
+        else:
+            d = (ahead.eta - now.eta) / problem.dt
+            self.newton.start_fields(ahead.eta, v0)
+            self.stored_ahead = self._stored(ahead.eta)  # the next step's Π(η^n), this rank's share
+            kin, el = self.allsum(0.5 * float(np.dot(d, problem.ops.m * d)),
+                                  0.5 * (self.stored_ahead + self._stored(now.eta)))
+            self.E = kin + el
         self.pending = self._advance()  # η¹: the first row's centred velocity needs it
         self.v0 = np.array(v0, dtype=float)
-        return terms
-
-    def _start_linear(self, ahead, now) -> StepEnergy:
-        self.contact_step.force_tol = FORCE_TOL * self.scale * self.A_diagonal
-        for level in (ahead, now):
-            self.KC.mult(level.eta_vec, level.kc_vec)
-        d = ahead.eta - now.eta
-        kin, el, self.energy_slack = self.allsum(0.5 * float(np.dot(d, self._inertia(d, np.empty_like(d)))),
-                                                 0.5 * float(np.dot(ahead.eta, now.kc[0])),
-                                                 0.25 * float(np.dot(d, ahead.kc[1] - now.kc[1])))
-        return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def _start_newton(self, ahead, now, v0) -> StepEnergy:
-        problem = self.problem
-        d = (ahead.eta - now.eta) / problem.dt
-        self.newton.start_fields(ahead.eta, v0)
-        self.stored_ahead = self._stored(ahead.eta)  # the next step's Π(η^n), this rank's share
-        kin, el = self.allsum(0.5 * float(np.dot(d, problem.ops.m * d)),
-                              0.5 * (self.stored_ahead + self._stored(now.eta)))
-        self.E = kin + el
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def step(self):
@@ -371,8 +291,7 @@ class ProjectionScheme(_NewtonScheme):
         return reported
 
     def _advance(self):
-        """Compute the next level from `ahead` (η^n) and `now` (η^{n−1}); the energy terms of that step and the
-        energy guard's slack."""
+        """The next level from `ahead` (η^n) and `now` (η^{n−1}): that step's energy terms and the guard's slack."""
         return self._advance_linear() if self.newton is None else self._advance_newton()
 
     def _residual(self, level, rhs):
@@ -434,12 +353,9 @@ class ProjectionScheme(_NewtonScheme):
 
             A z = (b + e A η^{n−1})/(1 + e) + G,   z ≥ ψ,   G ≥ 0,   G·(z − ψ) = 0,
 
-        then η^{n+1} = (1 + e) z − e η^{n−1} and A η^{n+1} = b + F with F = (1 + e) G. `new` gets η^{n+1} and its
-        [K η, (C/Δt) η] (by linearity, from z's and η^{n−1}'s); `new.eta` holds the CG's first guess for η^{n+1}.
-
-        A step that would take the contact dissipation as a whole below 0 (`release.ContactAccount.covers`) is solved
-        again with η^{n+1} ≥ min(ψ, η^{n−1}), whose work is ≤ 0, at the nodes the step's contact gives energy to (and at
-        any node that does so in the step solved again)."""
+        then η^{n+1} = (1 + e) z − e η^{n−1} and F = (1 + e) G; `new` gets η^{n+1} and its [K η, (C/Δt) η] by linearity.
+        A step that would take the contact dissipation as a whole below 0 is solved again with η^{n+1} ≥ min(ψ, η^{n−1})
+        (whose work is ≤ 0) at the nodes that give the most energy back (`_givers`)."""
         e, z = self.e, self.z
         rhs_zv, rhs_z = self.rhs_z
         self._inertia(em.eta, rhs_z)  # A η^{n−1} = (M/Δt²) η^{n−1} + (C/Δt) η^{n−1}
@@ -460,11 +376,8 @@ class ProjectionScheme(_NewtonScheme):
             new.eta -= e * em.eta
             self.problem.hold_ends(new.eta)  # (1 + e) g − e g is g only to round-off
             step = -0.5 * (1.0 + e) * G * (new.eta - em.eta)
-            deficit = self.account.deficit(step, self.allsum)
-            if deficit <= 0.0:  # the contact as a whole gives back no more than it took
-                break
-            giving = self._largest_gifts(np.where(settled, 0.0, step), deficit)  # η^{n+1} ≥ min(ψ, η^{n−1}) there
-            if not self.anysum(bool(giving.any())):
+            giving = self._givers(step, settled)
+            if giving is None:
                 break
             settled |= giving
             bound = np.where(settled, (np.minimum(self.psi, em.eta) + e * em.eta) / (1.0 + e), self.psi)
@@ -480,16 +393,23 @@ class ProjectionScheme(_NewtonScheme):
         new.kc -= e * em.kc
         return G
 
-    def _largest_gifts(self, step: np.ndarray, deficit: float) -> np.ndarray:
-        """The nodes whose steps give the most energy back (step < 0), the fewest whose gifts together exceed
-        `deficit` (over every rank)."""
+    def _givers(self, step: np.ndarray, settled: np.ndarray) -> np.ndarray | None:
+        """None if the step's contact dissipation `step` keeps the accounts together ≥ 0; else the nodes off `settled`
+        whose steps give the most energy back (step < 0), the fewest whose gifts exceed the deficit (over every
+        rank), or None if there are none."""
+        deficit = self.account.deficit(step, self.allsum)
+        if deficit <= 0.0:
+            return None
+        step = np.where(settled, 0.0, step)
         gifts = -step[step < 0]
         every = np.sort(np.concatenate(self.problem.comm.allgather(gifts)))[::-1] if self.problem.comm.size > 1 \
             else np.sort(gifts)[::-1]
-        if not every.size:
-            return np.zeros(step.size, dtype=bool)
-        k = min(int(np.searchsorted(np.cumsum(every), deficit)), every.size - 1)
-        return -step >= every[k]
+        if every.size:
+            k = min(int(np.searchsorted(np.cumsum(every), deficit)), every.size - 1)
+            giving = -step >= every[k]
+        else:
+            giving = np.zeros(step.size, dtype=bool)
+        return giving if self.anysum(bool(giving.any())) else None
 
     def _advance_newton(self):
         """The Newton path's step: the VI G(u) ⊥ u − lower ≥ 0, the force the reaction on the active set."""
@@ -507,14 +427,13 @@ class ProjectionScheme(_NewtonScheme):
             active = problem.interior & (u <= lower + self.tol)
             F = np.where(active, np.maximum(r, 0.0), 0.0)
             step = -0.5 * F * (u - em)
-            deficit = self.account.deficit(step, self.allsum) if self.e else 0.0
-            if deficit <= 0.0:
+            if not self.e:
                 break
-            open_ = lower != np.minimum(self.psi, em)  # not yet on the bound whose work is ≤ 0
-            giving = self._largest_gifts(np.where(open_, step, 0.0), deficit)
-            if not self.anysum(bool(giving.any())):
+            floor = np.minimum(self.psi, em)  # the bound whose work is ≤ 0
+            giving = self._givers(step, lower == floor)
+            if giving is None:
                 break
-            lower = np.where(giving, np.minimum(self.psi, em), lower)
+            lower = np.where(giving, floor, lower)
         self.account.book(step)
         delta = 0.5 * (u - em)
         work = obstacle_work(F) if obstacle_work is not None else 0.0  # the obstacle's share of F's work
@@ -542,4 +461,5 @@ class _Level:
         self.eta_vec, self.kc_vec = petsc_vector(self.eta, comm), petsc_vector(self.kc, comm)
 
 
-__all__ = ["CONTACT_TOL", "PROJECTION", "ProjectionScheme", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]
+__all__ = ["CONTACT_TOL", "PROJECTION", "ProjectionScheme", "gershgorin_bound", "largest_stable_dt", "top_mode",
+           "top_mode_krylov"]

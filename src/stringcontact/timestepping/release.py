@@ -1,32 +1,9 @@
-"""Contact that gives energy back only out of what it took: each node's contact account, Signorini's release at a
-massless contact point, and the second-order start (schemes `projection` and `fitted`).
-
-**The account** (`ContactAccount`). The contact force does the work ½ F_i (η_i^{n+1} − η_i^{n−1}) on node i in a step;
-minus that is the node's contact dissipation, booked in the ledger's D_con. A node's account is the sum of its own
-contact dissipation so far. An inelastic landing only fills it (F ≥ 0, η^{n+1} = ψ ≤ η^{n−1}); a rule that gives
-energy back (a rebound with restitution e > 0, a release below) may spend it, never below 0. So every node's
-contact dissipation stays ≥ 0, the ledger's D_con ≥ 0 at every step, and E(t) ≤ E(0) + W_ext − D_visc: no scene gains
-energy through its contact.
-
-**Signorini's release** (``Model.release = "signorini"``, `MasslessRelease`). The paper's (A4) makes a node that
-leaves the obstacle leave with the free step's velocity. At the massless contact point of an elastic rod (GetFEM's
-rod, docs/explanation/getfem.md) the point leaves with the wave that lifts it. Khenous, Laborde and Renard give such
-a point no mass (the singular mass method: the contact condition is then an algebraic one, with no impact law). Here
-a node **at rest on the obstacle** (η^n = η^{n−1} = ψ) is massless: its kinetic energy is 0, so taking its mass away
-costs nothing. Its row of the step is the elastic equilibrium instead of its momentum equation,
-
-    K η^{n+1} + (C/Δt)(η^{n+1} − η^n) = b + F,      η^{n+1} ≥ ψ,  F ≥ 0,  F·(η^{n+1} − ψ) = 0      (its row only),
-
-so it stays while its neighbours press it down and leaves, at their equilibrium, as soon as they lift it. It stays
-massless after it leaves while its account can pay for the motion a mass would have: the step's contact work is the
-residual R_i of its momentum equation (what a mass would need), booked as contact dissipation −½ R_i (η_i^{n+1} − η_i^{n−1});
-once its account is spent (to round-off), or in the step that would overdraw it, the node moves with its mass again. A landing is unchanged (the node has its mass
-until it rests): landings stay inelastic, and a release gives back at most what the node's landings took.
-The stored contact force is the massless row's F (≥ 0, on the contact set only): R_i of a node in flight is no
-contact force, and is in the ledger only.
-
-**The second-order start** (`start_correction`): the elastic force begins at t = 0, so the first cell of the leapfrog
-is [0, Δt/2]: η^{−1} = η0 − Δt v0 + (Δt²/2) a0 with a0 = m⁻¹(b − Kη0 − Cv0), 0 at a node that starts on the obstacle.
+"""Contact that gives energy back only out of what it took (schemes `projection` and `fitted`;
+docs/explanation/schemes.md): each node's contact account (`ContactAccount`: a landing fills it, a rebound or a release
+may spend it, never below 0, so D_con ≥ 0 at every step); Signorini's release at a massless contact point
+(``Model.release = "signorini"``, `MasslessRelease`: a node at rest on ψ whose neighbours are not takes the elastic
+equilibrium as its row, and stays massless in flight while its account pays its momentum residual); and the
+second-order start (`start_correction`).
 """
 
 from __future__ import annotations
@@ -61,14 +38,17 @@ def release_of(model) -> str:
     return release
 
 
-def start_correction(problem, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: float) -> np.ndarray:
-    """(Δt²/2) a0 on the free interior nodes, a0 = m⁻¹(b − Kη0 − Cv0) (0 where η0 is within `tol` of ψ)."""
-    ops, n = problem.ops, problem.n_owned
+def start_correction(problem, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: float,
+                     solve=None) -> np.ndarray:
+    """(Δt²/2) a0 on the free interior nodes (0 where η0 is within `tol` of ψ): a0 = m⁻¹(b − Kη0 − Cv0), or
+    `solve`(b − Kη0 − Cv0) for another mass."""
+    ops, n, comm = problem.ops, problem.n_owned, problem.comm
     eta, vel = np.array(eta0, dtype=float), np.array(v0, dtype=float)
     k_eta, c_v = np.zeros(n), np.zeros(n)
-    ops.K.mult(petsc_vector(eta, problem.comm), petsc_vector(k_eta, problem.comm))
-    ops.C.mult(petsc_vector(vel, problem.comm), petsc_vector(c_v, problem.comm))
-    a0 = (ops.load - k_eta - c_v) / ops.m
+    ops.K.mult(petsc_vector(eta, comm), petsc_vector(k_eta, comm))
+    ops.C.mult(petsc_vector(vel, comm), petsc_vector(c_v, comm))
+    force = ops.load - k_eta - c_v
+    a0 = force / ops.m if solve is None else solve(force)
     free = problem.interior & (eta > psi + tol)
     return np.where(free, 0.5 * problem.dt**2 * a0, 0.0)
 
@@ -102,13 +82,9 @@ class ContactAccount:
 
 
 class MasslessRelease:
-    """The linear path's contact step with the massless rows of Signorini's release (the module docstring).
-
-    `scheme` is the `projection.ProjectionScheme` (or a subclass) that owns it: its step matrix A, its operators, ψ, its
-    tolerances. ``step(new, e0, em, rhs, residual)`` solves the step into ``new.eta`` and returns (F, work): the stored
-    force (the contact step's, ≥ 0) and the force booked in the ledger (the momentum residual where a node is massless
-    or held). The contact step of each massless set is an `ActiveSet` on A with those rows replaced by K + C/Δt
-    (factorised once per set, the last `KEPT_STEPS` kept)."""
+    """The linear path's contact step with the massless rows of Signorini's release (the module docstring), for the
+    `projection.ProjectionScheme` `scheme` (its step matrix A, ψ, tolerances). Each massless set's contact step is an
+    `ActiveSet` on A with those rows replaced by K + C/Δt (factorised once, the last `KEPT_STEPS` kept)."""
 
     def __init__(self, scheme, A: PETSc.Mat):
         problem = scheme.problem

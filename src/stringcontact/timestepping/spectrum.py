@@ -15,11 +15,8 @@ __all__ = ["dt_of_mode", "gershgorin_bound", "largest_stable_dt", "top_mode", "t
 
 
 def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol: float = 1e-6):
-    """(λ_max, φ) of M⁻¹K on the interior nodes by power iteration, M = diag(m) (ends held at 0).
-
-    Starts from a node-alternating vector, which is the top mode on a uniform 1-D mesh and close to it
-    on others; stops when λ changes by less than `rtol`. Returns (λ, φ) with φ normalised.
-    """
+    """(λ_max, φ) of M⁻¹K on the interior nodes by power iteration, M = diag(m), φ normalised: from the alternating
+    vector (the top mode on a uniform 1D mesh, close to it on others) until λ changes by less than `rtol`."""
     comm = K.getComm().tompi4py()
     phi = np.where(np.arange(m.size) % 2 == 0, 1.0, -1.0) * interior
     y = np.zeros_like(phi)
@@ -41,12 +38,8 @@ def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol
 
 
 def top_mode_krylov(K, m: np.ndarray, interior: np.ndarray, rtol: float = 1e-10):
-    """(λ_max, φ) of M⁻¹K on the interior nodes by SLEPc's Krylov-Schur, M = diag(m).
-
-    For 2D meshes: the top of a 2D spectrum is crowded and on an unstructured mesh the top mode has no
-    simple shape, so power iteration from any fixed start stalls below λ_max (and would overestimate
-    dt_max). Solves the symmetric D K D y = λ y with D = M^(-1/2) on the interior (0 on the boundary).
-    """
+    """(λ_max, φ) of M⁻¹K on the interior nodes by SLEPc's Krylov-Schur on D K D, D = M^(-1/2) (0 on the boundary):
+    a 2D spectrum's top is crowded, and power iteration stalls below λ_max (overestimating dt_max)."""
     d = _scaling(m, interior)
     A = K.copy()
     D = A.createVecLeft()
@@ -56,9 +49,8 @@ def top_mode_krylov(K, m: np.ndarray, interior: np.ndarray, rtol: float = 1e-10)
 
 
 def top_mode_of_shell(S: PETSc.Mat, m: np.ndarray, interior: np.ndarray) -> tuple[float, np.ndarray]:
-    """(λ_max, φ) of M⁻¹S on the interior nodes, M = diag(m), for a shell S (only its mult: a stiffness with a
-    model's other fields eliminated): SLEPc's Krylov-Schur on D S D as a shell, as `top_mode_krylov` for an
-    assembled K (S is symmetric only if the model's blocks are)."""
+    """(λ_max, φ) of M⁻¹S for a shell S (a stiffness with a model's other fields eliminated): `top_mode_krylov` on
+    D S D as a shell, not taken as symmetric."""
     d = _scaling(m, interior)
     A = PETSc.Mat().createPython(S.getSizes(), _Scaled(S, d), comm=S.getComm())
     A.setUp()
@@ -103,25 +95,20 @@ class _Scaled:
 
 
 def gershgorin_bound(K, m: np.ndarray, interior: np.ndarray) -> float:
-    """An upper bound of λ_max(M⁻¹K) on the interior: max_i Σ_j |K_ij| / √(m_i m_j) (Gershgorin's discs of
-    M^(-1/2) K M^(-1/2)); one mat-vec with |K|. Exact on a uniform right-diagonal mesh, above λ_max elsewhere."""
+    """Gershgorin's upper bound of λ_max(M⁻¹K) on the interior, max_i Σ_j |K_ij| / √(m_i m_j): one mat-vec with |K|."""
     ia, ja, a = K.getValuesCSR()  # this rank's rows, global columns
     absK = PETSc.Mat().createAIJ(size=K.getSizes(), csr=(ia, ja, np.abs(a)), comm=K.getComm())
     absK.assemble()
-    d = np.where(interior, 1.0 / np.sqrt(np.where(m > 0, m, 1.0)), 0.0)
+    d = _scaling(m, interior)
     out = absK.createVecLeft()
     absK.mult(petsc_vector(d, K.getComm()), out)
     return K.getComm().tompi4py().allreduce(float(np.max(d * out.array, initial=0.0)), op=MPI.MAX)
 
 
 def largest_stable_dt(ops, interior: np.ndarray, krylov: bool = False, dt: float | None = None) -> float:
-    """μ + √(μ² + 4/λ), with λ and φ the top mode of M⁻¹K and μ = φ·Cφ/φ·Kφ (the viscous relief).
-
-    `krylov` (2D meshes): λ from SLEPc instead of power iteration (the 1D interval, whose top mode is the
-    alternating start vector). A 2D top mode costs seconds to minutes on 1e5 nodes (its spectrum is crowded),
-    so when `dt` is below 2/√λ_G, with λ_G the Gershgorin bound (M − Δt²K/4 > 0 then, stable whatever C ≥ 0),
-    that lower bound of Δt_max is returned and no eigenvalue is computed.
-    """
+    """The explicit step's largest stable Δt from the top mode of M⁻¹K (`dt_of_mode`); `krylov` (2D): by SLEPc. A 2D
+    top mode costs seconds to minutes on 1e5 nodes, so a `dt` below 2/√(Gershgorin's bound), stable whatever C ≥ 0,
+    returns that bound instead."""
     if krylov and dt is not None:
         safe = 2.0 / math.sqrt(max(gershgorin_bound(ops.K, ops.m, interior), 1e-300))
         if dt <= safe:
