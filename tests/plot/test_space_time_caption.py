@@ -6,7 +6,7 @@ import re
 import matplotlib.image as mpimg
 
 import stringcontact as sc
-from stringcontact.plot import charts, mesh_pictures
+from stringcontact.plot import mesh_pictures
 
 
 def test_a_run_above_the_obstacle_has_its_own_height_range_in_the_caption(tmp_path):

@@ -7,7 +7,6 @@ import re
 import ufl
 import warnings
 
-import numpy as np
 import pytest
 
 import stringcontact as sc

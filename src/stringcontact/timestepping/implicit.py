@@ -23,7 +23,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import SolverError
-from .base import EPS, PETSC_OPTIONS, check_law_stability, mass_option, penalty_option
+from .base import EPS, PETSC_OPTIONS, check_law_stability, mass_option, penalty_option, petsc_vector
 from .newton import NewtonStep, _NewtonScheme, kinetic_energy
 
 
