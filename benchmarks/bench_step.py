@@ -165,7 +165,7 @@ def law_timing(repeats: int) -> None:
 
     scene = sc.load_scene("example1")
     res = sc.simulate(scene, comm=MPI.COMM_SELF)
-    problem = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).problem  # what the paper scheme steps
+    problem = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).core.discrete  # what the scheme steps
     law = problem.laws.compile(problem.laws.model.penalty(problem.laws.eta, problem.laws.quotient, problem.laws.params))
     full, sub = [], []
     for row in range(1, len(res.t)):
@@ -238,7 +238,7 @@ def loop_timing(src: str, runs: int) -> None:
     from stringcontact.timestepping import paper
 
     scene = sc.load_scene("example1")
-    problem = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).problem  # what the paper scheme steps
+    problem = Stepper(scene, "paper", "explicit", "lumped", comm=MPI.COMM_SELF).core.discrete  # what the scheme steps
     eta0 = np.asarray(scene.initial_displacement(problem.x), dtype=float).copy()
     eta0[problem.bc] = problem.g  # the start the driver gives a scheme: the ends at their heights, at rest
     v0 = np.asarray(scene.initial_velocity(problem.x), dtype=float) * problem.interior
@@ -248,7 +248,9 @@ def loop_timing(src: str, runs: int) -> None:
     np.seterr(all="ignore")
     for r in range(runs):
         for label in list(schemes) if r % 2 == 0 else list(schemes)[::-1]:
-            scheme = schemes[label].Scheme(problem)
+            module = schemes[label]
+            scheme = getattr(module, "PaperScheme", None) or module.Scheme  # the class's name before the core
+            scheme = scheme(problem)
             scheme.start(eta0, v0)
             t0 = time.thread_time()
             for _ in range(scene.nt):
