@@ -55,16 +55,23 @@ def pack_coefficients(form) -> dict:
     return pack(getattr(form, "_cpp_object", form))
 
 
-def coordinate_domain(cell: str, gdim: int):
-    """The `ufl.Mesh` of a P1 coordinate element: `ufl.VectorElement` (0.5) or `basix.ufl.element` (0.7+)."""
-    import ufl
-
+def _p1_vector_element(cell: str, n: int):
+    """A P1 element of `n` components on `cell` (a name): `basix.ufl.element` (0.7+) or `ufl.VectorElement` (0.5)."""
     try:
         import basix.ufl
 
-        return ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(gdim,)))
+        return basix.ufl.element("Lagrange", cell, 1, shape=(n,))
     except (ImportError, AttributeError):
-        return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), 1, dim=gdim))
+        import ufl
+
+        return ufl.VectorElement("Lagrange", cell, 1, dim=n)
+
+
+def coordinate_domain(cell: str, gdim: int):
+    """The `ufl.Mesh` of a P1 coordinate element."""
+    import ufl
+
+    return ufl.Mesh(_p1_vector_element(cell, gdim))
 
 
 def create_mesh(comm, cells: np.ndarray, x: np.ndarray, domain):
@@ -102,16 +109,8 @@ def mixed_space(msh, fields: int):
     """P1^fields on `msh` as one blocked space (its matrices carry the block size, which PCFIELDSPLIT splits by)."""
     from dolfinx import fem
 
-    try:
-        import basix.ufl
-
-        element = basix.ufl.element("Lagrange", msh.basix_cell(), 1, shape=(fields,))
-        return fem.functionspace(msh, element)
-    except (ImportError, AttributeError):
-        import ufl
-
-        element = ufl.VectorElement("Lagrange", msh.ufl_cell(), 1, dim=fields)
-        return fem.FunctionSpace(msh, element)
+    element = _p1_vector_element(msh.ufl_cell().cellname(), fields)
+    return (fem.functionspace if hasattr(fem, "functionspace") else fem.FunctionSpace)(msh, element)
 
 
 def sub_dofs(V, Z, i: int) -> np.ndarray:

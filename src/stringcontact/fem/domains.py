@@ -58,12 +58,10 @@ def _gmsh_disk(radius: float, size: float) -> tuple[np.ndarray, np.ndarray]:
         gmsh.finalize()
         if held is not None:
             signal.signal(signal.SIGINT, held)
-    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
-    used = np.unique(triangles)
-    index[used] = np.arange(used.size)
+    used, cells = np.unique(triangles, return_inverse=True)  # the nodes renumbered 0 … in tag order
     order = np.argsort(tags)  # getNodes does not promise sorted tags
     points = coords.reshape(-1, 3)[order][np.searchsorted(tags[order], used), :2]
-    return index[triangles], np.ascontiguousarray(points)
+    return cells.reshape(-1, 3).astype(np.int64), np.ascontiguousarray(points)
 
 
 def _check_areas(msh, comm, label: str) -> None:

@@ -158,8 +158,6 @@ def semi_discrete_operators(model, V, params, residual: bool = False, state=None
 
     def part(f, at=at_zero):
         a = apply_derivatives(ufl.derivative(R_lowered, f, u))
-        if a.empty():  # the model has no such term (e.g. α = 0 written out): a zero matrix, same pattern
-            return zero * u * w * ufl.dx
         used = set(ufl.algorithms.extract_coefficients(a)) & set(placeholders)
         if used and f in (eta_tt, force):
             raise ModelError(f"model '{model.name}': momentum_form must be affine in eta_tt and in force with "
@@ -168,9 +166,8 @@ def semi_discrete_operators(model, V, params, residual: bool = False, state=None
         if used:  # the tangent at 0 stands for the operator (stability estimates, round-off floors)
             tangents[f] = a
             a = apply_derivatives(ufl.algorithms.expand_derivatives(ufl.replace(a, at)))
-            if a.empty():
-                return zero * u * w * ufl.dx
-        return a
+        # no such term (e.g. α = 0 written out): a zero matrix, same pattern
+        return zero * u * w * ufl.dx if a.empty() else a
 
     K = _assemble_matrix(part(eta))
     M, C = (_assemble_matrix(part(f), pattern=K) for f in (eta_tt, eta_t))
