@@ -11,6 +11,7 @@ the stack call `load` first, which also refuses a dolfinx outside `SUPPORTED` in
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import sys
@@ -24,18 +25,13 @@ SUPPORTED = ((0, 5), (0, 11))
 #: The PyPI wheel of dolfinx this package installs with ``pip install "stringcontact[dolfinx]"``.
 WHEEL = "dolfinx-solver-real"
 
-_state = {"checked": False}
-
-
+@functools.cache  # a refused version is not cached: the next call raises again
 def load() -> None:
     """Import the stack in its order (the wheel's ``dolfinx_solver`` first) and check dolfinx's version, once."""
-    if _state["checked"]:
-        return
     load_mpi_first()
     import dolfinx
 
     check_version(dolfinx.__version__)
-    _state["checked"] = True
 
 
 def load_mpi_first() -> None:

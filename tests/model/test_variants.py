@@ -10,7 +10,8 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
 from stringcontact.model import registry
-from stringcontact.model.variants import elastic, load_model, loaded_obstacle
+from stringcontact.model.registry import load_model
+from stringcontact.model.variants import elastic, loaded_obstacle
 from stringcontact.verification import exact
 
 # --- load_model ---------------------------------------------------------------------------------

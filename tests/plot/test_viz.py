@@ -218,10 +218,8 @@ def test_snapshot_rows_are_the_scene_output_times(run):
 
 @pytest.mark.slow
 def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
-    from stringcontact.model.variants import load_model
-
     scene = sc.load_scene("loaded_string").replace(nx=40, T=0.5, nt=500, eps=0.01, output_times=[0.0, 0.5])
-    res = sc.simulate(scene, model=load_model(scene.model), output=sc.Output(tmp_path / "run", pictures=False))
+    res = sc.simulate(scene, model=sc.load_model(scene.model), output=sc.Output(tmp_path / "run", pictures=False))
     back = readback.read_output(tmp_path / "run")
     assert charts.obstacle_name(back) == "ψ" and charts.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
     grey = "#d9d9d9"  # the shaded obstacle region

@@ -32,10 +32,8 @@ def check_form(model_name: str, what: str, R, test) -> None:
         raise FormError(f"{where} has no term integrated over the domain (ufl.dx); allowed: {_ALLOWED}")
     arguments = R.arguments()
     if len(arguments) != 1 or arguments[0] != test:
-        kind = {0: "a functional (rank 0: no test function w)", 2: "bilinear (rank 2: a TrialFunction in it)"}
-        found = kind.get(len(arguments), f"of rank {len(arguments)}")
-        if len(arguments) == 1:
-            found = "linear in another test function than the w it was given"
+        found = {0: "a functional (rank 0: no test function w)", 1: "linear in another test function than the w it "
+                 "was given", 2: "bilinear (rank 2: a TrialFunction in it)"}.get(len(arguments), f"of rank {len(arguments)}")
         raise FormError(f"{where} is {found}; allowed: {_ALLOWED}")
     try:
         from ufl.algorithms.check_arities import ArityMismatch, check_form_arity
@@ -52,8 +50,6 @@ def mass_density(model_name: str, what: str, R, eta_tt, test, unknowns) -> objec
     pointwise UFL expression; FormError if ρ depends on the `unknowns` (the schemes need a constant mass)."""
     direction = ufl.TrialFunction(test.ufl_function_space())
     a = apply_derivatives(ufl.derivative(apply_algebra_lowering(R), eta_tt, direction))
-    if a.empty():
-        return ufl.as_ufl(0.0)
     if set(ufl.algorithms.extract_coefficients(a)) & set(unknowns):
         raise FormError(f"model '{model_name}': {what} must be affine in eta_tt with a constant coefficient (a mass "
                         "that does not depend on eta, eta_t or eta_tt); it may be nonlinear in eta and eta_t")

@@ -257,12 +257,8 @@ def unused_fields(model: Model, V, p: Parameters) -> list[str]:
         exprs.append(model.residual(U, U_t, U_tt, force, (w,) * k, p))
     if model.penalty_damping is not None:
         exprs.append(model.penalty_damping(eta, v, p))
-    for law in (model.contact_energy, model.gap):
-        if law is not None:
-            exprs.append(law(eta, p))
-    used = set()
-    for e in exprs:
-        used |= set(ufl.algorithms.extract_coefficients(e))
+    exprs += [law(eta, p) for law in (model.contact_energy, model.gap) if law is not None]
+    used = {c for e in exprs for c in ufl.algorithms.extract_coefficients(e)}
     return [name for name, f in p.extra.items() if f not in used]
 
 

@@ -10,8 +10,6 @@
     The paper's model with the scene's ``load`` f(x) and ``obstacle`` ψ(x) (each 0 when not given): ∫ η_tt w +
     α ∫ η_tx w_x + ∫ η_x w_x = ∫ f w + ∫ F w, F = (1/ε) χ{η<ψ} (η_t)⁻, the contact set {η ≤ ψ}. A moving obstacle
     ψ(x, t) brakes the gap rate, (1/ε) χ{η<ψ} (η_t − ψ_t)⁻, with ψ_t from ``p.extra["obstacle_rate"]``.
-
-`load_model` lives in `registry` (re-exported here).
 """
 
 from __future__ import annotations
@@ -25,9 +23,8 @@ from .inelastic import momentum_form as _paper_momentum_form
 from .inelastic import penalty as _paper_penalty
 from .inelastic import penalty_damping as _paper_penalty_damping
 from .interface import Model, Parameters, inelastic
-from .registry import load_model
 
-__all__ = ["elastic", "load_model", "loaded_obstacle"]
+__all__ = ["elastic", "loaded_obstacle"]
 
 
 def _displacement_penalty(eta, v, p: Parameters):
