@@ -48,10 +48,9 @@ def plot_film_study(rows: list[dict], path, h_min: float) -> Path:
                     value = e0.get(name, {}).get(key, np.nan) / scale
                     if np.isfinite(value) and (value > 0 or not log or key == "min_gap"):
                         ax.axhline(value, **style)
-                if key == "min_gap":
-                    ax.axhline(h_min, color="#2ca02c", ls="-.", label="h_min (mobility floor)")
                 ax.set_xscale("log")
                 if key == "min_gap":  # the backstop's penetration is negative: linear near 0
+                    ax.axhline(h_min, color="#2ca02c", ls="-.", label="h_min (mobility floor)")
                     ax.set_yscale("symlog", linthresh=1e-4)
                 elif log:
                     ax.set_yscale("log")

@@ -257,11 +257,8 @@ def check_energy(result, time_refined=()) -> list[Check]:
 def run_checks(scene, levels: int = 3, penalty: str | None = "explicit", delay: float | None = None,
                delta: float = 0.02, V: float | None = None, time_levels: int = 3, model=None,
                scheme: str | None = None):
-    """Every check on `levels` fixed-r refinements up to `scene`: (checks, finest result, all results)."""
-    if model is None and scene.model:
-        from ..model.registry import load_model
-
-        model = load_model(scene.model)  # a registered name: the scene was checked when it was loaded
+    """Every check on `levels` fixed-r refinements up to `scene` (by `model`, else the scene's): (checks, finest
+    result, all results)."""
     results = refine(scene, levels, penalty, model, scheme)
     timed = refine_time(scene, time_levels, penalty, model, scheme)[1:] if time_levels > 1 else []
     checks = [check_force_sign(results), check_dissipation_sign(results), check_support(results),

@@ -145,9 +145,7 @@ def _check_dtype(path: str, what: str, declared) -> None:
 def _check_shapes(path: str, cells: np.ndarray, points: np.ndarray) -> None:
     if cells.shape[1] != 3:
         raise SceneError(f"mesh: {path!r} has {cells.shape[1]} nodes per cell; allowed: 3 (triangles)")
-    if not np.issubdtype(cells.dtype, np.integer):
-        raise SceneError(f"mesh: {path!r}: its cell indices are {cells.dtype}; allowed: integers")
-    if points.shape[1] not in (2, 3) or not np.issubdtype(points.dtype, np.number):
+    if points.shape[1] not in (2, 3):  # the dtypes were checked before reading (`_check_dtype`)
         raise SceneError(f"mesh: {path!r}: its geometry has {points.shape[1]} columns; allowed: 2 or 3 (x, y[, z])")
     if not np.all(np.isfinite(points)):
         raise SceneError(f"mesh: {path!r} has a node with a coordinate that is not finite; allowed: finite numbers")
