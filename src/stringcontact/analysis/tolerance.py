@@ -41,8 +41,8 @@ def estimate_for_tolerance(scene, tol: float, *, methods=TOL_METHODS, nx_start: 
     budget = math.inf  # a method that costs more than the cheapest success so far cannot win: stop refining it
     for name in methods:
         method = METHODS[name]
-        if model is not None and ((method.penalty == "semi-implicit" and model.penalty_damping is None) or not _runs(
-                method.scheme, model) or (method.scheme == "projection" and model.gap is None)):
+        lacks_damping = method.penalty == "semi-implicit" and model is not None and model.penalty_damping is None
+        if lacks_damping or (model is not None and not _runs(method.scheme, model)):  # projection checks the gap
             continue  # a scheme the model refuses, or a law it needs that the model lacks, is no candidate
         coarse_scene = _scaled(scene, max(2, min(nx_start, scene.nx)))
         rows = coarse_scene.nt  # every coarse step; the finer run stores every second step, at the same times
