@@ -9,6 +9,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from ..core.stepper import TimeStepper
 from ..errors import InstabilityError, ModelError, SceneError, SolverError, one_line, plugin_code
 from ..io.result import FIELDS, Result, node_sort_key
 from ..model.interface import penetration_bound_of, reads_eps
@@ -71,7 +72,7 @@ class Stepper:
         t0 = time.perf_counter()
         with plugin_code(f"model '{self.model.name}'"):  # its functions' sys.exit: one line, not exit 0
             self.problem = adapter.scene_problem(scene, self.model, comm, plan.constants)
-            self.core = adapter.scene_stepper(scene, plan, self.problem)
+            self.core = TimeStepper(self.problem, scene.dt, plan.Scheme, nt=scene.nt, **plan.options)
         self.parameters = self.core.parameters
         self.timings = {"setup": time.perf_counter() - t0}
         self.counters, self.solver = self.core.counters, {}
