@@ -62,14 +62,8 @@ def simulate(
     `penalty` and `mass` default to the scheme's own (for "paper": explicit, lumped); an option the scheme
     does not take is refused.
 
-    `storage` (`Storage`): about `max_rows` time levels are stored (Result, diagnostics.csv, pictures).
-    Under MPI the stored rows are gathered to rank 0 (`gather` "root"); the other ranks' Result holds the
-    per-time series only (see Result). `gather` "all" gives every rank the rows. The rows a rank holds may
-    take at most `row_budget` bytes (ROW_BUDGET): above it fewer are kept, with 0, T and the output times,
-    and a StorageWarning in one line says so (an explicit `max_rows` too is capped so).
-
-    `output` (`Output`): with a folder `dir`, XDMF (about `max_frames` of the stored rows, always with 0, T and
-    the scene's output times), CSV, JSON and (with `pictures`) PNGs are written there; `progress` shows a bar.
+    `storage` (`Storage`): the rows kept (Result, diagnostics.csv, pictures), by default on rank 0 under MPI, the
+    other ranks' Result holding the per-time series only. `output` (`Output`): what is written, and where.
 
     The step's linear system is LU-factorised once (in serial for every membrane a scene allows, up to 1001²
     nodes; on several ranks by MUMPS up to 1e3 nodes; a string on any number of ranks) and solved by CG (Jacobi
