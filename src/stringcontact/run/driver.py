@@ -65,10 +65,8 @@ def simulate(
     `storage` (`Storage`): the rows kept (Result, diagnostics.csv, pictures), by default on rank 0 under MPI, the
     other ranks' Result holding the per-time series only. `output` (`Output`): what is written, and where.
 
-    The step's linear system is LU-factorised once (in serial for every membrane a scene allows, up to 1001²
-    nodes; on several ranks by MUMPS up to 1e3 nodes; a string on any number of ranks) and solved by CG (Jacobi
-    or AMG) otherwise (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
-    by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
+    `petsc_options` (checked like the scene's key, which it overrides name by name) set the PETSc options of the
+    step's linear solver (`timestepping.linear.solver_options`: LU or CG), e.g. ``{"ksp_type": "cg"}``.
 
     It is a loop over a `Stepper` (the same arguments): step one yourself for control of the time loop.
 

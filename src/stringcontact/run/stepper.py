@@ -58,12 +58,10 @@ class Stepper:
                  restitution: float | None = None, fields0: dict | None = None):
         storage = storage if storage is not None else Storage()
         self.output = output if output is not None else Output()
-        if fields0:  # into the scene, as its key `fields0`: the further unknowns' start
-            scene = scene.replace(fields0=dict(scene.fields0) | dict(fields0))
-        if restitution is not None:  # into the scene, as the command line's: summary.json records what ran
-            scene = scene.replace(restitution=restitution)
-        if petsc_options:
-            scene = scene.replace(petsc_options=dict(scene.petsc_options) | dict(petsc_options))
+        changes = {"fields0": dict(scene.fields0) | dict(fields0)} if fields0 else {}  # into the scene, as its keys:
+        changes |= {"restitution": restitution} if restitution is not None else {}  # summary.json records what ran
+        changes |= {"petsc_options": dict(scene.petsc_options) | dict(petsc_options)} if petsc_options else {}
+        scene = scene.replace(**changes) if changes else scene
         spec = model if model is not None else (scene.model or DEFAULT_MODEL)
         plan = adapter.check_scene_run(scene, scheme, model, comm, penalty=penalty, mass=mass)
         self.name, self.model = plan.name, plan.model
