@@ -95,9 +95,8 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
 
 def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> ContactProblem:
     """The scene's `ContactProblem`: its mesh (`fem.domains`), the P1 space, η, v and the fields in ``fields0`` from
-    its initial state, its
-    ends or boundary held at their heights, its fields (a load, an obstacle) and a moving obstacle ψ(x, t), each
-    checked where it is evaluated (finite, within ±MAX_MAGNITUDE)."""
+    its initial state, its ends or boundary held at their heights, its fields (a load, an obstacle) and a moving
+    obstacle ψ(x, t), each checked where it is evaluated (finite, within ±MAX_MAGNITUDE)."""
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
