@@ -42,12 +42,10 @@ class Stepper:
 
     It is the scene's `ContactProblem` (`problem`: the mesh, the Functions) and its `TimeStepper` (`core`), with the
     stored rows and the output folder attached as observers. `parameters` holds the model's constants:
-    ``st.parameters["k"] = 2000.0`` between steps changes one; the next `advance()` assembles the operators again
-    and books the jump of the state's energy as external work, so the balance still closes.
+    ``st.parameters["k"] = 2000.0`` between steps changes one, the jump of the state's energy booked as external work.
 
-    `fields0` starts the model's further unknowns (the scene key ``fields0``: expressions or nodal values). A restart
-    from the whole state, ``sc.continued(scene, st)`` (`run.restart`), continues the run under schemes whose state is
-    (η, v) and the fields.
+    `fields0` starts the model's further unknowns (the scene key ``fields0``); ``sc.continued(scene, st)``
+    (`run.restart`) makes the scene of the whole state now (docs/tutorial/own_time_loop.md).
 
     A run that becomes unstable raises `InstabilityError` from `advance()` with the partial Result on it
     (``exc.result``), as `simulate` does, and marks its output folder so; the stepper then refuses to go on.
