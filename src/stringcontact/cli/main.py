@@ -81,11 +81,8 @@ def _run(args) -> int:
             from ..run import profile
 
             print("where the time went:\n" + profile.table(profile.sections(res.timings, imports, started)))
-    from ..run.checks import unbalanced_message
-
-    unbalanced = unbalanced_message(res)
-    if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
-        error(unbalanced)
+    if res.status == "unbalanced":  # its output (if any) is marked so, never "complete" (`Stepper.result`)
+        error(res.message)
         return EXIT_UNSTABLE
     return EXIT_OK
 

@@ -25,17 +25,14 @@ def _march(st: Stepper, progress: bool, comm=None) -> None:
     # disable=None: tqdm's own test, no bar when stderr is not a terminal (a log file, a pipe, CI)
     bar = tqdm(total=st.nt, disable=None if progress else True, unit="step", mininterval=0.5, leave=False)
     mask = 0 if st.scene.dim == 2 else 63
-    try:
-        # NaN, overflow: the energy guard names the step
-        with st._guarded(), np.errstate(all="ignore"), StopTogether(comm) as stop, one_thread(st.vector_length):
-            for n in range(st.step, st.nt):  # computes step n + 1
-                st._advance()
-                if (n & mask) == 0:
-                    stop.poll()
-                if progress and (n & 63) == 0:
-                    bar.update(min(64, st.nt - bar.n))
-    finally:
-        bar.close()
+    # NaN, overflow: the energy guard names the step; the bar closes last, however the loop ends
+    with bar, st._guarded(), np.errstate(all="ignore"), StopTogether(comm) as stop, one_thread(st.vector_length):
+        for n in range(st.step, st.nt):  # computes step n + 1
+            st._advance()
+            if (n & mask) == 0:
+                stop.poll()
+            if progress and (n & 63) == 0:
+                bar.update(min(64, st.nt - bar.n))
 
 
 def simulate(
