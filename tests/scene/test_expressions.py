@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stringcontact.errors import SceneError
-from stringcontact.scene.expressions import MAX_LENGTH, check, evaluate
+from stringcontact.scene import Scene
+from stringcontact.scene.expressions import MAX_LENGTH, evaluate
 
 X = np.linspace(0.0, 1.0, 11)
 NAMES = {"l": 1.0}
@@ -88,10 +89,11 @@ def test_does_not_use_builtin_eval(monkeypatch):
     np.testing.assert_allclose(ev("sin(pi*x)"), np.sin(np.pi * X))
 
 
-def test_check_validates_on_probe_grid():
-    check("sin(pi*x/l)", field="eta0", names={"l": 3.0})
-    with pytest.raises(SceneError, match="^v0: .*not finite"):
-        check("1/(x - 1.5)", field="v0", names={"l": 3.0})  # 1.5 lies on the probe grid over [0, 3]
+def test_a_scene_checks_its_expressions_on_the_probe_grid():
+    data = {"T": 0.1, "alpha": 0.0, "nx": 7, "nt": 10, "length": 3.0, "eta0": "sin(pi*x/l)", "v0": "0"}
+    Scene.from_dict(data)
+    with pytest.raises(SceneError, match="v0: .*not finite"):
+        Scene.from_dict(data | {"v0": "1/(x - 1.5)"})  # 1.5 lies on the probe grid over [0, 3], not on nx's nodes
 
 
 # --- hostile input -------------------------------------------------------------------------

@@ -37,12 +37,12 @@ def add_arguments(parser):
 
 
 def _scene_from_args(args):
-    """The finest level's scene (1D only): --nx and --nt checked as flags; --eps and --penalty refused as by `run`."""
+    """The finest level's scene (1D only): --nx and --nt checked as flags; --eps, --penalty and --restitution
+    refused as by `run`."""
     from ..errors import SceneError
     from ..scene import load_scene
     from ..scene.limits import INT_BOUNDS
-    from ..scene.names import DEFAULT_SCHEME
-    from ..timestepping import scheme_class
+    from .main import check_scheme_flags
 
     for key in ("nx", "nt"):
         value, (low, high) = getattr(args, key), INT_BOUNDS[key]
@@ -58,10 +58,7 @@ def _scene_from_args(args):
                              "paper's theorems are about the string); allowed: a scene with domain 'interval'")
     changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
     scene = scene.replace(**changes) if changes else scene
-    name = args.scheme or scene.scheme or DEFAULT_SCHEME
-    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
-        given = "--eps" if args.eps is not None else "--penalty"
-        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it refines nx and nt only")
+    check_scheme_flags(args, scene, "it refines nx and nt only")
     return scene
 
 

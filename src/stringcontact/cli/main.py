@@ -47,7 +47,7 @@ def _run(args) -> int:
     if changes:
         scene = scene.replace(**changes)
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
-    _check_scheme_options(args, scene)
+    check_scheme_flags(args, scene, "it accepts --mass lumped only")
     model = spec = None
     if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
         from ..model.registry import load_model
@@ -81,11 +81,8 @@ def _run(args) -> int:
             from ..run import profile
 
             print("where the time went:\n" + profile.table(profile.sections(res.timings, imports, started)))
-    from ..run.checks import unbalanced_message
-
-    unbalanced = unbalanced_message(res)
-    if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
-        error(unbalanced)
+    if res.status == "unbalanced":  # its output (if any) is marked so, never "complete" (`Stepper.result`)
+        error(res.message)
         return EXIT_UNSTABLE
     return EXIT_OK
 
@@ -126,15 +123,16 @@ def _option_value(text: str):
     return text
 
 
-def _check_scheme_options(args, scene) -> None:
-    """Refuse --eps or --penalty with a scheme that has no penalty, a restitution e > 0 but with projection."""
+def check_scheme_flags(args, scene, takes: str) -> None:
+    """Refuse --eps or --penalty with a scheme that has no penalty (saying what it `takes` instead), a restitution
+    e > 0 but with projection."""
     from ..timestepping import check_restitution, scheme_class
 
     name = args.scheme or scene.scheme or DEFAULT_SCHEME
     check_restitution(name, scene.restitution or 0.0)
     if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
         given = "--eps" if args.eps is not None else "--penalty"
-        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); it accepts --mass lumped only")
+        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); {takes}")
 
 
 def _partial_report(exc) -> None:
@@ -209,20 +207,16 @@ def _command(args) -> int:
             else:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
             return EXIT_OK
-        except SolverError as exc:  # a numerical failure after the input was accepted (docs/explanation/reliability.md)
-            _partial_report(exc)
-            error(exc)
-            return EXIT_INTERNAL
         except (SceneError, OutputError, ValueError) as exc:
             error(exc)
             return EXIT_INPUT
-        except InstabilityError as exc:
-            _partial_report(exc)
-            error(exc)
-            return EXIT_INPUT if exc.step == 0 else EXIT_UNSTABLE
-        except KeyboardInterrupt as exc:
+        except (SolverError, InstabilityError, KeyboardInterrupt) as exc:  # a run stopped: its rows so far, then why
             _partial_report(exc)
             error(str(exc) or "interrupted")
+            if isinstance(exc, SolverError):  # a numerical failure after the input was accepted (reliability.md)
+                return EXIT_INTERNAL
+            if isinstance(exc, InstabilityError):
+                return EXIT_INPUT if exc.step == 0 else EXIT_UNSTABLE
             return exc.exit_code if isinstance(exc, Interrupted) else EXIT_INTERRUPTED
         except OSError as exc:  # a file a subcommand reads or writes
             error(f"{exc.strerror or exc}" + (f" ({exc.filename})" if getattr(exc, "filename", None) else ""))

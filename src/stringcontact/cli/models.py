@@ -21,15 +21,13 @@ def command(args) -> int:
         try:
             model = load_model(name)
         except SceneError as exc:
-            model = None
-            print(f"{name:16s} (unavailable: {exc})")
+            model, lines = None, [f"(unavailable: {exc})"]
         else:
-            print(f"{name:16s} {model.description}")
-        print(f"{'':16s} " + ", ".join(f"{ep.value} [{package_of(ep)}]" for ep in eps))
-        lines = [] if model is None else [
-            f"[parameters] {c.name} = {c.default_text}: {c.allowed}" + (f" [{c.unit}]" if c.unit else "")
-            + (f", {c.description}" if c.description else "") for c in model.constants]
-        lines += [] if model is None else [f"field {f.name}: {f.title}" for f in output_fields(model)]
-        for line in lines:
-            print(f"{'':16s} {line}")
+            lines = [model.description]
+        lines.append(", ".join(f"{ep.value} [{package_of(ep)}]" for ep in eps))
+        if model is not None:
+            lines += [f"[parameters] {c.name} = {c.default_text}: {c.allowed}" + (f" [{c.unit}]" if c.unit else "")
+                      + (f", {c.description}" if c.description else "") for c in model.constants]
+            lines += [f"field {f.name}: {f.title}" for f in output_fields(model)]
+        print("".join(f"{name if i == 0 else '':16s} {line}\n" for i, line in enumerate(lines)), end="")
     return 0

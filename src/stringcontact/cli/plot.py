@@ -3,6 +3,7 @@ run writing there and this refuse each other) or into a new `--out` folder."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -81,19 +82,15 @@ def command(args) -> int:
     if any(rank.isdigit() and int(rank) > 0 for rank in launched):  # `mpirun -n 2 stringcontact plot`: one draws
         return 0
     if args.out is None:
-        lock = None
-        if folder.is_dir():  # (not a folder: read_output says what it is)
-            try:
-                lock = TargetLock(folder, "plot", label=str(folder))
-            except OSError as exc:
-                raise OutputError(f"{folder}: cannot take its lock to draw in it: "
-                                  f"{describe_os_error(exc, folder.resolve().parent)}") from None
-        try:
+        with contextlib.ExitStack() as held:  # its lock, released however the drawing ends
+            if folder.is_dir():  # (not a folder: read_output says what it is)
+                try:
+                    held.callback(TargetLock(folder, "plot", label=str(folder)).release)
+                except OSError as exc:
+                    raise OutputError(f"{folder}: cannot take its lock to draw in it: "
+                                      f"{describe_os_error(exc, folder.resolve().parent)}") from None
             for path in write_pictures(read_output(folder), folder, look=look):
                 print(f"wrote {path}")
-        finally:
-            if lock is not None:
-                lock.release()
         return 0
     out = Path(args.out)
     if out.resolve().name and (out.resolve() == folder.resolve() or out.resolve() in folder.resolve().parents):

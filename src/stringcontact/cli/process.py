@@ -60,10 +60,7 @@ def signals_interrupt(petsc: bool = True):
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    if petsc:
-        from ..stack import load
-
-        load()  # the wheel's MPI before PETSc's (`stack.load`)
+    if petsc:  # the caller has loaded the stack (`stack.load`: the wheel's MPI before PETSc's)
         from mpi4py import MPI
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, which installs its signal handlers
 

@@ -3,7 +3,7 @@
 `check_scene_run` checks what needs no mesh (the scheme and its options, the model and its constants, the PETSc
 options, the size), before the mesh is built (seconds to minutes on a large one); `scene_problem` builds the mesh,
 the P1 space, the initial Functions, the boundary conditions, the fields and the moving obstacle, and returns the
-`ContactProblem`; `scene_stepper` makes its `TimeStepper`.
+`ContactProblem`, which `run.stepper` steps.
 """
 
 from __future__ import annotations
@@ -15,14 +15,12 @@ import numpy as np
 from dolfinx import fem
 
 from ..core.problem import ContactProblem
-from ..core.stepper import TimeStepper
 from ..errors import SceneError
 from ..fem import compat, domains
 from ..fem.agree import one_outcome, same_on_every_rank
 from ..fem.operators import bc_dofs, node_coordinates
 from ..model.forms import check_declarations
 from ..model.interface import Model, inelastic, penetration_bound_of
-from ..scene import check_petsc_options
 from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
@@ -31,7 +29,7 @@ from ..timestepping.base import check_law_stability
 from ..timestepping.linear import check_option_values
 from ..timestepping.newton_options import check_snes_options
 
-__all__ = ["RunPlan", "check_scene_run", "model_constants", "resolve_model", "scene_problem", "scene_stepper"]
+__all__ = ["RunPlan", "check_scene_run", "model_constants", "resolve_model", "scene_problem"]
 
 #: The least wall time one node's time step takes (a string on the linear path, measured on the 2-core VM: Example 1
 #: at nx = 2e4 took 2.5e-7 s; 2.3e-8 s in the fastest runs): the estimate below which a long run is told it is long.
@@ -73,11 +71,7 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
     before the mesh; the same on every rank, so that a refusal ends every rank alike."""
     name, Scheme = resolve_scheme(scheme or scene.scheme or DEFAULT_SCHEME)
     given = dict(scene.scheme_options) | {k: v for k, v in options.items() if v is not None}
-    if "petsc_options" in options and options["petsc_options"] is not None:  # the argument's win, option by option
-        given["petsc_options"] = dict(scene.petsc_options) | dict(check_petsc_options(options["petsc_options"]))
-    else:
-        given["petsc_options"] = dict(scene.petsc_options)
-    resolved = resolve_options(name, Scheme, given)
+    resolved = resolve_options(name, Scheme, given | {"petsc_options": dict(scene.petsc_options)})
     model = resolve_model(model, scene)
     check_declarations(model)  # what it declares is of its kind
     check_model(name, model, Scheme)
@@ -101,9 +95,8 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
 
 def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> ContactProblem:
     """The scene's `ContactProblem`: its mesh (`fem.domains`), the P1 space, η, v and the fields in ``fields0`` from
-    its initial state, its
-    ends or boundary held at their heights, its fields (a load, an obstacle) and a moving obstacle ψ(x, t), each
-    checked where it is evaluated (finite, within ±MAX_MAGNITUDE)."""
+    its initial state, its ends or boundary held at their heights, its fields (a load, an obstacle) and a moving
+    obstacle ψ(x, t), each checked where it is evaluated (finite, within ±MAX_MAGNITUDE)."""
     msh = domains.create(scene, comm)
     V = compat.function_space(msh, "Lagrange", 1)
     dof_x = node_coordinates(V)  # owned dofs, then ghosts
@@ -135,11 +128,6 @@ def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> C
     return ContactProblem(model, eta, v, bcs=[held], alpha=scene.alpha,
                           constants=model_constants(scene, model) if constants is None else constants,
                           fields=fields, obstacle=obstacle, unknowns=unknowns)
-
-
-def scene_stepper(scene, plan: RunPlan, problem: ContactProblem) -> TimeStepper:
-    """The `TimeStepper` of a scene's run (`plan` from `check_scene_run`)."""
-    return TimeStepper(problem, scene.dt, plan.Scheme, nt=scene.nt, **plan.options)
 
 
 def _held(scene, V, dof_x: np.ndarray):

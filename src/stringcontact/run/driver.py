@@ -25,17 +25,14 @@ def _march(st: Stepper, progress: bool, comm=None) -> None:
     # disable=None: tqdm's own test, no bar when stderr is not a terminal (a log file, a pipe, CI)
     bar = tqdm(total=st.nt, disable=None if progress else True, unit="step", mininterval=0.5, leave=False)
     mask = 0 if st.scene.dim == 2 else 63
-    try:
-        # NaN, overflow: the energy guard names the step
-        with st._guarded(), np.errstate(all="ignore"), StopTogether(comm) as stop, one_thread(st.vector_length):
-            for n in range(st.step, st.nt):  # computes step n + 1
-                st._advance()
-                if (n & mask) == 0:
-                    stop.poll()
-                if progress and (n & 63) == 0:
-                    bar.update(min(64, st.nt - bar.n))
-    finally:
-        bar.close()
+    # NaN, overflow: the energy guard names the step; the bar closes last, however the loop ends
+    with bar, st._guarded(), np.errstate(all="ignore"), StopTogether(comm) as stop, one_thread(st.vector_length):
+        for n in range(st.step, st.nt):  # computes step n + 1
+            st._advance()
+            if (n & mask) == 0:
+                stop.poll()
+            if progress and (n & 63) == 0:
+                bar.update(min(64, st.nt - bar.n))
 
 
 def simulate(
@@ -62,19 +59,11 @@ def simulate(
     `penalty` and `mass` default to the scheme's own (for "paper": explicit, lumped); an option the scheme
     does not take is refused.
 
-    `storage` (`Storage`): about `max_rows` time levels are stored (Result, diagnostics.csv, pictures).
-    Under MPI the stored rows are gathered to rank 0 (`gather` "root"); the other ranks' Result holds the
-    per-time series only (see Result). `gather` "all" gives every rank the rows. The rows a rank holds may
-    take at most `row_budget` bytes (ROW_BUDGET): above it fewer are kept, with 0, T and the output times,
-    and a StorageWarning in one line says so (an explicit `max_rows` too is capped so).
+    `storage` (`Storage`): the rows kept (Result, diagnostics.csv, pictures), by default on rank 0 under MPI, the
+    other ranks' Result holding the per-time series only. `output` (`Output`): what is written, and where.
 
-    `output` (`Output`): with a folder `dir`, XDMF (about `max_frames` of the stored rows, always with 0, T and
-    the scene's output times), CSV, JSON and (with `pictures`) PNGs are written there; `progress` shows a bar.
-
-    The step's linear system is LU-factorised once (in serial for every membrane a scene allows, up to 1001²
-    nodes; on several ranks by MUMPS up to 1e3 nodes; a string on any number of ranks) and solved by CG (Jacobi
-    or AMG) otherwise (`timestepping.linear.solver_options`); `petsc_options` (checked like the scene's key, which it overrides name
-    by name) sets PETSc options for it, e.g. ``{"ksp_type": "cg", "pc_type": "jacobi"}``.
+    `petsc_options` (checked like the scene's key, which it overrides name by name) set the PETSc options of the
+    step's linear solver (`timestepping.linear.solver_options`: LU or CG), e.g. ``{"ksp_type": "cg"}``.
 
     It is a loop over a `Stepper` (the same arguments): step one yourself for control of the time loop.
 

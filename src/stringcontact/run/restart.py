@@ -19,8 +19,9 @@ def continued(scene, source, t: float | None = None):
     or the path of an output folder (or of its ``rows.npz``) holding a stored row at `t`. The scene's T, nt and
     output times become the ones left; a 1D scene (its nodal values in the order of x). ValueError, naming the stored
     times, if `source` holds no row at `t`."""
-    if hasattr(source, "core"):  # a Stepper: its state now
-        eta, v, fields, at, step = *_stepper_state(source), source.t, source.step
+    if hasattr(source, "core"):  # a Stepper: its state now, gathered in the order of `Result.x` (collective)
+        fields = {name: source.gather(np.asarray(f)[source._order]) for name, f in source.scheme.fields.items()}
+        eta, v, at, step = source.gather(source.eta), source.gather(source.velocity), source.t, source.step
     else:
         if isinstance(source, (str, Path)):
             from ..io.readback import read_output
@@ -40,9 +41,3 @@ def continued(scene, source, t: float | None = None):
         warnings.simplefilter("ignore", SceneWarning)
         return scene.replace(eta0=np.asarray(eta), v0=np.asarray(v), T=scene.T - at, nt=scene.nt - step,
                              fields0={name: np.asarray(f) for name, f in fields.items()}, output_times=left)
-
-
-def _stepper_state(st) -> tuple:
-    """A Stepper's η, v and further unknowns, gathered in the order of `Result.x` (collective)."""
-    fields = {name: st.gather(np.asarray(values)[st._order]) for name, values in st.scheme.fields.items()}
-    return st.gather(st.eta), st.gather(st.velocity), fields

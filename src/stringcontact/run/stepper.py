@@ -9,6 +9,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from ..core.stepper import TimeStepper
 from ..errors import InstabilityError, ModelError, SceneError, SolverError, one_line, plugin_code
 from ..io.result import FIELDS, Result, node_sort_key
 from ..model.interface import penetration_bound_of, reads_eps
@@ -41,12 +42,10 @@ class Stepper:
 
     It is the scene's `ContactProblem` (`problem`: the mesh, the Functions) and its `TimeStepper` (`core`), with the
     stored rows and the output folder attached as observers. `parameters` holds the model's constants:
-    ``st.parameters["k"] = 2000.0`` between steps changes one; the next `advance()` assembles the operators again
-    and books the jump of the state's energy as external work, so the balance still closes.
+    ``st.parameters["k"] = 2000.0`` between steps changes one, the jump of the state's energy booked as external work.
 
-    `fields0` starts the model's further unknowns (the scene key ``fields0``: expressions or nodal values). A restart
-    from the whole state, ``sc.continued(scene, st)`` (`run.restart`), continues the run under schemes whose state is
-    (η, v) and the fields.
+    `fields0` starts the model's further unknowns (the scene key ``fields0``); ``sc.continued(scene, st)``
+    (`run.restart`) makes the scene of the whole state now (docs/tutorial/own_time_loop.md).
 
     A run that becomes unstable raises `InstabilityError` from `advance()` with the partial Result on it
     (``exc.result``), as `simulate` does, and marks its output folder so; the stepper then refuses to go on.
@@ -57,12 +56,10 @@ class Stepper:
                  restitution: float | None = None, fields0: dict | None = None):
         storage = storage if storage is not None else Storage()
         self.output = output if output is not None else Output()
-        if fields0:  # into the scene, as its key `fields0`: the further unknowns' start
-            scene = scene.replace(fields0=dict(scene.fields0) | dict(fields0))
-        if restitution is not None:  # into the scene, as the command line's: summary.json records what ran
-            scene = scene.replace(restitution=restitution)
-        if petsc_options:
-            scene = scene.replace(petsc_options=dict(scene.petsc_options) | dict(petsc_options))
+        changes = {"fields0": dict(scene.fields0) | dict(fields0)} if fields0 else {}  # into the scene, as its keys:
+        changes |= {"restitution": restitution} if restitution is not None else {}  # summary.json records what ran
+        changes |= {"petsc_options": dict(scene.petsc_options) | dict(petsc_options)} if petsc_options else {}
+        scene = scene.replace(**changes) if changes else scene
         spec = model if model is not None else (scene.model or DEFAULT_MODEL)
         plan = adapter.check_scene_run(scene, scheme, model, comm, penalty=penalty, mass=mass)
         self.name, self.model = plan.name, plan.model
@@ -71,7 +68,7 @@ class Stepper:
         t0 = time.perf_counter()
         with plugin_code(f"model '{self.model.name}'"):  # its functions' sys.exit: one line, not exit 0
             self.problem = adapter.scene_problem(scene, self.model, comm, plan.constants)
-            self.core = adapter.scene_stepper(scene, plan, self.problem)
+            self.core = TimeStepper(self.problem, scene.dt, plan.Scheme, nt=scene.nt, **plan.options)
         self.parameters = self.core.parameters
         self.timings = {"setup": time.perf_counter() - t0}
         self.counters, self.solver = self.core.counters, {}

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import SceneError
 from . import limits, names, parameters
 from .limits import BOUNDS, DOMAIN_KEYS, INT_BOUNDS, MAX_MAGNITUDE, MAX_MEMBRANE_NODES
-from .parameters import describe, fmt
+from .parameters import describe, fmt, is_number
 
 _PETSC_NAME = re.compile(r"[a-z][a-z0-9_]{0,59}")
 _PETSC_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_+\-]{0,31}")
@@ -168,11 +168,6 @@ def check_keys(data: dict) -> None:
     if unknown:
         listed = ", ".join(repr(str(k)) for k in unknown)
         raise SceneError(f"unknown key(s) {listed}; allowed keys are {', '.join(limits.FILE_KEYS)}")
-
-
-def is_number(value) -> bool:
-    """A real number, not a bool (`nx = true` is surely a mistake)."""
-    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
 
 def number(key: str, value) -> float:

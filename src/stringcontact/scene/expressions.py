@@ -26,13 +26,13 @@ from simpleeval import SimpleEval
 
 from ..errors import SceneError, one_line
 
-__all__ = ["ALLOWED_FUNCTIONS", "ALLOWED_NAMES", "MAX_DEPTH", "MAX_LENGTH", "check", "evaluate", "uses_name"]
+__all__ = ["ALLOWED_FUNCTIONS", "ALLOWED_NAMES", "MAX_DEPTH", "MAX_LENGTH", "evaluate", "uses_name"]
 
 MAX_LENGTH = 500  # characters in one expression
 MAX_DEPTH = 50  # nesting of operators and calls; also keeps the recursive evaluator far from Python's limit
 MAX_EXPONENT = 100.0  # |b| in a**b; beyond this the result is inf/0 for any sensible base
 MAX_INT_DIGITS = 30  # integer literals; longer ones are almost surely a mistake (or an attack)
-PROBE_POINTS = 101  # the grid of `check`
+PROBE_POINTS = 101  # the grid of `Scene.probe_points` on the interval
 
 ALLOWED_NAMES = ("x", "y", "l", "h", "t", "pi")
 ALLOWED_FUNCTIONS = ("sin", "cos", "exp", "sqrt", "abs", "min", "max", "where", "piecewise")
@@ -251,11 +251,6 @@ def evaluate(expr: str, x: np.ndarray, *, field: str, names: dict[str, float], y
         raise SceneError(f"{field}: {short} is not finite (nan or inf) at {int(bad.sum())} of {bad.size} points, "
                          f"first at x={x.ravel()[first]:.6g}; check divisions, sqrt/powers of negatives and overflow")
     return value
-
-
-def check(expr: str, *, field: str, names: dict[str, float]) -> None:
-    """Validate ``expr`` by evaluating it on a grid of PROBE_POINTS over [0, l]; raises SceneError if invalid."""
-    evaluate(expr, np.linspace(0.0, float(names.get("l", 1.0)), PROBE_POINTS), field=field, names=names)
 
 
 def uses_name(expr: str, name: str) -> bool:

@@ -31,15 +31,11 @@ class SchemeNames(Mapping):
     """The registered time schemes (`stringcontact.SCHEMES`): name -> one-line description, the default first, the
     rest in alphabetical order. Iterating and ``in`` import nothing; a description imports the scheme's module."""
 
-    def _names(self) -> list[str]:
-        found = _entry_points(SCHEME_GROUP)
-        return sorted(found, key=lambda name: (name != DEFAULT_SCHEME, name))
-
     def __iter__(self):
-        return iter(self._names())
+        return iter(sorted(_entry_points(SCHEME_GROUP), key=lambda name: (name != DEFAULT_SCHEME, name)))
 
     def __len__(self) -> int:
-        return len(self._names())
+        return len(_entry_points(SCHEME_GROUP))
 
     def __contains__(self, name) -> bool:
         return isinstance(name, str) and name in _entry_points(SCHEME_GROUP)

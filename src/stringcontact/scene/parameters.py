@@ -35,9 +35,14 @@ def describe(value) -> str:
     return f"{type(value).__name__} {text[:40] + '...' if len(text) > 40 else text}"
 
 
+def is_number(value) -> bool:
+    """A real number, not a bool (`nx = true` is surely a mistake)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
 def check_number(name: str, value, allowed: str, inside=lambda v: True) -> float:
     """`value` as a float if a finite number (not a bool) for which `inside` holds, else a one-line `SceneError`."""
-    if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+    if not is_number(value):
         raise SceneError(f"{name}: expected a number, got {describe(value)}; allowed: {allowed}")
     try:
         v = float(value)

@@ -247,21 +247,17 @@ class Scene:
     @classmethod
     def from_dict(cls, data: dict, *, source: str | None = None, default_name: str | None = None) -> Scene:
         """Build a scene from file keys: checks, defaults, warnings; ``source`` prefixes the messages."""
-        return cls._from_dict(data, source, default_name, warn=True)
-
-    @classmethod
-    def _from_dict(cls, data: dict, source, default_name, warn: bool) -> Scene:
         label = source if source is not None else str(data.get("name", default_name or "scene"))
         try:
             data = _top_level_constants(dict(data), data.get("model"), label)
             data, options, top = _scheme_table(data)
             scene = _build(data, default_name=default_name, options=options)
             _warn_doubtful(scene, label)
-            if top and warn:  # once the scene is valid: a refused one says one line only
+            if top:  # once the scene is valid: a refused one says one line only
                 many = len(top) > 1
                 warnings.warn(f"scene {label!r}: {', '.join(top)} at the top level: the scheme's option"
                               f"{'s' if many else ''}; write {'them' if many else 'it'} in the [scheme] table",
-                              SceneWarning, stacklevel=3)
+                              SceneWarning, stacklevel=2)
         except SceneError as exc:
             raise SceneError(f"scene {label!r}: {exc}") from None
         return scene
@@ -301,7 +297,7 @@ class Scene:
             table = dict(new) if isinstance(new, dict) else table | {"name": new}
         table |= {key: changes.pop(key) for key in SCHEME_KEYS_AT_TOP if key in changes}  # scene.replace(eps=...)
         data |= changes | {"scheme": {k: v for k, v in table.items() if v is not None} or None}
-        return Scene._from_dict({k: v for k, v in data.items() if v is not None}, self.name, None, warn=False)
+        return Scene.from_dict({k: v for k, v in data.items() if v is not None}, source=self.name)  # eps: in [scheme]
 
 
 def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
@@ -322,7 +318,7 @@ def _top_level_constants(data: dict, model, label: str, table=()) -> dict:
         merged[key] = data[key]
     warnings.warn(f"scene {label!r}: {', '.join(moved)} at the top level of a scene is deprecated; put "
                   f"{'it' if len(moved) == 1 else 'them'} in the [parameters] table (model {model!r})",
-                  SceneWarning, stacklevel=4)
+                  SceneWarning, stacklevel=3)
     return {k: v for k, v in data.items() if k not in moved} | {"parameters": merged}
 
 
@@ -377,12 +373,10 @@ def _ends(data: dict, length: float) -> dict:
     if not need:
         return {}
     eta0 = checks.initial_data("eta0", data["eta0"])
-    if isinstance(eta0, tuple):
-        ends = (eta0[0], eta0[-1])
-    else:
-        expressions.check(eta0, field="eta0", names={"l": length})
-        ends = expressions.evaluate(eta0, np.array([0.0, length]), field="eta0", names={"l": length})
-    return {key: float(end) for key, end in zip(("h_left", "h_right"), ends) if key in need}
+    if not isinstance(eta0, tuple):  # on the probe grid: an expression not finite inside is refused first
+        eta0 = expressions.evaluate(eta0, np.linspace(0.0, length, expressions.PROBE_POINTS), field="eta0",
+                                    names={"l": length})
+    return {key: float(end) for key, end in zip(("h_left", "h_right"), (eta0[0], eta0[-1])) if key in need}
 
 
 def _warn_doubtful(scene: Scene, label: str) -> None:
@@ -401,9 +395,9 @@ def _warn_doubtful(scene: Scene, label: str) -> None:
                     ("eta0 < obstacle", f"min eta0 - obstacle {gap[i]:.6g}"))
         where = f"x={x[i]:.6g}" if x.ndim == 1 else f"x={x[i, 0]:.6g}, y={x[i, 1]:.6g}"
         warnings.warn(f"scene {label!r}: eta0 is below the obstacle ({what}) at {int((gap < 0).sum())} of {len(x)} "
-                      f"nodes ({at} at {where}); used as given", SceneWarning, stacklevel=4)
+                      f"nodes ({at} at {where}); used as given", SceneWarning, stacklevel=3)
     if scene.dim == 1:  # a membrane's boundary is held at h, by default eta0 there
         for key, end, at in (("h_left", eta[0], 0.0), ("h_right", eta[-1], scene.length)):
             if not checks.close(value := getattr(scene, key), end):
                 warnings.warn(f"scene {label!r}: {key} = {checks.fmt(value)} differs from eta0 at x={checks.fmt(at)} "
-                              f"({end:.6g}); the end is held at {key}", SceneWarning, stacklevel=4)
+                              f"({end:.6g}); the end is held at {key}", SceneWarning, stacklevel=3)
