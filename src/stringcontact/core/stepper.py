@@ -265,12 +265,13 @@ class TimeStepper:
                               f"use a smaller dt (nt >= {(self.nt or 1) * 2**MAX_HALVINGS})"
                               + ("" if self.name == "paper" else " or scheme 'paper'")) from None
 
-    def _restarted(self, dt: float, state=None):
-        """A new scheme at `dt` on the same operators, started from `state` (default: the current one)."""
+    def _restarted(self, dt: float, state=None, ops=None):
+        """A new scheme at `dt` on the operators `ops` (default: the same), started from `state` (default: the
+        current one)."""
         scheme = self.scheme
         eta, v, fields = state or _state(scheme)
         self.past_timings.append(scheme.timings)
-        self.discrete = self._discrete(self.discrete.ops, dt, fields)
+        self.discrete = self._discrete(ops or self.discrete.ops, dt, fields)
         fresh = self.Scheme(self.discrete)
         self._restart_terms = fresh.start(eta, v)
         return fresh
@@ -296,13 +297,10 @@ class TimeStepper:
 
     def _rebuild(self) -> None:
         """A constant changed: operators and scheme again from the state, the energy jump booked as external work."""
-        old = self.scheme
-        eta, v, fields = _state(old)
+        eta, v, _ = state = _state(self.scheme)
         ops = self.problem.reassemble(not self.Scheme.LINEAR_PATH, lambda: (eta, v))
-        self.past_timings.append(old.timings)
-        self.discrete = self._discrete(ops, self._dt, fields)
-        self.scheme = self.Scheme(self.discrete)
-        self.ledger.rebase(self.scheme.start(eta, v))
+        self.scheme = self._restarted(self._dt, state, ops)
+        self.ledger.rebase(self._restart_terms)
         self.parameters.changed = False
 
     def _unstable(self, why: str) -> InstabilityError:

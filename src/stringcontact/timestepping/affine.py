@@ -47,6 +47,14 @@ def _functions(form) -> set:
     return {c for c in ufl.algorithms.extract_coefficients(form) if isinstance(c, fem.Function)}
 
 
+def assemble_into(vec: PETSc.Vec, assemble) -> None:
+    """`assemble(vec)` into `vec` zeroed, the ghosts' contributions added to their owners."""
+    with vec.localForm() as local:
+        local.set(0.0)
+    assemble(vec)
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+
+
 def affine_in(form, unknowns) -> bool:
     """Whether `form` is affine in the Functions `unknowns` with constant coefficients: its derivative along each
     reads no Function (neither an unknown nor a scene field that may move with time)."""
@@ -88,8 +96,7 @@ def _as_slice(idx):
 
 class AffineResidual:
     """A residual affine in its unknowns, R(U, U_t, U_tt, 0; W) = A U + B U_t + M U_tt + r₀, by its constant
-    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0); `apply` evaluates it by
-    mat-vecs. With `lumped` η's own U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again
+    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0). With `lumped` η's own U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again
     only when it reads a scene field (a load, an obstacle that moves)."""
 
     def __init__(self, form, lumped: bool):
@@ -103,7 +110,6 @@ class AffineResidual:
         if not (lumped and form.eta_dofs is None):
             parts["eta_tt"] = _derivative(R_tt, form.eta_tt)
         self.matrices = {name: A for name, a in parts.items() if (A := _assembled(a)) is not None}
-        self.vecs = {name: A.createVecs() for name, A in self.matrices.items()}
         shape = form.eta.ufl_shape
         r0 = ufl.algorithms.expand_derivatives(
             ufl.replace(R, {f: ufl.zero(*shape) for f in (form.eta, form.eta_t, form.eta_tt)}))
@@ -115,29 +121,14 @@ class AffineResidual:
             self._assemble_r0()
 
     def _assemble_r0(self) -> None:
-        vec = self.r0_vec
-        with vec.localForm() as local:
-            local.set(0.0)
-        fem.petsc.assemble_vector(vec, self.r0_form)
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.r0[:] = vec.array
+        assemble_into(self.r0_vec, lambda vec: fem.petsc.assemble_vector(vec, self.r0_form))
+        self.r0[:] = self.r0_vec.array
 
     def constant(self) -> np.ndarray:
         """r₀ (assembled again when it reads a scene field)."""
         if self.moving:
             self._assemble_r0()
         return self.r0
-
-    def apply(self, values: dict, out: np.ndarray) -> np.ndarray:
-        """R at `values` (owned arrays by placeholder name; a missing one counts as 0) into `out`."""
-        out[:] = self.constant()
-        for name, A in self.matrices.items():
-            if name in values:
-                x, y = self.vecs[name]
-                x.array[:] = values[name]  # (a number broadcast)
-                A.mult(x, y)
-                out += y.array
-        return out
 
 
 def _component_columns(A: PETSc.Mat, component: int, k: int) -> PETSc.Mat | None:
@@ -385,10 +376,16 @@ class LinearPath:
         on the linear path the others are the root of their rows with η = η0, η_t = v0 and their own rates 0, as every
         level the scheme starts from (E(0) and the first row hold them). The Newton path starts them at 0."""
         if self.linear is not None and self._held_rows() is not None:
-            rate = np.zeros(self.N)
-            rate[self.at] = v0
             b = self.held_b.array
-            np.negative(self.linear.apply({"eta_t": rate}, self.work), out=b)
+            b[:] = self.linear.constant()
+            if "eta_t" in self.linear.matrices:  # + ∂R/∂U_t (v0 on η's dofs, 0 on the fields')
+                A = self.linear.matrices["eta_t"]
+                rate, y = A.createVecs()
+                rate.set(0.0)
+                rate.array[self.at] = v0
+                A.mult(rate, y)
+                b += y.array
+            np.negative(b, out=b)
             b[self.held_rows] = 0.0
             b[self.at] = eta0
             self.held.solve(self.held_b, self.x)

@@ -25,7 +25,7 @@ from ..errors import SolverError
 from ..fem import compat
 from ..fem.packed import PackedForm
 from ..fem.powers import powers_as_products
-from .affine import LinearPath, _as_slice, affine_in
+from .affine import LinearPath, _as_slice, affine_in, assemble_into
 from .base import Ranks, StepEnergy, petsc_vector
 from .base import Scheme as Base
 from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
@@ -234,9 +234,9 @@ class NewtonStep(LinearPath):
         self._set(self.u, self._full(u, self.levels[3]))
         if form is None:
             self.G.refresh(self.u)
-            _assemble(self.work_vec, self.G.assemble_vector)
+            assemble_into(self.work_vec, self.G.assemble_vector)
         else:
-            _assemble(self.work_vec, lambda vec: fem.petsc.assemble_vector(vec, form))
+            assemble_into(self.work_vec, lambda vec: fem.petsc.assemble_vector(vec, form))
         r = self.work_vec.array[self.idx].copy()
         if self.lumped:
             r += self.problem.ops.m * self.q["eta_tt"](u, *self.arrays, self.problem.dt)
@@ -282,7 +282,7 @@ class NewtonStep(LinearPath):
         u = x.array_r
         self._set(self.u, u)
         self.G.refresh(self.u)
-        _assemble(G, self.G.assemble_vector)
+        assemble_into(G, self.G.assemble_vector)
         g = G.array
         nodal = self.nodal_slope * u[self.idx]
         nodal -= self.nodal_known
@@ -355,9 +355,7 @@ class NewtonStep(LinearPath):
         last solution touched no bound (SNES VI refactorises at every iteration: 2.2 of a 3.5 ms step at nx = 5000)."""
         self.age += 1
         # G's nodal terms, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known (the linear path's
-        # slope is on its J)
-        if self.linear is None:
-            self.nodal_slope[:] = self.d + self.m_tt
+        # slope is on its J; SNES's is set below)
         self.nodal_known[:] = self.d * self.c + self.f
         if self.lumped:
             self.nodal_known -= self.problem.ops.m * self.q["eta_tt"](0.0, *self.arrays, self.problem.dt)
@@ -374,8 +372,7 @@ class NewtonStep(LinearPath):
             for snes in (self.snes, self.free) if self.free is not None else (self.snes,):
                 snes.setTolerances(atol=floor)
         self._sync()
-        if self.linear is not None:
-            self.nodal_slope[:] = self.d + self.m_tt
+        self.nodal_slope[:] = self.d + self.m_tt
         if self.known:  # the known levels and any field that moved with the step (an obstacle ψ(x, t))
             self.G.refresh(*self.known)
         self.stale = False  # SNES's residual in G_vec
@@ -475,14 +472,6 @@ class NewtonStep(LinearPath):
         return counts | {"nonlinear solver": how} | fallback
 
 
-def _assemble(vec: PETSc.Vec, assemble) -> None:
-    """`assemble(vec)` into `vec` zeroed, the ghosts' contributions added to their owners."""
-    with vec.localForm() as local:
-        local.set(0.0)
-    assemble(vec)
-    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-
-
 def _without_dissipative(problem, q_eta, k: int) -> dict:
     """The model's dissipative fields (`Model.dissipative_fields`) at 0 in η's value: their work on η is then
     in the viscous work, as the η_t-dependent terms' (a lubricating fluid's)."""
@@ -508,6 +497,22 @@ class _NewtonScheme(Base):
         self.inv_mF = np.divide(1.0, m_force, out=np.zeros(n), where=m_force > 0)  # 0 where no force acts (the ends)
         self.force_density = np.zeros(n)
         self.moving, self.k = problem.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
+
+    @property
+    def eta(self):
+        """η^n at this rank's nodes."""
+        return self.eta_
+
+    @property
+    def velocity(self):
+        """The scheme's velocity v^n at this rank's nodes (the backward quotient (η^n − η^{n−1})/Δt, or Newmark's)."""
+        return self.v
+
+    @property
+    def contact_force(self):
+        """The contact force density at this rank's nodes: the one the next step applies (explicit penalty), the
+        one the last step applied (semi-implicit)."""
+        return self.force_density
 
     @property
     def fields(self) -> dict:
