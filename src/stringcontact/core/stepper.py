@@ -266,8 +266,7 @@ class TimeStepper:
                               + ("" if self.name == "paper" else " or scheme 'paper'")) from None
 
     def _restarted(self, dt: float, state=None, ops=None):
-        """A new scheme at `dt` on the operators `ops` (default: the same), started from `state` (default: the
-        current one)."""
+        """A new scheme at `dt` on `ops` (default: the same operators), started from `state` (default: the current)."""
         scheme = self.scheme
         eta, v, fields = state or _state(scheme)
         self.past_timings.append(scheme.timings)
@@ -277,8 +276,8 @@ class TimeStepper:
         return fresh
 
     def _substeps(self, eta, v, fields, m: int):
-        """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the fine start's
-        terms, the step's, the restart's."""
+        """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the terms of the fine
+        start, of the step and of the restart."""
         coarse = self.discrete
         fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields), nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)

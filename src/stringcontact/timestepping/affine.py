@@ -132,8 +132,8 @@ class AffineResidual:
 
 
 def _component_columns(A: PETSc.Mat, component: int, k: int) -> PETSc.Mat | None:
-    """A's columns of one component of a blocked space of block size k (column j is component j mod k), as an AIJ
-    matrix of A's shape; None if it has none."""
+    """A's columns of component `component` of a blocked space (column j is component j mod k), as an AIJ matrix of
+    A's shape; None if it has none."""
     if k == 1:
         return A
     keep = A.getValuesCSR()[1] % k == component
@@ -193,8 +193,7 @@ class LevelTerms:
     def _sum(self, out: np.ndarray, levels: list, products: list, terms: list, which, own: bool,
              rows=slice(None)) -> np.ndarray:
         """Σ over `terms` of a_i × M_j level_i for i in `which` (0: u, 1: e0, 2: em, 3: v0) into `out` (its `rows`
-        only). `own`: the terms are the stacked ones, whose products of u, e0, em come from `products` (computed
-        when None)."""
+        only). `own`: the stacked terms, their products of u, e0, em from `products` (computed when None)."""
         N = self.N
         for j, (M, a, _) in enumerate(terms):
             for i in which:
@@ -309,8 +308,7 @@ class LinearPath:
         return self._full(self.arrays[i - 1], self.levels[i - 1])
 
     def _at(self, u: np.ndarray) -> tuple[list, list]:
-        """The levels at u (η's owned values) and the products known for them: u's own when u is the solution the
-        last solve returned."""
+        """The levels at u (η's owned values) and their known products: u's own if the last solve returned u."""
         if u is self.returned:
             values, products = self.solutions[0]
         else:
@@ -330,8 +328,7 @@ class LinearPath:
         return None
 
     def _solve_linear(self, guess: np.ndarray) -> None:
-        """The step's root into `x` by one solve: J u = −(G(0) without its nodal terms) + their known part, the ends
-        at their heights."""
+        """The step's root into `x` by one solve: J u = −(G(0) without its nodal terms) + their known part."""
         rhs = self.rhs.array
         np.negative(self.terms.known(_Levels(self, None), [None, *self.level_products], self.work), out=rhs)
         rhs[self.at] += self.nodal_known
@@ -400,8 +397,7 @@ class LinearPath:
 
     def eta_stiffness(self) -> PETSc.Mat | None:
         """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of A = ∂R/∂U
-        (K + βKM⁻¹K for a field of η's second derivative), as a shell on η's dofs; None off the linear path or for one
-        field."""
+        (K + βKM⁻¹K for a field of η's second derivative), a shell on η's dofs; None off the linear path or alone."""
         if self.linear is None or self._held_rows() is None:
             return None
         n = self.n

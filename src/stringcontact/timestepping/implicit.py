@@ -66,8 +66,7 @@ class ImplicitScheme(_NewtonScheme):
         self.older = None
 
     def _penalty_law(self, problem):
-        """The model's contact law for the scene's penalty, compiled; refused if the model has none, warned (or
-        refused) by the law's own bound on Δt/ε."""
+        """The model's contact law for the penalty, compiled; refused if missing, checked by its bound on Δt/ε."""
         laws = problem.laws
         if problem.penalty == "semi-implicit" and laws.model.penalty_damping is None:
             raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")

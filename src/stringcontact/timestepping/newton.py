@@ -253,8 +253,7 @@ class NewtonStep(LinearPath):
         return r
 
     def viscous_force(self, u: np.ndarray) -> np.ndarray:
-        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
-        ∂R/∂η_t is constant, else two assemblies."""
+        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) if ∂R/∂η_t is constant."""
         if self.problem.ops.nonlinear.viscous_linear:
             if self.viscous_vecs is None:
                 self.viscous_vecs = self.problem.ops.C.createVecs()
@@ -267,8 +266,7 @@ class NewtonStep(LinearPath):
         return self.residual_at(u) - self.residual_at(u, self.G_static_form)
 
     def stored_energy(self, eta: np.ndarray) -> float:
-        """∫Π(η) on this rank's cells (the caller sums over the ranks); several fields: ∫Π(η, *fields), the fields
-        of the last solve."""
+        """∫Π(η) on this rank's cells (the caller sums over the ranks); ∫Π(η, *fields) with the last solve's fields."""
         if self.quadratic is not None:
             levels, products = self._at(eta)
             return self.terms.stored(levels[0], products[0])
@@ -333,8 +331,7 @@ class NewtonStep(LinearPath):
         return self.chord
 
     def _update_damping(self, J) -> None:
-        """A kept J with the step's damping d on its diagonal: the change since J was assembled, added (a new
-        factor then, but no assembly)."""
+        """A kept J with the step's damping d on its diagonal: the change since its assembly added (no assembly)."""
         change = self.d - self.d_in_J
         if not self.anyrank(bool(np.any(change))):
             return
@@ -413,8 +410,8 @@ class NewtonStep(LinearPath):
         return exc
 
     def _run(self, snes, guess: np.ndarray, fresh_only: bool = False) -> int:
-        """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray (or only so,
-        `fresh_only`); its converged reason."""
+        """SNES's converged reason from `guess`, solved again with fresh Js if a kept J led it astray (`fresh_only`:
+        only so)."""
         x = self.x.array
         for fresh in (True,) if fresh_only else (False, True):
             x[:] = self._full(guess, self.levels[3])

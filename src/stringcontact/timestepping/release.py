@@ -60,8 +60,7 @@ class ContactAccount:
         return self.balance + step < -ACCOUNT_ROUNDOFF * (self.turnover + np.abs(step))
 
     def deficit(self, step: np.ndarray, allsum) -> float:
-        """How far `step` would take the accounts together below 0, beyond round-off (≤ 0: they cover it); `allsum`
-        sums over the ranks."""
+        """How far `step` would take the accounts together below 0 beyond round-off (≤ 0: covered; `allsum`: ranks)."""
         total, turnover, change = allsum(float(self.balance.sum()), float(self.turnover.sum()), float(step.sum()))
         return -(total + change) - ACCOUNT_ROUNDOFF * (turnover + abs(change))
 
@@ -95,8 +94,7 @@ class MasslessRelease:
         self.rhs_vec = petsc_vector(self.rhs, problem.comm)
 
     def _contact_step(self, S: np.ndarray) -> ActiveSet:
-        """The `ActiveSet` of A with the rows of S replaced by K + C/Δt (made once per set); the scheme's own when S
-        is empty."""
+        """The `ActiveSet` of A with S's rows replaced by K + C/Δt (made once per set); the scheme's own for S empty."""
         if not self.ranks.any(bool(S.any())):
             return self.scheme.contact_step
         key = S.tobytes() if self.problem.comm.size == 1 else tuple(self.problem.comm.allgather(S.tobytes()))
