@@ -96,8 +96,8 @@ def _as_slice(idx):
 
 class AffineResidual:
     """A residual affine in its unknowns, R(U, U_t, U_tt, 0; W) = A U + B U_t + M U_tt + r₀, by its constant
-    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0). With `lumped` η's own U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again
-    only when it reads a scene field (a load, an obstacle that moves)."""
+    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0). With `lumped` η's own
+    U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again when it reads a scene field."""
 
     def __init__(self, form, lumped: bool):
         zero = ufl.zero()
