@@ -265,8 +265,7 @@ class QuadraticEnergy:
 
 
 class LinearPath:
-    """`NewtonStep`'s linear path, for a residual affine in its unknowns (`affine_in`): the Jacobian assembled and
-    factorised once, a step one back-substitution with its known part from products (`LevelTerms`), the other
+    """`NewtonStep`'s linear path for a residual affine in its unknowns (`affine_in`, `_linear_path`), the other
     fields started from η0 (`start_fields`), η's stiffness with the fields eliminated (`eta_stiffness`)."""
 
     def _linear_path(self) -> None:

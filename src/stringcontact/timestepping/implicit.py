@@ -29,8 +29,7 @@ from .newton import NewtonStep, _NewtonScheme, kinetic_energy
 
 def acceleration(problem, eta: np.ndarray, v: np.ndarray) -> np.ndarray:
     """M_L⁻¹(b − Kη − Cv) on this rank's nodes, 0 at the held ones: a linear model's acceleration at (η, v) without
-    contact, from ``problem.ops`` (`fem.operators.Operators`: K, C PETSc matrices on the owned dofs, m the lumped mass
-    and load b NumPy arrays)."""
+    contact, from ``problem.ops`` (`fem.operators.Operators`: K, C on the owned dofs, the lumped mass m, the load b)."""
     return net_force(problem, eta, v) / problem.ops.m * problem.interior
 
 

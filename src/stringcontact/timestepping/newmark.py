@@ -30,9 +30,8 @@ NEWMARK = {
 
 
 class NewmarkScheme(_NewtonScheme):
-    """The trapezoidal rule: the linear path (the module docstring's matrix, refactorised when the active set
-    changes) for a linear model, the Newton path for a nonlinear one, with one damping law, one release of held
-    nodes and one bookkeeping of a moving obstacle's work for both."""
+    """The trapezoidal rule: the linear path (the module docstring's matrix) for a linear model, the Newton path for
+    a nonlinear one, with one damping law, release of held nodes and bookkeeping of a moving obstacle for both."""
 
     DESCRIPTION = "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set"
     OPTIONS = (penalty_option("semi-implicit"), mass_option("lumped", "consistent"), EPS, PETSC_OPTIONS)

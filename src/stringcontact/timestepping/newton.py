@@ -514,8 +514,7 @@ class _NewtonScheme(Base):
     @property
     def fields(self) -> dict:
         """A model's other fields (`Model.fields`) by name at η's owned nodes, from the last solve ({} for one field
-        and on a scheme's own linear path). `projection` solves one step ahead of the η it reports, so its fields
-        are a step ahead (a model may refuse it: `Model.schemes`)."""
+        and on a scheme's own linear path): a step ahead in `projection` (a model may refuse it: `Model.schemes`)."""
         if self.newton is None:
             return {}
         return {name: self.newton.field(i + 1) for i, name in enumerate(self.problem.laws.model.fields)}

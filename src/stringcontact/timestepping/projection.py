@@ -50,9 +50,8 @@ PROJECTION = {
 
 
 class ProjectionScheme(_NewtonScheme):
-    """The ε-free scheme: the linear path (A = M/Δt² + C/Δt factorised once, each step `complementarity.ActiveSet`)
-    for a linear model, the Newton path (SNES VI) for a nonlinear one; one obstacle, one stability check, one
-    bookkeeping of the levels for both (the module docstring)."""
+    """The ε-free scheme (the module docstring): the linear path (A = M/Δt² + C/Δt factorised once, each step
+    `complementarity.ActiveSet`) for a linear model, the Newton path (SNES VI) for a nonlinear one."""
 
     DESCRIPTION = "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)"
     OPTIONS = (mass_option("lumped"), RESTITUTION, PETSC_OPTIONS)
