@@ -76,8 +76,7 @@ class EnergyLedger:
 
     @property
     def cumulative(self) -> tuple:
-        """(kinetic, elastic, viscous, contact, numerical, external, internal) now: the energies and the dissipations
-        so far (`io.result.ENERGY_KEYS`)."""
+        """(kinetic, elastic, viscous, contact, numerical, external, internal) so far (`io.result.ENERGY_KEYS`)."""
         return self.kin, self.el, self.visc, self.con, self.num, self.ext, sum(self.internal.values())
 
     @property

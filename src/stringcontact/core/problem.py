@@ -1,5 +1,4 @@
-"""`ContactProblem`: a model on the caller's own P1 space, with the caller's Functions, boundary conditions, fields and
-obstacle; what a `TimeStepper` advances."""
+"""`ContactProblem`: a model on the caller's P1 space, Functions, boundary conditions, fields and obstacle."""
 
 from __future__ import annotations
 
@@ -111,9 +110,8 @@ class ContactProblem:
         return {name: np.array(self.unknowns[name].x.array[: self.n_owned]) for name in sorted(self.given)}
 
     def operators(self, residual: bool = False, state=None) -> Operators:
-        """The model's semi-discrete operators on the space (`fem.operators.semi_discrete_operators`), assembled once
-        (per `residual`: with the residual for the Newton path); `state` gives (η, v) where a form singular at 0 is
-        linearised (default: the initial state)."""
+        """The model's semi-discrete operators (`fem.operators.semi_discrete_operators`), assembled once per `residual`
+        (with the residual: the Newton path); a form singular at 0 is linearised at `state`'s (η, v) (default: η⁰)."""
         if residual not in self._operators:
             self._operators[residual] = semi_discrete_operators(self.model, self.V, self.params, residual,
                                                                 state or self.initial_state)
@@ -125,8 +123,7 @@ class ContactProblem:
         return self.operators(residual, state)
 
     def obstacle_values(self, t: float) -> np.ndarray:
-        """ψ at every dof (owned, then ghosts) at the time t: the moving obstacle's, the static ``obstacle`` field's,
-        or 0."""
+        """ψ at every dof (owned, then ghosts) at the time t: the moving obstacle's, the ``obstacle`` field's, or 0."""
         if self.obstacle is not None:
             return np.asarray(self.obstacle(self.dof_x, t), dtype=float)
         if "obstacle" in self.params.extra:

@@ -265,19 +265,19 @@ class TimeStepper:
                               f"use a smaller dt (nt >= {(self.nt or 1) * 2**MAX_HALVINGS})"
                               + ("" if self.name == "paper" else " or scheme 'paper'")) from None
 
-    def _restarted(self, dt: float, state=None):
-        """A new scheme at `dt` on the same operators, started from `state` (default: the current one)."""
+    def _restarted(self, dt: float, state=None, ops=None):
+        """A new scheme at `dt` on `ops` (default: the same operators), started from `state` (default: the current)."""
         scheme = self.scheme
         eta, v, fields = state or _state(scheme)
         self.past_timings.append(scheme.timings)
-        self.discrete = self._discrete(self.discrete.ops, dt, fields)
+        self.discrete = self._discrete(ops or self.discrete.ops, dt, fields)
         fresh = self.Scheme(self.discrete)
         self._restart_terms = fresh.start(eta, v)
         return fresh
 
     def _substeps(self, eta, v, fields, m: int):
-        """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the fine start's
-        terms, the step's, the restart's."""
+        """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the terms of the fine
+        start, of the step and of the restart."""
         coarse = self.discrete
         fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields), nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)
@@ -296,13 +296,10 @@ class TimeStepper:
 
     def _rebuild(self) -> None:
         """A constant changed: operators and scheme again from the state, the energy jump booked as external work."""
-        old = self.scheme
-        eta, v, fields = _state(old)
+        eta, v, _ = state = _state(self.scheme)
         ops = self.problem.reassemble(not self.Scheme.LINEAR_PATH, lambda: (eta, v))
-        self.past_timings.append(old.timings)
-        self.discrete = self._discrete(ops, self._dt, fields)
-        self.scheme = self.Scheme(self.discrete)
-        self.ledger.rebase(self.scheme.start(eta, v))
+        self.scheme = self._restarted(self._dt, state, ops)
+        self.ledger.rebase(self._restart_terms)
         self.parameters.changed = False
 
     def _unstable(self, why: str) -> InstabilityError:

@@ -78,9 +78,6 @@ def check_restitution(name: str, restitution: float, Scheme: type | None = None)
                          f"only scheme {' or '.join(repr(t) for t in takers)} does")
 
 
-__all__ = ["SCHEMES", "check_model", "check_restitution", "resolve_scheme", "scheme_class"]
-
-
 def resolve_options(name: str, Scheme: type, given: dict) -> dict:
     """The scheme's options (`Scheme.OPTIONS`) from `given` (None: not given), defaults filled in, each checked: a
     one-line ValueError/SceneError naming the option and what the scheme takes. An ``eps`` given to a scheme without
@@ -107,4 +104,4 @@ def resolve_options(name: str, Scheme: type, given: dict) -> dict:
     return values
 
 
-__all__ += ["resolve_options"]
+__all__ = ["SCHEMES", "check_model", "check_restitution", "resolve_options", "resolve_scheme", "scheme_class"]

@@ -47,6 +47,14 @@ def _functions(form) -> set:
     return {c for c in ufl.algorithms.extract_coefficients(form) if isinstance(c, fem.Function)}
 
 
+def assemble_into(vec: PETSc.Vec, assemble) -> None:
+    """`assemble(vec)` into `vec` zeroed, the ghosts' contributions added to their owners."""
+    with vec.localForm() as local:
+        local.set(0.0)
+    assemble(vec)
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+
+
 def affine_in(form, unknowns) -> bool:
     """Whether `form` is affine in the Functions `unknowns` with constant coefficients: its derivative along each
     reads no Function (neither an unknown nor a scene field that may move with time)."""
@@ -88,9 +96,8 @@ def _as_slice(idx):
 
 class AffineResidual:
     """A residual affine in its unknowns, R(U, U_t, U_tt, 0; W) = A U + B U_t + M U_tt + r₀, by its constant
-    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0); `apply` evaluates it by
-    mat-vecs. With `lumped` η's own U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again
-    only when it reads a scene field (a load, an obstacle that moves)."""
+    matrices (``matrices``: "eta", "eta_t", "eta_tt", assembled once) and r₀ = R(0, 0, 0, 0). With `lumped` η's own
+    U_tt column is left out (the schemes lump η's inertia); r₀ is assembled again when it reads a scene field."""
 
     def __init__(self, form, lumped: bool):
         zero = ufl.zero()
@@ -103,7 +110,6 @@ class AffineResidual:
         if not (lumped and form.eta_dofs is None):
             parts["eta_tt"] = _derivative(R_tt, form.eta_tt)
         self.matrices = {name: A for name, a in parts.items() if (A := _assembled(a)) is not None}
-        self.vecs = {name: A.createVecs() for name, A in self.matrices.items()}
         shape = form.eta.ufl_shape
         r0 = ufl.algorithms.expand_derivatives(
             ufl.replace(R, {f: ufl.zero(*shape) for f in (form.eta, form.eta_t, form.eta_tt)}))
@@ -115,12 +121,8 @@ class AffineResidual:
             self._assemble_r0()
 
     def _assemble_r0(self) -> None:
-        vec = self.r0_vec
-        with vec.localForm() as local:
-            local.set(0.0)
-        fem.petsc.assemble_vector(vec, self.r0_form)
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.r0[:] = vec.array
+        assemble_into(self.r0_vec, lambda vec: fem.petsc.assemble_vector(vec, self.r0_form))
+        self.r0[:] = self.r0_vec.array
 
     def constant(self) -> np.ndarray:
         """r₀ (assembled again when it reads a scene field)."""
@@ -128,21 +130,10 @@ class AffineResidual:
             self._assemble_r0()
         return self.r0
 
-    def apply(self, values: dict, out: np.ndarray) -> np.ndarray:
-        """R at `values` (owned arrays by placeholder name; a missing one counts as 0) into `out`."""
-        out[:] = self.constant()
-        for name, A in self.matrices.items():
-            if name in values:
-                x, y = self.vecs[name]
-                x.array[:] = values[name]  # (a number broadcast)
-                A.mult(x, y)
-                out += y.array
-        return out
-
 
 def _component_columns(A: PETSc.Mat, component: int, k: int) -> PETSc.Mat | None:
-    """A's columns of one component of a blocked space of block size k (column j is component j mod k), as an AIJ
-    matrix of A's shape; None if it has none."""
+    """A's columns of component `component` of a blocked space (column j is component j mod k), as an AIJ matrix of
+    A's shape; None if it has none."""
     if k == 1:
         return A
     keep = A.getValuesCSR()[1] % k == component
@@ -202,8 +193,7 @@ class LevelTerms:
     def _sum(self, out: np.ndarray, levels: list, products: list, terms: list, which, own: bool,
              rows=slice(None)) -> np.ndarray:
         """Σ over `terms` of a_i × M_j level_i for i in `which` (0: u, 1: e0, 2: em, 3: v0) into `out` (its `rows`
-        only). `own`: the terms are the stacked ones, whose products of u, e0, em come from `products` (computed
-        when None)."""
+        only). `own`: the stacked terms, their products of u, e0, em from `products` (computed when None)."""
         N = self.N
         for j, (M, a, _) in enumerate(terms):
             for i in which:
@@ -275,8 +265,7 @@ class QuadraticEnergy:
 
 
 class LinearPath:
-    """`NewtonStep`'s linear path, for a residual affine in its unknowns (`affine_in`): the Jacobian assembled and
-    factorised once, a step one back-substitution with its known part from products (`LevelTerms`), the other
+    """`NewtonStep`'s linear path for a residual affine in its unknowns (`affine_in`, `_linear_path`), the other
     fields started from η0 (`start_fields`), η's stiffness with the fields eliminated (`eta_stiffness`)."""
 
     def _linear_path(self) -> None:
@@ -318,8 +307,7 @@ class LinearPath:
         return self._full(self.arrays[i - 1], self.levels[i - 1])
 
     def _at(self, u: np.ndarray) -> tuple[list, list]:
-        """The levels at u (η's owned values) and the products known for them: u's own when u is the solution the
-        last solve returned."""
+        """The levels at u (η's owned values) and their known products: u's own if the last solve returned u."""
         if u is self.returned:
             values, products = self.solutions[0]
         else:
@@ -339,8 +327,7 @@ class LinearPath:
         return None
 
     def _solve_linear(self, guess: np.ndarray) -> None:
-        """The step's root into `x` by one solve: J u = −(G(0) without its nodal terms) + their known part, the ends
-        at their heights."""
+        """The step's root into `x` by one solve: J u = −(G(0) without its nodal terms) + their known part."""
         rhs = self.rhs.array
         np.negative(self.terms.known(_Levels(self, None), [None, *self.level_products], self.work), out=rhs)
         rhs[self.at] += self.nodal_known
@@ -385,10 +372,16 @@ class LinearPath:
         on the linear path the others are the root of their rows with η = η0, η_t = v0 and their own rates 0, as every
         level the scheme starts from (E(0) and the first row hold them). The Newton path starts them at 0."""
         if self.linear is not None and self._held_rows() is not None:
-            rate = np.zeros(self.N)
-            rate[self.at] = v0
             b = self.held_b.array
-            np.negative(self.linear.apply({"eta_t": rate}, self.work), out=b)
+            b[:] = self.linear.constant()
+            if "eta_t" in self.linear.matrices:  # + ∂R/∂U_t (v0 on η's dofs, 0 on the fields')
+                A = self.linear.matrices["eta_t"]
+                rate, y = A.createVecs()
+                rate.set(0.0)
+                rate.array[self.at] = v0
+                A.mult(rate, y)
+                b += y.array
+            np.negative(b, out=b)
             b[self.held_rows] = 0.0
             b[self.at] = eta0
             self.held.solve(self.held_b, self.x)
@@ -403,8 +396,7 @@ class LinearPath:
 
     def eta_stiffness(self) -> PETSc.Mat | None:
         """η's stiffness with the other fields eliminated, the Schur complement S = A_ηη − A_ηf A_ff⁻¹ A_fη of A = ∂R/∂U
-        (K + βKM⁻¹K for a field of η's second derivative), as a shell on η's dofs; None off the linear path or for one
-        field."""
+        (K + βKM⁻¹K for a field of η's second derivative), a shell on η's dofs; None off the linear path or alone."""
         if self.linear is None or self._held_rows() is None:
             return None
         n = self.n

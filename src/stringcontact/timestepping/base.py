@@ -238,19 +238,15 @@ class Scheme:
       or its own), checked by `resolve_options`; a scheme without a ``penalty`` option uses no penalty and no ε;
     * ``DESCRIPTION``: one line for `stringcontact.SCHEMES`;
     * ``LINEAR_PATH``: True if it steps a linear model with the constant operators M, C, K alone; False if every
-      model reaches it with its residual (`Operators.nonlinear`, as a nonlinear one always does:
-      `implicit.ImplicitScheme`);
+      model reaches it with its residual (`Operators.nonlinear`: `implicit.ImplicitScheme`);
     * ``requires(model)``: why it cannot run a model (one clause), or None;
     * ``__init__(problem)``: assemble and factorise (set-up time); ``problem`` is the `DiscreteProblem`, its
       options resolved (``problem.mass``, ``problem.penalty``, ``problem.eps``, ``problem.options``);
     * ``start(eta0, v0) -> StepEnergy``: the initial state (this rank's nodal float64 arrays: ends already at their
-      heights, v0 = 0 there), called once before the first step and again from the state whenever the stepper starts
-      a scheme afresh (a new Δt, a constant changed, sub-steps); the scheme sets every level it steps from, so its
-      order is its own: ``implicit.ImplicitScheme`` takes η^{−1} = η0 − Δt v0 (first order, `level_before`), a
-      scheme of second order adds ½Δt² a0 with ``implicit.acceleration``, from ``problem.ops`` (`Operators`:
-      ``M``, ``C``, ``K`` PETSc matrices on the owned dofs, ``m`` and ``m_force`` the lumped row sums and ``load``
-      the constant load b, NumPy arrays, ``nonlinear`` the residual's `NonlinearForm` or None); the model's further
-      unknowns start at ``problem.fields0`` where given;
+      heights, v0 = 0 there), called before the first step and again whenever the stepper starts a scheme afresh (a
+      new Δt, a constant changed, sub-steps); the scheme sets every level it steps from, so its order is its own
+      (``implicit.ImplicitScheme``: η^{−1} = η0 − Δt v0, `level_before`; second order adds ½Δt² a0 from
+      ``problem.ops``, ``implicit.acceleration``); the model's further unknowns start at ``problem.fields0``;
     * ``step() -> StepEnergy``: one step;
     * ``eta``, ``velocity``, ``contact_force``: this rank's nodal arrays of the current state (the force density
       applied in the last step); ``fields``: the model's further unknowns by name (empty for one field);

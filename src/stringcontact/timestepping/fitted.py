@@ -62,14 +62,12 @@ def blended_mass(M: PETSc.Mat, K: PETSc.Mat, m: np.ndarray, dt: float, dim: int)
 
 
 class FittedScheme(projection.ProjectionScheme):
-    """`projection` with the effective mass M_θ + ¼Δt²K (the module docstring): its contact step, restitution and
-    release, no Δt_max, a second-order start."""
+    """`projection` with the effective mass M_θ + ¼Δt²K (the module docstring): no Δt_max, a second-order start."""
 
     DESCRIPTION = ("blended mass fitted to the Courant number, implicit elastic term (the trapezoidal average), "
                    "contact as a complementarity problem (no eps)")
     OPTIONS = (mass_option("blended"), RESTITUTION, PETSC_OPTIONS)
     QUOTIENTS = FITTED
-    second_order_start = True  # the module docstring
 
     def _check_stability(self, nonlinear: bool) -> None:
         self.dt_max = math.inf  # the energy is positive for every Δt (the module docstring)
@@ -106,7 +104,7 @@ class FittedScheme(projection.ProjectionScheme):
     def _start_correction(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
         """(Δt²/2) a0 with M_eff a0 = b − Kη0 − Cv0 at the interior nodes, 0 where η0 is on the obstacle."""
         if self.newton is not None:
-            return super()._start_correction(eta0, v0)
+            return start_correction(self.problem, eta0, v0, self.psi, self.tol)
         problem, comm = self.problem, self.problem.comm
 
         def solve(force):

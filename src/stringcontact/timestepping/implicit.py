@@ -29,15 +29,19 @@ from .newton import NewtonStep, _NewtonScheme, kinetic_energy
 
 def acceleration(problem, eta: np.ndarray, v: np.ndarray) -> np.ndarray:
     """M_L⁻¹(b − Kη − Cv) on this rank's nodes, 0 at the held ones: a linear model's acceleration at (η, v) without
-    contact, from ``problem.ops`` (`fem.operators.Operators`: K, C PETSc matrices on the owned dofs, m the lumped mass
-    and load b NumPy arrays)."""
+    contact, from ``problem.ops`` (`fem.operators.Operators`: K, C on the owned dofs, the lumped mass m, the load b)."""
+    return net_force(problem, eta, v) / problem.ops.m * problem.interior
+
+
+def net_force(problem, eta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """b − Kη − Cv on this rank's nodes: a linear model's force at (η, v) without contact."""
     ops = problem.ops
     force = np.array(ops.load, dtype=float)
     for A, x in ((ops.K, eta), (ops.C, v)):
         out = A.createVecLeft()
         A.mult(petsc_vector(np.array(x, dtype=float), problem.comm), out)
         force -= out.array
-    return force / ops.m * problem.interior
+    return force
 
 
 class ImplicitScheme(_NewtonScheme):
@@ -61,8 +65,7 @@ class ImplicitScheme(_NewtonScheme):
         self.older = None
 
     def _penalty_law(self, problem):
-        """The model's contact law for the scene's penalty, compiled; refused if the model has none, warned (or
-        refused) by the law's own bound on Δt/ε."""
+        """The model's contact law for the penalty, compiled; refused if missing, checked by its bound on Δt/ε."""
         laws = problem.laws
         if problem.penalty == "semi-implicit" and laws.model.penalty_damping is None:
             raise ValueError(f"model '{laws.model.name}' has no penalty_damping, so it has no semi-implicit penalty")
@@ -74,22 +77,6 @@ class ImplicitScheme(_NewtonScheme):
     def situation(self) -> str:
         """r = Δt/ε and the penalty, for an instability message."""
         return f"r = dt/eps = {self.problem.dt / self.problem.eps:.4g}, penalty {self.problem.penalty}"
-
-    @property
-    def eta(self):
-        """η^n at this rank's nodes."""
-        return self.eta_
-
-    @property
-    def velocity(self):
-        """v^n = (η^n − η^{n−1})/Δt at this rank's nodes."""
-        return self.v
-
-    @property
-    def contact_force(self):
-        """The contact force density at this rank's nodes: the one the next step applies (explicit penalty), the
-        one the last step applied (semi-implicit)."""
-        return self.force_density
 
     def start(self, eta0, v0):
         """The initial state (η^0, v^0) and the level before it (`level_before`); the initial energy."""
@@ -184,4 +171,4 @@ class ImplicitScheme(_NewtonScheme):
         return work
 
 
-__all__ = ["ImplicitScheme", "acceleration", "kinetic_energy"]
+__all__ = ["ImplicitScheme", "acceleration", "kinetic_energy", "net_force"]

@@ -30,9 +30,8 @@ NEWMARK = {
 
 
 class NewmarkScheme(_NewtonScheme):
-    """The trapezoidal rule: the linear path (the module docstring's matrix, refactorised when the active set
-    changes) for a linear model, the Newton path for a nonlinear one, with one damping law, one release of held
-    nodes and one bookkeeping of a moving obstacle's work for both."""
+    """The trapezoidal rule: the linear path (the module docstring's matrix) for a linear model, the Newton path for
+    a nonlinear one, with one damping law, release of held nodes and bookkeeping of a moving obstacle for both."""
 
     DESCRIPTION = "trapezoidal rule (energy-conserving), semi-implicit penalty on the active set"
     OPTIONS = (penalty_option("semi-implicit"), mass_option("lumped", "consistent"), EPS, PETSC_OPTIONS)
@@ -48,7 +47,7 @@ class NewmarkScheme(_NewtonScheme):
         n, laws = problem.n_owned, problem.laws
         check_law_stability(laws.model, problem.dt, problem.eps, problem.penalty)
         self.damping = laws.compile(laws.model.penalty_damping(laws.eta, laws.v, laws.params))
-        self.eta_, self.v_ = np.zeros(n), np.zeros(n)
+        self.eta_, self.v = np.zeros(n), np.zeros(n)
         if problem.ops.nonlinear is not None:
             self.newton = NewtonStep(problem, NEWMARK)
             self.v_old = np.zeros(n)  # v^{n−1}: the guess extrapolates v
@@ -75,18 +74,6 @@ class NewmarkScheme(_NewtonScheme):
         self.D = np.zeros(n)  # m_F d on the active interior nodes
         self.rate_new = np.zeros(n)  # ψ_t^{k+1}, the rate the step's damping brakes towards
 
-    @property
-    def eta(self):
-        return self.eta_
-
-    @property
-    def velocity(self):
-        return self.v_
-
-    @property
-    def contact_force(self):
-        return self.force_density
-
     def _linear_timings(self):
         return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.describe()}
 
@@ -100,13 +87,13 @@ class NewmarkScheme(_NewtonScheme):
     def start(self, eta0, v0):
         if self.moving:
             self.problem.obstacle.set_centred(0.0)
-        self.eta_[:], self.v_[:] = eta0, v0
+        self.eta_[:], self.v[:] = eta0, v0
         if self.newton is not None:
             self.v_old[:] = v0
             self.newton.start_fields(eta0, v0)
-            return self._start_energy(self.eta_, self.v_)
+            return self._start_energy(self.eta_, self.v)
         self.KC.mult(petsc_vector(self.eta_, self.problem.comm), self.KC_now[0])
-        kin = 0.5 * float(np.dot(self.v_, self._mass(self.v_)))
+        kin = 0.5 * float(np.dot(self.v, self._mass(self.v)))
         el = 0.5 * float(np.dot(self.eta_, self.KC_now[1][0]))
         kin, el = self.allsum(kin, el)
         return StepEnergy(kin, el, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -114,13 +101,13 @@ class NewmarkScheme(_NewtonScheme):
     def _active_damping(self) -> np.ndarray:
         """The model's damping d at η^n, v^n."""
         problem = self.problem
-        problem.laws.set(eta=self.eta_, v=self.v_)
+        problem.laws.set(eta=self.eta_, v=self.v)
         return np.asarray(self.damping.evaluate_env(problem.laws.env), dtype=float)
 
     def _solve(self) -> np.ndarray:
         """η^{n+1} into self.new for the current D; returns v^{n+1}."""
         problem, dt = self.problem, self.problem.dt
-        eta, v, D = self.eta_, self.v_, self.D
+        eta, v, D = self.eta_, self.v, self.D
         a, b = self.work  # the same operations as written out with temporaries, into two buffers (bit for bit)
         np.multiply(4.0 / dt, D, out=a)
         self.lu.update(a)
@@ -177,7 +164,7 @@ class NewmarkScheme(_NewtonScheme):
         if self.newton is not None:
             return self._newton_step()
         problem, dt = self.problem, self.problem.dt
-        eta, v, D = self.eta_, self.v_, self.D
+        eta, v, D = self.eta_, self.v, self.D
         KC_now, KC_new = self.KC_now[1], self.KC_new[1]
         np.multiply(self._active_damping(), problem.interior, out=self.work[0])
         np.multiply(problem.ops.m_force, self.work[0], out=D)
@@ -212,7 +199,7 @@ class NewmarkScheme(_NewtonScheme):
     def _newton_step(self):
         """The Newton path's step: the quotients `NEWMARK` in the model's residual, the damping on the diagonal."""
         problem, dt, newton = self.problem, self.problem.dt, self.newton
-        e0, v = self.eta_, self.v_
+        e0, v = self.eta_, self.v
         newton.set_known(e0, None, v)
         D = self._active_damping() * problem.interior * problem.ops.m_force
         rate = self._rate()
@@ -229,7 +216,7 @@ class NewmarkScheme(_NewtonScheme):
         terms = self._step_energy(u, e0, v, v1, f, self._obstacle_work)
         np.divide(f, problem.ops.m_force, out=self.force_density, where=problem.ops.m_force > 0)
         self.force_density[problem.ops.m_force <= 0] = 0.0
-        self.v_old[:], self.eta_[:], self.v_[:] = v, u, v1
+        self.v_old[:], self.eta_[:], self.v[:] = v, u, v1
         self._advanced()
         return terms
 

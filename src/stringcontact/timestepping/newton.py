@@ -25,7 +25,7 @@ from ..errors import SolverError
 from ..fem import compat
 from ..fem.packed import PackedForm
 from ..fem.powers import powers_as_products
-from .affine import LinearPath, _as_slice, affine_in
+from .affine import LinearPath, _as_slice, affine_in, assemble_into
 from .base import Ranks, StepEnergy, petsc_vector
 from .base import Scheme as Base
 from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
@@ -234,9 +234,9 @@ class NewtonStep(LinearPath):
         self._set(self.u, self._full(u, self.levels[3]))
         if form is None:
             self.G.refresh(self.u)
-            _assemble(self.work_vec, self.G.assemble_vector)
+            assemble_into(self.work_vec, self.G.assemble_vector)
         else:
-            _assemble(self.work_vec, lambda vec: fem.petsc.assemble_vector(vec, form))
+            assemble_into(self.work_vec, lambda vec: fem.petsc.assemble_vector(vec, form))
         r = self.work_vec.array[self.idx].copy()
         if self.lumped:
             r += self.problem.ops.m * self.q["eta_tt"](u, *self.arrays, self.problem.dt)
@@ -253,8 +253,7 @@ class NewtonStep(LinearPath):
         return r
 
     def viscous_force(self, u: np.ndarray) -> np.ndarray:
-        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) by one mat-vec when
-        ∂R/∂η_t is constant, else two assemblies."""
+        """The η_t-dependent part of the residual at u, R(q_η, q_t) − R(q_η, 0): C q_t(u) if ∂R/∂η_t is constant."""
         if self.problem.ops.nonlinear.viscous_linear:
             if self.viscous_vecs is None:
                 self.viscous_vecs = self.problem.ops.C.createVecs()
@@ -267,8 +266,7 @@ class NewtonStep(LinearPath):
         return self.residual_at(u) - self.residual_at(u, self.G_static_form)
 
     def stored_energy(self, eta: np.ndarray) -> float:
-        """∫Π(η) on this rank's cells (the caller sums over the ranks); several fields: ∫Π(η, *fields), the fields
-        of the last solve."""
+        """∫Π(η) on this rank's cells (the caller sums over the ranks); ∫Π(η, *fields) with the last solve's fields."""
         if self.quadratic is not None:
             levels, products = self._at(eta)
             return self.terms.stored(levels[0], products[0])
@@ -282,7 +280,7 @@ class NewtonStep(LinearPath):
         u = x.array_r
         self._set(self.u, u)
         self.G.refresh(self.u)
-        _assemble(G, self.G.assemble_vector)
+        assemble_into(G, self.G.assemble_vector)
         g = G.array
         nodal = self.nodal_slope * u[self.idx]
         nodal -= self.nodal_known
@@ -333,8 +331,7 @@ class NewtonStep(LinearPath):
         return self.chord
 
     def _update_damping(self, J) -> None:
-        """A kept J with the step's damping d on its diagonal: the change since J was assembled, added (a new
-        factor then, but no assembly)."""
+        """A kept J with the step's damping d on its diagonal: the change since its assembly added (no assembly)."""
         change = self.d - self.d_in_J
         if not self.anyrank(bool(np.any(change))):
             return
@@ -355,9 +352,7 @@ class NewtonStep(LinearPath):
         last solution touched no bound (SNES VI refactorises at every iteration: 2.2 of a 3.5 ms step at nx = 5000)."""
         self.age += 1
         # G's nodal terms, affine in u: d∘(u − c) − f (+ m∘q_tt(u), lumped) = slope∘u − known (the linear path's
-        # slope is on its J)
-        if self.linear is None:
-            self.nodal_slope[:] = self.d + self.m_tt
+        # slope is on its J; SNES's is set below)
         self.nodal_known[:] = self.d * self.c + self.f
         if self.lumped:
             self.nodal_known -= self.problem.ops.m * self.q["eta_tt"](0.0, *self.arrays, self.problem.dt)
@@ -374,8 +369,7 @@ class NewtonStep(LinearPath):
             for snes in (self.snes, self.free) if self.free is not None else (self.snes,):
                 snes.setTolerances(atol=floor)
         self._sync()
-        if self.linear is not None:
-            self.nodal_slope[:] = self.d + self.m_tt
+        self.nodal_slope[:] = self.d + self.m_tt
         if self.known:  # the known levels and any field that moved with the step (an obstacle ψ(x, t))
             self.G.refresh(*self.known)
         self.stale = False  # SNES's residual in G_vec
@@ -416,8 +410,8 @@ class NewtonStep(LinearPath):
         return exc
 
     def _run(self, snes, guess: np.ndarray, fresh_only: bool = False) -> int:
-        """One SNES solve from `guess`, again with a fresh J at every iteration if a kept J led it astray (or only so,
-        `fresh_only`); its converged reason."""
+        """SNES's converged reason from `guess`, solved again with fresh Js if a kept J led it astray (`fresh_only`:
+        only so)."""
         x = self.x.array
         for fresh in (True,) if fresh_only else (False, True):
             x[:] = self._full(guess, self.levels[3])
@@ -475,14 +469,6 @@ class NewtonStep(LinearPath):
         return counts | {"nonlinear solver": how} | fallback
 
 
-def _assemble(vec: PETSc.Vec, assemble) -> None:
-    """`assemble(vec)` into `vec` zeroed, the ghosts' contributions added to their owners."""
-    with vec.localForm() as local:
-        local.set(0.0)
-    assemble(vec)
-    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-
-
 def _without_dissipative(problem, q_eta, k: int) -> dict:
     """The model's dissipative fields (`Model.dissipative_fields`) at 0 in η's value: their work on η is then
     in the viscous work, as the η_t-dependent terms' (a lubricating fluid's)."""
@@ -510,10 +496,25 @@ class _NewtonScheme(Base):
         self.moving, self.k = problem.obstacle is not None, 0  # a moving obstacle ψ(x, t); the step index
 
     @property
+    def eta(self):
+        """η^n at this rank's nodes."""
+        return self.eta_
+
+    @property
+    def velocity(self):
+        """The scheme's velocity v^n at this rank's nodes (the backward quotient (η^n − η^{n−1})/Δt, or Newmark's)."""
+        return self.v
+
+    @property
+    def contact_force(self):
+        """The contact force density at this rank's nodes: the one the next step applies (explicit penalty), the
+        one the last step applied (semi-implicit)."""
+        return self.force_density
+
+    @property
     def fields(self) -> dict:
         """A model's other fields (`Model.fields`) by name at η's owned nodes, from the last solve ({} for one field
-        and on a scheme's own linear path). `projection` solves one step ahead of the η it reports, so its fields
-        are a step ahead (a model may refuse it: `Model.schemes`)."""
+        and on a scheme's own linear path): a step ahead in `projection` (a model may refuse it: `Model.schemes`)."""
         if self.newton is None:
             return {}
         return {name: self.newton.field(i + 1) for i, name in enumerate(self.problem.laws.model.fields)}

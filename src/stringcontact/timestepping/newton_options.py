@@ -15,9 +15,8 @@ VI_LINESEARCHES = ("bt", "basic", "l2", "cp")
 
 
 def check_snes_options(options: dict, key: str = "petsc_options") -> None:
-    """SceneError (one line naming the option and its allowed range) for a Newton tolerance that makes its stopping
-    test vacuous (`SNES_TOLERANCE_MAX`), fewer than one iteration, or a line search it cannot run (`LINESEARCHES`).
-    Cheap: checked before the mesh is built."""
+    """SceneError (one line naming the option and its allowed range, before the mesh) for a Newton tolerance that
+    makes its stopping test vacuous (`SNES_TOLERANCE_MAX`), < 1 iteration, or a line search it cannot run."""
     for name, high in SNES_TOLERANCE_MAX.items():
         value = options.get(name)
         if isinstance(value, (int, float)) and not isinstance(value, bool) and not 0 <= value <= high:
@@ -33,8 +32,7 @@ def check_snes_options(options: dict, key: str = "petsc_options") -> None:
 
 
 def check_vi_linesearch(options: dict) -> None:
-    """SceneError if a step with bounds (a VI: a field bounded below, `Model.field_lower`) is given a line search
-    that does not take bounds."""
+    """SceneError for a line search without bounds in a VI's step (a field bounded below, `Model.field_lower`)."""
     search = options.get("snes_linesearch_type")
     if search is not None and search not in VI_LINESEARCHES:
         raise SceneError(f"petsc_options: snes_linesearch_type = {search!r} does not take the bounds of this model's "

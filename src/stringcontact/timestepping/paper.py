@@ -25,9 +25,8 @@ PAPER = {
 
 
 class PaperScheme(ImplicitScheme):
-    """The paper's scheme. A nonlinear model takes the Newton path (`ImplicitScheme` with the quotients `PAPER`); a
-    linear one the same step with its constant operators: A factorised once, each step one back-substitution and a
-    few NumPy operations (the module docstring)."""
+    """The paper's scheme: the Newton path for a nonlinear model (`ImplicitScheme` with the quotients `PAPER`), the
+    same step with the constant operators for a linear one (the module docstring)."""
 
     DESCRIPTION = "the paper's Section 6: implicit elastic and viscous terms, penalty from the previous step"
     QUOTIENTS = PAPER

@@ -40,8 +40,7 @@ CONTACT_TOL = 1e-9
 #: 7e-7 against the nodal maximum at α = 0, where the two must agree; 1e-14: 6e-12).
 FORCE_TOL = 1e-14
 
-#: The Newton path's difference quotients: η explicit, the other fields implicit (an algebraic one is solved, not
-#: lagged), η_t implicit.
+#: The Newton path's difference quotients: η explicit, η_t and the other fields implicit (an algebraic one solved).
 PROJECTION = {
     "eta": lambda u, e0, em, v0, dt: e0,
     "fields": lambda u, e0, em, v0, dt: u,
@@ -51,9 +50,8 @@ PROJECTION = {
 
 
 class ProjectionScheme(_NewtonScheme):
-    """The ε-free scheme: the linear path (A = M/Δt² + C/Δt factorised once, each step `complementarity.ActiveSet`)
-    for a linear model, the Newton path (SNES VI) for a nonlinear one; one obstacle, one stability check, one
-    bookkeeping of the levels for both (the module docstring)."""
+    """The ε-free scheme (the module docstring): the linear path (A = M/Δt² + C/Δt factorised once, each step
+    `complementarity.ActiveSet`) for a linear model, the Newton path (SNES VI) for a nonlinear one."""
 
     DESCRIPTION = "explicit central difference, implicit viscosity, contact as a complementarity problem (no eps)"
     OPTIONS = (mass_option("lumped"), RESTITUTION, PETSC_OPTIONS)
@@ -126,14 +124,10 @@ class ProjectionScheme(_NewtonScheme):
         self._check_dt(f"(its explicit elastic term, linearised at {problem.ops.linearised_at})" if nonlinear else
                        "(its explicit elastic term; dt_max from the operators)")
 
-    @property
-    def second_order_start(self) -> bool:
-        """Whether η^{−1} gets the second-order term (Δt²/2) a0 (`_start_correction`): under Signorini's release."""
-        return self.signorini
-
-    def _start_correction(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray:
-        """(Δt²/2) a0 on the free interior nodes, a0 = m⁻¹(b − Kη0 − Cv0) (`release.start_correction`)."""
-        return start_correction(self.problem, eta0, v0, self.psi, self.tol)
+    def _start_correction(self, eta0: np.ndarray, v0: np.ndarray) -> np.ndarray | None:
+        """The second-order term of η^{−1}, (Δt²/2) a0 on the free interior nodes, a0 = m⁻¹(b − Kη0 − Cv0)
+        (`release.start_correction`): under Signorini's release; None (first order) otherwise."""
+        return start_correction(self.problem, eta0, v0, self.psi, self.tol) if self.signorini else None
 
     def _inertia_matrix(self) -> PETSc.Mat:
         """The inertia operator over Δt², M/Δt²: the lumped mass's diagonal."""
@@ -153,9 +147,8 @@ class ProjectionScheme(_NewtonScheme):
                 "'newmark' or 'paper' for larger steps", step=0, time=0.0)
 
     def _check_fields_stiffness(self) -> None:
-        """A model whose other fields add to η's stiffness (K + βKM⁻¹K through η's second derivative) has them
-        explicit too: its stable Δt is that of η's stiffness with the fields eliminated (`NewtonStep.eta_stiffness`),
-        below the fields-at-0 tangent's."""
+        """Fields that add to η's stiffness (K + βKM⁻¹K through η's second derivative) are explicit too: the stable Δt
+        is that of η's stiffness with them eliminated (`NewtonStep.eta_stiffness`), below the tangent's."""
         problem = self.problem
         S = self.newton.eta_stiffness()
         if S is None:
@@ -262,8 +255,9 @@ class ProjectionScheme(_NewtonScheme):
                           SceneWarning, stacklevel=4)
             ahead.eta[below] = self.psi[below]
         np.subtract(ahead.eta, problem.dt * v0, out=now.eta)
-        if self.second_order_start:  # + (Δt²/2) a0: the elastic force acts over the first half-cell only
-            now.eta += self._start_correction(ahead.eta, v0)
+        correction = self._start_correction(ahead.eta, v0)
+        if correction is not None:  # the elastic force acts over the first half-cell only
+            now.eta += correction
         if self.moving:  # η^{−1} = η^0 − Δt v0 is no state of the string: its gap counts as ≥ 0 (the first D_con ≥ 0)
             np.minimum(self.psi_levels[0], now.eta, out=self.psi_levels[0])
         if self.newton is None:
@@ -394,9 +388,8 @@ class ProjectionScheme(_NewtonScheme):
         return G
 
     def _givers(self, step: np.ndarray, settled: np.ndarray) -> np.ndarray | None:
-        """None if the step's contact dissipation `step` keeps the accounts together ≥ 0; else the nodes off `settled`
-        whose steps give the most energy back (step < 0), the fewest whose gifts exceed the deficit (over every
-        rank), or None if there are none."""
+        """None if the step's contact dissipation `step` keeps the accounts together ≥ 0 or no node gives; else the
+        nodes off `settled` giving the most back (step < 0), the fewest whose gifts exceed the deficit (all ranks)."""
         deficit = self.account.deficit(step, self.allsum)
         if deficit <= 0.0:
             return None

@@ -15,6 +15,7 @@ from petsc4py import PETSc
 
 from .base import Ranks, petsc_vector
 from .complementarity import ActiveSet
+from .implicit import acceleration, net_force
 
 #: The model's `release` values: the paper's (A4), and Signorini contact at a massless contact point.
 RELEASES = ("inelastic", "signorini")
@@ -40,16 +41,10 @@ def release_of(model) -> str:
 
 def start_correction(problem, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: float,
                      solve=None) -> np.ndarray:
-    """(Δt²/2) a0 on the free interior nodes (0 where η0 is within `tol` of ψ): a0 = m⁻¹(b − Kη0 − Cv0), or
-    `solve`(b − Kη0 − Cv0) for another mass."""
-    ops, n, comm = problem.ops, problem.n_owned, problem.comm
-    eta, vel = np.array(eta0, dtype=float), np.array(v0, dtype=float)
-    k_eta, c_v = np.zeros(n), np.zeros(n)
-    ops.K.mult(petsc_vector(eta, comm), petsc_vector(k_eta, comm))
-    ops.C.mult(petsc_vector(vel, comm), petsc_vector(c_v, comm))
-    force = ops.load - k_eta - c_v
-    a0 = force / ops.m if solve is None else solve(force)
-    free = problem.interior & (eta > psi + tol)
+    """(Δt²/2) a0 on the free interior nodes (0 where η0 is within `tol` of ψ): a0 = m⁻¹(b − Kη0 − Cv0)
+    (`implicit.acceleration`), or `solve`(b − Kη0 − Cv0) for another mass."""
+    a0 = acceleration(problem, eta0, v0) if solve is None else solve(net_force(problem, eta0, v0))
+    free = problem.interior & (np.asarray(eta0, dtype=float) > psi + tol)
     return np.where(free, 0.5 * problem.dt**2 * a0, 0.0)
 
 
@@ -65,8 +60,7 @@ class ContactAccount:
         return self.balance + step < -ACCOUNT_ROUNDOFF * (self.turnover + np.abs(step))
 
     def deficit(self, step: np.ndarray, allsum) -> float:
-        """How far `step` would take the accounts together below 0, beyond round-off (≤ 0: they cover it); `allsum`
-        sums over the ranks."""
+        """How far `step` would take the accounts together below 0 beyond round-off (≤ 0: covered; `allsum`: ranks)."""
         total, turnover, change = allsum(float(self.balance.sum()), float(self.turnover.sum()), float(step.sum()))
         return -(total + change) - ACCOUNT_ROUNDOFF * (turnover + abs(change))
 
@@ -100,8 +94,7 @@ class MasslessRelease:
         self.rhs_vec = petsc_vector(self.rhs, problem.comm)
 
     def _contact_step(self, S: np.ndarray) -> ActiveSet:
-        """The `ActiveSet` of A with the rows of S replaced by K + C/Δt (made once per set); the scheme's own when S
-        is empty."""
+        """The `ActiveSet` of A with S's rows replaced by K + C/Δt (made once per set); the scheme's own for S empty."""
         if not self.ranks.any(bool(S.any())):
             return self.scheme.contact_step
         key = S.tobytes() if self.problem.comm.size == 1 else tuple(self.problem.comm.allgather(S.tobytes()))

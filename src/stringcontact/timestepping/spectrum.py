@@ -49,8 +49,7 @@ def top_mode_krylov(K, m: np.ndarray, interior: np.ndarray, rtol: float = 1e-10)
 
 
 def top_mode_of_shell(S: PETSc.Mat, m: np.ndarray, interior: np.ndarray) -> tuple[float, np.ndarray]:
-    """(λ_max, φ) of M⁻¹S for a shell S (a stiffness with a model's other fields eliminated): `top_mode_krylov` on
-    D S D as a shell, not taken as symmetric."""
+    """(λ_max, φ) of M⁻¹S for a shell S (fields eliminated): `top_mode_krylov` on the shell D S D, not symmetric."""
     d = _scaling(m, interior)
     A = PETSc.Mat().createPython(S.getSizes(), _Scaled(S, d), comm=S.getComm())
     A.setUp()
@@ -106,9 +105,8 @@ def gershgorin_bound(K, m: np.ndarray, interior: np.ndarray) -> float:
 
 
 def largest_stable_dt(ops, interior: np.ndarray, krylov: bool = False, dt: float | None = None) -> float:
-    """The explicit step's largest stable Δt from the top mode of M⁻¹K (`dt_of_mode`); `krylov` (2D): by SLEPc. A 2D
-    top mode costs seconds to minutes on 1e5 nodes, so a `dt` below 2/√(Gershgorin's bound), stable whatever C ≥ 0,
-    returns that bound instead."""
+    """The explicit step's largest stable Δt from the top mode of M⁻¹K (`dt_of_mode`); `krylov` (2D): by SLEPc, which
+    takes minutes on 1e5 nodes, so a `dt` below 2/√(Gershgorin's bound) (stable for any C ≥ 0) returns that bound."""
     if krylov and dt is not None:
         safe = 2.0 / math.sqrt(max(gershgorin_bound(ops.K, ops.m, interior), 1e-300))
         if dt <= safe:
@@ -118,8 +116,7 @@ def largest_stable_dt(ops, interior: np.ndarray, krylov: bool = False, dt: float
 
 
 def dt_of_mode(lam: float, phi: np.ndarray, K: PETSc.Mat, C: PETSc.Mat) -> float:
-    """μ + √(μ² + 4/λ) for the top mode (λ, φ) of M⁻¹K, μ = φ·Cφ/φ·Kφ (the viscous relief): the explicit step's
-    largest stable Δt; inf for λ ≤ 0."""
+    """The explicit step's largest stable Δt μ + √(μ² + 4/λ), (λ, φ) M⁻¹K's top mode, μ = φ·Cφ/φ·Kφ; inf if λ ≤ 0."""
     if lam <= 0:
         return math.inf
     comm = K.getComm()
