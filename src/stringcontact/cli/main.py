@@ -81,9 +81,7 @@ def _run(args) -> int:
             from ..run import profile
 
             print("where the time went:\n" + profile.table(profile.sections(res.timings, imports, started)))
-    from ..run.checks import unbalanced_message
-
-    unbalanced = unbalanced_message(res)
+    unbalanced = res.message if res.status == "unbalanced" else None
     if unbalanced is not None:  # the output (if any) is marked "unbalanced", never "complete"
         error(unbalanced)
         return EXIT_UNSTABLE
