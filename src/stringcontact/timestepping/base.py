@@ -20,6 +20,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
+from ufl.algorithms.analysis import extract_constants
 
 from ..errors import InstabilityError, InstabilityWarning, SceneError
 from ..fem import nodal
@@ -54,7 +55,11 @@ class NodalLaws:
 
     def compile(self, expr):
         """`expr` (UFL in the placeholders and the model's fields) as a nodal NumPy expression: a
-        `fem.nodal.NodalExpression`, whose ``evaluate_env(self.env)`` gives its value at every node."""
+        `fem.nodal.NodalExpression`, whose ``evaluate_env(self.env)`` gives its value at every node. A law reading ε
+        in a run without one (a scheme that takes no penalty) is a TypeError, which names the scheme."""
+        if np.isnan(self.params.eps.value) and self.params.eps in extract_constants(expr):
+            raise TypeError(f"it applies model '{self.model.name}''s penalty, whose eps it has not got: it declares no "
+                            "penalty option (no eps); allowed: a penalty option (Scheme.OPTIONS) or no law that reads eps")
         return nodal.NodalExpression(expr)
 
     def set(self, **arrays) -> None:
