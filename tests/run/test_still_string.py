@@ -13,7 +13,6 @@ import pytest
 import stringcontact as sc
 from stringcontact.scene import names
 
-
 #: A scheme plugin that keeps (η0, v0) for ever and reports the initial kinetic energy at every step: its balance closes.
 FROZEN_MODULE = textwrap.dedent('''
     import numpy as np
