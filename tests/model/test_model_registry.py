@@ -249,3 +249,17 @@ def test_a_model_named_on_the_command_line_checks_the_scenes_constants(tmp_path,
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "k: 0 is out of range" in err, err
     assert not (tmp_path / "cli").exists()
+
+
+@pytest.mark.parametrize("named", ["", 'model = "inelastic"\n'], ids=["no model", "a model without constants"])
+def test_a_wrong_typed_constant_is_told_the_range_of_the_model_on_the_command_line(tmp_path, soft_ground, capsys,
+                                                                                  named):
+    """A scene whose own model declares no k, run with --model soft_ground:soft_ground: a k that is no number is told
+    soft_ground's range for k, in one line, exit 2, nothing written."""
+    (tmp_path / "plain.toml").write_text(SCENE + named + '\n[parameters]\nk = "stiff"\n')
+    code = main(["run", str(tmp_path / "plain.toml"), "--model", "soft_ground:soft_ground", "--no-pictures",
+                 "--no-progress", "--out", str(tmp_path / "cli")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "k: expected a number, got str 'stiff'; allowed: a number in (0, 1000000000000]" in err, err
+    assert not (tmp_path / "cli").exists()

@@ -222,6 +222,35 @@ def test_a_failed_newton_step_is_sub_stepped_as_the_smaller_dt_would_take_it(mon
     assert result.status == "complete" and result.checks["energy_balance"]["closes"]
 
 
+@pytest.mark.parametrize("scheme", ["paper", "newmark"])
+def test_a_failed_newton_step_against_a_moving_obstacle_is_sub_stepped_at_its_time(monkeypatch, scheme):
+    """A moving obstacle pressing the string, every Newton solve at Δt forced to fail: each step is taken as two
+    sub-steps of Δt/2 that see the obstacle at their own times, and the run goes on from the right time, so it ends
+    where a run at Δt/2 ends, to round-off, complete."""
+    import dataclasses
+
+    from stringcontact.errors import SolverError
+    from stringcontact.timestepping.newton import NewtonStep
+
+    s = scene(output_times=[], T=0.05, obstacle="0.3 + 0.15*sin(20*pi*t)")
+    model = dataclasses.replace(sc.load_model("loaded_obstacle"), name="loaded_obstacle_by_newton", newton=True)
+    solve = NewtonStep.solve
+
+    def failing(self, guess):
+        if self.problem.dt == s.dt:
+            raise SolverError("Newton did not converge (SNES reason -5) after 50 iterations (forced)")
+        return solve(self, guess)
+
+    monkeypatch.setattr(NewtonStep, "solve", failing)
+    st, _ = stepped(s, scheme=scheme, model=model)
+    result = st.result()
+    monkeypatch.setattr(NewtonStep, "solve", solve)
+    fine = quiet(sc.simulate, s.replace(nt=2 * s.nt), scheme=scheme, model=model)
+    assert fine.contact.any() and result.status == "complete", result.message
+    assert result.counters["sub-stepped steps"] == s.nt
+    assert np.max(np.abs(result.eta[-1] - fine.eta[-1])) <= 1e-11 * np.max(np.abs(fine.eta[-1]))
+
+
 def test_a_step_that_fails_at_every_sub_step_stops_the_run_in_one_line(monkeypatch):
     from stringcontact.errors import SolverError
     from stringcontact.timestepping.newton import NewtonStep

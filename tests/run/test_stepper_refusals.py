@@ -11,7 +11,8 @@ import pytest
 
 import stringcontact as sc
 from stringcontact.timestepping.implicit import ImplicitScheme
-from stringcontact.timestepping.paper import PAPER
+from stringcontact.timestepping.base import PETSC_OPTIONS, mass_option
+from stringcontact.timestepping.paper import PAPER, PaperScheme
 
 SCENE = dict(nx=40, T=0.01, dt=0.0005, output_times=[])
 
@@ -112,6 +113,27 @@ def test_a_schemes_broken_step_is_one_line_naming_it(how, fragment):
         st.advance()
     with pytest.raises(ValueError, match="the run stopped at step 0"):
         st.advance()
+
+
+class _EpsFree(PaperScheme):
+    """Declares no penalty option (so no eps), yet applies the model's explicit penalty, which reads eps."""
+
+    DESCRIPTION = "a scheme that claims to need no eps"
+    OPTIONS = (mass_option("lumped", "consistent"), PETSC_OPTIONS)
+
+    def __init__(self, problem):
+        super().__init__(problem)
+        self.explicit = True  # the paper's explicit penalty F(eta^n, v^n)
+
+    def _penalty_law(self, problem):
+        laws = problem.laws
+        return laws.compile(laws.model.penalty(laws.eta, laws.quotient, laws.params))
+
+
+def test_a_scheme_without_eps_that_applies_the_penalty_is_one_line_naming_it():
+    with pytest.raises(sc.SceneError, match=r"model 'inelastic' with scheme '.*:_EpsFree' failed with TypeError: it "
+                                            r"applies model 'inelastic''s penalty, whose eps it has not got"):
+        stepper(scene(eta0="0", h_left=0.0, h_right=0.0), scheme=_EpsFree).advance()  # refused before the first step
 
 
 def test_an_initial_energy_that_is_not_finite_is_refused_before_the_first_step():

@@ -23,6 +23,7 @@ import os
 import sys
 
 from ..jitlog import quiet_compiler
+from ..scene import parameters
 from ..scene.names import DEFAULT_SCHEME
 from . import process
 from .mpi_start import quick_singleton
@@ -40,7 +41,20 @@ def _run(args) -> int:
     if args.profile:  # dolfinx, UFL and the solver, timed as a section (else loaded when first needed)
         importlib.import_module("stringcontact.run.driver")
     imports = time.perf_counter() - started
-    scene = sc.load_scene(args.scene)
+    model = spec = None
+    if args.model:  # before the scene: its [parameters] values are told this model's ranges
+        from ..model.forms import check_declarations
+        from ..model.registry import load_model
+
+        spec = args.model
+        with _current_folder_importable(args.model):
+            model = load_model(spec)
+        check_declarations(model)
+    ranges = parameters.RUN_CONSTANTS.set(model.constants if model is not None else ())
+    try:
+        scene = sc.load_scene(args.scene)
+    finally:
+        parameters.RUN_CONSTANTS.reset(ranges)
     changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
     if args.petsc_option:  # into the scene, so that summary.json records the options the run used
         changes["petsc_options"] = dict(scene.petsc_options) | _petsc_options(args.petsc_option)
@@ -48,13 +62,10 @@ def _run(args) -> int:
         scene = scene.replace(**changes)
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
     check_scheme_flags(args, scene, "it accepts --mass lumped only")
-    model = spec = None
-    if args.model or scene.model:  # the scene's key is a registered name, checked when it was loaded
+    if model is None and scene.model:  # the scene's key is a registered name, checked when it was loaded
         from ..model.registry import load_model
 
-        spec = args.model or scene.model
-        with _current_folder_importable(args.model):
-            model = load_model(spec)
+        spec, model = scene.model, load_model(scene.model)
     from ..run.options import MAX_FRAMES, Output
 
     if not 1 <= args.frames <= MAX_FRAMES:  # named as the flag, not as the API's max_frames

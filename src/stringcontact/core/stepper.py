@@ -83,15 +83,16 @@ class TimeStepper:
             self.scheme = self.Scheme(self.discrete)
         self._start()
 
-    def _discrete(self, ops, dt: float, fields0: dict | None = None) -> DiscreteProblem:
-        """The `DiscreteProblem` at the time step `dt`, its further unknowns starting at `fields0` (default: given)."""
+    def _discrete(self, ops, dt: float, fields0: dict | None = None, t0: float = 0.0) -> DiscreteProblem:
+        """The `DiscreteProblem` at the time step `dt`, its further unknowns starting at `fields0` (default: given), a
+        moving obstacle at the time t0 when its scheme starts."""
         p = self.problem
         fields = {f: f.x.array[: p.n_owned] for f in p.params.extra.values()}
         laws = NodalLaws(self.model, p.V, p.params, dt, fields, p.x)
         given = self.options["petsc_options"]
         options = _model_options(self.model, ops, p.params, p.dim, self.comm.size, given) | given
         obstacle = None if p.obstacle is None else MovingObstacle(
-            p.obstacle_values, p.params.extra["obstacle"], p.params.extra[RATE], dt, p.n_owned)
+            p.obstacle_values, p.params.extra["obstacle"], p.params.extra[RATE], dt, p.n_owned, t0)
         return DiscreteProblem(ops=ops, dt=dt, mass=self.mass, penalty=self.penalty, bc=p.bc, g=p.g, laws=laws,
                                comm=self.comm, eps=self.options["eps"], x=p.x, nt=self.nt or 0, petsc_options=options,
                                restitution=self.options["restitution"] or 0.0, obstacle=obstacle,
@@ -251,8 +252,6 @@ class TimeStepper:
             where = f"step {self.step + 1}, t = {self.t + self._dt:.6g}"
             if not self.newton or getattr(exc, "not_finite", False):  # sub-steps cannot help: the form, a linear solve
                 raise SolverError(f"{where}: {exc}") from None
-            if self.problem.obstacle is not None:
-                raise SolverError(f"{where}: {exc} (a moving obstacle's step is not sub-stepped: use a smaller dt)") from None
             for halvings in range(1, MAX_HALVINGS + 1):
                 try:
                     begin, step, restart = self._substeps(eta, v, fields, 2**halvings)
@@ -265,12 +264,13 @@ class TimeStepper:
                               f"use a smaller dt (nt >= {(self.nt or 1) * 2**MAX_HALVINGS})"
                               + ("" if self.name == "paper" else " or scheme 'paper'")) from None
 
-    def _restarted(self, dt: float, state=None, ops=None):
-        """A new scheme at `dt` on `ops` (default: the same operators), started from `state` (default: the current)."""
+    def _restarted(self, dt: float, state=None, ops=None, t0: float | None = None):
+        """A new scheme at `dt` on `ops` (default: the same operators), started from `state` at the time `t0`
+        (default: the current state and time)."""
         scheme = self.scheme
         eta, v, fields = state or _state(scheme)
         self.past_timings.append(scheme.timings)
-        self.discrete = self._discrete(ops or self.discrete.ops, dt, fields)
+        self.discrete = self._discrete(ops or self.discrete.ops, dt, fields, self.t if t0 is None else t0)
         fresh = self.Scheme(self.discrete)
         self._restart_terms = fresh.start(eta, v)
         return fresh
@@ -279,7 +279,8 @@ class TimeStepper:
         """One step as `m` sub-steps of Δt/m from (η, v), then a scheme at Δt from their end: the terms of the fine
         start, of the step and of the restart."""
         coarse = self.discrete
-        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields), nt=(self.nt or 0) * m))
+        fine = self.Scheme(dataclasses.replace(self._discrete(coarse.ops, self._dt / m, fields, self.t),
+                                               nt=(self.nt or 0) * m))
         begin = fine.start(eta, v)
         increments = np.zeros(4)  # viscous, contact, numerical, external: summed; the state's energies: the last
         for _ in range(m):
@@ -290,7 +291,7 @@ class TimeStepper:
         self.past_timings.append(fine.timings)
         end = _state(fine)
         self.discrete = coarse
-        self.scheme = self._restarted(self._dt, end)
+        self.scheme = self._restarted(self._dt, end, t0=self.t + self._dt)
         step = StepEnergy(terms.kinetic, terms.elastic, *increments.tolist(), terms.stored)
         return begin, step, self._restart_terms
 

@@ -6,8 +6,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mpi4py import MPI
 
 from ..fem import compat
+from ..timestepping.affine import affine_in
+from ..timestepping.implicit import acceleration
 
 #: The relative residual above which the balance does not close (raised by `roundoff_growth`'s estimate).
 BALANCE_RTOL = 1e-8
@@ -187,3 +190,40 @@ def unbalanced_message(result) -> str | None:
         f"the energy balance does not close (relative residual {b['relative_residual']:.2g} > {b['tolerance']:.0e}): "
         "the numbers are not trustworthy; see docs/explanation/reliability.md"
     )
+
+
+#: A free node whose one step Δt|v0| + ½Δt²|a0| exceeds this share of max|η0| is not at rest: a force that is only the
+#: rounding of an equilibrium moves a node by about 1e-16 (Δt/h)² |η| a step, far below it.
+REST_SHARE = 1e-10
+
+
+def restless(stepper, eta0: np.ndarray, v0: np.ndarray) -> bool:
+    """Whether the initial state (η0, v0) on this rank is not at rest, from the model and not the scheme: one step's
+    Δt|v0| + ½Δt²|a0| beyond REST_SHARE·max|η0| at a free node off the obstacle (outside the model's contact set at
+    η0); a0 = M_L⁻¹(b − Kη0 − Cv0) for a form affine in η and η_t with one field, else 0 (v0 alone)."""
+    d, nl = stepper.discrete, stepper.discrete.ops.nonlinear
+    linear = nl is None or (nl.eta_dofs is None and affine_in(nl.residual, (nl.eta, nl.eta_t)))
+    a0 = acceleration(d, eta0, v0) if linear else 0.0
+    laws, env = d.laws, dict(d.laws.env)  # a copy: a scheme's placeholders keep pointing at its own arrays
+    env[laws.key("eta")] = eta0
+    on = laws.compile(stepper.model.contact_set(laws.eta, laws.params)).evaluate_env(env)
+    moves = d.dt * np.abs(v0) + 0.5 * d.dt**2 * np.abs(a0) > REST_SHARE * np.max(np.abs(eta0), initial=0.0)
+    return bool(np.any(moves & d.interior & ~np.broadcast_to(np.asarray(on, dtype=bool), eta0.shape)))
+
+
+def still_message(st, eta0: np.ndarray, moving: bool) -> str | None:
+    """Why a run whose η never left η0 (bit for bit at T and in every stored row) cannot be complete though its initial
+    state was not at rest (`moving`, from `restless`) or it stored a velocity: its scheme did not step, whatever
+    energies it reported; None otherwise. Collective."""
+    rows, n = st.rows, st.rows.n
+    still = bool(np.array_equal(st.scheme.eta, eta0))
+    if rows.gather.holds and n:
+        still = still and bool((rows.fields["eta"][:n] == rows.fields["eta"][0]).all())
+    moving = moving or float(np.max(rows.series["max_speed"][:n], initial=0.0)) > 0.0
+    if st.comm.size > 1:
+        still, moving = st.comm.allreduce(still, op=MPI.LAND), st.comm.allreduce(moving, op=MPI.LOR)
+    if not (still and moving):
+        return None
+    return (f"eta never moved: it equals eta(0) bit for bit at every stored time, though the initial state is not at "
+            f"rest (v0, the net force b - K eta0 - C v0 or a stored velocity off the obstacle): scheme '{st.name}' did "
+            "not step; the numbers are not trustworthy; see docs/explanation/reliability.md")

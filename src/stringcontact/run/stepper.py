@@ -16,7 +16,7 @@ from ..model.interface import penetration_bound_of, reads_eps
 from ..scene.names import DEFAULT_MODEL
 from . import adapter
 from .blas import one_thread
-from .checks import checks_of, unbalanced_message
+from .checks import checks_of, restless, still_message, unbalanced_message
 from .options import Output, Storage, picture_function
 from .rows import RowObserver, output_steps, step_times
 
@@ -68,7 +68,9 @@ class Stepper:
         t0 = time.perf_counter()
         with plugin_code(f"model '{self.model.name}'"):  # its functions' sys.exit: one line, not exit 0
             self.problem = adapter.scene_problem(scene, self.model, comm, plan.constants)
+            eta0, v0 = self.problem.initial_state()  # the state the checks read, not the scheme's copy of it
             self.core = TimeStepper(self.problem, scene.dt, plan.Scheme, nt=scene.nt, **plan.options)
+            self._start = eta0, restless(self.core, eta0, v0)
         self.parameters = self.core.parameters
         self.timings = {"setup": time.perf_counter() - t0}
         self.counters, self.solver = self.core.counters, {}
@@ -228,7 +230,8 @@ class Stepper:
         self.counters |= {k: v for k, v in summed.items() if isinstance(v, int)}
         self.solver = {k: v for k, v in summed.items() if isinstance(v, str)}
         result = self._result("complete", "")
-        unbalanced = unbalanced_message(result)  # a balance that does not close is not a complete run
+        # a balance that does not close, or a string that never moved though not at rest, is not a complete run
+        unbalanced = unbalanced_message(result) or still_message(self, *self._start)
         if unbalanced is not None:
             result.status, result.message = "unbalanced", unbalanced
         self.core.finish()

@@ -4,6 +4,7 @@ for the model a run uses, before anything is written)."""
 
 from __future__ import annotations
 
+import contextvars
 import math
 import numbers
 from collections.abc import Callable
@@ -21,6 +22,9 @@ PARAMETERS_MAX = 64
 MAGNITUDE = 1e12
 #: A constant's range before its model is known (the run checks it against the model's).
 _UNKNOWN_RANGE = "a number in the range its model declares (`stringcontact models`)"
+#: The constants of the model a run will use, known before its scene is read (the command line's ``--model``): a
+#: ``[parameters]`` value the scene's own model does not declare is told its range there (`check_table`).
+RUN_CONSTANTS: contextvars.ContextVar = contextvars.ContextVar("RUN_CONSTANTS", default=())
 
 
 def fmt(v) -> str:
@@ -106,14 +110,15 @@ class ModelConstant:
 
 
 def check_table(value, key: str = "parameters", declared=()) -> tuple:
-    """A ``[parameters]`` table's form as (name, value) pairs: identifiers, finite numbers (`declared`: in range)."""
+    """A ``[parameters]`` table's form as (name, value) pairs: identifiers, finite numbers (in range for `declared`,
+    else for `RUN_CONSTANTS`)."""
     if isinstance(value, tuple):
         value = dict(value)
     if not isinstance(value, dict):
         raise SceneError(f"{key}: expected a table of model constants (name = number), got {type(value).__name__}")
     if len(value) > PARAMETERS_MAX:
         raise SceneError(f"{key}: {len(value)} constants; allowed: at most {PARAMETERS_MAX}")
-    by_name = {c.name: c for c in declared}
+    by_name = {c.name: c for c in (*RUN_CONSTANTS.get(), *declared)}  # the scene's own model's ranges first
     pairs = []
     for name, v in value.items():
         if not isinstance(name, str) or not name.isidentifier():

@@ -20,6 +20,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
+from ufl.algorithms.analysis import extract_constants
 
 from ..errors import InstabilityError, InstabilityWarning, SceneError
 from ..fem import nodal
@@ -54,7 +55,11 @@ class NodalLaws:
 
     def compile(self, expr):
         """`expr` (UFL in the placeholders and the model's fields) as a nodal NumPy expression: a
-        `fem.nodal.NodalExpression`, whose ``evaluate_env(self.env)`` gives its value at every node."""
+        `fem.nodal.NodalExpression`, whose ``evaluate_env(self.env)`` gives its value at every node. A law reading ε
+        in a run without one (a scheme that takes no penalty) is a TypeError, which names the scheme."""
+        if np.isnan(self.params.eps.value) and self.params.eps in extract_constants(expr):
+            raise TypeError(f"it applies model '{self.model.name}''s penalty, whose eps it has not got: it declares "
+                            "no penalty option (no eps); allowed: a penalty option (Scheme.OPTIONS) or no law reading eps")
         return nodal.NodalExpression(expr)
 
     def set(self, **arrays) -> None:
@@ -70,10 +75,12 @@ class NodalLaws:
 class MovingObstacle:
     """A moving obstacle ψ(x, t): the model's P1 ``obstacle`` field and its rate ``obstacle_rate`` (the backward
     quotient (ψ(t) − ψ(t − Δt))/Δt, the exact rate of the discrete gap η^n − ψ^n), set in place to a time by `set`.
-    `values(t)` gives ψ at every dof of the field (owned and ghosts); the last few times are kept."""
+    `values(t)` gives ψ at every dof of the field (owned and ghosts); the last few times are kept. A scheme's time t is
+    the run's t0 + t: `t0` is the run's time when the scheme started (a scheme started afresh from a state mid-run)."""
 
-    def __init__(self, values, psi_field, rate_field, dt: float, n_owned: int):
+    def __init__(self, values, psi_field, rate_field, dt: float, n_owned: int, t0: float = 0.0):
         self.values, self.psi_field, self.rate_field, self.dt, self.n = values, psi_field, rate_field, dt, n_owned
+        self.t0 = t0
         self._kept: dict[float, np.ndarray] = {}
 
     def at(self, t: float) -> np.ndarray:
@@ -82,7 +89,7 @@ class MovingObstacle:
         if key not in self._kept:
             if len(self._kept) >= 4:
                 self._kept.pop(next(iter(self._kept)))
-            self._kept[key] = np.asarray(self.values(t), dtype=float)
+            self._kept[key] = np.asarray(self.values(self.t0 + t), dtype=float)
         return self._kept[key]
 
     def set(self, t: float) -> np.ndarray:
