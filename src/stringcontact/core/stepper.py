@@ -160,8 +160,8 @@ class TimeStepper:
         if value == self._dt:
             return
         if self.problem.obstacle is not None:
-            raise ValueError("dt: a moving obstacle's scheme starts its obstacle at t = 0; its time step cannot change "
-                             "during a run")
+            raise ValueError("dt: the time step of a run with a moving obstacle cannot change during the run; "
+                             "restart from its state with the new dt")
         self._t0, self._step0, self._dt = self.t, self.step, float(value)
         self.scheme = self._restarted(self._dt)
         self.ledger.rebase(self._restart_terms, numerical=True)
@@ -372,8 +372,8 @@ class _Constants(MutableMapping):
     def __setitem__(self, name: str, value) -> None:
         st = self._stepper
         if st.problem.obstacle is not None:
-            raise ValueError(f"{name}: a constant cannot change during a run with a moving obstacle (its scheme would "
-                             "start its obstacle again at t = 0); restart from the state with the new value")
+            raise ValueError(f"{name}: a constant cannot change during a run with a moving obstacle; restart from the "
+                             "state with the new value")
         values = resolve_parameters(st.model.name, st.model.constants, dict(self) | {name: value},
                                     st.model.check_constants)
         if name not in self._stepper.problem.constants:  # the forms were compiled without it
