@@ -166,6 +166,19 @@ def test_a_bad_constant_between_steps_is_refused_in_one_line():
     assert dict(st.parameters) == {"beta": 0.0} and not st.parameters.changed
 
 
+def test_a_run_with_a_moving_obstacle_refuses_a_new_dt_in_one_line():
+    """The stored rows read ψ on the run's own time grid: a new Δt mid-run is refused, the state kept, and it goes on."""
+    st = quiet(sc.Stepper, scene(model="loaded_obstacle", obstacle="0.1*sin(2*pi*t)", output_times=[]),
+               scheme="projection")
+    quiet(st.advance)
+    eta, dt = st.eta.copy(), st.core.dt
+    with pytest.raises(ValueError, match=r"^dt: the time step of a run with a moving obstacle cannot change"):
+        st.core.dt = dt / 2
+    np.testing.assert_array_equal(st.eta, eta)
+    quiet(st.advance)
+    assert st.step == 2 and st.core.dt == dt
+
+
 @pytest.mark.slow
 def test_the_command_line_simulate_and_a_stepper_record_the_same_settings(tmp_path):
     """The same run started three ways: summary.json records the same scene (with the PETSc options and the
