@@ -22,15 +22,11 @@ _MEMBRANE_DROP = 0.01
 
 
 def symlog_unit(values, peak: float, share: float) -> np.ndarray:
-    """`values` from −peak … peak onto −1 … 1 (clipped) as matplotlib's SymLogNorm (base 10, linthresh share·peak)."""
-    c = share * peak
-    linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
+    """`values` from −peak … peak onto −1 … 1 (clipped) by matplotlib's SymLogNorm (base 10, linthresh share·peak)."""
+    from matplotlib.colors import SymLogNorm
 
-    def forward(v):
-        a = np.abs(v)
-        return np.sign(v) * np.where(a > c, linear + np.log10(np.maximum(a, c) / c), a * linear / c)
-
-    return np.clip(forward(np.asarray(values, dtype=float)) / forward(peak), -1.0, 1.0)
+    norm = SymLogNorm(linthresh=share * peak, vmin=-peak, vmax=peak, base=10, clip=True)
+    return 2.0 * np.asarray(norm(np.asarray(values, dtype=float))) - 1.0
 
 
 def field_range(values, info: dict) -> tuple[float, float]:

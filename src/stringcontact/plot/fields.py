@@ -4,13 +4,12 @@ their name: `FieldScale`, one field's colour scale over all rows (`io.paraview_v
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from ..io.paraview_view import field_range, symlog_unit
+from ..io.paraview_view import field_range
 from ..io.tables import field_info
-from .charts import caption, figure, literal, savefig
+from .charts import caption, drawn, figure, literal
 from .style import SCREEN, Look
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
@@ -51,10 +50,8 @@ class FieldScale:
                    float(info.get("linear_share", 1e-3)), label, title)
 
     def unit(self, values) -> np.ndarray:
-        """Where `values` lie on the scale: −1 at `low`, 1 at `high` (clipped beyond); 0 at 0 on a symmetric one."""
-        if self.scale == "symlog":
-            return symlog_unit(values, self.high, self.linear_share)
-        return np.clip(2.0 * (np.asarray(values, dtype=float) - self.low) / (self.high - self.low) - 1.0, -1.0, 1.0)
+        """Where `values` lie on the scale (`norm`): −1 at `low`, 1 at `high` (clipped beyond); 0 at 0 on a symmetric one."""
+        return np.clip(2.0 * np.asarray(self.norm()(np.asarray(values, dtype=float))) - 1.0, -1.0, 1.0)
 
     def colour_map(self):
         """The colours from −1 to 1 (`unit`), blended in between."""
@@ -89,7 +86,7 @@ class FieldScale:
         return ("−" if v < 0 else "") + text
 
 
-def field_figure(result, name: str, look: Look = SCREEN):
+def field_figure(result, look: Look = SCREEN, *, name: str):
     """The output field `name` on its scale: a string's over (x, t), contact outlined, a membrane's at its largest
     |value|; beside it its least and largest value at each time. Returns the figure and its two axes."""
     values = np.asarray(result.fields[name], dtype=float)
@@ -120,7 +117,4 @@ def field_figure(result, name: str, look: Look = SCREEN):
     return fig, (ax, bx)
 
 
-def field_picture(result, name: str, path, look: Look = SCREEN) -> Path:
-    """``NAME.png``: `field_figure` written to `path` in each format of `look`; the first path written."""
-    with look.drawn():
-        return savefig(field_figure(result, name, look)[0], Path(path), look)[0]
+field_picture = drawn(field_figure)
