@@ -42,26 +42,20 @@ def field_range(values, info: dict) -> tuple[float, float]:
     return low - pad, high + pad
 
 
-def blend(colours, unit) -> np.ndarray:
-    """The RGB rows at `unit` (−1 … 1) of `colours` spread evenly over −1 … 1, as `LinearSegmentedColormap`'s."""
-    stops = np.linspace(-1.0, 1.0, len(colours))
-    rgb = np.asarray(colours, dtype=float)
-    return np.column_stack([np.interp(np.asarray(unit, dtype=float), stops, rgb[:, k]) for k in range(3)])
-
-
 def field_points(low: float, high: float, info: dict) -> list:
     """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high` (a ``"symlog"`` one's
-    at 0, ±linthresh and `POINTS_PER_DECADE` per decade up to ±high)."""
-    colours = info["colours"]
-    if info.get("scale") != "symlog":
+    at 0, ±linthresh and `POINTS_PER_DECADE` per decade up to ±high, blended as `LinearSegmentedColormap` does)."""
+    colours = np.asarray(info["colours"], dtype=float)
+    if info.get("scale") == "symlog":
+        share = float(info.get("linear_share", 1e-3))
+        decades = -float(np.log10(share))
+        above = high * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
+        values = np.concatenate([-above[::-1], [0.0], above])
+        unit, stops = symlog_unit(values, high, share), np.linspace(-1.0, 1.0, len(colours))
+        colours = np.column_stack([np.interp(unit, stops, colours[:, k]) for k in range(3)])
+    else:
         values = np.linspace(low, high, len(colours))
-        return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
-    share = float(info.get("linear_share", 1e-3))
-    decades = -float(np.log10(share))
-    above = high * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
-    values = np.concatenate([-above[::-1], [0.0], above])
-    rgb = blend(colours, symlog_unit(values, high, share))
-    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, rgb)]
+    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
 
 
 def symlog_view(high: float, info: dict) -> list:

@@ -40,9 +40,7 @@ def stored_rows_at(result, times) -> list[int]:
 
 def snapshot_rows(result, most: int = MAX_PANELS) -> list[int]:
     """The rows at the scene's output times (else six evenly spaced), at most `most` of them (`evenly`)."""
-    rows = stored_rows_at(result, result.scene.output_times)
-    if not rows:
-        rows = sorted(set(np.linspace(0, len(result.t) - 1, 6).round().astype(int).tolist()))
+    rows = stored_rows_at(result, result.scene.output_times) or evenly(len(result.t), 6)
     return [rows[k] for k in evenly(len(rows), most)]
 
 
