@@ -97,8 +97,7 @@ def obstacle_name(result) -> str:
 
 def obstacle_profile(result, t: float = 0.0) -> np.ndarray:
     """ψ at the nodes (x of shape (N,) or (N, 2)) at the time t: the scene's profiled obstacle, or 0."""
-    x = np.asarray(result.x, dtype=float)
-    return result.scene.obstacle_values(x, t) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
+    return result.scene.obstacle_values(np.asarray(result.x, dtype=float), t)
 
 
 def obstacle_moves(result) -> bool:
@@ -109,8 +108,7 @@ def obstacle_moves(result) -> bool:
 def obstacle_history(result, rows, nodes=slice(None)) -> np.ndarray:
     """ψ at the `nodes` (indices, default all) at the times of the stored `rows`, one row each: (len(rows), nodes)."""
     x = np.asarray(result.x, dtype=float)[nodes]
-    psi = [np.broadcast_to(result.scene.obstacle_values(x, float(result.t[i])), x.shape[:1]) for i in rows]
-    return np.array(psi, dtype=float).reshape(-1, x.shape[0])
+    return np.array([result.scene.obstacle_values(x, float(result.t[i])) for i in rows], dtype=float).reshape(-1, len(x))
 
 
 def obstacle_range(result) -> tuple[float, float]:

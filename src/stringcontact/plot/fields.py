@@ -9,6 +9,7 @@ import numpy as np
 
 from ..io.paraview_view import field_range
 from ..io.tables import field_info
+from .annotations import nice_ticks
 from .charts import caption, drawn, figure, literal
 from .style import SCREEN, Look
 
@@ -73,9 +74,7 @@ class FieldScale:
             powers = 10.0 ** np.arange(np.ceil(np.log10(self.linear_share * self.high)), np.floor(np.log10(self.high)) + 1)
             inner = np.concatenate([-powers[::-1], [0.0], powers])
         else:
-            from matplotlib.ticker import MaxNLocator
-
-            inner = MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]).tick_values(self.low, self.high)
+            inner = nice_ticks(self.low, self.high)
         inner = inner[np.abs(self.unit(inner)) <= 1.0 - TICK_GAP]
         return np.concatenate([[self.low], inner, [self.high]])
 

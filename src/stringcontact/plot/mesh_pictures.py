@@ -66,12 +66,11 @@ space_time_picture = drawn(space_time_figure)
 
 def _height_range(result) -> str:
     """'η from A to B over x and t' (and ψ's range, for a profiled obstacle): η's own, not the drawn box's."""
-    moves = charts.obstacle_moves(result)
-    psi = charts.obstacle_history(result, range(len(result.t))) if moves else charts.obstacle_profile(result)
-    span = max(float(result.eta.max()), float(psi.max())) - min(float(result.eta.min()), float(psi.min()))
+    low, high = charts.obstacle_range(result)
+    span = max(float(result.eta.max()), high) - min(float(result.eta.min()), low)
     text = f"η from {_height_text(result.eta.min(), span)} to {_height_text(result.eta.max(), span)} over x and t"
     if charts.obstacle_name(result) == "ψ":
-        text += f", ψ from {_height_text(psi.min(), span)} to {_height_text(psi.max(), span)}"
+        text += f", ψ from {_height_text(low, span)} to {_height_text(high, span)}"
     return text
 
 
