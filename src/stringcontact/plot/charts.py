@@ -95,25 +95,10 @@ def obstacle_name(result) -> str:
     return "ψ" if getattr(result.scene, "obstacle", None) is not None else "0"
 
 
-def obstacle_profile(result, t: float = 0.0) -> np.ndarray:
-    """ψ at the nodes (x of shape (N,) or (N, 2)) at the time t: the scene's profiled obstacle, or 0."""
-    return result.scene.obstacle_values(np.asarray(result.x, dtype=float), t)
-
-
-def obstacle_moves(result) -> bool:
-    """Whether the run's obstacle moves (ψ(x, t), `Scene.obstacle_moves`): then each picture draws it at its time."""
-    return bool(getattr(result.scene, "obstacle_moves", False))
-
-
-def obstacle_history(result, rows, nodes=slice(None)) -> np.ndarray:
-    """ψ at the `nodes` (indices, default all) at the times of the stored `rows`, one row each: (len(rows), nodes)."""
-    x = np.asarray(result.x, dtype=float)[nodes]
-    return np.array([result.scene.obstacle_values(x, float(result.t[i])) for i in rows], dtype=float).reshape(-1, len(x))
-
-
 def obstacle_range(result) -> tuple[float, float]:
     """The least and the largest ψ at the nodes over every stored time (at t = 0 when it does not move)."""
-    psi = (obstacle_profile(result, float(t)) for t in (result.t if obstacle_moves(result) else [0.0]))  # one at a time
+    times = result.t if result.scene.obstacle_moves else [0.0]
+    psi = (result.scene.obstacle_values(result.x, float(t)) for t in times)  # one at a time
     lows, highs = zip(*((float(np.min(p)), float(np.max(p))) for p in psi))
     return min(lows), max(highs)
 
@@ -290,7 +275,7 @@ def snapshots_figure(result, look: Look = SCREEN):
     panels, below = with_key(fig, nrows, ncols, key=0.3 / height)
     axs = panels.subplots(sharex=True, sharey=True, squeeze=False)
     x, name = result.x, obstacle_name(result)
-    psis = {i: obstacle_profile(result, float(result.t[i])) for i in rows}  # a moving obstacle where it is at t
+    psis = {i: result.scene.obstacle_values(x, float(result.t[i])) for i in rows}  # a moving obstacle where it is at t
     lo = min(float(result.eta[rows].min()), min(float(p.min()) for p in psis.values()))
     hi = max(float(result.eta[rows].max()), max(float(p.max()) for p in psis.values()))
     pad = 0.08 * (hi - lo or 1.0)

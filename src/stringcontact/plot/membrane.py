@@ -9,7 +9,7 @@ import numpy as np
 
 from . import colours
 from .annotations import Axis, add_axis
-from .charts import obstacle_moves, obstacle_name, obstacle_profile, obstacle_range
+from .charts import obstacle_name, obstacle_range
 from .fields import FieldScale, info_of, surface_field
 from .vtk_start import _pyvista
 
@@ -74,7 +74,7 @@ def triangles(result, z):
 def add_membrane(p, result, row: int, view: MembraneView):
     """The membrane at `row` in `p`, coloured by contact or `view.field`, and the obstacle (grey; a moving one kept in
     `view.obstacle`): the membrane's PolyData, which `show_row` changes in place."""
-    moves = obstacle_moves(result)
+    moves = result.scene.obstacle_moves
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
     drawn = {"show_scalar_bar": False, "ambient": 0.3, "smooth_shading": True}  # Gouraud: flat showed every facet
@@ -97,7 +97,7 @@ def add_membrane(p, result, row: int, view: MembraneView):
 
 def _obstacle_heights(result, t: float, view: MembraneView) -> np.ndarray:
     lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
-    return obstacle_profile(result, t) * view.scale - _below(lo, hi, view.scale)
+    return result.scene.obstacle_values(result.x, t) * view.scale - _below(lo, hi, view.scale)
 
 
 def show_row(surface, result, row: int, view: MembraneView) -> None:

@@ -80,8 +80,8 @@ def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300,
     # the surface spans ~800 pixels across and ~400 deep: finer meshes cost llvmpipe time, not detail
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
     x, t, eta = result.x[cols], result.t[rows], result.eta[np.ix_(rows, cols)]
-    moves = charts.obstacle_moves(result)
-    psi = charts.obstacle_history(result, rows, cols) if moves else charts.obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
+    moves = result.scene.obstacle_moves
+    psi = np.array([result.scene.obstacle_values(x, ti) for ti in t]) if moves else result.scene.obstacle_values(x)
     lo, hi = min(eta.min(), psi.min()), max(eta.max(), psi.max())
     length = float(x[-1] - x[0])
     depth = -0.8 * length / (float(t[-1] - t[0]) or 1.0)  # t runs out of the picture over 0.8 l: t = 0 at the back
