@@ -91,19 +91,15 @@ def summary_dict(result) -> dict:
     return {
         "status": result.status, "message": result.message, "scene": result.scene.as_dict(), "scheme": result.scheme,
         "penalty": result.penalty, "mass": result.mass, "model": result.model,
-        "model_origin": getattr(result, "model_origin", None) or {"name": result.model},
-        "penetration_bound": getattr(result, "penetration_bound", "velocity"),
-        "law_reads_eps": bool(getattr(result, "law_reads_eps", True)),
-        "energy_label": getattr(result, "energy_label", None), "parameters": dict(getattr(result, "parameters", None) or {}),
-        "fields": field_info(result), "r": result.scene.r, "dolfinx": dolfinx.__version__, "timings": result.timings,
-        "counters": getattr(result, "counters", {}), "solver": getattr(result, "solver", {}),
-        "petsc_options": getattr(result, "petsc_options", {}), "min_eta": result.min_eta,
-        "min_gap": getattr(result, "min_gap", math.nan), "stored_rows": len(result.t),
-        "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
+        "model_origin": result.model_origin or {"name": result.model}, "penetration_bound": result.penetration_bound,
+        "law_reads_eps": bool(result.law_reads_eps), "energy_label": result.energy_label,
+        "parameters": dict(result.parameters or {}), "fields": field_info(result), "r": result.scene.r,
+        "dolfinx": dolfinx.__version__, "timings": result.timings, "counters": result.counters, "solver": result.solver,
+        "petsc_options": result.petsc_options, "min_eta": result.min_eta, "min_gap": result.min_gap,
+        "stored_rows": len(result.t), "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
         "initial_energy": float(result.total_energy[0]),
         "max_abs_balance_residual": float(np.max(np.abs(result.balance_residual))),
-        **most_components(result),
-        **(getattr(result, "checks", None) or {}),  # "energy_balance", "penetration" (run.checks)
+        **most_components(result), **(result.checks or {}),  # "energy_balance", "penetration" (run.checks)
     }
 
 
