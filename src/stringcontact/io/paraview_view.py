@@ -62,9 +62,7 @@ def symlog_view(high: float, info: dict) -> list:
     """A symmetric-log field's scale in view.py: ``[linthresh, [[unit, r, g, b], ...], [[unit, label], ...]]``, its
     colour bar's ticks at 0, ±linthresh, a decade apart up to ±high."""
     share = float(info.get("linear_share", 1e-3))
-    colours = info["colours"]
-    units = np.linspace(-1.0, 1.0, len(colours))
-    points = [[float(u), *(float(x) for x in c)] for u, c in zip(units, colours)]
+    points = field_points(-1.0, 1.0, {"colours": info["colours"]})
     above = high * 10.0 ** -np.arange(0, int(np.floor(-np.log10(share) + 1e-9)) + 1)
     if above[-1] > share * high * (1 + 1e-9):
         above = np.append(above, share * high)

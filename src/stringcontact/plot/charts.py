@@ -311,12 +311,6 @@ def snapshots_figure(result, look: Look = SCREEN):
 snapshots_picture = drawn(snapshots_figure)
 
 
-def stored_energy_label(result) -> str:
-    """The legend of the stored energy: the model's own (`Result.energy_label`), else the paper's elastic ½∫|∇η|²."""
-    grad = r"\eta_x^2" if np.ndim(result.x) == 1 else r"|\nabla\eta|^2"
-    return getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"
-
-
 def energy_figure(result, look: Look = SCREEN):
     """The balance (1.4): E(t) plus what viscosity, contact and the scheme took against E(0), zoomed onto the first
     times when it settles early (`settle_time`), |residual| below: the figure and its axes {"energy", "residual",
@@ -325,9 +319,10 @@ def energy_figure(result, look: Look = SCREEN):
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
     internal = e.get("internal_dissipation", np.zeros_like(t))
-    grad_t = r"\eta_{tx}^2" if np.ndim(result.x) == 1 else r"|\nabla\eta_t|^2"
+    grad, grad_t = (r"\eta_x^2", r"\eta_{tx}^2") if np.ndim(result.x) == 1 else (r"|\nabla\eta|^2", r"|\nabla\eta_t|^2")
+    stored = getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"  # the model's own, or ½∫|∇η|²
     curves = [(e["kinetic"], {"label": r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$"}),
-              (e["elastic"], {"label": stored_energy_label(result)}),
+              (e["elastic"], {"label": stored}),
               (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
               (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
               (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation (cumulative)"})]
