@@ -176,14 +176,13 @@ def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:
     return f"{words}, grey: the obstacle {psi}"
 
 
-def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
-    """The colour key's quantity and its (label, colour) entries: contact, or the surface field."""
+def membrane_legend(result, view: MembraneView) -> list:
+    """The colour key's (label, colour) entries: contact, or the surface field's edge of contact; and the obstacle."""
     psi = obstacle_name(result)
     obstacle = (f"obstacle {psi}", colours.OBSTACLE_COLOUR)
     if view.field is None:
-        return "colour: contact", [(f"in contact, η ≤ {psi}", colours.CONTACT_COLOUR),
-                                   (f"free, η > {psi}", colours.FREE_COLOUR), obstacle]
-    return f"colour:\n{view.field.label}", [("edge of contact", colours.CONTACT_EDGE_TEXT), obstacle]
+        return [(f"in contact, η ≤ {psi}", colours.CONTACT_COLOUR), (f"free, η > {psi}", colours.FREE_COLOUR), obstacle]
+    return [("edge of contact", colours.CONTACT_EDGE_COLOUR), obstacle]
 
 
 def contact_edge(surface, view: MembraneView, into=None):

@@ -11,7 +11,7 @@ import numpy as np
 from . import charts, membrane
 from .annotations import Axis, add_axis
 from .charts import caption, drawn
-from .colours import CONTACT_COLOUR, CONTACT_EDGE_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
+from .colours import CONTACT_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
 from .style import SCREEN, Look
 from .vtk_start import _plotter, _pyvista
 
@@ -129,15 +129,19 @@ def membrane_figure(result, look: Look = SCREEN):
     area = result.contact_measure
     patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
     pixels = look.pixels(panel)
-    for k, image in enumerate(membrane_renders(result, rows, view, pixels, _font_zoom(look, pixels[0], SCREEN_PANEL))):
-        ax = axs.flat[k]
-        ax.imshow(image)
-        ax.set_axis_off()
-        label = membrane.membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
-        ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # two lines in a column
+    p = _plotter(pixels)
+    try:
+        zoom = _font_zoom(look, pixels[0], SCREEN_PANEL)
+        for k, image in enumerate(membrane.rendered_rows(p, result, rows, view, zoom)):
+            ax = axs.flat[k]
+            ax.imshow(image)
+            ax.set_axis_off()
+            label = membrane.membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
+            ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # a column: 2 lines
+    finally:
+        p.close()
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    key = membrane.membrane_legend(result, view)[1]
     if bar:
         from matplotlib.cm import ScalarMappable
 
@@ -145,8 +149,7 @@ def membrane_figure(result, look: Look = SCREEN):
         colours = fig.colorbar(ScalarMappable(scale.norm(), scale.colour_map()), ax=axs, location="bottom", shrink=0.6,
                                aspect=40, label=scale.title)
         colours.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
-        key = [("edge of contact", CONTACT_EDGE_COLOUR), *key[1:]]
-    _key(below, key)
+    _key(below, membrane.membrane_legend(result, view))
     fig.suptitle(membrane.membrane_title(result, view, "The membrane at the output times"))
     caption(fig, result, look, charts.panels_note(result, rows))
     return fig, axs
@@ -154,11 +157,3 @@ def membrane_figure(result, look: Look = SCREEN):
 
 membrane_picture = drawn(membrane_figure)
 
-
-def membrane_renders(result, rows, view, pixels, zoom: float = 1.0):
-    """RGB renders `pixels` large of the membrane at each of `rows` (`membrane.rendered_rows`)."""
-    p = _plotter(pixels)
-    try:
-        yield from membrane.rendered_rows(p, result, rows, view, zoom)
-    finally:
-        p.close()
