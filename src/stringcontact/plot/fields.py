@@ -17,16 +17,6 @@ from .style import SCREEN, Look
 TICK_GAP = 0.16
 
 
-def info_of(result, name: str) -> dict:
-    """How the output field `name` of `result` is shown (`io.tables.field_info`)."""
-    return field_info(result)[name]
-
-
-def surface_field(result) -> str | None:
-    """The (first) output field whose description says ``surface``: it colours a membrane instead of contact; or None."""
-    return next((name for name, info in field_info(result).items() if info.get("surface")), None)
-
-
 @dataclass(frozen=True)
 class FieldScale:
     """An output field on one colour scale for every row: `low` … `high` onto −1 … 1 (`unit`) in its `colours`; linear,
@@ -89,7 +79,7 @@ def field_figure(result, look: Look = SCREEN, *, name: str):
     """The output field `name` on its scale: a string's over (x, t), contact outlined, a membrane's at its largest
     |value|; beside it its least and largest value at each time. Returns the figure and its two axes."""
     values = np.asarray(result.fields[name], dtype=float)
-    scale = FieldScale.of(values, info_of(result, name))
+    scale = FieldScale.of(values, field_info(result)[name])
     narrow = look.width < 6.0  # a journal's column: the two panels one above the other
     fig = figure((look.width, 1.3 * look.width) if narrow else (look.width, 0.42 * look.width))
     ax, bx = fig.subplots(2, 1) if narrow else fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.4, 1]})

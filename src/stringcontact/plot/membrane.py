@@ -7,10 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.tables import field_info
 from . import colours
 from .annotations import Axis, add_axis
 from .charts import obstacle_name, obstacle_range
-from .fields import FieldScale, info_of, surface_field
+from .fields import FieldScale
 from .vtk_start import _pyvista
 
 
@@ -54,9 +55,9 @@ def membrane_view(result) -> MembraneView:
               hi * scale)
     centre = np.asarray(bounds).reshape(3, 2).mean(axis=1)
     eye = centre + width * np.array([-0.4, -1.1, 1.5])
-    field = surface_field(result)
+    info = next((info for info in field_info(result).values() if info.get("surface")), None)  # colours it, not contact
     return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)),
-                        None if field is None else FieldScale.of(result.fields[field], info_of(result, field)))
+                        None if info is None else FieldScale.of(result.fields[info["name"]], info))
 
 
 def _below(lo: float, hi: float, scale: float) -> float:
