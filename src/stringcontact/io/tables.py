@@ -57,7 +57,7 @@ def clean_json(o):
     return o if o is None or isinstance(o, (bool, int, str)) else str(o)
 
 
-def field_columns(names, dim: int = 1) -> dict[str, tuple[str, str]]:
+def field_columns(names) -> dict[str, tuple[str, str]]:
     """The output fields `names` -> their (least, largest) columns of diagnostics.csv, ``min_NAME`` and ``max_NAME``."""
     core = {c.split("_", 1)[1] for c in DIAGNOSTIC_COLUMNS if c.startswith(("min_", "max_"))}
     return {name: (f"min_{field_key(name, core)}", f"max_{field_key(name, core)}") for name in names}
@@ -72,7 +72,7 @@ def write_diagnostics(path: Path, result) -> None:
             "contact_components": result.contact_components, "max_contact_force": result.contact_force.max(axis=1)}
     names = [measure if c == "contact_length" else c for c in DIAGNOSTIC_COLUMNS]
     fields = getattr(result, "fields", None) or {}
-    for name, (low, high) in field_columns(fields, result.dim).items():
+    for name, (low, high) in field_columns(fields).items():
         values = np.asarray(fields[name], dtype=float)
         cols.update({low: values.min(axis=1), high: values.max(axis=1)})
         names += [low, high]

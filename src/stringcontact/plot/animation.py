@@ -54,7 +54,7 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     p = _plotter(size)
     try:
         # text actors of a fixed size: a corner annotation fits its font to the viewport at every render (3x its time)
-        words = (f"{membrane.membrane_title(result, view, 'The membrane')}\n"
+        words = (f"{view.title('The membrane')}\n"
                  f"{membrane.membrane_colours(result, view, sep=chr(10))}")
         p.add_text(words, position=(0.02, 0.02), viewport=True, font_size=TITLE_FONT, color="black",
                    font_file=_font_file())

@@ -31,6 +31,10 @@ class MembraneView:
         c = np.asarray(contact, dtype=float)
         return c if self.neighbours is None else 0.6 * c + 0.4 * (self.neighbours @ c)
 
+    def title(self, what: str) -> str:
+        """The title: `what`, and how much the heights are stretched when they are."""
+        return f"{what} (heights ×{self.scale:.2g})" if self.scale > 1 else what
+
 
 def neighbour_mean(cells: np.ndarray, nodes: int):
     """The sparse matrix of the mean over each node's neighbours along the mesh's edges."""
@@ -162,11 +166,6 @@ def membrane_label(result, row: int, area: float, patches: int | None = None) ->
     share = 100 * area / float(np.sum(result.weights))
     text = f"t = {result.t[row]:.3g}: contact {area:.3g} ({share:.0f}%)"
     return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
-
-
-def membrane_title(result, view: MembraneView, what: str) -> str:
-    """The title: `what`, and how much the heights are stretched when they are."""
-    return f"{what} (heights ×{view.scale:.2g})" if view.scale > 1 else what
 
 
 def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:

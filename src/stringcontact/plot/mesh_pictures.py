@@ -150,7 +150,7 @@ def membrane_figure(result, look: Look = SCREEN):
                                aspect=40, label=scale.title)
         colours.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
     _key(below, membrane.membrane_legend(result, view))
-    fig.suptitle(membrane.membrane_title(result, view, "The membrane at the output times"))
+    fig.suptitle(view.title("The membrane at the output times"))
     caption(fig, result, look, charts.panels_note(result, rows))
     return fig, axs
 
