@@ -3,6 +3,7 @@ membrane and obstacle at a row moved to other rows in place, its axes, words, co
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -161,11 +162,13 @@ def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT, zoom: f
     p.camera.zoom(1.15)
 
 
-def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
-    """'t = 0.2: contact 2.17 (69%), 1 patch': the contact area, its share of the domain's, and the patches."""
-    share = 100 * area / float(np.sum(result.weights))
-    text = f"t = {result.t[row]:.3g}: contact {area:.3g} ({share:.0f}%)"
-    return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
+def membrane_labels(result, rows) -> list[str]:
+    """'t = 0.2: contact 2.17 (69%), 1 patch' at each of `rows`: the contact area, its share of the domain's, and the
+    patches (counted in these rows only)."""
+    area, domain = result.contact_measure, float(np.sum(result.weights))
+    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()
+    return [f"t = {result.t[row]:.3g}: contact {area[row]:.3g} ({100 * area[row] / domain:.0f}%), {n} "
+            f"patch{'es' * (n != 1)}" for row, n in zip(rows, np.asarray(patches).tolist())]
 
 
 def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:

@@ -4,8 +4,6 @@ times (`membrane`: what it shares with ``membrane.gif``); coloured by contact or
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from . import charts, membrane
@@ -126,8 +124,7 @@ def membrane_figure(result, look: Look = SCREEN):
     fig = charts.figure(look.inches)
     panels, below = charts.with_key(fig, nrows, ncols, key=0.4 / height)
     axs = panels.subplots(squeeze=False)
-    area = result.contact_measure
-    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
+    labels = membrane.membrane_labels(result, rows)
     pixels = look.pixels(panel)
     p = _plotter(pixels)
     try:
@@ -136,8 +133,7 @@ def membrane_figure(result, look: Look = SCREEN):
             ax = axs.flat[k]
             ax.imshow(image)
             ax.set_axis_off()
-            label = membrane.membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
-            ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # a column: 2 lines
+            ax.set_title(labels[k] if ncols == 3 else labels[k].replace(": ", "\n", 1), fontsize="small")  # 2 lines
     finally:
         p.close()
     for ax in axs.flat[len(rows):]:
