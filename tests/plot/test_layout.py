@@ -119,7 +119,7 @@ def test_the_drums_pictures_keep_their_words_inside_and_apart(drum, picture, loo
 @pytest.mark.slow
 @pytest.mark.parametrize("look", LOOKS, ids=list(LOOKS))
 def test_a_models_field_picture_keeps_its_words_inside_and_apart(stiff, look):
-    _check(lambda result, look: fields.field_figure(result, "curvature", look), stiff, LOOKS[look])
+    _check(lambda result, look: fields.field_figure(result, look, name="curvature"), stiff, LOOKS[look])
 
 
 def test_the_checker_finds_a_cut_title_and_a_legend_over_a_title():

@@ -23,7 +23,7 @@ from stringcontact.model.interface import OutputField
 from stringcontact.model.interface import inelastic
 from stringcontact.plot import picture_names as catalogue
 from stringcontact.plot import run_pictures as viz
-from stringcontact.plot.fields import FieldScale, info_of
+from stringcontact.plot.fields import FieldScale
 
 #: the field's colours, low to high: black to pure red (no core picture draws pure red)
 COLOURS = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0))
@@ -149,7 +149,7 @@ def test_paraviews_points_are_the_pictures_colours_at_their_values():
     np.testing.assert_allclose(points[:, 1:], pictures, atol=4e-3)
 
 
-def test_info_of_gives_a_plain_description_to_a_field_the_result_does_not_describe():
+def test_field_info_gives_a_plain_description_to_a_field_the_result_does_not_describe():
     result = SimpleNamespace(fields={"q": np.zeros((2, 3))}, field_info={})
-    assert info_of(result, "q") == OutputField("q").metadata()
+    assert tables.field_info(result)["q"] == OutputField("q").metadata()
 

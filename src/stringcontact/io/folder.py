@@ -54,14 +54,6 @@ def _add_evenly(mask: np.ndarray, candidates: np.ndarray, budget: int) -> None:
         mask[candidates] = True
 
 
-def in_python_terms(message: str) -> str:
-    """An output folder's refusal in `run.options.Output`'s terms, not the command line's."""
-    for cli, python in (("pass --force to replace it", "pass Output(..., force=True) to replace it"),
-                        ("--force replaces only", "Output(force=True) replaces only"), ("--out ", "output folder ")):
-        message = message.replace(cli, python)
-    return message
-
-
 class OutputWriter:
     """``write(t, fields)`` at each stored time, then ``finish(result)``, or ``abort(status, message[, result])`` on
     InstabilityError or KeyboardInterrupt, ``discard()`` on an unexpected error. `frames`: which stored rows are XDMF
@@ -78,8 +70,11 @@ class OutputWriter:
         if comm.rank == 0:  # only rank 0 looks at the folder: another rank would find rank 0's own lock
             try:
                 self.target, self.lock, self.partial = open_partial(path, force)
-            except OutputError as exc:
-                failure = in_python_terms(str(exc))
+            except OutputError as exc:  # in the terms of `run.options.Output`, not the command line's
+                failure = str(exc)
+                for cli, python in (("pass --force to replace it", "pass Output(..., force=True) to replace it"),
+                                    ("--force replaces only", "Output(force=True) replaces only"), ("--out ", "output folder ")):
+                    failure = failure.replace(cli, python)
         if comm.size > 1:
             failure, self.partial = comm.bcast((failure, self.partial), root=0)
         if failure is not None:

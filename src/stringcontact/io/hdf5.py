@@ -24,20 +24,6 @@ H5_NATIVE = {np.dtype(np.float64): "H5T_NATIVE_DOUBLE_g", np.dtype(np.int32): "H
              np.dtype(np.int64): "H5T_NATIVE_INT64_g"}
 
 
-def _signatures() -> dict:
-    hid, herr, sizes, ptr = ctypes.c_int64, ctypes.c_int, ctypes.POINTER(ctypes.c_uint64), ctypes.c_void_p
-    return {"H5Eget_auto2": (herr, [hid, ctypes.POINTER(ptr), ctypes.POINTER(ptr)]), "H5Eset_auto2": (herr, [hid, ptr, ptr]),
-            "H5open": (herr, []), "H5Pcreate": (hid, [hid]), "H5Pset_fapl_sec2": (herr, [hid]),
-            "H5Pset_fclose_degree": (herr, [hid, ctypes.c_int]), "H5Pset_file_locking": (herr, [hid, ctypes.c_bool, ctypes.c_bool]),
-            "H5Pset_chunk": (herr, [hid, ctypes.c_int, sizes]), "H5Pset_alloc_time": (herr, [hid, ctypes.c_int]),
-            "H5Pclose": (herr, [hid]), "H5Fcreate": (hid, [ctypes.c_char_p, ctypes.c_uint, hid, hid]),
-            "H5Fflush": (herr, [hid, ctypes.c_int]), "H5Fget_eoa": (herr, [hid, sizes]),
-            "H5Fget_vfd_handle": (herr, [hid, hid, ctypes.POINTER(ptr)]), "H5Fclose": (herr, [hid]),
-            "H5Screate_simple": (hid, [ctypes.c_int, sizes, sizes]), "H5Sclose": (herr, [hid]),
-            "H5Dcreate2": (hid, [hid, ctypes.c_char_p, hid, hid, hid, hid, hid]),
-            "H5Dwrite": (herr, [hid, hid, hid, hid, hid, ptr]), "H5Dclose": (herr, [hid])}
-
-
 @functools.cache
 def hdf5_library():
     """The libhdf5 dolfinx and PETSc loaded (/proc/self/maps) through ctypes, errno kept per call; None if none."""
@@ -48,7 +34,20 @@ def hdf5_library():
         if not paths:
             return None
         lib = ctypes.CDLL(paths[0], use_errno=True)
-        for name, (restype, argtypes) in _signatures().items():
+        hid, herr, sizes, ptr = ctypes.c_int64, ctypes.c_int, ctypes.POINTER(ctypes.c_uint64), ctypes.c_void_p
+        signatures = {
+            "H5Eget_auto2": (herr, [hid, ctypes.POINTER(ptr), ctypes.POINTER(ptr)]), "H5Eset_auto2": (herr, [hid, ptr, ptr]),
+            "H5open": (herr, []), "H5Pcreate": (hid, [hid]), "H5Pset_fapl_sec2": (herr, [hid]),
+            "H5Pset_fclose_degree": (herr, [hid, ctypes.c_int]),
+            "H5Pset_file_locking": (herr, [hid, ctypes.c_bool, ctypes.c_bool]),
+            "H5Pset_chunk": (herr, [hid, ctypes.c_int, sizes]), "H5Pset_alloc_time": (herr, [hid, ctypes.c_int]),
+            "H5Pclose": (herr, [hid]), "H5Fcreate": (hid, [ctypes.c_char_p, ctypes.c_uint, hid, hid]),
+            "H5Fflush": (herr, [hid, ctypes.c_int]), "H5Fget_eoa": (herr, [hid, sizes]),
+            "H5Fget_vfd_handle": (herr, [hid, hid, ctypes.POINTER(ptr)]), "H5Fclose": (herr, [hid]),
+            "H5Screate_simple": (hid, [ctypes.c_int, sizes, sizes]), "H5Sclose": (herr, [hid]),
+            "H5Dcreate2": (hid, [hid, ctypes.c_char_p, hid, hid, hid, hid, hid]),
+            "H5Dwrite": (herr, [hid, hid, hid, hid, hid, ptr]), "H5Dclose": (herr, [hid])}
+        for name, (restype, argtypes) in signatures.items():
             getattr(lib, name).restype, getattr(lib, name).argtypes = restype, argtypes
         return lib
     except (OSError, AttributeError):

@@ -73,12 +73,6 @@ def foreign_file(folder: Path, depth: int = 3) -> str | None:
     return None
 
 
-def is_run_result(folder: Path) -> bool:
-    """`folder` holds the result of `stringcontact run` (its manifest lists summary.json and solution.xdmf)."""
-    files = read_manifest(folder) or {}
-    return "summary.json" in files and "solution.xdmf" in files
-
-
 @contextlib.contextmanager
 def atomic_path(path, record: bool = True):
     """One file whole or not at all: ``with atomic_path(path) as tmp: write to tmp``, a hidden sibling renamed onto

@@ -22,15 +22,11 @@ _MEMBRANE_DROP = 0.01
 
 
 def symlog_unit(values, peak: float, share: float) -> np.ndarray:
-    """`values` from −peak … peak onto −1 … 1 (clipped) as matplotlib's SymLogNorm (base 10, linthresh share·peak)."""
-    c = share * peak
-    linear = 1.0 / (1.0 - 1.0 / 10.0)  # SymLogNorm's linscale / (1 - 1/base)
+    """`values` from −peak … peak onto −1 … 1 (clipped) by matplotlib's SymLogNorm (base 10, linthresh share·peak)."""
+    from matplotlib.colors import SymLogNorm
 
-    def forward(v):
-        a = np.abs(v)
-        return np.sign(v) * np.where(a > c, linear + np.log10(np.maximum(a, c) / c), a * linear / c)
-
-    return np.clip(forward(np.asarray(values, dtype=float)) / forward(peak), -1.0, 1.0)
+    norm = SymLogNorm(linthresh=share * peak, vmin=-peak, vmax=peak, base=10, clip=True)
+    return 2.0 * np.asarray(norm(np.asarray(values, dtype=float))) - 1.0
 
 
 def field_range(values, info: dict) -> tuple[float, float]:
@@ -46,35 +42,27 @@ def field_range(values, info: dict) -> tuple[float, float]:
     return low - pad, high + pad
 
 
-def blend(colours, unit) -> np.ndarray:
-    """The RGB rows at `unit` (−1 … 1) of `colours` spread evenly over −1 … 1, as `LinearSegmentedColormap`'s."""
-    stops = np.linspace(-1.0, 1.0, len(colours))
-    rgb = np.asarray(colours, dtype=float)
-    return np.column_stack([np.interp(np.asarray(unit, dtype=float), stops, rgb[:, k]) for k in range(3)])
-
-
 def field_points(low: float, high: float, info: dict) -> list:
     """ParaView's control points (value, r, g, b) of an output field's colours on `low` … `high` (a ``"symlog"`` one's
-    at 0, ±linthresh and `POINTS_PER_DECADE` per decade up to ±high)."""
-    colours = info["colours"]
-    if info.get("scale") != "symlog":
+    at 0, ±linthresh and `POINTS_PER_DECADE` per decade up to ±high, blended as `LinearSegmentedColormap` does)."""
+    colours = np.asarray(info["colours"], dtype=float)
+    if info.get("scale") == "symlog":
+        share = float(info.get("linear_share", 1e-3))
+        decades = -float(np.log10(share))
+        above = high * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
+        values = np.concatenate([-above[::-1], [0.0], above])
+        unit, stops = symlog_unit(values, high, share), np.linspace(-1.0, 1.0, len(colours))
+        colours = np.column_stack([np.interp(unit, stops, colours[:, k]) for k in range(3)])
+    else:
         values = np.linspace(low, high, len(colours))
-        return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
-    share = float(info.get("linear_share", 1e-3))
-    decades = -float(np.log10(share))
-    above = high * 10.0 ** -np.linspace(decades, 0.0, round(decades * POINTS_PER_DECADE) + 1)
-    values = np.concatenate([-above[::-1], [0.0], above])
-    rgb = blend(colours, symlog_unit(values, high, share))
-    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, rgb)]
+    return [(float(v), *(float(x) for x in c)) for v, c in zip(values, colours)]
 
 
 def symlog_view(high: float, info: dict) -> list:
     """A symmetric-log field's scale in view.py: ``[linthresh, [[unit, r, g, b], ...], [[unit, label], ...]]``, its
     colour bar's ticks at 0, ±linthresh, a decade apart up to ±high."""
     share = float(info.get("linear_share", 1e-3))
-    colours = info["colours"]
-    units = np.linspace(-1.0, 1.0, len(colours))
-    points = [[float(u), *(float(x) for x in c)] for u, c in zip(units, colours)]
+    points = field_points(-1.0, 1.0, {"colours": info["colours"]})
     above = high * 10.0 ** -np.arange(0, int(np.floor(-np.log10(share) + 1e-9)) + 1)
     if above[-1] > share * high * (1 + 1e-9):
         above = np.append(above, share * high)
@@ -91,16 +79,8 @@ def view_numbers(result) -> dict:
     moves = bool(getattr(result.scene, "obstacle_moves", False))
     if moves:  # the box holds the obstacle at every stored time, not only at t = 0
         lo, hi = _moving_range(result.scene, x, result.t, lo, hi)
-    if x.ndim == 1 or x.shape[1] == 1:
-        kind, normal, xs = "string", (0.0, 1.0, 0.0), x.reshape(-1)
-        points, quads, (lo, hi) = _string_obstacle(result.scene, xs, lo, hi)
-        bounds = (float(xs.min()), float(xs.max()), lo, hi, 0.0, 0.0)
-        shift = (0.0, 0.0, points[0][2])  # behind the string, as the obstacle at rest
-    else:
-        kind, normal = "membrane", (0.0, 0.0, 1.0)
-        points, quads, (lo, hi) = _membrane_obstacle(result.scene, x, lo, hi)
-        bounds = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
-        shift = (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
+    obstacle = _string_obstacle if x.ndim == 1 or x.shape[1] == 1 else _membrane_obstacle
+    kind, normal, points, quads, bounds, shift = obstacle(result.scene, x, lo, hi)
     maps, symlog = {}, {}
     for name, info in field_info(result).items():
         low, high = field_range(result.fields[name], info)
@@ -117,7 +97,6 @@ def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
     """ψ at `points` (x, or rows of x, y) at the time t; ψ's lowest finite value where it has none (no NaN)."""
     points = np.asarray(points, dtype=float)
     psi = np.asarray(scene.obstacle_values(points, t), dtype=float).reshape(-1)
-    psi = np.broadcast_to(psi, points.shape[:1]) if psi.size == 1 else psi
     finite = np.isfinite(psi)
     return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
 
@@ -135,9 +114,10 @@ def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
     return lo, hi
 
 
-def _string_obstacle(scene, xs, lo, hi):
-    """The region below y = ψ(x) down to a floor under everything, slightly behind the string, and the range."""
-    flat = getattr(scene, "obstacle", None) is None
+def _string_obstacle(scene, x, lo, hi):
+    """The region below y = ψ(x) down to a floor under everything, slightly behind the string: the string's kind,
+    normal, the region's points and quads, the box over everything, the shift of a moving obstacle (as this one)."""
+    flat, xs = getattr(scene, "obstacle", None) is None, x.reshape(-1)
     grid = np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
     psi = obstacle_at(scene, grid)
     lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
@@ -146,11 +126,12 @@ def _string_obstacle(scene, xs, lo, hi):
     n = len(grid)
     points = [(float(g), float(p), z) for g, p in zip(grid, psi)] + [(float(g), floor, z) for g in grid]
     quads = [(i, i + 1, n + i + 1, n + i) for i in range(n - 1)]
-    return points, quads, (floor, hi)
+    box = (float(xs.min()), float(xs.max()), floor, hi, 0.0, 0.0)
+    return "string", (0.0, 1.0, 0.0), points, quads, box, (0.0, 0.0, z)
 
 
 def _membrane_obstacle(scene, x, lo, hi):
-    """The surface z = ψ(x, y) over the mesh's box, `_MEMBRANE_DROP` of the height range lower; and the range."""
+    """z = ψ(x, y) over the mesh's box, `_MEMBRANE_DROP` of the height range lower; returns as `_string_obstacle`."""
     flat = getattr(scene, "obstacle", None) is None
     n = 2 if flat else min(OBSTACLE_SAMPLES // 4, int(np.sqrt(len(x))) + 1)
     gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))
@@ -158,10 +139,11 @@ def _membrane_obstacle(scene, x, lo, hi):
     lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
     psi = psi - _MEMBRANE_DROP * max(hi - lo, 1e-12)
     points = [(float(a), float(b), float(c)) for a, b, c in zip(gx.ravel(), gy.ravel(), psi)]
-    quads = [
-        (j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i) for j in range(n - 1) for i in range(n - 1)
-    ]
-    return points, quads, (min(lo, float(psi.min())), hi)
+    quads = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i)
+             for j in range(n - 1) for i in range(n - 1)]
+    lo = min(lo, float(psi.min()))
+    box = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
+    return "membrane", (0.0, 0.0, 1.0), points, quads, box, (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
 
 
 def _literal(value) -> str:

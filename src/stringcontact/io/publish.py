@@ -49,42 +49,35 @@ def _recover_stale(target: Path) -> None:
                       f"({', '.join(removed)})", stacklevel=4)
 
 
-def _beside(partial: Path, target: Path, label: str) -> Path:
-    """Rename `partial` to the first free ``NAME.label``, ``NAME.label-2``, ... beside `target`."""
-    for i in range(1, 1000):
-        dest = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
-        if not dest.exists():
-            os.rename(partial, dest)
-            return dest
-    raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
-
-
 def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
     """Rename the finished folder `partial` to `target` (occupied: only a complete one with `force`, else beside it as
     ``NAME.new``/``NAME.<status>``); returns where it went."""
-    label = status if status != "complete" else "new"
-    if target.exists() and (not target.is_dir() or any(target.iterdir())):
-        # looked at again: a run into a folder inside it may have started meanwhile, or a user put a file there
-        if status != "complete" or not force or foreign_file(target) is not None:
-            return _beside(partial, target, label)
-        old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
-        os.rename(target, old)
-        with contextlib.suppress(OSError):
-            (old / MARKER).write_text("old\n")  # a later run may remove it (`_recover_stale`)
-        try:
-            os.rename(partial, target)
-        except OSError:
-            (old / MARKER).unlink(missing_ok=True)
-            os.rename(old, target)
-            raise
-        shutil.rmtree(old, ignore_errors=True)
-        return target
     try:
         os.replace(partial, target)  # target absent or an empty folder
+        return target
     except OSError as exc:
         if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
             raise
-        return _beside(partial, target, label)
+    # occupied, looked at again: a run into a folder inside it may have started meanwhile, or a user put a file there
+    if status != "complete" or not force or foreign_file(target) is not None:  # beside it: NAME.new, NAME.new-2, ...
+        label = "new" if status == "complete" else status
+        for i in range(1, 1000):
+            dest = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
+            if not dest.exists():
+                os.rename(partial, dest)
+                return dest
+        raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
+    old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
+    os.rename(target, old)
+    with contextlib.suppress(OSError):
+        (old / MARKER).write_text("old\n")  # a later run may remove it (`_recover_stale`)
+    try:
+        os.rename(partial, target)
+    except OSError:
+        (old / MARKER).unlink(missing_ok=True)
+        os.rename(old, target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
     return target
 
 

@@ -57,7 +57,7 @@ def clean_json(o):
     return o if o is None or isinstance(o, (bool, int, str)) else str(o)
 
 
-def field_columns(names, dim: int = 1) -> dict[str, tuple[str, str]]:
+def field_columns(names) -> dict[str, tuple[str, str]]:
     """The output fields `names` -> their (least, largest) columns of diagnostics.csv, ``min_NAME`` and ``max_NAME``."""
     core = {c.split("_", 1)[1] for c in DIAGNOSTIC_COLUMNS if c.startswith(("min_", "max_"))}
     return {name: (f"min_{field_key(name, core)}", f"max_{field_key(name, core)}") for name in names}
@@ -72,7 +72,7 @@ def write_diagnostics(path: Path, result) -> None:
             "contact_components": result.contact_components, "max_contact_force": result.contact_force.max(axis=1)}
     names = [measure if c == "contact_length" else c for c in DIAGNOSTIC_COLUMNS]
     fields = getattr(result, "fields", None) or {}
-    for name, (low, high) in field_columns(fields, result.dim).items():
+    for name, (low, high) in field_columns(fields).items():
         values = np.asarray(fields[name], dtype=float)
         cols.update({low: values.min(axis=1), high: values.max(axis=1)})
         names += [low, high]
@@ -91,19 +91,15 @@ def summary_dict(result) -> dict:
     return {
         "status": result.status, "message": result.message, "scene": result.scene.as_dict(), "scheme": result.scheme,
         "penalty": result.penalty, "mass": result.mass, "model": result.model,
-        "model_origin": getattr(result, "model_origin", None) or {"name": result.model},
-        "penetration_bound": getattr(result, "penetration_bound", "velocity"),
-        "law_reads_eps": bool(getattr(result, "law_reads_eps", True)),
-        "energy_label": getattr(result, "energy_label", None), "parameters": dict(getattr(result, "parameters", None) or {}),
-        "fields": field_info(result), "r": result.scene.r, "dolfinx": dolfinx.__version__, "timings": result.timings,
-        "counters": getattr(result, "counters", {}), "solver": getattr(result, "solver", {}),
-        "petsc_options": getattr(result, "petsc_options", {}), "min_eta": result.min_eta,
-        "min_gap": getattr(result, "min_gap", math.nan), "stored_rows": len(result.t),
-        "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
+        "model_origin": result.model_origin or {"name": result.model}, "penetration_bound": result.penetration_bound,
+        "law_reads_eps": bool(result.law_reads_eps), "energy_label": result.energy_label,
+        "parameters": dict(result.parameters or {}), "fields": field_info(result), "r": result.scene.r,
+        "dolfinx": dolfinx.__version__, "timings": result.timings, "counters": result.counters, "solver": result.solver,
+        "petsc_options": result.petsc_options, "min_eta": result.min_eta, "min_gap": result.min_gap,
+        "stored_rows": len(result.t), "final_energy": {k: float(v[-1]) for k, v in result.energy.items()},
         "initial_energy": float(result.total_energy[0]),
         "max_abs_balance_residual": float(np.max(np.abs(result.balance_residual))),
-        **most_components(result),
-        **(getattr(result, "checks", None) or {}),  # "energy_balance", "penetration" (run.checks)
+        **most_components(result), **(result.checks or {}),  # "energy_balance", "penetration" (run.checks)
     }
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..errors import OutputError
 from .disk import describe_os_error
 from .lock import TargetLock
-from .manifest import MANIFEST, foreign_file, is_run_result
+from .manifest import MANIFEST, foreign_file, read_manifest
 
 #: Files that Docker (/.dockerenv) and podman (/run/.containerenv) put in every container.
 CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
@@ -47,7 +47,7 @@ def check_target(path, force: bool, *, locked: bool = False, parents: bool = Fal
         if blocker is not None:
             raise OutputError(f"--out {target}: --force replaces only a stringcontact result (the files its {MANIFEST} "
                               f"lists), and {blocker}; move it away or choose another folder")
-        if command != "run" and is_run_result(target):
+        if command != "run" and {"summary.json", "solution.xdmf"} <= set(read_manifest(target) or {}):  # a run's
             raise OutputError(f"--out {target}: holds the result of a run (summary.json, solution.xdmf), which "
                               f"`{command} --force` does not replace; choose another folder")
     if busy is not None:

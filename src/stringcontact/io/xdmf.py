@@ -145,25 +145,16 @@ class XdmfTimeSeries:
 
     def close(self, discard: bool = False) -> None:
         """Close both files (collective; safe twice). `discard`: they are about to be removed after a failed write:
-        closed whatever room is left, never raising."""
-        if discard:
-            if self.comm.rank == 0:
-                self._close_root(discard=True)
-            return
-        one_outcome(self.comm, self._close_root, root=0)
+        closed by rank 0 whatever room is left, never raising."""
+        if not discard:
+            one_outcome(self.comm, self._close_root, root=0)
+        elif self.comm.rank == 0:
+            self._close_root(discard=True)
 
     def _close_root(self, discard: bool = False) -> None:
-        h5, self.h5 = self.h5, None
-        xml, self.xml = self.xml, None
-        if xml is not None:
-            xml.close()
-        if h5 is None:
-            return
-        if discard:
-            h5.discard()
-            return
-        try:
-            h5.close()
-        except (RuntimeError, OSError):
-            self.h5 = h5  # still open: close(discard=True) closes it
-            raise
+        if self.xml is not None:
+            self.xml.close()
+            self.xml = None
+        if self.h5 is not None:  # a failed close keeps it open: close(discard=True) closes it
+            (self.h5.discard if discard else self.h5.close)()
+            self.h5 = None

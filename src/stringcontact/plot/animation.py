@@ -3,7 +3,6 @@ Pillow; a surface field's colour bar drawn once by matplotlib and laid over ever
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -47,14 +46,13 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
     its time, contact area and patches."""
     rows = frame_rows(result, max_frames)
     view = membrane.membrane_view(result)
-    area = result.contact_measure
-    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of the frames only
+    labels = membrane.membrane_labels(result, rows)
     size = gif_size(window_size)
     bar = None if view.field is None else field_bar(view.field, size)
     p = _plotter(size)
     try:
         # text actors of a fixed size: a corner annotation fits its font to the viewport at every render (3x its time)
-        words = (f"{membrane.membrane_title(result, view, 'The membrane')}\n"
+        words = (f"{view.title('The membrane')}\n"
                  f"{membrane.membrane_colours(result, view, sep=chr(10))}")
         p.add_text(words, position=(0.02, 0.02), viewport=True, font_size=TITLE_FONT, color="black",
                    font_file=_font_file())
@@ -63,13 +61,13 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
         text.prop.SetVerticalJustificationToTop()
 
         def caption(k, row):
-            text.input = membrane.membrane_label(result, row, area[row], int(patches[k]))
+            text.input = labels[k]
 
         frames = [image if bar is None else _laid_over(image, bar)
                   for image in membrane.rendered_rows(p, result, rows, view, before_render=caption)]
     finally:
         p.close()
-    write_gif(Path(path), frames, fps, landmarks=[int(np.argmax(area[rows]))],
+    write_gif(Path(path), frames, fps, landmarks=[int(np.argmax(result.contact_measure[rows]))],
               colours=PALETTE if bar is None else FIELD_PALETTE)
     return Path(path)
 

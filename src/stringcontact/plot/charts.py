@@ -40,9 +40,7 @@ def stored_rows_at(result, times) -> list[int]:
 
 def snapshot_rows(result, most: int = MAX_PANELS) -> list[int]:
     """The rows at the scene's output times (else six evenly spaced), at most `most` of them (`evenly`)."""
-    rows = stored_rows_at(result, result.scene.output_times)
-    if not rows:
-        rows = sorted(set(np.linspace(0, len(result.t) - 1, 6).round().astype(int).tolist()))
+    rows = stored_rows_at(result, result.scene.output_times) or evenly(len(result.t), 6)
     return [rows[k] for k in evenly(len(rows), most)]
 
 
@@ -97,27 +95,10 @@ def obstacle_name(result) -> str:
     return "ψ" if getattr(result.scene, "obstacle", None) is not None else "0"
 
 
-def obstacle_profile(result, t: float = 0.0) -> np.ndarray:
-    """ψ at the nodes (x of shape (N,) or (N, 2)) at the time t: the scene's profiled obstacle, or 0."""
-    x = np.asarray(result.x, dtype=float)
-    return result.scene.obstacle_values(x, t) if obstacle_name(result) == "ψ" else np.zeros(x.shape[:1])
-
-
-def obstacle_moves(result) -> bool:
-    """Whether the run's obstacle moves (ψ(x, t), `Scene.obstacle_moves`): then each picture draws it at its time."""
-    return bool(getattr(result.scene, "obstacle_moves", False))
-
-
-def obstacle_history(result, rows, nodes=slice(None)) -> np.ndarray:
-    """ψ at the `nodes` (indices, default all) at the times of the stored `rows`, one row each: (len(rows), nodes)."""
-    x = np.asarray(result.x, dtype=float)[nodes]
-    psi = [np.broadcast_to(result.scene.obstacle_values(x, float(result.t[i])), x.shape[:1]) for i in rows]
-    return np.array(psi, dtype=float).reshape(-1, x.shape[0])
-
-
 def obstacle_range(result) -> tuple[float, float]:
     """The least and the largest ψ at the nodes over every stored time (at t = 0 when it does not move)."""
-    psi = (obstacle_profile(result, float(t)) for t in (result.t if obstacle_moves(result) else [0.0]))  # one at a time
+    times = result.t if result.scene.obstacle_moves else [0.0]
+    psi = (result.scene.obstacle_values(result.x, float(t)) for t in times)  # one at a time
     lows, highs = zip(*((float(np.min(p)), float(np.max(p))) for p in psi))
     return min(lows), max(highs)
 
@@ -294,7 +275,7 @@ def snapshots_figure(result, look: Look = SCREEN):
     panels, below = with_key(fig, nrows, ncols, key=0.3 / height)
     axs = panels.subplots(sharex=True, sharey=True, squeeze=False)
     x, name = result.x, obstacle_name(result)
-    psis = {i: obstacle_profile(result, float(result.t[i])) for i in rows}  # a moving obstacle where it is at t
+    psis = {i: result.scene.obstacle_values(x, float(result.t[i])) for i in rows}  # a moving obstacle where it is at t
     lo = min(float(result.eta[rows].min()), min(float(p.min()) for p in psis.values()))
     hi = max(float(result.eta[rows].max()), max(float(p.max()) for p in psis.values()))
     pad = 0.08 * (hi - lo or 1.0)
@@ -330,12 +311,6 @@ def snapshots_figure(result, look: Look = SCREEN):
 snapshots_picture = drawn(snapshots_figure)
 
 
-def stored_energy_label(result) -> str:
-    """The legend of the stored energy: the model's own (`Result.energy_label`), else the paper's elastic ½∫|∇η|²."""
-    grad = r"\eta_x^2" if np.ndim(result.x) == 1 else r"|\nabla\eta|^2"
-    return getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"
-
-
 def energy_figure(result, look: Look = SCREEN):
     """The balance (1.4): E(t) plus what viscosity, contact and the scheme took against E(0), zoomed onto the first
     times when it settles early (`settle_time`), |residual| below: the figure and its axes {"energy", "residual",
@@ -344,9 +319,10 @@ def energy_figure(result, look: Look = SCREEN):
     E = result.total_energy
     spent = e["viscous_dissipation"] + e["contact_dissipation"] + e["numerical_dissipation"]
     internal = e.get("internal_dissipation", np.zeros_like(t))
-    grad_t = r"\eta_{tx}^2" if np.ndim(result.x) == 1 else r"|\nabla\eta_t|^2"
+    grad, grad_t = (r"\eta_x^2", r"\eta_{tx}^2") if np.ndim(result.x) == 1 else (r"|\nabla\eta|^2", r"|\nabla\eta_t|^2")
+    stored = getattr(result, "energy_label", None) or rf"elastic $\frac{{1}}{{2}}\int {grad}\,dx$"  # the model's own, or ½∫|∇η|²
     curves = [(e["kinetic"], {"label": r"kinetic $\frac{1}{2}\int \eta_t^2\,dx$"}),
-              (e["elastic"], {"label": stored_energy_label(result)}),
+              (e["elastic"], {"label": stored}),
               (e["viscous_dissipation"], {"label": rf"viscous dissipation $\alpha\int_0^t\!\int {grad_t}$"}),
               (e["contact_dissipation"], {"label": r"contact dissipation $-\int_0^t\!\int F\,\eta_t$"}),
               (e["numerical_dissipation"], {"ls": "--", "label": "numerical dissipation (cumulative)"})]

@@ -7,5 +7,3 @@ OBSTACLE_COLOUR = "#777777"
 MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 #: the edge of the contact set of a membrane coloured by a field: yellow, seen on blue, grey and red alike
 CONTACT_EDGE_COLOUR = "#ffd400"
-#: its colour in the legend's text, on white (the line's yellow is hardly read there)
-CONTACT_EDGE_TEXT = "#b08f00"

@@ -4,27 +4,17 @@ their name: `FieldScale`, one field's colour scale over all rows (`io.paraview_v
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from ..io.paraview_view import field_range, symlog_unit
+from ..io.paraview_view import field_range
 from ..io.tables import field_info
-from .charts import caption, figure, literal, savefig
+from .annotations import nice_ticks
+from .charts import caption, drawn, figure, literal
 from .style import SCREEN, Look
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
 TICK_GAP = 0.16
-
-
-def info_of(result, name: str) -> dict:
-    """How the output field `name` of `result` is shown (`io.tables.field_info`)."""
-    return field_info(result)[name]
-
-
-def surface_field(result) -> str | None:
-    """The (first) output field whose description says ``surface``: it colours a membrane instead of contact; or None."""
-    return next((name for name, info in field_info(result).items() if info.get("surface")), None)
 
 
 @dataclass(frozen=True)
@@ -51,10 +41,8 @@ class FieldScale:
                    float(info.get("linear_share", 1e-3)), label, title)
 
     def unit(self, values) -> np.ndarray:
-        """Where `values` lie on the scale: −1 at `low`, 1 at `high` (clipped beyond); 0 at 0 on a symmetric one."""
-        if self.scale == "symlog":
-            return symlog_unit(values, self.high, self.linear_share)
-        return np.clip(2.0 * (np.asarray(values, dtype=float) - self.low) / (self.high - self.low) - 1.0, -1.0, 1.0)
+        """Where `values` lie on the scale (`norm`): −1 at `low`, 1 at `high` (clipped beyond); 0 at 0 on a symmetric one."""
+        return np.clip(2.0 * np.asarray(self.norm()(np.asarray(values, dtype=float))) - 1.0, -1.0, 1.0)
 
     def colour_map(self):
         """The colours from −1 to 1 (`unit`), blended in between."""
@@ -76,9 +64,7 @@ class FieldScale:
             powers = 10.0 ** np.arange(np.ceil(np.log10(self.linear_share * self.high)), np.floor(np.log10(self.high)) + 1)
             inner = np.concatenate([-powers[::-1], [0.0], powers])
         else:
-            from matplotlib.ticker import MaxNLocator
-
-            inner = MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]).tick_values(self.low, self.high)
+            inner = nice_ticks(self.low, self.high)
         inner = inner[np.abs(self.unit(inner)) <= 1.0 - TICK_GAP]
         return np.concatenate([[self.low], inner, [self.high]])
 
@@ -89,11 +75,11 @@ class FieldScale:
         return ("−" if v < 0 else "") + text
 
 
-def field_figure(result, name: str, look: Look = SCREEN):
+def field_figure(result, look: Look = SCREEN, *, name: str):
     """The output field `name` on its scale: a string's over (x, t), contact outlined, a membrane's at its largest
     |value|; beside it its least and largest value at each time. Returns the figure and its two axes."""
     values = np.asarray(result.fields[name], dtype=float)
-    scale = FieldScale.of(values, info_of(result, name))
+    scale = FieldScale.of(values, field_info(result)[name])
     narrow = look.width < 6.0  # a journal's column: the two panels one above the other
     fig = figure((look.width, 1.3 * look.width) if narrow else (look.width, 0.42 * look.width))
     ax, bx = fig.subplots(2, 1) if narrow else fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.4, 1]})
@@ -120,7 +106,4 @@ def field_figure(result, name: str, look: Look = SCREEN):
     return fig, (ax, bx)
 
 
-def field_picture(result, name: str, path, look: Look = SCREEN) -> Path:
-    """``NAME.png``: `field_figure` written to `path` in each format of `look`; the first path written."""
-    with look.drawn():
-        return savefig(field_figure(result, name, look)[0], Path(path), look)[0]
+field_picture = drawn(field_figure)

@@ -3,14 +3,16 @@ membrane and obstacle at a row moved to other rows in place, its axes, words, co
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.tables import field_info
 from . import colours
 from .annotations import Axis, add_axis
-from .charts import obstacle_moves, obstacle_name, obstacle_profile, obstacle_range
-from .fields import FieldScale, info_of, surface_field
+from .charts import obstacle_name, obstacle_range
+from .fields import FieldScale
 from .vtk_start import _pyvista
 
 
@@ -29,6 +31,10 @@ class MembraneView:
         """0.6 × the contact indicator + 0.4 × its neighbours' mean: a 0.5 iso-line without staircase, red iff in contact."""
         c = np.asarray(contact, dtype=float)
         return c if self.neighbours is None else 0.6 * c + 0.4 * (self.neighbours @ c)
+
+    def title(self, what: str) -> str:
+        """The title: `what`, and how much the heights are stretched when they are."""
+        return f"{what} (heights ×{self.scale:.2g})" if self.scale > 1 else what
 
 
 def neighbour_mean(cells: np.ndarray, nodes: int):
@@ -54,9 +60,9 @@ def membrane_view(result) -> MembraneView:
               hi * scale)
     centre = np.asarray(bounds).reshape(3, 2).mean(axis=1)
     eye = centre + width * np.array([-0.4, -1.1, 1.5])
-    field = surface_field(result)
+    info = next((info for info in field_info(result).values() if info.get("surface")), None)  # colours it, not contact
     return MembraneView(scale, bounds, [tuple(eye), tuple(centre), (0.0, 0.0, 1.0)], neighbour_mean(result.cells, len(x)),
-                        None if field is None else FieldScale.of(result.fields[field], info_of(result, field)))
+                        None if info is None else FieldScale.of(result.fields[info["name"]], info))
 
 
 def _below(lo: float, hi: float, scale: float) -> float:
@@ -74,7 +80,7 @@ def triangles(result, z):
 def add_membrane(p, result, row: int, view: MembraneView):
     """The membrane at `row` in `p`, coloured by contact or `view.field`, and the obstacle (grey; a moving one kept in
     `view.obstacle`): the membrane's PolyData, which `show_row` changes in place."""
-    moves = obstacle_moves(result)
+    moves = result.scene.obstacle_moves
     surface = triangles(result, result.eta[row] * view.scale)
     surface.point_data["contact"] = view.shade(result.contact[row])
     drawn = {"show_scalar_bar": False, "ambient": 0.3, "smooth_shading": True}  # Gouraud: flat showed every facet
@@ -97,7 +103,7 @@ def add_membrane(p, result, row: int, view: MembraneView):
 
 def _obstacle_heights(result, t: float, view: MembraneView) -> np.ndarray:
     lo, hi = view.bounds[4] / view.scale, view.bounds[5] / view.scale
-    return obstacle_profile(result, t) * view.scale - _below(lo, hi, view.scale)
+    return result.scene.obstacle_values(result.x, t) * view.scale - _below(lo, hi, view.scale)
 
 
 def show_row(surface, result, row: int, view: MembraneView) -> None:
@@ -156,16 +162,13 @@ def add_membrane_axes(p, view: MembraneView, font_size: int = TICK_FONT, zoom: f
     p.camera.zoom(1.15)
 
 
-def membrane_label(result, row: int, area: float, patches: int | None = None) -> str:
-    """'t = 0.2: contact 2.17 (69%), 1 patch': the contact area, its share of the domain's, and the patches."""
-    share = 100 * area / float(np.sum(result.weights))
-    text = f"t = {result.t[row]:.3g}: contact {area:.3g} ({share:.0f}%)"
-    return text if patches is None else f"{text}, {patches} patch{'es' * (patches != 1)}"
-
-
-def membrane_title(result, view: MembraneView, what: str) -> str:
-    """The title: `what`, and how much the heights are stretched when they are."""
-    return f"{what} (heights ×{view.scale:.2g})" if view.scale > 1 else what
+def membrane_labels(result, rows) -> list[str]:
+    """'t = 0.2: contact 2.17 (69%), 1 patch' at each of `rows`: the contact area, its share of the domain's, and the
+    patches (counted in these rows only)."""
+    area, domain = result.contact_measure, float(np.sum(result.weights))
+    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()
+    return [f"t = {result.t[row]:.3g}: contact {area[row]:.3g} ({100 * area[row] / domain:.0f}%), {n} "
+            f"patch{'es' * (n != 1)}" for row, n in zip(rows, np.asarray(patches).tolist())]
 
 
 def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:
@@ -176,14 +179,13 @@ def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:
     return f"{words}, grey: the obstacle {psi}"
 
 
-def membrane_legend(result, view: MembraneView) -> tuple[str, list]:
-    """The colour key's quantity and its (label, colour) entries: contact, or the surface field."""
+def membrane_legend(result, view: MembraneView) -> list:
+    """The colour key's (label, colour) entries: contact, or the surface field's edge of contact; and the obstacle."""
     psi = obstacle_name(result)
     obstacle = (f"obstacle {psi}", colours.OBSTACLE_COLOUR)
     if view.field is None:
-        return "colour: contact", [(f"in contact, η ≤ {psi}", colours.CONTACT_COLOUR),
-                                   (f"free, η > {psi}", colours.FREE_COLOUR), obstacle]
-    return f"colour:\n{view.field.label}", [("edge of contact", colours.CONTACT_EDGE_TEXT), obstacle]
+        return [(f"in contact, η ≤ {psi}", colours.CONTACT_COLOUR), (f"free, η > {psi}", colours.FREE_COLOUR), obstacle]
+    return [("edge of contact", colours.CONTACT_EDGE_COLOUR), obstacle]
 
 
 def contact_edge(surface, view: MembraneView, into=None):

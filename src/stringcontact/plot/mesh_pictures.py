@@ -4,14 +4,12 @@ times (`membrane`: what it shares with ``membrane.gif``); coloured by contact or
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from . import charts, membrane
 from .annotations import Axis, add_axis
 from .charts import caption, drawn
-from .colours import CONTACT_COLOUR, CONTACT_EDGE_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
+from .colours import CONTACT_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
 from .style import SCREEN, Look
 from .vtk_start import _plotter, _pyvista
 
@@ -66,12 +64,11 @@ space_time_picture = drawn(space_time_figure)
 
 def _height_range(result) -> str:
     """'η from A to B over x and t' (and ψ's range, for a profiled obstacle): η's own, not the drawn box's."""
-    moves = charts.obstacle_moves(result)
-    psi = charts.obstacle_history(result, range(len(result.t))) if moves else charts.obstacle_profile(result)
-    span = max(float(result.eta.max()), float(psi.max())) - min(float(result.eta.min()), float(psi.min()))
+    low, high = charts.obstacle_range(result)
+    span = max(float(result.eta.max()), high) - min(float(result.eta.min()), low)
     text = f"η from {_height_text(result.eta.min(), span)} to {_height_text(result.eta.max(), span)} over x and t"
     if charts.obstacle_name(result) == "ψ":
-        text += f", ψ from {_height_text(psi.min(), span)} to {_height_text(psi.max(), span)}"
+        text += f", ψ from {_height_text(low, span)} to {_height_text(high, span)}"
     return text
 
 
@@ -81,8 +78,8 @@ def space_time_render(result, pixels, zoom: float = 1.0, max_columns: int = 300,
     # the surface spans ~800 pixels across and ~400 deep: finer meshes cost llvmpipe time, not detail
     cols, rows = _every_kth(result.x.size, max_columns), _every_kth(result.t.size, max_rows)
     x, t, eta = result.x[cols], result.t[rows], result.eta[np.ix_(rows, cols)]
-    moves = charts.obstacle_moves(result)
-    psi = charts.obstacle_history(result, rows, cols) if moves else charts.obstacle_profile(result)[cols]  # ψ(x, t) or ψ(x)
+    moves = result.scene.obstacle_moves
+    psi = np.array([result.scene.obstacle_values(x, ti) for ti in t]) if moves else result.scene.obstacle_values(x)
     lo, hi = min(eta.min(), psi.min()), max(eta.max(), psi.max())
     length = float(x[-1] - x[0])
     depth = -0.8 * length / (float(t[-1] - t[0]) or 1.0)  # t runs out of the picture over 0.8 l: t = 0 at the back
@@ -127,18 +124,20 @@ def membrane_figure(result, look: Look = SCREEN):
     fig = charts.figure(look.inches)
     panels, below = charts.with_key(fig, nrows, ncols, key=0.4 / height)
     axs = panels.subplots(squeeze=False)
-    area = result.contact_measure
-    patches = dataclasses.replace(result, contact=result.contact[rows]).contact_patches()  # of these rows only
+    labels = membrane.membrane_labels(result, rows)
     pixels = look.pixels(panel)
-    for k, image in enumerate(membrane_renders(result, rows, view, pixels, _font_zoom(look, pixels[0], SCREEN_PANEL))):
-        ax = axs.flat[k]
-        ax.imshow(image)
-        ax.set_axis_off()
-        label = membrane.membrane_label(result, rows[k], area[rows[k]], int(patches[k]))
-        ax.set_title(label if ncols == 3 else label.replace(": ", "\n", 1), fontsize="small")  # two lines in a column
+    p = _plotter(pixels)
+    try:
+        zoom = _font_zoom(look, pixels[0], SCREEN_PANEL)
+        for k, image in enumerate(membrane.rendered_rows(p, result, rows, view, zoom)):
+            ax = axs.flat[k]
+            ax.imshow(image)
+            ax.set_axis_off()
+            ax.set_title(labels[k] if ncols == 3 else labels[k].replace(": ", "\n", 1), fontsize="small")  # 2 lines
+    finally:
+        p.close()
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    key = membrane.membrane_legend(result, view)[1]
     if bar:
         from matplotlib.cm import ScalarMappable
 
@@ -146,20 +145,11 @@ def membrane_figure(result, look: Look = SCREEN):
         colours = fig.colorbar(ScalarMappable(scale.norm(), scale.colour_map()), ax=axs, location="bottom", shrink=0.6,
                                aspect=40, label=scale.title)
         colours.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
-        key = [("edge of contact", CONTACT_EDGE_COLOUR), *key[1:]]
-    _key(below, key)
-    fig.suptitle(membrane.membrane_title(result, view, "The membrane at the output times"))
+    _key(below, membrane.membrane_legend(result, view))
+    fig.suptitle(view.title("The membrane at the output times"))
     caption(fig, result, look, charts.panels_note(result, rows))
     return fig, axs
 
 
 membrane_picture = drawn(membrane_figure)
 
-
-def membrane_renders(result, rows, view, pixels, zoom: float = 1.0):
-    """RGB renders `pixels` large of the membrane at each of `rows` (`membrane.rendered_rows`)."""
-    p = _plotter(pixels)
-    try:
-        yield from membrane.rendered_rows(p, result, rows, view, zoom)
-    finally:
-        p.close()

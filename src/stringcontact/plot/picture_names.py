@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..io.tables import field_key
+
 WINDOW_SIZE = (1100, 900)  # pixels of the space-time pictures
 #: of a 1-D run (a string)
 PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png", "space_time.png")
@@ -11,13 +13,7 @@ MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane
 
 def field_picture_names(result) -> dict[str, str]:
     """Picture -> output field: ``NAME.png``, or ``field_NAME.png`` where that is a core picture's name."""
-    names = {}
-    for name in getattr(result, "fields", None) or {}:
-        picture = f"{name}.png"
-        while picture in PICTURES + MEMBRANE_PICTURES:
-            picture = f"field_{picture}"
-        names[picture] = name
-    return names
+    return {field_key(f"{name}.png", PICTURES + MEMBRANE_PICTURES): name for name in getattr(result, "fields", None) or {}}
 
 
 def pictures_of(result) -> tuple[str, ...]:

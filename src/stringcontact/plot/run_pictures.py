@@ -26,7 +26,7 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
     if field is not None:
         from .fields import field_picture
 
-        return field_picture(result, field, path, look)
+        return field_picture(result, path, look, name=field)
     if name in CHARTS:
         return getattr(charts, CHARTS[name])(result, path, look)
     # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load vtkCommonMath"):
@@ -42,27 +42,18 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
         return draw_mesh(result, path, look)
 
 
-def written(names, look: Look) -> list[str]:
-    """The files the pictures `names` are written as in `look`'s formats (``membrane.gif`` with a raster one only)."""
-    files = []
-    for name in names:
-        if name.endswith(".png"):
-            files += [Path(name).with_suffix(f".{f}").name for f in look.formats]
-        elif "png" in look.formats:
-            files.append(name)
-    return files
-
-
 def write_pictures(result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> list[Path]:
     """Write the pictures of `result` (`pictures_of`) into `folder` in each format of `look` (default: PNGs
-    `window_size` pixels large), what `simulate(..., pictures=True)` calls: the files written."""
+    `window_size` pixels large), what `simulate(..., pictures=True)` calls: the files written (``membrane.gif`` with a
+    raster format only)."""
     folder = Path(folder)
     look = look or Look.of_pixels(window_size)
     names = tuple(n for n in pictures_of(result) if n != "membrane.gif" or "png" in look.formats)
     folder.mkdir(parents=True, exist_ok=True)
     for name in names:
         draw(name, result, folder, window_size, look)
-    return [folder / name for name in written(names, look)]
+    formats = {name: look.formats if name.endswith(".png") else ("gif",) for name in names}
+    return [folder / Path(name).with_suffix(f".{f}").name for name, kinds in formats.items() for f in kinds]
 
 
 def show_pictures(folder) -> list[Path]:

@@ -112,8 +112,14 @@ OUTCOME_COLOURS = {"inelastic": "#4daf4a", "rebound": "#ffb000", "growth": "#e41
                    "stable": "#377eb8"}
 
 
-def _outcome_key(ax, below: float) -> None:
-    """The outcomes' colours as a legend under the axes `ax` (`below`: its top, in axes coordinates)."""
+def _outcome_map(ax, lines: dict, x: str, fontsize: int, below: float) -> None:
+    """{(y, label): rows}: each line's rows as squares over their `x` (log scale) coloured by outcome, and the
+    outcomes' colours as a legend under `ax` (`below`: its top, in axes coordinates)."""
+    for (y, _), sel in lines.items():
+        ax.scatter([r[x] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k", linewidths=0.3,
+                   c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
+    ax.set_xscale("log")
+    ax.set_yticks([y for y, _ in lines], [label for _, label in lines], fontsize=fontsize)
     for outcome, colour in OUTCOME_COLOURS.items():
         ax.scatter([], [], marker="s", color=colour, label=outcome, edgecolors="k", linewidths=0.3)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, below), ncol=4)
@@ -125,24 +131,17 @@ def plot_stability(rows: list[dict], alpha_rows: list[dict] | None, path) -> Pat
     ncols = 2 + (1 if alpha_rows else 0)
     with study_figure(path, 1, ncols, figsize=(5.2 * ncols, 4.6)) as (_fig, axes):
         ax = axes[0]
-        labels = []
-        dts = sorted({r["dt"] for r in rows}, reverse=True)
-        y = -1
+        lines, y = {}, -1
         for pen, mass in treatments:
-            y += 1
-            for dt in dts:
+            y += 1  # a gap between the treatments
+            for dt in sorted({r["dt"] for r in rows}, reverse=True):
                 sel = [r for r in rows if (r["penalty"], r["mass"], r["dt"]) == (pen, mass, dt)]
-                if not sel:  # the spring is swept at one Δt only
-                    continue
-                y += 1
-                labels.append((y, f"{pen}, {mass}, Δt={dt:.3g}"))
-                ax.scatter([r["r"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k", linewidths=0.3,
-                           c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
-        ax.set_xscale("log")
-        ax.set_yticks([y for y, _ in labels], [s for _, s in labels], fontsize=7)
+                if sel:  # the spring is swept at one Δt only
+                    y += 1
+                    lines[(y, f"{pen}, {mass}, Δt={dt:.3g}")] = sel
+        _outcome_map(ax, lines, "r", 7, -0.13)
         for x0 in (1.0, 2.0):
             ax.axvline(x0, color="k", ls=":", lw=0.8)
-        _outcome_key(ax, -0.13)
         ax.set_xlabel("r = Δt/ε   (dotted: r = 1, r = 2)")
         ax.set_title("outcome of a flat landing (α = 0)", fontsize=10)
 
@@ -180,16 +179,13 @@ def plot_step_size(rows: list[dict], path) -> Path:
     """Outcome over Δt/Δx for the schemes without ε, with each one's Δt_max from the operators."""
     keys = list(dict.fromkeys((r["scheme"], r["alpha"]) for r in rows))
     with study_figure(path, 1, 1, figsize=(7.5, 3.2)) as (_fig, ax):
-        for y, (scheme, alpha) in enumerate(keys):
-            sel = [r for r in rows if (r["scheme"], r["alpha"]) == (scheme, alpha)]
-            ax.scatter([r["dt_over_dx"] for r in sel], [y] * len(sel), s=70, marker="s", edgecolors="k",
-                       linewidths=0.3, c=[OUTCOME_COLOURS[r["outcome"]] for r in sel])
-            if scheme == "projection":
+        lines = {(y, f"{scheme}, α = {alpha:g}"): [r for r in rows if (r["scheme"], r["alpha"]) == (scheme, alpha)]
+                 for y, (scheme, alpha) in enumerate(keys)}
+        _outcome_map(ax, lines, "dt_over_dx", 8, -0.22)
+        for (y, _), sel in lines.items():
+            if sel[0]["scheme"] == "projection":
                 ax.plot([sel[0]["dt_max_over_dx"]] * 2, [y - 0.4, y + 0.4], "k-", lw=1.5)
-        ax.set_xscale("log")
-        ax.set_yticks(range(len(keys)), [f"{s}, α = {a:g}" for s, a in keys], fontsize=8)
         ax.set_ylim(-0.7, len(keys) - 0.3)
-        _outcome_key(ax, -0.22)
         ax.set_xlabel("Δt/Δx   (bar: projection's Δt_max from the operators)")
         ax.set_title("flat landing: where the ε-free schemes fail", fontsize=10)
     return Path(path)

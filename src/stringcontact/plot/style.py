@@ -70,10 +70,12 @@ class Look:
         """The matplotlib style sheet."""
         return Path(__file__).with_name("styles") / f"{self.style}.mplstyle"
 
-    @property
+    @functools.cached_property
     def dpi(self) -> float:
         """The PNG's dots per inch (the style sheet's ``savefig.dpi``)."""
-        return _dpi(self.sheet)
+        from matplotlib import rc_params_from_file
+
+        return float(rc_params_from_file(self.sheet, use_default_template=False)["savefig.dpi"])
 
     def pixels(self, inches) -> tuple[int, int]:
         """The pixels of a raster `inches` (width, height) large at the style's resolution (a pyvista render)."""
@@ -93,13 +95,6 @@ class Look:
         import matplotlib.style
 
         return matplotlib.style.context(self.sheet)
-
-
-@functools.cache
-def _dpi(sheet: Path) -> float:
-    from matplotlib import rc_params_from_file
-
-    return float(rc_params_from_file(sheet, use_default_template=False)["savefig.dpi"])
 
 
 #: the look of the pictures a run writes by default

@@ -244,13 +244,6 @@ def frame(view, scale):
     view.ResetCamera(*BOUNDS)
 
 
-def obstacle_bounds(t):
-    """The box of the obstacle drawn at the time t: x0, x1, y0, y1, z0, z1."""
-    source = pv.FindSource("obstacle")
-    source.UpdatePipeline(t)  # its data information is of the last update's time
-    return list(source.GetDataInformation().GetBounds())
-
-
 def shots(args):
     """The screenshots asked for: [(time, png, field)] from TIME PNG [FIELD] [TIME PNG [FIELD] ...]."""
     found, args = [], list(args)
@@ -276,11 +269,13 @@ def screenshot(animation, view, display, t, png, field):
     pv.Render(view)
     pv.SaveScreenshot(png, view, ImageResolution=list(view.ViewSize), TransparentBackground=0)
     cam, grid = view.GetActiveCamera(), view.AxesGrid  # the camera VTK renders with, not the proxy's copy
+    source = pv.FindSource("obstacle")
+    source.UpdatePipeline(view.ViewTime)  # its data information (the box drawn) is of the last update's time
     report = {"time": view.ViewTime, "field": field, "range": list(MAPS[field][0]), "scale": list(display.Scale),
               "camera": {"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
                          "parallel_scale": cam.GetParallelScale(), "view_angle": cam.GetViewAngle()},
               "axes": [grid.XTitle, grid.YTitle, grid.ZTitle] if grid.Visibility else [],
-              "obstacle": obstacle_bounds(view.ViewTime)}
+              "obstacle": list(source.GetDataInformation().GetBounds())}
     if field in SYMLOG:
         report["ticks"] = [label for _, label in SYMLOG[field][2]]
     return report
