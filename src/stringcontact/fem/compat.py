@@ -109,8 +109,16 @@ def mixed_space(msh, fields: int):
     """P1^fields on `msh` as one blocked space (its matrices carry the block size, which PCFIELDSPLIT splits by)."""
     from dolfinx import fem
 
-    element = _p1_vector_element(msh.ufl_cell().cellname(), fields)
-    return (fem.functionspace if hasattr(fem, "functionspace") else fem.FunctionSpace)(msh, element)
+    try:
+        import basix.ufl
+
+        element = basix.ufl.element("Lagrange", msh.basix_cell(), 1, shape=(fields,))
+        return fem.functionspace(msh, element)
+    except (ImportError, AttributeError):
+        import ufl
+
+        element = ufl.VectorElement("Lagrange", msh.ufl_cell(), 1, dim=fields)
+        return fem.FunctionSpace(msh, element)
 
 
 def sub_dofs(V, Z, i: int) -> np.ndarray:
