@@ -189,8 +189,7 @@ class RowObserver:
             return math.inf
         if not self.has_obstacle:
             return float(eta.min())
-        obstacle = stepper.discrete.obstacle
-        psi = self.psi if self.psi is not None else obstacle.owned(n * self.dt - obstacle.t0)
+        psi = self.psi if self.psi is not None else stepper.discrete.obstacle.owned_at_run_time(n * self.dt)
         return float(np.min(eta - psi))
 
     def started(self, stepper) -> None:
@@ -221,7 +220,7 @@ class RowObserver:
                   "contact_force": scheme.contact_force}
         fields.update(p.outputs(scheme.eta, scheme.fields))
         t = float(step_times([n], self.dt, self.output_times)[0])
-        psi = stepper.discrete.obstacle.owned(t - stepper.discrete.obstacle.t0) if p.obstacle is not None else self.psi
+        psi = stepper.discrete.obstacle.owned_at_run_time(t) if p.obstacle is not None else self.psi
         series = _row_series(self.comm, fields, self.weights, psi)
         for name, arr in fields.items():
             arr = np.asarray(arr, dtype=bool if name == "contact" else float)  # the same bytes from every rank

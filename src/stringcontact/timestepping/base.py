@@ -105,6 +105,10 @@ class MovingObstacle:
         """ψ(·, t) on the owned dofs, the fields untouched."""
         return self.at(t)[: self.n]
 
+    def owned_at_run_time(self, t: float) -> np.ndarray:
+        """ψ on the owned dofs at the run's time t (the scheme's t − t0), the fields untouched."""
+        return self.owned(t - self.t0)
+
     def centred_rate(self, t: float) -> np.ndarray:
         """ψ_t(·, t) at every dof as the centred quotient (ψ(t + Δt) − ψ(t − Δt))/(2Δt): exact on a uniformly
         accelerating obstacle (`newmark`'s trapezoidal velocity follows it)."""
