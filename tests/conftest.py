@@ -1,6 +1,6 @@
 """Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
 `plot_refusal` for damaged folders, `meshio_read` and `xdmf_frames` for the XDMF files, `run_problem` for a scheme
-driven directly; the hypothesis profile of every property test."""
+driven directly, `register_distribution` for a plugin installed by hand; the hypothesis profile of every property test."""
 
 from __future__ import annotations
 
@@ -138,6 +138,15 @@ def one_error_line(stderr: str, *fragments) -> str:
     for fragment in fragments:
         assert fragment in lines[0], lines[0]
     return lines[0]
+
+
+def register_distribution(folder: Path, dist: str, group: str, entries: str) -> None:
+    """An installed distribution `dist` as importlib.metadata sees it (a ``.dist-info`` folder in `folder`, which the
+    test puts on sys.path): `entries`, lines ``name = module:attribute``, under the entry-point `group`."""
+    info = folder / f"{dist.replace('-', '_')}-0.1.dist-info"
+    info.mkdir(exist_ok=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[{group}]\n{entries}\n")
 
 
 def leftovers(folder: Path) -> list[str]:

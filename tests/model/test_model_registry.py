@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import register_distribution
 
 from stringcontact.cli.main import main
 from stringcontact.errors import SceneError
@@ -39,20 +40,12 @@ def sandbox(tmp_path, monkeypatch):
     """tmp_path with the sentinel module and a package `sentinel-plugin` that registers the model `sentinel`."""
     (tmp_path / "sentinel.py").write_text(SENTINEL)
     (tmp_path / "sentinel_plugin.py").write_text(SENTINEL)
-    _register(tmp_path, "sentinel-plugin", "sentinel = sentinel_plugin:model")
+    register_distribution(tmp_path, "sentinel-plugin", registry.GROUP, "sentinel = sentinel_plugin:model")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.chdir(tmp_path)
     yield tmp_path
     for name in ("sentinel", "sentinel_plugin"):
         sys.modules.pop(name, None)
-
-
-def _register(folder, dist, line):
-    """An installed distribution as importlib.metadata sees it: a .dist-info folder with entry_points.txt."""
-    info = folder / f"{dist.replace('-', '_')}-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text(f"[{registry.GROUP}]\n{line}\n")
 
 
 def _nothing_ran(folder):
@@ -115,7 +108,7 @@ def test_the_command_line_names_a_model_object_and_calls_nothing(sandbox, spec, 
 
 
 def test_a_name_registered_twice_is_refused(sandbox):
-    _register(sandbox, "other-plugin", "elastic = sentinel_plugin:model")
+    register_distribution(sandbox, "other-plugin", registry.GROUP, "elastic = sentinel_plugin:model")
     with pytest.raises(SceneError, match=r"model: 'elastic' is registered twice, as .*sentinel_plugin:model"):
         load_scene("single_impact").replace(model="elastic")
     assert _nothing_ran(sandbox)

@@ -9,6 +9,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import register_distribution
 
 import stringcontact as sc
 from stringcontact.scene import names
@@ -49,10 +50,7 @@ FROZEN_MODULE = textwrap.dedent('''
 def frozen(tmp_path, monkeypatch):
     """The frozen scheme's module, installed and registered as `frozen`; yields its class."""
     (tmp_path / "frozen_scheme.py").write_text(FROZEN_MODULE)
-    info = tmp_path / "frozen_scheme-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: frozen-scheme\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text(f"[{names.SCHEME_GROUP}]\nfrozen = frozen_scheme:Frozen\n")
+    register_distribution(tmp_path, "frozen-scheme", names.SCHEME_GROUP, "frozen = frozen_scheme:Frozen")
     monkeypatch.syspath_prepend(str(tmp_path))
     names.scheme_class.cache_clear()
     import frozen_scheme

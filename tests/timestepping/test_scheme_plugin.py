@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 import pytest
 import ufl
+from conftest import register_distribution
 
 import stringcontact as sc
 from stringcontact.scene import names
@@ -52,10 +53,7 @@ CUBIC = dataclasses.replace(sc.inelastic, name="cubic20", momentum_form=_cubic_f
 def bdf2(tmp_path, monkeypatch):
     """The scheme's one file and an installed distribution registering it as `bdf2` (a .dist-info folder)."""
     (tmp_path / "bdf2_scheme.py").write_text(BDF2_MODULE)
-    info = tmp_path / "bdf2_scheme-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: bdf2-scheme\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text(f"[{names.SCHEME_GROUP}]\nbdf2 = bdf2_scheme:Scheme\n")
+    register_distribution(tmp_path, "bdf2-scheme", names.SCHEME_GROUP, "bdf2 = bdf2_scheme:Scheme")
     monkeypatch.syspath_prepend(str(tmp_path))
     yield
     sys.modules.pop("bdf2_scheme", None)
@@ -136,11 +134,8 @@ def registered_as(tmp_path, monkeypatch):
 
     def register(entries: dict, source: str = "def function():\n    pass\n"):
         (tmp_path / "plugin_schemes.py").write_text(source)
-        info = tmp_path / "plugin_schemes-0.1.dist-info"
-        info.mkdir(exist_ok=True)
-        (info / "METADATA").write_text("Metadata-Version: 2.1\nName: plugin-schemes\nVersion: 0.1\n")
-        lines = "".join(f"{name} = {target}\n" for name, target in entries.items())
-        (info / "entry_points.txt").write_text(f"[{names.SCHEME_GROUP}]\n{lines}")
+        lines = "\n".join(f"{name} = {target}" for name, target in entries.items())
+        register_distribution(tmp_path, "plugin-schemes", names.SCHEME_GROUP, lines)
         monkeypatch.syspath_prepend(str(tmp_path))
         names.scheme_class.cache_clear()
 
