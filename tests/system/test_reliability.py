@@ -309,6 +309,8 @@ def test_signal_stops_cleanly_and_keeps_a_readable_xdmf(tmp_path, capfd, signum,
     assert_one_line_error(stderr, f"interrupted by {name}")
     assert leftovers(tmp_path) == []  # no partial folder, no lock
 
+    # where the folder went instead, and the run's warnings, if it is not in place
+    assert (out / "summary.json").is_file(), (stderr, sorted(p.name for p in tmp_path.iterdir()))
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted"
     assert name in summary["message"]
