@@ -105,7 +105,7 @@ CASES = {
     "a field's colour beyond 1": ("summary.json", _summary_with("fields", _field(colours=[[0, 0, 0], [2, 0, 0]])),
                                   "output field 'reaction' is not valid"),
     "a field on no scale": ("summary.json", _summary_with("fields", _field(scale="cubic")), "output field 'reaction' is not valid"),
-    "a field's label a number": ("summary.json", _summary_with("fields", _field(label=3)), "its label is a JSON int"),
+    "a field's label a number": ("summary.json", _summary_with("fields", _field(label=3)), "label must be text"),
     "fields not an object": ("summary.json", _summary_with("fields", [1]), "its 'fields' is not an object"),
     "parameters not numbers": ("summary.json", _summary_with("parameters", {"mu": "thick"}), "its 'parameters' is not"),
 }

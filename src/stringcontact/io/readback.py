@@ -28,11 +28,8 @@ FILES = ("summary.json", "diagnostics.csv", ROWS_FILE)
 MAX_JSON_BYTES = 10_000_000
 #: The most output fields a folder may name (a model has a few).
 MAX_OUTPUT_FIELDS = 64
-#: The keys of an output field's description in summary.json, and the types each must have.
-FIELD_KEYS = {"label": str, "unit": str, "colours": list, "scale": str, "linear_share": float, "symmetric": bool,
-              "surface": bool, "derived": bool, "internal": bool}
-#: The longest label or unit read (a title's line).
-MAX_LABEL = 200
+#: The keys of an output field's description in summary.json that `OutputField` takes.
+FIELD_KEYS = ("label", "unit", "colours", "scale", "linear_share", "symmetric", "surface")
 
 
 def read_output(folder):
@@ -105,7 +102,7 @@ def _read_summary(path: Path):
 
 
 def _field_info(path: Path, summary: dict) -> dict:
-    """summary.json's ``"fields"``: name -> its description, each checked as an `OutputField` is."""
+    """summary.json's ``"fields"``: name -> its description, each checked by `OutputField` itself."""
     from ..model.interface import OutputField
 
     fields = summary.get("fields", {})
@@ -116,26 +113,14 @@ def _field_info(path: Path, summary: dict) -> dict:
         try:
             if not isinstance(entry, dict):
                 raise TypeError(f"a JSON {type(entry).__name__}, not an object")
-            given = {key: _typed(key, entry[key]) for key in FIELD_KEYS if key in entry}
-            derived, internal = given.pop("derived", False), given.pop("internal", False)  # the run's, not the field's
-            if "colours" in given:
-                given["colours"] = tuple(tuple(c) if isinstance(c, list) else c for c in given["colours"])
-            info[name] = OutputField(name, **given).metadata() | {"derived": derived}
-            info[name] |= {"internal": True} if internal else {}
+            run = {key: entry.get(key, False) for key in ("derived", "internal")}  # the run's, not the field's
+            if not all(isinstance(value, bool) for value in run.values()):
+                raise TypeError("its derived and internal must be true or false")
+            info[name] = OutputField(name, **{key: entry[key] for key in FIELD_KEYS if key in entry}).metadata()
+            info[name] |= {"derived": run["derived"]} | ({"internal": True} if run["internal"] else {})
         except (TypeError, ValueError) as exc:
             raise ValueError(f"plot: {path}: its output field {name!r} is not valid ({one_line(exc, 200)})") from None
     return info
-
-
-def _typed(key: str, value):
-    """`value` of the description's `key` if it has the type `FIELD_KEYS` gives (a number for a float), else TypeError."""
-    kind = FIELD_KEYS[key]
-    number = kind is float and isinstance(value, (int, float)) and not isinstance(value, bool)
-    if not (number or kind is not float and isinstance(value, kind)):
-        raise TypeError(f"its {key} is a JSON {type(value).__name__}")
-    if kind is str and len(value) > MAX_LABEL:
-        raise TypeError(f"its {key} is longer than {MAX_LABEL} characters")
-    return float(value) if number else value
 
 
 def _parameters(path: Path, summary: dict) -> dict[str, float]:
