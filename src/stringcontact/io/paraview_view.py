@@ -73,24 +73,30 @@ def symlog_view(high: float, info: dict) -> list:
 
 def view_numbers(result) -> dict:
     """view.py's numbers by the names of its lines, from the stored rows."""
-    x, eta = np.asarray(result.x, dtype=float), np.asarray(result.eta, dtype=float)
+    scene, x, eta = result.scene, np.asarray(result.x, dtype=float), np.asarray(result.eta, dtype=float)
     speed = float(np.nanmax(np.abs(result.velocity))) if np.size(result.velocity) else 0.0
     lo, hi = (float(np.nanmin(eta)), float(np.nanmax(eta))) if eta.size else (0.0, 0.0)
-    moves = bool(getattr(result.scene, "obstacle_moves", False))
+    string, moves = x.ndim == 1 or x.shape[1] == 1, bool(getattr(scene, "obstacle_moves", False))
     if moves:  # the box holds the obstacle at every stored time, not only at t = 0
-        lo, hi = _moving_range(result.scene, x, result.t, lo, hi)
-    obstacle = _string_obstacle if x.ndim == 1 or x.shape[1] == 1 else _membrane_obstacle
-    kind, normal, points, quads, bounds, shift = obstacle(result.scene, x, lo, hi)
+        grid = _obstacle_grid(scene, x) if string else x[:: max(1, len(x) * 16 // OBSTACLE_SAMPLES**2), :2]
+        for t in np.unique(np.asarray(result.t, dtype=float)):
+            psi = obstacle_at(scene, grid, float(t))
+            lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
+    grid = _obstacle_grid(scene, x)
+    psi = obstacle_at(scene, grid)
+    lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
+    points, quads, bounds, shift = (_string_obstacle if string else _membrane_obstacle)(x, grid, psi, lo, hi)
     maps, symlog = {}, {}
     for name, info in field_info(result).items():
         low, high = field_range(result.fields[name], info)
         maps[name] = [[low, high], field_points(low, high, info)]
         if info.get("scale") == "symlog":
             symlog[name] = symlog_view(high, info)
-    return {"KIND": kind, "NORMAL": normal, "VELOCITY_RANGE": (-(speed or 1.0), speed or 1.0), "BOUNDS": bounds,
+    return {"KIND": "string" if string else "membrane", "NORMAL": (0.0, 1.0, 0.0) if string else (0.0, 0.0, 1.0),
+            "VELOCITY_RANGE": (-(speed or 1.0), speed or 1.0), "BOUNDS": bounds,
             "OBSTACLE_POINTS": [] if moves else points, "OBSTACLE_QUADS": [] if moves else quads,
             "OBSTACLE_MOVES": moves, "OBSTACLE_SHIFT": shift, "FIELD_MAPS": maps, "SYMLOG": symlog,
-            "TITLE": f"{result.scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}"}
+            "TITLE": f"{scene.name}: model {result.model}, scheme {getattr(result, 'scheme', 'paper')}"}
 
 
 def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
@@ -101,49 +107,39 @@ def obstacle_at(scene, points, t: float = 0.0) -> np.ndarray:
     return np.where(finite, psi, psi[finite].min() if finite.any() else 0.0)
 
 
-def _moving_range(scene, x, times, lo, hi) -> tuple[float, float]:
-    """The height range (lo, hi) widened to a moving ψ at `times`."""
+def _obstacle_grid(scene, x) -> np.ndarray:
+    """Where the obstacle is drawn: `OBSTACLE_SAMPLES` x (a string's) or an n × n grid's rows of x, y (a membrane's)
+    over the mesh's box; a flat one's ends or corners."""
+    flat = getattr(scene, "obstacle", None) is None
     if x.ndim == 1 or x.shape[1] == 1:
         xs = x.reshape(-1)
-        grid = np.linspace(xs.min(), xs.max(), min(OBSTACLE_SAMPLES, len(xs)))
-    else:
-        grid = x[:: max(1, len(x) * 16 // OBSTACLE_SAMPLES**2), :2]
-    for t in np.unique(np.asarray(times, dtype=float)):
-        psi = obstacle_at(scene, grid, float(t))
-        lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
-    return lo, hi
-
-
-def _string_obstacle(scene, x, lo, hi):
-    """The region below y = ψ(x) down to a floor under everything, slightly behind the string: the string's kind,
-    normal, the region's points and quads, the box over everything, the shift of a moving obstacle (as this one)."""
-    flat, xs = getattr(scene, "obstacle", None) is None, x.reshape(-1)
-    grid = np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
-    psi = obstacle_at(scene, grid)
-    lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
-    floor = lo - 0.08 * max(hi - lo, 1e-12)
-    z = -1e-3 * max(xs.max() - xs.min(), 1e-12)
-    n = len(grid)
-    points = [(float(g), float(p), z) for g, p in zip(grid, psi)] + [(float(g), floor, z) for g in grid]
-    quads = [(i, i + 1, n + i + 1, n + i) for i in range(n - 1)]
-    box = (float(xs.min()), float(xs.max()), floor, hi, 0.0, 0.0)
-    return "string", (0.0, 1.0, 0.0), points, quads, box, (0.0, 0.0, z)
-
-
-def _membrane_obstacle(scene, x, lo, hi):
-    """z = ψ(x, y) over the mesh's box, `_MEMBRANE_DROP` of the height range lower; returns as `_string_obstacle`."""
-    flat = getattr(scene, "obstacle", None) is None
+        return np.linspace(xs.min(), xs.max(), 2 if flat else min(OBSTACLE_SAMPLES, len(xs)))
     n = 2 if flat else min(OBSTACLE_SAMPLES // 4, int(np.sqrt(len(x))) + 1)
     gx, gy = np.meshgrid(np.linspace(x[:, 0].min(), x[:, 0].max(), n), np.linspace(x[:, 1].min(), x[:, 1].max(), n))
-    psi = obstacle_at(scene, np.column_stack([gx.ravel(), gy.ravel()]))
-    lo, hi = min(lo, float(psi.min())), max(hi, float(psi.max()))
+    return np.column_stack([gx.ravel(), gy.ravel()])
+
+
+def _string_obstacle(x, grid, psi, lo, hi):
+    """The region below y = ψ(x) down to a floor under everything, slightly behind the string: its points and quads,
+    the box over everything, the shift of a moving obstacle (as this one)."""
+    xs, n = x.reshape(-1), len(grid)
+    floor = lo - 0.08 * max(hi - lo, 1e-12)
+    z = -1e-3 * max(xs.max() - xs.min(), 1e-12)
+    points = [(float(g), float(p), z) for g, p in zip(grid, psi)] + [(float(g), floor, z) for g in grid]
+    quads = [(i, i + 1, n + i + 1, n + i) for i in range(n - 1)]
+    return points, quads, (float(xs.min()), float(xs.max()), floor, hi, 0.0, 0.0), (0.0, 0.0, z)
+
+
+def _membrane_obstacle(x, grid, psi, lo, hi):
+    """z = ψ(x, y) on the n × n `grid`, `_MEMBRANE_DROP` of the height range lower; returns as `_string_obstacle`."""
+    n = round(np.sqrt(len(grid)))
     psi = psi - _MEMBRANE_DROP * max(hi - lo, 1e-12)
-    points = [(float(a), float(b), float(c)) for a, b, c in zip(gx.ravel(), gy.ravel(), psi)]
+    points = [(float(a), float(b), float(c)) for (a, b), c in zip(grid, psi)]
     quads = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i)
              for j in range(n - 1) for i in range(n - 1)]
     lo = min(lo, float(psi.min()))
     box = (float(x[:, 0].min()), float(x[:, 0].max()), float(x[:, 1].min()), float(x[:, 1].max()), lo, hi)
-    return "membrane", (0.0, 0.0, 1.0), points, quads, box, (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
+    return points, quads, box, (0.0, 0.0, -_MEMBRANE_DROP * max(hi - lo, 1e-12))
 
 
 def _literal(value) -> str:
