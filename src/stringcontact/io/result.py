@@ -66,8 +66,12 @@ class Result:
     `energy` holds (k,) arrays, the dissipations and the external work cumulative from t = 0, so that
     E(0) + W_ext = E(t) + D_visc + D_con + D_num closes to round-off; every scheme books D_con as the applied force's
     work with the step's mean velocity, and D_num is what its own discrete energy identity holds besides the
-    physical terms: the scheme's time error in energy terms, O(Δt), negative where `paper`'s explicit penalty brakes
-    a node (Example 1: −4.1 of E(0) = 1311; its per-step formula: docs/explanation/reliability.md).
+    physical terms (docs/explanation/reliability.md). For `paper`, per step,
+
+        ΔD_num = ½|v^{n+1} − v^n|²_M + ½|η^{n+1} − η^n|²_K − (Δt/2) f·(v^{n+1} − v^n),
+
+    whose force term is negative where the explicit penalty brakes a node, so D_num can be negative (Example 1:
+    −4.1 of E(0) = 1311): the scheme's time error in energy terms, O(Δt).
 
     `fields` holds the model's output fields by name, (k, nodes) like `eta`, and `field_info` how each is shown
     (`OutputField.metadata`); `parameters` the model's constants as used; `timings` seconds ("setup", "solve",
