@@ -106,6 +106,8 @@ CASES = {
                                   "output field 'reaction' is not valid"),
     "a field on no scale": ("summary.json", _summary_with("fields", _field(scale="cubic")), "output field 'reaction' is not valid"),
     "a field's label a number": ("summary.json", _summary_with("fields", _field(label=3)), "label must be text"),
+    "a field's derived flag a word": ("summary.json", _summary_with("fields", _field(derived="yes")),
+                                      "its derived and internal must be true or false"),
     "fields not an object": ("summary.json", _summary_with("fields", [1]), "its 'fields' is not an object"),
     "parameters not numbers": ("summary.json", _summary_with("parameters", {"mu": "thick"}), "its 'parameters' is not"),
 }
