@@ -57,7 +57,7 @@ def test_study_and_check_hold_their_folder_while_they_compute(tmp_path, monkeypa
     import importlib
 
     from stringcontact.cli.main import main
-    from stringcontact.io.lock import TargetLock
+    from stringcontact.io.publish import TargetLock
 
     out = tmp_path / "s"
     held = []
@@ -480,7 +480,7 @@ def test_plot_refuses_a_folder_a_run_is_writing(a_run_folder, capsys, monkeypatc
     """`plot DIR` while `run --out DIR --force` ran drew into the folder the run was about to replace."""
     import stringcontact.cli.plot as plot_command
     from stringcontact.cli.main import main
-    from stringcontact.io.lock import TargetLock
+    from stringcontact.io.publish import TargetLock
 
     drawn = []
     monkeypatch.setattr(plot_command, "write_pictures", lambda *args, **kwargs: drawn.append(1) or [])

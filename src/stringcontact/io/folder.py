@@ -16,9 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import Interrupted, OutputError, one_line
-from .disk import describe_os_error, disk_failure, sync_soon
 from .paraview_view import obstacle_at, write_view
-from .publish import open_partial, publish_partial
+from .publish import describe_os_error, disk_failure, open_partial, publish_partial, sync_soon
 from .readback import read_xdmf
 from .result import FIELDS, OBSTACLE_FIELD
 from .signals import signals_held

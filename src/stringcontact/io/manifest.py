@@ -10,12 +10,16 @@ import stat
 import tempfile
 from pathlib import Path
 
-from .disk import _umask
-
 #: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
 MANIFEST = "manifest.json"
 #: The largest manifest read: a folder's few dozen names and sizes take a few kB.
 MAX_MANIFEST_BYTES = 1 << 20
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def small_regular_file(path: Path, limit: int) -> bytes | None:
