@@ -214,7 +214,7 @@ class OutputWriter:
                 self.discard()
                 raise OutputError(f"--out {self.target}: {failure}; nothing was written there")
             self.path, self.partial = dest, None
-            self._release()
+            self.discard()  # the folder is in place: this releases the lock
         if dest != self.target and self.comm.rank == 0:
             warnings.warn(f"--out {self.target} already holds a result; this run's {status} output is in {dest}", stacklevel=3)
 
@@ -231,9 +231,6 @@ class OutputWriter:
         if self.comm.rank == 0 and self.partial is not None:
             shutil.rmtree(self.partial, ignore_errors=True)
         self.partial = None
-        self._release()
-
-    def _release(self) -> None:
         if self.lock is not None:
             self.lock.release()
             self.lock = None

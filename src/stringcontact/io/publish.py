@@ -10,6 +10,7 @@ import contextlib
 import errno
 import fcntl
 import functools
+import itertools
 import os
 import re
 import shutil
@@ -238,47 +239,31 @@ class TargetLock:
             self._lock.release()
 
     @staticmethod
-    def holder(target) -> int | None:
-        """The pid of the process holding the lock of `target` (0 if unknown), or None if nobody holds it."""
-        held = _probe(target)
-        return None if held is None else held[0]
-
-    @staticmethod
     def busy(target, label: str | None = None) -> str | None:
-        """The one-line refusal of a folder another command holds, naming it and its pid; else None."""
-        held = _probe(target)
-        if held is None:
+        """The one-line refusal of a folder another command holds, naming it and the pid and command in its lock file;
+        else None. Hand-written: filelock has no probe that leaves a missing lock file missing."""
+        try:
+            fd = os.open(_lock_path(target), os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError:
             return None
-        (pid, command), label = held, label or f"--out {target}"
-        who = f" (pid {pid})" if pid else ""
-        if command in (None, "run"):
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            return None
+        except BlockingIOError:
+            text = ""
+            with contextlib.suppress(OSError):
+                text = os.pread(fd, 64, 0).decode(errors="replace")
+        except OSError:  # not a file flock works on (a FIFO, a device): no run of ours holds it
+            return None
+        finally:
+            os.close(fd)
+        pid, command = (line.strip() for line in [*text.split("\n"), ""][:2])
+        who, label = f" (pid {int(pid)})" if pid.isdigit() and int(pid) else "", label or f"--out {target}"
+        if command in ("", "run") or not command.isalpha():
             return (f"{label}: another stringcontact run{who} is writing to this folder; wait for it to finish or "
                     "choose another folder")
         doing = "is drawing its pictures in this folder" if command == "plot" else "is writing to this folder"
         return f"{label}: `stringcontact {command}`{who} {doing}; wait for it to finish or choose another folder"
-
-
-def _probe(target) -> tuple[int, str | None] | None:
-    """(pid, command) of the holder of `target`'s lock (0, None where unsaid), or None. Hand-written: filelock has no
-    probe that leaves a missing lock file missing."""
-    try:
-        fd = os.open(_lock_path(target), os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError:
-        return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        return None
-    except BlockingIOError:
-        try:
-            lines = os.pread(fd, 64, 0).decode().split("\n")
-        except (OSError, ValueError):
-            return 0, None
-        command = lines[1].strip() if len(lines) > 1 and lines[1].strip().isalpha() else None
-        return (int(lines[0]) if lines[0].strip().isdigit() else 0), command
-    except OSError:  # not a file flock works on (a FIFO, a device): no run of ours holds it
-        return None
-    finally:
-        os.close(fd)
 
 
 # --- the hidden folder, published whole ---------------------------------------------------------------------------
@@ -291,7 +276,7 @@ def _recover_stale(target: Path) -> None:
         for p in sorted(target.parent.iterdir()):
             kind = ("partial" if re.fullmatch(rf"\.{name}\.partial-\d+-[a-z0-9_]+", p.name)
                     else "old" if re.fullmatch(rf"\.{name}\.old-\d+-\d+", p.name) else None)
-            if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
+            if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.busy(p) is not None:
                 continue
             if kind == "old" and not target.exists():  # the swap stopped between its two renames
                 (p / MARKER).unlink(missing_ok=True)
@@ -317,12 +302,10 @@ def _move_into_place(partial: Path, target: Path, force: bool, status: str) -> P
     # occupied, looked at again: a run into a folder inside it may have started meanwhile, or a user put a file there
     if status != "complete" or not force or foreign_file(target) is not None:  # beside it: NAME.new, NAME.new-2, ...
         label = "new" if status == "complete" else status
-        for i in range(1, 1000):
-            dest = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
-            if not dest.exists():
-                os.rename(partial, dest)
-                return dest
-        raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
+        names = (target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else "")) for i in itertools.count(1))
+        dest = next(name for name in names if not name.exists())
+        os.rename(partial, dest)
+        return dest
     old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
     os.rename(target, old)
     with contextlib.suppress(OSError):
