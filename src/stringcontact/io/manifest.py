@@ -30,14 +30,12 @@ def small_regular_file(path: Path, limit: int) -> bytes | None:
         return None
     try:
         st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
-            return None
-        data = os.read(fd, limit + 1)
-        return data if len(data) <= limit else None
+        data = os.read(fd, limit + 1) if stat.S_ISREG(st.st_mode) and st.st_size <= limit else None
     except OSError:
-        return None
+        data = None
     finally:
         os.close(fd)
+    return data if data is not None and len(data) <= limit else None
 
 
 def read_manifest(folder: Path) -> dict[str, int] | None:
