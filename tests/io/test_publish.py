@@ -9,8 +9,7 @@ import pytest
 
 from stringcontact.errors import OutputError
 from stringcontact.io.manifest import MANIFEST, atomic_path, foreign_file, read_manifest
-from stringcontact.io.publish import MARKER, open_partial, publish_partial
-from stringcontact.io.target import check_target
+from stringcontact.io.publish import MARKER, check_target, open_partial, publish_partial
 
 
 def published(tmp_path, files: dict[str, str]) -> Path:
@@ -131,7 +130,7 @@ def test_the_python_api_makes_the_missing_parents_it_is_given(tmp_path):
 
 def test_sync_soon_tolerates_a_missing_file(tmp_path):
     """The early sync only starts the writing; a file it cannot open is left to publishing's own fsync."""
-    from stringcontact.io.disk import sync_soon
+    from stringcontact.io.publish import sync_soon
 
     (tmp_path / "there").write_bytes(b"x" * 4096)
     thread = sync_soon([tmp_path / "gone", tmp_path / "there"])

@@ -159,7 +159,7 @@ def test_ci_builds_the_image_after_the_readme_test_command():
 @pytest.mark.parametrize("in_container", [True, False])
 def test_unwritable_output_folder_names_the_folder_and_the_fix(tmp_path, capfd, monkeypatch, in_container):
     from stringcontact.cli.main import main
-    from stringcontact.io import target as output
+    from stringcontact.io import publish as output
 
     folder = tmp_path / "out"
     folder.mkdir()

@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stringcontact.cli.main import main
-from stringcontact.io.lock import TargetLock
+from stringcontact.io.publish import TargetLock
 from stringcontact.io.readback import read_xdmf
 from stringcontact.run.checks import energy_balance, penetration_check
 
@@ -476,7 +476,7 @@ def test_disk_full_while_drawing_pictures_keeps_nothing_and_exits_2(capfd, tmpfs
 
 
 def test_disk_failure_looks_through_the_exception_chain():
-    from stringcontact.io.disk import disk_failure
+    from stringcontact.io.publish import disk_failure
 
     def raised(inner):
         try:

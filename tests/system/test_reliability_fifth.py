@@ -57,18 +57,18 @@ def test_study_and_check_hold_their_folder_while_they_compute(tmp_path, monkeypa
     import importlib
 
     from stringcontact.cli.main import main
-    from stringcontact.io.lock import TargetLock
+    from stringcontact.io.publish import TargetLock
 
     out = tmp_path / "s"
     held = []
 
     def computing(*args, **kwargs):
-        held.append(TargetLock.holder(out))
+        held.append(TargetLock.busy(out))
         raise KeyboardInterrupt  # enough: what matters is who holds the folder now
 
     monkeypatch.setattr(importlib.import_module(module), name, computing)
     assert main([*argv, "--out", str(out)]) == 130
-    assert held == [os.getpid()]
+    assert len(held) == 1 and f"`stringcontact {argv[0]}` (pid {os.getpid()}) is writing to this folder" in held[0]
     assert not out.exists() and leftovers(tmp_path) == []
 
 
@@ -480,7 +480,7 @@ def test_plot_refuses_a_folder_a_run_is_writing(a_run_folder, capsys, monkeypatc
     """`plot DIR` while `run --out DIR --force` ran drew into the folder the run was about to replace."""
     import stringcontact.cli.plot as plot_command
     from stringcontact.cli.main import main
-    from stringcontact.io.lock import TargetLock
+    from stringcontact.io.publish import TargetLock
 
     drawn = []
     monkeypatch.setattr(plot_command, "write_pictures", lambda *args, **kwargs: drawn.append(1) or [])

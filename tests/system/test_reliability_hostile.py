@@ -17,9 +17,8 @@ import pytest
 from conftest import CTRL_C_AT_IMPORT, leftovers, mpirun, one_error_line, plot_refusal
 
 from stringcontact.cli.main import main
-from stringcontact.io.lock import TargetLock
 from stringcontact.io.manifest import atomic_path
-from stringcontact.io.publish import staged_folder
+from stringcontact.io.publish import TargetLock, staged_folder
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01", *QUICK]

@@ -71,7 +71,7 @@ def _run(args) -> int:
     if not 1 <= args.frames <= MAX_FRAMES:  # named as the flag, not as the API's max_frames
         raise ValueError(f"--frames: {args.frames} is out of range; allowed: a whole number in [1, {MAX_FRAMES}] (XDMF frames)")
     if args.out is not None:
-        from ..io.target import check_target
+        from ..io.publish import check_target
 
         check_target(args.out, args.force)  # before --tol's pilots and the set-up: a refused folder costs nothing
     if args.tol is not None:

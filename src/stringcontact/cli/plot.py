@@ -71,11 +71,8 @@ def command(args) -> int:
     """`stringcontact plot DIR`: the pictures drawn into DIR (each replaced whole) or a new --out folder (whole or
     nothing, by the rules of `run --out`); 0 when done."""
     from ..errors import OutputError
-    from ..io.disk import describe_os_error
-    from ..io.lock import TargetLock
-    from ..io.publish import staged_folder
+    from ..io.publish import TargetLock, check_target, describe_os_error, staged_folder
     from ..io.readback import read_output
-    from ..io.target import check_target
 
     look, folder = look_of(args), Path(args.folder)
     launched = (os.environ.get(v, "").strip() for v in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"))

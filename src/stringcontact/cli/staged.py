@@ -11,8 +11,7 @@ def staged_output(out, force: bool, command: str, comm, root: int = 0):
     other ranks and without `out`): published if the body ends without an error, else removed. Rank `root` takes the
     folder before the body runs, one outcome on every rank: a refusal comes before minutes of computing."""
     from ..fem.agree import one_outcome
-    from ..io.publish import staged_folder
-    from ..io.target import check_target
+    from ..io.publish import check_target, staged_folder
 
     def take(stack):
         check_target(out, force, command=command)  # the command line's rules (no missing parents outside .)

@@ -16,9 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import Interrupted, OutputError, one_line
-from .disk import describe_os_error, disk_failure, sync_soon
 from .paraview_view import obstacle_at, write_view
-from .publish import open_partial, publish_partial
+from .publish import describe_os_error, disk_failure, open_partial, publish_partial, sync_soon
 from .readback import read_xdmf
 from .result import FIELDS, OBSTACLE_FIELD
 from .signals import signals_held
@@ -215,7 +214,7 @@ class OutputWriter:
                 self.discard()
                 raise OutputError(f"--out {self.target}: {failure}; nothing was written there")
             self.path, self.partial = dest, None
-            self._release()
+            self.discard()  # the folder is in place: this releases the lock
         if dest != self.target and self.comm.rank == 0:
             warnings.warn(f"--out {self.target} already holds a result; this run's {status} output is in {dest}", stacklevel=3)
 
@@ -232,9 +231,6 @@ class OutputWriter:
         if self.comm.rank == 0 and self.partial is not None:
             shutil.rmtree(self.partial, ignore_errors=True)
         self.partial = None
-        self._release()
-
-    def _release(self) -> None:
         if self.lock is not None:
             self.lock.release()
             self.lock = None

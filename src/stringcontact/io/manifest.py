@@ -10,12 +10,16 @@ import stat
 import tempfile
 from pathlib import Path
 
-from .disk import _umask
-
 #: The list of the files a stringcontact command wrote into a folder, with their sizes: what `--force` may replace.
 MANIFEST = "manifest.json"
 #: The largest manifest read: a folder's few dozen names and sizes take a few kB.
 MAX_MANIFEST_BYTES = 1 << 20
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def small_regular_file(path: Path, limit: int) -> bytes | None:
@@ -26,14 +30,12 @@ def small_regular_file(path: Path, limit: int) -> bytes | None:
         return None
     try:
         st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
-            return None
-        data = os.read(fd, limit + 1)
-        return data if len(data) <= limit else None
+        data = os.read(fd, limit + 1) if stat.S_ISREG(st.st_mode) and st.st_size <= limit else None
     except OSError:
-        return None
+        data = None
     finally:
         os.close(fd)
+    return data if data is not None and len(data) <= limit else None
 
 
 def read_manifest(folder: Path) -> dict[str, int] | None:

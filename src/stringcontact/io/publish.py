@@ -1,31 +1,272 @@
-"""An output folder is absent, complete, or marked in its summary.json, never half-written: a command locks it, writes
-into a hidden ``.NAME.partial-*`` beside it, fsyncs and renames that into place. With ``--force`` a complete result
-replaces one of ours through ``.NAME.old-*``; any other goes beside it (``NAME.interrupted``, ...). The next run to
-take the lock removes what killed runs left."""
+"""An output folder is absent, complete, or marked in its summary.json, never half-written: `check_target` refuses an
+--out that cannot or must not take a result, `TargetLock` locks it, a command writes into a hidden
+``.NAME.partial-*`` beside it, fsyncs and renames that into place (`staged_folder`). With ``--force`` a complete
+result replaces one of ours through ``.NAME.old-*``; any other goes beside it (``NAME.interrupted``, ...). The next
+run to take the lock removes what killed runs left. A failed write is one line (`describe_os_error`)."""
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
+import functools
+import itertools
 import os
 import re
 import shutil
+import stat
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
 
-from ..errors import OutputError
-from .disk import _umask, describe_os_error, fsync
-from .lock import TargetLock
-from .manifest import MANIFEST, foreign_file, small_regular_file, write_manifest
+import filelock
+
+from ..errors import OutputError, one_line
+from .manifest import MANIFEST, _umask, foreign_file, read_manifest, small_regular_file, write_manifest
 from .signals import signals_held
-from .target import check_target
 
 #: The marker file of a run's hidden folders ("partial" while written, "old" when moved aside by a --force swap): a
 #: later run removes only folders so marked.
 MARKER = ".stringcontact-marker"
+#: below this many free bytes a failed write is reported as a full disk.
+NEARLY_FULL_BYTES = 1 << 20
+#: errno values that mean the device failed, not the data: the output folder cannot be kept.
+DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS)
+#: Files that Docker (/.dockerenv) and podman (/run/.containerenv) put in every container.
+CONTAINER_MARKERS = ("/.dockerenv", "/run/.containerenv")
 
+
+# --- the device: a failed write in one line, fsync ---------------------------------------------------------------
+
+def describe_os_error(exc: BaseException, folder, probe=None) -> str:
+    """One line for an I/O failure in `folder`; without an errno (a RuntimeError) the device of `probe` is examined."""
+    err = getattr(exc, "errno", None)
+    reasons = {errno.ENOSPC: f"the disk is full (no space left on the device of {folder})",
+               errno.EDQUOT: f"the disk quota is exceeded on {folder}", errno.EROFS: f"{folder} is on a read-only file system",
+               errno.EACCES: f"permission denied in {folder}", errno.EPERM: f"permission denied in {folder}"}
+    if err is not None:
+        return reasons.get(err) or f"{getattr(exc, 'strerror', None) or exc} ({folder})"
+    probe = _existing(Path(probe if probe is not None else folder))
+    with contextlib.suppress(OSError):
+        st = os.statvfs(probe)
+        if st.f_bavail * st.f_frsize < NEARLY_FULL_BYTES:
+            return f"the disk is full ({st.f_bavail * st.f_frsize // 1024} KiB left on the device of {folder})"
+        if st.f_flag & os.ST_RDONLY:
+            return reasons[errno.EROFS]
+        if not os.access(probe, os.W_OK):
+            return reasons[errno.EACCES]
+    return f"{one_line(exc, 300)} ({folder})"
+
+
+def disk_failure(exc: BaseException) -> OSError | None:
+    """The OSError of a full or failing device that `exc` is, or was raised from or during; else None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in DISK_ERRNOS:
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def fsync(path, folder: bool = False) -> None:
+    """fsync the file `path` (a failure raised), or the folder `path` (some file systems cannot: left)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if folder else 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        if not folder:
+            raise
+
+
+def sync_soon(paths) -> threading.Thread:
+    """fsync the files `paths` in a thread (returned) while the pictures are drawn: publishing's fsync then takes
+    0.003 s for Example 1, not 0.030-0.035 s (docs/explanation/performance.md)."""
+
+    def sync():
+        for path in paths:
+            with contextlib.suppress(OSError):
+                fsync(path)
+
+    thread = threading.Thread(target=sync, name="sync_soon", daemon=True)
+    thread.start()
+    return thread
+
+
+def _existing(path: Path) -> Path:
+    """`path` or its nearest existing parent."""
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+# --- whether an --out may take a result ----------------------------------------------------------------------------
+
+def check_target(path, force: bool, *, locked: bool = False, parents: bool = False, command: str = "run") -> Path:
+    """Refuse in one line (`OutputError`) an --out that cannot or must not take a result: the root or current folder
+    (or one containing it), a mount point, a file, an unwritable parent, a missing parent outside the current folder
+    (unless `parents`), a non-empty folder (with `force`: one not ours, or a run's for another `command`), a folder
+    another command holds (unless `locked`)."""
+    target = Path(path)
+    resolved = target.resolve()
+    if not resolved.name:
+        raise OutputError(f"--out {target}: is the root folder; choose a new folder")
+    with contextlib.suppress(OSError):
+        if Path.cwd() == resolved or resolved in Path.cwd().parents:
+            raise OutputError(f"--out {target}: is the current folder or contains it; choose a new folder")
+    if target.exists() and not target.is_dir():
+        raise OutputError(f"--out {target}: exists and is not a folder")
+    if target.is_dir() and os.path.ismount(target):  # the finished folder is renamed onto it: EBUSY
+        raise OutputError(f"--out {target}: is a mount point, which a finished folder cannot be renamed onto; "
+                          f"choose a new folder inside it (e.g. {target / 'run1'})")
+    if not target.exists():
+        _check_parent(target, resolved.parent, parents)
+    busy = None if locked else TargetLock.busy(target)  # before the files: a holder's own temporary ones
+    if target.is_dir() and any(target.iterdir()):
+        if not force:
+            raise OutputError(f"--out {target}: folder is not empty; choose another or pass --force to replace it")
+        if busy is not None:
+            raise OutputError(busy)
+        blocker = foreign_file(target)
+        if blocker is not None:
+            raise OutputError(f"--out {target}: --force replaces only a stringcontact result (the files its {MANIFEST} "
+                              f"lists), and {blocker}; move it away or choose another folder")
+        if command != "run" and {"summary.json", "solution.xdmf"} <= set(read_manifest(target) or {}):  # a run's
+            raise OutputError(f"--out {target}: holds the result of a run (summary.json, solution.xdmf), which "
+                              f"`{command} --force` does not replace; choose another folder")
+    if busy is not None:
+        raise OutputError(busy)
+    return target
+
+
+def _check_parent(target: Path, parent: Path, parents: bool) -> None:
+    """Refuse a missing parent outside the current folder (``--out /nonexistent/x``: a typo; unless `parents`) and a
+    nearest existing parent that is a file or cannot be written."""
+    existing = _existing(parent)
+    missing = next((p for p in [parent, *parent.parents] if p.parent == existing), existing)
+    with contextlib.suppress(OSError):
+        parents = parents or Path.cwd() in missing.parents
+    if missing != existing and not parents:
+        raise OutputError(f"--out {target}: the folder {missing} does not exist; create it first (mkdir -p {parent}) "
+                          "or correct the path")
+    if existing.exists() and not existing.is_dir():
+        raise OutputError(f"--out {target}: cannot create the output folder: {existing} is a file, not a folder; "
+                          "choose a path inside a folder")
+    reason = None
+    with contextlib.suppress(OSError):
+        if os.statvfs(existing).f_flag & os.ST_RDONLY:
+            reason = errno.EROFS
+    if reason is None and not os.access(existing, os.W_OK | os.X_OK):
+        reason = errno.EACCES
+    if reason is not None:
+        why = describe_os_error(OSError(reason, os.strerror(reason)), existing)
+        raise OutputError(f"--out {target}: cannot create the output folder: {why}"
+                          + (permission_fix(existing) if reason == errno.EACCES else ""))
+
+
+def permission_fix(folder: Path) -> str:
+    """The way out of a permission denied in `folder`: in a container, run it as the folder's owner."""
+    try:
+        owner = folder.stat().st_uid
+    except OSError:
+        return ""
+    me = os.geteuid()
+    if any(os.path.exists(m) for m in CONTAINER_MARKERS):
+        return (f" (it belongs to uid {owner}, this container runs as uid {me}); run the container as the folder's "
+                'owner: docker run --user "$(id -u):$(id -g)" ...')
+    return f" (it belongs to uid {owner}, you are uid {me}); choose a folder of yours"
+
+
+# --- the lock -----------------------------------------------------------------------------------------------------
+
+def _lock_path(target) -> Path:
+    return Path(target).parent / f".{Path(target).name}.lock"
+
+
+def _write_pid(path: Path, command: str, fd: int) -> None:
+    """filelock's `on_acquired`: refuse a lock that is no regular file, write ``PID\\nCOMMAND\\n`` (failing: unlink)."""
+    mine = os.fstat(fd)
+    if not stat.S_ISREG(mine.st_mode):
+        raise OSError(errno.EINVAL, "the lock file is not a regular file")
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n{command}\n".encode())
+    except OSError:
+        with contextlib.suppress(OSError):
+            if os.path.samestat(os.lstat(path), mine):
+                os.unlink(path)
+        raise
+
+
+class TargetLock:
+    """An exclusive, non-blocking lock on ``.NAME.lock`` beside `target` (filelock's `FileLock` tried once; the file
+    holds the holder's pid and `command`, which a refusal names; removed on release); `label` names the folder in
+    messages. Held by another: `OutputError` naming it; anything but a regular file is refused (filelock locks a
+    FIFO)."""
+
+    def __init__(self, target, command: str = "run", label: str | None = None):
+        self.path, self.target = _lock_path(target), Path(target)
+        label = label or f"--out {self.target}"
+        self._lock = filelock.FileLock(self.path, timeout=0, thread_local=False, fallback_to_soft=False,
+                                       on_acquired=functools.partial(_write_pid, self.path, command))
+        for _ in range(100):  # a holder that releases (unlinks) between our open and our flock: try the new file
+            try:
+                self._lock.acquire()
+                return
+            except filelock.Timeout:
+                message = self.busy(self.target, label)
+                if message is not None:
+                    raise OutputError(message) from None
+            except OSError:
+                kind = stat.S_IFMT(os.lstat(self.path).st_mode) if os.path.lexists(self.path) else stat.S_IFREG
+                if kind == stat.S_IFREG:
+                    raise
+                odd = {stat.S_IFLNK: "a symbolic link", stat.S_IFIFO: "a FIFO", stat.S_IFDIR: "a folder"}
+                raise OutputError(f"{label}: its lock file {self.path.name} is {odd.get(kind, 'not a regular file')}, "
+                                  "which no stringcontact run makes; remove it (nothing was written there)") from None
+        raise OutputError(f"--out {self.target}: cannot take the lock {self.path}")  # pragma: no cover
+
+    def release(self) -> None:
+        """Remove the lock file while still holding it, then unlock."""
+        if self._lock.is_locked:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+            self._lock.release()
+
+    @staticmethod
+    def busy(target, label: str | None = None) -> str | None:
+        """The one-line refusal of a folder another command holds, naming it and the pid and command in its lock file;
+        else None. Hand-written: filelock has no probe that leaves a missing lock file missing."""
+        try:
+            fd = os.open(_lock_path(target), os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError:
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            return None
+        except BlockingIOError:
+            text = ""
+            with contextlib.suppress(OSError):
+                text = os.pread(fd, 64, 0).decode(errors="replace")
+        except OSError:  # not a file flock works on (a FIFO, a device): no run of ours holds it
+            return None
+        finally:
+            os.close(fd)
+        pid, command = (line.strip() for line in [*text.split("\n"), ""][:2])
+        who, label = f" (pid {int(pid)})" if pid.isdigit() and int(pid) else "", label or f"--out {target}"
+        if command in ("", "run") or not command.isalpha():
+            return (f"{label}: another stringcontact run{who} is writing to this folder; wait for it to finish or "
+                    "choose another folder")
+        doing = "is drawing its pictures in this folder" if command == "plot" else "is writing to this folder"
+        return f"{label}: `stringcontact {command}`{who} {doing}; wait for it to finish or choose another folder"
+
+
+# --- the hidden folder, published whole ---------------------------------------------------------------------------
 
 def _recover_stale(target: Path) -> None:
     """Under the lock: remove the marked hidden folders of killed runs into `target`, put back a result an interrupted
@@ -35,7 +276,7 @@ def _recover_stale(target: Path) -> None:
         for p in sorted(target.parent.iterdir()):
             kind = ("partial" if re.fullmatch(rf"\.{name}\.partial-\d+-[a-z0-9_]+", p.name)
                     else "old" if re.fullmatch(rf"\.{name}\.old-\d+-\d+", p.name) else None)
-            if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.holder(p) is not None:
+            if kind is None or not p.is_dir() or p.is_symlink() or TargetLock.busy(p) is not None:
                 continue
             if kind == "old" and not target.exists():  # the swap stopped between its two renames
                 (p / MARKER).unlink(missing_ok=True)
@@ -49,7 +290,7 @@ def _recover_stale(target: Path) -> None:
                       f"({', '.join(removed)})", stacklevel=4)
 
 
-def move_into_place(partial: Path, target: Path, force: bool, status: str = "complete") -> Path:
+def _move_into_place(partial: Path, target: Path, force: bool, status: str) -> Path:
     """Rename the finished folder `partial` to `target` (occupied: only a complete one with `force`, else beside it as
     ``NAME.new``/``NAME.<status>``); returns where it went."""
     try:
@@ -61,12 +302,10 @@ def move_into_place(partial: Path, target: Path, force: bool, status: str = "com
     # occupied, looked at again: a run into a folder inside it may have started meanwhile, or a user put a file there
     if status != "complete" or not force or foreign_file(target) is not None:  # beside it: NAME.new, NAME.new-2, ...
         label = "new" if status == "complete" else status
-        for i in range(1, 1000):
-            dest = target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else ""))
-            if not dest.exists():
-                os.rename(partial, dest)
-                return dest
-        raise OutputError(f"--out {target}: no free name {target.name}.{label}-N beside it")  # pragma: no cover
+        names = (target.with_name(f"{target.name}.{label}" + (f"-{i}" if i > 1 else "")) for i in itertools.count(1))
+        dest = next(name for name in names if not name.exists())
+        os.rename(partial, dest)
+        return dest
     old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
     os.rename(target, old)
     with contextlib.suppress(OSError):
@@ -117,7 +356,7 @@ def publish_partial(partial: Path, target: Path, force: bool, status: str = "com
         if p.is_file():
             fsync(p)
     fsync(partial, folder=True)
-    dest = move_into_place(partial, target, force, status)
+    dest = _move_into_place(partial, target, force, status)
     fsync(target.parent, folder=True)
     return dest
 

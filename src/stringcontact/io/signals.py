@@ -14,31 +14,34 @@ __all__ = ["StopTogether", "signals_held"]
 STOP = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
-def _record(into: list) -> dict:
-    """Swap the Python handlers of `STOP` for one that appends to `into`; returns the previous ones (a C handler,
-    PETSc's, cannot be put back: left in place)."""
-    saved = {s: signal.getsignal(s) for s in STOP}
-    saved = {s: h for s, h in saved.items() if h is not None}
-    for s in saved:
-        signal.signal(s, lambda signum, frame: into.append(signum))
-    return saved
+class _Held:
+    """In the main thread (and if `active`), the Python handlers of `STOP` swapped for one that appends the signal to
+    `received`, until `restore` (a C handler, PETSc's, cannot be put back: left in place)."""
+
+    def __init__(self, active: bool = True):
+        self.received: list[int] = []
+        active = active and threading.current_thread() is threading.main_thread()
+        self.saved = {s: h for s in STOP if active and (h := signal.getsignal(s)) is not None}
+        for s in self.saved:
+            signal.signal(s, lambda signum, frame: self.received.append(signum))
+
+    def restore(self) -> dict:
+        saved, self.saved = self.saved, {}
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+        return saved
 
 
 @contextlib.contextmanager
 def signals_held():
     """Hold the stop signals back for a critical section; they take effect right after it (handlers swapped, not
     signals blocked: one that arrived just before would run its handler inside the section)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received = []
-    saved = _record(received)
+    held = _Held()
     try:
         yield
     finally:
-        for s, handler in saved.items():
-            signal.signal(s, handler)
-        for signum in received[:1]:
+        saved = held.restore()
+        for signum in held.received[:1]:
             if callable(saved[signum]):
                 saved[signum](signum, None)
             elif saved[signum] == signal.SIG_DFL:
@@ -51,12 +54,9 @@ class StopTogether:
 
     def __init__(self, comm):
         self.comm = comm if comm is not None and comm.size > 1 else None
-        self.received: list[int] = []
-        self.saved: dict = {}
 
     def __enter__(self) -> Self:
-        if self.comm is not None and threading.current_thread() is threading.main_thread():
-            self.saved = _record(self.received)
+        self.held = _Held(active=self.comm is not None)
         return self
 
     def poll(self) -> None:
@@ -67,17 +67,12 @@ class StopTogether:
 
         from ..errors import Interrupted
 
-        signum = self.comm.allreduce(self.received[0] if self.received else 0, op=MPI.MAX)
+        signum = self.comm.allreduce(self.held.received[0] if self.held.received else 0, op=MPI.MAX)
         if signum:
-            self._restore()
+            self.held.restore()
             raise Interrupted(signum)
 
-    def _restore(self) -> None:
-        for s, handler in self.saved.items():
-            signal.signal(s, handler)
-        self.saved = {}
-
     def __exit__(self, kind, value, tb) -> None:
-        self._restore()
-        if self.received and kind is None:  # a signal after the last poll: it takes effect now
-            os.kill(os.getpid(), self.received[0])
+        self.held.restore()
+        if self.held.received and kind is None:  # a signal after the last poll: it takes effect now
+            os.kill(os.getpid(), self.held.received[0])
