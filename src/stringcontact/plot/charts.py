@@ -165,16 +165,12 @@ def caption(fig, result, look: Look, *notes: str) -> None:
                       color="0.25")
 
 
-def drawn(draw):
-    """The picture function ``(result, path, look, ...) -> first path`` of a figure function ``(result, look, ...)``."""
-
-    def picture(result, path, look: Look = SCREEN, **options) -> Path:
-        with look.drawn():
-            made = draw(result, look, **options)
-            return savefig(made[0] if isinstance(made, tuple) else made, Path(path), look)[0]
-
-    picture.__doc__ = f"The picture of `{draw.__name__}` written to `path` in each format of `look`."
-    return picture
+def picture(draw, result, path, look: Look = SCREEN, **options) -> Path:
+    """The figure of `draw` ``(result, look, **options) -> figure or (figure, axes)`` in `look`'s style sheet, written
+    to `path` in each format of `look`: the first file written."""
+    with look.drawn():
+        made = draw(result, look, **options)
+        return savefig(made[0] if isinstance(made, tuple) else made, Path(path), look)[0]
 
 
 def panel_grid(panels: int, width: float) -> tuple[int, int]:
@@ -229,8 +225,6 @@ def contact_set_figure(result, look: Look = SCREEN):
     return fig, axes
 
 
-contact_set_picture = drawn(contact_set_figure)
-
 
 def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
     """(lo, hi, most, first, last): a window half as wide again each side of the first rows with the most components
@@ -260,8 +254,6 @@ def velocity_figure(result, look: Look = SCREEN, percentile: float = VELOCITY_PE
     caption(fig, result, look, f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
     return fig, ax
 
-
-velocity_picture = drawn(velocity_figure)
 
 
 def snapshots_figure(result, look: Look = SCREEN):
@@ -307,8 +299,6 @@ def snapshots_figure(result, look: Look = SCREEN):
     caption(fig, result, look, panels_note(result, rows))
     return fig, axs
 
-
-snapshots_picture = drawn(snapshots_figure)
 
 
 def energy_figure(result, look: Look = SCREEN):
@@ -359,8 +349,6 @@ def energy_figure(result, look: Look = SCREEN):
     caption(fig, result, look)
     return fig, axes
 
-
-energy_picture = drawn(energy_figure)
 
 
 def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0.02):
@@ -417,5 +405,3 @@ def contact_area_figure(result, look: Look = SCREEN):
     caption(fig, result, look, landed)
     return fig
 
-
-contact_area_picture = drawn(contact_area_figure)

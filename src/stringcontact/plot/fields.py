@@ -10,7 +10,7 @@ import numpy as np
 from ..io.paraview_view import field_range
 from ..io.tables import field_info
 from .annotations import nice_ticks
-from .charts import caption, drawn, figure, literal
+from .charts import caption, figure, literal
 from .style import SCREEN, Look
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
@@ -105,5 +105,3 @@ def field_figure(result, look: Look = SCREEN, *, name: str):
     caption(fig, result, look)
     return fig, (ax, bx)
 
-
-field_picture = drawn(field_figure)

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import charts, membrane
 from .annotations import Axis, add_axis
-from .charts import caption, drawn
+from .charts import caption
 from .colours import CONTACT_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
 from .style import SCREEN, Look
 from .vtk_start import _plotter, _pyvista
@@ -58,8 +58,6 @@ def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_r
     caption(fig, result, look, _height_range(result))
     return fig, ax
 
-
-space_time_picture = drawn(space_time_figure)
 
 
 def _height_range(result) -> str:
@@ -150,6 +148,4 @@ def membrane_figure(result, look: Look = SCREEN):
     caption(fig, result, look, charts.panels_note(result, rows))
     return fig, axs
 
-
-membrane_picture = drawn(membrane_figure)
 

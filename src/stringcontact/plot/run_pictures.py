@@ -8,13 +8,12 @@ from pathlib import Path
 
 from ..io.signals import signals_held
 from . import charts
-from .charts import contact_components, snapshot_rows  # noqa: F401 - the demos' readings, as run_pictures.*
 from .picture_names import MEMBRANE_PICTURES, PICTURES, WINDOW_SIZE, field_picture_names, pictures_of
 from .style import SCREEN_DPI, Look
 
-#: the matplotlib pictures' functions (`charts`), by name
-CHARTS = {"contact_area.png": "contact_area_picture", "contact_set.png": "contact_set_picture",
-          "velocity_field.png": "velocity_picture", "snapshots.png": "snapshots_picture", "energy.png": "energy_picture"}
+#: the matplotlib pictures' figure functions (`charts`), by name
+CHARTS = {"contact_area.png": "contact_area_figure", "contact_set.png": "contact_set_figure",
+          "velocity_field.png": "velocity_figure", "snapshots.png": "snapshots_figure", "energy.png": "energy_figure"}
 
 
 def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> Path:
@@ -24,11 +23,11 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
     path = Path(folder) / name
     field = field_picture_names(result).get(name)
     if field is not None:
-        from .fields import field_picture
+        from .fields import field_figure
 
-        return field_picture(result, path, look, name=field)
+        return charts.picture(field_figure, result, path, look, name=field)
     if name in CHARTS:
-        return getattr(charts, CHARTS[name])(result, path, look)
+        return charts.picture(getattr(charts, CHARTS[name]), result, path, look)
     # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load vtkCommonMath"):
     # a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
     with signals_held():
@@ -38,8 +37,8 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
             return animation.membrane_animation(result, path, tuple(round(v * SCREEN_DPI) for v in look.inches))
         from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
 
-        draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
-        return draw_mesh(result, path, look)
+        figure = mesh_pictures.space_time_figure if name == "space_time.png" else mesh_pictures.membrane_figure
+        return charts.picture(figure, result, path, look)
 
 
 def write_pictures(result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> list[Path]:
