@@ -307,7 +307,7 @@ def test_the_gifs_caption_is_at_least_14_pixels_high(run):
 
 
 def _label_height(font_size: int) -> int:
-    """The height in pixels of the tick label "0.5" drawn as `annotations.add_axis` draws it, at `font_size`."""
+    """The height in pixels of the tick label "0.5" drawn as `vtk_start.add_axis` draws it, at `font_size`."""
     from stringcontact.plot import vtk_start
 
     p = vtk_start._plotter((300, 200))

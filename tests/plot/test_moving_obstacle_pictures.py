@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.plot import charts, colours, membrane, mesh_pictures, vtk_start
+from stringcontact.plot import charts, membrane, mesh_pictures, style, vtk_start
 
 #: the piston rises from ψ = 0 to 0.3 by t = 0.15 on |x − 1/2| < 0.2; a coarse, short run
 SMALL_PISTON = {"nx": 40, "T": 0.3, "nt": 75, "output_times": [0.0, 0.1, 0.15, 0.3]}
@@ -56,7 +56,7 @@ def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston
     assert piston.scene.obstacle_moves
     charts.picture(mesh_pictures.space_time_figure, piston, tmp_path / "space_time.png")
     assert (tmp_path / "space_time.png").stat().st_size > 0
-    (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
+    (obstacle,) = _in_colour(drawn, style.OBSTACLE_COLOUR)
     points = np.asarray(obstacle.points)
     centre = np.abs(points[:, 0] - 0.5) < 1e-9  # the piston's middle, at every drawn time
     depth, z = points[centre, 1], points[centre, 2]
@@ -76,7 +76,7 @@ def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston
 def test_an_obstacle_at_rest_is_still_a_band_over_t(drawn, tmp_path):
     res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), output=sc.Output(progress=False))
     charts.picture(mesh_pictures.space_time_figure, res, tmp_path / "space_time.png")
-    (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
+    (obstacle,) = _in_colour(drawn, style.OBSTACLE_COLOUR)
     assert np.unique(np.round(np.asarray(obstacle.points)[:, 1], 12)).size == 2  # t = 0 and T only
 
 

@@ -409,7 +409,7 @@ def _recorded_axes(monkeypatch):
 def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_colour_key(tmp_path, run, monkeypatch):
     """Issue 26: x, t and eta axes with round ticks (not corner labels at the obstacle's plane), and a key naming
     the quantity the colours show."""
-    from stringcontact.plot import annotations, mesh_pictures
+    from stringcontact.plot import mesh_pictures, vtk_start
 
     _, res = run
     drawn = _recorded_axes(monkeypatch)
@@ -423,7 +423,7 @@ def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_col
     assert x_axis.start[2] < 0 and t_axis.start[2] < 0  # on a floor below the obstacle ψ = 0, not on its plane
     (entries,) = drawn["keys"]
     assert any("in contact" in e for e in entries) and any("free" in e for e in entries)
-    np.testing.assert_array_equal(annotations.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(vtk_start.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
 
 
 @pytest.mark.slow

@@ -11,8 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.manifest import atomic_path
-from .colours import CONTACT_COLOUR
-from .style import SCREEN, Look
+from .style import CONTACT_COLOUR, SCREEN, Look
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0
@@ -284,14 +283,11 @@ def snapshots_figure(result, look: Look = SCREEN):
         frac = float(contact_length[i]) / float(x[-1] - x[0])
         ax.set_title(f"t = {result.t[i]:.3g}:{sep}{100 * frac:.0f}% in contact, {parts} part{'s' * (parts != 1)}",
                      fontsize="small")
-        ax.set_ylim(lo - pad, hi + pad)
+        ax.set(ylim=(lo - pad, hi + pad), xlabel="x", ylabel="η (displacement)")
+        ax.label_outer()  # the labels of the bottom row and the left column
         ax.grid(alpha=0.3)
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    for ax in axs[-1]:
-        ax.set_xlabel("x")
-    for ax in axs[:, 0]:
-        ax.set_ylabel("η (displacement)")
     handles, labels = axs.flat[0].get_legend_handles_labels()
     handles.append(Patch(color="0.85", label=f"obstacle (y ≤ {name})"))
     add_key(below, handles, [*labels, handles[-1].get_label()])

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..io.paraview_view import field_range
 from ..io.tables import field_info
-from .annotations import nice_ticks
+from .vtk_start import nice_ticks
 from .charts import caption, figure, literal
 from .style import SCREEN, Look
 
@@ -57,6 +57,14 @@ class FieldScale:
         if self.scale == "symlog":
             return SymLogNorm(linthresh=self.linear_share * self.high, vmin=self.low, vmax=self.high, base=10)
         return Normalize(vmin=self.low, vmax=self.high)
+
+    def colour_bar(self, fig, **options):
+        """matplotlib's colour bar of the scale in `fig` (`Figure.colorbar`'s `options`), ticked at `ticks`."""
+        from matplotlib.cm import ScalarMappable
+
+        bar = fig.colorbar(ScalarMappable(self.norm(), self.colour_map()), **options)
+        bar.set_ticks(self.ticks(), labels=[self.tick_label(v) for v in self.ticks()])
+        return bar
 
     def ticks(self) -> np.ndarray:
         """The ends, and the round values (symlog: 0 and ± powers of ten) at least `TICK_GAP` inside them."""
