@@ -157,8 +157,10 @@ def savefig(fig, path: Path, look: Look = SCREEN) -> list[Path]:
     return written
 
 
-def caption(fig, result, look: Look, *notes: str) -> None:
-    """The run's details (`parameter_line`) and `notes` as a caption under the figure, when `look` has one."""
+def titled(fig, title: str, result, look: Look, *notes: str) -> None:
+    """`fig` titled `title`, with the run's details (`parameter_line`) and `notes` as a caption under it when `look`
+    has one."""
+    fig.suptitle(title)
     if look.caption:
         fig.supxlabel("\n".join(filter(None, (parameter_line(result, sep="\n"), *notes))), fontsize="small",
                       color="0.25")
@@ -219,8 +221,7 @@ def contact_set_figure(result, look: Look = SCREEN):
     patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact (η ≤ {psi})"),
                Patch(facecolor="white", edgecolor="black", label=f"free (η > {psi})")]
     axes["count"].legend(handles=patches, loc="upper left", bbox_to_anchor=(1.15, 1.0), frameon=False)
-    fig.suptitle(f"Contact set {{η ≤ {psi}}} over (x, t)")
-    caption(fig, result, look, contact_times(result.t, counts))
+    titled(fig, f"Contact set {{η ≤ {psi}}} over (x, t)", result, look, contact_times(result.t, counts))
     return fig, axes
 
 
@@ -249,8 +250,8 @@ def velocity_figure(result, look: Look = SCREEN, percentile: float = VELOCITY_PE
     image = ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), result.velocity, cmap="RdBu_r", vmin=-c, vmax=c)
     ax.set(xlabel="position x", ylabel="time t")
     fig.colorbar(image, ax=ax, extend="both" if speed > c else "neither", shrink=0.8).set_label("v (velocity)")
-    fig.suptitle("Velocity v = η_t over (x, t)")
-    caption(fig, result, look, f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
+    titled(fig, "Velocity v = η_t over (x, t)", result, look,
+           f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
     return fig, ax
 
 
@@ -291,8 +292,7 @@ def snapshots_figure(result, look: Look = SCREEN):
     handles, labels = axs.flat[0].get_legend_handles_labels()
     handles.append(Patch(color="0.85", label=f"obstacle (y ≤ {name})"))
     add_key(below, handles, [*labels, handles[-1].get_label()])
-    fig.suptitle("The string at the output times")
-    caption(fig, result, look, panels_note(result, rows))
+    titled(fig, "The string at the output times", result, look, panels_note(result, rows))
     return fig, axs
 
 
@@ -341,8 +341,7 @@ def energy_figure(result, look: Look = SCREEN):
         axes["zoom_residual"].set_ylabel("")
         axes["energy"].axvspan(t[0], settled, color="0.5", alpha=0.12, lw=0)
     add_key(legend_row, *axes["energy"].get_legend_handles_labels())
-    fig.suptitle("Energy balance (1.4)")
-    caption(fig, result, look)
+    titled(fig, "Energy balance (1.4)", result, look)
     return fig, axes
 
 
@@ -397,7 +396,6 @@ def contact_area_figure(result, look: Look = SCREEN):
     axp.yaxis.get_major_locator().set_params(integer=True)
     axp.grid(alpha=0.3)
     axp.legend(loc="upper right")
-    fig.suptitle("Contact area and contact patches over time")
-    caption(fig, result, look, landed)
+    titled(fig, "Contact area and contact patches over time", result, look, landed)
     return fig
 

@@ -9,9 +9,9 @@ import numpy as np
 
 from ..io.paraview_view import field_range
 from ..io.tables import field_info
-from .vtk_start import nice_ticks
-from .charts import caption, figure, literal
+from .charts import figure, literal, titled
 from .style import SCREEN, Look
+from .vtk_start import nice_ticks
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
 TICK_GAP = 0.16
@@ -109,7 +109,6 @@ def field_figure(result, look: Look = SCREEN, *, name: str):
     bx.set(xlabel="t", title="least and largest value")
     bx.legend()
     bx.grid(True, alpha=0.3)
-    fig.suptitle(literal(scale.label[:1].upper() + scale.label[1:]))
-    caption(fig, result, look)
+    titled(fig, literal(scale.label[:1].upper() + scale.label[1:]), result, look)
     return fig, (ax, bx)
 

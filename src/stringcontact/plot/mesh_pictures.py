@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import charts, membrane
-from .charts import caption
+from .charts import titled
 from .style import CONTACT_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR, SCREEN, Look
 from .vtk_start import Axis, _plotter, _pyvista, add_axis
 
@@ -51,8 +51,7 @@ def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_r
     ax.imshow(image)
     ax.set_axis_off()
     _key(below, membrane.colour_key(result))
-    fig.suptitle("Surface η(x, t) over the (x, t) plane")
-    caption(fig, result, look, _height_range(result))
+    titled(fig, "Surface η(x, t) over the (x, t) plane", result, look, _height_range(result))
     return fig, ax
 
 
@@ -136,8 +135,7 @@ def membrane_figure(result, look: Look = SCREEN):
     if bar:
         view.field.colour_bar(fig, ax=axs, location="bottom", shrink=0.6, aspect=40, label=view.field.title)
     _key(below, membrane.colour_key(result, view.field))
-    fig.suptitle(view.title("The membrane at the output times"))
-    caption(fig, result, look, charts.panels_note(result, rows))
+    titled(fig, view.title("The membrane at the output times"), result, look, charts.panels_note(result, rows))
     return fig, axs
 
 

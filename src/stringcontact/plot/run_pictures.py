@@ -1,5 +1,6 @@
-"""A run's pictures (`pictures_of`), each by the library made for it: matplotlib (`charts`, `fields`), pyvista
-(`mesh_pictures`, imported only for them), Pillow (`animation`); after a run's solve, or again from its stored rows."""
+"""A run's pictures (`pictures_of`: a string's, a membrane's, and one per output field of its model), each by the
+library made for it: matplotlib (`charts`, `fields`), pyvista (`mesh_pictures`, imported only for them), Pillow
+(`animation`); after a run's solve, or again from its stored rows."""
 
 from __future__ import annotations
 
@@ -7,9 +8,27 @@ import json
 from pathlib import Path
 
 from ..io.signals import signals_held
+from ..io.tables import field_key
 from . import charts
-from .picture_names import MEMBRANE_PICTURES, PICTURES, WINDOW_SIZE, field_picture_names, pictures_of
 from .style import SCREEN_DPI, Look
+
+WINDOW_SIZE = (1100, 900)  # pixels of the space-time pictures
+#: of a 1-D run (a string)
+PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png", "space_time.png")
+#: of a 2-D run (a membrane)
+MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
+
+
+def field_picture_names(result) -> dict[str, str]:
+    """Picture -> output field: ``NAME.png``, or ``field_NAME.png`` where that is a core picture's name."""
+    return {field_key(f"{name}.png", PICTURES + MEMBRANE_PICTURES): name for name in getattr(result, "fields", None) or {}}
+
+
+def pictures_of(result) -> tuple[str, ...]:
+    """`PICTURES` of a string, `MEMBRANE_PICTURES` of a membrane, then one per output field of its model."""
+    names = PICTURES if result.dim == 1 else MEMBRANE_PICTURES
+    return names + tuple(field_picture_names(result))
+
 
 #: the matplotlib pictures' figure functions (`charts`), by name
 CHARTS = {"contact_area.png": "contact_area_figure", "contact_set.png": "contact_set_figure",
