@@ -12,7 +12,7 @@ from ..io.manifest import atomic_path
 from . import membrane
 from .charts import figure
 from .mesh_pictures import _every_kth
-from .run_pictures import WINDOW_SIZE
+from .style import WINDOW_SIZE
 from .vtk_start import _font_file, _plotter
 
 MAX_FRAMES = 50

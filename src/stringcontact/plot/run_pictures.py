@@ -10,9 +10,9 @@ from pathlib import Path
 from ..io.signals import signals_held
 from ..io.tables import field_key
 from . import charts
-from .style import SCREEN_DPI, Look
+from .charts import contact_components, snapshot_rows  # noqa: F401 - the demos' readings, as run_pictures.*
+from .style import SCREEN_DPI, WINDOW_SIZE, Look
 
-WINDOW_SIZE = (1100, 900)  # pixels of the space-time pictures
 #: of a 1-D run (a string)
 PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png", "space_time.png")
 #: of a 2-D run (a membrane)

@@ -23,6 +23,8 @@ MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
 CONTACT_EDGE_COLOUR = "#ffd400"
 #: the pixels per inch the pyvista pictures' font sizes are chosen for (a picture at the style's resolution scales them)
 SCREEN_DPI = 100
+#: the pixels of a run's pictures by default (the screen style's size at `SCREEN_DPI`)
+WINDOW_SIZE = (1100, 900)
 #: the sizes (inches) a picture may take
 SMALLEST, LARGEST = 2.0, 40.0
 
