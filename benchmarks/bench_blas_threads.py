@@ -1,5 +1,5 @@
 """Does BLAS threading slow the step? The stiff string's Example 1 (10,002 unknowns: OpenBLAS threads a dot
-product of more than 10,000 entries) stepped with BLAS held to one thread while it steps (`run.blas.one_thread`, what
+product of more than 10,000 entries) stepped with BLAS held to one thread while it steps (`run.stepper.one_thread`, what
 the package does) and with BLAS left on all its threads, alternately (docs/explanation/performance.md).
 
     .venv/bin/python benchmarks/bench_blas_threads.py [--repeat 3]
@@ -14,16 +14,18 @@ import argparse
 import contextlib
 
 import stringcontact as sc
-from stringcontact.run import blas, driver, stepper
+from stringcontact.run import driver, stepper
+
+HELD = stepper.one_thread
 
 
 def _solve_time(held: bool) -> float:
-    hold = blas.one_thread if held else (lambda length: contextlib.nullcontext())
+    hold = HELD if held else (lambda length: contextlib.nullcontext())
     driver.one_thread = stepper.one_thread = hold
     try:
         res = sc.simulate(sc.load_scene("example1"), model="stiff_string")
     finally:
-        driver.one_thread = stepper.one_thread = blas.one_thread
+        driver.one_thread = stepper.one_thread = HELD
     return res.timings["solve"]
 
 

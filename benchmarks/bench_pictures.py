@@ -62,7 +62,7 @@ def panel_costs(counts) -> int:
         res = sc.simulate(scene.replace(nx=200, output_times=times), output=sc.Output(progress=False))
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            charts.snapshots_picture(res, Path(tmp) / "snapshots.png")
+            charts.picture(charts.snapshots_figure, res, Path(tmp) / "snapshots.png")
             took = time.perf_counter() - t0
         panels = len(charts.snapshot_rows(res))
         print(f"{n} output times ({len(res.t)} stored rows): snapshots.png {panels} panels in {took:.2f} s")

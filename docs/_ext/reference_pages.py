@@ -13,7 +13,7 @@ itself uses, so a page cannot drift from the code:
   text);
 * `cli`: the argparse parsers of `stringcontact.cli.parser.build_parser`;
 * `exit_codes`: the exit-code list in `stringcontact.cli.main`'s docstring and its `EXIT_*` constants;
-* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.picture_names`'s pictures,
+* `output_files`: `io.tables.DIAGNOSTIC_COLUMNS`, `io.result.FIELDS`/`ENERGY_KEYS`, `plot.run_pictures`'s pictures,
   and what a run writes of its model's output fields (`MODEL_FIELD_FILES`);
 * `api`: every name of `stringcontact.__all__` and of the public modules (`PUBLIC_MODULES`) with its signature (the
   defaults as the source writes them) and its docstring, in markdown.
@@ -86,7 +86,7 @@ SOME_FIELDS = {
     "obstacle": "a moving obstacle only (ψ an expression in t): ψ at the nodes at the frame's time; the gap is "
                 "η − ψ (ParaView's Calculator: `eta-obstacle`). An obstacle at rest is not written",
 }
-#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.picture_names): where -> what.
+#: What a run writes of each of its model's output fields (`Model.outputs`; io.tables, plot.run_pictures): where -> what.
 MODEL_FIELD_FILES = {
     "solution.xdmf": "`NAME`: the field at the nodes, at each written time",
     "rows.npz": "`NAME`: the field's stored rows (`field_NAME` where NAME is one of the file's own arrays)",
@@ -98,7 +98,7 @@ MODEL_FIELD_FILES = {
                 "largest |value|, beside the field's least and largest value against t (`field_NAME.png` where "
                 "NAME.png is one of the pictures below)",
 }
-#: The pictures of a run (plot.picture_names): 1D and 2D.
+#: The pictures of a run (plot.run_pictures): 1D and 2D.
 PICTURES = {
     "contact_set.png": "the space-time contact set {η ≤ ψ}",
     "velocity_field.png": "the velocity η_t over (x, t)",
@@ -265,13 +265,13 @@ def output_files() -> str:
     from stringcontact.io.result import FIELDS as fields
     from stringcontact.io.result import OBSTACLE_FIELD
     from stringcontact.io.tables import DIAGNOSTIC_COLUMNS
-    from stringcontact.plot.picture_names import MEMBRANE_PICTURES
-    from stringcontact.plot.picture_names import PICTURES as pictures
+    from stringcontact.plot.run_pictures import MEMBRANE_PICTURES
+    from stringcontact.plot.run_pictures import PICTURES as pictures
 
     _undocumented("diagnostics.csv columns (io/tables.py)", DIAGNOSTIC_COLUMNS, COLUMNS)
     _undocumented("XDMF fields (io/result.py FIELDS)", fields, FIELDS)
     _undocumented("XDMF fields of some runs (io/result.py OBSTACLE_FIELD)", [OBSTACLE_FIELD], SOME_FIELDS)
-    _undocumented("pictures (plot/picture_names.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
+    _undocumented("pictures (plot/run_pictures.py)", dict.fromkeys(pictures + MEMBRANE_PICTURES), PICTURES)
     shown = {name: ("1D" if name in pictures else "") + (", " if name in pictures and name in MEMBRANE_PICTURES else "")
              + ("2D" if name in MEMBRANE_PICTURES else "") for name in dict.fromkeys(pictures + MEMBRANE_PICTURES)}
     return "\n".join([

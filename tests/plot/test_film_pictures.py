@@ -185,7 +185,7 @@ def test_a_membrane_without_a_surface_field_is_coloured_by_contact_as_before(run
     finally:
         p.close()
     assert "red: in contact" in membrane.membrane_colours(bare, view)
-    assert [label for label, _ in membrane.membrane_legend(bare, view)] == ["in contact, η ≤ 0", "free, η > 0", "obstacle 0"]
+    assert [label for label, _ in membrane.colour_key(bare, view.field)] == ["in contact, η ≤ 0", "free, η > 0", "obstacle 0"]
 
 
 # --- the pictures ------------------------------------------------------------------------------------

@@ -194,5 +194,5 @@ def test_the_3d_pictures_axis_labels_are_the_membranes_size(example1, monkeypatc
         return draw(p, axis, font_size, most, zoom)
 
     monkeypatch.setattr(mesh_pictures, "add_axis", spy)
-    mesh_pictures.space_time_picture(example1, tmp_path / "space_time.png")
+    charts.picture(mesh_pictures.space_time_figure, example1, tmp_path / "space_time.png")
     assert len(sizes) == 3 and min(sizes) >= membrane.TICK_FONT == 16, sizes

@@ -149,7 +149,7 @@ def test_energy_labels_say_gradient_in_2d_and_eta_x_in_1d(run, tmp_path, monkeyp
         return [path]
 
     monkeypatch.setattr(charts, "savefig", keep_labels)
-    charts.energy_picture(res, tmp_path / "e.png")
+    charts.picture(charts.energy_figure, res, tmp_path / "e.png")
     assert any(r"|\nabla\eta|^2" in label for label in labels) and not any("eta_x" in label for label in labels)
 
 
@@ -251,7 +251,7 @@ def test_the_membrane_picture_has_at_most_max_panels_whatever_the_output_times(m
     assert len(charts.stored_rows_at(res, times)) == 41
     drawn = []
     monkeypatch.setattr(charts, "savefig", lambda fig, path, look: drawn.append(fig) or [path])
-    mesh_pictures.membrane_picture(res, tmp_path / "membrane.png", Look(size=(4, 3)))
+    charts.picture(mesh_pictures.membrane_figure, res, tmp_path / "membrane.png", Look(size=(4, 3)))
     panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
     assert len(panels) == 12 == charts.MAX_PANELS  # one for each of 12 of the 41 output times (3 columns)
 
@@ -307,7 +307,7 @@ def test_the_gifs_caption_is_at_least_14_pixels_high(run):
 
 
 def _label_height(font_size: int) -> int:
-    """The height in pixels of the tick label "0.5" drawn as `annotations.add_axis` draws it, at `font_size`."""
+    """The height in pixels of the tick label "0.5" drawn as `vtk_start.add_axis` draws it, at `font_size`."""
     from stringcontact.plot import vtk_start
 
     p = vtk_start._plotter((300, 200))
@@ -333,7 +333,7 @@ def test_the_membrane_pictures_tick_labels_are_at_least_12_pixels_high(run, tmp_
         return draw(p, axis, font_size, most, zoom)
 
     monkeypatch.setattr(membrane, "add_axis", spy)  # the axes of membrane.png and membrane.gif alike
-    mesh_pictures.membrane_picture(res, tmp_path / "membrane.png")
+    charts.picture(mesh_pictures.membrane_figure, res, tmp_path / "membrane.png")
     picture = set(sizes)
     sizes.clear()
     animation.membrane_animation(res, tmp_path / "membrane.gif", max_frames=2)

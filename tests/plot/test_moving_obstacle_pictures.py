@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import stringcontact as sc
-from stringcontact.plot import charts, colours, membrane, mesh_pictures, vtk_start
+from stringcontact.plot import charts, membrane, mesh_pictures, style, vtk_start
 
 #: the piston rises from ψ = 0 to 0.3 by t = 0.15 on |x − 1/2| < 0.2; a coarse, short run
 SMALL_PISTON = {"nx": 40, "T": 0.3, "nt": 75, "output_times": [0.0, 0.1, 0.15, 0.3]}
@@ -54,9 +54,9 @@ def _in_colour(meshes, colour):
 
 def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston, drawn, tmp_path):
     assert piston.scene.obstacle_moves
-    mesh_pictures.space_time_picture(piston, tmp_path / "space_time.png")
+    charts.picture(mesh_pictures.space_time_figure, piston, tmp_path / "space_time.png")
     assert (tmp_path / "space_time.png").stat().st_size > 0
-    (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
+    (obstacle,) = _in_colour(drawn, style.OBSTACLE_COLOUR)
     points = np.asarray(obstacle.points)
     centre = np.abs(points[:, 0] - 0.5) < 1e-9  # the piston's middle, at every drawn time
     depth, z = points[centre, 1], points[centre, 2]
@@ -75,8 +75,8 @@ def test_the_space_time_surface_draws_the_obstacle_as_the_surface_psi_x_t(piston
 
 def test_an_obstacle_at_rest_is_still_a_band_over_t(drawn, tmp_path):
     res = sc.simulate(sc.load_scene("example1").replace(nx=60, nt=600), output=sc.Output(progress=False))
-    mesh_pictures.space_time_picture(res, tmp_path / "space_time.png")
-    (obstacle,) = _in_colour(drawn, colours.OBSTACLE_COLOUR)
+    charts.picture(mesh_pictures.space_time_figure, res, tmp_path / "space_time.png")
+    (obstacle,) = _in_colour(drawn, style.OBSTACLE_COLOUR)
     assert np.unique(np.round(np.asarray(obstacle.points)[:, 1], 12)).size == 2  # t = 0 and T only
 
 
@@ -90,7 +90,7 @@ def test_each_membrane_panel_draws_the_obstacle_at_its_time(dome, monkeypatch, t
         shown.append((row, np.asarray(view.obstacle.points)[:, 2].copy()))
 
     monkeypatch.setattr(membrane, "show_row", recording)  # the panels and the GIF's frames alike
-    mesh_pictures.membrane_picture(dome, tmp_path / "membrane.png")
+    charts.picture(mesh_pictures.membrane_figure, dome, tmp_path / "membrane.png")
     rows = charts.snapshot_rows(dome)
     assert [row for row, _ in shown] == rows
     view = membrane.membrane_view(dome)
@@ -132,7 +132,7 @@ def test_the_snapshots_shade_the_obstacle_where_it_is_at_each_panels_time(piston
         return fill_between(self, x, y1, y2, **kw)
 
     monkeypatch.setattr(matplotlib.axes.Axes, "fill_between", recording)
-    charts.snapshots_picture(piston, tmp_path / "snapshots.png")
+    charts.picture(charts.snapshots_figure, piston, tmp_path / "snapshots.png")
     rows = charts.snapshot_rows(piston)
     assert len(fills) >= len(rows)
     for psi, row in zip(fills, rows):

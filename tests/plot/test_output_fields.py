@@ -19,9 +19,7 @@ import stringcontact as sc
 from stringcontact.cli.main import main
 from stringcontact.io import readback, tables
 from stringcontact.io.paraview_view import field_points, field_range
-from stringcontact.model.interface import OutputField
-from stringcontact.model.interface import inelastic
-from stringcontact.plot import picture_names as catalogue
+from stringcontact.model.interface import OutputField, inelastic
 from stringcontact.plot import run_pictures as viz
 from stringcontact.plot.fields import FieldScale
 
@@ -89,7 +87,7 @@ def test_the_field_is_read_back_as_the_run_held_it(run):
 @pytest.mark.slow
 def test_the_fields_picture_is_drawn_in_its_colours_and_redrawn_alike(run, tmp_path, capsys):
     folder, res = run
-    assert "reaction.png" in catalogue.pictures_of(res)
+    assert "reaction.png" in viz.pictures_of(res)
     img = _image(folder / "reaction.png")
     red = (img[..., 0] > 240) & (img[..., 1] < 15) & (img[..., 2] < 15)  # its high end, η² = 2.25 at t = 0
     assert red.sum() > 200
@@ -111,9 +109,9 @@ def test_view_py_colours_the_field_on_its_range_in_its_colours(run):
 
 def test_a_fields_picture_never_takes_a_core_pictures_name():
     result = SimpleNamespace(dim=1, fields=dict.fromkeys(["energy", "reaction", "membrane"]))
-    names = catalogue.field_picture_names(result)
+    names = viz.field_picture_names(result)
     assert names == {"field_energy.png": "energy", "reaction.png": "reaction", "field_membrane.png": "membrane"}
-    assert catalogue.pictures_of(result) == viz.PICTURES + tuple(names)
+    assert viz.pictures_of(result) == viz.PICTURES + tuple(names)
 
 
 def test_a_fields_name_taken_by_the_files_own_is_prefixed():

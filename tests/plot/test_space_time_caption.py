@@ -6,7 +6,7 @@ import re
 import matplotlib.image as mpimg
 
 import stringcontact as sc
-from stringcontact.plot import mesh_pictures
+from stringcontact.plot import charts, mesh_pictures
 
 
 def test_a_run_above_the_obstacle_has_its_own_height_range_in_the_caption(tmp_path):
@@ -19,5 +19,5 @@ def test_a_run_above_the_obstacle_has_its_own_height_range_in_the_caption(tmp_pa
     low, high = (float(v) for v in re.search(r"η from (\S+) to (\S+) over x and t", text).groups())
     assert low == float(f"{res.eta.min():.3g}") and high == float(f"{res.eta.max():.3g}"), text
     assert "ψ from" not in text  # the paper's flat obstacle: no range of its own
-    mesh_pictures.space_time_picture(res, tmp_path / "space_time.png")
+    charts.picture(mesh_pictures.space_time_figure, res, tmp_path / "space_time.png")
     assert mpimg.imread(tmp_path / "space_time.png").shape[:2] == (900, 1100)  # the picture itself, read back

@@ -131,7 +131,7 @@ def test_contact_set_picture_is_blank_without_contact(tmp_path, run):
     folder, _ = run
     free = readback.read_output(folder)
     free.contact[:] = False
-    charts.contact_set_picture(free, tmp_path / "c.png")
+    charts.picture(charts.contact_set_figure, free, tmp_path / "c.png")
     # only the small legend patch keeps the contact colour
     assert _near(_image(tmp_path / "c.png"), charts.CONTACT_COLOUR).sum() < 2000
 
@@ -204,15 +204,15 @@ def test_a_picture_is_written_whole_or_not_at_all(tmp_path):
 def test_contact_components():
     x = np.linspace(0, 1, 11)
     c = np.array([1, 0, 1, 1, 1, 0, 0, 1, 1, 0, 1], dtype=bool)
-    np.testing.assert_allclose(viz.contact_components(x, c), [(0.2, 0.4), (0.7, 0.8)])
-    assert len(viz.contact_components(x, c, min_nodes=1)) == 4
-    assert viz.contact_components(x, np.zeros(11, bool)) == []
-    assert viz.contact_components(x, np.ones(11, bool)) == [(0.0, 1.0)]
+    np.testing.assert_allclose(charts.contact_components(x, c), [(0.2, 0.4), (0.7, 0.8)])
+    assert len(charts.contact_components(x, c, min_nodes=1)) == 4
+    assert charts.contact_components(x, np.zeros(11, bool)) == []
+    assert charts.contact_components(x, np.ones(11, bool)) == [(0.0, 1.0)]
 
 
 def test_snapshot_rows_are_the_scene_output_times(run):
     _, res = run
-    rows = viz.snapshot_rows(res)
+    rows = charts.snapshot_rows(res)
     np.testing.assert_allclose(res.t[rows], res.scene.output_times, atol=1e-12)
 
 
@@ -223,10 +223,10 @@ def test_snapshots_draw_the_scenes_profiled_obstacle(tmp_path):
     back = readback.read_output(tmp_path / "run")
     assert charts.obstacle_name(back) == "ψ" and charts.obstacle_name(sc.simulate(scene.replace(load=None, obstacle=None, model=None))) == "0"
     grey = "#d9d9d9"  # the shaded obstacle region
-    charts.snapshots_picture(back, tmp_path / "bump.png")
+    charts.picture(charts.snapshots_figure, back, tmp_path / "bump.png")
     flat = readback.read_output(tmp_path / "run")
     flat.scene = flat.scene.replace(obstacle=None)
-    charts.snapshots_picture(flat, tmp_path / "flat.png")
+    charts.picture(charts.snapshots_figure, flat, tmp_path / "flat.png")
     bump, level = _near(_image(tmp_path / "bump.png"), grey, 3).sum(), _near(_image(tmp_path / "flat.png"), grey, 3).sum()
     # the bump (down to ψ = -0.8 at the ends) is shaded, not the half-plane y <= 0: a different area
     assert bump > 0 and level > 0 and abs(bump - level) > 0.2 * level
@@ -242,7 +242,7 @@ def test_xdmf_holds_about_max_frames_of_the_stored_rows(tmp_path):
     assert 10 <= len(back.t) < len(res.t) == 61
     rows = [int(np.flatnonzero(res.t == t)[0]) for t in back.t]
     assert rows[0] == 0 and rows[-1] == len(res.t) - 1
-    assert set(viz.snapshot_rows(res)) <= set(rows)  # the scene's output times are always frames
+    assert set(charts.snapshot_rows(res)) <= set(rows)  # the scene's output times are always frames
     for name in ("eta", "velocity", "contact", "contact_force"):
         np.testing.assert_array_equal(getattr(back, name), getattr(res, name)[rows], err_msg=name)
     for key in ENERGY_KEYS:
@@ -323,8 +323,8 @@ def test_the_space_time_surface_is_red_only_where_there_is_contact(tmp_path, run
 
     _, res = run
     free = dataclasses.replace(res, contact=np.zeros_like(res.contact))
-    mesh_pictures.space_time_picture(free, tmp_path / "free.png")
-    mesh_pictures.space_time_picture(res, tmp_path / "contact.png")
+    charts.picture(mesh_pictures.space_time_figure, free, tmp_path / "free.png")
+    charts.picture(mesh_pictures.space_time_figure, res, tmp_path / "contact.png")
     render, below = _drawn_at(mesh_pictures.space_time_figure, res)
     # the render, without the colour key under it (its red square is in both)
     red = [_near(_image(tmp_path / n)[render], charts.CONTACT_COLOUR, tol=60).sum() for n in ("free.png", "contact.png")]
@@ -409,11 +409,11 @@ def _recorded_axes(monkeypatch):
 def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_colour_key(tmp_path, run, monkeypatch):
     """Issue 26: x, t and eta axes with round ticks (not corner labels at the obstacle's plane), and a key naming
     the quantity the colours show."""
-    from stringcontact.plot import annotations, mesh_pictures
+    from stringcontact.plot import mesh_pictures, vtk_start
 
     _, res = run
     drawn = _recorded_axes(monkeypatch)
-    mesh_pictures.space_time_picture(res, tmp_path / "st.png")
+    charts.picture(mesh_pictures.space_time_figure, res, tmp_path / "st.png")
     assert [a.title for a in drawn["axes"]] == ["x", "t", "eta"]
     x_labels, t_labels, eta_labels = drawn["labels"]
     assert x_labels[0] == "0" and x_labels[-1] == "1" and len(x_labels) >= 3
@@ -423,7 +423,7 @@ def test_the_space_time_surface_has_axes_with_ticks_under_the_obstacle_and_a_col
     assert x_axis.start[2] < 0 and t_axis.start[2] < 0  # on a floor below the obstacle ψ = 0, not on its plane
     (entries,) = drawn["keys"]
     assert any("in contact" in e for e in entries) and any("free" in e for e in entries)
-    np.testing.assert_array_equal(annotations.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(vtk_start.nice_ticks(0.0, 0.3), [0.0, 0.1, 0.2, 0.3])
 
 
 @pytest.mark.slow
@@ -432,7 +432,7 @@ def test_the_membrane_panels_have_axes_and_one_colour_key(tmp_path, monkeypatch)
 
     res = sc.simulate(sc.load_scene("drum").replace(mesh_size=0.3, T=0.3, nt=60, output_times=[0.0, 0.3]))
     drawn = _recorded_axes(monkeypatch)
-    mesh_pictures.membrane_picture(res, tmp_path / "m.png")
+    charts.picture(mesh_pictures.membrane_figure, res, tmp_path / "m.png")
     assert [a.title for a in drawn["axes"]] == ["x", "y", "eta"]  # once: the two panels are one scene's renders
     x_labels = [float(v) for v in drawn["labels"][0]]
     assert x_labels[0] < 0 < x_labels[-1] and len(x_labels) >= 3
@@ -459,7 +459,7 @@ def test_snapshots_have_at_most_max_panels_whatever_the_output_times(tmp_path, m
     assert len(charts.stored_rows_at(res, times)) == 60  # every output time is a stored row
     drawn = []
     monkeypatch.setattr(charts, "savefig", lambda fig, path, look=None: drawn.append(fig) or [path])
-    charts.snapshots_picture(res, tmp_path / "snapshots.png")
+    charts.picture(charts.snapshots_figure, res, tmp_path / "snapshots.png")
     panels = [ax for ax in drawn[0].axes if ax.get_visible() and ax.get_title()]
     assert len(panels) == 12 == charts.MAX_PANELS
     titles = [ax.get_title() for ax in panels]
@@ -509,7 +509,7 @@ def test_contact_components_count_runs_of_two_or_more_contact_nodes():
     x = np.linspace(0, 1, 11)
     rows = np.array([[1, 0, 1, 1, 1, 0, 0, 1, 1, 0, 1], [0] * 11, [1] * 11, [1, 1, 0, 1, 0, 1, 1, 0, 0, 1, 1]], dtype=bool)
     counts = contact_runs(rows)
-    assert counts.tolist() == [len(viz.contact_components(x, row)) for row in rows] == [2, 0, 1, 3]
+    assert counts.tolist() == [len(charts.contact_components(x, row)) for row in rows] == [2, 0, 1, 3]
 
 
 @pytest.fixture(scope="module")
@@ -529,7 +529,7 @@ def test_the_run_reports_the_number_of_contact_components_over_time(example2):
     folder, res = example2
     with open(folder / "diagnostics.csv", newline="") as f:
         counts = np.array([int(row["contact_components"]) for row in csv.DictReader(f)])
-    expected = [len(viz.contact_components(res.x, row)) for row in res.contact]
+    expected = [len(charts.contact_components(res.x, row)) for row in res.contact]
     np.testing.assert_array_equal(counts, expected)
     assert counts.max() == 3 and res.t[np.argmax(counts)] < 0.02  # three components early on
     summary = json.loads((folder / "summary.json").read_text())

@@ -118,7 +118,7 @@ def test_a_model_object_from_python_is_named_in_captions_and_summary(tmp_path):
     back = read_output(tmp_path / "w")
     assert back.model_origin == summary["model_origin"]
     assert "model winkler" in charts.parameter_line(back)  # `stringcontact plot` redraws the same captions
-    assert mesh_pictures.caption is charts.caption  # the pyvista pictures caption the same line
+    assert mesh_pictures.titled is charts.titled  # the pyvista pictures caption the same line
 
 
 def test_list_aligns_its_columns_for_every_built_in_scene(capsys):

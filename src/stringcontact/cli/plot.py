@@ -8,8 +8,7 @@ import json
 import os
 from pathlib import Path
 
-from ..plot.picture_names import MEMBRANE_PICTURES, PICTURES
-from ..plot.run_pictures import write_pictures
+from ..plot.run_pictures import MEMBRANE_PICTURES, PICTURES, write_pictures
 from ..plot.style import FORMATS, LARGEST, SMALLEST, STYLES, Look
 
 

@@ -12,7 +12,7 @@ from ..io.manifest import atomic_path
 from . import membrane
 from .charts import figure
 from .mesh_pictures import _every_kth
-from .picture_names import WINDOW_SIZE
+from .style import WINDOW_SIZE
 from .vtk_start import _font_file, _plotter
 
 MAX_FRAMES = 50
@@ -74,14 +74,11 @@ def membrane_animation(result, path, window_size=WINDOW_SIZE, max_frames: int = 
 
 def field_bar(scale, size) -> np.ndarray:
     """matplotlib's colour bar of `scale` at `FIELD_BAR` in a frame `size` pixels large, transparent around it (RGBA)."""
-    from matplotlib.cm import ScalarMappable
-
     fig = figure((size[0] / 100, size[1] / 100), layout=None, dpi=100)
     fig.patch.set_alpha(0.0)
     x0, y0, x1, y1 = FIELD_BAR
     ax = fig.add_axes((x0, y0, x1 - x0, y1 - y0))
-    bar = fig.colorbar(ScalarMappable(scale.norm(), scale.colour_map()), cax=ax)
-    bar.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
+    scale.colour_bar(fig, cax=ax)
     ax.yaxis.set_ticks_position("left")
     ax.tick_params(labelsize=CAPTION_FONT - 1)  # matplotlib's points at 100 pixels an inch: VTK's TITLE_FONT's size
     ax.set_title(scale.label, fontsize=CAPTION_FONT, loc="right", pad=10)

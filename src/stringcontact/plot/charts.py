@@ -11,8 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.manifest import atomic_path
-from .colours import CONTACT_COLOUR
-from .style import SCREEN, Look
+from .style import CONTACT_COLOUR, SCREEN, Look
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.
 VELOCITY_PERCENTILE = 99.0
@@ -158,23 +157,21 @@ def savefig(fig, path: Path, look: Look = SCREEN) -> list[Path]:
     return written
 
 
-def caption(fig, result, look: Look, *notes: str) -> None:
-    """The run's details (`parameter_line`) and `notes` as a caption under the figure, when `look` has one."""
+def titled(fig, title: str, result, look: Look, *notes: str) -> None:
+    """`fig` titled `title`, with the run's details (`parameter_line`) and `notes` as a caption under it when `look`
+    has one."""
+    fig.suptitle(title)
     if look.caption:
         fig.supxlabel("\n".join(filter(None, (parameter_line(result, sep="\n"), *notes))), fontsize="small",
                       color="0.25")
 
 
-def drawn(draw):
-    """The picture function ``(result, path, look, ...) -> first path`` of a figure function ``(result, look, ...)``."""
-
-    def picture(result, path, look: Look = SCREEN, **options) -> Path:
-        with look.drawn():
-            made = draw(result, look, **options)
-            return savefig(made[0] if isinstance(made, tuple) else made, Path(path), look)[0]
-
-    picture.__doc__ = f"The picture of `{draw.__name__}` written to `path` in each format of `look`."
-    return picture
+def picture(draw, result, path, look: Look = SCREEN, **options) -> Path:
+    """The figure of `draw` ``(result, look, **options) -> figure or (figure, axes)`` in `look`'s style sheet, written
+    to `path` in each format of `look`: the first file written."""
+    with look.drawn():
+        made = draw(result, look, **options)
+        return savefig(made[0] if isinstance(made, tuple) else made, Path(path), look)[0]
 
 
 def panel_grid(panels: int, width: float) -> tuple[int, int]:
@@ -224,12 +221,9 @@ def contact_set_figure(result, look: Look = SCREEN):
     patches = [Patch(facecolor=CONTACT_COLOUR, edgecolor="black", label=f"in contact (η ≤ {psi})"),
                Patch(facecolor="white", edgecolor="black", label=f"free (η > {psi})")]
     axes["count"].legend(handles=patches, loc="upper left", bbox_to_anchor=(1.15, 1.0), frameon=False)
-    fig.suptitle(f"Contact set {{η ≤ {psi}}} over (x, t)")
-    caption(fig, result, look, contact_times(result.t, counts))
+    titled(fig, f"Contact set {{η ≤ {psi}}} over (x, t)", result, look, contact_times(result.t, counts))
     return fig, axes
 
-
-contact_set_picture = drawn(contact_set_figure)
 
 
 def zoom_window(t: np.ndarray, counts: np.ndarray, share: float = 0.25):
@@ -256,12 +250,10 @@ def velocity_figure(result, look: Look = SCREEN, percentile: float = VELOCITY_PE
     image = ax.pcolorfast(_cell_edges(result.x), _cell_edges(result.t), result.velocity, cmap="RdBu_r", vmin=-c, vmax=c)
     ax.set(xlabel="position x", ylabel="time t")
     fig.colorbar(image, ax=ax, extend="both" if speed > c else "neither", shrink=0.8).set_label("v (velocity)")
-    fig.suptitle("Velocity v = η_t over (x, t)")
-    caption(fig, result, look, f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
+    titled(fig, "Velocity v = η_t over (x, t)", result, look,
+           f"colours clipped at ±{c:.3g} ({percentile:g}th percentile of the speed; max {speed:.3g})")
     return fig, ax
 
-
-velocity_picture = drawn(velocity_figure)
 
 
 def snapshots_figure(result, look: Look = SCREEN):
@@ -292,23 +284,17 @@ def snapshots_figure(result, look: Look = SCREEN):
         frac = float(contact_length[i]) / float(x[-1] - x[0])
         ax.set_title(f"t = {result.t[i]:.3g}:{sep}{100 * frac:.0f}% in contact, {parts} part{'s' * (parts != 1)}",
                      fontsize="small")
-        ax.set_ylim(lo - pad, hi + pad)
+        ax.set(ylim=(lo - pad, hi + pad), xlabel="x", ylabel="η (displacement)")
+        ax.label_outer()  # the labels of the bottom row and the left column
         ax.grid(alpha=0.3)
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
-    for ax in axs[-1]:
-        ax.set_xlabel("x")
-    for ax in axs[:, 0]:
-        ax.set_ylabel("η (displacement)")
     handles, labels = axs.flat[0].get_legend_handles_labels()
     handles.append(Patch(color="0.85", label=f"obstacle (y ≤ {name})"))
     add_key(below, handles, [*labels, handles[-1].get_label()])
-    fig.suptitle("The string at the output times")
-    caption(fig, result, look, panels_note(result, rows))
+    titled(fig, "The string at the output times", result, look, panels_note(result, rows))
     return fig, axs
 
-
-snapshots_picture = drawn(snapshots_figure)
 
 
 def energy_figure(result, look: Look = SCREEN):
@@ -355,12 +341,9 @@ def energy_figure(result, look: Look = SCREEN):
         axes["zoom_residual"].set_ylabel("")
         axes["energy"].axvspan(t[0], settled, color="0.5", alpha=0.12, lw=0)
     add_key(legend_row, *axes["energy"].get_legend_handles_labels())
-    fig.suptitle("Energy balance (1.4)")
-    caption(fig, result, look)
+    titled(fig, "Energy balance (1.4)", result, look)
     return fig, axes
 
-
-energy_picture = drawn(energy_figure)
 
 
 def settle_time(t: np.ndarray, curves, share: float = 0.25, tolerance: float = 0.02):
@@ -413,9 +396,6 @@ def contact_area_figure(result, look: Look = SCREEN):
     axp.yaxis.get_major_locator().set_params(integer=True)
     axp.grid(alpha=0.3)
     axp.legend(loc="upper right")
-    fig.suptitle("Contact area and contact patches over time")
-    caption(fig, result, look, landed)
+    titled(fig, "Contact area and contact patches over time", result, look, landed)
     return fig
 
-
-contact_area_picture = drawn(contact_area_figure)

@@ -9,9 +9,9 @@ import numpy as np
 
 from ..io.paraview_view import field_range
 from ..io.tables import field_info
-from .annotations import nice_ticks
-from .charts import caption, drawn, figure, literal
+from .charts import figure, literal, titled
 from .style import SCREEN, Look
+from .vtk_start import nice_ticks
 
 #: the least distance of an inner tick from the bar's ends, in half-bars: their labels apart
 TICK_GAP = 0.16
@@ -58,6 +58,14 @@ class FieldScale:
             return SymLogNorm(linthresh=self.linear_share * self.high, vmin=self.low, vmax=self.high, base=10)
         return Normalize(vmin=self.low, vmax=self.high)
 
+    def colour_bar(self, fig, **options):
+        """matplotlib's colour bar of the scale in `fig` (`Figure.colorbar`'s `options`), ticked at `ticks`."""
+        from matplotlib.cm import ScalarMappable
+
+        bar = fig.colorbar(ScalarMappable(self.norm(), self.colour_map()), **options)
+        bar.set_ticks(self.ticks(), labels=[self.tick_label(v) for v in self.ticks()])
+        return bar
+
     def ticks(self) -> np.ndarray:
         """The ends, and the round values (symlog: 0 and ± powers of ten) at least `TICK_GAP` inside them."""
         if self.scale == "symlog":
@@ -101,9 +109,6 @@ def field_figure(result, look: Look = SCREEN, *, name: str):
     bx.set(xlabel="t", title="least and largest value")
     bx.legend()
     bx.grid(True, alpha=0.3)
-    fig.suptitle(literal(scale.label[:1].upper() + scale.label[1:]))
-    caption(fig, result, look)
+    titled(fig, literal(scale.label[:1].upper() + scale.label[1:]), result, look)
     return fig, (ax, bx)
 
-
-field_picture = drawn(field_figure)

@@ -9,11 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..io.tables import field_info
-from . import colours
-from .annotations import Axis, add_axis
+from . import style
 from .charts import obstacle_name, obstacle_range
 from .fields import FieldScale
-from .vtk_start import _pyvista
+from .vtk_start import Axis, _pyvista, add_axis
 
 
 @dataclass
@@ -85,7 +84,7 @@ def add_membrane(p, result, row: int, view: MembraneView):
     surface.point_data["contact"] = view.shade(result.contact[row])
     drawn = {"show_scalar_bar": False, "ambient": 0.3, "smooth_shading": True}  # Gouraud: flat showed every facet
     if view.field is None:
-        p.add_mesh(surface, scalars="contact", cmap=[colours.FREE_COLOUR, colours.CONTACT_COLOUR], clim=(0, 1),
+        p.add_mesh(surface, scalars="contact", cmap=[style.FREE_COLOUR, style.CONTACT_COLOUR], clim=(0, 1),
                    n_colors=2, **drawn)
     else:
         _set_field(surface, result, row, view.field)
@@ -93,7 +92,7 @@ def add_membrane(p, result, row: int, view: MembraneView):
     # opaque and unlit, in the colour the translucent grey of space_time.png takes on white: the membrane is never
     # below it (η ≥ ψ), so nothing would show through, and translucency costs 40 % more CPU per GIF frame
     obstacle = triangles(result, _obstacle_heights(result, float(result.t[row]) if moves else 0.0, view))
-    p.add_mesh(obstacle, color=colours.MEMBRANE_OBSTACLE_COLOUR, lighting=False)
+    p.add_mesh(obstacle, color=style.MEMBRANE_OBSTACLE_COLOUR, lighting=False)
     view.obstacle = obstacle if moves else None
     p.camera_position = view.camera
     p.reset_camera(bounds=view.bounds)
@@ -179,13 +178,13 @@ def membrane_colours(result, view: MembraneView, sep: str = ", ") -> str:
     return f"{words}, grey: the obstacle {psi}"
 
 
-def membrane_legend(result, view: MembraneView) -> list:
-    """The colour key's (label, colour) entries: contact, or the surface field's edge of contact; and the obstacle."""
+def colour_key(result, field=None) -> list:
+    """The colour key's (label, colour) entries: contact and free, or a surface `field`'s edge of contact; the obstacle."""
     psi = obstacle_name(result)
-    obstacle = (f"obstacle {psi}", colours.OBSTACLE_COLOUR)
-    if view.field is None:
-        return [(f"in contact, η ≤ {psi}", colours.CONTACT_COLOUR), (f"free, η > {psi}", colours.FREE_COLOUR), obstacle]
-    return [("edge of contact", colours.CONTACT_EDGE_COLOUR), obstacle]
+    obstacle = (f"obstacle {psi}", style.OBSTACLE_COLOUR)
+    if field is None:
+        return [(f"in contact, η ≤ {psi}", style.CONTACT_COLOUR), (f"free, η > {psi}", style.FREE_COLOUR), obstacle]
+    return [("edge of contact", style.CONTACT_EDGE_COLOUR), obstacle]
 
 
 def contact_edge(surface, view: MembraneView, into=None):
@@ -203,6 +202,6 @@ def contact_edge(surface, view: MembraneView, into=None):
 def add_contact_edge(p, surface, view: MembraneView):
     """The contact set's edge (`contact_edge`) on `surface` as a yellow line: its PolyData, updated in place later."""
     edge = contact_edge(surface, view)
-    p.add_mesh(edge, color=colours.CONTACT_EDGE_COLOUR, line_width=3.0, lighting=False, reset_camera=False,
+    p.add_mesh(edge, color=style.CONTACT_EDGE_COLOUR, line_width=3.0, lighting=False, reset_camera=False,
                pickable=False)
     return edge

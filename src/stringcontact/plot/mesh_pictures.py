@@ -7,11 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import charts, membrane
-from .annotations import Axis, add_axis
-from .charts import caption, drawn
-from .colours import CONTACT_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR
-from .style import SCREEN, Look
-from .vtk_start import _plotter, _pyvista
+from .charts import titled
+from .style import CONTACT_COLOUR, FREE_COLOUR, OBSTACLE_COLOUR, SCREEN, Look
+from .vtk_start import Axis, _plotter, _pyvista, add_axis
 
 #: the room (inches) a pyvista picture keeps for its title and colour key, and for the caption when it has one
 KEY_ROOM, CAPTION_ROOM = 0.9, 0.5
@@ -52,14 +50,10 @@ def space_time_figure(result, look: Look = SCREEN, max_columns: int = 300, max_r
     ax = fig.add_subplot(panels[0])
     ax.imshow(image)
     ax.set_axis_off()
-    psi = charts.obstacle_name(result)
-    _key(below, [(f"in contact, η ≤ {psi}", CONTACT_COLOUR), (f"free, η > {psi}", FREE_COLOUR), (f"obstacle {psi}", OBSTACLE_COLOUR)])
-    fig.suptitle("Surface η(x, t) over the (x, t) plane")
-    caption(fig, result, look, _height_range(result))
+    _key(below, membrane.colour_key(result))
+    titled(fig, "Surface η(x, t) over the (x, t) plane", result, look, _height_range(result))
     return fig, ax
 
-
-space_time_picture = drawn(space_time_figure)
 
 
 def _height_range(result) -> str:
@@ -139,17 +133,9 @@ def membrane_figure(result, look: Look = SCREEN):
     for ax in axs.flat[len(rows):]:
         ax.set_visible(False)
     if bar:
-        from matplotlib.cm import ScalarMappable
-
-        scale = view.field
-        colours = fig.colorbar(ScalarMappable(scale.norm(), scale.colour_map()), ax=axs, location="bottom", shrink=0.6,
-                               aspect=40, label=scale.title)
-        colours.set_ticks(scale.ticks(), labels=[scale.tick_label(v) for v in scale.ticks()])
-    _key(below, membrane.membrane_legend(result, view))
-    fig.suptitle(view.title("The membrane at the output times"))
-    caption(fig, result, look, charts.panels_note(result, rows))
+        view.field.colour_bar(fig, ax=axs, location="bottom", shrink=0.6, aspect=40, label=view.field.title)
+    _key(below, membrane.colour_key(result, view.field))
+    titled(fig, view.title("The membrane at the output times"), result, look, charts.panels_note(result, rows))
     return fig, axs
 
-
-membrane_picture = drawn(membrane_figure)
 

@@ -1,5 +1,6 @@
-"""A run's pictures (`pictures_of`), each by the library made for it: matplotlib (`charts`, `fields`), pyvista
-(`mesh_pictures`, imported only for them), Pillow (`animation`); after a run's solve, or again from its stored rows."""
+"""A run's pictures (`pictures_of`: a string's, a membrane's, and one per output field of its model), each by the
+library made for it: matplotlib (`charts`, `fields`), pyvista (`mesh_pictures`, imported only for them), Pillow
+(`animation`); after a run's solve, or again from its stored rows."""
 
 from __future__ import annotations
 
@@ -7,14 +8,31 @@ import json
 from pathlib import Path
 
 from ..io.signals import signals_held
+from ..io.tables import field_key
 from . import charts
 from .charts import contact_components, snapshot_rows  # noqa: F401 - the demos' readings, as run_pictures.*
-from .picture_names import MEMBRANE_PICTURES, PICTURES, WINDOW_SIZE, field_picture_names, pictures_of
-from .style import SCREEN_DPI, Look
+from .style import SCREEN_DPI, WINDOW_SIZE, Look
 
-#: the matplotlib pictures' functions (`charts`), by name
-CHARTS = {"contact_area.png": "contact_area_picture", "contact_set.png": "contact_set_picture",
-          "velocity_field.png": "velocity_picture", "snapshots.png": "snapshots_picture", "energy.png": "energy_picture"}
+#: of a 1-D run (a string)
+PICTURES = ("contact_set.png", "velocity_field.png", "snapshots.png", "energy.png", "space_time.png")
+#: of a 2-D run (a membrane)
+MEMBRANE_PICTURES = ("membrane.png", "contact_area.png", "energy.png", "membrane.gif")
+
+
+def field_picture_names(result) -> dict[str, str]:
+    """Picture -> output field: ``NAME.png``, or ``field_NAME.png`` where that is a core picture's name."""
+    return {field_key(f"{name}.png", PICTURES + MEMBRANE_PICTURES): name for name in getattr(result, "fields", None) or {}}
+
+
+def pictures_of(result) -> tuple[str, ...]:
+    """`PICTURES` of a string, `MEMBRANE_PICTURES` of a membrane, then one per output field of its model."""
+    names = PICTURES if result.dim == 1 else MEMBRANE_PICTURES
+    return names + tuple(field_picture_names(result))
+
+
+#: the matplotlib pictures' figure functions (`charts`), by name
+CHARTS = {"contact_area.png": "contact_area_figure", "contact_set.png": "contact_set_figure",
+          "velocity_field.png": "velocity_figure", "snapshots.png": "snapshots_figure", "energy.png": "energy_figure"}
 
 
 def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> Path:
@@ -24,11 +42,11 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
     path = Path(folder) / name
     field = field_picture_names(result).get(name)
     if field is not None:
-        from .fields import field_picture
+        from .fields import field_figure
 
-        return field_picture(result, path, look, name=field)
+        return charts.picture(field_figure, result, path, look, name=field)
     if name in CHARTS:
-        return getattr(charts, CHARTS[name])(result, path, look)
+        return charts.picture(getattr(charts, CHARTS[name]), result, path, look)
     # VTK interrupted inside its import or a render can crash the process (SIGSEGV, "Failed to load vtkCommonMath"):
     # a Ctrl-C or SIGTERM takes effect when the picture is done (about a second)
     with signals_held():
@@ -38,8 +56,8 @@ def draw(name: str, result, folder, window_size=WINDOW_SIZE, look: Look | None =
             return animation.membrane_animation(result, path, tuple(round(v * SCREEN_DPI) for v in look.inches))
         from . import mesh_pictures  # pyvista: 0.5-1 s to import, so only for these
 
-        draw_mesh = mesh_pictures.space_time_picture if name == "space_time.png" else mesh_pictures.membrane_picture
-        return draw_mesh(result, path, look)
+        figure = mesh_pictures.space_time_figure if name == "space_time.png" else mesh_pictures.membrane_figure
+        return charts.picture(figure, result, path, look)
 
 
 def write_pictures(result, folder, window_size=WINDOW_SIZE, look: Look | None = None) -> list[Path]:

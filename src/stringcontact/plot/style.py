@@ -1,5 +1,6 @@
-"""How a run's pictures are written (`Look`): formats, size and matplotlib style sheet (``styles/NAME.mplstyle``).
-The pyvista pictures are a render in a matplotlib figure for vector words: VTK's own vector export (GL2PS, VTK
+"""How a run's pictures are written (`Look`): formats, size and matplotlib style sheet (``styles/NAME.mplstyle``); their
+colours: contact red (the charts' too), a free string or membrane's blue, the obstacle's grey, and the yellow edge of a
+membrane's contact set where it is coloured by a field. The pyvista pictures are a render in a matplotlib figure for vector words: VTK's own vector export (GL2PS, VTK
 9.7.2) embeds the scene as a raster too, and writes "η" as "Œ∑"."""
 
 from __future__ import annotations
@@ -13,8 +14,17 @@ FORMATS = ("png", "pdf", "svg")
 #: the style sheets (``styles/NAME.mplstyle``): name -> (default size (width, height) in inches, whether a caption line
 #: gives the run's details, the size of the pyvista pictures' tick labels against the screen's)
 STYLES = {"screen": ((11.0, 9.0), True, 1.0), "paper": ((7.0, 5.6), False, 0.7)}
+#: the pictures' colours
+CONTACT_COLOUR = "#b2182b"
+FREE_COLOUR = "#92c5de"
+OBSTACLE_COLOUR = "#777777"
+MEMBRANE_OBSTACLE_COLOUR = "#c9c9c9"  # OBSTACLE_COLOUR at opacity 0.4 on white
+#: the edge of the contact set of a membrane coloured by a field: yellow, seen on blue, grey and red alike
+CONTACT_EDGE_COLOUR = "#ffd400"
 #: the pixels per inch the pyvista pictures' font sizes are chosen for (a picture at the style's resolution scales them)
 SCREEN_DPI = 100
+#: the pixels of a run's pictures by default (the screen style's size at `SCREEN_DPI`)
+WINDOW_SIZE = (1100, 900)
 #: the sizes (inches) a picture may take
 SMALLEST, LARGEST = 2.0, 40.0
 

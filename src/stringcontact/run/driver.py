@@ -10,9 +10,8 @@ from mpi4py import MPI
 from ..io.result import Result
 from ..io.signals import StopTogether
 from ..model.interface import Model
-from .blas import one_thread
 from .options import Output, Storage
-from .stepper import Stepper
+from .stepper import Stepper, one_thread
 
 __all__ = ["simulate"]
 

@@ -47,7 +47,7 @@ class Output:
     0, T and the output times), CSV, JSON and PNGs; `force` replaces an existing output folder; `progress`: a
     progress bar on rank 0.
 
-    `pictures`: True draws the default pictures (`plot.picture_names`), False or None none, a function
+    `pictures`: True draws the default pictures (`plot.run_pictures`), False or None none, a function
     ``fn(result, folder)`` yours besides them (alone with ``default_pictures=False``). Their look
     (`plot.style.Look`): `formats` (``("png", "pdf")`` writes ``energy.pdf`` beside ``energy.png``; ``"svg"``),
     `style` (``"screen"``, or ``"paper"``: 8-point text for a figure 7 inches wide, PNG at 300 dots per inch) and

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import time
 
 import numpy as np
@@ -15,15 +16,35 @@ from ..io.result import FIELDS, Result, node_sort_key
 from ..model.interface import penetration_bound_of, reads_eps
 from ..scene.names import DEFAULT_MODEL
 from . import adapter
-from .blas import one_thread
 from .checks import checks_of, restless, still_message, unbalanced_message
 from .options import Output, Storage, picture_function
 from .rows import RowObserver, output_steps, step_times
 
-__all__ = ["POTENTIAL_LABEL", "Stepper"]
+__all__ = ["POTENTIAL_LABEL", "THREADED_LENGTH", "Stepper", "one_thread"]
 
 #: energy.png's legend of a nonlinear form's stored energy when the model declares none (`fem.operators.potential_energy`)
 POTENTIAL_LABEL = r"stored: the potential $\int_0^1 G(s\eta;\eta)\,ds$ of momentum_form"
+#: BLAS is held to one thread (threadpoolctl) while a run steps nodal vectors longer than this: OpenBLAS threads a dot
+#: product of over 10,000 entries, and the stiff string's Example 1 stepped 5 to 14 times slower for it on a loaded
+#: 2-core machine (`benchmarks/bench_blas_threads.py`); shorter ones set no limit (it costs about 11 µs, a tenth of a
+#: small string's step).
+THREADED_LENGTH = 8192
+
+
+@functools.cache
+def _blas():
+    """threadpoolctl's view of the BLAS libraries loaded now (made once: it scans the process's libraries)."""
+    from threadpoolctl import ThreadpoolController
+
+    controller = ThreadpoolController().select(user_api="blas")
+    return controller if any(lib.num_threads > 1 for lib in controller.lib_controllers) else None
+
+
+def one_thread(length: int):
+    """A context in which BLAS runs on one thread, for a run whose nodal vectors have `length` entries (nothing to
+    do up to `THREADED_LENGTH`, or where BLAS has one thread already); the caller's setting comes back after."""
+    controller = _blas() if length > THREADED_LENGTH else None
+    return controller.limit(limits=1) if controller is not None else contextlib.nullcontext()
 
 
 class Stepper:
@@ -170,7 +191,7 @@ class Stepper:
         self._refuse_if_stopped("advance")
         if self.step >= self.nt:
             raise ValueError(f"advance: the run is at T = {self.scene.T:g} (step {self.nt}); take its result()")
-        # NaN, overflow: the energy guard names the step; BLAS on one thread for long vectors (`blas.one_thread`)
+        # NaN, overflow: the energy guard names the step; BLAS on one thread for long vectors (`one_thread`)
         with self._guarded(), np.errstate(all="ignore"), one_thread(self.vector_length):
             self._advance()
 
