@@ -27,7 +27,6 @@ from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme
 from ..timestepping.base import check_law_stability
 from ..timestepping.linear import check_option_values
-from ..timestepping.newton_options import check_snes_options
 
 __all__ = ["RunPlan", "check_scene_run", "model_constants", "resolve_model", "scene_problem"]
 
@@ -84,7 +83,6 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
         same_on_every_rank(comm, "the scene, scheme, options and model", [scene.as_dict(), name, resolved, model.name,
                                                                           constants])
     check_option_values(resolved["petsc_options"], ranks=comm.size if comm is not None else 1)
-    check_snes_options(resolved["petsc_options"])
     _check_size(scene, model)
     if Scheme.PENALTIES:
         with warnings.catch_warnings():  # the scheme warns once, when it is made

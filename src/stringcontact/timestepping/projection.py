@@ -30,7 +30,7 @@ from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
 from .release import ContactAccount, MasslessRelease, release_of, start_correction
-from .spectrum import dt_of_mode, gershgorin_bound, largest_stable_dt, top_mode, top_mode_krylov, top_mode_of_shell
+from .spectrum import dt_of_mode, largest_stable_dt, top_mode_of_shell
 
 #: A node within CONTACT_TOL × (the data's height scale) of the obstacle is in contact: the implicit viscous
 #: solve spreads round-off-size values (1e-64 ... 1e-14 seen on Example 1) over a region lying on it.
@@ -454,5 +454,4 @@ class _Level:
         self.eta_vec, self.kc_vec = petsc_vector(self.eta, comm), petsc_vector(self.kc, comm)
 
 
-__all__ = ["CONTACT_TOL", "PROJECTION", "ProjectionScheme", "gershgorin_bound", "largest_stable_dt", "top_mode",
-           "top_mode_krylov"]
+__all__ = ["CONTACT_TOL", "PROJECTION", "ProjectionScheme"]
