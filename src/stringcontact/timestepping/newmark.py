@@ -69,9 +69,6 @@ class NewmarkScheme(_NewtonScheme):
         self.D = np.zeros(n)  # m_F d on the active interior nodes
         self.rate_new = np.zeros(n)  # ψ_t^{k+1}, the rate the step's damping brakes towards
 
-    def _linear_timings(self):
-        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.describe()}
-
     def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""
         if self.problem.mass == "lumped":

@@ -546,6 +546,11 @@ class _NewtonScheme(Base):
     def timings(self):
         return self.newton.describe() if self.newton is not None else self._linear_timings()
 
+    def _linear_timings(self) -> dict:
+        """A linear path's counters: its solver `lu`, refactorised when the semi-implicit penalty's damping changes."""
+        counts = {"refactorisations": self.lu.refactorisations} if self.problem.penalty == "semi-implicit" else {}
+        return counts | {"linear solver": self.lu.describe()}
+
 
 def kinetic_energy(problem, v: np.ndarray) -> float:
     """½ v·M v on this rank's nodes, with the problem's mass (lumped: the row sums m; consistent: M)."""
