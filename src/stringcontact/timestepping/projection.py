@@ -30,7 +30,7 @@ from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
 from .release import ContactAccount, MasslessRelease, start_correction
-from .spectrum import dt_of_mode, largest_stable_dt, top_mode_of_shell
+from .spectrum import dt_of_mode, largest_stable_dt, top_mode_krylov
 
 #: A node within CONTACT_TOL × (the data's height scale) of the obstacle is in contact: the implicit viscous
 #: solve spreads round-off-size values (1e-64 ... 1e-14 seen on Example 1) over a region lying on it.
@@ -154,7 +154,7 @@ class ProjectionScheme(_NewtonScheme):
         if S is None:
             return
         if problem.x.ndim == 2:  # no Gershgorin bound or SLEPc copy of a shell: its top mode by SLEPc on the shell
-            lam, phi = top_mode_of_shell(S, problem.ops.m, problem.interior)
+            lam, phi = top_mode_krylov(S, problem.ops.m, problem.interior, hermitian=False)
             self.dt_max = min(self.dt_max, dt_of_mode(lam, phi, S, problem.ops.C))
         else:  # a string: power iteration from the alternating mode, as for K
             self.dt_max = min(self.dt_max, largest_stable_dt(dataclasses.replace(problem.ops, K=S), problem.interior))
