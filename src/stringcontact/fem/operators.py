@@ -338,13 +338,6 @@ def stacked(*mats: PETSc.Mat) -> PETSc.Mat:
     return S
 
 
-def bc_dofs(V, length: float) -> tuple[np.ndarray, np.ndarray]:
-    """Local dof indices of the left and right end (empty where this rank does not hold the end)."""
-    left = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], 0.0))
-    right = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], length))
-    return left, right
-
-
 def node_coordinates(V) -> np.ndarray:
     """Coordinates of this rank's dofs (P1: the vertices), the owned ones first, then the ghosts: x, shape
     (N,), on the interval; (x, y), shape (N, 2), on a 2D mesh."""
@@ -357,5 +350,5 @@ def node_coordinates(V) -> np.ndarray:
     return x
 
 
-__all__ = ["ModelError", "NonlinearForm", "Operators", "bc_dofs", "node_coordinates", "potential_energy",
+__all__ = ["ModelError", "NonlinearForm", "Operators", "node_coordinates", "potential_energy",
            "semi_discrete_operators", "stacked", "step_matrices"]

@@ -18,7 +18,7 @@ from ..core.problem import ContactProblem
 from ..errors import SceneError
 from ..fem import compat, domains
 from ..fem.agree import one_outcome, same_on_every_rank
-from ..fem.operators import bc_dofs, node_coordinates
+from ..fem.operators import node_coordinates
 from ..model.forms import check_declarations
 from ..model.interface import Model, inelastic, penetration_bound_of
 from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
@@ -131,13 +131,11 @@ def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> C
 def _held(scene, V, dof_x: np.ndarray):
     """The DirichletBC of the scene: a string's ends at h_left, h_right; a membrane's boundary at h(x, y)."""
     g = fem.Function(V)
+    dofs = domains.boundary_dofs(V)
     if scene.dim == 2:
-        dofs = domains.boundary_dofs(V)
         g.x.array[dofs] = scene.boundary_height(dof_x[dofs])
     else:
-        left, right = bc_dofs(V, scene.length)
-        g.x.array[left], g.x.array[right] = scene.h_left, scene.h_right
-        dofs = np.concatenate([left, right]).astype(np.int32)
+        g.x.array[dofs] = np.where(dof_x[dofs] < 0.5 * scene.length, scene.h_left, scene.h_right)
     return fem.dirichletbc(g, dofs)
 
 
