@@ -312,8 +312,6 @@ def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
 def step_matrices(ops: Operators, dt: float, mass: str):
     """The constant matrices of one time step: (A, M_scheme, C/Δt), A = M/Δt² + C/Δt + K with M_scheme = M
     (consistent) or diag(m) (lumped); the time loop builds the right-hand side."""
-    if mass not in ("lumped", "consistent"):
-        raise ValueError(f"mass must be 'lumped' or 'consistent', not {mass!r}")
     Ms = diagonal_matrix(ops.M, ops.m) if mass == "lumped" else ops.M
     same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN  # M, C, K share one sparsity (see semi_discrete_operators)
     A = ops.K.copy()
