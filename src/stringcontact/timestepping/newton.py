@@ -51,8 +51,11 @@ class NewtonStep(LinearPath):
 
     `quotients` maps "eta", "eta_t", "eta_tt" to functions (u, e0, em, v0, dt) -> the quotient, for UFL and NumPy
     alike (e0, em: η^n, η^{n−1}; v0: a nodal velocity); "fields" (optional): the other fields' values. ``lower``: the
-    VI's nodal lower bound (−inf where free), or None.
+    VI's nodal lower bound (−inf where free), or None. `reuse_jacobian` False takes a fresh Jacobian at every
+    iteration (no chord iterations).
     """
+
+    reuse_jacobian = True
 
     def __init__(self, problem, quotients: dict, lower: np.ndarray | None = None):
         form = problem.ops.nonlinear
@@ -309,7 +312,8 @@ class NewtonStep(LinearPath):
         if it == 0:
             self.chord, self.norms = False, []
         self.norms.append(snes.getFunctionNorm())
-        if self.fresh_only or self.jacobians == 0 or (it and not self.chord) or self.surplus >= CHORD_BUDGET:
+        if (not self.reuse_jacobian or self.fresh_only or self.jacobians == 0 or (it and not self.chord)
+                or self.surplus >= CHORD_BUDGET):
             return False
         r = self.norms
         rtol, atol = snes.getTolerances()[:2]
