@@ -29,6 +29,7 @@ from .base import PETSC_OPTIONS, RESTITUTION, StepEnergy, mass_option, petsc_vec
 from .complementarity import ActiveSet
 from .linear import dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme  # the Newton path
+from .paper import PAPER
 from .release import ContactAccount, MasslessRelease, start_correction
 from .spectrum import dt_of_mode, largest_stable_dt, top_mode_krylov
 
@@ -40,13 +41,9 @@ CONTACT_TOL = 1e-9
 #: 7e-7 against the nodal maximum at α = 0, where the two must agree; 1e-14: 6e-12).
 FORCE_TOL = 1e-14
 
-#: The Newton path's difference quotients: η explicit, η_t and the other fields implicit (an algebraic one solved).
-PROJECTION = {
-    "eta": lambda u, e0, em, v0, dt: e0,
-    "fields": lambda u, e0, em, v0, dt: u,
-    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
-    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
-}
+#: The Newton path's difference quotients: the paper's, with η explicit (the other fields implicit, an algebraic one
+#: solved).
+PROJECTION = PAPER | {"eta": lambda u, e0, em, v0, dt: e0, "fields": lambda u, e0, em, v0, dt: u}
 
 
 class ProjectionScheme(_NewtonScheme):
