@@ -127,7 +127,7 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     import scipy.sparse.linalg as sla
     from conftest import run_problem
 
-    from stringcontact.timestepping import projection
+    from stringcontact.timestepping import projection, spectrum
 
     problem, _, _ = run_problem(small_drum(mesh_size=0.15), "projection", mass="lumped")
     ops = problem.ops
@@ -136,10 +136,10 @@ def test_projection_dt_max_is_the_top_eigenvalue_of_the_operators():
     K = sp.csr_matrix((a, ja, ia))[inner][:, inner]
     D = sp.diags(1 / np.sqrt(ops.m[inner]))
     lam = sla.eigsh(D @ K @ D, k=1, which="LA")[0][0]
-    assert projection.top_mode_krylov(ops.K, ops.m, problem.interior)[0] == pytest.approx(lam, rel=1e-8)
-    bound = projection.gershgorin_bound(ops.K, ops.m, problem.interior)
+    assert spectrum.top_mode_krylov(ops.K, ops.m, problem.interior)[0] == pytest.approx(lam, rel=1e-8)
+    bound = spectrum.gershgorin_bound(ops.K, ops.m, problem.interior)
     assert lam <= bound < 2 * lam
-    dt_max = projection.largest_stable_dt(ops, problem.interior, krylov=True)
+    dt_max = spectrum.largest_stable_dt(ops, problem.interior, krylov=True)
     assert dt_max >= 2 / math.sqrt(lam) * (1 - 1e-8)  # α > 0: viscosity relieves the bound
     # the scene's small dt: no eigenvalue
     assert projection.ProjectionScheme(problem).dt_max == pytest.approx(2 / math.sqrt(bound))

@@ -79,7 +79,7 @@ def test_projection_refuses_a_step_above_its_stability_limit():
 
 
 def test_projection_dt_max_is_dx_without_viscosity_and_grows_with_it():
-    from stringcontact.timestepping.projection import largest_stable_dt
+    from stringcontact.timestepping.spectrum import largest_stable_dt
 
     for alpha in (0.0, 0.01):  # C = αK: Δt < α + √(α² + 4/λ_max), and 4/λ_max → Δx² on a uniform mesh
         scene = study.flat_landing_scene(200, T=0.3, nt=300, alpha=alpha)

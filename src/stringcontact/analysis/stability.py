@@ -117,7 +117,7 @@ def step_size_case(scheme: str, alpha: float, ratio: float, n: int = 200, T: flo
 
     from ..model.interface import inelastic
     from ..run.adapter import scene_problem
-    from ..timestepping.projection import largest_stable_dt
+    from ..timestepping.spectrum import largest_stable_dt
 
     scene = flat_landing_scene(n, eps=EPS_LIMIT, T=T, nt=max(1, round(T * n / ratio)), alpha=alpha)
     ops = scene_problem(scene, inelastic, MPI.COMM_SELF).operators()

@@ -21,7 +21,6 @@ from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme
 from ..timestepping.base import DiscreteProblem, MovingObstacle, NodalLaws, StepEnergy, check_law_stability
 from ..timestepping.linear import check_option_values
-from ..timestepping.newton_options import check_snes_options
 from .ledger import EnergyLedger, energy_roundoff
 from .problem import RATE, ContactProblem
 
@@ -60,8 +59,7 @@ class TimeStepper:
         check_model(self.name, model, self.Scheme)
         penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
         given = self.options["petsc_options"]
-        check_option_values(given, ranks=self.comm.size)
-        check_snes_options(given)  # tolerances that would make Newton's stopping test pass without solving
+        check_option_values(given, ranks=self.comm.size)  # and Newton's tolerances, which could pass unsolved
         if self.Scheme.PENALTIES:
             check_law_stability(model, dt, self.options["eps"], self.penalty)
         problem.params.eps.value = self.options["eps"] if self.options["eps"] is not None else np.nan

@@ -82,8 +82,8 @@ def nodal_areas(V) -> np.ndarray:
 
 
 def boundary_dofs(V) -> np.ndarray:
-    """Owned dofs on the exterior facets of a 2D mesh (marks added to their owners: a rank may own a boundary node
-    without a boundary facet)."""
+    """Owned dofs on the exterior facets of the mesh, a string's ends or a membrane's boundary (marks added to their
+    owners: a rank may own a boundary node without a boundary facet)."""
     msh = V.mesh
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)

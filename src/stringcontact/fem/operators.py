@@ -312,8 +312,6 @@ def diagonal_matrix(template: PETSc.Mat, diag: np.ndarray) -> PETSc.Mat:
 def step_matrices(ops: Operators, dt: float, mass: str):
     """The constant matrices of one time step: (A, M_scheme, C/Δt), A = M/Δt² + C/Δt + K with M_scheme = M
     (consistent) or diag(m) (lumped); the time loop builds the right-hand side."""
-    if mass not in ("lumped", "consistent"):
-        raise ValueError(f"mass must be 'lumped' or 'consistent', not {mass!r}")
     Ms = diagonal_matrix(ops.M, ops.m) if mass == "lumped" else ops.M
     same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN  # M, C, K share one sparsity (see semi_discrete_operators)
     A = ops.K.copy()
@@ -338,13 +336,6 @@ def stacked(*mats: PETSc.Mat) -> PETSc.Mat:
     return S
 
 
-def bc_dofs(V, length: float) -> tuple[np.ndarray, np.ndarray]:
-    """Local dof indices of the left and right end (empty where this rank does not hold the end)."""
-    left = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], 0.0))
-    right = fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], length))
-    return left, right
-
-
 def node_coordinates(V) -> np.ndarray:
     """Coordinates of this rank's dofs (P1: the vertices), the owned ones first, then the ghosts: x, shape
     (N,), on the interval; (x, y), shape (N, 2), on a 2D mesh."""
@@ -357,5 +348,5 @@ def node_coordinates(V) -> np.ndarray:
     return x
 
 
-__all__ = ["ModelError", "NonlinearForm", "Operators", "bc_dofs", "node_coordinates", "potential_energy",
+__all__ = ["ModelError", "NonlinearForm", "Operators", "node_coordinates", "potential_energy",
            "semi_discrete_operators", "stacked", "step_matrices"]

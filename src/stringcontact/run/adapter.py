@@ -18,7 +18,7 @@ from ..core.problem import ContactProblem
 from ..errors import SceneError
 from ..fem import compat, domains
 from ..fem.agree import one_outcome, same_on_every_rank
-from ..fem.operators import bc_dofs, node_coordinates
+from ..fem.operators import node_coordinates
 from ..model.forms import check_declarations
 from ..model.interface import Model, inelastic, penetration_bound_of
 from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
@@ -27,7 +27,6 @@ from ..scene.parameters import resolve_parameters
 from ..timestepping import check_model, resolve_options, resolve_scheme
 from ..timestepping.base import check_law_stability
 from ..timestepping.linear import check_option_values
-from ..timestepping.newton_options import check_snes_options
 
 __all__ = ["RunPlan", "check_scene_run", "model_constants", "resolve_model", "scene_problem"]
 
@@ -84,7 +83,6 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
         same_on_every_rank(comm, "the scene, scheme, options and model", [scene.as_dict(), name, resolved, model.name,
                                                                           constants])
     check_option_values(resolved["petsc_options"], ranks=comm.size if comm is not None else 1)
-    check_snes_options(resolved["petsc_options"])
     _check_size(scene, model)
     if Scheme.PENALTIES:
         with warnings.catch_warnings():  # the scheme warns once, when it is made
@@ -133,13 +131,11 @@ def scene_problem(scene, model: Model, comm, constants: dict | None = None) -> C
 def _held(scene, V, dof_x: np.ndarray):
     """The DirichletBC of the scene: a string's ends at h_left, h_right; a membrane's boundary at h(x, y)."""
     g = fem.Function(V)
+    dofs = domains.boundary_dofs(V)
     if scene.dim == 2:
-        dofs = domains.boundary_dofs(V)
         g.x.array[dofs] = scene.boundary_height(dof_x[dofs])
     else:
-        left, right = bc_dofs(V, scene.length)
-        g.x.array[left], g.x.array[right] = scene.h_left, scene.h_right
-        dofs = np.concatenate([left, right]).astype(np.int32)
+        g.x.array[dofs] = np.where(dof_x[dofs] < 0.5 * scene.length, scene.h_left, scene.h_right)
     return fem.dirichletbc(g, dofs)
 
 

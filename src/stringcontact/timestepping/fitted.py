@@ -28,13 +28,8 @@ BETA = 0.25
 #: matrix (h/6)[[3 − θ, θ], [θ, 3 − θ]] has the eigenvalue (h/6)(3 − 2θ); a triangle's (A/12)(4 − 3θ) at the worst).
 THETA_BOUND = {1: 1.5, 2: 4.0 / 3.0}
 
-#: The Newton path's difference quotients: the elastic term at the β-average, the other fields implicit.
-FITTED = {
-    "eta": lambda u, e0, em, v0, dt: BETA * u + (1 - 2 * BETA) * e0 + BETA * em,
-    "fields": lambda u, e0, em, v0, dt: u,
-    "eta_t": lambda u, e0, em, v0, dt: (u - e0) / dt,
-    "eta_tt": lambda u, e0, em, v0, dt: (u - 2 * e0 + em) / dt**2,
-}
+#: The Newton path's difference quotients: projection's, with the elastic term at the β-average.
+FITTED = projection.PROJECTION | {"eta": lambda u, e0, em, v0, dt: BETA * u + (1 - 2 * BETA) * e0 + BETA * em}
 
 
 def blended_mass(M: PETSc.Mat, K: PETSc.Mat, m: np.ndarray, dt: float, dim: int) -> tuple[PETSc.Mat, np.ndarray]:

@@ -1,5 +1,6 @@
 """The step's linear solve (docs/explanation/linear_solvers.md): LU or CG chosen by the system's size, PETSc options.
 
+`check_option_values` refuses what PETSc (a KSP or a Newton step) would reject, crash or loop on, before the mesh;
 `solver_options` is the size rule with a scene's or the command line's options on top; `configured_ksp` builds a
 KSP from them under its own prefix; `Linear` solves A x = b for a matrix that stays, or changes now and then (a
 damping on its diagonal); `dirichlet_rows` puts identity rows at the fixed ends.
@@ -83,7 +84,8 @@ def check_option_values(options: dict, key: str = "petsc_options", ranks: int = 
     """Refuse (SceneError, one line naming the option and what is allowed) a value PETSc would reject at set-up,
     crash or loop on: a word, number, integer or boolean where one is read, integers in their ranges
     (`INTEGER_RANGES`), a KSP, PC, factor solver or ordering type this PETSc build lacks or that needs code
-    (`NEEDS_CODE`), PETSc's own factorisations on more than one of `ranks`. Milliseconds: run before the mesh."""
+    (`NEEDS_CODE`), PETSc's own factorisations on more than one of `ranks`, Newton's tolerances and line searches
+    (`_check_newton`). Milliseconds: run before the mesh."""
     for name, value in options.items():
         kind = _wrong_kind(name, value)
         if kind is not None:
@@ -102,6 +104,40 @@ def check_option_values(options: dict, key: str = "petsc_options", ranks: int = 
             raise SceneError(f"{key}: {name} = {value!r} is not a choice of this PETSc build; allowed: "
                              f"{', '.join(choices)}")
     _check_parallel(options, key, ranks)
+    _check_newton(options, key)
+
+
+#: The largest tolerances Newton's stopping test may be given: above them it passes at once (snes_atol = 1e300
+#: took the guess as the step's solution after 0 iterations: η = −2, the energy up 30 %, the run "complete").
+SNES_TOLERANCE_MAX = {"snes_atol": 1e-6, "snes_rtol": 1e-2, "snes_stol": 1e-2}
+#: The line searches a Newton step may take: "shell" needs a function of the caller's (PETSc stops with error 83),
+#: and the error-oriented "nleqerr" does not take the bounds of a variational inequality (`VI_LINESEARCHES`).
+LINESEARCHES = ("bt", "basic", "l2", "cp", "nleqerr")
+VI_LINESEARCHES = ("bt", "basic", "l2", "cp")
+
+
+def _check_newton(options: dict, key: str) -> None:
+    """SceneError for a Newton tolerance that makes its stopping test vacuous (`SNES_TOLERANCE_MAX`), < 1 iteration, or a line search it cannot run."""
+    for name, high in SNES_TOLERANCE_MAX.items():
+        value = options.get(name)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and not 0 <= value <= high:
+            raise SceneError(f"{key}: {name} = {value:g} is out of range; allowed: a number in [0, {high:g}] (a "
+                             "larger one passes Newton's stopping test without solving the step)")
+    iterations = options.get("snes_max_it")
+    if isinstance(iterations, int) and not isinstance(iterations, bool) and iterations < 1:
+        raise SceneError(f"{key}: snes_max_it = {iterations} is out of range; allowed: an integer in [1, 1000]")
+    search = options.get("snes_linesearch_type")
+    if search is not None and search not in LINESEARCHES:
+        raise SceneError(f"{key}: snes_linesearch_type = {search!r} is not a line search a Newton step can take "
+                         f"(it needs code or is unknown); allowed: {', '.join(LINESEARCHES)}")
+
+
+def check_vi_linesearch(options: dict) -> None:
+    """SceneError for a line search without bounds in a VI's step (a field bounded below, `Model.field_lower`)."""
+    search = options.get("snes_linesearch_type")
+    if search is not None and search not in VI_LINESEARCHES:
+        raise SceneError(f"petsc_options: snes_linesearch_type = {search!r} does not take the bounds of this model's "
+                         f"step (a variational inequality: a field bounded below); allowed: {', '.join(VI_LINESEARCHES)}")
 
 
 def _check_range(key: str, name: str, value) -> None:

@@ -13,9 +13,8 @@ model takes the Newton path (`NEWMARK`).
 from __future__ import annotations
 
 import numpy as np
-from petsc4py import PETSc
 
-from ..fem.operators import diagonal_matrix, stacked
+from ..fem.operators import stacked, step_matrices
 from .base import EPS, PETSC_OPTIONS, StepEnergy, check_law_stability, mass_option, penalty_option, petsc_vector
 from .linear import Linear, dirichlet_rows
 from .newton import NewtonStep, _NewtonScheme
@@ -58,11 +57,7 @@ class NewmarkScheme(_NewtonScheme):
     def _linear_operators(self, problem) -> None:
         """The linear path's matrix, its factorisation (4D/Δt on its diagonal), the stacked [K; C], scratch vectors."""
         ops, dt, comm, n = problem.ops, problem.dt, problem.comm, problem.n_owned
-        same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
-        self.Ms = diagonal_matrix(ops.M, ops.m) if problem.mass == "lumped" else ops.M
-        self.A = ops.K.copy()
-        self.A.axpy(2.0 / dt, ops.C, structure=same)
-        self.A.axpy(4.0 / dt**2, self.Ms, structure=same)
+        self.A, self.Ms, _ = step_matrices(ops, dt / 2, problem.mass)  # the paper's A at Δt/2, bit for bit
         dirichlet_rows(self.A, problem.bc)
         self.lu = Linear(self.A, comm, problem.petsc_options, problem.bc, problem.g, problem.x.ndim)
         self.KC = stacked(ops.K, ops.C)  # K η and C η of one η in one mat-vec
@@ -73,9 +68,6 @@ class NewmarkScheme(_NewtonScheme):
                                                           ("v_new", self.v_new), ("work", self.work[0]))}
         self.D = np.zeros(n)  # m_F d on the active interior nodes
         self.rate_new = np.zeros(n)  # ψ_t^{k+1}, the rate the step's damping brakes towards
-
-    def _linear_timings(self):
-        return {"refactorisations": self.lu.refactorisations, "linear solver": self.lu.describe()}
 
     def _mass(self, u: np.ndarray, name: str | None = None) -> np.ndarray:
         """M u (the scheme's mass matrix) into self.Mu; `name`: u's vector in `self.vec` (wrapped once)."""

@@ -28,8 +28,7 @@ from ..fem.powers import powers_as_products
 from .affine import LinearPath, _as_slice, affine_in, assemble_into
 from .base import Ranks, StepEnergy, petsc_vector
 from .base import Scheme as Base
-from .linear import PREFIX, dirichlet_rows, options_held, set_from_options, solver_options
-from .newton_options import check_vi_linesearch
+from .linear import PREFIX, check_vi_linesearch, dirichlet_rows, options_held, set_from_options, solver_options
 
 #: The absolute residual Newton stops at, relative to the inertia term's norm: a few hundred round-offs of it.
 ROUNDOFF = 1e-13
@@ -546,6 +545,11 @@ class _NewtonScheme(Base):
     @property
     def timings(self):
         return self.newton.describe() if self.newton is not None else self._linear_timings()
+
+    def _linear_timings(self) -> dict:
+        """A linear path's counters: its solver `lu`, refactorised when the semi-implicit penalty's damping changes."""
+        counts = {"refactorisations": self.lu.refactorisations} if self.problem.penalty == "semi-implicit" else {}
+        return counts | {"linear solver": self.lu.describe()}
 
 
 def kinetic_energy(problem, v: np.ndarray) -> float:

@@ -96,10 +96,6 @@ class PaperScheme(ImplicitScheme):
             np.multiply(self.by_v[1], self.inv_mF, out=self.force_density)
         return self.force_density
 
-    def _linear_timings(self):
-        counts = {"refactorisations": self.lu.refactorisations} if not self.explicit else {}
-        return counts | {"linear solver": self.lu.describe()}
-
     def stored_energy(self, eta) -> float:
         """Σ m_F Φ(η) on owned dofs: the energy held by a conservative (spring) law."""
         if self.energy_law is None:

@@ -17,9 +17,6 @@ from .base import Ranks, petsc_vector
 from .complementarity import ActiveSet
 from .implicit import acceleration, net_force
 
-#: The model's `release` values: the paper's (A4), and Signorini contact at a massless contact point.
-RELEASES = ("inelastic", "signorini")
-
 #: Round-off an account may be overdrawn by, relative to the sizes booked: a release that gives back exactly what the
 #: landing took (the rod at Courant number 1) does so to round-off.
 ACCOUNT_ROUNDOFF = 1e-12
@@ -29,14 +26,6 @@ SPENT = 1e-9
 
 #: Contact steps kept, one per massless set (a point contact alternates between two or three).
 KEPT_STEPS = 4
-
-
-def release_of(model) -> str:
-    """The model's declared release (`Model.release`, default "inelastic"); ValueError (one line) for another."""
-    release = getattr(model, "release", "inelastic")
-    if release not in RELEASES:
-        raise ValueError(f"release: model '{model.name}' declares release {release!r}; allowed: {', '.join(RELEASES)}")
-    return release
 
 
 def start_correction(problem, eta0: np.ndarray, v0: np.ndarray, psi: np.ndarray, tol: float,
@@ -176,4 +165,4 @@ def _neighbours(K: PETSc.Mat, n: int) -> tuple[tuple[np.ndarray, np.ndarray], np
     return (rows, local), border
 
 
-__all__ = ["ACCOUNT_ROUNDOFF", "RELEASES", "SPENT", "ContactAccount", "MasslessRelease", "release_of", "start_correction"]
+__all__ = ["ACCOUNT_ROUNDOFF", "SPENT", "ContactAccount", "MasslessRelease", "start_correction"]

@@ -11,7 +11,7 @@ from petsc4py import PETSc
 
 from .base import petsc_vector
 
-__all__ = ["dt_of_mode", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov", "top_mode_of_shell"]
+__all__ = ["dt_of_mode", "gershgorin_bound", "largest_stable_dt", "top_mode", "top_mode_krylov"]
 
 
 def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol: float = 1e-6):
@@ -37,34 +37,16 @@ def top_mode(K, m: np.ndarray, interior: np.ndarray, iterations: int = 200, rtol
     return lam, phi
 
 
-def top_mode_krylov(K, m: np.ndarray, interior: np.ndarray, rtol: float = 1e-10):
-    """(λ_max, φ) of M⁻¹K on the interior nodes by SLEPc's Krylov-Schur on D K D, D = M^(-1/2) (0 on the boundary):
-    a 2D spectrum's top is crowded, and power iteration stalls below λ_max (overestimating dt_max)."""
-    d = _scaling(m, interior)
-    A = K.copy()
-    D = A.createVecLeft()
-    D.array[:] = d
-    A.diagonalScale(D, D)
-    return _top_eigenpair(A, d, hermitian=True, rtol=rtol)
-
-
-def top_mode_of_shell(S: PETSc.Mat, m: np.ndarray, interior: np.ndarray) -> tuple[float, np.ndarray]:
-    """(λ_max, φ) of M⁻¹S for a shell S (fields eliminated): `top_mode_krylov` on the shell D S D, not symmetric."""
-    d = _scaling(m, interior)
-    A = PETSc.Mat().createPython(S.getSizes(), _Scaled(S, d), comm=S.getComm())
-    A.setUp()
-    return _top_eigenpair(A, d, hermitian=False, rtol=1e-10)
-
-
-def _scaling(m: np.ndarray, interior: np.ndarray) -> np.ndarray:
-    """D = M^(-1/2) on the interior nodes, 0 on the boundary."""
-    return np.where(interior, 1.0 / np.sqrt(np.where(m > 0, m, 1.0)), 0.0)
-
-
-def _top_eigenpair(A: PETSc.Mat, d: np.ndarray, hermitian: bool, rtol: float) -> tuple[float, np.ndarray]:
-    """The largest eigenvalue of the scaled operator A = D S D by SLEPc, and its mode D y, normalised."""
+def top_mode_krylov(K: PETSc.Mat, m: np.ndarray, interior: np.ndarray, hermitian: bool = True,
+                    rtol: float = 1e-10) -> tuple[float, np.ndarray]:
+    """(λ_max, φ) of M⁻¹K on the interior nodes by SLEPc's Krylov-Schur on the shell D K D, D = M^(-1/2) (0 on the
+    boundary), φ normalised: a 2D spectrum's top is crowded, and power iteration stalls below λ_max (overestimating
+    dt_max). K may be a shell itself; not `hermitian` for η's stiffness with fields eliminated."""
     from slepc4py import SLEPc
 
+    d = _scaling(m, interior)
+    A = PETSc.Mat().createPython(K.getSizes(), _Scaled(K, d), comm=K.getComm())
+    A.setUp()
     eps = SLEPc.EPS().create(A.getComm())
     eps.setOperators(A)
     eps.setProblemType(SLEPc.EPS.ProblemType.HEP if hermitian else SLEPc.EPS.ProblemType.NHEP)
@@ -80,8 +62,13 @@ def _top_eigenpair(A: PETSc.Mat, d: np.ndarray, hermitian: bool, rtol: float) ->
     return lam, phi / math.sqrt(A.getComm().tompi4py().allreduce(float(np.dot(phi, phi))))
 
 
+def _scaling(m: np.ndarray, interior: np.ndarray) -> np.ndarray:
+    """D = M^(-1/2) on the interior nodes, 0 on the boundary."""
+    return np.where(interior, 1.0 / np.sqrt(np.where(m > 0, m, 1.0)), 0.0)
+
+
 class _Scaled:
-    """The shell D S D of `top_mode_of_shell`."""
+    """The shell D S D of `top_mode_krylov`."""
 
     def __init__(self, S: PETSc.Mat, d: np.ndarray):
         self.S, self.d = S, d
