@@ -302,6 +302,29 @@ class Scheme:
         """Why this scheme cannot run `model` (one clause), or None."""
         return None
 
+    def start(self, eta0: np.ndarray, v0: np.ndarray) -> StepEnergy:
+        """The initial state; returns its energy terms."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define start(eta0, v0)")
+
+    def step(self) -> StepEnergy:
+        """One step; returns its energy terms."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define step()")
+
+    @property
+    def eta(self) -> np.ndarray:
+        """η at this rank's nodes."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define eta")
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The velocity at this rank's nodes."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define velocity")
+
+    @property
+    def contact_force(self) -> np.ndarray:
+        """The contact force density of the last step at this rank's nodes."""
+        raise NotImplementedError(f"{type(self).__qualname__} must define contact_force")
+
     @property
     def fields(self) -> dict:
         """The model's further unknowns at this rank's nodes, by name (none for a model of one field)."""
