@@ -1,10 +1,9 @@
-"""Time schemes. Each is one module here with a class `Scheme` (see `base.Scheme` for the contract).
+"""Time schemes: one module and one class named after its scheme each (the contract: `base.Scheme`).
 
-The driver (`run.driver.simulate`) knows none of them: it hands a scheme the model's assembled operators and
-the step size, then calls ``step()`` and sums the energy terms the scheme reports. A scheme is registered
-under the entry-point group ``stringcontact.schemes`` (`scene.names.SCHEME_GROUP`), as models are: adding one is
-its module plus one line in its package's ``pyproject.toml``; in Python a `Scheme` class may also be handed to
-`simulate` or `Stepper` directly. Importing this package does not load dolfinx.
+The core's `TimeStepper` knows none of them: it hands a scheme the model's operators and the step size, calls
+``step()`` and books the energy terms the scheme reports. A scheme is registered under the entry-point group
+``stringcontact.schemes`` (`scene.names.SCHEME_GROUP`), as models are, or handed over in Python as a class.
+Importing this package does not load dolfinx.
 """
 
 from __future__ import annotations
