@@ -286,7 +286,7 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
     assert proc.returncode == 0, proc.stderr
     line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("study film:"))
     assert line.endswith("the cases ran one after another on rank 0") and "per rank: " not in line, line
-    from stringcontact.analysis.tables import read_csv
+    from stringcontact.analysis.study import read_csv
 
     rows = read_csv(out / "study_film.csv")
     inelastic = [r for r in rows if r["method"] == "inelastic"]
