@@ -298,6 +298,23 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.mpi
+def test_study_film_on_two_ranks_runs_its_sweep_on_rank_0_and_gives_the_serial_rows(tmp_path):
+    """Under mpirun the film's sweep runs on rank 0 alone, its runs on that rank's own communicator: they waited
+    for the other ranks, which never joined them, and the study hung."""
+    from conftest import mpirun
+
+    serial, parallel = tmp_path / "serial", tmp_path / "mpi"
+    command = ["-m", "stringcontact", "study", "film", "--quick", "--out"]
+    subprocess.run([sys.executable, *command, str(serial)], check=True, capture_output=True)
+    proc = mpirun([sys.executable, *command, parallel], ranks=2)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "2 rank(s)" in proc.stdout
+    for name in ("study_film.csv", "study_film_rates.csv"):  # no timing columns: the rows must be equal
+        assert (serial / name).read_text() == (parallel / name).read_text()
+
+
+@pytest.mark.slow
 def test_film_drum_a_membrane_on_its_film(tmp_path):
     """2D: the membrane's film, p = p_a on the rim; the pressure builds under the falling skin, the ledger closes."""
     r = run(sc.load_scene("film_drum").replace(cells=[8, 8], T=0.1, nt=40, output_times=[]))

@@ -12,7 +12,7 @@ import stringcontact as sc
 from ..errors import InstabilityError, SolverError
 from .convergence import fitted_order
 from .norms import l2_norm
-from .problems import EPS_LIMIT
+from .problems import EPS_LIMIT, simulate_self
 
 #: The viscosities swept per problem: from where the backstop still acts to where the film holds the string well up.
 MUS = {"example1": (0.1, 1.0, 10.0, 100.0, 1000.0), "flat": (1e-4, 1e-3, 1e-2, 1e-1, 1.0)}
@@ -38,10 +38,12 @@ def problem_scenes(quick: bool = False) -> dict:
 
 
 def _run(scene, **kwargs):
+    """`simulate_self` (on this rank alone: the sweep runs on rank 0) with every step stored and no warnings; a
+    failed run's partial result, or None."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            return sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt), **kwargs)
+            return simulate_self(scene, storage=sc.Storage(max_rows=scene.nt), **kwargs)
         except (InstabilityError, SolverError) as exc:
             return getattr(exc, "result", None)
 
