@@ -1,7 +1,7 @@
 """GetFEM's impacting rod, solved by GetFEM's own demo schemes and by stringcontact, side by side.
 
 The problem is that of GetFEM's ``interface/tests/python/demo_dynamic_contact_1D.py`` (Y. Renard,
-F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `stringcontact.verification.rod` and docs/explanation/getfem.md.
+F. Chouly, LGPL 2.1; Debian ``python3-getfem`` 5.4): see `rod.py` beside this script and docs/explanation/getfem.md.
 `getfem_rod` below runs the demo's time loop with GetFEM's own assembly and solves, following the demo line by
 line, for each combination of `GETFEM_METHODS`: its contact treatments (``version`` 0 Signorini, 2 penalty,
 3 Nitsche, 4 Taylor-Flanagan), mass matrices (consistent, redistributed, singular dynamic mass) and Newmark's
@@ -60,8 +60,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from stringcontact.verification import rod
+import rod
 
 NXS = (20, 40, 80)  # rod cells; the string has twice as many, of the same size h = 1/NX
 DT_OVER_H = 0.04  # the issue's Δt = 0.04 h, well inside the explicit schemes' CFL limit h/2

@@ -1,6 +1,6 @@
 """Speed and memory of `stringcontact.simulate` against a hand-written NumPy/SciPy peer.
 
-The peer (`stringcontact.verification.peers.paper_peer`) is the paper's Section 6 scheme as a researcher would
+The peer (`peers.paper_peer`, benchmarks/peers.py) is the paper's Section 6 scheme as a researcher would
 write it for Example 1: the finite-difference form of the lumped scheme, a tridiagonal matrix factorised once with
 `scipy.sparse.linalg.splu`, a vectorised right-hand side, the explicit velocity penalty, and the
 same stored rows as `simulate`. It computes no energies; `simulate` computes the full discrete
@@ -28,8 +28,7 @@ import sys
 import time
 
 import numpy as np
-
-from stringcontact.verification.peers import paper_peer, step_conditioning
+from peers import paper_peer, step_conditioning
 
 
 def tolerance(scene) -> float:

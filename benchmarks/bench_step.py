@@ -14,7 +14,7 @@
 
 Example 1 (nx = 5000, Δt = 2e-4, 1500 steps). Each round starts one fresh process per checkout, alternately; in it
 each scheme (paper explicit, paper semi-implicit, projection, newmark), each followed by its own NumPy peer
-(`stringcontact.verification.peers`: splu, vectorised right-hand side, the scheme's own contact step, the same
+(`peers.py`: splu, vectorised right-hand side, the scheme's own contact step, the same
 stored rows), run `--repeats` times, alternately. `--check-peers` first: every peer's η
 against `simulate`'s at every stored row. "µs/step" is `simulate`'s time loop (`timings["solve"]`: the steps and
 the stored rows, no output) over the steps; the peer's is its whole loop. Medians over all runs; "ratio to its
@@ -37,14 +37,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from stringcontact.verification import peers
+import peers
 
 RUNS = (("paper", {}), ("paper semi-implicit", {"penalty": "semi-implicit"}), ("projection", {}), ("newmark", {}))
 
 
 def peer_of(name: str, refactor: str = "splu"):
-    """The NumPy peer (`stringcontact.verification.peers`) of a run of RUNS."""
+    """The NumPy peer (`peers.py`) of a run of RUNS."""
     if name == "paper":
         return peers.paper_peer
     peer = {

@@ -6,10 +6,10 @@
 
 Models: the user's route, ``dataclasses.replace(sc.inelastic, momentum_form=..., stored_energy=...)`` adding
 k3 η³ w dx (k3 = 10) and its energy ¼ k3 η⁴,
-and the shipped `cubic_foundation` and `large_deflection`. Scenes (`analysis.problems.string_scene`): Example 1's
+and the shipped `cubic_foundation` and `large_deflection`. Scenes (`string_scene`): Example 1's
 string on smooth data, thrown onto the obstacle (contact) or swinging above it (no contact), T = 0.3, ε = 0.01
 fixed under refinement, Δt = Δx/2. For each, the runs at Δx = 1/n are compared with the same scheme and model at
-n = --reference (`analysis.convergence.reference_study`): the L∞(0, T; L²) error of η at the coarsest run's
+n = --reference (`reference_study`): the L∞(0, T; L²) error of η at the coarsest run's
 steps, the pairwise observed orders, and the order fitted over the pairs whose reference is at least 8× finer.
 --example1 runs Example 1 itself instead (v0 = −50, T = 0.3, ε = 0.005, Δt = Δx/2) and splits the error in time:
 the pairwise orders of the error over the landing (t ≤ 0.1) and of the error at T. Writes
@@ -31,9 +31,9 @@ import numpy as np
 import ufl
 
 import stringcontact as sc
-from stringcontact.analysis.convergence import fitted_order, observed_orders, reference_study
-from stringcontact.analysis.norms import common_rows, l2_norm, to_nodes
-from stringcontact.analysis.problems import string_scene
+from stringcontact.analysis.convergence import fitted_order, observed_orders
+from stringcontact.analysis.norms import common_rows, errors_against_reference, l2_norm, to_nodes
+from stringcontact.analysis.problems import METHODS, Method, run_method
 from stringcontact.model import nonlinear
 
 K3 = 10.0
@@ -47,6 +47,41 @@ def user_form(eta, eta_t, eta_tt, force, w, p):
 def user_energy(eta, p):
     """What `user_form` stores: ½η_x² + ¼ k3 η⁴."""
     return 0.5 * ufl.inner(ufl.grad(eta), ufl.grad(eta)) + 0.25 * K3 * eta**4
+
+
+#: The refinement study's scenes (`string_scene`): T, the penalty's ε (fixed under refinement) and Δt/Δx.
+STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
+
+
+def string_scene(n: int, *, contact: bool, T: float = STRING_T, eps: float = STRING_EPS, dt_dx: float = STRING_DT_DX):
+    """Example 1's string at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from η0 = ½ + ½ sin(πx) at
+    v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
+    data = {"eta0": "0.5 + 0.5*sin(pi*x)", "v0": "-8*sin(pi*x)"} if contact else {"eta0": "1 + 0.5*sin(pi*x)", "v0": "0"}
+    return sc.load_scene("example1").replace(
+        name="string-contact" if contact else "string-free", notes="", T=T, eps=eps, nx=n,
+        nt=max(1, round(T * n / dt_dx)), output_times=[], **data)
+
+
+#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalised model).
+SCHEME_METHODS = {
+    "paper": Method("paper", "paper: explicit penalty, lumped, the scene's ε", "explicit", "lumped", "fixed"),
+    "projection": METHODS["projection"],
+    "newmark": Method("newmark", "newmark: semi-implicit penalty, lumped, the scene's ε", "semi-implicit", "lumped",
+                      "fixed", scheme="newmark")}
+
+
+def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
+    """``err_eta`` of `scheme` on ``scene_at(n)`` per n in `sizes` against ``scene_at(reference_n)``: {"sizes",
+    "errors", "orders" (pairwise, in Δx), "reference", "runs"}."""
+    method = SCHEME_METHODS[scheme]
+    rows = scene_at(min(sizes)).nt
+    reference = run_method(scene_at(reference_n), method, rows=rows, model=model)
+    runs = [run_method(scene_at(n), method, rows=rows, model=model) for n in sizes]
+    errors = [errors_against_reference(run, reference)["err_eta"] if run.status == "complete" else math.nan
+              for run in runs]
+    orders = observed_orders([1.0 / n for n in sizes], errors)
+    return {"sizes": list(sizes), "errors": errors, "orders": [float(p) for p in orders], "reference": reference,
+            "runs": runs}
 
 
 MODELS = {

@@ -1,6 +1,7 @@
 """Helpers shared by several test files: `mpirun` for the MPI checks, `leftovers` for the output folders,
 `plot_refusal` for damaged folders, `meshio_read` and `xdmf_frames` for the XDMF files, `run_problem` for a scheme
-driven directly, `register_distribution` for a plugin installed by hand; the hypothesis profile of every property test."""
+driven directly, `register_distribution` for a plugin installed by hand, `sine_mode` the exact mode without contact;
+the hypothesis profile of every property test."""
 
 from __future__ import annotations
 
@@ -326,6 +327,52 @@ def grid_mesh(n: int):
             a = j * n + i
             cells += [[a, a + 1, a + n + 1], [a, a + n + 1, a + n]]
     return cells, points
+
+
+def damped_oscillator(t, *, a0, a1, damping, stiffness):
+    r"""``(a, a')`` of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1`
+    (``damping`` :math:`2\beta`, ``stiffness`` :math:`\kappa^2`): :math:`a = a_0 C + (a_1 + \beta a_0) S`,
+    :math:`a' = a_1 C - (\kappa^2 a_0 + \beta a_1) S`, :math:`C = e^{-\beta t}\cos\omega t`,
+    :math:`S = e^{-\beta t}\sin(\omega t)/\omega`, :math:`\omega^2 = \kappa^2 - \beta^2` (cosh, sinh below 0)."""
+    import numpy as np
+
+    t = np.asarray(t, dtype=float)
+    beta = 0.5 * damping
+    omega2 = stiffness - beta**2
+    if omega2 > 0.0:
+        omega = np.sqrt(omega2)
+        C = np.exp(-beta * t) * np.cos(omega * t)
+        S = np.exp(-beta * t) * t * np.sinc(omega * t / np.pi)  # sin(ωt)/ω via sinc: accurate as ω → 0
+    elif omega2 == 0.0:
+        C = np.exp(-beta * t)
+        S = t * C
+    else:
+        gamma = np.sqrt(-omega2)
+        # with the slow rate γ − β = −κ²/(β + γ) and e^{−2γt} ≤ 1 nothing overflows or cancels for small γ
+        slow = np.exp(-stiffness / (beta + gamma) * t)
+        fast = np.exp(-2.0 * gamma * t)
+        C = 0.5 * slow * (1.0 + fast)
+        z = 2.0 * gamma * t  # S = slow t (1 − e^{−z})/z, that quotient 1 at z = 0
+        S = slow * t * np.where(z == 0.0, 1.0, -np.expm1(-z) / np.where(z == 0.0, 1.0, z))
+    a = a0 * C + (a1 + beta * a0) * S
+    da = a1 * C - (stiffness * a0 + beta * a1) * S
+    return a, da
+
+
+def sine_mode(t, x, *, k, a0, a1, alpha, length, h):
+    r"""No-contact mode :math:`\eta = h + a(t)\sin(\kappa x)`, :math:`\kappa = k\pi/l`, of :math:`\eta_{tt} -
+    \alpha\eta_{txx} - \eta_{xx} = 0`: :math:`a'' + \alpha\kappa^2 a' + \kappa^2 a = 0`, :math:`a(0) = a_0`,
+    :math:`a'(0) = a_1`."""
+    import numpy as np
+
+    if alpha < 0:
+        raise ValueError(f"alpha must be >= 0, got {alpha}")
+    kappa = k * np.pi / length
+    tt = np.atleast_1d(np.asarray(t, dtype=float))[:, None]  # rows: times
+    a, da = damped_oscillator(tt, a0=a0, a1=a1, damping=alpha * kappa**2, stiffness=kappa**2)
+    shape = np.sin(kappa * np.asarray(x, dtype=float))[None, :]
+    eta, velocity = h + a * shape, da * shape
+    return (eta[0], velocity[0]) if np.ndim(t) == 0 else (eta, velocity)
 
 
 # A Ctrl-C at a chosen point of the start-up: a finder on sys.meta_path sends SIGINT to its own process when

@@ -286,7 +286,7 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
     assert proc.returncode == 0, proc.stderr
     line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("study film:"))
     assert line.endswith("the cases ran one after another on rank 0") and "per rank: " not in line, line
-    from stringcontact.analysis.tables import read_csv
+    from stringcontact.analysis.study import read_csv
 
     rows = read_csv(out / "study_film.csv")
     inelastic = [r for r in rows if r["method"] == "inelastic"]
@@ -295,6 +295,23 @@ def test_study_film_quick_writes_its_rows_rates_and_chart(tmp_path):
                   key=lambda r: r["mu"])
     assert len(flat) == 2 and 0 < flat[0]["min_gap"] < flat[1]["min_gap"]
     assert (out / "study_film.png").stat().st_size > 10_000 and (out / "study_film_rates.csv").is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.mpi
+def test_study_film_on_two_ranks_runs_its_sweep_on_rank_0_and_gives_the_serial_rows(tmp_path):
+    """Under mpirun the film's sweep runs on rank 0 alone, its runs on that rank's own communicator: they waited
+    for the other ranks, which never joined them, and the study hung."""
+    from conftest import mpirun
+
+    serial, parallel = tmp_path / "serial", tmp_path / "mpi"
+    command = ["-m", "stringcontact", "study", "film", "--quick", "--out"]
+    subprocess.run([sys.executable, *command, str(serial)], check=True, capture_output=True)
+    proc = mpirun([sys.executable, *command, parallel], ranks=2)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "2 rank(s)" in proc.stdout
+    for name in ("study_film.csv", "study_film_rates.csv"):  # no timing columns: the rows must be equal
+        assert (serial / name).read_text() == (parallel / name).read_text()
 
 
 @pytest.mark.slow

@@ -1,5 +1,5 @@
 """benchmarks/: every script has its row (its question) in the benchmarks README, and no two scripts import each
-other, directly or round a longer circle (the peers they share live in `stringcontact.verification.peers`)."""
+other, directly or round a longer circle (what they share lives in `peers.py` and `rod.py`, which import none)."""
 
 import ast
 import re

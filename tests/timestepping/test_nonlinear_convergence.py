@@ -2,9 +2,9 @@
 every scheme: the user's route (`dataclasses.replace(sc.inelastic, momentum_form=..., stored_energy=...)` adding
 k3 η³ w dx) in the default run, the shipped `cubic_foundation` and `large_deflection` in the slow one.
 
-The scenes are `analysis.problems.string_scene` (Example 1's string on smooth data, thrown onto the obstacle or
+The scenes are benchmarks/conv_nonlinear.py's `string_scene` (Example 1's string on smooth data, thrown onto the obstacle or
 swinging above it; T = 0.3, ε = 0.01 fixed, Δt = Δx/2); the error is the L∞(0, T; L²) error of η against the
-same scheme and model at 8× the finest resolution (`analysis.convergence.reference_study`). The figures are in
+same scheme and model at 8× the finest resolution (its `reference_study`). The figures are in
 docs/howto/nonlinear_models.md (benchmarks/conv_nonlinear.py). The pairwise orders of these tests' runs, measured:
 0.93-1.56 with contact, 1.01-1.11 without (`newmark` 2.00-2.02); a true order ½ (an unresolved jump in L², or
 the penalty with ε ∝ Δt) would read at most 0.71 on these pairs against an 8× finer reference: hence the
@@ -20,12 +20,11 @@ import warnings
 import numpy as np
 import pytest
 import ufl
+from conv_nonlinear import reference_study, string_scene
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact.analysis.convergence import reference_study
 from stringcontact.analysis.norms import l2_norm
-from stringcontact.analysis.problems import string_scene
 from stringcontact.model import nonlinear as variants
 
 K3 = 10.0

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import rod
 
 import stringcontact as sc
 from stringcontact.model.interface import inelastic
-from stringcontact.verification import rod
 
 CSV = Path(__file__).resolve().parents[2] / "docs" / "getfem_courant.csv"
 ROUNDOFF = 1e-10  # of E(0): what "no energy gained" allows

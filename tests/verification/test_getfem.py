@@ -1,4 +1,4 @@
-"""GetFEM's impacting rod (`stringcontact.verification.rod`): the exact solution against the PDE, the mirrored point
+"""GetFEM's impacting rod (benchmarks/rod.py): the exact solution against the PDE, the mirrored point
 contact in `simulate`, and, when GetFEM is installed, GetFEM's own schemes against the same exact solution."""
 
 from __future__ import annotations
@@ -12,8 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from stringcontact.verification import rod
+import rod
 
 ROOT = Path(__file__).resolve().parents[2]
 RNG = np.random.default_rng(19)

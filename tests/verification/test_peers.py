@@ -1,15 +1,15 @@
 """The peers the benchmarks time `simulate` against step as `simulate` does, on a coarser Example 1 (no timing
-here): each scheme's NumPy peer gives its η and v, and the C loop (verification/compiled_peer.c, built with the
+here): each scheme's NumPy peer gives its η and v, and the C loop (benchmarks/compiled_peer.c, built with the
 system's C compiler) the paper scheme's η, v and energy ledger."""
 
 import warnings
 
 import numpy as np
+import peers
 import pytest
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact.verification import peers
 
 
 @pytest.fixture(scope="module")

@@ -1,15 +1,12 @@
-"""Tests of the exact oracles (exact.py) and of the plain-NumPy finite-difference reference (reference.py)."""
+"""Tests of the exact oracles (exact.py, conftest.sine_mode) and of the plain-NumPy finite-difference reference
+(reference.py)."""
 
 import numpy as np
 import pytest
+from conftest import sine_mode
 
 from stringcontact.fem.compat import trapezoid
-from stringcontact.verification.exact import (
-    flat_landing,
-    flat_landing_energy_loss,
-    flat_landing_time,
-    sine_mode,
-)
+from stringcontact.verification.exact import flat_landing, flat_landing_energy_loss, flat_landing_time
 from stringcontact.verification.reference import fd_solve
 
 H, V, LENGTH = 0.2, 1.0, 1.0

@@ -1,5 +1,5 @@
-"""The accuracy studies: work-precision (error against wall-clock time per `Method`), convergence (observed orders in
-Δt = Δx → 0 and in ε → 0 on the flat landing) and `reference_study` (a scheme and model against its own fine run)."""
+"""The accuracy studies: work-precision (error against wall-clock time per `Method`) and convergence (observed orders
+in Δt = Δx → 0 and in ε → 0 on the flat landing)."""
 
 from __future__ import annotations
 
@@ -110,25 +110,3 @@ def convergence(quick: bool = False, comm=None, busy: list | None = None) -> dic
                                "order": fitted_order([r[variable] for r in fit], values),
                                "from": max(r[variable] for r in fit), "to": min(r[variable] for r in fit)})
     return {"runs": rows, "orders": orders}
-
-
-#: `reference_study`'s methods: each scheme with the scene's ε, fixed under refinement (the penalised model).
-SCHEME_METHODS = {
-    "paper": Method("paper", "paper: explicit penalty, lumped, the scene's ε", "explicit", "lumped", "fixed"),
-    "projection": METHODS["projection"],
-    "newmark": Method("newmark", "newmark: semi-implicit penalty, lumped, the scene's ε", "semi-implicit", "lumped",
-                      "fixed", scheme="newmark")}
-
-
-def reference_study(scene_at, scheme: str, sizes, reference_n: int, *, model=None) -> dict:
-    """``err_eta`` of `scheme` on ``scene_at(n)`` per n in `sizes` against ``scene_at(reference_n)``: {"sizes",
-    "errors", "orders" (pairwise, in Δx), "reference", "runs"}."""
-    method = SCHEME_METHODS[scheme]
-    rows = scene_at(min(sizes)).nt
-    reference = run_method(scene_at(reference_n), method, rows=rows, model=model)
-    runs = [run_method(scene_at(n), method, rows=rows, model=model) for n in sizes]
-    errors = [errors_against_reference(run, reference)["err_eta"] if run.status == "complete" else math.nan
-              for run in runs]
-    orders = observed_orders([1.0 / n for n in sizes], errors)
-    return {"sizes": list(sizes), "errors": errors, "orders": [float(p) for p in orders], "reference": reference,
-            "runs": runs}

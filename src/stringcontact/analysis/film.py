@@ -10,8 +10,9 @@ import numpy as np
 import stringcontact as sc
 
 from ..errors import InstabilityError, SolverError
+from .convergence import fitted_order
 from .norms import l2_norm
-from .problems import EPS_LIMIT
+from .problems import EPS_LIMIT, simulate_self
 
 #: The viscosities swept per problem: from where the backstop still acts to where the film holds the string well up.
 MUS = {"example1": (0.1, 1.0, 10.0, 100.0, 1000.0), "flat": (1e-4, 1e-3, 1e-2, 1e-1, 1.0)}
@@ -37,10 +38,12 @@ def problem_scenes(quick: bool = False) -> dict:
 
 
 def _run(scene, **kwargs):
+    """`simulate_self` (on this rank alone: the sweep runs on rank 0) with every step stored and no warnings; a
+    failed run's partial result, or None."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            return sc.simulate(scene, storage=sc.Storage(max_rows=scene.nt), **kwargs)
+            return simulate_self(scene, storage=sc.Storage(max_rows=scene.nt), **kwargs)
         except (InstabilityError, SolverError) as exc:
             return getattr(exc, "result", None)
 
@@ -120,10 +123,11 @@ def fit_rates(rows: list[dict]) -> list[dict]:
     out, films = [], [r for r in rows if r["method"] == "film"]
     for group in dict.fromkeys((r["problem"], repr(r["p_cav"])) for r in films):  # repr: nan equals nan
         sel = [r for r in films if (r["problem"], repr(r["p_cav"])) == group]
+        mu = np.array([r["mu"] for r in sel])
         for q in ("min_gap", "dist_before", "dist_after"):
-            pts = [(r["mu"], r[q]) for r in sel if np.isfinite(r[q]) and r[q] > 0]
-            rate = np.polyfit(*np.log(pts).T, 1)[0] if len(pts) > 1 else np.nan
-            out.append({"problem": group[0], "p_cav": sel[0]["p_cav"], "quantity": q, "rate": float(rate),
-                        "mus": " ".join(f"{m:g}" for m, _ in pts)})
+            values = np.array([r[q] for r in sel], dtype=float)
+            fitted = np.isfinite(values) & (values > 0)  # the points `fitted_order` fits
+            out.append({"problem": group[0], "p_cav": sel[0]["p_cav"], "quantity": q,
+                        "rate": fitted_order(mu, values), "mus": " ".join(f"{m:g}" for m in mu[fitted])})
     return out
 

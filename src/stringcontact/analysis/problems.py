@@ -66,19 +66,6 @@ def example1_scene(n: int, *, eps: float = EPS_PAPER, T: float = 0.3):
     return sc.load_scene("example1").replace(T=T, eps=eps, nx=n, nt=max(1, round(T * n)), output_times=[])
 
 
-#: The nonlinear models' refinement study (`convergence.reference_study`): T, the penalty's ε (fixed) and Δt/Δx.
-STRING_T, STRING_EPS, STRING_DT_DX = 0.3, 0.01, 0.5
-
-
-def string_scene(n: int, *, contact: bool, T: float = STRING_T, eps: float = STRING_EPS, dt_dx: float = STRING_DT_DX):
-    """Example 1's string at Δx = 1/n, Δt = `dt_dx` Δx: ``contact=True`` thrown down from η0 = ½ + ½ sin(πx) at
-    v0 = −8 sin(πx) (lands at t ≈ 0.1), else swinging from rest above the obstacle."""
-    data = {"eta0": "0.5 + 0.5*sin(pi*x)", "v0": "-8*sin(pi*x)"} if contact else {"eta0": "1 + 0.5*sin(pi*x)", "v0": "0"}
-    return sc.load_scene("example1").replace(
-        name="string-contact" if contact else "string-free", notes="", T=T, eps=eps, nx=n,
-        nt=max(1, round(T * n / dt_dx)), output_times=[], **data)
-
-
 @dataclass(frozen=True)
 class Problem:
     """A test problem: scenes at Δt = Δx = 1/n, and either an exact solution or a fine reference resolution."""

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..run.checks import energy_balance
+from ..run.driver import simulate
+from ..run.options import Storage
 from .measurements import (band_width, distance_to_free_boundary, force_sign, free_boundary, impulse, landing_impulse,
                            momentum_terms, nodal_weights, penalised, stress_jump_balance, support_concentration,
                            upward_impulse, velocity_after_contact)
@@ -48,9 +50,6 @@ def coarsened(scene, factor: int):
 
 def refine(scene, levels: int = 3, penalty: str | None = "explicit", model=None, scheme: str | None = None):
     """Results at scene/2^(levels−1), ..., scene (Δt/Δx and r = Δt/ε fixed), every step stored, by `scheme`."""
-    from ..run.driver import simulate
-    from ..run.options import Storage
-
     if levels < 1:
         raise ValueError(f"levels must be >= 1, got {levels}")
     scenes = [coarsened(scene, 2**k) for k in reversed(range(levels))]  # gather="all": every rank checks the rows
@@ -60,9 +59,6 @@ def refine(scene, levels: int = 3, penalty: str | None = "explicit", model=None,
 
 def refine_time(scene, levels: int = 3, penalty: str | None = "explicit", model=None, scheme: str | None = None):
     """Results with Δt, Δt/2, Δt/4, ... at fixed Δx and ε (only the energies are used: rows thinned)."""
-    from ..run.driver import simulate
-    from ..run.options import Storage
-
     rows = Storage(gather="all")
     return [simulate(scene.replace(nt=scene.nt * 2**k), scheme=scheme, penalty=penalty, model=model, storage=rows)
             for k in range(levels)]

@@ -1,5 +1,5 @@
-"""Test oracles and peers: an independent NumPy reference scheme, exact solutions, GetFEM's impacting rod, and the
-schemes as NumPy/SciPy and C peers (`peers`, what the benchmarks time `simulate` against).
+"""Oracles: an independent NumPy reference scheme and exact solutions (the benchmarks' peers and GetFEM's rod are in
+benchmarks/).
 
 Layer: imports `scene` only (they must stay independent of the solver they check).
 """

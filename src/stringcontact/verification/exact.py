@@ -1,58 +1,7 @@
-"""Exact solutions used as test oracles: `sine_mode` and `flat_landing` return ``(eta, velocity)``, of shape
-``(len(t), len(x))`` for an array ``t``, ``(len(x),)`` for a scalar one."""
+"""The exact flat landing, the studies' oracle: `flat_landing` returns ``(eta, velocity)``, of shape ``(len(t), len(x))``
+for an array ``t``, ``(len(x),)`` for a scalar one."""
 
 import numpy as np
-
-
-def _on_grid(t, x):
-    """Broadcast ``t`` against ``x`` as (rows = times, columns = points); remember whether t was scalar."""
-    return np.atleast_1d(np.asarray(t, dtype=float))[:, None], np.asarray(x, dtype=float)[None, :], np.ndim(t) == 0
-
-
-def _finish(eta, velocity, scalar):
-    """The rows for an array t, the one row for a scalar t."""
-    return (eta[0], velocity[0]) if scalar else (eta, velocity)
-
-
-def damped_oscillator(t, *, a0, a1, damping, stiffness):
-    r"""``(a, a')`` of :math:`a'' + 2\beta a' + \kappa^2 a = 0`, :math:`a(0) = a_0`, :math:`a'(0) = a_1`
-    (``damping`` :math:`2\beta`, ``stiffness`` :math:`\kappa^2`): :math:`a = a_0 C + (a_1 + \beta a_0) S`,
-    :math:`a' = a_1 C - (\kappa^2 a_0 + \beta a_1) S`, :math:`C = e^{-\beta t}\cos\omega t`,
-    :math:`S = e^{-\beta t}\sin(\omega t)/\omega`, :math:`\omega^2 = \kappa^2 - \beta^2` (cosh, sinh below 0)."""
-    t = np.asarray(t, dtype=float)
-    beta = 0.5 * damping
-    omega2 = stiffness - beta**2
-    if omega2 > 0.0:
-        omega = np.sqrt(omega2)
-        C = np.exp(-beta * t) * np.cos(omega * t)
-        S = np.exp(-beta * t) * t * np.sinc(omega * t / np.pi)  # sin(ωt)/ω via sinc: accurate as ω → 0
-    elif omega2 == 0.0:
-        C = np.exp(-beta * t)
-        S = t * C
-    else:
-        gamma = np.sqrt(-omega2)
-        # with the slow rate γ − β = −κ²/(β + γ) and e^{−2γt} ≤ 1 nothing overflows or cancels for small γ
-        slow = np.exp(-stiffness / (beta + gamma) * t)
-        fast = np.exp(-2.0 * gamma * t)
-        C = 0.5 * slow * (1.0 + fast)
-        z = 2.0 * gamma * t  # S = slow t (1 − e^{−z})/z, that quotient 1 at z = 0
-        S = slow * t * np.where(z == 0.0, 1.0, -np.expm1(-z) / np.where(z == 0.0, 1.0, z))
-    a = a0 * C + (a1 + beta * a0) * S
-    da = a1 * C - (stiffness * a0 + beta * a1) * S
-    return a, da
-
-
-def sine_mode(t, x, *, k, a0, a1, alpha, length, h):
-    r"""No-contact mode :math:`\eta = h + a(t)\sin(\kappa x)`, :math:`\kappa = k\pi/l`, of :math:`\eta_{tt} -
-    \alpha\eta_{txx} - \eta_{xx} = 0`: :math:`a'' + \alpha\kappa^2 a' + \kappa^2 a = 0`, :math:`a(0) = a_0`,
-    :math:`a'(0) = a_1`."""
-    if alpha < 0:
-        raise ValueError(f"alpha must be >= 0, got {alpha}")
-    kappa = k * np.pi / length
-    tt, xx, scalar = _on_grid(t, x)
-    a, da = damped_oscillator(tt, a0=a0, a1=a1, damping=alpha * kappa**2, stiffness=kappa**2)
-    shape = np.sin(kappa * xx)
-    return _finish(h + a * shape, da * shape, scalar)
 
 
 def flat_landing_time(h, V):
@@ -109,8 +58,7 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
     if not 0.0 <= restitution <= 1.0:
         raise ValueError(f"restitution must be in [0, 1], got {restitution}")
     t_star = flat_landing_time(h, V)
-    tt, xx, scalar = _on_grid(t, x)
-    tt, xx = np.broadcast_arrays(tt, xx)
+    tt, xx = np.broadcast_arrays(np.atleast_1d(np.asarray(t, dtype=float))[:, None], np.asarray(x, dtype=float)[None, :])
     if restitution > 0 and np.any(tt > flat_landing_rebound_end(h, V, length)):
         raise ValueError(f"with restitution {restitution} the exact solution is known for t <= l + 3 h/V = "
                          f"{flat_landing_rebound_end(h, V, length):.6g} only (the string lands again then)")
@@ -129,4 +77,5 @@ def flat_landing(t, x, *, h=0.2, V=1.0, length=1.0, restitution=0.0):
 
     before = tt <= t_star
     eta = np.where(before, h - V * np.minimum(distance_to_end, tt), eta_after)
-    return _finish(eta, np.where(before, np.where(distance_to_end > tt, -V, 0.0), vel_after), scalar)
+    velocity = np.where(before, np.where(distance_to_end > tt, -V, 0.0), vel_after)
+    return (eta[0], velocity[0]) if np.ndim(t) == 0 else (eta, velocity)  # rows = times; one row for a scalar t

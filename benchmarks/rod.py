@@ -2,7 +2,8 @@
 u_tt − u_xx = 0 on (0, 1), u(1, t) = 0, Signorini contact u(0, t) ≥ 0, u_x(0, t) ≤ 0, u u_x = 0 at x = 0, from
 u(x, 0) = (1 − x)/2 at rest; its exact solution (`rod_exact`) has period 3 and energy 1/8. Mirrored about the
 contact point it is a string on (0, 2) over a point obstacle at x = 1, η(x, t) = u(|x − 1|, t) (`string_exact`,
-`rod_scene`, `point_contact`), whose relative errors are the rod's.
+`rod_scene`, `point_contact`), whose relative errors are the rod's. Shared by `bench_getfem` and the tests (tests/verification/test_getfem.py,
+tests/timestepping/test_release.py).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import dataclasses
 import numpy as np
 import ufl
 
-from ..scene import Scene
+from stringcontact.scene import Scene
 
 PERIOD = 3.0
 ROD_ENERGY = 1.0 / 8.0

@@ -1,6 +1,7 @@
 """The schemes as a researcher would write them for Example 1's string (ψ = 0, finite differences = lumped FEM,
 T = tridiag(−1, 2, −1), `splu` when the step matrix changes), what the benchmarks time `simulate` against;
-`compiled_peer`, the paper's scheme as a plain C loop."""
+`compiled_peer`, the paper's scheme as a plain C loop (`compiled_peer.c`). Shared by `bench_step` and
+`bench_solver`; tests/verification/test_peers.py checks them against `simulate`."""
 
 from __future__ import annotations
 
@@ -18,9 +19,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .reference import StoredRows
+from stringcontact.verification.reference import StoredRows
 
-#: the C loop's source, shipped beside this module
+#: the C loop's source, beside this module
 C_SOURCE = Path(__file__).resolve().parent / "compiled_peer.c"
 #: the compiled limit on this machine: the compiler's best for this CPU
 CFLAGS = ("-O3", "-march=native")

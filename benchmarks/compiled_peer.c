@@ -1,6 +1,6 @@
 /* The paper's scheme on Example 1's string as a plain C loop: the compiled limit of docs/explanation/performance.md.
  *
- * The same equations as verification.peers.paper_peer (finite differences = the lumped FEM, scaled by dt^2/dx):
+ * The same equations as peers.paper_peer (finite differences = the lumped FEM, scaled by dt^2/dx):
  *     (I + r T) eta^{n+1} = 2 eta^n - eta^{n-1} + a T eta^n + dt^2 F(eta^n, v^n),
  *     F = (1/eps) chi{eta < 0} (-v)^+,  v^n = (eta^n - eta^{n-1}) / dt,
  * with T = tridiag(-1, 2, -1) on the interior nodes, r = (alpha dt + dt^2)/dx^2 and a = alpha dt/dx^2. The
@@ -13,7 +13,7 @@
  *     E(t) = kinetic + elastic, D_visc, D_con, D_num,
  * and min eta as the driver keeps it. One extra sweep per step: K eta^{n+1} and the seven dot products fused.
  *
- * Built by verification/peers.py (`build_compiled`) with the system's C compiler into a temporary folder.
+ * Built by benchmarks/peers.py (`build_compiled`) with the system's C compiler into a temporary folder.
  */
 #include <stdint.h>
 #include <stdlib.h>
