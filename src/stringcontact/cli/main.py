@@ -26,7 +26,6 @@ from ..jitlog import quiet_compiler
 from ..scene import parameters
 from ..scene.names import DEFAULT_SCHEME
 from . import process
-from .mpi_start import quick_singleton
 from .parser import SUBCOMMANDS, build_parser
 from .process import EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE, error
 
@@ -161,7 +160,7 @@ def main(argv=None) -> int:
     the last garbage collection skipped). Returns the exit code."""
     own = argv is None
     if own and "mpi4py.MPI" not in sys.modules:  # before MPI starts
-        quick_singleton(os.environ)
+        process.quick_singleton(os.environ)
     process.standard_streams()
     quiet_compiler()  # before any form is compiled; a library import leaves the user's logging alone
     with process.stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too

@@ -43,6 +43,22 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"{root}: error: {sub + ': ' if sub else ''}{one_line(message)}\n")
 
 
+def add_scene_flags(parser, level: str) -> None:
+    """The flags that change the scene `run` and `check` compute: --nx, --nt, --eps (those of the `level` of a
+    refinement), --alpha, --restitution, --scheme and --penalty."""
+    add = parser.add_argument
+    add("--nx", type=int, help="number of cells" + level)
+    add("--nt", type=int, help="number of time steps" + level)
+    add("--eps", type=float, help="penalty parameter ε > 0" + level)
+    add("--alpha", type=float, help="viscosity α ≥ 0")
+    add("--restitution", type=float, metavar="E",
+        help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
+    # the names only: a description is read from the scheme's class, which would load dolfinx before the run starts
+    add("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
+        "stringcontact.SCHEMES describes each")
+    add("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+
+
 def build_parser(argv=None) -> argparse.ArgumentParser:
     """The command line's parser. The subcommands of `SUBCOMMANDS` get their arguments only when `argv` (default:
     the process's own) names them: their modules import dolfinx and more, 1.1 s that `--help`, `list` and `show` do
@@ -54,16 +70,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="simulate a scene and write XDMF, CSV and JSON")
     run.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
-    run.add_argument("--nx", type=int, help="number of cells")
-    run.add_argument("--nt", type=int, help="number of time steps")
-    run.add_argument("--eps", type=float, help="penalty parameter ε > 0")
-    run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
-    run.add_argument("--restitution", type=float, metavar="E",
-                     help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
-    # the names only: a description is read from the scheme's class, which would load dolfinx before the run starts
-    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
-                     "stringcontact.SCHEMES describes each")
-    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+    add_scene_flags(run, "")
     run.add_argument("--mass", choices=("lumped", "consistent"), help="default: lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
     run.add_argument("--force", action="store_true", help="replace an output folder holding a stringcontact result (only by a complete run)")
