@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import sys
 
 from ..errors import one_line
 from ..scene.names import SCHEMES
-from .process import EXIT_INPUT, EXIT_OK
+from .process import EXIT_INPUT
 
 #: Subcommands that live with their concern: each module has add_arguments(parser) and command(args) -> int.
 SUBCOMMANDS = {
@@ -20,21 +21,12 @@ SUBCOMMANDS = {
 }
 
 
-class _Version(argparse.Action):
-    """--version: the installed distribution's version, read only when asked (importlib.metadata)."""
-
-    def __init__(self, option_strings, dest, **kwargs):
-        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        import importlib.metadata
-
-        try:
-            version = importlib.metadata.version("stringcontact")
-        except importlib.metadata.PackageNotFoundError:
-            version = "unknown (not installed: run scripts/setup)"
-        sys.stdout.write(f"stringcontact {version}\n")
-        parser.exit(EXIT_OK)
+def _version() -> str:
+    """The installed distribution's version (importlib.metadata)."""
+    try:
+        return importlib.metadata.version("stringcontact")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown (not installed: run scripts/setup)"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -65,7 +57,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     not need (`python -X importtime -c "import stringcontact.cli.check"`)."""
     named = set(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="stringcontact", description="Inelastic contact of a viscoelastic string with an obstacle.")
-    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
+    parser.add_argument("--version", action="version", version=f"stringcontact {_version()}",
+                        help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="simulate a scene and write XDMF, CSV and JSON")
