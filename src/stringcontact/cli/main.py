@@ -1,4 +1,4 @@
-"""The command line: `stringcontact run|list|show|plot|study|check|models` (also `python -m stringcontact`).
+"""The command line: `stringcontact run|list|show|models|plot|study|check` (also `python -m stringcontact`).
 
 Exit codes:
 
@@ -190,7 +190,7 @@ def _main(argv) -> int:
 def _command(args) -> int:
     from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError, StackError
 
-    petsc = args.command not in ("list", "show", "plot", "models")
+    petsc = args.command not in ("list", "show", "models", "plot")
     if petsc:
         from ..stack import load
 
@@ -210,10 +210,10 @@ def _command(args) -> int:
                 listed = scenes.list_scenes()
                 width = max((len(name) for name, _ in listed), default=0)
                 print("".join(f"{name:{width}s}  {description}\n" for name, description in listed), end="")
-            elif args.command == "show":
-                from .report import show_scene
+            elif args.command in ("show", "models"):
+                from .report import show_models, show_scene
 
-                print(show_scene(scenes.load_scene(args.scene)), end="")
+                print(show_scene(scenes.load_scene(args.scene)) if args.command == "show" else show_models(), end="")
             else:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
             return EXIT_OK

@@ -1,4 +1,4 @@
-"""The command line's parser: `build_parser`, with the arguments of `run`, `list` and `show`, and those of a
+"""The command line's parser: `build_parser`, with the arguments of `run`, `list`, `show` and `models`, and those of a
 subcommand of `SUBCOMMANDS` (its module's `add_arguments`) only when the command line names it."""
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ SUBCOMMANDS = {
     "plot": ("stringcontact.cli.plot", "redraw the pictures of an output folder from its saved files"),
     "study": ("stringcontact.cli.study", "work-precision, convergence and stability studies"),
     "check": ("stringcontact.cli.check", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
-    "models": ("stringcontact.cli.models", "list the models a scene may name (registered under stringcontact.models)"),
 }
 
 
@@ -85,6 +84,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the built-in scenes")
     show = sub.add_parser("show", help="print a scene as TOML: every key it sets, the scheme and model it runs with")
     show.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
+    sub.add_parser("models", help="list the models a scene may name (registered under stringcontact.models)",
+                   description="The models a scene's `model` key may name: those registered under stringcontact.models.")
     for name, (module, help_text) in SUBCOMMANDS.items():
         sub_parser = sub.add_parser(name, help=help_text)
         if name not in named:
