@@ -35,8 +35,10 @@ _LAZY = {
 }
 __getattr__, _ = _lazy_names(__name__, _LAZY, globals())
 
-__all__ = sorted([*_LAZY, "InstabilityError", "InstabilityWarning", "Interrupted", "OutputError", "SceneError",
-                  "SolverError"])
+__all__ = ["SCHEMES", "ContactProblem", "EnergyLedger", "Observer", "RowObserver", "SchemeOption", "TimeStepper",
+           "InstabilityError", "InstabilityWarning", "Interrupted", "Model", "ModelConstant", "Output", "OutputError",
+           "OutputField", "Parameters", "Result", "Scene", "SceneError", "SceneWarning", "SolverError", "SolverHints",
+           "Stepper", "Storage", "continued", "inelastic", "list_scenes", "load_model", "load_scene", "simulate"]
 
 
 def __dir__():

@@ -35,7 +35,7 @@ def _scene_from_args(args):
     from ..errors import SceneError
     from ..scene import load_scene
     from ..scene.limits import INT_BOUNDS
-    from .main import check_scheme_flags
+    from .parser import scene_with_flags
 
     for key in ("nx", "nt"):
         value, (low, high) = getattr(args, key), INT_BOUNDS[key]
@@ -49,10 +49,7 @@ def _scene_from_args(args):
         if scene.dim != 1:
             raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
                              "paper's theorems are about the string); allowed: a scene with domain 'interval'")
-    changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
-    scene = scene.replace(**changes) if changes else scene
-    check_scheme_flags(args, scene, "it refines nx and nt only")
-    return scene
+    return scene_with_flags(args, scene, "it refines nx and nt only", keys)
 
 
 def _compute(args, scene):

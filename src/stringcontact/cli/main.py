@@ -24,9 +24,8 @@ import sys
 
 from ..jitlog import quiet_compiler
 from ..scene import parameters
-from ..scene.names import DEFAULT_SCHEME
 from . import process
-from .parser import SUBCOMMANDS, build_parser
+from .parser import SUBCOMMANDS, build_parser, scene_with_flags
 from .process import EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE, error
 
 
@@ -54,13 +53,10 @@ def _run(args) -> int:
         scene = sc.load_scene(args.scene)
     finally:
         parameters.RUN_CONSTANTS.reset(ranges)
-    changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
-    if args.petsc_option:  # into the scene, so that summary.json records the options the run used
-        changes["petsc_options"] = dict(scene.petsc_options) | _petsc_options(args.petsc_option)
-    if changes:
-        scene = scene.replace(**changes)
+    # --petsc-option into the scene, so that summary.json records the options the run used
+    petsc = {"petsc_options": dict(scene.petsc_options) | _petsc_options(args.petsc_option)} if args.petsc_option else {}
+    scene = scene_with_flags(args, scene, "it accepts --mass lumped only", **petsc)
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
-    check_scheme_flags(args, scene, "it accepts --mass lumped only")
     if model is None and scene.model:  # the scene's key is a registered name, checked when it was loaded
         from ..model.registry import load_model
 
@@ -131,18 +127,6 @@ def _option_value(text: str):
         with contextlib.suppress(ValueError):
             return kind(text)
     return text
-
-
-def check_scheme_flags(args, scene, takes: str) -> None:
-    """Refuse --eps or --penalty with a scheme that has no penalty (saying what it `takes` instead), a restitution
-    e > 0 but with projection."""
-    from ..timestepping import check_restitution, scheme_class
-
-    name = args.scheme or scene.scheme or DEFAULT_SCHEME
-    check_restitution(name, scene.restitution or 0.0)
-    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
-        given = "--eps" if args.eps is not None else "--penalty"
-        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); {takes}")
 
 
 def _partial_report(exc) -> None:

@@ -9,7 +9,7 @@ import importlib.metadata
 import sys
 
 from ..errors import one_line
-from ..scene.names import SCHEMES
+from ..scene.names import DEFAULT_SCHEME, SCHEMES
 from .process import EXIT_INPUT
 
 #: Subcommands that live with their concern: each module has add_arguments(parser) and command(args) -> int.
@@ -48,6 +48,22 @@ def add_scene_flags(parser, level: str) -> None:
     add("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
         "stringcontact.SCHEMES describes each")
     add("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+
+
+def scene_with_flags(args, scene, takes: str, keys=("nx", "nt", "eps", "alpha", "restitution"), **more):
+    """`scene` with the values of `add_scene_flags`' `keys` given and `more` (a new, checked scene); --eps or
+    --penalty refused with a scheme that has no penalty (saying what it `takes` instead), a restitution e > 0 but
+    with projection."""
+    from ..timestepping import check_restitution, scheme_class
+
+    changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None} | more
+    scene = scene.replace(**changes) if changes else scene
+    name = args.scheme or scene.scheme or DEFAULT_SCHEME
+    check_restitution(name, scene.restitution or 0.0)
+    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
+        given = "--eps" if args.eps is not None else "--penalty"
+        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); {takes}")
+    return scene
 
 
 def build_parser(argv=None) -> argparse.ArgumentParser:

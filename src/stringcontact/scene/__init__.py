@@ -10,4 +10,6 @@ _LAZY = {"check_petsc_options": "checks", "Scene": "scene", "SceneWarning": "sce
          **dict.fromkeys(("list_scenes", "load_scene", "scene_to_toml"), "toml")}
 __getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
 
-__all__ = sorted(_LAZY)
+__all__ = ["BYTES_PER_STORED_NODE", "FIELD_KEYS", "FILE_KEYS", "MAX_FILE_BYTES", "MAX_OUTPUT_TIMES",
+           "MAX_STORED_BYTES", "REQUIRED_KEYS", "STORED_ROWS", "ModelConstant", "Scene", "SceneWarning",
+           "check_petsc_options", "list_scenes", "load_scene", "scene_to_toml", "stored_bytes"]
