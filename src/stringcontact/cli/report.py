@@ -10,8 +10,14 @@ from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 
 __all__ = ["report", "show_models", "show_scene"]
 
-#: The optional keys `show` names in a comment when the scene does not give them, with their default.
-_OPTIONAL = ("eps", "load", "obstacle", "petsc_options", "restitution")
+#: `show`'s line for an optional key the scene does not give.
+_NOT_GIVEN = {
+    "eps": "scheme projection does not read it; a penalty scheme (--scheme paper, newmark) needs it",
+    "load": "no external load (f = 0); a model that reads a load (loaded_obstacle) takes one",
+    "obstacle": "the flat obstacle psi = 0 (the paper's y = 0)",
+    "petsc_options": "the scheme's own linear solver",
+    "restitution": "0: inelastic contact (scheme projection takes e in [0, 1])",
+}
 
 
 def show_scene(scene) -> str:
@@ -21,7 +27,6 @@ def show_scene(scene) -> str:
     import tomli_w
 
     from ..model.registry import load_model
-    from ..scene.limits import KEY_DOCS
     from ..scene.toml import scene_to_toml
     from ..timestepping import scheme_class
 
@@ -36,8 +41,7 @@ def show_scene(scene) -> str:
         data["scheme"], table = name, None
     header = scene_to_toml(scene, penalty=bool(scheme_class(name).PENALTIES)).split("\n", 1)[0] + "\n"  # dt, dx, r
     lines = [header, tomli_w.dumps(data, multiline_strings=True)]
-    lines += [f"# {key}: not given: {KEY_DOCS[key][2].removeprefix('not given: ')}\n" for key in _OPTIONAL
-              if getattr(scene, key) in (None, ())]
+    lines += [f"# {key}: not given: {what}\n" for key, what in _NOT_GIVEN.items() if getattr(scene, key) in (None, ())]
     lines += [tomli_w.dumps(table)] if table is not None else []
     given, constants = dict(scene.parameters), load_model(data["model"]).constants
     if constants or given:
