@@ -1,4 +1,4 @@
-"""Open MPI's start-up in a process run without `mpirun`: with and without `cli.mpi_start.SINGLETON`.
+"""Open MPI's start-up in a process run without `mpirun`: with and without `cli.process.SINGLETON`.
 
 Each line starts a fresh interpreter that imports mpi4py (MPI_Init) or petsc4py (PETSc and MPI), alternating
 the two environments, and prints the median wall time of `--rounds` pairs.
@@ -15,7 +15,7 @@ import subprocess
 import sys
 import time
 
-from stringcontact.cli.mpi_start import LAUNCHED, SINGLETON
+from stringcontact.cli.process import LAUNCHED, SINGLETON
 
 IMPORTS = {"mpi4py": "from mpi4py import MPI", "petsc4py": "from petsc4py import PETSc"}
 

@@ -1,5 +1,5 @@
 """What `main()` does only as the process's own command (the console script, `argv` None): Open MPI's
-settings for a singleton (`cli.mpi_start`), what is set, when, and that Open MPI then starts no daemon; and the
+settings for a singleton (`cli.process.quick_singleton`), what is set, when, and that Open MPI then starts no daemon; and the
 objects left out of the exit's last garbage collection (`gc.freeze`)."""
 
 from __future__ import annotations
@@ -12,13 +12,14 @@ import textwrap
 
 import pytest
 
-from stringcontact.cli.mpi_start import LAUNCHED, SINGLETON, quick_singleton, singleton_settings
+from stringcontact.cli.process import LAUNCHED, SINGLETON, quick_singleton
 
 
 def test_settings_for_a_singleton_only():
-    assert singleton_settings({}) == SINGLETON
+    assert quick_singleton({}) == SINGLETON
     for name in LAUNCHED:  # under mpirun the transport stays the user's and Open MPI's choice
-        assert singleton_settings({name: "0"}) == {}
+        launched = {name: "0"}
+        assert quick_singleton(launched) == {} and launched == {name: "0"}
     mine = {"OMPI_MCA_pml": "ucx"}
     assert quick_singleton(mine) == {"OMPI_MCA_ess_singleton_isolated": "1"}
     assert mine == {"OMPI_MCA_pml": "ucx", "OMPI_MCA_ess_singleton_isolated": "1"}  # the user's value kept

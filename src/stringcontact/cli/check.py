@@ -15,20 +15,13 @@ from .staged import staged_output
 
 def add_arguments(parser):
     """`stringcontact check`'s arguments."""
-    from ..scene.names import SCHEMES
+    from .parser import add_scene_flags
 
+    parser.description = ("The paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution at --levels resolutions "
+                          "(scheme projection refines nx and nt only, no eps); (A4) is the paper's restitution e = 0.")
     add = parser.add_argument
     add("scene", help=f"built-in scene, a .toml file, or '{FLAT_LANDING}' (the exact alpha=0 case)")
-    add("--nx", type=int, help="cells of the finest level")
-    add("--nt", type=int, help="time steps of the finest level")
-    add("--eps", type=float, help="penalty parameter of the finest level")
-    add("--alpha", type=float, help="viscosity alpha >= 0")
-    add("--restitution", type=float, metavar="E", help="restitution coefficient e in [0, 1] of scheme projection "
-        "(default: the scene's, else 0); (A4) is the paper's e = 0")
-    add("--scheme", choices=tuple(SCHEMES),
-        help="time scheme (default: the scene's, else paper); projection refines nx and nt only (no eps)")
-    add("--penalty", choices=("explicit", "semi-implicit"),
-        help="the penalty of the paper's scheme (default: the scheme's own, explicit for paper)")
+    add_scene_flags(parser, " of the finest level")
     add("--levels", type=int, default=3, help="refinement levels for the trends (nx, nt, 1/eps halved per level; default 3)")
     add("--delay", type=float, help="(A4) delay after first contact (default 8 eps; 2 dt for an eps-free scheme)")
     add("--delta", type=float, default=0.02, help="Thm 2.3(1) band half-width around fronts")
@@ -42,7 +35,7 @@ def _scene_from_args(args):
     from ..errors import SceneError
     from ..scene import load_scene
     from ..scene.limits import INT_BOUNDS
-    from .main import check_scheme_flags
+    from .parser import scene_with_flags
 
     for key in ("nx", "nt"):
         value, (low, high) = getattr(args, key), INT_BOUNDS[key]
@@ -56,10 +49,7 @@ def _scene_from_args(args):
         if scene.dim != 1:
             raise SceneError(f"scene {scene.name!r}: domain {scene.domain!r}: `stringcontact check` is 1D-only (the "
                              "paper's theorems are about the string); allowed: a scene with domain 'interval'")
-    changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None}
-    scene = scene.replace(**changes) if changes else scene
-    check_scheme_flags(args, scene, "it refines nx and nt only")
-    return scene
+    return scene_with_flags(args, scene, "it refines nx and nt only", keys)
 
 
 def _compute(args, scene):

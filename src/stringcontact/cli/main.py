@@ -1,4 +1,4 @@
-"""The command line: `stringcontact run|list|show|plot|study|check|models` (also `python -m stringcontact`).
+"""The command line: `stringcontact run|list|show|models|plot|study|check` (also `python -m stringcontact`).
 
 Exit codes:
 
@@ -24,10 +24,8 @@ import sys
 
 from ..jitlog import quiet_compiler
 from ..scene import parameters
-from ..scene.names import DEFAULT_SCHEME
 from . import process
-from .mpi_start import quick_singleton
-from .parser import SUBCOMMANDS, build_parser
+from .parser import SUBCOMMANDS, build_parser, scene_with_flags
 from .process import EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE, error
 
 
@@ -55,13 +53,10 @@ def _run(args) -> int:
         scene = sc.load_scene(args.scene)
     finally:
         parameters.RUN_CONSTANTS.reset(ranges)
-    changes = {k: getattr(args, k) for k in ("nx", "nt", "eps", "alpha", "restitution") if getattr(args, k) is not None}
-    if args.petsc_option:  # into the scene, so that summary.json records the options the run used
-        changes["petsc_options"] = dict(scene.petsc_options) | _petsc_options(args.petsc_option)
-    if changes:
-        scene = scene.replace(**changes)
+    # --petsc-option into the scene, so that summary.json records the options the run used
+    petsc = {"petsc_options": dict(scene.petsc_options) | _petsc_options(args.petsc_option)} if args.petsc_option else {}
+    scene = scene_with_flags(args, scene, "it accepts --mass lumped only", **petsc)
     options = {"scheme": args.scheme, "penalty": args.penalty, "mass": args.mass}
-    check_scheme_flags(args, scene, "it accepts --mass lumped only")
     if model is None and scene.model:  # the scene's key is a registered name, checked when it was loaded
         from ..model.registry import load_model
 
@@ -134,18 +129,6 @@ def _option_value(text: str):
     return text
 
 
-def check_scheme_flags(args, scene, takes: str) -> None:
-    """Refuse --eps or --penalty with a scheme that has no penalty (saying what it `takes` instead), a restitution
-    e > 0 but with projection."""
-    from ..timestepping import check_restitution, scheme_class
-
-    name = args.scheme or scene.scheme or DEFAULT_SCHEME
-    check_restitution(name, scene.restitution or 0.0)
-    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
-        given = "--eps" if args.eps is not None else "--penalty"
-        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); {takes}")
-
-
 def _partial_report(exc) -> None:
     """After an interrupted or unstable run: the closing lines of the rows stored so far, if any."""
     res = getattr(exc, "result", None)
@@ -161,7 +144,7 @@ def main(argv=None) -> int:
     the last garbage collection skipped). Returns the exit code."""
     own = argv is None
     if own and "mpi4py.MPI" not in sys.modules:  # before MPI starts
-        quick_singleton(os.environ)
+        process.quick_singleton(os.environ)
     process.standard_streams()
     quiet_compiler()  # before any form is compiled; a library import leaves the user's logging alone
     with process.stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
@@ -191,7 +174,7 @@ def _main(argv) -> int:
 def _command(args) -> int:
     from ..errors import InstabilityError, Interrupted, OutputError, SceneError, SolverError, StackError
 
-    petsc = args.command not in ("list", "show", "plot", "models")
+    petsc = args.command not in ("list", "show", "models", "plot")
     if petsc:
         from ..stack import load
 
@@ -211,10 +194,10 @@ def _command(args) -> int:
                 listed = scenes.list_scenes()
                 width = max((len(name) for name, _ in listed), default=0)
                 print("".join(f"{name:{width}s}  {description}\n" for name, description in listed), end="")
-            elif args.command == "show":
-                from .report import show_scene
+            elif args.command in ("show", "models"):
+                from .report import show_models, show_scene
 
-                print(show_scene(scenes.load_scene(args.scene)), end="")
+                print(show_scene(scenes.load_scene(args.scene)) if args.command == "show" else show_models(), end="")
             else:
                 return importlib.import_module(SUBCOMMANDS[args.command][0]).command(args)
             return EXIT_OK

@@ -1,40 +1,31 @@
-"""The command line's parser: `build_parser`, with the arguments of `run`, `list` and `show`, and those of a
+"""The command line's parser: `build_parser`, with the arguments of `run`, `list`, `show` and `models`, and those of a
 subcommand of `SUBCOMMANDS` (its module's `add_arguments`) only when the command line names it."""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import sys
 
 from ..errors import one_line
-from ..scene.names import SCHEMES
-from .process import EXIT_INPUT, EXIT_OK
+from ..scene.names import DEFAULT_SCHEME, SCHEMES
+from .process import EXIT_INPUT
 
 #: Subcommands that live with their concern: each module has add_arguments(parser) and command(args) -> int.
 SUBCOMMANDS = {
     "plot": ("stringcontact.cli.plot", "redraw the pictures of an output folder from its saved files"),
     "study": ("stringcontact.cli.study", "work-precision, convergence and stability studies"),
     "check": ("stringcontact.cli.check", "check the paper's (A1)-(A4) and Theorems 2.2-2.3 on a computed solution"),
-    "models": ("stringcontact.cli.models", "list the models a scene may name (registered under stringcontact.models)"),
 }
 
 
-class _Version(argparse.Action):
-    """--version: the installed distribution's version, read only when asked (importlib.metadata)."""
-
-    def __init__(self, option_strings, dest, **kwargs):
-        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        import importlib.metadata
-
-        try:
-            version = importlib.metadata.version("stringcontact")
-        except importlib.metadata.PackageNotFoundError:
-            version = "unknown (not installed: run scripts/setup)"
-        sys.stdout.write(f"stringcontact {version}\n")
-        parser.exit(EXIT_OK)
+def _version() -> str:
+    """The installed distribution's version (importlib.metadata)."""
+    try:
+        return importlib.metadata.version("stringcontact")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown (not installed: run scripts/setup)"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -43,27 +34,51 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"{root}: error: {sub + ': ' if sub else ''}{one_line(message)}\n")
 
 
+def add_scene_flags(parser, level: str) -> None:
+    """The flags that change the scene `run` and `check` compute: --nx, --nt, --eps (those of the `level` of a
+    refinement), --alpha, --restitution, --scheme and --penalty."""
+    add = parser.add_argument
+    add("--nx", type=int, help="number of cells" + level)
+    add("--nt", type=int, help="number of time steps" + level)
+    add("--eps", type=float, help="penalty parameter ε > 0" + level)
+    add("--alpha", type=float, help="viscosity α ≥ 0")
+    add("--restitution", type=float, metavar="E",
+        help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
+    # the names only: a description is read from the scheme's class, which would load dolfinx before the run starts
+    add("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
+        "stringcontact.SCHEMES describes each")
+    add("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+
+
+def scene_with_flags(args, scene, takes: str, keys=("nx", "nt", "eps", "alpha", "restitution"), **more):
+    """`scene` with the values of `add_scene_flags`' `keys` given and `more` (a new, checked scene); --eps or
+    --penalty refused with a scheme that has no penalty (saying what it `takes` instead), a restitution e > 0 but
+    with projection."""
+    from ..timestepping import check_restitution, scheme_class
+
+    changes = {k: getattr(args, k) for k in keys if getattr(args, k) is not None} | more
+    scene = scene.replace(**changes) if changes else scene
+    name = args.scheme or scene.scheme or DEFAULT_SCHEME
+    check_restitution(name, scene.restitution or 0.0)
+    if not scheme_class(name).PENALTIES and (args.eps is not None or args.penalty is not None):
+        given = "--eps" if args.eps is not None else "--penalty"
+        raise ValueError(f"{given}: scheme {name!r} uses no penalty (no eps); {takes}")
+    return scene
+
+
 def build_parser(argv=None) -> argparse.ArgumentParser:
     """The command line's parser. The subcommands of `SUBCOMMANDS` get their arguments only when `argv` (default:
     the process's own) names them: their modules import dolfinx and more, 1.1 s that `--help`, `list` and `show` do
     not need (`python -X importtime -c "import stringcontact.cli.check"`)."""
     named = set(sys.argv[1:] if argv is None else argv)
     parser = _Parser(prog="stringcontact", description="Inelastic contact of a viscoelastic string with an obstacle.")
-    parser.add_argument("--version", action=_Version, help="print the installed version and exit")
+    parser.add_argument("--version", action="version", version=f"stringcontact {_version()}",
+                        help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="simulate a scene and write XDMF, CSV and JSON")
     run.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
-    run.add_argument("--nx", type=int, help="number of cells")
-    run.add_argument("--nt", type=int, help="number of time steps")
-    run.add_argument("--eps", type=float, help="penalty parameter ε > 0")
-    run.add_argument("--alpha", type=float, help="viscosity α ≥ 0")
-    run.add_argument("--restitution", type=float, metavar="E",
-                     help="restitution coefficient e in [0, 1] of scheme projection (default: the scene's, else 0: inelastic)")
-    # the names only: a description is read from the scheme's class, which would load dolfinx before the run starts
-    run.add_argument("--scheme", choices=tuple(SCHEMES), help="time scheme (default: the scene's, else paper); "
-                     "stringcontact.SCHEMES describes each")
-    run.add_argument("--penalty", choices=("explicit", "semi-implicit"), help="default: the scheme's (paper: explicit)")
+    add_scene_flags(run, "")
     run.add_argument("--mass", choices=("lumped", "consistent"), help="default: lumped")
     run.add_argument("--out", metavar="DIR", help="output folder (refused if not empty, unless --force)")
     run.add_argument("--force", action="store_true", help="replace an output folder holding a stringcontact result (only by a complete run)")
@@ -85,6 +100,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the built-in scenes")
     show = sub.add_parser("show", help="print a scene as TOML: every key it sets, the scheme and model it runs with")
     show.add_argument("scene", help="built-in scene name (see `stringcontact list`) or path to a .toml file")
+    sub.add_parser("models", help="list the models a scene may name (registered under stringcontact.models)",
+                   description="The models a scene's `model` key may name: those registered under stringcontact.models.")
     for name, (module, help_text) in SUBCOMMANDS.items():
         sub_parser = sub.add_parser(name, help=help_text)
         if name not in named:

@@ -1,5 +1,6 @@
 """The process around a command: exit codes, stop signals raising `Interrupted`, MPI ranks ending together, the
-standard streams (every message and warning one line on stderr), and the environment PETSc and MPI start in."""
+standard streams (every message and warning one line on stderr), and the environment PETSc and MPI start in (Open
+MPI's settings for a process started without `mpirun`)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,11 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 #: a rank left alone would wait in a collective call for ever.
 END_GRACE = 10.0
 _exit = {"comm": None, "timer": None}
+#: Open MPI's MCA parameters for a command run without `mpirun`, set before MPI loads: no ``orted`` daemon and no UCX
+#: probe, `from petsc4py import PETSc` 0.216 s with them, 0.548 s without (`benchmarks/bench_mpi_start.py`).
+SINGLETON = {"OMPI_MCA_ess_singleton_isolated": "1", "OMPI_MCA_pml": "ob1"}
+#: Set by a launcher (mpirun, mpiexec, srun with PMIx) in each process it starts.
+LAUNCHED = ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK")
 
 
 def error(message) -> None:
@@ -147,6 +153,14 @@ def standard_streams() -> None:
                 os.close(null)
         if getattr(sys, name) is None:
             setattr(sys, name, open(fd, mode, closefd=False, errors="backslashreplace"))  # noqa: SIM115
+
+
+def quick_singleton(environ) -> dict[str, str]:
+    """Add `SINGLETON` to `environ` (``os.environ`` before MPI is imported), but nothing under a launcher and no
+    setting the user made; returns the settings added."""
+    added = {} if any(name in environ for name in LAUNCHED) else {k: v for k, v in SINGLETON.items() if k not in environ}
+    environ.update(added)
+    return added
 
 
 def environment_problem(environ) -> str | None:

@@ -1,5 +1,5 @@
-"""What the command line prints: `stringcontact show`'s scene file (`show_scene`) and a run's closing lines
-(`report`)."""
+"""What the command line prints: `stringcontact show`'s scene file (`show_scene`), `stringcontact models`' list
+(`show_models`) and a run's closing lines (`report`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import warnings
 from ..errors import one_line
 from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
 
-__all__ = ["report", "show_scene"]
+__all__ = ["report", "show_models", "show_scene"]
 
 #: `show`'s line for an optional key the scene does not give.
 _NOT_GIVEN = {
@@ -56,6 +56,31 @@ def show_scene(scene) -> str:
         lines.append(f"{tomli_w.dumps({name: value}).strip():24s}# not a constant of model {data['model']}: for the "
                      "model given with --model\n")
     return "".join(lines) + (tomli_w.dumps({"petsc_options": options}) if options else "")
+
+
+def show_models() -> str:
+    """`stringcontact models`: each model registered under `scene.names.GROUP` (a scene's `model` key may name it):
+    its name, description, where it comes from, its constants and output fields."""
+    from ..errors import SceneError
+    from ..model.interface import output_fields
+    from ..model.registry import load_model
+    from ..scene.names import package_of, registered
+
+    text = []
+    for name, eps in registered().items():
+        try:
+            model = load_model(name)
+        except SceneError as exc:
+            model, lines = None, [f"(unavailable: {exc})"]
+        else:
+            lines = [model.description]
+        lines.append(", ".join(f"{ep.value} [{package_of(ep)}]" for ep in eps))
+        if model is not None:
+            lines += [f"[parameters] {c.name} = {c.default_text}: {c.allowed}" + (f" [{c.unit}]" if c.unit else "")
+                      + (f", {c.description}" if c.description else "") for c in model.constants]
+            lines += [f"field {f.name}: {f.title}" for f in output_fields(model)]
+        text += [f"{name if i == 0 else '':16s} {line}\n" for i, line in enumerate(lines)]
+    return "".join(text)
 
 
 def _fmt_energy_line(res) -> str:

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-#: The domains and the geometry keys each one takes (docs/howto/membranes.md). A `mesh` key alone means "file".
+#: The domains and the geometry keys each one takes, with their defaults (None: required, or for the end heights
+#: eta0's values there; docs/howto/membranes.md). A `mesh` key alone means "file".
 DOMAIN_KEYS = {
-    "interval": ("length", "nx", "h_left", "h_right"),
-    "rectangle": ("size", "cells"),
-    "disk": ("radius", "mesh_size"),
-    "file": ("mesh",),
+    "interval": {"length": 1.0, "nx": None, "h_left": None, "h_right": None},
+    "rectangle": {"size": (1.0, 1.0), "cells": None},
+    "disk": {"radius": 1.0, "mesh_size": None},
+    "file": {"mesh": None},
 }
 #: Optional expression fields in x that reach the model as P1 functions (`Parameters.extra`).
 FIELD_KEYS = ("load", "obstacle")

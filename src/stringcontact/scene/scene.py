@@ -273,7 +273,7 @@ class Scene:
         data = self.as_dict()
         domain = changes.get("domain") or ("file" if changes.get("mesh") else self.domain)
         if domain != self.domain:  # the old domain's geometry keys go (1D: also the end heights)
-            for key in (*DOMAIN_KEYS.get(self.domain, ()), "h", "domain"):
+            for key in (*DOMAIN_KEYS[self.domain], "h", "domain"):
                 if key not in changes:
                     data.pop(key, None)
         if "dt" in changes:
@@ -338,10 +338,6 @@ def _scheme_table(data: dict) -> tuple[dict, tuple, list]:
     return data, tuple(table.items()), top
 
 
-#: The defaults of a domain's geometry keys.
-_GEOMETRY_DEFAULTS = {"interval": {"length": 1.0}, "rectangle": {"size": (1.0, 1.0)}, "disk": {"radius": 1.0}}
-
-
 def _build(data: dict, *, default_name: str | None, options: tuple = ()) -> Scene:
     """The scene of file keys `data`: required keys, nt from dt, the geometry's defaults and (1D) the end heights."""
     checks.check_keys(data)
@@ -355,7 +351,7 @@ def _build(data: dict, *, default_name: str | None, options: tuple = ()) -> Scen
     if "h" in data and ("h_left" in data or "h_right" in data):
         raise SceneError("h: give either h (both ends) or h_left/h_right, not both")
     T = checks.number("T", data["T"])
-    values = dict.fromkeys(("length", "eps", "nx", "h_left", "h_right")) | _GEOMETRY_DEFAULTS.get(domain, {})
+    values = dict.fromkeys(("eps", *DOMAIN_KEYS["interval"])) | DOMAIN_KEYS[domain]
     values |= {k: v for k, v in data.items() if k != "dt"}
     values |= {"name": data.get("name", default_name or "scene"), "domain": domain, "T": T, "options": options,
                "nt": checks.nt_from_dt(data["dt"], T) if "dt" in data else data["nt"]}
