@@ -31,8 +31,8 @@ import numpy as np
 import ufl
 
 import stringcontact as sc
-from stringcontact.analysis.convergence import fitted_order, observed_orders
-from stringcontact.analysis.norms import common_rows, errors_against_reference, l2_norm, to_nodes
+from stringcontact.analysis.convergence import (common_rows, errors_against_reference, fitted_order, l2_norm,
+                                                observed_orders, to_nodes)
 from stringcontact.analysis.problems import METHODS, Method, run_method
 from stringcontact.model import nonlinear
 

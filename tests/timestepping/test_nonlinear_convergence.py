@@ -24,7 +24,7 @@ from conv_nonlinear import reference_study, string_scene
 from mpi4py import MPI
 
 import stringcontact as sc
-from stringcontact.analysis.norms import l2_norm
+from stringcontact.analysis.convergence import l2_norm
 from stringcontact.model import nonlinear as variants
 
 K3 = 10.0

@@ -11,8 +11,7 @@ import stringcontact as sc
 
 from ..verification.exact import flat_landing_time
 from ..verification.reference import fd_projection, fd_solve
-from .problems import EPS_LIMIT, FLAT_H, FLAT_V, flat_landing_scene, simulate_self
-from .schedule import distribute
+from .problems import EPS_LIMIT, FLAT_H, FLAT_V, distribute, flat_landing_scene, simulate_self
 
 STABILITY_COLUMNS = ("penalty", "mass", "dt", "eps", "r", "outcome", "restitution", "restitution_theory",
                      "energy_max_ratio", "growth_step", "min_eta")

@@ -11,9 +11,8 @@ import numpy as np
 from ..io.manifest import atomic_path
 from ..plot import study_charts
 from ..plot.study_charts import plot_stability, plot_step_size
-from .convergence import (CONVERGENCE_COLUMNS, ORDER_COLUMNS, WORK_PRECISION_COLUMNS, convergence, fitted_order,
-                          observed_orders, work_precision)
-from .norms import errors_against_exact, errors_against_reference
+from .convergence import (CONVERGENCE_COLUMNS, ORDER_COLUMNS, WORK_PRECISION_COLUMNS, convergence,
+                          errors_against_exact, errors_against_reference, fitted_order, observed_orders, work_precision)
 from .problems import (FLAT_H, FLAT_V, METHODS, REFERENCE, example1_scene, flat_landing_exact, flat_landing_scene,
                        run_method, warm_up)
 from .stability import (ALPHA_COLUMNS, REBOUND_THRESHOLD, STABILITY_COLUMNS, STEP_COLUMNS, alpha_sweep, restitution,

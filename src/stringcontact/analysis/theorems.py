@@ -284,11 +284,11 @@ def format_trends(checks) -> str:
 
 
 def draw_figure1(result, path, delta: float = 0.02, title: str | None = None, balance: dict | None = None):
-    """The paper's Figure 1 on `result` (`plot.figure1.draw`); `balance`: `check_stress_jump`'s ``data``, if at hand."""
-    from ..plot import figure1
+    """The paper's Figure 1 on `result` (`plot.study_charts.plot_figure1`); `balance`: `check_stress_jump`'s data."""
+    from ..plot.study_charts import plot_figure1
 
     sj = balance if balance is not None else stress_jump_balance(result, band_width(result, delta))
-    figure1.draw(result, path, sj["impulse_rate"], sj["stress_jump_rate"],
+    plot_figure1(result, path, sj["impulse_rate"], sj["stress_jump_rate"],
                  np.sum(impulse(result), axis=1) / result.scene.dt, delta=delta, title=title)
     return path
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 
-from .norms import errors_against_exact, errors_against_reference
+from .convergence import errors_against_exact, errors_against_reference
 from .problems import METHODS, Run, flat_landing_exact, flat_landing_scene, run_method
 
 #: The methods that converge to the inelastic limit, cheapest first, and their observed L∞(L²) orders of η on the

@@ -1,5 +1,5 @@
 """`stringcontact study work-precision|convergence|stability|film`: run a study, write its CSV and PNG files.
-Under ``mpirun -n K`` the cases are dealt over the ranks (`analysis.schedule.distribute`); rank 0 writes."""
+Under ``mpirun -n K`` the cases are dealt over the ranks (`analysis.problems.distribute`); rank 0 writes."""
 
 from __future__ import annotations
 
@@ -121,8 +121,7 @@ def _print_orders(orders, quick: bool) -> None:
 
 def _write_film(out: Path, rows: list[dict]) -> list[Path]:
     """`study film`'s rows, its fitted power laws in mu, and its chart; the laws printed."""
-    from ..analysis.film import FILM_COLUMNS, RATE_COLUMNS, fit_rates
-    from ..analysis.film_charts import plot_film_study
+    from ..analysis.film import FILM_COLUMNS, RATE_COLUMNS, fit_rates, plot_film_study
     from ..model.film import H_MIN
 
     rates = fit_rates(rows)
