@@ -5,35 +5,24 @@
     res = sc.simulate(scene, penalty="explicit", mass="lumped")
 """
 
+import lazy_loader as _lazy
+
 from . import stack as _stack
 from .errors import InstabilityError, InstabilityWarning, Interrupted, OutputError, SceneError, SolverError
-from .lazy import lazy_names as _lazy_names
 
 _stack.load_mpi_first()  # the dolfinx wheel's MPI before anything imports dolfinx (nothing elsewhere)
 
 __version__ = "0.1.0"
 
-# Imported on first use (PEP 562), so that `import stringcontact.plot.run_pictures` (`stringcontact plot`) and the CLI's
-# argument checks do not load dolfinx, PETSc and UFL (0.6 s).
-_LAZY = {
-    **dict.fromkeys(("Model", "ModelConstant", "OutputField", "SolverHints", "Parameters", "inelastic"),
-                    "model.interface"),
-    "Result": "io.result",
-    **dict.fromkeys(("Scene", "SceneWarning", "list_scenes", "load_scene"), "scene"),
-    "load_model": "model.registry",
-    "SCHEMES": "timestepping",
-    "simulate": "run.driver",
-    "Stepper": "run.stepper",
-    "continued": "run.restart",
-    "ContactProblem": "core.problem",
-    "TimeStepper": "core.stepper",
-    "EnergyLedger": "core.ledger",
-    "Observer": "core.observers",
-    "RowObserver": "run.rows",
-    "SchemeOption": "timestepping.base",
-    **dict.fromkeys(("Storage", "Output"), "run.options"),
-}
-__getattr__, _ = _lazy_names(__name__, _LAZY, globals())
+# Imported on first use (SPEC 1, PEP 562: lazy_loader), so that `import stringcontact.plot.run_pictures` (`stringcontact
+# plot`) and the CLI's argument checks do not load dolfinx, PETSc and UFL (0.6 s).
+__getattr__, _, _ = _lazy.attach(__name__, submod_attrs={
+    "model.interface": ["Model", "ModelConstant", "OutputField", "SolverHints", "Parameters", "inelastic"],
+    "io.result": ["Result"], "scene": ["Scene", "SceneWarning", "list_scenes", "load_scene"],
+    "model.registry": ["load_model"], "timestepping": ["SCHEMES"], "run.driver": ["simulate"],
+    "run.stepper": ["Stepper"], "run.restart": ["continued"], "core.problem": ["ContactProblem"],
+    "core.stepper": ["TimeStepper"], "core.ledger": ["EnergyLedger"], "core.observers": ["Observer"],
+    "run.rows": ["RowObserver"], "timestepping.base": ["SchemeOption"], "run.options": ["Storage", "Output"]})
 
 __all__ = ["SCHEMES", "ContactProblem", "EnergyLedger", "Observer", "RowObserver", "SchemeOption", "TimeStepper",
            "InstabilityError", "InstabilityWarning", "Interrupted", "Model", "ModelConstant", "Output", "OutputError",
