@@ -1,5 +1,6 @@
-"""Stop signals (SIGINT, SIGTERM, SIGHUP) held back during a critical section (`signals_held`), or under MPI
-shared so that every rank stops at the same step (`StopTogether`)."""
+"""The stop signals (SIGINT, SIGTERM, SIGHUP): raising `Interrupted` while a command runs (`stop_signals`), held back
+during a critical section (`signals_held`), or under MPI shared so that every rank stops at the same step
+(`StopTogether`). Each swaps the Python handlers, in the main thread only (the only one that may set them)."""
 
 from __future__ import annotations
 
@@ -9,27 +10,54 @@ import signal
 import threading
 from typing import Self
 
-__all__ = ["StopTogether", "signals_held"]
+__all__ = ["STOP_SIGNALS", "StopTogether", "signals_held", "stop_signals"]
 
-STOP = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
-class _Held:
-    """In the main thread (and if `active`), the Python handlers of `STOP` swapped for one that appends the signal to
-    `received`, until `restore` (a C handler, PETSc's, cannot be put back: left in place)."""
+class _Swapped:
+    """In the main thread (and if `active`), the handlers of `STOP_SIGNALS` swapped for `handler` until `restore`. A C
+    handler (PETSc's) cannot be put back: left in place, or with `over_c` replaced and the default put back."""
 
-    def __init__(self, active: bool = True):
-        self.received: list[int] = []
+    def __init__(self, handler, active: bool = True, over_c: bool = False):
         active = active and threading.current_thread() is threading.main_thread()
-        self.saved = {s: h for s in STOP if active and (h := signal.getsignal(s)) is not None}
+        saved = {s: signal.getsignal(s) for s in STOP_SIGNALS} if active else {}
+        self.saved = {s: signal.SIG_DFL if h is None else h for s, h in saved.items() if h is not None or over_c}
         for s in self.saved:
-            signal.signal(s, lambda signum, frame: self.received.append(signum))
+            signal.signal(s, handler)
 
     def restore(self) -> dict:
         saved, self.saved = self.saved, {}
         for s, handler in saved.items():
             signal.signal(s, handler)
         return saved
+
+
+class _Held(_Swapped):
+    """The stop signals recorded in `received` instead of handled."""
+
+    def __init__(self, active: bool = True):
+        self.received: list[int] = []
+        super().__init__(lambda signum, frame: self.received.append(signum), active)
+
+
+@contextlib.contextmanager
+def stop_signals(on_signal=None):
+    """The stop signals raise `Interrupted` (the run stops, its output kept) until the block ends, over any handler
+    (PETSc's too); `on_signal(signum)` is called first."""
+    from .errors import Interrupted
+
+    def handler(signum, frame):
+        if on_signal is not None:
+            on_signal(signum)
+        raise Interrupted(signum)
+
+    swapped = _Swapped(handler, over_c=True)
+    try:
+        yield
+    finally:
+        swapped.restore()
 
 
 @contextlib.contextmanager
@@ -65,7 +93,7 @@ class StopTogether:
             return
         from mpi4py import MPI
 
-        from ..errors import Interrupted
+        from .errors import Interrupted
 
         signum = self.comm.allreduce(self.held.received[0] if self.held.received else 0, op=MPI.MAX)
         if signum:
