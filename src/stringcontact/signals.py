@@ -5,7 +5,6 @@ during a critical section (`signals_held`), or under MPI shared so that every ra
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import threading
 from typing import Self
@@ -17,29 +16,22 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class _Swapped:
-    """In the main thread (and if `active`), the handlers of `STOP_SIGNALS` swapped for `handler` until `restore`. A C
-    handler (PETSc's) cannot be put back: left in place, or with `over_c` replaced and the default put back."""
+    """In the main thread (and if `active`), the handlers of `STOP_SIGNALS` swapped for `handler` (default: the signal
+    appended to `received`) until `restore`. A C handler (PETSc's) cannot be put back: left in place, or with `over_c`
+    replaced and the default put back."""
 
-    def __init__(self, handler, active: bool = True, over_c: bool = False):
+    def __init__(self, handler=None, active: bool = True, over_c: bool = False):
+        self.received: list[int] = []
         active = active and threading.current_thread() is threading.main_thread()
         saved = {s: signal.getsignal(s) for s in STOP_SIGNALS} if active else {}
         self.saved = {s: signal.SIG_DFL if h is None else h for s, h in saved.items() if h is not None or over_c}
         for s in self.saved:
-            signal.signal(s, handler)
+            signal.signal(s, handler or (lambda signum, frame: self.received.append(signum)))
 
-    def restore(self) -> dict:
+    def restore(self) -> None:
         saved, self.saved = self.saved, {}
         for s, handler in saved.items():
             signal.signal(s, handler)
-        return saved
-
-
-class _Held(_Swapped):
-    """The stop signals recorded in `received` instead of handled."""
-
-    def __init__(self, active: bool = True):
-        self.received: list[int] = []
-        super().__init__(lambda signum, frame: self.received.append(signum), active)
 
 
 @contextlib.contextmanager
@@ -64,16 +56,13 @@ def stop_signals(on_signal=None):
 def signals_held():
     """Hold the stop signals back for a critical section; they take effect right after it (handlers swapped, not
     signals blocked: one that arrived just before would run its handler inside the section)."""
-    held = _Held()
+    held = _Swapped()
     try:
         yield
     finally:
-        saved = held.restore()
-        for signum in held.received[:1]:
-            if callable(saved[signum]):
-                saved[signum](signum, None)
-            elif saved[signum] == signal.SIG_DFL:
-                os.kill(os.getpid(), signum)
+        held.restore()
+        if held.received:  # the first one, to its own handler now (`raise_signal` runs a Python one before it returns)
+            signal.raise_signal(held.received[0])
 
 
 class StopTogether:
@@ -84,7 +73,7 @@ class StopTogether:
         self.comm = comm if comm is not None and comm.size > 1 else None
 
     def __enter__(self) -> Self:
-        self.held = _Held(active=self.comm is not None)
+        self.held = _Swapped(active=self.comm is not None)
         return self
 
     def poll(self) -> None:
@@ -103,4 +92,4 @@ class StopTogether:
     def __exit__(self, kind, value, tb) -> None:
         self.held.restore()
         if self.held.received and kind is None:  # a signal after the last poll: it takes effect now
-            os.kill(os.getpid(), self.held.received[0])
+            signal.raise_signal(self.held.received[0])
