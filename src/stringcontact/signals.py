@@ -9,6 +9,8 @@ import signal
 import threading
 from typing import Self
 
+from .errors import Interrupted
+
 __all__ = ["STOP_SIGNALS", "StopTogether", "signals_held", "stop_signals"]
 
 #: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
@@ -38,7 +40,6 @@ class _Swapped:
 def stop_signals(on_signal=None):
     """The stop signals raise `Interrupted` (the run stops, its output kept) until the block ends, over any handler
     (PETSc's too); `on_signal(signum)` is called first."""
-    from .errors import Interrupted
 
     def handler(signum, frame):
         if on_signal is not None:
@@ -81,8 +82,6 @@ class StopTogether:
         if self.comm is None:
             return
         from mpi4py import MPI
-
-        from .errors import Interrupted
 
         signum = self.comm.allreduce(self.held.received[0] if self.held.received else 0, op=MPI.MAX)
         if signum:
