@@ -8,8 +8,16 @@ from pathlib import Path
 import pytest
 
 from stringcontact.errors import OutputError
-from stringcontact.io.manifest import MANIFEST, atomic_path, foreign_file, read_manifest
-from stringcontact.io.publish import MARKER, check_target, open_partial, publish_partial
+from stringcontact.io.publish import (
+    MANIFEST,
+    MARKER,
+    atomic_path,
+    check_target,
+    foreign_file,
+    open_partial,
+    publish_partial,
+    read_manifest,
+)
 
 
 def published(tmp_path, files: dict[str, str]) -> Path:

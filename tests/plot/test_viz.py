@@ -187,7 +187,7 @@ def test_a_truncated_xdmf_is_refused_in_one_line(tmp_path, run):
 
 
 def test_a_picture_is_written_whole_or_not_at_all(tmp_path):
-    from stringcontact.io.manifest import atomic_path
+    from stringcontact.io.publish import atomic_path
 
     target = tmp_path / "energy.png"
     with pytest.raises(KeyboardInterrupt):

@@ -557,7 +557,7 @@ def small_result(nx=8, nt=4):
 
 def test_aborted_run_with_force_keeps_the_finished_result(tmp_path, space):
     from stringcontact.io.folder import OutputWriter
-    from stringcontact.io.manifest import write_manifest
+    from stringcontact.io.publish import write_manifest
 
     res = small_result()
     out = tmp_path / "out"

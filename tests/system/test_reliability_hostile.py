@@ -17,8 +17,7 @@ import pytest
 from conftest import CTRL_C_AT_IMPORT, leftovers, mpirun, one_error_line, plot_refusal
 
 from stringcontact.cli.main import main
-from stringcontact.io.manifest import atomic_path
-from stringcontact.io.publish import TargetLock, staged_folder
+from stringcontact.io.publish import TargetLock, atomic_path, staged_folder
 
 QUICK = ["--no-progress", "--no-pictures"]
 SMALL = ["--nx", "50", "--nt", "40", "--eps", "0.01", *QUICK]

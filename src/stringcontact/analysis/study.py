@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.manifest import atomic_path
+from ..io.publish import atomic_path
 from ..plot import study_charts
 from ..plot.study_charts import plot_stability, plot_step_size
 from .convergence import (CONVERGENCE_COLUMNS, ORDER_COLUMNS, WORK_PRECISION_COLUMNS, convergence,

@@ -24,6 +24,7 @@ import sys
 
 from ..jitlog import quiet_compiler
 from ..scene import parameters
+from ..signals import stop_signals
 from . import process
 from .parser import SUBCOMMANDS, build_parser, scene_with_flags
 from .process import EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_UNSTABLE, error
@@ -147,7 +148,7 @@ def main(argv=None) -> int:
         process.quick_singleton(os.environ)
     process.standard_streams()
     quiet_compiler()  # before any form is compiled; a library import leaves the user's logging alone
-    with process.stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
+    with stop_signals():  # first thing: a Ctrl-C while Python, PETSc or dolfinx start up is one line too
         try:
             code = _main(argv)
         except KeyboardInterrupt as exc:

@@ -1,6 +1,6 @@
-"""The process around a command: exit codes, stop signals raising `Interrupted`, MPI ranks ending together, the
-standard streams (every message and warning one line on stderr), and the environment PETSc and MPI start in (Open
-MPI's settings for a process started without `mpirun`)."""
+"""The process around a command: exit codes, the stop signals over PETSc's handlers (`stringcontact.signals`), MPI
+ranks ending together, the standard streams (every message and warning one line on stderr), and the environment PETSc
+and MPI start in (Open MPI's settings for a process started without `mpirun`)."""
 
 from __future__ import annotations
 
@@ -14,11 +14,10 @@ import threading
 import warnings
 
 from ..errors import one_line
+from ..signals import stop_signals
 
 #: The exit codes (`cli.main`'s docstring says what each means; a signal's: 128 + its number).
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_UNSTABLE, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
-#: Signals that stop a run cleanly (its output kept, marked "interrupted"); exit code 128 + the signal number.
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 #: Seconds a failed or signalled MPI rank waits for the others to end with it before it aborts the job (MPI_Abort):
 #: a rank left alone would wait in a collective call for ever.
 END_GRACE = 10.0
@@ -74,7 +73,7 @@ def signals_interrupt(petsc: bool = True):
             _exit["comm"] = MPI.COMM_WORLD.Dup()
     saved_pipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
-        with stop_signals():
+        with stop_signals(on_signal=_end_others_later):
             yield
     finally:
         with contextlib.suppress(OSError, ValueError):
@@ -82,27 +81,11 @@ def signals_interrupt(petsc: bool = True):
         signal.signal(signal.SIGPIPE, saved_pipe if saved_pipe is not None else signal.SIG_DFL)
 
 
-@contextlib.contextmanager
-def stop_signals():
-    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` (the run stops, its output kept) until the block ends."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    from ..errors import Interrupted
-
-    def handler(signum, frame):
-        if _exit["comm"] is not None and _exit["timer"] is None:  # if this rank cannot end with the others, it ends them all
-            _exit["timer"] = threading.Timer(END_GRACE, _abort, args=(128 + signum,))
-            _exit["timer"].daemon = True
-            _exit["timer"].start()
-        raise Interrupted(signum)
-
-    saved = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for s, h in saved.items():
-            signal.signal(s, h if h is not None else signal.SIG_DFL)
+def _end_others_later(signum: int) -> None:
+    if _exit["comm"] is not None and _exit["timer"] is None:  # if this rank cannot end with the others, it ends them all
+        _exit["timer"] = threading.Timer(END_GRACE, _abort, args=(128 + signum,))
+        _exit["timer"].daemon = True
+        _exit["timer"].start()
 
 
 def end_together(code: int) -> None:

@@ -1,4 +1,4 @@
-"""Output folders: the folder itself (target, lock, publish, manifest, disk, signals), the writers (XDMF and HDF5,
+"""Output folders: the folder itself (target, lock, publish, manifest, disk), the writers (XDMF and HDF5,
 CSV, JSON), read-back, `Result`.
 
 Layer: imports `fem.compat` (no dolfinx at import), `model.registry` and `scene`; never the picture code.

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import Interrupted, OutputError, one_line
+from ..signals import signals_held
 from .paraview_view import obstacle_at, write_view
 from .publish import describe_os_error, disk_failure, open_partial, publish_partial, sync_soon
 from .readback import read_xdmf
 from .result import FIELDS, OBSTACLE_FIELD
-from .signals import signals_held
 from .tables import ROWS_FILE, clean_json, summary_dict, write_diagnostics, write_rows
 from .xdmf import XdmfTimeSeries, mesh_arrays
 

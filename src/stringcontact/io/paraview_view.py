@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .manifest import atomic_path
+from .publish import atomic_path
 from .tables import field_info
 
 #: control points of a symmetric-log field's colours per decade of its |value|

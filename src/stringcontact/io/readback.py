@@ -19,7 +19,7 @@ from numpy.lib import format as npy
 from ..errors import OutputError, SceneError, one_line
 from ..scene.limits import MAX_MEMBRANE_NODES, MAX_STORED_BYTES
 from ..scene.names import DEFAULT_MODEL, DEFAULT_SCHEME
-from .manifest import small_regular_file
+from .publish import small_regular_file
 from .result import ENERGY_KEYS, FIELDS, Result
 from .tables import ROWS_FILE, field_members
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from ..io.manifest import atomic_path
+from ..io.publish import atomic_path
 from . import membrane
 from .charts import figure
 from .mesh_pictures import _every_kth

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.manifest import atomic_path
+from ..io.publish import atomic_path
 from .style import CONTACT_COLOUR, SCREEN, Look
 
 #: |v| is clipped at this percentile for the colour range: v0 = −50 at t = 0 would otherwise wash out the rest.

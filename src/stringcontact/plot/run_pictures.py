@@ -7,8 +7,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..io.signals import signals_held
 from ..io.tables import field_key
+from ..signals import signals_held
 from . import charts
 from .charts import contact_components, snapshot_rows  # noqa: F401 - the demos' readings, as run_pictures.*
 from .style import SCREEN_DPI, WINDOW_SIZE, Look

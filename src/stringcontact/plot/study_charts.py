@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.manifest import atomic_path
+from ..io.publish import atomic_path
 from .charts import figure, literal, savefig
 from .style import SCREEN
 

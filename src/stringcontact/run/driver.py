@@ -8,8 +8,8 @@ import numpy as np
 from mpi4py import MPI
 
 from ..io.result import Result
-from ..io.signals import StopTogether
 from ..model.interface import Model
+from ..signals import StopTogether
 from .options import Output, Storage
 from .stepper import Stepper, one_thread
 
