@@ -1,7 +1,7 @@
 """The package's layers: every import points down, no circle, no private name taken from another package.
 
 Layers, top to bottom (docs in DEVELOPERS.md): cli > analysis > verification > run > plot > io > timestepping
-> fem > model > scene, with `errors`, `jitlog`, `lazy`, `signals` and `stack` below them all. The top-level
+> fem > model > scene, with `errors`, `jitlog`, `signals` and `stack` below them all. The top-level
 `stringcontact` (the public API, loaded lazily) may be imported by analysis and cli only. Every import counts, those
 inside functions too.
 """
@@ -14,7 +14,7 @@ import pytest
 import stringcontact
 
 LAYERS = ("scene", "model", "fem", "timestepping", "core", "io", "plot", "run", "verification", "analysis", "cli")
-BASE = ("errors", "jitlog", "lazy", "signals", "stack")
+BASE = ("errors", "jitlog", "signals", "stack")
 ROOT = Path(stringcontact.__file__).parent
 FACADE_USERS = ("analysis", "cli")
 
