@@ -16,11 +16,9 @@ from ..errors import PLUGIN_FAULTS, InstabilityError, SceneError, SolverError, p
 from ..fem.agree import one_outcome, same_on_every_rank
 from ..fem.dissipation import InternalDissipation, internal_variables
 from ..model.forms import FormError
-from ..model.interface import penetration_bound_of
 from ..scene.parameters import resolve_parameters
-from ..timestepping import check_model, resolve_options, resolve_scheme
-from ..timestepping.base import DiscreteProblem, MovingObstacle, NodalLaws, StepEnergy, check_law_stability
-from ..timestepping.linear import check_option_values
+from ..timestepping import check_scheme_run
+from ..timestepping.base import DiscreteProblem, MovingObstacle, NodalLaws, StepEnergy
 from .ledger import EnergyLedger, energy_roundoff
 from .problem import RATE, ContactProblem
 
@@ -52,16 +50,9 @@ class TimeStepper:
             raise SceneError(f"dt: {dt!r} is not a time step; allowed: a finite number > 0")
         _set_initial(problem, initial or {})
         self.problem, self.model, self.comm = problem, problem.model, problem.comm
-        self.name, self.Scheme = resolve_scheme(scheme)
         model = problem.model
-        self.options = resolve_options(self.name, self.Scheme, options)
+        self.name, self.Scheme, self.options = check_scheme_run(scheme, model, dt, options, self.comm.size)
         self.penalty, self.mass = self.options["penalty"], self.options["mass"]
-        check_model(self.name, model, self.Scheme)
-        penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
-        given = self.options["petsc_options"]
-        check_option_values(given, ranks=self.comm.size)  # and Newton's tolerances, which could pass unsolved
-        if self.Scheme.PENALTIES:
-            check_law_stability(model, dt, self.options["eps"], self.penalty)
         problem.params.eps.value = self.options["eps"] if self.options["eps"] is not None else np.nan
         self.nt, self._dt, self.step, self._t0, self._step0 = nt, float(dt), 0, 0.0, 0
         self.observers, self._stepped = [], []  # _stepped: the observers' `stepped` methods, called after every step

@@ -20,13 +20,11 @@ from ..fem import compat, domains
 from ..fem.agree import one_outcome, same_on_every_rank
 from ..fem.operators import node_coordinates
 from ..model.forms import check_declarations
-from ..model.interface import Model, inelastic, penetration_bound_of
+from ..model.interface import Model, inelastic
 from ..scene.limits import MAX_MAGNITUDE, MAX_MEMBRANE_NODES, SETUP_BYTES_PER_NODE
 from ..scene.names import DEFAULT_SCHEME
 from ..scene.parameters import resolve_parameters
-from ..timestepping import check_model, resolve_options, resolve_scheme
-from ..timestepping.base import check_law_stability
-from ..timestepping.linear import check_option_values
+from ..timestepping import check_scheme_run
 
 __all__ = ["RunPlan", "check_scene_run", "model_constants", "resolve_model", "scene_problem"]
 
@@ -68,26 +66,22 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
     """The scheme (`scheme`, else the scene's, else "paper") and its options (the scene's ``[scheme]`` table with
     `options` on top), the model and its constants, the PETSc options, the size and the contact law's bound, checked
     before the mesh; the same on every rank, so that a refusal ends every rank alike."""
-    name, Scheme = resolve_scheme(scheme or scene.scheme or DEFAULT_SCHEME)
-    given = dict(scene.scheme_options) | {k: v for k, v in options.items() if v is not None}
-    resolved = resolve_options(name, Scheme, given | {"petsc_options": dict(scene.petsc_options)})
     model = resolve_model(model, scene)
     check_declarations(model)  # what it declares is of its kind
-    check_model(name, model, Scheme)
-    penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
     from ..errors import plugin_code
 
     with plugin_code(f"model '{model.name}'"):  # its functions' sys.exit: one line, not exit 0
         constants = model_constants(scene, model)
+    scheme = scheme or scene.scheme or DEFAULT_SCHEME
+    given = dict(scene.scheme_options) | {k: v for k, v in options.items() if v is not None}
+    given["petsc_options"] = dict(scene.petsc_options)
     if comm is not None:  # ranks given different input would run a mixture, or wait forever for each other
-        same_on_every_rank(comm, "the scene, scheme, options and model", [scene.as_dict(), name, resolved, model.name,
+        same_on_every_rank(comm, "the scene, scheme, options and model", [scene.as_dict(), scheme, given, model.name,
                                                                           constants])
-    check_option_values(resolved["petsc_options"], ranks=comm.size if comm is not None else 1)
     _check_size(scene, model)
-    if Scheme.PENALTIES:
-        with warnings.catch_warnings():  # the scheme warns once, when it is made
-            warnings.simplefilter("ignore")
-            check_law_stability(model, scene.dt, resolved["eps"], resolved["penalty"])
+    with warnings.catch_warnings():  # the scheme warns once, when it is made
+        warnings.simplefilter("ignore")
+        name, Scheme, resolved = check_scheme_run(scheme, model, scene.dt, given, comm.size if comm else 1)
     return RunPlan(name, Scheme, resolved, model, constants)
 
 

@@ -103,4 +103,22 @@ def resolve_options(name: str, Scheme: type, given: dict) -> dict:
     return values
 
 
-__all__ = ["SCHEMES", "check_model", "check_restitution", "resolve_options", "resolve_scheme", "scheme_class"]
+def check_scheme_run(scheme, model, dt: float, options: dict, ranks: int = 1) -> tuple[str, type, dict]:
+    """(its name, the class, its options resolved) of `scheme` running `model` at the time step `dt` on `ranks`
+    ranks, checked before anything is built: the scheme, its options, whether it runs the model, the model's
+    penetration bound, the PETSc options and, for a penalty scheme, the contact law's stability at `dt`."""
+    from ..model.interface import penetration_bound_of
+    from .base import check_law_stability
+    from .linear import check_option_values
+
+    name, Scheme = resolve_scheme(scheme)
+    resolved = resolve_options(name, Scheme, options)
+    check_model(name, model, Scheme)
+    penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
+    check_option_values(resolved["petsc_options"], ranks=ranks)  # and Newton's tolerances, which could pass unsolved
+    if Scheme.PENALTIES:
+        check_law_stability(model, dt, resolved["eps"], resolved["penalty"])
+    return name, Scheme, resolved
+
+
+__all__ = ["SCHEMES", "check_model", "check_scheme_run", "check_restitution", "resolve_options", "resolve_scheme", "scheme_class"]
