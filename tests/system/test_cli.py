@@ -84,6 +84,14 @@ def test_out_that_would_replace_the_current_or_root_folder_is_refused_before_the
     assert sorted(p.name for p in tmp_path.iterdir()) == ["work"] and list((tmp_path / "work").iterdir()) == []
 
 
+def test_a_law_bound_warning_is_one_line_once(capsys):
+    """r = dt/eps = 4/3 under the explicit penalty: the contact law's warning comes once (the scheme's, when it is
+    made), not again from the check before the run."""
+    assert main(["run", "example1", "--nx", "100", "--nt", "1500", "--eps", "1.5e-4", "--no-progress",
+                 "--no-pictures"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("rebounds with restitution") == 1, err
+
 def test_list_and_show(capsys):
     assert main(["list"]) == 0
     listing = capsys.readouterr().out

@@ -79,9 +79,7 @@ def check_scene_run(scene, scheme=None, model=None, comm=None, **options) -> Run
         same_on_every_rank(comm, "the scene, scheme, options and model", [scene.as_dict(), scheme, given, model.name,
                                                                           constants])
     _check_size(scene, model)
-    with warnings.catch_warnings():  # the scheme warns once, when it is made
-        warnings.simplefilter("ignore")
-        name, Scheme, resolved = check_scheme_run(scheme, model, scene.dt, given, comm.size if comm else 1)
+    name, Scheme, resolved = check_scheme_run(scheme, model, scene.dt, given, comm.size if comm else 1)
     return RunPlan(name, Scheme, resolved, model, constants)
 
 

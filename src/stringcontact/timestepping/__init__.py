@@ -9,6 +9,7 @@ Importing this package does not load dolfinx.
 from __future__ import annotations
 
 import contextlib
+import warnings
 
 from ..errors import SceneError
 from ..scene.names import SCHEMES, scheme_class
@@ -117,7 +118,9 @@ def check_scheme_run(scheme, model, dt: float, options: dict, ranks: int = 1) ->
     penetration_bound_of(model)  # a bound the checks do not know is refused before the run, not after it
     check_option_values(resolved["petsc_options"], ranks=ranks)  # and Newton's tolerances, which could pass unsolved
     if Scheme.PENALTIES:
-        check_law_stability(model, dt, resolved["eps"], resolved["penalty"])
+        with warnings.catch_warnings():  # refused here; the scheme warns once, when it is made
+            warnings.simplefilter("ignore")
+            check_law_stability(model, dt, resolved["eps"], resolved["penalty"])
     return name, Scheme, resolved
 
 
