@@ -33,6 +33,9 @@ RUN scripts/setup --only system \
 COPY pyproject.toml ./
 RUN scripts/setup --only deps .venv && rm -rf /root/.cache
 
+# Every image built from the source carries this label: scripts/image removes by it the builds a newer one
+# replaced (each source change leaves a nameless image of gigabytes behind).
+LABEL org.opencontainers.image.title="stringcontact"
 # The source, and this package installed from it (editable, no dependencies: they are in place).
 COPY . .
 RUN scripts/setup --only package .venv && rm -rf /root/.cache
@@ -73,7 +76,7 @@ RUN scripts/setup --test --only deps .venv \
 USER 1000:1000
 ENV STRINGCONTACT_REQUIRE_PARAVIEW=1
 ENTRYPOINT ["python", "-m", "pytest", "-p", "no:cacheprovider"]
-CMD ["-q", "-n", "auto", "--dist", "loadfile"]
+CMD ["-q", "-n", "auto", "--dist", "loadfile", "--max-worker-restart=0"]
 
 
 # dolfinx 0.11 from PyPI's binary wheel (dolfinx-solver-real: its own PETSc, SLEPc and MPICH) instead of Debian's:
@@ -100,6 +103,7 @@ RUN scripts/setup --wheel --only system \
 COPY pyproject.toml ./
 RUN scripts/setup --wheel --only deps .venv && rm -rf /root/.cache
 
+LABEL org.opencontainers.image.title="stringcontact"
 COPY . .
 RUN scripts/setup --wheel --only package .venv && rm -rf /root/.cache
 
@@ -132,7 +136,7 @@ USER 1000:1000
 ENV STRINGCONTACT_REQUIRE_PARAVIEW=1 \
     STRINGCONTACT_WHEELHOUSE=/opt/wheelhouse
 ENTRYPOINT ["python", "-m", "pytest", "-p", "no:cacheprovider"]
-CMD ["-q", "-n", "auto", "--dist", "loadfile"]
+CMD ["-q", "-n", "auto", "--dist", "loadfile", "--max-worker-restart=0"]
 
 
 # The default target: the demo image.

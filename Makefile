@@ -19,15 +19,18 @@ demo: setup
 	$(VENV)/bin/stringcontact run example1 --out out/example1 --force
 
 # one pytest worker per core (pytest-xdist); --dist loadfile keeps a file's tests in one worker, so that the runs its
-# tests share (module and session fixtures) are computed once, not once per worker. DEVELOPERS.md has the times.
+# tests share (module and session fixtures) are computed once, not once per worker. A worker that dies ends the run
+# with its test named (--max-worker-restart=0): xdist's loadfile scheduler can wait for ever after replacing a crashed
+# worker (pytest-dev/pytest-xdist#784, #1313). DEVELOPERS.md has the times.
 PYTEST_WORKERS ?= auto
+XDIST = -n $(PYTEST_WORKERS) --dist loadfile --max-worker-restart=0
 test: setup
-	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile
+	$(PY) -m pytest -q $(XDIST)
 
 # the inner loop: everything but the tests marked slow (a second or more each: whole runs in subprocesses, MPI,
 # ParaView, the demos and the site, sweeps; DEVELOPERS.md)
 test-fast: setup
-	$(PY) -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile -m "not slow"
+	$(PY) -m pytest -q $(XDIST) -m "not slow"
 
 # the site, docs/_build/html: warnings are errors (-W), every internal link must resolve (-n), docstrings read
 # afresh (-E: autodoc does not notice a changed module); the demos run again only when they or src/ changed
