@@ -34,12 +34,15 @@ TESTS = Path(__file__).resolve().parent
 
 
 def pytest_configure(config):
-    """In a pytest-xdist worker (`make test` runs one per core): a longer wait for a form another worker compiles.
+    """A crash of the test process shows where it happened (`_crashes_show_their_stack`), and in a pytest-xdist
+    worker (`make test` runs one per core) a longer wait for a form another worker compiles.
 
     ffcx's JIT cache is shared by the processes of a machine: the first to need a form creates its C file
     (exclusively) and compiles it; another that needs the same form polls for the finished module once a second,
     `timeout` times, and then raises TimeoutError (dolfinx's default: 10). On a cold cache two workers often need
     the same form at once, and on a busy machine a compile can take longer than 10 s."""
+    if os.environ.get("PYTEST_XDIST_WORKER") or not getattr(config.option, "numprocesses", None):  # not a controller
+        _crashes_show_their_stack()
     if os.environ.get("PYTEST_XDIST_WORKER"):
         try:
             import dolfinx.jit
@@ -53,6 +56,27 @@ def pytest_configure(config):
 
 #: seconds a pytest-xdist worker waits for a form that another process is compiling
 JIT_WAIT = 300
+
+
+def _crashes_show_their_stack() -> None:
+    """PETSc's handlers of fatal signals (SIGSEGV, SIGBUS, ...) taken down in the test process, faulthandler's put
+    back, on the stream pytest keeps for it (the terminal, not a test's captured stderr).
+
+    PETSc, once initialised, takes the fatal signals: it prints its message to stderr, which pytest captures for
+    the running test, and aborts the MPI job; a pytest-xdist worker that crashes so dies without a word ("node
+    down: Not properly terminated"). With faulthandler's the crash prints every thread's Python stack, then the
+    signal goes on to its default action. The command's own processes (subprocesses of the tests) keep PETSc's."""
+    import faulthandler
+
+    from petsc4py import PETSc
+
+    PETSc.Sys.popSignalHandler()  # its stack empty, PETSc puts the signals' default actions back
+    stream = sys.__stderr__ if sys.__stderr__ is not None else sys.stderr
+    faulthandler.disable()
+    faulthandler.enable(file=_CRASH_STREAM.setdefault("fd", os.dup(stream.fileno())), all_threads=True)
+
+
+_CRASH_STREAM: dict = {}
 
 
 def pytest_collection_modifyitems(config, items):
