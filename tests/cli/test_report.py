@@ -63,7 +63,7 @@ def _travelling_bump() -> sc.Scene:
             "nt": 600,
             "nx": 100,
             "alpha": 0.01,
-            "eps": 0.001,
+            "scheme": {"eps": 0.001},
             "eta0": "0.1",
             "v0": 0,
             "h": 0.1,

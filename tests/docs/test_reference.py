@@ -105,7 +105,7 @@ def test_the_models_page_says_what_the_constants_error_message_says():
 
 
 EXAMPLE1 = load_scene("example1").as_dict()
-_MEMBRANE = {"T": 0.1, "alpha": 0.01, "eps": 0.01, "nt": 10, "eta0": "1", "v0": "0"}
+_MEMBRANE = {"T": 0.1, "alpha": 0.01, "scheme": {"eps": 0.01}, "nt": 10, "eta0": "1", "v0": "0"}
 RECTANGLE = {"domain": "rectangle", "size": [1, 1], "cells": [4, 4], **_MEMBRANE}
 DISK = {"domain": "disk", "radius": 1.0, "mesh_size": 0.5, **_MEMBRANE}
 BAD = [  # key, a value outside its range, the scene it goes into

@@ -31,7 +31,7 @@ def run(scene, **kwargs):
 
 
 def flat(T=1.0, nt=100, nx=32, eta0=f"{H}", v0=0, mu=0.1, h=H, **keys):
-    return sc.Scene.from_dict(dict(name="flat", length=1.0, T=T, nt=nt, nx=nx, alpha=ALPHA, eps=1.0,
+    return sc.Scene.from_dict(dict(name="flat", length=1.0, T=T, nt=nt, nx=nx, alpha=ALPHA, scheme={"eps": 1.0},
                                    eta0=eta0, v0=v0, h=h, model="film", parameters={"mu": mu},
                                    **keys))
 

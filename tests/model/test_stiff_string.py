@@ -29,7 +29,8 @@ def run(scene, **kwargs):
 
 def mode_scene(m: int, beta: float, nx: int, T: float = 2.0, dt: float = 1e-3):
     """A single mode h + a sin(mπx) high above the obstacle (a/h = 1e-3: no contact), at rest, α = 0."""
-    return sc.Scene.from_dict({"name": "mode", "length": 1.0, "T": T, "dt": dt, "nx": nx, "alpha": 0.0, "eps": 1e-3,
+    return sc.Scene.from_dict({"name": "mode", "length": 1.0, "T": T, "dt": dt, "nx": nx, "alpha": 0.0,
+                               "scheme": {"eps": 1e-3},
                                "h": H, "eta0": f"{H} + {AMPLITUDE}*sin({m}*pi*x)", "v0": "0", "model": "stiff_string",
                                "parameters": {"beta": beta}})
 
@@ -116,7 +117,7 @@ def test_beta_zero_is_the_papers_string(scheme):
 def landing():
     """A stiff string thrown onto the obstacle y = 0, under `projection` (its contact step: η ≥ ψ exactly)."""
     scene = sc.Scene.from_dict({"name": "landing", "length": 1.0, "T": 0.4, "dt": 4e-4, "nx": 100, "alpha": 0.01,
-                                "eps": 1e-3, "h": 0.1, "eta0": "0.1 + 0.2*sin(pi*x)", "v0": "-4*sin(pi*x)",
+                                "scheme": {"eps": 1e-3}, "h": 0.1, "eta0": "0.1 + 0.2*sin(pi*x)", "v0": "-4*sin(pi*x)",
                                 "model": "stiff_string", "parameters": {"beta": 1e-3}})
     return run(scene, scheme="projection", storage=sc.Storage(max_rows=scene.nt + 1))
 
@@ -217,8 +218,9 @@ def test_the_curvature_is_written_to_the_xdmf_and_the_result(tmp_path, ex1_stiff
 
 
 def scene_file(tmp_path, parameters: dict):
-    data = {"name": "stiff", "length": 1.0, "T": 0.01, "nt": 10, "nx": 20, "alpha": 0.01, "eps": 1e-3, "h": 1.0,
-            "eta0": "1 + 0.1*sin(pi*x)", "v0": "0", "model": "stiff_string", "parameters": parameters}
+    data = {"name": "stiff", "length": 1.0, "T": 0.01, "nt": 10, "nx": 20, "alpha": 0.01, "h": 1.0,
+            "eta0": "1 + 0.1*sin(pi*x)", "v0": "0", "model": "stiff_string", "parameters": parameters,
+            "scheme": {"eps": 1e-3}}
     path = tmp_path / "stiff.toml"
     path.write_bytes(tomli_w.dumps(data).encode())
     return path

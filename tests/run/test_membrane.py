@@ -25,7 +25,7 @@ K2 = 2 * math.pi**2  # -Δ of sin(πx) sin(πy)
 
 def square(cells: int, nt: int, alpha: float, T: float = 0.5, **keys) -> Scene:
     """No contact: η = 0.5 + 0.1 a(t) sin(πx) sin(πy) stays above 0.4, the boundary held at 0.5."""
-    data = dict(domain="rectangle", size=[1, 1], cells=[cells, cells], T=T, nt=nt, alpha=alpha, eps=1e-3,
+    data = dict(domain="rectangle", size=[1, 1], cells=[cells, cells], T=T, nt=nt, alpha=alpha, scheme={"eps": 1e-3},
                 eta0="0.5 + 0.1*sin(pi*x)*sin(pi*y)", v0=0, h=0.5)
     data.update(keys)
     return Scene.from_dict(data)
@@ -99,7 +99,7 @@ def test_without_viscosity_the_bumps_patch_splits_again():
 
 
 def contact_scene(**keys) -> Scene:
-    data = dict(domain="rectangle", cells=[12, 12], T=0.4, nt=80, alpha=0.02, eps=0.005,
+    data = dict(domain="rectangle", cells=[12, 12], T=0.4, nt=80, alpha=0.02, scheme={"eps": 0.005},
                 eta0="0.05 + 0.1*sin(pi*x)*sin(pi*y)", v0="-2*sin(pi*x)*sin(pi*y)", h=0.05)
     data.update(keys)
     return Scene.from_dict(data)
@@ -178,7 +178,7 @@ def text_file(path: Path, text: str) -> Path:
 
 
 def file_scene(path) -> Scene:
-    return Scene.from_dict(dict(mesh=str(path), T=0.1, nt=10, alpha=0, eps=1e-3, eta0="1", v0=0))
+    return Scene.from_dict(dict(mesh=str(path), T=0.1, nt=10, alpha=0, scheme={"eps": 1e-3}, eta0="1", v0=0))
 
 
 def test_a_mesh_file_runs_like_the_same_rectangle(tmp_path):
@@ -216,7 +216,7 @@ def test_bad_mesh_files_are_refused_in_one_line(tmp_path, make, message):
     (dict(mesh="missing.xdmf"), r"mesh: no such file 'missing.xdmf'"),
 ])
 def test_bad_domain_keys_are_refused_in_one_line(keys, message):
-    data = dict(T=0.1, nt=10, alpha=0, eps=1e-3, eta0="1", v0=0)
+    data = dict(T=0.1, nt=10, alpha=0, scheme={"eps": 1e-3}, eta0="1", v0=0)
     data.update(keys)
     with pytest.raises(SceneError, match=message) as info:
         Scene.from_dict(data)

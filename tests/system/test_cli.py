@@ -111,8 +111,8 @@ def test_show_prints_every_key_the_run_uses(capsys, tmp_path):
     assert load_scene("example1").replace(scheme="paper", model="inelastic") == Scene.from_dict(data)
     # a scene that gives its fields and solver options shows them as keys, the table last
     path = tmp_path / "given.toml"
-    path.write_text('T = 0.1\nalpha = 0.01\neps = 0.01\nnx = 10\nnt = 10\neta0 = "1"\nv0 = "0"\nload = "-1"\n'
-                    'obstacle = "0.5*x"\nmodel = "loaded_obstacle"\nscheme = "projection"\n'
+    path.write_text('T = 0.1\nalpha = 0.01\nnx = 10\nnt = 10\neta0 = "1"\nv0 = "0"\nload = "-1"\n'
+                    'obstacle = "0.5*x"\nmodel = "loaded_obstacle"\nscheme = { name = "projection", eps = 0.01 }\n'
                     'petsc_options = { ksp_type = "cg" }\n')
     assert main(["show", str(path)]) == 0
     text = capsys.readouterr().out

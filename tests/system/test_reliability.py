@@ -34,8 +34,8 @@ def toml_string(s: str) -> str:
     return json.dumps(s, ensure_ascii=False).replace("\x7f", "\\u007f")
 
 
-def scene_text(eta0: str = "1 + x*(1 - x)", **lines) -> str:
-    base = {"T": "0.01", "alpha": "0.01", "eps": "0.01", "nx": "4", "nt": "2", "v0": '"-1"', **lines}
+def scene_text(eta0: str = "1 + x*(1 - x)", eps: str = "0.01", **lines) -> str:
+    base = {"T": "0.01", "alpha": "0.01", "scheme": f"{{ eps = {eps} }}", "nx": "4", "nt": "2", "v0": '"-1"', **lines}
     return "".join(f"{k} = {v}\n" for k, v in base.items()) + f"eta0 = {toml_string(eta0)}\n"
 
 
@@ -640,7 +640,7 @@ def test_summary_line_and_penetration_warning(tmp_path, capfd):
     # impact bound does not apply to a press: the report explains the depth by the creep ε∫F dt, no warning.
     scene = tmp_path / "loaded.toml"
     scene.write_text(
-        'T = 0.5\nalpha = 0.01\neps = 0.01\nnx = 50\nnt = 500\nh = 0.05\neta0 = "0.05"\nv0 = "0"\n'
+        'T = 0.5\nalpha = 0.01\nscheme = { eps = 0.01 }\nnx = 50\nnt = 500\nh = 0.05\neta0 = "0.05"\nv0 = "0"\n'
         'load = "-100"\nmodel = "loaded_obstacle"\n'
     )
     assert main(["run", str(scene), *QUICK]) == 0
@@ -742,7 +742,7 @@ def test_a_broken_mesh_file_is_refused_in_one_line_and_never_hangs(tmp_path, cas
     """Issue 27, items 1 and 2: dolfinx hung (index out of range: deaf to SIGTERM) or crashed (duplicate cells)."""
     cells, points, fragment = _bad_meshes()[case]
     mesh = write_mesh_file(tmp_path, "bad", cells, points)
-    (tmp_path / "s.toml").write_text(f'mesh = "{mesh.name}"\nT = 0.1\nnt = 10\nalpha = 0\neps = 0.01\n'
+    (tmp_path / "s.toml").write_text(f'mesh = "{mesh.name}"\nT = 0.1\nnt = 10\nalpha = 0\nscheme = {{ eps = 0.01 }}\n'
                                      'eta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
     try:  # a hang guard only: the refusal takes seconds; SIGKILL, since the hang ignored SIGTERM
         proc = subprocess.run([sys.executable, "-m", "stringcontact", "run", "s.toml", "--out", "o", *QUICK],
@@ -758,7 +758,8 @@ def test_a_valid_mesh_file_written_by_hand_still_runs(tmp_path, capfd):
     cells, points = grid_mesh(5)
     mesh = write_mesh_file(tmp_path, "good", cells, points)
     scene = tmp_path / "s.toml"
-    scene.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\neps = 0.01\neta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
+    scene.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\nscheme = {{ eps = 0.01 }}\n'
+                     'eta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "o"), *QUICK]) == 0, capfd.readouterr().err
 
 

@@ -186,12 +186,14 @@ T = 0.1
 dt = 0.00025
 nx = 100
 alpha = 0.01
-eps = 0.0005
 eta0 = "1 + 0.5*sin(10*pi*x)**2"
 v0 = "-50"
 h = 1.0
 model = "film"
-scheme = "paper"
+
+[scheme]
+name = "paper"
+eps = 0.0005
 
 [parameters]
 mu = 0.001
@@ -293,13 +295,15 @@ T = 0.2
 nt = 400
 nx = 50
 alpha = 0.01
-eps = 0.01
 eta0 = "1 + x*(1 - x)"
 v0 = "0"
 h = 1.0
-scheme = "projection"
 model = "loaded_obstacle"
 obstacle = "{obstacle}"
+
+[scheme]
+name = "projection"
+eps = 0.01
 """
 
 
@@ -372,10 +376,12 @@ T = 0.3
 nt = 40
 nx = 50
 alpha = 0.01
-eps = 0.01
 eta0 = "1 + 0.5*sin(10*pi*x)**2"
 v0 = "-1"
 h = 1.0
+
+[scheme]
+eps = 0.01
 """
 
 

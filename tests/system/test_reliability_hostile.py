@@ -280,7 +280,8 @@ def test_flags_are_checked_and_named(tmp_path, capsys, argv, fragment):
 
 def test_a_list_as_domain_is_one_line(tmp_path, capsys):
     scene = tmp_path / "s.toml"
-    scene.write_text('domain = ["disk"]\nT = 0.1\nnt = 10\nalpha = 0\neps = 0.01\neta0 = "1"\nv0 = -1\nnx = 10\n')
+    scene.write_text('domain = ["disk"]\nT = 0.1\nnt = 10\nalpha = 0\nscheme = { eps = 0.01 }\neta0 = "1"\nv0 = -1\n'
+                     'nx = 10\n')
     assert main(["run", str(scene), *QUICK]) == 2
     one_error_line(capsys.readouterr().err, "domain: invalid value")
 
@@ -298,7 +299,7 @@ def test_show_writes_the_mesh_path_that_works_anywhere(tmp_path, capsys, monkeyp
     """`show sub/s.toml` wrote mesh = "sub/m.xdmf": relative to the current folder, wrong beside the scene file."""
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "m.xdmf").write_text("<Xdmf/>")
-    (tmp_path / "sub" / "s.toml").write_text('mesh = "m.xdmf"\nT = 0.1\nnt = 10\nalpha = 0\neps = 0.01\n'
+    (tmp_path / "sub" / "s.toml").write_text('mesh = "m.xdmf"\nT = 0.1\nnt = 10\nalpha = 0\nscheme = { eps = 0.01 }\n'
                                              'eta0 = "1"\nv0 = -1\nh = 1\n')
     monkeypatch.chdir(tmp_path)
     assert main(["show", "sub/s.toml"]) == 0

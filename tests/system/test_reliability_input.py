@@ -39,7 +39,7 @@ def long_strip(tmp_path_factory) -> Path:
 
 
 def strip_scene(folder: Path, mesh: Path, **keys) -> Path:
-    values = {"T": 0.01, "alpha": 0.01, "eps": 0.001, "nt": 10, "eta0": "'1'", "v0": "0"} | keys
+    values = {"T": 0.01, "alpha": 0.01, "scheme": "{ eps = 0.001 }", "nt": 10, "eta0": "'1'", "v0": "0"} | keys
     path = folder / "strip.toml"
     path.write_text(f"mesh = '{mesh}'\n" + "".join(f"{k} = {v}\n" for k, v in values.items()))
     return path
@@ -91,7 +91,7 @@ def test_a_bad_petsc_option_value_is_one_line_naming_it_and_exit_2(capfd, tmp_pa
 
 def test_a_scene_petsc_option_of_the_wrong_type_is_one_line(capfd, tmp_path):
     scene = tmp_path / "s.toml"
-    scene.write_text('T = 0.3\nalpha = 0.01\neps = 5e-4\nnx = 20\nnt = 600\neta0 = "1"\nv0 = -5\n'
+    scene.write_text('T = 0.3\nalpha = 0.01\nscheme = { eps = 5e-4 }\nnx = 20\nnt = 600\neta0 = "1"\nv0 = -5\n'
                      "petsc_options = {ksp_type = true}\n")
     assert main(["run", str(scene), "--no-progress"]) == 2
     assert_one_line_error(capfd.readouterr().err, "ksp_type = true", "allowed: a word")
@@ -123,7 +123,7 @@ def test_mumps_output_units_are_refused_saying_why(capfd):
                                            ('domain = "disk"\nradius = 1\nmesh_size = 0.0015\n', "mesh_size")])
 def test_a_membrane_too_large_for_memory_is_refused_from_an_estimate(capfd, tmp_path, geometry, key):
     scene = tmp_path / "big.toml"
-    scene.write_text(geometry + 'T = 0.3\nalpha = 0.01\neps = 5e-4\nnt = 600\neta0 = "1"\nv0 = -5\n')
+    scene.write_text(geometry + 'T = 0.3\nalpha = 0.01\nscheme = { eps = 5e-4 }\nnt = 600\neta0 = "1"\nv0 = -5\n')
     from stringcontact.errors import SceneError
     from stringcontact.scene import load_scene
 

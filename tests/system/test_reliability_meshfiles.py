@@ -46,7 +46,8 @@ def write_xdmf(path: Path, h5_name: str, n_cells: int, n_points: int, grid_name:
 
 def scene(folder: Path, mesh: str) -> Path:
     path = folder / "s.toml"
-    path.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\neps = 0.01\neta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
+    path.write_text(f'mesh = "{mesh}"\nT = 0.01\nnt = 4\nalpha = 0\nscheme = {{ eps = 0.01 }}\n'
+                    'eta0 = "1 + 0.1*x*y"\nh = 1\nv0 = -1\n')
     return path
 
 

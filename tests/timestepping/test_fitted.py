@@ -19,7 +19,8 @@ def _mode(nx: int, dt_over_h: float, periods: float = 1.0):
     """sin(πx) on a unit string (period 2), high above the obstacle, α = 0."""
     nt = round(2.0 * periods * nx / dt_over_h)
     return sc.Scene.from_dict({"name": "mode", "length": 1.0, "T": 2.0 * periods, "nt": nt, "nx": nx, "alpha": 0.0,
-                               "eps": 1e-3, "h": HEIGHT, "eta0": f"{HEIGHT} + {AMPLITUDE}*sin(pi*x)", "v0": "0"})
+                               "scheme": {"eps": 1e-3}, "h": HEIGHT,
+                               "eta0": f"{HEIGHT} + {AMPLITUDE}*sin(pi*x)", "v0": "0"})
 
 
 def _run(scene, scheme="fitted", **kwargs):
@@ -92,7 +93,8 @@ def test_a_membrane_on_an_unstructured_disk_above_projection_s_dt_max():
 
 @pytest.mark.slow
 def test_the_stiff_string_lands_at_nine_times_projection_s_dt_max():
-    scene = sc.Scene.from_dict({"name": "stiff", "length": 1.0, "T": 0.2, "dt": 1e-3, "nx": 200, "alpha": 0.0, "eps": 1e-3,
+    scene = sc.Scene.from_dict({"name": "stiff", "length": 1.0, "T": 0.2, "dt": 1e-3, "nx": 200, "alpha": 0.0,
+                                "scheme": {"eps": 1e-3},
                                 "h": 0.2, "eta0": "0.2", "v0": "-1", "model": "stiff_string",
                                 "parameters": {"beta": 4e-3}})
     with pytest.raises(sc.InstabilityError, match=r"dt_max = 0\.000114"):

@@ -35,7 +35,7 @@ AGREE = 1e-11
 
 def contact_scene(**keys) -> Scene:
     """The square of test_membrane: thrown onto the obstacle, lands over a third of its area."""
-    data = dict(domain="rectangle", cells=[12, 12], T=0.4, nt=80, alpha=0.02, eps=0.005,
+    data = dict(domain="rectangle", cells=[12, 12], T=0.4, nt=80, alpha=0.02, scheme={"eps": 0.005},
                 eta0="0.05 + 0.1*sin(pi*x)*sin(pi*y)", v0="-2*sin(pi*x)*sin(pi*y)", h=0.05)
     data.update(keys)
     return Scene.from_dict(data)
