@@ -63,6 +63,29 @@ def test_the_newton_path_of_a_linear_model_is_the_linear_path(ex1, scheme, penal
     assert newton.checks["energy_balance"]["closes"]
 
 
+def _alive(kind) -> int:
+    import gc
+
+    gc.collect()
+    return sum(isinstance(o, kind) for o in gc.get_objects())
+
+
+@pytest.mark.parametrize("scheme,penalty", [("paper", "semi-implicit"), ("projection", None), ("newmark", None)])
+def test_a_nonlinear_run_leaves_nothing_alive(scheme, penalty):
+    """A finished run's Newton step and problem (its mesh, forms and SNES) are freed. petsc4py 3.25 (the dolfinx
+    wheel's) keeps a SNES's callbacks out of the garbage collector's sight: a callback bound to the Newton step kept
+    each run alive for ever, with its mesh's MPI communicators (8 a run; MPICH has 2,048, and a long session of runs
+    aborted when they ran out)."""
+    from stringcontact.timestepping.base import DiscreteProblem
+    from stringcontact.timestepping.newton import NewtonStep
+
+    scene = sc.load_scene("example1").replace(nx=20, nt=60)
+    before = _alive(NewtonStep), _alive(DiscreteProblem)
+    for _ in range(2):
+        assert run(scene, scheme=scheme, penalty=penalty, model=CUBIC).counters["newton iterations"] > 0
+    assert (_alive(NewtonStep), _alive(DiscreteProblem)) == before
+
+
 def test_a_linear_model_does_not_pay_for_newton(ex1):
     problem = _problem(ex1, sc.inelastic, "paper")
     assert problem.ops.nonlinear is None

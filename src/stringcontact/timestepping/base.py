@@ -12,6 +12,7 @@ about 0 for a node held at rest on the obstacle; what a scheme's identity puts e
 from __future__ import annotations
 
 import warnings
+import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
@@ -366,6 +367,20 @@ def check_law_stability(model, dt: float, eps: float, penalty: str) -> None:
     if kind == "refuse":
         raise InstabilityError(f"{why} (model '{model.name}', at step 0, t = 0)", step=0, time=0.0, r=r)
     warnings.warn(why, InstabilityWarning, stacklevel=4)
+
+
+def petsc_callback(method):
+    """The bound `method` as a PETSc callback (a SNES's function or Jacobian) that does not keep its object alive.
+
+    PETSc keeps a callback where Python's garbage collector cannot see it, so a bound method made a cycle (object →
+    SNES → method → object) that was never freed, with its mesh, forms and matrices, and the mesh's MPI
+    communicators: a nonlinear run left 8 behind, and MPICH (the dolfinx wheel's) has 2,048."""
+    ref = weakref.WeakMethod(method)
+
+    def call(*args):
+        return ref()(*args)
+
+    return call
 
 
 def petsc_vector(a: np.ndarray, comm) -> PETSc.Vec:

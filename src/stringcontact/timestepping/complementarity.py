@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from .base import Ranks
+from .base import Ranks, petsc_callback
 from .linear import Linear, _symmetric_rows, dirichlet_rows, set_from_options
 
 #: Active-set iterations before the step falls back to SNES VI. For an M-matrix they are at most the nodes that
@@ -177,8 +177,8 @@ class VariationalInequality:
 
     def _snes(self, comm, lower, upper, search: str, rtol: float) -> PETSc.SNES:
         snes = PETSc.SNES().create(comm)
-        snes.setFunction(self._residual, self.f)
-        snes.setJacobian(self._jacobian, self.A, self.A)
+        snes.setFunction(petsc_callback(self._residual), self.f)
+        snes.setJacobian(self._jacobian, self.A, self.A)  # a static method: it holds nothing
         options = {"snes_type": "vinewtonrsls", "snes_linesearch_type": search, "snes_rtol": rtol,
                    "snes_atol": 1e-300, "snes_stol": 0.0, "snes_max_it": 200, "ksp_type": "preonly",
                    "pc_type": "lu"} | ({"pc_factor_mat_solver_type": "mumps"} if comm.size > 1 else {})

@@ -26,7 +26,7 @@ from ..fem import compat
 from ..fem.packed import PackedForm
 from ..fem.powers import powers_as_products
 from .affine import LinearPath, _as_slice, affine_in, assemble_into
-from .base import Ranks, StepEnergy, petsc_vector
+from .base import Ranks, StepEnergy, petsc_callback, petsc_vector
 from .base import Scheme as Base
 from .linear import PREFIX, check_vi_linesearch, dirichlet_rows, options_held, set_from_options, solver_options
 
@@ -153,8 +153,8 @@ class NewtonStep(LinearPath):
         already made, `bounds`, for a VI's rescue). `line_search` replaces the options' (a rescue's)."""
         problem = self.problem
         snes = PETSc.SNES().create(problem.comm)
-        snes.setFunction(self._residual, self.G_vec)
-        snes.setJacobian(self._jacobian, self.J)
+        snes.setFunction(petsc_callback(self._residual), self.G_vec)
+        snes.setJacobian(petsc_callback(self._jacobian), self.J)
         self.notes = []
         options = solver_options(self.J.getSize()[0], problem.comm.size, problem.petsc_options, dim=problem.x.ndim,
                                  notes=self.notes)
