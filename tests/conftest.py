@@ -73,10 +73,7 @@ def _crashes_show_their_stack() -> None:
     PETSc.Sys.popSignalHandler()  # its stack empty, PETSc puts the signals' default actions back
     stream = sys.__stderr__ if sys.__stderr__ is not None else sys.stderr
     faulthandler.disable()
-    faulthandler.enable(file=_CRASH_STREAM.setdefault("fd", os.dup(stream.fileno())), all_threads=True)
-
-
-_CRASH_STREAM: dict = {}
+    faulthandler.enable(file=os.dup(stream.fileno()), all_threads=True)  # a descriptor of its own, open to the end
 
 
 def pytest_collection_modifyitems(config, items):
