@@ -372,9 +372,9 @@ def check_law_stability(model, dt: float, eps: float, penalty: str) -> None:
 def petsc_callback(method):
     """The bound `method` as a PETSc callback (a SNES's function or Jacobian) that does not keep its object alive.
 
-    PETSc keeps a callback where Python's garbage collector cannot see it, so a bound method made a cycle (object →
-    SNES → method → object) that was never freed, with its mesh, forms and matrices, and the mesh's MPI
-    communicators: a nonlinear run left 8 behind, and MPICH (the dolfinx wheel's) has 2,048."""
+    petsc4py 3.25 keeps a callback where Python's garbage collector cannot see it, so a bound method makes a cycle
+    (object → SNES → method → object) that is never freed, with its mesh, forms and matrices and the mesh's MPI
+    communicators: 8 a nonlinear run, of MPICH's 2,048 (the dolfinx wheel's; test_nonlinear.py counts the objects)."""
     ref = weakref.WeakMethod(method)
 
     def call(*args):
